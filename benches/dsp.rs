@@ -1,0 +1,5 @@
+//! DSP benchmarks (divan). Run: `cargo bench --bench dsp`.
+
+fn main() {
+    divan::main();
+}

@@ -1,0 +1,1 @@
+//! Instrument emulators: state machines behind the protocol servers.

@@ -1,0 +1,1 @@
+//! Faults the tests can switch on.

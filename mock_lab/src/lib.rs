@@ -1,0 +1,14 @@
+//! mock_lab: a simulated 80 GHz radar bench that speaks the real wire protocols.
+//!
+//! It shares no code with radbench on purpose: two independent implementations of each protocol
+//! catch the mistakes shared code would hide. Both read the instrument facts in `instruments/`.
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
+//! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
+//! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
+
+pub mod emulator;
+pub mod faults;
+pub mod server;

@@ -1,0 +1,1 @@
+//! VISA-style resource strings (see the transport layer).

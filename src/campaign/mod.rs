@@ -1,0 +1,1 @@
+//! Measurement campaigns: spec (TOML) -> plan (plain data) -> execute.

@@ -1,0 +1,1 @@
+//! Schema and loader for the instrument catalog in `instruments/*.toml`.

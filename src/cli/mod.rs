@@ -1,0 +1,48 @@
+//! The command line: one module per subcommand, each a clap struct and a `run()`.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+pub mod simulate;
+
+/// radbench: the 80 GHz radar-communication bench and its signal processing.
+#[derive(Debug, Parser)]
+#[command(name = "radbench", version, about, long_about = None)]
+pub struct Cli {
+    /// Write every instrument exchange to this file as JSON Lines (see README, "I/O journal").
+    #[arg(long, global = true, value_name = "FILE")]
+    pub trace_io: Option<PathBuf>,
+    /// More log output on stderr (-v info, -vv debug, -vvv trace).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate the signal chain: the thesis' scenarios, free-form runs and BER curves.
+    Simulate(simulate::Args),
+}
+
+/// Options every subcommand can see.
+#[derive(Debug, Clone, Default)]
+pub struct Global {
+    pub trace_io: Option<PathBuf>,
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let global = Global {
+        trace_io: cli.trace_io,
+    };
+    match cli.command {
+        Command::Simulate(args) => simulate::run(args, &global),
+    }
+}
+
+/// A tokio runtime for the subcommands that talk to instruments.
+pub fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?)
+}

@@ -1,0 +1,1 @@
+//! Layer 3: capability traits and the concrete instrument drivers.

@@ -1,0 +1,23 @@
+//! Pure signal processing: decimation, correlation, OFDM range processing, MUSIC, windows, metrics.
+
+use crate::exit::{Classify, ExitClass};
+
+/// A processing failure or an unusable processing parameter.
+#[derive(Debug, thiserror::Error)]
+pub enum DspError {
+    /// A parameter is out of range; the message names it and what is allowed.
+    #[error("{0}")]
+    Param(String),
+    /// The data could not be processed.
+    #[error("{0}")]
+    Processing(String),
+}
+
+impl Classify for DspError {
+    fn exit_class(&self) -> ExitClass {
+        match self {
+            DspError::Param(_) => ExitClass::BadInput,
+            DspError::Processing(_) => ExitClass::Processing,
+        }
+    }
+}

@@ -1,0 +1,89 @@
+//! Exit codes and how errors map to them.
+//!
+//! | code | meaning |
+//! |---|---|
+//! | 0 | success |
+//! | 1 | internal error (a bug: please report it) |
+//! | 2 | bad input: command line, TOML, parameters (the message names the field and what is allowed) |
+//! | 3 | instrument or link failure (the instrument refused, or the connection failed) |
+//! | 4 | processing failure (the data could not be processed into a result) |
+//! | 130 | interrupted by Ctrl-C (after the bench was put in its safe state) |
+
+use std::fmt;
+
+/// The class of a failure, which decides the process exit code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExitClass {
+    Internal,
+    BadInput,
+    Instrument,
+    Processing,
+    Interrupted,
+}
+
+impl ExitClass {
+    pub fn code(self) -> i32 {
+        match self {
+            ExitClass::Internal => 1,
+            ExitClass::BadInput => 2,
+            ExitClass::Instrument => 3,
+            ExitClass::Processing => 4,
+            ExitClass::Interrupted => 130,
+        }
+    }
+}
+
+/// Errors of every layer implement this so `main` can pick the exit code.
+pub trait Classify {
+    fn exit_class(&self) -> ExitClass;
+}
+
+/// An error that carries its class explicitly; the CLI wraps layer errors in it.
+#[derive(Debug)]
+pub struct Classified {
+    pub class: ExitClass,
+    pub message: String,
+}
+
+impl fmt::Display for Classified {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Classified {}
+
+/// Bad user input: the message must name the field and what is allowed.
+pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(Classified {
+        class: ExitClass::BadInput,
+        message: message.into(),
+    })
+}
+
+/// Walks an error chain and returns the class of the first error that knows its class.
+pub fn classify(err: &anyhow::Error) -> ExitClass {
+    for cause in err.chain() {
+        if let Some(c) = cause.downcast_ref::<Classified>() {
+            return c.class;
+        }
+        if let Some(class) = registered_class(cause) {
+            return class;
+        }
+        if cause.downcast_ref::<clap::Error>().is_some() {
+            return ExitClass::BadInput;
+        }
+    }
+    ExitClass::Internal
+}
+
+/// Layer error types register here (one line each) so their class is found in an `anyhow` chain.
+fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitClass> {
+    macro_rules! try_types {
+        ($($t:ty),* $(,)?) => {
+            $(if let Some(e) = cause.downcast_ref::<$t>() { return Some(e.exit_class()); })*
+        };
+    }
+    try_types!(crate::waveform::ParamError, crate::dsp::DspError);
+    None
+}

@@ -1,0 +1,45 @@
+//! radbench: drives an 80 GHz joint radar-communication bench and does its signal processing.
+//!
+//! # Layer map
+//!
+//! Imports only point down. Pure layers (`waveform`, `dsp`) do no I/O and never touch tokio or the
+//! file system; everything that talks to an instrument goes through `driver -> session -> transport`.
+//!
+//! ```text
+//! cli -> campaign -> measure -> driver -> session -> transport -> (tokio::net, serialport)
+//!           |            |         |
+//!           |            +-> dsp, waveform (pure)
+//!           +-> storage  +-> catalog
+//! ```
+//!
+//! | module | layer | what it holds |
+//! |---|---|---|
+//! | [`address`] | 1 | VISA-style resource strings, parsed and printed back identically |
+//! | [`transport`] | 1 | whole-message transports: raw socket, VXI-11, HiSLIP, VICP, serial, journal |
+//! | [`session`] | 2 | IEEE 488.2 / SCPI on a transport: queries, blocks, `*OPC?`, `SYST:ERR?` |
+//! | [`catalog`] | data | schema and loader for `instruments/*.toml` |
+//! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end) and the concrete drivers |
+//! | [`waveform`] | pure | MSK-LFM and OFDM generators, DAC quantisation, communication receivers |
+//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
+//! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
+//! | [`campaign`] | 5 | spec -> plan -> execute, safe state on every exit |
+//! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
+//! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
+//! | [`cli`] | app | one module per subcommand |
+//!
+//! Exit codes are in [`exit`]: 0 success, 2 bad input, 3 instrument or link failure, 4 processing
+//! failure.
+
+pub mod address;
+pub mod campaign;
+pub mod catalog;
+pub mod cli;
+pub mod driver;
+pub mod dsp;
+pub mod exit;
+pub mod measure;
+pub mod session;
+pub mod simulate;
+pub mod storage;
+pub mod transport;
+pub mod waveform;

@@ -1,0 +1,1 @@
+//! One bench measurement: configure, arm, capture, decimate, align, process.

@@ -1,0 +1,1 @@
+//! Outputs: run folders, SigMF, npy/CSV, plots.

@@ -1,0 +1,1 @@
+//! Layer 1: transports that move whole messages.
