@@ -21,6 +21,7 @@
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end) and the concrete drivers |
 //! | [`waveform`] | pure | MSK-LFM and OFDM generators, DAC quantisation, communication receivers |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
+//! | [`rng`] | pure | seeded SplitMix64 bits and Gaussian noise |
 //! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
 //! | [`campaign`] | 5 | spec -> plan -> execute, safe state on every exit |
 //! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
@@ -38,6 +39,7 @@ pub mod driver;
 pub mod dsp;
 pub mod exit;
 pub mod measure;
+pub mod rng;
 pub mod session;
 pub mod simulate;
 pub mod storage;

@@ -3,6 +3,9 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+pub mod bench;
+pub mod idn;
+pub mod scpi;
 pub mod simulate;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
@@ -23,6 +26,12 @@ pub struct Cli {
 pub enum Command {
     /// Simulate the signal chain: the thesis' scenarios, free-form runs and BER curves.
     Simulate(simulate::Args),
+    /// Time the DSP kernels on thesis-sized inputs.
+    Bench(bench::Args),
+    /// Ask an instrument who it is (`*IDN?`).
+    Idn(idn::Args),
+    /// Send SCPI commands to an instrument, one-shot or at an interactive prompt.
+    Scpi(scpi::Args),
 }
 
 /// Options every subcommand can see.
@@ -37,6 +46,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     };
     match cli.command {
         Command::Simulate(args) => simulate::run(args, &global),
+        Command::Bench(args) => bench::run(args, &global),
+        Command::Idn(args) => idn::run(args, &global),
+        Command::Scpi(args) => scpi::run(args, &global),
     }
 }
 

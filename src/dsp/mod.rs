@@ -21,3 +21,13 @@ impl Classify for DspError {
         }
     }
 }
+
+pub mod correlate;
+pub mod decimate;
+pub mod metrics;
+pub mod music;
+pub mod ofdm_radar;
+pub mod window;
+
+/// Speed of light in vacuum, m/s (the thesis rounds it to 3e8).
+pub const C0: f64 = 299_792_458.0;

@@ -14,3 +14,7 @@ impl Classify for ParamError {
         ExitClass::BadInput
     }
 }
+
+pub mod msk_lfm;
+pub mod ofdm;
+pub mod quantise;

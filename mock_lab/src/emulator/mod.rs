@@ -1,1 +1,6 @@
 //! Instrument emulators: state machines behind the protocol servers.
+
+pub mod gotmic;
+pub mod lecroy;
+pub mod loopback;
+pub mod m8195a;

@@ -1,0 +1,1 @@
+//! Gotmic E-band Tx/Rx emulators (project-defined serial protocol, instruments.md section 5).

@@ -1,0 +1,1 @@
+//! Teledyne LeCroy LabMaster emulator.

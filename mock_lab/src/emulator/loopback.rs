@@ -1,0 +1,1 @@
+//! A generic test instrument for transport tests: identity, block store and echo, slow replies.

@@ -1,0 +1,1 @@
+//! Keysight M8195A emulator.

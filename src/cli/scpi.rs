@@ -1,0 +1,8 @@
+//! `radbench scpi`.
+
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args, _global: &super::Global) -> anyhow::Result<()> {
+    anyhow::bail!("scpi: under construction")
+}

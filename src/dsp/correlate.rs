@@ -1,0 +1,1 @@
+//! FFT cross-correlation with the transmit spectrum computed once.

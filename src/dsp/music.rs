@@ -1,0 +1,1 @@
+//! MUSIC super-resolution (spatial smoothing, forward-backward, MDL/AIC) and a grid-free estimator.

@@ -1,0 +1,1 @@
+//! OFDM radar: framing, CP removal, spectral division, zero-padded IFFT, range-Doppler.

@@ -1,0 +1,1 @@
+//! Windows: Hann, Taylor, Chebyshev.
