@@ -1,0 +1,658 @@
+//! The physics of the simulated bench: what the scope's I and Q channels show, given what the AWG
+//! plays, the state of the front ends and the targets in front of the antennas.
+//!
+//! The chain, in the order it is applied:
+//!
+//! 1. The AWG loops one segment of signed 8-bit codes on I (channel 1) and Q (channel 2); a code `c`
+//!    leaves the DAC as `c * Vpp / 255` volts. Its interpolation filter is modelled as ideal (the
+//!    segment is band-limited and periodic, so the analogue signal is its Fourier series).
+//! 2. The Tx up-converts it when enabled (an attenuation code lowers every path, 0.5 dB a step); every
+//!    path — each target, each static clutter reflector and the direct Tx->Rx leakage — delays it by
+//!    `tau = 2 R / c0` plus the fixed system delay (cables, marker latency) and rotates it by the
+//!    physical carrier phase `exp(-j 2 pi f_c tau)` at the configured RF (80 GHz by default). A moving
+//!    target adds its Doppler `exp(-j 2 pi (2 v f_c / c0) t)`; range migration within one capture
+//!    (micrometres) is ignored.
+//! 3. The Rx down-converts when enabled; residual phase noise (a Wiener process), I/Q imbalance and DC
+//!    offset are applied; thermal noise is added at the configured SNR.
+//! 4. The scope samples at an integer multiple of the AWG rate (80 GSa/s), starting at its trigger
+//!    offset after the marker edge (plus trigger jitter), and quantises with its 8-bit ADC over eight
+//!    vertical divisions, clipping at the screen edges. Samples are delivered as 16-bit words with the
+//!    8-bit code in the upper byte, as the LeCroy scope does with `CFMT DEF9,WORD,BIN`.
+//!
+//! SNR is defined as in radbench's thesis notes: per target of unit amplitude, per complex sample at
+//! the capture rate, relative to the mean power of the waveform loaded in the AWG.
+//!
+//! Synthesis costs one FFT of the AWG segment and one inverse FFT at the capture rate per capture
+//! (plus one per moving target): a 1 280 000-sample capture takes a few tens of milliseconds.
+
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// Speed of light in vacuum, m/s.
+pub const C0: f64 = 299_792_458.0;
+
+/// One reflector in front of the antennas.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Target {
+    /// One-way distance from the antennas, metres.
+    pub range_m: f64,
+    /// Voltage gain of this path from the AWG output to the scope input (linear).
+    #[serde(default = "default_amplitude")]
+    pub amplitude: f64,
+    /// Radial velocity, m/s; positive moves away from the radar.
+    #[serde(default)]
+    pub velocity_mps: f64,
+}
+
+fn default_amplitude() -> f64 {
+    0.5
+}
+
+/// The direct Tx -> Rx path between the two horns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Leakage {
+    /// Voltage gain of the leakage path (linear).
+    pub amplitude: f64,
+    /// Its delay, seconds (before the system delay is added).
+    pub delay_s: f64,
+}
+
+impl Default for Leakage {
+    fn default() -> Self {
+        Self {
+            amplitude: 0.01,
+            delay_s: 0.2e-9,
+        }
+    }
+}
+
+/// Receiver impairments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Impairments {
+    /// DC offset added to I and Q at the scope input, volts.
+    pub dc_offset_v: [f64; 2],
+    /// Q gain relative to I, dB.
+    pub iq_gain_db: f64,
+    /// Q phase error relative to I, degrees.
+    pub iq_phase_deg: f64,
+    /// Residual phase-noise linewidth after LO sharing, Hz (0 = none).
+    pub phase_noise_linewidth_hz: f64,
+}
+
+/// Everything about the bench that is not an instrument setting. Loaded from a TOML scene file and
+/// changed at run time through the control channel.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scene {
+    /// RF carrier, Hz (sets the echo phase and Doppler).
+    pub carrier_hz: f64,
+    /// The targets, measured by the radar.
+    pub targets: Vec<Target>,
+    /// Static clutter (walls, table, mounts): reflectors that do not move between captures.
+    pub clutter: Vec<Target>,
+    /// Direct Tx -> Rx leakage.
+    pub leakage: Leakage,
+    /// SNR per unit-amplitude target per complex sample at the capture rate, dB.
+    pub snr_db: f64,
+    /// Fixed delay of cables, horns and marker latency, seconds: calibrated out by radbench.
+    pub system_delay_s: f64,
+    /// RMS trigger jitter, seconds.
+    pub trigger_jitter_s: f64,
+    /// Receiver impairments.
+    pub impairments: Impairments,
+    /// Seed of the noise and jitter generator (each capture advances it).
+    pub seed: u64,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            carrier_hz: 80e9,
+            targets: vec![Target {
+                range_m: 1.0,
+                amplitude: 0.5,
+                velocity_mps: 0.0,
+            }],
+            clutter: Vec::new(),
+            leakage: Leakage::default(),
+            snr_db: 30.0,
+            system_delay_s: 2.5e-9,
+            trigger_jitter_s: 0.0,
+            impairments: Impairments::default(),
+            seed: 1,
+        }
+    }
+}
+
+/// A scene file or change that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("scene file {path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("scene field `{field}`: {message}")]
+    Invalid { field: String, message: String },
+    #[error("cannot synthesise a capture: {0}")]
+    Synthesis(String),
+}
+
+fn invalid(field: impl Into<String>, message: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+impl Scene {
+    /// Parses and validates a scene from TOML text; `origin` names the file in error messages.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, SceneError> {
+        let scene: Scene = toml::from_str(text).map_err(|e| SceneError::Parse {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Checks every field against what the physics can represent.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        finite_in("carrier_hz", self.carrier_hz, 0.0, 1e12)?;
+        finite_in("snr_db", self.snr_db, -60.0, 200.0)?;
+        finite_in("system_delay_s", self.system_delay_s, 0.0, 1e-6)?;
+        finite_in("trigger_jitter_s", self.trigger_jitter_s, 0.0, 1e-9)?;
+        finite_in("leakage.amplitude", self.leakage.amplitude, 0.0, 10.0)?;
+        finite_in("leakage.delay_s", self.leakage.delay_s, 0.0, 1e-6)?;
+        for (list, name) in [(&self.targets, "targets"), (&self.clutter, "clutter")] {
+            for (i, t) in list.iter().enumerate() {
+                finite_in(&format!("{name}[{i}].range_m"), t.range_m, 0.0, 150.0)?;
+                finite_in(&format!("{name}[{i}].amplitude"), t.amplitude, 0.0, 10.0)?;
+                finite_in(
+                    &format!("{name}[{i}].velocity_mps"),
+                    t.velocity_mps,
+                    -1000.0,
+                    1000.0,
+                )?;
+            }
+        }
+        let imp = &self.impairments;
+        for (k, v) in imp.dc_offset_v.iter().enumerate() {
+            finite_in(&format!("impairments.dc_offset_v[{k}]"), *v, -1.0, 1.0)?;
+        }
+        finite_in("impairments.iq_gain_db", imp.iq_gain_db, -6.0, 6.0)?;
+        finite_in("impairments.iq_phase_deg", imp.iq_phase_deg, -45.0, 45.0)?;
+        finite_in(
+            "impairments.phase_noise_linewidth_hz",
+            imp.phase_noise_linewidth_hz,
+            0.0,
+            1e9,
+        )?;
+        Ok(())
+    }
+}
+
+fn finite_in(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(invalid(
+            field,
+            format!("{v} is outside the allowed range {lo} ..= {hi}"),
+        ))
+    }
+}
+
+/// What the AWG is playing, as the scene needs it.
+#[derive(Debug, Clone, Copy)]
+pub struct AwgPlayback<'a> {
+    /// Channel 1 codes (I), one period of the looped segment.
+    pub i: &'a [i8],
+    /// Channel 2 codes (Q), same length.
+    pub q: &'a [i8],
+    /// Sample rate of the segment (after the AWG's divider), Sa/s.
+    pub sample_rate: f64,
+    /// Peak-to-peak amplitude of channels 1 and 2, volts.
+    pub amplitude_vpp: [f64; 2],
+    /// Index within the segment where the marker's rising edge sits.
+    pub marker_index: usize,
+    /// Whether channels 1 and 2 are on and the AWG is running.
+    pub playing: bool,
+    /// Whether the marker output (channel 3) is on.
+    pub marker_out: bool,
+}
+
+/// The front ends' state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrontEnds {
+    pub tx_enabled: bool,
+    /// Tx attenuation code, 0.5 dB a step.
+    pub tx_attenuation_code: u16,
+    pub rx_enabled: bool,
+    /// Rx attenuation code, 0.5 dB a step.
+    pub rx_attenuation_code: u16,
+}
+
+impl FrontEnds {
+    /// Both enabled at full gain: what a test wants when it does not model the front ends.
+    pub const ALL_ON: FrontEnds = FrontEnds {
+        tx_enabled: true,
+        tx_attenuation_code: 0,
+        rx_enabled: true,
+        rx_attenuation_code: 0,
+    };
+
+    fn path_gain(&self) -> f64 {
+        if !(self.tx_enabled && self.rx_enabled) {
+            return 0.0;
+        }
+        let att_db = 0.5 * f64::from(self.tx_attenuation_code + self.rx_attenuation_code);
+        10f64.powf(-att_db / 20.0)
+    }
+}
+
+/// How the scope acquires.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CaptureSetup {
+    /// Sample rate, Sa/s: an integer multiple of the AWG rate.
+    pub sample_rate: f64,
+    /// Number of points to acquire per channel.
+    pub points: usize,
+    /// Time of the first point relative to the trigger, seconds (LeCroy's HORIZ_OFFSET; negative =
+    /// pre-trigger samples).
+    pub trigger_offset_s: f64,
+    /// Vertical scale of channels 1 and 2, volts per division (eight divisions full screen).
+    pub volts_per_div: [f64; 2],
+    /// Vertical offset of channels 1 and 2, volts (added before quantisation, as LeCroy's OFFSET).
+    pub offset_v: [f64; 2],
+}
+
+/// One acquisition of both channels.
+#[derive(Debug, Clone)]
+pub struct Capture {
+    /// Channel 1 (I) as 16-bit words, the 8-bit ADC code in the upper byte.
+    pub i_words: Vec<i16>,
+    /// Channel 2 (Q), same format.
+    pub q_words: Vec<i16>,
+    /// Volts per word LSB for channels 1 and 2: volts = gain * word - offset.
+    pub vertical_gain: [f64; 2],
+    /// Vertical offset (volts) for channels 1 and 2, as in WAVEDESC.
+    pub vertical_offset: [f64; 2],
+    /// Sample period, seconds.
+    pub horiz_interval: f64,
+    /// First sample relative to the trigger, seconds (with this capture's jitter).
+    pub horiz_offset: f64,
+    /// Samples that hit the ADC's top or bottom code, per channel.
+    pub clipped: [usize; 2],
+    /// The scene as it was for this capture: the ground truth.
+    pub scene: Scene,
+}
+
+/// Scope ADC resolution.
+const ADC_BITS: u32 = 8;
+/// Vertical divisions on the scope's screen, spanned by the ADC's full range.
+const DIVISIONS: f64 = 8.0;
+
+/// Synthesises captures; holds FFT plans and the last segment's spectrum between captures.
+pub struct Synthesizer {
+    planner: FftPlanner<f64>,
+    plans: HashMap<(usize, bool), Arc<dyn Fft<f64>>>,
+    /// Spectrum of the last segment, keyed by a hash of its codes, rate and amplitudes.
+    cached: Option<(u64, Vec<Complex64>, f64)>,
+    rng: SplitMix64,
+}
+
+impl Synthesizer {
+    pub fn new(seed: u64) -> Self {
+        Self {
+            planner: FftPlanner::new(),
+            plans: HashMap::new(),
+            cached: None,
+            rng: SplitMix64::new(seed),
+        }
+    }
+
+    fn plan(&mut self, len: usize, inverse: bool) -> Arc<dyn Fft<f64>> {
+        let planner = &mut self.planner;
+        self.plans
+            .entry((len, inverse))
+            .or_insert_with(|| {
+                if inverse {
+                    planner.plan_fft_inverse(len)
+                } else {
+                    planner.plan_fft_forward(len)
+                }
+            })
+            .clone()
+    }
+
+    /// The spectrum of the segment in volts (unnormalised FFT) and its mean power, cached.
+    fn segment_spectrum(&mut self, awg: &AwgPlayback<'_>) -> (Vec<Complex64>, f64) {
+        let key = segment_key(awg);
+        if let Some((k, spec, power)) = &self.cached {
+            if *k == key {
+                return (spec.clone(), *power);
+            }
+        }
+        let (si, sq) = (awg.amplitude_vpp[0] / 255.0, awg.amplitude_vpp[1] / 255.0);
+        let mut x: Vec<Complex64> = awg
+            .i
+            .iter()
+            .zip(awg.q)
+            .map(|(&i, &q)| Complex64::new(f64::from(i) * si, f64::from(q) * sq))
+            .collect();
+        let power = x.iter().map(|v| v.norm_sqr()).sum::<f64>() / x.len().max(1) as f64;
+        let fft = self.plan(x.len(), false);
+        fft.process(&mut x);
+        self.cached = Some((key, x.clone(), power));
+        (x, power)
+    }
+
+    /// One acquisition of the scene as the scope would make it.
+    pub fn capture(
+        &mut self,
+        scene: &Scene,
+        awg: &AwgPlayback<'_>,
+        front: FrontEnds,
+        setup: &CaptureSetup,
+    ) -> Result<Capture, SceneError> {
+        check_setup(awg, setup)?;
+        let l = awg.i.len();
+        let up = (setup.sample_rate / awg.sample_rate).round() as usize;
+        let period = l * up;
+        let jitter = scene.trigger_jitter_s * self.rng.gaussian();
+        let horiz_offset = setup.trigger_offset_s + jitter;
+        // The marker edge (the trigger) leaves with segment sample `marker_index`; the record starts
+        // `horiz_offset` after it.
+        let t0 = awg.marker_index as f64 / awg.sample_rate + horiz_offset;
+
+        let (spectrum, power) = self.segment_spectrum(awg);
+        let mut y = vec![Complex64::new(0.0, 0.0); setup.points];
+        let gain = if awg.playing { front.path_gain() } else { 0.0 };
+        if gain > 0.0 {
+            let paths = paths(scene);
+            let (still, moving): (Vec<_>, Vec<_>) = paths.iter().partition(|p| p.doppler_hz == 0.0);
+            if !still.is_empty() {
+                let one = self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
+                add_window(&mut y, &one, 0.0, setup.sample_rate, t0, period);
+            }
+            for path in moving {
+                let one = self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
+                add_window(&mut y, &one, path.doppler_hz, setup.sample_rate, t0, period);
+            }
+        }
+        self.impair(&mut y, scene, setup.sample_rate);
+        let reference_power = if power > 0.0 { power } else { 0.25 * 0.25 };
+        let noise_var = reference_power / 10f64.powf(scene.snr_db / 10.0);
+        let sigma = (noise_var / 2.0).sqrt();
+        for v in y.iter_mut() {
+            *v += Complex64::new(sigma * self.rng.gaussian(), sigma * self.rng.gaussian());
+        }
+        Ok(quantise(&y, setup, horiz_offset, scene.clone()))
+    }
+
+    /// One period of the sum of `paths` at `up` times the segment rate, starting at `t0` after the
+    /// segment's first sample.
+    fn render(
+        &mut self,
+        spectrum: &[Complex64],
+        fs: f64,
+        up: usize,
+        t0: f64,
+        paths: &[&Path],
+        gain: f64,
+    ) -> Vec<Complex64> {
+        let l = spectrum.len();
+        let n = l * up;
+        let mut out = vec![Complex64::new(0.0, 0.0); n];
+        // Bins are placed by signed frequency so the band-limited waveform is interpolated exactly;
+        // the inverse FFT of length n (unnormalised) needs 1/l to return volts.
+        let scale = gain / l as f64;
+        let half = l / 2;
+        for (k, x) in spectrum.iter().enumerate() {
+            let signed = if k < half || (k == half && l % 2 == 1) {
+                k as i64
+            } else {
+                k as i64 - l as i64
+            };
+            let f = signed as f64 * fs / l as f64;
+            let mut h = Complex64::new(0.0, 0.0);
+            for p in paths {
+                // Carrier phase and delay for the path; e^{+j 2 pi f t0} shifts the start of the record.
+                let phase = -2.0 * PI * (p.carrier_hz * p.delay_s + f * (p.delay_s - t0));
+                h += Complex64::from_polar(p.amplitude, phase);
+            }
+            let idx = signed.rem_euclid(n as i64) as usize;
+            out[idx] = x * h * scale;
+        }
+        let ifft = self.plan(n, true);
+        ifft.process(&mut out);
+        out
+    }
+
+    fn impair(&mut self, y: &mut [Complex64], scene: &Scene, fs: f64) {
+        let imp = &scene.impairments;
+        if imp.phase_noise_linewidth_hz > 0.0 {
+            let step = (2.0 * PI * imp.phase_noise_linewidth_hz / fs).sqrt();
+            let mut phi = 0.0;
+            for v in y.iter_mut() {
+                phi += step * self.rng.gaussian();
+                *v *= Complex64::from_polar(1.0, phi);
+            }
+        }
+        if imp.iq_gain_db != 0.0 || imp.iq_phase_deg != 0.0 {
+            let g = 10f64.powf(imp.iq_gain_db / 20.0);
+            let (s, c) = imp.iq_phase_deg.to_radians().sin_cos();
+            for v in y.iter_mut() {
+                let q = g * (v.im * c - v.re * s);
+                v.im = q;
+            }
+        }
+        let [di, dq] = imp.dc_offset_v;
+        if di != 0.0 || dq != 0.0 {
+            for v in y.iter_mut() {
+                v.re += di;
+                v.im += dq;
+            }
+        }
+    }
+}
+
+/// One propagation path, resolved to delay, amplitude and Doppler.
+#[derive(Debug, Clone, Copy)]
+struct Path {
+    delay_s: f64,
+    amplitude: f64,
+    carrier_hz: f64,
+    doppler_hz: f64,
+}
+
+fn paths(scene: &Scene) -> Vec<Path> {
+    let mut out = Vec::with_capacity(scene.targets.len() + scene.clutter.len() + 1);
+    for t in scene.targets.iter().chain(&scene.clutter) {
+        out.push(Path {
+            delay_s: 2.0 * t.range_m / C0 + scene.system_delay_s,
+            amplitude: t.amplitude,
+            carrier_hz: scene.carrier_hz,
+            doppler_hz: -2.0 * t.velocity_mps * scene.carrier_hz / C0,
+        });
+    }
+    if scene.leakage.amplitude > 0.0 {
+        out.push(Path {
+            delay_s: scene.leakage.delay_s + scene.system_delay_s,
+            amplitude: scene.leakage.amplitude,
+            carrier_hz: scene.carrier_hz,
+            doppler_hz: 0.0,
+        });
+    }
+    out
+}
+
+/// Adds the record window of one rendered period to `y` (the segment loops, so the window wraps),
+/// rotated by the path's Doppler.
+fn add_window(
+    y: &mut [Complex64],
+    period: &[Complex64],
+    doppler_hz: f64,
+    fs: f64,
+    t0: f64,
+    n: usize,
+) {
+    // The record is the period repeated from its start; walk it in contiguous runs.
+    let mut rot = Complex64::from_polar(1.0, 2.0 * PI * doppler_hz * t0);
+    let step = Complex64::from_polar(1.0, 2.0 * PI * doppler_hz / fs);
+    for run in y.chunks_mut(n) {
+        if doppler_hz == 0.0 {
+            for (v, p) in run.iter_mut().zip(period) {
+                *v += p;
+            }
+        } else {
+            for (v, p) in run.iter_mut().zip(period) {
+                *v += p * rot;
+                rot *= step;
+            }
+        }
+    }
+}
+
+fn check_setup(awg: &AwgPlayback<'_>, setup: &CaptureSetup) -> Result<(), SceneError> {
+    if awg.i.len() != awg.q.len() {
+        return Err(SceneError::Synthesis(format!(
+            "I has {} samples but Q has {}: load both channels with segments of the same length",
+            awg.i.len(),
+            awg.q.len()
+        )));
+    }
+    if awg.i.is_empty() {
+        return Err(SceneError::Synthesis("the AWG holds no waveform".into()));
+    }
+    if !(awg.sample_rate > 0.0 && setup.sample_rate > 0.0) {
+        return Err(SceneError::Synthesis(
+            "sample rates must be positive".into(),
+        ));
+    }
+    let ratio = setup.sample_rate / awg.sample_rate;
+    if ratio < 1.0 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
+        return Err(SceneError::Synthesis(format!(
+            "the scope rate {} Sa/s must be an integer multiple of the AWG rate {} Sa/s",
+            setup.sample_rate, awg.sample_rate
+        )));
+    }
+    if setup.points == 0 || setup.points > 64 << 20 {
+        return Err(SceneError::Synthesis(format!(
+            "{} points per channel: the emulated scope records 1 ..= {} points",
+            setup.points,
+            64 << 20
+        )));
+    }
+    if setup
+        .volts_per_div
+        .iter()
+        .any(|v| !(v.is_finite() && *v > 0.0))
+    {
+        return Err(SceneError::Synthesis(
+            "volts per division must be positive".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The scope's ADC: eight divisions span 2^8 codes; the 8-bit code goes in the upper byte of a word.
+fn quantise(y: &[Complex64], setup: &CaptureSetup, horiz_offset: f64, scene: Scene) -> Capture {
+    let levels = (1u32 << ADC_BITS) as f64;
+    let mut words = [Vec::with_capacity(y.len()), Vec::with_capacity(y.len())];
+    let mut clipped = [0usize; 2];
+    let mut gains = [0.0; 2];
+    for ch in 0..2 {
+        let step = DIVISIONS * setup.volts_per_div[ch] / levels;
+        gains[ch] = step / 256.0;
+        let (lo, hi) = (-(levels / 2.0), levels / 2.0 - 1.0);
+        for v in y {
+            let volts = if ch == 0 { v.re } else { v.im } + setup.offset_v[ch];
+            let code = (volts / step).round();
+            let code = if code < lo || code > hi {
+                clipped[ch] += 1;
+                code.clamp(lo, hi)
+            } else {
+                code
+            };
+            words[ch].push((code as i16) << 8);
+        }
+    }
+    let [i_words, q_words] = words;
+    Capture {
+        i_words,
+        q_words,
+        vertical_gain: gains,
+        vertical_offset: setup.offset_v,
+        horiz_interval: 1.0 / setup.sample_rate,
+        horiz_offset,
+        clipped,
+        scene,
+    }
+}
+
+fn segment_key(awg: &AwgPlayback<'_>) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    awg.i.hash(&mut h);
+    awg.q.hash(&mut h);
+    awg.sample_rate.to_bits().hash(&mut h);
+    awg.amplitude_vpp[0].to_bits().hash(&mut h);
+    awg.amplitude_vpp[1].to_bits().hash(&mut h);
+    h.finish()
+}
+
+/// SplitMix64 with Box-Muller: mock_lab's own seeded generator (it shares no code with radbench).
+#[derive(Debug, Clone)]
+struct SplitMix64 {
+    state: u64,
+    spare: Option<f64>,
+}
+
+impl SplitMix64 {
+    fn new(seed: u64) -> Self {
+        Self {
+            state: seed,
+            spare: None,
+        }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn uniform_signed(&mut self) -> f64 {
+        // 53 random bits mapped to [-1, 1).
+        (self.next_u64() >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0
+    }
+
+    /// Standard normal deviate by Marsaglia's polar method (no trigonometry: the synthesis draws
+    /// millions per capture).
+    fn gaussian(&mut self) -> f64 {
+        if let Some(z) = self.spare.take() {
+            return z;
+        }
+        loop {
+            let u = self.uniform_signed();
+            let v = self.uniform_signed();
+            let s = u * u + v * v;
+            if s > 0.0 && s < 1.0 {
+                let f = (-2.0 * s.ln() / s).sqrt();
+                self.spare = Some(v * f);
+                return u * f;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
