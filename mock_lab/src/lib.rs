@@ -6,10 +6,12 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
+//! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |
 //! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
 //! | [`scene`] | the physics: what the scope sees given the AWG, the front ends and the targets |
 
+pub mod control;
 pub mod emulator;
 pub mod faults;
 pub mod scene;

@@ -1,0 +1,244 @@
+//! The scene control channel: a small JSON-lines protocol on 127.0.0.1 that lets campaigns and tests
+//! change the scene while the lab runs, and read back the ground truth of the last capture.
+//!
+//! One request per line, one reply line per request:
+//!
+//! | request | effect |
+//! |---|---|
+//! | `{"cmd":"get"}` | reply `{"ok":true,"scene":{...}}` |
+//! | `{"cmd":"set","scene":{...}}` | replace the whole scene (validated) |
+//! | `{"cmd":"move","target":0,"range_m":1.03}` | move target 0 |
+//! | `{"cmd":"add","target":{"range_m":2.0,"amplitude":0.3}}` | add a target; reply has its `"index"` |
+//! | `{"cmd":"remove","target":1}` | remove target 1 |
+//! | `{"cmd":"snr","snr_db":15.0}` | change the SNR |
+//! | `{"cmd":"last_capture"}` | `{"ok":true,"captures":N,"scene":{...}}`: the scene of the last capture |
+//!
+//! Errors reply `{"ok":false,"error":"..."}` and change nothing.
+
+use crate::scene::{Scene, Target};
+use serde::Deserialize;
+use serde_json::{json, Value};
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex, MutexGuard};
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpListener;
+
+/// The scene shared by the emulators and the control channel, with the ground truth of the last
+/// capture.
+#[derive(Debug, Default)]
+pub struct SharedScene {
+    scene: Mutex<Scene>,
+    last: Mutex<(u64, Option<Scene>)>,
+}
+
+impl SharedScene {
+    pub fn new(scene: Scene) -> Arc<Self> {
+        Arc::new(Self {
+            scene: Mutex::new(scene),
+            last: Mutex::new((0, None)),
+        })
+    }
+
+    /// The scene now.
+    pub fn snapshot(&self) -> Scene {
+        lock(&self.scene).clone()
+    }
+
+    /// Records that a capture was made with `scene`.
+    pub fn record_capture(&self, scene: Scene) {
+        let mut last = lock(&self.last);
+        last.0 += 1;
+        last.1 = Some(scene);
+    }
+
+    /// Number of captures so far and the scene of the last one.
+    pub fn last_capture(&self) -> (u64, Option<Scene>) {
+        lock(&self.last).clone()
+    }
+
+    /// Applies one control request and returns the reply (never panics on bad input).
+    pub fn apply(&self, line: &str) -> Value {
+        match self.try_apply(line) {
+            Ok(v) => v,
+            Err(e) => json!({"ok": false, "error": e}),
+        }
+    }
+
+    fn try_apply(&self, line: &str) -> Result<Value, String> {
+        let req: Request = serde_json::from_str(line).map_err(|e| {
+            format!(
+                "bad request ({e}); send one JSON object per line with \"cmd\" one of get, set, \
+                 move, add, remove, snr, last_capture"
+            )
+        })?;
+        if let Request::Get = req {
+            return Ok(json!({"ok": true, "scene": self.snapshot()}));
+        }
+        if let Request::LastCapture = req {
+            let (n, scene) = self.last_capture();
+            return Ok(json!({"ok": true, "captures": n, "scene": scene}));
+        }
+        let mut guard = lock(&self.scene);
+        let mut next = guard.clone();
+        let mut reply = json!({"ok": true});
+        match req {
+            Request::Set { scene } => next = scene,
+            Request::Move { target, range_m } => {
+                let n = next.targets.len();
+                let t = next
+                    .targets
+                    .get_mut(target)
+                    .ok_or_else(|| format!("no target {target}: the scene has {n} targets"))?;
+                t.range_m = range_m;
+            }
+            Request::Add { target } => {
+                next.targets.push(target);
+                reply["index"] = json!(next.targets.len() - 1);
+            }
+            Request::Remove { target } => {
+                if target >= next.targets.len() {
+                    return Err(format!(
+                        "no target {target}: the scene has {} targets",
+                        next.targets.len()
+                    ));
+                }
+                next.targets.remove(target);
+            }
+            Request::Snr { snr_db } => next.snr_db = snr_db,
+            Request::Get | Request::LastCapture => {}
+        }
+        next.validate().map_err(|e| e.to_string())?;
+        *guard = next;
+        Ok(reply)
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic elsewhere must not take the lab down: the data is plain and always consistent.
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "cmd", rename_all = "snake_case", deny_unknown_fields)]
+enum Request {
+    Get,
+    Set { scene: Scene },
+    Move { target: usize, range_m: f64 },
+    Add { target: Target },
+    Remove { target: usize },
+    Snr { snr_db: f64 },
+    LastCapture,
+}
+
+/// Longest request line accepted (a whole scene with many targets fits easily).
+const MAX_LINE: usize = 1 << 20;
+
+/// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns the bound
+/// address at once and serves until the runtime shuts down.
+pub async fn serve(shared: Arc<SharedScene>, addr: SocketAddr) -> std::io::Result<SocketAddr> {
+    let listener = TcpListener::bind(addr).await?;
+    let local = listener.local_addr()?;
+    tokio::spawn(async move {
+        loop {
+            let Ok((stream, _)) = listener.accept().await else {
+                continue;
+            };
+            let shared = shared.clone();
+            tokio::spawn(async move {
+                let (rd, mut wr) = stream.into_split();
+                let mut rd = BufReader::new(rd);
+                let mut line = String::new();
+                loop {
+                    line.clear();
+                    match (&mut rd).take(MAX_LINE as u64).read_line(&mut line).await {
+                        Ok(0) | Err(_) => break,
+                        Ok(_) => {}
+                    }
+                    let reply = if line.ends_with('\n') {
+                        shared.apply(line.trim())
+                    } else {
+                        json!({"ok": false, "error": format!("request longer than {MAX_LINE} bytes")})
+                    };
+                    let mut text = reply.to_string();
+                    text.push('\n');
+                    if wr.write_all(text.as_bytes()).await.is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+    });
+    Ok(local)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+    use tokio::io::AsyncBufReadExt;
+    use tokio::net::TcpStream;
+
+    #[test]
+    fn requests_change_the_scene_and_bad_ones_change_nothing() {
+        let shared = SharedScene::new(Scene::default());
+        assert_eq!(
+            shared.apply(r#"{"cmd":"move","target":0,"range_m":1.03}"#)["ok"],
+            true
+        );
+        assert_eq!(shared.snapshot().targets[0].range_m, 1.03);
+        let r = shared.apply(r#"{"cmd":"add","target":{"range_m":2.0,"amplitude":0.3}}"#);
+        assert_eq!(r["index"], 1);
+        let r = shared.apply(r#"{"cmd":"move","target":5,"range_m":1.0}"#);
+        assert_eq!(r["ok"], false);
+        assert!(r["error"].as_str().unwrap().contains("2 targets"));
+        let r = shared.apply(r#"{"cmd":"snr","snr_db":900}"#);
+        assert!(r["error"].as_str().unwrap().contains("snr_db"));
+        assert_eq!(shared.snapshot().snr_db, Scene::default().snr_db);
+        let r = shared.apply("not json");
+        assert!(r["error"].as_str().unwrap().contains("cmd"));
+        assert_eq!(shared.apply(r#"{"cmd":"remove","target":0}"#)["ok"], true);
+        assert_eq!(shared.snapshot().targets.len(), 1);
+        assert_eq!(shared.snapshot().targets[0].range_m, 2.0);
+    }
+
+    async fn ask(
+        wr: &mut tokio::net::tcp::OwnedWriteHalf,
+        rd: &mut BufReader<tokio::net::tcp::OwnedReadHalf>,
+        req: &str,
+    ) -> Value {
+        wr.write_all(format!("{req}\n").as_bytes()).await.unwrap();
+        let mut line = String::new();
+        tokio::time::timeout(Duration::from_secs(5), rd.read_line(&mut line))
+            .await
+            .expect("reply within 5 s")
+            .unwrap();
+        serde_json::from_str(&line).unwrap()
+    }
+
+    #[tokio::test]
+    async fn control_channel_over_loopback() {
+        let shared = SharedScene::new(Scene::default());
+        let addr = serve(shared.clone(), "127.0.0.1:0".parse().unwrap())
+            .await
+            .unwrap();
+        let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
+            .await
+            .unwrap()
+            .unwrap();
+        let (rd, mut wr) = stream.into_split();
+        let mut rd = BufReader::new(rd);
+        let v = ask(
+            &mut wr,
+            &mut rd,
+            r#"{"cmd":"move","target":0,"range_m":1.5}"#,
+        )
+        .await;
+        assert_eq!(v["ok"], true);
+        shared.record_capture(shared.snapshot());
+        let v = ask(&mut wr, &mut rd, r#"{"cmd":"last_capture"}"#).await;
+        assert_eq!(v["captures"], 1);
+        assert_eq!(v["scene"]["targets"][0]["range_m"], 1.5);
+        let v = ask(&mut wr, &mut rd, r#"{"cmd":"fly"}"#).await;
+        assert_eq!(v["ok"], false);
+    }
+}
