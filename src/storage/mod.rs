@@ -1,1 +1,2 @@
 //! Outputs: run folders, SigMF, npy/CSV, plots.
+pub mod sigmf;

@@ -1,0 +1,224 @@
+//! Raw captures as SigMF recordings (`.sigmf-meta` JSON + `.sigmf-data` samples).
+//!
+//! radbench keeps the scope's own 16-bit words, I and Q interleaved (`ci16_le`), so nothing is lost;
+//! `radbench:vertical_gain` and `radbench:vertical_offset` turn them into volts
+//! (`volts = gain * word - offset`, per channel). Everything radbench knows about the capture that
+//! the SigMF core has no field for lives in the `radbench:` namespace, declared in
+//! `core:extensions`; the README lists its keys.
+//!
+//! Both files are written atomically (temporary file, then rename): an interrupted write leaves
+//! either the old file or the new one, never half of one.
+
+use serde_json::{json, Map, Value};
+use sha2::{Digest, Sha512};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Version of the `radbench:` SigMF namespace written here.
+pub const NAMESPACE_VERSION: &str = "1.0.0";
+
+/// What a SigMF recording describes, besides its samples.
+#[derive(Debug, Clone)]
+pub struct SigmfMeta {
+    /// Sample rate of the data, Sa/s.
+    pub sample_rate: f64,
+    /// RF centre frequency the baseband samples belong to, Hz.
+    pub frequency_hz: f64,
+    /// Capture time, RFC 3339 UTC (`2026-11-21T19:55:00.123Z`).
+    pub datetime: String,
+    /// One line saying what this is.
+    pub description: String,
+    /// The hardware, e.g. the scope's identity.
+    pub hw: String,
+    /// The `radbench:` namespace: keys without the prefix (it is added), any JSON values.
+    pub radbench: Map<String, Value>,
+    /// Annotations: (first sample, sample count, label).
+    pub annotations: Vec<(u64, u64, String)>,
+}
+
+/// A recording as written: where its two files are.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SigmfFiles {
+    pub meta: PathBuf,
+    pub data: PathBuf,
+}
+
+/// Writes `base.sigmf-data` (I/Q words interleaved, little-endian) and `base.sigmf-meta`.
+pub fn write_ci16(
+    base: &Path,
+    i_words: &[i16],
+    q_words: &[i16],
+    meta: &SigmfMeta,
+) -> std::io::Result<SigmfFiles> {
+    if i_words.len() != q_words.len() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "I has {} samples and Q {}: a SigMF recording needs both of the same length",
+                i_words.len(),
+                q_words.len()
+            ),
+        ));
+    }
+    let mut data = Vec::with_capacity(4 * i_words.len());
+    for (i, q) in i_words.iter().zip(q_words) {
+        data.extend_from_slice(&i.to_le_bytes());
+        data.extend_from_slice(&q.to_le_bytes());
+    }
+    let files = SigmfFiles {
+        meta: with_suffix(base, "sigmf-meta"),
+        data: with_suffix(base, "sigmf-data"),
+    };
+    let sha512 = hex(&Sha512::digest(&data));
+    write_atomic(&files.data, &data)?;
+    let doc = meta_document(meta, "ci16_le", &sha512);
+    let mut text = serde_json::to_string_pretty(&doc).map_err(std::io::Error::other)?;
+    text.push('\n');
+    write_atomic(&files.meta, text.as_bytes())?;
+    Ok(files)
+}
+
+fn meta_document(meta: &SigmfMeta, datatype: &str, sha512: &str) -> Value {
+    let mut global = Map::new();
+    global.insert("core:datatype".into(), json!(datatype));
+    global.insert("core:sample_rate".into(), json!(meta.sample_rate));
+    global.insert("core:version".into(), json!("1.0.0"));
+    global.insert("core:sha512".into(), json!(sha512));
+    global.insert("core:description".into(), json!(meta.description));
+    global.insert("core:hw".into(), json!(meta.hw));
+    global.insert(
+        "core:recorder".into(),
+        json!(format!("radbench {}", env!("CARGO_PKG_VERSION"))),
+    );
+    global.insert(
+        "core:extensions".into(),
+        json!([{"name": "radbench", "version": NAMESPACE_VERSION, "optional": true}]),
+    );
+    for (k, v) in &meta.radbench {
+        global.insert(format!("radbench:{k}"), v.clone());
+    }
+    let annotations: Vec<Value> = meta
+        .annotations
+        .iter()
+        .map(|(start, count, label)| {
+            json!({"core:sample_start": start, "core:sample_count": count, "core:label": label})
+        })
+        .collect();
+    json!({
+        "global": global,
+        "captures": [{
+            "core:sample_start": 0,
+            "core:frequency": meta.frequency_hz,
+            "core:datetime": meta.datetime,
+        }],
+        "annotations": annotations,
+    })
+}
+
+/// `base` with `.suffix` appended to its file name (not replacing an existing extension: run names
+/// may contain dots).
+fn with_suffix(base: &Path, suffix: &str) -> PathBuf {
+    let mut name = base
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(".");
+    name.push(suffix);
+    base.with_file_name(name)
+}
+
+/// Writes `bytes` to a temporary file beside `path`, syncs it, and renames it over `path`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut tmp_name = path
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    tmp_name.push(".partial");
+    let tmp = path.with_file_name(tmp_name);
+    {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+    }
+    std::fs::rename(&tmp, path)
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// UTC time as RFC 3339 with milliseconds, from the system clock.
+pub fn utc_now_rfc3339() -> String {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    rfc3339_from_unix(now.as_secs() as i64, now.subsec_millis())
+}
+
+/// Formats seconds since the Unix epoch as `YYYY-MM-DDTHH:MM:SS.mmmZ` (proleptic Gregorian).
+pub fn rfc3339_from_unix(secs: i64, millis: u32) -> String {
+    let days = secs.div_euclid(86_400);
+    let rem = secs.rem_euclid(86_400);
+    // Civil-from-days (H. Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rfc3339_dates() {
+        assert_eq!(rfc3339_from_unix(0, 0), "1970-01-01T00:00:00.000Z");
+        assert_eq!(
+            rfc3339_from_unix(1_795_290_900, 42),
+            "2026-11-21T19:55:00.042Z"
+        );
+        assert_eq!(
+            rfc3339_from_unix(951_782_400, 0),
+            "2000-02-29T00:00:00.000Z"
+        );
+    }
+
+    #[test]
+    fn writes_interleaved_words_and_a_meta_with_the_namespace() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = dir.path().join("capture.001");
+        let mut ns = Map::new();
+        ns.insert("vertical_gain".into(), json!([1e-5, 1e-5]));
+        let meta = SigmfMeta {
+            sample_rate: 80e9,
+            frequency_hz: 80e9,
+            datetime: rfc3339_from_unix(0, 0),
+            description: "test".into(),
+            hw: "MOCK_LAB".into(),
+            radbench: ns,
+            annotations: vec![(10, 5, "target".into())],
+        };
+        let files = write_ci16(&base, &[1, -2], &[256, -32768], &meta).unwrap();
+        assert_eq!(files.data, dir.path().join("capture.001.sigmf-data"));
+        let data = std::fs::read(&files.data).unwrap();
+        assert_eq!(data, [1, 0, 0, 1, 0xfe, 0xff, 0, 0x80]);
+        let doc: Value = serde_json::from_slice(&std::fs::read(&files.meta).unwrap()).unwrap();
+        assert_eq!(doc["global"]["core:datatype"], "ci16_le");
+        assert_eq!(doc["global"]["radbench:vertical_gain"][0], 1e-5);
+        assert_eq!(doc["global"]["core:extensions"][0]["name"], "radbench");
+        assert_eq!(doc["annotations"][0]["core:sample_count"], 5);
+        assert!(!dir.path().join("capture.001.sigmf-data.partial").exists());
+        assert!(write_ci16(&base, &[1], &[], &meta).is_err());
+    }
+}
