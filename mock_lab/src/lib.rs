@@ -5,10 +5,12 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | [`catalog`] | its own reader of the instrument files in `instruments/` (limits, identities, registers) |
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
 //! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
 
+pub mod catalog;
 pub mod emulator;
 pub mod faults;
 pub mod server;
