@@ -128,6 +128,16 @@ impl ServerHandle {
         }
     }
 
+    pub(crate) fn add_listener(
+        &mut self,
+        name: &'static str,
+        addr: SocketAddr,
+        task: JoinHandle<()>,
+    ) {
+        self.extra.push((name, addr));
+        self.tasks.push(task);
+    }
+
     /// The protocol served ("raw", "vxi11", "hislip", "vicp").
     pub fn protocol(&self) -> &'static str {
         self.protocol
