@@ -17,6 +17,7 @@
 pub mod conn;
 pub mod framing;
 pub mod hislip;
+pub mod launch;
 pub mod raw;
 pub mod serial;
 pub mod vicp;
