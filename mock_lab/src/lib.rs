@@ -5,6 +5,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | [`bench`] | the emulators wired together: AWG marker -> scope trigger, AWG -> Tx -> scene -> Rx -> scope |
 //! | [`catalog`] | its own reader of the instrument files in `instruments/` (limits, identities, registers) |
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
 //! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |
@@ -12,6 +13,7 @@
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
 //! | [`scene`] | the physics: what the scope sees given the AWG, the front ends and the targets |
 
+pub mod bench;
 pub mod catalog;
 pub mod control;
 pub mod emulator;

@@ -6,7 +6,7 @@
 //! 1. The AWG loops one segment of signed 8-bit codes on I (channel 1) and Q (channel 2); a code `c`
 //!    leaves the DAC as `c * Vpp / 255` volts. Its interpolation filter is modelled as ideal (the
 //!    segment is band-limited and periodic, so the analogue signal is its Fourier series).
-//! 2. The Tx up-converts it when enabled (an attenuation code lowers every path, 0.5 dB a step); every
+//! 2. The Tx up-converts it when enabled (its attenuation, and the Rx's, lower every path); every
 //!    path — each target, each static clutter reflector and the direct Tx->Rx leakage — delays it by
 //!    `tau = 2 R / c0` plus the fixed system delay (cables, marker latency) and rotates it by the
 //!    physical carrier phase `exp(-j 2 pi f_c tau)` at the configured RF (80 GHz by default). A moving
@@ -230,28 +230,25 @@ pub struct AwgPlayback<'a> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrontEnds {
     pub tx_enabled: bool,
-    /// Tx attenuation code, 0.5 dB a step.
-    pub tx_attenuation_code: u16,
+    pub tx_attenuation_db: f64,
     pub rx_enabled: bool,
-    /// Rx attenuation code, 0.5 dB a step.
-    pub rx_attenuation_code: u16,
+    pub rx_attenuation_db: f64,
 }
 
 impl FrontEnds {
     /// Both enabled at full gain: what a test wants when it does not model the front ends.
     pub const ALL_ON: FrontEnds = FrontEnds {
         tx_enabled: true,
-        tx_attenuation_code: 0,
+        tx_attenuation_db: 0.0,
         rx_enabled: true,
-        rx_attenuation_code: 0,
+        rx_attenuation_db: 0.0,
     };
 
     fn path_gain(&self) -> f64 {
         if !(self.tx_enabled && self.rx_enabled) {
             return 0.0;
         }
-        let att_db = 0.5 * f64::from(self.tx_attenuation_code + self.rx_attenuation_code);
-        10f64.powf(-att_db / 20.0)
+        10f64.powf(-(self.tx_attenuation_db + self.rx_attenuation_db) / 20.0)
     }
 }
 
@@ -352,7 +349,7 @@ impl Synthesizer {
         (x, power)
     }
 
-    /// One acquisition of the scene as the scope would make it.
+    /// One acquisition of the scene as the scope would make it (volts through its 8-bit ADC).
     pub fn capture(
         &mut self,
         scene: &Scene,
@@ -360,39 +357,63 @@ impl Synthesizer {
         front: FrontEnds,
         setup: &CaptureSetup,
     ) -> Result<Capture, SceneError> {
-        check_setup(awg, setup)?;
+        check_vertical(setup)?;
+        let (y, horiz_offset) = self.volts(
+            scene,
+            awg,
+            front,
+            setup.sample_rate,
+            setup.points,
+            setup.trigger_offset_s,
+        )?;
+        Ok(quantise(&y, setup, horiz_offset, scene.clone()))
+    }
+
+    /// What the scope's inputs see (I + jQ in volts, before its ADC) for `points` samples at
+    /// `sample_rate` from `first_point_s` after the marker edge; also returns that offset with this
+    /// acquisition's trigger jitter added.
+    pub fn volts(
+        &mut self,
+        scene: &Scene,
+        awg: &AwgPlayback<'_>,
+        front: FrontEnds,
+        sample_rate: f64,
+        points: usize,
+        first_point_s: f64,
+    ) -> Result<(Vec<Complex64>, f64), SceneError> {
+        check_rates(awg, sample_rate, points)?;
         let l = awg.i.len();
-        let up = (setup.sample_rate / awg.sample_rate).round() as usize;
+        let up = (sample_rate / awg.sample_rate).round() as usize;
         let period = l * up;
         let jitter = scene.trigger_jitter_s * self.rng.gaussian();
-        let horiz_offset = setup.trigger_offset_s + jitter;
+        let horiz_offset = first_point_s + jitter;
         // The marker edge (the trigger) leaves with segment sample `marker_index`; the record starts
         // `horiz_offset` after it.
         let t0 = awg.marker_index as f64 / awg.sample_rate + horiz_offset;
 
         let (spectrum, power) = self.segment_spectrum(awg);
-        let mut y = vec![Complex64::new(0.0, 0.0); setup.points];
+        let mut y = vec![Complex64::new(0.0, 0.0); points];
         let gain = if awg.playing { front.path_gain() } else { 0.0 };
         if gain > 0.0 {
             let paths = paths(scene);
             let (still, moving): (Vec<_>, Vec<_>) = paths.iter().partition(|p| p.doppler_hz == 0.0);
             if !still.is_empty() {
                 let one = self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
-                add_window(&mut y, &one, 0.0, setup.sample_rate, t0, period);
+                add_window(&mut y, &one, 0.0, sample_rate, t0, period);
             }
             for path in moving {
                 let one = self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
-                add_window(&mut y, &one, path.doppler_hz, setup.sample_rate, t0, period);
+                add_window(&mut y, &one, path.doppler_hz, sample_rate, t0, period);
             }
         }
-        self.impair(&mut y, scene, setup.sample_rate);
+        self.impair(&mut y, scene, sample_rate);
         let reference_power = if power > 0.0 { power } else { 0.25 * 0.25 };
         let noise_var = reference_power / 10f64.powf(scene.snr_db / 10.0);
         let sigma = (noise_var / 2.0).sqrt();
         for v in y.iter_mut() {
             *v += Complex64::new(sigma * self.rng.gaussian(), sigma * self.rng.gaussian());
         }
-        Ok(quantise(&y, setup, horiz_offset, scene.clone()))
+        Ok((y, horiz_offset))
     }
 
     /// One period of the sum of `paths` at `up` times the segment rate, starting at `t0` after the
@@ -519,7 +540,7 @@ fn add_window(
     }
 }
 
-fn check_setup(awg: &AwgPlayback<'_>, setup: &CaptureSetup) -> Result<(), SceneError> {
+fn check_rates(awg: &AwgPlayback<'_>, sample_rate: f64, points: usize) -> Result<(), SceneError> {
     if awg.i.len() != awg.q.len() {
         return Err(SceneError::Synthesis(format!(
             "I has {} samples but Q has {}: load both channels with segments of the same length",
@@ -530,25 +551,27 @@ fn check_setup(awg: &AwgPlayback<'_>, setup: &CaptureSetup) -> Result<(), SceneE
     if awg.i.is_empty() {
         return Err(SceneError::Synthesis("the AWG holds no waveform".into()));
     }
-    if !(awg.sample_rate > 0.0 && setup.sample_rate > 0.0) {
+    if !(awg.sample_rate > 0.0 && sample_rate > 0.0) {
         return Err(SceneError::Synthesis(
             "sample rates must be positive".into(),
         ));
     }
-    let ratio = setup.sample_rate / awg.sample_rate;
+    let ratio = sample_rate / awg.sample_rate;
     if ratio < 1.0 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
         return Err(SceneError::Synthesis(format!(
-            "the scope rate {} Sa/s must be an integer multiple of the AWG rate {} Sa/s",
-            setup.sample_rate, awg.sample_rate
+            "the scope rate {sample_rate} Sa/s must be an integer multiple of the AWG rate {} Sa/s",
+            awg.sample_rate
         )));
     }
-    if setup.points == 0 || setup.points > 64 << 20 {
+    if points == 0 || points > MAX_POINTS {
         return Err(SceneError::Synthesis(format!(
-            "{} points per channel: the emulated scope records 1 ..= {} points",
-            setup.points,
-            64 << 20
+            "{points} points per channel: the emulated scope records 1 ..= {MAX_POINTS} points"
         )));
     }
+    Ok(())
+}
+
+fn check_vertical(setup: &CaptureSetup) -> Result<(), SceneError> {
     if setup
         .volts_per_div
         .iter()
@@ -560,6 +583,9 @@ fn check_setup(awg: &AwgPlayback<'_>, setup: &CaptureSetup) -> Result<(), SceneE
     }
     Ok(())
 }
+
+/// Longest record synthesised per channel.
+const MAX_POINTS: usize = 64 << 20;
 
 /// The scope's ADC: eight divisions span 2^8 codes; the 8-bit code goes in the upper byte of a word.
 fn quantise(y: &[Complex64], setup: &CaptureSetup, horiz_offset: f64, scene: Scene) -> Capture {
