@@ -11,6 +11,7 @@
 //! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |
 //! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
+//! | [`lab`] | the whole simulated lab on 127.0.0.1: every instrument on its transports, plus the control channel |
 //! | [`scene`] | the physics: what the scope sees given the AWG, the front ends and the targets |
 
 pub mod bench;
@@ -18,5 +19,6 @@ pub mod catalog;
 pub mod control;
 pub mod emulator;
 pub mod faults;
+pub mod lab;
 pub mod scene;
 pub mod server;

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 pub mod bench;
 pub mod idn;
+pub mod mock_lab;
 pub mod scpi;
 pub mod simulate;
 
@@ -30,6 +31,9 @@ pub enum Command {
     Bench(bench::Args),
     /// Ask an instrument who it is (`*IDN?`).
     Idn(idn::Args),
+    /// The simulated bench (mock_lab) on 127.0.0.1.
+    #[command(name = "mock-lab")]
+    MockLab(mock_lab::Args),
     /// Send SCPI commands to an instrument, one-shot or at an interactive prompt.
     Scpi(scpi::Args),
 }
@@ -48,6 +52,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args, &global),
         Command::Bench(args) => bench::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
+        Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
     }
 }

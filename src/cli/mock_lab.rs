@@ -1,0 +1,95 @@
+//! `radbench mock-lab serve`: the simulated bench on 127.0.0.1 (the same as the `mock-lab` binary).
+
+use crate::exit::bad_input;
+use anyhow::Context;
+use mock_lab::emulator::lecroy::RemoteInterface;
+use mock_lab::lab::{self, Announce, LabOptions};
+use mock_lab::scene::Scene;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: MockLabCommand,
+}
+
+#[derive(Debug, clap::Subcommand)]
+pub enum MockLabCommand {
+    /// Start the simulated bench on 127.0.0.1, print its endpoints and a bench file, serve until
+    /// Ctrl-C.
+    Serve(ServeArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// Scene file (TOML): targets, clutter, leakage, SNR, system delay, impairments
+    /// (see examples/scene.toml). Default: one target at 1 m.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Print one JSON line naming every endpoint and the control channel instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Use consecutive ports from this one (5 per instrument) instead of OS-assigned ones.
+    #[arg(long, value_name = "PORT")]
+    pub port_base: Option<u16>,
+    /// Port of the scope's VICP endpoint (pyvisa's VICP resource reaches only 1861).
+    #[arg(long, value_name = "PORT")]
+    pub vicp_port: Option<u16>,
+    /// Also run a VXI-11 portmapper on this port (111 is standard and needs root).
+    #[arg(long, value_name = "PORT")]
+    pub portmapper_port: Option<u16>,
+    /// The scope's remote interface: only this protocol answers, as on the real scope.
+    #[arg(long, value_enum, default_value = "vicp")]
+    pub scope_remote: ScopeRemote,
+    /// Also serve the generic loopback test instrument on every transport.
+    #[arg(long)]
+    pub with_loopback: bool,
+    /// Also stop when standard input reaches end of file (for parent processes).
+    #[arg(long)]
+    pub until_stdin_closes: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ScopeRemote {
+    Vicp,
+    Vxi11,
+}
+
+/// Reads and validates a scene file; errors name the file and the field (exit code 2).
+pub fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| bad_input(format!("cannot read scene file {}: {e}", path.display())))?;
+    Scene::from_toml(&text, &path.display().to_string()).map_err(|e| bad_input(e.to_string()))
+}
+
+pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+    let MockLabCommand::Serve(a) = args.command;
+    let scene = match &a.scene {
+        Some(path) => load_scene(path)?,
+        None => Scene::default(),
+    };
+    let options = LabOptions {
+        scene,
+        port_base: a.port_base,
+        vicp_port: a.vicp_port,
+        portmapper_port: a.portmapper_port,
+        scope_remote: match a.scope_remote {
+            ScopeRemote::Vicp => RemoteInterface::Vicp,
+            ScopeRemote::Vxi11 => RemoteInterface::Vxi11,
+        },
+        with_loopback: a.with_loopback,
+        ..LabOptions::default()
+    };
+    let announce = if a.json {
+        Announce::Json
+    } else {
+        Announce::Human
+    };
+    super::runtime()?
+        .block_on(lab::serve_until_stopped(
+            options,
+            announce,
+            a.until_stdin_closes,
+        ))
+        .context("the simulated lab stopped")
+}
