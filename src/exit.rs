@@ -84,6 +84,10 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
             $(if let Some(e) = cause.downcast_ref::<$t>() { return Some(e.exit_class()); })*
         };
     }
-    try_types!(crate::waveform::ParamError, crate::dsp::DspError);
+    try_types!(
+        crate::waveform::ParamError,
+        crate::waveform::DecodeError,
+        crate::dsp::DspError
+    );
     None
 }
