@@ -9,7 +9,7 @@ pub mod codec;
 
 use self::codec::{next_seq, op, BlockDecoder, Header};
 use super::error::LinkError;
-use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{connect_tcp, io_error, write_parts, LinkOptions, ReadContext};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -99,5 +99,53 @@ impl VicpLink {
         // The next command gets a new number, so replies to earlier ones are recognised as stale
         // (the decoder keeps its place in the stream: a half-received block is finished, not lost).
         Ok(())
+    }
+
+    /// Serial poll, VICP version 1a: the out-of-band byte `S` is answered by one out-of-band byte,
+    /// the status byte. Only on Linux (tokio reports urgent data there); elsewhere the session
+    /// asks `*STB?` instead.
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+        use std::mem::MaybeUninit;
+        use tokio::io::Interest;
+        const OP: &str = "VICP serial poll";
+        let started = tokio::time::Instant::now();
+        let deadline = started + options.timeouts.read;
+        let timeout = || LinkError::Timeout {
+            op: OP,
+            after: started.elapsed(),
+        };
+        loop {
+            let sent = self.stream.try_io(Interest::WRITABLE, || {
+                socket2::SockRef::from(&self.stream).send_out_of_band(b"S")
+            });
+            match sent {
+                Ok(_) => break,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    tokio::time::timeout_at(deadline, self.stream.writable())
+                        .await
+                        .map_err(|_| timeout())?
+                        .map_err(|e| io_error(OP, e))?;
+                }
+                Err(e) => return Err(io_error(OP, e)),
+            }
+        }
+        loop {
+            tokio::time::timeout_at(deadline, self.stream.ready(Interest::PRIORITY))
+                .await
+                .map_err(|_| timeout())?
+                .map_err(|e| io_error(OP, e))?;
+            let mut byte = [MaybeUninit::new(0u8)];
+            let got = self.stream.try_io(Interest::PRIORITY, || {
+                socket2::SockRef::from(&self.stream).recv_out_of_band(&mut byte)
+            });
+            match got {
+                // SAFETY: the byte was initialised by `MaybeUninit::new` above and written by recv.
+                Ok(1) => return Ok(unsafe { byte[0].assume_init() }),
+                Ok(_) => return Err(LinkError::Closed { op: OP }),
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => continue,
+                Err(e) => return Err(io_error(OP, e)),
+            }
+        }
     }
 }
