@@ -91,6 +91,7 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::transport::LinkError,
         crate::transport::journal::JournalError,
         crate::session::SessionError,
+        crate::catalog::CatalogError,
     );
     None
 }

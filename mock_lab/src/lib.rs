@@ -5,12 +5,14 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | [`catalog`] | its own reader of the instrument files in `instruments/` (limits, identities, registers) |
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
 //! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |
 //! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
 //! | [`scene`] | the physics: what the scope sees given the AWG, the front ends and the targets |
 
+pub mod catalog;
 pub mod control;
 pub mod emulator;
 pub mod faults;

@@ -1,1 +1,263 @@
 //! Schema and loader for the instrument catalog in `instruments/*.toml`.
+//!
+//! Instrument facts (identity strings, transports and ports, limits, quirks, timeouts, register maps)
+//! are data, not code. The files are compiled into the binary ([`Catalog::embedded`]); a folder can
+//! override them ([`Catalog::load`]): a file there replaces the built-in model with the same
+//! `instrument.key` and adds any new model. Every file is checked on load; a bad file is refused with
+//! its name, the field, the line and what is allowed ([`CatalogError::Invalid`]).
+
+mod error;
+mod identity;
+mod locate;
+mod schema;
+mod validate;
+
+use std::path::{Path, PathBuf};
+
+pub use error::{CatalogError, Problem};
+pub use identity::{pattern_matches, Idn};
+pub use schema::*;
+pub use validate::{REQUIRED_PROTOCOL_ERRORS, REQUIRED_RF_FIELDS, REQUIRED_RF_REGISTERS};
+
+use locate::FieldIndex;
+
+/// The catalog files built into radbench: `(file name, text)`.
+pub const EMBEDDED_FILES: [(&str, &str); 4] = [
+    (
+        "keysight_m8195a.toml",
+        include_str!("../../instruments/keysight_m8195a.toml"),
+    ),
+    (
+        "lecroy_labmaster10zi_a.toml",
+        include_str!("../../instruments/lecroy_labmaster10zi_a.toml"),
+    ),
+    (
+        "gotmic_eband_tx.toml",
+        include_str!("../../instruments/gotmic_eband_tx.toml"),
+    ),
+    (
+        "gotmic_eband_rx.toml",
+        include_str!("../../instruments/gotmic_eband_rx.toml"),
+    ),
+];
+
+/// Where a model's file came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origin {
+    /// Built into the binary (file name under `instruments/`).
+    Embedded(&'static str),
+    /// Read from an override folder.
+    File(PathBuf),
+}
+
+impl std::fmt::Display for Origin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Origin::Embedded(name) => write!(f, "embedded:instruments/{name}"),
+            Origin::File(path) => write!(f, "{}", path.display()),
+        }
+    }
+}
+
+/// A model recognised from an `*IDN?` reply.
+#[derive(Debug, Clone, Copy)]
+pub struct Identified<'a> {
+    pub model: &'a InstrumentModel,
+    /// The reply came from a mock_lab emulator of the model, not the vendor's hardware.
+    pub emulated: bool,
+}
+
+/// All known instrument models.
+#[derive(Debug, Clone)]
+pub struct Catalog {
+    entries: Vec<(InstrumentModel, Origin)>,
+}
+
+impl Catalog {
+    /// The models built into radbench.
+    pub fn embedded() -> Result<Catalog, CatalogError> {
+        let mut catalog = Catalog {
+            entries: Vec::new(),
+        };
+        for (name, text) in EMBEDDED_FILES {
+            let origin = Origin::Embedded(name);
+            let model = parse_model(&origin.to_string(), text)?;
+            catalog.insert(model, origin, false)?;
+        }
+        Ok(catalog)
+    }
+
+    /// The built-in models, overridden and extended by the `*.toml` files of `dir` when given.
+    pub fn load(override_dir: Option<&Path>) -> Result<Catalog, CatalogError> {
+        let mut catalog = Catalog::embedded()?;
+        if let Some(dir) = override_dir {
+            for (model, origin) in read_dir(dir)? {
+                catalog.insert(model, origin, true)?;
+            }
+        }
+        Ok(catalog)
+    }
+
+    /// Only the `*.toml` files of `dir` (no built-in models).
+    pub fn from_dir(dir: &Path) -> Result<Catalog, CatalogError> {
+        let mut catalog = Catalog {
+            entries: Vec::new(),
+        };
+        for (model, origin) in read_dir(dir)? {
+            catalog.insert(model, origin, false)?;
+        }
+        Ok(catalog)
+    }
+
+    fn insert(
+        &mut self,
+        model: InstrumentModel,
+        origin: Origin,
+        may_override_embedded: bool,
+    ) -> Result<(), CatalogError> {
+        let existing = self
+            .entries
+            .iter()
+            .position(|(m, _)| m.instrument.key == model.instrument.key);
+        match existing {
+            Some(i)
+                if may_override_embedded && matches!(self.entries[i].1, Origin::Embedded(_)) =>
+            {
+                tracing::info!(key = %model.instrument.key, from = %origin, "catalog override");
+                self.entries[i] = (model, origin);
+                Ok(())
+            }
+            Some(i) => Err(CatalogError::DuplicateKey {
+                key: model.instrument.key,
+                first: self.entries[i].1.to_string(),
+                second: origin.to_string(),
+            }),
+            None => {
+                self.entries.push((model, origin));
+                Ok(())
+            }
+        }
+    }
+
+    /// All models with their origin, in load order.
+    pub fn models(&self) -> impl Iterator<Item = (&InstrumentModel, &Origin)> {
+        self.entries.iter().map(|(m, o)| (m, o))
+    }
+
+    /// The model with this `instrument.key`.
+    pub fn get(&self, key: &str) -> Result<&InstrumentModel, CatalogError> {
+        self.entries
+            .iter()
+            .map(|(m, _)| m)
+            .find(|m| m.instrument.key == key)
+            .ok_or_else(|| CatalogError::UnknownKey {
+                key: key.to_string(),
+                known: self
+                    .entries
+                    .iter()
+                    .map(|(m, _)| m.instrument.key.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
+    }
+
+    /// The model whose identity patterns (or emulator identity) match an `*IDN?` reply.
+    pub fn identify(&self, idn_reply: &str) -> Option<Identified<'_>> {
+        let idn = Idn::parse(idn_reply)?;
+        self.entries.iter().find_map(|(model, _)| {
+            let id = &model.identity;
+            let vendor = id
+                .manufacturer
+                .iter()
+                .any(|p| pattern_matches(p, &idn.manufacturer))
+                && id.model.iter().any(|p| pattern_matches(p, &idn.model));
+            let emulated = id
+                .emulator
+                .manufacturer
+                .eq_ignore_ascii_case(&idn.manufacturer)
+                && id.emulator.model.eq_ignore_ascii_case(&idn.model);
+            (vendor || emulated).then_some(Identified { model, emulated })
+        })
+    }
+}
+
+/// Parses and validates one catalog file. `file` names it in error messages.
+pub fn parse_model(file: &str, text: &str) -> Result<InstrumentModel, CatalogError> {
+    let index = FieldIndex::new(text);
+    let model: InstrumentModel = toml::from_str(text).map_err(|e| {
+        let offset = e.span().map(|s| s.start);
+        CatalogError::Invalid {
+            file: file.to_string(),
+            problems: vec![Problem {
+                field: offset
+                    .and_then(|o| index.path_at(o))
+                    .unwrap_or_default()
+                    .to_string(),
+                line: offset.map(|o| index.line_of(o)),
+                reason: e.message().trim().to_string(),
+            }],
+        }
+    })?;
+    let problems: Vec<Problem> = validate::validate(&model)
+        .into_iter()
+        .map(|(field, reason)| Problem {
+            line: index.line_of_path(&field),
+            field,
+            reason,
+        })
+        .collect();
+    if problems.is_empty() {
+        Ok(model)
+    } else {
+        Err(CatalogError::Invalid {
+            file: file.to_string(),
+            problems,
+        })
+    }
+}
+
+/// Reads every `*.toml` file of a folder, sorted by name.
+fn read_dir(dir: &Path) -> Result<Vec<(InstrumentModel, Origin)>, CatalogError> {
+    let listing = std::fs::read_dir(dir).map_err(|source| CatalogError::ReadDir {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
+    let mut paths = Vec::new();
+    for entry in listing {
+        let entry = entry.map_err(|source| CatalogError::ReadDir {
+            dir: dir.to_path_buf(),
+            source,
+        })?;
+        let path = entry.path();
+        if path.extension().is_some_and(|e| e == "toml") && path.is_file() {
+            paths.push(path);
+        }
+    }
+    if paths.is_empty() {
+        return Err(CatalogError::EmptyDir {
+            dir: dir.to_path_buf(),
+        });
+    }
+    paths.sort();
+    let mut models = Vec::with_capacity(paths.len());
+    for path in paths {
+        let text = std::fs::read_to_string(&path).map_err(|source| CatalogError::Read {
+            file: path.clone(),
+            source,
+        })?;
+        let model = parse_model(&path.display().to_string(), &text)?;
+        models.push((model, Origin::File(path)));
+    }
+    Ok(models)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_embedded_file_is_valid() {
+        let catalog = Catalog::embedded().unwrap();
+        assert_eq!(catalog.models().count(), EMBEDDED_FILES.len());
+    }
+}

@@ -1,5 +1,6 @@
 //! Instrument emulators: state machines behind the protocol servers.
 
+pub mod common;
 pub mod gotmic;
 pub mod lecroy;
 pub mod loopback;

@@ -1,0 +1,433 @@
+//! mock_lab's own reader of the instrument catalog (`instruments/*.toml`).
+//!
+//! radbench has the full schema and validation; mock_lab shares no code with it on purpose, so it
+//! reads just the fields its emulators need, with its own small serde structs (unknown fields are
+//! ignored here: radbench's loader is the one that refuses typos). The files are compiled in.
+
+use serde::Deserialize;
+
+/// The catalog texts built into mock_lab.
+pub mod embedded {
+    pub const M8195A: &str = include_str!("../../instruments/keysight_m8195a.toml");
+    pub const LECROY: &str = include_str!("../../instruments/lecroy_labmaster10zi_a.toml");
+    pub const GOTMIC_TX: &str = include_str!("../../instruments/gotmic_eband_tx.toml");
+    pub const GOTMIC_RX: &str = include_str!("../../instruments/gotmic_eband_rx.toml");
+}
+
+/// A catalog file mock_lab could not use.
+#[derive(Debug, thiserror::Error)]
+pub enum CatalogError {
+    #[error("instrument file for {what}: {source}")]
+    Toml {
+        what: &'static str,
+        #[source]
+        source: toml::de::Error,
+    },
+    #[error("instrument file for {what}: field `{field}`: {reason}")]
+    Invalid {
+        what: &'static str,
+        field: String,
+        reason: String,
+    },
+}
+
+/// The `*IDN?` fields an emulator answers with.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct EmulatorIdentity {
+    pub manufacturer: String,
+    pub model: String,
+    pub serial: String,
+    pub firmware: String,
+}
+
+impl EmulatorIdentity {
+    /// The `*IDN?` reply: `manufacturer,model,serial,firmware`.
+    pub fn idn(&self) -> String {
+        format!(
+            "{},{},{},{}",
+            self.manufacturer, self.model, self.serial, self.firmware
+        )
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct Identity {
+    emulator: EmulatorIdentity,
+}
+
+/// Segment rules at one sample-rate divider.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct Divider {
+    pub divider: u32,
+    pub keyword: String,
+    pub granularity: u64,
+    pub min_segment_samples: u64,
+}
+
+/// One AWG DAC mode.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct DacMode {
+    pub keyword: String,
+    pub long: String,
+    pub signal_channels: Vec<u8>,
+    pub marker_channels: Vec<u8>,
+    pub dividers: Vec<u32>,
+    pub extended_only_channels: Vec<u8>,
+}
+
+/// What the M8195A emulator needs from the catalog.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct AwgLimits {
+    pub channels: u8,
+    pub sample_min: i32,
+    pub sample_max: i32,
+    pub dac_rate_min: f64,
+    pub dac_rate_max: f64,
+    pub dac_rate_default: f64,
+    pub internal_memory_samples: u64,
+    pub extended_memory_samples: u64,
+    pub max_segment_id: u32,
+    pub amplitude_vpp_min: f64,
+    pub amplitude_vpp_max: f64,
+    pub amplitude_vpp_default: f64,
+    pub offset_v_min: f64,
+    pub offset_v_max: f64,
+    pub marker_amplitude_v_min: f64,
+    pub marker_amplitude_v_max: f64,
+    pub marker_offset_v_min: f64,
+    pub marker_offset_v_max: f64,
+    #[serde(default)]
+    pub options: Vec<String>,
+    #[serde(rename = "divider")]
+    pub dividers: Vec<Divider>,
+    #[serde(rename = "dac_mode")]
+    pub dac_modes: Vec<DacMode>,
+}
+
+impl AwgLimits {
+    pub fn divider(&self, divider: u32) -> Option<&Divider> {
+        self.dividers.iter().find(|d| d.divider == divider)
+    }
+}
+
+/// The AWG model: identity and limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AwgModel {
+    pub identity: EmulatorIdentity,
+    pub limits: AwgLimits,
+}
+
+/// What the scope emulator needs from the catalog.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct DigitizerLimits {
+    pub channels: u8,
+    pub adc_bits: u8,
+    pub sample_rates: Vec<f64>,
+    pub max_points_per_channel: u64,
+    pub horizontal_divisions: u32,
+    pub vertical_divisions: u32,
+    pub codes_per_division: u32,
+    pub volts_per_div_min: f64,
+    pub volts_per_div_max: f64,
+    pub volts_per_div_default: f64,
+    pub offset_v_min: f64,
+    pub offset_v_max: f64,
+    pub trigger_sources: Vec<String>,
+    pub ext_trigger_level_v_min: f64,
+    pub ext_trigger_level_v_max: f64,
+    pub wavedesc_template: String,
+    pub wavedesc_bytes: u32,
+}
+
+/// The scope model: identity and limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DigitizerModel {
+    pub identity: EmulatorIdentity,
+    pub limits: DigitizerLimits,
+}
+
+/// RF module behaviour the Gotmic emulator needs.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct RfLimits {
+    pub direction: RfDirection,
+    pub over_temperature_c: f64,
+    pub ambient_temperature_c: f64,
+    pub enable_requires_interlock_closed: bool,
+    pub enable_requires_lo: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RfDirection {
+    Tx,
+    Rx,
+}
+
+/// Register access rights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Access {
+    Ro,
+    Rw,
+    Rw1c,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct BitField {
+    pub name: String,
+    pub bit: u8,
+}
+
+/// One 16-bit register.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct Register {
+    pub address: u8,
+    pub name: String,
+    pub access: Access,
+    pub reset: u16,
+    pub min: Option<u16>,
+    pub max: Option<u16>,
+    #[serde(default)]
+    pub fields: Vec<BitField>,
+}
+
+impl Register {
+    /// The mask of a named bit field, if the register has it.
+    pub fn mask(&self, field: &str) -> Option<u16> {
+        self.fields
+            .iter()
+            .find(|f| f.name == field)
+            .map(|f| 1u16 << f.bit)
+    }
+}
+
+/// One `ERR <code> <text>` reply.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct ProtocolError {
+    pub code: u8,
+    pub name: String,
+    pub text: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+pub struct LineProtocol {
+    pub crc_poly: u8,
+    pub crc_init: u8,
+    #[serde(rename = "error")]
+    pub errors: Vec<ProtocolError>,
+}
+
+/// A Gotmic module model: identity, behaviour, protocol and register map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RfModel {
+    pub identity: EmulatorIdentity,
+    pub limits: RfLimits,
+    pub protocol: LineProtocol,
+    pub registers: Vec<Register>,
+}
+
+impl RfModel {
+    pub fn register(&self, name: &str) -> Option<&Register> {
+        self.registers.iter().find(|r| r.name == name)
+    }
+
+    pub fn error(&self, name: &str) -> Option<&ProtocolError> {
+        self.protocol.errors.iter().find(|e| e.name == name)
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct AwgFile {
+    identity: Identity,
+    awg: AwgLimits,
+}
+
+#[derive(Debug, Deserialize)]
+struct DigitizerFile {
+    identity: Identity,
+    digitizer: DigitizerLimits,
+}
+
+#[derive(Debug, Deserialize)]
+struct RfFile {
+    identity: Identity,
+    rf: RfLimits,
+    protocol: LineProtocol,
+    #[serde(rename = "register")]
+    registers: Vec<Register>,
+}
+
+fn parse<T: for<'de> Deserialize<'de>>(what: &'static str, text: &str) -> Result<T, CatalogError> {
+    toml::from_str(text).map_err(|source| CatalogError::Toml { what, source })
+}
+
+fn invalid(what: &'static str, field: &str, reason: impl Into<String>) -> CatalogError {
+    CatalogError::Invalid {
+        what,
+        field: field.to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// Reads an AWG file (for example [`embedded::M8195A`]).
+pub fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
+    const WHAT: &str = "AWG";
+    let file: AwgFile = parse(WHAT, text)?;
+    let limits = file.awg;
+    if limits.dividers.is_empty() {
+        return Err(invalid(WHAT, "awg.divider", "needs at least one divider"));
+    }
+    if limits.dividers.iter().any(|d| d.granularity == 0) {
+        return Err(invalid(WHAT, "awg.divider.granularity", "must be > 0"));
+    }
+    if limits.dac_modes.is_empty() {
+        return Err(invalid(WHAT, "awg.dac_mode", "needs at least one DAC mode"));
+    }
+    if !(1..=8).contains(&limits.channels) {
+        return Err(invalid(WHAT, "awg.channels", "must be 1..=8"));
+    }
+    Ok(AwgModel {
+        identity: file.identity.emulator,
+        limits,
+    })
+}
+
+/// Reads a digitizer file (for example [`embedded::LECROY`]).
+pub fn digitizer_from_str(text: &str) -> Result<DigitizerModel, CatalogError> {
+    const WHAT: &str = "digitizer";
+    let file: DigitizerFile = parse(WHAT, text)?;
+    let limits = file.digitizer;
+    if limits.sample_rates.first().is_none_or(|r| *r <= 0.0) {
+        return Err(invalid(
+            WHAT,
+            "digitizer.sample_rates",
+            "needs a positive sample rate",
+        ));
+    }
+    if limits.codes_per_division == 0 || limits.horizontal_divisions == 0 {
+        return Err(invalid(
+            WHAT,
+            "digitizer.codes_per_division",
+            "divisions and codes per division must be > 0",
+        ));
+    }
+    if !(1..=8).contains(&limits.channels) {
+        return Err(invalid(WHAT, "digitizer.channels", "must be 1..=8"));
+    }
+    Ok(DigitizerModel {
+        identity: file.identity.emulator,
+        limits,
+    })
+}
+
+/// Reads a Gotmic module file (for example [`embedded::GOTMIC_TX`]).
+pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
+    const WHAT: &str = "RF module";
+    let file: RfFile = parse(WHAT, text)?;
+    let model = RfModel {
+        identity: file.identity.emulator,
+        limits: file.rf,
+        protocol: file.protocol,
+        registers: file.registers,
+    };
+    for name in [
+        "ID",
+        "STATUS",
+        "CONTROL",
+        "GAIN_ATT",
+        "TEMP_DC",
+        "FAULT_LATCH",
+    ] {
+        if model.register(name).is_none() {
+            return Err(invalid(
+                WHAT,
+                "register",
+                format!("needs a register named {name}"),
+            ));
+        }
+    }
+    for (register, field) in [
+        ("STATUS", "POWERED"),
+        ("STATUS", "LO_LOCKED"),
+        ("STATUS", "RF_ENABLED"),
+        ("STATUS", "OVER_TEMPERATURE"),
+        ("STATUS", "INTERLOCK_OPEN"),
+        ("CONTROL", "MASTER_ENABLE"),
+        ("CONTROL", "AMP_ENABLE"),
+        ("FAULT_LATCH", "OVER_TEMPERATURE"),
+        ("FAULT_LATCH", "INTERLOCK_OPENED"),
+        ("FAULT_LATCH", "LO_LOST"),
+    ] {
+        if model
+            .register(register)
+            .and_then(|r| r.mask(field))
+            .is_none()
+        {
+            return Err(invalid(
+                WHAT,
+                "register.fields",
+                format!("{register} needs a bit field named {field}"),
+            ));
+        }
+    }
+    for name in [
+        "syntax",
+        "unknown_register",
+        "read_only",
+        "out_of_range",
+        "not_allowed",
+        "crc",
+    ] {
+        if model.error(name).is_none() {
+            return Err(invalid(
+                WHAT,
+                "protocol.error",
+                format!("needs an error named {name}"),
+            ));
+        }
+    }
+    Ok(model)
+}
+
+/// The built-in M8195A model.
+pub fn m8195a() -> Result<AwgModel, CatalogError> {
+    awg_from_str(embedded::M8195A)
+}
+
+/// The built-in LabMaster 10 Zi-A model.
+pub fn lecroy() -> Result<DigitizerModel, CatalogError> {
+    digitizer_from_str(embedded::LECROY)
+}
+
+/// The built-in Gotmic E-band transmitter model.
+pub fn gotmic_tx() -> Result<RfModel, CatalogError> {
+    rf_from_str(embedded::GOTMIC_TX)
+}
+
+/// The built-in Gotmic E-band receiver model.
+pub fn gotmic_rx() -> Result<RfModel, CatalogError> {
+    rf_from_str(embedded::GOTMIC_RX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_models_load() {
+        let awg = m8195a().unwrap();
+        assert_eq!(awg.identity.idn(), "MOCK_LAB,M8195A-EMU,EMU0001,mock_lab-1");
+        assert_eq!(awg.limits.divider(2).unwrap().granularity, 128);
+        assert_eq!(lecroy().unwrap().limits.sample_rates, [80e9]);
+        let tx = gotmic_tx().unwrap();
+        assert_eq!(tx.register("CONTROL").unwrap().mask("AMP_ENABLE"), Some(2));
+        assert_eq!(gotmic_rx().unwrap().limits.direction, RfDirection::Rx);
+    }
+
+    #[test]
+    fn missing_register_is_refused() {
+        let text = embedded::GOTMIC_TX.replace("name = \"TEMP_DC\"", "name = \"TEMP\"");
+        let err = rf_from_str(&text).unwrap_err();
+        assert!(err.to_string().contains("TEMP_DC"), "{err}");
+    }
+}

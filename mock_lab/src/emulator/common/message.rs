@@ -1,0 +1,263 @@
+//! IEEE 488.2 program messages: split into units at `;` (and newlines) outside quoted strings and
+//! `#N` binary blocks, then each unit into a header and its comma-separated parameters.
+//!
+//! Blocks may contain any byte, including `;`, `,` and LF: they are framed by their length only.
+
+use super::error_queue::ScpiError;
+
+/// One parameter of a program message unit.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Param {
+    /// Character, numeric or quoted-string data as written (trimmed; quotes kept).
+    Text(String),
+    /// The payload of a definite (`#<d><len>`) or indefinite (`#0`) arbitrary block.
+    Block(Vec<u8>),
+}
+
+impl Param {
+    /// The text of a non-block parameter.
+    pub fn text(&self) -> Option<&str> {
+        match self {
+            Param::Text(t) => Some(t),
+            Param::Block(_) => None,
+        }
+    }
+}
+
+/// One program message unit: `header[?] param,param,...`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Unit {
+    /// The header as written, including a leading `:` or `*` and a trailing `?`.
+    pub header: String,
+    pub params: Vec<Param>,
+}
+
+impl Unit {
+    pub fn is_query(&self) -> bool {
+        self.header.ends_with('?')
+    }
+}
+
+/// Parses the `#<d><digits>` header of a definite block at the start of `data`: returns the header
+/// length and the payload length it announces. `#0` (indefinite) announces everything after it.
+pub fn block_header(data: &[u8]) -> Option<(usize, usize)> {
+    if data.first() != Some(&b'#') {
+        return None;
+    }
+    let d = data.get(1).filter(|b| b.is_ascii_digit())?;
+    let digits = usize::from(d - b'0');
+    if digits == 0 {
+        return Some((2, data.len() - 2));
+    }
+    let len_text = data.get(2..2 + digits)?;
+    if !len_text.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    let len = std::str::from_utf8(len_text).ok()?.parse().ok()?;
+    Some((2 + digits, len))
+}
+
+/// Splits a program message into its units. Errors are SCPI command errors (`-160` block data).
+pub fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
+    let mut units = Vec::new();
+    let mut start = 0;
+    let mut i = 0;
+    let mut quote: Option<u8> = None;
+    while i < message.len() {
+        let b = message[i];
+        if let Some(q) = quote {
+            if b == q {
+                quote = None;
+            }
+            i += 1;
+            continue;
+        }
+        match b {
+            b'"' | b'\'' => {
+                quote = Some(b);
+                i += 1;
+            }
+            b'#' if message.get(i + 1).is_some_and(u8::is_ascii_digit) => {
+                let (header, payload) = block_header(&message[i..]).ok_or_else(|| {
+                    ScpiError::new(-161, "the block length digits are missing or not digits")
+                })?;
+                let end = i + header + payload;
+                if end > message.len() {
+                    return Err(ScpiError::new(
+                        -161,
+                        format!(
+                            "the block announces {payload} bytes but only {} arrived",
+                            message.len() - i - header
+                        ),
+                    ));
+                }
+                i = end;
+            }
+            b';' | b'\n' => {
+                push_unit(&mut units, &message[start..i]);
+                i += 1;
+                start = i;
+            }
+            _ => i += 1,
+        }
+    }
+    if quote.is_some() {
+        return Err(ScpiError::new(-102, "unterminated quoted string"));
+    }
+    push_unit(&mut units, &message[start..]);
+    Ok(units)
+}
+
+fn push_unit<'a>(units: &mut Vec<&'a [u8]>, unit: &'a [u8]) {
+    let trimmed = trim(unit);
+    if !trimmed.is_empty() {
+        units.push(trimmed);
+    }
+}
+
+fn trim(mut data: &[u8]) -> &[u8] {
+    while let [first, rest @ ..] = data {
+        if first.is_ascii_whitespace() {
+            data = rest;
+        } else {
+            break;
+        }
+    }
+    while let [rest @ .., last] = data {
+        if last.is_ascii_whitespace() {
+            data = rest;
+        } else {
+            break;
+        }
+    }
+    data
+}
+
+/// Parses one unit into header and parameters.
+pub fn parse_unit(unit: &[u8]) -> Result<Unit, ScpiError> {
+    let unit = trim(unit);
+    let header_end = unit
+        .iter()
+        .position(|b| b.is_ascii_whitespace())
+        .unwrap_or(unit.len());
+    let header = std::str::from_utf8(&unit[..header_end])
+        .map_err(|_| ScpiError::new(-101, "the header is not ASCII"))?
+        .to_string();
+    if header.is_empty() {
+        return Err(ScpiError::new(-102, "empty header"));
+    }
+    let params = parse_params(trim(&unit[header_end..]))?;
+    Ok(Unit { header, params })
+}
+
+fn parse_params(data: &[u8]) -> Result<Vec<Param>, ScpiError> {
+    let mut params = Vec::new();
+    if data.is_empty() {
+        return Ok(params);
+    }
+    let mut i = 0;
+    loop {
+        while i < data.len() && data[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        if data.get(i) == Some(&b'#') && data.get(i + 1).is_some_and(u8::is_ascii_digit) {
+            let (header, payload) =
+                block_header(&data[i..]).ok_or_else(|| ScpiError::new(-161, "bad block header"))?;
+            let end = i + header + payload;
+            if end > data.len() {
+                return Err(ScpiError::new(-161, "the block is shorter than announced"));
+            }
+            params.push(Param::Block(data[i + header..end].to_vec()));
+            i = end;
+            while i < data.len() && data[i].is_ascii_whitespace() {
+                i += 1;
+            }
+            if i < data.len() && data[i] != b',' {
+                return Err(ScpiError::new(
+                    -161,
+                    "more bytes follow the block than it announced",
+                ));
+            }
+        } else {
+            let start = i;
+            let mut quote: Option<u8> = None;
+            while i < data.len() {
+                let b = data[i];
+                match quote {
+                    Some(q) if b == q => quote = None,
+                    Some(_) => {}
+                    None if b == b'"' || b == b'\'' => quote = Some(b),
+                    None if b == b',' => break,
+                    None => {}
+                }
+                i += 1;
+            }
+            let text = std::str::from_utf8(trim(&data[start..i]))
+                .map_err(|_| ScpiError::new(-101, "a parameter is not ASCII"))?;
+            if text.is_empty() {
+                return Err(ScpiError::new(-109, "empty parameter between commas"));
+            }
+            params.push(Param::Text(text.to_string()));
+        }
+        if i >= data.len() {
+            return Ok(params);
+        }
+        i += 1; // the comma
+        if i >= data.len() {
+            return Err(ScpiError::new(
+                -109,
+                "a parameter is missing after the last comma",
+            ));
+        }
+    }
+}
+
+/// Removes one pair of matching surrounding quotes (`"..."` or `'...'`), if present.
+pub fn unquote(text: &str) -> &str {
+    let t = text.trim();
+    for q in ['"', '\''] {
+        if t.len() >= 2 && t.starts_with(q) && t.ends_with(q) {
+            return &t[1..t.len() - 1];
+        }
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_around_blocks_and_quotes() {
+        let msg = b":TRAC1:DATA 1,0,#14;\n,\x7f;VBS 'a;b';*OPC?\r\n";
+        let units = split_units(msg).unwrap();
+        assert_eq!(units.len(), 3);
+        let data = parse_unit(units[0]).unwrap();
+        assert_eq!(data.header, ":TRAC1:DATA");
+        assert_eq!(
+            data.params,
+            [
+                Param::Text("1".into()),
+                Param::Text("0".into()),
+                Param::Block(b";\n,\x7f".to_vec())
+            ]
+        );
+        assert_eq!(
+            parse_unit(units[1]).unwrap().params,
+            [Param::Text("'a;b'".into())]
+        );
+        assert!(parse_unit(units[2]).unwrap().is_query());
+    }
+
+    #[test]
+    fn short_blocks_and_stray_bytes_are_block_errors() {
+        assert_eq!(
+            split_units(b":TRAC:DATA 1,0,#15abc").unwrap_err().code,
+            -161
+        );
+        let unit = parse_unit(b":TRAC:DATA 1,0,#12abX").unwrap_err();
+        assert_eq!(unit.code, -161);
+        assert_eq!(parse_unit(b"A 1,").unwrap_err().code, -109);
+        assert_eq!(block_header(b"#0abc"), Some((2, 3)));
+    }
+}
