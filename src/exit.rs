@@ -92,6 +92,8 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::transport::journal::JournalError,
         crate::session::SessionError,
         crate::catalog::CatalogError,
+        crate::driver::DriverError,
+        crate::driver::TrcError,
     );
     None
 }
