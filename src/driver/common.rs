@@ -96,12 +96,14 @@ pub fn within(
     }
 }
 
-/// A number as SCPI text: shortest round-trip decimal, no exponent surprises (`64000000000`, `0.5`).
+/// A number as SCPI text: a plain decimal rounded to 12 significant digits, so arithmetic noise
+/// (`1.0239999999999999e-7`) never reaches the instrument (`64000000000`, `0.5`, `0.0000001024`).
 pub fn number(value: f64) -> String {
-    if value == 0.0 {
+    let rounded: f64 = format!("{value:.11e}").parse().unwrap_or(value);
+    if rounded == 0.0 {
         "0".to_string()
     } else {
-        format!("{value}")
+        format!("{rounded}")
     }
 }
 
@@ -120,6 +122,8 @@ mod tests {
         assert_eq!(number(0.5), "0.5");
         assert_eq!(number(-0.0), "0");
         assert_eq!(number(1.024e-7), "0.0000001024");
+        assert_eq!(number(1.024e-6 / 10.0 - 1e-22), "0.0000001024");
+        assert_eq!(number(-5.12e-7), "-0.000000512");
         assert!(close(6.4e10, 6.4000000000e10, 1e-9));
         assert!(!close(6.4e10, 6.5e10, 1e-9));
     }

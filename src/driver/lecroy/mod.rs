@@ -66,6 +66,16 @@ fn no_answer(e: &SessionError) -> bool {
     )
 }
 
+fn remote_interface(resource: String, protocol: &str, source: SessionError) -> DriverError {
+    let (this, other) = protocol_names(protocol);
+    DriverError::RemoteInterface {
+        resource,
+        protocol: this,
+        other,
+        source: Box::new(source),
+    }
+}
+
 impl Lecroy {
     /// Opens the resource (VICP or VXI-11), identifies the scope and returns the driver. When the
     /// scope does not answer on this protocol the error says to check its remote setting.
@@ -77,28 +87,16 @@ impl Lecroy {
     ) -> Result<Lecroy, DriverError> {
         let text = resource.to_string();
         let protocol = resource.protocol();
-        let remote = |source: SessionError| {
-            let (this, other) = protocol_names(protocol);
-            DriverError::RemoteInterface {
-                resource: text.clone(),
-                protocol: this,
-                other,
-                source: Box::new(source),
-            }
-        };
-        let session = open_session(resource.clone(), &model.timeouts, "CMR?", journal, name)
+        let session = open_session(resource, &model.timeouts, "CMR?", journal, name)
             .await
             .map_err(|e| {
                 if no_answer(&e) {
-                    remote(e)
+                    remote_interface(text.clone(), protocol, e)
                 } else {
                     session(name)(e)
                 }
             })?;
-        match Lecroy::connect(Box::new(session), model, name).await {
-            Err(DriverError::Session { source, .. }) if no_answer(&source) => Err(remote(*source)),
-            other => other,
-        }
+        Lecroy::connect(Box::new(session), model, name).await
     }
 
     /// Identifies the scope on an open session (or a scripted fake).
@@ -114,7 +112,12 @@ impl Lecroy {
                 key: model.instrument.key.clone(),
                 reason: "the model has no [digitizer] section; it is not a scope".into(),
             })?;
-        let identity = common::identify(io.as_mut(), model, name).await?;
+        let identity = match common::identify(io.as_mut(), model, name).await {
+            Err(DriverError::Session { source, .. }) if no_answer(&source) => {
+                return Err(remote_interface(io.resource_text(), io.protocol(), *source))
+            }
+            other => other?,
+        };
         Ok(Lecroy {
             io,
             vbs_prefix: model.quirks.vbs_reply_prefix.clone(),
