@@ -88,6 +88,10 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::waveform::ParamError,
         crate::dsp::DspError,
         crate::catalog::CatalogError,
+        crate::address::AddressError,
+        crate::transport::LinkError,
+        crate::transport::journal::JournalError,
+        crate::session::SessionError,
     );
     None
 }

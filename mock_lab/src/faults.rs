@@ -1,1 +1,143 @@
-//! Faults the tests can switch on.
+//! Faults the tests can switch on at run time, one [`Faults`] per server.
+//!
+//! Every protocol server asks its `Faults` for a [`ReplyPlan`] each time the instrument produced a
+//! response, and delivers the response accordingly. This is what lets a client's tests provoke the
+//! failures real links show: a slow instrument, a reply trickling in one byte per TCP segment, a
+//! connection that dies in the middle of a binary block, a query whose answer never comes.
+//!
+//! Delay and 1-byte segments stay on until switched off; the dropped connection and the missing
+//! reply are one-shot (they hit the next response only), so the test can check that the client
+//! recovers and the following exchange succeeds.
+
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Run-time switchable faults for one server. Cheap to share: wrap it in an [`Arc`] and keep a
+/// clone in the test.
+#[derive(Debug, Default)]
+pub struct Faults {
+    reply_delay_us: AtomicU64,
+    byte_segments: AtomicBool,
+    drop_next: AtomicU32,
+    swallow_next: AtomicU32,
+}
+
+/// How one response is to be delivered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReplyPlan {
+    /// Wait this long before sending anything.
+    pub delay: Duration,
+    /// Write the encoded response one byte at a time, flushing after each byte.
+    pub byte_segments: bool,
+    /// What happens to the response.
+    pub fate: ReplyFate,
+}
+
+/// The fate of one response.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReplyFate {
+    /// Send it whole.
+    Deliver,
+    /// Send the first half of the encoded bytes, then close the connection.
+    DropMidway,
+    /// Never send it (the client must time out).
+    Swallow,
+}
+
+impl ReplyPlan {
+    /// A plan without any fault.
+    pub const CLEAN: ReplyPlan = ReplyPlan {
+        delay: Duration::ZERO,
+        byte_segments: false,
+        fate: ReplyFate::Deliver,
+    };
+}
+
+impl Faults {
+    /// No faults switched on.
+    pub fn new() -> Arc<Faults> {
+        Arc::new(Faults::default())
+    }
+
+    /// Delay every response by `delay` (zero switches it off).
+    pub fn set_reply_delay(&self, delay: Duration) {
+        let us = u64::try_from(delay.as_micros()).unwrap_or(u64::MAX);
+        self.reply_delay_us.store(us, Ordering::SeqCst);
+    }
+
+    /// Write every response one byte per TCP segment (flush after each byte) while `on`.
+    pub fn set_byte_segments(&self, on: bool) {
+        self.byte_segments.store(on, Ordering::SeqCst);
+    }
+
+    /// Cut the connection halfway through the next response (one-shot).
+    pub fn drop_next_reply_midway(&self) {
+        self.drop_next.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// Never send the next response (one-shot): the client's read must time out.
+    pub fn swallow_next_reply(&self) {
+        self.swallow_next.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// Switch every fault off, including pending one-shots.
+    pub fn clear(&self) {
+        self.reply_delay_us.store(0, Ordering::SeqCst);
+        self.byte_segments.store(false, Ordering::SeqCst);
+        self.drop_next.store(0, Ordering::SeqCst);
+        self.swallow_next.store(0, Ordering::SeqCst);
+    }
+
+    /// Decide how the next response is delivered, consuming a pending one-shot fault.
+    pub fn plan_reply(&self) -> ReplyPlan {
+        let fate = if take_one(&self.swallow_next) {
+            ReplyFate::Swallow
+        } else if take_one(&self.drop_next) {
+            ReplyFate::DropMidway
+        } else {
+            ReplyFate::Deliver
+        };
+        ReplyPlan {
+            delay: Duration::from_micros(self.reply_delay_us.load(Ordering::SeqCst)),
+            byte_segments: self.byte_segments.load(Ordering::SeqCst),
+            fate,
+        }
+    }
+}
+
+/// Decrement `counter` if it is positive; true when a pending fault was taken.
+fn take_one(counter: &AtomicU32) -> bool {
+    counter
+        .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1))
+        .is_ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_shot_faults_hit_only_the_next_reply() {
+        let faults = Faults::new();
+        faults.swallow_next_reply();
+        faults.drop_next_reply_midway();
+        assert_eq!(faults.plan_reply().fate, ReplyFate::Swallow);
+        assert_eq!(faults.plan_reply().fate, ReplyFate::DropMidway);
+        assert_eq!(faults.plan_reply(), ReplyPlan::CLEAN);
+    }
+
+    #[test]
+    fn persistent_faults_stay_until_cleared() {
+        let faults = Faults::new();
+        faults.set_reply_delay(Duration::from_millis(5));
+        faults.set_byte_segments(true);
+        for _ in 0..3 {
+            let plan = faults.plan_reply();
+            assert_eq!(plan.delay, Duration::from_millis(5));
+            assert!(plan.byte_segments);
+        }
+        faults.clear();
+        assert_eq!(faults.plan_reply(), ReplyPlan::CLEAN);
+    }
+}

@@ -1,5 +1,34 @@
 //! Protocol servers. Each binds 127.0.0.1 (port 0 in tests), reports its address, serves several
 //! clients at once, and hands whole messages to a pluggable [`Handler`].
+//!
+//! | module | protocol |
+//! |---|---|
+//! | [`raw`] | raw SCPI socket (LF-terminated, block-aware) |
+//! | [`vxi11`] | VXI-11 core + abort channels, optional portmapper |
+//! | [`hislip`] | HiSLIP 1.0 synchronous + asynchronous channels |
+//! | [`vicp`] | LeCroy VICP (version 1a: sequence numbers, out-of-band serial poll) |
+//! | [`serial`] | line-based serial endpoint on a pseudo-terminal |
+//!
+//! Every server takes [`ServerOptions`]: the largest message it accepts (length fields are
+//! checked against it before anything is allocated) and the [`Faults`] the tests can switch on.
+//! Handler calls run on tokio's blocking pool, so a handler that blocks (a scope's `WAIT`)
+//! stalls only its own client.
+
+pub mod conn;
+pub mod framing;
+pub mod hislip;
+pub mod raw;
+pub mod serial;
+pub mod vicp;
+pub mod vxi11;
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use thiserror::Error;
+use tokio::task::JoinHandle;
+
+use crate::faults::Faults;
 
 /// What an emulated instrument does with whole messages. Servers frame bytes into messages
 /// (terminator outside `#N` blocks, VXI-11 END, HiSLIP DataEnd, VICP EOI) and call these methods
@@ -12,9 +41,137 @@ pub trait Handler: Send + Sync + 'static {
     /// IEEE 488.2 device clear: abandon pending input and output.
     fn device_clear(&self) {}
     /// The status byte, for serial polls (HiSLIP AsyncStatusQuery, VXI-11 device_readstb, VICP).
+    /// The servers OR in MAV (bit 4) themselves when they hold output the client has not read.
     fn status_byte(&self) -> u8 {
         0
     }
     /// A group-execute trigger (VXI-11 device_trigger, HiSLIP Trigger).
     fn trigger(&self) {}
+}
+
+/// Settings shared by every server.
+#[derive(Debug, Clone)]
+pub struct ServerOptions {
+    /// Largest message accepted from a client, in bytes. Length fields (blocks, HiSLIP, VICP,
+    /// RPC records) above it are refused before any allocation.
+    pub max_message_size: usize,
+    /// Faults the tests can switch on while the server runs.
+    pub faults: Arc<Faults>,
+}
+
+/// Default largest message: a 64 MB block plus headroom, times four.
+pub const DEFAULT_MAX_MESSAGE_SIZE: usize = 256 << 20;
+
+impl Default for ServerOptions {
+    fn default() -> Self {
+        ServerOptions {
+            max_message_size: DEFAULT_MAX_MESSAGE_SIZE,
+            faults: Faults::new(),
+        }
+    }
+}
+
+impl ServerOptions {
+    /// Default options with the given faults.
+    pub fn with_faults(faults: Arc<Faults>) -> ServerOptions {
+        ServerOptions {
+            faults,
+            ..ServerOptions::default()
+        }
+    }
+}
+
+/// Why a server could not start.
+#[derive(Debug, Error)]
+pub enum ServerError {
+    /// The listening socket could not be bound.
+    #[error(
+        "cannot listen on {addr} for {protocol}: {source}; pick a free port (0 lets the OS choose)"
+    )]
+    Bind {
+        /// Protocol being served.
+        protocol: &'static str,
+        /// Address asked for.
+        addr: SocketAddr,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The pseudo-terminal for the serial endpoint could not be created.
+    #[error("cannot create a pseudo-terminal for the serial endpoint: {0}; check that /dev/ptmx is available")]
+    Pty(#[from] serialport::Error),
+    /// A socket or thread operation failed while starting.
+    #[error("cannot start the {protocol} server: {source}")]
+    Start {
+        /// Protocol being served.
+        protocol: &'static str,
+        /// The OS error.
+        source: std::io::Error,
+    },
+}
+
+/// A running server: its addresses, and the tasks to stop when it is dropped.
+#[derive(Debug)]
+pub struct ServerHandle {
+    protocol: &'static str,
+    addr: SocketAddr,
+    extra: Vec<(&'static str, SocketAddr)>,
+    tasks: Vec<JoinHandle<()>>,
+}
+
+impl ServerHandle {
+    pub(crate) fn new(protocol: &'static str, addr: SocketAddr, task: JoinHandle<()>) -> Self {
+        ServerHandle {
+            protocol,
+            addr,
+            extra: Vec::new(),
+            tasks: vec![task],
+        }
+    }
+
+    /// The protocol served ("raw", "vxi11", "hislip", "vicp").
+    pub fn protocol(&self) -> &'static str {
+        self.protocol
+    }
+
+    /// The main listening address (the VXI-11 core channel for VXI-11).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// A secondary listener by name (VXI-11: "abort", "portmapper").
+    pub fn listener(&self, name: &str) -> Option<SocketAddr> {
+        self.extra.iter().find(|(n, _)| *n == name).map(|(_, a)| *a)
+    }
+
+    /// Stops accepting and drops every connection.
+    pub fn shutdown(&mut self) {
+        for task in self.tasks.drain(..) {
+            task.abort();
+        }
+    }
+}
+
+impl Drop for ServerHandle {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// Binds a TCP listener, mapping the error to [`ServerError::Bind`].
+pub(crate) async fn bind(
+    protocol: &'static str,
+    addr: SocketAddr,
+) -> Result<tokio::net::TcpListener, ServerError> {
+    tokio::net::TcpListener::bind(addr)
+        .await
+        .map_err(|source| ServerError::Bind {
+            protocol,
+            addr,
+            source,
+        })
+}
+
+/// The loopback address with an OS-chosen port: what tests bind.
+pub fn loopback_any() -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], 0))
 }

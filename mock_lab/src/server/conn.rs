@@ -1,0 +1,197 @@
+//! Connection plumbing shared by the TCP servers: accept loops, handler calls on the blocking
+//! pool, bounded reads straight into message buffers, and fault-aware reply writing.
+
+use std::future::Future;
+use std::io;
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::task::JoinSet;
+
+use super::framing::has_terminator;
+use super::Handler;
+use crate::faults::{ReplyFate, ReplyPlan};
+
+/// Largest single read request; big blocks arrive in reads of this size, straight into the
+/// message buffer (no intermediate copy, no up-front allocation of the announced length).
+pub const READ_CHUNK: usize = 8 << 20;
+
+/// Replies up to this size are coalesced into one write (one TCP segment for small answers).
+const COALESCE_LIMIT: usize = 64 << 10;
+
+/// Accepts connections forever, running `serve` for each on its own task. Connection tasks live
+/// in a [`JoinSet`] owned by the loop, so aborting the loop's task drops every connection.
+pub async fn accept_loop<F, Fut>(listener: TcpListener, protocol: &'static str, serve: F)
+where
+    F: Fn(TcpStream, SocketAddr) -> Fut,
+    Fut: Future<Output = ()> + Send + 'static,
+{
+    let mut connections = JoinSet::new();
+    loop {
+        tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok((stream, peer)) => {
+                    if let Err(err) = stream.set_nodelay(true) {
+                        tracing::debug!(%peer, protocol, "cannot set TCP_NODELAY: {err}");
+                    }
+                    tracing::debug!(%peer, protocol, "client connected");
+                    connections.spawn(serve(stream, peer));
+                }
+                Err(err) => {
+                    // Typically EMFILE: back off briefly instead of spinning.
+                    tracing::warn!(protocol, "accept failed: {err}");
+                    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                }
+            },
+            Some(_) = connections.join_next(), if !connections.is_empty() => {}
+        }
+    }
+}
+
+/// Runs a blocking closure on the blocking pool. `None` when it panicked (logged); the caller
+/// then closes its connection, and the server keeps running.
+pub async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Option<T> {
+    match tokio::task::spawn_blocking(f).await {
+        Ok(value) => Some(value),
+        Err(err) => {
+            tracing::error!("instrument handler failed: {err}");
+            None
+        }
+    }
+}
+
+/// Hands one message to the handler on the blocking pool and returns its responses, each with a
+/// 488.2 response terminator (LF outside any block) appended when missing.
+pub async fn call_handler(handler: &Arc<dyn Handler>, message: Vec<u8>) -> Option<Vec<Vec<u8>>> {
+    let handler = Arc::clone(handler);
+    let responses = blocking(move || handler.message(&message)).await?;
+    Some(responses.into_iter().map(terminated).collect())
+}
+
+/// Appends the LF response terminator unless the response already ends with one.
+pub fn terminated(mut response: Vec<u8>) -> Vec<u8> {
+    if !has_terminator(&response) {
+        response.push(b'\n');
+    }
+    response
+}
+
+/// Reads exactly `n` bytes from `r`, appending them to `dst` in large reads. Memory grows with
+/// the bytes that actually arrive, never with what a length field merely announced.
+pub async fn read_exact_append<R: AsyncRead + Unpin>(
+    r: &mut R,
+    dst: &mut Vec<u8>,
+    n: u64,
+) -> io::Result<()> {
+    let mut left = n;
+    while left > 0 {
+        let want = left.min(READ_CHUNK as u64);
+        dst.reserve(want as usize);
+        let got = (&mut *r).take(want).read_buf(dst).await?;
+        if got == 0 {
+            return Err(io::ErrorKind::UnexpectedEof.into());
+        }
+        left -= got as u64;
+    }
+    Ok(())
+}
+
+/// Reads and discards exactly `n` bytes (payload of a message being refused).
+pub async fn skip_exact<R: AsyncRead + Unpin>(r: &mut R, n: u64) -> io::Result<()> {
+    let copied = tokio::io::copy(&mut (&mut *r).take(n), &mut tokio::io::sink()).await?;
+    if copied < n {
+        return Err(io::ErrorKind::UnexpectedEof.into());
+    }
+    Ok(())
+}
+
+/// What became of a reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Delivery {
+    /// Written completely.
+    Sent,
+    /// Not written (fault: a reply that never comes).
+    Swallowed,
+    /// Half written; the caller must close the connection now (fault).
+    Dropped,
+}
+
+/// Writes an encoded reply made of `parts` (headers and payloads, in order) according to `plan`.
+pub async fn write_reply<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    parts: &[&[u8]],
+    plan: ReplyPlan,
+) -> io::Result<Delivery> {
+    if !plan.delay.is_zero() {
+        tokio::time::sleep(plan.delay).await;
+    }
+    let total: usize = parts.iter().map(|p| p.len()).sum();
+    let limit = match plan.fate {
+        ReplyFate::Swallow => return Ok(Delivery::Swallowed),
+        ReplyFate::DropMidway => total / 2,
+        ReplyFate::Deliver => total,
+    };
+    if plan.byte_segments {
+        write_bytewise(w, parts, limit).await?;
+    } else if total <= COALESCE_LIMIT {
+        let joined: Vec<u8> = parts.concat();
+        w.write_all(&joined[..limit]).await?;
+    } else {
+        let mut left = limit;
+        for part in parts {
+            let n = part.len().min(left);
+            w.write_all(&part[..n]).await?;
+            left -= n;
+        }
+    }
+    w.flush().await?;
+    if plan.fate == ReplyFate::DropMidway {
+        // Best effort: the peer sees a half message followed by FIN.
+        let _ = w.shutdown().await;
+        return Ok(Delivery::Dropped);
+    }
+    Ok(Delivery::Sent)
+}
+
+async fn write_bytewise<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    parts: &[&[u8]],
+    limit: usize,
+) -> io::Result<()> {
+    for &byte in parts.iter().flat_map(|p| p.iter()).take(limit) {
+        w.write_all(&[byte]).await?;
+        w.flush().await?;
+    }
+    Ok(())
+}
+
+/// True for errors that just mean the client went away.
+pub fn is_disconnect(err: &io::Error) -> bool {
+    matches!(
+        err.kind(),
+        io::ErrorKind::UnexpectedEof
+            | io::ErrorKind::ConnectionReset
+            | io::ErrorKind::ConnectionAborted
+            | io::ErrorKind::BrokenPipe
+    )
+}
+
+/// Logs how a connection ended: disconnects at debug level, real errors as warnings.
+pub fn log_end<E: std::fmt::Display>(
+    protocol: &'static str,
+    peer: SocketAddr,
+    result: Result<(), E>,
+    io_err: impl Fn(&E) -> Option<&io::Error>,
+) {
+    match result {
+        Ok(()) => tracing::debug!(%peer, protocol, "client disconnected"),
+        Err(err) => match io_err(&err) {
+            Some(io) if is_disconnect(io) => {
+                tracing::debug!(%peer, protocol, "client vanished: {err}")
+            }
+            _ => tracing::warn!(%peer, protocol, "connection closed: {err}"),
+        },
+    }
+}

@@ -1,0 +1,101 @@
+//! Raw SCPI socket server (the instrument's port 5025).
+//!
+//! A message ends at LF outside `#N` blocks (CR LF accepted); responses get a LF. Messages are
+//! handled one after another per connection, in the order they arrived.
+
+use std::io;
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use thiserror::Error;
+use tokio::io::AsyncReadExt;
+use tokio::net::TcpStream;
+
+use super::conn::{self, Delivery, READ_CHUNK};
+use super::framing::{FramingError, Splitter};
+use super::{Handler, ServerError, ServerHandle, ServerOptions};
+
+const PROTOCOL: &str = "raw";
+
+/// Why a raw-socket connection ended abnormally.
+#[derive(Debug, Error)]
+pub enum RawError {
+    /// Socket error.
+    #[error("socket error: {0}")]
+    Io(#[from] io::Error),
+    /// The client sent something that cannot be framed.
+    #[error("{0}")]
+    Framing(#[from] FramingError),
+}
+
+/// Starts a raw-socket server on `addr` serving `handler`.
+pub async fn serve(
+    addr: SocketAddr,
+    handler: Arc<dyn Handler>,
+    options: ServerOptions,
+) -> Result<ServerHandle, ServerError> {
+    let listener = super::bind(PROTOCOL, addr).await?;
+    let local = listener.local_addr().map_err(|source| ServerError::Start {
+        protocol: PROTOCOL,
+        source,
+    })?;
+    let task = tokio::spawn(conn::accept_loop(
+        listener,
+        PROTOCOL,
+        move |stream, peer| {
+            let handler = Arc::clone(&handler);
+            let options = options.clone();
+            async move {
+                let result = serve_connection(stream, handler, options).await;
+                conn::log_end(PROTOCOL, peer, result, |e| match e {
+                    RawError::Io(io) => Some(io),
+                    RawError::Framing(_) => None,
+                });
+            }
+        },
+    ));
+    Ok(ServerHandle::new(PROTOCOL, local, task))
+}
+
+async fn serve_connection(
+    stream: TcpStream,
+    handler: Arc<dyn Handler>,
+    options: ServerOptions,
+) -> Result<(), RawError> {
+    let (mut reader, mut writer) = stream.into_split();
+    let mut splitter = Splitter::new(options.max_message_size);
+    let mut buf: Vec<u8> = Vec::with_capacity(64 << 10);
+    loop {
+        while let Some(frame) = splitter.next_frame(&buf)? {
+            let message = if frame.consumed == buf.len() {
+                let mut whole = std::mem::take(&mut buf);
+                whole.truncate(frame.message_len);
+                whole
+            } else {
+                let message = buf[..frame.message_len].to_vec();
+                buf.drain(..frame.consumed);
+                message
+            };
+            if message.is_empty() {
+                continue;
+            }
+            let Some(responses) = conn::call_handler(&handler, message).await else {
+                return Ok(());
+            };
+            for response in responses {
+                let plan = options.faults.plan_reply();
+                if conn::write_reply(&mut writer, &[&response], plan).await? == Delivery::Dropped {
+                    return Ok(());
+                }
+            }
+        }
+        let want = splitter
+            .block_bytes_pending()
+            .clamp(64 << 10, READ_CHUNK as u64);
+        buf.reserve(want as usize);
+        let got = (&mut reader).take(want).read_buf(&mut buf).await?;
+        if got == 0 {
+            return Ok(());
+        }
+    }
+}

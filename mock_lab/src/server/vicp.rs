@@ -1,0 +1,1 @@
+//! vicp server (in progress).

@@ -1,0 +1,1 @@
+//! vxi11 server (in progress).
