@@ -92,6 +92,7 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::transport::LinkError,
         crate::transport::journal::JournalError,
         crate::session::SessionError,
+        crate::driver::DriverError,
     );
     None
 }
