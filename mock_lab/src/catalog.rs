@@ -150,6 +150,7 @@ pub struct DigitizerModel {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 pub struct RfLimits {
     pub direction: RfDirection,
+    pub attenuation_step_db: f64,
     pub over_temperature_c: f64,
     pub ambient_temperature_c: f64,
     pub enable_requires_interlock_closed: bool,
@@ -197,7 +198,7 @@ impl Register {
         self.fields
             .iter()
             .find(|f| f.name == field)
-            .map(|f| 1u16 << f.bit)
+            .and_then(|f| 1u16.checked_shl(u32::from(f.bit)))
     }
 }
 
@@ -330,6 +331,13 @@ pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
         protocol: file.protocol,
         registers: file.registers,
     };
+    check_rf(&model)?;
+    Ok(model)
+}
+
+/// Checks that an RF model has the registers, bit fields and error names the emulator relies on.
+pub fn check_rf(model: &RfModel) -> Result<(), CatalogError> {
+    const WHAT: &str = "RF module";
     for name in [
         "ID",
         "STATUS",
@@ -386,7 +394,7 @@ pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
             ));
         }
     }
-    Ok(model)
+    Ok(())
 }
 
 /// The built-in M8195A model.

@@ -1,1 +1,304 @@
-//! Teledyne LeCroy LabMaster emulator.
+//! Teledyne LeCroy LabMaster 10 Zi-A emulator (legacy 488.2 commands + the VBS automation
+//! statements a driver uses), fixed 80 GSa/s, `Cn:WF? ALL` with a `LECROY_2_3` WAVEDESC.
+//!
+//! An acquisition completes only when the pluggable [`TriggerSource`] reports a marker edge (or the
+//! trigger is forced). The emulator never holds its lock while it waits for an edge, so a client can
+//! poll `INR?` on another connection while one connection is blocked in `WAIT`.
+//!
+//! Errors follow the legacy LeCroy registers [I]: command errors set `CMR?` (1 unknown header,
+//! 2 illegal header path, 3 illegal number, 5 unknown keyword, 11 bad block) and ESR bit 5;
+//! execution errors set `EXR?` (22 environment, 25 parameter, 26 not implemented, 27 parameter
+//! missing) and ESR bit 4. Out-of-range values are adapted to the nearest allowed value and flag
+//! STB bit 2 (VAB), as the scope does.
+
+mod commands;
+mod state;
+pub mod trigger;
+mod vbs;
+pub mod wavedesc;
+
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+pub use state::{
+    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, RemoteInterface, ScopeState,
+    TransferWindow, TriggerMode, EMULATOR_MAX_POINTS,
+};
+pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
+
+use super::common::log::ReceivedLog;
+use super::common::message::{parse_unit, split_units};
+use crate::catalog::{self, CatalogError, DigitizerModel};
+use crate::server::Handler;
+
+const LOG_CAPACITY: usize = 1000;
+
+/// Name written into WAVEDESC INSTRUMENT_NAME (honest: this is an emulator).
+pub const WAVEDESC_INSTRUMENT_NAME: &str = "MOCK_LAB EMU";
+
+/// A failure while running one command, mapped to the CMR/EXR registers.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Fault {
+    /// Command error: CMR code; abandons the rest of the message.
+    Command(u8, String),
+    /// Execution error: EXR code.
+    Execution(u8, String),
+}
+
+/// The emulated scope.
+pub struct Lecroy {
+    model: DigitizerModel,
+    inner: Mutex<ScopeState>,
+    source: Arc<dyn TriggerSource>,
+    log: ReceivedLog,
+    wait_cap: Mutex<Duration>,
+}
+
+impl Lecroy {
+    /// A scope with `model`'s limits whose inputs see `source`, remote interface set to VICP.
+    pub fn new(model: DigitizerModel, source: Arc<dyn TriggerSource>) -> Lecroy {
+        let state = ScopeState::reset(&model, RemoteInterface::Vicp);
+        Lecroy {
+            inner: Mutex::new(state),
+            source,
+            log: ReceivedLog::new("lecroy", LOG_CAPACITY),
+            wait_cap: Mutex::new(Duration::from_secs(10)),
+            model,
+        }
+    }
+
+    /// The built-in LabMaster 10 Zi-A model with a [`TestSignal`] (marker present, 1 GHz tone).
+    pub fn embedded() -> Result<Lecroy, CatalogError> {
+        Ok(Lecroy::new(
+            catalog::lecroy()?,
+            Arc::new(TestSignal::default()),
+        ))
+    }
+
+    /// The built-in model with the given input source.
+    pub fn embedded_with(source: Arc<dyn TriggerSource>) -> Result<Lecroy, CatalogError> {
+        Ok(Lecroy::new(catalog::lecroy()?, source))
+    }
+
+    pub fn model(&self) -> &DigitizerModel {
+        &self.model
+    }
+
+    pub fn log(&self) -> &ReceivedLog {
+        &self.log
+    }
+
+    /// A copy of the settings and the last acquisition.
+    pub fn state(&self) -> ScopeState {
+        self.lock().clone()
+    }
+
+    /// Longest time `WAIT` without an argument blocks (the real scope waits forever).
+    pub fn set_wait_cap(&self, cap: Duration) {
+        *self.wait_cap.lock().unwrap_or_else(|e| e.into_inner()) = cap;
+    }
+
+    /// Chooses the remote-control protocol, as in Utilities > Remote on the scope.
+    pub fn set_remote_interface(&self, remote: RemoteInterface) {
+        self.lock().remote = remote;
+    }
+
+    pub fn remote_interface(&self) -> RemoteInterface {
+        self.lock().remote
+    }
+
+    /// Whether a client on `via` is served. Servers call this when a link opens and refuse the link
+    /// with this message (the scope has no listener for the disabled protocol).
+    pub fn accepts(&self, via: RemoteInterface) -> Result<(), String> {
+        let enabled = self.remote_interface();
+        if enabled == via {
+            Ok(())
+        } else {
+            Err(format!(
+                "the scope's remote interface is set to {}, not {}: change Utilities > Utilities Setup > Remote",
+                enabled.label(),
+                via.label()
+            ))
+        }
+    }
+
+    /// A [`Handler`] for clients arriving over `via`; it serves nothing while the scope's remote
+    /// interface is set to the other protocol.
+    pub fn port(self: &Arc<Self>, via: RemoteInterface) -> LecroyPort {
+        LecroyPort {
+            scope: Arc::clone(self),
+            via,
+        }
+    }
+
+    /// The `.trc` file content of channel `n` (1-based) from the last acquisition: the `#9` block of
+    /// `WF? ALL` in the current COMM_FORMAT/COMM_ORDER, exactly as the scope saves it.
+    pub fn trc_bytes(&self, n: u8) -> Option<Vec<u8>> {
+        let st = self.lock();
+        let index = usize::from(n).checked_sub(1)?;
+        if index >= st.channels.len() {
+            return None;
+        }
+        Some(st.waveform(&self.model, index, WAVEDESC_INSTRUMENT_NAME))
+    }
+
+    fn lock(&self) -> MutexGuard<'_, ScopeState> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Completes a pending acquisition if the source delivers an edge before `deadline` (a past
+    /// deadline polls). The lock is released while waiting.
+    fn settle(&self, deadline: Instant) {
+        let (request, arm_id, mode) = {
+            let st = self.lock();
+            if !st.armed {
+                return;
+            }
+            (st.request(&self.model), st.arm_id, st.trigger_mode)
+        };
+        let result = match mode {
+            TriggerMode::Auto => Some(
+                self.source
+                    .acquire(&request, Instant::now())
+                    .map(|c| (c, false))
+                    .unwrap_or_else(|| (self.source.force(&request), true)),
+            ),
+            _ => self.source.acquire(&request, deadline).map(|c| (c, false)),
+        };
+        if let Some((capture, forced)) = result {
+            let mut st = self.lock();
+            if st.armed && st.arm_id == arm_id {
+                st.complete(&self.model, &request, capture, forced);
+                tracing::debug!(instrument = "lecroy", forced, "acquisition complete");
+            }
+        }
+    }
+
+    /// Forces one acquisition now (FRTR): arms if needed and records without an edge.
+    fn force(&self) {
+        let mut st = self.lock();
+        if !st.armed {
+            st.arm();
+        }
+        let request = st.request(&self.model);
+        let capture = self.source.force(&request);
+        st.complete(&self.model, &request, capture, true);
+    }
+
+    /// Runs one program message; returns the response bytes if it had queries.
+    pub fn execute(&self, message: &[u8]) -> Option<Vec<u8>> {
+        self.log.record(message);
+        let units = match split_units(message) {
+            Ok(units) => units,
+            Err(e) => {
+                self.record_fault(Fault::Command(11, e.text));
+                return None;
+            }
+        };
+        let mut responses: Vec<Vec<u8>> = Vec::new();
+        for raw in units {
+            let outcome = parse_unit(raw)
+                .map_err(|e| Fault::Command(if e.code == -161 { 11 } else { 1 }, e.text))
+                .and_then(|unit| self.run_unit(&unit));
+            match outcome {
+                Ok(Some(reply)) => responses.push(reply),
+                Ok(None) => {}
+                Err(fault) => {
+                    let abort = matches!(fault, Fault::Command(..));
+                    self.record_fault(fault);
+                    if abort {
+                        break;
+                    }
+                }
+            }
+        }
+        if responses.is_empty() {
+            return None;
+        }
+        let mut out = Vec::new();
+        for (i, r) in responses.into_iter().enumerate() {
+            if i > 0 {
+                out.push(b';');
+            }
+            out.extend(r);
+        }
+        Some(out)
+    }
+
+    fn record_fault(&self, fault: Fault) {
+        let mut st = self.lock();
+        match fault {
+            Fault::Command(code, text) => {
+                tracing::debug!(instrument = "lecroy", code, %text, "command error");
+                st.cmr = code;
+                st.esr |= 0x20;
+            }
+            Fault::Execution(code, text) => {
+                tracing::debug!(instrument = "lecroy", code, %text, "execution error");
+                st.exr = code;
+                st.esr |= 0x10;
+            }
+        }
+    }
+
+    fn wait_cap(&self) -> Duration {
+        *self.wait_cap.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl Handler for Lecroy {
+    fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
+        self.execute(data).into_iter().collect()
+    }
+
+    fn device_clear(&self) {
+        tracing::debug!(instrument = "lecroy", "device clear");
+    }
+
+    fn status_byte(&self) -> u8 {
+        self.lock().status_byte()
+    }
+
+    fn trigger(&self) {
+        self.force();
+    }
+}
+
+/// The scope as seen through one remote protocol (see [`Lecroy::port`]).
+pub struct LecroyPort {
+    scope: Arc<Lecroy>,
+    via: RemoteInterface,
+}
+
+impl LecroyPort {
+    pub fn scope(&self) -> &Arc<Lecroy> {
+        &self.scope
+    }
+}
+
+impl Handler for LecroyPort {
+    fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
+        match self.scope.accepts(self.via) {
+            Ok(()) => self.scope.message(data),
+            Err(reason) => {
+                self.scope.log.record(data);
+                tracing::warn!(instrument = "lecroy", %reason, "message refused");
+                Vec::new()
+            }
+        }
+    }
+
+    fn device_clear(&self) {
+        self.scope.device_clear();
+    }
+
+    fn status_byte(&self) -> u8 {
+        self.scope.status_byte()
+    }
+
+    fn trigger(&self) {
+        if self.scope.accepts(self.via).is_ok() {
+            self.scope.trigger();
+        }
+    }
+}

@@ -1,0 +1,456 @@
+//! The scope's settings, its last acquisition and how both turn into WAVEDESC blocks.
+
+use super::trigger::{AcquisitionRequest, Capture, Slope, TriggerSetup};
+use super::wavedesc::{
+    one_two_five_index, waveform_block, ByteOrder, SampleWidth, TriggerTimestamp, WaveDesc,
+};
+use crate::catalog::DigitizerModel;
+
+/// Most points per channel the emulator records (it keeps them in RAM); larger requests adapt.
+pub const EMULATOR_MAX_POINTS: u64 = 8 * 1024 * 1024;
+
+/// Response header form (`COMM_HEADER`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeaderMode {
+    Off,
+    Short,
+    Long,
+}
+
+/// Trigger mode (`TRIG_MODE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TriggerMode {
+    Auto,
+    Normal,
+    Single,
+    Stop,
+}
+
+impl TriggerMode {
+    pub fn keyword(self) -> &'static str {
+        match self {
+            TriggerMode::Auto => "AUTO",
+            TriggerMode::Normal => "NORM",
+            TriggerMode::Single => "SINGLE",
+            TriggerMode::Stop => "STOP",
+        }
+    }
+    pub fn automation(self) -> &'static str {
+        match self {
+            TriggerMode::Auto => "Auto",
+            TriggerMode::Normal => "Normal",
+            TriggerMode::Single => "Single",
+            TriggerMode::Stop => "Stopped",
+        }
+    }
+}
+
+/// The remote-control protocol enabled on the scope (Utilities > Remote): only one at a time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RemoteInterface {
+    Vicp,
+    Vxi11,
+}
+
+impl RemoteInterface {
+    pub fn label(self) -> &'static str {
+        match self {
+            RemoteInterface::Vicp => "TCPIP (VICP)",
+            RemoteInterface::Vxi11 => "LXI (VXI-11)",
+        }
+    }
+}
+
+/// Vertical settings of one channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelSettings {
+    pub volts_per_div: f64,
+    pub offset_v: f64,
+    pub on: bool,
+}
+
+/// One recorded channel: 16-bit scope values plus the scaling at acquisition time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedChannel {
+    pub values: Vec<i16>,
+    /// Volts per 16-bit code (WORD); BYTE uses 256 times this.
+    pub gain_word: f64,
+    pub offset_v: f64,
+    pub volts_per_div: f64,
+}
+
+/// The last completed acquisition.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Acquisition {
+    pub sample_rate: f64,
+    pub first_point_s: f64,
+    pub hor_scale: f64,
+    pub trigger_time: TriggerTimestamp,
+    pub channels: Vec<Option<RecordedChannel>>,
+    /// The acquisition was forced (FRTR / AUTO without an edge).
+    pub forced: bool,
+}
+
+/// `WAVEFORM_SETUP`: sparsing, number of points (0 = all), first point, segment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TransferWindow {
+    pub sparsing: u32,
+    pub points: u32,
+    pub first: u32,
+    pub segment: u32,
+}
+
+/// All settings and the acquisition state.
+#[derive(Debug, Clone)]
+pub struct ScopeState {
+    pub header: HeaderMode,
+    pub width: SampleWidth,
+    pub order: ByteOrder,
+    pub window: TransferWindow,
+    pub trigger_type: String,
+    pub trigger_source: String,
+    pub trigger_levels: Vec<(String, f64)>,
+    pub trigger_slopes: Vec<(String, Slope)>,
+    pub trigger_mode: TriggerMode,
+    pub trigger_delay_s: f64,
+    pub hor_scale: f64,
+    pub max_samples: u64,
+    pub maximize: String,
+    pub requested_rate: f64,
+    pub channels: Vec<ChannelSettings>,
+    /// Sticky header path (`C1:`, `EX:` ...).
+    pub path: String,
+    pub armed: bool,
+    /// Increases on every arming, so a completion that raced a re-arm is dropped.
+    pub arm_id: u64,
+    /// INR bit0 latch: a new acquisition completed since the last `INR?`.
+    pub new_acquisition: bool,
+    /// The `arm_id` of the last completed acquisition.
+    pub completed_arm_id: u64,
+    pub acquisition: Option<Acquisition>,
+    pub esr: u8,
+    pub ese: u8,
+    pub sre: u8,
+    pub cmr: u8,
+    pub exr: u8,
+    /// A setting was adapted to what the scope can do (STB bit 2, VAB).
+    pub value_adapted: bool,
+    pub remote: RemoteInterface,
+}
+
+impl ScopeState {
+    /// Power-on / `*RST` settings [I]: headers SHORT, BYTE transfers, HI first, edge trigger on C1 in
+    /// AUTO mode, 50 ns/div, catalog default V/div on every channel, all channels on.
+    pub fn reset(model: &DigitizerModel, remote: RemoteInterface) -> ScopeState {
+        let l = &model.limits;
+        ScopeState {
+            header: HeaderMode::Short,
+            width: SampleWidth::Byte,
+            order: ByteOrder::HiFirst,
+            window: TransferWindow::default(),
+            trigger_type: "EDGE".into(),
+            trigger_source: "C1".into(),
+            trigger_levels: Vec::new(),
+            trigger_slopes: Vec::new(),
+            trigger_mode: TriggerMode::Auto,
+            trigger_delay_s: 0.0,
+            hor_scale: 50e-9,
+            max_samples: l.max_points_per_channel,
+            maximize: "SetMaximumMemory".into(),
+            requested_rate: l.sample_rates[0],
+            channels: (0..l.channels)
+                .map(|_| ChannelSettings {
+                    volts_per_div: l.volts_per_div_default,
+                    offset_v: 0.0,
+                    on: true,
+                })
+                .collect(),
+            path: "C1".into(),
+            armed: false,
+            arm_id: 0,
+            new_acquisition: false,
+            completed_arm_id: 0,
+            acquisition: None,
+            esr: 0,
+            ese: 0,
+            sre: 0,
+            cmr: 0,
+            exr: 0,
+            value_adapted: false,
+            remote,
+        }
+    }
+
+    /// The fixed sample rate (the first of the catalog's rates).
+    pub fn sample_rate(model: &DigitizerModel) -> f64 {
+        model.limits.sample_rates[0]
+    }
+
+    /// Points per channel for the current timebase: `divisions x s/div x rate`, capped by the
+    /// memory setting, the catalog and the emulator.
+    pub fn record_points(&self, model: &DigitizerModel) -> u64 {
+        let l = &model.limits;
+        let wanted = (f64::from(l.horizontal_divisions) * self.hor_scale * Self::sample_rate(model))
+            .round()
+            .max(1.0) as u64;
+        wanted
+            .min(self.max_samples)
+            .min(l.max_points_per_channel)
+            .min(EMULATOR_MAX_POINTS)
+    }
+
+    /// Time of the first point relative to the trigger: the trigger sits mid-grid at zero delay,
+    /// positive delays show more pre-trigger time, negative ones move the grid after the trigger [I].
+    pub fn first_point_s(&self, model: &DigitizerModel) -> f64 {
+        -(f64::from(model.limits.horizontal_divisions) / 2.0) * self.hor_scale
+            - self.trigger_delay_s
+    }
+
+    pub fn level(&self, source: &str) -> f64 {
+        self.trigger_levels
+            .iter()
+            .find(|(s, _)| s == source)
+            .map(|(_, v)| *v)
+            .unwrap_or(0.0)
+    }
+
+    pub fn set_level(&mut self, source: &str, value: f64) {
+        self.trigger_levels.retain(|(s, _)| s != source);
+        self.trigger_levels.push((source.to_string(), value));
+    }
+
+    pub fn slope(&self, source: &str) -> Slope {
+        self.trigger_slopes
+            .iter()
+            .find(|(s, _)| s == source)
+            .map(|(_, v)| *v)
+            .unwrap_or(Slope::Positive)
+    }
+
+    pub fn set_slope(&mut self, source: &str, slope: Slope) {
+        self.trigger_slopes.retain(|(s, _)| s != source);
+        self.trigger_slopes.push((source.to_string(), slope));
+    }
+
+    pub fn request(&self, model: &DigitizerModel) -> AcquisitionRequest {
+        AcquisitionRequest {
+            sample_rate: Self::sample_rate(model),
+            points: self.record_points(model) as usize,
+            first_point_s: self.first_point_s(model),
+            trigger: TriggerSetup {
+                source: self.trigger_source.clone(),
+                level_v: self.level(&self.trigger_source),
+                slope: self.slope(&self.trigger_source),
+            },
+            channels_on: self.channels.iter().map(|c| c.on).collect(),
+        }
+    }
+
+    pub fn arm(&mut self) {
+        if self.trigger_mode == TriggerMode::Stop {
+            self.trigger_mode = TriggerMode::Single;
+        }
+        self.armed = true;
+        self.arm_id += 1;
+    }
+
+    /// Stores a completed acquisition (quantised to the ADC) and updates the trigger state.
+    pub fn complete(
+        &mut self,
+        model: &DigitizerModel,
+        request: &AcquisitionRequest,
+        capture: Capture,
+        forced: bool,
+    ) {
+        let l = &model.limits;
+        let adc_step = 1i32 << (16 - u32::from(l.adc_bits.clamp(1, 16)));
+        let channels = self
+            .channels
+            .iter()
+            .enumerate()
+            .map(|(i, settings)| {
+                if !settings.on {
+                    return None;
+                }
+                let gain_word = settings.volts_per_div / (f64::from(l.codes_per_division) * 256.0);
+                let volts = capture.channels.get(i).cloned().flatten();
+                let values = (0..request.points)
+                    .map(|k| {
+                        let v = volts
+                            .as_ref()
+                            .and_then(|v| v.get(k))
+                            .copied()
+                            .unwrap_or(0.0);
+                        quantise(f64::from(v), settings.offset_v, gain_word, adc_step)
+                    })
+                    .collect();
+                Some(RecordedChannel {
+                    values,
+                    gain_word,
+                    offset_v: settings.offset_v,
+                    volts_per_div: settings.volts_per_div,
+                })
+            })
+            .collect();
+        self.acquisition = Some(Acquisition {
+            sample_rate: request.sample_rate,
+            first_point_s: request.first_point_s,
+            hor_scale: self.hor_scale,
+            trigger_time: capture.trigger_time,
+            channels,
+            forced,
+        });
+        self.new_acquisition = true;
+        self.completed_arm_id = self.arm_id;
+        if self.trigger_mode == TriggerMode::Single {
+            self.armed = false;
+            self.trigger_mode = TriggerMode::Stop;
+        }
+    }
+
+    /// `INR?` value: bit0 new acquisition (cleared by the read), bit13 trigger ready (armed).
+    pub fn read_inr(&mut self) -> u16 {
+        let mut inr = 0u16;
+        if self.new_acquisition {
+            inr |= 1;
+        }
+        if self.armed {
+            inr |= 1 << 13;
+        }
+        self.new_acquisition = false;
+        inr
+    }
+
+    /// `*STB?`: bit2 VAB, bit5 ESB, bit6 MSS.
+    pub fn status_byte(&self) -> u8 {
+        let mut stb = 0u8;
+        if self.value_adapted {
+            stb |= 0x04;
+        }
+        if self.esr & self.ese != 0 {
+            stb |= 0x20;
+        }
+        if stb & self.sre != 0 {
+            stb |= 0x40;
+        }
+        stb
+    }
+
+    /// The `#9` block of `Cn:WF? ALL` for channel index `ch` (0 = C1), honouring COMM_FORMAT,
+    /// COMM_ORDER and WAVEFORM_SETUP. Without an acquisition (or with the trace off) the block holds
+    /// a descriptor with zero points [I].
+    pub fn waveform(&self, model: &DigitizerModel, ch: usize, instrument_name: &str) -> Vec<u8> {
+        let rate = Self::sample_rate(model);
+        let recorded = self
+            .acquisition
+            .as_ref()
+            .and_then(|a| a.channels.get(ch).cloned().flatten().map(|c| (a, c)));
+        let sparsing = self.window.sparsing.max(1);
+        let (values, desc_base) = match &recorded {
+            Some((acq, c)) => {
+                let first = self.window.first as usize;
+                let mut picked: Vec<i16> = c
+                    .values
+                    .iter()
+                    .skip(first)
+                    .step_by(sparsing as usize)
+                    .copied()
+                    .collect();
+                if self.window.points > 0 {
+                    picked.truncate(self.window.points as usize);
+                }
+                let total = c.values.len() as u32;
+                (picked, Some((acq, c, total)))
+            }
+            None => (Vec::new(), None),
+        };
+        let byte = self.width == SampleWidth::Byte;
+        let word_to_desc = if byte { 256.0 } else { 1.0 };
+        let (gain, offset, vdiv, first_s, hor_scale, trigger_time, total) = match desc_base {
+            Some((acq, c, total)) => (
+                c.gain_word * word_to_desc,
+                c.offset_v,
+                c.volts_per_div,
+                acq.first_point_s + f64::from(self.window.first) / acq.sample_rate,
+                acq.hor_scale,
+                acq.trigger_time,
+                total,
+            ),
+            None => {
+                let s = &self.channels[ch];
+                let gain = s.volts_per_div / f64::from(model.limits.codes_per_division) / 256.0;
+                (
+                    gain * word_to_desc,
+                    s.offset_v,
+                    s.volts_per_div,
+                    self.first_point_s(model),
+                    self.hor_scale,
+                    TriggerTimestamp {
+                        seconds: 0.0,
+                        minutes: 0,
+                        hours: 0,
+                        day: 1,
+                        month: 1,
+                        year: 2026,
+                    },
+                    0,
+                )
+            }
+        };
+        let (max_value, min_value) = if byte {
+            (127.0, -128.0)
+        } else {
+            (32512.0, -32768.0)
+        };
+        let desc = WaveDesc {
+            width: self.width,
+            order: self.order,
+            instrument_name: instrument_name.to_string(),
+            points: values.len() as u32,
+            points_per_screen: total,
+            first_point: self.window.first,
+            sparsing,
+            segment_index: self.window.segment,
+            vertical_gain: gain as f32,
+            vertical_offset: offset as f32,
+            max_value,
+            min_value,
+            nominal_bits: i16::from(model.limits.adc_bits),
+            horiz_interval: (f64::from(sparsing) / rate) as f32,
+            horiz_offset: first_s,
+            pixel_offset: first_s,
+            trigger_time,
+            acq_duration: (f64::from(total) / rate) as f32,
+            timebase: one_two_five_index(hor_scale, 1e-12),
+            fixed_vert_gain: one_two_five_index(vdiv, 1e-6),
+            probe_att: 1.0,
+            acq_vert_offset: offset as f32,
+            wave_source: ch as i16,
+        };
+        waveform_block(&desc, &values)
+    }
+}
+
+/// Volts to a 16-bit scope value: `volts = gain * value - offset`, rounded to the ADC resolution
+/// and clipped to the ADC range.
+fn quantise(volts: f64, offset_v: f64, gain_word: f64, adc_step: i32) -> i16 {
+    let value = ((volts + offset_v) / gain_word / f64::from(adc_step)).round();
+    let max = f64::from((i32::from(i16::MAX) + 1) / adc_step - 1);
+    let min = f64::from(i32::from(i16::MIN) / adc_step);
+    (value.clamp(min, max) as i32 * adc_step) as i16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantisation_rounds_to_the_adc_and_clips() {
+        let gain = 0.05 / (25.0 * 256.0);
+        assert_eq!(quantise(0.0, 0.0, gain, 256), 0);
+        assert_eq!(quantise(0.05, 0.0, gain, 256), 25 * 256);
+        assert_eq!(quantise(10.0, 0.0, gain, 256), 127 * 256);
+        assert_eq!(quantise(-10.0, 0.0, gain, 256), -128 * 256);
+        assert_eq!(quantise(-0.05, 0.05, gain, 256), 0);
+    }
+}
