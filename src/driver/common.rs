@@ -38,7 +38,12 @@ pub async fn identify(
     instrument: &str,
 ) -> Result<Identity, DriverError> {
     let reply = io.query("*IDN?").await.map_err(session(instrument))?;
-    let idn = parse_idn(&reply).ok_or_else(|| DriverError::Reply {
+    // Instruments with response headers on (LeCroy's default) prefix the reply with `*IDN `.
+    let body = match reply.get(..5) {
+        Some(head) if head.eq_ignore_ascii_case("*IDN ") => &reply[5..],
+        _ => reply.as_str(),
+    };
+    let idn = parse_idn(body).ok_or_else(|| DriverError::Reply {
         instrument: instrument.to_string(),
         command: "*IDN?".into(),
         expected: "manufacturer,model,serial,firmware",

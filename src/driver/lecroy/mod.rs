@@ -112,7 +112,12 @@ impl Lecroy {
                 key: model.instrument.key.clone(),
                 reason: "the model has no [digitizer] section; it is not a scope".into(),
             })?;
-        let identity = match common::identify(io.as_mut(), model, name).await {
+        // Response headers are on after power-up (`*IDN LECROY,...`); switch them off first.
+        let identified = match io.write(commands::HEADERS_OFF).await {
+            Ok(()) => common::identify(io.as_mut(), model, name).await,
+            Err(e) => Err(session(name)(e)),
+        };
+        let identity = match identified {
             Err(DriverError::Session { source, .. }) if no_answer(&source) => {
                 return Err(remote_interface(io.resource_text(), io.protocol(), *source))
             }
