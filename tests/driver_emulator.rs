@@ -416,3 +416,58 @@ async fn safe_state_leaves_the_emulated_bench_off() {
     let report = bounded(safe.engage()).await;
     assert!(report.is_safe(), "{report}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
+    let m = model("keysight-m8195a");
+    let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
+    let tx_emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
+    let endpoint = server::serial::serve(tx_emu.clone(), ServerOptions::default()).unwrap();
+    let tx = bounded(Gotmic::open(
+        serial_resource(endpoint.device_path()),
+        &model("gotmic-eband-tx"),
+        None,
+        "tx",
+    ))
+    .await
+    .unwrap();
+    let awg = share::<dyn Awg>(Box::new(awg));
+    let tx = share::<dyn RfFrontEnd>(Box::new(tx));
+    let safe = SafeState::new(
+        Bench {
+            tx: Some(tx.clone()),
+            rx: None,
+            awg: Some(awg.clone()),
+        },
+        Duration::from_secs(10),
+    );
+    let (radiating, interrupt) = tokio::sync::oneshot::channel::<()>();
+    let work = async {
+        let permit = RfPermit::granted_by_user();
+        let mut a = awg.lock().await;
+        a.configure(&AwgSettings::default()).await?;
+        a.load(&waveform(4096)).await?;
+        a.enable_outputs(&permit).await?;
+        a.run().await?;
+        tx.lock()
+            .await
+            .enable(&permit, &RfSettings::default())
+            .await?;
+        let _ = radiating.send(());
+        // A capture that never ends, still holding the AWG: the interrupt must cut it short.
+        std::future::pending::<()>().await;
+        Ok::<(), DriverError>(())
+    };
+    let interrupt = async {
+        interrupt
+            .await
+            .expect("the work reached the radiating state before the interrupt");
+        assert!(tx_emu.front_end().rf_enabled && awg_emu.playback().running);
+    };
+    let (outcome, report) = bounded(radbench::driver::run_guarded(&safe, work, interrupt)).await;
+    assert!(matches!(outcome, radbench::driver::Outcome::Interrupted));
+    assert!(report.is_safe(), "{report}");
+    assert!(!tx_emu.front_end().rf_enabled);
+    let play = awg_emu.playback();
+    assert!(!play.running && play.channels.iter().all(|c| !c.output_on));
+}

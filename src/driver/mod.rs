@@ -38,5 +38,7 @@ pub use lecroy::wavedesc::{Trace, TrcError};
 pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;
-pub use safe_state::{install_panic_hook, SafeState, SafeStateGuard, SafeStateReport};
+pub use safe_state::{
+    install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard, SafeStateReport,
+};
 pub use scripted::{ScriptLog, Scripted};

@@ -6,7 +6,8 @@
 //!
 //! How each exit path reaches it:
 //! * normal end and errors: `guard.engage().await` (or `state.engage().await`);
-//! * Ctrl-C: the CLI's handler drops the measurement future (releasing the driver locks) and
+//! * Ctrl-C: [`run_guarded`] races the measurement against the interrupt (the CLI passes
+//!   `tokio::signal::ctrl_c()`), drops the measurement future (releasing the driver locks) and
 //!   awaits [`SafeState::engage`];
 //! * panic: [`install_panic_hook`] makes a quick attempt from the hook (skipping drivers whose lock
 //!   the panicking code still holds), and the [`SafeStateGuard`] dropped during unwinding runs the
@@ -244,6 +245,36 @@ impl Drop for SafeStateGuard {
             }
         }
     }
+}
+
+/// How a guarded measurement ended.
+#[derive(Debug)]
+pub enum Outcome<T> {
+    /// The work ran to completion (successfully or with its own error).
+    Finished(T),
+    /// The interrupt fired first; the work was dropped where it stood.
+    Interrupted,
+}
+
+/// Runs `work` until it finishes or `interrupt` fires (the CLI passes `tokio::signal::ctrl_c()`),
+/// then runs the safe state in either case. Dropping the work releases the driver locks it held,
+/// so the safe state can take them; a link left mid-message is cleared or reopened by the
+/// transport before the safe-state commands go out.
+pub async fn run_guarded<T, I>(
+    state: &SafeState,
+    work: impl std::future::Future<Output = T>,
+    interrupt: impl std::future::Future<Output = I>,
+) -> (Outcome<T>, SafeStateReport) {
+    let guard = state.guard();
+    let outcome = tokio::select! {
+        value = work => Outcome::Finished(value),
+        _ = interrupt => {
+            tracing::warn!("interrupted: putting the bench in its safe state");
+            Outcome::Interrupted
+        }
+    };
+    let report = guard.engage().await;
+    (outcome, report)
 }
 
 /// Makes a panic run the safe state (quick attempt; the guard retries during unwinding), then

@@ -34,6 +34,20 @@ pub struct M8195a {
 }
 
 impl M8195a {
+    /// Opens the resource (raw socket, HiSLIP or VXI-11) with the model's timeouts and connects.
+    pub async fn open(
+        resource: crate::address::Resource,
+        model: &InstrumentModel,
+        journal: Option<crate::transport::Journal>,
+        name: &str,
+    ) -> Result<M8195a, DriverError> {
+        let session =
+            super::io::open_session(resource, &model.timeouts, "SYST:ERR?", journal, name)
+                .await
+                .map_err(session(name))?;
+        M8195a::connect(Box::new(session), model, name).await
+    }
+
     /// Checks `*IDN?` against the catalog model and returns the driver.
     pub async fn connect(
         mut io: Box<dyn InstrumentIo>,
