@@ -88,7 +88,13 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::waveform::ParamError,
         crate::waveform::DecodeError,
         crate::dsp::DspError,
+        crate::address::AddressError,
+        crate::transport::LinkError,
+        crate::transport::journal::JournalError,
+        crate::session::SessionError,
         crate::catalog::CatalogError,
+        crate::driver::DriverError,
+        crate::driver::TrcError,
     );
     None
 }

@@ -1,1 +1,325 @@
-//! Layer 2: IEEE 488.2 / SCPI sessions on a transport.
+//! Layer 2: IEEE 488.2 / SCPI on a [`Link`]: commands, queries with typed replies, arbitrary
+//! blocks both ways, `*IDN?`, `*OPC?`, `*RST`, `*CLS`, and the error queue drained into typed
+//! [`DeviceError`]s.
+//!
+//! Two rules keep replies honest:
+//! * after a timeout the session clears the device (protocol device clear; a fresh connection on a
+//!   raw socket), so a late reply is never read as the answer to the next query;
+//! * "the instrument refused" ([`SessionError::Device`]) and "the link failed"
+//!   ([`SessionError::Link`]) are different errors, each with a [`kind`](SessionError::kind).
+
+pub mod error;
+pub mod reply;
+
+pub use error::{DeviceError, SessionError};
+pub use reply::{Block, BlockForm, Identity};
+
+use crate::address::Resource;
+use crate::transport::{Journal, Link, LinkError, LinkOptions};
+use bytes::Bytes;
+
+/// How a session talks to its instrument.
+#[derive(Debug, Clone)]
+pub struct SessionOptions {
+    pub link: LinkOptions,
+    /// The query that pops one error-queue entry.
+    pub error_query: String,
+    /// At most this many entries are drained at once (a queue that never empties is reported).
+    pub max_error_entries: usize,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        Self {
+            link: LinkOptions::default(),
+            error_query: "SYST:ERR?".into(),
+            max_error_entries: 64,
+        }
+    }
+}
+
+/// An open IEEE 488.2 session.
+pub struct Session {
+    link: Link,
+    resource_text: String,
+    options: SessionOptions,
+}
+
+impl Session {
+    /// Opens the resource with an optional journal; `instrument` names it in the journal.
+    pub async fn open(
+        resource: Resource,
+        options: SessionOptions,
+        journal: Option<Journal>,
+        instrument: &str,
+    ) -> Result<Self, SessionError> {
+        let resource_text = resource.to_string();
+        let link = Link::open_journalled(resource, options.link.clone(), journal, instrument)
+            .await
+            .map_err(|source| SessionError::Link {
+                resource: resource_text.clone(),
+                source,
+            })?;
+        Ok(Self::from_link(link, options))
+    }
+
+    /// A session over an already open link.
+    pub fn from_link(link: Link, options: SessionOptions) -> Self {
+        Self {
+            resource_text: link.resource().to_string(),
+            link,
+            options,
+        }
+    }
+
+    pub fn resource(&self) -> &Resource {
+        self.link.resource()
+    }
+
+    pub fn link(&mut self) -> &mut Link {
+        &mut self.link
+    }
+
+    /// Changes timeouts, size limit or progress reporting for the next operations.
+    pub fn link_options_mut(&mut self) -> &mut LinkOptions {
+        self.link.options_mut()
+    }
+
+    fn link_err(&self, source: LinkError) -> SessionError {
+        SessionError::Link {
+            resource: self.resource_text.clone(),
+            source,
+        }
+    }
+
+    /// Handles a failed transfer: after a timeout, clear the device so a late reply is discarded.
+    async fn after_failure(&mut self, source: LinkError) -> SessionError {
+        if matches!(source, LinkError::Timeout { .. }) {
+            if let Err(e) = self.link.device_clear().await {
+                tracing::warn!(
+                    "{}: device clear after a timeout failed ({e}); the link will be reopened before its next use",
+                    self.resource_text
+                );
+            }
+        }
+        self.link_err(source)
+    }
+
+    fn check_command(command: &str) -> Result<(), SessionError> {
+        if command.contains('\n') {
+            return Err(SessionError::CommandHasNewline {
+                command: command.to_string(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Sends a command (a newline is appended).
+    pub async fn write(&mut self, command: &str) -> Result<(), SessionError> {
+        Self::check_command(command)?;
+        self.send_parts(&[command.as_bytes(), b"\n"]).await
+    }
+
+    async fn send_parts(&mut self, parts: &[&[u8]]) -> Result<(), SessionError> {
+        match self.link.write_message(parts).await {
+            Ok(()) => Ok(()),
+            Err(e) => Err(self.after_failure(e).await),
+        }
+    }
+
+    /// Reads one whole response message, terminator included.
+    pub async fn read_raw(&mut self) -> Result<Bytes, SessionError> {
+        match self.link.read_message().await {
+            Ok(m) => Ok(m),
+            Err(e) => Err(self.after_failure(e).await),
+        }
+    }
+
+    /// Sends a query and returns the raw reply.
+    pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+        self.write(query).await?;
+        self.read_raw().await
+    }
+
+    /// Sends a query and returns the reply as text without its terminator.
+    pub async fn query(&mut self, query: &str) -> Result<String, SessionError> {
+        let raw = self.query_raw(query).await?;
+        Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
+    }
+
+    fn bad_reply(&self, command: &str, expected: &'static str, reply: &str) -> SessionError {
+        SessionError::Reply {
+            resource: self.resource_text.clone(),
+            command: command.to_string(),
+            expected,
+            reply: reply.chars().take(200).collect(),
+        }
+    }
+
+    pub async fn query_f64(&mut self, query: &str) -> Result<f64, SessionError> {
+        let text = self.query(query).await?;
+        reply::parse_f64(&text).ok_or_else(|| self.bad_reply(query, "a finite number", &text))
+    }
+
+    pub async fn query_i64(&mut self, query: &str) -> Result<i64, SessionError> {
+        let text = self.query(query).await?;
+        reply::parse_i64(&text).ok_or_else(|| self.bad_reply(query, "an integer", &text))
+    }
+
+    pub async fn query_bool(&mut self, query: &str) -> Result<bool, SessionError> {
+        let text = self.query(query).await?;
+        reply::parse_bool(&text).ok_or_else(|| self.bad_reply(query, "1/0/ON/OFF", &text))
+    }
+
+    /// A string reply with its quotes removed.
+    pub async fn query_string(&mut self, query: &str) -> Result<String, SessionError> {
+        let text = self.query(query).await?;
+        Ok(reply::parse_string(&text))
+    }
+
+    /// Sends a query and returns the block in its reply (payload not copied).
+    pub async fn query_block(&mut self, query: &str) -> Result<Block, SessionError> {
+        self.write(query).await?;
+        self.read_block(query).await
+    }
+
+    /// Reads a reply that carries a block; `command` is used in error messages.
+    pub async fn read_block(&mut self, command: &str) -> Result<Block, SessionError> {
+        let raw = self.read_raw().await?;
+        reply::parse_block(raw.clone()).map_err(|problem| SessionError::Reply {
+            resource: self.resource_text.clone(),
+            command: command.to_string(),
+            expected: "an IEEE 488.2 block",
+            reply: format!(
+                "{} (wanted {})",
+                crate::transport::journal::escape_head(&raw),
+                problem.describe()
+            ),
+        })
+    }
+
+    /// Sends `header` followed by `payload` as a block, e.g. `write_block(":TRAC1:DATA 1,0,", ..)`.
+    /// The payload goes to the transport as is (no copy). An indefinite block is refused on a raw
+    /// socket or serial link when the payload contains a newline (it would end the message).
+    pub async fn write_block(
+        &mut self,
+        header: &str,
+        payload: &[u8],
+        form: BlockForm,
+    ) -> Result<(), SessionError> {
+        Self::check_command(header)?;
+        let block_header = match form {
+            BlockForm::Definite => {
+                reply::definite_header(payload.len() as u64).ok_or(SessionError::BlockTooLarge {
+                    len: payload.len() as u64,
+                })?
+            }
+            BlockForm::Indefinite => {
+                if !self.link.has_message_end() && payload.contains(&b'\n') {
+                    return Err(self.link_err(LinkError::IndefiniteBlockWithNewline {
+                        protocol: self.link.resource().protocol(),
+                    }));
+                }
+                "#0".to_string()
+            }
+        };
+        self.send_parts(&[header.as_bytes(), block_header.as_bytes(), payload, b"\n"])
+            .await
+    }
+
+    /// `*IDN?`, parsed.
+    pub async fn idn(&mut self) -> Result<Identity, SessionError> {
+        let text = self.query("*IDN?").await?;
+        reply::parse_idn(&text)
+            .ok_or_else(|| self.bad_reply("*IDN?", "manufacturer,model,serial,firmware", &text))
+    }
+
+    /// `*OPC?`: waits until pending operations complete (the reply is `1`).
+    pub async fn opc(&mut self) -> Result<(), SessionError> {
+        let text = self.query("*OPC?").await?;
+        match reply::parse_i64(&text) {
+            Some(1) => Ok(()),
+            _ => Err(self.bad_reply("*OPC?", "1", &text)),
+        }
+    }
+
+    /// `*RST`, then `*OPC?` so the reset is complete on return.
+    pub async fn rst(&mut self) -> Result<(), SessionError> {
+        self.write("*RST").await?;
+        self.opc().await
+    }
+
+    /// `*CLS`: clears the status registers and the error queue.
+    pub async fn cls(&mut self) -> Result<(), SessionError> {
+        self.write("*CLS").await
+    }
+
+    /// Drains the error queue; empty when the instrument has nothing to report.
+    pub async fn errors(&mut self) -> Result<Vec<DeviceError>, SessionError> {
+        let query = self.options.error_query.clone();
+        let mut found = Vec::new();
+        for _ in 0..self.options.max_error_entries {
+            let text = self.query(&query).await?;
+            let entry = reply::parse_error_entry(&text)
+                .ok_or_else(|| self.bad_reply(&query, "<code>,\"<text>\"", &text))?;
+            if entry.code == 0 {
+                return Ok(found);
+            }
+            found.push(entry);
+        }
+        Err(SessionError::ErrorQueueNotDraining {
+            resource: self.resource_text.clone(),
+            query,
+            limit: self.options.max_error_entries,
+        })
+    }
+
+    /// Drains the error queue and fails with [`SessionError::Device`] if it held anything.
+    pub async fn check_errors(&mut self, after: Option<&str>) -> Result<(), SessionError> {
+        let errors = self.errors().await?;
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(SessionError::Device {
+                resource: self.resource_text.clone(),
+                after: after.map(str::to_string),
+                errors,
+            })
+        }
+    }
+
+    /// Sends a command, then checks the error queue.
+    pub async fn write_checked(&mut self, command: &str) -> Result<(), SessionError> {
+        self.write(command).await?;
+        self.check_errors(Some(command)).await
+    }
+
+    /// IEEE 488.2 device clear.
+    pub async fn device_clear(&mut self) -> Result<(), SessionError> {
+        self.link.device_clear().await.map_err(|e| self.link_err(e))
+    }
+
+    /// The status byte: the protocol's serial poll where there is one, `*STB?` otherwise.
+    pub async fn read_stb(&mut self) -> Result<u8, SessionError> {
+        match self.link.read_stb().await {
+            Ok(stb) => Ok(stb),
+            Err(LinkError::Unsupported { .. }) => {
+                let text = self.query("*STB?").await?;
+                reply::parse_i64(&text)
+                    .and_then(|v| u8::try_from(v).ok())
+                    .ok_or_else(|| self.bad_reply("*STB?", "a status byte 0..255", &text))
+            }
+            Err(e) => Err(self.after_failure(e).await),
+        }
+    }
+
+    /// Reopens a lost connection; the session carries on with the same options and journal.
+    pub async fn reconnect(&mut self) -> Result<(), SessionError> {
+        self.link.reconnect().await.map_err(|e| self.link_err(e))
+    }
+
+    /// Closes the link (VXI-11 destroy_link).
+    pub async fn close(&mut self) -> Result<(), SessionError> {
+        self.link.close().await.map_err(|e| self.link_err(e))
+    }
+}

@@ -1,0 +1,440 @@
+//! Gotmic E-band transmitter and receiver modules over serial, through the project-defined line
+//! protocol of [`commands`] (not the vendor's protocol, which is not public).
+//!
+//! The register map (addresses, bit positions, writable ranges, the expected module ID) comes
+//! from the catalog, so the real map can replace it as data. Safety: enabling needs an
+//! [`RfPermit`]; attenuation goes to maximum before the enable; latched faults, interlock, over
+//! temperature and LO lock are checked; every write is read back; any failure after the enable
+//! switches the module off again before the error is returned.
+
+pub mod commands;
+
+use self::commands::Reply;
+use super::capability::{RfFrontEnd, RfSettings, RfStatus};
+use super::common::{self, session};
+use super::error::DriverError;
+use super::io::{BoxFuture, InstrumentIo};
+use super::permit::RfPermit;
+use crate::address::Resource;
+use crate::catalog::{InstrumentModel, Register, RfDirection, RfLimits};
+use crate::session::{Identity, Session, SessionOptions};
+use crate::transport::{Journal, LinkOptions};
+
+/// The registers and bits the driver uses, resolved from the catalog once.
+#[derive(Debug, Clone)]
+struct Map {
+    id: Register,
+    status: Register,
+    control: Register,
+    attenuation: Register,
+    temperature: Register,
+    faults: Register,
+    lo_frequency: Option<Register>,
+    enable_mask: u16,
+}
+
+fn find(model: &InstrumentModel, name: &str) -> Result<Register, DriverError> {
+    model
+        .registers
+        .iter()
+        .find(|r| r.name == name)
+        .cloned()
+        .ok_or_else(|| DriverError::Catalog {
+            key: model.instrument.key.clone(),
+            reason: format!("the register map has no {name} register"),
+        })
+}
+
+fn bit(model: &InstrumentModel, register: &Register, field: &str) -> Result<u16, DriverError> {
+    register
+        .bit(field)
+        .filter(|b| *b < 16)
+        .map(|b| 1u16 << b)
+        .ok_or_else(|| DriverError::Catalog {
+            key: model.instrument.key.clone(),
+            reason: format!("register {} has no bit field {field}", register.name),
+        })
+}
+
+impl Map {
+    fn resolve(model: &InstrumentModel) -> Result<Map, DriverError> {
+        let control = find(model, "CONTROL")?;
+        let mut enable_mask =
+            bit(model, &control, "MASTER_ENABLE")? | bit(model, &control, "AMP_ENABLE")?;
+        // Optional enables (LO multiplier, I/Q (de)modulator) are switched with the rest when the
+        // map has them.
+        for optional in ["LO_MULTIPLIER_ENABLE", "IQ_ENABLE"] {
+            if let Ok(b) = bit(model, &control, optional) {
+                enable_mask |= b;
+            }
+        }
+        let status = find(model, "STATUS")?;
+        for field in [
+            "LO_LOCKED",
+            "RF_ENABLED",
+            "OVER_TEMPERATURE",
+            "INTERLOCK_OPEN",
+        ] {
+            bit(model, &status, field)?;
+        }
+        let attenuation = find(model, "GAIN_ATT")?;
+        if attenuation.max.is_none() {
+            return Err(DriverError::Catalog {
+                key: model.instrument.key.clone(),
+                reason: "register GAIN_ATT needs a max (the maximum attenuation code)".into(),
+            });
+        }
+        Ok(Map {
+            id: find(model, "ID")?,
+            status,
+            control,
+            attenuation,
+            temperature: find(model, "TEMP_DC")?,
+            faults: find(model, "FAULT_LATCH")?,
+            lo_frequency: find(model, "LO_FREQ_MHZ").ok(),
+            enable_mask,
+        })
+    }
+}
+
+/// A connected Gotmic module (transmitter or receiver).
+pub struct Gotmic {
+    io: Box<dyn InstrumentIo>,
+    model: InstrumentModel,
+    limits: RfLimits,
+    map: Map,
+    identity: Identity,
+    name: String,
+}
+
+/// Serial settings from the catalog's `[serial]` section.
+fn serial_settings(model: &InstrumentModel) -> crate::transport::serial::SerialSettings {
+    let mut s = crate::transport::serial::SerialSettings::default();
+    if let Some(c) = &model.serial {
+        s.baud = c.baud;
+        s.data_bits = c.data_bits;
+        s.stop_bits = c.stop_bits;
+        s.parity = match c.parity {
+            crate::catalog::Parity::None => "none",
+            crate::catalog::Parity::Even => "even",
+            crate::catalog::Parity::Odd => "odd",
+        }
+        .to_string();
+    }
+    s
+}
+
+impl Gotmic {
+    /// Opens the serial resource with the catalog's line settings and timeouts, then connects.
+    pub async fn open(
+        resource: Resource,
+        model: &InstrumentModel,
+        journal: Option<Journal>,
+        name: &str,
+    ) -> Result<Gotmic, DriverError> {
+        let options = SessionOptions {
+            link: LinkOptions {
+                timeouts: super::io::timeouts_from_catalog(&model.timeouts),
+                serial: serial_settings(model),
+                ..LinkOptions::default()
+            },
+            ..SessionOptions::default()
+        };
+        let session = Session::open(resource, options, journal, name)
+            .await
+            .map_err(session(name))?;
+        Gotmic::connect(Box::new(session), model, name).await
+    }
+
+    /// Identifies the module (`*IDN?` and the ID register) on an open session or a fake.
+    pub async fn connect(
+        mut io: Box<dyn InstrumentIo>,
+        model: &InstrumentModel,
+        name: &str,
+    ) -> Result<Gotmic, DriverError> {
+        let limits = model.rf.clone().ok_or_else(|| DriverError::Catalog {
+            key: model.instrument.key.clone(),
+            reason: "the model has no [rf] section; it is not an RF front end".into(),
+        })?;
+        let map = Map::resolve(model)?;
+        let identity = common::identify(io.as_mut(), model, name).await?;
+        let mut driver = Gotmic {
+            io,
+            model: model.clone(),
+            limits,
+            map,
+            identity,
+            name: name.to_string(),
+        };
+        let id = driver.read(&driver.map.id.clone()).await?;
+        if id != driver.map.id.reset {
+            return Err(DriverError::WrongInstrument {
+                resource: driver.io.resource_text(),
+                expected: format!(
+                    "{} (ID register 0x{:04X})",
+                    driver.model.instrument.model, driver.map.id.reset
+                ),
+                idn: format!("{} with ID register 0x{id:04X}", driver.identity),
+            });
+        }
+        Ok(driver)
+    }
+
+    pub fn model(&self) -> &InstrumentModel {
+        &self.model
+    }
+
+    async fn request(&mut self, line: &str) -> Result<Option<u16>, DriverError> {
+        let reply = self.io.query(line).await.map_err(session(&self.name))?;
+        match commands::parse_reply(&reply) {
+            Some(Reply::Ok(v)) => Ok(v),
+            Some(Reply::Err { code, text }) => Err(DriverError::LineRefused {
+                instrument: self.name.clone(),
+                request: line.to_string(),
+                code,
+                text,
+            }),
+            None => Err(DriverError::Reply {
+                instrument: self.name.clone(),
+                command: line.to_string(),
+                expected: "OK [hhhh] or ERR <code> <text>",
+                reply,
+            }),
+        }
+    }
+
+    async fn read(&mut self, register: &Register) -> Result<u16, DriverError> {
+        let line = commands::read(register.address);
+        match self.request(&line).await? {
+            Some(v) => Ok(v),
+            None => Err(DriverError::Reply {
+                instrument: self.name.clone(),
+                command: line,
+                expected: "OK <value hex4>",
+                reply: "OK".into(),
+            }),
+        }
+    }
+
+    /// Writes a register after checking the catalog's range, then reads it back.
+    async fn write_verified(&mut self, register: &Register, value: u16) -> Result<(), DriverError> {
+        let (min, max) = (register.min.unwrap_or(0), register.max.unwrap_or(u16::MAX));
+        if value < min || value > max {
+            return Err(DriverError::OutOfLimits {
+                instrument: self.name.clone(),
+                field: "register value",
+                value: format!("{} = {value}", register.name),
+                allowed: format!("{min} ..= {max}"),
+            });
+        }
+        self.request(&commands::write(register.address, value))
+            .await?;
+        let read = self.read(register).await?;
+        if read != value {
+            return Err(DriverError::VerifyFailed {
+                instrument: self.name.clone(),
+                register: register.name.clone(),
+                wrote: value,
+                read,
+            });
+        }
+        Ok(())
+    }
+
+    fn max_attenuation_code(&self) -> u16 {
+        self.map.attenuation.max.unwrap_or(0)
+    }
+
+    fn attenuation_code(&self, db: f64) -> Result<u16, DriverError> {
+        let step = self.limits.attenuation_step_db;
+        let max = self.max_attenuation_code();
+        let min = self.map.attenuation.min.unwrap_or(0);
+        let highest = f64::from(max) * step;
+        let lowest = f64::from(min) * step;
+        common::within(&self.name, "attenuation_db", db, lowest, highest, "dB")?;
+        Ok(((db / step).round() as u16).clamp(min, max))
+    }
+
+    async fn status_impl(&mut self) -> Result<RfStatus, DriverError> {
+        let map = self.map.clone();
+        let status = self.read(&map.status).await?;
+        let control = self.read(&map.control).await?;
+        let att = self.read(&map.attenuation).await?;
+        let temp = self.read(&map.temperature).await?;
+        let faults = self.read(&map.faults).await?;
+        let has = |field: &str| {
+            map.status
+                .bit(field)
+                .is_some_and(|b| status & (1 << b) != 0)
+        };
+        let temperature = if map.temperature.signed {
+            f64::from(temp as i16)
+        } else {
+            f64::from(temp)
+        } / 10.0;
+        Ok(RfStatus {
+            powered: has("POWERED"),
+            lo_locked: has("LO_LOCKED"),
+            rf_enabled: has("RF_ENABLED"),
+            over_temperature: has("OVER_TEMPERATURE"),
+            interlock_open: has("INTERLOCK_OPEN"),
+            temperature_c: temperature,
+            attenuation_db: f64::from(att) * self.limits.attenuation_step_db,
+            faults: map
+                .faults
+                .fields
+                .iter()
+                .filter(|f| f.bit < 16 && faults & (1 << f.bit) != 0)
+                .map(|f| f.name.clone())
+                .collect(),
+            control,
+        })
+    }
+
+    fn not_ready(&self, reason: String) -> DriverError {
+        DriverError::RfNotReady {
+            instrument: self.name.clone(),
+            reason,
+        }
+    }
+
+    async fn enable_impl(&mut self, settings: &RfSettings) -> Result<RfStatus, DriverError> {
+        let code = self.attenuation_code(settings.attenuation_db)?;
+        let lo_mhz = match settings.lo_frequency_hz {
+            Some(f) => {
+                common::within(
+                    &self.name,
+                    "lo_frequency_hz",
+                    f,
+                    self.limits.lo_min_hz,
+                    self.limits.lo_max_hz,
+                    "Hz",
+                )?;
+                Some((f / 1e6).round() as u16)
+            }
+            None => None,
+        };
+        let map = self.map.clone();
+        self.write_verified(&map.attenuation, self.max_attenuation_code())
+            .await?;
+        if let (Some(reg), Some(mhz)) = (&map.lo_frequency, lo_mhz) {
+            self.write_verified(reg, mhz).await?;
+        }
+        let before = self.status_impl().await?;
+        if !before.faults.is_empty() {
+            return Err(self.not_ready(format!(
+                "latched faults {:?}: fix their cause, then clear them explicitly (clear_faults) before enabling RF",
+                before.faults
+            )));
+        }
+        if before.over_temperature {
+            return Err(self.not_ready(format!(
+                "over temperature ({} degC, limit {} degC): let the module cool down",
+                before.temperature_c, self.limits.over_temperature_c
+            )));
+        }
+        if before.interlock_open && self.limits.enable_requires_interlock_closed {
+            return Err(self.not_ready(
+                "the interlock is open: close it (waveguide load or antenna connected, door closed) before enabling RF".into(),
+            ));
+        }
+        let result = self.switch_on(code).await;
+        if result.is_err() {
+            if let Err(e) = self.disable_impl().await {
+                tracing::error!(instrument = %self.name, "switching off after a failed enable failed too: {e}");
+            }
+        }
+        result
+    }
+
+    async fn switch_on(&mut self, code: u16) -> Result<RfStatus, DriverError> {
+        let map = self.map.clone();
+        self.write_verified(&map.control, map.enable_mask).await?;
+        let after = self.status_impl().await?;
+        if self.limits.enable_requires_lo && !after.lo_locked {
+            return Err(self.not_ready(format!(
+                "the LO is not locked: check the LO input ({} ..= {} Hz, x{} multiplier)",
+                self.limits.lo_min_hz, self.limits.lo_max_hz, self.limits.lo_multiplier
+            )));
+        }
+        if !after.rf_enabled {
+            return Err(self.not_ready(format!(
+                "CONTROL = 0x{:04X} was accepted but STATUS does not report RF enabled",
+                map.enable_mask
+            )));
+        }
+        self.write_verified(&map.attenuation, code).await?;
+        self.status_impl().await
+    }
+
+    /// RF off first, then maximum attenuation; both tried, the first error returned.
+    async fn disable_impl(&mut self) -> Result<(), DriverError> {
+        let map = self.map.clone();
+        let off = self.write_verified(&map.control, 0).await;
+        if let Err(e) = &off {
+            tracing::error!(instrument = %self.name, "switching RF off failed: {e}");
+        }
+        let att = self
+            .write_verified(&map.attenuation, self.max_attenuation_code())
+            .await;
+        off.and(att)
+    }
+
+    async fn clear_faults_impl(&mut self) -> Result<(), DriverError> {
+        let map = self.map.clone();
+        let mask = map
+            .faults
+            .fields
+            .iter()
+            .filter(|f| f.bit < 16)
+            .fold(0u16, |m, f| m | (1 << f.bit));
+        self.request(&commands::write(map.faults.address, mask))
+            .await?;
+        let left = self.read(&map.faults).await?;
+        if left != 0 {
+            return Err(self.not_ready(format!(
+                "faults 0x{left:04X} are still latched after clearing: their cause persists"
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl RfFrontEnd for Gotmic {
+    fn identity(&self) -> &Identity {
+        &self.identity
+    }
+
+    fn direction(&self) -> RfDirection {
+        self.limits.direction
+    }
+
+    fn status(&mut self) -> BoxFuture<'_, Result<RfStatus, DriverError>> {
+        Box::pin(self.status_impl())
+    }
+
+    fn set_attenuation(&mut self, db: f64) -> BoxFuture<'_, Result<f64, DriverError>> {
+        Box::pin(async move {
+            let code = self.attenuation_code(db)?;
+            let reg = self.map.attenuation.clone();
+            self.write_verified(&reg, code).await?;
+            Ok(f64::from(code) * self.limits.attenuation_step_db)
+        })
+    }
+
+    fn enable<'a>(
+        &'a mut self,
+        _permit: &'a RfPermit,
+        settings: &'a RfSettings,
+    ) -> BoxFuture<'a, Result<RfStatus, DriverError>> {
+        Box::pin(self.enable_impl(settings))
+    }
+
+    fn disable(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(self.disable_impl())
+    }
+
+    fn clear_faults(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(self.clear_faults_impl())
+    }
+}

@@ -1,0 +1,171 @@
+//! What a driver needs from a session, as an object-safe trait.
+//!
+//! Drivers hold a `Box<dyn InstrumentIo>`: a real [`Session`] on the bench, a
+//! [`Scripted`](super::scripted::Scripted) fake in tests that pin the exact command sequence of an
+//! operation. Keeping the surface this small (write, query, blocks, error queue, device clear) is
+//! what makes the fake honest: a driver cannot reach around it.
+
+use std::future::Future;
+use std::pin::Pin;
+use std::time::Duration;
+
+use crate::address::Resource;
+use crate::catalog::TimeoutPolicy;
+use crate::session::{Block, BlockForm, DeviceError, Session, SessionError, SessionOptions};
+use crate::transport::{Journal, LinkOptions, Timeouts};
+
+/// A boxed, sendable future: what the object-safe traits of this layer return.
+pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
+
+/// The operations drivers use. Commands are single program messages without a newline.
+pub trait InstrumentIo: Send {
+    /// The resource this talks to, for messages (e.g. `TCPIP::127.0.0.1::5025::SOCKET`).
+    fn resource_text(&self) -> String;
+    /// The transport protocol (`socket`, `vxi11`, `hislip`, `vicp`, `serial`, `scripted`).
+    fn protocol(&self) -> &'static str;
+    /// Sends one command.
+    fn write<'a>(&'a mut self, command: &'a str) -> BoxFuture<'a, Result<(), SessionError>>;
+    /// Sends a query and returns its reply without the terminator.
+    fn query<'a>(&'a mut self, query: &'a str) -> BoxFuture<'a, Result<String, SessionError>>;
+    /// Like [`query`](Self::query) but waits up to `timeout` for the reply to start (a scope's
+    /// `WAIT`, a long `*OPC?`).
+    fn query_with_timeout<'a>(
+        &'a mut self,
+        query: &'a str,
+        timeout: Duration,
+    ) -> BoxFuture<'a, Result<String, SessionError>>;
+    /// Sends `header` followed by `payload` as a definite-length block (`#<d><len><bytes>`).
+    fn write_block<'a>(
+        &'a mut self,
+        header: &'a str,
+        payload: &'a [u8],
+    ) -> BoxFuture<'a, Result<(), SessionError>>;
+    /// Sends a query whose reply carries a block, and returns the block.
+    fn query_block<'a>(&'a mut self, query: &'a str) -> BoxFuture<'a, Result<Block, SessionError>>;
+    /// Drains the instrument's error queue (empty when it has nothing to report).
+    fn errors(&mut self) -> BoxFuture<'_, Result<Vec<DeviceError>, SessionError>>;
+    /// IEEE 488.2 device clear.
+    fn device_clear(&mut self) -> BoxFuture<'_, Result<(), SessionError>>;
+}
+
+impl InstrumentIo for Session {
+    fn resource_text(&self) -> String {
+        self.resource().to_string()
+    }
+
+    fn protocol(&self) -> &'static str {
+        self.resource().protocol()
+    }
+
+    fn write<'a>(&'a mut self, command: &'a str) -> BoxFuture<'a, Result<(), SessionError>> {
+        Box::pin(Session::write(self, command))
+    }
+
+    fn query<'a>(&'a mut self, query: &'a str) -> BoxFuture<'a, Result<String, SessionError>> {
+        Box::pin(Session::query(self, query))
+    }
+
+    fn query_with_timeout<'a>(
+        &'a mut self,
+        query: &'a str,
+        timeout: Duration,
+    ) -> BoxFuture<'a, Result<String, SessionError>> {
+        Box::pin(async move {
+            let before = self.link_options_mut().timeouts.read;
+            self.link_options_mut().timeouts.read = timeout;
+            let result = Session::query(self, query).await;
+            self.link_options_mut().timeouts.read = before;
+            result
+        })
+    }
+
+    fn write_block<'a>(
+        &'a mut self,
+        header: &'a str,
+        payload: &'a [u8],
+    ) -> BoxFuture<'a, Result<(), SessionError>> {
+        Box::pin(Session::write_block(
+            self,
+            header,
+            payload,
+            BlockForm::Definite,
+        ))
+    }
+
+    fn query_block<'a>(&'a mut self, query: &'a str) -> BoxFuture<'a, Result<Block, SessionError>> {
+        Box::pin(Session::query_block(self, query))
+    }
+
+    fn errors(&mut self) -> BoxFuture<'_, Result<Vec<DeviceError>, SessionError>> {
+        Box::pin(Session::errors(self))
+    }
+
+    fn device_clear(&mut self) -> BoxFuture<'_, Result<(), SessionError>> {
+        Box::pin(Session::device_clear(self))
+    }
+}
+
+/// Link timeouts from a catalog model's timeout policy: connect, read and write as given, and the
+/// per-megabyte allowance turned into the slowest healthy transfer rate.
+pub fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
+    let min_rate = 1_000_000_000u64
+        .checked_div(policy.per_megabyte_ms)
+        .unwrap_or(u64::MAX);
+    Timeouts {
+        connect: Duration::from_millis(policy.connect_ms),
+        read: Duration::from_millis(policy.read_ms),
+        write: Duration::from_millis(policy.write_ms),
+        min_rate_bytes_per_s: min_rate.max(1),
+    }
+}
+
+/// Session options for a model: its timeouts and `error_query` (the SCPI error queue for SCPI
+/// instruments; drivers of instruments without one never call [`InstrumentIo::errors`]).
+pub fn session_options(policy: &TimeoutPolicy, error_query: &str) -> SessionOptions {
+    SessionOptions {
+        link: LinkOptions {
+            timeouts: timeouts_from_catalog(policy),
+            ..LinkOptions::default()
+        },
+        error_query: error_query.to_string(),
+        ..SessionOptions::default()
+    }
+}
+
+/// Opens a session to `resource` with the model's timeouts, journalled under `instrument`.
+pub async fn open_session(
+    resource: Resource,
+    policy: &TimeoutPolicy,
+    error_query: &str,
+    journal: Option<Journal>,
+    instrument: &str,
+) -> Result<Session, SessionError> {
+    Session::open(
+        resource,
+        session_options(policy, error_query),
+        journal,
+        instrument,
+    )
+    .await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn per_megabyte_allowance_becomes_a_rate() {
+        let policy = TimeoutPolicy {
+            connect_ms: 1000,
+            read_ms: 2000,
+            write_ms: 3000,
+            per_megabyte_ms: 500,
+            operation_complete_ms: 60_000,
+        };
+        let t = timeouts_from_catalog(&policy);
+        assert_eq!(t.read, Duration::from_millis(2000));
+        assert_eq!(t.min_rate_bytes_per_s, 2_000_000);
+        // One megabyte is allowed exactly the catalog's per-megabyte time.
+        assert_eq!(t.allowance_for(1_000_000), Duration::from_millis(500));
+    }
+}

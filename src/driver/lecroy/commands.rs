@@ -1,0 +1,115 @@
+//! Every command the LeCroy driver sends, in one place (instruments.md sections 2.3 and 2.4).
+//! The same spellings go over VICP and VXI-11.
+
+use crate::driver::capability::Slope;
+use crate::driver::common::number;
+
+pub const HEADERS_OFF: &str = "CHDR OFF";
+/// 16-bit words: BYTE would transfer only the upper 8 bits of the scope's internal values.
+pub const WORD_FORMAT: &str = "CFMT DEF9,WORD,BIN";
+pub const LSB_FIRST: &str = "CORD LO";
+pub const WHOLE_RECORD: &str = "WFSU SP,0,NP,0,FP,0,SN,0";
+pub const FIXED_RATE: &str = "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'";
+pub const SAMPLING_RATE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'";
+pub const HOR_SCALE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.HorScale'";
+pub const COMMAND_ERRORS: &str = "CMR?";
+pub const EXECUTION_ERRORS: &str = "EXR?";
+pub const STATUS: &str = "INR?";
+pub const STOP: &str = "STOP";
+/// The external trigger input, where the AWG's marker arrives.
+pub const EXTERNAL: &str = "EX";
+
+pub fn sample_rate(rate_hz: f64) -> String {
+    format!(
+        "VBS 'app.Acquisition.Horizontal.SampleRate = {}'",
+        number(rate_hz)
+    )
+}
+
+pub fn hor_scale(seconds_per_div: f64) -> String {
+    format!(
+        "VBS 'app.Acquisition.Horizontal.HorScale = {}'",
+        number(seconds_per_div)
+    )
+}
+
+pub fn trace_on(channel: u8) -> String {
+    format!("C{channel}:TRA ON")
+}
+
+pub fn volts_per_div(channel: u8, volts: f64) -> String {
+    format!("C{channel}:VDIV {}", number(volts))
+}
+
+pub fn offset(channel: u8, volts: f64) -> String {
+    format!("C{channel}:OFST {}", number(volts))
+}
+
+pub fn edge_trigger(source: &str) -> String {
+    format!("TRSE EDGE,SR,{source},HT,OFF")
+}
+
+pub fn trigger_level(source: &str, volts: f64) -> String {
+    format!("{source}:TRLV {}", number(volts))
+}
+
+pub fn trigger_slope(source: &str, slope: Slope) -> String {
+    let s = match slope {
+        Slope::Positive => "POS",
+        Slope::Negative => "NEG",
+    };
+    format!("{source}:TRSL {s}")
+}
+
+pub fn trigger_delay(seconds: f64) -> String {
+    format!("TRDL {}", number(seconds))
+}
+
+/// Single shot: arm, block the parser until the acquisition completes or `wait_s` passes, then
+/// answer `*OPC?` (so the reply comes when the scope is done either way).
+pub fn single_shot(wait_s: f64) -> String {
+    format!("TRMD SINGLE;ARM;WAIT {};*OPC?", number(wait_s))
+}
+
+pub fn waveform(channel: u8) -> String {
+    format!("C{channel}:WF? ALL")
+}
+
+/// Texts of the legacy command-error register (CMR?) codes [V-src: X-Stream remote manual].
+pub fn command_error_text(code: i64) -> &'static str {
+    match code {
+        1 => "unrecognized command/query header",
+        2 => "illegal header path",
+        3 => "illegal number",
+        4 => "illegal number suffix",
+        5 => "unrecognized keyword",
+        6 => "string error",
+        7 => "GET embedded in another message",
+        10 => "arbitrary data block expected",
+        11 => "non-digit character in byte count field of arbitrary data block",
+        12 => "EOI detected during definite length data block transfer",
+        13 => "extra bytes detected during definite length data block transfer",
+        _ => "command error",
+    }
+}
+
+/// Texts of the execution-error register (EXR?) codes [V-src: X-Stream remote manual].
+pub fn execution_error_text(code: i64) -> &'static str {
+    match code {
+        21 => "permission error",
+        22 => "environment error",
+        23 => "option error",
+        24 => "unresolved parsing error",
+        25 => "parameter error",
+        26 => "command not implemented",
+        27 => "parameter missing",
+        30 => "hex data error",
+        31 => "waveform error",
+        32 => "waveform descriptor error",
+        33 => "waveform text error",
+        34 => "waveform time error",
+        35 => "waveform data error",
+        36 => "panel setup error",
+        _ => "execution error",
+    }
+}

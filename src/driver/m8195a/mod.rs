@@ -1,0 +1,471 @@
+//! Keysight M8195A driver: I on channel 1 (sample/marker bytes interleaved), Q on channel 2, the
+//! marker on channel 3, in DAC mode DCM from extended memory (16 GSa/s = 64 GSa/s raster / 4).
+//!
+//! Every limit comes from the catalog and is checked before anything is sent ([`plan`]); every
+//! configuration batch ends with an error-queue check; the clock, DAC mode and segment table are
+//! read back and compared with what was asked. Spellings live in [`commands`].
+
+pub mod commands;
+pub mod plan;
+
+use self::plan::{ClockPlan, DownloadPlan, SEGMENT_ID};
+use super::capability::{
+    Awg, AwgApplied, AwgSettings, IqWaveform, LoadedSegment, OutputState, SegmentEntry,
+};
+use super::common::{self, check_batch, close, session};
+use super::error::DriverError;
+use super::io::{BoxFuture, InstrumentIo};
+use super::permit::RfPermit;
+use crate::catalog::{AwgLimits, InstrumentModel};
+use crate::session::reply::{parse_f64, parse_i64};
+use crate::session::Identity;
+
+/// Relative tolerance when comparing a read-back rate with the requested one.
+const RATE_TOLERANCE: f64 = 1e-9;
+
+/// A connected M8195A.
+pub struct M8195a {
+    io: Box<dyn InstrumentIo>,
+    model: InstrumentModel,
+    limits: AwgLimits,
+    identity: Identity,
+    name: String,
+    clock: Option<ClockPlan>,
+}
+
+impl M8195a {
+    /// Opens the resource (raw socket, HiSLIP or VXI-11) with the model's timeouts and connects.
+    pub async fn open(
+        resource: crate::address::Resource,
+        model: &InstrumentModel,
+        journal: Option<crate::transport::Journal>,
+        name: &str,
+    ) -> Result<M8195a, DriverError> {
+        let session =
+            super::io::open_session(resource, &model.timeouts, "SYST:ERR?", journal, name)
+                .await
+                .map_err(session(name))?;
+        M8195a::connect(Box::new(session), model, name).await
+    }
+
+    /// Checks `*IDN?` against the catalog model and returns the driver.
+    pub async fn connect(
+        mut io: Box<dyn InstrumentIo>,
+        model: &InstrumentModel,
+        name: &str,
+    ) -> Result<M8195a, DriverError> {
+        let limits = model.awg.clone().ok_or_else(|| DriverError::Catalog {
+            key: model.instrument.key.clone(),
+            reason: "the model has no [awg] section; it is not an AWG".into(),
+        })?;
+        plan::iq_marker_mode(&limits, &model.instrument.key)?;
+        let identity = common::identify(io.as_mut(), model, name).await?;
+        Ok(M8195a {
+            io,
+            model: model.clone(),
+            limits,
+            identity,
+            name: name.to_string(),
+            clock: None,
+        })
+    }
+
+    pub fn model(&self) -> &InstrumentModel {
+        &self.model
+    }
+
+    fn err(&self) -> impl Fn(crate::session::SessionError) -> DriverError + '_ {
+        session(&self.name)
+    }
+
+    async fn send(&mut self, command: &str) -> Result<(), DriverError> {
+        self.io.write(command).await.map_err(session(&self.name))
+    }
+
+    async fn ask(&mut self, query: &str) -> Result<String, DriverError> {
+        self.io.query(query).await.map_err(session(&self.name))
+    }
+
+    async fn check(&mut self, batch: &str) -> Result<(), DriverError> {
+        check_batch(self.io.as_mut(), &self.name, batch).await
+    }
+
+    fn reply_error(&self, command: &str, expected: &'static str, reply: &str) -> DriverError {
+        DriverError::Reply {
+            instrument: self.name.clone(),
+            command: command.to_string(),
+            expected,
+            reply: reply.to_string(),
+        }
+    }
+
+    async fn ask_f64(&mut self, query: &str) -> Result<f64, DriverError> {
+        let text = self.ask(query).await?;
+        parse_f64(&text).ok_or_else(|| self.reply_error(query, "a number", &text))
+    }
+
+    async fn ask_bool(&mut self, query: &str) -> Result<bool, DriverError> {
+        let text = self.ask(query).await?;
+        match parse_i64(&text) {
+            Some(0) => Ok(false),
+            Some(1) => Ok(true),
+            _ if text.eq_ignore_ascii_case("ON") => Ok(true),
+            _ if text.eq_ignore_ascii_case("OFF") => Ok(false),
+            _ => Err(self.reply_error(query, "0 or 1", &text)),
+        }
+    }
+
+    /// Stale entries in the error queue belong to whoever used the instrument before: they are
+    /// logged, not blamed on this configuration.
+    async fn drain_stale_errors(&mut self) -> Result<(), DriverError> {
+        let stale = self.io.errors().await.map_err(self.err())?;
+        for e in stale {
+            tracing::warn!(instrument = %self.name, "error queue entry from before this configuration: {e}");
+        }
+        Ok(())
+    }
+
+    async fn configure_impl(&mut self, settings: &AwgSettings) -> Result<AwgApplied, DriverError> {
+        let clock = plan::plan_clock(
+            &self.limits,
+            &self.model.instrument.key,
+            &self.name,
+            settings,
+        )?;
+        self.drain_stale_errors().await?;
+        self.clock = None;
+        self.send(commands::ABORT).await?;
+        self.send(&commands::dac_mode(&clock.dac_mode)).await?;
+        self.send(&commands::divider(&clock.divider.keyword))
+            .await?;
+        for ch in [clock.i_channel, clock.q_channel] {
+            self.send(&commands::extended_memory(ch)).await?;
+        }
+        self.send(&commands::raster(clock.dac_rate_hz)).await?;
+        self.send(commands::FUNCTION_ARB).await?;
+        self.send(commands::CONTINUOUS).await?;
+        self.send(commands::GATE_OFF).await?;
+        self.check("the DAC mode and sample clock").await?;
+        self.send(&commands::amplitude(
+            clock.i_channel,
+            settings.i_amplitude_vpp,
+        ))
+        .await?;
+        self.send(&commands::offset(clock.i_channel, settings.i_offset_v))
+            .await?;
+        self.send(&commands::amplitude(
+            clock.q_channel,
+            settings.q_amplitude_vpp,
+        ))
+        .await?;
+        self.send(&commands::offset(clock.q_channel, settings.q_offset_v))
+            .await?;
+        self.send(&commands::marker_amplitude(
+            clock.marker_channel,
+            settings.marker_amplitude_v,
+        ))
+        .await?;
+        self.send(&commands::offset(
+            clock.marker_channel,
+            settings.marker_offset_v,
+        ))
+        .await?;
+        self.check("the amplitudes and marker levels").await?;
+        self.clock = Some(clock.clone());
+        let applied = self.applied_impl().await?;
+        self.verify_clock(&clock, &applied)?;
+        Ok(applied)
+    }
+
+    fn verify_clock(&self, clock: &ClockPlan, applied: &AwgApplied) -> Result<(), DriverError> {
+        let mismatch = |setting, wanted: String, got: String| DriverError::NotApplied {
+            instrument: self.name.clone(),
+            setting,
+            wanted,
+            applied: got,
+        };
+        if !applied.dac_mode.eq_ignore_ascii_case(&clock.dac_mode) {
+            return Err(mismatch(
+                "DAC mode",
+                clock.dac_mode.clone(),
+                applied.dac_mode.clone(),
+            ));
+        }
+        if applied.divider != clock.divider.divider {
+            return Err(mismatch(
+                "sample rate divider",
+                clock.divider.keyword.clone(),
+                format!("DIV{}", applied.divider),
+            ));
+        }
+        if !close(applied.dac_rate_hz, clock.dac_rate_hz, RATE_TOLERANCE) {
+            return Err(mismatch(
+                "DAC raster (Sa/s)",
+                clock.dac_rate_hz.to_string(),
+                applied.dac_rate_hz.to_string(),
+            ));
+        }
+        Ok(())
+    }
+
+    fn require_clock(&self) -> Result<ClockPlan, DriverError> {
+        self.clock.clone().ok_or_else(|| DriverError::Sequence {
+            instrument: self.name.clone(),
+            what: "configure the AWG (DAC mode, divider) before loading a waveform: the granularity depends on it".into(),
+        })
+    }
+
+    async fn load_impl(&mut self, waveform: &IqWaveform) -> Result<LoadedSegment, DriverError> {
+        let clock = self.require_clock()?;
+        let plan = plan::plan_download(&self.limits, &clock, &self.name, waveform)?;
+        self.send(commands::ABORT).await?;
+        self.send(&commands::delete_all(clock.i_channel)).await?;
+        self.send(&commands::define(clock.i_channel, SEGMENT_ID, plan.padded))
+            .await?;
+        let chunks = self.download(&clock, &plan, waveform).await?;
+        let opc = self.ask(commands::OPC).await?;
+        if parse_i64(&opc) != Some(1) {
+            return Err(self.reply_error(commands::OPC, "1", &opc));
+        }
+        self.send(&commands::select(clock.i_channel, SEGMENT_ID))
+            .await?;
+        self.send(&commands::select(clock.q_channel, SEGMENT_ID))
+            .await?;
+        self.check("the segment definition and download").await?;
+        let listed = self.segments(clock.i_channel).await?;
+        let expected = SegmentEntry {
+            id: SEGMENT_ID,
+            samples: plan.padded,
+        };
+        if !listed.contains(&expected) {
+            return Err(DriverError::NotApplied {
+                instrument: self.name.clone(),
+                setting: "segment table",
+                wanted: format!("segment {} of {} samples", SEGMENT_ID, plan.padded),
+                applied: format!("{listed:?}"),
+            });
+        }
+        Ok(LoadedSegment {
+            segment_id: SEGMENT_ID,
+            samples: plan.samples,
+            padded_samples: plan.padded,
+            marker_high_samples: plan.marker_high,
+            chunks_per_channel: chunks,
+        })
+    }
+
+    /// Channel 1 (I + marker) in ascending chunks, then channel 2 (Q).
+    async fn download(
+        &mut self,
+        clock: &ClockPlan,
+        plan: &DownloadPlan,
+        waveform: &IqWaveform,
+    ) -> Result<usize, DriverError> {
+        let chunks = plan.chunks();
+        for &(offset, len) in &chunks {
+            let bytes = plan::interleaved_chunk(&waveform.i, plan.marker_high, offset, len);
+            let header = commands::data_header(clock.i_channel, SEGMENT_ID, offset);
+            self.io
+                .write_block(&header, &bytes)
+                .await
+                .map_err(session(&self.name))?;
+        }
+        for &(offset, len) in &chunks {
+            let bytes = plan::plain_chunk(&waveform.q, offset, len);
+            let header = commands::data_header(clock.q_channel, SEGMENT_ID, offset);
+            self.io
+                .write_block(&header, &bytes)
+                .await
+                .map_err(session(&self.name))?;
+        }
+        Ok(chunks.len())
+    }
+
+    async fn segments(&mut self, channel: u8) -> Result<Vec<SegmentEntry>, DriverError> {
+        let query = commands::catalog_query(channel);
+        let text = self.ask(&query).await?;
+        parse_catalog(&text)
+            .ok_or_else(|| self.reply_error(&query, "id,length[,id,length...]", &text))
+    }
+
+    fn signal_channels(&self) -> (u8, u8, u8) {
+        match &self.clock {
+            Some(c) => (c.i_channel, c.q_channel, c.marker_channel),
+            None => (1, 2, 3),
+        }
+    }
+
+    async fn enable_impl(&mut self) -> Result<(), DriverError> {
+        let (i, q, m) = self.signal_channels();
+        for ch in [i, q, m] {
+            self.send(&commands::output(ch, true)).await?;
+        }
+        self.check("switching the outputs on").await
+    }
+
+    async fn outputs_off_impl(&mut self) -> Result<(), DriverError> {
+        for ch in 1..=self.limits.channels {
+            self.send(&commands::output(ch, false)).await?;
+        }
+        self.check("switching the outputs off").await
+    }
+
+    async fn applied_impl(&mut self) -> Result<AwgApplied, DriverError> {
+        let (i, q, m) = self.signal_channels();
+        let dac_mode = self.ask(commands::DAC_MODE_QUERY).await?;
+        let divider_text = self.ask(commands::DIVIDER_QUERY).await?;
+        let divider = parse_divider(&divider_text).ok_or_else(|| {
+            self.reply_error(commands::DIVIDER_QUERY, "DIV1, DIV2 or DIV4", &divider_text)
+        })?;
+        let dac_rate_hz = self.ask_f64(commands::RASTER_QUERY).await?;
+        let segments = self.segments(i).await?;
+        let i_amplitude_vpp = self.ask_f64(&commands::amplitude_query(i)).await?;
+        let q_amplitude_vpp = self.ask_f64(&commands::amplitude_query(q)).await?;
+        let marker_amplitude_v = self.ask_f64(&commands::marker_amplitude_query(m)).await?;
+        let marker_offset_v = self.ask_f64(&commands::offset_query(m)).await?;
+        let mut outputs = Vec::new();
+        for ch in [i, q, m] {
+            let on = self.ask_bool(&commands::output_query(ch)).await?;
+            outputs.push(OutputState { channel: ch, on });
+        }
+        Ok(AwgApplied {
+            dac_mode: dac_mode.trim().to_string(),
+            divider,
+            dac_rate_hz,
+            sample_rate_hz: dac_rate_hz / f64::from(divider),
+            segments,
+            i_amplitude_vpp,
+            q_amplitude_vpp,
+            marker_amplitude_v,
+            marker_offset_v,
+            outputs,
+        })
+    }
+
+    /// Every output off (each tried even if another fails), then `:ABOR`, then the error queue.
+    async fn safe_state_impl(&mut self) -> Result<(), DriverError> {
+        let mut first_error = None;
+        for ch in 1..=self.limits.channels {
+            if let Err(e) = self.send(&commands::output(ch, false)).await {
+                tracing::error!(instrument = %self.name, "safe state: output {ch} off failed: {e}");
+                first_error.get_or_insert(e);
+            }
+        }
+        if let Err(e) = self.send(commands::ABORT).await {
+            tracing::error!(instrument = %self.name, "safe state: {} failed: {e}", commands::ABORT);
+            first_error.get_or_insert(e);
+        }
+        if let Err(e) = self.check("the safe-state sequence").await {
+            first_error.get_or_insert(e);
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+}
+
+/// `:TRAC:CAT?` -> `id,len[,id,len...]`; `0,0` means no segment.
+pub fn parse_catalog(text: &str) -> Option<Vec<SegmentEntry>> {
+    let numbers: Vec<i64> = text
+        .trim()
+        .split(',')
+        .map(|t| parse_i64(t.trim()))
+        .collect::<Option<_>>()?;
+    if numbers.len() % 2 != 0 {
+        return None;
+    }
+    let mut out = Vec::new();
+    for pair in numbers.chunks_exact(2) {
+        let (id, len) = (pair[0], pair[1]);
+        if id == 0 && len == 0 {
+            continue;
+        }
+        out.push(SegmentEntry {
+            id: u32::try_from(id).ok()?,
+            samples: u64::try_from(len).ok()?,
+        });
+    }
+    Some(out)
+}
+
+/// `DIV4` (or `4`) -> 4.
+pub fn parse_divider(text: &str) -> Option<u32> {
+    let t = text.trim().trim_matches('"');
+    let digits = t
+        .strip_prefix("DIV")
+        .or_else(|| t.strip_prefix("div"))
+        .unwrap_or(t);
+    digits.parse().ok().filter(|d| [1, 2, 4].contains(d))
+}
+
+impl Awg for M8195a {
+    fn identity(&self) -> &Identity {
+        &self.identity
+    }
+
+    fn configure<'a>(
+        &'a mut self,
+        settings: &'a AwgSettings,
+    ) -> BoxFuture<'a, Result<AwgApplied, DriverError>> {
+        Box::pin(self.configure_impl(settings))
+    }
+
+    fn load<'a>(
+        &'a mut self,
+        waveform: &'a IqWaveform,
+    ) -> BoxFuture<'a, Result<LoadedSegment, DriverError>> {
+        Box::pin(self.load_impl(waveform))
+    }
+
+    fn enable_outputs<'a>(
+        &'a mut self,
+        _permit: &'a RfPermit,
+    ) -> BoxFuture<'a, Result<(), DriverError>> {
+        Box::pin(self.enable_impl())
+    }
+
+    fn outputs_off(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(self.outputs_off_impl())
+    }
+
+    fn run(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(async move {
+            self.send(commands::RUN).await?;
+            self.check("starting the playback").await
+        })
+    }
+
+    fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(async move {
+            self.send(commands::ABORT).await?;
+            self.check("stopping the playback").await
+        })
+    }
+
+    fn applied(&mut self) -> BoxFuture<'_, Result<AwgApplied, DriverError>> {
+        Box::pin(self.applied_impl())
+    }
+
+    fn safe_state(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(self.safe_state_impl())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn catalog_replies_parse() {
+        assert_eq!(parse_catalog("0,0"), Some(vec![]));
+        assert_eq!(
+            parse_catalog("1,16384"),
+            Some(vec![SegmentEntry {
+                id: 1,
+                samples: 16384
+            }])
+        );
+        assert_eq!(parse_catalog("1"), None);
+        assert_eq!(parse_catalog("x,y"), None);
+        assert_eq!(parse_divider("DIV4"), Some(4));
+        assert_eq!(parse_divider("DIV3"), None);
+    }
+}

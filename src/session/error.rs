@@ -1,0 +1,157 @@
+//! The session layer's errors: "the instrument refused" ([`SessionError::Device`], entries from
+//! `SYST:ERR?` with code and text) is kept apart from "the link failed" ([`SessionError::Link`]).
+
+use crate::transport::{ErrorKind, LinkError};
+use std::fmt;
+
+/// One entry of the instrument's error queue, e.g. `-222,"Data out of range"`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct DeviceError {
+    pub code: i32,
+    pub message: String,
+}
+
+impl fmt::Display for DeviceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},\"{}\"", self.code, self.message)
+    }
+}
+
+impl DeviceError {
+    /// SCPI error classes: -1xx command and -2xx execution errors mean the input was wrong;
+    /// -3xx device-specific, -4xx query and vendor (positive) errors mean stop and look.
+    pub fn kind(&self) -> ErrorKind {
+        match self.code {
+            -299..=-100 => ErrorKind::FixInput,
+            _ => ErrorKind::Abort,
+        }
+    }
+}
+
+fn join(errors: &[DeviceError]) -> String {
+    errors
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    #[error("{resource}: the instrument refused{}: {}", .after.as_deref().map(|c| format!(" `{c}`")).unwrap_or_default(), join(.errors))]
+    Device {
+        resource: String,
+        /// The command after which the errors were read, when known.
+        after: Option<String>,
+        errors: Vec<DeviceError>,
+    },
+    #[error("{resource}: {source}")]
+    Link {
+        resource: String,
+        #[source]
+        source: LinkError,
+    },
+    #[error("{resource}: the reply to `{command}` is not {expected}: {reply:?}")]
+    Reply {
+        resource: String,
+        command: String,
+        expected: &'static str,
+        reply: String,
+    },
+    #[error("command {command:?} contains a newline; send one command per call (or separate them with `;`)")]
+    CommandHasNewline { command: String },
+    #[error("a definite block holds at most 999999999 bytes, this one has {len}; split it (e.g. several :TRAC:DATA writes at increasing offsets)")]
+    BlockTooLarge { len: u64 },
+    #[error("{resource}: the error queue still had entries after {limit} reads of `{query}`; the instrument may not implement it")]
+    ErrorQueueNotDraining {
+        resource: String,
+        query: String,
+        limit: usize,
+    },
+}
+
+impl SessionError {
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            SessionError::Device { errors, .. } => {
+                if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
+                    ErrorKind::FixInput
+                } else {
+                    ErrorKind::Abort
+                }
+            }
+            SessionError::Link { source, .. } => source.kind(),
+            SessionError::Reply { .. } | SessionError::ErrorQueueNotDraining { .. } => {
+                ErrorKind::Abort
+            }
+            SessionError::CommandHasNewline { .. } | SessionError::BlockTooLarge { .. } => {
+                ErrorKind::FixInput
+            }
+        }
+    }
+
+    /// The device errors, if the instrument refused.
+    pub fn device_errors(&self) -> Option<&[DeviceError]> {
+        match self {
+            SessionError::Device { errors, .. } => Some(errors),
+            _ => None,
+        }
+    }
+
+    /// The link error, if the link failed.
+    pub fn link_error(&self) -> Option<&LinkError> {
+        match self {
+            SessionError::Link { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+impl crate::exit::Classify for SessionError {
+    fn exit_class(&self) -> crate::exit::ExitClass {
+        use crate::exit::ExitClass;
+        match self {
+            SessionError::Link { source, .. } => source.exit_class(),
+            SessionError::CommandHasNewline { .. } | SessionError::BlockTooLarge { .. } => {
+                ExitClass::BadInput
+            }
+            SessionError::Device { .. }
+            | SessionError::Reply { .. }
+            | SessionError::ErrorQueueNotDraining { .. } => ExitClass::Instrument,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exit::{Classify, ExitClass};
+
+    #[test]
+    fn refused_and_link_failed_are_told_apart() {
+        let refused = SessionError::Device {
+            resource: "r".into(),
+            after: Some(":VOLT 9".into()),
+            errors: vec![DeviceError {
+                code: -222,
+                message: "Data out of range".into(),
+            }],
+        };
+        assert_eq!(refused.kind(), ErrorKind::FixInput);
+        assert_eq!(refused.exit_class(), ExitClass::Instrument);
+        assert!(refused.to_string().contains("-222,\"Data out of range\""));
+        assert!(refused.device_errors().is_some() && refused.link_error().is_none());
+        let failed = SessionError::Link {
+            resource: "r".into(),
+            source: LinkError::Closed { op: "read" },
+        };
+        assert_eq!(failed.kind(), ErrorKind::Retry);
+        assert_eq!(failed.exit_class(), ExitClass::Instrument);
+        assert!(failed.link_error().is_some() && failed.device_errors().is_none());
+        let hw = DeviceError {
+            code: -310,
+            message: "System error".into(),
+        };
+        assert_eq!(hw.kind(), ErrorKind::Abort);
+    }
+}

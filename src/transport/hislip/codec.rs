@@ -1,0 +1,274 @@
+//! HiSLIP (IVI-6.1) wire format: a 16-byte big-endian header `"HS", type u8, control u8,
+//! parameter u32, payload length u64`, then the payload.
+
+use crate::transport::error::CodecError;
+use crate::transport::io::Decode;
+use bytes::{Buf, Bytes, BytesMut};
+
+pub const HEADER_LEN: usize = 16;
+const FORMAT: &str = "HiSLIP";
+
+/// HiSLIP message types used by the client.
+pub mod msg {
+    pub const INITIALIZE: u8 = 0;
+    pub const INITIALIZE_RESPONSE: u8 = 1;
+    pub const FATAL_ERROR: u8 = 2;
+    pub const ERROR: u8 = 3;
+    pub const DATA: u8 = 6;
+    pub const DATA_END: u8 = 7;
+    pub const DEVICE_CLEAR_COMPLETE: u8 = 8;
+    pub const DEVICE_CLEAR_ACKNOWLEDGE: u8 = 9;
+    pub const TRIGGER: u8 = 12;
+    pub const INTERRUPTED: u8 = 13;
+    pub const ASYNC_INTERRUPTED: u8 = 14;
+    pub const ASYNC_MAX_MSG_SIZE: u8 = 15;
+    pub const ASYNC_MAX_MSG_SIZE_RESPONSE: u8 = 16;
+    pub const ASYNC_INITIALIZE: u8 = 17;
+    pub const ASYNC_INITIALIZE_RESPONSE: u8 = 18;
+    pub const ASYNC_DEVICE_CLEAR: u8 = 19;
+    pub const ASYNC_SERVICE_REQUEST: u8 = 20;
+    pub const ASYNC_STATUS_QUERY: u8 = 21;
+    pub const ASYNC_STATUS_RESPONSE: u8 = 22;
+    pub const ASYNC_DEVICE_CLEAR_ACKNOWLEDGE: u8 = 23;
+}
+
+/// The meaning of a FatalError control code.
+pub fn fatal_error_meaning(code: u8) -> &'static str {
+    match code {
+        0 => "unidentified error",
+        1 => "poorly formed message header",
+        2 => "attempt to use connection without both channels established",
+        3 => "invalid initialization sequence",
+        4 => "server refused connection due to maximum number of clients exceeded",
+        5 => "secure connection failed",
+        _ => "unknown fatal error code",
+    }
+}
+
+/// The meaning of an Error control code.
+pub fn error_meaning(code: u8) -> &'static str {
+    match code {
+        0 => "unidentified error",
+        1 => "unrecognized message type",
+        2 => "unrecognized control code",
+        3 => "unrecognized vendor defined message",
+        4 => "message too large",
+        5 => "authentication failed",
+        _ => "unknown error code",
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Header {
+    pub msg_type: u8,
+    pub control: u8,
+    pub param: u32,
+    pub len: u64,
+}
+
+impl Header {
+    pub fn new(msg_type: u8, control: u8, param: u32, len: u64) -> Self {
+        Self {
+            msg_type,
+            control,
+            param,
+            len,
+        }
+    }
+
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut out = [0u8; HEADER_LEN];
+        out[0] = b'H';
+        out[1] = b'S';
+        out[2] = self.msg_type;
+        out[3] = self.control;
+        out[4..8].copy_from_slice(&self.param.to_be_bytes());
+        out[8..16].copy_from_slice(&self.len.to_be_bytes());
+        out
+    }
+
+    pub fn parse(bytes: &[u8; HEADER_LEN]) -> Result<Self, CodecError> {
+        if &bytes[0..2] != b"HS" {
+            return Err(CodecError::BadHeader {
+                format: FORMAT,
+                detail: "missing the \"HS\" prologue",
+            });
+        }
+        Ok(Self {
+            msg_type: bytes[2],
+            control: bytes[3],
+            param: u32::from_be_bytes(bytes[4..8].try_into().expect("4 bytes")),
+            len: u64::from_be_bytes(bytes[8..16].try_into().expect("8 bytes")),
+        })
+    }
+}
+
+/// A header and its payload.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frame {
+    pub header: Header,
+    pub payload: Bytes,
+}
+
+/// Encodes a whole message with a small payload (control messages).
+pub fn encode_frame(msg_type: u8, control: u8, param: u32, payload: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
+    out.extend_from_slice(&Header::new(msg_type, control, param, payload.len() as u64).encode());
+    out.extend_from_slice(payload);
+    out
+}
+
+/// Incremental HiSLIP frame decoder with a payload limit.
+#[derive(Debug, Clone)]
+pub struct FrameDecoder {
+    limit: u64,
+    pending: Option<Header>,
+}
+
+impl FrameDecoder {
+    pub fn new(limit: u64) -> Self {
+        Self {
+            limit,
+            pending: None,
+        }
+    }
+}
+
+impl Decode for FrameDecoder {
+    type Item = Frame;
+
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Frame>, CodecError> {
+        let header = match self.pending {
+            Some(h) => h,
+            None => {
+                if src.len() < HEADER_LEN {
+                    return Ok(None);
+                }
+                let h = Header::parse(src[..HEADER_LEN].try_into().expect("16 bytes"))?;
+                if h.len > self.limit {
+                    return Err(CodecError::TooLarge {
+                        format: FORMAT,
+                        announced: h.len,
+                        limit: self.limit,
+                    });
+                }
+                src.advance(HEADER_LEN);
+                self.pending = Some(h);
+                h
+            }
+        };
+        let len = header.len as usize;
+        if src.len() < len {
+            src.reserve(len - src.len());
+            return Ok(None);
+        }
+        self.pending = None;
+        let payload = src.split_to(len).freeze();
+        Ok(Some(Frame { header, payload }))
+    }
+
+    fn announced(&self) -> u64 {
+        self.pending.map_or(0, |h| h.len + HEADER_LEN as u64)
+    }
+}
+
+/// Initialize parameter: protocol version 1.0 and the vendor ID "RB" (radbench).
+pub const CLIENT_PROTOCOL_AND_VENDOR: u32 = (1 << 24) | ((b'R' as u32) << 8) | b'B' as u32;
+/// The first MessageID a client uses, and again after a device clear.
+pub const FIRST_MESSAGE_ID: u32 = 0xFFFF_FF00;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frames(chunks: &[&[u8]], limit: u64) -> Result<Vec<Frame>, CodecError> {
+        let mut dec = FrameDecoder::new(limit);
+        let mut buf = BytesMut::new();
+        let mut out = Vec::new();
+        for c in chunks {
+            buf.extend_from_slice(c);
+            while let Some(f) = dec.decode(&mut buf)? {
+                out.push(f);
+            }
+        }
+        Ok(out)
+    }
+
+    /// InitializeResponse (session 7, protocol 1.0), then DataEnd id 0xFFFFFF00 with "1\n".
+    const GOLDEN: &[u8] = &[
+        b'H', b'S', 1, 0, 0x01, 0x00, 0x00, 0x07, 0, 0, 0, 0, 0, 0, 0, 0, //
+        b'H', b'S', 7, 1, 0xFF, 0xFF, 0xFF, 0x00, 0, 0, 0, 0, 0, 0, 0, 2, b'1', b'\n',
+    ];
+
+    fn golden() -> Vec<Frame> {
+        vec![
+            Frame {
+                header: Header::new(msg::INITIALIZE_RESPONSE, 0, 0x0100_0007, 0),
+                payload: Bytes::new(),
+            },
+            Frame {
+                header: Header::new(msg::DATA_END, 1, FIRST_MESSAGE_ID, 2),
+                payload: Bytes::from_static(b"1\n"),
+            },
+        ]
+    }
+
+    #[test]
+    fn golden_bytes_encode_and_decode() {
+        assert_eq!(frames(&[GOLDEN], 1024).unwrap(), golden());
+        assert_eq!(
+            encode_frame(msg::DATA_END, 1, FIRST_MESSAGE_ID, b"1\n"),
+            GOLDEN[16..].to_vec()
+        );
+        assert_eq!(
+            encode_frame(msg::INITIALIZE, 0, CLIENT_PROTOCOL_AND_VENDOR, b"hislip0"),
+            [
+                &[b'H', b'S', 0, 0, 1, 0, b'R', b'B', 0, 0, 0, 0, 0, 0, 0, 7][..],
+                b"hislip0"
+            ]
+            .concat()
+        );
+    }
+
+    #[test]
+    fn split_at_every_byte() {
+        for cut in 0..=GOLDEN.len() {
+            let (a, b) = GOLDEN.split_at(cut);
+            assert_eq!(frames(&[a, b], 1024).unwrap(), golden(), "cut {cut}");
+        }
+    }
+
+    #[test]
+    fn oversized_and_bad_prologue_are_errors() {
+        let big = Header::new(msg::DATA, 0, 0, u64::MAX).encode();
+        assert!(matches!(
+            frames(&[&big], 1 << 20),
+            Err(CodecError::TooLarge { .. })
+        ));
+        let mut bad = GOLDEN.to_vec();
+        bad[0] = b'X';
+        assert!(matches!(
+            frames(&[&bad], 1024),
+            Err(CodecError::BadHeader { .. })
+        ));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic_or_overallocate(data in proptest::collection::vec(proptest::num::u8::ANY, 0..256)) {
+            let limit = 4096u64;
+            let mut dec = FrameDecoder::new(limit);
+            let mut buf = BytesMut::from(&data[..]);
+            while let Ok(Some(_)) = dec.decode(&mut buf) {}
+            proptest::prop_assert!(buf.capacity() as u64 <= 2 * limit + data.len() as u64 + 64);
+        }
+
+        #[test]
+        fn arbitrary_frames_survive_every_split(t in 0u8..30, c in proptest::num::u8::ANY, p in proptest::num::u32::ANY, payload in proptest::collection::vec(proptest::num::u8::ANY, 0..40), cut in 0usize..80) {
+            let wire = encode_frame(t, c, p, &payload);
+            let cut = cut.min(wire.len());
+            let got = frames(&[&wire[..cut], &wire[cut..]], 1024).unwrap();
+            proptest::prop_assert_eq!(got, vec![Frame { header: Header::new(t, c, p, payload.len() as u64), payload: Bytes::from(payload) }]);
+        }
+    }
+}

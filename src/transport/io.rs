@@ -1,0 +1,327 @@
+//! Shared machinery of the network transports: options, size-aware deadlines, progress reports,
+//! and the cancel-safe frame reader.
+//!
+//! Cancel safety: every await here is either `read_buf` into a buffer the transport owns, or a
+//! write. A dropped read therefore loses no bytes (the decoder state and the partial frame stay in
+//! the transport); a dropped write may leave half a message on the wire, which is why transports
+//! mark themselves dirty before writing and recover (clear or reconnect) before the next operation.
+
+use super::error::{CodecError, LinkError};
+use bytes::BytesMut;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::time::Instant;
+
+/// A progress report for a long transfer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Progress {
+    pub direction: Direction,
+    /// Bytes moved so far in this message.
+    pub done: u64,
+    /// The message size when known (from a block header or a frame length).
+    pub total: Option<u64>,
+}
+
+/// Which way bytes flow, seen from radbench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Direction {
+    Write,
+    Read,
+}
+
+/// Called from the I/O task; keep it cheap (update a progress bar, not a file).
+pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
+
+/// Connect, read and write timeouts, kept apart, plus the rate that stretches deadlines for big
+/// transfers: a transfer of `n` bytes gets `base + n / min_rate` before it times out.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timeouts {
+    pub connect: Duration,
+    /// Time allowed for a reply to start and for small replies to complete.
+    pub read: Duration,
+    /// Time allowed for a small message to be accepted.
+    pub write: Duration,
+    /// The slowest transfer rate (bytes per second) still considered healthy.
+    pub min_rate_bytes_per_s: u64,
+}
+
+impl Default for Timeouts {
+    fn default() -> Self {
+        Self {
+            connect: Duration::from_secs(5),
+            read: Duration::from_secs(10),
+            write: Duration::from_secs(10),
+            min_rate_bytes_per_s: 10_000_000,
+        }
+    }
+}
+
+impl Timeouts {
+    /// The extra time a transfer of `bytes` is allowed beyond the base timeout.
+    pub fn allowance_for(&self, bytes: u64) -> Duration {
+        let rate = self.min_rate_bytes_per_s.max(1);
+        Duration::from_secs_f64(bytes as f64 / rate as f64)
+    }
+}
+
+/// Everything a transport needs besides its address.
+#[derive(Clone)]
+pub struct LinkOptions {
+    pub timeouts: Timeouts,
+    /// The largest message accepted or sent; length fields above it are refused before any
+    /// allocation.
+    pub max_message_bytes: usize,
+    /// Called while long messages move, every `progress_step_bytes`.
+    pub progress: Option<ProgressFn>,
+    pub progress_step_bytes: u64,
+    /// Serial settings for `ASRL` resources (from the bench file).
+    pub serial: super::serial::SerialSettings,
+}
+
+impl Default for LinkOptions {
+    fn default() -> Self {
+        Self {
+            timeouts: Timeouts::default(),
+            max_message_bytes: 1 << 30,
+            progress: None,
+            progress_step_bytes: 4 << 20,
+            serial: Default::default(),
+        }
+    }
+}
+
+impl std::fmt::Debug for LinkOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LinkOptions")
+            .field("timeouts", &self.timeouts)
+            .field("max_message_bytes", &self.max_message_bytes)
+            .field("progress", &self.progress.is_some())
+            .field("progress_step_bytes", &self.progress_step_bytes)
+            .field("serial", &self.serial)
+            .finish()
+    }
+}
+
+/// An incremental decoder: consumes whole frames from the front of `src`, leaves partial ones.
+pub trait Decode {
+    type Item;
+    /// Returns a frame when `src` holds a whole one. May reserve space in `src` for a frame whose
+    /// length it has read (after checking the length against its limit).
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Self::Item>, CodecError>;
+    /// The total size of the frame being decoded, once its header announced it (0 if unknown).
+    fn announced(&self) -> u64 {
+        0
+    }
+}
+
+/// One message's worth of reading: its deadline grows with the bytes announced or received.
+pub struct ReadContext<'a> {
+    op: &'static str,
+    started: Instant,
+    timeouts: Timeouts,
+    received: u64,
+    expected: u64,
+    frame_start: u64,
+    progress: Option<&'a ProgressFn>,
+    step: u64,
+    next_report: u64,
+}
+
+impl<'a> ReadContext<'a> {
+    pub fn new(op: &'static str, options: &'a LinkOptions) -> Self {
+        Self {
+            op,
+            started: Instant::now(),
+            timeouts: options.timeouts,
+            received: 0,
+            expected: 0,
+            frame_start: 0,
+            progress: options.progress.as_ref(),
+            step: options.progress_step_bytes.max(1),
+            next_report: options.progress_step_bytes.max(1),
+        }
+    }
+
+    /// Restarts the clock, e.g. for a second round trip within one operation.
+    pub fn with_base(mut self, base: Duration) -> Self {
+        self.timeouts.read = base;
+        self
+    }
+
+    pub fn deadline(&self) -> Instant {
+        self.started
+            + self.timeouts.read
+            + self
+                .timeouts
+                .allowance_for(self.received.max(self.expected))
+    }
+
+    pub fn elapsed(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    pub fn timeout_error(&self) -> LinkError {
+        LinkError::Timeout {
+            op: self.op,
+            after: self.elapsed(),
+        }
+    }
+
+    pub fn op(&self) -> &'static str {
+        self.op
+    }
+
+    /// Time left before the deadline (zero if passed).
+    pub fn remaining(&self) -> Duration {
+        self.deadline().saturating_duration_since(Instant::now())
+    }
+
+    /// Declares the total message size once known, e.g. from a block header.
+    pub fn expect_total(&mut self, total: u64) {
+        self.expected = self.expected.max(total);
+    }
+
+    fn add(&mut self, n: usize) {
+        self.received += n as u64;
+        if let Some(report) = self.progress {
+            if self.received >= self.next_report {
+                report(Progress {
+                    direction: Direction::Read,
+                    done: self.received,
+                    total: (self.expected > 0).then_some(self.expected),
+                });
+                self.next_report = self.received + self.step;
+            }
+        }
+    }
+
+    /// Reads until `decoder` yields a frame. Cancel safe (see the module docs).
+    pub async fn read_frame<S, D>(
+        &mut self,
+        stream: &mut S,
+        buf: &mut BytesMut,
+        decoder: &mut D,
+        protocol: &'static str,
+    ) -> Result<D::Item, LinkError>
+    where
+        S: AsyncRead + Unpin,
+        D: Decode,
+    {
+        self.frame_start = self.received.saturating_sub(buf.len() as u64);
+        loop {
+            if let Some(item) = decoder.decode(buf).map_err(LinkError::codec(protocol))? {
+                return Ok(item);
+            }
+            let announced = decoder.announced();
+            if announced > 0 {
+                self.expect_total(self.frame_start + announced);
+            }
+            if buf.capacity() - buf.len() < MIN_READ_SPACE {
+                buf.reserve(READ_CHUNK);
+            }
+            let n = match tokio::time::timeout_at(self.deadline(), stream.read_buf(buf)).await {
+                Err(_) => return Err(self.timeout_error()),
+                Ok(Err(source)) => return Err(io_error(self.op, source)),
+                Ok(Ok(0)) => return Err(LinkError::Closed { op: self.op }),
+                Ok(Ok(n)) => n,
+            };
+            self.add(n);
+        }
+    }
+}
+
+const MIN_READ_SPACE: usize = 16 << 10;
+const READ_CHUNK: usize = 256 << 10;
+/// Large writes go out in pieces of this size so progress can be reported.
+const WRITE_PIECE: usize = 8 << 20;
+
+/// Maps an I/O error, recognising a peer that went away.
+pub fn io_error(op: &'static str, source: std::io::Error) -> LinkError {
+    use std::io::ErrorKind as K;
+    match source.kind() {
+        K::UnexpectedEof | K::ConnectionReset | K::ConnectionAborted | K::BrokenPipe => {
+            LinkError::Closed { op }
+        }
+        _ => LinkError::Io { op, source },
+    }
+}
+
+/// Writes `parts` back to back (no copy into one buffer) before a deadline that grows with size.
+pub async fn write_parts<S: AsyncWrite + Unpin>(
+    stream: &mut S,
+    parts: &[&[u8]],
+    op: &'static str,
+    options: &LinkOptions,
+) -> Result<(), LinkError> {
+    let total: u64 = parts.iter().map(|p| p.len() as u64).sum();
+    let allowed = options.timeouts.write + options.timeouts.allowance_for(total);
+    let deadline = Instant::now() + allowed;
+    let report = options
+        .progress
+        .as_ref()
+        .filter(|_| total >= options.progress_step_bytes);
+    let mut done = 0u64;
+    let work = async {
+        for part in parts {
+            for piece in part.chunks(WRITE_PIECE) {
+                stream.write_all(piece).await.map_err(|e| io_error(op, e))?;
+                done += piece.len() as u64;
+                if let Some(report) = report {
+                    report(Progress {
+                        direction: Direction::Write,
+                        done,
+                        total: Some(total),
+                    });
+                }
+            }
+        }
+        stream.flush().await.map_err(|e| io_error(op, e))
+    };
+    match tokio::time::timeout_at(deadline, work).await {
+        Ok(result) => result,
+        Err(_) => Err(LinkError::Timeout { op, after: allowed }),
+    }
+}
+
+/// Connects a TCP stream within the connect timeout, with Nagle off (small commands go out at once).
+pub async fn connect_tcp(
+    host: &str,
+    port: u16,
+    protocol: &'static str,
+    options: &LinkOptions,
+) -> Result<tokio::net::TcpStream, LinkError> {
+    let host_only = host.trim_start_matches('[').trim_end_matches(']');
+    let target = format!("{host}:{port}");
+    let connect = tokio::net::TcpStream::connect((host_only, port));
+    let stream = match tokio::time::timeout(options.timeouts.connect, connect).await {
+        Err(_) => {
+            return Err(LinkError::Connect {
+                target,
+                protocol,
+                source: std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    format!("no answer within {:?}", options.timeouts.connect),
+                ),
+            })
+        }
+        Ok(Err(source)) if source.kind() == std::io::ErrorKind::InvalidInput => {
+            return Err(LinkError::Resolve {
+                host: host.to_string(),
+            })
+        }
+        Ok(Err(source)) => {
+            return Err(LinkError::Connect {
+                target,
+                protocol,
+                source,
+            })
+        }
+        Ok(Ok(s)) => s,
+    };
+    stream
+        .set_nodelay(true)
+        .map_err(|e| io_error("connect", e))?;
+    Ok(stream)
+}

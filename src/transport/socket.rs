@@ -1,0 +1,55 @@
+//! Raw socket (`TCPIP::host::port::SOCKET`): messages end at a newline outside binary blocks.
+//!
+//! A raw socket has no device clear and no status byte. The only way to be sure no stale reply
+//! follows a timeout is a fresh connection, so [`SocketLink::device_clear`] reconnects; the status
+//! byte is read by the session with `*STB?`.
+
+use super::error::LinkError;
+use super::framing::TerminatedDecoder;
+use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
+use bytes::{Bytes, BytesMut};
+use tokio::net::TcpStream;
+
+const PROTOCOL: &str = "socket";
+
+pub struct SocketLink {
+    host: String,
+    port: u16,
+    stream: TcpStream,
+    buf: BytesMut,
+    decoder: TerminatedDecoder,
+}
+
+impl SocketLink {
+    pub async fn connect(host: &str, port: u16, options: &LinkOptions) -> Result<Self, LinkError> {
+        let stream = connect_tcp(host, port, PROTOCOL, options).await?;
+        Ok(Self {
+            host: host.to_string(),
+            port,
+            stream,
+            buf: BytesMut::with_capacity(64 << 10),
+            decoder: TerminatedDecoder::new(b'\n', options.max_message_bytes),
+        })
+    }
+
+    pub async fn write_message(
+        &mut self,
+        parts: &[&[u8]],
+        options: &LinkOptions,
+    ) -> Result<(), LinkError> {
+        write_parts(&mut self.stream, parts, "write", options).await
+    }
+
+    pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
+        let mut ctx = ReadContext::new("read", options);
+        ctx.read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
+            .await
+    }
+
+    /// Reopens the connection: the only clear a raw socket has.
+    pub async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+        let fresh = Self::connect(&self.host, self.port, options).await?;
+        *self = fresh;
+        Ok(())
+    }
+}

@@ -1,0 +1,217 @@
+//! LeCroy VICP wire format: an 8-byte header `operation u8, version u8 (=1), sequence u8,
+//! reserved u8, length u32 BE`, then the block.
+
+use crate::transport::error::CodecError;
+use crate::transport::io::Decode;
+use bytes::{Buf, Bytes, BytesMut};
+
+pub const HEADER_LEN: usize = 8;
+pub const VERSION: u8 = 1;
+const FORMAT: &str = "VICP";
+
+/// Operation flag bits.
+pub mod op {
+    pub const DATA: u8 = 0x80;
+    pub const REMOTE: u8 = 0x40;
+    pub const LOCKOUT: u8 = 0x20;
+    pub const CLEAR: u8 = 0x10;
+    pub const SRQ: u8 = 0x08;
+    pub const SERIAL_POLL: u8 = 0x04;
+    pub const EOI: u8 = 0x01;
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Header {
+    pub op: u8,
+    pub version: u8,
+    pub seq: u8,
+    pub len: u32,
+}
+
+impl Header {
+    pub fn new(op: u8, seq: u8, len: u32) -> Self {
+        Self {
+            op,
+            version: VERSION,
+            seq,
+            len,
+        }
+    }
+
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let l = self.len.to_be_bytes();
+        [self.op, self.version, self.seq, 0, l[0], l[1], l[2], l[3]]
+    }
+
+    pub fn parse(b: &[u8; HEADER_LEN]) -> Result<Self, CodecError> {
+        if b[1] != VERSION {
+            return Err(CodecError::BadHeader {
+                format: FORMAT,
+                detail: "header version is not 1",
+            });
+        }
+        Ok(Self {
+            op: b[0],
+            version: b[1],
+            seq: b[2],
+            len: u32::from_be_bytes([b[4], b[5], b[6], b[7]]),
+        })
+    }
+
+    pub fn eoi(&self) -> bool {
+        self.op & op::EOI != 0
+    }
+}
+
+/// The next sequence number: 1..=255, never 0.
+pub fn next_seq(seq: u8) -> u8 {
+    if seq == 255 {
+        1
+    } else {
+        seq + 1
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Block {
+    pub header: Header,
+    pub payload: Bytes,
+}
+
+/// Incremental VICP block decoder with a payload limit.
+#[derive(Debug, Clone)]
+pub struct BlockDecoder {
+    limit: u64,
+    pending: Option<Header>,
+}
+
+impl BlockDecoder {
+    pub fn new(limit: u64) -> Self {
+        Self {
+            limit,
+            pending: None,
+        }
+    }
+}
+
+impl Decode for BlockDecoder {
+    type Item = Block;
+
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Block>, CodecError> {
+        let header = match self.pending {
+            Some(h) => h,
+            None => {
+                if src.len() < HEADER_LEN {
+                    return Ok(None);
+                }
+                let h = Header::parse(src[..HEADER_LEN].try_into().expect("8 bytes"))?;
+                if u64::from(h.len) > self.limit {
+                    return Err(CodecError::TooLarge {
+                        format: FORMAT,
+                        announced: h.len.into(),
+                        limit: self.limit,
+                    });
+                }
+                src.advance(HEADER_LEN);
+                self.pending = Some(h);
+                h
+            }
+        };
+        let len = header.len as usize;
+        if src.len() < len {
+            src.reserve(len - src.len());
+            return Ok(None);
+        }
+        self.pending = None;
+        Ok(Some(Block {
+            header,
+            payload: src.split_to(len).freeze(),
+        }))
+    }
+
+    fn announced(&self) -> u64 {
+        self.pending
+            .map_or(0, |h| u64::from(h.len) + HEADER_LEN as u64)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blocks(chunks: &[&[u8]], limit: u64) -> Result<Vec<Block>, CodecError> {
+        let mut dec = BlockDecoder::new(limit);
+        let mut buf = BytesMut::new();
+        let mut out = Vec::new();
+        for c in chunks {
+            buf.extend_from_slice(c);
+            while let Some(f) = dec.decode(&mut buf)? {
+                out.push(f);
+            }
+        }
+        Ok(out)
+    }
+
+    /// A reply split in two blocks (seq 5), the last with EOI, as a LeCroy sends it.
+    const GOLDEN: &[u8] = &[
+        0x80, 1, 5, 0, 0, 0, 0, 4, b'L', b'E', b'C', b'R', //
+        0x81, 1, 5, 0, 0, 0, 0, 3, b'O', b'Y', b'\n',
+    ];
+
+    fn golden() -> Vec<Block> {
+        vec![
+            Block {
+                header: Header::new(op::DATA, 5, 4),
+                payload: Bytes::from_static(b"LECR"),
+            },
+            Block {
+                header: Header::new(op::DATA | op::EOI, 5, 3),
+                payload: Bytes::from_static(b"OY\n"),
+            },
+        ]
+    }
+
+    #[test]
+    fn golden_bytes() {
+        assert_eq!(blocks(&[GOLDEN], 64).unwrap(), golden());
+        assert_eq!(Header::new(0x81, 5, 3).encode(), GOLDEN[12..20]);
+        assert_eq!(
+            Header::new(0x90, 1, 0).encode(),
+            [0x90, 1, 1, 0, 0, 0, 0, 0]
+        );
+    }
+
+    #[test]
+    fn split_at_every_byte() {
+        for cut in 0..=GOLDEN.len() {
+            let (a, b) = GOLDEN.split_at(cut);
+            assert_eq!(blocks(&[a, b], 64).unwrap(), golden(), "cut {cut}");
+        }
+    }
+
+    #[test]
+    fn sequence_wraps_without_zero() {
+        assert_eq!(next_seq(1), 2);
+        assert_eq!(next_seq(255), 1);
+    }
+
+    #[test]
+    fn bad_version_and_oversize_are_errors() {
+        assert!(blocks(&[&[0x81, 2, 1, 0, 0, 0, 0, 0]], 64).is_err());
+        assert!(matches!(
+            blocks(&[&[0x81, 1, 1, 0, 0xFF, 0xFF, 0xFF, 0xFF]], 64),
+            Err(CodecError::TooLarge { .. })
+        ));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic_or_overallocate(data in proptest::collection::vec(proptest::num::u8::ANY, 0..256)) {
+            let limit = 4096u64;
+            let mut dec = BlockDecoder::new(limit);
+            let mut buf = BytesMut::from(&data[..]);
+            while let Ok(Some(_)) = dec.decode(&mut buf) {}
+            proptest::prop_assert!(buf.capacity() as u64 <= 2 * limit + data.len() as u64 + 64);
+        }
+    }
+}

@@ -1,0 +1,189 @@
+//! VXI-11 programs, procedures and the XDR layouts of their arguments and results.
+
+use super::rpc::{XdrReader, XdrWriter};
+use crate::transport::error::CodecError;
+use bytes::Bytes;
+
+pub const PORTMAP_PROG: u32 = 100_000;
+pub const PORTMAP_VERS: u32 = 2;
+pub const PORTMAP_GETPORT: u32 = 3;
+pub const IPPROTO_TCP: u32 = 6;
+
+pub const CORE_PROG: u32 = 0x0607AF;
+pub const ABORT_PROG: u32 = 0x0607B0;
+pub const VERSION: u32 = 1;
+
+pub mod proc_ {
+    pub const DEVICE_ABORT: u32 = 1;
+    pub const CREATE_LINK: u32 = 10;
+    pub const DEVICE_WRITE: u32 = 11;
+    pub const DEVICE_READ: u32 = 12;
+    pub const DEVICE_READSTB: u32 = 13;
+    pub const DEVICE_TRIGGER: u32 = 14;
+    pub const DEVICE_CLEAR: u32 = 15;
+    pub const DESTROY_LINK: u32 = 23;
+}
+
+pub mod flags {
+    pub const WAITLOCK: i32 = 0x01;
+    pub const END: i32 = 0x08;
+    pub const TERMCHRSET: i32 = 0x80;
+}
+
+pub mod reason {
+    pub const REQCNT: i32 = 1;
+    pub const CHR: i32 = 2;
+    pub const END: i32 = 4;
+}
+
+/// The meaning of a VXI-11 Device_ErrorCode.
+pub fn error_meaning(code: i32) -> &'static str {
+    match code {
+        0 => "no error",
+        1 => "syntax error",
+        3 => "device not accessible",
+        4 => "invalid link identifier",
+        5 => "parameter error",
+        6 => "channel not established",
+        8 => "operation not supported",
+        9 => "out of resources",
+        11 => "device locked by another link",
+        12 => "no lock held by this link",
+        15 => "I/O timeout",
+        17 => "I/O error",
+        21 => "invalid address",
+        23 => "abort",
+        29 => "channel already established",
+        _ => "unknown error code",
+    }
+}
+
+pub const ERR_IO_TIMEOUT: i32 = 15;
+
+/// Portmapper GETPORT arguments.
+pub fn encode_getport(w: &mut XdrWriter, prog: u32, vers: u32) {
+    w.u32(prog).u32(vers).u32(IPPROTO_TCP).u32(0);
+}
+
+pub fn encode_create_link(w: &mut XdrWriter, client_id: i32, lock_timeout_ms: u32, device: &str) {
+    w.i32(client_id)
+        .bool(false)
+        .u32(lock_timeout_ms)
+        .opaque(device.as_bytes());
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CreateLinkResp {
+    pub error: i32,
+    pub lid: i32,
+    pub abort_port: u16,
+    pub max_recv_size: u32,
+}
+
+pub fn decode_create_link(r: &mut XdrReader) -> Result<CreateLinkResp, CodecError> {
+    Ok(CreateLinkResp {
+        error: r.i32("Create_LinkResp.error")?,
+        lid: r.i32("Create_LinkResp.lid")?,
+        abort_port: r.u32("Create_LinkResp.abortPort")? as u16,
+        max_recv_size: r.u32("Create_LinkResp.maxRecvSize")?,
+    })
+}
+
+/// Device_WriteParms up to the opaque length word; the data and its padding follow on the wire.
+pub fn encode_write_head(w: &mut XdrWriter, lid: i32, io_timeout_ms: u32, flags: i32, len: u32) {
+    w.i32(lid).u32(io_timeout_ms).u32(0).i32(flags).u32(len);
+}
+
+pub fn decode_write_resp(r: &mut XdrReader) -> Result<(i32, u32), CodecError> {
+    Ok((
+        r.i32("Device_WriteResp.error")?,
+        r.u32("Device_WriteResp.size")?,
+    ))
+}
+
+pub fn encode_read(w: &mut XdrWriter, lid: i32, request_size: u32, io_timeout_ms: u32) {
+    w.i32(lid)
+        .u32(request_size)
+        .u32(io_timeout_ms)
+        .u32(0)
+        .i32(0)
+        .i32(0);
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReadResp {
+    pub error: i32,
+    pub reason: i32,
+    pub data: Bytes,
+}
+
+pub fn decode_read_resp(r: &mut XdrReader) -> Result<ReadResp, CodecError> {
+    Ok(ReadResp {
+        error: r.i32("Device_ReadResp.error")?,
+        reason: r.i32("Device_ReadResp.reason")?,
+        data: r.opaque("Device_ReadResp.data")?,
+    })
+}
+
+/// Device_GenericParms (readstb, trigger, clear).
+pub fn encode_generic(w: &mut XdrWriter, lid: i32, io_timeout_ms: u32) {
+    w.i32(lid).i32(0).u32(0).u32(io_timeout_ms);
+}
+
+pub fn decode_readstb_resp(r: &mut XdrReader) -> Result<(i32, u8), CodecError> {
+    Ok((
+        r.i32("Device_ReadStbResp.error")?,
+        r.u32("Device_ReadStbResp.stb")? as u8,
+    ))
+}
+
+pub fn decode_error(r: &mut XdrReader) -> Result<i32, CodecError> {
+    r.i32("Device_Error.error")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_create_link_and_read() {
+        let mut w = XdrWriter::default();
+        encode_create_link(&mut w, 7, 10_000, "inst0");
+        assert_eq!(
+            w.buf,
+            [
+                0, 0, 0, 7, 0, 0, 0, 0, 0, 0, 0x27, 0x10, 0, 0, 0, 5, b'i', b'n', b's', b't', b'0',
+                0, 0, 0
+            ]
+        );
+        let mut r = XdrReader::new(Bytes::from_static(&[
+            0, 0, 0, 0, 0, 0, 0, 3, 0, 0, 0x4E, 0x21, 0, 0x10, 0, 0,
+        ]));
+        assert_eq!(
+            decode_create_link(&mut r).unwrap(),
+            CreateLinkResp {
+                error: 0,
+                lid: 3,
+                abort_port: 20001,
+                max_recv_size: 0x100000
+            }
+        );
+        let mut r = XdrReader::new(Bytes::from_static(&[
+            0, 0, 0, 0, 0, 0, 0, 4, 0, 0, 0, 2, b'1', b'\n', 0, 0,
+        ]));
+        assert_eq!(
+            decode_read_resp(&mut r).unwrap(),
+            ReadResp {
+                error: 0,
+                reason: reason::END,
+                data: Bytes::from_static(b"1\n")
+            }
+        );
+    }
+
+    #[test]
+    fn truncated_results_are_errors() {
+        let mut r = XdrReader::new(Bytes::from_static(&[0, 0, 0, 0, 0, 0, 0, 4, 0, 0, 1, 0]));
+        assert!(decode_read_resp(&mut r).is_err());
+    }
+}

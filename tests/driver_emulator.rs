@@ -1,0 +1,473 @@
+//! Drivers against the mock_lab emulators over loopback, on every transport each instrument
+//! supports: M8195A over raw socket, HiSLIP and VXI-11; LeCroy over VICP and VXI-11; Gotmic Tx/Rx
+//! over a serial pseudo-terminal. Emulator rejections surface as device errors with code and text,
+//! and the safe state leaves the emulated bench off.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use mock_lab::emulator::gotmic::Gotmic as GotmicEmu;
+use mock_lab::emulator::lecroy::{Lecroy as ScopeEmu, RemoteInterface, TestSignal};
+use mock_lab::emulator::m8195a::M8195a as AwgEmu;
+use mock_lab::server::vxi11::Vxi11Addresses;
+use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
+use radbench::address::Resource;
+use radbench::catalog::{Catalog, InstrumentModel};
+use radbench::driver::io::open_session;
+use radbench::driver::safe_state::{share, Bench};
+use radbench::driver::{
+    Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
+    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState,
+};
+
+async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
+    tokio::time::timeout(Duration::from_secs(60), f)
+        .await
+        .expect("operation did not finish within 60 s")
+}
+
+fn model(key: &str) -> InstrumentModel {
+    Catalog::embedded().unwrap().get(key).unwrap().clone()
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Net {
+    Socket,
+    Hislip,
+    Vxi11,
+    Vicp,
+}
+
+async fn serve(net: Net, handler: Arc<dyn Handler>) -> (ServerHandle, Resource) {
+    let any = server::loopback_any();
+    let options = ServerOptions::default();
+    let handle = match net {
+        Net::Socket => server::raw::serve(any, handler, options).await,
+        Net::Hislip => server::hislip::serve(any, handler, options).await,
+        Net::Vxi11 => server::vxi11::serve(Vxi11Addresses::loopback(), handler, options).await,
+        Net::Vicp => server::vicp::serve(any, handler, options).await,
+    }
+    .expect("server starts");
+    let port = handle.local_addr().port();
+    let text = match net {
+        Net::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
+        Net::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
+        Net::Vxi11 => format!("TCPIP::127.0.0.1,{port}::inst0::INSTR"),
+        Net::Vicp => format!("VICP::127.0.0.1,{port}"),
+    };
+    (handle, text.parse().unwrap())
+}
+
+// ---------------------------------------------------------------- M8195A
+
+async fn awg_over(net: Net, driver_model: &InstrumentModel) -> (Arc<AwgEmu>, M8195a, ServerHandle) {
+    let emu = Arc::new(AwgEmu::embedded().unwrap());
+    let (server, resource) = serve(net, emu.clone()).await;
+    let session = bounded(open_session(
+        resource,
+        &driver_model.timeouts,
+        "SYST:ERR?",
+        None,
+        "awg",
+    ))
+    .await
+    .unwrap();
+    let awg = bounded(M8195a::connect(Box::new(session), driver_model, "awg"))
+        .await
+        .unwrap();
+    (emu, awg, server)
+}
+
+fn waveform(n: usize) -> IqWaveform {
+    IqWaveform {
+        i: (0..n)
+            .map(|k| ((k * 7) % 200) as i32 - 100)
+            .map(|v| v as i8)
+            .collect(),
+        q: (0..n)
+            .map(|k| ((k * 3) % 250) as i32 - 125)
+            .map(|v| v as i8)
+            .collect(),
+        marker_high_samples: 64,
+    }
+}
+
+async fn awg_plays_iq_with_a_marker(net: Net) {
+    let m = model("keysight-m8195a");
+    let (emu, mut awg, _server) = awg_over(net, &m).await;
+    let applied = bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    assert_eq!((applied.dac_mode.as_str(), applied.divider), ("DCM", 4));
+    assert_eq!(applied.sample_rate_hz, 16e9);
+    let wf = waveform(5000);
+    let loaded = bounded(awg.load(&wf)).await.unwrap();
+    assert_eq!(loaded.padded_samples, 5056);
+    let permit = RfPermit::granted_by_user();
+    bounded(awg.enable_outputs(&permit)).await.unwrap();
+    bounded(awg.run()).await.unwrap();
+    let applied = bounded(awg.applied()).await.unwrap();
+    assert!(
+        applied.outputs.iter().all(|o| o.on),
+        "{:?}",
+        applied.outputs
+    );
+    assert_eq!(applied.segments[0].samples, 5056);
+    let play = emu.playback();
+    assert!(play.running);
+    assert_eq!(play.channels[0].sample_rate, 16e9);
+    assert_eq!(&play.channels[0].samples[..5000], &wf.i[..]);
+    assert_eq!(&play.channels[1].samples[..5000], &wf.q[..]);
+    assert!(play.channels[0].samples[5000..].iter().all(|s| *s == 0));
+    assert!(play.markers[..64].iter().all(|m| *m == 1));
+    assert!(play.markers[64..].iter().all(|m| *m == 0));
+    assert!(play.channels[2].output_on, "marker output on");
+    bounded(awg.safe_state()).await.unwrap();
+    let play = emu.playback();
+    assert!(!play.running);
+    assert!(play.channels.iter().all(|c| !c.output_on));
+}
+
+#[tokio::test]
+async fn m8195a_over_raw_socket() {
+    awg_plays_iq_with_a_marker(Net::Socket).await;
+}
+
+#[tokio::test]
+async fn m8195a_over_hislip() {
+    awg_plays_iq_with_a_marker(Net::Hislip).await;
+}
+
+#[tokio::test]
+async fn m8195a_over_vxi11() {
+    awg_plays_iq_with_a_marker(Net::Vxi11).await;
+}
+
+#[tokio::test]
+async fn m8195a_output_on_before_a_waveform_is_refused_with_code_and_text() {
+    let m = model("keysight-m8195a");
+    let (_emu, mut awg, _server) = awg_over(Net::Socket, &m).await;
+    bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    let permit = RfPermit::granted_by_user();
+    let e = bounded(awg.enable_outputs(&permit)).await.unwrap_err();
+    let errors = e.device_errors().expect("a device error");
+    assert_eq!(errors[0].code, -221, "{e}");
+    assert!(errors[0].message.contains("no waveform"), "{e}");
+}
+
+#[tokio::test]
+async fn m8195a_catalog_disagreeing_with_the_instrument_surfaces_its_refusals() {
+    // A catalog override that is wrong about the instrument: finer granularity, wider raster.
+    let mut m = model("keysight-m8195a");
+    let awg_limits = m.awg.as_mut().unwrap();
+    awg_limits.dac_rate_max = 70e9;
+    for d in &mut awg_limits.dividers {
+        if d.divider == 4 {
+            d.granularity = 32;
+            d.min_segment_samples = 160;
+        }
+    }
+    let (_emu, mut awg, _server) = awg_over(Net::Hislip, &m).await;
+    let fast = AwgSettings {
+        sample_rate_hz: 17e9,
+        ..AwgSettings::default()
+    };
+    let e = bounded(awg.configure(&fast)).await.unwrap_err();
+    assert!(matches!(e, DriverError::Refused { .. }), "{e}");
+    assert_eq!(
+        e.device_errors().unwrap()[0].code,
+        -222,
+        "rate outside the range: {e}"
+    );
+    bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    let e = bounded(awg.load(&waveform(1100))).await.unwrap_err();
+    let errors = e.device_errors().expect("a device error");
+    assert!(
+        errors
+            .iter()
+            .any(|d| d.code == -222 && d.message.contains("granularity")),
+        "{e}"
+    );
+}
+
+// ---------------------------------------------------------------- LeCroy
+
+fn capture_settings() -> DigitizerSettings {
+    DigitizerSettings {
+        repetition_s: 1.024e-6,
+        longest_echo_s: 0.1e-6,
+        pre_trigger_s: 10e-9,
+        i_volts_per_div: 0.05,
+        q_volts_per_div: 0.05,
+        ..DigitizerSettings::default()
+    }
+}
+
+async fn scope_over(
+    net: Net,
+    marker: bool,
+) -> (Arc<ScopeEmu>, Arc<TestSignal>, Resource, ServerHandle) {
+    let signal = Arc::new(TestSignal::new(marker, 1e9, 0.1));
+    let emu = Arc::new(ScopeEmu::embedded_with(signal.clone()).unwrap());
+    let via = match net {
+        Net::Vicp => RemoteInterface::Vicp,
+        _ => RemoteInterface::Vxi11,
+    };
+    emu.set_remote_interface(via);
+    let (server, resource) = serve(net, Arc::new(emu.port(via))).await;
+    (emu, signal, resource, server)
+}
+
+async fn scope_captures_iq(net: Net) {
+    let (emu, _signal, resource, _server) = scope_over(net, true).await;
+    let m = model("lecroy-labmaster10zi-a");
+    let mut scope = bounded(Lecroy::open(resource, &m, None, "scope"))
+        .await
+        .unwrap();
+    let settings = capture_settings();
+    let applied = bounded(scope.configure(&settings)).await.unwrap();
+    assert_eq!(applied.sample_rate_hz, 80e9);
+    assert!(applied.record_s >= settings.record_s() * (1.0 - 1e-9));
+    let capture = bounded(scope.capture_iq(5.0)).await.unwrap();
+    let (i, q) = (capture.i.volts(), capture.q.volts());
+    assert_eq!(i.len() as u64, applied.points);
+    assert_eq!(capture.i.sample_interval_s() as f32, (1.0 / 80e9) as f32);
+    let t = capture.i.times();
+    assert!(
+        (t[0] + settings.pre_trigger_s).abs() < 1e-12,
+        "record starts {} s",
+        t[0]
+    );
+    // The test signal is a 0.1 V complex tone: |I + jQ| = 0.1 V within the 8-bit quantisation.
+    for k in (0..i.len()).step_by(997) {
+        let mag = (i[k] * i[k] + q[k] * q[k]).sqrt();
+        assert!((mag - 0.1).abs() < 0.01, "|IQ| = {mag} at {k}");
+    }
+    // The saved .trc is exactly what the scope itself would save.
+    assert_eq!(capture.i.trc_bytes(), emu.trc_bytes(1).unwrap());
+}
+
+#[tokio::test]
+async fn lecroy_over_vicp() {
+    scope_captures_iq(Net::Vicp).await;
+}
+
+#[tokio::test]
+async fn lecroy_over_vxi11() {
+    scope_captures_iq(Net::Vxi11).await;
+}
+
+#[tokio::test]
+async fn lecroy_without_marker_reports_no_marker_edge() {
+    let (_emu, _signal, resource, _server) = scope_over(Net::Vicp, false).await;
+    let m = model("lecroy-labmaster10zi-a");
+    let mut scope = bounded(Lecroy::open(resource, &m, None, "scope"))
+        .await
+        .unwrap();
+    bounded(scope.configure(&capture_settings())).await.unwrap();
+    let e = bounded(scope.acquire(0.3)).await.unwrap_err();
+    assert!(matches!(e, DriverError::NoTrigger { .. }), "{e}");
+}
+
+#[tokio::test]
+async fn lecroy_set_to_the_other_protocol_says_so() {
+    let signal = Arc::new(TestSignal::default());
+    let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
+    emu.set_remote_interface(RemoteInterface::Vxi11);
+    let (_server, resource) = serve(Net::Vicp, Arc::new(emu.port(RemoteInterface::Vicp))).await;
+    let mut m = model("lecroy-labmaster10zi-a");
+    m.timeouts.read_ms = 300;
+    let e = bounded(Lecroy::open(resource, &m, None, "scope"))
+        .await
+        .err()
+        .unwrap();
+    let text = e.to_string();
+    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{text}");
+    assert!(text.contains("LXI (VXI-11)"), "{text}");
+}
+
+// ---------------------------------------------------------------- Gotmic
+
+fn serial_resource(path: &str) -> Resource {
+    format!("ASRL{path}::INSTR").parse().unwrap()
+}
+
+#[tokio::test]
+async fn gotmic_tx_and_rx_over_serial_enable_read_back_and_disable() {
+    for (key, emu) in [
+        ("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()),
+        ("gotmic-eband-rx", GotmicEmu::rx_embedded().unwrap()),
+    ] {
+        let emu = Arc::new(emu);
+        let endpoint = server::serial::serve(emu.clone(), ServerOptions::default()).unwrap();
+        let m = model(key);
+        let mut rf = bounded(Gotmic::open(
+            serial_resource(endpoint.device_path()),
+            &m,
+            None,
+            key,
+        ))
+        .await
+        .unwrap();
+        let before = bounded(rf.status()).await.unwrap();
+        assert!(!before.rf_enabled && before.powered);
+        let permit = RfPermit::granted_by_user();
+        let settings = RfSettings {
+            attenuation_db: 12.5,
+            lo_frequency_hz: Some(13.333e9),
+        };
+        let on = bounded(rf.enable(&permit, &settings)).await.unwrap();
+        assert!(on.rf_enabled && on.lo_locked, "{key}: {on:?}");
+        assert_eq!(on.attenuation_db, 12.5);
+        assert!(emu.front_end().rf_enabled, "{key}");
+        bounded(rf.disable()).await.unwrap();
+        let off = bounded(rf.status()).await.unwrap();
+        assert!(!off.rf_enabled);
+        assert_eq!(
+            off.attenuation_db, 31.5,
+            "maximum attenuation after disable"
+        );
+        assert!(!emu.front_end().rf_enabled);
+    }
+}
+
+#[tokio::test]
+async fn gotmic_refuses_with_open_interlock_and_switches_off_without_lo() {
+    let emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
+    let endpoint = server::serial::serve(emu.clone(), ServerOptions::default()).unwrap();
+    let m = model("gotmic-eband-tx");
+    let mut tx = bounded(Gotmic::open(
+        serial_resource(endpoint.device_path()),
+        &m,
+        None,
+        "tx",
+    ))
+    .await
+    .unwrap();
+    let permit = RfPermit::granted_by_user();
+    emu.set_interlock_open(true);
+    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("interlock") || e.to_string().contains("INTERLOCK"),
+        "{e}"
+    );
+    assert!(!emu.front_end().rf_enabled);
+    emu.set_interlock_open(false);
+    if !bounded(tx.status()).await.unwrap().faults.is_empty() {
+        bounded(tx.clear_faults()).await.unwrap();
+    }
+    emu.set_lo_present(false);
+    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap_err();
+    assert!(
+        !emu.front_end().rf_enabled,
+        "switched off after the failed enable: {e}"
+    );
+}
+
+// ---------------------------------------------------------------- safe state
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn safe_state_leaves_the_emulated_bench_off() {
+    let m = model("keysight-m8195a");
+    let (awg_emu, mut awg, _awg_server) = awg_over(Net::Socket, &m).await;
+    let tx_emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
+    let endpoint = server::serial::serve(tx_emu.clone(), ServerOptions::default()).unwrap();
+    let mut tx = bounded(Gotmic::open(
+        serial_resource(endpoint.device_path()),
+        &model("gotmic-eband-tx"),
+        None,
+        "tx",
+    ))
+    .await
+    .unwrap();
+    let permit = RfPermit::granted_by_user();
+    bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    bounded(awg.load(&waveform(2048))).await.unwrap();
+    bounded(awg.enable_outputs(&permit)).await.unwrap();
+    bounded(awg.run()).await.unwrap();
+    bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap();
+    assert!(awg_emu.playback().running && tx_emu.front_end().rf_enabled);
+    let safe = SafeState::new(
+        Bench {
+            tx: Some(share::<dyn RfFrontEnd>(Box::new(tx))),
+            rx: None,
+            awg: Some(share::<dyn Awg>(Box::new(awg))),
+        },
+        Duration::from_secs(10),
+    );
+    // Dropping the guard (an error path that forgot the explicit call) still runs the sequence.
+    drop(safe.guard());
+    assert!(!tx_emu.front_end().rf_enabled);
+    let play = awg_emu.playback();
+    assert!(!play.running);
+    assert!(play.channels.iter().all(|c| !c.output_on));
+    let report = bounded(safe.engage()).await;
+    assert!(report.is_safe(), "{report}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
+    let m = model("keysight-m8195a");
+    let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
+    let tx_emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
+    let endpoint = server::serial::serve(tx_emu.clone(), ServerOptions::default()).unwrap();
+    let tx = bounded(Gotmic::open(
+        serial_resource(endpoint.device_path()),
+        &model("gotmic-eband-tx"),
+        None,
+        "tx",
+    ))
+    .await
+    .unwrap();
+    let awg = share::<dyn Awg>(Box::new(awg));
+    let tx = share::<dyn RfFrontEnd>(Box::new(tx));
+    let safe = SafeState::new(
+        Bench {
+            tx: Some(tx.clone()),
+            rx: None,
+            awg: Some(awg.clone()),
+        },
+        Duration::from_secs(10),
+    );
+    let (radiating, interrupt) = tokio::sync::oneshot::channel::<()>();
+    let work = async {
+        let permit = RfPermit::granted_by_user();
+        let mut a = awg.lock().await;
+        a.configure(&AwgSettings::default()).await?;
+        a.load(&waveform(4096)).await?;
+        a.enable_outputs(&permit).await?;
+        a.run().await?;
+        tx.lock()
+            .await
+            .enable(&permit, &RfSettings::default())
+            .await?;
+        let _ = radiating.send(());
+        // A capture that never ends, still holding the AWG: the interrupt must cut it short.
+        std::future::pending::<()>().await;
+        Ok::<(), DriverError>(())
+    };
+    let interrupt = async {
+        interrupt
+            .await
+            .expect("the work reached the radiating state before the interrupt");
+        assert!(tx_emu.front_end().rf_enabled && awg_emu.playback().running);
+    };
+    let (outcome, report) = bounded(radbench::driver::run_guarded(&safe, work, interrupt)).await;
+    assert!(matches!(outcome, radbench::driver::Outcome::Interrupted));
+    assert!(report.is_safe(), "{report}");
+    assert!(!tx_emu.front_end().rf_enabled);
+    let play = awg_emu.playback();
+    assert!(!play.running && play.channels.iter().all(|c| !c.output_on));
+}

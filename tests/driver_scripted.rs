@@ -1,0 +1,714 @@
+//! Drivers against the scripted fake session: the exact command sequence of every operation,
+//! limits refused before anything is sent, refusals surfaced with code and text, and the safe
+//! state still sent after an error mid-configuration.
+
+use std::time::Duration;
+
+use radbench::catalog::{Catalog, InstrumentModel};
+use radbench::driver::lecroy::wavedesc::BlockBuilder;
+use radbench::driver::safe_state::{share, Bench};
+use radbench::driver::scripted::{Failure, ERROR_CHECK};
+use radbench::driver::{
+    Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
+    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
+};
+use radbench::exit::{Classify, ExitClass};
+
+fn model(key: &str) -> InstrumentModel {
+    Catalog::embedded().unwrap().get(key).unwrap().clone()
+}
+
+async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
+    tokio::time::timeout(Duration::from_secs(10), f)
+        .await
+        .expect("operation did not finish within 10 s")
+}
+
+// ---------------------------------------------------------------- M8195A
+
+const AWG_IDN: &str = "Keysight Technologies,M8195A,MY00000001,4.0.0.0";
+
+fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
+    fake.reply(":INST:DACM?", "DCM")
+        .reply(":INST:MEM:EXT:RDIV?", "DIV4")
+        .reply(":FREQ:RAST?", "6.4000000000E+10")
+        .reply(":TRAC1:CAT?", segment)
+        .reply(":VOLT1?", "5.0000E-01")
+        .reply(":VOLT2?", "5.0000E-01")
+        .reply(":VOLT3:AMPL?", "5.0000E-01")
+        .reply(":VOLT3:OFFS?", "2.5000E-01")
+        .reply(":OUTP1?", outputs)
+        .reply(":OUTP2?", outputs)
+        .reply(":OUTP3?", outputs)
+}
+
+const AWG_CONFIGURE: &[&str] = &[
+    ERROR_CHECK,
+    ":ABOR",
+    ":INST:DACM DCM",
+    ":INST:MEM:EXT:RDIV DIV4",
+    ":TRAC1:MMOD EXT",
+    ":TRAC2:MMOD EXT",
+    ":FREQ:RAST 64000000000",
+    ":FUNC:MODE ARB",
+    ":INIT:CONT 1",
+    ":INIT:GATE 0",
+    ERROR_CHECK,
+    ":VOLT1 0.5",
+    ":VOLT1:OFFS 0",
+    ":VOLT2 0.5",
+    ":VOLT2:OFFS 0",
+    ":VOLT3:AMPL 0.5",
+    ":VOLT3:OFFS 0.25",
+    ERROR_CHECK,
+];
+
+const AWG_READBACK: &[&str] = &[
+    ":INST:DACM?",
+    ":INST:MEM:EXT:RDIV?",
+    ":FREQ:RAST?",
+    ":TRAC1:CAT?",
+    ":VOLT1?",
+    ":VOLT2?",
+    ":VOLT3:AMPL?",
+    ":VOLT3:OFFS?",
+    ":OUTP1?",
+    ":OUTP2?",
+    ":OUTP3?",
+];
+
+async fn awg(fake: Scripted) -> (M8195a, ScriptLog) {
+    let fake = fake.reply("*IDN?", AWG_IDN);
+    let log = fake.log();
+    let driver = bounded(M8195a::connect(
+        Box::new(fake),
+        &model("keysight-m8195a"),
+        "awg",
+    ))
+    .await
+    .unwrap();
+    assert_eq!(log.ops(), ["*IDN?"]);
+    log.clear();
+    (driver, log)
+}
+
+fn strings(parts: &[&[&str]]) -> Vec<String> {
+    parts
+        .iter()
+        .flat_map(|p| p.iter().map(|s| s.to_string()))
+        .collect()
+}
+
+#[tokio::test]
+async fn m8195a_configure_sends_the_cookbook_sequence_and_reads_back() {
+    let (mut awg, log) = awg(awg_readback(Scripted::new("awg"), "0,0", "0")).await;
+    let applied = bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    assert_eq!(log.ops(), strings(&[AWG_CONFIGURE, AWG_READBACK]));
+    assert_eq!(applied.dac_mode, "DCM");
+    assert_eq!(applied.divider, 4);
+    assert_eq!(applied.sample_rate_hz, 16e9);
+    assert!(applied.segments.is_empty());
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn m8195a_download_interleaves_i_with_the_marker_and_pads_to_granularity() {
+    let fake = awg_readback(Scripted::new("awg"), "0,0", "0")
+        .reply("*OPC?", "1")
+        .reply(":TRAC1:CAT?", "1,1024");
+    let (mut awg, log) = awg(fake).await;
+    bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap();
+    log.clear();
+    let n = 1000;
+    let waveform = IqWaveform {
+        i: (0..n).map(|k| (k % 100) as i8).collect(),
+        q: (0..n).map(|k| -((k % 100) as i8)).collect(),
+        marker_high_samples: 64,
+    };
+    let loaded = bounded(awg.load(&waveform)).await.unwrap();
+    assert_eq!(loaded.padded_samples, 1024);
+    assert_eq!(loaded.chunks_per_channel, 1);
+    assert_eq!(
+        log.ops(),
+        [
+            ":ABOR",
+            ":TRAC1:DEL:ALL",
+            ":TRAC1:DEF 1,1024",
+            ":TRAC1:DATA 1,0,#<2048 bytes>",
+            ":TRAC2:DATA 1,0,#<1024 bytes>",
+            "*OPC?",
+            ":TRAC1:SEL 1",
+            ":TRAC2:SEL 1",
+            ERROR_CHECK,
+            ":TRAC1:CAT?",
+        ]
+    );
+    let blocks = log.blocks();
+    let ch1 = &blocks[0].1;
+    assert_eq!(ch1[2 * 5], 5, "sample byte first");
+    assert_eq!(
+        ch1[2 * 5 + 1],
+        1,
+        "marker bit0 high in the first 64 samples"
+    );
+    assert_eq!(ch1[2 * 64 + 1], 0, "marker low after 64 samples");
+    assert_eq!(&ch1[2 * 1000..], &[0u8; 48][..], "zero padding");
+    let ch2 = &blocks[1].1;
+    assert_eq!(ch2[7] as i8, -7);
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn m8195a_outputs_run_stop_and_safe_state() {
+    let (mut awg, log) = awg(Scripted::new("awg")).await;
+    let permit = RfPermit::granted_by_user();
+    bounded(awg.enable_outputs(&permit)).await.unwrap();
+    bounded(awg.run()).await.unwrap();
+    bounded(awg.stop()).await.unwrap();
+    bounded(awg.safe_state()).await.unwrap();
+    assert_eq!(
+        log.ops(),
+        [
+            ":OUTP1 ON",
+            ":OUTP2 ON",
+            ":OUTP3 ON",
+            ERROR_CHECK,
+            ":INIT:IMM",
+            ERROR_CHECK,
+            ":ABOR",
+            ERROR_CHECK,
+            ":OUTP1 OFF",
+            ":OUTP2 OFF",
+            ":OUTP3 OFF",
+            ":OUTP4 OFF",
+            ":ABOR",
+            ERROR_CHECK,
+        ]
+    );
+}
+
+#[tokio::test]
+async fn m8195a_out_of_limits_settings_send_nothing() {
+    let (mut awg, log) = awg(Scripted::new("awg")).await;
+    for settings in [
+        AwgSettings {
+            sample_rate_hz: 20e9,
+            ..AwgSettings::default()
+        },
+        AwgSettings {
+            i_amplitude_vpp: 1.5,
+            ..AwgSettings::default()
+        },
+        AwgSettings {
+            marker_amplitude_v: 0.01,
+            ..AwgSettings::default()
+        },
+    ] {
+        let e = bounded(awg.configure(&settings)).await.unwrap_err();
+        assert!(matches!(e, DriverError::OutOfLimits { .. }), "{e}");
+        assert_eq!(e.exit_class(), ExitClass::BadInput);
+    }
+    let e = bounded(awg.load(&IqWaveform {
+        i: vec![0; 10],
+        q: vec![0; 10],
+        marker_high_samples: 1,
+    }))
+    .await
+    .unwrap_err();
+    assert!(matches!(e, DriverError::Sequence { .. }), "{e}");
+    assert!(log.ops().is_empty(), "sent {:?}", log.ops());
+}
+
+#[tokio::test]
+async fn m8195a_refusal_mid_configuration_names_the_batch_code_and_text() {
+    let fake = Scripted::new("awg").refuse(":FREQ:RAST 64000000000", -222, "Data out of range");
+    let (mut awg, log) = awg(fake).await;
+    let e = bounded(awg.configure(&AwgSettings::default()))
+        .await
+        .unwrap_err();
+    let text = e.to_string();
+    assert!(text.contains("DAC mode and sample clock"), "{text}");
+    assert!(text.contains("-222,\"Data out of range\""), "{text}");
+    assert_eq!(e.device_errors().unwrap()[0].code, -222);
+    assert_eq!(e.exit_class(), ExitClass::Instrument);
+    assert_eq!(log.ops().last().map(String::as_str), Some(ERROR_CHECK));
+    assert!(!log.ops().iter().any(|c| c.starts_with(":VOLT")));
+}
+
+#[tokio::test]
+async fn m8195a_wrong_identity_is_refused() {
+    let fake = Scripted::new("awg").reply("*IDN?", "Rigol,DG1022,1,1");
+    let e = bounded(M8195a::connect(
+        Box::new(fake),
+        &model("keysight-m8195a"),
+        "awg",
+    ))
+    .await
+    .err()
+    .unwrap();
+    assert!(matches!(e, DriverError::WrongInstrument { .. }), "{e}");
+}
+
+// ---------------------------------------------------------------- LeCroy
+
+const SCOPE_IDN: &str = "MOCK_LAB,LABMASTER10ZI-A-EMU,EMU0002,mock_lab-1";
+
+async fn scope(fake: Scripted) -> (Lecroy, ScriptLog) {
+    let fake = fake.reply("*IDN?", SCOPE_IDN);
+    let log = fake.log();
+    let driver = bounded(Lecroy::connect(
+        Box::new(fake),
+        &model("lecroy-labmaster10zi-a"),
+        "scope",
+    ))
+    .await
+    .unwrap();
+    log.clear();
+    (driver, log)
+}
+
+#[tokio::test]
+async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
+    let settings = DigitizerSettings {
+        repetition_s: 1.0e-6,
+        longest_echo_s: 0.024e-6,
+        pre_trigger_s: 0.0,
+        ..DigitizerSettings::default()
+    };
+    let fake = Scripted::new("scope")
+        .reply_times("CMR?", "0", 6)
+        .reply_times("EXR?", "0", 6)
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
+            "80000000000",
+        )
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
+            "VBS 1.024e-7",
+        );
+    let (mut scope, log) = scope(fake).await;
+    let applied = bounded(scope.configure(&settings)).await.unwrap();
+    assert_eq!(
+        log.ops(),
+        [
+            "CMR?",
+            "EXR?",
+            "CHDR OFF",
+            "CFMT DEF9,WORD,BIN",
+            "CORD LO",
+            "WFSU SP,0,NP,0,FP,0,SN,0",
+            "CMR?",
+            "EXR?",
+            "C1:TRA ON",
+            "C1:VDIV 0.05",
+            "C1:OFST 0",
+            "C2:TRA ON",
+            "C2:VDIV 0.05",
+            "C2:OFST 0",
+            "CMR?",
+            "EXR?",
+            "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'",
+            "VBS 'app.Acquisition.Horizontal.SampleRate = 80000000000'",
+            "VBS 'app.Acquisition.Horizontal.HorScale = 0.0000001024'",
+            "CMR?",
+            "EXR?",
+            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
+            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
+            "TRSE EDGE,SR,EX,HT,OFF",
+            "EX:TRLV 0.2",
+            "EX:TRSL POS",
+            "TRDL -0.000000512",
+            "CMR?",
+            "EXR?",
+        ]
+    );
+    assert_eq!(applied.points, 81_920);
+    assert!((applied.record_s - 1.024e-6).abs() < 1e-15);
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn lecroy_refuses_rates_and_records_outside_the_catalog() {
+    let (mut scope, log) = scope(Scripted::new("scope")).await;
+    for s in [
+        DigitizerSettings {
+            sample_rate_hz: 40e9,
+            ..DigitizerSettings::default()
+        },
+        DigitizerSettings {
+            repetition_s: 1.0e-3,
+            ..DigitizerSettings::default()
+        },
+        DigitizerSettings {
+            trigger_level_v: 3.0,
+            ..DigitizerSettings::default()
+        },
+    ] {
+        let e = bounded(scope.configure(&s)).await.unwrap_err();
+        assert_eq!(e.exit_class(), ExitClass::BadInput, "{e}");
+    }
+    assert!(log.ops().is_empty());
+}
+
+fn wf_reply(codes: &[i16], source: i16) -> Vec<u8> {
+    let block = BlockBuilder {
+        gain: 0.002,
+        offset: 0.1,
+        source,
+        ..BlockBuilder::default()
+    }
+    .build(codes);
+    let mut reply = format!("ALL,#9{:09}", block.len()).into_bytes();
+    reply.extend_from_slice(&block);
+    reply.push(b'\n');
+    reply
+}
+
+#[tokio::test]
+async fn lecroy_single_shot_then_both_channels_in_words() {
+    let fake = Scripted::new("scope")
+        .reply("INR?", "0")
+        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
+        .reply("INR?", "8193")
+        .reply_block("C1:WF? ALL", wf_reply(&[100, -100, 0], 0))
+        .reply_block("C2:WF? ALL", wf_reply(&[5, 6, 7], 1));
+    let (mut scope, log) = scope(fake).await;
+    let capture = bounded(scope.capture_iq(2.0)).await.unwrap();
+    assert_eq!(
+        log.ops(),
+        [
+            "INR?",
+            "TRMD SINGLE;ARM;WAIT 2;*OPC?",
+            "INR?",
+            "C1:WF? ALL",
+            "C2:WF? ALL"
+        ]
+    );
+    assert!(log.timeouts()[0].1 >= Duration::from_secs(2));
+    assert_eq!(capture.i.codes, vec![100, -100, 0]);
+    let v = capture.i.volts();
+    assert!((v[0] - (0.2 - 0.1)).abs() < 1e-6);
+    assert_eq!(capture.q.codes, vec![5, 6, 7]);
+    assert!(
+        capture.i.times()[0] < 0.0,
+        "HORIZ_OFFSET is in the time axis"
+    );
+    assert!(capture.i.trc_bytes().starts_with(b"#9"));
+}
+
+#[tokio::test]
+async fn lecroy_without_a_marker_edge_disarms_and_says_why() {
+    let fake = Scripted::new("scope")
+        .reply("INR?", "0")
+        .reply("TRMD SINGLE;ARM;WAIT 0.5;*OPC?", "1")
+        .reply("INR?", "8192");
+    let (mut scope, log) = scope(fake).await;
+    let e = bounded(scope.acquire(0.5)).await.unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("no marker edge: check the AWG runs and its marker output is on"),
+        "{e}"
+    );
+    assert_eq!(log.ops().last().map(String::as_str), Some("STOP"));
+}
+
+#[tokio::test]
+async fn lecroy_truncated_block_is_a_clear_error() {
+    let mut reply = wf_reply(&[1, 2, 3, 4], 0);
+    // Announce the full length but claim more points than the block holds.
+    let at = "ALL,#9000000000".len() + 116;
+    reply[at] = 200;
+    let fake = Scripted::new("scope").reply_block("C1:WF? ALL", reply);
+    let (mut scope, _log) = scope(fake).await;
+    let e = bounded(scope.fetch(1)).await.unwrap_err();
+    assert!(matches!(e, DriverError::Waveform { channel: 1, .. }), "{e}");
+    assert!(e.to_string().contains("WAVE_ARRAY_COUNT"), "{e}");
+}
+
+#[tokio::test]
+async fn lecroy_silent_on_this_protocol_points_at_the_remote_setting() {
+    let fake = Scripted::new("scope").fail_query("*IDN?", Failure::Timeout);
+    let e = bounded(Lecroy::connect(
+        Box::new(fake),
+        &model("lecroy-labmaster10zi-a"),
+        "scope",
+    ))
+    .await
+    .err()
+    .unwrap();
+    let text = e.to_string();
+    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{text}");
+    assert!(
+        text.contains("Utilities > Utilities Setup > Remote"),
+        "{text}"
+    );
+}
+
+// ---------------------------------------------------------------- Gotmic
+
+const TX_IDN: &str = "MOCK_LAB,GOTMIC-EBAND-TX-EMU,EMU0003,mock_lab-1";
+
+async fn tx(fake: Scripted) -> (Gotmic, ScriptLog) {
+    let fake = fake.reply("*IDN?", TX_IDN).reply("R 00", "OK 5458");
+    let log = fake.log();
+    let driver = bounded(Gotmic::connect(
+        Box::new(fake),
+        &model("gotmic-eband-tx"),
+        "tx",
+    ))
+    .await
+    .unwrap();
+    assert_eq!(log.ops(), ["*IDN?", "R 00"]);
+    log.clear();
+    (driver, log)
+}
+
+/// Replies of one status read: STATUS, CONTROL, GAIN_ATT, TEMP_DC, FAULT_LATCH.
+fn status(fake: Scripted, status: &str, control: &str, att: &str, faults: &str) -> Scripted {
+    fake.reply("R 01", status)
+        .reply("R 02", control)
+        .reply("R 03", att)
+        .reply("R 06", "OK 00FA")
+        .reply("R 07", faults)
+}
+
+const STATUS_READ: &[&str] = &["R 01", "R 02", "R 03", "R 06", "R 07"];
+
+#[tokio::test]
+async fn gotmic_enable_goes_through_max_attenuation_checks_and_verifies() {
+    let mut fake = Scripted::new("tx")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F")
+        .reply("W 05 3415", "OK")
+        .reply("R 05", "OK 3415");
+    fake = status(fake, "OK 0001", "OK 0000", "OK 003F", "OK 0000");
+    fake = fake.reply("W 02 000F", "OK").reply("R 02", "OK 000F");
+    fake = status(fake, "OK 0007", "OK 000F", "OK 003F", "OK 0000");
+    fake = fake.reply("W 03 0014", "OK").reply("R 03", "OK 0014");
+    fake = status(fake, "OK 0007", "OK 000F", "OK 0014", "OK 0000");
+    let (mut tx, log) = tx(fake).await;
+    let settings = RfSettings {
+        attenuation_db: 10.0,
+        lo_frequency_hz: Some(13.333e9),
+    };
+    let permit = RfPermit::granted_by_user();
+    let st = bounded(tx.enable(&permit, &settings)).await.unwrap();
+    assert!(st.rf_enabled && st.lo_locked);
+    assert_eq!(st.attenuation_db, 10.0);
+    assert_eq!(st.temperature_c, 25.0);
+    assert_eq!(
+        log.ops(),
+        strings(&[
+            &["W 03 003F", "R 03", "W 05 3415", "R 05"],
+            STATUS_READ,
+            &["W 02 000F", "R 02"],
+            STATUS_READ,
+            &["W 03 0014", "R 03"],
+            STATUS_READ,
+        ])
+    );
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn gotmic_lo_not_locked_switches_off_again() {
+    let mut fake = Scripted::new("tx")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F");
+    fake = status(fake, "OK 0001", "OK 0000", "OK 003F", "OK 0000");
+    fake = fake.reply("W 02 000F", "OK").reply("R 02", "OK 000F");
+    fake = status(fake, "OK 0005", "OK 000F", "OK 003F", "OK 0000");
+    fake = fake
+        .reply("W 02 0000", "OK")
+        .reply("R 02", "OK 0000")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F");
+    let (mut tx, log) = tx(fake).await;
+    let permit = RfPermit::granted_by_user();
+    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap_err();
+    assert!(e.to_string().contains("LO is not locked"), "{e}");
+    let ops = log.ops();
+    assert_eq!(
+        &ops[ops.len() - 4..],
+        ["W 02 0000", "R 02", "W 03 003F", "R 03"]
+    );
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn gotmic_latched_faults_or_open_interlock_refuse_before_enabling() {
+    let mut fake = Scripted::new("tx")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F");
+    fake = status(fake, "OK 0011", "OK 0000", "OK 003F", "OK 0002");
+    let (mut tx, log) = tx(fake).await;
+    let permit = RfPermit::granted_by_user();
+    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap_err();
+    assert!(e.to_string().contains("INTERLOCK_OPENED"), "{e}");
+    assert!(
+        !log.ops().iter().any(|c| c.starts_with("W 02")),
+        "never enabled"
+    );
+}
+
+#[tokio::test]
+async fn gotmic_module_errors_carry_code_and_text_and_limits_are_checked() {
+    let fake = Scripted::new("tx").reply("W 03 003F", "ERR 5 not allowed");
+    let (mut tx, log) = tx(fake).await;
+    let e = bounded(tx.set_attenuation(31.5)).await.unwrap_err();
+    assert!(
+        matches!(&e, DriverError::LineRefused { code: 5, text, .. } if text == "not allowed"),
+        "{e}"
+    );
+    let e = bounded(tx.set_attenuation(40.0)).await.unwrap_err();
+    assert_eq!(e.exit_class(), ExitClass::BadInput);
+    assert_eq!(log.ops(), ["W 03 003F"]);
+}
+
+// ---------------------------------------------------------------- safe state
+
+#[tokio::test]
+async fn error_mid_configuration_still_sends_the_safe_state_in_order() {
+    let awg_fake = Scripted::new("awg").reply("*IDN?", AWG_IDN).refuse(
+        ":INST:DACM DCM",
+        -221,
+        "Settings conflict",
+    );
+    let awg_log = awg_fake.log();
+    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
+        .await
+        .unwrap();
+    let tx_fake = Scripted::new("tx")
+        .reply("*IDN?", TX_IDN)
+        .reply("R 00", "OK 5458")
+        .reply("W 02 0000", "OK")
+        .reply("R 02", "OK 0000")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F");
+    let tx_log = tx_fake.log();
+    let tx = Gotmic::connect(Box::new(tx_fake), &model("gotmic-eband-tx"), "tx")
+        .await
+        .unwrap();
+    let awg = share::<dyn Awg>(Box::new(awg));
+    let tx = share::<dyn RfFrontEnd>(Box::new(tx));
+    let safe = SafeState::new(
+        Bench {
+            tx: Some(tx.clone()),
+            rx: None,
+            awg: Some(awg.clone()),
+        },
+        Duration::from_secs(5),
+    );
+    let guard = safe.guard();
+    let result = bounded(async { awg.lock().await.configure(&AwgSettings::default()).await }).await;
+    assert!(matches!(result, Err(DriverError::Refused { .. })));
+    awg_log.clear();
+    tx_log.clear();
+    let report = bounded(guard.engage()).await;
+    assert!(report.is_safe(), "{report}");
+    assert_eq!(
+        report.steps.iter().map(|s| s.step).collect::<Vec<_>>(),
+        ["Tx RF off", "AWG outputs off and :ABOR"]
+    );
+    assert_eq!(tx_log.ops(), ["W 02 0000", "R 02", "W 03 003F", "R 03"]);
+    assert_eq!(
+        awg_log.ops(),
+        [
+            ":OUTP1 OFF",
+            ":OUTP2 OFF",
+            ":OUTP3 OFF",
+            ":OUTP4 OFF",
+            ":ABOR",
+            ERROR_CHECK
+        ]
+    );
+}
+
+#[tokio::test]
+async fn safe_state_tries_every_step_even_when_one_fails() {
+    let awg_fake = Scripted::new("awg")
+        .reply("*IDN?", AWG_IDN)
+        .fail_write(":OUTP2 OFF", Failure::Closed);
+    let awg_log = awg_fake.log();
+    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
+        .await
+        .unwrap();
+    let tx_fake = Scripted::new("tx")
+        .reply("*IDN?", TX_IDN)
+        .reply("R 00", "OK 5458")
+        .reply("W 02 0000", "ERR 5 not allowed")
+        .reply("W 03 003F", "OK")
+        .reply("R 03", "OK 003F");
+    let tx_log = tx_fake.log();
+    let tx = Gotmic::connect(Box::new(tx_fake), &model("gotmic-eband-tx"), "tx")
+        .await
+        .unwrap();
+    let safe = SafeState::new(
+        Bench {
+            tx: Some(share::<dyn RfFrontEnd>(Box::new(tx))),
+            rx: None,
+            awg: Some(share::<dyn Awg>(Box::new(awg))),
+        },
+        Duration::from_secs(5),
+    );
+    awg_log.clear();
+    tx_log.clear();
+    let report = bounded(safe.engage()).await;
+    assert!(!report.is_safe());
+    assert!(report.steps[0].error.as_deref().unwrap().contains("ERR 5"));
+    assert_eq!(
+        tx_log.ops(),
+        ["W 02 0000", "W 03 003F", "R 03"],
+        "attenuation still maxed"
+    );
+    assert_eq!(
+        awg_log.ops(),
+        [
+            ":OUTP1 OFF",
+            ":OUTP2 OFF",
+            ":OUTP3 OFF",
+            ":OUTP4 OFF",
+            ":ABOR",
+            ERROR_CHECK
+        ]
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dropped_guard_runs_the_safe_state_synchronously() {
+    let awg_fake = Scripted::new("awg").reply("*IDN?", AWG_IDN);
+    let awg_log = awg_fake.log();
+    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
+        .await
+        .unwrap();
+    let safe = SafeState::new(
+        Bench {
+            awg: Some(share::<dyn Awg>(Box::new(awg))),
+            ..Bench::default()
+        },
+        Duration::from_secs(5),
+    );
+    awg_log.clear();
+    {
+        let _guard = safe.guard();
+    }
+    assert_eq!(
+        awg_log.ops(),
+        [
+            ":OUTP1 OFF",
+            ":OUTP2 OFF",
+            ":OUTP3 OFF",
+            ":OUTP4 OFF",
+            ":ABOR",
+            ERROR_CHECK
+        ]
+    );
+}
