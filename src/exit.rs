@@ -84,6 +84,11 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
             $(if let Some(e) = cause.downcast_ref::<$t>() { return Some(e.exit_class()); })*
         };
     }
-    try_types!(crate::waveform::ParamError, crate::dsp::DspError);
+    try_types!(
+        crate::waveform::ParamError,
+        crate::dsp::DspError,
+        crate::storage::StorageError,
+        crate::simulate::SimError
+    );
     None
 }

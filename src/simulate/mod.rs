@@ -1,1 +1,39 @@
 //! Simulations: the thesis' chapter-4 scenarios and free-form runs, built on `waveform` and `dsp`.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
+//! | [`noise`] | complex white noise at a per-sample SNR |
+
+use crate::exit::{Classify, ExitClass};
+
+pub mod noise;
+pub mod scene;
+
+/// Why a simulation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A simulation parameter is unusable; names the CLI field and what is allowed.
+    #[error("{field}: {reason}")]
+    Param { field: &'static str, reason: String },
+    /// The waveform layer refused its parameters.
+    #[error(transparent)]
+    Waveform(#[from] crate::waveform::ParamError),
+    /// The processing layer refused its parameters or the data.
+    #[error(transparent)]
+    Dsp(#[from] crate::dsp::DspError),
+    /// An output (plot, profile) could not be written.
+    #[error(transparent)]
+    Storage(#[from] crate::storage::StorageError),
+}
+
+impl Classify for SimError {
+    fn exit_class(&self) -> ExitClass {
+        match self {
+            SimError::Param { .. } => ExitClass::BadInput,
+            SimError::Waveform(e) => e.exit_class(),
+            SimError::Dsp(e) => e.exit_class(),
+            SimError::Storage(e) => e.exit_class(),
+        }
+    }
+}
