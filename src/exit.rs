@@ -86,6 +86,7 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
     }
     try_types!(
         crate::waveform::ParamError,
+        crate::waveform::DecodeError,
         crate::dsp::DspError,
         crate::storage::StorageError,
         crate::simulate::SimError
