@@ -10,10 +10,10 @@
 //!
 //! | window | peak side-lobe | -3 dB width |
 //! |---|---|---|
-//! | rectangular | -13.3 dB | 13.3 cm (0.886 c0/2B) |
-//! | Hann | -31.5 dB | 21.7 cm (x1.63) |
-//! | Taylor nbar 4, -35 dB | -35 dB | 16.3 cm (x1.23) |
-//! | Dolph-Chebyshev -50 dB | -50 dB | 18.8 cm (x1.42) |
+//! | rectangular | -13.26 dB | 13.24 cm (0.886 c0/2B) |
+//! | Hann | -31.47 dB | 21.75 cm (x1.64) |
+//! | Taylor nbar 4, -35 dB | -35.14 dB | 17.74 cm (x1.34) |
+//! | Dolph-Chebyshev -50 dB | -50.00 dB | 20.03 cm (x1.51) |
 
 use super::DspError;
 use std::f64::consts::PI;

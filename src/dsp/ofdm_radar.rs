@@ -1,1 +1,0 @@
-//! OFDM radar: framing, CP removal, spectral division, zero-padded IFFT, range-Doppler.

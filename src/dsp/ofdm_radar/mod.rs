@@ -1,0 +1,516 @@
+//! OFDM radar (thesis 3.2.2): symbol framing, CP removal, FFT, spectral division
+//! `I_div = I_rx / I_tx`, zero-padded IFFT over subcarriers, averaging over symbols, windows, and a
+//! range-Doppler map ([`RangeDoppler`]) for moving targets.
+//!
+//! # Conventions (CONVENTIONS.md)
+//! - Subcarrier `k = 0..N-1` sits at baseband `f_k = (k - N/2) df`, `df = B/N`, and is read from
+//!   receiver FFT bin `(k - N/2) mod (N os)`. [`IDiv`] and every spectrum here are in this
+//!   *ascending-frequency* order, symbol-major (`[symbol][k]`).
+//! - Scaling: the transmitter's IFFT scale (`1/sqrt N`, unit mean power per sample) is undone, so a
+//!   target of amplitude `a` at delay `tau` gives `I_div[s][k] = a exp(-j 2 pi (f_c + f_k) tau)`,
+//!   whatever the oversampling.
+//! - Range profile: `p[m] = sum_k w_k I_div[k] exp(+j 2 pi k m / K) / sum_k w_k`, K = zero_pad N,
+//!   bin m at `R = m C0 / (2 K df)` from 0 to the unambiguous range `C0 / (2 df)` (19.2 m by
+//!   default). Dividing by the window sum keeps a target of amplitude `a` at height `a` (windows
+//!   only widen the lobe). Subcarriers go into the IFFT in ascending order *before* the zero padding
+//!   (FFT order plus appended zeros is only right for whole-nanosecond delays: thesis-notes.md).
+//! - Averaging over symbols ([`Averaging`]): coherent by default. For a static scene every symbol
+//!   sees the same `I_div`, so averaging `I_div` before one IFFT lowers the noise floor by the
+//!   number of symbols (10 log10 S dB) and costs one IFFT; averaging powers only smooths the noise
+//!   floor (its mean stays) but is immune to Doppler phase rotation, so use it for moving targets
+//!   you do not want to resolve in velocity (or use the range-Doppler map).
+
+mod doppler;
+
+pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap};
+
+use super::metrics::Axis;
+use super::window::Window;
+use super::{DspError, C0};
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+use std::sync::Arc;
+
+/// How the per-symbol profiles are combined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Averaging {
+    /// Average `I_div` over symbols, then one IFFT (complex, coherent): best SNR for static targets.
+    #[default]
+    Coherent,
+    /// One IFFT per symbol, average `|p|^2`, report the RMS amplitude: robust to Doppler.
+    Power,
+}
+
+/// Parameters of the OFDM radar receiver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OfdmRadarConfig {
+    /// Occupied subcarriers N (128).
+    pub subcarriers: usize,
+    /// Oversampling factor: the useful symbol is `N * oversampling` samples (16).
+    pub oversampling: usize,
+    /// Cyclic prefix as a fraction of the useful symbol (0.25); `cp_fraction * N * os` must be whole.
+    pub cp_fraction: f64,
+    /// Occupied bandwidth B = N df, Hz (1e9).
+    pub bandwidth_hz: f64,
+    /// Zero-padding factor of the range IFFT: K = zero_pad * N points (10).
+    pub zero_pad: usize,
+    /// Window across subcarriers (rectangular).
+    pub window: Window,
+    /// Averaging over symbols (coherent).
+    pub averaging: Averaging,
+}
+
+impl Default for OfdmRadarConfig {
+    fn default() -> Self {
+        Self {
+            subcarriers: 128,
+            oversampling: 16,
+            cp_fraction: 0.25,
+            bandwidth_hz: 1e9,
+            zero_pad: 10,
+            window: Window::Rectangular,
+            averaging: Averaging::Coherent,
+        }
+    }
+}
+
+impl OfdmRadarConfig {
+    /// Samples of the useful part of a symbol (N os).
+    pub fn fft_len(&self) -> usize {
+        self.subcarriers * self.oversampling
+    }
+
+    /// Samples of the cyclic prefix.
+    pub fn cp_len(&self) -> usize {
+        (self.cp_fraction * self.fft_len() as f64).round() as usize
+    }
+
+    /// Samples per symbol, CP included.
+    pub fn symbol_len(&self) -> usize {
+        self.fft_len() + self.cp_len()
+    }
+
+    /// Subcarrier spacing df = B / N, Hz.
+    pub fn subcarrier_spacing_hz(&self) -> f64 {
+        self.bandwidth_hz / self.subcarriers as f64
+    }
+
+    /// Sample rate of the received signal, B os.
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.bandwidth_hz * self.oversampling as f64
+    }
+
+    /// Duration of one symbol with its CP, s (the slow-time sample period of the Doppler FFT).
+    pub fn symbol_period_s(&self) -> f64 {
+        self.symbol_len() as f64 / self.sample_rate_hz()
+    }
+
+    /// Points of the range IFFT, K = zero_pad N.
+    pub fn profile_len(&self) -> usize {
+        self.zero_pad * self.subcarriers
+    }
+
+    /// Range of profile bin 1, m: C0 / (2 K df).
+    pub fn range_bin_m(&self) -> f64 {
+        C0 / (2.0 * self.profile_len() as f64 * self.subcarrier_spacing_hz())
+    }
+
+    /// Unambiguous range C0 / (2 df), m.
+    pub fn unambiguous_range_m(&self) -> f64 {
+        C0 / (2.0 * self.subcarrier_spacing_hz())
+    }
+
+    /// Checks every field; the message names the field and what is allowed.
+    pub fn validate(&self) -> Result<(), DspError> {
+        let param = |m: String| Err(DspError::Param(m));
+        if self.subcarriers < 2 {
+            return param(format!(
+                "OFDM radar: subcarriers = {}; allowed: at least 2 (128 in the thesis)",
+                self.subcarriers
+            ));
+        }
+        if self.oversampling < 1 {
+            return param(
+                "OFDM radar: oversampling = 0; allowed: 1 or more (16 in the thesis)".into(),
+            );
+        }
+        if !(0.0..1.0).contains(&self.cp_fraction) {
+            return param(format!(
+                "OFDM radar: cp_fraction = {}; allowed: 0 <= cp_fraction < 1 (0.25 in the thesis)",
+                self.cp_fraction
+            ));
+        }
+        let cp = self.cp_fraction * self.fft_len() as f64;
+        if (cp - cp.round()).abs() > 1e-9 {
+            return param(format!(
+                "OFDM radar: cp_fraction {} of {} samples is {cp} samples; allowed: a fraction \
+                 giving a whole number of samples",
+                self.cp_fraction,
+                self.fft_len()
+            ));
+        }
+        if !(self.bandwidth_hz.is_finite() && self.bandwidth_hz > 0.0) {
+            return param(format!(
+                "OFDM radar: bandwidth_hz = {}; allowed: a positive frequency (1e9 in the thesis)",
+                self.bandwidth_hz
+            ));
+        }
+        if self.zero_pad < 1 {
+            return param(
+                "OFDM radar: zero_pad = 0; allowed: 1 (none) or more (10 in the thesis)".into(),
+            );
+        }
+        self.window.validate()
+    }
+}
+
+/// The spectral-division matrix `I_div`, symbol-major, subcarriers in ascending frequency.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct IDiv {
+    symbols: usize,
+    subcarriers: usize,
+    data: Vec<Complex64>,
+}
+
+impl IDiv {
+    /// An empty matrix; [`OfdmRadar::divide`] sizes it (and reuses its storage afterwards).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Wraps existing values (`symbols * subcarriers`, symbol-major, ascending frequency).
+    pub fn from_vec(subcarriers: usize, data: Vec<Complex64>) -> Result<Self, DspError> {
+        if subcarriers == 0 || data.is_empty() || data.len() % subcarriers != 0 {
+            return Err(DspError::Param(format!(
+                "I_div: {} values are not a whole, non-zero number of symbols of {subcarriers} \
+                 subcarriers",
+                data.len()
+            )));
+        }
+        Ok(Self {
+            symbols: data.len() / subcarriers,
+            subcarriers,
+            data,
+        })
+    }
+
+    pub fn symbols(&self) -> usize {
+        self.symbols
+    }
+
+    pub fn subcarriers(&self) -> usize {
+        self.subcarriers
+    }
+
+    /// All values, symbol-major (what `Music::estimate` takes).
+    pub fn as_slice(&self) -> &[Complex64] {
+        &self.data
+    }
+
+    /// The N values of one symbol (the thesis' "column" of I_div), ascending frequency.
+    pub fn symbol(&self, s: usize) -> &[Complex64] {
+        &self.data[s * self.subcarriers..(s + 1) * self.subcarriers]
+    }
+
+    fn resize(&mut self, symbols: usize, subcarriers: usize) {
+        self.symbols = symbols;
+        self.subcarriers = subcarriers;
+        self.data
+            .resize(symbols * subcarriers, Complex64::default());
+    }
+}
+
+/// A range profile: linear amplitude (a unit-amplitude target peaks at 1) against range in metres.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RangeProfile {
+    pub range_m: Vec<f64>,
+    pub amplitude: Vec<f64>,
+}
+
+impl RangeProfile {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The uniform range axis (start 0, step one bin).
+    pub fn axis(&self) -> Axis {
+        Axis::from_samples(&self.range_m)
+    }
+}
+
+/// The OFDM radar receiver: FFT plans, window and scratch are made once in [`OfdmRadar::new`];
+/// processing allocates nothing once the output buffers have their size.
+pub struct OfdmRadar {
+    config: OfdmRadarConfig,
+    fft: Arc<dyn Fft<f64>>,
+    ifft: Arc<dyn Fft<f64>>,
+    fft_buf: Vec<Complex64>,
+    fft_scratch: Vec<Complex64>,
+    ifft_buf: Vec<Complex64>,
+    ifft_scratch: Vec<Complex64>,
+    /// Window coefficients divided by their sum (so the profile keeps the target amplitude).
+    weights: Vec<f64>,
+    /// Coherent sum of I_div, or the sum of per-symbol powers.
+    accumulator: Vec<Complex64>,
+    power: Vec<f64>,
+}
+
+impl OfdmRadar {
+    pub fn new(config: OfdmRadarConfig) -> Result<Self, DspError> {
+        config.validate()?;
+        let mut planner = FftPlanner::new();
+        let fft = planner.plan_fft_forward(config.fft_len());
+        let ifft = planner.plan_fft_inverse(config.profile_len());
+        let mut weights = config.window.coefficients(config.subcarriers)?;
+        let sum: f64 = weights.iter().sum();
+        for w in &mut weights {
+            *w /= sum;
+        }
+        let zero = Complex64::default();
+        Ok(Self {
+            fft_buf: vec![zero; config.fft_len()],
+            fft_scratch: vec![zero; fft.get_inplace_scratch_len()],
+            ifft_buf: vec![zero; config.profile_len()],
+            ifft_scratch: vec![zero; ifft.get_inplace_scratch_len()],
+            accumulator: vec![zero; config.subcarriers],
+            power: vec![0.0; config.profile_len()],
+            weights,
+            fft,
+            ifft,
+            config,
+        })
+    }
+
+    pub fn config(&self) -> &OfdmRadarConfig {
+        &self.config
+    }
+
+    /// The range axis of the profiles: bin m at `m * range_bin_m`.
+    pub fn range_axis(&self) -> Axis {
+        Axis {
+            start: 0.0,
+            step: self.config.range_bin_m(),
+        }
+    }
+
+    /// Frames the received signal and fills `idiv` with `I_rx / I_tx`.
+    ///
+    /// `rx` is the received signal at `N os` samples per useful symbol; symbol `s` starts (with its
+    /// CP) at sample `start + s * symbol_len`. `tx_symbols` is the transmitted symbol matrix
+    /// (symbol-major, ascending frequency), which also gives the number of symbols.
+    pub fn divide(
+        &mut self,
+        rx: &[Complex64],
+        start: usize,
+        tx_symbols: &[Complex64],
+        idiv: &mut IDiv,
+    ) -> Result<(), DspError> {
+        let n = self.config.subcarriers;
+        if tx_symbols.is_empty() || tx_symbols.len() % n != 0 {
+            return Err(DspError::Param(format!(
+                "OFDM radar: the transmitted symbol matrix has {} values; allowed: a whole, \
+                 non-zero number of symbols of {n} subcarriers",
+                tx_symbols.len()
+            )));
+        }
+        let symbols = tx_symbols.len() / n;
+        let sym_len = self.config.symbol_len();
+        let needed = start + symbols * sym_len;
+        if rx.len() < needed {
+            return Err(DspError::Param(format!(
+                "OFDM radar: {symbols} symbols of {sym_len} samples from start {start} need {needed} \
+                 received samples but only {} were given; capture more or lower the start offset",
+                rx.len()
+            )));
+        }
+        if let Some(i) = tx_symbols.iter().position(|x| x.norm_sqr() == 0.0) {
+            return Err(DspError::Param(format!(
+                "OFDM radar: transmitted symbol {} subcarrier {} is zero; spectral division needs \
+                 every occupied subcarrier modulated",
+                i / n,
+                i % n
+            )));
+        }
+        idiv.resize(symbols, n);
+        let l = self.config.fft_len();
+        let cp = self.config.cp_len();
+        let half = n / 2;
+        // Undo the transmitter's 1/sqrt(N) and the FFT's gain of L.
+        let scale = (n as f64).sqrt() / l as f64;
+        for s in 0..symbols {
+            let begin = start + s * sym_len + cp;
+            self.fft_buf.copy_from_slice(&rx[begin..begin + l]);
+            self.fft
+                .process_with_scratch(&mut self.fft_buf, &mut self.fft_scratch);
+            let tx = &tx_symbols[s * n..(s + 1) * n];
+            let out = &mut idiv.data[s * n..(s + 1) * n];
+            // k < N/2: negative frequencies at the top of the FFT; k >= N/2: bins 0, 1, ...
+            let bins = self.fft_buf[l - half..]
+                .iter()
+                .chain(&self.fft_buf[..n - half]);
+            for ((o, y), x) in out.iter_mut().zip(bins).zip(tx) {
+                *o = y * x.conj() * (scale / x.norm_sqr());
+            }
+        }
+        Ok(())
+    }
+
+    /// The averaged, windowed, zero-padded range profile of `idiv` into `out`.
+    pub fn profile(&mut self, idiv: &IDiv, out: &mut RangeProfile) -> Result<(), DspError> {
+        let n = self.config.subcarriers;
+        if idiv.subcarriers != n || idiv.symbols == 0 {
+            return Err(DspError::Param(format!(
+                "OFDM radar: I_div has {} symbols of {} subcarriers; this receiver needs at least one \
+                 symbol of {n}",
+                idiv.symbols, idiv.subcarriers
+            )));
+        }
+        let k = self.config.profile_len();
+        let step = self.config.range_bin_m();
+        if out.range_m.len() != k {
+            out.range_m.clear();
+            out.range_m.extend((0..k).map(|m| m as f64 * step));
+        }
+        out.amplitude.resize(k, 0.0);
+        let inv_s = 1.0 / idiv.symbols as f64;
+        match self.config.averaging {
+            Averaging::Coherent => {
+                self.accumulator.fill(Complex64::default());
+                for s in 0..idiv.symbols {
+                    for (a, v) in self.accumulator.iter_mut().zip(idiv.symbol(s)) {
+                        *a += v;
+                    }
+                }
+                self.ifft_buf.fill(Complex64::default());
+                for ((b, a), w) in self
+                    .ifft_buf
+                    .iter_mut()
+                    .zip(&self.accumulator)
+                    .zip(&self.weights)
+                {
+                    *b = a * (w * inv_s);
+                }
+                self.ifft
+                    .process_with_scratch(&mut self.ifft_buf, &mut self.ifft_scratch);
+                for (o, b) in out.amplitude.iter_mut().zip(&self.ifft_buf) {
+                    *o = b.norm();
+                }
+            }
+            Averaging::Power => {
+                self.power.fill(0.0);
+                for s in 0..idiv.symbols {
+                    self.ifft_buf.fill(Complex64::default());
+                    for ((b, v), w) in self
+                        .ifft_buf
+                        .iter_mut()
+                        .zip(idiv.symbol(s))
+                        .zip(&self.weights)
+                    {
+                        *b = v * w;
+                    }
+                    self.ifft
+                        .process_with_scratch(&mut self.ifft_buf, &mut self.ifft_scratch);
+                    for (p, b) in self.power.iter_mut().zip(&self.ifft_buf) {
+                        *p += b.norm_sqr();
+                    }
+                }
+                for (o, p) in out.amplitude.iter_mut().zip(&self.power) {
+                    *o = (p * inv_s).sqrt();
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// [`OfdmRadar::divide`] then [`OfdmRadar::profile`].
+    pub fn process(
+        &mut self,
+        rx: &[Complex64],
+        start: usize,
+        tx_symbols: &[Complex64],
+        idiv: &mut IDiv,
+        out: &mut RangeProfile,
+    ) -> Result<(), DspError> {
+        self.divide(rx, start, tx_symbols, idiv)?;
+        self.profile(idiv, out)
+    }
+
+    /// Band-limited peak refinement: the range within one bin of `range_guess_m` that maximises the
+    /// profile evaluated exactly (a direct sum over subcarriers, no grid), with its amplitude. Uses
+    /// the same window and averaging as [`OfdmRadar::profile`]. Exact for a single noise-free target;
+    /// with interference from a neighbour it finds the maximum of the true continuous profile.
+    pub fn refine_peak(&self, idiv: &IDiv, range_guess_m: f64) -> Result<(f64, f64), DspError> {
+        let n = self.config.subcarriers;
+        if idiv.subcarriers != n || idiv.symbols == 0 {
+            return Err(DspError::Param(format!(
+                "OFDM radar: I_div has {} symbols of {} subcarriers; refine_peak needs at least one \
+                 symbol of {n}",
+                idiv.symbols, idiv.subcarriers
+            )));
+        }
+        let df = self.config.subcarrier_spacing_hz();
+        let inv_s = 1.0 / idiv.symbols as f64;
+        let value_at = |range: f64| -> f64 {
+            // exp(+j 2 pi k df tau), built by recursion over k.
+            let tau = 2.0 * range / C0;
+            let step = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * df * tau);
+            let sum_symbol = |row: &[Complex64]| {
+                let mut ph = Complex64::new(1.0, 0.0);
+                let mut acc = Complex64::default();
+                for (v, w) in row.iter().zip(&self.weights) {
+                    acc += v * ph * w;
+                    ph *= step;
+                }
+                acc
+            };
+            match self.config.averaging {
+                Averaging::Coherent => {
+                    let mut acc = Complex64::default();
+                    for s in 0..idiv.symbols {
+                        acc += sum_symbol(idiv.symbol(s));
+                    }
+                    (acc * inv_s).norm()
+                }
+                Averaging::Power => {
+                    let mut p = 0.0;
+                    for s in 0..idiv.symbols {
+                        p += sum_symbol(idiv.symbol(s)).norm_sqr();
+                    }
+                    (p * inv_s).sqrt()
+                }
+            }
+        };
+        let bin = self.config.range_bin_m();
+        let x = golden_section_max(
+            value_at,
+            range_guess_m - bin,
+            range_guess_m + bin,
+            bin * 1e-7,
+        );
+        Ok((x, value_at(x)))
+    }
+}
+
+/// Maximises a unimodal `f` on `[a, b]` to within `tol`.
+pub(crate) fn golden_section_max(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, tol: f64) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    while (b - a).abs() > tol {
+        if fc > fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    0.5 * (a + b)
+}
