@@ -1,15 +1,15 @@
 //! Range processing for simulations: correlation, decimation, OFDM Fourier, MUSIC and ESPRIT.
 //!
-//! INTERIM: `dsp::correlate`, `dsp::decimate`, `dsp::ofdm_radar` and `dsp::music` were still empty
+//! OFDM range profiles come from `dsp::ofdm_radar`.
+//!
+//! INTERIM: `dsp::correlate`, `dsp::decimate` and `dsp::music` were still empty
 //! when this was written, so the simulation carries compact reference versions of them here, with
 //! the conventions of CONVENTIONS.md. They are to be replaced by calls into `dsp` as those land
 //! (the engine in `run.rs` only sees [`Profile`] and range lists).
 
 use super::SimError;
 use crate::dsp::metrics::Axis;
-use crate::dsp::window::Window;
 use crate::dsp::C0;
-use crate::waveform::ofdm::{OfdmReceiver, SymbolMatrix};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
@@ -157,68 +157,6 @@ fn bessel_i0(x: f64) -> f64 {
         k += 1.0;
     }
     sum
-}
-
-/// OFDM radar front half: per-symbol subcarriers divided by the transmitted symbols (I_div).
-pub struct OfdmDivider {
-    receiver: OfdmReceiver,
-    tx: SymbolMatrix,
-}
-
-impl OfdmDivider {
-    pub fn new(receiver: OfdmReceiver, tx: SymbolMatrix) -> Self {
-        Self { receiver, tx }
-    }
-
-    /// I_div `[symbol][k]`, subcarriers in ascending frequency.
-    pub fn divide(&mut self, rx: &[Complex64]) -> Result<Vec<Complex64>, SimError> {
-        let mut sub = Vec::with_capacity(self.tx.as_slice().len());
-        self.receiver.subcarriers_into(rx, &mut sub)?;
-        for (s, t) in sub.iter_mut().zip(self.tx.as_slice()) {
-            *s /= t;
-        }
-        Ok(sub)
-    }
-}
-
-/// OFDM Fourier range profile: I_div averaged over symbols, windowed, zero-padded IFFT of length
-/// `zero_pad * N` in ascending frequency order; bin m <-> R = m c0 / (2 K df).
-pub fn ofdm_fourier(
-    idiv: &[Complex64],
-    n: usize,
-    df_hz: f64,
-    zero_pad: usize,
-    window: Window,
-) -> Result<Profile, SimError> {
-    let k_len = zero_pad * n;
-    let coefs = window.coefficients(n)?;
-    let mean = column_mean(idiv, n);
-    let mut buf = vec![ZERO; k_len];
-    for k in 0..n {
-        buf[k] = mean[k] * coefs[k];
-    }
-    FftPlanner::new().plan_fft_inverse(k_len).process(&mut buf);
-    let norm = coefs.iter().sum::<f64>();
-    Ok(Profile {
-        label: format!("Fourier ({k_len}-point IFFT)"),
-        axis: Axis {
-            start: 0.0,
-            step: C0 / (2.0 * k_len as f64 * df_hz),
-        },
-        amplitude: buf.iter().map(|v| v.norm() / norm).collect(),
-    })
-}
-
-fn column_mean(idiv: &[Complex64], n: usize) -> Vec<Complex64> {
-    let symbols = idiv.len() / n;
-    let mut mean = vec![ZERO; n];
-    for row in idiv.chunks_exact(n) {
-        for (m, v) in mean.iter_mut().zip(row) {
-            *m += v;
-        }
-    }
-    mean.iter_mut().for_each(|m| *m /= symbols as f64);
-    mean
 }
 
 /// Spatially smoothed M x M covariance of the I_div columns (every symbol), optionally with

@@ -3,8 +3,7 @@
 
 use super::noise::add_noise;
 use super::process::{
-    esprit_ranges, music_profile, ofdm_fourier, signal_subspace, CircularDecimator, Correlator,
-    OfdmDivider, Profile,
+    esprit_ranges, music_profile, signal_subspace, CircularDecimator, Correlator, Profile,
 };
 use super::scene::EchoSynth;
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
@@ -12,6 +11,7 @@ use super::SimError;
 use crate::dsp::metrics::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
+use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
 use crate::dsp::C0;
 use crate::rng::SplitMix64;
 use crate::storage::plot::{Curve, ProfilePlot};
@@ -194,7 +194,10 @@ enum ProcessorKind {
         lags: usize,
     },
     Ofdm {
-        divider: Box<OfdmDivider>,
+        radar: Box<OfdmRadar>,
+        tx_symbols: Vec<Complex64>,
+        idiv: IDiv,
+        profile: RangeProfile,
         n: usize,
         df_hz: f64,
     },
@@ -214,11 +217,26 @@ impl Processor {
                     lags,
                 }
             }
-            (_, Transmit::Ofdm { ofdm, symbols, .. }) => ProcessorKind::Ofdm {
-                n: ofdm.subcarriers(),
-                df_hz: ofdm.subcarrier_spacing_hz(),
-                divider: Box::new(OfdmDivider::new(ofdm.receiver(), symbols.clone())),
-            },
+            (_, Transmit::Ofdm { ofdm, symbols, .. }) => {
+                let p = ofdm.params();
+                let radar = OfdmRadar::new(OfdmRadarConfig {
+                    subcarriers: p.subcarriers,
+                    oversampling: p.oversampling,
+                    cp_fraction: p.cp_fraction,
+                    bandwidth_hz: p.bandwidth_hz,
+                    zero_pad: spec.zero_pad,
+                    window: super::window::to_dsp(spec.window),
+                    ..OfdmRadarConfig::default()
+                })?;
+                ProcessorKind::Ofdm {
+                    n: ofdm.subcarriers(),
+                    df_hz: ofdm.subcarrier_spacing_hz(),
+                    radar: Box::new(radar),
+                    tx_symbols: symbols.as_slice().to_vec(),
+                    idiv: IDiv::new(),
+                    profile: RangeProfile::new(),
+                }
+            }
             (alg, Transmit::MskLfm { .. }) => {
                 return Err(SimError::Param {
                     field: "--algorithm",
@@ -235,10 +253,21 @@ impl Processor {
                 profiles: vec![correlator.profile(rx, *lags)],
                 ranges: None,
             }),
-            ProcessorKind::Ofdm { divider, n, df_hz } => {
-                let idiv = divider.divide(rx)?;
-                let window = super::window::to_dsp(spec.window);
-                let fourier = ofdm_fourier(&idiv, *n, *df_hz, spec.zero_pad, window)?;
+            ProcessorKind::Ofdm {
+                radar,
+                tx_symbols,
+                idiv,
+                profile,
+                n,
+                df_hz,
+            } => {
+                radar.process(rx, 0, tx_symbols, idiv, profile)?;
+                let fourier = Profile {
+                    label: format!("Fourier ({}-point IFFT)", profile.amplitude.len()),
+                    axis: profile.axis(),
+                    amplitude: profile.amplitude.clone(),
+                };
+                let idiv = idiv.as_slice();
                 match spec.algorithm {
                     Algorithm::Fourier | Algorithm::Correlation => Ok(Analysis {
                         profiles: vec![fourier],
@@ -246,7 +275,7 @@ impl Processor {
                     }),
                     Algorithm::Music => {
                         let sub = signal_subspace(
-                            &idiv,
+                            idiv,
                             *n,
                             spec.music_m,
                             spec.music_p,
@@ -260,7 +289,7 @@ impl Processor {
                     }
                     Algorithm::RootMusic | Algorithm::Esprit => {
                         let sub = signal_subspace(
-                            &idiv,
+                            idiv,
                             *n,
                             spec.music_m,
                             spec.music_p,

@@ -1,8 +1,9 @@
 //! Range-profile plots in dB against range, like the thesis' figures: several curves overlaid
 //! (Fourier and MUSIC), the true target ranges as vertical lines, an optional -3 dB reference.
 //!
-//! The format follows the extension: `.svg` (text drawn by the viewer) or `.png` (text rendered
-//! with the DejaVu Sans font embedded from `assets/`, so PNGs look the same on every machine).
+//! The format follows the extension: `.svg` (text drawn by the viewer) or `.png` (text rendered).
+//! Both lay out text with the DejaVu Sans font embedded from `assets/`, so plots look the same on
+//! every machine and need no system fonts.
 
 use super::{atomic::write_atomic, profile::extension, StorageError};
 use plotters::prelude::*;
@@ -50,6 +51,8 @@ pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
             reason: "nothing to plot: every curve is empty".into(),
         });
     }
+    // Both backends measure text with the registered font (the SVG one to lay out labels).
+    register_font_once();
     match extension(path).as_deref() {
         Some("svg") => {
             let mut svg = String::new();
@@ -60,7 +63,6 @@ pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
             write_atomic(path, svg.as_bytes())
         }
         Some("png") => {
-            register_font_once();
             // The bitmap backend encodes to a file itself: draw into a temporary PNG next to the
             // destination and rename it, so the write stays atomic.
             let tmp = temp_png(path);
