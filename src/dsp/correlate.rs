@@ -1,1 +1,373 @@
 //! FFT cross-correlation with the transmit spectrum computed once.
+//!
+//! # Definition and lag order
+//! For a received capture `rx` (length `Nr`) and the transmitted waveform `tx` (length `Nt`):
+//!
+//! ```text
+//! r[l] = sum_n rx[n] conj(tx[n - l])      (terms with n - l outside 0..Nt are zero)
+//! ```
+//!
+//! An echo delayed by `d` samples peaks at `l = d`; lag `l` is range `l * C0 / (2 fs)`. This is a
+//! *linear* correlation: the full result has lags `-(Nt - 1) ..= Nr - 1`. A [`CrossCorrelator`]
+//! returns the lags of the range you choose at construction, in ascending order: output index `i`
+//! holds lag `first_lag + i`. Radar processing usually wants only `0 ..= max_lag`
+//! ([`CrossCorrelator::new`] with `0..=max_lag`), which also lets the FFT be shorter.
+//!
+//! # How
+//! `r` is the inverse FFT of `RX(f) conj(TX(f))` of length `K`, where `K` is the smallest 2-3-5-7
+//! smooth length (fast for rustfft) with `K >= max(Nr - first_lag, last_lag + Nt, Nr, Nt)`: then no lag in the
+//! chosen range is touched by the circular wrap-around, so the result equals the direct sum exactly
+//! (up to rounding). `conj(TX) / K` is computed once at construction; each call does one forward
+//! FFT, one multiply and one inverse FFT in buffers owned by the correlator (no allocation).
+
+use std::ops::RangeInclusive;
+use std::sync::Arc;
+
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+
+use super::DspError;
+
+const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
+
+/// Smallest `n >= min` of the form `2^a 3^b 5^c 7^d` (rustfft's fast sizes); `min = 0` gives 1.
+pub fn fast_fft_len(min: usize) -> usize {
+    let min = min.max(1);
+    let mut best = min.next_power_of_two();
+    let mut p7 = 1usize;
+    while p7 < best {
+        let mut p75 = p7;
+        while p75 < best {
+            let mut p753 = p75;
+            while p753 < best {
+                // Smallest power of two taking p753 to at least `min`.
+                let mut n = p753;
+                while n < min {
+                    n *= 2;
+                }
+                best = best.min(n);
+                p753 *= 3;
+            }
+            p75 *= 5;
+        }
+        p7 *= 7;
+    }
+    best
+}
+
+/// Cross-correlates captures against one transmitted waveform by FFT.
+pub struct CrossCorrelator {
+    tx_len: usize,
+    rx_len: usize,
+    first_lag: isize,
+    last_lag: isize,
+    fft_len: usize,
+    forward: Arc<dyn Fft<f64>>,
+    inverse: Arc<dyn Fft<f64>>,
+    /// `conj(FFT_K(tx)) / K`.
+    tx_spectrum_conj: Vec<Complex64>,
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::fmt::Debug for CrossCorrelator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CrossCorrelator")
+            .field("tx_len", &self.tx_len)
+            .field("rx_len", &self.rx_len)
+            .field("lags", &(self.first_lag..=self.last_lag))
+            .field("fft_len", &self.fft_len)
+            .finish_non_exhaustive()
+    }
+}
+
+impl CrossCorrelator {
+    /// Prepares correlation of captures of up to `rx_len` samples against `tx`, returning the lags
+    /// `lags` (inclusive, within `-(tx.len() - 1) ..= rx_len - 1`).
+    pub fn new(
+        tx: &[Complex64],
+        rx_len: usize,
+        lags: RangeInclusive<isize>,
+    ) -> Result<Self, DspError> {
+        if tx.is_empty() || rx_len == 0 {
+            return Err(DspError::Param(format!(
+                "correlation lengths: transmit {} and receive {} samples; both must be at least 1",
+                tx.len(),
+                rx_len
+            )));
+        }
+        if tx.len() > 1 << 30 || rx_len > 1 << 30 {
+            return Err(DspError::Param(
+                "correlation lengths: at most 2^30 samples each".into(),
+            ));
+        }
+        let (first, last) = (*lags.start(), *lags.end());
+        let lo = -(tx.len() as isize - 1);
+        let hi = rx_len as isize - 1;
+        if first > last || first < lo || last > hi {
+            return Err(DspError::Param(format!(
+                "correlation lags {first}..={last}: must be ascending and within {lo}..={hi} \
+                 (-(transmit length - 1) ..= receive length - 1)"
+            )));
+        }
+        // No alias may land on a chosen lag, and both signals must fit in the FFT buffer.
+        let need = (rx_len as isize - first)
+            .max(last + tx.len() as isize)
+            .max(tx.len() as isize)
+            .max(rx_len as isize) as usize;
+        let fft_len = fast_fft_len(need);
+        let mut planner = FftPlanner::new();
+        let forward = planner.plan_fft_forward(fft_len);
+        let inverse = planner.plan_fft_inverse(fft_len);
+        let scratch_len = forward
+            .get_inplace_scratch_len()
+            .max(inverse.get_inplace_scratch_len());
+        let mut scratch = vec![ZERO; scratch_len];
+        let mut spectrum = vec![ZERO; fft_len];
+        spectrum[..tx.len()].copy_from_slice(tx);
+        forward.process_with_scratch(&mut spectrum, &mut scratch);
+        let k = fft_len as f64;
+        for z in &mut spectrum {
+            *z = z.conj() / k;
+        }
+        Ok(Self {
+            tx_len: tx.len(),
+            rx_len,
+            first_lag: first,
+            last_lag: last,
+            fft_len,
+            forward,
+            inverse,
+            tx_spectrum_conj: spectrum,
+            buf: vec![ZERO; fft_len],
+            scratch,
+        })
+    }
+
+    /// All lags, `-(tx.len() - 1) ..= rx_len - 1`.
+    pub fn full(tx: &[Complex64], rx_len: usize) -> Result<Self, DspError> {
+        let lo = -(tx.len() as isize - 1);
+        Self::new(tx, rx_len, lo..=rx_len as isize - 1)
+    }
+
+    /// The lags returned, ascending: output index `i` is lag `lags().start() + i`.
+    pub fn lags(&self) -> RangeInclusive<isize> {
+        self.first_lag..=self.last_lag
+    }
+
+    /// Number of lags returned.
+    pub fn output_len(&self) -> usize {
+        (self.last_lag - self.first_lag + 1) as usize
+    }
+
+    /// The FFT length used.
+    pub fn fft_len(&self) -> usize {
+        self.fft_len
+    }
+
+    pub fn tx_len(&self) -> usize {
+        self.tx_len
+    }
+
+    /// Longest capture accepted.
+    pub fn rx_len(&self) -> usize {
+        self.rx_len
+    }
+
+    /// Correlates `rx` (at most `rx_len` samples; shorter is zero-padded) into `out`
+    /// (`output_len()` values, ascending lags).
+    pub fn correlate_into(
+        &mut self,
+        rx: &[Complex64],
+        out: &mut [Complex64],
+    ) -> Result<(), DspError> {
+        if rx.len() > self.rx_len {
+            return Err(DspError::Param(format!(
+                "capture of {} samples: this correlator was built for at most {}",
+                rx.len(),
+                self.rx_len
+            )));
+        }
+        if out.len() != self.output_len() {
+            return Err(DspError::Param(format!(
+                "correlation output of {} values: must be exactly the {} lags {}..={}",
+                out.len(),
+                self.output_len(),
+                self.first_lag,
+                self.last_lag
+            )));
+        }
+        self.buf[..rx.len()].copy_from_slice(rx);
+        self.buf[rx.len()..].fill(ZERO);
+        self.forward
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
+        for (x, t) in self.buf.iter_mut().zip(&self.tx_spectrum_conj) {
+            *x *= t;
+        }
+        self.inverse
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
+        let k = self.fft_len as isize;
+        let start = self.first_lag.rem_euclid(k) as usize;
+        // Lags first..=last map to circular indices start, start+1, ... (mod K), at most one wrap.
+        let head = (self.fft_len - start).min(out.len());
+        out[..head].copy_from_slice(&self.buf[start..start + head]);
+        let rest = out.len() - head;
+        out[head..].copy_from_slice(&self.buf[..rest]);
+        Ok(())
+    }
+
+    /// As [`CrossCorrelator::correlate_into`], allocating the output.
+    pub fn correlate(&mut self, rx: &[Complex64]) -> Result<Vec<Complex64>, DspError> {
+        let mut out = vec![ZERO; self.output_len()];
+        self.correlate_into(rx, &mut out)?;
+        Ok(out)
+    }
+}
+
+/// Direct `O(Nr * lags)` correlation with the same definition and lag order; the reference the FFT
+/// version is tested against. Lags outside the support give 0.
+pub fn correlate_direct(
+    rx: &[Complex64],
+    tx: &[Complex64],
+    lags: RangeInclusive<isize>,
+) -> Vec<Complex64> {
+    lags.map(|l| {
+        let mut acc = ZERO;
+        for (n, &x) in rx.iter().enumerate() {
+            let m = n as isize - l;
+            if m >= 0 && (m as usize) < tx.len() {
+                acc += x * tx[m as usize].conj();
+            }
+        }
+        acc
+    })
+    .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix64;
+    use proptest::prelude::*;
+
+    fn noise(n: usize, seed: u64) -> Vec<Complex64> {
+        let mut r = SplitMix64::new(seed);
+        (0..n).map(|_| r.complex_gaussian(1.0)).collect()
+    }
+
+    #[test]
+    fn fast_lengths() {
+        assert_eq!(fast_fft_len(0), 1);
+        assert_eq!(fast_fft_len(1), 1);
+        assert_eq!(fast_fft_len(11), 12);
+        assert_eq!(fast_fft_len(13), 14);
+        assert_eq!(fast_fft_len(319_999), 320_000);
+        let smooth = |k: usize| {
+            let mut m = k;
+            for p in [2, 3, 5, 7] {
+                while m % p == 0 {
+                    m /= p;
+                }
+            }
+            m == 1
+        };
+        for n in 1..3000 {
+            let k = fast_fft_len(n);
+            assert!(k >= n && smooth(k), "{n} -> {k}");
+            assert!((n..k).all(|j| !smooth(j)), "{n} -> {k} is not the smallest");
+        }
+    }
+
+    #[test]
+    fn echo_peaks_at_its_delay() {
+        let tx = noise(1000, 1);
+        let mut rx = vec![ZERO; 1500];
+        rx[123..1123].copy_from_slice(&tx);
+        let mut c = CrossCorrelator::new(&tx, rx.len(), 0..=400).unwrap();
+        let r = c.correlate(&rx).unwrap();
+        let peak = (0..r.len())
+            .max_by(|&a, &b| r[a].norm().total_cmp(&r[b].norm()))
+            .unwrap();
+        assert_eq!(peak, 123);
+    }
+
+    #[test]
+    fn parseval() {
+        // Zero lag of a signal with itself is its energy; and the total correlation energy equals
+        // (1/K) sum |RX|^2 |TX|^2 over an independent DFT of length K = Nr + Nt - 1.
+        let tx = noise(37, 2);
+        let rx = noise(50, 3);
+        let mut auto = CrossCorrelator::full(&tx, tx.len()).unwrap();
+        let r = auto.correlate(&tx).unwrap();
+        let energy: f64 = tx.iter().map(|z| z.norm_sqr()).sum();
+        assert!((r[tx.len() - 1] - energy).norm() < 1e-9 * energy);
+        let mut c = CrossCorrelator::full(&tx, rx.len()).unwrap();
+        let r = c.correlate(&rx).unwrap();
+        let lhs: f64 = r.iter().map(|z| z.norm_sqr()).sum();
+        let k = rx.len() + tx.len() - 1;
+        let dft = |x: &[Complex64], f: usize| -> Complex64 {
+            x.iter()
+                .enumerate()
+                .map(|(n, &v)| {
+                    v * Complex64::from_polar(
+                        1.0,
+                        -2.0 * std::f64::consts::PI * (f * n % k) as f64 / k as f64,
+                    )
+                })
+                .sum()
+        };
+        let rhs: f64 = (0..k)
+            .map(|f| dft(&rx, f).norm_sqr() * dft(&tx, f).norm_sqr())
+            .sum::<f64>()
+            / k as f64;
+        assert!((lhs - rhs).abs() < 1e-9 * rhs, "{lhs} vs {rhs}");
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        let tx = noise(10, 4);
+        assert!(CrossCorrelator::new(&[], 10, 0..=1).is_err());
+        assert!(CrossCorrelator::new(&tx, 0, 0..=0).is_err());
+        assert!(CrossCorrelator::new(&tx, 20, 0..=20).is_err());
+        assert!(CrossCorrelator::new(&tx, 20, -10..=0).is_err());
+        #[allow(clippy::reversed_empty_ranges)]
+        let backwards = 5..=1;
+        assert!(CrossCorrelator::new(&tx, 20, backwards).is_err());
+        let mut c = CrossCorrelator::new(&tx, 20, 0..=5).unwrap();
+        assert!(c.correlate(&noise(21, 5)).is_err());
+        assert!(c.correlate_into(&noise(20, 5), &mut [ZERO; 5]).is_err());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        #[test]
+        fn fft_correlation_equals_direct(
+            nt in 1usize..80,
+            nr in 1usize..120,
+            a in 0.0f64..1.0,
+            b in 0.0f64..1.0,
+            short in 0usize..5,
+            seed in any::<u64>(),
+        ) {
+            let tx = noise(nt, seed);
+            let rx = noise(nr.saturating_sub(short).max(1), seed ^ 1);
+            let lo = -(nt as isize - 1);
+            let hi = nr as isize - 1;
+            let span = (hi - lo) as f64;
+            let (x, y) = (lo + (a * span) as isize, lo + (b * span) as isize);
+            let lags = x.min(y)..=x.max(y);
+            let mut c = CrossCorrelator::new(&tx, nr, lags.clone()).unwrap();
+            let got = c.correlate(&rx).unwrap();
+            let want = correlate_direct(&rx, &tx, lags);
+            prop_assert_eq!(got.len(), want.len());
+            let scale: f64 = (nt * nr) as f64;
+            for (g, w) in got.iter().zip(&want) {
+                prop_assert!((g - w).norm() < 1e-10 * scale.sqrt() * 10.0, "{} vs {}", g, w);
+            }
+            // Reuse: a second call gives the same answer.
+            let again = c.correlate(&rx).unwrap();
+            prop_assert_eq!(again, got);
+        }
+    }
+}
