@@ -1,1 +1,0 @@
-//! MUSIC super-resolution (spatial smoothing, forward-backward, MDL/AIC) and a grid-free estimator.

@@ -1,0 +1,419 @@
+//! Eigen-decomposition of a complex Hermitian matrix: all eigenvalues, and the eigenvectors of the
+//! largest few only (all MUSIC needs: the signal subspace, and every eigenvalue for MDL/AIC).
+//!
+//! Householder reduction to a tridiagonal matrix (complex off-diagonals made real by a diagonal
+//! unitary scaling), implicit QL with Wilkinson shifts for the eigenvalues, inverse iteration on the
+//! real tridiagonal for the wanted eigenvectors, and back-transformation. This is the LAPACK
+//! zhetrd/dsterf/dstein route; it does about a third of the work of a full decomposition
+//! (nalgebra's `SymmetricEigen`, which tests/dsp_music.rs uses as the reference), and works in
+//! preallocated storage.
+
+use crate::dsp::DspError;
+use num_complex::Complex64;
+
+/// Workspace for matrices of one size.
+#[derive(Debug, Clone)]
+pub struct HermitianEigen {
+    n: usize,
+    /// The matrix being reduced; afterwards column k below the diagonal holds reflector k.
+    a: Vec<Complex64>,
+    /// Householder vectors (unit norm), one per step, each of length n (zeros above its start).
+    reflectors: Vec<Complex64>,
+    diag: Vec<f64>,
+    off: Vec<f64>,
+    /// Phases of the diagonal scaling that makes the off-diagonal real.
+    phase: Vec<Complex64>,
+    p: Vec<Complex64>,
+    /// Eigenvalues, descending.
+    values: Vec<f64>,
+    /// Eigenvectors of the largest eigenvalues, column j at `vectors[j*n..(j+1)*n]`.
+    vectors: Vec<Complex64>,
+    work: Vec<f64>,
+    tri: TridiagonalSolver,
+    y: Vec<Vec<f64>>,
+}
+
+impl HermitianEigen {
+    pub fn new(n: usize) -> Self {
+        let z = Complex64::default();
+        Self {
+            n,
+            a: vec![z; n * n],
+            reflectors: vec![z; n * n],
+            diag: vec![0.0; n],
+            off: vec![0.0; n],
+            phase: vec![z; n],
+            p: vec![z; n],
+            values: vec![0.0; n],
+            vectors: Vec::with_capacity(n * n),
+            work: vec![0.0; n],
+            tri: TridiagonalSolver::new(n),
+            y: Vec::new(),
+        }
+    }
+
+    pub fn size(&self) -> usize {
+        self.n
+    }
+
+    /// Decomposes the Hermitian `matrix` (row-major n x n; both triangles are read, so it must be
+    /// Hermitian to rounding) and computes the eigenvectors of the `vectors` largest eigenvalues.
+    pub fn decompose(&mut self, matrix: &[Complex64], vectors: usize) -> Result<(), DspError> {
+        let n = self.n;
+        if matrix.len() != n * n || vectors > n {
+            return Err(DspError::Param(format!(
+                "Hermitian eigen-decomposition: got {} values and {vectors} wanted vectors for a \
+                 {n} x {n} matrix",
+                matrix.len()
+            )));
+        }
+        if matrix
+            .iter()
+            .any(|v| !v.re.is_finite() || !v.im.is_finite())
+        {
+            return Err(DspError::Processing(
+                "covariance matrix holds NaN or infinite values: check the input for NaN samples"
+                    .into(),
+            ));
+        }
+        self.a.copy_from_slice(matrix);
+        self.tridiagonalise();
+        self.values.copy_from_slice(&self.diag);
+        self.work.copy_from_slice(&self.off);
+        ql_implicit(&mut self.values, &mut self.work)?;
+        self.values.sort_by(|a, b| b.total_cmp(a));
+        self.eigenvectors(vectors);
+        Ok(())
+    }
+
+    /// All eigenvalues, descending.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// Eigenvector `j` (of the j-th largest eigenvalue), unit norm.
+    pub fn vector(&self, j: usize) -> &[Complex64] {
+        &self.vectors[j * self.n..(j + 1) * self.n]
+    }
+
+    /// Number of eigenvectors computed by the last [`HermitianEigen::decompose`].
+    pub fn vector_count(&self) -> usize {
+        self.vectors.len() / self.n.max(1)
+    }
+
+    fn tridiagonalise(&mut self) {
+        let n = self.n;
+        let z = Complex64::default();
+        self.reflectors.fill(z);
+        for k in 0..n.saturating_sub(2) {
+            // x = A[k+1.., k]
+            let norm2: f64 = (k + 1..n).map(|i| self.a[i * n + k].norm_sqr()).sum();
+            let x0 = self.a[(k + 1) * n + k];
+            let tail2 = norm2 - x0.norm_sqr();
+            let v = &mut self.reflectors[k * n..(k + 1) * n];
+            if tail2 <= f64::MIN_POSITIVE {
+                // Already tridiagonal in this column: identity reflector.
+                continue;
+            }
+            let norm = norm2.sqrt();
+            let unit = if x0.norm() > 0.0 {
+                x0 / x0.norm()
+            } else {
+                Complex64::new(1.0, 0.0)
+            };
+            let alpha = -unit * norm;
+            for (i, vi) in v.iter_mut().enumerate().skip(k + 1) {
+                *vi = self.a[i * n + k];
+            }
+            v[k + 1] -= alpha;
+            let vnorm = (k + 1..n).map(|i| v[i].norm_sqr()).sum::<f64>().sqrt();
+            for vi in &mut v[k + 1..n] {
+                *vi /= vnorm;
+            }
+            // p = A v on the trailing block, then w = 2 p - 2 (v^H p) v; A -= v w^H + w v^H.
+            let m0 = k + 1;
+            for i in m0..n {
+                let row = &self.a[i * n + m0..i * n + n];
+                let mut acc = z;
+                for (aij, vj) in row.iter().zip(&v[m0..n]) {
+                    acc += aij * vj;
+                }
+                self.p[i] = acc;
+            }
+            let mut vhp = z;
+            for (vi, pi) in v[m0..n].iter().zip(&self.p[m0..n]) {
+                vhp += vi.conj() * pi;
+            }
+            let vhp = vhp.re;
+            for (pi, vi) in self.p[m0..n].iter_mut().zip(&v[m0..n]) {
+                *pi = *pi * 2.0 - vi * (2.0 * vhp);
+            }
+            let w = &self.p;
+            for i in m0..n {
+                let (vi, wi) = (v[i], w[i]);
+                let row = &mut self.a[i * n + m0..i * n + n];
+                for ((aij, vj), wj) in row.iter_mut().zip(&v[m0..n]).zip(&w[m0..n]) {
+                    *aij -= vi * wj.conj() + wi * vj.conj();
+                }
+            }
+            // Column k (and row k) now hold alpha e1.
+            self.a[(k + 1) * n + k] = alpha;
+            self.a[k * n + k + 1] = alpha.conj();
+            for i in k + 2..n {
+                self.a[i * n + k] = z;
+                self.a[k * n + i] = z;
+            }
+        }
+        // Real tridiagonal T_r = D^H T D with d_0 = 1, d_{k+1} = d_k e_k / |e_k|.
+        self.phase[0] = Complex64::new(1.0, 0.0);
+        for k in 0..n {
+            self.diag[k] = self.a[k * n + k].re;
+        }
+        for k in 0..n.saturating_sub(1) {
+            let e = self.a[(k + 1) * n + k];
+            let mag = e.norm();
+            self.off[k] = mag;
+            self.phase[k + 1] = if mag > 0.0 {
+                self.phase[k] * e / mag
+            } else {
+                self.phase[k]
+            };
+        }
+        if n > 0 {
+            self.off[n - 1] = 0.0;
+        }
+    }
+
+    /// Inverse iteration on T_r for the `count` largest eigenvalues, then u = Q D y.
+    fn eigenvectors(&mut self, count: usize) {
+        let n = self.n;
+        self.vectors.clear();
+        if count == 0 {
+            return;
+        }
+        let scale = self
+            .values
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
+        self.y.resize_with(count, || vec![0.0; n]);
+        for j in 0..count {
+            let lambda = self.values[j];
+            // Start from a fixed vector with no symmetry, so it is not orthogonal to the answer.
+            let mut y = std::mem::take(&mut self.y[j]);
+            y.resize(n, 0.0);
+            for (i, yi) in y.iter_mut().enumerate() {
+                *yi = 1.0 + ((i * 7919) % 97) as f64 / 97.0;
+            }
+            self.tri.factor(&self.diag, &self.off, lambda, scale);
+            for _ in 0..3 {
+                self.tri.solve(&mut y);
+                // Orthogonalise against vectors of earlier eigenvalues in the same cluster.
+                for (prev, &value) in self.y[..j].iter().zip(&self.values) {
+                    if (value - lambda).abs() < 1e-6 * scale {
+                        let d: f64 = prev.iter().zip(&y).map(|(a, b)| a * b).sum();
+                        for (yi, pi) in y.iter_mut().zip(prev) {
+                            *yi -= d * pi;
+                        }
+                    }
+                }
+                let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+                for yi in &mut y {
+                    *yi /= norm;
+                }
+            }
+            self.y[j] = y;
+        }
+        // Back-transform: u = H_0 H_1 ... H_{n-3} D y.
+        for j in 0..count {
+            let start = self.vectors.len();
+            self.vectors
+                .extend(self.y[j].iter().zip(&self.phase).map(|(y, d)| d * y));
+            let u = &mut self.vectors[start..start + n];
+            for k in (0..n.saturating_sub(2)).rev() {
+                let v = &self.reflectors[k * n..(k + 1) * n];
+                let mut vhu = Complex64::default();
+                for i in k + 1..n {
+                    vhu += v[i].conj() * u[i];
+                }
+                if vhu == Complex64::default() {
+                    continue;
+                }
+                let f = vhu * 2.0;
+                for i in k + 1..n {
+                    u[i] -= v[i] * f;
+                }
+            }
+        }
+    }
+}
+
+/// Eigenvalues of the symmetric tridiagonal (diag `d`, off-diagonal `e[i]` between i and i+1,
+/// `e[n-1]` unused) by implicit QL with Wilkinson-type shifts (Numerical Recipes' tqli, without
+/// vectors). `d` is overwritten with the eigenvalues, unsorted.
+fn ql_implicit(d: &mut [f64], e: &mut [f64]) -> Result<(), DspError> {
+    let n = d.len();
+    if n == 0 {
+        return Ok(());
+    }
+    e[n - 1] = 0.0;
+    // Deflate when an off-diagonal is below rounding of the whole matrix (LAPACK's absolute
+    // criterion): a purely relative test never converges on clusters of near-zero eigenvalues,
+    // which a noise-free covariance has.
+    let norm = d
+        .iter()
+        .zip(e.iter())
+        .fold(0.0f64, |m, (a, b)| m.max(a.abs() + 2.0 * b.abs()));
+    for l in 0..n {
+        let mut iterations = 0;
+        loop {
+            let mut m = l;
+            while m + 1 < n {
+                let dd = d[m].abs() + d[m + 1].abs();
+                if e[m].abs() <= f64::EPSILON * (dd + norm) {
+                    break;
+                }
+                m += 1;
+            }
+            if m == l {
+                break;
+            }
+            iterations += 1;
+            if iterations > 60 {
+                return Err(DspError::Processing(
+                    "Hermitian eigen-decomposition did not converge in 60 QL iterations; the \
+                     covariance matrix is probably not Hermitian or holds extreme values"
+                        .into(),
+                ));
+            }
+            let mut g = (d[l + 1] - d[l]) / (2.0 * e[l]);
+            let mut r = g.hypot(1.0);
+            g = d[m] - d[l] + e[l] / (g + r.copysign(g));
+            let (mut s, mut c, mut p) = (1.0, 1.0, 0.0);
+            let mut i = m;
+            let mut underflow = false;
+            while i > l {
+                i -= 1;
+                let f = s * e[i];
+                let b = c * e[i];
+                r = f.hypot(g);
+                e[i + 1] = r;
+                if r == 0.0 {
+                    d[i + 1] -= p;
+                    e[m] = 0.0;
+                    underflow = true;
+                    break;
+                }
+                s = f / r;
+                c = g / r;
+                g = d[i + 1] - p;
+                r = (d[i] - g) * s + 2.0 * c * b;
+                p = s * r;
+                d[i + 1] = g + p;
+                g = c * r - b;
+            }
+            if underflow {
+                continue;
+            }
+            d[l] -= p;
+            e[l] = g;
+            e[m] = 0.0;
+        }
+    }
+    Ok(())
+}
+
+/// LU factorisation with partial pivoting of `T - lambda I` (T symmetric tridiagonal), for inverse
+/// iteration; zero pivots are replaced by a tiny multiple of the matrix scale (the standard trick:
+/// `lambda` is an eigenvalue, so the shifted matrix is singular to rounding).
+#[derive(Debug, Clone)]
+struct TridiagonalSolver {
+    /// U's diagonal and two super-diagonals.
+    u0: Vec<f64>,
+    u1: Vec<f64>,
+    u2: Vec<f64>,
+    /// L's multipliers and whether rows i and i+1 were swapped.
+    l: Vec<f64>,
+    swapped: Vec<bool>,
+}
+
+impl TridiagonalSolver {
+    fn new(n: usize) -> Self {
+        Self {
+            u0: vec![0.0; n],
+            u1: vec![0.0; n],
+            u2: vec![0.0; n],
+            l: vec![0.0; n],
+            swapped: vec![false; n],
+        }
+    }
+
+    fn factor(&mut self, d: &[f64], e: &[f64], lambda: f64, scale: f64) {
+        let n = d.len();
+        let tiny = f64::EPSILON * scale;
+        // Current row being eliminated: (a, b, c) at columns (i, i+1, i+2).
+        let mut a = d[0] - lambda;
+        let mut b = if n > 1 { e[0] } else { 0.0 };
+        let mut c = 0.0;
+        for i in 0..n {
+            if i + 1 == n {
+                self.u0[i] = if a.abs() < tiny { tiny } else { a };
+                self.u1[i] = 0.0;
+                self.u2[i] = 0.0;
+                self.swapped[i] = false;
+                break;
+            }
+            // Next row: (sub, diag, super) = (e[i], d[i+1]-lambda, e[i+1]).
+            let (na, nb, nc) = (
+                e[i],
+                d[i + 1] - lambda,
+                if i + 2 < n { e[i + 1] } else { 0.0 },
+            );
+            if na.abs() > a.abs() {
+                // Swap: pivot row is the next row.
+                self.swapped[i] = true;
+                self.u0[i] = na;
+                self.u1[i] = nb;
+                self.u2[i] = nc;
+                let m = a / na;
+                self.l[i] = m;
+                a = b - m * nb;
+                b = c - m * nc;
+                c = 0.0;
+            } else {
+                self.swapped[i] = false;
+                let piv = if a.abs() < tiny { tiny } else { a };
+                self.u0[i] = piv;
+                self.u1[i] = b;
+                self.u2[i] = c;
+                let m = na / piv;
+                self.l[i] = m;
+                a = nb - m * b;
+                b = nc - m * c;
+                c = 0.0;
+            }
+        }
+    }
+
+    fn solve(&self, y: &mut [f64]) {
+        let n = y.len();
+        // Forward: apply the row swaps and L.
+        for i in 0..n.saturating_sub(1) {
+            if self.swapped[i] {
+                y.swap(i, i + 1);
+            }
+            y[i + 1] -= self.l[i] * y[i];
+        }
+        // Back substitution with U (bandwidth 2).
+        for i in (0..n).rev() {
+            let mut s = y[i];
+            if i + 1 < n {
+                s -= self.u1[i] * y[i + 1];
+            }
+            if i + 2 < n {
+                s -= self.u2[i] * y[i + 2];
+            }
+            y[i] = s / self.u0[i];
+        }
+    }
+}
