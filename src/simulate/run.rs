@@ -3,7 +3,7 @@
 
 use super::noise::add_noise;
 use super::process::{
-    esprit_ranges, music_profile, signal_subspace, CircularDecimator, Correlator, Profile,
+    music_profile, root_music_ranges, CorrelationProfiler, PeriodicDecimator, Profile,
 };
 use super::scene::EchoSynth;
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
@@ -11,6 +11,7 @@ use super::SimError;
 use crate::dsp::metrics::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
+use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
 use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
 use crate::dsp::C0;
 use crate::rng::SplitMix64;
@@ -182,23 +183,28 @@ struct Analysis {
     profiles: Vec<Profile>,
     /// Grid-free range estimates (root-MUSIC / ESPRIT).
     ranges: Option<Vec<f64>>,
+    /// Peaks refined off the grid by the estimator itself (MUSIC), ascending.
+    refined_peaks_m: Vec<f64>,
 }
 
 struct Processor {
     kind: ProcessorKind,
 }
 
+// One processor exists per simulation, so the size difference between the variants costs nothing.
+#[allow(clippy::large_enum_variant)]
 enum ProcessorKind {
     Correlation {
-        correlator: Correlator,
-        lags: usize,
+        correlator: Box<CorrelationProfiler>,
     },
     Ofdm {
         radar: Box<OfdmRadar>,
         tx_symbols: Vec<Complex64>,
         idiv: IDiv,
         profile: RangeProfile,
-        n: usize,
+        /// MUSIC / root-MUSIC / ESPRIT estimator (absent for Fourier).
+        music: Option<Box<Music>>,
+        spectrum: MusicSpectrum,
         df_hz: f64,
     },
 }
@@ -213,8 +219,7 @@ impl Processor {
                     Transmit::Ofdm { .. } => window / 2,
                 };
                 ProcessorKind::Correlation {
-                    correlator: Correlator::new(tx.samples(), window, fs),
-                    lags,
+                    correlator: Box::new(CorrelationProfiler::new(tx.samples(), window, lags, fs)?),
                 }
             }
             (_, Transmit::Ofdm { ofdm, symbols, .. }) => {
@@ -228,8 +233,43 @@ impl Processor {
                     window: super::window::to_dsp(spec.window),
                     ..OfdmRadarConfig::default()
                 })?;
+                let music = match spec.algorithm {
+                    Algorithm::Music | Algorithm::RootMusic | Algorithm::Esprit => {
+                        let m = spec.music_m;
+                        let n = p.subcarriers;
+                        if m < 2 || m > n {
+                            return Err(SimError::Param {
+                                field: "--m",
+                                reason: format!(
+                                    "M = {m}; allowed: 2..={n} (at most the subcarriers)"
+                                ),
+                            });
+                        }
+                        if let Some(order) = spec.music_p {
+                            if order == 0 || order >= m {
+                                return Err(SimError::Param {
+                                    field: "--p",
+                                    reason: format!("p = {order}; allowed: 1..{m} (below M)"),
+                                });
+                            }
+                        }
+                        Some(Box::new(Music::new(MusicConfig {
+                            subcarriers: n,
+                            subarray: m,
+                            order: spec
+                                .music_p
+                                .map(ModelOrder::Fixed)
+                                .unwrap_or(ModelOrder::Estimated(OrderCriterion::Mdl)),
+                            forward_backward: spec.forward_backward,
+                            grid_points: MUSIC_GRID_FACTOR * n,
+                            bandwidth_hz: p.bandwidth_hz,
+                        })?))
+                    }
+                    _ => None,
+                };
                 ProcessorKind::Ofdm {
-                    n: ofdm.subcarriers(),
+                    music,
+                    spectrum: MusicSpectrum::default(),
                     df_hz: ofdm.subcarrier_spacing_hz(),
                     radar: Box::new(radar),
                     tx_symbols: symbols.as_slice().to_vec(),
@@ -249,16 +289,18 @@ impl Processor {
 
     fn analyse(&mut self, rx: &[Complex64], spec: &RunSpec) -> Result<Analysis, SimError> {
         match &mut self.kind {
-            ProcessorKind::Correlation { correlator, lags } => Ok(Analysis {
-                profiles: vec![correlator.profile(rx, *lags)],
+            ProcessorKind::Correlation { correlator } => Ok(Analysis {
+                profiles: vec![correlator.profile(rx)?],
                 ranges: None,
+                refined_peaks_m: vec![],
             }),
             ProcessorKind::Ofdm {
                 radar,
                 tx_symbols,
                 idiv,
                 profile,
-                n,
+                music,
+                spectrum,
                 df_hz,
             } => {
                 radar.process(rx, 0, tx_symbols, idiv, profile)?;
@@ -267,37 +309,40 @@ impl Processor {
                     axis: profile.axis(),
                     amplitude: profile.amplitude.clone(),
                 };
-                let idiv = idiv.as_slice();
-                match spec.algorithm {
-                    Algorithm::Fourier | Algorithm::Correlation => Ok(Analysis {
+                let Some(music) = music else {
+                    return Ok(Analysis {
                         profiles: vec![fourier],
                         ranges: None,
+                        refined_peaks_m: vec![],
+                    });
+                };
+                let idiv = idiv.as_slice();
+                match spec.algorithm {
+                    Algorithm::Esprit => Ok(Analysis {
+                        ranges: Some(music.esprit(idiv)?),
+                        profiles: vec![fourier],
+                        refined_peaks_m: vec![],
                     }),
-                    Algorithm::Music => {
-                        let sub = signal_subspace(
-                            idiv,
-                            *n,
-                            spec.music_m,
-                            spec.music_p,
-                            spec.forward_backward,
-                        )?;
-                        let grid = MUSIC_GRID_FACTOR * *n;
+                    Algorithm::RootMusic => {
+                        music.estimate(idiv, spectrum)?;
                         Ok(Analysis {
-                            profiles: vec![music_profile(&sub, grid, *df_hz), fourier],
-                            ranges: None,
+                            ranges: Some(root_music_ranges(music, spectrum.order, *df_hz)?),
+                            profiles: vec![fourier],
+                            refined_peaks_m: vec![],
                         })
                     }
-                    Algorithm::RootMusic | Algorithm::Esprit => {
-                        let sub = signal_subspace(
-                            idiv,
-                            *n,
+                    _ => {
+                        music.estimate(idiv, spectrum)?;
+                        let mp = music_profile(
+                            &spectrum.range_m,
+                            &spectrum.pseudo_spectrum,
                             spec.music_m,
-                            spec.music_p,
-                            spec.forward_backward,
-                        )?;
+                            spectrum.order,
+                        );
                         Ok(Analysis {
-                            ranges: Some(esprit_ranges(&sub, *df_hz)?),
-                            profiles: vec![fourier],
+                            profiles: vec![mp, fourier],
+                            ranges: None,
+                            refined_peaks_m: spectrum.peaks_m.clone(),
                         })
                     }
                 }
@@ -368,9 +413,24 @@ fn measure(analysis: &Analysis, spec: &RunSpec) -> TrialMetrics {
         }
         _ => (None, None),
     };
+    // Where the estimator refined its peaks off the grid (MUSIC), report those positions.
+    let snap = |x: f64| {
+        if !spec.interpolate {
+            return x;
+        }
+        analysis
+            .refined_peaks_m
+            .iter()
+            .copied()
+            .filter(|r| (r - x).abs() <= 2.0 * primary.axis.step)
+            .min_by(|a, b| (a - x).abs().total_cmp(&(b - x).abs()))
+            .unwrap_or(x)
+    };
+    let peaks_m: Vec<f64> = peaks_m.into_iter().map(snap).collect();
+    let per_target: Vec<Option<f64>> = resolution.peaks.iter().map(|p| p.map(snap)).collect();
     TrialMetrics {
         peaks_m,
-        errors_cm: errors(&resolution.peaks, &truth),
+        errors_cm: errors(&per_target, &truth),
         width_3db_cm: width,
         sidelobe_db: psl,
         resolved: resolution.resolved,
@@ -408,7 +468,14 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
         &spec.targets,
         spec.carrier.carrier_hz(spec.waveform.bandwidth_hz()),
     );
-    let decimator = (up > 1).then(|| CircularDecimator::new(up));
+    let mut decimator = match up {
+        1 => None,
+        _ => Some(PeriodicDecimator::new(
+            fs * up as f64,
+            up,
+            spec.waveform.bandwidth_hz() / 2.0,
+        )?),
+    };
     let mut processor = Processor::new(spec, &tx, window)?;
     let mut noise_rng = SplitMix64::new(spec.seed ^ NOISE_SALT);
 
@@ -418,7 +485,7 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
     for _ in 0..spec.trials {
         let mut rx = clean.clone();
         add_noise(&mut rx, spec.snr_db, &mut noise_rng);
-        let rx = match &decimator {
+        let rx = match &mut decimator {
             Some(d) => d.decimate(&rx),
             None => rx,
         };
