@@ -95,6 +95,8 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::catalog::CatalogError,
         crate::driver::DriverError,
         crate::driver::TrcError,
+        crate::storage::StorageError,
+        crate::simulate::SimError,
     );
     None
 }

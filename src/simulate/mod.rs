@@ -1,1 +1,54 @@
 //! Simulations: the thesis' chapter-4 scenarios and free-form runs, built on `waveform` and `dsp`.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
+//! | [`noise`] | complex white noise at a per-sample SNR |
+//! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
+//! | [`process`] | range processing for simulations (correlation, decimation, OFDM, MUSIC, ESPRIT) |
+//! | [`run`] | the engine: transmit, echoes, capture chain, noise, processing, metrics, trials |
+//! | [`accuracy`] | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
+//! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
+//! | [`ber`] | BER against Eb/N0 for both waveforms, next to theory |
+//! | [`report`] | plain-text reports |
+
+use crate::exit::{Classify, ExitClass};
+
+pub mod accuracy;
+pub mod ber;
+pub mod noise;
+pub mod process;
+pub mod report;
+pub mod run;
+pub mod scene;
+pub mod spec;
+pub mod thesis;
+pub mod window;
+
+/// Why a simulation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A simulation parameter is unusable; names the CLI field and what is allowed.
+    #[error("{field}: {reason}")]
+    Param { field: &'static str, reason: String },
+    /// The waveform layer refused its parameters.
+    #[error(transparent)]
+    Waveform(#[from] crate::waveform::ParamError),
+    /// The processing layer refused its parameters or the data.
+    #[error(transparent)]
+    Dsp(#[from] crate::dsp::DspError),
+    /// An output (plot, profile) could not be written.
+    #[error(transparent)]
+    Storage(#[from] crate::storage::StorageError),
+}
+
+impl Classify for SimError {
+    fn exit_class(&self) -> ExitClass {
+        match self {
+            SimError::Param { .. } => ExitClass::BadInput,
+            SimError::Waveform(e) => e.exit_class(),
+            SimError::Dsp(e) => e.exit_class(),
+            SimError::Storage(e) => e.exit_class(),
+        }
+    }
+}

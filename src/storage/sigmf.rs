@@ -10,8 +10,9 @@
 //! either the old file or the new one, never half of one.
 
 use serde_json::{json, Map, Value};
+use super::atomic::write_atomic;
+use super::StorageError;
 use sha2::{Digest, Sha512};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Version of the `radbench:` SigMF namespace written here.
@@ -49,16 +50,16 @@ pub fn write_ci16(
     i_words: &[i16],
     q_words: &[i16],
     meta: &SigmfMeta,
-) -> std::io::Result<SigmfFiles> {
+) -> Result<SigmfFiles, StorageError> {
     if i_words.len() != q_words.len() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            format!(
+        return Err(StorageError::BadData {
+            path: base.to_path_buf(),
+            reason: format!(
                 "I has {} samples and Q {}: a SigMF recording needs both of the same length",
                 i_words.len(),
                 q_words.len()
             ),
-        ));
+        });
     }
     let mut data = Vec::with_capacity(4 * i_words.len());
     for (i, q) in i_words.iter().zip(q_words) {
@@ -72,7 +73,10 @@ pub fn write_ci16(
     let sha512 = hex(&Sha512::digest(&data));
     write_atomic(&files.data, &data)?;
     let doc = meta_document(meta, "ci16_le", &sha512);
-    let mut text = serde_json::to_string_pretty(&doc).map_err(std::io::Error::other)?;
+    let mut text = serde_json::to_string_pretty(&doc).map_err(|e| StorageError::BadData {
+        path: files.meta.clone(),
+        reason: e.to_string(),
+    })?;
     text.push('\n');
     write_atomic(&files.meta, text.as_bytes())?;
     Ok(files)
@@ -125,22 +129,6 @@ fn with_suffix(base: &Path, suffix: &str) -> PathBuf {
     name.push(".");
     name.push(suffix);
     base.with_file_name(name)
-}
-
-/// Writes `bytes` to a temporary file beside `path`, syncs it, and renames it over `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut tmp_name = path
-        .file_name()
-        .map(|n| n.to_os_string())
-        .unwrap_or_default();
-    tmp_name.push(".partial");
-    let tmp = path.with_file_name(tmp_name);
-    {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-    }
-    std::fs::rename(&tmp, path)
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -218,7 +206,7 @@ mod tests {
         assert_eq!(doc["global"]["radbench:vertical_gain"][0], 1e-5);
         assert_eq!(doc["global"]["core:extensions"][0]["name"], "radbench");
         assert_eq!(doc["annotations"][0]["core:sample_count"], 5);
-        assert!(!dir.path().join("capture.001.sigmf-data.partial").exists());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary files left");
         assert!(write_ci16(&base, &[1], &[], &meta).is_err());
     }
 }

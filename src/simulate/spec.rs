@@ -1,0 +1,296 @@
+//! What one simulation asks for ([`RunSpec`]) and what it reports ([`ScenarioResult`], the JSON
+//! schema documented in docs/simulate-json.md).
+
+use super::scene::{CarrierPhase, Target};
+use super::SimError;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Which waveform, with its parameters (defaults: thesis Tables 4.1 and 4.2).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum WaveformSpec {
+    MskLfm {
+        sample_rate_hz: f64,
+        bandwidth_hz: f64,
+        pulse_s: f64,
+        bits_per_pulse: usize,
+    },
+    Ofdm {
+        bandwidth_hz: f64,
+        subcarriers: usize,
+        oversampling: usize,
+        cp_fraction: f64,
+        symbols: usize,
+    },
+}
+
+impl WaveformSpec {
+    /// Thesis Table 4.1: 16 GSa/s, 1 GHz, 10 us, 128 bits.
+    pub fn msk_lfm_default() -> Self {
+        WaveformSpec::MskLfm {
+            sample_rate_hz: 16e9,
+            bandwidth_hz: 1e9,
+            pulse_s: 10e-6,
+            bits_per_pulse: 128,
+        }
+    }
+
+    /// Thesis Table 4.2 as read in thesis-notes.md: 128 subcarriers, 1 GHz, x16, CP 1/4, 100 symbols.
+    pub fn ofdm_default() -> Self {
+        WaveformSpec::Ofdm {
+            bandwidth_hz: 1e9,
+            subcarriers: 128,
+            oversampling: 16,
+            cp_fraction: 0.25,
+            symbols: 100,
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            WaveformSpec::MskLfm { .. } => "msk-lfm",
+            WaveformSpec::Ofdm { .. } => "ofdm",
+        }
+    }
+
+    pub fn bandwidth_hz(&self) -> f64 {
+        match *self {
+            WaveformSpec::MskLfm { bandwidth_hz, .. } | WaveformSpec::Ofdm { bandwidth_hz, .. } => {
+                bandwidth_hz
+            }
+        }
+    }
+
+    /// The waveform's own sample rate (the AWG rate), Hz.
+    pub fn sample_rate_hz(&self) -> f64 {
+        match *self {
+            WaveformSpec::MskLfm { sample_rate_hz, .. } => sample_rate_hz,
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                oversampling,
+                ..
+            } => bandwidth_hz * oversampling as f64,
+        }
+    }
+}
+
+/// Range-processing algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar).
+    Correlation,
+    /// OFDM: spectral division and zero-padded IFFT over the subcarriers.
+    Fourier,
+    /// OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward).
+    Music,
+    /// OFDM: root-MUSIC, ranges from polynomial roots (no grid).
+    RootMusic,
+    /// OFDM: ESPRIT, ranges from the shift invariance (no grid).
+    Esprit,
+}
+
+impl Algorithm {
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Correlation => "correlation",
+            Algorithm::Fourier => "fourier",
+            Algorithm::Music => "music",
+            Algorithm::RootMusic => "root-music",
+            Algorithm::Esprit => "esprit",
+        }
+    }
+
+    /// The algorithms that return ranges without a profile.
+    pub fn is_grid_free(self) -> bool {
+        matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
+    }
+}
+
+/// Window on the subcarriers before the range IFFT (OFDM Fourier), trading side-lobes for width.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WindowName {
+    /// No window (rectangular): narrowest main lobe, -13.3 dB side-lobes.
+    Rect,
+    Hann,
+    /// Taylor, 4 nearly equal side-lobes at -35 dB.
+    Taylor,
+    /// Dolph-Chebyshev, equal side-lobes at -50 dB.
+    Chebyshev,
+}
+
+/// One simulation: waveform, scene, processing, randomness.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSpec {
+    pub id: String,
+    pub waveform: WaveformSpec,
+    pub targets: Vec<Target>,
+    /// Per-sample SNR at the capture rate for a unit-amplitude target; `None` = noise-free.
+    pub snr_db: Option<f64>,
+    pub algorithm: Algorithm,
+    /// MUSIC sub-vector (covariance) size M.
+    pub music_m: usize,
+    /// Number of targets for MUSIC/root-MUSIC/ESPRIT; `None` = estimate (MDL).
+    pub music_p: Option<usize>,
+    /// Forward-backward averaging for MUSIC (on by default; off = forward smoothing only).
+    pub forward_backward: bool,
+    /// OFDM Fourier zero-padding factor (IFFT length = factor x subcarriers).
+    pub zero_pad: usize,
+    pub window: WindowName,
+    pub carrier: CarrierPhase,
+    /// Capture rate; `None` = process at the waveform rate. A multiple of the waveform rate runs the
+    /// lab chain: echoes at the capture rate, noise there, then decimation to the waveform rate.
+    pub capture_rate_hz: Option<f64>,
+    /// Sub-sample peak interpolation (on by default).
+    pub interpolate: bool,
+    pub seed: u64,
+    pub trials: usize,
+}
+
+impl RunSpec {
+    /// Defaults of `radbench simulate run`: physical phase, seed 1, one trial, noise-free.
+    pub fn new(id: impl Into<String>, waveform: WaveformSpec, targets: Vec<Target>) -> Self {
+        let algorithm = match waveform {
+            WaveformSpec::MskLfm { .. } => Algorithm::Correlation,
+            WaveformSpec::Ofdm { .. } => Algorithm::Fourier,
+        };
+        Self {
+            id: id.into(),
+            waveform,
+            targets,
+            snr_db: None,
+            algorithm,
+            music_m: 64,
+            music_p: None,
+            forward_backward: true,
+            zero_pad: 10,
+            window: WindowName::Rect,
+            carrier: CarrierPhase::Physical,
+            capture_rate_hz: None,
+            interpolate: true,
+            seed: 1,
+            trials: 1,
+        }
+    }
+
+    /// Checks the combination of settings; the waveform and dsp layers check their own numbers.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |field: &'static str, reason: String| Err(SimError::Param { field, reason });
+        if self.targets.is_empty() {
+            return bad(
+                "--targets",
+                "give at least one target, e.g. --targets 3".into(),
+            );
+        }
+        if self.trials == 0 {
+            return bad("--trials", "must be at least 1".into());
+        }
+        if let Some(snr) = self.snr_db {
+            if !snr.is_finite() {
+                return bad("--snr-db", format!("{snr} is not a finite number of dB"));
+            }
+        }
+        if let WaveformSpec::MskLfm { .. } = self.waveform {
+            if self.algorithm != Algorithm::Correlation {
+                return bad(
+                    "--algorithm",
+                    format!(
+                        "{} needs OFDM symbols; the MSK-LFM radar uses 'correlation'",
+                        self.algorithm.name()
+                    ),
+                );
+            }
+        }
+        if self.zero_pad == 0 {
+            return bad(
+                "--zero-pad",
+                "must be at least 1 (1 = no zero-padding)".into(),
+            );
+        }
+        if let Some(rate) = self.capture_rate_hz {
+            let fs = self.waveform.sample_rate_hz();
+            let ratio = rate / fs;
+            if !(rate.is_finite() && ratio >= 1.0 && (ratio - ratio.round()).abs() < 1e-9) {
+                return bad(
+                    "--capture-rate",
+                    format!(
+                        "{rate} Sa/s must be a whole multiple of the waveform rate {fs} Sa/s (e.g. 80e9 for 16 GSa/s)"
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Capture-to-waveform rate ratio (1 when processing at the waveform rate).
+    pub fn upsample(&self) -> usize {
+        match self.capture_rate_hz {
+            Some(rate) => (rate / self.waveform.sample_rate_hz()).round() as usize,
+            None => 1,
+        }
+    }
+}
+
+/// One scenario's figures: the JSON schema of `radbench simulate --json` (docs/simulate-json.md).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScenarioResult {
+    pub id: String,
+    pub waveform: &'static str,
+    pub algorithm: &'static str,
+    pub carrier_phase: CarrierPhase,
+    pub snr_db: Option<f64>,
+    pub capture_rate_hz: f64,
+    pub seed: u64,
+    pub targets_m: Vec<f64>,
+    /// The strongest detected peaks (one per target at most), sorted by range (first trial).
+    pub peaks_m: Vec<f64>,
+    /// Per target: nearest detected peak minus true range, cm (`null` when nothing is near).
+    pub errors_cm: Vec<Option<f64>>,
+    /// Interpolated -3 dB width of the strongest peak (single target, profile algorithms).
+    pub width_3db_cm: Option<f64>,
+    /// Peak side-lobe level relative to the peak (single target, profile algorithms).
+    pub sidelobe_db: Option<f64>,
+    /// Every target found (resolved rule of thesis-notes.md) in the first trial.
+    pub resolved: bool,
+    /// Range-profile bin spacing in metres (`null` for grid-free estimators).
+    pub range_bin_m: Option<f64>,
+    pub trials: usize,
+    /// Fraction of trials that resolved every target (only with trials > 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resolved_rate: Option<f64>,
+    /// Peaks of every trial (only with trials > 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trial_peaks_m: Option<Vec<Vec<f64>>>,
+    /// Scenario-specific figures (thesis rows, BER, ...).
+    #[serde(flatten)]
+    pub extra: BTreeMap<String, serde_json::Value>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn msk_lfm_refuses_ofdm_algorithms_naming_the_field() {
+        let mut spec = RunSpec::new("x", WaveformSpec::msk_lfm_default(), vec![Target::at(3.0)]);
+        spec.algorithm = Algorithm::Music;
+        let err = spec.validate().unwrap_err().to_string();
+        assert!(err.starts_with("--algorithm"), "{err}");
+    }
+
+    #[test]
+    fn capture_rate_must_be_a_multiple() {
+        let mut spec = RunSpec::new("x", WaveformSpec::msk_lfm_default(), vec![Target::at(3.0)]);
+        spec.capture_rate_hz = Some(80e9);
+        spec.validate().unwrap();
+        assert_eq!(spec.upsample(), 5);
+        spec.capture_rate_hz = Some(50e9);
+        assert!(spec
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("--capture-rate"));
+    }
+}

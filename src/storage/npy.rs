@@ -1,0 +1,102 @@
+//! NumPy `.npy` (format version 1.0) encoding of little-endian float64 and complex128 arrays.
+//!
+//! Layout: magic `\x93NUMPY`, version 1.0, a little-endian u16 header length, an ASCII dict header
+//! padded with spaces and a newline so the data starts on a 64-byte boundary, then the data in C
+//! (row-major) order. `numpy.load` reads the result directly.
+
+use num_complex::Complex64;
+
+/// Encodes a float64 array of the given shape (row-major). Panics never: a shape whose product
+/// differs from `data.len()` is reported as `Err` with both numbers.
+pub fn encode_f64(shape: &[usize], data: &[f64]) -> Result<Vec<u8>, String> {
+    check_shape(shape, data.len())?;
+    let mut out = header("<f8", shape);
+    out.reserve(data.len() * 8);
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    Ok(out)
+}
+
+/// Encodes a complex128 array of the given shape (row-major), real part first.
+pub fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
+    check_shape(shape, data.len())?;
+    let mut out = header("<c16", shape);
+    out.reserve(data.len() * 16);
+    for v in data {
+        out.extend_from_slice(&v.re.to_le_bytes());
+        out.extend_from_slice(&v.im.to_le_bytes());
+    }
+    Ok(out)
+}
+
+fn check_shape(shape: &[usize], len: usize) -> Result<(), String> {
+    let product: usize = shape.iter().product();
+    if product != len {
+        return Err(format!(
+            "shape {shape:?} holds {product} values but {len} were given"
+        ));
+    }
+    Ok(())
+}
+
+fn header(descr: &str, shape: &[usize]) -> Vec<u8> {
+    let shape_text = match shape {
+        [n] => format!("({n},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    };
+    let mut dict =
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_text}, }}");
+    // magic (6) + version (2) + header length (2) + dict + '\n' must be a multiple of 64.
+    let unpadded = 10 + dict.len() + 1;
+    let pad = (64 - unpadded % 64) % 64;
+    dict.extend(std::iter::repeat_n(' ', pad));
+    dict.push('\n');
+    let mut out = Vec::with_capacity(10 + dict.len());
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(dict.len() as u16).to_le_bytes());
+    out.extend_from_slice(dict.as_bytes());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_is_aligned_and_data_follows() {
+        let bytes = encode_f64(&[2, 3], &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0]).unwrap();
+        assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+        let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + hlen) % 64, 0);
+        let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+        assert!(header.contains("'shape': (2, 3)"), "{header}");
+        assert!(header.ends_with('\n'));
+        assert_eq!(bytes.len(), 10 + hlen + 48);
+        let last = f64::from_le_bytes(bytes[bytes.len() - 8..].try_into().unwrap());
+        assert_eq!(last, 5.0);
+    }
+
+    #[test]
+    fn one_dimensional_shape_has_a_trailing_comma() {
+        let bytes = encode_c128(&[1], &[Complex64::new(1.5, -2.0)]).unwrap();
+        let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+        assert!(header.contains("'descr': '<c16'") && header.contains("(1,)"));
+        let re = f64::from_le_bytes(bytes[10 + hlen..18 + hlen].try_into().unwrap());
+        let im = f64::from_le_bytes(bytes[18 + hlen..26 + hlen].try_into().unwrap());
+        assert_eq!((re, im), (1.5, -2.0));
+    }
+
+    #[test]
+    fn wrong_shape_is_an_error() {
+        assert!(encode_f64(&[4], &[1.0]).is_err());
+    }
+}

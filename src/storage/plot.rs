@@ -1,0 +1,275 @@
+//! Range-profile plots in dB against range, like the thesis' figures: several curves overlaid
+//! (Fourier and MUSIC), the true target ranges as vertical lines, an optional -3 dB reference.
+//!
+//! The format follows the extension: `.svg` (text drawn by the viewer) or `.png` (text rendered).
+//! Both lay out text with the DejaVu Sans font embedded from `assets/`, so plots look the same on
+//! every machine and need no system fonts.
+
+use super::{atomic::write_atomic, profile::extension, StorageError};
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// The font embedded for PNG text (licence in assets/README.md).
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
+/// One curve: a label for the legend and the profile in dB (already normalised by the caller).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Curve {
+    pub label: String,
+    pub range_m: Vec<f64>,
+    pub db: Vec<f64>,
+}
+
+/// What one plot shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfilePlot {
+    pub title: String,
+    pub curves: Vec<Curve>,
+    /// True target ranges, drawn as dashed vertical lines.
+    pub targets_m: Vec<f64>,
+    /// Range window to show; `None` = around the targets (or the whole axis without targets).
+    pub window_m: Option<(f64, f64)>,
+    /// Lowest dB shown (values below are clipped to it).
+    pub floor_db: f64,
+    /// Draw a horizontal reference line at this level (the thesis' red dashed -3 dB line).
+    pub reference_db: Option<f64>,
+}
+
+const SIZE: (u32, u32) = (960, 540);
+const PALETTE: [RGBColor; 4] = [
+    RGBColor(0, 90, 181),
+    RGBColor(220, 50, 32),
+    RGBColor(0, 140, 70),
+    RGBColor(150, 80, 160),
+];
+
+/// Draws the plot to `path` (`.svg` or `.png`), atomically.
+pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
+    if plot.curves.iter().all(|c| c.range_m.is_empty()) {
+        return Err(StorageError::BadData {
+            path: path.to_path_buf(),
+            reason: "nothing to plot: every curve is empty".into(),
+        });
+    }
+    // Both backends measure text with the registered font (the SVG one to lay out labels).
+    register_font_once();
+    match extension(path).as_deref() {
+        Some("svg") => {
+            let mut svg = String::new();
+            {
+                let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+                render(root, plot).map_err(|reason| plot_error(path, reason))?;
+            }
+            write_atomic(path, svg.as_bytes())
+        }
+        Some("png") => {
+            // The bitmap backend encodes to a file itself: draw into a temporary PNG next to the
+            // destination and rename it, so the write stays atomic.
+            let tmp = temp_png(path);
+            let drawn = {
+                let root = BitMapBackend::new(&tmp, SIZE).into_drawing_area();
+                render(root, plot)
+            };
+            let result = drawn
+                .map_err(|reason| plot_error(path, reason))
+                .and_then(|()| {
+                    std::fs::rename(&tmp, path).map_err(|source| StorageError::Io {
+                        path: path.to_path_buf(),
+                        source,
+                    })
+                });
+            if result.is_err() {
+                let _ = std::fs::remove_file(&tmp);
+            }
+            result
+        }
+        _ => Err(StorageError::UnsupportedFormat {
+            path: path.to_path_buf(),
+            allowed: "plots are written as .svg or .png",
+        }),
+    }
+}
+
+fn plot_error(path: &Path, reason: String) -> StorageError {
+    StorageError::Plot {
+        path: path.to_path_buf(),
+        reason,
+    }
+}
+
+fn temp_png(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "plot.png".into());
+    path.with_file_name(format!(".{name}.tmp-{}.png", std::process::id()))
+}
+
+fn register_font_once() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The font is compiled in and known good; a failure would only mean PNGs without text.
+        if plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_err() {
+            tracing::warn!("the embedded DejaVu Sans font could not be registered");
+        }
+    });
+}
+
+/// The x window: the requested one, else 0.5 m around the targets, else the whole axis.
+fn x_window(plot: &ProfilePlot) -> (f64, f64) {
+    if let Some(w) = plot.window_m {
+        return w;
+    }
+    let (lo, hi) = plot
+        .targets_m
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
+            (lo.min(r), hi.max(r))
+        });
+    if lo.is_finite() {
+        return ((lo - 0.5).max(0.0), hi + 0.5);
+    }
+    let all = plot.curves.iter().flat_map(|c| c.range_m.iter().copied());
+    let (lo, hi) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+        (lo.min(r), hi.max(r))
+    });
+    (lo, hi)
+}
+
+fn render<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    plot: &ProfilePlot,
+) -> Result<(), String> {
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let (x0, x1) = x_window(plot);
+    let (x0, x1) = if x1 > x0 {
+        (x0, x1)
+    } else {
+        (x0 - 0.5, x0 + 0.5)
+    };
+    let y0 = plot.floor_db;
+    let y1 = 3.0;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(&plot.title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("Range (m)")
+        .y_desc("Normalised magnitude (dB)")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    for (i, curve) in plot.curves.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let points: Vec<(f64, f64)> = curve
+            .range_m
+            .iter()
+            .zip(&curve.db)
+            .filter(|(r, _)| **r >= x0 && **r <= x1)
+            .map(|(&r, &d)| (r, if d.is_finite() { d.max(y0) } else { y0 }))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points, color.stroke_width(2)))
+            .map_err(e)?
+            .label(curve.label.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    if let Some(level) = plot.reference_db {
+        let style = RED.stroke_width(1);
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x0, level), (x1, level)],
+                6,
+                4,
+                style,
+            ))
+            .map_err(e)?
+            .label(format!("{level} dB"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    let target_style = BLACK.mix(0.6).stroke_width(1);
+    for (i, &r) in plot.targets_m.iter().enumerate() {
+        let series = chart
+            .draw_series(DashedLineSeries::new(
+                vec![(r, y0), (r, y1)],
+                4,
+                4,
+                target_style,
+            ))
+            .map_err(e)?;
+        if i == 0 {
+            series
+                .label("true range")
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], target_style));
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plot() -> ProfilePlot {
+        let range_m: Vec<f64> = (0..400).map(|i| i as f64 * 0.015).collect();
+        let db = range_m
+            .iter()
+            .map(|r| -40.0 * (r - 3.0_f64).abs().min(1.0))
+            .collect();
+        ProfilePlot {
+            title: "one target at 3 m".into(),
+            curves: vec![Curve {
+                label: "Fourier".into(),
+                range_m,
+                db,
+            }],
+            targets_m: vec![3.0],
+            window_m: None,
+            floor_db: -50.0,
+            reference_db: Some(-3.0),
+        }
+    }
+
+    #[test]
+    fn svg_contains_the_title_and_legend() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.svg");
+        draw(&path, &plot()).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("one target at 3 m"));
+        assert!(svg.contains("Fourier") && svg.contains("true range"));
+    }
+
+    #[test]
+    fn png_is_written_with_its_signature() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.png");
+        draw(&path, &plot()).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn other_extensions_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = draw(&dir.path().join("p.jpg"), &plot()).unwrap_err();
+        assert!(matches!(err, StorageError::UnsupportedFormat { .. }));
+    }
+}

@@ -1,0 +1,276 @@
+//! `radbench simulate` and `radbench bench` as a user runs them: JSON shape, exit codes, files.
+
+use std::process::{Command, Output};
+
+fn radbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_radbench"))
+        .args(args)
+        .output()
+        .expect("radbench runs")
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+const SCENARIO_KEYS: [&str; 8] = [
+    "id",
+    "waveform",
+    "algorithm",
+    "targets_m",
+    "peaks_m",
+    "width_3db_cm",
+    "sidelobe_db",
+    "resolved",
+];
+
+#[test]
+fn thesis_json_parses_and_every_expected_row_agrees() {
+    let doc = json_of(&radbench(&["simulate", "thesis", "--json"]));
+    let rows = doc["scenarios"].as_array().expect("scenarios array");
+    assert!(rows.len() >= 15, "{} rows", rows.len());
+    for row in rows {
+        for key in SCENARIO_KEYS {
+            assert!(row.get(key).is_some(), "row {} lacks {key}", row["id"]);
+        }
+        let agrees = row["agrees"].as_bool().unwrap();
+        if row["expected_to_agree"].as_bool().unwrap() {
+            assert!(agrees, "row {} should agree: {row}", row["id"]);
+        } else if !agrees {
+            assert!(
+                row["reason"].as_str().is_some_and(|r| !r.is_empty()),
+                "{row}"
+            );
+        }
+    }
+    let sections: Vec<&str> = rows
+        .iter()
+        .map(|r| r["section"].as_str().unwrap())
+        .collect();
+    for s in [
+        "4.1.1", "4.1.2", "4.1.3", "4.2.1", "4.2.2", "4.2.3", "T4.3", "4.2.5", "4.4.2", "T4.8",
+    ] {
+        assert!(sections.contains(&s), "section {s} missing");
+    }
+    // Two-target rows come under both conventions.
+    let phases: Vec<&str> = rows
+        .iter()
+        .filter(|r| r["section"] == "4.1.3")
+        .map(|r| r["carrier_phase"].as_str().unwrap())
+        .collect();
+    assert!(phases.contains(&"physical") && phases.contains(&"thesis"));
+}
+
+#[test]
+fn run_json_has_the_documented_keys() {
+    let doc = json_of(&radbench(&[
+        "simulate",
+        "run",
+        "--waveform",
+        "ofdm",
+        "--targets",
+        "1,1.06",
+        "--algorithm",
+        "music",
+        "--m",
+        "64",
+        "--p",
+        "2",
+        "--json",
+    ]));
+    let s = &doc["scenarios"][0];
+    for key in SCENARIO_KEYS {
+        assert!(s.get(key).is_some(), "missing {key}: {s}");
+    }
+    assert_eq!(s["waveform"], "ofdm");
+    assert_eq!(s["algorithm"], "music");
+    assert_eq!(s["carrier_phase"], "physical");
+    assert_eq!(s["resolved"], true);
+    assert!(s.get("resolved_rate").is_none(), "single trial: no rate");
+}
+
+#[test]
+fn run_with_trials_reports_rate_and_per_trial_peaks() {
+    let doc = json_of(&radbench(&[
+        "simulate",
+        "run",
+        "--waveform",
+        "msk-lfm",
+        "--targets",
+        "2",
+        "--snr-db",
+        "-10",
+        "--trials",
+        "3",
+        "--json",
+    ]));
+    let s = &doc["scenarios"][0];
+    assert!(s["resolved_rate"].is_number());
+    assert_eq!(s["trial_peaks_m"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn run_writes_plots_and_profiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("p.svg");
+    let png = dir.path().join("p.png");
+    let csv = dir.path().join("p.csv");
+    let npy = dir.path().join("p.npy");
+    for (plot, profile) in [(&svg, &csv), (&png, &npy)] {
+        let out = radbench(&[
+            "simulate",
+            "run",
+            "--waveform",
+            "ofdm",
+            "--targets",
+            "1,1.1",
+            "--algorithm",
+            "music",
+            "--p",
+            "2",
+            "--plot",
+            plot.to_str().unwrap(),
+            "--profile-out",
+            profile.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let svg_text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        svg_text.contains("MUSIC") && svg_text.contains("Fourier"),
+        "both overlaid"
+    );
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let csv_text = std::fs::read_to_string(&csv).unwrap();
+    assert!(csv_text.starts_with("range_m,"), "{}", &csv_text[..40]);
+    assert_eq!(&std::fs::read(&npy).unwrap()[..6], b"\x93NUMPY");
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_field() {
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "msk-lfm",
+                "--targets",
+                "3:-1",
+            ],
+            "--targets",
+        ),
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "msk-lfm",
+                "--targets",
+                "abc",
+            ],
+            "--targets",
+        ),
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "msk-lfm",
+                "--targets",
+                "3",
+                "--algorithm",
+                "music",
+            ],
+            "--algorithm",
+        ),
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "ofdm",
+                "--targets",
+                "3",
+                "--capture-rate",
+                "50e9",
+            ],
+            "--capture-rate",
+        ),
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "ofdm",
+                "--targets",
+                "3",
+                "--algorithm",
+                "music",
+                "--m",
+                "200",
+            ],
+            "--m",
+        ),
+        (
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "ofdm",
+                "--targets",
+                "3",
+                "--algorithm",
+                "music",
+                "--m",
+                "16",
+                "--p",
+                "16",
+            ],
+            "--p",
+        ),
+        (
+            &["simulate", "run", "--waveform", "sonar", "--targets", "3"],
+            "--waveform",
+        ),
+    ];
+    for (args, field) in cases {
+        let out = radbench(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(field),
+            "{args:?} should name {field}: {stderr}"
+        );
+    }
+}
+
+#[test]
+fn waveform_parameter_errors_exit_2() {
+    let out = radbench(&[
+        "simulate",
+        "run",
+        "--waveform",
+        "ofdm",
+        "--targets",
+        "3",
+        "--cp-fraction",
+        "1.5",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
