@@ -97,6 +97,8 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::driver::TrcError,
         crate::storage::StorageError,
         crate::simulate::SimError,
+        crate::measure::MeasureError,
+        crate::measure::bench_file::BenchFileError,
     );
     None
 }

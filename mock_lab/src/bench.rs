@@ -14,6 +14,7 @@ use crate::emulator::lecroy::Lecroy;
 use crate::emulator::m8195a::M8195a;
 use crate::emulator::m8195a::{ChannelPlayback, Playback};
 use crate::scene::{AwgPlayback, FrontEnds, Scene, Synthesizer};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -24,6 +25,8 @@ pub struct Bench {
     pub tx: Arc<Gotmic>,
     pub rx: Arc<Gotmic>,
     pub scene: Arc<SharedScene>,
+    /// Whether the marker cable reaches the scope's external trigger input (tests unplug it).
+    pub marker_cable: Arc<AtomicBool>,
 }
 
 impl Bench {
@@ -34,7 +37,9 @@ impl Bench {
         let awg = Arc::new(M8195a::embedded()?);
         let tx = Arc::new(Gotmic::tx_embedded()?);
         let rx = Arc::new(Gotmic::rx_embedded()?);
+        let marker_cable = Arc::new(AtomicBool::new(true));
         let source = Arc::new(BenchSource {
+            marker_cable: marker_cable.clone(),
             awg: awg.clone(),
             tx: tx.clone(),
             rx: rx.clone(),
@@ -48,6 +53,7 @@ impl Bench {
             tx,
             rx,
             scene,
+            marker_cable,
         })
     }
 
@@ -61,6 +67,7 @@ impl Bench {
 
 /// The scope's inputs on the bench.
 pub struct BenchSource {
+    marker_cable: Arc<AtomicBool>,
     awg: Arc<M8195a>,
     tx: Arc<Gotmic>,
     rx: Arc<Gotmic>,
@@ -164,7 +171,7 @@ impl TriggerSource for BenchSource {
     fn acquire(&self, request: &AcquisitionRequest, deadline: Instant) -> Option<Capture> {
         loop {
             let pb = self.awg.playback();
-            if Self::marker_triggers(&pb, request) {
+            if self.marker_cable.load(Ordering::Relaxed) && Self::marker_triggers(&pb, request) {
                 return Some(self.synthesise(&pb, request));
             }
             let now = Instant::now();

@@ -4,6 +4,8 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 pub mod bench;
+pub mod calibrate;
+pub mod capture;
 pub mod idn;
 pub mod mock_lab;
 pub mod scpi;
@@ -31,6 +33,10 @@ pub enum Command {
     Bench(bench::Args),
     /// Ask an instrument who it is (`*IDN?`).
     Idn(idn::Args),
+    /// One measurement: waveform out, marker-triggered capture, range profile, targets, payload.
+    Capture(capture::Args),
+    /// Measure the bench's fixed system delay on a reference target and store it.
+    Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
     #[command(name = "mock-lab")]
     MockLab(mock_lab::Args),
@@ -52,6 +58,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args, &global),
         Command::Bench(args) => bench::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
+        Command::Capture(args) => capture::run(args, &global),
+        Command::Calibrate(args) => calibrate::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
     }

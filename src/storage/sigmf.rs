@@ -9,9 +9,9 @@
 //! Both files are written atomically (temporary file, then rename): an interrupted write leaves
 //! either the old file or the new one, never half of one.
 
-use serde_json::{json, Map, Value};
 use super::atomic::write_atomic;
 use super::StorageError;
+use serde_json::{json, Map, Value};
 use sha2::{Digest, Sha512};
 use std::path::{Path, PathBuf};
 
@@ -206,7 +206,11 @@ mod tests {
         assert_eq!(doc["global"]["radbench:vertical_gain"][0], 1e-5);
         assert_eq!(doc["global"]["core:extensions"][0]["name"], "radbench");
         assert_eq!(doc["annotations"][0]["core:sample_count"], 5);
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary files left");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            2,
+            "no temporary files left"
+        );
         assert!(write_ci16(&base, &[1], &[], &meta).is_err());
     }
 }

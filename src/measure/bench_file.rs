@@ -1,0 +1,263 @@
+//! The bench file: which instrument is where, and the bench's calibration.
+//!
+//! ```toml
+//! [awg]
+//! model = "keysight-m8195a"                       # a key of the instrument catalog
+//! resource = "TCPIP::192.168.1.20::hislip0::INSTR"
+//!
+//! [scope]
+//! model = "lecroy-labmaster10zi-a"
+//! resource = "VICP::192.168.1.30"
+//! volts_per_div = 0.05                            # optional, both channels
+//!
+//! [tx]                                            # optional: a Tx radbench does not control
+//! model = "gotmic-eband-tx"                       # must be switched on by hand
+//! resource = "ASRL/dev/ttyUSB0::INSTR"
+//! attenuation_db = 10.0                           # optional, once enabled
+//!
+//! [rx]                                            # optional, like [tx]
+//! model = "gotmic-eband-rx"
+//! resource = "ASRL/dev/ttyUSB1::INSTR"
+//!
+//! [simulation]                                    # only for a mock_lab bench
+//! control = "127.0.0.1:40001"                     # its scene control channel
+//!
+//! [calibration]                                   # written by `radbench calibrate`
+//! system_delay_s = 2.5e-9
+//! reference_range_m = 1.0
+//! measured_at = "2026-11-21T20:00:00.000Z"
+//! ```
+
+use crate::address::Resource;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// One instrument of the bench.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentEntry {
+    /// Catalog key (`radbench` embeds `instruments/*.toml`).
+    pub model: String,
+    /// VISA-style resource string.
+    pub resource: String,
+    /// Scope only: vertical scale of I and Q, volts per division.
+    #[serde(default)]
+    pub volts_per_div: Option<f64>,
+    /// Front ends only: attenuation once enabled, dB.
+    #[serde(default)]
+    pub attenuation_db: Option<f64>,
+}
+
+/// A simulated bench's extras.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Simulation {
+    /// `host:port` of mock_lab's scene control channel.
+    pub control: String,
+}
+
+/// What `radbench calibrate` measured.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// Fixed delay of cables, horns and marker latency, subtracted from every echo delay.
+    pub system_delay_s: f64,
+    /// The reference target's range used to measure it, metres.
+    #[serde(default)]
+    pub reference_range_m: Option<f64>,
+    /// When it was measured (RFC 3339 UTC).
+    #[serde(default)]
+    pub measured_at: Option<String>,
+}
+
+/// The whole bench file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchFile {
+    pub awg: InstrumentEntry,
+    pub scope: InstrumentEntry,
+    #[serde(default)]
+    pub tx: Option<InstrumentEntry>,
+    #[serde(default)]
+    pub rx: Option<InstrumentEntry>,
+    #[serde(default)]
+    pub simulation: Option<Simulation>,
+    #[serde(default)]
+    pub calibration: Option<Calibration>,
+}
+
+/// A bench file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchFileError {
+    #[error("cannot read bench file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("bench file {path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("cannot write the calibration to {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: crate::storage::StorageError,
+    },
+}
+
+impl crate::exit::Classify for BenchFileError {
+    fn exit_class(&self) -> crate::exit::ExitClass {
+        match self {
+            BenchFileError::Write { .. } => crate::exit::ExitClass::Processing,
+            _ => crate::exit::ExitClass::BadInput,
+        }
+    }
+}
+
+impl BenchFile {
+    /// Reads and checks a bench file; errors name the file, the line and the field.
+    pub fn load(path: &Path) -> Result<BenchFile, BenchFileError> {
+        let text = std::fs::read_to_string(path).map_err(|source| BenchFileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses bench-file text; `path` names it in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<BenchFile, BenchFileError> {
+        let invalid = |message: String| BenchFileError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        let bench: BenchFile = toml::from_str(text).map_err(|e| invalid(e.to_string()))?;
+        for (section, entry) in [
+            ("awg", Some(&bench.awg)),
+            ("scope", Some(&bench.scope)),
+            ("tx", bench.tx.as_ref()),
+            ("rx", bench.rx.as_ref()),
+        ] {
+            let Some(entry) = entry else { continue };
+            entry.resource.parse::<Resource>().map_err(|e| {
+                invalid(format!("[{section}] resource = {:?}: {e}", entry.resource))
+            })?;
+            if let Some(v) = entry.volts_per_div {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(invalid(format!(
+                        "[{section}] volts_per_div = {v}: must be a positive number of volts"
+                    )));
+                }
+            }
+            if let Some(a) = entry.attenuation_db {
+                if !(a.is_finite() && a >= 0.0) {
+                    return Err(invalid(format!(
+                        "[{section}] attenuation_db = {a}: must be 0 dB or more"
+                    )));
+                }
+            }
+        }
+        if let Some(c) = &bench.calibration {
+            if !(c.system_delay_s.is_finite() && c.system_delay_s.abs() < 1e-6) {
+                return Err(invalid(format!(
+                    "[calibration] system_delay_s = {}: must be a finite delay under 1 us",
+                    c.system_delay_s
+                )));
+            }
+        }
+        Ok(bench)
+    }
+
+    /// The stored system delay, or 0 when the bench was never calibrated.
+    pub fn system_delay_s(&self) -> f64 {
+        self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
+    }
+}
+
+/// Writes `calibration` into the bench file at `path`, replacing any `[calibration]` section and
+/// keeping every other line (comments included) as it was. The write is atomic.
+pub fn store_calibration(path: &Path, calibration: &Calibration) -> Result<(), BenchFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| BenchFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut kept = Vec::new();
+    let mut in_calibration = false;
+    for line in text.lines() {
+        let trimmed = line.trim_start();
+        if trimmed.starts_with('[') {
+            in_calibration = trimmed.starts_with("[calibration]");
+        }
+        if !in_calibration {
+            kept.push(line);
+        }
+    }
+    while kept.last().is_some_and(|l| l.trim().is_empty()) {
+        kept.pop();
+    }
+    let mut out = kept.join("\n");
+    let section = toml::to_string(calibration).map_err(|e| BenchFileError::Invalid {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    out.push_str("\n\n# Written by `radbench calibrate`.\n[calibration]\n");
+    out.push_str(&section);
+    crate::storage::atomic::write_atomic(path, out.as_bytes()).map_err(|source| {
+        BenchFileError::Write {
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
+    // The result must still parse: never leave a broken bench file behind.
+    BenchFile::load(path).map(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+# my bench
+[awg]
+model = "keysight-m8195a"
+resource = "TCPIP::127.0.0.1::hislip0,4880::INSTR"
+
+[scope]
+model = "lecroy-labmaster10zi-a"
+resource = "VICP::127.0.0.1"
+
+[calibration]
+system_delay_s = 1e-9
+"#;
+
+    #[test]
+    fn parses_and_rejects_with_the_field_named() {
+        let b = BenchFile::parse(GOOD, Path::new("b.toml")).unwrap();
+        assert_eq!(b.system_delay_s(), 1e-9);
+        assert!(b.tx.is_none());
+        let bad = GOOD.replace("VICP::127.0.0.1", "VICP:127.0.0.1");
+        let e = BenchFile::parse(&bad, Path::new("b.toml")).unwrap_err();
+        assert!(e.to_string().contains("[scope] resource"), "{e}");
+        let bad = GOOD.replace("model = \"keysight-m8195a\"", "modle = 1");
+        let e = BenchFile::parse(&bad, Path::new("b.toml")).unwrap_err();
+        assert!(
+            e.to_string().contains("modle") && e.to_string().contains("b.toml"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn calibration_replaces_the_section_and_keeps_comments() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bench.toml");
+        std::fs::write(&path, GOOD).unwrap();
+        let cal = Calibration {
+            system_delay_s: 2.5e-9,
+            reference_range_m: Some(1.0),
+            measured_at: Some("2026-11-21T20:00:00.000Z".into()),
+        };
+        store_calibration(&path, &cal).unwrap();
+        store_calibration(&path, &cal).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("# my bench"));
+        assert_eq!(text.matches("[calibration]").count(), 1, "{text}");
+        assert_eq!(BenchFile::load(&path).unwrap().calibration, Some(cal));
+    }
+}
