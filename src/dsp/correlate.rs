@@ -183,7 +183,7 @@ impl CrossCorrelator {
                     if cost < best.0 {
                         best = (cost, k, k - window + 1);
                     }
-                    k = fast_fft_len(k + k / 4);
+                    k = fast_fft_len(k + k / 4 + 1);
                 }
                 (best.1, best.2)
             }
@@ -419,6 +419,19 @@ mod tests {
         assert!(c.fft_len() < 65_536, "{c:?}");
         let c = CrossCorrelator::full(&tx, 160_000).unwrap();
         assert_eq!((c.blocks(), c.fft_len()), (1, 320_000));
+    }
+
+    #[test]
+    fn single_lag_windows_plan_and_agree() {
+        // A one-lag window once made the Auto search loop forever (k + k/4 == k for k < 4).
+        let tx = noise(300, 10);
+        let rx = noise(500, 11);
+        for lag in [-299, 0, 5, 499] {
+            let mut c = CrossCorrelator::new(&tx, rx.len(), lag..=lag).unwrap();
+            let got = c.correlate(&rx).unwrap();
+            let want = correlate_direct(&rx, &tx, lag..=lag);
+            assert!((got[0] - want[0]).norm() < 1e-9, "lag {lag}");
+        }
     }
 
     #[test]
