@@ -35,6 +35,8 @@ pub struct HermitianEigen {
     /// Eigenvectors of the largest eigenvalues, column j at `vectors[j*n..(j+1)*n]`.
     vectors: Vec<Complex64>,
     work: Vec<f64>,
+    /// The scale applied to the last matrix (1 / its largest entry).
+    unit: f64,
     tri: TridiagonalSolver,
     y: Vec<Vec<f64>>,
 }
@@ -58,6 +60,7 @@ impl HermitianEigen {
             values: vec![0.0; n],
             vectors: Vec::with_capacity(n * n),
             work: vec![0.0; n],
+            unit: 1.0,
             tri: TridiagonalSolver::new(n),
             y: Vec::new(),
         }
@@ -106,7 +109,22 @@ impl HermitianEigen {
         for v in &mut self.values {
             *v /= unit;
         }
+        self.unit = unit;
         Ok(())
+    }
+
+    /// Recomputes the eigenvectors of the `count` largest eigenvalues of the matrix of the last
+    /// [`HermitianEigen::decompose`] without reducing it again (for when the order is only known
+    /// after looking at the eigenvalues).
+    pub fn compute_vectors(&mut self, count: usize) {
+        let count = count.min(self.n);
+        for v in &mut self.values {
+            *v *= self.unit;
+        }
+        self.eigenvectors(count);
+        for v in &mut self.values {
+            *v /= self.unit;
+        }
     }
 
     /// All eigenvalues, descending.

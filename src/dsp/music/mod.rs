@@ -237,7 +237,7 @@ impl Music {
                     criterion,
                 );
                 let p = k.clamp(1, m - 1);
-                self.eigen.decompose(&self.covariance, p)?;
+                self.eigen.compute_vectors(p);
                 Ok((p, Some(k)))
             }
         }
