@@ -324,7 +324,20 @@ impl Music {
 
     /// LS-ESPRIT ranges (ascending, metres) from the same covariance and order: grid-free.
     pub fn esprit(&mut self, idiv: &[Complex64]) -> Result<Vec<f64>, DspError> {
-        let (p, _) = self.subspace(idiv)?;
+        self.subspace(idiv)?;
+        self.esprit_of_last()
+    }
+
+    /// LS-ESPRIT on the signal subspace of the last [`Music::estimate`] or [`Music::esprit`]
+    /// call, without building and decomposing the covariance again.
+    pub fn esprit_of_last(&self) -> Result<Vec<f64>, DspError> {
+        let p = self.eigen.vector_count();
+        if p == 0 {
+            return Err(DspError::Processing(
+                "ESPRIT: no signal subspace yet; call Music::estimate or Music::esprit first"
+                    .into(),
+            ));
+        }
         let eigen = &self.eigen;
         esprit::esprit_ranges(
             |j| eigen.vector(j),
