@@ -244,7 +244,8 @@ fn esprit_agrees_with_music() {
     let mut music = music_with(64, true, ModelOrder::Fixed(2));
     let mut spec = MusicSpectrum::default();
     music.estimate(idiv.as_slice(), &mut spec).unwrap();
-    let esprit = music.esprit(idiv.as_slice()).unwrap();
+    let esprit = music.esprit_of_last().unwrap();
+    assert_eq!(esprit, music.esprit(idiv.as_slice()).unwrap());
     for ((e, m), t) in esprit.iter().zip(&spec.peaks_m).zip(truth) {
         assert!(
             (e - m).abs() < 0.002,
@@ -279,6 +280,7 @@ fn parameters_are_validated_with_clear_messages() {
     })
     .contains("grid_points"));
     let mut music = Music::new(MusicConfig::default()).unwrap();
+    assert!(music.esprit_of_last().is_err());
     let e = music
         .estimate(&[Complex64::default(); 100], &mut MusicSpectrum::default())
         .unwrap_err();

@@ -293,6 +293,10 @@ fn bad_input_is_a_parameter_error_not_a_panic() {
     let err = radar.divide(&rx, 0, &tx, &mut IDiv::new()).unwrap_err();
     assert!(err.to_string().contains("need 5120"), "{err}");
     let err = radar
+        .divide(&rx, usize::MAX - 10, &tx, &mut IDiv::new())
+        .unwrap_err();
+    assert!(err.to_string().contains("lower the start offset"), "{err}");
+    let err = radar
         .divide(&rx, 0, &tx[..100], &mut IDiv::new())
         .unwrap_err();
     assert!(err.to_string().contains("whole"), "{err}");

@@ -23,6 +23,7 @@ pub struct CaCfar {
     guard: usize,
     training: usize,
     pfa: f64,
+    oversampling: usize,
     prefix: Vec<f64>,
 }
 
@@ -45,13 +46,28 @@ impl CaCfar {
             guard,
             training,
             pfa,
+            oversampling: 1,
             prefix: Vec::new(),
         })
     }
 
-    /// The threshold multiplier for `n` training cells.
+    /// Declares the profile oversampled `factor` times (the zero-padding factor of an OFDM
+    /// profile): `factor` neighbouring cells count as one independent noise sample.
+    pub fn with_oversampling(mut self, factor: usize) -> Result<Self, DspError> {
+        if factor == 0 {
+            return Err(DspError::Param(
+                "CFAR: oversampling = 0; allowed: 1 (independent cells) or the profile's                  zero-padding factor"
+                    .into(),
+            ));
+        }
+        self.oversampling = factor;
+        Ok(self)
+    }
+
+    /// The threshold multiplier for `n` training cells (counting `n / oversampling` independent
+    /// samples, at least one).
     pub fn alpha(&self, n: usize) -> f64 {
-        let n = n as f64;
+        let n = (n as f64 / self.oversampling as f64).max(1.0);
         n * (self.pfa.powf(-1.0 / n) - 1.0)
     }
 
@@ -156,6 +172,10 @@ mod tests {
     fn bad_parameters_are_errors() {
         assert!(CaCfar::new(2, 0, 1e-3).is_err());
         assert!(CaCfar::new(2, 8, 1.5).is_err());
+        assert!(CaCfar::new(2, 8, 1e-3)
+            .unwrap()
+            .with_oversampling(0)
+            .is_err());
         let mut c = CaCfar::new(2, 8, 1e-3).unwrap();
         assert!(c.detect(&[1.0; 4], &mut [0.0; 3]).is_err());
     }

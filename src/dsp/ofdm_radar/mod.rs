@@ -315,7 +315,10 @@ impl OfdmRadar {
         }
         let symbols = tx_symbols.len() / n;
         let sym_len = self.config.symbol_len();
-        let needed = start + symbols * sym_len;
+        let needed = symbols
+            .checked_mul(sym_len)
+            .and_then(|n| n.checked_add(start))
+            .unwrap_or(usize::MAX);
         if rx.len() < needed {
             return Err(DspError::Param(format!(
                 "OFDM radar: {symbols} symbols of {sym_len} samples from start {start} need {needed} \
@@ -323,10 +326,13 @@ impl OfdmRadar {
                 rx.len()
             )));
         }
-        if let Some(i) = tx_symbols.iter().position(|x| x.norm_sqr() == 0.0) {
+        if let Some(i) = tx_symbols
+            .iter()
+            .position(|x| !(x.norm_sqr() > 0.0 && x.norm_sqr().is_finite()))
+        {
             return Err(DspError::Param(format!(
-                "OFDM radar: transmitted symbol {} subcarrier {} is zero; spectral division needs \
-                 every occupied subcarrier modulated",
+                "OFDM radar: transmitted symbol {} subcarrier {} is zero or not finite; spectral \
+                 division needs every occupied subcarrier modulated",
                 i / n,
                 i % n
             )));
