@@ -321,6 +321,22 @@ async fn serve_core(stream: TcpStream, shared: &Arc<Shared>) -> Result<(), RpcEr
             let Some(call) = check_call(&mut writer, &mut r, CORE_PROGRAM, 1).await? else {
                 continue;
             };
+            if call.procedure == 11 {
+                // device_write owns the record, so a large upload is not copied again.
+                let args_at = record.len() - r.remaining();
+                let reply =
+                    match parse_device_write(&record, args_at, shared.options.max_message_size) {
+                        Ok((lid, flags, range)) => {
+                            let (error, size) = device_write(shared, lid, flags, record, range);
+                            let mut w = success(call.xid);
+                            w.i32(error).u32(size);
+                            w
+                        }
+                        Err(_) => rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0)),
+                    };
+                write_plain(&mut writer, &reply).await?;
+                continue;
+            }
             let outcome =
                 match core_procedure(shared, &call, &mut r, &mut own_links, &mut writer).await {
                     Ok(outcome) => outcome,
@@ -385,17 +401,6 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 .i32(lid)
                 .u32(u32::from(shared.abort_port))
                 .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
-            w
-        }
-        11 => {
-            let lid = r.i32()?;
-            let _io_timeout = r.u32()?;
-            let _lock_timeout = r.u32()?;
-            let flags = r.i32()?;
-            let data = r.opaque(shared.options.max_message_size)?;
-            let (error, size) = device_write(shared, lid, flags, data);
-            let mut w = success(xid);
-            w.i32(error).u32(size);
             w
         }
         12 => {
@@ -564,8 +569,32 @@ fn destroy_link(shared: &Shared, lid: i32) {
     unlock(shared, lid);
 }
 
-/// Appends written bytes to the link's input; on END, queues the message for the worker.
-fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32) {
+/// Decodes Device_WriteParms starting at `at`: (lid, flags, byte range of the data).
+fn parse_device_write(
+    record: &[u8],
+    at: usize,
+    max: usize,
+) -> Result<(i32, i32, std::ops::Range<usize>), RpcError> {
+    let mut r = XdrReader::new(&record[at..]);
+    let lid = r.i32()?;
+    let _io_timeout = r.u32()?;
+    let _lock_timeout = r.u32()?;
+    let flags = r.i32()?;
+    let data = r.opaque(max)?;
+    let start = data.as_ptr() as usize - record.as_ptr() as usize;
+    Ok((lid, flags, start..start + data.len()))
+}
+
+/// Appends the written bytes (`record[range]`) to the link's input; on END, queues the message
+/// for the worker. A one-chunk message reuses the record's buffer instead of copying it.
+fn device_write(
+    shared: &Shared,
+    lid: i32,
+    flags: i32,
+    mut record: Vec<u8>,
+    range: std::ops::Range<usize>,
+) -> (i32, u32) {
+    let size = range.len() as u32;
     let Some(link) = find_link(shared, lid) else {
         return (code::INVALID_LINK, 0);
     };
@@ -573,16 +602,19 @@ fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32
         return (code::DEVICE_LOCKED, 0);
     }
     let mut st = lock(&link.state);
-    if st.input.len() + data.len() > shared.options.max_message_size {
+    if st.input.len() + range.len() > shared.options.max_message_size {
         st.input = Vec::new();
         return (code::OUT_OF_RESOURCES, 0);
     }
     if flags & FLAG_END != 0 {
         let message = if st.input.is_empty() {
-            data.to_vec()
+            let len = range.len();
+            record.copy_within(range, 0);
+            record.truncate(len);
+            record
         } else {
             let mut m = std::mem::take(&mut st.input);
-            m.extend_from_slice(data);
+            m.extend_from_slice(&record[range]);
             m
         };
         let generation = link.generation.load(Ordering::SeqCst);
@@ -590,9 +622,9 @@ fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32
             return (code::PARAMETER_ERROR, 0);
         }
     } else {
-        st.input.extend_from_slice(data);
+        st.input.extend_from_slice(&record[range]);
     }
-    (code::NO_ERROR, data.len() as u32)
+    (code::NO_ERROR, size)
 }
 
 /// Waits (up to `io_timeout` ms) for output and returns at most `request_size` bytes of it.
