@@ -63,3 +63,32 @@ fn bad_options_fail_with_a_message() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--max-message-size"));
 }
+
+#[test]
+fn ignore_stdin_keeps_serving_after_stdin_closes() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+        .args(["serve", "--json", "--ignore-stdin"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("mock-lab starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let listing: serde_json::Value = serde_json::from_str(&line).unwrap();
+    let raw = listing["endpoints"][0]["address"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    // stdin was closed from the start; the server must still answer.
+    let mut s = std::net::TcpStream::connect(&raw).unwrap();
+    s.set_read_timeout(Some(common::LIMIT)).unwrap();
+    s.write_all(b"*OPC?\n").unwrap();
+    let mut reply = String::new();
+    BufReader::new(&s).read_line(&mut reply).unwrap();
+    assert_eq!(reply, "1\n");
+    assert!(child.try_wait().unwrap().is_none(), "still running");
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
