@@ -27,7 +27,7 @@ use tokio::sync::{mpsc, Notify};
 use self::rpc::{accept, Call, RpcError};
 use self::xdr::{pad, XdrReader, XdrWriter};
 use super::conn::{self, Delivery};
-use super::framing::split_end_message;
+use super::framing::{reserve_for_block, split_end_message};
 use super::{Handler, ServerError, ServerHandle, ServerOptions};
 use crate::faults::{ReplyFate, ReplyPlan};
 
@@ -622,7 +622,11 @@ fn device_write(
             return (code::PARAMETER_ERROR, 0);
         }
     } else {
+        let first_chunk = st.input.is_empty();
         st.input.extend_from_slice(&record[range]);
+        if first_chunk {
+            reserve_for_block(&mut st.input, shared.options.max_message_size);
+        }
     }
     (code::NO_ERROR, size)
 }
