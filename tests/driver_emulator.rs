@@ -324,6 +324,11 @@ async fn gotmic_tx_and_rx_over_serial_enable_read_back_and_disable() {
         assert!(on.rf_enabled && on.lo_locked, "{key}: {on:?}");
         assert_eq!(on.attenuation_db, 12.5);
         assert!(emu.front_end().rf_enabled, "{key}");
+        let framed = emu.log().texts();
+        assert!(
+            framed.iter().any(|t| t.starts_with("W 02 000F*")),
+            "CRC-framed requests: {framed:?}"
+        );
         bounded(rf.disable()).await.unwrap();
         let off = bounded(rf.status()).await.unwrap();
         assert!(!off.rf_enabled);

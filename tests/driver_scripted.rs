@@ -712,3 +712,29 @@ async fn a_dropped_guard_runs_the_safe_state_synchronously() {
         ]
     );
 }
+
+#[tokio::test]
+async fn gotmic_crc_framing_frames_requests_and_rejects_corrupted_replies() {
+    use radbench::driver::gotmic::commands::framed;
+    use radbench::driver::gotmic::Framing;
+    let m = model("gotmic-eband-tx");
+    let f = |s: &str| framed(s, 0x07, 0x00);
+    let fake = Scripted::new("tx")
+        .reply("CRC ON", "OK")
+        .reply(&f("*IDN?"), &f(TX_IDN))
+        .reply(&f("R 00"), &f("OK 5458"))
+        .reply(&f("R 01"), "OK 0001*00");
+    let log = fake.log();
+    let mut tx = bounded(Gotmic::connect_with(
+        Box::new(fake),
+        &m,
+        "tx",
+        Framing::from_catalog(&m),
+    ))
+    .await
+    .unwrap();
+    assert_eq!(log.ops(), ["CRC ON".to_string(), f("*IDN?"), f("R 00")]);
+    let e = bounded(tx.status()).await.unwrap_err();
+    assert!(e.to_string().contains("CRC-8"), "{e}");
+    log.assert_no_surprises();
+}
