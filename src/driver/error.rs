@@ -56,6 +56,19 @@ pub enum DriverError {
         expected: String,
         got: String,
     },
+    /// No trigger edge arrived while the acquisition was armed.
+    #[error("{instrument}: no trigger within {waited:?}; check that the AWG runs with its marker output on and wired to the scope's EXT input, and the trigger level")]
+    NoTrigger {
+        instrument: &'static str,
+        waited: std::time::Duration,
+    },
+    /// The instrument does not answer over this protocol (remote-interface setting).
+    #[error("{instrument} at {resource}: {detail}")]
+    RemoteInterface {
+        instrument: &'static str,
+        resource: String,
+        detail: String,
+    },
     /// Enabling RF needs an explicit permit.
     #[error("{instrument}: enabling RF needs an explicit permit (RfPermit); refused")]
     NoPermit { instrument: &'static str },
@@ -72,7 +85,9 @@ impl DriverError {
             DriverError::WrongInstrument { .. }
             | DriverError::Refused { .. }
             | DriverError::BadReply { .. }
-            | DriverError::Readback { .. } => ErrorKind::Abort,
+            | DriverError::Readback { .. }
+            | DriverError::RemoteInterface { .. } => ErrorKind::Abort,
+            DriverError::NoTrigger { .. } => ErrorKind::Retry,
         }
     }
 }

@@ -7,11 +7,14 @@
 //! | driver | capability |
 //! |---|---|
 //! | [`m8195a::M8195a`] | [`Awg`]: I/Q + marker at 16 GSa/s from extended memory |
+//! | [`lecroy::Lecroy`] | [`Digitizer`]: marker-triggered single shots at 80 GSa/s, `WF? ALL` decoded |
 
 mod error;
+pub mod lecroy;
 pub mod m8195a;
 
 use std::future::Future;
+use std::time::Duration;
 
 pub use error::DriverError;
 
@@ -78,4 +81,44 @@ pub trait Awg {
     fn stop(&mut self) -> impl Future<Output = Result<(), DriverError>> + Send;
     /// Reads back what the instrument applied.
     fn applied(&mut self) -> impl Future<Output = Result<AwgApplied, DriverError>> + Send;
+}
+
+/// What the digitizer should record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DigitizerSetup {
+    /// Samples per second (must be one of the catalog's rates).
+    pub sample_rate: f64,
+    /// Seconds recorded after the trigger: one repetition plus the longest echo.
+    pub record_seconds: f64,
+    /// Level of the marker edge on the external trigger input, in volts.
+    pub trigger_level_v: f64,
+    /// Vertical scale of the I and Q channels.
+    pub volts_per_div: f64,
+}
+
+/// What the digitizer reports it applied.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DigitizerApplied {
+    pub sample_rate: f64,
+    /// Points per channel per acquisition.
+    pub points: u64,
+}
+
+/// A digitizer that records I and Q after a marker edge.
+pub trait Digitizer {
+    fn configure(
+        &mut self,
+        setup: &DigitizerSetup,
+    ) -> impl Future<Output = Result<DigitizerApplied, DriverError>> + Send;
+    /// Arms a single acquisition and waits for the marker edge, at most `timeout`.
+    fn acquire(
+        &mut self,
+        timeout: Duration,
+    ) -> impl Future<Output = Result<(), DriverError>> + Send;
+    /// Reads one channel of the last acquisition.
+    fn read(
+        &mut self,
+        channel: u8,
+    ) -> impl Future<Output = Result<lecroy::Trace, DriverError>> + Send;
+    fn applied(&mut self) -> impl Future<Output = Result<DigitizerApplied, DriverError>> + Send;
 }
