@@ -69,18 +69,13 @@ pub enum DriverError {
         resource: String,
         detail: String,
     },
-    /// Enabling RF needs an explicit permit.
-    #[error("{instrument}: enabling RF needs an explicit permit (RfPermit); refused")]
-    NoPermit { instrument: &'static str },
 }
 
 impl DriverError {
     /// Retry, abort or fix the input.
     pub fn kind(&self) -> ErrorKind {
         match self {
-            DriverError::Limit { .. }
-            | DriverError::Catalog { .. }
-            | DriverError::NoPermit { .. } => ErrorKind::FixInput,
+            DriverError::Limit { .. } | DriverError::Catalog { .. } => ErrorKind::FixInput,
             DriverError::Session(e) => e.kind(),
             DriverError::WrongInstrument { .. }
             | DriverError::Refused { .. }
@@ -95,9 +90,7 @@ impl DriverError {
 impl Classify for DriverError {
     fn exit_class(&self) -> ExitClass {
         match self {
-            DriverError::Limit { .. }
-            | DriverError::Catalog { .. }
-            | DriverError::NoPermit { .. } => ExitClass::BadInput,
+            DriverError::Limit { .. } | DriverError::Catalog { .. } => ExitClass::BadInput,
             DriverError::Session(e) => e.exit_class(),
             _ => ExitClass::Instrument,
         }

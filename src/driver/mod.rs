@@ -8,8 +8,10 @@
 //! |---|---|
 //! | [`m8195a::M8195a`] | [`Awg`]: I/Q + marker at 16 GSa/s from extended memory |
 //! | [`lecroy::Lecroy`] | [`Digitizer`]: marker-triggered single shots at 80 GSa/s, `WF? ALL` decoded |
+//! | [`gotmic::Gotmic`] | [`RfFrontEnd`]: E-band Tx/Rx over the project-defined register protocol |
 
 mod error;
+pub mod gotmic;
 pub mod lecroy;
 pub mod m8195a;
 
@@ -121,4 +123,57 @@ pub trait Digitizer {
         channel: u8,
     ) -> impl Future<Output = Result<lecroy::Trace, DriverError>> + Send;
     fn applied(&mut self) -> impl Future<Output = Result<DigitizerApplied, DriverError>> + Send;
+}
+
+/// Explicit permission to enable an RF output. Constructing one is the deliberate act: code that
+/// may radiate takes `&RfPermit`, so it cannot be called by accident.
+#[derive(Debug)]
+pub struct RfPermit {
+    reason: String,
+}
+
+impl RfPermit {
+    /// Grants a permit; `reason` is logged (who or what allowed RF, e.g. the campaign file).
+    pub fn grant(reason: impl Into<String>) -> RfPermit {
+        let reason = reason.into();
+        tracing::warn!(%reason, "RF permit granted");
+        RfPermit { reason }
+    }
+
+    pub fn reason(&self) -> &str {
+        &self.reason
+    }
+}
+
+/// An RF front end's read-back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RfStatus {
+    pub lo_locked: bool,
+    pub rf_enabled: bool,
+    pub over_temperature: bool,
+    pub interlock_open: bool,
+    pub temperature_c: f64,
+    pub attenuation_db: f64,
+    /// Latched faults (bit meanings in the catalog's register map).
+    pub fault_latch: u16,
+}
+
+/// An up- or down-converter module.
+pub trait RfFrontEnd {
+    fn status(&mut self) -> impl Future<Output = Result<RfStatus, DriverError>> + Send;
+    /// Sets the attenuation; returns what was applied (rounded to the step).
+    fn set_attenuation_db(
+        &mut self,
+        db: f64,
+    ) -> impl Future<Output = Result<f64, DriverError>> + Send;
+    /// Enables RF: maximum attenuation first, enable, verify STATUS, then the requested attenuation.
+    fn enable(
+        &mut self,
+        permit: &RfPermit,
+        attenuation_db: f64,
+    ) -> impl Future<Output = Result<RfStatus, DriverError>> + Send;
+    /// Disables RF and verifies it is off (the safe state).
+    fn disable(&mut self) -> impl Future<Output = Result<(), DriverError>> + Send;
+    /// Clears latched faults; returns the bits that were latched.
+    fn clear_faults(&mut self) -> impl Future<Output = Result<u16, DriverError>> + Send;
 }
