@@ -17,6 +17,7 @@
 pub mod conn;
 pub mod framing;
 pub mod hislip;
+pub mod launch;
 pub mod raw;
 pub mod serial;
 pub mod vicp;
@@ -126,6 +127,16 @@ impl ServerHandle {
             extra: Vec::new(),
             tasks: vec![task],
         }
+    }
+
+    pub(crate) fn add_listener(
+        &mut self,
+        name: &'static str,
+        addr: SocketAddr,
+        task: JoinHandle<()>,
+    ) {
+        self.extra.push((name, addr));
+        self.tasks.push(task);
     }
 
     /// The protocol served ("raw", "vxi11", "hislip", "vicp").

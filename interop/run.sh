@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Interop checks: independent Python clients (pyvisa + pyvisa-py, pyvicp) against mock_lab.
+# Creates .venv-interop (gitignored) on first use, builds mock-lab, runs pytest on interop/.
+# Exits non-zero on any failure, including "no tests collected".
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+VENV=.venv-interop
+PYTHON=${PYTHON:-python3}
+if [ ! -x "$VENV/bin/python" ]; then
+    echo "interop: creating $VENV"
+    "$PYTHON" -m venv "$VENV"
+fi
+"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r interop/requirements.txt
+
+echo "interop: building mock-lab"
+cargo build --quiet -p mock_lab --bin mock-lab
+export MOCK_LAB_BIN="$PWD/target/debug/mock-lab"
+
+set +e
+"$VENV/bin/python" -m pytest -q -p no:cacheprovider interop
+status=$?
+set -e
+if [ "$status" -eq 5 ]; then
+    echo "interop: pytest collected no tests; treating that as a failure" >&2
+    exit 1
+fi
+exit "$status"

@@ -1,1 +1,0 @@
-//! vicp server (in progress).

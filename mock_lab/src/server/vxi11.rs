@@ -1,1 +1,0 @@
-//! vxi11 server (in progress).

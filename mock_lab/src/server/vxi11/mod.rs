@@ -1,0 +1,735 @@
+//! VXI-11 server: core channel (program 0x0607AF), abort channel (0x0607B0) and an optional
+//! portmapper (program 100000, GETPORT over TCP).
+//!
+//! The core channel is reachable directly on its own port, so clients can skip the portmapper
+//! (pyvisa-py: `TCPIP::127.0.0.1,PORT::inst0::INSTR`). A device_write with the END flag
+//! completes a message; a per-link worker runs the handler, so the write returns at once and
+//! the following device_read waits (up to its io_timeout) for the response, just as with a real
+//! instrument. device_abort on the abort channel ends a waiting device_read with error 23.
+//!
+//! Choices: any device name (`inst0`, `inst1`, ...) reaches the same handler; locks are granted
+//! or refused at once (no waiting on lock_timeout); SRQ interrupt channels are not offered
+//! (create_intr_chan and enable_srq answer "operation not supported").
+
+pub mod rpc;
+pub mod xdr;
+
+use std::collections::{HashMap, VecDeque};
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, Weak};
+use std::time::Duration;
+
+use tokio::io::{AsyncWrite, BufReader};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, Notify};
+
+use self::rpc::{accept, Call, RpcError};
+use self::xdr::{pad, XdrReader, XdrWriter};
+use super::conn::{self, Delivery};
+use super::framing::split_end_message;
+use super::{Handler, ServerError, ServerHandle, ServerOptions};
+use crate::faults::{ReplyFate, ReplyPlan};
+
+const PROTOCOL: &str = "vxi11";
+/// VXI-11 core program.
+pub const CORE_PROGRAM: u32 = 0x0607AF;
+/// VXI-11 abort program.
+pub const ABORT_PROGRAM: u32 = 0x0607B0;
+/// Portmapper program.
+pub const PORTMAP_PROGRAM: u32 = 100_000;
+/// Records beyond the data itself: RPC and VXI-11 headers.
+const RECORD_OVERHEAD: usize = 4096;
+/// Longest device name accepted by create_link.
+const MAX_DEVICE_NAME: usize = 256;
+const MAV: u8 = 0x10;
+
+/// VXI-11 error codes.
+mod code {
+    pub const NO_ERROR: i32 = 0;
+    pub const INVALID_LINK: i32 = 4;
+    pub const PARAMETER_ERROR: i32 = 5;
+    pub const NOT_SUPPORTED: i32 = 8;
+    pub const OUT_OF_RESOURCES: i32 = 9;
+    pub const DEVICE_LOCKED: i32 = 11;
+    pub const NO_LOCK_HELD: i32 = 12;
+    pub const IO_TIMEOUT: i32 = 15;
+    pub const ABORT: i32 = 23;
+}
+
+/// device_read reasons.
+mod reason {
+    pub const REQCNT: i32 = 1;
+    pub const CHR: i32 = 2;
+    pub const END: i32 = 4;
+}
+
+/// device_write flag: last chunk of the message.
+const FLAG_END: i32 = 0x08;
+/// device_read flag: stop at termChar.
+const FLAG_TERMCHAR: i32 = 0x80;
+
+/// Where the VXI-11 server listens.
+#[derive(Debug, Clone, Copy)]
+pub struct Vxi11Addresses {
+    /// Core channel.
+    pub core: SocketAddr,
+    /// Abort channel.
+    pub abort: SocketAddr,
+    /// Portmapper (None: no portmapper; clients must name the core port).
+    pub portmapper: Option<SocketAddr>,
+}
+
+impl Vxi11Addresses {
+    /// Core and abort on OS-chosen loopback ports, no portmapper.
+    pub fn loopback() -> Self {
+        Vxi11Addresses {
+            core: super::loopback_any(),
+            abort: super::loopback_any(),
+            portmapper: None,
+        }
+    }
+}
+
+/// Starts a VXI-11 server. The handle's `local_addr` is the core channel; `listener("abort")`
+/// and `listener("portmapper")` give the others.
+pub async fn serve(
+    addrs: Vxi11Addresses,
+    handler: Arc<dyn Handler>,
+    options: ServerOptions,
+) -> Result<ServerHandle, ServerError> {
+    let core = super::bind(PROTOCOL, addrs.core).await?;
+    let abort = super::bind(PROTOCOL, addrs.abort).await?;
+    let local = |l: &tokio::net::TcpListener| {
+        l.local_addr().map_err(|source| ServerError::Start {
+            protocol: PROTOCOL,
+            source,
+        })
+    };
+    let core_addr = local(&core)?;
+    let abort_addr = local(&abort)?;
+    let shared = Arc::new(Shared {
+        handler,
+        options,
+        abort_port: abort_addr.port(),
+        links: Mutex::new(HashMap::new()),
+        next_link: AtomicI32::new(1),
+        lock_owner: Mutex::new(None),
+    });
+    let core_shared = Arc::clone(&shared);
+    let core_task = tokio::spawn(conn::accept_loop(core, PROTOCOL, move |stream, peer| {
+        let shared = Arc::clone(&core_shared);
+        async move {
+            let result = serve_core(stream, &shared).await;
+            conn::log_end(PROTOCOL, peer, result, rpc_io);
+        }
+    }));
+    let mut handle = ServerHandle::new(PROTOCOL, core_addr, core_task);
+    let abort_shared = Arc::clone(&shared);
+    let abort_task = tokio::spawn(conn::accept_loop(abort, PROTOCOL, move |stream, peer| {
+        let shared = Arc::clone(&abort_shared);
+        async move {
+            let result = serve_abort(stream, &shared).await;
+            conn::log_end(PROTOCOL, peer, result, rpc_io);
+        }
+    }));
+    handle.add_listener("abort", abort_addr, abort_task);
+    if let Some(pm_addr) = addrs.portmapper {
+        let pm = super::bind("portmapper", pm_addr).await?;
+        let pm_local = local(&pm)?;
+        let core_port = core_addr.port();
+        let pm_task = tokio::spawn(conn::accept_loop(
+            pm,
+            "portmapper",
+            move |stream, peer| async move {
+                let result = serve_portmapper(stream, core_port).await;
+                conn::log_end("portmapper", peer, result, rpc_io);
+            },
+        ));
+        handle.add_listener("portmapper", pm_local, pm_task);
+    }
+    Ok(handle)
+}
+
+fn rpc_io(e: &RpcError) -> Option<&std::io::Error> {
+    match e {
+        RpcError::Io(io) => Some(io),
+        _ => None,
+    }
+}
+
+struct Shared {
+    handler: Arc<dyn Handler>,
+    options: ServerOptions,
+    abort_port: u16,
+    links: Mutex<HashMap<i32, Arc<Link>>>,
+    next_link: AtomicI32,
+    lock_owner: Mutex<Option<i32>>,
+}
+
+struct Link {
+    id: i32,
+    state: Mutex<LinkState>,
+    output_ready: Notify,
+    aborted: AtomicBool,
+    /// Bumped by device_clear: queued work and late responses are dropped.
+    generation: AtomicU64,
+    jobs: mpsc::UnboundedSender<Job>,
+}
+
+#[derive(Default)]
+struct LinkState {
+    input: Vec<u8>,
+    output: VecDeque<Pending>,
+}
+
+/// A response waiting to be read, with the faults chosen for it.
+struct Pending {
+    data: Vec<u8>,
+    offset: usize,
+    byte_segments: bool,
+    drop_midway: bool,
+}
+
+enum Job {
+    Message(Vec<u8>, u64),
+    Trigger(u64),
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Writes one RPC reply record made of `body` followed by `data` and its XDR padding.
+async fn write_record<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    body: &XdrWriter,
+    data: &[u8],
+    plan: ReplyPlan,
+) -> std::io::Result<Delivery> {
+    let padding = [0u8; 3];
+    let padding = &padding[..pad(data.len())];
+    let mark = rpc::fragment_header(body.buf.len() + data.len() + padding.len());
+    conn::write_reply(w, &[&mark, &body.buf, data, padding], plan).await
+}
+
+async fn write_plain<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    body: &XdrWriter,
+) -> std::io::Result<Delivery> {
+    write_record(w, body, &[], ReplyPlan::CLEAN).await
+}
+
+/// Handles the RPC header checks shared by every channel: `Ok(call)` when the call is for
+/// `program` v`version`, else the error reply was already sent and `Err(())` is returned.
+async fn check_call<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    r: &mut XdrReader<'_>,
+    program: u32,
+    version: u32,
+) -> Result<Option<Call>, RpcError> {
+    let call = rpc::decode_call(r)?;
+    if call.rpc_version != 2 {
+        write_plain(w, &rpc::rpc_mismatch_reply(call.xid)).await?;
+        return Ok(None);
+    }
+    if call.program != program {
+        write_plain(
+            w,
+            &rpc::accepted_reply(call.xid, accept::PROG_UNAVAIL, (0, 0)),
+        )
+        .await?;
+        return Ok(None);
+    }
+    if call.version != version {
+        let reply = rpc::accepted_reply(call.xid, accept::PROG_MISMATCH, (version, version));
+        write_plain(w, &reply).await?;
+        return Ok(None);
+    }
+    Ok(Some(call))
+}
+
+async fn serve_portmapper(stream: TcpStream, core_port: u16) -> Result<(), RpcError> {
+    let (reader, mut writer) = stream.into_split();
+    let mut reader = BufReader::new(reader);
+    while let Some(record) = rpc::read_record(&mut reader, RECORD_OVERHEAD).await? {
+        let mut r = XdrReader::new(&record);
+        let Some(call) = check_call(&mut writer, &mut r, PORTMAP_PROGRAM, 2).await? else {
+            continue;
+        };
+        let reply = match call.procedure {
+            0 => rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0)),
+            3 => match (r.u32(), r.u32(), r.u32()) {
+                (Ok(prog), Ok(vers), Ok(prot)) => {
+                    let port = if prog == CORE_PROGRAM && vers == 1 && prot == 6 {
+                        u32::from(core_port)
+                    } else {
+                        0
+                    };
+                    let mut w = rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0));
+                    w.u32(port);
+                    w
+                }
+                _ => rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0)),
+            },
+            _ => rpc::accepted_reply(call.xid, accept::PROC_UNAVAIL, (0, 0)),
+        };
+        write_plain(&mut writer, &reply).await?;
+    }
+    Ok(())
+}
+
+async fn serve_abort(stream: TcpStream, shared: &Shared) -> Result<(), RpcError> {
+    let (reader, mut writer) = stream.into_split();
+    let mut reader = BufReader::new(reader);
+    while let Some(record) = rpc::read_record(&mut reader, RECORD_OVERHEAD).await? {
+        let mut r = XdrReader::new(&record);
+        let Some(call) = check_call(&mut writer, &mut r, ABORT_PROGRAM, 1).await? else {
+            continue;
+        };
+        let reply = match (call.procedure, r.i32()) {
+            (1, Ok(lid)) => {
+                let link = lock(&shared.links).get(&lid).cloned();
+                let error = match link {
+                    Some(link) => {
+                        link.aborted.store(true, Ordering::SeqCst);
+                        link.output_ready.notify_waiters();
+                        code::NO_ERROR
+                    }
+                    None => code::INVALID_LINK,
+                };
+                let mut w = rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0));
+                w.i32(error);
+                w
+            }
+            (1, Err(_)) => rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0)),
+            _ => rpc::accepted_reply(call.xid, accept::PROC_UNAVAIL, (0, 0)),
+        };
+        write_plain(&mut writer, &reply).await?;
+    }
+    Ok(())
+}
+
+async fn serve_core(stream: TcpStream, shared: &Arc<Shared>) -> Result<(), RpcError> {
+    let (reader, mut writer) = stream.into_split();
+    let mut reader = BufReader::with_capacity(64 << 10, reader);
+    let mut own_links: Vec<i32> = Vec::new();
+    let max_record = shared.options.max_message_size + RECORD_OVERHEAD;
+    let result = async {
+        while let Some(record) = rpc::read_record(&mut reader, max_record).await? {
+            let mut r = XdrReader::new(&record);
+            let Some(call) = check_call(&mut writer, &mut r, CORE_PROGRAM, 1).await? else {
+                continue;
+            };
+            let outcome =
+                match core_procedure(shared, &call, &mut r, &mut own_links, &mut writer).await {
+                    Ok(outcome) => outcome,
+                    Err(RpcError::Xdr(_)) => {
+                        let reply = rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0));
+                        write_plain(&mut writer, &reply).await?
+                    }
+                    Err(e) => return Err(e),
+                };
+            if outcome == Delivery::Dropped {
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+    .await;
+    for lid in own_links {
+        destroy_link(shared, lid);
+    }
+    result
+}
+
+fn success(xid: u32) -> XdrWriter {
+    rpc::accepted_reply(xid, accept::SUCCESS, (0, 0))
+}
+
+fn error_only(xid: u32, error: i32) -> XdrWriter {
+    let mut w = success(xid);
+    w.i32(error);
+    w
+}
+
+/// Runs one core-channel procedure and writes its reply.
+async fn core_procedure<W: AsyncWrite + Unpin>(
+    shared: &Arc<Shared>,
+    call: &Call,
+    r: &mut XdrReader<'_>,
+    own_links: &mut Vec<i32>,
+    w: &mut W,
+) -> Result<Delivery, RpcError> {
+    let xid = call.xid;
+    let reply = match call.procedure {
+        10 => {
+            let _client_id = r.i32()?;
+            let lock_device = r.bool()?;
+            let _lock_timeout = r.u32()?;
+            let _device = r.opaque(MAX_DEVICE_NAME)?;
+            let link = create_link(shared);
+            let mut error = code::NO_ERROR;
+            if lock_device && !try_lock(shared, link.id) {
+                error = code::DEVICE_LOCKED;
+            }
+            let lid = if error == code::NO_ERROR {
+                own_links.push(link.id);
+                link.id
+            } else {
+                destroy_link(shared, link.id);
+                0
+            };
+            let mut w = success(xid);
+            w.i32(error)
+                .i32(lid)
+                .u32(u32::from(shared.abort_port))
+                .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
+            w
+        }
+        11 => {
+            let lid = r.i32()?;
+            let _io_timeout = r.u32()?;
+            let _lock_timeout = r.u32()?;
+            let flags = r.i32()?;
+            let data = r.opaque(shared.options.max_message_size)?;
+            let (error, size) = device_write(shared, lid, flags, data);
+            let mut w = success(xid);
+            w.i32(error).u32(size);
+            w
+        }
+        12 => {
+            let lid = r.i32()?;
+            let request_size = r.u32()?;
+            let io_timeout = r.u32()?;
+            let _lock_timeout = r.u32()?;
+            let flags = r.i32()?;
+            let term_char = r.i32()? as u8;
+            let term = (flags & FLAG_TERMCHAR != 0).then_some(term_char);
+            return device_read(shared, xid, lid, request_size, io_timeout, term, w).await;
+        }
+        13 => {
+            let lid = r.i32()?;
+            match find_link(shared, lid) {
+                Some(link) => {
+                    let handler = Arc::clone(&shared.handler);
+                    let mut stb = conn::blocking(move || handler.status_byte())
+                        .await
+                        .unwrap_or(0);
+                    if !lock(&link.state).output.is_empty() {
+                        stb |= MAV;
+                    }
+                    let mut w = success(xid);
+                    w.i32(code::NO_ERROR).u32(u32::from(stb));
+                    w
+                }
+                None => {
+                    let mut w = success(xid);
+                    w.i32(code::INVALID_LINK).u32(0);
+                    w
+                }
+            }
+        }
+        14 => {
+            let lid = r.i32()?;
+            let error = match find_link(shared, lid) {
+                Some(link) => {
+                    let generation = link.generation.load(Ordering::SeqCst);
+                    let _ = link.jobs.send(Job::Trigger(generation));
+                    code::NO_ERROR
+                }
+                None => code::INVALID_LINK,
+            };
+            error_only(xid, error)
+        }
+        15 => {
+            let lid = r.i32()?;
+            let error = match find_link(shared, lid) {
+                Some(link) => {
+                    link.generation.fetch_add(1, Ordering::SeqCst);
+                    {
+                        let mut st = lock(&link.state);
+                        st.input.clear();
+                        st.output.clear();
+                    }
+                    let handler = Arc::clone(&shared.handler);
+                    conn::blocking(move || handler.device_clear()).await;
+                    code::NO_ERROR
+                }
+                None => code::INVALID_LINK,
+            };
+            error_only(xid, error)
+        }
+        16 | 17 => {
+            let lid = r.i32()?;
+            error_only(
+                xid,
+                if find_link(shared, lid).is_some() {
+                    code::NO_ERROR
+                } else {
+                    code::INVALID_LINK
+                },
+            )
+        }
+        18 => {
+            let lid = r.i32()?;
+            let error = match find_link(shared, lid) {
+                Some(_) if try_lock(shared, lid) => code::NO_ERROR,
+                Some(_) => code::DEVICE_LOCKED,
+                None => code::INVALID_LINK,
+            };
+            error_only(xid, error)
+        }
+        19 => {
+            let lid = r.i32()?;
+            let error = if find_link(shared, lid).is_none() {
+                code::INVALID_LINK
+            } else if unlock(shared, lid) {
+                code::NO_ERROR
+            } else {
+                code::NO_LOCK_HELD
+            };
+            error_only(xid, error)
+        }
+        20 | 25 | 26 => error_only(xid, code::NOT_SUPPORTED),
+        22 => {
+            let mut w = success(xid);
+            w.i32(code::NOT_SUPPORTED).opaque(&[]);
+            w
+        }
+        23 => {
+            let lid = r.i32()?;
+            let error = if own_links.contains(&lid) {
+                own_links.retain(|&l| l != lid);
+                destroy_link(shared, lid);
+                code::NO_ERROR
+            } else {
+                code::INVALID_LINK
+            };
+            error_only(xid, error)
+        }
+        _ => rpc::accepted_reply(xid, accept::PROC_UNAVAIL, (0, 0)),
+    };
+    Ok(write_plain(w, &reply).await?)
+}
+
+fn find_link(shared: &Shared, lid: i32) -> Option<Arc<Link>> {
+    lock(&shared.links).get(&lid).cloned()
+}
+
+fn try_lock(shared: &Shared, lid: i32) -> bool {
+    let mut owner = lock(&shared.lock_owner);
+    match *owner {
+        Some(o) => o == lid,
+        None => {
+            *owner = Some(lid);
+            true
+        }
+    }
+}
+
+fn unlock(shared: &Shared, lid: i32) -> bool {
+    let mut owner = lock(&shared.lock_owner);
+    if *owner == Some(lid) {
+        *owner = None;
+        true
+    } else {
+        false
+    }
+}
+
+fn locked_by_other(shared: &Shared, lid: i32) -> bool {
+    lock(&shared.lock_owner).is_some_and(|o| o != lid)
+}
+
+fn create_link(shared: &Arc<Shared>) -> Arc<Link> {
+    let id = shared.next_link.fetch_add(1, Ordering::SeqCst);
+    let (jobs, queue) = mpsc::unbounded_channel();
+    let link = Arc::new(Link {
+        id,
+        state: Mutex::new(LinkState::default()),
+        output_ready: Notify::new(),
+        aborted: AtomicBool::new(false),
+        generation: AtomicU64::new(0),
+        jobs,
+    });
+    lock(&shared.links).insert(id, Arc::clone(&link));
+    tokio::spawn(run_worker(Arc::clone(shared), Arc::downgrade(&link), queue));
+    link
+}
+
+fn destroy_link(shared: &Shared, lid: i32) {
+    // Dropping the link drops its job sender, which ends its worker.
+    lock(&shared.links).remove(&lid);
+    unlock(shared, lid);
+}
+
+/// Appends written bytes to the link's input; on END, queues the message for the worker.
+fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32) {
+    let Some(link) = find_link(shared, lid) else {
+        return (code::INVALID_LINK, 0);
+    };
+    if locked_by_other(shared, lid) {
+        return (code::DEVICE_LOCKED, 0);
+    }
+    let mut st = lock(&link.state);
+    if st.input.len() + data.len() > shared.options.max_message_size {
+        st.input = Vec::new();
+        return (code::OUT_OF_RESOURCES, 0);
+    }
+    if flags & FLAG_END != 0 {
+        let message = if st.input.is_empty() {
+            data.to_vec()
+        } else {
+            let mut m = std::mem::take(&mut st.input);
+            m.extend_from_slice(data);
+            m
+        };
+        let generation = link.generation.load(Ordering::SeqCst);
+        if link.jobs.send(Job::Message(message, generation)).is_err() {
+            return (code::PARAMETER_ERROR, 0);
+        }
+    } else {
+        st.input.extend_from_slice(data);
+    }
+    (code::NO_ERROR, data.len() as u32)
+}
+
+/// Waits (up to `io_timeout` ms) for output and returns at most `request_size` bytes of it.
+async fn device_read<W: AsyncWrite + Unpin>(
+    shared: &Shared,
+    xid: u32,
+    lid: i32,
+    request_size: u32,
+    io_timeout: u32,
+    term: Option<u8>,
+    w: &mut W,
+) -> Result<Delivery, RpcError> {
+    let read_reply = |error: i32, reason: i32, len: usize| {
+        let mut body = success(xid);
+        body.i32(error).i32(reason).u32(len as u32);
+        body
+    };
+    let Some(link) = find_link(shared, lid) else {
+        return Ok(write_plain(w, &read_reply(code::INVALID_LINK, 0, 0)).await?);
+    };
+    if locked_by_other(shared, lid) {
+        return Ok(write_plain(w, &read_reply(code::DEVICE_LOCKED, 0, 0)).await?);
+    }
+    let deadline = tokio::time::Instant::now() + Duration::from_millis(u64::from(io_timeout));
+    let request = (request_size as usize).max(1);
+    loop {
+        let notified = link.output_ready.notified();
+        tokio::pin!(notified);
+        notified.as_mut().enable();
+        if link.aborted.swap(false, Ordering::SeqCst) {
+            return Ok(write_plain(w, &read_reply(code::ABORT, 0, 0)).await?);
+        }
+        let taken = take_output(&link, request, term);
+        if let Some((data, reason, plan)) = taken {
+            let body = read_reply(code::NO_ERROR, reason, data.len());
+            return Ok(write_record(w, &body, &data, plan).await?);
+        }
+        if tokio::time::timeout_at(deadline, notified).await.is_err() {
+            return Ok(write_plain(w, &read_reply(code::IO_TIMEOUT, 0, 0)).await?);
+        }
+    }
+}
+
+/// Takes up to `request` bytes of the oldest response, stopping after `term` when set.
+fn take_output(link: &Link, request: usize, term: Option<u8>) -> Option<(Vec<u8>, i32, ReplyPlan)> {
+    let mut st = lock(&link.state);
+    let pending = st.output.front_mut()?;
+    let rest = &pending.data[pending.offset..];
+    let mut n = rest.len().min(request);
+    let mut reason = 0;
+    if let Some(t) = term {
+        if let Some(pos) = rest[..n].iter().position(|&b| b == t) {
+            n = pos + 1;
+            reason |= reason::CHR;
+        }
+    }
+    let data = if pending.offset == 0 && n == pending.data.len() {
+        std::mem::take(&mut pending.data)
+    } else {
+        rest[..n].to_vec()
+    };
+    pending.offset += n;
+    let finished = pending.offset >= pending.data.len();
+    if finished {
+        reason |= reason::END;
+    } else if n == request {
+        reason |= reason::REQCNT;
+    }
+    let plan = ReplyPlan {
+        delay: Duration::ZERO,
+        byte_segments: pending.byte_segments,
+        fate: if std::mem::take(&mut pending.drop_midway) {
+            ReplyFate::DropMidway
+        } else {
+            ReplyFate::Deliver
+        },
+    };
+    if finished {
+        st.output.pop_front();
+    }
+    Some((data, reason, plan))
+}
+
+/// Runs a link's messages through the handler in order. It holds the link weakly: destroying
+/// the link drops the job sender, which ends the worker.
+async fn run_worker(
+    shared: Arc<Shared>,
+    link: Weak<Link>,
+    mut queue: mpsc::UnboundedReceiver<Job>,
+) {
+    while let Some(job) = queue.recv().await {
+        let Some(link) = link.upgrade() else {
+            break;
+        };
+        let lid = link.id;
+        let current = || link.generation.load(Ordering::SeqCst);
+        match job {
+            Job::Trigger(generation) if generation == current() => {
+                let handler = Arc::clone(&shared.handler);
+                if conn::blocking(move || handler.trigger()).await.is_none() {
+                    break;
+                }
+            }
+            Job::Trigger(_) => {}
+            Job::Message(data, generation) => {
+                if generation != current() {
+                    continue;
+                }
+                let messages = match split_end_message(data, shared.options.max_message_size) {
+                    Ok(m) => m,
+                    Err(err) => {
+                        tracing::warn!(lid, "VXI-11 message refused: {err}");
+                        continue;
+                    }
+                };
+                for message in messages {
+                    let Some(responses) = conn::call_handler(&shared.handler, message).await else {
+                        return;
+                    };
+                    for data in responses {
+                        let plan = shared.options.faults.plan_reply();
+                        if !plan.delay.is_zero() {
+                            tokio::time::sleep(plan.delay).await;
+                        }
+                        if plan.fate == ReplyFate::Swallow || generation != current() {
+                            continue;
+                        }
+                        lock(&link.state).output.push_back(Pending {
+                            data,
+                            offset: 0,
+                            byte_segments: plan.byte_segments,
+                            drop_midway: plan.fate == ReplyFate::DropMidway,
+                        });
+                        link.output_ready.notify_waiters();
+                    }
+                }
+            }
+        }
+    }
+}
