@@ -17,7 +17,7 @@ use radbench::driver::io::open_session;
 use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState,
 };
 
 async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
@@ -95,10 +95,13 @@ fn waveform(n: usize) -> IqWaveform {
 async fn awg_plays_iq_with_a_marker(net: Net) {
     let m = model("keysight-m8195a");
     let (emu, mut awg, _server) = awg_over(net, &m).await;
-    let applied = bounded(awg.configure(&AwgSettings::default()))
-        .await
-        .unwrap();
+    let settings = AwgSettings {
+        reference_clock: ReferenceClock::External { frequency_hz: 10e6 },
+        ..AwgSettings::default()
+    };
+    let applied = bounded(awg.configure(&settings)).await.unwrap();
     assert_eq!((applied.dac_mode.as_str(), applied.divider), ("DCM", 4));
+    assert_eq!(applied.reference_source, "EXT");
     assert_eq!(applied.sample_rate_hz, 16e9);
     let wf = waveform(5000);
     let loaded = bounded(awg.load(&wf)).await.unwrap();

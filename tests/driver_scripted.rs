@@ -10,7 +10,7 @@ use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::scripted::{Failure, ERROR_CHECK};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
 };
 use radbench::exit::{Classify, ExitClass};
 
@@ -37,6 +37,7 @@ fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
         .reply(":VOLT2?", "5.0000E-01")
         .reply(":VOLT3:AMPL?", "5.0000E-01")
         .reply(":VOLT3:OFFS?", "2.5000E-01")
+        .reply(":ROSC:SOUR?", "INT")
         .reply(":OUTP1?", outputs)
         .reply(":OUTP2?", outputs)
         .reply(":OUTP3?", outputs)
@@ -45,6 +46,7 @@ fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
 const AWG_CONFIGURE: &[&str] = &[
     ERROR_CHECK,
     ":ABOR",
+    ":ROSC:SOUR INT",
     ":INST:DACM DCM",
     ":INST:MEM:EXT:RDIV DIV4",
     ":TRAC1:MMOD EXT",
@@ -72,6 +74,7 @@ const AWG_READBACK: &[&str] = &[
     ":VOLT2?",
     ":VOLT3:AMPL?",
     ":VOLT3:OFFS?",
+    ":ROSC:SOUR?",
     ":OUTP1?",
     ":OUTP2?",
     ":OUTP3?",
@@ -205,6 +208,10 @@ async fn m8195a_out_of_limits_settings_send_nothing() {
         },
         AwgSettings {
             marker_amplitude_v: 0.01,
+            ..AwgSettings::default()
+        },
+        AwgSettings {
+            reference_clock: ReferenceClock::External { frequency_hz: 5e6 },
             ..AwgSettings::default()
         },
     ] {

@@ -29,7 +29,7 @@ pub mod scripted;
 
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
-    IqWaveform, LoadedSegment, RfFrontEnd, RfSettings, RfStatus, Slope,
+    IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, Slope,
 };
 pub use error::DriverError;
 pub use gotmic::Gotmic;
