@@ -1,6 +1,5 @@
-//! The Gotmic driver against mock_lab's Gotmic emulators over loopback. The serial pty server is
-//! being built on another branch; until it lands these tests carry the same line protocol over the
-//! raw socket server (one LF-terminated request, one reply line).
+//! The Gotmic driver against mock_lab's Gotmic emulators: over a pseudo-terminal (the module's real
+//! link is serial) and, for the other checks, the same line protocol over the raw socket server.
 
 use std::future::Future;
 use std::sync::Arc;
@@ -21,23 +20,41 @@ async fn bounded<T>(fut: impl Future<Output = T>) -> T {
         .expect("finished within the test's time limit")
 }
 
+/// Held only to keep the endpoint serving while the test runs.
+#[allow(dead_code)]
+enum Endpoint {
+    Socket(ServerHandle),
+    Serial(server::serial::SerialHandle),
+}
+
 struct Bench {
     emulator: Arc<Emulator>,
     driver: Gotmic,
-    _server: ServerHandle,
+    _server: Endpoint,
 }
 
 async fn start(tx: bool) -> Bench {
+    start_on(tx, false).await
+}
+
+async fn start_on(tx: bool, serial: bool) -> Bench {
     let emulator = Arc::new(if tx {
         Emulator::tx_embedded().unwrap()
     } else {
         Emulator::rx_embedded().unwrap()
     });
     let handler: Arc<dyn Handler> = emulator.clone();
-    let server = server::raw::serve(server::loopback_any(), handler, ServerOptions::default())
-        .await
-        .unwrap();
-    let resource = format!("TCPIP::127.0.0.1::{}::SOCKET", server.local_addr().port());
+    let (server, resource) = if serial {
+        let pty = server::serial::serve(handler, ServerOptions::default()).unwrap();
+        let resource = format!("ASRL{}::INSTR", pty.device_path());
+        (Endpoint::Serial(pty), resource)
+    } else {
+        let server = server::raw::serve(server::loopback_any(), handler, ServerOptions::default())
+            .await
+            .unwrap();
+        let resource = format!("TCPIP::127.0.0.1::{}::SOCKET", server.local_addr().port());
+        (Endpoint::Socket(server), resource)
+    };
     let session = bounded(Session::open(
         resource.parse().unwrap(),
         SessionOptions::default(),
@@ -61,6 +78,17 @@ async fn start(tx: bool) -> Bench {
         driver,
         _server: server,
     }
+}
+
+#[tokio::test]
+async fn enable_and_disable_over_a_serial_pty() {
+    let mut bench = start_on(true, true).await;
+    let permit = RfPermit::grant("test bench, dummy load");
+    let status = bounded(bench.driver.enable(&permit, 6.0)).await.unwrap();
+    assert!(status.rf_enabled);
+    assert_eq!(bench.emulator.front_end().attenuation_db, 6.0);
+    bounded(bench.driver.disable()).await.unwrap();
+    assert!(!bench.emulator.front_end().rf_enabled);
 }
 
 #[tokio::test]

@@ -1,7 +1,5 @@
-//! The LeCroy driver against mock_lab's scope emulator over loopback. The VICP and VXI-11 servers
-//! are being built on another branch; until they land these tests run the same driver over the raw
-//! socket and HiSLIP servers (the driver only sees whole messages, so the command sequence, the
-//! WAVEDESC decoding and the error paths are the same).
+//! The LeCroy driver against mock_lab's scope emulator over loopback, on the scope's two remote
+//! protocols (VICP and VXI-11) and, as extra coverage of the same driver, raw socket and HiSLIP.
 
 use std::future::Future;
 use std::sync::Arc;
@@ -35,19 +33,32 @@ fn options(read: Duration) -> SessionOptions {
     o
 }
 
-async fn serve(handler: Arc<dyn Handler>, hislip: bool) -> (ServerHandle, Resource) {
+#[derive(Clone, Copy, Debug)]
+enum Proto {
+    Vicp,
+    Vxi11,
+    Socket,
+    Hislip,
+}
+
+async fn serve(handler: Arc<dyn Handler>, proto: Proto) -> (ServerHandle, Resource) {
     let any = server::loopback_any();
-    let server = if hislip {
-        server::hislip::serve(any, handler, ServerOptions::default()).await
-    } else {
-        server::raw::serve(any, handler, ServerOptions::default()).await
+    let options = ServerOptions::default();
+    let server = match proto {
+        Proto::Vicp => server::vicp::serve(any, handler, options).await,
+        Proto::Vxi11 => {
+            server::vxi11::serve(server::vxi11::Vxi11Addresses::loopback(), handler, options).await
+        }
+        Proto::Socket => server::raw::serve(any, handler, options).await,
+        Proto::Hislip => server::hislip::serve(any, handler, options).await,
     }
     .expect("server starts");
     let port = server.local_addr().port();
-    let text = if hislip {
-        format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR")
-    } else {
-        format!("TCPIP::127.0.0.1::{port}::SOCKET")
+    let text = match proto {
+        Proto::Vicp => format!("VICP::127.0.0.1,{port}::INSTR"),
+        Proto::Vxi11 => format!("TCPIP::127.0.0.1,{port}::inst0::INSTR"),
+        Proto::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
+        Proto::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
     };
     (server, text.parse().unwrap())
 }
@@ -59,10 +70,15 @@ struct Bench {
     _server: ServerHandle,
 }
 
-async fn start(marker: bool, hislip: bool) -> Bench {
+async fn start(marker: bool, proto: Proto) -> Bench {
     let signal = Arc::new(TestSignal::new(marker, 1e9, 0.1));
     let emulator = Arc::new(Emulator::embedded_with(signal.clone()).unwrap());
-    let (server, resource) = serve(emulator.clone(), hislip).await;
+    let remote = match proto {
+        Proto::Vxi11 => RemoteInterface::Vxi11,
+        _ => RemoteInterface::Vicp,
+    };
+    emulator.set_remote_interface(remote);
+    let (server, resource) = serve(Arc::new(emulator.port(remote)), proto).await;
     let catalog = Catalog::embedded().unwrap();
     let model = catalog.get("lecroy-labmaster10zi-a").unwrap();
     let driver = bounded(Lecroy::open(
@@ -90,8 +106,8 @@ fn setup() -> DigitizerSetup {
     }
 }
 
-async fn single_shot(hislip: bool) {
-    let mut bench = start(true, hislip).await;
+async fn single_shot(proto: Proto) {
+    let mut bench = start(true, proto).await;
     let applied = bounded(bench.driver.configure(&setup())).await.unwrap();
     assert_eq!(applied.sample_rate, 80e9);
     assert_eq!(applied.points, 81_920);
@@ -159,18 +175,28 @@ async fn single_shot(hislip: bool) {
 }
 
 #[tokio::test]
+async fn single_shot_over_vicp() {
+    single_shot(Proto::Vicp).await;
+}
+
+#[tokio::test]
+async fn single_shot_over_vxi11() {
+    single_shot(Proto::Vxi11).await;
+}
+
+#[tokio::test]
 async fn single_shot_over_raw_socket() {
-    single_shot(false).await;
+    single_shot(Proto::Socket).await;
 }
 
 #[tokio::test]
 async fn single_shot_over_hislip() {
-    single_shot(true).await;
+    single_shot(Proto::Hislip).await;
 }
 
 #[tokio::test]
 async fn no_marker_is_a_clear_no_trigger_error() {
-    let mut bench = start(false, false).await;
+    let mut bench = start(false, Proto::Vicp).await;
     bounded(bench.driver.configure(&setup())).await.unwrap();
     let err = bounded(bench.driver.acquire(Duration::from_millis(20)))
         .await
@@ -185,7 +211,7 @@ async fn no_marker_is_a_clear_no_trigger_error() {
 
 #[tokio::test]
 async fn values_outside_the_catalog_are_refused_before_sending() {
-    let mut bench = start(true, false).await;
+    let mut bench = start(true, Proto::Vicp).await;
     for bad in [
         DigitizerSetup {
             sample_rate: 40e9,
@@ -220,7 +246,7 @@ async fn values_outside_the_catalog_are_refused_before_sending() {
 
 #[tokio::test]
 async fn instrument_errors_are_read_from_cmr_and_exr() {
-    let mut bench = start(true, false).await;
+    let mut bench = start(true, Proto::Vicp).await;
     bench.driver.session().write("C1:WF? FOO").await.unwrap();
     let err = bounded(bench.driver.configure(&setup())).await.unwrap_err();
     match err {
@@ -235,12 +261,14 @@ async fn instrument_errors_are_read_from_cmr_and_exr() {
     }
 }
 
-#[tokio::test]
-async fn remote_interface_set_to_the_other_protocol_is_explained() {
+async fn refused(remote: RemoteInterface, proto: Proto, expected: &str) {
     let emulator = Arc::new(Emulator::embedded().unwrap());
-    emulator.set_remote_interface(RemoteInterface::Vicp);
-    let port: Arc<dyn Handler> = Arc::new(emulator.port(RemoteInterface::Vxi11));
-    let (_server, resource) = serve(port, false).await;
+    emulator.set_remote_interface(remote);
+    let via = match proto {
+        Proto::Vxi11 => RemoteInterface::Vxi11,
+        _ => RemoteInterface::Vicp,
+    };
+    let (_server, resource) = serve(Arc::new(emulator.port(via)), proto).await;
     let catalog = Catalog::embedded().unwrap();
     let model = catalog.get("lecroy-labmaster10zi-a").unwrap();
     let result = bounded(Lecroy::open(
@@ -251,9 +279,30 @@ async fn remote_interface_set_to_the_other_protocol_is_explained() {
     .await;
     let err = result.err().expect("the scope does not answer");
     assert!(matches!(err, DriverError::RemoteInterface { .. }), "{err}");
+    let text = err.to_string();
     assert!(
-        err.to_string()
-            .contains("Utilities > Utilities Setup > Remote"),
-        "{err}"
+        text.contains("Utilities > Utilities Setup > Remote"),
+        "{text}"
     );
+    assert!(text.contains(expected), "{text}");
+}
+
+#[tokio::test]
+async fn vicp_client_of_a_scope_set_to_vxi11_is_told_why() {
+    refused(
+        RemoteInterface::Vxi11,
+        Proto::Vicp,
+        "set Utilities > Utilities Setup > Remote to TCPIP (VICP)",
+    )
+    .await;
+}
+
+#[tokio::test]
+async fn vxi11_client_of_a_scope_set_to_vicp_is_told_why() {
+    refused(
+        RemoteInterface::Vicp,
+        Proto::Vxi11,
+        "set Utilities > Utilities Setup > Remote to LXI (VXI-11)",
+    )
+    .await;
 }

@@ -1,4 +1,4 @@
-//! The M8195A driver against mock_lab's M8195A emulator over loopback (raw socket and HiSLIP): the
+//! The M8195A driver against mock_lab's M8195A emulator over loopback (raw socket, HiSLIP, VXI-11): the
 //! exact command sequence of each operation (read from the emulator's received log), what the AWG
 //! then plays, limits refused before sending, and instrument refusals surfaced with code and text.
 
@@ -26,6 +26,7 @@ async fn bounded<T>(fut: impl Future<Output = T>) -> T {
 enum Proto {
     Socket,
     Hislip,
+    Vxi11,
 }
 
 struct Bench {
@@ -42,12 +43,16 @@ async fn start(proto: Proto) -> Bench {
     let server = match proto {
         Proto::Socket => server::raw::serve(any, handler, options).await,
         Proto::Hislip => server::hislip::serve(any, handler, options).await,
+        Proto::Vxi11 => {
+            server::vxi11::serve(server::vxi11::Vxi11Addresses::loopback(), handler, options).await
+        }
     }
     .expect("server starts");
     let port = server.local_addr().port();
     let resource = match proto {
         Proto::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
         Proto::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
+        Proto::Vxi11 => format!("TCPIP::127.0.0.1,{port}::inst0::INSTR"),
     };
     let mut options = SessionOptions::default();
     options.link.timeouts = Timeouts {
@@ -190,6 +195,11 @@ async fn full_sequence_over_raw_socket() {
 #[tokio::test]
 async fn full_sequence_over_hislip() {
     full_sequence(Proto::Hislip).await;
+}
+
+#[tokio::test]
+async fn full_sequence_over_vxi11() {
+    full_sequence(Proto::Vxi11).await;
 }
 
 #[tokio::test]
