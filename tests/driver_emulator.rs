@@ -278,19 +278,37 @@ async fn lecroy_without_marker_reports_no_marker_edge() {
 
 #[tokio::test]
 async fn lecroy_set_to_the_other_protocol_says_so() {
-    let signal = Arc::new(TestSignal::default());
-    let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
-    emu.set_remote_interface(RemoteInterface::Vxi11);
-    let (_server, resource) = serve(Net::Vicp, Arc::new(emu.port(RemoteInterface::Vicp))).await;
-    let mut m = model("lecroy-labmaster10zi-a");
-    m.timeouts.read_ms = 300;
-    let e = bounded(Lecroy::open(resource, &m, None, "scope"))
-        .await
-        .err()
-        .unwrap();
-    let text = e.to_string();
-    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{text}");
-    assert!(text.contains("LXI (VXI-11)"), "{text}");
+    for (net, via, enabled, named) in [
+        (
+            Net::Vicp,
+            RemoteInterface::Vicp,
+            RemoteInterface::Vxi11,
+            "LXI (VXI-11)",
+        ),
+        (
+            Net::Vxi11,
+            RemoteInterface::Vxi11,
+            RemoteInterface::Vicp,
+            "TCPIP (VICP)",
+        ),
+    ] {
+        let signal = Arc::new(TestSignal::default());
+        let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
+        emu.set_remote_interface(enabled);
+        let (_server, resource) = serve(net, Arc::new(emu.port(via))).await;
+        let mut m = model("lecroy-labmaster10zi-a");
+        m.timeouts.read_ms = 300;
+        let e = bounded(Lecroy::open(resource, &m, None, "scope"))
+            .await
+            .err()
+            .unwrap();
+        let text = e.to_string();
+        assert!(
+            matches!(e, DriverError::RemoteInterface { .. }),
+            "{net:?}: {text}"
+        );
+        assert!(text.contains(named), "{net:?}: {text}");
+    }
 }
 
 // ---------------------------------------------------------------- Gotmic
