@@ -18,7 +18,26 @@ pub mod m8195a;
 use std::future::Future;
 use std::time::Duration;
 
+use crate::catalog::{pattern_matches, InstrumentModel};
+use crate::session::Identity;
+
 pub use error::DriverError;
+
+/// `true` when an `*IDN?` reply names `model` (vendor patterns or its mock_lab emulator).
+pub fn identity_matches(model: &InstrumentModel, idn: &Identity) -> bool {
+    let id = &model.identity;
+    let vendor = id
+        .manufacturer
+        .iter()
+        .any(|p| pattern_matches(p, &idn.manufacturer))
+        && id.model.iter().any(|p| pattern_matches(p, &idn.model));
+    let emulator = id
+        .emulator
+        .manufacturer
+        .eq_ignore_ascii_case(&idn.manufacturer)
+        && id.emulator.model.eq_ignore_ascii_case(&idn.model);
+    vendor || emulator
+}
 
 /// What the AWG should generate: memory sample rate, I/Q amplitude and marker levels.
 #[derive(Debug, Clone, PartialEq)]

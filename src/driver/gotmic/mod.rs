@@ -12,8 +12,7 @@ pub mod commands;
 use crate::catalog::{InstrumentModel, Register, RegisterAccess, RfLimits};
 use crate::session::{Identity, Session};
 
-use super::m8195a::identity_matches;
-use super::{DriverError, RfFrontEnd, RfPermit, RfStatus};
+use super::{identity_matches, DriverError, RfFrontEnd, RfPermit, RfStatus};
 
 const NAME: &str = "Gotmic";
 

@@ -14,8 +14,7 @@ use crate::address::Resource;
 use crate::catalog::{DigitizerLimits, InstrumentModel};
 use crate::session::{Identity, Session, SessionError, SessionOptions};
 
-use super::m8195a::identity_matches;
-use super::{Digitizer, DigitizerApplied, DigitizerSetup, DriverError};
+use super::{identity_matches, Digitizer, DigitizerApplied, DigitizerSetup, DriverError};
 pub use wavedesc::{Trace, WaveDesc, WaveformError};
 
 const NAME: &str = "LeCroy";

@@ -7,10 +7,10 @@
 
 pub mod commands;
 
-use crate::catalog::{pattern_matches, AwgLimits, DividerLimits, InstrumentModel};
+use crate::catalog::{AwgLimits, DividerLimits, InstrumentModel};
 use crate::session::{BlockForm, Identity, Session};
 
-use super::{Awg, AwgApplied, AwgSetup, DriverError, IqWaveform};
+use super::{identity_matches, Awg, AwgApplied, AwgSetup, DriverError, IqWaveform};
 
 const NAME: &str = "M8195A";
 /// The DAC mode this driver uses: channels 1 and 2 carry I and Q, 3 and 4 channel 1's markers.
@@ -38,22 +38,6 @@ fn limit(parameter: &'static str, value: impl ToString, allowed: impl Into<Strin
         value: value.to_string(),
         allowed: allowed.into(),
     }
-}
-
-/// `true` when an `*IDN?` reply names `model` (vendor patterns or its mock_lab emulator).
-pub fn identity_matches(model: &InstrumentModel, idn: &Identity) -> bool {
-    let id = &model.identity;
-    let vendor = id
-        .manufacturer
-        .iter()
-        .any(|p| pattern_matches(p, &idn.manufacturer))
-        && id.model.iter().any(|p| pattern_matches(p, &idn.model));
-    let emulator = id
-        .emulator
-        .manufacturer
-        .eq_ignore_ascii_case(&idn.manufacturer)
-        && id.emulator.model.eq_ignore_ascii_case(&idn.model);
-    vendor || emulator
 }
 
 impl M8195a {
