@@ -306,3 +306,40 @@ async fn vxi11_client_of_a_scope_set_to_vicp_is_told_why() {
     )
     .await;
 }
+
+mod decode_fuzz {
+    use proptest::prelude::*;
+    use proptest::test_runner::RngSeed;
+    use radbench::driver::lecroy::wavedesc::decode;
+
+    fn valid_block() -> Vec<u8> {
+        let scope = mock_lab::emulator::lecroy::Lecroy::embedded().unwrap();
+        mock_lab::server::Handler::message(&scope, b"CHDR OFF;CFMT DEF9,WORD,BIN;TDIV 1E-10;FRTR");
+        scope.trc_bytes(1).unwrap()[11..].to_vec()
+    }
+
+    proptest! {
+        // Fixed seed: the same cases on every run; no regression files written.
+        #![proptest_config(ProptestConfig {
+            rng_seed: RngSeed::Fixed(0x7AC3),
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+
+        #[test]
+        fn arbitrary_bytes_are_errors_not_panics(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
+            let _ = decode(&bytes);
+        }
+
+        #[test]
+        fn corrupted_descriptors_are_errors_not_panics(at in 0usize..346, value in any::<u8>(), cut in 0usize..200) {
+            let mut block = valid_block();
+            block[at] = value;
+            let keep = block.len().saturating_sub(cut);
+            block.truncate(keep);
+            if let Ok(trace) = decode(&block) {
+                prop_assert_eq!(trace.codes.len(), trace.desc.points);
+            }
+        }
+    }
+}
