@@ -9,6 +9,9 @@
 //! | [`vicp`] | LeCroy VICP (version 1a: sequence numbers, out-of-band serial poll) |
 //! | [`serial`] | line-based serial endpoint on a pseudo-terminal |
 //!
+//! [`launch`] starts an instrument on any of them and describes the endpoint (address, VISA
+//! resource string); [`framing`] holds the block-aware 488.2 message splitter they share.
+//!
 //! Every server takes [`ServerOptions`]: the largest message it accepts (length fields are
 //! checked against it before anything is allocated) and the [`Faults`] the tests can switch on.
 //! Handler calls run on tokio's blocking pool, so a handler that blocks (a scope's `WAIT`)
