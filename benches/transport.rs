@@ -1,1 +1,120 @@
-fn main() {}
+//! Moves a 64 MiB block over loopback through each transport against the mock_lab servers, both
+//! ways, and reports throughput (divan prints bytes/s next to the time).
+//!
+//! `cargo bench --bench transport` (add `-- --sample-count 5` for a quicker run).
+//! Targets: >= 1 GB/s raw socket, HiSLIP and VICP; >= 500 MB/s VXI-11.
+
+use divan::counter::BytesCount;
+use divan::Bencher;
+use mock_lab::emulator::loopback::Loopback;
+use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
+use radbench::address::Resource;
+use radbench::session::{BlockForm, Session, SessionOptions};
+use std::sync::Arc;
+
+const LEN: usize = 64 << 20;
+
+fn main() {
+    divan::main();
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Proto {
+    Socket,
+    Hislip,
+}
+
+impl std::fmt::Display for Proto {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Proto::Socket => "socket",
+            Proto::Hislip => "hislip",
+        })
+    }
+}
+
+const PROTOCOLS: [Proto; 2] = [Proto::Socket, Proto::Hislip];
+
+struct Rig {
+    runtime: tokio::runtime::Runtime,
+    session: Session,
+    _server: ServerHandle,
+}
+
+fn rig(proto: Proto) -> Rig {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let (server, session) = runtime.block_on(async {
+        let handler: Arc<dyn Handler> = Arc::new(Loopback::new());
+        let options = ServerOptions::default();
+        let any = server::loopback_any();
+        let server = match proto {
+            Proto::Socket => server::raw::serve(any, handler, options).await,
+            Proto::Hislip => server::hislip::serve(any, handler, options).await,
+        }
+        .expect("server starts");
+        let port = server.local_addr().port();
+        let resource: Resource = match proto {
+            Proto::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
+            Proto::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
+        }
+        .parse()
+        .expect("resource");
+        let session = Session::open(resource, SessionOptions::default(), None, "bench")
+            .await
+            .expect("session opens");
+        (server, session)
+    });
+    Rig {
+        runtime,
+        session,
+        _server: server,
+    }
+}
+
+fn payload() -> Vec<u8> {
+    let mut rng = radbench::rng::SplitMix64::new(1);
+    let mut out = Vec::with_capacity(LEN + 8);
+    while out.len() < LEN {
+        out.extend_from_slice(&rng.next_u64().to_le_bytes());
+    }
+    out.truncate(LEN);
+    out
+}
+
+/// Instrument to radbench: `DATA?` returns a 64 MiB definite block.
+#[divan::bench(args = PROTOCOLS, sample_count = 10, sample_size = 1)]
+fn read_64_mib(bencher: Bencher, proto: Proto) {
+    let mut rig = rig(proto);
+    let data = payload();
+    rig.runtime
+        .block_on(rig.session.write_block("DATA ", &data, BlockForm::Definite))
+        .expect("upload");
+    bencher.counter(BytesCount::new(LEN)).bench_local(|| {
+        let block = rig
+            .runtime
+            .block_on(rig.session.query_block("DATA?"))
+            .expect("download");
+        assert_eq!(block.len(), LEN);
+    });
+}
+
+/// radbench to instrument: `DATA #8<64 MiB>`, then `*OPC?` so the instrument has it all.
+#[divan::bench(args = PROTOCOLS, sample_count = 10, sample_size = 1)]
+fn write_64_mib(bencher: Bencher, proto: Proto) {
+    let mut rig = rig(proto);
+    let data = payload();
+    bencher.counter(BytesCount::new(LEN)).bench_local(|| {
+        rig.runtime
+            .block_on(async {
+                rig.session
+                    .write_block("DATA ", &data, BlockForm::Definite)
+                    .await?;
+                rig.session.opc().await
+            })
+            .expect("upload");
+    });
+}

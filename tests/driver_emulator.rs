@@ -17,7 +17,7 @@ use radbench::driver::io::open_session;
 use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState,
 };
 
 async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
@@ -95,10 +95,13 @@ fn waveform(n: usize) -> IqWaveform {
 async fn awg_plays_iq_with_a_marker(net: Net) {
     let m = model("keysight-m8195a");
     let (emu, mut awg, _server) = awg_over(net, &m).await;
-    let applied = bounded(awg.configure(&AwgSettings::default()))
-        .await
-        .unwrap();
+    let settings = AwgSettings {
+        reference_clock: ReferenceClock::External { frequency_hz: 10e6 },
+        ..AwgSettings::default()
+    };
+    let applied = bounded(awg.configure(&settings)).await.unwrap();
     assert_eq!((applied.dac_mode.as_str(), applied.divider), ("DCM", 4));
+    assert_eq!(applied.reference_source, "EXT");
     assert_eq!(applied.sample_rate_hz, 16e9);
     let wf = waveform(5000);
     let loaded = bounded(awg.load(&wf)).await.unwrap();
@@ -275,19 +278,37 @@ async fn lecroy_without_marker_reports_no_marker_edge() {
 
 #[tokio::test]
 async fn lecroy_set_to_the_other_protocol_says_so() {
-    let signal = Arc::new(TestSignal::default());
-    let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
-    emu.set_remote_interface(RemoteInterface::Vxi11);
-    let (_server, resource) = serve(Net::Vicp, Arc::new(emu.port(RemoteInterface::Vicp))).await;
-    let mut m = model("lecroy-labmaster10zi-a");
-    m.timeouts.read_ms = 300;
-    let e = bounded(Lecroy::open(resource, &m, None, "scope"))
-        .await
-        .err()
-        .unwrap();
-    let text = e.to_string();
-    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{text}");
-    assert!(text.contains("LXI (VXI-11)"), "{text}");
+    for (net, via, enabled, named) in [
+        (
+            Net::Vicp,
+            RemoteInterface::Vicp,
+            RemoteInterface::Vxi11,
+            "LXI (VXI-11)",
+        ),
+        (
+            Net::Vxi11,
+            RemoteInterface::Vxi11,
+            RemoteInterface::Vicp,
+            "TCPIP (VICP)",
+        ),
+    ] {
+        let signal = Arc::new(TestSignal::default());
+        let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
+        emu.set_remote_interface(enabled);
+        let (_server, resource) = serve(net, Arc::new(emu.port(via))).await;
+        let mut m = model("lecroy-labmaster10zi-a");
+        m.timeouts.read_ms = 300;
+        let e = bounded(Lecroy::open(resource, &m, None, "scope"))
+            .await
+            .err()
+            .unwrap();
+        let text = e.to_string();
+        assert!(
+            matches!(e, DriverError::RemoteInterface { .. }),
+            "{net:?}: {text}"
+        );
+        assert!(text.contains(named), "{net:?}: {text}");
+    }
 }
 
 // ---------------------------------------------------------------- Gotmic
@@ -324,6 +345,11 @@ async fn gotmic_tx_and_rx_over_serial_enable_read_back_and_disable() {
         assert!(on.rf_enabled && on.lo_locked, "{key}: {on:?}");
         assert_eq!(on.attenuation_db, 12.5);
         assert!(emu.front_end().rf_enabled, "{key}");
+        let framed = emu.log().texts();
+        assert!(
+            framed.iter().any(|t| t.starts_with("W 02 000F*")),
+            "CRC-framed requests: {framed:?}"
+        );
         bounded(rf.disable()).await.unwrap();
         let off = bounded(rf.status()).await.unwrap();
         assert!(!off.rf_enabled);

@@ -10,7 +10,7 @@ use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::scripted::{Failure, ERROR_CHECK};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
 };
 use radbench::exit::{Classify, ExitClass};
 
@@ -37,6 +37,7 @@ fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
         .reply(":VOLT2?", "5.0000E-01")
         .reply(":VOLT3:AMPL?", "5.0000E-01")
         .reply(":VOLT3:OFFS?", "2.5000E-01")
+        .reply(":ROSC:SOUR?", "INT")
         .reply(":OUTP1?", outputs)
         .reply(":OUTP2?", outputs)
         .reply(":OUTP3?", outputs)
@@ -45,6 +46,7 @@ fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
 const AWG_CONFIGURE: &[&str] = &[
     ERROR_CHECK,
     ":ABOR",
+    ":ROSC:SOUR INT",
     ":INST:DACM DCM",
     ":INST:MEM:EXT:RDIV DIV4",
     ":TRAC1:MMOD EXT",
@@ -72,6 +74,7 @@ const AWG_READBACK: &[&str] = &[
     ":VOLT2?",
     ":VOLT3:AMPL?",
     ":VOLT3:OFFS?",
+    ":ROSC:SOUR?",
     ":OUTP1?",
     ":OUTP2?",
     ":OUTP3?",
@@ -205,6 +208,10 @@ async fn m8195a_out_of_limits_settings_send_nothing() {
         },
         AwgSettings {
             marker_amplitude_v: 0.01,
+            ..AwgSettings::default()
+        },
+        AwgSettings {
+            reference_clock: ReferenceClock::External { frequency_hz: 5e6 },
             ..AwgSettings::default()
         },
     ] {
@@ -711,4 +718,30 @@ async fn a_dropped_guard_runs_the_safe_state_synchronously() {
             ERROR_CHECK
         ]
     );
+}
+
+#[tokio::test]
+async fn gotmic_crc_framing_frames_requests_and_rejects_corrupted_replies() {
+    use radbench::driver::gotmic::commands::framed;
+    use radbench::driver::gotmic::Framing;
+    let m = model("gotmic-eband-tx");
+    let f = |s: &str| framed(s, 0x07, 0x00);
+    let fake = Scripted::new("tx")
+        .reply("CRC ON", "OK")
+        .reply(&f("*IDN?"), &f(TX_IDN))
+        .reply(&f("R 00"), &f("OK 5458"))
+        .reply(&f("R 01"), "OK 0001*00");
+    let log = fake.log();
+    let mut tx = bounded(Gotmic::connect_with(
+        Box::new(fake),
+        &m,
+        "tx",
+        Framing::from_catalog(&m),
+    ))
+    .await
+    .unwrap();
+    assert_eq!(log.ops(), ["CRC ON".to_string(), f("*IDN?"), f("R 00")]);
+    let e = bounded(tx.status()).await.unwrap_err();
+    assert!(e.to_string().contains("CRC-8"), "{e}");
+    log.assert_no_surprises();
 }

@@ -272,14 +272,33 @@ fn invalid(what: &'static str, field: &str, reason: impl Into<String>) -> Catalo
 
 /// Reads an AWG file (for example [`embedded::M8195A`]).
 pub fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
+    let file: AwgFile = parse("AWG", text)?;
+    let model = AwgModel {
+        identity: file.identity.emulator,
+        limits: file.awg,
+    };
+    check_awg(&model)?;
+    Ok(model)
+}
+
+/// Checks what the M8195A emulator relies on: dividers with a granularity, DAC modes whose channels
+/// exist, 1..=8 channels.
+pub fn check_awg(model: &AwgModel) -> Result<(), CatalogError> {
     const WHAT: &str = "AWG";
-    let file: AwgFile = parse(WHAT, text)?;
-    let limits = file.awg;
+    let limits = &model.limits;
     if limits.dividers.is_empty() {
         return Err(invalid(WHAT, "awg.divider", "needs at least one divider"));
     }
-    if limits.dividers.iter().any(|d| d.granularity == 0) {
-        return Err(invalid(WHAT, "awg.divider.granularity", "must be > 0"));
+    if limits
+        .dividers
+        .iter()
+        .any(|d| d.granularity == 0 || d.divider == 0)
+    {
+        return Err(invalid(
+            WHAT,
+            "awg.divider",
+            "divider and granularity must be > 0",
+        ));
     }
     if limits.dac_modes.is_empty() {
         return Err(invalid(WHAT, "awg.dac_mode", "needs at least one DAC mode"));
@@ -287,18 +306,48 @@ pub fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
     if !(1..=8).contains(&limits.channels) {
         return Err(invalid(WHAT, "awg.channels", "must be 1..=8"));
     }
-    Ok(AwgModel {
-        identity: file.identity.emulator,
-        limits,
-    })
+    let channel_ok = |ch: &u8| (1..=limits.channels).contains(ch);
+    for mode in &limits.dac_modes {
+        let all = mode
+            .signal_channels
+            .iter()
+            .chain(&mode.marker_channels)
+            .chain(&mode.extended_only_channels);
+        if mode.signal_channels.is_empty() || !all.clone().all(channel_ok) {
+            return Err(invalid(
+                WHAT,
+                "awg.dac_mode",
+                format!(
+                    "DAC mode {} names a channel outside 1..={}",
+                    mode.keyword, limits.channels
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reads a digitizer file (for example [`embedded::LECROY`]).
 pub fn digitizer_from_str(text: &str) -> Result<DigitizerModel, CatalogError> {
+    let file: DigitizerFile = parse("digitizer", text)?;
+    let model = DigitizerModel {
+        identity: file.identity.emulator,
+        limits: file.digitizer,
+    };
+    check_digitizer(&model)?;
+    Ok(model)
+}
+
+/// Checks what the scope emulator relies on: a positive sample rate, non-zero divisions, 1..=8
+/// channels, ADC bits 1..=16.
+pub fn check_digitizer(model: &DigitizerModel) -> Result<(), CatalogError> {
     const WHAT: &str = "digitizer";
-    let file: DigitizerFile = parse(WHAT, text)?;
-    let limits = file.digitizer;
-    if limits.sample_rates.first().is_none_or(|r| *r <= 0.0) {
+    let limits = &model.limits;
+    if limits
+        .sample_rates
+        .first()
+        .is_none_or(|r| !(r.is_finite() && *r > 0.0))
+    {
         return Err(invalid(
             WHAT,
             "digitizer.sample_rates",
@@ -315,10 +364,10 @@ pub fn digitizer_from_str(text: &str) -> Result<DigitizerModel, CatalogError> {
     if !(1..=8).contains(&limits.channels) {
         return Err(invalid(WHAT, "digitizer.channels", "must be 1..=8"));
     }
-    Ok(DigitizerModel {
-        identity: file.identity.emulator,
-        limits,
-    })
+    if !(1..=16).contains(&limits.adc_bits) {
+        return Err(invalid(WHAT, "digitizer.adc_bits", "must be 1..=16"));
+    }
+    Ok(())
 }
 
 /// Reads a Gotmic module file (for example [`embedded::GOTMIC_TX`]).

@@ -188,3 +188,11 @@ fn handler_answers_one_reply_per_line_and_logs() {
     assert_eq!(replies[1], b"OK 0000");
     assert_eq!(t.log().texts(), ["*IDN?", "R 02"]);
 }
+
+#[test]
+fn a_register_map_without_what_the_emulator_needs_is_refused() {
+    let mut model = mock_lab::catalog::gotmic_tx().unwrap();
+    model.registers.retain(|r| r.name != "FAULT_LATCH");
+    let err = Gotmic::new(model).err().unwrap();
+    assert!(err.to_string().contains("FAULT_LATCH"), "{err}");
+}

@@ -461,3 +461,10 @@ fn desc_and_dat1_parts() {
     let dat = send(&*scope, "C1:WF? DAT1");
     assert!(dat.starts_with(b"DAT1,#9000001600"));
 }
+
+#[test]
+fn a_model_the_emulator_cannot_use_is_refused() {
+    let mut model = mock_lab::catalog::lecroy().unwrap();
+    model.limits.sample_rates.clear();
+    assert!(Lecroy::new(model, Arc::new(TestSignal::default())).is_err());
+}

@@ -379,3 +379,14 @@ fn error_queue_overflows_to_350() {
     assert_eq!(codes.len(), 30);
     assert_eq!(codes[29], -350);
 }
+
+#[test]
+fn a_model_the_emulator_cannot_use_is_refused() {
+    let mut model = mock_lab::catalog::m8195a().unwrap();
+    model.limits.dividers.clear();
+    assert!(M8195a::new(model).is_err());
+    let mut model = mock_lab::catalog::m8195a().unwrap();
+    model.limits.dac_modes[0].signal_channels.push(9);
+    let err = M8195a::new(model).err().unwrap();
+    assert!(err.to_string().contains("outside 1..=4"), "{err}");
+}

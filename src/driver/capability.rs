@@ -15,6 +15,18 @@ use super::permit::RfPermit;
 use crate::catalog::RfDirection;
 use crate::session::Identity;
 
+/// Where the AWG's sample clock reference comes from. Share a 10 MHz reference with the scope so
+/// the 80 -> 16 GSa/s relationship stays phase-stable over long records (instruments.md section 8).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "source", deny_unknown_fields)]
+pub enum ReferenceClock {
+    #[default]
+    Internal,
+    External {
+        frequency_hz: f64,
+    },
+}
+
 /// I/Q playback settings of an AWG (I on one channel, Q on another, a marker each repetition).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -29,6 +41,7 @@ pub struct AwgSettings {
     pub marker_amplitude_v: f64,
     /// Marker output centre ((high + low) / 2), volts.
     pub marker_offset_v: f64,
+    pub reference_clock: ReferenceClock,
 }
 
 impl Default for AwgSettings {
@@ -41,6 +54,7 @@ impl Default for AwgSettings {
             q_offset_v: 0.0,
             marker_amplitude_v: 0.5,
             marker_offset_v: 0.25,
+            reference_clock: ReferenceClock::Internal,
         }
     }
 }
@@ -96,6 +110,8 @@ pub struct AwgApplied {
     pub q_amplitude_vpp: f64,
     pub marker_amplitude_v: f64,
     pub marker_offset_v: f64,
+    /// The reference source as the AWG reports it (`INT`, `EXT`, `AXI`).
+    pub reference_source: String,
     pub outputs: Vec<OutputState>,
 }
 
@@ -163,6 +179,9 @@ pub struct DigitizerSettings {
     /// External trigger level, volts (the marker's mid level).
     pub trigger_level_v: f64,
     pub trigger_slope: Slope,
+    /// Lock the timebase to the external 10 MHz reference shared with the AWG (`RCLK EXTERNAL`);
+    /// when false the scope's reference setting is left as it is.
+    pub external_reference: bool,
 }
 
 impl Default for DigitizerSettings {
@@ -178,6 +197,7 @@ impl Default for DigitizerSettings {
             q_offset_v: 0.0,
             trigger_level_v: 0.2,
             trigger_slope: Slope::Positive,
+            external_reference: false,
         }
     }
 }

@@ -15,6 +15,31 @@
 //! Rules every driver keeps: command spellings in one `commands.rs`; settings checked against the
 //! catalog before anything is sent; the error queue read after each configuration batch; what the
 //! instrument applied read back and reported.
+//!
+//! # A measurement, in driver calls
+//!
+//! ```text
+//! let permit = RfPermit::granted_by_user();          // only where the user said --allow-rf
+//! let safe = SafeState::new(Bench { tx, rx, awg }, step_timeout);
+//! install_panic_hook(safe.clone());
+//! run_guarded(&safe, async {
+//!     awg.configure(&awg_settings).await?;           // DCM, 64 GSa/s / 4, levels, read-back
+//!     awg.load(&iq_waveform).await?;                 // padded, chunked, marker interleaved
+//!     scope.configure(&scope_settings).await?;       // WORD format, 80 GSa/s, record, EX trigger
+//!     awg.enable_outputs(&permit).await?;
+//!     awg.run().await?;                              // :INIT:IMM last
+//!     tx.enable(&permit, &rf).await?; rx.enable(&permit, &rf).await?;
+//!     scope.capture_iq(wait_s).await                 // I = C1, Q = C2, .trc bytes kept
+//! }, tokio::signal::ctrl_c()).await;                 // then Tx off, Rx off, outputs off, :ABOR
+//! ```
+//!
+//! # Adding an instrument model
+//!
+//! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
+//! with the same register protocol) needs only a catalog file in `instruments/`. A new command
+//! set needs a driver module here: a `commands.rs` with every spelling, pure checks against the
+//! catalog before any I/O, an implementation of the capability trait, tests with [`Scripted`] that
+//! pin each operation's command sequence, and tests against its mock_lab emulator.
 
 pub mod capability;
 pub mod common;
@@ -29,7 +54,7 @@ pub mod scripted;
 
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
-    IqWaveform, LoadedSegment, RfFrontEnd, RfSettings, RfStatus, Slope,
+    IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, Slope,
 };
 pub use error::DriverError;
 pub use gotmic::Gotmic;

@@ -78,6 +78,8 @@ pub struct LinkOptions {
     pub progress_step_bytes: u64,
     /// Serial settings for `ASRL` resources (from the bench file).
     pub serial: super::serial::SerialSettings,
+    /// Where the ONC-RPC portmapper listens (VXI-11 without an explicit port); 111 on instruments.
+    pub portmapper_port: u16,
 }
 
 impl Default for LinkOptions {
@@ -88,6 +90,7 @@ impl Default for LinkOptions {
             progress: None,
             progress_step_bytes: 4 << 20,
             serial: Default::default(),
+            portmapper_port: crate::address::PORTMAPPER_PORT,
         }
     }
 }
@@ -100,6 +103,7 @@ impl std::fmt::Debug for LinkOptions {
             .field("progress", &self.progress.is_some())
             .field("progress_step_bytes", &self.progress_step_bytes)
             .field("serial", &self.serial)
+            .field("portmapper_port", &self.portmapper_port)
             .finish()
     }
 }

@@ -296,7 +296,7 @@ impl Link {
     }
 
     /// The status byte by the protocol's own serial poll (VXI-11 readstb, HiSLIP
-    /// AsyncStatusQuery, VICP out-of-band poll on Linux). Raw socket and serial return
+    /// AsyncStatusQuery, VICP in-band poll). Raw socket and serial return
     /// [`LinkError::Unsupported`]; the session then asks `*STB?`.
     pub async fn read_stb(&mut self) -> Result<u8, LinkError> {
         self.recover().await?;
@@ -306,15 +306,7 @@ impl Link {
         let result = match self.inner.as_mut().ok_or(LinkError::NotOpen)? {
             Inner::Vxi11(l) => l.read_stb(options).await,
             Inner::Hislip(l) => l.read_stb(options).await,
-            #[cfg(any(target_os = "linux", target_os = "android"))]
             Inner::Vicp(l) => l.read_stb(options).await,
-            #[cfg(not(any(target_os = "linux", target_os = "android")))]
-            Inner::Vicp(_) => {
-                return Err(LinkError::Unsupported {
-                    protocol,
-                    op: "serial poll",
-                })
-            }
             Inner::Socket(_) | Inner::Serial(_) => {
                 return Err(LinkError::Unsupported {
                     protocol,

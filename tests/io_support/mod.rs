@@ -27,11 +27,17 @@ pub async fn bounded<T>(fut: impl Future<Output = T>) -> T {
 pub enum Proto {
     Socket,
     Hislip,
+    Vxi11,
+    /// VXI-11 with the core port found through the portmapper.
+    Vxi11Portmapper,
+    Vicp,
 }
 
 /// A running mock server with its faults and the resource string that reaches it.
 pub struct Bench {
     pub faults: Arc<Faults>,
+    /// The portmapper's port when the test uses one instead of 111.
+    pub portmapper_port: Option<u16>,
     pub resource: Resource,
     pub server: ServerHandle,
 }
@@ -44,22 +50,40 @@ pub async fn start(proto: Proto) -> Bench {
     let server = match proto {
         Proto::Socket => server::raw::serve(any, handler, options).await,
         Proto::Hislip => server::hislip::serve(any, handler, options).await,
+        Proto::Vxi11 => {
+            server::vxi11::serve(server::vxi11::Vxi11Addresses::loopback(), handler, options).await
+        }
+        Proto::Vxi11Portmapper => {
+            let addrs = server::vxi11::Vxi11Addresses {
+                portmapper: Some(any),
+                ..server::vxi11::Vxi11Addresses::loopback()
+            };
+            server::vxi11::serve(addrs, handler, options).await
+        }
+        Proto::Vicp => server::vicp::serve(any, handler, options).await,
     }
     .expect("mock server starts");
     let port = server.local_addr().port();
     let text = match proto {
         Proto::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
         Proto::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
+        Proto::Vxi11 => format!("TCPIP::127.0.0.1,{port}::inst0::INSTR"),
+        Proto::Vxi11Portmapper => "TCPIP::127.0.0.1::inst0::INSTR".to_string(),
+        Proto::Vicp => format!("VICP::127.0.0.1,{port}"),
     };
     Bench {
         faults,
+        portmapper_port: server.listener("portmapper").map(|a| a.port()),
         resource: text.parse().expect("valid resource"),
         server,
     }
 }
 
-pub fn options(read: Duration) -> SessionOptions {
+pub fn options(bench: &Bench, read: Duration) -> SessionOptions {
     let mut o = SessionOptions::default();
+    if let Some(port) = bench.portmapper_port {
+        o.link.portmapper_port = port;
+    }
     o.link.timeouts = Timeouts {
         connect: Duration::from_secs(5),
         read,
@@ -72,7 +96,7 @@ pub fn options(read: Duration) -> SessionOptions {
 pub async fn open(bench: &Bench, read: Duration) -> Session {
     bounded(Session::open(
         bench.resource.clone(),
-        options(read),
+        options(bench, read),
         None,
         "loopback",
     ))

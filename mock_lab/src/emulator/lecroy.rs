@@ -56,28 +56,30 @@ pub struct Lecroy {
 
 impl Lecroy {
     /// A scope with `model`'s limits whose inputs see `source`, remote interface set to VICP.
-    pub fn new(model: DigitizerModel, source: Arc<dyn TriggerSource>) -> Lecroy {
+    /// Refuses a model the emulator cannot work with (no sample rate, zero divisions).
+    pub fn new(
+        model: DigitizerModel,
+        source: Arc<dyn TriggerSource>,
+    ) -> Result<Lecroy, CatalogError> {
+        catalog::check_digitizer(&model)?;
         let state = ScopeState::reset(&model, RemoteInterface::Vicp);
-        Lecroy {
+        Ok(Lecroy {
             inner: Mutex::new(state),
             source,
             log: ReceivedLog::new("lecroy", LOG_CAPACITY),
             wait_cap: Mutex::new(Duration::from_secs(10)),
             model,
-        }
+        })
     }
 
     /// The built-in LabMaster 10 Zi-A model with a [`TestSignal`] (marker present, 1 GHz tone).
     pub fn embedded() -> Result<Lecroy, CatalogError> {
-        Ok(Lecroy::new(
-            catalog::lecroy()?,
-            Arc::new(TestSignal::default()),
-        ))
+        Lecroy::new(catalog::lecroy()?, Arc::new(TestSignal::default()))
     }
 
     /// The built-in model with the given input source.
     pub fn embedded_with(source: Arc<dyn TriggerSource>) -> Result<Lecroy, CatalogError> {
-        Ok(Lecroy::new(catalog::lecroy()?, source))
+        Lecroy::new(catalog::lecroy()?, source)
     }
 
     pub fn model(&self) -> &DigitizerModel {

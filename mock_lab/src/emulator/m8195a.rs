@@ -57,10 +57,12 @@ pub struct M8195a {
 }
 
 impl M8195a {
-    /// An emulator with the limits of `model`, in its power-on state.
-    pub fn new(model: AwgModel) -> M8195a {
+    /// An emulator with the limits of `model`, in its power-on state. Refuses a model the emulator
+    /// cannot work with (no dividers, channels out of range).
+    pub fn new(model: AwgModel) -> Result<M8195a, CatalogError> {
+        catalog::check_awg(&model)?;
         let state = AwgState::reset(&model);
-        M8195a {
+        Ok(M8195a {
             tree: commands::compiled(),
             inner: Mutex::new(Inner {
                 state,
@@ -71,12 +73,12 @@ impl M8195a {
             }),
             log: ReceivedLog::new("m8195a", LOG_CAPACITY),
             model,
-        }
+        })
     }
 
     /// An emulator with the limits of the built-in catalog file.
     pub fn embedded() -> Result<M8195a, CatalogError> {
-        Ok(M8195a::new(catalog::m8195a()?))
+        M8195a::new(catalog::m8195a()?)
     }
 
     pub fn model(&self) -> &AwgModel {

@@ -17,6 +17,7 @@ use super::io::{BoxFuture, InstrumentIo};
 use super::permit::RfPermit;
 use crate::address::Resource;
 use crate::catalog::{InstrumentModel, Register, RfDirection, RfLimits};
+use crate::session::reply::parse_idn;
 use crate::session::{Identity, Session, SessionOptions};
 use crate::transport::{Journal, LinkOptions};
 
@@ -97,9 +98,33 @@ impl Map {
     }
 }
 
+/// How request and reply lines are framed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Framing {
+    /// Bare lines.
+    Plain,
+    /// `*<hh>` CRC-8 suffix on every request and reply (`CRC ON`), with the catalog's polynomial
+    /// and initial value: a corrupted line on the serial link is detected, never acted on.
+    Crc8 { poly: u8, init: u8 },
+}
+
+impl Framing {
+    /// CRC-8 when the catalog's `[protocol]` defines one, else plain lines.
+    pub fn from_catalog(model: &InstrumentModel) -> Framing {
+        match &model.protocol {
+            Some(p) => Framing::Crc8 {
+                poly: p.crc_poly,
+                init: p.crc_init,
+            },
+            None => Framing::Plain,
+        }
+    }
+}
+
 /// A connected Gotmic module (transmitter or receiver).
 pub struct Gotmic {
     io: Box<dyn InstrumentIo>,
+    framing: Framing,
     model: InstrumentModel,
     limits: RfLimits,
     map: Map,
@@ -143,29 +168,73 @@ impl Gotmic {
         let session = Session::open(resource, options, journal, name)
             .await
             .map_err(session(name))?;
-        Gotmic::connect(Box::new(session), model, name).await
+        Gotmic::connect_with(Box::new(session), model, name, Framing::from_catalog(model)).await
     }
 
-    /// Identifies the module (`*IDN?` and the ID register) on an open session or a fake.
+    /// Identifies the module (`*IDN?` and the ID register) on an open session or a fake, with
+    /// plain lines.
     pub async fn connect(
-        mut io: Box<dyn InstrumentIo>,
+        io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,
         name: &str,
+    ) -> Result<Gotmic, DriverError> {
+        Gotmic::connect_with(io, model, name, Framing::Plain).await
+    }
+
+    /// Like [`connect`](Gotmic::connect) with the given framing (CRC is switched on first).
+    pub async fn connect_with(
+        io: Box<dyn InstrumentIo>,
+        model: &InstrumentModel,
+        name: &str,
+        framing: Framing,
     ) -> Result<Gotmic, DriverError> {
         let limits = model.rf.clone().ok_or_else(|| DriverError::Catalog {
             key: model.instrument.key.clone(),
             reason: "the model has no [rf] section; it is not an RF front end".into(),
         })?;
         let map = Map::resolve(model)?;
-        let identity = common::identify(io.as_mut(), model, name).await?;
         let mut driver = Gotmic {
             io,
+            framing,
             model: model.clone(),
             limits,
             map,
-            identity,
+            identity: Identity {
+                manufacturer: String::new(),
+                model: String::new(),
+                serial: String::new(),
+                firmware: String::new(),
+            },
             name: name.to_string(),
         };
+        if let Framing::Crc8 { .. } = framing {
+            // Whatever the module answers (OK, or the CRC error of a module already in CRC
+            // mode), CRC framing is on afterwards; the framed *IDN? below proves it.
+            let reply = driver
+                .io
+                .query(commands::CRC_ON)
+                .await
+                .map_err(session(name))?;
+            tracing::debug!(instrument = name, "CRC ON -> {reply}");
+        }
+        let idn_text = driver.line(commands::IDN).await?;
+        let identity = parse_idn(&idn_text).ok_or_else(|| DriverError::Reply {
+            instrument: name.to_string(),
+            command: commands::IDN.into(),
+            expected: "manufacturer,model,serial,firmware",
+            reply: idn_text.clone(),
+        })?;
+        if !common::identity_matches(model, &identity) {
+            return Err(DriverError::WrongInstrument {
+                resource: driver.io.resource_text(),
+                expected: format!(
+                    "{} {} (catalog key `{}`)",
+                    model.instrument.manufacturer, model.instrument.model, model.instrument.key
+                ),
+                idn: idn_text,
+            });
+        }
+        driver.identity = identity;
         let id = driver.read(&driver.map.id.clone()).await?;
         if id != driver.map.id.reset {
             return Err(DriverError::WrongInstrument {
@@ -180,12 +249,31 @@ impl Gotmic {
         Ok(driver)
     }
 
+    /// One request line and its reply line, framed and checked as configured.
+    async fn line(&mut self, request: &str) -> Result<String, DriverError> {
+        match self.framing {
+            Framing::Plain => self.io.query(request).await.map_err(session(&self.name)),
+            Framing::Crc8 { poly, init } => {
+                let sent = commands::framed(request, poly, init);
+                let reply = self.io.query(&sent).await.map_err(session(&self.name))?;
+                commands::unframe(&reply, poly, init)
+                    .map(str::to_string)
+                    .ok_or_else(|| DriverError::Reply {
+                        instrument: self.name.clone(),
+                        command: sent,
+                        expected: "a reply ending in a valid *<hh> CRC-8 (check the cable and the line settings)",
+                        reply,
+                    })
+            }
+        }
+    }
+
     pub fn model(&self) -> &InstrumentModel {
         &self.model
     }
 
     async fn request(&mut self, line: &str) -> Result<Option<u16>, DriverError> {
-        let reply = self.io.query(line).await.map_err(session(&self.name))?;
+        let reply = self.line(line).await?;
         match commands::parse_reply(&reply) {
             Some(Reply::Ok(v)) => Ok(v),
             Some(Reply::Err { code, text }) => Err(DriverError::LineRefused {

@@ -16,6 +16,7 @@ pub const COMMAND_ERRORS: &str = "CMR?";
 pub const EXECUTION_ERRORS: &str = "EXR?";
 pub const STATUS: &str = "INR?";
 pub const STOP: &str = "STOP";
+pub const EXTERNAL_REFERENCE: &str = "RCLK EXTERNAL";
 /// The external trigger input, where the AWG's marker arrives.
 pub const EXTERNAL: &str = "EX";
 

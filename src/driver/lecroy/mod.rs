@@ -305,6 +305,9 @@ impl Lecroy {
             self.send(&commands::volts_per_div(ch, vdiv)).await?;
             self.send(&commands::offset(ch, offset)).await?;
         }
+        if s.external_reference {
+            self.send(commands::EXTERNAL_REFERENCE).await?;
+        }
         self.check("the channel settings").await?;
         self.send(commands::FIXED_RATE).await?;
         self.send(&commands::sample_rate(s.sample_rate_hz)).await?;

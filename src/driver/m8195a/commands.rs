@@ -11,6 +11,13 @@ pub const GATE_OFF: &str = ":INIT:GATE 0";
 pub const DAC_MODE_QUERY: &str = ":INST:DACM?";
 pub const DIVIDER_QUERY: &str = ":INST:MEM:EXT:RDIV?";
 pub const RASTER_QUERY: &str = ":FREQ:RAST?";
+pub const REFERENCE_INTERNAL: &str = ":ROSC:SOUR INT";
+pub const REFERENCE_EXTERNAL: &str = ":ROSC:SOUR EXT";
+pub const REFERENCE_QUERY: &str = ":ROSC:SOUR?";
+
+pub fn reference_frequency(hz: f64) -> String {
+    format!(":ROSC:FREQ {}", number(hz))
+}
 
 pub fn dac_mode(keyword: &str) -> String {
     format!(":INST:DACM {keyword}")

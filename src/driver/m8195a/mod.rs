@@ -10,7 +10,8 @@ pub mod plan;
 
 use self::plan::{ClockPlan, DownloadPlan, SEGMENT_ID};
 use super::capability::{
-    Awg, AwgApplied, AwgSettings, IqWaveform, LoadedSegment, OutputState, SegmentEntry,
+    Awg, AwgApplied, AwgSettings, IqWaveform, LoadedSegment, OutputState, ReferenceClock,
+    SegmentEntry,
 };
 use super::common::{self, check_batch, close, session};
 use super::error::DriverError;
@@ -135,6 +136,14 @@ impl M8195a {
         self.drain_stale_errors().await?;
         self.clock = None;
         self.send(commands::ABORT).await?;
+        match settings.reference_clock {
+            ReferenceClock::Internal => self.send(commands::REFERENCE_INTERNAL).await?,
+            ReferenceClock::External { frequency_hz } => {
+                self.send(commands::REFERENCE_EXTERNAL).await?;
+                self.send(&commands::reference_frequency(frequency_hz))
+                    .await?;
+            }
+        }
         self.send(&commands::dac_mode(&clock.dac_mode)).await?;
         self.send(&commands::divider(&clock.divider.keyword))
             .await?;
@@ -323,6 +332,11 @@ impl M8195a {
         let q_amplitude_vpp = self.ask_f64(&commands::amplitude_query(q)).await?;
         let marker_amplitude_v = self.ask_f64(&commands::marker_amplitude_query(m)).await?;
         let marker_offset_v = self.ask_f64(&commands::offset_query(m)).await?;
+        let reference_source = self
+            .ask(commands::REFERENCE_QUERY)
+            .await?
+            .trim()
+            .to_string();
         let mut outputs = Vec::new();
         for ch in [i, q, m] {
             let on = self.ask_bool(&commands::output_query(ch)).await?;
@@ -338,6 +352,7 @@ impl M8195a {
             q_amplitude_vpp,
             marker_amplitude_v,
             marker_offset_v,
+            reference_source,
             outputs,
         })
     }

@@ -14,6 +14,10 @@ pub const SEGMENT_ID: u32 = 1;
 /// Marker byte bit that drives the first marker channel (M1 = bit0 -> channel 3 in DCM).
 pub const MARKER_BIT: u8 = 0x01;
 
+/// External reference input range of the M8195A, Hz [V-src: instruments.md section 1.4, "ext ref
+/// 10-300 MHz"]. Kept here until the catalog schema has a field for it.
+pub const EXTERNAL_REFERENCE_HZ: (f64, f64) = (10e6, 300e6);
+
 /// Channels and clock for a given sample rate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClockPlan {
@@ -139,6 +143,18 @@ pub fn plan_clock(
         limits.marker_offset_v_max,
         "V",
     )?;
+    if let crate::driver::capability::ReferenceClock::External { frequency_hz } =
+        settings.reference_clock
+    {
+        within(
+            instrument,
+            "reference_clock.frequency_hz",
+            frequency_hz,
+            EXTERNAL_REFERENCE_HZ.0,
+            EXTERNAL_REFERENCE_HZ.1,
+            "Hz",
+        )?;
+    }
     Ok(ClockPlan {
         dac_mode: mode.keyword.clone(),
         divider: (*divider).clone(),

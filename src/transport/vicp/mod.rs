@@ -101,14 +101,37 @@ impl VicpLink {
         Ok(())
     }
 
-    /// Serial poll, VICP version 1a: the out-of-band byte `S` is answered by one out-of-band byte,
-    /// the status byte. Only on Linux (tokio reports urgent data there); elsewhere the session
-    /// asks `*STB?` instead.
-    #[cfg(any(target_os = "linux", target_os = "android"))]
+    /// Serial poll in band (the VICP 1 way, still answered by 1a devices): a header with the
+    /// SERIAL_POLL flag, answered by a one-byte EOI block carrying the status byte. Portable and
+    /// in order with the data stream; the default.
     pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+        let header = Header::new(op::SERIAL_POLL, self.seq, 0).encode();
+        write_parts(&mut self.stream, &[&header], "VICP serial poll", options).await?;
+        self.last_sent_seq = self.seq;
+        self.seq = next_seq(self.seq);
+        let reply = self.read_message(options).await?;
+        match reply.as_ref() {
+            [stb] => Ok(*stb),
+            other => Err(LinkError::Protocol {
+                protocol: PROTOCOL,
+                detail: format!(
+                    "serial poll answered with {} bytes instead of one status byte",
+                    other.len()
+                ),
+            }),
+        }
+    }
+
+    /// Serial poll, VICP version 1a: the out-of-band byte `S` is answered by one out-of-band byte,
+    /// the status byte. The answer is polled for (1 ms steps) rather than awaited through the
+    /// reactor: Linux reports urgent data inconsistently through epoll, and a poll is rare.
+    /// Only on Linux.
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    pub async fn read_stb_out_of_band(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+        use std::io::ErrorKind as K;
         use std::mem::MaybeUninit;
-        use tokio::io::Interest;
         const OP: &str = "VICP serial poll";
+        const STEP: std::time::Duration = std::time::Duration::from_millis(1);
         let started = tokio::time::Instant::now();
         let deadline = started + options.timeouts.read;
         let timeout = || LinkError::Timeout {
@@ -116,12 +139,9 @@ impl VicpLink {
             after: started.elapsed(),
         };
         loop {
-            let sent = self.stream.try_io(Interest::WRITABLE, || {
-                socket2::SockRef::from(&self.stream).send_out_of_band(b"S")
-            });
-            match sent {
+            match socket2::SockRef::from(&self.stream).send_out_of_band(b"S") {
                 Ok(_) => break,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                Err(e) if e.kind() == K::WouldBlock => {
                     tokio::time::timeout_at(deadline, self.stream.writable())
                         .await
                         .map_err(|_| timeout())?
@@ -131,21 +151,26 @@ impl VicpLink {
             }
         }
         loop {
-            tokio::time::timeout_at(deadline, self.stream.ready(Interest::PRIORITY))
-                .await
-                .map_err(|_| timeout())?
-                .map_err(|e| io_error(OP, e))?;
             let mut byte = [MaybeUninit::new(0u8)];
-            let got = self.stream.try_io(Interest::PRIORITY, || {
-                socket2::SockRef::from(&self.stream).recv_out_of_band(&mut byte)
-            });
-            match got {
+            match socket2::SockRef::from(&self.stream).recv_out_of_band(&mut byte) {
                 // SAFETY: the byte was initialised by `MaybeUninit::new` above and written by recv.
                 Ok(1) => return Ok(unsafe { byte[0].assume_init() }),
                 Ok(_) => return Err(LinkError::Closed { op: OP }),
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => continue,
+                // EAGAIN: announced but not arrived; EINVAL: no urgent data noted yet.
+                Err(e) if e.kind() == K::WouldBlock || e.raw_os_error() == Some(libc_einval()) => {
+                    if tokio::time::Instant::now() >= deadline {
+                        return Err(timeout());
+                    }
+                    tokio::time::sleep(STEP).await;
+                }
                 Err(e) => return Err(io_error(OP, e)),
             }
         }
     }
+}
+
+/// EINVAL on Linux (asm-generic errno), without a libc dependency.
+#[cfg(any(target_os = "linux", target_os = "android"))]
+const fn libc_einval() -> i32 {
+    22
 }

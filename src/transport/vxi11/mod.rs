@@ -13,7 +13,6 @@ use self::messages::{flags, proc_, reason, CreateLinkResp};
 use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
-use crate::address::PORTMAPPER_PORT;
 use bytes::{Bytes, BytesMut};
 use std::time::Duration;
 use tokio::net::TcpStream;
@@ -191,9 +190,10 @@ impl Vxi11Link {
         })
     }
 
-    /// Asks the portmapper on port 111 for the core channel's TCP port.
+    /// Asks the portmapper (port 111 unless the options say otherwise) for the core channel's
+    /// TCP port.
     async fn getport(host: &str, options: &LinkOptions) -> Result<u16, LinkError> {
-        let stream = connect_tcp(host, PORTMAPPER_PORT, "portmapper", options).await?;
+        let stream = connect_tcp(host, options.portmapper_port, "portmapper", options).await?;
         let mut pm = RpcChannel::new(stream, 1024);
         let mut args = XdrWriter::default();
         messages::encode_getport(&mut args, messages::CORE_PROG, messages::VERSION);

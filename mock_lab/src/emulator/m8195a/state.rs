@@ -441,11 +441,11 @@ impl AwgState {
             ));
         }
         let interleaved = self.interleaved(model, ch);
-        let segment = self
-            .channel_mut(ch)
-            .segments
-            .get_mut(&id32)
-            .expect("segment checked above");
+        let Some(segment) = self.channel_mut(ch).segments.get_mut(&id32) else {
+            return Err(out_of_range(format!(
+                "segment {id} is not defined on channel {ch}"
+            )));
+        };
         let range = offset as usize..end as usize;
         segment.samples[range.clone()].copy_from_slice(samples);
         if interleaved {

@@ -1,0 +1,132 @@
+//! `radbench idn` and `radbench scpi` as a user runs them, against a mock_lab HiSLIP server.
+
+mod io_support;
+
+use io_support::{bounded, start, Proto};
+use std::process::{Command, Output};
+
+/// Runs the radbench binary off the async runtime; every run is bounded by the tool's own
+/// timeouts (given on the command line) and by the test's limit.
+async fn radbench(args: Vec<String>) -> Output {
+    bounded(tokio::task::spawn_blocking(move || {
+        Command::new(env!("CARGO_BIN_EXE_radbench"))
+            .args(&args)
+            .output()
+            .expect("radbench runs")
+    }))
+    .await
+    .expect("the runner thread finished")
+}
+
+fn args(list: &[&str]) -> Vec<String> {
+    list.iter().map(|s| s.to_string()).collect()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idn_prints_the_parsed_identity() {
+    let bench = start(Proto::Hislip).await;
+    let address = bench.resource.to_string();
+    let out = radbench(args(&["idn", &address, "--timeout", "5"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("model:        LOOPBACK"),
+        "{}",
+        stdout(&out)
+    );
+    let out = radbench(args(&["idn", &address, "--json"])).await;
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["manufacturer"], "MOCK_LAB");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn scpi_one_shot_saves_binary_and_journals() {
+    let bench = start(Proto::Hislip).await;
+    let address = bench.resource.to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("io.jsonl");
+    let saved = dir.path().join("block.bin");
+    let out = radbench(args(&[
+        "--trace-io",
+        journal.to_str().unwrap(),
+        "scpi",
+        &address,
+        "DATA:GEN 1000,5",
+        "DATA?",
+        "*OPC?",
+        "--save-binary",
+        saved.to_str().unwrap(),
+        "--trace-io-keep-binary",
+        "--check-errors",
+    ]))
+    .await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(
+        text.contains("binary block (definite): 1000 bytes"),
+        "{text}"
+    );
+    assert!(text.lines().any(|l| l == "1"), "{text}");
+    let expected = mock_lab::emulator::loopback::pseudo_random_bytes(1000, 5);
+    assert_eq!(std::fs::read(&saved).unwrap(), expected);
+    assert!(text.contains(&radbench::transport::journal::sha256_hex(&expected)));
+
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&journal)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines[0]["kind"], "connect");
+    let writes: Vec<&str> = lines
+        .iter()
+        .filter(|l| l["direction"] == "write")
+        .map(|l| l["text"].as_str().unwrap())
+        .collect();
+    assert_eq!(writes[0], "DATA:GEN 1000,5\n");
+    assert!(writes.contains(&"DATA?\n"));
+    let binary = lines
+        .iter()
+        .find(|l| l["kind"] == "binary")
+        .expect("a binary entry");
+    assert_eq!(binary["direction"], "read");
+    let kept = std::fs::read(binary["file"].as_str().unwrap()).unwrap();
+    assert_eq!(&kept[..6], b"#41000");
+    assert_eq!(
+        binary["sha256"],
+        radbench::transport::journal::sha256_hex(&kept).as_str()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn refused_command_exits_3_with_the_device_error() {
+    let bench = start(Proto::Hislip).await;
+    let address = bench.resource.to_string();
+    let out = radbench(args(&["scpi", &address, "BOGUS 1", "--check-errors"])).await;
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert!(stderr(&out).contains("-113"), "{}", stderr(&out));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_address_exits_2_and_unreachable_exits_3() {
+    let out = radbench(args(&["idn", "GPIB0::5::INSTR"])).await;
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("accepted forms"), "{}", stderr(&out));
+    // A port nobody listens on.
+    let port = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let address = format!("TCPIP::127.0.0.1::{port}::SOCKET");
+    let out = radbench(args(&["idn", &address, "--connect-timeout", "2"])).await;
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert!(stderr(&out).contains("cannot connect"), "{}", stderr(&out));
+    let out = radbench(args(&["scpi", &address, "*IDN?", "--timeout", "0"])).await;
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}
