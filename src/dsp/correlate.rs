@@ -14,11 +14,22 @@
 //! ([`CrossCorrelator::new`] with `0..=max_lag`), which also lets the FFT be shorter.
 //!
 //! # How
-//! `r` is the inverse FFT of `RX(f) conj(TX(f))` of length `K`, where `K` is the smallest 2-3-5-7
-//! smooth length (fast for rustfft) with `K >= max(Nr - first_lag, last_lag + Nt, Nr, Nt)`: then no lag in the
-//! chosen range is touched by the circular wrap-around, so the result equals the direct sum exactly
-//! (up to rounding). `conj(TX) / K` is computed once at construction; each call does one forward
-//! FFT, one multiply and one inverse FFT in buffers owned by the correlator (no allocation).
+//! Two strategies give the same numbers (up to rounding); [`Strategy::Auto`] picks the cheaper:
+//!
+//! * **One FFT** ([`Strategy::SingleFft`]): `r` is the inverse FFT of `RX(f) conj(TX(f))` of length
+//!   `K`, the smallest 2-3-5-7 smooth length (fast for rustfft) with
+//!   `K >= max(Nr - first_lag, last_lag + Nt, Nr, Nt)`: then no lag in the chosen range is touched by
+//!   the circular wrap-around. For all lags of two 160 000-sample signals, `K` = 320 000.
+//! * **Blocks** ([`Strategy::Blocks`]), for a lag window `W = last - first + 1` much shorter than the
+//!   capture (a radar's range window): the capture is cut into blocks of `B = Kb - W + 1` samples;
+//!   block `b` is correlated against the stretch of `tx` it can meet at those lags, with FFTs of the
+//!   short length `Kb`, and the block spectra are summed before one inverse FFT. For 160 000
+//!   samples and lags 0..2048 this is 12 FFTs of 16 384 points (cache-resident) plus one inverse,
+//!   against 2 FFTs of 163 840 points.
+//!
+//! The transmit spectra (`conj(TX) / K`, per block for the block strategy) are computed once at
+//! construction; each call only transforms the capture, multiplies and transforms back, in buffers
+//! owned by the correlator (no allocation per call).
 
 use std::ops::RangeInclusive;
 use std::sync::Arc;
@@ -55,6 +66,19 @@ pub fn fast_fft_len(min: usize) -> usize {
     best
 }
 
+/// How a [`CrossCorrelator`] computes (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Strategy {
+    /// The cheaper of the two by an operation count.
+    #[default]
+    Auto,
+    /// One forward and one inverse FFT over the whole (zero-padded) capture.
+    SingleFft,
+    /// Block correlation with FFTs of (at least) `fft_len` points, rounded up to a fast length of
+    /// at least twice the lag window.
+    Blocks { fft_len: usize },
+}
+
 /// Cross-correlates captures against one transmitted waveform by FFT.
 pub struct CrossCorrelator {
     tx_len: usize,
@@ -62,11 +86,14 @@ pub struct CrossCorrelator {
     first_lag: isize,
     last_lag: isize,
     fft_len: usize,
+    /// Capture samples per block (`rx_len` or more for the single-FFT strategy).
+    block_len: usize,
     forward: Arc<dyn Fft<f64>>,
     inverse: Arc<dyn Fft<f64>>,
-    /// `conj(FFT_K(tx)) / K`.
-    tx_spectrum_conj: Vec<Complex64>,
+    /// `conj(FFT(tx stretch of block b)) / K`, block after block.
+    tx_spectra_conj: Vec<Complex64>,
     buf: Vec<Complex64>,
+    acc: Vec<Complex64>,
     scratch: Vec<Complex64>,
 }
 
@@ -77,17 +104,40 @@ impl std::fmt::Debug for CrossCorrelator {
             .field("rx_len", &self.rx_len)
             .field("lags", &(self.first_lag..=self.last_lag))
             .field("fft_len", &self.fft_len)
+            .field("blocks", &self.blocks())
             .finish_non_exhaustive()
     }
 }
 
+/// Rough cost of a plan: FFT work `n log2 n` per transform plus one multiply-add per bin and block.
+fn plan_cost(blocks: usize, fft_len: usize) -> f64 {
+    let k = fft_len as f64;
+    (blocks + 1) as f64 * k * k.log2() + blocks as f64 * k
+}
+
 impl CrossCorrelator {
     /// Prepares correlation of captures of up to `rx_len` samples against `tx`, returning the lags
-    /// `lags` (inclusive, within `-(tx.len() - 1) ..= rx_len - 1`).
+    /// `lags` (inclusive, within `-(tx.len() - 1) ..= rx_len - 1`), with [`Strategy::Auto`].
     pub fn new(
         tx: &[Complex64],
         rx_len: usize,
         lags: RangeInclusive<isize>,
+    ) -> Result<Self, DspError> {
+        Self::with_strategy(tx, rx_len, lags, Strategy::Auto)
+    }
+
+    /// All lags, `-(tx.len() - 1) ..= rx_len - 1`.
+    pub fn full(tx: &[Complex64], rx_len: usize) -> Result<Self, DspError> {
+        let lo = -(tx.len() as isize - 1);
+        Self::new(tx, rx_len, lo..=rx_len as isize - 1)
+    }
+
+    /// As [`CrossCorrelator::new`] with a chosen strategy.
+    pub fn with_strategy(
+        tx: &[Complex64],
+        rx_len: usize,
+        lags: RangeInclusive<isize>,
+        strategy: Strategy,
     ) -> Result<Self, DspError> {
         if tx.is_empty() || rx_len == 0 {
             return Err(DspError::Param(format!(
@@ -110,12 +160,34 @@ impl CrossCorrelator {
                  (-(transmit length - 1) ..= receive length - 1)"
             )));
         }
-        // No alias may land on a chosen lag, and both signals must fit in the FFT buffer.
-        let need = (rx_len as isize - first)
-            .max(last + tx.len() as isize)
-            .max(tx.len() as isize)
-            .max(rx_len as isize) as usize;
-        let fft_len = fast_fft_len(need);
+        let window = (last - first + 1) as usize;
+        // Single FFT: no alias may land on a chosen lag, and both signals must fit.
+        let single_len = fast_fft_len(
+            (rx_len as isize - first)
+                .max(last + tx.len() as isize)
+                .max(tx.len() as isize)
+                .max(rx_len as isize) as usize,
+        );
+        let blocks_of = |k: usize| rx_len.div_ceil(k - window + 1);
+        let (fft_len, block_len) = match strategy {
+            Strategy::SingleFft => (single_len, usize::MAX),
+            Strategy::Blocks { fft_len } => {
+                let k = fast_fft_len(fft_len.max(2 * window));
+                (k, k - window + 1)
+            }
+            Strategy::Auto => {
+                let mut best = (plan_cost(1, single_len), single_len, usize::MAX);
+                let mut k = fast_fft_len(2 * window);
+                while k < single_len {
+                    let cost = plan_cost(blocks_of(k), k);
+                    if cost < best.0 {
+                        best = (cost, k, k - window + 1);
+                    }
+                    k = fast_fft_len(k + k / 4);
+                }
+                (best.1, best.2)
+            }
+        };
         let mut planner = FftPlanner::new();
         let forward = planner.plan_fft_forward(fft_len);
         let inverse = planner.plan_fft_inverse(fft_len);
@@ -123,31 +195,45 @@ impl CrossCorrelator {
             .get_inplace_scratch_len()
             .max(inverse.get_inplace_scratch_len());
         let mut scratch = vec![ZERO; scratch_len];
-        let mut spectrum = vec![ZERO; fft_len];
-        spectrum[..tx.len()].copy_from_slice(tx);
-        forward.process_with_scratch(&mut spectrum, &mut scratch);
-        let k = fft_len as f64;
-        for z in &mut spectrum {
-            *z = z.conj() / k;
-        }
+        let scale = 1.0 / fft_len as f64;
+        let tx_spectra_conj = if block_len == usize::MAX {
+            let mut spectrum = vec![ZERO; fft_len];
+            spectrum[..tx.len()].copy_from_slice(tx);
+            forward.process_with_scratch(&mut spectrum, &mut scratch);
+            spectrum.iter().map(|z| z.conj() * scale).collect()
+        } else {
+            // Block b meets tx[b B - last + j] for j in 0..K (zero outside tx).
+            let blocks = rx_len.div_ceil(block_len);
+            let mut spectra = vec![ZERO; blocks * fft_len];
+            for (b, spectrum) in spectra.chunks_exact_mut(fft_len).enumerate() {
+                let origin = (b * block_len) as isize - last;
+                for (j, v) in spectrum.iter_mut().enumerate() {
+                    let i = origin + j as isize;
+                    if i >= 0 && (i as usize) < tx.len() {
+                        *v = tx[i as usize];
+                    }
+                }
+                forward.process_with_scratch(spectrum, &mut scratch);
+                for v in spectrum.iter_mut() {
+                    *v = v.conj() * scale;
+                }
+            }
+            spectra
+        };
         Ok(Self {
             tx_len: tx.len(),
             rx_len,
             first_lag: first,
             last_lag: last,
             fft_len,
+            block_len,
             forward,
             inverse,
-            tx_spectrum_conj: spectrum,
+            tx_spectra_conj,
             buf: vec![ZERO; fft_len],
+            acc: vec![ZERO; fft_len],
             scratch,
         })
-    }
-
-    /// All lags, `-(tx.len() - 1) ..= rx_len - 1`.
-    pub fn full(tx: &[Complex64], rx_len: usize) -> Result<Self, DspError> {
-        let lo = -(tx.len() as isize - 1);
-        Self::new(tx, rx_len, lo..=rx_len as isize - 1)
     }
 
     /// The lags returned, ascending: output index `i` is lag `lags().start() + i`.
@@ -163,6 +249,11 @@ impl CrossCorrelator {
     /// The FFT length used.
     pub fn fft_len(&self) -> usize {
         self.fft_len
+    }
+
+    /// Number of capture blocks (1 for the single-FFT strategy).
+    pub fn blocks(&self) -> usize {
+        self.tx_spectra_conj.len() / self.fft_len
     }
 
     pub fn tx_len(&self) -> usize {
@@ -197,22 +288,42 @@ impl CrossCorrelator {
                 self.last_lag
             )));
         }
-        self.buf[..rx.len()].copy_from_slice(rx);
-        self.buf[rx.len()..].fill(ZERO);
-        self.forward
-            .process_with_scratch(&mut self.buf, &mut self.scratch);
-        for (x, t) in self.buf.iter_mut().zip(&self.tx_spectrum_conj) {
-            *x *= t;
+        let k = self.fft_len;
+        if self.block_len == usize::MAX {
+            self.buf[..rx.len()].copy_from_slice(rx);
+            self.buf[rx.len()..].fill(ZERO);
+            self.forward
+                .process_with_scratch(&mut self.buf, &mut self.scratch);
+            for (x, t) in self.buf.iter_mut().zip(&self.tx_spectra_conj) {
+                *x *= t;
+            }
+            self.inverse
+                .process_with_scratch(&mut self.buf, &mut self.scratch);
+            // Lags first..=last sit at circular indices first mod K onwards, at most one wrap.
+            copy_circular(
+                &self.buf,
+                self.first_lag.rem_euclid(k as isize) as usize,
+                out,
+            );
+            return Ok(());
+        }
+        self.acc.fill(ZERO);
+        for (block, spectrum) in rx
+            .chunks(self.block_len)
+            .zip(self.tx_spectra_conj.chunks_exact(k))
+        {
+            self.buf[..block.len()].copy_from_slice(block);
+            self.buf[block.len()..].fill(ZERO);
+            self.forward
+                .process_with_scratch(&mut self.buf, &mut self.scratch);
+            for ((a, x), t) in self.acc.iter_mut().zip(&self.buf).zip(spectrum) {
+                *a += x * t;
+            }
         }
         self.inverse
-            .process_with_scratch(&mut self.buf, &mut self.scratch);
-        let k = self.fft_len as isize;
-        let start = self.first_lag.rem_euclid(k) as usize;
-        // Lags first..=last map to circular indices start, start+1, ... (mod K), at most one wrap.
-        let head = (self.fft_len - start).min(out.len());
-        out[..head].copy_from_slice(&self.buf[start..start + head]);
-        let rest = out.len() - head;
-        out[head..].copy_from_slice(&self.buf[..rest]);
+            .process_with_scratch(&mut self.acc, &mut self.scratch);
+        // Lag first + i is the block correlation at i - (W - 1), i.e. circular index i + B.
+        copy_circular(&self.acc, self.block_len % k, out);
         Ok(())
     }
 
@@ -222,6 +333,14 @@ impl CrossCorrelator {
         self.correlate_into(rx, &mut out)?;
         Ok(out)
     }
+}
+
+/// `out[i] = buf[(start + i) mod buf.len()]`, with `out.len() <= buf.len()`.
+fn copy_circular(buf: &[Complex64], start: usize, out: &mut [Complex64]) {
+    let head = (buf.len() - start).min(out.len());
+    out[..head].copy_from_slice(&buf[start..start + head]);
+    let rest = out.len() - head;
+    out[head..].copy_from_slice(&buf[..rest]);
 }
 
 /// Direct `O(Nr * lags)` correlation with the same definition and lag order; the reference the FFT
@@ -246,6 +365,7 @@ pub fn correlate_direct(
 
 #[cfg(test)]
 mod tests {
+    use super::Strategy; // over proptest's trait of the same name
     use super::*;
     use crate::rng::SplitMix64;
     use proptest::prelude::*;
@@ -289,6 +409,48 @@ mod tests {
             .max_by(|&a, &b| r[a].norm().total_cmp(&r[b].norm()))
             .unwrap();
         assert_eq!(peak, 123);
+    }
+
+    #[test]
+    fn auto_strategy_uses_blocks_for_a_range_window() {
+        let tx = noise(160_000, 7);
+        let c = CrossCorrelator::new(&tx, 160_000, 0..=2047).unwrap();
+        assert!(c.blocks() > 1, "{c:?}");
+        assert!(c.fft_len() < 65_536, "{c:?}");
+        let c = CrossCorrelator::full(&tx, 160_000).unwrap();
+        assert_eq!((c.blocks(), c.fft_len()), (1, 320_000));
+    }
+
+    #[test]
+    fn strategies_agree_on_a_long_capture() {
+        let tx = noise(20_000, 8);
+        let mut rx = noise(20_000, 9);
+        for (r, t) in rx[700..].iter_mut().zip(&tx) {
+            *r += t * 3.0;
+        }
+        let lags = -50..=999;
+        let mut a =
+            CrossCorrelator::with_strategy(&tx, rx.len(), lags.clone(), Strategy::SingleFft)
+                .unwrap();
+        let mut b = CrossCorrelator::with_strategy(
+            &tx,
+            rx.len(),
+            lags.clone(),
+            Strategy::Blocks { fft_len: 4096 },
+        )
+        .unwrap();
+        assert!(b.blocks() > 1);
+        let (ra, rb) = (a.correlate(&rx).unwrap(), b.correlate(&rx).unwrap());
+        let direct = correlate_direct(&rx, &tx, lags);
+        for ((x, y), d) in ra.iter().zip(&rb).zip(&direct) {
+            assert!((x - d).norm() < 1e-8 && (y - d).norm() < 1e-8);
+        }
+        // The echo (gain 3, 19 300 overlapping samples of unit power) at lag 700 = index 750.
+        assert!(
+            (ra[750].norm() - 57_900.0).abs() < 1_500.0,
+            "{}",
+            ra[750].norm()
+        );
     }
 
     #[test]
@@ -339,7 +501,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(64))]
+        #![proptest_config(ProptestConfig::with_cases(192))]
 
         #[test]
         fn fft_correlation_equals_direct(
@@ -348,6 +510,8 @@ mod tests {
             a in 0.0f64..1.0,
             b in 0.0f64..1.0,
             short in 0usize..5,
+            strategy in 0usize..3,
+            block_fft in 1usize..64,
             seed in any::<u64>(),
         ) {
             let tx = noise(nt, seed);
@@ -357,7 +521,12 @@ mod tests {
             let span = (hi - lo) as f64;
             let (x, y) = (lo + (a * span) as isize, lo + (b * span) as isize);
             let lags = x.min(y)..=x.max(y);
-            let mut c = CrossCorrelator::new(&tx, nr, lags.clone()).unwrap();
+            let strategy = match strategy {
+                0 => Strategy::Auto,
+                1 => Strategy::SingleFft,
+                _ => Strategy::Blocks { fft_len: block_fft },
+            };
+            let mut c = CrossCorrelator::with_strategy(&tx, nr, lags.clone(), strategy).unwrap();
             let got = c.correlate(&rx).unwrap();
             let want = correlate_direct(&rx, &tx, lags);
             prop_assert_eq!(got.len(), want.len());

@@ -123,6 +123,8 @@ pub struct MskLfm {
     sin_weight: Vec<f64>,
     i_index: Vec<u32>,
     q_index: Vec<u32>,
+    /// Matched-filter energy per bit (sum of the squared half-sine over its symbol), bit order.
+    symbol_energy: Vec<f64>,
 }
 
 /// A generated MSK-LFM transmission: pulses back to back.
@@ -193,6 +195,11 @@ impl MskLfm {
             i_index.push(i);
             q_index.push(q);
         }
+        let mut symbol_energy = vec![0.0; n_bits];
+        for n in 0..n_samples {
+            symbol_energy[2 * i_index[n] as usize] += cos_weight[n] * cos_weight[n];
+            symbol_energy[2 * q_index[n] as usize + 1] += sin_weight[n] * sin_weight[n];
+        }
         Ok(Self {
             params,
             n_samples,
@@ -202,6 +209,7 @@ impl MskLfm {
             sin_weight,
             i_index,
             q_index,
+            symbol_energy,
         })
     }
 
@@ -252,19 +260,12 @@ impl MskLfm {
                 &format!("must be exactly samples_per_pulse = {}", self.n_samples),
             ));
         }
-        let half = self.n_bits / 2;
-        let mut a_i = Vec::with_capacity(half);
-        let mut a_q = Vec::with_capacity(half);
-        for pair in bits.chunks_exact(2) {
-            a_i.push(1.0 - 2.0 * f64::from(pair[0] & 1));
-            a_q.push(1.0 - 2.0 * f64::from(pair[1] & 1));
-        }
-        for n in 0..self.n_samples {
-            let m = Complex64::new(
-                a_i[self.i_index[n] as usize] * self.cos_weight[n],
-                -a_q[self.q_index[n] as usize] * self.sin_weight[n],
-            );
-            out[n] = m * self.chirp[n];
+        let level = |b: u8| 1.0 - 2.0 * f64::from(b & 1);
+        for (n, o) in out.iter_mut().enumerate() {
+            let a_i = level(bits[2 * self.i_index[n] as usize]);
+            let a_q = level(bits[2 * self.q_index[n] as usize + 1]);
+            let m = Complex64::new(a_i * self.cos_weight[n], -a_q * self.sin_weight[n]);
+            *o = m * self.chirp[n];
         }
         Ok(())
     }
@@ -321,20 +322,13 @@ impl MskLfm {
         }
         soft.fill(0.0);
         // soft[2k] accumulates I symbol k, soft[2k+1] Q symbol k.
-        let mut energy_i = vec![0.0; self.n_bits / 2];
-        let mut energy_q = vec![0.0; self.n_bits / 2];
         for (n, &z) in pulse.iter().enumerate() {
             let d = z * self.chirp[n].conj();
-            let (c, s) = (self.cos_weight[n], self.sin_weight[n]);
-            let (i, q) = (self.i_index[n] as usize, self.q_index[n] as usize);
-            soft[2 * i] += d.re * c;
-            energy_i[i] += c * c;
-            soft[2 * q + 1] -= d.im * s;
-            energy_q[q] += s * s;
+            soft[2 * self.i_index[n] as usize] += d.re * self.cos_weight[n];
+            soft[2 * self.q_index[n] as usize + 1] -= d.im * self.sin_weight[n];
         }
-        for k in 0..self.n_bits / 2 {
-            soft[2 * k] /= energy_i[k];
-            soft[2 * k + 1] /= energy_q[k];
+        for (v, e) in soft.iter_mut().zip(&self.symbol_energy) {
+            *v /= e;
         }
         Ok(())
     }

@@ -473,6 +473,14 @@ impl OfdmReceiver {
             ));
         }
         let n = self.ofdm.params.subcarriers;
+        if *equalisation == Equalisation::Preamble && self.ofdm.params.preamble_symbols == 0 {
+            return Err(ParamError::out_of_range(
+                "preamble_symbols",
+                0,
+                "must be at least 1 to equalise from the preamble; or give the channel \
+                 (Equalisation::Known)",
+            ));
+        }
         if let Equalisation::Known(h) = equalisation {
             if h.len() != n || h.iter().any(|z| !(z.norm_sqr() > 0.0 && z.is_finite())) {
                 return Err(ParamError::out_of_range(
@@ -498,7 +506,6 @@ impl OfdmReceiver {
             match equalisation {
                 Equalisation::Known(given) => h.copy_from_slice(given),
                 Equalisation::None => h.fill(Complex64::new(1.0, 0.0)),
-                Equalisation::Preamble if npre == 0 => h.fill(Complex64::new(1.0, 0.0)),
                 Equalisation::Preamble => {
                     h.fill(ZERO);
                     for (rx, tx) in frame[..npre * n]
@@ -625,6 +632,26 @@ mod tests {
             ..d
         })
         .contains("bandwidth_hz"));
+        // Equalising from a preamble that is not there is an error, not a silent unit channel.
+        let o = Ofdm::new(OfdmParams {
+            subcarriers: 8,
+            oversampling: 2,
+            symbols_per_frame: 3,
+            preamble_symbols: 0,
+            ..d
+        })
+        .unwrap();
+        let sig = o.generate(&BitSource::Prbs { seed: 1 }, 1).unwrap();
+        assert_eq!(sig.bits.len(), 48);
+        let mut rx = o.receiver();
+        let err = rx
+            .receive(&sig.samples, &Equalisation::Preamble)
+            .unwrap_err();
+        assert!(err.message.contains("preamble_symbols"), "{err}");
+        assert_eq!(
+            rx.receive(&sig.samples, &Equalisation::None).unwrap().bits,
+            sig.bits
+        );
         // Not a power of two is fine.
         assert!(Ofdm::new(OfdmParams {
             subcarriers: 100,
