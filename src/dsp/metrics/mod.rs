@@ -13,7 +13,7 @@ mod resolve;
 
 pub use cfar::{CaCfar, CfarDetection};
 pub use lobes::{sidelobe_levels, width_3db, SidelobeLevels};
-pub use peaks::{find_peaks, interpolate_peak, Interpolation, Peak};
+pub use peaks::{find_peaks, interpolate_peak, local_maxima, Interpolation, Peak};
 pub use resolve::{resolve_targets, Resolution};
 
 /// 20 log10 of an amplitude, floored at -400 dB so a zero stays finite.

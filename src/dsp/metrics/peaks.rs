@@ -15,6 +15,32 @@ pub struct Peak {
     pub prominence: f64,
 }
 
+/// Indices of the local maxima of `values` (the middle sample of a flat top; never the first or
+/// last sample), ascending, without computing prominences: O(n).
+pub fn local_maxima(values: &[f64]) -> impl Iterator<Item = usize> + '_ {
+    let n = values.len();
+    let mut i = 1;
+    std::iter::from_fn(move || {
+        while i + 1 < n {
+            if values[i] > values[i - 1] {
+                let mut j = i;
+                while j + 1 < n && values[j + 1] == values[i] {
+                    j += 1;
+                }
+                let top = (i + j) / 2;
+                let is_peak = j + 1 < n && values[j + 1] < values[i];
+                i = j + 1;
+                if is_peak {
+                    return Some(top);
+                }
+            } else {
+                i += 1;
+            }
+        }
+        None
+    })
+}
+
 /// Local maxima of `values` with prominence at least `min_prominence`, in ascending index order.
 ///
 /// The first and last samples are never peaks (their neighbourhood is unknown). Flat tops count
@@ -147,6 +173,9 @@ mod tests {
         let p = find_peaks(&v, 0.0);
         assert_eq!(p.len(), 1);
         assert_eq!(p[0].index, 3);
+        assert_eq!(local_maxima(&v).collect::<Vec<_>>(), vec![3]);
+        let w = [0.0, 5.0, 1.0, 3.0, 2.0, 2.5, 0.5, 0.5];
+        assert_eq!(local_maxima(&w).collect::<Vec<_>>(), vec![1, 3, 5]);
     }
 
     #[test]

@@ -29,7 +29,7 @@ pub mod order;
 pub use eigen::HermitianEigen;
 pub use order::{estimate_order, OrderCriterion};
 
-use super::metrics::find_peaks;
+use super::metrics::local_maxima;
 use super::{DspError, C0};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
@@ -149,6 +149,7 @@ pub struct Music {
     fft_buf: Vec<Complex64>,
     fft_scratch: Vec<Complex64>,
     projection: Vec<f64>,
+    peak_scratch: Vec<usize>,
 }
 
 impl Music {
@@ -165,6 +166,7 @@ impl Music {
             fft_buf: vec![z; g],
             fft_scratch: vec![z; ifft.get_inplace_scratch_len()],
             projection: vec![0.0; g],
+            peak_scratch: Vec::with_capacity(g / 2),
             ifft,
             config,
         })
@@ -276,11 +278,14 @@ impl Music {
         out.order = p;
         out.estimated_order = estimated;
         out.peaks_m.clear();
-        let mut peaks = find_peaks(&out.pseudo_spectrum, 0.0);
-        peaks.sort_by(|a, b| b.value.total_cmp(&a.value));
-        for peak in peaks.iter().take(p) {
-            out.peaks_m
-                .push(self.refine(peak.index as f64 * step, step));
+        // The p highest local maxima (kept in `peak_scratch`, sorted by height).
+        self.peak_scratch.clear();
+        self.peak_scratch.extend(local_maxima(&out.pseudo_spectrum));
+        let spectrum = &out.pseudo_spectrum;
+        self.peak_scratch
+            .sort_unstable_by(|&a, &b| spectrum[b].total_cmp(&spectrum[a]));
+        for &index in self.peak_scratch.iter().take(p) {
+            out.peaks_m.push(self.refine(index as f64 * step, step));
         }
         out.peaks_m.sort_by(f64::total_cmp);
         Ok(())
