@@ -55,7 +55,8 @@ def time_median(fn, min_runs, min_time):
 def numpy_kernels(d, meta):
     """numpy/scipy versions of the kernels; each returns its result."""
     factor = meta["decimation_factor"]
-    fft_len = meta["xcorr_fft_len"]
+    # One full-length FFT per capture (scipy's fastest size), transmit spectrum cached.
+    fft_len = scipy.fft.next_fast_len(meta["xcorr_min_single_fft_len"])
     lags = meta["xcorr_lags"]
     tx_spec_conj = np.conj(scipy.fft.fft(d["msk_tx"], fft_len))  # cached, as in radbench
     o = meta["ofdm"]

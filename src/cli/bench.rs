@@ -91,7 +91,11 @@ fn write_inputs(dir: &Path, inputs: &KernelInputs) -> anyhow::Result<()> {
     let meta = serde_json::json!({
         "decimation_factor": 5,
         "xcorr_lags": XCORR_LAGS,
+        // radbench's own FFT length (its correlator may split the work into shorter blocks)...
         "xcorr_fft_len": kernels.xcorr_fft_len(),
+        // ...and the shortest single FFT free of circular aliasing on lags 0..lags-1, which the
+        // numpy version rounds up to scipy.fft.next_fast_len.
+        "xcorr_min_single_fft_len": inputs.msk_rx.len().max(XCORR_LAGS - 1 + inputs.msk_tx.len()),
         "ofdm": {"subcarriers": 128, "oversampling": 16, "cp_len": 512, "fft_len": 2048,
                  "symbols": 100, "zero_pad": 10},
         "music": {"m": 64, "p": 2, "forward_backward": true, "grid_points": 1280},
