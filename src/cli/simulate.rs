@@ -131,7 +131,7 @@ pub struct BerArgs {
     #[arg(long)]
     pub json: bool,
     /// Minimum bits per Eb/N0 point (more bits: tighter confidence intervals, longer run).
-    #[arg(long, value_name = "N", default_value_t = 200_000)]
+    #[arg(long, value_name = "N", default_value_t = 20_000)]
     pub bits: usize,
     /// Seed of the bits and the noise.
     #[arg(long, default_value_t = 1)]

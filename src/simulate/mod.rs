@@ -11,11 +11,13 @@
 //! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
 //! | [`ber`] | BER against Eb/N0 for both waveforms, next to theory |
 //! | [`report`] | plain-text reports |
+//! | [`kernels`] | the DSP kernels `radbench bench` times, and their seeded inputs |
 
 use crate::exit::{Classify, ExitClass};
 
 pub mod accuracy;
 pub mod ber;
+pub mod kernels;
 pub mod noise;
 pub mod process;
 pub mod report;

@@ -460,6 +460,15 @@ fn errors(found: &[Option<f64>], truth: &[f64]) -> Vec<Option<f64>> {
 pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
     spec.validate()?;
     let tx = Transmit::new(&spec.waveform, spec.seed)?;
+    if let Some(cp_range) = spec.cp_range_m() {
+        if let Some(t) = spec.targets.iter().find(|t| t.range_m > cp_range) {
+            tracing::warn!(
+                "target at {} m: its echo is longer than the cyclic prefix (ranges above {cp_range:.2} m); \
+                 inter-symbol interference will raise the floor",
+                t.range_m
+            );
+        }
+    }
     let fs = spec.waveform.sample_rate_hz();
     let window = window_len(spec, tx.samples().len());
     let up = spec.upsample();

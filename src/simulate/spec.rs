@@ -3,6 +3,10 @@
 
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
+use crate::dsp::C0;
+
+/// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
+pub const MAX_ZERO_PAD: usize = 1000;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -203,11 +207,33 @@ impl RunSpec {
                 );
             }
         }
-        if self.zero_pad == 0 {
+        if self.zero_pad == 0 || self.zero_pad > MAX_ZERO_PAD {
             return bad(
                 "--zero-pad",
-                "must be at least 1 (1 = no zero-padding)".into(),
+                format!(
+                    "{} is outside 1..={MAX_ZERO_PAD} (1 = no zero-padding, 10 = the thesis)",
+                    self.zero_pad
+                ),
             );
+        }
+        let max_range = self.max_range_m();
+        for t in &self.targets {
+            // An unusable waveform parameter (zero bandwidth, negative pulse) is reported by the
+            // waveform layer with its own field name.
+            if max_range.is_finite() && max_range > 0.0 && t.range_m >= max_range {
+                return bad(
+                    "--targets",
+                    format!(
+                        "range {} m is beyond what this {} waveform can simulate (below {max_range:.2} m: {})",
+                        t.range_m,
+                        self.waveform.name(),
+                        match self.waveform {
+                            WaveformSpec::MskLfm { .. } => "the echo must start within one pulse length",
+                            WaveformSpec::Ofdm { .. } => "the unambiguous range c0 / (2 df)",
+                        }
+                    ),
+                );
+            }
         }
         if let Some(rate) = self.capture_rate_hz {
             let fs = self.waveform.sample_rate_hz();
@@ -222,6 +248,37 @@ impl RunSpec {
             }
         }
         Ok(())
+    }
+
+    /// Ranges this waveform can simulate: MSK-LFM, an echo delay below one pulse length; OFDM, the
+    /// unambiguous range `c0 / (2 df)` (19.2 m by default).
+    pub fn max_range_m(&self) -> f64 {
+        match self.waveform {
+            WaveformSpec::MskLfm { pulse_s, .. } => C0 * pulse_s / 2.0,
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                ..
+            } => match subcarriers {
+                // No limit here: the waveform layer reports the bad subcarrier count.
+                0 => f64::INFINITY,
+                n => C0 / (2.0 * bandwidth_hz / n as f64),
+            },
+        }
+    }
+
+    /// OFDM: ranges beyond which the echo delay exceeds the cyclic prefix (inter-symbol
+    /// interference); `None` for MSK-LFM.
+    pub fn cp_range_m(&self) -> Option<f64> {
+        match self.waveform {
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                cp_fraction,
+                ..
+            } => Some(C0 * cp_fraction * subcarriers as f64 / bandwidth_hz / 2.0),
+            WaveformSpec::MskLfm { .. } => None,
+        }
     }
 
     /// Capture-to-waveform rate ratio (1 when processing at the waveform rate).
@@ -278,6 +335,23 @@ mod tests {
         spec.algorithm = Algorithm::Music;
         let err = spec.validate().unwrap_err().to_string();
         assert!(err.starts_with("--algorithm"), "{err}");
+    }
+
+    #[test]
+    fn ranges_are_limited_by_the_waveform() {
+        let spec = RunSpec::new("x", WaveformSpec::ofdm_default(), vec![Target::at(20.0)]);
+        let err = spec.validate().unwrap_err().to_string();
+        assert!(
+            err.starts_with("--targets") && err.contains("19.19"),
+            "{err}"
+        );
+        assert!((spec.cp_range_m().unwrap() - 4.797).abs() < 1e-3);
+        let spec = RunSpec::new(
+            "x",
+            WaveformSpec::msk_lfm_default(),
+            vec![Target::at(1600.0)],
+        );
+        assert!(spec.validate().is_err());
     }
 
     #[test]

@@ -61,18 +61,29 @@ impl ThesisTable {
         json!({ "scenarios": scenarios })
     }
 
-    /// The table for the terminal.
+    /// The table for the terminal (columns as wide as their longest entry).
     pub fn to_text(&self) -> String {
+        let width = |head: &str, cell: &dyn Fn(&ThesisRow) -> usize| {
+            self.rows
+                .iter()
+                .map(cell)
+                .max()
+                .unwrap_or(0)
+                .max(head.len())
+        };
+        let ws = width("scenario", &|r| r.scenario.len());
+        let wt = width("thesis", &|r| r.thesis_figure.len());
+        let wr = width("radbench", &|r| r.radbench_figure.len());
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "{:<9} {:<44} {:<34} {:<44} {:<6} reason",
+            "{:<8} {:<ws$} {:<wt$} {:<wr$} {:<5} reason",
             "section", "scenario", "thesis", "radbench", "agree"
         );
         for row in &self.rows {
             let _ = writeln!(
                 out,
-                "{:<9} {:<44} {:<34} {:<44} {:<6} {}",
+                "{:<8} {:<ws$} {:<wt$} {:<wr$} {:<5} {}",
                 row.section,
                 row.scenario,
                 row.thesis_figure,
