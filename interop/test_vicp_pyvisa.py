@@ -1,7 +1,7 @@
 """pyvisa + pyvisa-py's VICP resource (through pyvicp) against mock-lab.
 
 pyvisa-py only reaches VICP on the standard port 1861 (it ignores a port in the resource
-string), so this starts a second mock-lab with `--vicp-port 1861` and skips when that port is
+string), so this starts a second mock-lab with `--loopback-vicp-port 1861` and skips when that port is
 already taken on this machine.
 """
 
@@ -28,7 +28,7 @@ def port_is_free(port: int) -> bool:
 def vicp_resource():
     if not port_is_free(VICP_PORT):
         pytest.skip(f"port {VICP_PORT} is in use on this machine; pyvisa's VICP needs exactly it")
-    lab = MockLab("--vicp-port", str(VICP_PORT))
+    lab = MockLab("--loopback-vicp-port", str(VICP_PORT))
     try:
         assert lab.endpoints["vicp"]["resource"] == "VICP::127.0.0.1::INSTR"
         yield lab.endpoints["vicp"]["resource"]

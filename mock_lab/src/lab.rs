@@ -37,6 +37,8 @@ pub struct LabOptions {
     pub scope_remote: RemoteInterface,
     /// Also serve the generic loopback test instrument.
     pub with_loopback: bool,
+    /// Port of the loopback instrument's VICP endpoint (interop tests through pyvisa need 1861).
+    pub loopback_vicp_port: Option<u16>,
 }
 
 impl Default for LabOptions {
@@ -49,6 +51,7 @@ impl Default for LabOptions {
             max_message_size: DEFAULT_MAX_MESSAGE_SIZE,
             scope_remote: RemoteInterface::Vicp,
             with_loopback: false,
+            loopback_vicp_port: None,
         }
     }
 }
@@ -149,6 +152,9 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             let mut ports = ports_for(options.port_base, slot, transport)?;
             if transport == Transport::Vicp && s.name == "scope" {
                 ports.main = options.vicp_port.unwrap_or(ports.main);
+            }
+            if transport == Transport::Vicp && s.name == "loopback" {
+                ports.main = options.loopback_vicp_port.unwrap_or(ports.main);
             }
             if transport == Transport::Vxi11 {
                 ports.portmapper = portmapper.take();

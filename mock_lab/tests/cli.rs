@@ -20,17 +20,47 @@ fn serve_json_lists_every_endpoint_and_stops_on_stdin_eof() {
         .unwrap();
     let listing: serde_json::Value = serde_json::from_str(&line).expect("one JSON line");
     let endpoints = listing["endpoints"].as_array().unwrap();
-    let transports: Vec<&str> = endpoints
+    let served: Vec<(&str, &str)> = endpoints
+        .iter()
+        .map(|e| {
+            (
+                e["instrument"].as_str().unwrap(),
+                e["transport"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    for expected in [
+        ("awg", "raw"),
+        ("awg", "hislip"),
+        ("awg", "vxi11"),
+        ("scope", "vicp"),
+        ("scope", "vxi11"),
+        ("tx", "serial"),
+        ("rx", "serial"),
+    ] {
+        assert!(
+            served.contains(&expected),
+            "{expected:?} missing: {served:?}"
+        );
+    }
+    assert!(listing["control"]
+        .as_str()
+        .unwrap()
+        .starts_with("127.0.0.1:"));
+    let loopback: Vec<&serde_json::Value> = endpoints
+        .iter()
+        .filter(|e| e["instrument"] == "loopback")
+        .collect();
+    let transports: Vec<&str> = loopback
         .iter()
         .map(|e| e["transport"].as_str().unwrap())
         .collect();
     assert_eq!(transports, ["raw", "vxi11", "hislip", "vicp", "serial"]);
-    for e in endpoints {
-        assert_eq!(e["instrument"], "loopback");
+    for e in &loopback {
         assert!(e["resource"].as_str().unwrap().ends_with("INSTR") || e["transport"] == "raw");
     }
     // The raw endpoint answers.
-    let raw = endpoints[0]["address"].as_str().unwrap();
+    let raw = loopback[0]["address"].as_str().unwrap();
     let mut s = std::net::TcpStream::connect(raw).unwrap();
     s.set_read_timeout(Some(common::LIMIT)).unwrap();
     s.write_all(b"*IDN?\n").unwrap();
