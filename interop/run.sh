@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Interop checks: independent Python clients (pyvisa + pyvisa-py, pyvicp) against mock_lab.
+# Interop checks: independent Python clients (pyvisa + pyvisa-py, pyvicp) against mock_lab, and
+# independent readers (sigmf, numpy, lecroyparser) of radbench's files.
 # Creates .venv-interop (gitignored) on first use, builds mock-lab, runs pytest on interop/.
 # Exits non-zero on any failure, including "no tests collected".
 set -euo pipefail
@@ -13,9 +14,11 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r interop/requirements.txt
 
-echo "interop: building mock-lab"
+echo "interop: building mock-lab and radbench"
 cargo build --quiet -p mock_lab --bin mock-lab
+cargo build --quiet -p radbench --bin radbench
 export MOCK_LAB_BIN="$PWD/target/debug/mock-lab"
+export RADBENCH_BIN="$PWD/target/debug/radbench"
 
 set +e
 "$VENV/bin/python" -m pytest -q -p no:cacheprovider interop
