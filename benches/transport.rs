@@ -22,6 +22,8 @@ fn main() {
 enum Proto {
     Socket,
     Hislip,
+    Vxi11,
+    Vicp,
 }
 
 impl std::fmt::Display for Proto {
@@ -29,11 +31,13 @@ impl std::fmt::Display for Proto {
         f.write_str(match self {
             Proto::Socket => "socket",
             Proto::Hislip => "hislip",
+            Proto::Vxi11 => "vxi11",
+            Proto::Vicp => "vicp",
         })
     }
 }
 
-const PROTOCOLS: [Proto; 2] = [Proto::Socket, Proto::Hislip];
+const PROTOCOLS: [Proto; 4] = [Proto::Socket, Proto::Hislip, Proto::Vxi11, Proto::Vicp];
 
 struct Rig {
     runtime: tokio::runtime::Runtime,
@@ -54,12 +58,19 @@ fn rig(proto: Proto) -> Rig {
         let server = match proto {
             Proto::Socket => server::raw::serve(any, handler, options).await,
             Proto::Hislip => server::hislip::serve(any, handler, options).await,
+            Proto::Vxi11 => {
+                let addrs = server::vxi11::Vxi11Addresses::loopback();
+                server::vxi11::serve(addrs, handler, options).await
+            }
+            Proto::Vicp => server::vicp::serve(any, handler, options).await,
         }
         .expect("server starts");
         let port = server.local_addr().port();
         let resource: Resource = match proto {
             Proto::Socket => format!("TCPIP::127.0.0.1::{port}::SOCKET"),
             Proto::Hislip => format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR"),
+            Proto::Vxi11 => format!("TCPIP::127.0.0.1,{port}::inst0::INSTR"),
+            Proto::Vicp => format!("VICP::127.0.0.1,{port}"),
         }
         .parse()
         .expect("resource");

@@ -9,7 +9,7 @@ use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
 use radbench::address::Resource;
 use radbench::rng::SplitMix64;
 use radbench::session::{BlockForm, Session, SessionError, SessionOptions};
-use radbench::transport::{journal, LinkError, Timeouts};
+use radbench::transport::{journal, Direction, LinkError, Progress, Timeouts};
 use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
@@ -143,9 +143,23 @@ pub async fn check_block_64mb(proto: Proto) {
         .await
         .unwrap();
     assert_eq!(bounded(s.query_i64("DATA:LEN?")).await.unwrap(), len as i64);
+    // Progress is reported while the long block comes in.
+    let reports = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let sink = Arc::clone(&reports);
+    s.link_options_mut().progress = Some(Arc::new(move |p: Progress| {
+        sink.lock().unwrap().push(p);
+    }));
     let block = bounded(s.query_block("DATA?")).await.unwrap();
     assert_eq!(block.len(), len);
     assert_eq!(journal::sha256_hex(block.payload()), sent_hash);
+    let reports = std::mem::take(&mut *reports.lock().unwrap());
+    assert!(
+        !reports.is_empty(),
+        "no progress reported for a 64 MiB read"
+    );
+    assert!(reports.iter().all(|p| p.direction == Direction::Read));
+    assert!(reports.windows(2).all(|w| w[0].done < w[1].done));
+    assert!(reports.last().unwrap().done <= len as u64 + 4096);
     assert!(bounded(s.errors()).await.unwrap().is_empty());
 }
 

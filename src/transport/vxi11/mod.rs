@@ -233,7 +233,8 @@ impl Vxi11Link {
         options: &LinkOptions,
     ) -> Result<(), LinkError> {
         let total: usize = parts.iter().map(|p| p.len()).sum();
-        let chunk = (self.link.max_recv_size as usize).max(1024);
+        // At least 1024 (VXI-11 minimum); at most 1 GiB so a record fits the 31-bit mark.
+        let chunk = (self.link.max_recv_size as usize).clamp(1024, 1 << 30);
         let io_timeout = ms(options.timeouts.write);
         // Walk the parts in chunks of at most maxRecvSize, END on the last.
         let mut offset = 0usize;
