@@ -36,32 +36,45 @@ def _time_limit():
     signal.signal(signal.SIGALRM, previous)
 
 
-@pytest.fixture(scope="session")
-def endpoints():
-    """Starts mock-lab, yields {transport: endpoint dict} for the loopback instrument."""
-    proc = subprocess.Popen(
-        [_binary(), "serve", "--json"],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=None,
-    )
-    try:
-        ready, _, _ = select.select([proc.stdout], [], [], STARTUP_LIMIT_S)
+class MockLab:
+    """A running `mock-lab serve --json`: its endpoints for the loopback instrument."""
+
+    def __init__(self, *extra_args: str):
+        self.proc = subprocess.Popen(
+            [_binary(), "serve", "--json", *extra_args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        ready, _, _ = select.select([self.proc.stdout], [], [], STARTUP_LIMIT_S)
         if not ready:
-            pytest.fail(f"mock-lab printed no endpoints within {STARTUP_LIMIT_S} s")
-        line = proc.stdout.readline()
+            self.stop()
+            raise RuntimeError(f"mock-lab printed no endpoints within {STARTUP_LIMIT_S} s")
+        line = self.proc.stdout.readline()
         if not line:
-            pytest.fail(f"mock-lab exited before printing endpoints (status {proc.poll()})")
+            status = self.proc.wait(timeout=10)
+            self.error = self.proc.stderr.read().decode(errors="replace")
+            raise RuntimeError(f"mock-lab exited with status {status}: {self.error}")
         listing = json.loads(line)
-        by_transport = {
+        self.endpoints = {
             e["transport"]: e for e in listing["endpoints"] if e["instrument"] == "loopback"
         }
-        yield by_transport
-    finally:
+
+    def stop(self):
         # End of stdin asks mock-lab to stop; kill it if it does not.
         try:
-            proc.stdin.close()
-            proc.wait(timeout=10)
+            self.proc.stdin.close()
+            self.proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
+            self.proc.kill()
+            self.proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="session")
+def endpoints():
+    """Starts mock-lab on OS-chosen ports, yields {transport: endpoint dict}."""
+    lab = MockLab()
+    try:
+        yield lab.endpoints
+    finally:
+        lab.stop()

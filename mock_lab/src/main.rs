@@ -46,6 +46,10 @@ struct ServeArgs {
     /// Also run a VXI-11 portmapper on this port (111 is the standard one and needs root).
     #[arg(long, value_name = "PORT")]
     portmapper_port: Option<u16>,
+    /// Keep serving when standard input closes (for running detached, `< /dev/null`); stop
+    /// with Ctrl-C / SIGINT only.
+    #[arg(long)]
+    ignore_stdin: bool,
     /// Largest message accepted from a client, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_MAX_MESSAGE_SIZE)]
     max_message_size: usize,
@@ -160,17 +164,28 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 e.resource
             );
         }
-        println!("serving until Ctrl-C or end of standard input");
+        if args.ignore_stdin {
+            println!("serving until Ctrl-C");
+        } else {
+            println!("serving until Ctrl-C or end of standard input");
+        }
     }
     use std::io::Write;
     std::io::stdout()
         .flush()
         .context("cannot write the endpoint list to standard output")?;
-    let stdin_closed = tokio::task::spawn_blocking(|| {
-        let mut sink = [0u8; 4096];
-        let mut stdin = std::io::stdin();
-        while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
-    });
+    let ignore_stdin = args.ignore_stdin;
+    let stdin_closed = async move {
+        if ignore_stdin {
+            std::future::pending::<()>().await;
+        }
+        let _ = tokio::task::spawn_blocking(|| {
+            let mut sink = [0u8; 4096];
+            let mut stdin = std::io::stdin();
+            while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+        })
+        .await;
+    };
     tokio::select! {
         signal = tokio::signal::ctrl_c() => signal.context("cannot listen for Ctrl-C")?,
         _ = stdin_closed => {}

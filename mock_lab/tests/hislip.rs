@@ -265,3 +265,21 @@ async fn vanished_client_and_faults() {
     let mut c = Client::open(server.local_addr()).await;
     assert_eq!(c.query("*OPC?").await, b"1\n");
 }
+
+#[tokio::test]
+async fn message_over_the_limit_gets_error_4_and_the_session_continues() {
+    let (handler, mut options, _) = instrument();
+    options.max_message_size = 1000;
+    let server = hislip::serve(loopback_any(), handler, options)
+        .await
+        .unwrap();
+    let mut c = Client::open(server.local_addr()).await;
+    // The server's maximum is advertised in AsyncMaxMsgSizeResponse (payload + header).
+    send(&mut c.async_, 15, 0, 0, &(1u64 << 20).to_be_bytes()).await;
+    let (_, _, _, payload) = recv(&mut c.async_).await;
+    assert_eq!(u64::from_be_bytes(payload.try_into().unwrap()), 1000 + 16);
+    c.write(&[b'x'; 2000]).await;
+    let (kind, code, _, _) = recv(&mut c.sync).await;
+    assert_eq!((kind, code), (3, 4), "Error: message too large");
+    assert_eq!(c.query("*OPC?").await, b"1\n");
+}

@@ -186,3 +186,32 @@ async fn fault_swallowed_reply_then_next_answer_is_correct() {
     s.write_all(b"ECHO found\n").await.unwrap();
     assert_eq!(read_line(&mut s).await, b"found");
 }
+
+/// A handler that panics on one command, to check the server survives it.
+struct Fragile;
+
+impl mock_lab::server::Handler for Fragile {
+    fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
+        assert!(data != b"BOOM", "instrument firmware crashed");
+        vec![data.to_vec()]
+    }
+}
+
+#[tokio::test]
+async fn panicking_handler_closes_only_that_connection() {
+    let handler: std::sync::Arc<dyn mock_lab::server::Handler> = std::sync::Arc::new(Fragile);
+    let server = raw::serve(loopback_any(), handler, Default::default())
+        .await
+        .unwrap();
+    let mut s = TcpStream::connect(server.local_addr()).await.unwrap();
+    s.write_all(b"BOOM\n").await.unwrap();
+    let mut buf = [0u8; 1];
+    assert_eq!(
+        bounded(s.read(&mut buf)).await.unwrap(),
+        0,
+        "connection closed"
+    );
+    let mut s = TcpStream::connect(server.local_addr()).await.unwrap();
+    s.write_all(b"still here\n").await.unwrap();
+    assert_eq!(read_line(&mut s).await, b"still here");
+}

@@ -354,3 +354,44 @@ async fn faults_apply_to_device_read() {
         "half a reply, then closed"
     );
 }
+
+#[tokio::test]
+async fn device_lock_with_waitlock_waits_for_the_release() {
+    let (server, _) = server().await;
+    let mut holder = Link::open(server.local_addr()).await;
+    assert_eq!(
+        word(
+            &holder.rpc.call(CORE, 1, 18, &be(&[holder.lid, 0, 0])).await,
+            0
+        ),
+        0
+    );
+    let mut waiter = Link::open(server.local_addr()).await;
+    // Without waitlock: refused at once.
+    assert_eq!(
+        word(
+            &waiter.rpc.call(CORE, 1, 18, &be(&[waiter.lid, 0, 0])).await,
+            0
+        ),
+        11
+    );
+    // With waitlock and a long lock_timeout: granted once the holder lets go.
+    let lid = waiter.lid;
+    let pending = tokio::spawn(async move {
+        let r = waiter.rpc.call(CORE, 1, 18, &be(&[lid, 1, 20_000])).await;
+        // Keep the link (and its lock) alive: closing the connection would release it.
+        (word(&r, 0), waiter)
+    });
+    assert_eq!(
+        word(&holder.rpc.call(CORE, 1, 19, &be(&[holder.lid])).await, 0),
+        0
+    );
+    let (granted, _waiter) = bounded(pending).await.unwrap();
+    assert_eq!(granted, 0, "lock granted after release");
+    // Now the first link waits briefly and gives up.
+    let r = holder
+        .rpc
+        .call(CORE, 1, 18, &be(&[holder.lid, 1, 50]))
+        .await;
+    assert_eq!(word(&r, 0), 11, "lock_timeout expired");
+}

@@ -56,7 +56,7 @@ struct State {
     esr: u8,
     ese: u8,
     sre: u8,
-    block: Vec<u8>,
+    block: Block,
     clear_generation: u64,
 }
 
@@ -102,7 +102,7 @@ impl Loopback {
         match (query, &parts[..]) {
             (true, ["*IDN"]) => Some(IDENTITY.as_bytes().to_vec()),
             (false, ["*RST"]) => {
-                self.lock().block = Vec::new();
+                self.lock().block = Block::default();
                 None
             }
             (false, ["*CLS"]) => {
@@ -146,21 +146,23 @@ impl Loopback {
             }
             _ if !query && is(&[("DATA", "DATA")]) => {
                 match parse_block(raw_args) {
-                    Ok(data) => self.lock().block = data.to_vec(),
+                    Ok(data) => self.lock().block = Block::whole(data.to_vec()),
                     Err(msg) => self.push_error(-161, msg),
                 }
                 None
             }
             _ if query && is(&[("DATA", "DATA")]) => {
                 let st = self.lock();
-                let header = crate::server::framing::block_header(st.block.len());
-                let mut out = Vec::with_capacity(header.len() + st.block.len());
+                let block = st.block.as_slice();
+                let header = crate::server::framing::block_header(block.len());
+                // One spare byte: the server appends the LF terminator without reallocating.
+                let mut out = Vec::with_capacity(header.len() + block.len() + 1);
                 out.extend_from_slice(&header);
-                out.extend_from_slice(&st.block);
+                out.extend_from_slice(block);
                 Some(out)
             }
             _ if query && is(&[("DATA", "DATA"), ("LEN", "LENGTH")]) => {
-                Some(self.lock().block.len().to_string().into_bytes())
+                Some(self.lock().block.as_slice().len().to_string().into_bytes())
             }
             _ if !query && is(&[("DATA", "DATA"), ("GEN", "GENERATE")]) => {
                 self.generate(args);
@@ -188,7 +190,7 @@ impl Loopback {
         };
         match (len, seed) {
             (Some(len), Some(seed)) if len <= MAX_GENERATED => {
-                self.lock().block = pseudo_random_bytes(len as usize, seed);
+                self.lock().block = Block::whole(pseudo_random_bytes(len as usize, seed));
             }
             (Some(_), Some(_)) => self.push_error(
                 -223,
@@ -243,6 +245,16 @@ impl Loopback {
 }
 
 impl Handler for Loopback {
+    /// A message that is exactly one `DATA <block>` command keeps its buffer as the stored
+    /// block (no copy of a 64 MB upload); everything else goes through [`Handler::message`].
+    fn message_owned(&self, data: Vec<u8>) -> Vec<Vec<u8>> {
+        if let Some(range) = lone_data_block(&data) {
+            self.lock().block = Block { bytes: data, range };
+            return Vec::new();
+        }
+        self.message(&data)
+    }
+
     fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
         let mut answers: Vec<Vec<u8>> = Vec::new();
         for unit in split_units(data) {
@@ -281,6 +293,43 @@ impl Handler for Loopback {
         }
         stb
     }
+}
+
+/// The stored block: a range of a buffer, so an upload can be kept without copying it.
+#[derive(Debug, Default)]
+struct Block {
+    bytes: Vec<u8>,
+    range: std::ops::Range<usize>,
+}
+
+impl Block {
+    fn whole(bytes: Vec<u8>) -> Block {
+        let range = 0..bytes.len();
+        Block { bytes, range }
+    }
+
+    fn as_slice(&self) -> &[u8] {
+        &self.bytes[self.range.clone()]
+    }
+}
+
+/// When `data` is one `DATA <valid block>` command, the block payload's byte range.
+fn lone_data_block(data: &[u8]) -> Option<std::ops::Range<usize>> {
+    let units = split_units(data);
+    let [unit] = units.as_slice() else {
+        return None;
+    };
+    let unit = &unit[unit.iter().position(|b| !b.is_ascii_whitespace())?..];
+    let split = unit.iter().position(|b| b.is_ascii_whitespace())?;
+    let header = std::str::from_utf8(&unit[..split]).ok()?;
+    if !header.trim_start_matches(':').eq_ignore_ascii_case("DATA") {
+        return None;
+    }
+    let args = &unit[split..];
+    let args = &args[args.iter().position(|b| !b.is_ascii_whitespace())?..];
+    let payload = parse_block(args).ok()?;
+    let start = payload.as_ptr() as usize - data.as_ptr() as usize;
+    Some(start..start + payload.len())
 }
 
 /// True when `parts` matches `spec`, each part equal to the short or the long form.
@@ -445,6 +494,20 @@ mod tests {
         inst.message(b"DATA:GENERATE 1000,7");
         assert_eq!(inst.message(b"DATA?"), first);
         assert_eq!(first[0].len(), 1000 + 6);
+    }
+
+    #[test]
+    fn owned_upload_is_kept_without_reparsing_errors() {
+        let inst = Loopback::new();
+        assert!(inst.message_owned(b"DATA #14ab;c\r".to_vec()).is_empty());
+        assert_eq!(inst.message(b"DATA?"), vec![b"#14ab;c".to_vec()]);
+        // Not a lone DATA command: handled like any message.
+        assert_eq!(
+            inst.message_owned(b"DATA #11x;DATA?".to_vec()),
+            vec![b"#11x".to_vec()]
+        );
+        assert!(inst.message_owned(b"DATA #19x".to_vec()).is_empty());
+        assert!(ask(&inst, "SYST:ERR?").starts_with("-161,"));
     }
 
     #[test]

@@ -66,7 +66,7 @@ pub async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static)
 /// 488.2 response terminator (LF outside any block) appended when missing.
 pub async fn call_handler(handler: &Arc<dyn Handler>, message: Vec<u8>) -> Option<Vec<Vec<u8>>> {
     let handler = Arc::clone(handler);
-    let responses = blocking(move || handler.message(&message)).await?;
+    let responses = blocking(move || handler.message_owned(message)).await?;
     Some(responses.into_iter().map(terminated).collect())
 }
 

@@ -271,6 +271,19 @@ pub fn split_end_message(data: Vec<u8>, max_message: usize) -> Result<Vec<Vec<u8
     Ok(out)
 }
 
+/// For a message arriving in several chunks (HiSLIP Data, VXI-11 device_write, VICP blocks):
+/// when the first chunk holds a `#N` block header, reserve the rest of the block at once (the
+/// announced length was checked against `max` first) instead of growing chunk by chunk.
+pub fn reserve_for_block(input: &mut Vec<u8>, max: usize) {
+    let mut splitter = Splitter::end_delimited(max);
+    if let Ok(None) = splitter.next_frame(input) {
+        let pending = splitter.block_bytes_pending() as usize;
+        if pending > 0 {
+            input.reserve(pending + 2);
+        }
+    }
+}
+
 /// True when `response` already ends with a LF that is not part of a block, i.e. it carries its
 /// own 488.2 response terminator.
 pub fn has_terminator(response: &[u8]) -> bool {
@@ -400,6 +413,16 @@ mod tests {
         assert!(!has_terminator(b"1"));
         assert!(!has_terminator(b"#11\n"));
         assert!(has_terminator(b"#11\n\n"));
+    }
+
+    #[test]
+    fn reservation_follows_the_announced_block() {
+        let mut input = b"DATA #41000ab".to_vec();
+        reserve_for_block(&mut input, 1 << 20);
+        assert!(input.capacity() >= 13 + 998);
+        let mut huge = b"DATA #9999999999".to_vec();
+        reserve_for_block(&mut huge, 1000);
+        assert!(huge.capacity() < 1000, "over the limit: nothing reserved");
     }
 
     #[test]

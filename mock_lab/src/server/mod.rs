@@ -9,6 +9,9 @@
 //! | [`vicp`] | LeCroy VICP (version 1a: sequence numbers, out-of-band serial poll) |
 //! | [`serial`] | line-based serial endpoint on a pseudo-terminal |
 //!
+//! [`launch`] starts an instrument on any of them and describes the endpoint (address, VISA
+//! resource string); [`framing`] holds the block-aware 488.2 message splitter they share.
+//!
 //! Every server takes [`ServerOptions`]: the largest message it accepts (length fields are
 //! checked against it before anything is allocated) and the [`Faults`] the tests can switch on.
 //! Handler calls run on tokio's blocking pool, so a handler that blocks (a scope's `WAIT`)
@@ -37,8 +40,14 @@ use crate::faults::Faults;
 pub trait Handler: Send + Sync + 'static {
     /// One whole program message from a client. Returns the whole response messages it produced,
     /// in order (empty for commands that answer nothing). A response carries no transport framing;
-    /// the raw-socket server appends the newline terminator itself when the response lacks one.
+    /// every server appends the 488.2 response terminator (LF, outside any `#N` block) when the
+    /// response lacks one, and END-delimited transports end the message right after it.
     fn message(&self, data: &[u8]) -> Vec<Vec<u8>>;
+    /// The same as [`Handler::message`], taking ownership of the bytes so a handler can keep a
+    /// large block without copying it. The servers call this one; the default forwards.
+    fn message_owned(&self, data: Vec<u8>) -> Vec<Vec<u8>> {
+        self.message(&data)
+    }
     /// IEEE 488.2 device clear: abandon pending input and output.
     fn device_clear(&self) {}
     /// The status byte, for serial polls (HiSLIP AsyncStatusQuery, VXI-11 device_readstb, VICP).

@@ -67,15 +67,10 @@ async fn serve_connection(
     let mut buf: Vec<u8> = Vec::with_capacity(64 << 10);
     loop {
         while let Some(frame) = splitter.next_frame(&buf)? {
-            let message = if frame.consumed == buf.len() {
-                let mut whole = std::mem::take(&mut buf);
-                whole.truncate(frame.message_len);
-                whole
-            } else {
-                let message = buf[..frame.message_len].to_vec();
-                buf.drain(..frame.consumed);
-                message
-            };
+            // Hand the buffer itself to the handler; only bytes after the message are copied.
+            let rest = buf.split_off(frame.consumed);
+            let mut message = std::mem::replace(&mut buf, rest);
+            message.truncate(frame.message_len);
             if message.is_empty() {
                 continue;
             }
@@ -89,9 +84,14 @@ async fn serve_connection(
                 }
             }
         }
-        let want = splitter
-            .block_bytes_pending()
-            .clamp(64 << 10, READ_CHUNK as u64);
+        // Inside a block the splitter knows how much is coming (already checked against the
+        // maximum message size): reserve it once instead of growing by doubling. Untouched
+        // reserved pages cost no memory.
+        let pending = splitter.block_bytes_pending();
+        if pending > 0 {
+            buf.reserve(pending as usize + 2);
+        }
+        let want = pending.clamp(64 << 10, READ_CHUNK as u64);
         buf.reserve(want as usize);
         let got = (&mut reader).take(want).read_buf(&mut buf).await?;
         if got == 0 {

@@ -24,7 +24,7 @@ use tokio::sync::{mpsc, Notify};
 
 use self::codec::{fatal, kind, nonfatal, Header, HislipError, HEADER_LEN};
 use super::conn::{self, Delivery};
-use super::framing::split_end_message;
+use super::framing::{reserve_for_block, split_end_message};
 use super::{Handler, ServerError, ServerHandle, ServerOptions};
 
 const PROTOCOL: &str = "hislip";
@@ -316,7 +316,11 @@ async fn serve_sync<R: AsyncRead + Unpin>(
                     refusing = header.kind == kind::DATA;
                     continue;
                 }
+                let first_chunk = input.is_empty();
                 conn::read_exact_append(&mut reader, &mut input, header.payload_len).await?;
+                if first_chunk && header.kind == kind::DATA {
+                    reserve_for_block(&mut input, shared.options.max_message_size);
+                }
                 if header.kind == kind::DATA_END {
                     let job = Job::Message {
                         data: std::mem::take(&mut input),

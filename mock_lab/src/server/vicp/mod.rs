@@ -30,7 +30,7 @@ use tokio::sync::mpsc;
 
 use self::codec::{next_seq, op, previous_seq, Header, VicpError, HEADER_LEN};
 use super::conn::{self, Delivery};
-use super::framing::split_end_message;
+use super::framing::{reserve_for_block, split_end_message};
 use super::{Handler, ServerError, ServerHandle, ServerOptions};
 
 const PROTOCOL: &str = "vicp";
@@ -169,7 +169,11 @@ async fn serve_connection(
                 conn::skip_exact(&mut reader, u64::from(header.len)).await?;
                 continue;
             }
+            let first_chunk = input.is_empty();
             conn::read_exact_append(&mut reader, &mut input, u64::from(header.len)).await?;
+            if first_chunk && header.op & op::EOI == 0 {
+                reserve_for_block(&mut input, max);
+            }
             if header.op & op::EOI != 0 {
                 let job = Job {
                     data: std::mem::take(&mut input),

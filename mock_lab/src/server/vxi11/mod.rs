@@ -7,9 +7,11 @@
 //! the following device_read waits (up to its io_timeout) for the response, just as with a real
 //! instrument. device_abort on the abort channel ends a waiting device_read with error 23.
 //!
-//! Choices: any device name (`inst0`, `inst1`, ...) reaches the same handler; locks are granted
-//! or refused at once (no waiting on lock_timeout); SRQ interrupt channels are not offered
-//! (create_intr_chan and enable_srq answer "operation not supported").
+//! Choices: any device name (`inst0`, `inst1`, ...) reaches the same handler; one exclusive
+//! lock per server (create_link with lockDevice and device_lock wait up to lock_timeout, reads
+//! and writes with the waitlock flag wait for it too, otherwise a locked device answers error
+//! 11 at once); SRQ interrupt channels are not offered (create_intr_chan and enable_srq answer
+//! "operation not supported").
 
 pub mod rpc;
 pub mod xdr;
@@ -27,7 +29,7 @@ use tokio::sync::{mpsc, Notify};
 use self::rpc::{accept, Call, RpcError};
 use self::xdr::{pad, XdrReader, XdrWriter};
 use super::conn::{self, Delivery};
-use super::framing::split_end_message;
+use super::framing::{reserve_for_block, split_end_message};
 use super::{Handler, ServerError, ServerHandle, ServerOptions};
 use crate::faults::{ReplyFate, ReplyPlan};
 
@@ -66,6 +68,8 @@ mod reason {
 
 /// device_write flag: last chunk of the message.
 const FLAG_END: i32 = 0x08;
+/// Flag: wait up to lock_timeout for a lock held by another link instead of failing.
+const FLAG_WAITLOCK: i32 = 0x01;
 /// device_read flag: stop at termChar.
 const FLAG_TERMCHAR: i32 = 0x80;
 
@@ -115,6 +119,7 @@ pub async fn serve(
         links: Mutex::new(HashMap::new()),
         next_link: AtomicI32::new(1),
         lock_owner: Mutex::new(None),
+        lock_released: Notify::new(),
     });
     let core_shared = Arc::clone(&shared);
     let core_task = tokio::spawn(conn::accept_loop(core, PROTOCOL, move |stream, peer| {
@@ -165,6 +170,8 @@ struct Shared {
     links: Mutex<HashMap<i32, Arc<Link>>>,
     next_link: AtomicI32,
     lock_owner: Mutex<Option<i32>>,
+    /// Signalled whenever the lock is released.
+    lock_released: Notify,
 }
 
 struct Link {
@@ -321,6 +328,25 @@ async fn serve_core(stream: TcpStream, shared: &Arc<Shared>) -> Result<(), RpcEr
             let Some(call) = check_call(&mut writer, &mut r, CORE_PROGRAM, 1).await? else {
                 continue;
             };
+            if call.procedure == 11 {
+                // device_write owns the record, so a large upload is not copied again.
+                let args_at = record.len() - r.remaining();
+                let parsed = parse_device_write(&record, args_at, shared.options.max_message_size);
+                let reply = match parsed {
+                    Ok((lid, flags, lock_timeout, range)) => {
+                        if flags & FLAG_WAITLOCK != 0 {
+                            wait_unlocked(shared, lid, lock_timeout).await;
+                        }
+                        let (error, size) = device_write(shared, lid, flags, record, range);
+                        let mut w = success(call.xid);
+                        w.i32(error).u32(size);
+                        w
+                    }
+                    Err(_) => rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0)),
+                };
+                write_plain(&mut writer, &reply).await?;
+                continue;
+            }
             let outcome =
                 match core_procedure(shared, &call, &mut r, &mut own_links, &mut writer).await {
                     Ok(outcome) => outcome,
@@ -366,11 +392,11 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
         10 => {
             let _client_id = r.i32()?;
             let lock_device = r.bool()?;
-            let _lock_timeout = r.u32()?;
+            let lock_timeout = r.u32()?;
             let _device = r.opaque(MAX_DEVICE_NAME)?;
             let link = create_link(shared);
             let mut error = code::NO_ERROR;
-            if lock_device && !try_lock(shared, link.id) {
+            if lock_device && !acquire_lock(shared, link.id, lock_timeout).await {
                 error = code::DEVICE_LOCKED;
             }
             let lid = if error == code::NO_ERROR {
@@ -387,25 +413,17 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
             w
         }
-        11 => {
-            let lid = r.i32()?;
-            let _io_timeout = r.u32()?;
-            let _lock_timeout = r.u32()?;
-            let flags = r.i32()?;
-            let data = r.opaque(shared.options.max_message_size)?;
-            let (error, size) = device_write(shared, lid, flags, data);
-            let mut w = success(xid);
-            w.i32(error).u32(size);
-            w
-        }
         12 => {
             let lid = r.i32()?;
             let request_size = r.u32()?;
             let io_timeout = r.u32()?;
-            let _lock_timeout = r.u32()?;
+            let lock_timeout = r.u32()?;
             let flags = r.i32()?;
             let term_char = r.i32()? as u8;
             let term = (flags & FLAG_TERMCHAR != 0).then_some(term_char);
+            if flags & FLAG_WAITLOCK != 0 {
+                wait_unlocked(shared, lid, lock_timeout).await;
+            }
             return device_read(shared, xid, lid, request_size, io_timeout, term, w).await;
         }
         13 => {
@@ -473,10 +491,19 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
         }
         18 => {
             let lid = r.i32()?;
-            let error = match find_link(shared, lid) {
-                Some(_) if try_lock(shared, lid) => code::NO_ERROR,
-                Some(_) => code::DEVICE_LOCKED,
-                None => code::INVALID_LINK,
+            let flags = r.i32()?;
+            let lock_timeout = r.u32()?;
+            let wait = if flags & FLAG_WAITLOCK != 0 {
+                lock_timeout
+            } else {
+                0
+            };
+            let error = if find_link(shared, lid).is_none() {
+                code::INVALID_LINK
+            } else if acquire_lock(shared, lid, wait).await {
+                code::NO_ERROR
+            } else {
+                code::DEVICE_LOCKED
             };
             error_only(xid, error)
         }
@@ -528,10 +555,43 @@ fn try_lock(shared: &Shared, lid: i32) -> bool {
     }
 }
 
+/// Takes the lock for `lid`, waiting up to `wait_ms` while another link holds it.
+async fn acquire_lock(shared: &Shared, lid: i32, wait_ms: u32) -> bool {
+    let deadline = tokio::time::Instant::now() + Duration::from_millis(u64::from(wait_ms));
+    loop {
+        let released = shared.lock_released.notified();
+        tokio::pin!(released);
+        released.as_mut().enable();
+        if try_lock(shared, lid) {
+            return true;
+        }
+        if tokio::time::timeout_at(deadline, released).await.is_err() {
+            return false;
+        }
+    }
+}
+
+/// Waits up to `wait_ms` until no other link holds the lock.
+async fn wait_unlocked(shared: &Shared, lid: i32, wait_ms: u32) {
+    let deadline = tokio::time::Instant::now() + Duration::from_millis(u64::from(wait_ms));
+    loop {
+        let released = shared.lock_released.notified();
+        tokio::pin!(released);
+        released.as_mut().enable();
+        if !locked_by_other(shared, lid) {
+            return;
+        }
+        if tokio::time::timeout_at(deadline, released).await.is_err() {
+            return;
+        }
+    }
+}
+
 fn unlock(shared: &Shared, lid: i32) -> bool {
     let mut owner = lock(&shared.lock_owner);
     if *owner == Some(lid) {
         *owner = None;
+        shared.lock_released.notify_waiters();
         true
     } else {
         false
@@ -564,8 +624,31 @@ fn destroy_link(shared: &Shared, lid: i32) {
     unlock(shared, lid);
 }
 
-/// Appends written bytes to the link's input; on END, queues the message for the worker.
-fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32) {
+/// Device_WriteParms: lid, flags, lock_timeout and the data's byte range in the record.
+type DeviceWriteArgs = (i32, i32, u32, std::ops::Range<usize>);
+
+/// Decodes Device_WriteParms starting at `at`.
+fn parse_device_write(record: &[u8], at: usize, max: usize) -> Result<DeviceWriteArgs, RpcError> {
+    let mut r = XdrReader::new(&record[at..]);
+    let lid = r.i32()?;
+    let _io_timeout = r.u32()?;
+    let lock_timeout = r.u32()?;
+    let flags = r.i32()?;
+    let data = r.opaque(max)?;
+    let start = data.as_ptr() as usize - record.as_ptr() as usize;
+    Ok((lid, flags, lock_timeout, start..start + data.len()))
+}
+
+/// Appends the written bytes (`record[range]`) to the link's input; on END, queues the message
+/// for the worker. A one-chunk message reuses the record's buffer instead of copying it.
+fn device_write(
+    shared: &Shared,
+    lid: i32,
+    flags: i32,
+    mut record: Vec<u8>,
+    range: std::ops::Range<usize>,
+) -> (i32, u32) {
+    let size = range.len() as u32;
     let Some(link) = find_link(shared, lid) else {
         return (code::INVALID_LINK, 0);
     };
@@ -573,16 +656,19 @@ fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32
         return (code::DEVICE_LOCKED, 0);
     }
     let mut st = lock(&link.state);
-    if st.input.len() + data.len() > shared.options.max_message_size {
+    if st.input.len() + range.len() > shared.options.max_message_size {
         st.input = Vec::new();
         return (code::OUT_OF_RESOURCES, 0);
     }
     if flags & FLAG_END != 0 {
         let message = if st.input.is_empty() {
-            data.to_vec()
+            let len = range.len();
+            record.copy_within(range, 0);
+            record.truncate(len);
+            record
         } else {
             let mut m = std::mem::take(&mut st.input);
-            m.extend_from_slice(data);
+            m.extend_from_slice(&record[range]);
             m
         };
         let generation = link.generation.load(Ordering::SeqCst);
@@ -590,9 +676,13 @@ fn device_write(shared: &Shared, lid: i32, flags: i32, data: &[u8]) -> (i32, u32
             return (code::PARAMETER_ERROR, 0);
         }
     } else {
-        st.input.extend_from_slice(data);
+        let first_chunk = st.input.is_empty();
+        st.input.extend_from_slice(&record[range]);
+        if first_chunk {
+            reserve_for_block(&mut st.input, shared.options.max_message_size);
+        }
     }
-    (code::NO_ERROR, data.len() as u32)
+    (code::NO_ERROR, size)
 }
 
 /// Waits (up to `io_timeout` ms) for output and returns at most `request_size` bytes of it.
