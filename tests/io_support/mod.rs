@@ -287,7 +287,7 @@ pub async fn check_dropped_connection(proto: Proto) {
 /// A server that goes away entirely: connecting again fails with a clear error.
 pub async fn check_server_gone(proto: Proto) {
     let mut bench = start(proto).await;
-    let mut s = open(&bench, Duration::from_secs(5)).await;
+    let mut s = open(&bench, Duration::from_secs(1)).await;
     bench.server.shutdown();
     // Established connections may outlive the listener task; either way the next exchanges end
     // in a link error or still work, but never hang.
