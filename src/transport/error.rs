@@ -43,7 +43,7 @@ pub enum LinkError {
     },
     #[error("cannot resolve host `{host}`: check the resource string")]
     Resolve { host: String },
-    #[error("{op} timed out after {after:?}; the session cleared the device, so the next reply is fresh. Raise the timeout if the instrument is just slow")]
+    #[error("{op} timed out after {after:?}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. Raise the timeout if the instrument is just slow")]
     Timeout { op: &'static str, after: Duration },
     #[error(
         "the instrument closed the connection during {op}; reconnect (the session can reopen it)"

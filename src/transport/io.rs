@@ -329,3 +329,26 @@ pub async fn connect_tcp(
         .map_err(|e| io_error("connect", e))?;
     Ok(stream)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deadlines_grow_with_transfer_size() {
+        let t = Timeouts {
+            min_rate_bytes_per_s: 10_000_000,
+            ..Timeouts::default()
+        };
+        assert_eq!(t.allowance_for(0), Duration::ZERO);
+        assert_eq!(t.allowance_for(64_000_000), Duration::from_millis(6400));
+        let options = LinkOptions {
+            timeouts: t,
+            ..LinkOptions::default()
+        };
+        let mut ctx = ReadContext::new("read", &options);
+        let small = ctx.deadline();
+        ctx.expect_total(100_000_000);
+        assert_eq!(ctx.deadline() - small, Duration::from_secs(10));
+    }
+}

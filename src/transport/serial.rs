@@ -126,21 +126,28 @@ impl SerialLink {
                 device: open_path,
                 detail: format!("cannot open: {e}; check the device path and permissions"),
             })?;
-        Ok(Self::from_port(port, path, limit))
+        Self::from_port(port, path, limit)
     }
 
     /// Runs a link over an already open port (tests use a pseudo-terminal pair).
-    pub fn from_port(port: Box<dyn serialport::SerialPort>, device: String, limit: usize) -> Self {
+    pub fn from_port(
+        port: Box<dyn serialport::SerialPort>,
+        device: String,
+        limit: usize,
+    ) -> Result<Self, LinkError> {
         let (tx, rx) = mpsc::channel();
         let name = device.clone();
         std::thread::Builder::new()
             .name(format!("serial {device}"))
             .spawn(move || serve(port, rx, name, limit))
-            .expect("spawning a thread");
-        Self {
+            .map_err(|e| LinkError::Serial {
+                device: device.clone(),
+                detail: format!("cannot start the serial thread: {e}"),
+            })?;
+        Ok(Self {
             device,
             requests: tx,
-        }
+        })
     }
 
     fn gone(&self) -> LinkError {

@@ -9,7 +9,7 @@ pub mod codec;
 
 use self::codec::{next_seq, op, BlockDecoder, Header};
 use super::error::LinkError;
-use super::io::{connect_tcp, io_error, write_parts, LinkOptions, ReadContext};
+use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -101,9 +101,10 @@ impl VicpLink {
         Ok(())
     }
 
-    /// Serial poll in band (the VICP 1 way, still answered by 1a devices): a header with the
+    /// Serial poll in band (the VICP 1 way): a header with the
     /// SERIAL_POLL flag, answered by a one-byte EOI block carrying the status byte. Portable and
-    /// in order with the data stream; the default.
+    /// in order with the data stream. (VICP 1a devices also offer an out-of-band poll, the urgent
+    /// TCP byte `S`; it is not used: urgent data proved unreliable under load on loopback.)
     pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
         let header = Header::new(op::SERIAL_POLL, self.seq, 0).encode();
         write_parts(&mut self.stream, &[&header], "VICP serial poll", options).await?;
@@ -121,56 +122,4 @@ impl VicpLink {
             }),
         }
     }
-
-    /// Serial poll, VICP version 1a: the out-of-band byte `S` is answered by one out-of-band byte,
-    /// the status byte. The answer is polled for (1 ms steps) rather than awaited through the
-    /// reactor: Linux reports urgent data inconsistently through epoll, and a poll is rare.
-    /// Only on Linux.
-    #[cfg(any(target_os = "linux", target_os = "android"))]
-    pub async fn read_stb_out_of_band(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
-        use std::io::ErrorKind as K;
-        use std::mem::MaybeUninit;
-        const OP: &str = "VICP serial poll";
-        const STEP: std::time::Duration = std::time::Duration::from_millis(1);
-        let started = tokio::time::Instant::now();
-        let deadline = started + options.timeouts.read;
-        let timeout = || LinkError::Timeout {
-            op: OP,
-            after: started.elapsed(),
-        };
-        loop {
-            match socket2::SockRef::from(&self.stream).send_out_of_band(b"S") {
-                Ok(_) => break,
-                Err(e) if e.kind() == K::WouldBlock => {
-                    tokio::time::timeout_at(deadline, self.stream.writable())
-                        .await
-                        .map_err(|_| timeout())?
-                        .map_err(|e| io_error(OP, e))?;
-                }
-                Err(e) => return Err(io_error(OP, e)),
-            }
-        }
-        loop {
-            let mut byte = [MaybeUninit::new(0u8)];
-            match socket2::SockRef::from(&self.stream).recv_out_of_band(&mut byte) {
-                // SAFETY: the byte was initialised by `MaybeUninit::new` above and written by recv.
-                Ok(1) => return Ok(unsafe { byte[0].assume_init() }),
-                Ok(_) => return Err(LinkError::Closed { op: OP }),
-                // EAGAIN: announced but not arrived; EINVAL: no urgent data noted yet.
-                Err(e) if e.kind() == K::WouldBlock || e.raw_os_error() == Some(libc_einval()) => {
-                    if tokio::time::Instant::now() >= deadline {
-                        return Err(timeout());
-                    }
-                    tokio::time::sleep(STEP).await;
-                }
-                Err(e) => return Err(io_error(OP, e)),
-            }
-        }
-    }
-}
-
-/// EINVAL on Linux (asm-generic errno), without a libc dependency.
-#[cfg(any(target_os = "linux", target_os = "android"))]
-const fn libc_einval() -> i32 {
-    22
 }

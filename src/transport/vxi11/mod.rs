@@ -18,8 +18,10 @@ use std::time::Duration;
 use tokio::net::TcpStream;
 
 const PROTOCOL: &str = "VXI-11";
-/// Bytes asked for per device_read; the server returns at most this much per reply.
-const READ_REQUEST: u32 = 16 << 20;
+/// Bounds on the bytes asked for per device_read. Within them the link's maxRecvSize is asked for:
+/// the instrument said it handles that much, and one reply per message means no reassembly copy.
+const MIN_READ_REQUEST: usize = 64 << 10;
+const MAX_READ_REQUEST: usize = 1 << 30;
 /// Headroom over io_timeout for the server's own reply to arrive.
 const REPLY_GRACE: Duration = Duration::from_millis(500);
 
@@ -233,7 +235,8 @@ impl Vxi11Link {
         options: &LinkOptions,
     ) -> Result<(), LinkError> {
         let total: usize = parts.iter().map(|p| p.len()).sum();
-        let chunk = (self.link.max_recv_size as usize).max(1024);
+        // At least 1024 (VXI-11 minimum); at most 1 GiB so a record fits the 31-bit mark.
+        let chunk = (self.link.max_recv_size as usize).clamp(1024, 1 << 30);
         let io_timeout = ms(options.timeouts.write);
         // Walk the parts in chunks of at most maxRecvSize, END on the last.
         let mut offset = 0usize;
@@ -286,7 +289,9 @@ impl Vxi11Link {
         let mut received = 0usize;
         loop {
             let budget = options.max_message_bytes.saturating_sub(received).max(1);
-            let request = (budget.min(READ_REQUEST as usize)) as u32;
+            let preferred =
+                (self.link.max_recv_size as usize).clamp(MIN_READ_REQUEST, MAX_READ_REQUEST);
+            let request = budget.min(preferred) as u32;
             let io_timeout = ms(ctx.remaining().saturating_sub(REPLY_GRACE));
             let mut args = XdrWriter::default();
             messages::encode_read(&mut args, self.link.lid, request, io_timeout);
