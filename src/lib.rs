@@ -26,6 +26,7 @@
 //! | [`campaign`] | 5 | spec -> plan -> execute, safe state on every exit |
 //! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
+//! | [`time`] | pure | RFC 3339 UTC text for journals and run files |
 //! | [`cli`] | app | one module per subcommand |
 //!
 //! Exit codes are in [`exit`]: 0 success, 2 bad input, 3 instrument or link failure, 4 processing
@@ -43,5 +44,6 @@ pub mod rng;
 pub mod session;
 pub mod simulate;
 pub mod storage;
+pub mod time;
 pub mod transport;
 pub mod waveform;

@@ -165,18 +165,8 @@ impl Catalog {
     pub fn identify(&self, idn_reply: &str) -> Option<Identified<'_>> {
         let idn = Idn::parse(idn_reply)?;
         self.entries.iter().find_map(|(model, _)| {
-            let id = &model.identity;
-            let vendor = id
-                .manufacturer
-                .iter()
-                .any(|p| pattern_matches(p, &idn.manufacturer))
-                && id.model.iter().any(|p| pattern_matches(p, &idn.model));
-            let emulated = id
-                .emulator
-                .manufacturer
-                .eq_ignore_ascii_case(&idn.manufacturer)
-                && id.emulator.model.eq_ignore_ascii_case(&idn.model);
-            (vendor || emulated).then_some(Identified { model, emulated })
+            let emulated = model.identity.matches(&idn.manufacturer, &idn.model)?;
+            Some(Identified { model, emulated })
         })
     }
 }

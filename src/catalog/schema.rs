@@ -84,6 +84,25 @@ pub struct Identity {
     pub emulator: EmulatorIdentity,
 }
 
+impl Identity {
+    /// Whether an `*IDN?` reply's first two fields name this model: `Some(false)` for the vendor's
+    /// instrument (patterns), `Some(true)` for its mock_lab emulator, `None` for neither.
+    pub fn matches(&self, manufacturer: &str, model: &str) -> Option<bool> {
+        use super::identity::pattern_matches;
+        let vendor = self
+            .manufacturer
+            .iter()
+            .any(|p| pattern_matches(p, manufacturer))
+            && self.model.iter().any(|p| pattern_matches(p, model));
+        let emulated = self
+            .emulator
+            .manufacturer
+            .eq_ignore_ascii_case(manufacturer)
+            && self.emulator.model.eq_ignore_ascii_case(model);
+        (vendor || emulated).then_some(emulated)
+    }
+}
+
 /// The `*IDN?` fields of the mock_lab emulator of this model.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -3,7 +3,7 @@
 
 use super::error::DriverError;
 use super::io::InstrumentIo;
-use crate::catalog::{pattern_matches, InstrumentModel};
+use crate::catalog::InstrumentModel;
 use crate::session::reply::parse_idn;
 use crate::session::{Identity, SessionError};
 
@@ -17,18 +17,10 @@ pub fn session(instrument: &str) -> impl Fn(SessionError) -> DriverError + '_ {
 
 /// Whether an identity is the model (vendor patterns) or its mock_lab emulator.
 pub fn identity_matches(model: &InstrumentModel, idn: &Identity) -> bool {
-    let id = &model.identity;
-    let vendor = id
-        .manufacturer
-        .iter()
-        .any(|p| pattern_matches(p, &idn.manufacturer))
-        && id.model.iter().any(|p| pattern_matches(p, &idn.model));
-    let emulated = id
-        .emulator
-        .manufacturer
-        .eq_ignore_ascii_case(&idn.manufacturer)
-        && id.emulator.model.eq_ignore_ascii_case(&idn.model);
-    vendor || emulated
+    model
+        .identity
+        .matches(&idn.manufacturer, &idn.model)
+        .is_some()
 }
 
 /// Asks `*IDN?` and checks the answer is the catalog model.

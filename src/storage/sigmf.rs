@@ -137,50 +137,12 @@ fn hex(bytes: &[u8]) -> String {
 
 /// UTC time as RFC 3339 with milliseconds, from the system clock.
 pub fn utc_now_rfc3339() -> String {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    rfc3339_from_unix(now.as_secs() as i64, now.subsec_millis())
-}
-
-/// Formats seconds since the Unix epoch as `YYYY-MM-DDTHH:MM:SS.mmmZ` (proleptic Gregorian).
-pub fn rfc3339_from_unix(secs: i64, millis: u32) -> String {
-    let days = secs.div_euclid(86_400);
-    let rem = secs.rem_euclid(86_400);
-    // Civil-from-days (H. Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{millis:03}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
+    crate::time::rfc3339_millis(std::time::SystemTime::now())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn rfc3339_dates() {
-        assert_eq!(rfc3339_from_unix(0, 0), "1970-01-01T00:00:00.000Z");
-        assert_eq!(
-            rfc3339_from_unix(1_795_290_900, 42),
-            "2026-11-21T19:55:00.042Z"
-        );
-        assert_eq!(
-            rfc3339_from_unix(951_782_400, 0),
-            "2000-02-29T00:00:00.000Z"
-        );
-    }
 
     #[test]
     fn writes_interleaved_words_and_a_meta_with_the_namespace() {
@@ -191,7 +153,7 @@ mod tests {
         let meta = SigmfMeta {
             sample_rate: 80e9,
             frequency_hz: 80e9,
-            datetime: rfc3339_from_unix(0, 0),
+            datetime: "1970-01-01T00:00:00.000Z".into(),
             description: "test".into(),
             hw: "MOCK_LAB".into(),
             radbench: ns,
