@@ -91,6 +91,9 @@ struct Session {
     id: u16,
     /// Bumped by AsyncDeviceClear: work and replies from before are dropped.
     clear_generation: AtomicU64,
+    /// Between AsyncDeviceClear and DeviceClearComplete: the spec has the server discard every
+    /// message arriving on the synchronous channel, so a late query cannot answer the next one.
+    clearing: AtomicBool,
     /// Largest message the client accepts (AsyncMaxMsgSize), payload bytes per Data message.
     client_max: AtomicU64,
     /// A response was sent and the client has not confirmed reading it (MAV).
@@ -220,6 +223,7 @@ fn new_session(shared: &Shared) -> Arc<Session> {
     let session = Arc::new(Session {
         id,
         clear_generation: AtomicU64::new(0),
+        clearing: AtomicBool::new(false),
         client_max: AtomicU64::new(DEFAULT_CLIENT_MAX),
         unread: AtomicBool::new(false),
         async_attached: AtomicBool::new(false),
@@ -298,6 +302,11 @@ async fn serve_sync<R: AsyncRead + Unpin>(
                 if header.control & 1 == 1 {
                     session.unread.store(false, Ordering::SeqCst);
                 }
+                if session.clearing.load(Ordering::SeqCst) {
+                    conn::skip_exact(&mut reader, header.payload_len).await?;
+                    input = Vec::new();
+                    continue;
+                }
                 if refusing || input.len() as u64 + header.payload_len > max {
                     // Too large: report once, drop the whole message up to its DataEnd.
                     conn::skip_exact(&mut reader, header.payload_len).await?;
@@ -343,6 +352,7 @@ async fn serve_sync<R: AsyncRead + Unpin>(
                 conn::skip_exact(&mut reader, header.payload_len).await?;
                 input = Vec::new();
                 refusing = false;
+                session.clearing.store(false, Ordering::SeqCst);
                 let mut w = writer.lock().await;
                 // Feature bitmap: synchronized mode only, no encryption.
                 send(&mut w, kind::DEVICE_CLEAR_ACKNOWLEDGE, 0, 0, &[]).await?;
@@ -532,6 +542,7 @@ async fn serve_async<R: AsyncRead + Unpin>(
             }
             kind::ASYNC_DEVICE_CLEAR => {
                 conn::skip_exact(&mut reader, header.payload_len).await?;
+                session.clearing.store(true, Ordering::SeqCst);
                 session.clear_generation.fetch_add(1, Ordering::SeqCst);
                 session.unread.store(false, Ordering::SeqCst);
                 let handler = Arc::clone(&shared.handler);
