@@ -633,18 +633,20 @@ fn segment_key(awg: &AwgPlayback<'_>) -> u64 {
     h.finish()
 }
 
-/// SplitMix64 with Box-Muller: mock_lab's own seeded generator (it shares no code with radbench).
+/// SplitMix64 with ziggurat Gaussians: mock_lab's own seeded generator (it shares no code with
+/// radbench).
 #[derive(Debug, Clone)]
 struct SplitMix64 {
     state: u64,
-    spare: Option<f64>,
+    /// The unused upper half of the last 64-bit word.
+    spare_word: Option<u32>,
 }
 
 impl SplitMix64 {
     fn new(seed: u64) -> Self {
         Self {
             state: seed,
-            spare: None,
+            spare_word: None,
         }
     }
 
@@ -656,29 +658,31 @@ impl SplitMix64 {
         z ^ (z >> 31)
     }
 
-    fn uniform_signed(&mut self) -> f64 {
-        // 53 random bits mapped to [-1, 1).
-        (self.next_u64() >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0
+    fn next_u32(&mut self) -> u32 {
+        if let Some(w) = self.spare_word.take() {
+            return w;
+        }
+        let w = self.next_u64();
+        self.spare_word = Some((w >> 32) as u32);
+        w as u32
     }
 
-    /// Standard normal deviate by Marsaglia's polar method (no trigonometry: the synthesis draws
-    /// millions per capture).
+    /// Uniform in (0, 1] with 53 random bits.
+    fn uniform(&mut self) -> f64 {
+        1.0 - (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Standard normal deviate (ziggurat).
     fn gaussian(&mut self) -> f64 {
-        if let Some(z) = self.spare.take() {
-            return z;
-        }
-        loop {
-            let u = self.uniform_signed();
-            let v = self.uniform_signed();
-            let s = u * u + v * v;
-            if s > 0.0 && s < 1.0 {
-                let f = (-2.0 * s.ln() / s).sqrt();
-                self.spare = Some(v * f);
-                return u * f;
-            }
-        }
+        let this = std::cell::RefCell::new(self);
+        ziggurat::normal(
+            || this.borrow_mut().next_u32(),
+            || this.borrow_mut().uniform(),
+        )
     }
 }
+
+mod ziggurat;
 
 #[cfg(test)]
 mod tests;
