@@ -434,21 +434,37 @@ impl Synthesizer {
         // the inverse FFT of length n (unnormalised) needs 1/l to return volts.
         let scale = gain / l as f64;
         let half = l / 2;
-        for (k, x) in spectrum.iter().enumerate() {
-            let signed = if k < half || (k == half && l % 2 == 1) {
+        let signed_of = |k: usize| {
+            if k < half || (k == half && l % 2 == 1) {
                 k as i64
             } else {
                 k as i64 - l as i64
-            };
-            let f = signed as f64 * fs / l as f64;
-            let mut h = Complex64::new(0.0, 0.0);
-            for p in paths {
-                // Carrier phase and delay for the path; e^{+j 2 pi f t0} shifts the start of the record.
-                let phase = -2.0 * PI * (p.carrier_hz * p.delay_s + f * (p.delay_s - t0));
-                h += Complex64::from_polar(p.amplitude, phase);
             }
-            let idx = signed.rem_euclid(n as i64) as usize;
-            out[idx] = x * h * scale;
+        };
+        // The transfer function of the paths, bin by bin. Along a run of consecutive frequencies a
+        // path's phase grows linearly, so it is advanced by a rotating phasor (re-anchored exactly
+        // every RESYNC bins to keep rounding from accumulating) instead of one sincos per bin.
+        const RESYNC: usize = 1024;
+        let df = fs / l as f64;
+        let mut h = vec![Complex64::new(0.0, 0.0); l];
+        for p in paths {
+            let phase_at = |signed: i64| {
+                -2.0 * PI * (p.carrier_hz * p.delay_s + signed as f64 * df * (p.delay_s - t0))
+            };
+            let step = Complex64::from_polar(1.0, -2.0 * PI * df * (p.delay_s - t0));
+            let mut rot = Complex64::new(0.0, 0.0);
+            for (k, hk) in h.iter_mut().enumerate() {
+                let signed = signed_of(k);
+                if k % RESYNC == 0 || (k > 0 && signed != signed_of(k - 1) + 1) {
+                    rot = Complex64::from_polar(p.amplitude, phase_at(signed));
+                }
+                *hk += rot;
+                rot *= step;
+            }
+        }
+        for (k, (x, hk)) in spectrum.iter().zip(&h).enumerate() {
+            let idx = signed_of(k).rem_euclid(n as i64) as usize;
+            out[idx] = x * hk * scale;
         }
         let ifft = self.plan(n, true);
         ifft.process(&mut out);
