@@ -6,10 +6,11 @@
 //! file system; everything that talks to an instrument goes through `driver -> session -> transport`.
 //!
 //! ```text
-//! cli -> campaign -> measure -> driver -> session -> transport -> (tokio::net, serialport)
-//!           |            |         |
-//!           |            +-> dsp, waveform (pure)
-//!           +-> storage  +-> catalog
+//! cli -> measure -> driver -> session -> transport -> (tokio::net, serialport)
+//!  |        |          +-> catalog
+//!  |        +-> dsp, waveform (pure); simulate::process (range processing shared with simulate)
+//!  +-> simulate -> dsp, waveform
+//!  +-> storage (atomic files, SigMF, npy/CSV, plots)
 //! ```
 //!
 //! | module | layer | what it holds |
@@ -23,7 +24,6 @@
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
 //! | [`rng`] | pure | seeded SplitMix64 bits and Gaussian noise |
 //! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
-//! | [`campaign`] | 5 | spec -> plan -> execute, safe state on every exit |
 //! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
 //! | [`time`] | pure | RFC 3339 UTC text for journals and run files |
@@ -33,7 +33,6 @@
 //! failure.
 
 pub mod address;
-pub mod campaign;
 pub mod catalog;
 pub mod cli;
 pub mod driver;

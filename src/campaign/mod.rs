@@ -1,1 +1,0 @@
-//! Measurement campaigns: spec (TOML) -> plan (plain data) -> execute.
