@@ -309,3 +309,34 @@ async fn interrupted_capture_leaves_the_bench_safe() {
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
     assert!(!lab.bench.rx.front_end().rf_enabled);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn background_subtraction_leaves_only_what_changed() {
+    let lab = start(scene(&[(1.0, 0.5)], 30.0), Transport::Vicp).await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = write_bench(dir.path(), &lab, Transport::Raw, Transport::Vicp);
+    let empty = dir.path().join("empty");
+    let v = capture_json(&["--bench", &bench, "--out", empty.to_str().unwrap()]).await;
+    assert_eq!(ranges(&v).len(), 1);
+    let reply = lab
+        .bench
+        .scene
+        .apply(r#"{"cmd":"add","target":{"range_m":2.2,"amplitude":0.3}}"#);
+    assert_eq!(reply["ok"], true);
+    let background = v["files"]["sigmf_meta"].as_str().unwrap().to_string();
+    let out = dir.path().join("with");
+    let v = capture_json(&[
+        "--bench",
+        &bench,
+        "--background",
+        &background,
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .await;
+    let found = ranges(&v);
+    // Uncalibrated: ranges carry the system delay (3.1 ns = 0.465 m).
+    let offset = 3.1e-9 * 299_792_458.0 / 2.0;
+    assert_eq!(found.len(), 1, "only the new target remains: {found:?}");
+    assert!((found[0] - (2.2 + offset)).abs() < 0.01, "{found:?}");
+}

@@ -439,7 +439,12 @@ fn no_target_hint(rx: &[Complex64], profile: &Profile) -> String {
         .unwrap_or(0.0)
         .max(1e-300);
     let contrast_db = 20.0 * (max / median).log10();
-    if contrast_db < 15.0 {
+    if max == 0.0 {
+        "no target found: the capture is all zeros after background subtraction; the background \
+         holds the same samples (a simulated bench replays its noise when restarted with the same \
+         seed), or the scope saw nothing"
+            .to_string()
+    } else if contrast_db < 15.0 {
         format!(
             "no target found: the range profile is flat (peak {contrast_db:.1} dB over its median, \
              capture RMS {:.2} mV), so the capture looks like noise only. Check that the \
