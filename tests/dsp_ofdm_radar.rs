@@ -9,8 +9,8 @@ use radbench::dsp::metrics::{
     interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
 use radbench::dsp::ofdm_radar::{
-    Averaging, IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig, RangeDopplerMap,
-    RangeProfile,
+    Averaging, FftPrecision, IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig,
+    RangeDopplerMap, RangeProfile,
 };
 use radbench::dsp::window::Window;
 use radbench::rng::SplitMix64;
@@ -22,6 +22,18 @@ fn argmax(v: &[f64]) -> usize {
         .unwrap()
         .0
 }
+
+/// The default receiver with its FFT in double precision, for checks at the 1e-9 level.
+const DOUBLE: OfdmRadarConfig = OfdmRadarConfig {
+    subcarriers: 128,
+    oversampling: 16,
+    cp_fraction: 0.25,
+    bandwidth_hz: 1e9,
+    zero_pad: 10,
+    window: Window::Rectangular,
+    averaging: Averaging::Coherent,
+    fft_precision: FftPrecision::Double,
+};
 
 fn profile_of(
     config: OfdmRadarConfig,
@@ -44,7 +56,7 @@ fn spectral_division_recovers_the_echo_model_exactly() {
     let tx = qpsk(&mut rng, 3, N);
     let t = target(2.345);
     let rx = received_signal(&mut rng, &tx, FC_PHYSICAL, &[t], None);
-    let mut radar = OfdmRadar::new(OfdmRadarConfig::default()).unwrap();
+    let mut radar = OfdmRadar::new(DOUBLE).unwrap();
     let mut idiv = IDiv::new();
     radar.divide(&rx, 0, &tx, &mut idiv).unwrap();
     assert_eq!((idiv.symbols(), idiv.subcarriers()), (3, N));
@@ -56,6 +68,56 @@ fn spectral_division_recovers_the_echo_model_exactly() {
             assert!((v - expect).norm() < 1e-9, "s {s} k {k}: {v} vs {expect}");
         }
     }
+}
+
+#[test]
+fn single_precision_fft_matches_double_precision_far_below_adc_noise() {
+    // Two targets and noise at an 8-bit scope's level: the single-precision FFT (the default) must
+    // change I_div by no more than ~1e-6 of its size, and the profile and peak not measurably.
+    let mut rng = SplitMix64::new(21);
+    let tx = qpsk(&mut rng, 20, N);
+    let targets = [
+        target(1.234),
+        Target {
+            amp: 0.3,
+            ..target(4.321)
+        },
+    ];
+    let rx = received_signal(&mut rng, &tx, FC_PHYSICAL, &targets, Some(40.0));
+    let run = |config: OfdmRadarConfig| {
+        let mut radar = OfdmRadar::new(config).unwrap();
+        let (mut idiv, mut profile) = (IDiv::new(), RangeProfile::new());
+        radar.process(&rx, 0, &tx, &mut idiv, &mut profile).unwrap();
+        let peak = radar.refine_peak(&idiv, 1.234).unwrap();
+        (idiv, profile, peak)
+    };
+    assert_eq!(
+        OfdmRadarConfig::default().fft_precision,
+        FftPrecision::Single
+    );
+    let (i32_, p32, peak32) = run(OfdmRadarConfig::default());
+    let (i64_, p64, peak64) = run(DOUBLE);
+    let rms =
+        |v: &[Complex64]| (v.iter().map(|x| x.norm_sqr()).sum::<f64>() / v.len() as f64).sqrt();
+    let diff: Vec<Complex64> = i32_
+        .as_slice()
+        .iter()
+        .zip(i64_.as_slice())
+        .map(|(a, b)| a - b)
+        .collect();
+    let rel = rms(&diff) / rms(i64_.as_slice());
+    assert!(
+        rel > 0.0 && rel < 1e-6,
+        "I_div relative RMS difference {rel:e}"
+    );
+    let peak_amp = p64.amplitude.iter().cloned().fold(0.0, f64::max);
+    for (a, b) in p32.amplitude.iter().zip(&p64.amplitude) {
+        assert!((a - b).abs() < 1e-6 * peak_amp, "{a} vs {b}");
+    }
+    assert!(
+        (peak32.0 - peak64.0).abs() < 1e-6,
+        "{peak32:?} vs {peak64:?}"
+    );
 }
 
 #[test]
@@ -78,7 +140,7 @@ fn framing_with_a_start_offset_and_a_truly_delayed_frame() {
         FC_PHYSICAL,
         0.5,
     );
-    let mut radar = OfdmRadar::new(OfdmRadarConfig::default()).unwrap();
+    let mut radar = OfdmRadar::new(DOUBLE).unwrap();
     let (mut idiv, mut profile) = (IDiv::new(), RangeProfile::new());
     radar
         .process(&rx, offset, &tx, &mut idiv, &mut profile)
