@@ -92,7 +92,33 @@ fn run_json_has_the_documented_keys() {
     assert_eq!(s["algorithm"], "music");
     assert_eq!(s["carrier_phase"], "physical");
     assert_eq!(s["resolved"], true);
+    assert_eq!(s["fft_precision"], "single");
     assert!(s.get("resolved_rate").is_none(), "single trial: no rate");
+}
+
+#[test]
+fn fft_precision_double_is_reported_and_agrees_with_single() {
+    let peaks = |precision: &str| {
+        let doc = json_of(&radbench(&[
+            "simulate",
+            "run",
+            "--waveform",
+            "ofdm",
+            "--targets",
+            "2.5,2.8",
+            "--fft-precision",
+            precision,
+            "--json",
+        ]));
+        let s = &doc["scenarios"][0];
+        assert_eq!(s["fft_precision"], precision);
+        serde_json::from_value::<Vec<f64>>(s["peaks_m"].clone()).unwrap()
+    };
+    let (single, double) = (peaks("single"), peaks("double"));
+    assert_eq!(single.len(), 2);
+    for (a, b) in single.iter().zip(&double) {
+        assert!((a - b).abs() < 1e-6, "{single:?} vs {double:?}");
+    }
 }
 
 #[test]

@@ -8,7 +8,7 @@ use crate::exit::bad_input;
 use crate::simulate::{
     ber, report,
     scene::{parse_targets, CarrierPhase},
-    spec::{Algorithm, RunSpec, WaveformSpec, WindowName},
+    spec::{Algorithm, FftPrecisionName, RunSpec, WaveformSpec, WindowName},
     thesis,
 };
 use std::path::PathBuf;
@@ -74,6 +74,9 @@ pub struct RunArgs {
     /// Window on the subcarriers before the OFDM range IFFT.
     #[arg(long, value_enum, value_name = "NAME", default_value = "rect")]
     pub window: WindowName,
+    /// Precision of the OFDM receiver's per-symbol FFT (the rest is double precision).
+    #[arg(long, value_enum, value_name = "P", default_value = "single")]
+    pub fft_precision: FftPrecisionName,
     /// Echo carrier phase: physical (80 GHz), centred (0 Hz) or thesis (B/2, the thesis' model).
     #[arg(long, value_enum, default_value = "physical")]
     pub carrier_phase: CarrierPhase,
@@ -191,6 +194,7 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
     spec.forward_backward = !a.forward_only;
     spec.zero_pad = a.zero_pad;
     spec.window = a.window;
+    spec.fft_precision = a.fft_precision;
     spec.carrier = a.carrier_phase;
     spec.capture_rate_hz = a.capture_rate;
     spec.interpolate = !a.no_interpolation;

@@ -231,6 +231,7 @@ impl Processor {
                     bandwidth_hz: p.bandwidth_hz,
                     zero_pad: spec.zero_pad,
                     window: super::window::to_dsp(spec.window),
+                    fft_precision: spec.fft_precision.to_dsp(),
                     ..OfdmRadarConfig::default()
                 })?;
                 let music = match spec.algorithm {
@@ -529,7 +530,13 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
         trials: spec.trials,
         resolved_rate: many.then(|| resolved_count as f64 / spec.trials as f64),
         trial_peaks_m: many.then_some(trial_peaks),
-        extra: BTreeMap::new(),
+        extra: match spec.waveform {
+            WaveformSpec::Ofdm { .. } => BTreeMap::from([(
+                "fft_precision".to_string(),
+                serde_json::json!(spec.fft_precision),
+            )]),
+            WaveformSpec::MskLfm { .. } => BTreeMap::new(),
+        },
     };
     Ok(SimOutcome { result, profiles })
 }
