@@ -146,6 +146,14 @@ async fn calibrated_target_within_1mm_over_every_transport_and_waveform() {
                 "{waveform} over {awg:?}/{scope:?}: error {error_mm} mm"
             );
             assert_eq!(v["scene"]["targets"][0]["range_m"], 1.7234);
+            // The processing is recorded, with the calibration it used, in both records.
+            assert_eq!(v["processing"]["system_delay_s"], cal["system_delay_s"]);
+            assert_eq!(v["processing"]["zero_pad"], 10);
+            let meta: Value = serde_json::from_str(
+                &std::fs::read_to_string(v["files"]["sigmf_meta"].as_str().unwrap()).unwrap(),
+            )
+            .unwrap();
+            assert_eq!(meta["global"]["radbench:processing"], v["processing"]);
             for key in [
                 "sigmf_meta",
                 "sigmf_data",

@@ -8,7 +8,7 @@ use crate::measure::bench_file::{BenchFile, Calibration};
 use crate::measure::process::{self, ProcessOptions, Processed, RawIq};
 use crate::measure::run::{self, CaptureSettings, Captured, Identities};
 use crate::measure::transmit::{Transmission, WaveformKind, DEFAULT_BACKOFF_DB};
-use crate::simulate::spec::{Algorithm, WindowName};
+use crate::simulate::spec::{Algorithm, FftPrecisionName, WindowName};
 use crate::storage::plot::{self, Curve, ProfilePlot};
 use crate::storage::profile::ProfileTable;
 use crate::storage::sigmf::{self, SigmfMeta};
@@ -63,6 +63,9 @@ pub struct Args {
     pub zero_pad: usize,
     #[arg(long, value_enum, default_value = "rect")]
     pub window: WindowName,
+    /// Precision of the OFDM receiver's per-symbol FFT (the rest is double precision).
+    #[arg(long, value_enum, value_name = "P", default_value = "single")]
+    pub fft_precision: FftPrecisionName,
     /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
     #[arg(long, default_value_t = 0.15)]
     pub min_range: f64,
@@ -238,6 +241,7 @@ fn process_options(args: &Args, system_delay_s: f64) -> anyhow::Result<ProcessOp
         music_p: args.music_p,
         zero_pad: args.zero_pad,
         window: args.window,
+        fft_precision: args.fft_precision,
         system_delay_s,
         min_range_m: args.min_range,
         max_range_m: args.max_range,
@@ -490,6 +494,8 @@ fn summary_json(m: &Measurement, o: &ProcessOptions, files: &Value, bench: &Benc
         "payload": p.payload,
         "warnings": p.warnings,
         "system_delay_s": o.system_delay_s,
+        "processing": o,
+        "radbench_version": env!("CARGO_PKG_VERSION"),
         "simulated": bench.lab.is_some() || bench.file.simulation.is_some(),
         "scene": m.ground_truth,
         "instruments": m.identities,
@@ -526,6 +532,7 @@ fn write_outputs(
         json!({"awg": m.tx.sample_rate_hz, "scope": m.captured.applied.scope.sample_rate_hz, "processing": m.tx.sample_rate_hz}),
     );
     ns.insert("system_delay_s".into(), json!(o.system_delay_s));
+    ns.insert("processing".into(), json!(o));
     if let Some(truth) = &m.ground_truth {
         ns.insert("scene".into(), truth.clone());
     }

@@ -17,7 +17,7 @@ use crate::dsp::C0;
 use crate::simulate::process::{
     music_profile, root_music_ranges, CorrelationProfiler, PeriodicDecimator, Profile,
 };
-use crate::simulate::spec::{Algorithm, WindowName};
+use crate::simulate::spec::{Algorithm, FftPrecisionName, WindowName};
 use crate::waveform::bits::{count_bit_errors, unframe_payload};
 use crate::waveform::msk_lfm::MskLfm;
 use crate::waveform::ofdm::{Equalisation, Ofdm};
@@ -25,8 +25,8 @@ use num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde::Serialize;
 
-/// How to process a capture.
-#[derive(Debug, Clone)]
+/// How to process a capture (recorded as `processing` in summary.json and the SigMF metadata).
+#[derive(Debug, Clone, Serialize)]
 pub struct ProcessOptions {
     pub algorithm: Algorithm,
     /// MUSIC sub-vector length M.
@@ -36,6 +36,8 @@ pub struct ProcessOptions {
     /// OFDM Fourier zero padding.
     pub zero_pad: usize,
     pub window: WindowName,
+    /// Precision of the OFDM receiver's per-symbol FFT.
+    pub fft_precision: FftPrecisionName,
     /// Fixed delay of the bench (calibration), seconds.
     pub system_delay_s: f64,
     /// Detections closer than this are ignored (the direct Tx -> Rx leakage sits near 0 m).
@@ -57,6 +59,7 @@ impl Default for ProcessOptions {
             music_p: None,
             zero_pad: 10,
             window: WindowName::Rect,
+            fft_precision: FftPrecisionName::Single,
             system_delay_s: 0.0,
             min_range_m: 0.15,
             max_range_m: 10.0,
@@ -232,6 +235,7 @@ pub fn process(
                 bandwidth_hz: params.bandwidth_hz,
                 zero_pad: options.zero_pad,
                 window: crate::simulate::window::to_dsp(options.window),
+                fft_precision: options.fft_precision.to_dsp(),
                 ..OfdmRadarConfig::default()
             })?;
             let mut idiv = IDiv::new();
