@@ -8,8 +8,8 @@
 //! ```text
 //! cli -> measure -> driver -> session -> transport -> (tokio::net, serialport)
 //!  |        |          +-> catalog
-//!  |        +-> dsp, waveform (pure); simulate::process (range processing shared with simulate)
-//!  +-> simulate -> dsp, waveform
+//!  |        +-> processing (names of the processing choices) -> dsp, waveform (pure)
+//!  +-> simulate -> processing, dsp, waveform
 //!  +-> storage (atomic files, SigMF, npy/CSV, plots)
 //! ```
 //!
@@ -23,6 +23,7 @@
 //! | [`waveform`] | pure | MSK-LFM and OFDM generators, DAC quantisation, communication receivers |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
 //! | [`rng`] | pure | seeded SplitMix64 bits and Gaussian noise |
+//! | [`processing`] | pure | the `--algorithm`, `--window` and `--fft-precision` names shared by simulate, measure and the CLI |
 //! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
 //! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
@@ -39,6 +40,7 @@ pub mod driver;
 pub mod dsp;
 pub mod exit;
 pub mod measure;
+pub mod processing;
 pub mod rng;
 pub mod session;
 pub mod simulate;

@@ -5,7 +5,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`bench`] | the emulators wired together: AWG marker -> scope trigger, AWG -> Tx -> scene -> Rx -> scope |
+//! | [`bench`](mod@bench) | the emulators wired together: AWG marker -> scope trigger, AWG -> Tx -> scene -> Rx -> scope |
 //! | [`catalog`] | its own reader of the instrument files in `instruments/` (limits, identities, registers) |
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
 //! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |

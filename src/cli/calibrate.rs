@@ -8,7 +8,7 @@ use crate::exit::bad_input;
 use crate::measure::bench_file::{store_calibration, Calibration};
 use crate::measure::process::ProcessOptions;
 use crate::measure::transmit::{Transmission, WaveformKind, DEFAULT_BACKOFF_DB};
-use crate::simulate::spec::Algorithm;
+use crate::processing::Algorithm;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]

@@ -8,7 +8,7 @@ use crate::measure::bench_file::{BenchFile, Calibration};
 use crate::measure::process::{self, ProcessOptions, Processed, RawIq};
 use crate::measure::run::{self, CaptureSettings, Captured, Identities};
 use crate::measure::transmit::{Transmission, WaveformKind, DEFAULT_BACKOFF_DB};
-use crate::simulate::spec::{Algorithm, FftPrecisionName, WindowName};
+use crate::processing::{Algorithm, FftPrecisionName, WindowName};
 use crate::storage::plot::{self, Curve, ProfilePlot};
 use crate::storage::profile::ProfileTable;
 use crate::storage::sigmf::{self, SigmfMeta};

@@ -1,4 +1,8 @@
 //! The command line: one module per subcommand, each a clap struct and a `run()`.
+//!
+//! Doc comments on the clap structs are `--help` text, not rustdoc: brackets and angle brackets
+//! in them are literal.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;

@@ -27,6 +27,7 @@ pub mod decimate;
 pub mod metrics;
 pub mod music;
 pub mod ofdm_radar;
+pub mod range_profile;
 pub mod window;
 
 /// Speed of light in vacuum, m/s (the thesis rounds it to 3e8).

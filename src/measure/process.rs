@@ -8,16 +8,16 @@
 
 use super::transmit::{Transmission, WaveformKind};
 use super::MeasureError;
+use crate::dsp::decimate::PeriodicDecimator;
 use crate::dsp::metrics::{
     find_peaks, interpolate_peak, sidelobe_levels, width_3db, Axis, CaCfar, Interpolation,
 };
+use crate::dsp::music::root_music_ranges;
 use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
 use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::range_profile::{music_profile, CorrelationProfiler, Profile};
 use crate::dsp::C0;
-use crate::simulate::process::{
-    music_profile, root_music_ranges, CorrelationProfiler, PeriodicDecimator, Profile,
-};
-use crate::simulate::spec::{Algorithm, FftPrecisionName, WindowName};
+use crate::processing::{Algorithm, FftPrecisionName, WindowName};
 use crate::waveform::bits::{count_bit_errors, unframe_payload};
 use crate::waveform::msk_lfm::MskLfm;
 use crate::waveform::ofdm::{Equalisation, Ofdm};
@@ -234,7 +234,7 @@ pub fn process(
                 cp_fraction: params.cp_fraction,
                 bandwidth_hz: params.bandwidth_hz,
                 zero_pad: options.zero_pad,
-                window: crate::simulate::window::to_dsp(options.window),
+                window: options.window.to_dsp(),
                 fft_precision: options.fft_precision.to_dsp(),
                 ..OfdmRadarConfig::default()
             })?;

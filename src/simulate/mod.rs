@@ -5,7 +5,7 @@
 //! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
 //! | [`noise`] | complex white noise at a per-sample SNR |
 //! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
-//! | [`process`] | range processing for simulations (correlation, decimation, OFDM, MUSIC, ESPRIT) |
+//! | processing | range profiles, periodic decimation and root-MUSIC live in [`crate::dsp`]; the choice names in [`crate::processing`] |
 //! | [`run`] | the engine: transmit, echoes, capture chain, noise, processing, metrics, trials |
 //! | [`accuracy`] | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
 //! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
@@ -19,13 +19,11 @@ pub mod accuracy;
 pub mod ber;
 pub mod kernels;
 pub mod noise;
-pub mod process;
 pub mod report;
 pub mod run;
 pub mod scene;
 pub mod spec;
 pub mod thesis;
-pub mod window;
 
 /// Why a simulation could not run.
 #[derive(Debug, thiserror::Error)]

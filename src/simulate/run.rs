@@ -2,17 +2,17 @@
 //! range processing and metrics, over one or more Monte-Carlo trials.
 
 use super::noise::add_noise;
-use super::process::{
-    music_profile, root_music_ranges, CorrelationProfiler, PeriodicDecimator, Profile,
-};
 use super::scene::EchoSynth;
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
 use super::SimError;
+use crate::dsp::decimate::PeriodicDecimator;
 use crate::dsp::metrics::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
+use crate::dsp::music::root_music_ranges;
 use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
 use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::range_profile::{music_profile, CorrelationProfiler, Profile};
 use crate::dsp::C0;
 use crate::rng::SplitMix64;
 use crate::storage::plot::{Curve, ProfilePlot};
@@ -230,7 +230,7 @@ impl Processor {
                     cp_fraction: p.cp_fraction,
                     bandwidth_hz: p.bandwidth_hz,
                     zero_pad: spec.zero_pad,
-                    window: super::window::to_dsp(spec.window),
+                    window: spec.window.to_dsp(),
                     fft_precision: spec.fft_precision.to_dsp(),
                     ..OfdmRadarConfig::default()
                 })?;

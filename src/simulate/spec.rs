@@ -4,6 +4,8 @@
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
 use crate::dsp::C0;
+/// The processing choices a run spec names (defined in [`crate::processing`]).
+pub use crate::processing::{Algorithm, FftPrecisionName, WindowName};
 
 /// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
 pub const MAX_ZERO_PAD: usize = 1000;
@@ -77,72 +79,6 @@ impl WaveformSpec {
             } => bandwidth_hz * oversampling as f64,
         }
     }
-}
-
-/// Range-processing algorithm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Algorithm {
-    /// FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar).
-    Correlation,
-    /// OFDM: spectral division and zero-padded IFFT over the subcarriers.
-    Fourier,
-    /// OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward).
-    Music,
-    /// OFDM: root-MUSIC, ranges from polynomial roots (no grid).
-    RootMusic,
-    /// OFDM: ESPRIT, ranges from the shift invariance (no grid).
-    Esprit,
-}
-
-impl Algorithm {
-    pub fn name(self) -> &'static str {
-        match self {
-            Algorithm::Correlation => "correlation",
-            Algorithm::Fourier => "fourier",
-            Algorithm::Music => "music",
-            Algorithm::RootMusic => "root-music",
-            Algorithm::Esprit => "esprit",
-        }
-    }
-
-    /// The algorithms that return ranges without a profile.
-    pub fn is_grid_free(self) -> bool {
-        matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
-    }
-}
-
-/// Precision of the OFDM receiver's per-symbol FFT (`--fft-precision`); the rest is double.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum FftPrecisionName {
-    /// Single precision (default): rounding ~130 dB under the signal, about twice as fast.
-    #[default]
-    Single,
-    /// Double precision, for noise-free studies that look below -130 dB.
-    Double,
-}
-
-impl FftPrecisionName {
-    pub fn to_dsp(self) -> crate::dsp::ofdm_radar::FftPrecision {
-        match self {
-            Self::Single => crate::dsp::ofdm_radar::FftPrecision::Single,
-            Self::Double => crate::dsp::ofdm_radar::FftPrecision::Double,
-        }
-    }
-}
-
-/// Window on the subcarriers before the range IFFT (OFDM Fourier), trading side-lobes for width.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum WindowName {
-    /// No window (rectangular): narrowest main lobe, -13.3 dB side-lobes.
-    Rect,
-    Hann,
-    /// Taylor, 4 nearly equal side-lobes at -35 dB.
-    Taylor,
-    /// Dolph-Chebyshev, equal side-lobes at -50 dB.
-    Chebyshev,
 }
 
 /// One simulation: waveform, scene, processing, randomness.

@@ -5,7 +5,7 @@
 //! trigger is forced). The emulator never holds its lock while it waits for an edge, so a client can
 //! poll `INR?` on another connection while one connection is blocked in `WAIT`.
 //!
-//! Errors follow the legacy LeCroy registers [I]: command errors set `CMR?` (1 unknown header,
+//! Errors follow the legacy LeCroy registers \[I\]: command errors set `CMR?` (1 unknown header,
 //! 2 illegal header path, 3 illegal number, 5 unknown keyword, 11 bad block) and ESR bit 5;
 //! execution errors set `EXR?` (22 environment, 25 parameter, 26 not implemented, 27 parameter
 //! missing) and ESR bit 4. Out-of-range values are adapted to the nearest allowed value and flag

@@ -3,7 +3,7 @@
 //! no output or run without a waveform), real SCPI error codes, and the played waveform for the scene.
 //!
 //! Parsing: IEEE 488.2 messages are split by [`common::message`](super::common::message) (block-aware),
-//! headers matched against the manual-style table in [`commands`] (see there why not the `scpi` crate).
+//! headers matched against the manual-style table in `commands` (see there why not the `scpi` crate).
 //! Command errors (`-1xx`) abandon the rest of the program message, as IEEE 488.2 requires; execution
 //! errors (`-2xx`) are queued and the following units still run. Several queries in one message are
 //! answered in one response, separated by `;`.

@@ -25,9 +25,11 @@ mod covariance;
 mod eigen;
 mod esprit;
 pub mod order;
+mod root;
 
 pub use eigen::HermitianEigen;
 pub use order::{estimate_order, OrderCriterion};
+pub use root::root_music_ranges;
 
 use super::metrics::local_maxima;
 use super::{DspError, C0};

@@ -73,7 +73,7 @@ impl ReceivedLog {
 }
 
 /// Readable form of a message: printable ASCII kept, `#N` definite blocks replaced by their size,
-/// other bytes escaped, trailing CR/LF dropped, cut at [`MAX_TEXT`] characters.
+/// other bytes escaped, trailing CR/LF dropped, cut at `MAX_TEXT` characters.
 pub fn summarise(data: &[u8]) -> String {
     let data = trim_terminator(data);
     let mut out = String::new();

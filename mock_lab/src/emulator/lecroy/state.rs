@@ -139,7 +139,7 @@ pub struct ScopeState {
 }
 
 impl ScopeState {
-    /// Power-on / `*RST` settings [I]: headers SHORT, BYTE transfers, HI first, edge trigger on C1 in
+    /// Power-on / `*RST` settings \[I\]: headers SHORT, BYTE transfers, HI first, edge trigger on C1 in
     /// AUTO mode, 50 ns/div, catalog default V/div on every channel, all channels on.
     pub fn reset(model: &DigitizerModel, remote: RemoteInterface) -> ScopeState {
         let l = &model.limits;
@@ -200,7 +200,7 @@ impl ScopeState {
     }
 
     /// Time of the first point relative to the trigger: the trigger sits mid-grid at zero delay,
-    /// positive delays show more pre-trigger time, negative ones move the grid after the trigger [I].
+    /// positive delays show more pre-trigger time, negative ones move the grid after the trigger \[I\].
     pub fn first_point_s(&self, model: &DigitizerModel) -> f64 {
         -(f64::from(model.limits.horizontal_divisions) / 2.0) * self.hor_scale
             - self.trigger_delay_s
@@ -338,7 +338,7 @@ impl ScopeState {
 
     /// The `#9` block of `Cn:WF? ALL` for channel index `ch` (0 = C1), honouring COMM_FORMAT,
     /// COMM_ORDER and WAVEFORM_SETUP. Without an acquisition (or with the trace off) the block holds
-    /// a descriptor with zero points [I].
+    /// a descriptor with zero points \[I\].
     pub fn waveform(&self, model: &DigitizerModel, ch: usize, instrument_name: &str) -> Vec<u8> {
         let rate = Self::sample_rate(model);
         let recorded = self

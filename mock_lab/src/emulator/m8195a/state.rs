@@ -128,7 +128,7 @@ fn out_of_range(detail: impl AsRef<str>) -> ScpiError {
 }
 
 impl AwgState {
-    /// The power-on / `*RST` state [I]: SINGLE mode, DIV1, raster at the catalog default, internal
+    /// The power-on / `*RST` state \[I\]: SINGLE mode, DIV1, raster at the catalog default, internal
     /// memory, default amplitude, outputs off, stopped, continuous ARB mode.
     pub fn reset(model: &AwgModel) -> AwgState {
         let l = &model.limits;
@@ -270,7 +270,7 @@ impl AwgState {
     pub fn set_dac_mode(&mut self, model: &AwgModel, keyword: &str) -> Result<(), ScpiError> {
         self.refuse_while_running("changing the DAC mode")?;
         if keyword != self.dac_mode {
-            // Channel roles and channel 1's data format change: the memory is cleared [I].
+            // Channel roles and channel 1's data format change: the memory is cleared \[I\].
             self.dac_mode = keyword.to_string();
             for c in &mut self.channels {
                 c.segments.clear();
@@ -285,7 +285,7 @@ impl AwgState {
     pub fn set_divider(&mut self, divider: u32) -> Result<(), ScpiError> {
         self.refuse_while_running("changing the sample rate divider")?;
         if divider != self.divider {
-            // Granularity changes with the divider: extended segments are cleared [I].
+            // Granularity changes with the divider: extended segments are cleared \[I\].
             self.divider = divider;
             for c in &mut self.channels {
                 if c.memory == Memory::Extended {
