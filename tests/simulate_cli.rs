@@ -300,3 +300,22 @@ fn waveform_parameter_errors_exit_2() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn ber_json_has_every_point_with_its_interval_and_deviation() {
+    let doc = json_of(&radbench(&["simulate", "ber", "--bits", "1000", "--json"]));
+    let points = doc["ber"].as_array().unwrap();
+    assert_eq!(points.len(), 22, "11 Eb/N0 points per waveform");
+    for p in points {
+        let (lo, hi) = (
+            p["ci95_low"].as_f64().unwrap(),
+            p["ci95_high"].as_f64().unwrap(),
+        );
+        let ber = p["ber"].as_f64().unwrap();
+        assert!(lo <= ber && ber <= hi, "{p}");
+        let theory = p["ber_theory"].as_f64().unwrap();
+        assert_eq!(p["theory_within_ci95"], lo <= theory && theory <= hi, "{p}");
+        assert!(p["deviation_sigma"].as_f64().unwrap().is_finite(), "{p}");
+        assert!(p["bits"].as_u64().unwrap() >= 1000, "{p}");
+    }
+}

@@ -27,6 +27,8 @@ pub struct BerCurvePoint {
     pub ci95_low: f64,
     pub ci95_high: f64,
     pub theory_within_ci95: bool,
+    /// (measured - theory) in binomial standard deviations of the theory at this bit count.
+    pub deviation_sigma: f64,
 }
 
 /// 95 % Wilson score interval for `errors` out of `bits` (well-behaved at zero errors).
@@ -38,6 +40,13 @@ pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
     let centre = (p + z2n / 2.0) / (1.0 + z2n);
     let half = z / (1.0 + z2n) * (p * (1.0 - p) / n + z2n / (4.0 * n)).sqrt();
     ((centre - half).max(0.0), (centre + half).min(1.0))
+}
+
+/// `(errors/bits - theory)` over the binomial standard deviation `sqrt(theory (1 - theory) / bits)`.
+pub fn deviation_sigma(errors: usize, bits: usize, theory: f64) -> f64 {
+    let n = bits.max(1) as f64;
+    let sd = (theory * (1.0 - theory) / n).sqrt().max(1e-300);
+    (errors as f64 / n - theory) / sd
 }
 
 fn to_point(waveform: &'static str, p: BerPoint) -> BerCurvePoint {
@@ -52,6 +61,7 @@ fn to_point(waveform: &'static str, p: BerPoint) -> BerCurvePoint {
         ci95_low: lo,
         ci95_high: hi,
         theory_within_ci95: p.theory >= lo && p.theory <= hi,
+        deviation_sigma: deviation_sigma(p.errors, p.bits, p.theory),
     }
 }
 
@@ -99,5 +109,13 @@ mod tests {
         let (lo0, hi0) = wilson95(0, 10_000);
         assert!(lo0 < 1e-12, "{lo0}");
         assert!(hi0 > 0.0 && hi0 < 5e-4);
+    }
+
+    #[test]
+    fn deviation_counts_standard_deviations() {
+        // theory 1e-2 on 10 000 bits: sd = sqrt(0.0099 / 1e4) = 9.95e-4; 120 errors is +2.01 sd.
+        let z = deviation_sigma(120, 10_000, 0.01);
+        assert!((z - 2.0101).abs() < 1e-3, "{z}");
+        assert!(deviation_sigma(100, 10_000, 0.01).abs() < 1e-12);
     }
 }

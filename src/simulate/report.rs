@@ -62,7 +62,11 @@ pub fn scenario_text(r: &ScenarioResult) -> String {
         );
     }
     for (k, v) in &r.extra {
-        let _ = writeln!(out, "  {k}: {v}");
+        match v.as_str() {
+            Some(text) => writeln!(out, "  {k}: {text}"),
+            None => writeln!(out, "  {k}: {v}"),
+        }
+        .ok();
     }
     out
 }
@@ -72,13 +76,13 @@ pub fn ber_text(points: &[BerCurvePoint]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{:<8} {:>6} {:>10} {:>8} {:>11} {:>11} {:>23}  within",
-        "waveform", "Eb/N0", "bits", "errors", "BER", "theory", "95 % interval"
+        "{:<8} {:>6} {:>10} {:>8} {:>11} {:>11} {:>23}  within  {:>6}",
+        "waveform", "Eb/N0", "bits", "errors", "BER", "theory", "95 % interval", "dev"
     );
     for p in points {
         let _ = writeln!(
             out,
-            "{:<8} {:>5.1}  {:>10} {:>8} {:>11.3e} {:>11.3e} [{:>9.3e}, {:>9.3e}]  {}",
+            "{:<8} {:>5.1}  {:>10} {:>8} {:>11.3e} {:>11.3e} [{:>9.3e}, {:>9.3e}]  {:<6}  {:>+5.1}σ",
             p.waveform,
             p.eb_n0_db,
             p.bits,
@@ -87,13 +91,27 @@ pub fn ber_text(points: &[BerCurvePoint]) -> String {
             p.ber_theory,
             p.ci95_low,
             p.ci95_high,
-            if p.theory_within_ci95 { "yes" } else { "NO" }
+            if p.theory_within_ci95 { "yes" } else { "no" },
+            p.deviation_sigma
         );
     }
+    let inside = points.iter().filter(|p| p.theory_within_ci95).count();
+    let worst = points
+        .iter()
+        .map(|p| p.deviation_sigma.abs())
+        .fold(0.0, f64::max);
     let _ = writeln!(
         out,
-        "95 % intervals: Wilson score on the bit count (bits assumed independent; an interval \
-         holds theory about 19 times in 20)."
+        "{inside} of {} points hold theory in their 95 % interval (Wilson score on the bit count, \
+         bits independent); by chance about {:.1} are expected outside. Largest deviation {worst:.1} \
+         standard deviations{}.",
+        points.len(),
+        0.05 * points.len() as f64,
+        if worst <= 3.5 {
+            ": consistent with theory"
+        } else {
+            ": more than chance explains, check the receiver"
+        }
     );
     out
 }
