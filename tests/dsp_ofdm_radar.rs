@@ -24,16 +24,12 @@ fn argmax(v: &[f64]) -> usize {
 }
 
 /// The default receiver with its FFT in double precision, for checks at the 1e-9 level.
-const DOUBLE: OfdmRadarConfig = OfdmRadarConfig {
-    subcarriers: 128,
-    oversampling: 16,
-    cp_fraction: 0.25,
-    bandwidth_hz: 1e9,
-    zero_pad: 10,
-    window: Window::Rectangular,
-    averaging: Averaging::Coherent,
-    fft_precision: FftPrecision::Double,
-};
+fn double() -> OfdmRadarConfig {
+    OfdmRadarConfig {
+        fft_precision: FftPrecision::Double,
+        ..Default::default()
+    }
+}
 
 fn profile_of(
     config: OfdmRadarConfig,
@@ -56,7 +52,7 @@ fn spectral_division_recovers_the_echo_model_exactly() {
     let tx = qpsk(&mut rng, 3, N);
     let t = target(2.345);
     let rx = received_signal(&mut rng, &tx, FC_PHYSICAL, &[t], None);
-    let mut radar = OfdmRadar::new(DOUBLE).unwrap();
+    let mut radar = OfdmRadar::new(double()).unwrap();
     let mut idiv = IDiv::new();
     radar.divide(&rx, 0, &tx, &mut idiv).unwrap();
     assert_eq!((idiv.symbols(), idiv.subcarriers()), (3, N));
@@ -96,7 +92,7 @@ fn single_precision_fft_matches_double_precision_far_below_adc_noise() {
         FftPrecision::Single
     );
     let (i32_, p32, peak32) = run(OfdmRadarConfig::default());
-    let (i64_, p64, peak64) = run(DOUBLE);
+    let (i64_, p64, peak64) = run(double());
     let rms =
         |v: &[Complex64]| (v.iter().map(|x| x.norm_sqr()).sum::<f64>() / v.len() as f64).sqrt();
     let diff: Vec<Complex64> = i32_
@@ -140,7 +136,7 @@ fn framing_with_a_start_offset_and_a_truly_delayed_frame() {
         FC_PHYSICAL,
         0.5,
     );
-    let mut radar = OfdmRadar::new(DOUBLE).unwrap();
+    let mut radar = OfdmRadar::new(double()).unwrap();
     let (mut idiv, mut profile) = (IDiv::new(), RangeProfile::new());
     radar
         .process(&rx, offset, &tx, &mut idiv, &mut profile)
