@@ -23,7 +23,9 @@ use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use crate::server::Handler;
+use bytes::Bytes;
+
+use crate::server::{pool, Handler, Response};
 
 /// Identity reported by `*IDN?`.
 pub const IDENTITY: &str = "MOCK_LAB,LOOPBACK,0,0.1";
@@ -56,7 +58,8 @@ struct State {
     esr: u8,
     ese: u8,
     sre: u8,
-    block: Block,
+    /// The stored block: a view of the buffer it arrived in (an upload is kept without a copy).
+    block: Bytes,
     clear_generation: u64,
 }
 
@@ -73,8 +76,15 @@ impl Loopback {
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
+    /// Replaces the stored block; the old buffer goes back to the server's pool for the next
+    /// upload when no reply still shares it.
+    fn store(&self, block: Bytes) {
+        let old = std::mem::replace(&mut self.lock().block, block);
+        pool::recycle(old);
+    }
+
     /// Runs one command unit; `Some` holds its query response.
-    fn command(&self, unit: &[u8]) -> Option<Vec<u8>> {
+    fn command(&self, unit: &[u8]) -> Option<Response> {
         // Only the start is trimmed: a block argument may end in whitespace bytes.
         let start = unit
             .iter()
@@ -99,10 +109,10 @@ impl Loopback {
         };
         let parts: Vec<&str> = path.split(':').collect();
         let is = |spec: &[(&str, &str)]| mnemonic_path(&parts, spec);
-        match (query, &parts[..]) {
+        let text = match (query, &parts[..]) {
             (true, ["*IDN"]) => Some(IDENTITY.as_bytes().to_vec()),
             (false, ["*RST"]) => {
-                self.lock().block = Block::default();
+                self.store(Bytes::new());
                 None
             }
             (false, ["*CLS"]) => {
@@ -146,23 +156,19 @@ impl Loopback {
             }
             _ if !query && is(&[("DATA", "DATA")]) => {
                 match parse_block(raw_args) {
-                    Ok(data) => self.lock().block = Block::whole(data.to_vec()),
+                    Ok(data) => self.store(Bytes::copy_from_slice(data)),
                     Err(msg) => self.push_error(-161, msg),
                 }
                 None
             }
             _ if query && is(&[("DATA", "DATA")]) => {
-                let st = self.lock();
-                let block = st.block.as_slice();
+                // The header, then the stored block itself (shared, not copied).
+                let block = self.lock().block.clone();
                 let header = crate::server::framing::block_header(block.len());
-                // One spare byte: the server appends the LF terminator without reallocating.
-                let mut out = Vec::with_capacity(header.len() + block.len() + 1);
-                out.extend_from_slice(&header);
-                out.extend_from_slice(block);
-                Some(out)
+                return Some(Response::from_parts(vec![header.into(), block]));
             }
             _ if query && is(&[("DATA", "DATA"), ("LEN", "LENGTH")]) => {
-                Some(self.lock().block.as_slice().len().to_string().into_bytes())
+                Some(self.lock().block.len().to_string().into_bytes())
             }
             _ if !query && is(&[("DATA", "DATA"), ("GEN", "GENERATE")]) => {
                 self.generate(args);
@@ -177,7 +183,8 @@ impl Loopback {
                 self.push_error(-113, "Undefined header");
                 None
             }
-        }
+        };
+        text.map(Response::from)
     }
 
     fn generate(&self, args: &[u8]) {
@@ -190,7 +197,7 @@ impl Loopback {
         };
         match (len, seed) {
             (Some(len), Some(seed)) if len <= MAX_GENERATED => {
-                self.lock().block = Block::whole(pseudo_random_bytes(len as usize, seed));
+                self.store(pseudo_random_bytes(len as usize, seed).into());
             }
             (Some(_), Some(_)) => self.push_error(
                 -223,
@@ -244,34 +251,34 @@ impl Loopback {
     }
 }
 
+impl Loopback {
+    /// The responses to one program message, joined with `;` when several units answer.
+    fn answers(&self, data: &[u8]) -> Vec<Response> {
+        let answers: Vec<Response> = split_units(data)
+            .into_iter()
+            .filter(|unit| !trim(unit).is_empty())
+            .filter_map(|unit| self.command(unit))
+            .collect();
+        if answers.len() <= 1 {
+            return answers;
+        }
+        vec![Response::join(answers, b";")]
+    }
+}
+
 impl Handler for Loopback {
-    /// A message that is exactly one `DATA <block>` command keeps its buffer as the stored
-    /// block (no copy of a 64 MB upload); everything else goes through [`Handler::message`].
-    fn message_owned(&self, data: Vec<u8>) -> Vec<Vec<u8>> {
+    /// A message that is exactly one `DATA <block>` command keeps (a view of) its buffer as the
+    /// stored block: no copy of a 64 MB upload. Answers share the stored block.
+    fn respond(&self, data: Bytes) -> Vec<Response> {
         if let Some(range) = lone_data_block(&data) {
-            self.lock().block = Block { bytes: data, range };
+            self.store(data.slice(range));
             return Vec::new();
         }
-        self.message(&data)
+        self.answers(&data)
     }
 
     fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
-        let mut answers: Vec<Vec<u8>> = Vec::new();
-        for unit in split_units(data) {
-            if trim(unit).is_empty() {
-                continue;
-            }
-            if let Some(answer) = self.command(unit) {
-                answers.push(answer);
-            }
-        }
-        if answers.is_empty() {
-            return Vec::new();
-        }
-        if answers.len() == 1 {
-            return answers;
-        }
-        vec![answers.join(&b';')]
+        self.answers(data).iter().map(Response::to_vec).collect()
     }
 
     fn device_clear(&self) {
@@ -292,24 +299,6 @@ impl Handler for Loopback {
             stb |= STB_MSS;
         }
         stb
-    }
-}
-
-/// The stored block: a range of a buffer, so an upload can be kept without copying it.
-#[derive(Debug, Default)]
-struct Block {
-    bytes: Vec<u8>,
-    range: std::ops::Range<usize>,
-}
-
-impl Block {
-    fn whole(bytes: Vec<u8>) -> Block {
-        let range = 0..bytes.len();
-        Block { bytes, range }
-    }
-
-    fn as_slice(&self) -> &[u8] {
-        &self.bytes[self.range.clone()]
     }
 }
 
@@ -499,14 +488,15 @@ mod tests {
     #[test]
     fn owned_upload_is_kept_without_reparsing_errors() {
         let inst = Loopback::new();
-        assert!(inst.message_owned(b"DATA #14ab;c\r".to_vec()).is_empty());
+        assert!(inst
+            .respond(Bytes::from_static(b"DATA #14ab;c\r"))
+            .is_empty());
         assert_eq!(inst.message(b"DATA?"), vec![b"#14ab;c".to_vec()]);
         // Not a lone DATA command: handled like any message.
-        assert_eq!(
-            inst.message_owned(b"DATA #11x;DATA?".to_vec()),
-            vec![b"#11x".to_vec()]
-        );
-        assert!(inst.message_owned(b"DATA #19x".to_vec()).is_empty());
+        let answers = inst.respond(Bytes::from_static(b"DATA #11x;DATA?"));
+        assert_eq!(answers.len(), 1);
+        assert_eq!(answers[0].to_vec(), b"#11x");
+        assert!(inst.respond(Bytes::from_static(b"DATA #19x")).is_empty());
         assert!(ask(&inst, "SYST:ERR?").starts_with("-161,"));
     }
 

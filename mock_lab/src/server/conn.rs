@@ -2,7 +2,7 @@
 //! pool, bounded reads straight into message buffers, and fault-aware reply writing.
 
 use std::future::Future;
-use std::io;
+use std::io::{self, IoSlice};
 use std::net::SocketAddr;
 use std::sync::Arc;
 
@@ -10,8 +10,10 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::task::JoinSet;
 
+use bytes::Bytes;
+
 use super::framing::has_terminator;
-use super::Handler;
+use super::{pool, Handler, Response};
 use crate::faults::{ReplyFate, ReplyPlan};
 
 /// Largest single read request; big blocks arrive in reads of this size, straight into the
@@ -64,13 +66,13 @@ pub async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static)
 
 /// Hands one message to the handler on the blocking pool and returns its responses, each with a
 /// 488.2 response terminator (LF outside any block) appended when missing.
-pub async fn call_handler(handler: &Arc<dyn Handler>, message: Vec<u8>) -> Option<Vec<Vec<u8>>> {
+pub async fn call_handler(handler: &Arc<dyn Handler>, message: Bytes) -> Option<Vec<Response>> {
     let handler = Arc::clone(handler);
-    let responses = blocking(move || handler.message_owned(message)).await?;
-    Some(responses.into_iter().map(terminated).collect())
+    let responses = blocking(move || handler.respond(message)).await?;
+    Some(responses.into_iter().map(Response::terminated).collect())
 }
 
-/// Appends the LF response terminator unless the response already ends with one.
+/// Appends the LF response terminator unless the response already ends with one (serial port).
 pub fn terminated(mut response: Vec<u8>) -> Vec<u8> {
     if !has_terminator(&response) {
         response.push(b'\n');
@@ -86,6 +88,9 @@ pub async fn read_exact_append<R: AsyncRead + Unpin>(
     n: u64,
 ) -> io::Result<()> {
     let mut left = n;
+    // Room for the whole announced length at once (bounded by the pool's presize limit), from
+    // recycled memory when there is some: no regrowth copies, no fresh pages to fault in.
+    pool::reserve(dst, usize::try_from(n).unwrap_or(usize::MAX));
     while left > 0 {
         let want = left.min(READ_CHUNK as u64);
         dst.reserve(want as usize);
@@ -139,12 +144,7 @@ pub async fn write_reply<W: AsyncWrite + Unpin>(
         let joined: Vec<u8> = parts.concat();
         w.write_all(&joined[..limit]).await?;
     } else {
-        let mut left = limit;
-        for part in parts {
-            let n = part.len().min(left);
-            w.write_all(&part[..n]).await?;
-            left -= n;
-        }
+        write_all_vectored(w, &truncate_parts(parts, limit)).await?;
     }
     w.flush().await?;
     if plan.fate == ReplyFate::DropMidway {
@@ -153,6 +153,85 @@ pub async fn write_reply<W: AsyncWrite + Unpin>(
         return Ok(Delivery::Dropped);
     }
     Ok(Delivery::Sent)
+}
+
+/// The first `limit` bytes of `parts`, as sub-slices.
+fn truncate_parts<'a>(parts: &[&'a [u8]], limit: usize) -> Vec<&'a [u8]> {
+    let mut left = limit;
+    let mut out = Vec::with_capacity(parts.len());
+    for part in parts {
+        let n = part.len().min(left);
+        if n > 0 {
+            out.push(&part[..n]);
+        }
+        left -= n;
+    }
+    out
+}
+
+/// Lengths of the frames that carry `total` bytes, at most `chunk` each (one empty frame when
+/// `total` is 0: an empty response still needs its end marker).
+pub fn frame_lengths(total: usize, chunk: usize) -> Vec<usize> {
+    let chunk = chunk.max(1);
+    let frames = total.div_ceil(chunk).max(1);
+    (0..frames)
+        .map(|i| (total - i * chunk).min(chunk))
+        .collect()
+}
+
+/// Each frame header followed by the sub-slices of `parts` its frame carries (frame `i` carries
+/// `lens[i]` bytes, see [`frame_lengths`]): the payload is sliced, never copied.
+pub fn interleave<'a, H: AsRef<[u8]>>(
+    headers: &'a [H],
+    lens: &[usize],
+    parts: &'a [Bytes],
+) -> Vec<&'a [u8]> {
+    let mut slices: Vec<&[u8]> = Vec::with_capacity(headers.len() * 2 + parts.len());
+    let mut pieces = parts.iter().map(|p| &p[..]);
+    let mut current: &[u8] = &[];
+    for (header, &len) in headers.iter().zip(lens) {
+        slices.push(header.as_ref());
+        let mut need = len;
+        while need > 0 {
+            if current.is_empty() {
+                // The lengths count exactly these pieces: they cannot run out early.
+                let Some(next) = pieces.next() else { break };
+                current = next;
+                continue;
+            }
+            let (head, tail) = current.split_at(current.len().min(need));
+            slices.push(head);
+            need -= head.len();
+            current = tail;
+        }
+    }
+    slices
+}
+
+/// At most this many slices per writev (the kernel refuses more than IOV_MAX = 1024).
+const MAX_IOVECS: usize = 64;
+
+/// Writes `parts` back to back with vectored writes: a frame header and its payload leave in one
+/// system call (and one TCP segment), with no copy into a joined buffer.
+pub async fn write_all_vectored<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    parts: &[&[u8]],
+) -> io::Result<()> {
+    let mut slices: Vec<IoSlice<'_>> = parts
+        .iter()
+        .filter(|p| !p.is_empty())
+        .map(|p| IoSlice::new(p))
+        .collect();
+    let mut pending = &mut slices[..];
+    while !pending.is_empty() {
+        let upto = pending.len().min(MAX_IOVECS);
+        let n = w.write_vectored(&pending[..upto]).await?;
+        if n == 0 {
+            return Err(io::ErrorKind::WriteZero.into());
+        }
+        IoSlice::advance_slices(&mut pending, n);
+    }
+    Ok(())
 }
 
 async fn write_bytewise<W: AsyncWrite + Unpin>(

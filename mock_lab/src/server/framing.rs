@@ -9,7 +9,10 @@
 //!
 //! Pure code: no I/O. The servers feed it their receive buffers.
 
+use bytes::Bytes;
 use thiserror::Error;
+
+use super::pool;
 
 /// Why a byte stream cannot be framed into messages.
 #[derive(Debug, Error, PartialEq, Eq)]
@@ -243,30 +246,21 @@ fn is_special(byte: u8, quote: Option<u8>) -> bool {
 
 /// Splits one END-delimited transport message into program messages: a LF outside blocks inside
 /// it separates messages (`*RST\n*IDN?\n` is two), the final terminator is dropped, and a
-/// trailing unterminated part is the last message. Empty messages are dropped.
-pub fn split_end_message(data: Vec<u8>, max_message: usize) -> Result<Vec<Vec<u8>>, FramingError> {
+/// trailing unterminated part is the last message. Empty messages are dropped. The messages are
+/// views of `data` (no copy).
+pub fn split_end_message(data: Bytes, max_message: usize) -> Result<Vec<Bytes>, FramingError> {
     let mut splitter = Splitter::end_delimited(max_message);
     let mut out = Vec::new();
     let mut start = 0;
     while let Some(frame) = splitter.next_frame(&data[start..])? {
         if frame.message_len > 0 {
-            out.push(data[start..start + frame.message_len].to_vec());
+            out.push(data.slice(start..start + frame.message_len));
         }
         start += frame.consumed;
     }
-    if start == 0 {
-        // The common case: one message, no copy.
-        let len = splitter.finish_at_end(&data);
-        let mut data = data;
-        data.truncate(len);
-        if !data.is_empty() {
-            out.push(data);
-        }
-        return Ok(out);
-    }
     let len = splitter.finish_at_end(&data[start..]);
     if len > 0 {
-        out.push(data[start..start + len].to_vec());
+        out.push(data.slice(start..start + len));
     }
     Ok(out)
 }
@@ -279,7 +273,7 @@ pub fn reserve_for_block(input: &mut Vec<u8>, max: usize) {
     if let Ok(None) = splitter.next_frame(input) {
         let pending = splitter.block_bytes_pending() as usize;
         if pending > 0 {
-            input.reserve(pending + 2);
+            pool::reserve(input, pending + 2);
         }
     }
 }
@@ -390,19 +384,19 @@ mod tests {
     #[test]
     fn end_message_drops_final_terminator_but_not_block_bytes() {
         assert_eq!(
-            split_end_message(b"*IDN?\r\n".to_vec(), 100).unwrap(),
+            split_end_message(Bytes::from_static(b"*IDN?\r\n"), 100).unwrap(),
             vec![b"*IDN?".to_vec()]
         );
         assert_eq!(
-            split_end_message(b"DATA #12\r\n".to_vec(), 100).unwrap(),
+            split_end_message(Bytes::from_static(b"DATA #12\r\n"), 100).unwrap(),
             vec![b"DATA #12\r\n".to_vec()]
         );
         assert_eq!(
-            split_end_message(b"*RST\n*IDN?".to_vec(), 100).unwrap(),
+            split_end_message(Bytes::from_static(b"*RST\n*IDN?"), 100).unwrap(),
             vec![b"*RST".to_vec(), b"*IDN?".to_vec()]
         );
         assert_eq!(
-            split_end_message(b"DATA #0a\nb\n".to_vec(), 100).unwrap(),
+            split_end_message(Bytes::from_static(b"DATA #0a\nb\n"), 100).unwrap(),
             vec![b"DATA #0a\nb".to_vec()]
         );
     }
@@ -435,7 +429,7 @@ mod tests {
         #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..512), max in 1usize..600) {
             let _ = split_all(&bytes, max);
-            let _ = split_end_message(bytes.clone(), max);
+            let _ = split_end_message(Bytes::from(bytes.clone()), max);
             let _ = has_terminator(&bytes);
         }
     }

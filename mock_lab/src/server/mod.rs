@@ -21,6 +21,7 @@ pub mod conn;
 pub mod framing;
 pub mod hislip;
 pub mod launch;
+pub mod pool;
 pub mod raw;
 pub mod serial;
 pub mod vicp;
@@ -29,6 +30,7 @@ pub mod vxi11;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
+use bytes::Bytes;
 use thiserror::Error;
 use tokio::task::JoinHandle;
 
@@ -43,10 +45,15 @@ pub trait Handler: Send + Sync + 'static {
     /// every server appends the 488.2 response terminator (LF, outside any `#N` block) when the
     /// response lacks one, and END-delimited transports end the message right after it.
     fn message(&self, data: &[u8]) -> Vec<Vec<u8>>;
-    /// The same as [`Handler::message`], taking ownership of the bytes so a handler can keep a
-    /// large block without copying it. The servers call this one; the default forwards.
-    fn message_owned(&self, data: Vec<u8>) -> Vec<Vec<u8>> {
+    /// The same as [`Handler::message`], taking shared ownership of the bytes so a handler can
+    /// keep a large block without copying it, and answering with [`Response`]s that may share
+    /// their bytes (a stored block goes out without a copy). The servers call this one; the
+    /// default forwards to [`Handler::message`].
+    fn respond(&self, data: Bytes) -> Vec<Response> {
         self.message(&data)
+            .into_iter()
+            .map(Response::from)
+            .collect()
     }
     /// IEEE 488.2 device clear: abandon pending input and output.
     fn device_clear(&self) {}
@@ -57,6 +64,95 @@ pub trait Handler: Send + Sync + 'static {
     }
     /// A group-execute trigger (VXI-11 device_trigger, HiSLIP Trigger).
     fn trigger(&self) {}
+}
+
+/// One response message: byte pieces sent back to back. The pieces are shared ([`Bytes`]), so a
+/// 64 MB block held by the instrument goes to the socket without being copied.
+///
+/// Terminator rule: a response of one piece (e.g. made from a `Vec<u8>`) gets the LF terminator
+/// unless it already ends with one outside any block; a response of several pieces never carries
+/// its own terminator, and the servers always append it.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Response {
+    parts: Vec<Bytes>,
+}
+
+impl Response {
+    /// A response made of `parts` in order (e.g. a block header and a shared payload), without
+    /// a terminator of its own.
+    pub fn from_parts(parts: Vec<Bytes>) -> Response {
+        Response {
+            parts: parts.into_iter().filter(|p| !p.is_empty()).collect(),
+        }
+    }
+
+    /// The pieces, in order.
+    pub fn parts(&self) -> &[Bytes] {
+        &self.parts
+    }
+
+    /// Total length in bytes.
+    pub fn len(&self) -> usize {
+        self.parts.iter().map(Bytes::len).sum()
+    }
+
+    /// True when the response has no bytes.
+    pub fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+
+    /// All bytes in one buffer (a copy; tests and small responses).
+    pub fn to_vec(&self) -> Vec<u8> {
+        self.parts.concat()
+    }
+
+    /// Appends the LF response terminator unless the response already carries one (see the
+    /// terminator rule above).
+    pub fn terminated(mut self) -> Response {
+        let carries_one = match self.parts.as_slice() {
+            [only] => framing::has_terminator(only),
+            _ => false,
+        };
+        if !carries_one {
+            self.parts.push(Bytes::from_static(b"\n"));
+        }
+        self
+    }
+
+    /// Several responses joined with `sep` into one (`*IDN?;*OPC?`). One-piece responses are
+    /// joined into one buffer, so the terminator check sees the whole joined text as before.
+    pub fn join(responses: Vec<Response>, sep: &'static [u8]) -> Response {
+        if responses.iter().all(|r| r.parts.len() <= 1) {
+            let texts: Vec<Vec<u8>> = responses.iter().map(Response::to_vec).collect();
+            return Response::from(texts.join(sep));
+        }
+        let mut parts = Vec::new();
+        for (i, r) in responses.into_iter().enumerate() {
+            if i > 0 {
+                parts.push(Bytes::from_static(sep));
+            }
+            parts.extend(r.parts);
+        }
+        Response::from_parts(parts)
+    }
+}
+
+impl From<Vec<u8>> for Response {
+    fn from(bytes: Vec<u8>) -> Response {
+        Response::from(Bytes::from(bytes))
+    }
+}
+
+impl From<Bytes> for Response {
+    fn from(bytes: Bytes) -> Response {
+        Response {
+            parts: if bytes.is_empty() {
+                Vec::new()
+            } else {
+                vec![bytes]
+            },
+        }
+    }
 }
 
 /// Settings shared by every server.

@@ -13,7 +13,7 @@ use tokio::net::TcpStream;
 
 use super::conn::{self, Delivery, READ_CHUNK};
 use super::framing::{FramingError, Splitter};
-use super::{Handler, ServerError, ServerHandle, ServerOptions};
+use super::{pool, Handler, ServerError, ServerHandle, ServerOptions};
 
 const PROTOCOL: &str = "raw";
 
@@ -74,22 +74,23 @@ async fn serve_connection(
             if message.is_empty() {
                 continue;
             }
-            let Some(responses) = conn::call_handler(&handler, message).await else {
+            let Some(responses) = conn::call_handler(&handler, message.into()).await else {
                 return Ok(());
             };
             for response in responses {
                 let plan = options.faults.plan_reply();
-                if conn::write_reply(&mut writer, &[&response], plan).await? == Delivery::Dropped {
+                let parts: Vec<&[u8]> = response.parts().iter().map(|p| &p[..]).collect();
+                if conn::write_reply(&mut writer, &parts, plan).await? == Delivery::Dropped {
                     return Ok(());
                 }
             }
         }
         // Inside a block the splitter knows how much is coming (already checked against the
-        // maximum message size): reserve it once instead of growing by doubling. Untouched
-        // reserved pages cost no memory.
+        // maximum message size): reserve it once (recycled memory when there is some) instead
+        // of growing by doubling.
         let pending = splitter.block_bytes_pending();
         if pending > 0 {
-            buf.reserve(pending as usize + 2);
+            pool::reserve(&mut buf, pending as usize + 2);
         }
         let want = pending.clamp(64 << 10, READ_CHUNK as u64);
         buf.reserve(want as usize);

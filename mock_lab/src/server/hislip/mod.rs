@@ -17,6 +17,7 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
+use bytes::Bytes;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::tcp::OwnedWriteHalf;
 use tokio::net::TcpStream;
@@ -248,7 +249,7 @@ fn close_session(shared: &Shared, session: &Session) {
 /// Work for the synchronous channel's worker, in arrival order.
 enum Job {
     Message {
-        data: Vec<u8>,
+        data: Bytes,
         message_id: u32,
         generation: u64,
     },
@@ -332,7 +333,7 @@ async fn serve_sync<R: AsyncRead + Unpin>(
                 }
                 if header.kind == kind::DATA_END {
                     let job = Job::Message {
-                        data: std::mem::take(&mut input),
+                        data: std::mem::take(&mut input).into(),
                         message_id: header.param,
                         generation: session.clear_generation.load(Ordering::SeqCst),
                     };
@@ -423,7 +424,12 @@ async fn run_worker(
             };
             for response in responses {
                 match send_response(
-                    &shared, &session, &writer, &response, message_id, generation,
+                    &shared,
+                    &session,
+                    &writer,
+                    response.parts(),
+                    message_id,
+                    generation,
                 )
                 .await
                 {
@@ -439,43 +445,39 @@ async fn run_worker(
     }
 }
 
-/// Sends one response as Data messages ending with DataEnd, each payload within the client's
-/// maximum, unless a device clear happened since the message arrived.
+/// Sends one response (its `parts` back to back) as Data messages ending with DataEnd, each
+/// payload within the client's maximum, unless a device clear happened since the message arrived.
+/// The payload pieces are slices of the response: nothing is copied.
 async fn send_response(
     shared: &Shared,
     session: &Session,
     writer: &SharedWriter,
-    response: &[u8],
+    parts: &[Bytes],
     message_id: u32,
     generation: u64,
 ) -> std::io::Result<Delivery> {
-    let chunk = session.client_max.load(Ordering::SeqCst).max(1) as usize;
+    let chunk = usize::try_from(session.client_max.load(Ordering::SeqCst)).unwrap_or(usize::MAX);
     let plan = shared.options.faults.plan_reply();
-    let mut headers = Vec::new();
-    let mut pieces: Vec<&[u8]> = if response.is_empty() {
-        vec![&[][..]]
-    } else {
-        response.chunks(chunk).collect()
-    };
-    let last = pieces.len() - 1;
-    for (i, piece) in pieces.iter().enumerate() {
-        let kind = if i == last {
-            kind::DATA_END
-        } else {
-            kind::DATA
-        };
-        headers.push(Header::new(kind, 0, message_id, piece.len() as u64).encode());
-    }
-    let mut parts: Vec<&[u8]> = Vec::with_capacity(pieces.len() * 2);
-    for (header, piece) in headers.iter().zip(pieces.drain(..)) {
-        parts.push(header);
-        parts.push(piece);
-    }
+    let total: usize = parts.iter().map(Bytes::len).sum();
+    let lens = conn::frame_lengths(total, chunk);
+    let headers: Vec<[u8; HEADER_LEN]> = lens
+        .iter()
+        .enumerate()
+        .map(|(i, &len)| {
+            let kind = if i + 1 == lens.len() {
+                kind::DATA_END
+            } else {
+                kind::DATA
+            };
+            Header::new(kind, 0, message_id, len as u64).encode()
+        })
+        .collect();
+    let slices = conn::interleave(&headers, &lens, parts);
     let mut w = writer.lock().await;
     if generation != session.clear_generation.load(Ordering::SeqCst) {
         return Ok(Delivery::Swallowed);
     }
-    let delivery = conn::write_reply(&mut *w, &parts, plan).await?;
+    let delivery = conn::write_reply(&mut *w, &slices, plan).await?;
     if delivery == Delivery::Sent {
         session.unread.store(true, Ordering::SeqCst);
     }

@@ -22,6 +22,7 @@ use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::Arc;
 
+use bytes::Bytes;
 use tokio::io::unix::AsyncFd;
 use tokio::io::{AsyncReadExt, AsyncWriteExt, BufReader, Interest};
 use tokio::net::tcp::OwnedWriteHalf;
@@ -101,7 +102,7 @@ impl Connection {
 }
 
 struct Job {
-    data: Vec<u8>,
+    data: Bytes,
     seq: u8,
     generation: u64,
 }
@@ -176,7 +177,7 @@ async fn serve_connection(
             }
             if header.op & op::EOI != 0 {
                 let job = Job {
-                    data: std::mem::take(&mut input),
+                    data: std::mem::take(&mut input).into(),
                     seq: header.seq,
                     generation: connection.generation.load(Ordering::SeqCst),
                 };
@@ -212,28 +213,29 @@ async fn run_worker(mut queue: mpsc::Receiver<Job>, connection: Arc<Connection>)
             };
             for response in responses {
                 let seq = connection.reply_seq(job.seq);
-                let mut headers = Vec::new();
-                let pieces: Vec<&[u8]> = response.chunks(MAX_REPLY_BLOCK).collect();
-                for (i, piece) in pieces.iter().enumerate() {
-                    let eoi = if i + 1 == pieces.len() { op::EOI } else { 0 };
-                    let header = Header {
-                        op: op::DATA | eoi,
-                        seq,
-                        len: piece.len() as u32,
-                    };
-                    headers.push(header.encode());
-                }
-                let mut parts: Vec<&[u8]> = Vec::with_capacity(pieces.len() * 2);
-                for (header, piece) in headers.iter().zip(&pieces) {
-                    parts.push(header);
-                    parts.push(piece);
-                }
+                let parts = response.parts();
+                let total: usize = parts.iter().map(Bytes::len).sum();
+                let lens = conn::frame_lengths(total, MAX_REPLY_BLOCK);
+                let headers: Vec<[u8; HEADER_LEN]> = lens
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &len)| {
+                        let eoi = if i + 1 == lens.len() { op::EOI } else { 0 };
+                        Header {
+                            op: op::DATA | eoi,
+                            seq,
+                            len: len as u32,
+                        }
+                        .encode()
+                    })
+                    .collect();
+                let slices = conn::interleave(&headers, &lens, parts);
                 let plan = connection.options.faults.plan_reply();
                 let mut w = connection.writer.lock().await;
                 if job.generation != current() {
                     continue;
                 }
-                match conn::write_reply(&mut *w, &parts, plan).await {
+                match conn::write_reply(&mut *w, &slices, plan).await {
                     Ok(Delivery::Dropped) | Err(_) => {
                         let _ = w.shutdown().await;
                         return;
