@@ -130,3 +130,49 @@ async fn bad_address_exits_2_and_unreachable_exits_3() {
     let out = radbench(args(&["scpi", &address, "*IDN?", "--timeout", "0"])).await;
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_io_moves_the_block_both_ways_and_reports_its_hash() {
+    let socket = start(Proto::Socket).await;
+    let vicp = start(Proto::Vicp).await;
+    let (a, b) = (socket.resource.to_string(), vicp.resource.to_string());
+    let out = radbench(args(&[
+        "bench", "io", "--json", "--size", "300000", "--runs", "2", &a, &b,
+    ]))
+    .await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["bytes"], 300_000);
+    // SHA-256 of 300 000 SplitMix64 bytes (seed 1), computed independently with numpy by
+    // benches/compare_pyvisa.py's splitmix64_bytes.
+    assert_eq!(
+        json["payload_sha256"],
+        "3ec3ac3878d0ee678cad2961c305fec0ce8ee56772049ce2ce92e283614f8a94"
+    );
+    let results = json["results"].as_array().unwrap();
+    let seen: Vec<(&str, &str)> = results
+        .iter()
+        .map(|r| {
+            (
+                r["protocol"].as_str().unwrap(),
+                r["direction"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        seen,
+        [
+            ("socket", "read"),
+            ("socket", "write"),
+            ("vicp", "read"),
+            ("vicp", "write")
+        ]
+    );
+    for r in results {
+        assert_eq!(r["seconds"].as_array().unwrap().len(), 2);
+        assert!(r["median_mb_s"].as_f64().unwrap() > 0.0);
+    }
+    // No timed run is bad input (exit 2).
+    let out = radbench(args(&["bench", "io", "--runs", "0", &a])).await;
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}

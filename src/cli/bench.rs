@@ -1,4 +1,5 @@
 //! `radbench bench`: times the DSP kernels on thesis-sized inputs, one thread.
+//! `radbench bench io ADDRESS...`: instrument I/O throughput instead (see [`super::bench_io`]).
 //!
 //! `--write-inputs DIR` also writes the seeded inputs as `.npy` (plus `meta.json`) so
 //! `benches/compare_numpy.py` can time numpy/scipy on exactly the same data.
@@ -10,7 +11,10 @@ use num_complex::Complex64;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct Args {
+    #[command(subcommand)]
+    pub target: Option<Target>,
     /// Print one JSON object {"kernels": [...]} (docs/simulate-json.md).
     #[arg(long)]
     pub json: bool,
@@ -28,7 +32,17 @@ pub struct Args {
     pub seed: u64,
 }
 
-pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+/// What else `radbench bench` can time.
+#[derive(Debug, clap::Subcommand)]
+pub enum Target {
+    /// Instrument I/O: a block to and from each address (DATA <block> / DATA?), in MB/s.
+    Io(super::bench_io::Args),
+}
+
+pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+    if let Some(Target::Io(io)) = args.target {
+        return super::bench_io::run(io, global);
+    }
     if !(args.min_time.is_finite() && args.min_time >= 0.0) {
         return Err(bad_input(format!(
             "--min-time: {} is not a duration in seconds (>= 0)",

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 pub mod bench;
+pub mod bench_io;
 pub mod calibrate;
 pub mod capture;
 pub mod idn;

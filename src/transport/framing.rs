@@ -8,7 +8,7 @@
 //! (the sender refuses them; see [`LinkError::IndefiniteBlockWithNewline`](super::LinkError)).
 
 use super::error::CodecError;
-use super::io::Decode;
+use super::io::{reserve_announced, Decode};
 use bytes::{Bytes, BytesMut};
 
 /// Splits a byte stream into terminator-ended messages, block-aware. The frame includes the
@@ -148,7 +148,7 @@ impl Decode for TerminatedDecoder {
                         let end = end as usize;
                         if src.len() < end {
                             // Room for the payload plus its terminator, read straight in.
-                            src.reserve(end + 2 - src.len());
+                            reserve_announced(src, end + 2 - src.len());
                         }
                         self.state = Scan::Body { end };
                     }

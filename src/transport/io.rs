@@ -8,6 +8,7 @@
 
 use super::error::{CodecError, LinkError};
 use bytes::BytesMut;
+use std::io::IoSlice;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
@@ -236,10 +237,79 @@ impl<'a> ReadContext<'a> {
     }
 }
 
+/// Largest reservation made from a length field alone (after its check against the limit): a
+/// frame announced larger grows as its bytes actually arrive, so a peer's claim cannot make us
+/// reserve more than this up front. Big enough for a 64 MB block in one piece.
+pub const PRESIZE_LIMIT: usize = 128 << 20;
+
+/// Makes room for `wanted` more bytes of a frame whose length a header announced (already
+/// checked against the limit), at most [`PRESIZE_LIMIT`]: the payload is then read straight
+/// into place, without regrowth copies.
+pub fn reserve_announced(src: &mut BytesMut, wanted: usize) {
+    let wanted = wanted.min(PRESIZE_LIMIT);
+    if src.capacity() - src.len() >= wanted {
+        return;
+    }
+    src.reserve(wanted);
+    if wanted >= HUGE_PAGE {
+        let spare = src.spare_capacity_mut();
+        advise_huge_pages(spare.as_mut_ptr().cast(), spare.len());
+    }
+}
+
+const HUGE_PAGE: usize = 2 << 20;
+
+/// Asks the kernel for transparent huge pages on the whole 2 MiB pages inside `ptr..ptr+len`
+/// (memory this process owns and has not touched yet). A 64 MB receive buffer then costs 32 page
+/// faults instead of 16 384, and the kernel's copy into it far fewer TLB misses. Advisory only:
+/// contents are unchanged and failure is harmless (THP off, not Linux).
+fn advise_huge_pages(ptr: *mut u8, len: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        let start = (ptr as usize).next_multiple_of(HUGE_PAGE);
+        let end = (ptr as usize + len) / HUGE_PAGE * HUGE_PAGE;
+        if end > start {
+            // SAFETY: the range lies inside an allocation we own; MADV_HUGEPAGE changes neither
+            // the mapping nor its contents, only how the kernel backs it.
+            unsafe {
+                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (ptr, len);
+}
+
 const MIN_READ_SPACE: usize = 16 << 10;
 const READ_CHUNK: usize = 256 << 10;
+/// At most this many slices per writev (the kernel refuses more than IOV_MAX = 1024).
+const MAX_IOVECS: usize = 64;
+/// Parts at least this long are written on their own, in pieces of [`WRITE_PIECE`].
+const BIG_PART: usize = 64 << 10;
 /// Large writes go out in pieces of this size so progress can be reported.
 const WRITE_PIECE: usize = 8 << 20;
+
+/// Writes `parts` back to back with vectored writes.
+async fn write_all_vectored<S: AsyncWrite + Unpin>(
+    stream: &mut S,
+    parts: &[&[u8]],
+) -> std::io::Result<()> {
+    let mut slices: Vec<IoSlice<'_>> = parts
+        .iter()
+        .filter(|p| !p.is_empty())
+        .map(|p| IoSlice::new(p))
+        .collect();
+    let mut pending = &mut slices[..];
+    while !pending.is_empty() {
+        let upto = pending.len().min(MAX_IOVECS);
+        let n = stream.write_vectored(&pending[..upto]).await?;
+        if n == 0 {
+            return Err(std::io::ErrorKind::WriteZero.into());
+        }
+        IoSlice::advance_slices(&mut pending, n);
+    }
+    Ok(())
+}
 
 /// Maps an I/O error, recognising a peer that went away.
 pub fn io_error(op: &'static str, source: std::io::Error) -> LinkError {
@@ -268,8 +338,26 @@ pub async fn write_parts<S: AsyncWrite + Unpin>(
         .filter(|_| total >= options.progress_step_bytes);
     let mut done = 0u64;
     let work = async {
-        for part in parts {
-            for piece in part.chunks(WRITE_PIECE) {
+        let mut rest = parts;
+        while !rest.is_empty() {
+            // Runs of small parts (a frame header, the command, a block header) leave in one
+            // vectored write, so one TCP segment and one wake-up of the peer: no copy into a
+            // joined buffer either.
+            let small = rest
+                .iter()
+                .position(|p| p.len() >= BIG_PART)
+                .unwrap_or(rest.len());
+            if small > 0 {
+                write_all_vectored(stream, &rest[..small])
+                    .await
+                    .map_err(|e| io_error(op, e))?;
+                done += rest[..small].iter().map(|p| p.len() as u64).sum::<u64>();
+                rest = &rest[small..];
+                continue;
+            }
+            // A payload goes out in pieces, so progress can be reported. (One vectored write of
+            // header and payload measured slower over VICP and no faster elsewhere.)
+            for piece in rest[0].chunks(WRITE_PIECE) {
                 stream.write_all(piece).await.map_err(|e| io_error(op, e))?;
                 done += piece.len() as u64;
                 if let Some(report) = report {
@@ -280,6 +368,7 @@ pub async fn write_parts<S: AsyncWrite + Unpin>(
                     });
                 }
             }
+            rest = &rest[1..];
         }
         stream.flush().await.map_err(|e| io_error(op, e))
     };

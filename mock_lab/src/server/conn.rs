@@ -144,7 +144,7 @@ pub async fn write_reply<W: AsyncWrite + Unpin>(
         let joined: Vec<u8> = parts.concat();
         w.write_all(&joined[..limit]).await?;
     } else {
-        write_all_vectored(w, &truncate_parts(parts, limit)).await?;
+        write_parts(w, &truncate_parts(parts, limit)).await?;
     }
     w.flush().await?;
     if plan.fate == ReplyFate::DropMidway {
@@ -208,11 +208,39 @@ pub fn interleave<'a, H: AsRef<[u8]>>(
     slices
 }
 
+/// Parts at least this long are written on their own, in pieces of [`WRITE_PIECE`].
+const BIG_PART: usize = 64 << 10;
+/// Piece size for large payloads. One writev of a whole 64 MB payload measured slower than
+/// 8 MB writes on this loopback (the peer starts copying out sooner).
+const WRITE_PIECE: usize = 8 << 20;
+
+/// Writes `parts` back to back: runs of small parts (frame and block headers) in one vectored
+/// write (one TCP segment, one wake-up of the peer), large payloads in [`WRITE_PIECE`] writes.
+/// Nothing is copied into a joined buffer.
+pub async fn write_parts<W: AsyncWrite + Unpin>(w: &mut W, parts: &[&[u8]]) -> io::Result<()> {
+    let mut rest = parts;
+    while let Some(first) = rest.first() {
+        if first.len() >= BIG_PART {
+            for piece in first.chunks(WRITE_PIECE) {
+                w.write_all(piece).await?;
+            }
+            rest = &rest[1..];
+            continue;
+        }
+        let small = rest
+            .iter()
+            .position(|p| p.len() >= BIG_PART)
+            .unwrap_or(rest.len());
+        write_all_vectored(w, &rest[..small]).await?;
+        rest = &rest[small..];
+    }
+    Ok(())
+}
+
 /// At most this many slices per writev (the kernel refuses more than IOV_MAX = 1024).
 const MAX_IOVECS: usize = 64;
 
-/// Writes `parts` back to back with vectored writes: a frame header and its payload leave in one
-/// system call (and one TCP segment), with no copy into a joined buffer.
+/// Writes `parts` back to back with vectored writes (no copy into a joined buffer).
 pub async fn write_all_vectored<W: AsyncWrite + Unpin>(
     w: &mut W,
     parts: &[&[u8]],

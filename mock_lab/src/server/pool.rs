@@ -72,6 +72,28 @@ pub fn reserve(buf: &mut Vec<u8>, additional: usize) {
         }
     }
     buf.reserve(additional);
+    if additional >= HUGE_PAGE {
+        let spare = buf.spare_capacity_mut();
+        advise_huge_pages(spare.as_mut_ptr().cast(), spare.len());
+    }
+}
+
+const HUGE_PAGE: usize = 2 << 20;
+
+/// Asks the kernel for transparent huge pages on the whole 2 MiB pages inside `ptr..ptr+len`
+/// (fresh memory this process owns): a 64 MB buffer then costs 32 page faults instead of
+/// 16 384, and the kernel's copies into and out of it fewer TLB misses. Advisory only: contents
+/// are unchanged and failure is harmless.
+fn advise_huge_pages(ptr: *mut u8, len: usize) {
+    let start = (ptr as usize).next_multiple_of(HUGE_PAGE);
+    let end = (ptr as usize + len) / HUGE_PAGE * HUGE_PAGE;
+    if end > start {
+        // SAFETY: the range lies inside an allocation we own; MADV_HUGEPAGE changes neither the
+        // mapping nor its contents, only how the kernel backs it.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+        }
+    }
 }
 
 #[cfg(test)]

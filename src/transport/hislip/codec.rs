@@ -2,7 +2,7 @@
 //! parameter u32, payload length u64`, then the payload.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::Decode;
+use crate::transport::io::{reserve_announced, Decode};
 use bytes::{Buf, Bytes, BytesMut};
 
 pub const HEADER_LEN: usize = 16;
@@ -159,7 +159,7 @@ impl Decode for FrameDecoder {
         };
         let len = header.len as usize;
         if src.len() < len {
-            src.reserve(len - src.len());
+            reserve_announced(src, len - src.len());
             return Ok(None);
         }
         self.pending = None;
@@ -251,6 +251,15 @@ mod tests {
             frames(&[&bad], 1024),
             Err(CodecError::BadHeader { .. })
         ));
+    }
+
+    #[test]
+    fn a_huge_announced_frame_reserves_at_most_the_presize_limit() {
+        use crate::transport::io::PRESIZE_LIMIT;
+        let mut dec = FrameDecoder::new(4 << 30);
+        let mut buf = BytesMut::from(&Header::new(msg::DATA_END, 0, 0, 3 << 30).encode()[..]);
+        assert!(dec.decode(&mut buf).unwrap().is_none());
+        assert!(buf.capacity() >= PRESIZE_LIMIT && buf.capacity() < PRESIZE_LIMIT + 4096);
     }
 
     proptest::proptest! {

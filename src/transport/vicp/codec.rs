@@ -2,7 +2,7 @@
 //! reserved u8, length u32 BE`, then the block.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::Decode;
+use crate::transport::io::{reserve_announced, Decode};
 use bytes::{Buf, Bytes, BytesMut};
 
 pub const HEADER_LEN: usize = 8;
@@ -119,7 +119,7 @@ impl Decode for BlockDecoder {
         };
         let len = header.len as usize;
         if src.len() < len {
-            src.reserve(len - src.len());
+            reserve_announced(src, len - src.len());
             return Ok(None);
         }
         self.pending = None;

@@ -2,7 +2,7 @@
 //! and call/reply headers with AUTH_NONE.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::Decode;
+use crate::transport::io::{reserve_announced, Decode};
 use bytes::{Buf, Bytes, BytesMut};
 
 const FORMAT: &str = "ONC-RPC record";
@@ -62,7 +62,7 @@ impl Decode for RecordDecoder {
             };
             let len = len as usize;
             if src.len() < len {
-                src.reserve(len - src.len());
+                reserve_announced(src, len - src.len());
                 return Ok(None);
             }
             self.pending = None;
