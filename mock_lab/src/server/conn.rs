@@ -215,7 +215,7 @@ const BIG_PART: usize = 64 << 10;
 const WRITE_PIECE: usize = 8 << 20;
 
 /// Writes `parts` back to back: runs of small parts (frame and block headers) in one vectored
-/// write (one TCP segment, one wake-up of the peer), large payloads in [`WRITE_PIECE`] writes.
+/// write (one TCP segment, one wake-up of the peer), large payloads in `WRITE_PIECE` writes.
 /// Nothing is copied into a joined buffer.
 pub async fn write_parts<W: AsyncWrite + Unpin>(w: &mut W, parts: &[&[u8]]) -> io::Result<()> {
     let mut rest = parts;
