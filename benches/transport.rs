@@ -2,7 +2,9 @@
 //! ways, and reports throughput (divan prints bytes/s next to the time).
 //!
 //! `cargo bench --bench transport` (add `-- --sample-count 5` for a quicker run).
-//! Targets: >= 1 GB/s raw socket, HiSLIP and VICP; >= 500 MB/s VXI-11.
+//! Targets: >= 1 GB/s raw socket, HiSLIP and VICP; >= 500 MB/s VXI-11. Client and server share
+//! one process here; `benches/compare_pyvisa.py` measures them as separate processes, next to
+//! pyvisa-py on the same server (`radbench bench io`).
 
 use divan::counter::BytesCount;
 use divan::Bencher;
