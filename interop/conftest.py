@@ -5,6 +5,7 @@ import os
 import select
 import signal
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -40,11 +41,15 @@ class MockLab:
     """A running `mock-lab serve --json`: its endpoints for the loopback instrument."""
 
     def __init__(self, *extra_args: str):
+        # stderr goes to a file, never to an unread pipe: a full pipe would stall the server.
+        # MOCK_LAB_LOG names a file to keep (with RUST_LOG=mock_lab=debug, say) when debugging.
+        log_path = os.environ.get("MOCK_LAB_LOG")
+        self.log = open(log_path, "w+b") if log_path else tempfile.TemporaryFile()
         self.proc = subprocess.Popen(
             [_binary(), "serve", "--json", *extra_args],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
+            stderr=self.log,
         )
         ready, _, _ = select.select([self.proc.stdout], [], [], STARTUP_LIMIT_S)
         if not ready:
@@ -53,7 +58,8 @@ class MockLab:
         line = self.proc.stdout.readline()
         if not line:
             status = self.proc.wait(timeout=10)
-            self.error = self.proc.stderr.read().decode(errors="replace")
+            self.log.seek(0)
+            self.error = self.log.read().decode(errors="replace")
             raise RuntimeError(f"mock-lab exited with status {status}: {self.error}")
         listing = json.loads(line)
         self.endpoints = {
@@ -68,6 +74,7 @@ class MockLab:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait(timeout=10)
+        self.log.close()
 
 
 @pytest.fixture(scope="session")

@@ -212,3 +212,64 @@ async fn several_clients_vanished_client_and_faults() {
     bounded(c.s.read_to_end(&mut got)).await.unwrap();
     assert!(!got.is_empty() && got.len() < 3000);
 }
+
+/// A client that closes (FIN, then RST) must not leave the server's out-of-band serial poll
+/// task spinning: tokio keeps "read closed" readiness set for good, and a task that loops on it
+/// holds a worker thread forever. With one worker, the first spinning task would stall every
+/// later connection; each round here gives that race another chance (without the fix, the
+/// pyvicp interop suite hung on this about one run in three).
+#[test]
+fn closed_clients_leave_the_server_responsive() {
+    use std::io::{Read, Write};
+    use std::net::Shutdown;
+
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let (server, _faults) = runtime.block_on(server());
+    let addr = server.local_addr();
+    let rounds = || -> Result<(), String> {
+        for round in 0..200 {
+            let mut s = std::net::TcpStream::connect(addr).map_err(|e| e.to_string())?;
+            s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+            s.write_all(b"\x81\x01\x01\x00\x00\x00\x00\x05*OPC?")
+                .map_err(|e| e.to_string())?;
+            let mut reply = [0u8; 10];
+            s.read_exact(&mut reply)
+                .map_err(|e| format!("round {round}: no reply within 10 s ({e})"))?;
+            if &reply != b"\x81\x01\x01\x00\x00\x00\x00\x021\n" {
+                return Err(format!("round {round}: reply {reply:02x?}"));
+            }
+            // Closed as pyvicp closes: shutdown both ways, then close with zero linger (RST).
+            s.shutdown(Shutdown::Both).map_err(|e| e.to_string())?;
+            set_zero_linger(&s);
+        }
+        Ok(())
+    };
+    let outcome = rounds();
+    drop(server);
+    // A stuck worker would make an ordinary drop of the runtime wait for it forever.
+    runtime.shutdown_background();
+    outcome.unwrap();
+}
+
+/// SO_LINGER with a zero timeout: `close` then resets the connection instead of a FIN handshake.
+fn set_zero_linger(s: &std::net::TcpStream) {
+    let linger = libc::linger {
+        l_onoff: 1,
+        l_linger: 0,
+    };
+    // SAFETY: setsockopt on a live socket with a pointer to a correctly sized local.
+    let rc = unsafe {
+        libc::setsockopt(
+            s.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_LINGER,
+            (&linger as *const libc::linger).cast(),
+            std::mem::size_of::<libc::linger>() as libc::socklen_t,
+        )
+    };
+    assert_eq!(rc, 0, "setsockopt(SO_LINGER)");
+}

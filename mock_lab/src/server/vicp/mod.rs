@@ -270,9 +270,15 @@ async fn serve_out_of_band(fd: OwnedFd, connection: Arc<Connection>) {
         }
     };
     loop {
+        // The readiness future does not count against tokio's cooperative budget: without this a
+        // readiness that stays set would keep polling here and hold a worker thread.
+        tokio::task::consume_budget().await;
         let Ok(mut guard) = afd.ready(Interest::PRIORITY).await else {
             return;
         };
+        // Tokio never clears "read closed" or "error": once the peer has sent FIN, `ready`
+        // returns at once forever. A peer that cannot send can ask for no more serial polls.
+        let finished = guard.ready().is_read_closed() || guard.ready().is_error();
         let mut byte = 0u8;
         // SAFETY: reads at most one byte into a valid local.
         let n = unsafe {
@@ -286,7 +292,7 @@ async fn serve_out_of_band(fd: OwnedFd, connection: Arc<Connection>) {
         if n != 1 {
             let err = io::Error::last_os_error();
             match err.raw_os_error() {
-                Some(libc::EAGAIN) | Some(libc::EINVAL) => {
+                Some(libc::EAGAIN) | Some(libc::EINVAL) if !finished => {
                     guard.clear_ready();
                     continue;
                 }
