@@ -73,10 +73,11 @@ def port_is_free(port: int) -> bool:
 class MockLab:
     """A running `mock-lab serve --json`; `endpoints` maps transport -> loopback resource."""
 
-    def __init__(self, binary: str, vicp_port: int):
+    def __init__(self, binary: str, vicp_port: int, cpus=None):
         self.proc = subprocess.Popen(
             [binary, "serve", "--json", "--loopback-vicp-port", str(vicp_port)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            preexec_fn=(lambda: os.sched_setaffinity(0, cpus)) if cpus else None)
         ready, _, _ = select.select([self.proc.stdout], [], [], 60)
         line = self.proc.stdout.readline() if ready else b""
         if not line:
@@ -198,6 +199,9 @@ def main():
     ap.add_argument("--transports", default=",".join(TRANSPORTS),
                     help="comma-separated subset of " + ",".join(TRANSPORTS))
     ap.add_argument("--json", action="store_true", help="also print the raw timings as JSON")
+    ap.add_argument("--pin", action="store_true",
+                    help="run mock-lab on the first allowed CPU and both clients (this script, "
+                         "so pyvisa-py, and radbench) on the others, the same for both clients")
     args = ap.parse_args()
     for binary in (args.radbench, args.mock_lab):
         if not Path(binary).exists():
@@ -212,8 +216,17 @@ def main():
         print(f"note: port {VICP_PORT} is taken; pyvisa-py's VICP needs exactly it, VICP skipped")
         transports.remove("vicp")
 
+    server_cpus = None
+    if args.pin:
+        allowed = sorted(os.sched_getaffinity(0))
+        if len(allowed) < 2:
+            sys.exit("--pin needs at least two CPUs")
+        server_cpus = {allowed[0]}
+        # radbench is started from here and inherits this affinity.
+        os.sched_setaffinity(0, set(allowed[1:]))
+
     load_before = os.getloadavg()
-    lab = MockLab(args.mock_lab, VICP_PORT if vicp_ok else 0)
+    lab = MockLab(args.mock_lab, VICP_PORT if vicp_ok else 0, server_cpus)
     rm = pyvisa.ResourceManager("@py")
     timings = {t: {"radbench": {"read": [], "write": []}, "pyvisa": {"read": [], "write": []}}
                for t in transports}
@@ -234,7 +247,9 @@ def main():
     print(f"{args.size} bytes per transfer; median of {args.runs} x {args.rounds} timed runs per "
           f"client and direction; MB/s = 1e6 bytes/s; payload SHA-256 {payload_sha[:16]}...")
     print(f"{platform.machine()}, {os.cpu_count()} CPUs, pyvisa {pyvisa.__version__}; load "
-          f"average before {load_before[0]:.2f}, after {load_after[0]:.2f} (1 min)")
+          f"average before {load_before[0]:.2f}, after {load_after[0]:.2f} (1 min)"
+          + (f"; mock-lab pinned to CPU {min(server_cpus)}, clients to the others"
+             if server_cpus else ""))
     print()
     print(f"{'transport':<9} {'direction':<9} {'radbench':>9} {'pyvisa-py':>9} {'ratio':>6}  "
           f"{'target':<21} verdict")
