@@ -61,6 +61,24 @@ pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
     })
 }
 
+/// The message for the user: every error of the chain, joined with ": ", except a cause whose
+/// text the message before it already quotes (layer errors name their source in their own
+/// text, so `{:#}` would print it two or three times).
+pub fn render(err: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
 /// Walks an error chain and returns the class of the first error that knows its class.
 pub fn classify(err: &anyhow::Error) -> ExitClass {
     for cause in err.chain() {
@@ -101,4 +119,38 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::measure::bench_file::BenchFileError,
     );
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::session::SessionError;
+    use crate::transport::LinkError;
+
+    #[test]
+    fn render_names_each_cause_once() {
+        let refused = std::io::Error::from(std::io::ErrorKind::ConnectionRefused);
+        let refused_text = refused.to_string();
+        let err = anyhow::Error::new(SessionError::Link {
+            resource: "TCPIP::127.0.0.1::5025::SOCKET".into(),
+            source: LinkError::Connect {
+                target: "127.0.0.1:5025".into(),
+                protocol: "SOCKET",
+                source: refused,
+            },
+        });
+        let text = render(&err);
+        assert_eq!(text.matches(&refused_text).count(), 1, "{text}");
+        assert!(
+            text.starts_with("TCPIP::127.0.0.1::5025::SOCKET: cannot connect to 127.0.0.1:5025")
+        );
+        assert_eq!(classify(&err), ExitClass::Instrument);
+    }
+
+    #[test]
+    fn render_keeps_context_and_new_causes() {
+        let err = anyhow::Error::new(std::io::Error::other("disk full"))
+            .context("cannot write run/capture.bin");
+        assert_eq!(render(&err), "cannot write run/capture.bin: disk full");
+    }
 }

@@ -19,7 +19,7 @@ fn main() {
     init_tracing(cli.verbose);
     if let Err(err) = radbench::cli::run(cli) {
         let class = classify(&err);
-        eprintln!("error: {err:#}");
+        eprintln!("error: {}", radbench::exit::render(&err));
         if class == ExitClass::Internal {
             eprintln!("(this is a radbench bug: please report it with the command you ran)");
         }

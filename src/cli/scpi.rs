@@ -286,7 +286,7 @@ fn interactive(
             Ok(Some(Flow::Print(text))) => println!("{text}"),
             Ok(None) => {}
             Err(e) => {
-                eprintln!("error: {e:#}");
+                eprintln!("error: {}", crate::exit::render(&e));
                 if let Some(SessionError::Link { source, .. }) = e.downcast_ref::<SessionError>() {
                     if matches!(source, crate::transport::LinkError::Closed { .. }) {
                         eprintln!("(the connection is gone: \\reconnect to reopen it)");

@@ -18,6 +18,9 @@ use crate::address::Resource;
 use crate::transport::{Journal, Link, LinkError, LinkOptions};
 use bytes::Bytes;
 
+/// The read timeout for the error queue after a query went unanswered.
+const ERROR_QUEUE_AFTER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// How a session talks to its instrument.
 #[derive(Debug, Clone)]
 pub struct SessionOptions {
@@ -135,10 +138,40 @@ impl Session {
         }
     }
 
-    /// Sends a query and returns the raw reply.
+    /// Sends a query and returns the raw reply. A query that gets no reply within the read
+    /// timeout is usually one the instrument refused (488.2: a query in error has no answer), so
+    /// the error queue is then read: its entries, if any, are the error instead of a bare timeout.
     pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+        match self.query_raw_plain(query).await {
+            Err(SessionError::Link {
+                source: timeout @ LinkError::Timeout { .. },
+                ..
+            }) if query != self.options.error_query => Err(self.refusal_or(query, timeout).await),
+            other => other,
+        }
+    }
+
+    async fn query_raw_plain(&mut self, query: &str) -> Result<Bytes, SessionError> {
         self.write(query).await?;
         self.read_raw().await
+    }
+
+    /// After `query` timed out (and the device was cleared): the instrument's errors about it
+    /// when its error queue has any, else the timeout. The queue gets a short read timeout of its
+    /// own, so a hung instrument does not double the wait.
+    async fn refusal_or(&mut self, query: &str, timeout: LinkError) -> SessionError {
+        let read = self.link.options_mut().timeouts.read;
+        self.link.options_mut().timeouts.read = read.min(ERROR_QUEUE_AFTER_TIMEOUT);
+        let errors = self.errors().await;
+        self.link.options_mut().timeouts.read = read;
+        match errors {
+            Ok(errors) if !errors.is_empty() => SessionError::Device {
+                resource: self.resource_text.clone(),
+                after: Some(query.to_string()),
+                errors,
+            },
+            _ => self.link_err(timeout),
+        }
     }
 
     /// Sends a query and returns the reply as text without its terminator.
@@ -259,7 +292,8 @@ impl Session {
         let query = self.options.error_query.clone();
         let mut found = Vec::new();
         for _ in 0..self.options.max_error_entries {
-            let text = self.query(&query).await?;
+            let raw = self.query_raw_plain(&query).await?;
+            let text = reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string();
             let entry = reply::parse_error_entry(&text)
                 .ok_or_else(|| self.bad_reply(&query, "<code>,\"<text>\"", &text))?;
             if entry.code == 0 {

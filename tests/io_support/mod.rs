@@ -263,6 +263,21 @@ pub async fn check_timeout_then_fresh_answer(proto: Proto) {
     assert_eq!(bounded(s.query("ECHO again")).await.unwrap(), "again");
 }
 
+/// A query the instrument refuses gets no reply (488.2): after the read timeout the session reads
+/// the error queue and reports the refusal, not a bare timeout; the link stays usable.
+pub async fn check_unanswered_query_is_a_refusal(proto: Proto) {
+    let bench = start(proto).await;
+    let mut s = open(&bench, Duration::from_millis(300)).await;
+    let err = bounded(s.query("BOGUS:QUERY?")).await.unwrap_err();
+    let SessionError::Device { errors, after, .. } = &err else {
+        panic!("expected the instrument's refusal, got {err}");
+    };
+    assert_eq!(errors[0].code, -113, "{err}");
+    assert_eq!(after.as_deref(), Some("BOGUS:QUERY?"));
+    assert!(err.to_string().contains("refused `BOGUS:QUERY?`"), "{err}");
+    assert_eq!(bounded(s.query("ECHO next")).await.unwrap(), "next");
+}
+
 /// The server drops the connection in the middle of a block: a clear link error (not a hang, not
 /// a timeout), then reconnect and carry on.
 pub async fn check_dropped_connection(proto: Proto) {
@@ -326,6 +341,10 @@ macro_rules! loopback_suite {
         #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
         async fn timeout_then_fresh_answer() {
             io_support::check_timeout_then_fresh_answer($proto).await;
+        }
+        #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+        async fn unanswered_query_is_a_refusal() {
+            io_support::check_unanswered_query_is_a_refusal($proto).await;
         }
         #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
         async fn dropped_connection_is_a_clear_error() {
