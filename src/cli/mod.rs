@@ -13,6 +13,7 @@ pub mod calibrate;
 pub mod capture;
 pub mod idn;
 pub mod mock_lab;
+pub mod progress;
 pub mod scpi;
 pub mod simulate;
 

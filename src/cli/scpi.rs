@@ -2,6 +2,7 @@
 //! with history when no command is given. A command ending in `?` reads a reply; binary replies are
 //! summarised (length, SHA-256, first bytes) and can be saved with `--save-binary`.
 
+use super::progress::TransferBar;
 use crate::address::Resource;
 use crate::session::{reply, Session, SessionError, SessionOptions};
 use crate::transport::{journal, Journal, Timeouts};
@@ -97,13 +98,18 @@ pub struct Args {
 pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     let mut session = runtime.block_on(args.connect.open(global))?;
+    // Long blocks show a bar on stderr (only on a terminal).
+    let bar = TransferBar::new();
+    session.link_options_mut().progress = Some(bar.callback());
     let mut saver = BinarySaver::new(args.save_binary.clone());
     let result = if args.commands.is_empty() {
-        interactive(&runtime, &mut session, &mut saver, args.check_errors)
+        interactive(&runtime, &mut session, &mut saver, args.check_errors, &bar)
     } else {
         runtime.block_on(async {
             for command in &args.commands {
-                let output = execute(&mut session, command, &mut saver, args.check_errors).await?;
+                let output = execute(&mut session, command, &mut saver, args.check_errors).await;
+                bar.finish();
+                let output = output?;
                 if let Some(text) = output {
                     println!("{text}");
                 }
@@ -260,6 +266,7 @@ fn interactive(
     session: &mut Session,
     saver: &mut BinarySaver,
     check_errors: bool,
+    bar: &TransferBar,
 ) -> anyhow::Result<()> {
     let mut editor = rustyline::DefaultEditor::new().context("cannot start the prompt")?;
     let history = history_path();
@@ -281,6 +288,7 @@ fn interactive(
         }
         let _ = editor.add_history_entry(line.as_str());
         let outcome = runtime.block_on(interactive_line(session, &line, saver, check_errors));
+        bar.finish();
         match outcome {
             Ok(Some(Flow::Quit)) => break,
             Ok(Some(Flow::Print(text))) => println!("{text}"),

@@ -12,7 +12,7 @@
 //! | `DATA <block>` | stores a definite (`#N`) or indefinite (`#0`) block |
 //! | `DATA?` | the stored block as a definite block |
 //! | `DATA:LEN?` | stored block length |
-//! | `DATA:GEN <n>[,<seed>]` | stores `n` pseudo-random bytes (SplitMix64, default seed 1) |
+//! | `DATA:GEN <n>[,<seed>]` | stores `n` pseudo-random bytes (SplitMix64, default seed 1), `n` <= 999999999 |
 //! | `ECHO <text>` | answers `<text>` |
 //! | `SLOW? <ms>` | answers `<ms>` after that many milliseconds (device clear cuts it short, no answer) |
 //!
@@ -25,14 +25,15 @@ use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 
+use crate::server::framing::{block_header, MAX_DEFINITE_BLOCK};
 use crate::server::{pool, Handler, Response};
 
 /// Identity reported by `*IDN?`.
 pub const IDENTITY: &str = "MOCK_LAB,LOOPBACK,0,0.1";
 /// Error queue depth; one more error replaces the newest with -350 "Queue overflow".
 const ERROR_QUEUE_DEPTH: usize = 32;
-/// Largest block `DATA:GEN` will generate.
-const MAX_GENERATED: u64 = 1 << 30;
+/// Largest block `DATA:GEN` will generate: the most a definite block (`DATA?`) can carry.
+const MAX_GENERATED: u64 = MAX_DEFINITE_BLOCK as u64;
 /// Longest `SLOW?` delay accepted, in milliseconds.
 const MAX_SLOW_MS: u64 = 600_000;
 
@@ -164,7 +165,11 @@ impl Loopback {
             _ if query && is(&[("DATA", "DATA")]) => {
                 // The header, then the stored block itself (shared, not copied).
                 let block = self.lock().block.clone();
-                let header = crate::server::framing::block_header(block.len());
+                let Some(header) = block_header(block.len()) else {
+                    // Stored from an indefinite (#0) upload, too long for a definite block.
+                    self.push_error(-223, "Too much data; DATA? answers at most 999999999 bytes");
+                    return None;
+                };
                 return Some(Response::from_parts(vec![header.into(), block]));
             }
             _ if query && is(&[("DATA", "DATA"), ("LEN", "LENGTH")]) => {
@@ -201,7 +206,7 @@ impl Loopback {
             }
             (Some(_), Some(_)) => self.push_error(
                 -223,
-                "Too much data; DATA:GEN accepts at most 1073741824 bytes",
+                "Too much data; DATA:GEN accepts at most 999999999 bytes",
             ),
             _ => self.push_error(
                 -109,
@@ -483,6 +488,15 @@ mod tests {
         inst.message(b"DATA:GENERATE 1000,7");
         assert_eq!(inst.message(b"DATA?"), first);
         assert_eq!(first[0].len(), 1000 + 6);
+    }
+
+    #[test]
+    fn generated_blocks_fit_a_definite_block_header() {
+        // 10 digits of length cannot follow `#<d>`: refuse rather than answer `#:1000000000`.
+        let inst = Loopback::new();
+        assert!(inst.message(b"DATA:GEN 1000000000").is_empty());
+        assert!(ask(&inst, "SYST:ERR?").starts_with("-223,"));
+        assert_eq!(ask(&inst, "DATA:LEN?"), "0");
     }
 
     #[test]

@@ -299,14 +299,21 @@ pub fn has_terminator(response: &[u8]) -> bool {
     }
 }
 
-/// Encodes `payload` as an IEEE 488.2 definite-length block header (`#<d><len>`).
-pub fn block_header(len: usize) -> Vec<u8> {
+/// The largest payload a definite-length block can carry: its length field has at most 9 digits.
+pub const MAX_DEFINITE_BLOCK: usize = 999_999_999;
+
+/// Encodes an IEEE 488.2 definite-length block header (`#<d><len>`) for a payload of `len`
+/// bytes; `None` over [`MAX_DEFINITE_BLOCK`], which no digit count can express.
+pub fn block_header(len: usize) -> Option<Vec<u8>> {
+    if len > MAX_DEFINITE_BLOCK {
+        return None;
+    }
     let digits = len.to_string();
     let mut header = Vec::with_capacity(2 + digits.len());
     header.push(b'#');
     header.push(b'0' + digits.len() as u8);
     header.extend_from_slice(digits.as_bytes());
-    header
+    Some(header)
 }
 
 #[cfg(test)]
@@ -421,8 +428,10 @@ mod tests {
 
     #[test]
     fn block_header_encodes_digit_count() {
-        assert_eq!(block_header(0), b"#10".to_vec());
-        assert_eq!(block_header(1_000_000), b"#71000000".to_vec());
+        assert_eq!(block_header(0), Some(b"#10".to_vec()));
+        assert_eq!(block_header(1_000_000), Some(b"#71000000".to_vec()));
+        assert_eq!(block_header(999_999_999), Some(b"#9999999999".to_vec()));
+        assert_eq!(block_header(1_000_000_000), None);
     }
 
     proptest::proptest! {
