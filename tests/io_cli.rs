@@ -114,6 +114,26 @@ async fn refused_command_exits_3_with_the_device_error() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn unanswered_query_shows_the_device_error_once_each() {
+    let bench = start(Proto::Vicp).await;
+    let address = bench.resource.to_string();
+    let out = radbench(args(&["scpi", &address, "BOGUS?", "--timeout", "0.3"])).await;
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains("no reply to `BOGUS?`"), "{err}");
+    assert_eq!(err.matches("-113").count(), 1, "{err}");
+    // A link error names its cause once, not once per layer.
+    let port = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let address = format!("TCPIP::127.0.0.1::{port}::SOCKET");
+    let out = radbench(args(&["idn", &address, "--connect-timeout", "2"])).await;
+    let err = stderr(&out);
+    assert_eq!(err.matches("cannot connect").count(), 1, "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_address_exits_2_and_unreachable_exits_3() {
     let out = radbench(args(&["idn", "GPIB0::5::INSTR"])).await;
     assert_eq!(out.status.code(), Some(2));

@@ -45,6 +45,13 @@ pub enum SessionError {
         after: Option<String>,
         errors: Vec<DeviceError>,
     },
+    #[error("{resource}: no reply to `{query}` within {after:?}, and the instrument's error queue holds: {}. A query the instrument refuses gets no reply; if it was only slow, raise the timeout", join(.errors))]
+    Unanswered {
+        resource: String,
+        query: String,
+        after: std::time::Duration,
+        errors: Vec<DeviceError>,
+    },
     #[error("{resource}: {source}")]
     Link {
         resource: String,
@@ -73,7 +80,7 @@ pub enum SessionError {
 impl SessionError {
     pub fn kind(&self) -> ErrorKind {
         match self {
-            SessionError::Device { errors, .. } => {
+            SessionError::Device { errors, .. } | SessionError::Unanswered { errors, .. } => {
                 if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
                     ErrorKind::FixInput
                 } else {
@@ -93,7 +100,9 @@ impl SessionError {
     /// The device errors, if the instrument refused.
     pub fn device_errors(&self) -> Option<&[DeviceError]> {
         match self {
-            SessionError::Device { errors, .. } => Some(errors),
+            SessionError::Device { errors, .. } | SessionError::Unanswered { errors, .. } => {
+                Some(errors)
+            }
             _ => None,
         }
     }
@@ -116,6 +125,7 @@ impl crate::exit::Classify for SessionError {
                 ExitClass::BadInput
             }
             SessionError::Device { .. }
+            | SessionError::Unanswered { .. }
             | SessionError::Reply { .. }
             | SessionError::ErrorQueueNotDraining { .. } => ExitClass::Instrument,
         }

@@ -165,9 +165,13 @@ impl Session {
         let errors = self.errors().await;
         self.link.options_mut().timeouts.read = read;
         match errors {
-            Ok(errors) if !errors.is_empty() => SessionError::Device {
+            Ok(errors) if !errors.is_empty() => SessionError::Unanswered {
                 resource: self.resource_text.clone(),
-                after: Some(query.to_string()),
+                query: query.to_string(),
+                after: match timeout {
+                    LinkError::Timeout { after, .. } => after,
+                    _ => read,
+                },
                 errors,
             },
             _ => self.link_err(timeout),

@@ -269,12 +269,17 @@ pub async fn check_unanswered_query_is_a_refusal(proto: Proto) {
     let bench = start(proto).await;
     let mut s = open(&bench, Duration::from_millis(300)).await;
     let err = bounded(s.query("BOGUS:QUERY?")).await.unwrap_err();
-    let SessionError::Device { errors, after, .. } = &err else {
-        panic!("expected the instrument's refusal, got {err}");
+    let SessionError::Unanswered { errors, query, .. } = &err else {
+        panic!("expected the instrument's errors, got {err}");
     };
     assert_eq!(errors[0].code, -113, "{err}");
-    assert_eq!(after.as_deref(), Some("BOGUS:QUERY?"));
-    assert!(err.to_string().contains("refused `BOGUS:QUERY?`"), "{err}");
+    assert_eq!(query, "BOGUS:QUERY?");
+    assert!(
+        err.to_string().contains("no reply to `BOGUS:QUERY?`"),
+        "{err}"
+    );
+    assert_eq!(err.device_errors().map(|e| e.len()), Some(1));
+    assert_eq!(err.kind(), radbench::transport::ErrorKind::FixInput);
     assert_eq!(bounded(s.query("ECHO next")).await.unwrap(), "next");
 }
 
