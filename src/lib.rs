@@ -28,7 +28,7 @@
 //! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
 //! | [`time`] | pure | RFC 3339 UTC text for journals and run files |
-//! | [`cli`] | app | one module per subcommand |
+//! | [`cli`] | app | one module per subcommand, plus the transfer progress bar |
 //!
 //! Exit codes are in [`exit`]: 0 success, 2 bad input, 3 instrument or link failure, 4 processing
 //! failure.

@@ -1,5 +1,6 @@
 //! The session layer's errors: "the instrument refused" ([`SessionError::Device`], entries from
-//! `SYST:ERR?` with code and text) is kept apart from "the link failed" ([`SessionError::Link`]).
+//! `SYST:ERR?` with code and text) is kept apart from "the link failed" ([`SessionError::Link`]);
+//! a query with no reply while the queue holds entries is [`SessionError::Unanswered`].
 
 use crate::transport::{ErrorKind, LinkError};
 use std::fmt;

@@ -6,7 +6,9 @@
 //! * after a timeout the session clears the device (protocol device clear; a fresh connection on a
 //!   raw socket), so a late reply is never read as the answer to the next query;
 //! * "the instrument refused" ([`SessionError::Device`]) and "the link failed"
-//!   ([`SessionError::Link`]) are different errors, each with a [`kind`](SessionError::kind).
+//!   ([`SessionError::Link`]) are different errors, each with a [`kind`](SessionError::kind);
+//!   a query left unanswered while the error queue holds entries is
+//!   [`SessionError::Unanswered`], with those entries, rather than a bare timeout.
 
 pub mod error;
 pub mod reply;
@@ -156,10 +158,13 @@ impl Session {
         self.read_raw().await
     }
 
-    /// After `query` timed out (and the device was cleared): the instrument's errors about it
-    /// when its error queue has any, else the timeout. The queue gets a short read timeout of its
+    /// After `query` timed out (and the device was cleared): the instrument's error queue when
+    /// it holds anything, else the timeout itself. The queue gets a short read timeout of its
     /// own, so a hung instrument does not double the wait.
     async fn refusal_or(&mut self, query: &str, timeout: LinkError) -> SessionError {
+        let LinkError::Timeout { after, .. } = timeout else {
+            return self.link_err(timeout);
+        };
         let read = self.link.options_mut().timeouts.read;
         self.link.options_mut().timeouts.read = read.min(ERROR_QUEUE_AFTER_TIMEOUT);
         let errors = self.errors().await;
@@ -168,10 +173,7 @@ impl Session {
             Ok(errors) if !errors.is_empty() => SessionError::Unanswered {
                 resource: self.resource_text.clone(),
                 query: query.to_string(),
-                after: match timeout {
-                    LinkError::Timeout { after, .. } => after,
-                    _ => read,
-                },
+                after,
                 errors,
             },
             _ => self.link_err(timeout),
