@@ -40,7 +40,6 @@ pub mod driver;
 pub mod dsp;
 pub mod exit;
 pub mod measure;
-pub mod processing;
 pub mod rng;
 pub mod session;
 pub mod simulate;

@@ -1,7 +1,8 @@
 //! The radbench binary: parse the command line, set up logging, run, map errors to exit codes.
 
 use clap::Parser;
-use radbench::exit::{classify, ExitClass};
+use radbench::cli::classify;
+use radbench::exit::ExitClass;
 
 fn main() {
     let cli = match radbench::cli::Cli::try_parse() {

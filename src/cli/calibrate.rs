@@ -1,20 +1,22 @@
 //! `radbench calibrate`: measure the bench's fixed system delay (cables, horns, marker latency) on a
 //! reference target at a known range, and store it in the bench file.
 
-use super::capture::{capture_settings, measure, AwgTransport, BenchInUse, ScopeTransport};
+use super::args::{AwgTransportArg, ScopeTransportArg};
+use super::capture::{bench_source, journal, open_bench};
 use crate::driver::RfPermit;
-use crate::dsp::C0;
-use crate::exit::bad_input;
 use crate::measure::bench_file::{store_calibration, Calibration};
-use crate::measure::process::ProcessOptions;
-use crate::measure::transmit::{Transmission, WaveformKind, DEFAULT_BACKOFF_DB};
-use crate::processing::Algorithm;
+use crate::measure::calibration::{check, estimate_delay};
+use crate::measure::capture::{self, CaptureRequest};
+use crate::measure::interrupt::Interrupt;
+use crate::measure::options::{Algorithm, ProcessOptions};
+use crate::measure::MeasureError;
+use crate::waveform::spec::WaveformSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// True range of the reference target (antennas to target), metres.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub reference_range: f64,
     /// Bench file to calibrate (the result is stored in its [calibration] section). Without one,
     /// the built-in mock lab is measured and the result only printed.
@@ -25,7 +27,7 @@ pub struct Args {
     pub allow_rf: bool,
     /// Only echoes within this distance of the reference range are taken as the reference, metres
     /// (before calibration ranges are off by the system delay: allow for it).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
     pub search: f64,
     /// Print one JSON object.
     #[arg(long)]
@@ -33,66 +35,45 @@ pub struct Args {
 }
 
 pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    if !(args.reference_range.is_finite()
-        && args.reference_range > 0.0
-        && args.reference_range < 100.0)
-    {
-        return Err(bad_input(format!(
-            "--reference-range {}: give the reference target's range in metres, 0 < R < 100",
-            args.reference_range
-        )));
-    }
+    check(args.reference_range, args.search)?;
     if !args.allow_rf {
-        return Err(bad_input(
-            "calibration transmits: pass --allow-rf to switch on the AWG outputs and the front ends",
-        ));
+        return Err(MeasureError::NoPermit.into());
     }
     super::runtime()?.block_on(async {
-        let bench = BenchInUse::open(
+        let source = bench_source(
             args.bench.as_deref(),
             None,
-            AwgTransport::Hislip,
-            ScopeTransport::Vicp,
-            args.json,
+            AwgTransportArg::Hislip,
+            ScopeTransportArg::Vicp,
+        )?;
+        let interrupt = Interrupt::listen()?;
+        let bench = open_bench(source, args.json).await?;
+        let request = CaptureRequest {
+            waveform: WaveformSpec::msk_lfm_default(),
+            payload: None,
+            seed: 1,
+            options: ProcessOptions {
+                algorithm: Algorithm::Correlation,
+                system_delay_s: 0.0,
+                min_range_m: 0.0,
+                max_range_m: args.reference_range + args.search + 150.0,
+                ..ProcessOptions::default()
+            },
+            tx_off: false,
+            wait_s: 10.0,
+            background: None,
+        };
+        let m = capture::measure(
+            &bench,
+            &request,
+            &RfPermit::granted_by_user(),
+            journal(global)?,
+            &interrupt,
         )
         .await?;
-        let options = ProcessOptions {
-            algorithm: Algorithm::Correlation,
-            system_delay_s: 0.0,
-            min_range_m: 0.0,
-            max_range_m: args.reference_range + args.search + 150.0,
-            ..ProcessOptions::default()
-        };
-        let tx = Transmission::new(WaveformKind::MskLfm, None, 1, DEFAULT_BACKOFF_DB)?;
-        let settings =
-            capture_settings(&bench.file, Some(RfPermit::granted_by_user()), false, 10.0);
-        let m = measure(&bench, tx, settings, &options, None, global).await?;
-        // Uncalibrated ranges are true range + c * delay / 2: the reference is the strongest echo
-        // at or beyond its true range, within the search distance of the delay-shifted range.
-        let reference = m
-            .processed
-            .targets
-            .iter()
-            .filter(|t| {
-                t.range_m >= args.reference_range - 0.05
-                    && t.range_m <= args.reference_range + args.search + 0.05
-            })
-            .max_by(|a, b| a.level_db.total_cmp(&b.level_db))
-            .ok_or_else(|| {
-                anyhow::anyhow!(crate::exit::Classified {
-                    class: crate::exit::ExitClass::Processing,
-                    message: format!(
-                        "no echo between {:.3} m and {:.3} m (uncalibrated): place the reference \
-                         target at {} m, check RF is on, or widen --search",
-                        args.reference_range,
-                        args.reference_range + args.search,
-                        args.reference_range
-                    ),
-                })
-            })?;
-        let delay = 2.0 * (reference.range_m - args.reference_range) / C0;
+        let estimate = estimate_delay(&m.processed, args.reference_range, args.search)?;
         let calibration = Calibration {
-            system_delay_s: delay,
+            system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(args.reference_range),
             measured_at: Some(crate::storage::sigmf::utc_now_rfc3339()),
         };
@@ -103,18 +84,18 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             println!(
                 "{}",
                 serde_json::json!({
-                    "system_delay_s": delay,
-                    "reference_range_m": args.reference_range,
-                    "measured_range_m": reference.range_m,
+                    "system_delay_s": estimate.system_delay_s,
+                    "reference_range_m": estimate.reference_range_m,
+                    "measured_range_m": estimate.measured_range_m,
                     "stored_in": bench.path.as_ref().map(|p| p.display().to_string()),
                 })
             );
         } else {
             println!(
                 "system delay {:.4} ns (reference echo at {:.4} m uncalibrated, true {:.4} m)",
-                delay * 1e9,
-                reference.range_m,
-                args.reference_range
+                estimate.system_delay_s * 1e9,
+                estimate.measured_range_m,
+                estimate.reference_range_m
             );
             match &bench.path {
                 Some(p) => println!("stored in {} [calibration]", p.display()),

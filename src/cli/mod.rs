@@ -7,15 +7,19 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+pub mod args;
 pub mod bench;
 pub mod bench_io;
 pub mod calibrate;
 pub mod capture;
+pub mod exit_code;
 pub mod idn;
 pub mod mock_lab;
 pub mod progress;
 pub mod scpi;
 pub mod simulate;
+
+pub use exit_code::classify;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
 #[derive(Debug, Parser)]
@@ -40,7 +44,7 @@ pub enum Command {
     /// Ask an instrument who it is (`*IDN?`).
     Idn(idn::Args),
     /// One measurement: waveform out, marker-triggered capture, range profile, targets, payload.
-    Capture(capture::Args),
+    Capture(Box<capture::Args>),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -64,7 +68,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args, &global),
         Command::Bench(args) => bench::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
-        Command::Capture(args) => capture::run(args, &global),
+        Command::Capture(args) => capture::run(*args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),

@@ -4,13 +4,10 @@
 //! amplitude (default 1), radial velocity in m/s (default 0, positive = moving away). Example:
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
+use super::args::{CarrierPhaseArg, ProcessingArgs, WaveformArg, WaveformArgs};
 use crate::exit::bad_input;
-use crate::simulate::{
-    ber, report,
-    scene::{parse_targets, CarrierPhase},
-    spec::{Algorithm, FftPrecisionName, RunSpec, WaveformSpec, WindowName},
-    thesis,
-};
+use crate::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
+use crate::waveform::spec::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -39,54 +36,28 @@ pub struct ThesisArgs {
     pub plot: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum WaveformName {
-    MskLfm,
-    Ofdm,
-}
-
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
     /// Waveform.
     #[arg(long, value_enum)]
-    pub waveform: WaveformName,
+    pub waveform: WaveformArg,
+    #[command(flatten)]
+    pub waveform_args: WaveformArgs,
     /// Targets: R[:AMP[:V]] separated by commas (metres, linear amplitude, m/s receding).
     #[arg(long, value_name = "R[:AMP[:V]],...", allow_hyphen_values = true)]
     pub targets: String,
     /// Per-sample SNR in dB at the capture rate for a unit-amplitude target (default: noise-free).
     #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     pub snr_db: Option<f64>,
-    /// Range processing (default: correlation for MSK-LFM, fourier for OFDM).
-    #[arg(long, value_enum)]
-    pub algorithm: Option<Algorithm>,
-    /// MUSIC covariance size M (sub-vector length of the spatial smoothing).
-    #[arg(long = "m", value_name = "M", default_value_t = 64)]
-    pub m: usize,
-    /// Number of targets for MUSIC/root-MUSIC/ESPRIT (default: estimated with MDL).
-    #[arg(long = "p", value_name = "P")]
-    pub p: Option<usize>,
-    /// Forward smoothing only (no forward-backward averaging) for MUSIC.
-    #[arg(long)]
-    pub forward_only: bool,
-    /// OFDM Fourier zero-padding factor: IFFT length = K x subcarriers.
-    #[arg(long, value_name = "K", default_value_t = 10)]
-    pub zero_pad: usize,
-    /// Window on the subcarriers before the OFDM range IFFT.
-    #[arg(long, value_enum, value_name = "NAME", default_value = "rect")]
-    pub window: WindowName,
-    /// Precision of the OFDM receiver's per-symbol FFT (the rest is double precision).
-    #[arg(long, value_enum, value_name = "P", default_value = "single")]
-    pub fft_precision: FftPrecisionName,
+    #[command(flatten)]
+    pub processing: ProcessingArgs,
     /// Echo carrier phase: physical (80 GHz), centred (0 Hz) or thesis (B/2, the thesis' model).
     #[arg(long, value_enum, default_value = "physical")]
-    pub carrier_phase: CarrierPhase,
+    pub carrier_phase: CarrierPhaseArg,
     /// Capture rate in Sa/s: a multiple of the waveform rate runs the lab chain (80e9 -> decimate
     /// by 5 -> 16 GSa/s).
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
     pub capture_rate: Option<f64>,
-    /// Report the on-grid peak (no sub-sample interpolation).
-    #[arg(long)]
-    pub no_interpolation: bool,
     /// Seed of the bits and the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -102,30 +73,6 @@ pub struct RunArgs {
     /// Write the range profile(s) to FILE.csv or FILE.npy (columns: range_m then dB per curve).
     #[arg(long, value_name = "FILE")]
     pub profile_out: Option<PathBuf>,
-    /// Bandwidth in Hz (both waveforms).
-    #[arg(long, value_name = "HZ", default_value_t = 1e9)]
-    pub bandwidth: f64,
-    /// MSK-LFM sample rate in Sa/s (the AWG rate).
-    #[arg(long, value_name = "HZ", default_value_t = 16e9)]
-    pub sample_rate: f64,
-    /// MSK-LFM pulse length in microseconds.
-    #[arg(long, value_name = "US", default_value_t = 10.0)]
-    pub pulse_us: f64,
-    /// MSK-LFM bits per pulse.
-    #[arg(long, value_name = "N", default_value_t = 128)]
-    pub bits_per_pulse: usize,
-    /// OFDM subcarriers.
-    #[arg(long, value_name = "N", default_value_t = 128)]
-    pub subcarriers: usize,
-    /// OFDM oversampling factor (sample rate = bandwidth x factor).
-    #[arg(long, value_name = "N", default_value_t = 16)]
-    pub oversampling: usize,
-    /// OFDM cyclic prefix as a fraction of the useful symbol.
-    #[arg(long, value_name = "F", default_value_t = 0.25)]
-    pub cp_fraction: f64,
-    /// OFDM symbols per frame.
-    #[arg(long, value_name = "N", default_value_t = 100)]
-    pub symbols: usize,
 }
 
 #[derive(Debug, clap::Args)]
@@ -168,36 +115,23 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
 }
 
 fn run_free(a: RunArgs) -> anyhow::Result<()> {
-    let waveform = match a.waveform {
-        WaveformName::MskLfm => WaveformSpec::MskLfm {
-            sample_rate_hz: a.sample_rate,
-            bandwidth_hz: a.bandwidth,
-            pulse_s: a.pulse_us * 1e-6,
-            bits_per_pulse: a.bits_per_pulse,
-        },
-        WaveformName::Ofdm => WaveformSpec::Ofdm {
-            bandwidth_hz: a.bandwidth,
-            subcarriers: a.subcarriers,
-            oversampling: a.oversampling,
-            cp_fraction: a.cp_fraction,
-            symbols: a.symbols,
-        },
-    };
+    let kind = WaveformKind::from(a.waveform);
+    let waveform = a.waveform_args.spec(kind)?;
     let targets = parse_targets(&a.targets)?;
     let mut spec = RunSpec::new("run", waveform, targets);
-    if let Some(alg) = a.algorithm {
-        spec.algorithm = alg;
-    }
+    let options = a.processing.options(kind);
+    spec.algorithm = options.algorithm;
     spec.snr_db = a.snr_db;
-    spec.music_m = a.m;
-    spec.music_p = a.p;
-    spec.forward_backward = !a.forward_only;
-    spec.zero_pad = a.zero_pad;
-    spec.window = a.window;
-    spec.fft_precision = a.fft_precision;
-    spec.carrier = a.carrier_phase;
+    spec.music_m = options.music_m;
+    spec.music_p = options.music_p;
+    spec.forward_backward = options.forward_backward;
+    spec.zero_pad = options.zero_pad;
+    spec.window = options.window;
+    spec.fft_precision = options.fft_precision;
+    spec.interpolate = options.interpolate;
+    spec.pfa = options.pfa;
+    spec.carrier = a.carrier_phase.into();
     spec.capture_rate_hz = a.capture_rate;
-    spec.interpolate = !a.no_interpolation;
     spec.seed = a.seed;
     spec.trials = a.trials;
     let outcome = crate::simulate::run::simulate(&spec)?;

@@ -44,6 +44,7 @@ pub struct CorrelationProfiler {
     correlator: CrossCorrelator,
     out: Vec<Complex64>,
     fs_hz: f64,
+    /// What a unit echo peaks at (the transmit energy, or the weighted filter's gain).
     energy: f64,
 }
 
@@ -56,6 +57,69 @@ impl CorrelationProfiler {
             correlator,
             fs_hz,
             energy: tx.iter().map(|v| v.norm_sqr()).sum::<f64>().max(1e-300),
+        })
+    }
+
+    /// A weighted (mismatched) filter: the matched filter's spectrum multiplied by `window` across
+    /// the occupied band `-bandwidth/2 ..= bandwidth/2` (zero outside it), trading a wider main
+    /// lobe for lower side-lobes. `tx` is one period of a periodic signal; levels stay normalised
+    /// so a unit echo peaks at 1.
+    pub fn weighted(
+        tx: &[Complex64],
+        window: &super::window::Window,
+        bandwidth_hz: f64,
+        rx_len: usize,
+        lags: usize,
+        fs_hz: f64,
+    ) -> Result<Self, DspError> {
+        let n = tx.len();
+        if n == 0 {
+            return Err(DspError::Param(
+                "weighted correlation: the transmit signal is empty".into(),
+            ));
+        }
+        if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0 && bandwidth_hz <= fs_hz) {
+            return Err(DspError::Param(format!(
+                "weighted correlation: bandwidth {bandwidth_hz} Hz must be above 0 and at most \
+                 the sample rate {fs_hz} Sa/s"
+            )));
+        }
+        let mut planner = rustfft::FftPlanner::<f64>::new();
+        let mut spec = tx.to_vec();
+        planner.plan_fft_forward(n).process(&mut spec);
+        // Bins inside the band, ascending frequency, get the window's coefficients.
+        let half = ((bandwidth_hz / 2.0) / fs_hz * n as f64).floor() as isize;
+        let width = (2 * half + 1) as usize;
+        let coeffs = window.coefficients(width)?;
+        for (k, v) in spec.iter_mut().enumerate() {
+            let f = if k <= n / 2 {
+                k as isize
+            } else {
+                k as isize - n as isize
+            };
+            *v = if f.abs() <= half {
+                *v * coeffs[(f + half) as usize] / n as f64
+            } else {
+                ZERO
+            };
+        }
+        planner.plan_fft_inverse(n).process(&mut spec);
+        let filter = spec;
+        let last = (lags.max(1) - 1).min(rx_len - 1) as isize;
+        let correlator = CrossCorrelator::new(&filter, rx_len, 0..=last)?;
+        // A unit echo of tx peaks at |sum tx conj(filter)|.
+        let gain = tx
+            .iter()
+            .zip(&filter)
+            .map(|(a, b)| a * b.conj())
+            .sum::<Complex64>()
+            .norm()
+            .max(1e-300);
+        Ok(Self {
+            out: vec![ZERO; correlator.output_len()],
+            correlator,
+            fs_hz,
+            energy: gain,
         })
     }
 

@@ -1,26 +1,92 @@
-//! One bench measurement: generate the waveform, configure the AWG and the scope, enable RF (with
-//! the user's permit), capture one marker-triggered repetition, then process it ([`process`]).
+//! Bench measurements: the bench in use, the transmission, one capture under the safe-state guard,
+//! and the one processing pipeline every command goes through.
 //!
 //! | module | what it holds |
 //! |---|---|
 //! | [`bench_file`] | the bench file: instruments, resources, calibration |
+//! | [`bench`] | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | [`transmit`] | the waveform as AWG codes plus what the receiver needs |
-//! | [`process`] | decimation, alignment, background, range profile, detection, payload |
-//! | [`run`] | connecting the drivers and running one capture under the safe-state guard |
+//! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
+//! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
+//! | [`detect`] | the detection stage of the pipeline |
+//! | [`payload`] | the communication receivers of the pipeline |
+//! | [`station`] | the connected instruments: plan, upload, RF on, capture, safe state |
+//! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
+//! | [`record`] | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
+//! | [`calibration`] | the system delay from a reference target |
+//! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
+pub mod bench;
 pub mod bench_file;
-pub mod process;
-pub mod run;
+pub mod calibration;
+pub mod capture;
+pub mod detect;
+pub mod interrupt;
+pub mod options;
+pub mod payload;
+pub mod pipeline;
+pub mod record;
+pub mod station;
 pub mod transmit;
 
+pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
+pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
+pub use transmit::{Dac, Transmission};
+
 use crate::exit::{Classify, ExitClass};
+use crate::transport::ErrorKind;
+use std::fmt::Display;
 
 /// Why a measurement failed.
 #[derive(Debug, thiserror::Error)]
 pub enum MeasureError {
-    /// A bad parameter (names it and what is allowed).
-    #[error("{0}")]
-    Param(String),
+    /// A processing or capture option is out of range.
+    #[error("--{option} {value}: allowed: {allowed}")]
+    Option {
+        option: &'static str,
+        value: String,
+        allowed: String,
+    },
+    /// The algorithm needs OFDM symbols.
+    #[error(
+        "--algorithm {algorithm}: MSK-LFM is processed by correlation; fourier, music, root-music \
+         and esprit need --waveform ofdm"
+    )]
+    AlgorithmNeedsOfdm { algorithm: &'static str },
+    /// RF was asked for without the user's permit.
+    #[error(
+        "the AWG outputs and the front ends stay off without an explicit permit: pass --allow-rf \
+         to switch them on for this capture (they are switched off again at the end)"
+    )]
+    NoPermit,
+    /// The waveform does not fit the AWG (catalog limits).
+    #[error("the {waveform} waveform does not fit the {instrument}: {reason}")]
+    DoesNotFit {
+        waveform: &'static str,
+        instrument: String,
+        reason: String,
+    },
+    /// The scope's rate is not a whole multiple of the waveform's.
+    #[error(
+        "the capture rate {capture_hz} Sa/s is not a whole multiple of the waveform rate \
+         {waveform_hz} Sa/s: choose a waveform rate that divides the scope's"
+    )]
+    RateNotMultiple { capture_hz: f64, waveform_hz: f64 },
+    /// The capture is shorter than one repetition.
+    #[error(
+        "the capture holds {points} points but one repetition needs {needed}: lengthen the \
+         scope's record"
+    )]
+    RecordTooShort { points: usize, needed: usize },
+    /// The record the pipeline was built for is shorter than the waveform (a caller bug).
+    #[error("the record of {period} samples cannot hold the {waveform}-sample waveform")]
+    RecordShorterThanWaveform { period: usize, waveform: usize },
+    /// The background capture does not match this one.
+    #[error(
+        "the background capture holds {background} samples per repetition, this one {capture}: \
+         capture the background with the same waveform"
+    )]
+    BackgroundShape { background: usize, capture: usize },
     /// The waveform could not be made.
     #[error(transparent)]
     Waveform(#[from] crate::waveform::ParamError),
@@ -33,27 +99,122 @@ pub enum MeasureError {
     /// The catalog is unusable.
     #[error(transparent)]
     Catalog(#[from] crate::catalog::CatalogError),
-    /// Range processing failed.
+    /// Range processing failed or refused its parameters.
     #[error(transparent)]
     Dsp(#[from] crate::dsp::DspError),
-    /// The data could not be processed into a result.
-    #[error("{0}")]
-    Processing(String),
+    /// A file could not be read or written.
+    #[error(transparent)]
+    Storage(#[from] crate::storage::StorageError),
+    /// The I/O journal could not be opened.
+    #[error(transparent)]
+    Journal(#[from] crate::transport::journal::JournalError),
+    /// The built-in mock lab did not start.
+    #[error("cannot start the built-in mock lab: {0}")]
+    Lab(#[from] mock_lab::lab::LabError),
+    /// A scene file for the built-in mock lab is unusable.
+    #[error(transparent)]
+    Scene(#[from] mock_lab::scene::SceneError),
+    /// A resource string in the bench file is unusable.
+    #[error("[{section}] resource = {text:?}: {source}")]
+    Resource {
+        section: &'static str,
+        text: String,
+        source: crate::address::AddressError,
+    },
+    /// A calibration found no echo where the reference target should be.
+    #[error(
+        "no echo between {from_m:.3} m and {to_m:.3} m (uncalibrated): place the reference target \
+         at {from_m} m, check RF is on, or widen --search"
+    )]
+    NoReferenceEcho { from_m: f64, to_m: f64 },
+    /// Processing could not run to its end (a worker thread failed).
+    #[error("the processing thread failed: {0}; this is a radbench bug, please report it")]
+    Worker(String),
     /// The user stopped the measurement (the bench was put in its safe state).
-    #[error("interrupted: the bench was put in its safe state ({0})")]
-    Interrupted(String),
+    #[error("interrupted by {}: the bench was put in its safe state ({report})", signal.name())]
+    Interrupted {
+        signal: interrupt::StopSignal,
+        report: String,
+    },
+}
+
+impl MeasureError {
+    /// An option out of range: `--{option} {value}`, and what is allowed.
+    pub fn option(option: &'static str, value: impl Display, allowed: impl Into<String>) -> Self {
+        MeasureError::Option {
+            option,
+            value: value.to_string(),
+            allowed: allowed.into(),
+        }
+    }
+
+    /// What to do about it.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            MeasureError::Option { .. }
+            | MeasureError::AlgorithmNeedsOfdm { .. }
+            | MeasureError::NoPermit
+            | MeasureError::DoesNotFit { .. }
+            | MeasureError::RateNotMultiple { .. }
+            | MeasureError::BackgroundShape { .. }
+            | MeasureError::Waveform(_)
+            | MeasureError::BenchFile(_)
+            | MeasureError::Scene(_)
+            | MeasureError::Resource { .. } => ErrorKind::FixInput,
+            MeasureError::Driver(e) => e.kind(),
+            MeasureError::RecordTooShort { .. } => ErrorKind::Retry,
+            MeasureError::Catalog(_)
+            | MeasureError::Dsp(_)
+            | MeasureError::Storage(_)
+            | MeasureError::Journal(_)
+            | MeasureError::Lab(_)
+            | MeasureError::NoReferenceEcho { .. }
+            | MeasureError::RecordShorterThanWaveform { .. }
+            | MeasureError::Worker(_)
+            | MeasureError::Interrupted { .. } => ErrorKind::Abort,
+        }
+    }
 }
 
 impl Classify for MeasureError {
     fn exit_class(&self) -> ExitClass {
         match self {
-            MeasureError::Param(_) | MeasureError::Waveform(_) => ExitClass::BadInput,
+            MeasureError::Option { .. }
+            | MeasureError::AlgorithmNeedsOfdm { .. }
+            | MeasureError::NoPermit
+            | MeasureError::DoesNotFit { .. }
+            | MeasureError::RateNotMultiple { .. }
+            | MeasureError::BackgroundShape { .. }
+            | MeasureError::Waveform(_)
+            | MeasureError::Scene(_)
+            | MeasureError::Resource { .. } => ExitClass::BadInput,
+            MeasureError::RecordTooShort { .. } | MeasureError::Lab(_) => ExitClass::Instrument,
+            MeasureError::NoReferenceEcho { .. } => ExitClass::Processing,
+            MeasureError::RecordShorterThanWaveform { .. } | MeasureError::Worker(_) => {
+                ExitClass::Internal
+            }
             MeasureError::Driver(e) => e.exit_class(),
             MeasureError::BenchFile(e) => e.exit_class(),
             MeasureError::Catalog(e) => e.exit_class(),
             MeasureError::Dsp(e) => e.exit_class(),
-            MeasureError::Processing(_) => ExitClass::Processing,
-            MeasureError::Interrupted(_) => ExitClass::Interrupted,
+            MeasureError::Storage(e) => e.exit_class(),
+            MeasureError::Journal(e) => e.exit_class(),
+            MeasureError::Interrupted { signal, .. } => match signal {
+                interrupt::StopSignal::Interrupt => ExitClass::Interrupted,
+                interrupt::StopSignal::Terminate => ExitClass::Terminated,
+                interrupt::StopSignal::HangUp => ExitClass::HungUp,
+            },
         }
     }
+}
+
+/// Runs heavy, synchronous work (DSP, file writing) off the async runtime's workers.
+pub async fn off_runtime<T, F>(work: F) -> Result<T, MeasureError>
+where
+    F: FnOnce() -> T + Send + 'static,
+    T: Send + 'static,
+{
+    tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| MeasureError::Worker(e.to_string()))
 }

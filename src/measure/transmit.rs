@@ -1,32 +1,15 @@
-//! What the AWG plays: the waveform, its 8-bit codes and marker, and what the receiver needs to
-//! know about it (the transmitted reference, the OFDM symbols, the bits).
+//! What the AWG plays: the waveform (MSK-LFM, or OFDM with its symbols), its 8-bit codes and marker,
+//! and what the receiver needs to know about it (the transmitted reference, the bits).
 
 use super::MeasureError;
 use crate::driver::IqWaveform;
 use crate::waveform::bits::BitSource;
-use crate::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use crate::waveform::ofdm::{Ofdm, OfdmParams, SymbolMatrix};
-use crate::waveform::quantise::{quantise, BackoffReference, Quantised};
+use crate::waveform::msk_lfm::MskLfm;
+use crate::waveform::ofdm::{Ofdm, SymbolMatrix};
+use crate::waveform::quantise::{quantise, BackoffReference};
+use crate::waveform::spec::WaveformSpec;
 use num_complex::Complex64;
-
-/// Which waveform to play.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum WaveformKind {
-    /// MSK-LFM: a 1 GHz chirp carrying 128 MSK bits per 10 us pulse (thesis Table 4.1).
-    MskLfm,
-    /// OFDM: 128 QPSK subcarriers over 1 GHz, 100 symbols per frame (thesis Table 4.2).
-    Ofdm,
-}
-
-impl WaveformKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            WaveformKind::MskLfm => "msk-lfm",
-            WaveformKind::Ofdm => "ofdm",
-        }
-    }
-}
+use serde::Serialize;
 
 /// The marker is high on the first this-many samples of each repetition: 4 ns at 16 GSa/s, well
 /// above the M8195A's minimum marker pulse of 128 DAC samples (32 memory samples at DIV4).
@@ -35,31 +18,39 @@ pub const MARKER_SAMPLES: usize = 64;
 /// Back-off of the DAC codes below full scale, dB (peak reference): no clipping.
 pub const DEFAULT_BACKOFF_DB: f64 = 0.5;
 
-/// The transmission, ready for the AWG and the receiver.
+/// How the transmitted reference is modelled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Dac {
+    /// The AWG's 8-bit codes, `backoff_db` below full scale: the reference is what the codes
+    /// represent (the bench).
+    Codes { backoff_db: f64 },
+    /// The ideal waveform (simulations of the thesis, which does not quantise); codes are still
+    /// made for completeness.
+    Ideal,
+}
+
+impl Default for Dac {
+    fn default() -> Self {
+        Dac::Codes {
+            backoff_db: DEFAULT_BACKOFF_DB,
+        }
+    }
+}
+
+/// The modulated waveform and what its receivers need.
 #[derive(Debug, Clone)]
-pub struct Transmission {
-    pub kind: WaveformKind,
-    /// Samples per second of the segment.
-    pub sample_rate_hz: f64,
-    pub bandwidth_hz: f64,
-    /// The codes and marker downloaded to the AWG.
-    pub iq: IqWaveform,
-    /// What the codes represent, per unit full-scale (codes / 127): the correlation reference.
-    pub reference: Vec<Complex64>,
-    /// All transmitted bits (framing included).
-    pub bits: Vec<u8>,
-    /// The user payload, if one was sent.
-    pub payload: Option<Vec<u8>>,
-    /// OFDM only: the transmitted symbols, symbol-major, ascending subcarrier frequency.
-    pub symbols: Option<SymbolMatrix>,
-    pub msk: Option<MskLfmParams>,
-    pub ofdm: Option<OfdmParams>,
-    /// Quantisation report (clipping, SQNR).
-    pub quantised: QuantisationReport,
+pub enum Modulation {
+    /// One or more MSK-LFM pulses (tables built once).
+    MskLfm(MskLfm),
+    /// OFDM frames with every transmitted symbol (symbol-major, ascending subcarrier frequency).
+    Ofdm {
+        generator: Box<Ofdm>,
+        symbols: SymbolMatrix,
+    },
 }
 
 /// What quantising to the DAC cost.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QuantisationReport {
     pub backoff_db: f64,
     pub clipped_samples: usize,
@@ -67,58 +58,72 @@ pub struct QuantisationReport {
     pub sqnr_db: f64,
 }
 
+/// The transmission, ready for the AWG and the receiver.
+#[derive(Debug, Clone)]
+pub struct Transmission {
+    /// The parameters it was made from.
+    pub spec: WaveformSpec,
+    pub modulation: Modulation,
+    /// The codes and marker downloaded to the AWG.
+    pub iq: IqWaveform,
+    /// The transmitted signal per unit full scale (codes / 127 on the bench): the correlation
+    /// reference, one repetition (all pulses or frames of the payload).
+    pub reference: Vec<Complex64>,
+    /// All transmitted bits (framing included).
+    pub bits: Vec<u8>,
+    /// The user payload, if one was sent.
+    pub payload: Option<Vec<u8>>,
+    /// What quantising to the DAC cost.
+    pub quantised: QuantisationReport,
+}
+
 impl Transmission {
-    /// The thesis' waveform of `kind` carrying `payload` (or PRBS bits from `seed`).
+    /// The waveform of `spec` carrying `payload` (or PRBS bits from `seed`).
     pub fn new(
-        kind: WaveformKind,
+        spec: &WaveformSpec,
         payload: Option<&[u8]>,
         seed: u64,
-        backoff_db: f64,
+        dac: Dac,
     ) -> Result<Transmission, MeasureError> {
         let source = match payload {
             Some(p) => BitSource::Payload(p.to_vec()),
             None => BitSource::Prbs { seed },
         };
-        let (samples, bits, symbols, msk, ofdm, fs, bw) = match kind {
-            WaveformKind::MskLfm => {
-                let params = MskLfmParams::default();
-                let gen = MskLfm::new(params)?;
+        let (samples, bits, modulation) = match spec {
+            WaveformSpec::MskLfm { .. } => {
+                let gen = MskLfm::new(spec.msk_lfm_params().expect("an MSK-LFM spec"))?;
                 let sig = gen.generate(&source, 1)?;
-                (
-                    sig.samples,
-                    sig.bits,
-                    None,
-                    Some(params),
-                    None,
-                    params.sample_rate_hz,
-                    params.bandwidth_hz,
-                )
+                (sig.samples, sig.bits, Modulation::MskLfm(gen))
             }
-            WaveformKind::Ofdm => {
-                let params = OfdmParams::default();
-                let gen = Ofdm::new(params)?;
+            WaveformSpec::Ofdm { .. } => {
+                let gen = Ofdm::new(spec.ofdm_params().expect("an OFDM spec"))?;
                 let sig = gen.generate(&source, 1)?;
                 (
                     sig.samples,
                     sig.bits,
-                    Some(sig.symbols),
-                    None,
-                    Some(params),
-                    gen.sample_rate_hz(),
-                    params.bandwidth_hz,
+                    Modulation::Ofdm {
+                        generator: Box::new(gen),
+                        symbols: sig.symbols,
+                    },
                 )
             }
         };
-        let q: Quantised = quantise(&samples, backoff_db, BackoffReference::Peak)?;
-        let reference =
-            q.i.iter()
-                .zip(&q.q)
-                .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
-                .collect();
+        let backoff_db = match dac {
+            Dac::Codes { backoff_db } => backoff_db,
+            Dac::Ideal => DEFAULT_BACKOFF_DB,
+        };
+        let q = quantise(&samples, backoff_db, BackoffReference::Peak)?;
+        let reference = match dac {
+            Dac::Codes { .. } => {
+                q.i.iter()
+                    .zip(&q.q)
+                    .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
+                    .collect()
+            }
+            Dac::Ideal => samples,
+        };
         Ok(Transmission {
-            kind,
-            sample_rate_hz: fs,
-            bandwidth_hz: bw,
+            spec: *spec,
             quantised: QuantisationReport {
                 backoff_db,
                 clipped_samples: q.clipped(),
@@ -133,10 +138,21 @@ impl Transmission {
             reference,
             bits,
             payload: payload.map(<[u8]>::to_vec),
-            symbols,
-            msk,
-            ofdm,
+            modulation,
         })
+    }
+
+    /// Samples per second of the segment.
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.spec.sample_rate_hz()
+    }
+
+    pub fn bandwidth_hz(&self) -> f64 {
+        self.spec.bandwidth_hz()
+    }
+
+    pub fn name(&self) -> &'static str {
+        self.spec.name()
     }
 
     /// Samples of one repetition as given (before the AWG pads to its granularity).
@@ -151,23 +167,39 @@ impl Transmission {
     /// Plain-data description for the run's files.
     pub fn describe(&self) -> serde_json::Value {
         let mut v = serde_json::json!({
-            "waveform": self.kind.name(),
-            "sample_rate_hz": self.sample_rate_hz,
-            "bandwidth_hz": self.bandwidth_hz,
+            "waveform": self.name(),
+            "sample_rate_hz": self.sample_rate_hz(),
+            "bandwidth_hz": self.bandwidth_hz(),
             "samples_per_repetition": self.len(),
             "marker_high_samples": self.iq.marker_high_samples,
             "bits": self.bits.len(),
             "payload_bytes": self.payload.as_ref().map(Vec::len),
             "quantisation": self.quantised,
+            "spec": self.spec,
         });
-        if let Some(m) = &self.msk {
-            v["bits_per_pulse"] = m.bits_per_pulse.into();
-        }
-        if let Some(o) = &self.ofdm {
-            v["subcarriers"] = o.subcarriers.into();
-            v["cp_fraction"] = o.cp_fraction.into();
-            v["symbols_per_frame"] = o.symbols_per_frame.into();
-            v["oversampling"] = o.oversampling.into();
+        match &self.spec {
+            WaveformSpec::MskLfm {
+                bits_per_pulse,
+                pulse_s,
+                ..
+            } => {
+                v["bits_per_pulse"] = (*bits_per_pulse).into();
+                v["pulse_s"] = (*pulse_s).into();
+            }
+            WaveformSpec::Ofdm {
+                subcarriers,
+                cp_fraction,
+                symbols,
+                oversampling,
+                preamble_symbols,
+                ..
+            } => {
+                v["subcarriers"] = (*subcarriers).into();
+                v["cp_fraction"] = (*cp_fraction).into();
+                v["symbols_per_frame"] = (*symbols).into();
+                v["oversampling"] = (*oversampling).into();
+                v["preamble_symbols"] = (*preamble_symbols).into();
+            }
         }
         v
     }

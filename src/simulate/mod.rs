@@ -5,8 +5,7 @@
 //! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
 //! | [`noise`] | complex white noise at a per-sample SNR |
 //! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
-//! | processing | range profiles, periodic decimation and root-MUSIC live in [`crate::dsp`]; the choice names in [`crate::processing`] |
-//! | [`run`] | the engine: transmit, echoes, capture chain, noise, processing, metrics, trials |
+//! | [`run`] | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
 //! | [`accuracy`] | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
 //! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
 //! | [`ber`] | BER against Eb/N0 for both waveforms, next to theory |
@@ -37,6 +36,9 @@ pub enum SimError {
     /// The processing layer refused its parameters or the data.
     #[error(transparent)]
     Dsp(#[from] crate::dsp::DspError),
+    /// The measurement pipeline refused the run's options or failed.
+    #[error(transparent)]
+    Measure(#[from] crate::measure::MeasureError),
     /// An output (plot, profile) could not be written.
     #[error(transparent)]
     Storage(#[from] crate::storage::StorageError),
@@ -49,6 +51,7 @@ impl Classify for SimError {
             SimError::Waveform(e) => e.exit_class(),
             SimError::Dsp(e) => e.exit_class(),
             SimError::Storage(e) => e.exit_class(),
+            SimError::Measure(e) => e.exit_class(),
         }
     }
 }

@@ -110,7 +110,7 @@ pub fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
 }
 
 /// Which carrier frequency sets the constant echo phase `exp(-j 2 pi f_c tau)`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CarrierPhase {
     /// The bench's 80 GHz carrier: what a real measurement sees (default).

@@ -3,83 +3,12 @@
 
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
-use crate::dsp::C0;
-/// The processing choices a run spec names (defined in [`crate::processing`]).
-pub use crate::processing::{Algorithm, FftPrecisionName, WindowName};
-
-/// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
-pub const MAX_ZERO_PAD: usize = 1000;
+/// The processing choices a run spec names (defined in [`crate::measure::options`]).
+pub use crate::measure::options::{Algorithm, FftPrecisionName, WindowName, MAX_ZERO_PAD};
+/// The waveform a run transmits (defined in [`crate::waveform::spec`]).
+pub use crate::waveform::spec::WaveformSpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
-
-/// Which waveform, with its parameters (defaults: thesis Tables 4.1 and 4.2).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum WaveformSpec {
-    MskLfm {
-        sample_rate_hz: f64,
-        bandwidth_hz: f64,
-        pulse_s: f64,
-        bits_per_pulse: usize,
-    },
-    Ofdm {
-        bandwidth_hz: f64,
-        subcarriers: usize,
-        oversampling: usize,
-        cp_fraction: f64,
-        symbols: usize,
-    },
-}
-
-impl WaveformSpec {
-    /// Thesis Table 4.1: 16 GSa/s, 1 GHz, 10 us, 128 bits.
-    pub fn msk_lfm_default() -> Self {
-        WaveformSpec::MskLfm {
-            sample_rate_hz: 16e9,
-            bandwidth_hz: 1e9,
-            pulse_s: 10e-6,
-            bits_per_pulse: 128,
-        }
-    }
-
-    /// Thesis Table 4.2 as read in thesis-notes.md: 128 subcarriers, 1 GHz, x16, CP 1/4, 100 symbols.
-    pub fn ofdm_default() -> Self {
-        WaveformSpec::Ofdm {
-            bandwidth_hz: 1e9,
-            subcarriers: 128,
-            oversampling: 16,
-            cp_fraction: 0.25,
-            symbols: 100,
-        }
-    }
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            WaveformSpec::MskLfm { .. } => "msk-lfm",
-            WaveformSpec::Ofdm { .. } => "ofdm",
-        }
-    }
-
-    pub fn bandwidth_hz(&self) -> f64 {
-        match *self {
-            WaveformSpec::MskLfm { bandwidth_hz, .. } | WaveformSpec::Ofdm { bandwidth_hz, .. } => {
-                bandwidth_hz
-            }
-        }
-    }
-
-    /// The waveform's own sample rate (the AWG rate), Hz.
-    pub fn sample_rate_hz(&self) -> f64 {
-        match *self {
-            WaveformSpec::MskLfm { sample_rate_hz, .. } => sample_rate_hz,
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                oversampling,
-                ..
-            } => bandwidth_hz * oversampling as f64,
-        }
-    }
-}
 
 /// One simulation: waveform, scene, processing, randomness.
 #[derive(Debug, Clone, PartialEq)]
@@ -107,13 +36,35 @@ pub struct RunSpec {
     pub capture_rate_hz: Option<f64>,
     /// Sub-sample peak interpolation (on by default).
     pub interpolate: bool,
+    /// Probability of false alarm of the detector (the detections reported beside the figures).
+    pub pfa: f64,
     pub seed: u64,
     pub trials: usize,
 }
 
 impl RunSpec {
-    /// Defaults of `radbench simulate run`: physical phase, seed 1, one trial, noise-free.
+    /// Defaults of `radbench simulate run`: physical phase, seed 1, one trial, noise-free. An
+    /// OFDM frame is simulated as a radar frame: every symbol carries data known to the radar, no
+    /// preamble (the communication receiver is not simulated here).
     pub fn new(id: impl Into<String>, waveform: WaveformSpec, targets: Vec<Target>) -> Self {
+        let waveform = match waveform {
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                oversampling,
+                cp_fraction,
+                symbols,
+                ..
+            } => WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                oversampling,
+                cp_fraction,
+                symbols,
+                preamble_symbols: 0,
+            },
+            other => other,
+        };
         let algorithm = match waveform {
             WaveformSpec::MskLfm { .. } => Algorithm::Correlation,
             WaveformSpec::Ofdm { .. } => Algorithm::Fourier,
@@ -133,6 +84,7 @@ impl RunSpec {
             carrier: CarrierPhase::Physical,
             capture_rate_hz: None,
             interpolate: true,
+            pfa: 1e-6,
             seed: 1,
             trials: 1,
         }
@@ -154,26 +106,6 @@ impl RunSpec {
             if !snr.is_finite() {
                 return bad("--snr-db", format!("{snr} is not a finite number of dB"));
             }
-        }
-        if let WaveformSpec::MskLfm { .. } = self.waveform {
-            if self.algorithm != Algorithm::Correlation {
-                return bad(
-                    "--algorithm",
-                    format!(
-                        "{} needs OFDM symbols; the MSK-LFM radar uses 'correlation'",
-                        self.algorithm.name()
-                    ),
-                );
-            }
-        }
-        if self.zero_pad == 0 || self.zero_pad > MAX_ZERO_PAD {
-            return bad(
-                "--zero-pad",
-                format!(
-                    "{} is outside 1..={MAX_ZERO_PAD} (1 = no zero-padding, 10 = the thesis)",
-                    self.zero_pad
-                ),
-            );
         }
         let max_range = self.max_range_m();
         for t in &self.targets {
@@ -212,32 +144,13 @@ impl RunSpec {
     /// Ranges this waveform can simulate: MSK-LFM, an echo delay below one pulse length; OFDM, the
     /// unambiguous range `c0 / (2 df)` (19.2 m by default).
     pub fn max_range_m(&self) -> f64 {
-        match self.waveform {
-            WaveformSpec::MskLfm { pulse_s, .. } => C0 * pulse_s / 2.0,
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                ..
-            } => match subcarriers {
-                // No limit here: the waveform layer reports the bad subcarrier count.
-                0 => f64::INFINITY,
-                n => C0 / (2.0 * bandwidth_hz / n as f64),
-            },
-        }
+        self.waveform.max_range_m()
     }
 
     /// OFDM: ranges beyond which the echo delay exceeds the cyclic prefix (inter-symbol
     /// interference); `None` for MSK-LFM.
     pub fn cp_range_m(&self) -> Option<f64> {
-        match self.waveform {
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                cp_fraction,
-                ..
-            } => Some(C0 * cp_fraction * subcarriers as f64 / bandwidth_hz / 2.0),
-            WaveformSpec::MskLfm { .. } => None,
-        }
+        self.waveform.cp_range_m()
     }
 
     /// Capture-to-waveform rate ratio (1 when processing at the waveform rate).
@@ -273,6 +186,9 @@ pub struct ScenarioResult {
     /// Range-profile bin spacing in metres (`null` for grid-free estimators).
     pub range_bin_m: Option<f64>,
     pub trials: usize,
+    /// What the pipeline's detector reported in the first trial, ascending range (m): the same
+    /// detections `capture` would report on these samples.
+    pub detected_m: Vec<f64>,
     /// Fraction of trials that resolved every target (only with trials > 1).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resolved_rate: Option<f64>,
@@ -292,7 +208,10 @@ mod tests {
     fn msk_lfm_refuses_ofdm_algorithms_naming_the_field() {
         let mut spec = RunSpec::new("x", WaveformSpec::msk_lfm_default(), vec![Target::at(3.0)]);
         spec.algorithm = Algorithm::Music;
-        let err = spec.validate().unwrap_err().to_string();
+        let err = crate::simulate::run::simulate(&spec)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(err.starts_with("--algorithm"), "{err}");
     }
 

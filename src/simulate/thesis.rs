@@ -196,6 +196,7 @@ fn ofdm_symbols(symbols: usize) -> WaveformSpec {
             oversampling,
             cp_fraction,
             symbols,
+            preamble_symbols: 0,
         },
         other => other,
     }
@@ -675,6 +676,7 @@ fn fft_counts(ctx: &mut Ctx) {
             seed: 0,
             targets_m: vec![],
             peaks_m: vec![],
+            detected_m: vec![],
             errors_cm: vec![],
             width_3db_cm: None,
             sidelobe_db: None,

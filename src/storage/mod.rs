@@ -33,6 +33,9 @@ pub enum StorageError {
     /// The data handed to a writer is inconsistent (a caller bug or an empty result).
     #[error("cannot write {path}: {reason}")]
     BadData { path: PathBuf, reason: String },
+    /// A recording given as input cannot be used (names the file and the field).
+    #[error("{path}: {reason}")]
+    BadRecording { path: PathBuf, reason: String },
     /// The plotting library failed while drawing.
     #[error("cannot draw {path}: {reason}")]
     Plot { path: PathBuf, reason: String },
@@ -41,7 +44,9 @@ pub enum StorageError {
 impl Classify for StorageError {
     fn exit_class(&self) -> ExitClass {
         match self {
-            StorageError::UnsupportedFormat { .. } => ExitClass::BadInput,
+            StorageError::UnsupportedFormat { .. } | StorageError::BadRecording { .. } => {
+                ExitClass::BadInput
+            }
             StorageError::Io { .. } | StorageError::BadData { .. } | StorageError::Plot { .. } => {
                 ExitClass::Processing
             }

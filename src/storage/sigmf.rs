@@ -135,6 +135,134 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// A raw capture radbench wrote (`ci16_le` scope words with the `radbench:` scaling), in volts.
+#[derive(Debug, Clone)]
+pub struct ScopeRecording {
+    /// I + jQ in volts.
+    pub samples: Vec<num_complex::Complex64>,
+    pub sample_rate_hz: f64,
+    /// Time of the first sample after the trigger, seconds.
+    pub first_point_s: f64,
+    /// The whole `global` object of the metadata.
+    pub global: Map<String, Value>,
+}
+
+/// The `.sigmf-meta` and `.sigmf-data` paths of a recording given by either file or its base.
+pub fn recording_paths(path: &Path) -> SigmfFiles {
+    let text = path.to_string_lossy();
+    let base = text
+        .strip_suffix(".sigmf-meta")
+        .or_else(|| text.strip_suffix(".sigmf-data"))
+        .unwrap_or(&text)
+        .to_string();
+    SigmfFiles {
+        meta: PathBuf::from(format!("{base}.sigmf-meta")),
+        data: PathBuf::from(format!("{base}.sigmf-data")),
+    }
+}
+
+/// Reads a capture radbench wrote (its `.sigmf-meta`, `.sigmf-data` or base path) in volts.
+/// Errors name the file and the field, and say what a usable recording needs.
+pub fn read_scope_recording(path: &Path) -> Result<ScopeRecording, StorageError> {
+    let files = recording_paths(path);
+    let bad = |p: &Path, reason: String| StorageError::BadRecording {
+        path: p.to_path_buf(),
+        reason,
+    };
+    let text = std::fs::read(&files.meta).map_err(|e| bad(&files.meta, e.to_string()))?;
+    let meta: Value =
+        serde_json::from_slice(&text).map_err(|e| bad(&files.meta, format!("not JSON: {e}")))?;
+    let Some(global) = meta.get("global").and_then(Value::as_object) else {
+        return Err(bad(
+            &files.meta,
+            "no `global` object: not a SigMF recording".into(),
+        ));
+    };
+    let field = |k: &str| -> Result<&Value, StorageError> {
+        global.get(k).ok_or_else(|| {
+            bad(
+                &files.meta,
+                format!("no `{k}`: give a capture written by radbench capture"),
+            )
+        })
+    };
+    let number = |k: &str| -> Result<f64, StorageError> {
+        field(k)?
+            .as_f64()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| bad(&files.meta, format!("`{k}` must be a finite number")))
+    };
+    let pair = |k: &str| -> Result<[f64; 2], StorageError> {
+        let v = field(k)?;
+        match v.as_array().map(|a| a.as_slice()) {
+            Some([a, b]) => match (a.as_f64(), b.as_f64()) {
+                (Some(a), Some(b)) if a.is_finite() && b.is_finite() => Ok([a, b]),
+                _ => Err(bad(
+                    &files.meta,
+                    format!("`{k}` must hold two finite numbers (I, Q)"),
+                )),
+            },
+            _ => Err(bad(
+                &files.meta,
+                format!("`{k}` must hold two numbers (I, Q), not {v}"),
+            )),
+        }
+    };
+    if field("core:datatype")?.as_str() != Some("ci16_le") {
+        return Err(bad(
+            &files.meta,
+            format!(
+                "core:datatype is {}; radbench's raw scope words are ci16_le",
+                global["core:datatype"]
+            ),
+        ));
+    }
+    let rate = number("core:sample_rate")?;
+    if rate <= 0.0 {
+        return Err(bad(
+            &files.meta,
+            format!("core:sample_rate {rate} must be positive"),
+        ));
+    }
+    let gain = pair("radbench:vertical_gain")?;
+    let offset = pair("radbench:vertical_offset")?;
+    let first = number("radbench:trigger_offset_s")?;
+    let bytes = std::fs::read(&files.data).map_err(|e| bad(&files.data, e.to_string()))?;
+    if bytes.len() % 4 != 0 || bytes.is_empty() {
+        return Err(bad(
+            &files.data,
+            format!(
+                "{} bytes is not a whole, non-zero number of 4-byte ci16 samples (truncated?)",
+                bytes.len()
+            ),
+        ));
+    }
+    if let Some(want) = global.get("core:sha512").and_then(Value::as_str) {
+        let got = hex(&Sha512::digest(&bytes));
+        if got != want {
+            return Err(bad(
+                &files.data,
+                "its SHA-512 differs from core:sha512 in the metadata: the data file was changed or truncated"
+                    .into(),
+            ));
+        }
+    }
+    let samples = bytes
+        .chunks_exact(4)
+        .map(|c| {
+            let i = f64::from(i16::from_le_bytes([c[0], c[1]]));
+            let q = f64::from(i16::from_le_bytes([c[2], c[3]]));
+            num_complex::Complex64::new(gain[0] * i - offset[0], gain[1] * q - offset[1])
+        })
+        .collect();
+    Ok(ScopeRecording {
+        samples,
+        sample_rate_hz: rate,
+        first_point_s: first,
+        global: global.clone(),
+    })
+}
+
 /// UTC time as RFC 3339 with milliseconds, from the system clock.
 pub fn utc_now_rfc3339() -> String {
     crate::time::rfc3339_millis(std::time::SystemTime::now())

@@ -7,6 +7,7 @@
 //! | [`ofdm`] | OFDM frame generator (QPSK Gray, CP, ideal interpolation) and its receiver |
 //! | [`ber`] | `erfc`, the theoretical BER curves and the Monte-Carlo BER helper |
 //! | [`quantise`] | quantisation to the M8195A's signed 8-bit codes with back-off, clipping report |
+//! | [`spec`] | [`spec::WaveformSpec`]: which waveform with which parameters, as plain data (TOML) |
 //!
 //! Conventions (sample order, scaling, bit order) follow `CONVENTIONS.md` of the project: complex
 //! baseband `Complex64`, unit mean power per sample, bits as `u8` values 0/1 taken least significant
@@ -57,3 +58,4 @@ pub mod bits;
 pub mod msk_lfm;
 pub mod ofdm;
 pub mod quantise;
+pub mod spec;

@@ -1,0 +1,63 @@
+//! The bench's fixed system delay (cables, horns, marker latency), measured on a reference target
+//! at a known range.
+
+use super::pipeline::Processed;
+use super::MeasureError;
+use crate::dsp::C0;
+use serde::Serialize;
+
+/// What a calibration capture gave.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DelayEstimate {
+    pub system_delay_s: f64,
+    pub reference_range_m: f64,
+    /// The reference echo's range before calibration.
+    pub measured_range_m: f64,
+}
+
+/// Checks the calibration inputs (before anything radiates).
+pub fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> {
+    if !(reference_range_m.is_finite() && reference_range_m > 0.0 && reference_range_m < 100.0) {
+        return Err(MeasureError::option(
+            "reference-range",
+            reference_range_m,
+            "the reference target's range in metres, 0 < R < 100",
+        ));
+    }
+    if !(search_m.is_finite() && search_m > 0.0 && search_m <= 100.0) {
+        return Err(MeasureError::option(
+            "search",
+            search_m,
+            "a distance in metres, 0 < search <= 100 (how far the uncalibrated echo may lie \
+             beyond the true range)",
+        ));
+    }
+    Ok(())
+}
+
+/// Uncalibrated ranges are true range + c * delay / 2: the reference is the strongest echo at or
+/// beyond its true range, within `search_m` of it.
+pub fn estimate_delay(
+    processed: &Processed,
+    reference_range_m: f64,
+    search_m: f64,
+) -> Result<DelayEstimate, MeasureError> {
+    check(reference_range_m, search_m)?;
+    let reference = processed
+        .targets
+        .iter()
+        .filter(|t| {
+            t.range_m >= reference_range_m - 0.05
+                && t.range_m <= reference_range_m + search_m + 0.05
+        })
+        .max_by(|a, b| a.level_db.total_cmp(&b.level_db))
+        .ok_or(MeasureError::NoReferenceEcho {
+            from_m: reference_range_m,
+            to_m: reference_range_m + search_m,
+        })?;
+    Ok(DelayEstimate {
+        system_delay_s: 2.0 * (reference.range_m - reference_range_m) / C0,
+        reference_range_m,
+        measured_range_m: reference.range_m,
+    })
+}

@@ -1,0 +1,204 @@
+//! How a capture is processed: the algorithm and its settings ([`ProcessOptions`]), recorded as
+//! `processing` in `summary.json` and the SigMF metadata so a capture can be re-processed
+//! identically. Library types only: the CLI maps its own argument enums onto these.
+
+use crate::dsp::ofdm_radar::FftPrecision;
+use crate::dsp::window::Window;
+use crate::waveform::spec::WaveformKind;
+use serde::{Deserialize, Serialize};
+
+/// Range-processing algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar).
+    Correlation,
+    /// OFDM: spectral division and zero-padded IFFT over the subcarriers.
+    Fourier,
+    /// OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward).
+    Music,
+    /// OFDM: root-MUSIC, ranges from polynomial roots (no grid).
+    RootMusic,
+    /// OFDM: ESPRIT, ranges from the shift invariance (no grid).
+    Esprit,
+}
+
+impl Algorithm {
+    pub const ALL: [Algorithm; 5] = [
+        Algorithm::Correlation,
+        Algorithm::Fourier,
+        Algorithm::Music,
+        Algorithm::RootMusic,
+        Algorithm::Esprit,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Correlation => "correlation",
+            Algorithm::Fourier => "fourier",
+            Algorithm::Music => "music",
+            Algorithm::RootMusic => "root-music",
+            Algorithm::Esprit => "esprit",
+        }
+    }
+
+    /// The algorithm of a name as [`Algorithm::name`] writes it.
+    pub fn from_name(name: &str) -> Option<Algorithm> {
+        Self::ALL.into_iter().find(|a| a.name() == name)
+    }
+
+    /// The algorithms that return ranges without a profile.
+    pub fn is_grid_free(self) -> bool {
+        matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
+    }
+
+    /// The subspace methods (they need M and p).
+    pub fn is_subspace(self) -> bool {
+        matches!(
+            self,
+            Algorithm::Music | Algorithm::RootMusic | Algorithm::Esprit
+        )
+    }
+
+    /// Whether this algorithm can process this waveform (the subspace methods and Fourier need
+    /// OFDM symbols; correlation works for both).
+    pub fn supports(self, waveform: WaveformKind) -> bool {
+        self == Algorithm::Correlation || waveform == WaveformKind::Ofdm
+    }
+
+    /// The default algorithm of a waveform: correlation for MSK-LFM, Fourier for OFDM.
+    pub fn default_for(waveform: WaveformKind) -> Algorithm {
+        match waveform {
+            WaveformKind::MskLfm => Algorithm::Correlation,
+            WaveformKind::Ofdm => Algorithm::Fourier,
+        }
+    }
+}
+
+/// Precision of the OFDM receiver's per-symbol FFT; the rest is double.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FftPrecisionName {
+    /// Single precision (default): rounding ~130 dB under the signal, about twice as fast.
+    #[default]
+    Single,
+    /// Double precision, for noise-free studies that look below -130 dB.
+    Double,
+}
+
+impl FftPrecisionName {
+    pub fn to_dsp(self) -> FftPrecision {
+        match self {
+            Self::Single => FftPrecision::Single,
+            Self::Double => FftPrecision::Double,
+        }
+    }
+}
+
+/// Window on the range processing, trading side-lobes for width.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WindowName {
+    /// No window (rectangular): narrowest main lobe, -13.3 dB side-lobes.
+    #[default]
+    Rect,
+    Hann,
+    /// Taylor, 4 nearly equal side-lobes at -35 dB.
+    Taylor,
+    /// Dolph-Chebyshev, equal side-lobes at -50 dB.
+    Chebyshev,
+}
+
+impl WindowName {
+    pub fn name(self) -> &'static str {
+        match self {
+            WindowName::Rect => "rect",
+            WindowName::Hann => "hann",
+            WindowName::Taylor => "taylor",
+            WindowName::Chebyshev => "chebyshev",
+        }
+    }
+
+    /// The `dsp` window: Taylor nbar 4 at -35 dB, Chebyshev at -50 dB.
+    pub fn to_dsp(self) -> Window {
+        match self {
+            WindowName::Rect => Window::Rectangular,
+            WindowName::Hann => Window::Hann,
+            WindowName::Taylor => Window::Taylor {
+                nbar: 4,
+                sll_db: -35.0,
+            },
+            WindowName::Chebyshev => Window::Chebyshev { sll_db: -50.0 },
+        }
+    }
+}
+
+/// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
+pub const MAX_ZERO_PAD: usize = 1000;
+
+/// MUSIC pseudo-spectrum grid = this factor x subcarriers (12 800 points, 1.17 mm for the thesis'
+/// OFDM): MUSIC peaks are far narrower than Fourier ones, and a 1280-point grid (1.17 cm) leaves
+/// sub-sample interpolation errors of several millimetres.
+pub const MUSIC_GRID_FACTOR: usize = 100;
+
+/// How to process a capture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProcessOptions {
+    pub algorithm: Algorithm,
+    /// MUSIC sub-vector length M.
+    pub music_m: usize,
+    /// Number of targets for MUSIC/root-MUSIC/ESPRIT; `None` = estimated (MDL).
+    pub music_p: Option<usize>,
+    /// Forward-backward averaging of the MUSIC covariance.
+    pub forward_backward: bool,
+    /// OFDM Fourier zero padding.
+    pub zero_pad: usize,
+    pub window: WindowName,
+    /// Precision of the OFDM receiver's per-symbol FFT.
+    pub fft_precision: FftPrecisionName,
+    /// Sub-sample interpolation of peak positions.
+    pub interpolate: bool,
+    /// Fixed delay of the bench (calibration), seconds.
+    pub system_delay_s: f64,
+    /// Detections closer than this are ignored (the direct Tx -> Rx leakage sits near 0 m).
+    pub min_range_m: f64,
+    /// Detections farther than this are ignored.
+    pub max_range_m: f64,
+    /// Probability of false alarm of the detector.
+    pub pfa: f64,
+    /// The AWG's I/Q amplitude (peak to peak, volts): echo levels are given relative to a path
+    /// of unit voltage gain from the AWG output to the scope input. `None` (simulations): levels
+    /// are relative to the transmitted waveform itself.
+    pub awg_amplitude_vpp: Option<f64>,
+}
+
+impl Default for ProcessOptions {
+    fn default() -> Self {
+        Self {
+            algorithm: Algorithm::Correlation,
+            music_m: 64,
+            music_p: None,
+            forward_backward: true,
+            zero_pad: 10,
+            window: WindowName::Rect,
+            fft_precision: FftPrecisionName::Single,
+            interpolate: true,
+            system_delay_s: 0.0,
+            min_range_m: 0.15,
+            max_range_m: 10.0,
+            pfa: 1e-6,
+            awg_amplitude_vpp: None,
+        }
+    }
+}
+
+impl ProcessOptions {
+    /// The defaults with the default algorithm of `waveform`.
+    pub fn for_waveform(waveform: WaveformKind) -> Self {
+        Self {
+            algorithm: Algorithm::default_for(waveform),
+            ..Self::default()
+        }
+    }
+}

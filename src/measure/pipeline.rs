@@ -1,0 +1,621 @@
+//! The one measurement pipeline: from a capture in volts to range profiles, targets, metrics and
+//! the decoded payload. Every caller (capture, calibrate, campaigns, `process`, simulations) goes
+//! through a [`Pipeline`]; the five range algorithms are dispatched here and nowhere else.
+//!
+//! A pipeline is configured once per transmission, processing choice and record geometry: the
+//! decimation filter, FFT plans, correlation spectra, OFDM and MUSIC workspaces and the payload
+//! receivers are built in [`Pipeline::new`] (the decimator on the first capture at a new rate) and
+//! reused for every capture.
+//!
+//! Chain: [`Pipeline::align`] decimates the capture to the waveform rate and rotates it so sample
+//! `m` lies `m / fs` after the marker edge (up to a sub-sample residual); [`Pipeline::analyse`]
+//! computes the range profiles and the detections; [`Pipeline::process`] adds the metrics and the
+//! payload. The AWG loops its segment, so the received signal is periodic: one repetition holds
+//! every echo (wrapped) and correlation is circular over it. Ranges are measured from the antennas:
+//! the time of the first sample after the trigger is added and the calibrated system delay
+//! subtracted.
+
+use super::detect::{self, DetectionReport};
+use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
+use super::payload::PayloadDecoder;
+use super::transmit::{Modulation, Transmission};
+use super::MeasureError;
+use crate::dsp::decimate::PeriodicDecimator;
+use crate::dsp::metrics::{interpolate_peak, sidelobe_levels, width_3db, Axis, Interpolation};
+use crate::dsp::music::root_music_ranges;
+use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
+use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::range_profile::{music_profile, CorrelationProfiler, Profile};
+use crate::dsp::C0;
+use num_complex::Complex64;
+use std::sync::Arc;
+
+pub use super::detect::Detection;
+pub use super::payload::PayloadResult;
+
+const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
+
+/// Lags the correlation keeps beyond the farthest range of interest, seconds: the side-lobes of a
+/// target at the far edge of the window stay visible.
+const CORRELATION_MARGIN_S: f64 = 20e-9;
+
+/// The capture in volts at the scope's rate.
+#[derive(Debug, Clone)]
+pub struct RawIq {
+    pub samples: Vec<Complex64>,
+    pub sample_rate_hz: f64,
+    /// Time of the first sample after the trigger (marker edge), seconds.
+    pub first_point_s: f64,
+}
+
+/// One repetition at the waveform rate, aligned to the marker edge: sample `m` is at
+/// `m / fs + residual_s` after it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Aligned {
+    pub samples: Vec<Complex64>,
+    pub residual_s: f64,
+}
+
+/// What the pipeline's record looks like.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordGeometry {
+    /// Samples of one repetition at the waveform rate (the AWG's padded segment).
+    pub period: usize,
+    /// Correlation lags kept (0..lags), at most `period`.
+    pub correlation_lags: usize,
+}
+
+impl RecordGeometry {
+    /// A bench capture: lags up to the farthest range of interest plus the system delay and a
+    /// margin.
+    pub fn for_capture(period: usize, sample_rate_hz: f64, options: &ProcessOptions) -> Self {
+        let max_delay = 2.0 * options.max_range_m.max(0.0) / C0
+            + options.system_delay_s.max(0.0)
+            + CORRELATION_MARGIN_S;
+        let lags = (max_delay * sample_rate_hz).ceil();
+        let lags = if lags.is_finite() {
+            lags as usize
+        } else {
+            period
+        };
+        Self {
+            period,
+            correlation_lags: lags.clamp(2, period.max(2)),
+        }
+    }
+}
+
+/// What the range processing gives for one record.
+#[derive(Debug, Clone)]
+pub struct RangeResult {
+    /// Primary profile first (MUSIC over Fourier when both; Fourier for the grid-free
+    /// estimators), ranges from the antennas, amplitudes relative to a unit-gain path.
+    pub profiles: Vec<Profile>,
+    /// Ranges estimated without a grid (root-MUSIC, ESPRIT) or refined off it (MUSIC's peaks).
+    pub estimates_m: Option<Vec<f64>>,
+    /// The subspace model order used (MUSIC, root-MUSIC, ESPRIT).
+    pub model_order: Option<usize>,
+}
+
+impl RangeResult {
+    /// The primary profile.
+    pub fn primary(&self) -> &Profile {
+        &self.profiles[0]
+    }
+}
+
+/// Range processing and detection of one record.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    pub range: RangeResult,
+    pub detection: DetectionReport,
+}
+
+/// Everything the processing found.
+#[derive(Debug, Clone)]
+pub struct Processed {
+    /// Primary profile first (MUSIC over Fourier when both), ranges from the antennas.
+    pub profiles: Vec<Profile>,
+    pub targets: Vec<Detection>,
+    /// Main-lobe width of the strongest target, cm.
+    pub width_3db_cm: Option<f64>,
+    /// Peak side-lobe level around the strongest target, dB.
+    pub sidelobe_db: Option<f64>,
+    /// Strongest peak over the median of the profile, dB.
+    pub snr_db: Option<f64>,
+    pub payload: Option<PayloadResult>,
+    /// Things a user should check (no target, clipping, ...).
+    pub warnings: Vec<String>,
+    /// The capture decimated to the waveform rate and aligned to the marker (background
+    /// subtracted).
+    pub aligned: Vec<Complex64>,
+}
+
+/// Relative scale of the levels: 1 / (volts at the AWG output per unit of the reference).
+fn level_scale(options: &ProcessOptions) -> f64 {
+    match options.awg_amplitude_vpp {
+        // A code c leaves the DAC as c * Vpp / 255 and the reference is codes / 127.
+        Some(vpp) if vpp > 0.0 && vpp.is_finite() => 255.0 / (127.0 * vpp),
+        _ => 1.0,
+    }
+}
+
+/// The range processing of one algorithm, with its plans and workspaces.
+enum RangeProcessor {
+    Correlation {
+        profiler: Box<CorrelationProfiler>,
+        lags: usize,
+        extended: Vec<Complex64>,
+    },
+    Ofdm(Box<OfdmProcessor>),
+}
+
+struct OfdmProcessor {
+    radar: OfdmRadar,
+    symbols: Vec<Complex64>,
+    idiv: IDiv,
+    profile: RangeProfile,
+    /// Peak of the transmitted frame processed alike: a unit-gain echo's level.
+    unit: f64,
+    /// MUSIC / root-MUSIC / ESPRIT (absent for Fourier).
+    music: Option<Music>,
+    spectrum: MusicSpectrum,
+    df_hz: f64,
+}
+
+/// The configured pipeline (see the module docs).
+pub struct Pipeline {
+    tx: Arc<Transmission>,
+    options: ProcessOptions,
+    geometry: RecordGeometry,
+    range: RangeProcessor,
+    decimator: Option<(f64, usize, PeriodicDecimator)>,
+    payload: PayloadDecoder,
+    level_scale: f64,
+}
+
+impl std::fmt::Debug for Pipeline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pipeline")
+            .field("waveform", &self.tx.name())
+            .field("options", &self.options)
+            .field("geometry", &self.geometry)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Checks the processing options against the transmission before anything is built (and, on the
+/// bench, before anything radiates).
+pub fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<(), MeasureError> {
+    let alg = options.algorithm;
+    if !alg.supports(tx.spec.kind()) {
+        return Err(MeasureError::AlgorithmNeedsOfdm {
+            algorithm: alg.name(),
+        });
+    }
+    if options.zero_pad == 0 || options.zero_pad > MAX_ZERO_PAD {
+        return Err(MeasureError::option(
+            "zero-pad",
+            options.zero_pad,
+            format!("1..={MAX_ZERO_PAD} (1 = no zero-padding, 10 = the thesis)"),
+        ));
+    }
+    if alg.is_subspace() {
+        let n = match &tx.modulation {
+            Modulation::Ofdm { generator, .. } => generator.subcarriers(),
+            Modulation::MskLfm(_) => 0,
+        };
+        let m = options.music_m;
+        if m < 2 || m > n {
+            return Err(MeasureError::option(
+                "m",
+                m,
+                format!("2..={n} (at most the subcarriers)"),
+            ));
+        }
+        if let Some(p) = options.music_p {
+            if p == 0 || p >= m {
+                return Err(MeasureError::option("p", p, format!("1..{m} (below M)")));
+            }
+        }
+    }
+    let (lo, hi) = (options.min_range_m, options.max_range_m);
+    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi && hi <= 1e4) {
+        return Err(MeasureError::option(
+            "min-range/max-range",
+            format!("{lo}/{hi}"),
+            "finite ranges in metres with 0 <= min < max <= 10000",
+        ));
+    }
+    if !(options.pfa > 0.0 && options.pfa < 0.1) {
+        return Err(MeasureError::option(
+            "pfa",
+            options.pfa,
+            "a false-alarm probability above 0 and below 0.1 (1e-6 by default)",
+        ));
+    }
+    if !options.system_delay_s.is_finite() || options.system_delay_s.abs() > 1e-6 {
+        return Err(MeasureError::option(
+            "system_delay_s",
+            options.system_delay_s,
+            "a delay within +-1 us (measure it with `radbench calibrate`)",
+        ));
+    }
+    if let Some(vpp) = options.awg_amplitude_vpp {
+        if !(vpp.is_finite() && vpp > 0.0) {
+            return Err(MeasureError::option(
+                "awg_amplitude_vpp",
+                vpp,
+                "a positive amplitude in volts",
+            ));
+        }
+    }
+    Ok(())
+}
+
+impl Pipeline {
+    /// Builds every plan and workspace for `tx` processed with `options` on records of
+    /// `geometry`. Fails on options that do not fit the transmission (named, with what is
+    /// allowed).
+    pub fn new(
+        tx: Arc<Transmission>,
+        options: ProcessOptions,
+        geometry: RecordGeometry,
+    ) -> Result<Pipeline, MeasureError> {
+        validate(&tx, &options)?;
+        if geometry.period < tx.len() {
+            return Err(MeasureError::RecordShorterThanWaveform {
+                period: geometry.period,
+                waveform: tx.len(),
+            });
+        }
+        let fs = tx.sample_rate_hz();
+        let range = match (options.algorithm, &tx.modulation) {
+            (Algorithm::Correlation, _) => {
+                let period = geometry.period;
+                let lags = geometry.correlation_lags.clamp(2, period.max(2));
+                let mut reference = tx.reference.clone();
+                reference.resize(period, ZERO);
+                let window = options.window.to_dsp();
+                let profiler = if window == crate::dsp::window::Window::Rectangular {
+                    CorrelationProfiler::new(&reference, period + lags - 1, lags, fs)?
+                } else {
+                    CorrelationProfiler::weighted(
+                        &reference,
+                        &window,
+                        tx.bandwidth_hz(),
+                        period + lags - 1,
+                        lags,
+                        fs,
+                    )?
+                };
+                RangeProcessor::Correlation {
+                    profiler: Box::new(profiler),
+                    lags,
+                    extended: Vec::with_capacity(period + lags - 1),
+                }
+            }
+            (alg, Modulation::Ofdm { generator, symbols }) => {
+                let params = *generator.params();
+                let mut radar = OfdmRadar::new(OfdmRadarConfig {
+                    subcarriers: params.subcarriers,
+                    oversampling: params.oversampling,
+                    cp_fraction: params.cp_fraction,
+                    bandwidth_hz: params.bandwidth_hz,
+                    zero_pad: options.zero_pad,
+                    window: options.window.to_dsp(),
+                    fft_precision: options.fft_precision.to_dsp(),
+                    ..OfdmRadarConfig::default()
+                })?;
+                let mut idiv = IDiv::new();
+                let mut profile = RangeProfile::new();
+                // Levels relative to a unit-gain path: the transmitted frame itself, processed
+                // alike, peaks at the normalising value.
+                radar.process(
+                    &tx.reference,
+                    0,
+                    symbols.as_slice(),
+                    &mut idiv,
+                    &mut profile,
+                )?;
+                let unit = profile
+                    .amplitude
+                    .iter()
+                    .copied()
+                    .fold(0.0, f64::max)
+                    .max(1e-300);
+                let music = if alg.is_subspace() {
+                    let n = params.subcarriers;
+                    Some(Music::new(MusicConfig {
+                        subcarriers: n,
+                        subarray: options.music_m,
+                        order: options
+                            .music_p
+                            .map(ModelOrder::Fixed)
+                            .unwrap_or(ModelOrder::Estimated(OrderCriterion::Mdl)),
+                        forward_backward: options.forward_backward,
+                        grid_points: MUSIC_GRID_FACTOR * n,
+                        bandwidth_hz: params.bandwidth_hz,
+                    })?)
+                } else {
+                    None
+                };
+                RangeProcessor::Ofdm(Box::new(OfdmProcessor {
+                    radar,
+                    symbols: symbols.as_slice().to_vec(),
+                    idiv,
+                    profile,
+                    unit,
+                    music,
+                    spectrum: MusicSpectrum::default(),
+                    df_hz: generator.subcarrier_spacing_hz(),
+                }))
+            }
+            (alg, Modulation::MskLfm(_)) => {
+                return Err(MeasureError::AlgorithmNeedsOfdm {
+                    algorithm: alg.name(),
+                })
+            }
+        };
+        let payload = PayloadDecoder::new(&tx, geometry.period)?;
+        Ok(Pipeline {
+            level_scale: level_scale(&options),
+            tx,
+            options,
+            geometry,
+            range,
+            decimator: None,
+            payload,
+        })
+    }
+
+    pub fn options(&self) -> &ProcessOptions {
+        &self.options
+    }
+
+    pub fn transmission(&self) -> &Arc<Transmission> {
+        &self.tx
+    }
+
+    pub fn geometry(&self) -> RecordGeometry {
+        self.geometry
+    }
+
+    /// Sets the AWG amplitude the levels refer to (what the AWG reported applying).
+    pub fn set_awg_amplitude(&mut self, vpp: f64) -> Result<(), MeasureError> {
+        let mut options = self.options.clone();
+        options.awg_amplitude_vpp = Some(vpp);
+        validate(&self.tx, &options)?;
+        self.options = options;
+        self.level_scale = level_scale(&self.options);
+        Ok(())
+    }
+
+    /// The integer factor from the capture rate to the waveform rate.
+    fn factor(&self, capture_rate_hz: f64) -> Result<usize, MeasureError> {
+        let fs = self.tx.sample_rate_hz();
+        let ratio = capture_rate_hz / fs;
+        let factor = ratio.round();
+        if !(factor >= 1.0 && (ratio - factor).abs() <= 1e-6 * ratio) {
+            return Err(MeasureError::RateNotMultiple {
+                capture_hz: capture_rate_hz,
+                waveform_hz: fs,
+            });
+        }
+        Ok(factor as usize)
+    }
+
+    /// Builds (or keeps) the decimator for captures at `capture_rate_hz`.
+    pub fn prepare_capture_rate(&mut self, capture_rate_hz: f64) -> Result<(), MeasureError> {
+        let factor = self.factor(capture_rate_hz)?;
+        if factor == 1 {
+            return Ok(());
+        }
+        if let Some((rate, f, _)) = &self.decimator {
+            if *rate == capture_rate_hz && *f == factor {
+                return Ok(());
+            }
+        }
+        // The pass band is a little wider than the signal's: MSK-LFM's skirts pass unharmed.
+        let dec = PeriodicDecimator::new(capture_rate_hz, factor, 0.55 * self.tx.bandwidth_hz())?;
+        self.decimator = Some((capture_rate_hz, factor, dec));
+        Ok(())
+    }
+
+    /// Decimates one repetition of `raw` to the waveform rate and rotates it to the marker edge.
+    pub fn align(&mut self, raw: &RawIq) -> Result<Aligned, MeasureError> {
+        let factor = self.factor(raw.sample_rate_hz)?;
+        let period = self.geometry.period;
+        let needed = period * factor;
+        if raw.samples.len() < needed {
+            return Err(MeasureError::RecordTooShort {
+                points: raw.samples.len(),
+                needed,
+            });
+        }
+        let one = &raw.samples[..needed];
+        let y = if factor == 1 {
+            one.to_vec()
+        } else {
+            self.prepare_capture_rate(raw.sample_rate_hz)?;
+            let (_, _, dec) = self.decimator.as_mut().expect("prepared above");
+            dec.decimate(one)
+        };
+        // Rotate so sample m sits at m / fs after the marker edge, up to a sub-sample residual.
+        let fs = self.tx.sample_rate_hz();
+        let shift = (raw.first_point_s * fs).round();
+        let residual_s = raw.first_point_s - shift / fs;
+        let s = (shift as i64).rem_euclid(period as i64) as usize;
+        let mut samples = vec![ZERO; period];
+        let (head, tail) = y.split_at(period - s);
+        samples[s..].copy_from_slice(head);
+        samples[..s].copy_from_slice(tail);
+        Ok(Aligned {
+            samples,
+            residual_s,
+        })
+    }
+
+    /// The range profiles of one aligned repetition; `offset_m` is added to every range.
+    pub fn range_profiles(
+        &mut self,
+        rx: &[Complex64],
+        offset_m: f64,
+    ) -> Result<RangeResult, MeasureError> {
+        if rx.len() != self.geometry.period {
+            return Err(MeasureError::RecordTooShort {
+                points: rx.len(),
+                needed: self.geometry.period,
+            });
+        }
+        let scale = self.level_scale;
+        let scaled = |mut p: Profile| {
+            p.axis = Axis {
+                start: p.axis.start + offset_m,
+                step: p.axis.step,
+            };
+            if scale != 1.0 {
+                for a in &mut p.amplitude {
+                    *a *= scale;
+                }
+            }
+            p
+        };
+        match &mut self.range {
+            RangeProcessor::Correlation {
+                profiler,
+                lags,
+                extended,
+            } => {
+                // Circular correlation over the period: the record extended by its own start.
+                extended.clear();
+                extended.extend_from_slice(rx);
+                extended.extend_from_slice(&rx[..*lags - 1]);
+                let p = profiler.profile(extended)?;
+                Ok(RangeResult {
+                    profiles: vec![scaled(p)],
+                    estimates_m: None,
+                    model_order: None,
+                })
+            }
+            RangeProcessor::Ofdm(o) => {
+                o.radar
+                    .process(rx, 0, &o.symbols, &mut o.idiv, &mut o.profile)?;
+                let unit = o.unit;
+                let fourier = scaled(Profile {
+                    label: format!("Fourier ({}-point IFFT)", o.profile.amplitude.len()),
+                    axis: o.profile.axis(),
+                    amplitude: o.profile.amplitude.iter().map(|a| a / unit).collect(),
+                });
+                let Some(music) = &mut o.music else {
+                    return Ok(RangeResult {
+                        profiles: vec![fourier],
+                        estimates_m: None,
+                        model_order: None,
+                    });
+                };
+                let idiv = o.idiv.as_slice();
+                let shift = |r: Vec<f64>| r.into_iter().map(|x| x + offset_m).collect();
+                match self.options.algorithm {
+                    Algorithm::Esprit => {
+                        let r = music.esprit(idiv)?;
+                        let order = r.len();
+                        Ok(RangeResult {
+                            profiles: vec![fourier],
+                            estimates_m: Some(shift(r)),
+                            model_order: Some(order),
+                        })
+                    }
+                    Algorithm::RootMusic => {
+                        music.estimate(idiv, &mut o.spectrum)?;
+                        let r = root_music_ranges(music, o.spectrum.order, o.df_hz)?;
+                        Ok(RangeResult {
+                            profiles: vec![fourier],
+                            estimates_m: Some(shift(r)),
+                            model_order: Some(o.spectrum.order),
+                        })
+                    }
+                    _ => {
+                        music.estimate(idiv, &mut o.spectrum)?;
+                        let mut mp = music_profile(
+                            &o.spectrum.range_m,
+                            &o.spectrum.pseudo_spectrum,
+                            self.options.music_m,
+                            o.spectrum.order,
+                        );
+                        mp.axis.start += offset_m;
+                        Ok(RangeResult {
+                            profiles: vec![mp, fourier],
+                            estimates_m: Some(shift(o.spectrum.peaks_m.clone())),
+                            model_order: Some(o.spectrum.order),
+                        })
+                    }
+                }
+            }
+        }
+    }
+
+    /// Range offset of an aligned record: the residual after the trigger minus the system delay.
+    pub fn offset_m(&self, residual_s: f64) -> f64 {
+        (residual_s - self.options.system_delay_s) * C0 / 2.0
+    }
+
+    /// Range profiles and detections of one aligned record.
+    pub fn analyse(&mut self, aligned: &Aligned) -> Result<Analysis, MeasureError> {
+        let offset = self.offset_m(aligned.residual_s);
+        let range = self.range_profiles(&aligned.samples, offset)?;
+        let detection = detect::detect(&range, &self.options)?;
+        Ok(Analysis { range, detection })
+    }
+
+    /// Processes one aligned repetition; `background` (aligned the same way) is subtracted first.
+    pub fn process(
+        &mut self,
+        aligned: Aligned,
+        background: Option<&Aligned>,
+    ) -> Result<Processed, MeasureError> {
+        let mut aligned = aligned;
+        if let Some(bg) = background {
+            if bg.samples.len() != aligned.samples.len() {
+                return Err(MeasureError::BackgroundShape {
+                    background: bg.samples.len(),
+                    capture: aligned.samples.len(),
+                });
+            }
+            for (a, b) in aligned.samples.iter_mut().zip(&bg.samples) {
+                *a -= b;
+            }
+        }
+        let analysis = self.analyse(&aligned)?;
+        let Analysis { range, detection } = analysis;
+        let primary = range.primary();
+        let (mut width_3db_cm, mut sidelobe_db, mut snr_db) = (None, None, None);
+        if let Some(index) = detection.strongest_index {
+            let amp = &primary.amplitude;
+            let (_, height) = interpolate_peak(amp, index, Interpolation::ParabolicDb);
+            width_3db_cm = width_3db(amp, index, height).map(|w| w * primary.axis.step * 100.0);
+            sidelobe_db = sidelobe_levels(amp, index, Interpolation::ParabolicDb).map(|s| s.psl_db);
+            snr_db = Some(detect::peak_over_median_db(amp, height));
+        }
+        let mut warnings = Vec::new();
+        if detection.targets.is_empty() {
+            warnings.push(detect::no_target_hint(&aligned.samples, primary));
+        }
+        let payload = self.payload.decode(
+            &aligned.samples,
+            &self.tx,
+            primary,
+            detection.strongest_index,
+        );
+        Ok(Processed {
+            profiles: range.profiles,
+            targets: detection.targets,
+            width_3db_cm,
+            sidelobe_db,
+            snr_db,
+            payload,
+            warnings,
+            aligned: aligned.samples,
+        })
+    }
+}

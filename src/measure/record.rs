@@ -1,0 +1,204 @@
+//! A measurement's files: the raw capture (SigMF and the scope's `.trc`), the range profiles (CSV,
+//! npy), plots and `summary.json`, every one written atomically into one folder.
+
+use super::capture::Measurement;
+use super::MeasureError;
+use crate::storage::atomic::write_atomic;
+use crate::storage::plot::{self, Curve, ProfilePlot};
+use crate::storage::profile::ProfileTable;
+use crate::storage::sigmf::{self, SigmfMeta};
+use crate::storage::StorageError;
+use serde::Serialize;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// Where the files of one capture went.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CaptureFiles {
+    pub dir: PathBuf,
+    pub sigmf_meta: PathBuf,
+    pub sigmf_data: PathBuf,
+    pub trc: [PathBuf; 2],
+    pub profile_csv: PathBuf,
+    pub profile_npy: PathBuf,
+    pub plot_svg: PathBuf,
+    pub plot_png: PathBuf,
+    pub summary: PathBuf,
+}
+
+impl CaptureFiles {
+    /// Every file, for manifests and hashing.
+    pub fn all(&self) -> Vec<&Path> {
+        vec![
+            &self.sigmf_meta,
+            &self.sigmf_data,
+            &self.trc[0],
+            &self.trc[1],
+            &self.profile_csv,
+            &self.profile_npy,
+            &self.plot_svg,
+            &self.plot_png,
+            &self.summary,
+        ]
+    }
+}
+
+/// Where the bench came from, for the files.
+#[derive(Debug, Clone, Default)]
+pub struct Provenance {
+    pub bench_file: Option<PathBuf>,
+    pub simulated: bool,
+}
+
+/// Writes every file of `m` into `out` (created when missing), `summary.json` last.
+pub fn write_capture(
+    out: &Path,
+    m: &Measurement,
+    provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let i = &m.captured.iq.i;
+    let q = &m.captured.iq.q;
+    let o = &m.options;
+    let mut ns = serde_json::Map::new();
+    ns.insert(
+        "vertical_gain".into(),
+        json!([i.desc.vertical_gain, q.desc.vertical_gain]),
+    );
+    ns.insert(
+        "vertical_offset".into(),
+        json!([i.desc.vertical_offset, q.desc.vertical_offset]),
+    );
+    ns.insert("trigger_offset_s".into(), json!(i.first_sample_s()));
+    ns.insert("waveform".into(), m.tx.describe());
+    ns.insert("instruments".into(), json!(m.identities));
+    ns.insert(
+        "sample_rates_hz".into(),
+        json!({"awg": m.tx.sample_rate_hz(), "scope": m.captured.applied.scope.sample_rate_hz, "processing": m.tx.sample_rate_hz()}),
+    );
+    ns.insert("system_delay_s".into(), json!(o.system_delay_s));
+    ns.insert("processing".into(), json!(o));
+    if let Some(truth) = &m.ground_truth {
+        ns.insert("scene".into(), truth.clone());
+    }
+    if let Some(path) = &provenance.bench_file {
+        ns.insert("bench_file".into(), json!(path.display().to_string()));
+    }
+    let meta = SigmfMeta {
+        sample_rate: m.captured.applied.scope.sample_rate_hz,
+        frequency_hz: m
+            .ground_truth
+            .as_ref()
+            .and_then(|s| s["carrier_hz"].as_f64())
+            .unwrap_or(80e9),
+        datetime: sigmf::utc_now_rfc3339(),
+        description: format!(
+            "radbench capture: {} at the scope (I on C1, Q on C2), raw 16-bit words",
+            m.tx.name()
+        ),
+        hw: m.identities.scope.clone(),
+        radbench: ns,
+        annotations: Vec::new(),
+    };
+    let sig = sigmf::write_ci16(&out.join("capture"), &i.codes, &q.codes, &meta)?;
+    let trc = [out.join("C1.trc"), out.join("C2.trc")];
+    write_atomic(&trc[0], &i.trc_bytes())?;
+    write_atomic(&trc[1], &q.trc_bytes())?;
+    let p = &m.processed;
+    let primary = &p.profiles[0];
+    let table = ProfileTable {
+        range_m: primary.ranges(),
+        columns: p
+            .profiles
+            .iter()
+            .filter(|x| x.axis == primary.axis && x.amplitude.len() == primary.amplitude.len())
+            .map(|x| {
+                let name = x
+                    .label
+                    .split(' ')
+                    .next()
+                    .unwrap_or("profile")
+                    .to_lowercase();
+                (
+                    format!("{name}_db"),
+                    x.amplitude
+                        .iter()
+                        .map(|a| 20.0 * a.max(1e-300).log10())
+                        .collect(),
+                )
+            })
+            .collect(),
+    };
+    let files = CaptureFiles {
+        dir: out.to_path_buf(),
+        sigmf_meta: sig.meta,
+        sigmf_data: sig.data,
+        trc,
+        profile_csv: out.join("profile.csv"),
+        profile_npy: out.join("profile.npy"),
+        plot_svg: out.join("profile.svg"),
+        plot_png: out.join("profile.png"),
+        summary: out.join("summary.json"),
+    };
+    table.write(&files.profile_csv)?;
+    table.write(&files.profile_npy)?;
+    let targets: Vec<f64> = m
+        .ground_truth
+        .as_ref()
+        .and_then(|s| s["targets"].as_array().cloned())
+        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
+        .unwrap_or_default();
+    let plot = ProfilePlot {
+        title: format!("radbench capture: {} {}", m.tx.name(), o.algorithm.name()),
+        curves: p
+            .profiles
+            .iter()
+            .map(|x| Curve {
+                label: x.label.clone(),
+                range_m: x.ranges(),
+                db: x.normalised_db(),
+            })
+            .collect(),
+        targets_m: targets,
+        window_m: Some((
+            o.min_range_m.max(0.0) - 0.2,
+            o.max_range_m
+                .min(p.targets.iter().map(|t| t.range_m).fold(1.0, f64::max) + 1.0),
+        )),
+        floor_db: -60.0,
+        reference_db: None,
+    };
+    plot::draw(&files.plot_svg, &plot)?;
+    plot::draw(&files.plot_png, &plot)?;
+    let summary = summary_json(m, &files, provenance);
+    write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
+    Ok((files, summary))
+}
+
+/// What `capture --json` prints and `summary.json` holds (README, "--json").
+pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenance) -> Value {
+    let p = &m.processed;
+    let o = &m.options;
+    json!({
+        "waveform": m.tx.name(),
+        "algorithm": o.algorithm.name(),
+        "targets": p.targets,
+        "width_3db_cm": p.width_3db_cm,
+        "sidelobe_db": p.sidelobe_db,
+        "snr_db": p.snr_db,
+        "payload": p.payload,
+        "warnings": p.warnings,
+        "system_delay_s": o.system_delay_s,
+        "processing": o,
+        "radbench_version": env!("CARGO_PKG_VERSION"),
+        "simulated": provenance.simulated,
+        "scene": m.ground_truth,
+        "instruments": m.identities,
+        "applied": m.captured.applied,
+        "transmission": m.tx.describe(),
+        "files": files,
+    })
+}

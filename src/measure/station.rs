@@ -1,0 +1,423 @@
+//! The connected bench: its drivers behind the capability traits, the safe state, and the steps of
+//! a capture (upload, RF on, acquire) with everything checkable checked before RF goes on.
+//!
+//! [`plan`] is pure: from the bench file, the catalog and the transmission it derives every
+//! instrument setting (the AWG clock and segment padding, the scope's rate, scale and record) and
+//! fails before any instrument is touched when something does not fit.
+
+use super::bench_file::{BenchFile, InstrumentEntry};
+use super::interrupt::Interrupt;
+use super::options::ProcessOptions;
+use super::pipeline::RawIq;
+use super::transmit::Transmission;
+use super::MeasureError;
+use crate::address::Resource;
+use crate::catalog::{Catalog, InstrumentModel};
+use crate::driver::m8195a::plan::{plan_clock, plan_download};
+use crate::driver::safe_state::{self, Shared};
+use crate::driver::{
+    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, Gotmic,
+    IqCapture, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd, RfPermit, RfSettings, RfStatus,
+    SafeState, SafeStateReport,
+};
+use crate::dsp::C0;
+use crate::session::Identity;
+use crate::transport::Journal;
+use num_complex::Complex64;
+use serde::Serialize;
+use std::time::Duration;
+
+/// Bound on each step of the safe-state sequence.
+const SAFE_STEP_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// `*IDN?` of every instrument, for the run's files.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct Identities {
+    pub awg: String,
+    pub scope: String,
+    pub tx: Option<String>,
+    pub rx: Option<String>,
+}
+
+fn idn(i: &Identity) -> String {
+    format!("{},{},{},{}", i.manufacturer, i.model, i.serial, i.firmware)
+}
+
+fn resource(text: &str, section: &'static str) -> Result<Resource, MeasureError> {
+    text.parse().map_err(|source| MeasureError::Resource {
+        section,
+        text: text.to_string(),
+        source,
+    })
+}
+
+/// How to drive the bench for one capture; plain data, derived by [`plan`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CapturePlan {
+    pub awg: AwgSettings,
+    pub scope: DigitizerSettings,
+    pub tx: RfSettings,
+    pub rx: RfSettings,
+    /// Leave the transmitter off (noise floor / leakage checks); the receiver still runs.
+    pub tx_off: bool,
+    /// Longest wait for the marker-triggered acquisition, seconds.
+    pub wait_s: f64,
+    /// Samples of one repetition after the AWG pads the segment (the repetition period).
+    pub period: usize,
+    /// Capture samples per waveform sample (scope rate / AWG rate).
+    pub decimation: usize,
+}
+
+/// Derives every instrument setting of a capture and checks it against the catalog; touches no
+/// instrument.
+pub fn plan(
+    bench: &BenchFile,
+    catalog: &Catalog,
+    tx: &Transmission,
+    options: &ProcessOptions,
+    tx_off: bool,
+    wait_s: f64,
+) -> Result<CapturePlan, MeasureError> {
+    if !(wait_s.is_finite() && wait_s > 0.0 && wait_s <= 3600.0) {
+        return Err(MeasureError::option(
+            "wait",
+            wait_s,
+            "0 < seconds <= 3600 (the longest wait for the marker-triggered acquisition)",
+        ));
+    }
+    let awg_model = catalog.get(&bench.awg.model)?;
+    let scope_model = catalog.get(&bench.scope.model)?;
+    let awg_limits = awg_model
+        .awg
+        .as_ref()
+        .ok_or_else(|| not_kind(&bench.awg, "awg", "an AWG"))?;
+    let scope_limits = scope_model
+        .digitizer
+        .as_ref()
+        .ok_or_else(|| not_kind(&bench.scope, "scope", "a digitizer"))?;
+    let awg = AwgSettings {
+        sample_rate_hz: tx.sample_rate_hz(),
+        ..AwgSettings::default()
+    };
+    let name = &awg_model.instrument.model;
+    let fit = |e: crate::driver::DriverError| MeasureError::DoesNotFit {
+        waveform: tx.name(),
+        instrument: name.clone(),
+        reason: e.to_string(),
+    };
+    let clock = plan_clock(awg_limits, &awg_model.instrument.key, name, &awg).map_err(fit)?;
+    let download = plan_download(awg_limits, &clock, name, &tx.iq).map_err(fit)?;
+    let period = download.padded as usize;
+    // The fastest rate the catalog lists that is a whole multiple of the waveform's.
+    let fs = tx.sample_rate_hz();
+    let rate = scope_limits
+        .sample_rates
+        .iter()
+        .copied()
+        .filter(|r| {
+            let k = r / fs;
+            k >= 1.0 && (k - k.round()).abs() < 1e-9 * k
+        })
+        .fold(None, |best: Option<f64>, r| {
+            Some(best.map_or(r, |b| b.max(r)))
+        })
+        .ok_or_else(|| MeasureError::RateNotMultiple {
+            capture_hz: scope_limits.sample_rates.first().copied().unwrap_or(0.0),
+            waveform_hz: fs,
+        })?;
+    let vdiv = bench
+        .scope
+        .volts_per_div
+        .unwrap_or(scope_limits.volts_per_div_default);
+    let repetition_s = period as f64 / fs;
+    let scope = DigitizerSettings {
+        sample_rate_hz: rate,
+        repetition_s,
+        // One repetition holds every echo of the looped segment (they wrap around).
+        longest_echo_s: 0.0,
+        pre_trigger_s: 0.0,
+        i_volts_per_div: vdiv,
+        q_volts_per_div: vdiv,
+        trigger_level_v: awg.marker_offset_v,
+        ..DigitizerSettings::default()
+    };
+    let points = (scope.record_s() * rate).ceil();
+    if points > scope_limits.max_points_per_channel as f64 {
+        return Err(MeasureError::DoesNotFit {
+            waveform: tx.name(),
+            instrument: scope_model.instrument.model.clone(),
+            reason: format!(
+                "one repetition of {repetition_s} s is {points} points at {rate} Sa/s; the scope \
+                 records at most {} per channel",
+                scope_limits.max_points_per_channel
+            ),
+        });
+    }
+    // A target beyond one repetition would alias onto a nearer range.
+    let unambiguous_m = C0 * repetition_s / 2.0;
+    if options.max_range_m > unambiguous_m {
+        return Err(MeasureError::option(
+            "max-range",
+            options.max_range_m,
+            format!(
+                "at most {unambiguous_m:.1} m: farther echoes wrap into the next repetition of \
+                 this waveform"
+            ),
+        ));
+    }
+    let front = |e: &Option<InstrumentEntry>| RfSettings {
+        attenuation_db: e.as_ref().and_then(|t| t.attenuation_db).unwrap_or(0.0),
+        lo_frequency_hz: None,
+    };
+    Ok(CapturePlan {
+        awg,
+        scope,
+        tx: front(&bench.tx),
+        rx: front(&bench.rx),
+        tx_off,
+        wait_s,
+        period,
+        decimation: (rate / fs).round() as usize,
+    })
+}
+
+fn not_kind(entry: &InstrumentEntry, section: &'static str, what: &str) -> MeasureError {
+    MeasureError::BenchFile(super::bench_file::BenchFileError::Invalid {
+        path: "bench file".into(),
+        message: format!(
+            "[{section}] model = {:?} is not {what} in the instrument catalog",
+            entry.model
+        ),
+    })
+}
+
+/// What the instruments did for a capture.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Applied {
+    pub awg: AwgApplied,
+    pub segment: LoadedSegment,
+    pub scope: DigitizerApplied,
+    pub tx: Option<RfStatus>,
+    pub rx: Option<RfStatus>,
+}
+
+/// One raw capture and how it was made.
+pub struct Captured {
+    pub iq: IqCapture,
+    pub applied: Applied,
+}
+
+impl Captured {
+    /// I + jQ in volts with the time of the first point after the trigger.
+    pub fn raw(&self) -> RawIq {
+        let (i, q) = (&self.iq.i, &self.iq.q);
+        let (gi, oi) = (
+            f64::from(i.desc.vertical_gain),
+            f64::from(i.desc.vertical_offset),
+        );
+        let (gq, oq) = (
+            f64::from(q.desc.vertical_gain),
+            f64::from(q.desc.vertical_offset),
+        );
+        RawIq {
+            samples: i
+                .codes
+                .iter()
+                .zip(&q.codes)
+                .map(|(&a, &b)| Complex64::new(gi * f64::from(a) - oi, gq * f64::from(b) - oq))
+                .collect(),
+            // WAVEDESC stores the interval as f32: take the rate the scope reported applying.
+            sample_rate_hz: self.applied.scope.sample_rate_hz,
+            first_point_s: i.first_sample_s(),
+        }
+    }
+}
+
+/// What the upload left in the instruments.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Uploaded {
+    pub awg: AwgApplied,
+    pub segment: LoadedSegment,
+    pub scope: DigitizerApplied,
+}
+
+/// The bench's drivers, shared with the safe state.
+pub struct Station {
+    awg: Shared<dyn Awg>,
+    scope: Box<dyn Digitizer>,
+    tx: Option<Shared<dyn RfFrontEnd>>,
+    rx: Option<Shared<dyn RfFrontEnd>>,
+    pub identities: Identities,
+    safe: SafeState,
+}
+
+impl Station {
+    /// Opens every instrument of the bench file (front ends optional) and builds the safe state.
+    pub async fn connect(
+        bench: &BenchFile,
+        catalog: &Catalog,
+        journal: Option<Journal>,
+    ) -> Result<Station, MeasureError> {
+        let awg_model = catalog.get(&bench.awg.model)?;
+        let awg = M8195a::open(
+            resource(&bench.awg.resource, "awg")?,
+            awg_model,
+            journal.clone(),
+            "awg",
+        )
+        .await?;
+        let scope_model = catalog.get(&bench.scope.model)?;
+        let scope = Lecroy::open(
+            resource(&bench.scope.resource, "scope")?,
+            scope_model,
+            journal.clone(),
+            "scope",
+        )
+        .await?;
+        let mut identities = Identities {
+            awg: idn(awg.identity()),
+            scope: idn(scope.identity()),
+            ..Identities::default()
+        };
+        let tx = open_front(catalog, &bench.tx, "tx", journal.clone()).await?;
+        let rx = open_front(catalog, &bench.rx, "rx", journal).await?;
+        identities.tx = tx.as_ref().map(|g| idn(g.identity()));
+        identities.rx = rx.as_ref().map(|g| idn(g.identity()));
+        let awg: Shared<dyn Awg> = safe_state::share(Box::new(awg) as Box<dyn Awg>);
+        let tx: Option<Shared<dyn RfFrontEnd>> =
+            tx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
+        let rx: Option<Shared<dyn RfFrontEnd>> =
+            rx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
+        let safe = SafeState::new(
+            safe_state::Bench {
+                tx: tx.clone(),
+                rx: rx.clone(),
+                awg: Some(awg.clone()),
+            },
+            SAFE_STEP_TIMEOUT,
+        );
+        Ok(Station {
+            awg,
+            scope: Box::new(scope),
+            tx,
+            rx,
+            identities,
+            safe,
+        })
+    }
+
+    /// The safe-state sequence of this bench (for a panic hook or an explicit call).
+    pub fn safe_state(&self) -> &SafeState {
+        &self.safe
+    }
+
+    /// Makes a panic run this bench's safe state.
+    pub fn install_panic_hook(&self) {
+        crate::driver::install_panic_hook(self.safe.clone());
+    }
+
+    /// Configures the AWG, downloads the waveform and configures the scope. Nothing radiates.
+    pub async fn upload(
+        &mut self,
+        tx: &Transmission,
+        plan: &CapturePlan,
+    ) -> Result<Uploaded, MeasureError> {
+        let (awg, segment) = {
+            let mut awg = self.awg.lock().await;
+            let applied = awg.configure(&plan.awg).await?;
+            let segment = awg.load(&tx.iq).await?;
+            (applied, segment)
+        };
+        let mut scope_settings = plan.scope.clone();
+        scope_settings.repetition_s = segment.padded_samples as f64 / tx.sample_rate_hz();
+        let scope = self.scope.configure(&scope_settings).await?;
+        Ok(Uploaded {
+            awg,
+            segment,
+            scope,
+        })
+    }
+
+    /// Enables the receiver, the transmitter (unless `tx_off`) and the AWG outputs with the
+    /// user's permit, starts playback and captures one marker-triggered repetition. The caller's
+    /// guard puts the bench back in its safe state.
+    pub async fn acquire(
+        &mut self,
+        plan: &CapturePlan,
+        permit: &RfPermit,
+    ) -> Result<(IqCapture, Option<RfStatus>, Option<RfStatus>), MeasureError> {
+        let mut rx_status = None;
+        let mut tx_status = None;
+        if let Some(rx) = &self.rx {
+            rx_status = Some(rx.lock().await.enable(permit, &plan.rx).await?);
+        }
+        if let Some(txm) = &self.tx {
+            if !plan.tx_off {
+                tx_status = Some(txm.lock().await.enable(permit, &plan.tx).await?);
+            }
+        }
+        {
+            let mut awg = self.awg.lock().await;
+            awg.enable_outputs(permit).await?;
+            awg.run().await?;
+        }
+        let iq = self.scope.capture_iq(plan.wait_s).await?;
+        if tx_status.is_none() {
+            if let Some(txm) = &self.tx {
+                tx_status = Some(txm.lock().await.status().await?);
+            }
+        }
+        Ok((iq, tx_status, rx_status))
+    }
+
+    /// Upload and acquire under the safe-state guard: the bench ends in its safe state whatever
+    /// happens, also when `interrupt` fires first.
+    pub async fn capture(
+        &mut self,
+        tx: &Transmission,
+        plan: &CapturePlan,
+        permit: &RfPermit,
+        interrupt: &Interrupt,
+    ) -> (Result<Captured, MeasureError>, SafeStateReport) {
+        let safe = self.safe.clone();
+        let work = async {
+            let up = self.upload(tx, plan).await?;
+            let (iq, tx_status, rx_status) = self.acquire(plan, permit).await?;
+            Ok(Captured {
+                iq,
+                applied: Applied {
+                    awg: up.awg,
+                    segment: up.segment,
+                    scope: up.scope,
+                    tx: tx_status,
+                    rx: rx_status,
+                },
+            })
+        };
+        let (outcome, report) = crate::driver::run_guarded(&safe, work, interrupt.wait()).await;
+        let result = match outcome {
+            Outcome::Finished(r) => r,
+            Outcome::Interrupted => Err(MeasureError::Interrupted {
+                signal: interrupt
+                    .received()
+                    .unwrap_or(super::interrupt::StopSignal::Interrupt),
+                report: report.to_string(),
+            }),
+        };
+        (result, report)
+    }
+}
+
+async fn open_front(
+    catalog: &Catalog,
+    entry: &Option<InstrumentEntry>,
+    name: &'static str,
+    journal: Option<Journal>,
+) -> Result<Option<Gotmic>, MeasureError> {
+    let Some(e) = entry else {
+        return Ok(None);
+    };
+    let model: &InstrumentModel = catalog.get(&e.model)?;
+    let g = Gotmic::open(resource(&e.resource, name)?, model, journal, name).await?;
+    Ok(Some(g))
+}

@@ -1,0 +1,328 @@
+//! What to transmit, as plain data: the waveform and its parameters ([`WaveformSpec`]), shared by
+//! simulations, bench captures and campaign specs (TOML).
+//!
+//! Defaults are the thesis' (Tables 4.1 and 4.2 as read in the README): MSK-LFM 1 GHz, 10 us, 128
+//! bits at 16 GSa/s; OFDM 128 QPSK subcarriers over 1 GHz, 16x oversampling (16 GSa/s), cyclic
+//! prefix 1/4, 100 symbols of which 1 is a known preamble.
+
+use super::msk_lfm::{MskLfmParams, PulseLength};
+use super::ofdm::OfdmParams;
+use super::ParamError;
+use serde::{Deserialize, Serialize};
+
+/// Which waveform, with its parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum WaveformSpec {
+    MskLfm {
+        /// Samples per second (the AWG's playback rate).
+        sample_rate_hz: f64,
+        /// Chirp sweep, -B/2 .. +B/2.
+        bandwidth_hz: f64,
+        /// One pulse, seconds (a whole number of samples).
+        pulse_s: f64,
+        /// MSK bits per pulse (even).
+        bits_per_pulse: usize,
+    },
+    Ofdm {
+        /// Occupied bandwidth B = N df.
+        bandwidth_hz: f64,
+        /// Subcarriers N (even).
+        subcarriers: usize,
+        /// Sample rate = oversampling x bandwidth.
+        oversampling: usize,
+        /// Cyclic prefix as a fraction of the useful symbol.
+        cp_fraction: f64,
+        /// Symbols per frame, preamble included.
+        symbols: usize,
+        /// Known symbols at the start of the frame for the communication receiver's channel
+        /// estimate (the radar knows every symbol).
+        #[serde(default = "default_preamble")]
+        preamble_symbols: usize,
+    },
+}
+
+fn default_preamble() -> usize {
+    1
+}
+
+/// The waveform family, without parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WaveformKind {
+    MskLfm,
+    Ofdm,
+}
+
+impl WaveformKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            WaveformKind::MskLfm => "msk-lfm",
+            WaveformKind::Ofdm => "ofdm",
+        }
+    }
+
+    /// The thesis' parameters of this family.
+    pub fn thesis_default(self) -> WaveformSpec {
+        match self {
+            WaveformKind::MskLfm => WaveformSpec::msk_lfm_default(),
+            WaveformKind::Ofdm => WaveformSpec::ofdm_default(),
+        }
+    }
+}
+
+impl WaveformSpec {
+    /// Thesis Table 4.1: 16 GSa/s, 1 GHz, 10 us, 128 bits.
+    pub fn msk_lfm_default() -> Self {
+        WaveformSpec::MskLfm {
+            sample_rate_hz: 16e9,
+            bandwidth_hz: 1e9,
+            pulse_s: 10e-6,
+            bits_per_pulse: 128,
+        }
+    }
+
+    /// Thesis Table 4.2: 128 subcarriers, 1 GHz, x16, CP 1/4, 100 symbols (1 preamble).
+    pub fn ofdm_default() -> Self {
+        WaveformSpec::Ofdm {
+            bandwidth_hz: 1e9,
+            subcarriers: 128,
+            oversampling: 16,
+            cp_fraction: 0.25,
+            symbols: 100,
+            preamble_symbols: 1,
+        }
+    }
+
+    pub fn kind(&self) -> WaveformKind {
+        match self {
+            WaveformSpec::MskLfm { .. } => WaveformKind::MskLfm,
+            WaveformSpec::Ofdm { .. } => WaveformKind::Ofdm,
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        self.kind().name()
+    }
+
+    pub fn bandwidth_hz(&self) -> f64 {
+        match *self {
+            WaveformSpec::MskLfm { bandwidth_hz, .. } | WaveformSpec::Ofdm { bandwidth_hz, .. } => {
+                bandwidth_hz
+            }
+        }
+    }
+
+    /// The waveform's own sample rate (the AWG rate), Hz.
+    pub fn sample_rate_hz(&self) -> f64 {
+        match *self {
+            WaveformSpec::MskLfm { sample_rate_hz, .. } => sample_rate_hz,
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                oversampling,
+                ..
+            } => bandwidth_hz * oversampling as f64,
+        }
+    }
+
+    /// This spec with another bandwidth, keeping the sample rate: an OFDM frame changes its
+    /// oversampling (which must stay whole), an MSK-LFM pulse its sweep.
+    pub fn with_bandwidth(&self, bandwidth_hz: f64) -> Result<Self, ParamError> {
+        if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0) {
+            return Err(ParamError::out_of_range(
+                "bandwidth",
+                format!("{bandwidth_hz} Hz"),
+                "must be a positive frequency in Hz, e.g. 1e9 or 2e9",
+            ));
+        }
+        Ok(match *self {
+            WaveformSpec::MskLfm {
+                sample_rate_hz,
+                pulse_s,
+                bits_per_pulse,
+                ..
+            } => WaveformSpec::MskLfm {
+                sample_rate_hz,
+                bandwidth_hz,
+                pulse_s,
+                bits_per_pulse,
+            },
+            WaveformSpec::Ofdm {
+                subcarriers,
+                cp_fraction,
+                symbols,
+                preamble_symbols,
+                ..
+            } => {
+                let fs = self.sample_rate_hz();
+                let ratio = fs / bandwidth_hz;
+                let oversampling = ratio.round();
+                if (ratio - oversampling).abs() > 1e-9 * ratio || oversampling < 1.0 {
+                    return Err(ParamError::out_of_range(
+                        "bandwidth",
+                        format!("{bandwidth_hz} Hz"),
+                        &format!(
+                            "the OFDM sample rate {fs} Sa/s must be a whole multiple of the \
+                             bandwidth (e.g. 1e9, 2e9, 4e9 at 16 GSa/s)"
+                        ),
+                    ));
+                }
+                WaveformSpec::Ofdm {
+                    bandwidth_hz,
+                    subcarriers,
+                    oversampling: oversampling as usize,
+                    cp_fraction,
+                    symbols,
+                    preamble_symbols,
+                }
+            }
+        })
+    }
+
+    /// The MSK-LFM generator parameters (`None` for OFDM).
+    pub fn msk_lfm_params(&self) -> Option<MskLfmParams> {
+        match *self {
+            WaveformSpec::MskLfm {
+                sample_rate_hz,
+                bandwidth_hz,
+                pulse_s,
+                bits_per_pulse,
+            } => Some(MskLfmParams {
+                sample_rate_hz,
+                bandwidth_hz,
+                pulse: PulseLength::Seconds(pulse_s),
+                bits_per_pulse,
+            }),
+            WaveformSpec::Ofdm { .. } => None,
+        }
+    }
+
+    /// The OFDM generator parameters (`None` for MSK-LFM).
+    pub fn ofdm_params(&self) -> Option<OfdmParams> {
+        match *self {
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                oversampling,
+                cp_fraction,
+                symbols,
+                preamble_symbols,
+            } => Some(OfdmParams {
+                subcarriers,
+                bandwidth_hz,
+                oversampling,
+                cp_fraction,
+                symbols_per_frame: symbols,
+                preamble_symbols,
+            }),
+            WaveformSpec::MskLfm { .. } => None,
+        }
+    }
+
+    /// Samples of one repetition (pulse or frame) at the waveform rate, without building the
+    /// waveform; the generators check the parameters themselves.
+    pub fn samples_per_repetition(&self) -> Result<usize, ParamError> {
+        match *self {
+            WaveformSpec::MskLfm { .. } => self
+                .msk_lfm_params()
+                .expect("an MSK-LFM spec")
+                .samples_per_pulse(),
+            WaveformSpec::Ofdm {
+                subcarriers,
+                oversampling,
+                cp_fraction,
+                symbols,
+                ..
+            } => {
+                let fft = subcarriers as f64 * oversampling as f64;
+                let per_symbol = fft + (cp_fraction * fft).round();
+                let total = per_symbol * symbols as f64;
+                if !(total.is_finite() && total >= 1.0) {
+                    return Err(ParamError::out_of_range(
+                        "OFDM frame",
+                        format!("{total} samples"),
+                        "must hold at least one sample",
+                    ));
+                }
+                Ok(total as usize)
+            }
+        }
+    }
+
+    /// Ranges this waveform can measure without ambiguity: MSK-LFM, an echo within one pulse;
+    /// OFDM, `c0 / (2 df)` (19.2 m by default).
+    pub fn max_range_m(&self) -> f64 {
+        const C0: f64 = crate::dsp::C0;
+        match *self {
+            WaveformSpec::MskLfm { pulse_s, .. } => C0 * pulse_s / 2.0,
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                ..
+            } => match subcarriers {
+                0 => f64::INFINITY,
+                n => C0 / (2.0 * bandwidth_hz / n as f64),
+            },
+        }
+    }
+
+    /// OFDM: ranges beyond which the echo is longer than the cyclic prefix (inter-symbol
+    /// interference); `None` for MSK-LFM.
+    pub fn cp_range_m(&self) -> Option<f64> {
+        match *self {
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                cp_fraction,
+                ..
+            } => Some(crate::dsp::C0 * cp_fraction * subcarriers as f64 / bandwidth_hz / 2.0),
+            WaveformSpec::MskLfm { .. } => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_round_trip_with_defaulted_preamble() {
+        #[derive(Deserialize)]
+        struct Doc {
+            waveform: WaveformSpec,
+        }
+        let doc: Doc = toml::from_str(
+            "[waveform]\nkind = \"ofdm\"\nbandwidth_hz = 1e9\nsubcarriers = 128\noversampling = 16\n\
+             cp_fraction = 0.25\nsymbols = 100\n",
+        )
+        .unwrap();
+        assert_eq!(doc.waveform, WaveformSpec::ofdm_default());
+        let err = toml::from_str::<Doc>("[waveform]\nkind = \"msk-lfm\"\nbandwidth = 1\n")
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("bandwidth"), "{err}");
+    }
+
+    #[test]
+    fn bandwidth_change_keeps_the_rate() {
+        let two = WaveformSpec::ofdm_default().with_bandwidth(2e9).unwrap();
+        assert_eq!(two.sample_rate_hz(), 16e9);
+        assert!(matches!(
+            two,
+            WaveformSpec::Ofdm {
+                oversampling: 8,
+                ..
+            }
+        ));
+        assert!(WaveformSpec::ofdm_default().with_bandwidth(3e9).is_err());
+        let msk = WaveformSpec::msk_lfm_default().with_bandwidth(2e9).unwrap();
+        assert_eq!(msk.bandwidth_hz(), 2e9);
+        assert_eq!(msk.samples_per_repetition().unwrap(), 160_000);
+        assert_eq!(
+            WaveformSpec::ofdm_default()
+                .samples_per_repetition()
+                .unwrap(),
+            256_000
+        );
+    }
+}
