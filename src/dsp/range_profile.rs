@@ -8,6 +8,10 @@ use num_complex::Complex64;
 
 const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 
+/// Floor of the weighted filter's spectral division, relative to the mean in-band power: bins
+/// this weak are not amplified into noise.
+const REGULARISATION: f64 = 1e-2;
+
 /// A range profile: linear amplitude on a uniform range axis (metres).
 #[derive(Debug, Clone)]
 pub struct Profile {
@@ -60,10 +64,11 @@ impl CorrelationProfiler {
         })
     }
 
-    /// A weighted (mismatched) filter: the matched filter's spectrum multiplied by `window` across
-    /// the occupied band `-bandwidth/2 ..= bandwidth/2` (zero outside it), trading a wider main
-    /// lobe for lower side-lobes. `tx` is one period of a periodic signal; levels stay normalised
-    /// so a unit echo peaks at 1.
+    /// A weighted (mismatched) filter: across the occupied band `-bandwidth/2 ..= bandwidth/2`
+    /// (zero outside it) the matched filter's spectrum is flattened and multiplied by `window`,
+    /// so an echo's correlation has the window's side-lobes, for a wider main lobe and a small
+    /// loss of SNR. `tx` is one period of a periodic signal; levels stay normalised so a unit echo
+    /// peaks at 1.
     pub fn weighted(
         tx: &[Complex64],
         window: &super::window::Window,
@@ -87,20 +92,29 @@ impl CorrelationProfiler {
         let mut planner = rustfft::FftPlanner::<f64>::new();
         let mut spec = tx.to_vec();
         planner.plan_fft_forward(n).process(&mut spec);
-        // Bins inside the band, ascending frequency, get the window's coefficients.
+        // Bins inside the band, ascending frequency, get the window's coefficients; the
+        // transmit spectrum's own ripple is divided out (regularised where it is weak) so the
+        // output spectrum of an echo is the window itself and the side-lobes are the window's.
         let half = ((bandwidth_hz / 2.0) / fs_hz * n as f64).floor() as isize;
         let width = (2 * half + 1) as usize;
         let coeffs = window.coefficients(width)?;
-        for (k, v) in spec.iter_mut().enumerate() {
+        let in_band = |k: usize| {
             let f = if k <= n / 2 {
                 k as isize
             } else {
                 k as isize - n as isize
             };
-            *v = if f.abs() <= half {
-                *v * coeffs[(f + half) as usize] / n as f64
-            } else {
-                ZERO
+            (f.abs() <= half).then_some((f + half) as usize)
+        };
+        let mean_power = (0..n)
+            .filter_map(|k| in_band(k).map(|_| spec[k].norm_sqr()))
+            .sum::<f64>()
+            / width as f64;
+        let floor = REGULARISATION * mean_power;
+        for (k, v) in spec.iter_mut().enumerate() {
+            *v = match in_band(k) {
+                Some(i) => *v * (coeffs[i] / (v.norm_sqr() + floor)) * mean_power / n as f64,
+                None => ZERO,
             };
         }
         planner.plan_fft_inverse(n).process(&mut spec);

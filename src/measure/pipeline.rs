@@ -619,3 +619,160 @@ impl Pipeline {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::options::WindowName;
+    use crate::measure::transmit::Dac;
+    use crate::waveform::spec::WaveformSpec;
+
+    fn tx(spec: WaveformSpec) -> Arc<Transmission> {
+        Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap())
+    }
+
+    fn geometry(tx: &Transmission) -> RecordGeometry {
+        RecordGeometry::for_capture(tx.len(), tx.sample_rate_hz(), &ProcessOptions::default())
+    }
+
+    #[test]
+    fn options_that_do_not_fit_are_refused_with_the_option_named() {
+        let msk = tx(WaveformSpec::msk_lfm_default());
+        let music = ProcessOptions {
+            algorithm: Algorithm::Music,
+            ..ProcessOptions::default()
+        };
+        let err = Pipeline::new(msk.clone(), music, geometry(&msk)).unwrap_err();
+        assert!(
+            matches!(err, MeasureError::AlgorithmNeedsOfdm { .. }),
+            "{err}"
+        );
+        let ofdm = tx(WaveformSpec::ofdm_default());
+        for (options, named) in [
+            (
+                ProcessOptions {
+                    algorithm: Algorithm::Music,
+                    music_m: 200,
+                    ..ProcessOptions::default()
+                },
+                "--m 200",
+            ),
+            (
+                ProcessOptions {
+                    algorithm: Algorithm::Esprit,
+                    music_p: Some(64),
+                    ..ProcessOptions::default()
+                },
+                "--p 64",
+            ),
+            (
+                ProcessOptions {
+                    algorithm: Algorithm::Fourier,
+                    zero_pad: 0,
+                    ..ProcessOptions::default()
+                },
+                "--zero-pad 0",
+            ),
+            (
+                ProcessOptions {
+                    pfa: 0.5,
+                    ..ProcessOptions::default()
+                },
+                "--pfa 0.5",
+            ),
+        ] {
+            let err = Pipeline::new(ofdm.clone(), options, geometry(&ofdm))
+                .unwrap_err()
+                .to_string();
+            assert!(err.starts_with(named), "{err}");
+        }
+    }
+
+    /// A noise-free echo of the transmitted codes through a path of unit voltage gain, delayed by
+    /// whole samples, at the waveform rate.
+    fn unit_echo(tx: &Transmission, delay: usize, vpp: f64) -> RawIq {
+        let volts = 127.0 * vpp / 255.0;
+        let n = tx.len();
+        let samples = (0..n)
+            .map(|k| tx.reference[(k + n - delay) % n] * volts)
+            .collect();
+        RawIq {
+            samples,
+            sample_rate_hz: tx.sample_rate_hz(),
+            first_point_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_unit_gain_echo_is_reported_at_0_db_and_its_range() {
+        for spec in [
+            WaveformSpec::msk_lfm_default(),
+            WaveformSpec::ofdm_default(),
+        ] {
+            let tx = tx(spec);
+            let options = ProcessOptions::for_waveform(spec.kind());
+            let mut p = Pipeline::new(tx.clone(), options, geometry(&tx)).unwrap();
+            p.set_awg_amplitude(0.5).unwrap();
+            let delay = 107; // 1.0028 m at 16 GSa/s
+            let aligned = p.align(&unit_echo(&tx, delay, 0.5)).unwrap();
+            let out = p.process(aligned, None).unwrap();
+            assert_eq!(out.targets.len(), 1, "{}: {:?}", spec.name(), out.targets);
+            let expect = delay as f64 * C0 / (2.0 * 16e9);
+            assert!(
+                (out.targets[0].range_m - expect).abs() < 1e-4,
+                "{:?}",
+                out.targets
+            );
+            assert!(out.targets[0].level_db.abs() < 0.05, "{:?}", out.targets);
+            assert_eq!(out.payload.as_ref().unwrap().bit_errors, 0);
+        }
+    }
+
+    #[test]
+    fn a_window_on_the_matched_filter_lowers_the_side_lobes() {
+        let tx = tx(WaveformSpec::msk_lfm_default());
+        let psl = |window: WindowName| {
+            let options = ProcessOptions {
+                window,
+                ..ProcessOptions::default()
+            };
+            let mut p = Pipeline::new(tx.clone(), options, geometry(&tx)).unwrap();
+            let aligned = p.align(&unit_echo(&tx, 300, 0.5)).unwrap();
+            let out = p.process(aligned, None).unwrap();
+            (out.sidelobe_db.unwrap(), out.width_3db_cm.unwrap())
+        };
+        let (rect_psl, rect_width) = psl(WindowName::Rect);
+        let (hann_psl, hann_width) = psl(WindowName::Hann);
+        assert!(rect_psl > -14.0 && rect_psl < -12.5, "{rect_psl}");
+        assert!(
+            hann_psl < rect_psl - 10.0,
+            "Hann {hann_psl} dB vs rect {rect_psl} dB"
+        );
+        assert!(
+            hann_width > 1.4 * rect_width,
+            "{hann_width} vs {rect_width}"
+        );
+    }
+
+    #[test]
+    fn alignment_rotates_to_the_marker_edge_and_keeps_the_residual() {
+        let tx = tx(WaveformSpec::ofdm_default());
+        let options = ProcessOptions::for_waveform(tx.spec.kind());
+        let mut p = Pipeline::new(tx.clone(), options, geometry(&tx)).unwrap();
+        let mut raw = unit_echo(&tx, 0, 0.5);
+        // The record starts 10.25 samples after the marker edge.
+        let fs = tx.sample_rate_hz();
+        raw.first_point_s = 10.25 / fs;
+        let aligned = p.align(&raw).unwrap();
+        assert!((aligned.residual_s * fs - 0.25).abs() < 1e-9);
+        assert_eq!(aligned.samples[10], raw.samples[0]);
+        let short = RawIq {
+            samples: raw.samples[..100].to_vec(),
+            ..raw
+        };
+        assert!(matches!(
+            p.align(&short),
+            Err(MeasureError::RecordTooShort { .. })
+        ));
+    }
+}

@@ -276,6 +276,32 @@ pub fn echoes(spec: &RunSpec, tx: &Transmission) -> Result<(Vec<Complex64>, usiz
     Ok((clean, window))
 }
 
+/// The noise generator of a run (one stream for all its trials).
+fn noise_source(spec: &RunSpec) -> SplitMix64 {
+    SplitMix64::new(spec.seed ^ NOISE_SALT)
+}
+
+/// One trial's capture: the echoes plus the next noise of `rng`, at the capture rate, the marker
+/// edge at the first sample.
+fn noisy(spec: &RunSpec, clean: &[Complex64], rng: &mut SplitMix64) -> RawIq {
+    let mut rx = clean.to_vec();
+    add_noise(&mut rx, spec.snr_db, rng);
+    RawIq {
+        samples: rx,
+        sample_rate_hz: spec.waveform.sample_rate_hz() * spec.upsample() as f64,
+        first_point_s: 0.0,
+    }
+}
+
+/// The capture of a run's first trial, exactly as [`simulate`] processes it (for checking that a
+/// bench capture of the same samples gives the same result).
+pub fn first_trial(spec: &RunSpec) -> Result<RawIq, SimError> {
+    spec.validate()?;
+    let tx = transmission(spec)?;
+    let (clean, _) = echoes(spec, &tx)?;
+    Ok(noisy(spec, &clean, &mut noise_source(spec)))
+}
+
 /// Runs one scenario (all its trials) and returns its figures and first-trial profiles.
 pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
     spec.validate()?;
@@ -293,19 +319,13 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
     let up = spec.upsample();
     let (clean, window) = echoes(spec, &tx)?;
     let mut pipeline = pipeline(spec, tx, window)?;
-    let mut noise_rng = SplitMix64::new(spec.seed ^ NOISE_SALT);
+    let mut noise_rng = noise_source(spec);
 
     let mut first: Option<(TrialMetrics, Vec<Profile>, Vec<f64>)> = None;
     let mut trial_peaks = Vec::with_capacity(spec.trials);
     let mut resolved_count = 0usize;
     for _ in 0..spec.trials {
-        let mut rx = clean.clone();
-        add_noise(&mut rx, spec.snr_db, &mut noise_rng);
-        let raw = RawIq {
-            samples: rx,
-            sample_rate_hz: fs * up as f64,
-            first_point_s: 0.0,
-        };
+        let raw = noisy(spec, &clean, &mut noise_rng);
         let aligned = pipeline.align(&raw)?;
         let analysis = pipeline.analyse(&aligned)?;
         let metrics = measure(&analysis.range, spec);
