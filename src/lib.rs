@@ -2,36 +2,39 @@
 //!
 //! # Layer map
 //!
-//! Imports only point down. Pure layers (`waveform`, `dsp`) do no I/O and never touch tokio or the
-//! file system; everything that talks to an instrument goes through `driver -> session -> transport`.
+//! Imports only point down (`tests/layers.rs` checks it). Pure layers (`waveform`, `dsp`) do no
+//! I/O and never touch tokio or the file system; everything that talks to an instrument goes
+//! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!
 //! ```text
-//! cli -> measure -> driver -> session -> transport -> (tokio::net, serialport)
-//!  |        |          +-> catalog
-//!  |        +-> processing (names of the processing choices) -> dsp, waveform (pure)
-//!  +-> simulate -> processing, dsp, waveform
-//!  +-> storage (atomic files, SigMF, npy/CSV, plots)
+//! cli -> simulate ----------------------+
+//!  |                                    v
+//!  +---> measure (bench, station, pipeline, record) -> dsp, waveform (pure)
+//!  |        |       |        +-> storage (atomic files, SigMF, npy/CSV, plots)
+//!  |        |       +-> catalog
+//!  |        +-> driver -> session -> transport -> (tokio::net, serialport)
+//!  +---> storage
+//! leaves every layer may use: exit (exit classes), physics (c0), rng, time
+//! radbench -> mock_lab (the built-in bench); mock_lab -> nothing of radbench
 //! ```
 //!
 //! | module | layer | what it holds |
 //! |---|---|---|
+//! | [`exit`] | leaf | exit classes every error type maps to (0, 2, 3, 4, 129/130/143) |
+//! | [`physics`] | leaf | the speed of light |
+//! | [`rng`] | leaf | seeded SplitMix64 bits and Gaussian noise |
+//! | [`time`] | leaf | RFC 3339 UTC text for journals and run files |
 //! | [`address`] | 1 | VISA-style resource strings, parsed and printed back identically |
 //! | [`transport`] | 1 | whole-message transports: raw socket, VXI-11, HiSLIP, VICP, serial, journal |
 //! | [`session`] | 2 | IEEE 488.2 / SCPI on a transport: queries, blocks, `*OPC?`, `SYST:ERR?` |
 //! | [`catalog`] | data | schema and loader for `instruments/*.toml` |
-//! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end) and the concrete drivers |
-//! | [`waveform`] | pure | MSK-LFM and OFDM generators, DAC quantisation, communication receivers |
+//! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end), the drivers, permit, safe state |
+//! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
-//! | [`rng`] | pure | seeded SplitMix64 bits and Gaussian noise |
-//! | [`processing`] | pure | the `--algorithm`, `--window` and `--fft-precision` names shared by simulate, measure and the CLI |
-//! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
-//! | [`storage`] | out | run folders, SigMF, npy/CSV, plots |
-//! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations |
-//! | [`time`] | pure | RFC 3339 UTC text for journals and run files |
-//! | [`cli`] | app | one module per subcommand, plus the transfer progress bar |
-//!
-//! Exit codes are in [`exit`]: 0 success, 2 bad input, 3 instrument or link failure, 4 processing
-//! failure.
+//! | [`storage`] | out | atomic files, SigMF (write and read), npy/CSV, plots |
+//! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`], a capture's files |
+//! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations, on the same pipeline |
+//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
 
 pub mod address;
 pub mod catalog;
@@ -40,6 +43,7 @@ pub mod driver;
 pub mod dsp;
 pub mod exit;
 pub mod measure;
+pub mod physics;
 pub mod rng;
 pub mod session;
 pub mod simulate;

@@ -52,6 +52,9 @@ pub mod permit;
 pub mod safe_state;
 pub mod scripted;
 
+/// What drivers report and take from the layers below, so callers need not reach past `driver`.
+pub use crate::session::Identity;
+pub use crate::transport::{ErrorKind, Journal};
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
     IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, Slope,

@@ -30,5 +30,5 @@ pub mod ofdm_radar;
 pub mod range_profile;
 pub mod window;
 
-/// Speed of light in vacuum, m/s (the thesis rounds it to 3e8).
-pub const C0: f64 = 299_792_458.0;
+/// Speed of light in vacuum, m/s (defined in [`crate::physics`]).
+pub use crate::physics::C0;

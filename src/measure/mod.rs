@@ -4,7 +4,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`bench_file`] | the bench file: instruments, resources, calibration |
-//! | [`bench`] | the bench in use: a bench file, or the built-in mock lab started in-process |
+//! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | [`transmit`] | the waveform as AWG codes plus what the receiver needs |
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
@@ -33,8 +33,8 @@ pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 pub use transmit::{Dac, Transmission};
 
+use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};
-use crate::transport::ErrorKind;
 use std::fmt::Display;
 
 /// Why a measurement failed.
@@ -105,9 +105,6 @@ pub enum MeasureError {
     /// A file could not be read or written.
     #[error(transparent)]
     Storage(#[from] crate::storage::StorageError),
-    /// The I/O journal could not be opened.
-    #[error(transparent)]
-    Journal(#[from] crate::transport::journal::JournalError),
     /// The built-in mock lab did not start.
     #[error("cannot start the built-in mock lab: {0}")]
     Lab(#[from] mock_lab::lab::LabError),
@@ -166,7 +163,6 @@ impl MeasureError {
             MeasureError::Catalog(_)
             | MeasureError::Dsp(_)
             | MeasureError::Storage(_)
-            | MeasureError::Journal(_)
             | MeasureError::Lab(_)
             | MeasureError::NoReferenceEcho { .. }
             | MeasureError::RecordShorterThanWaveform { .. }
@@ -198,7 +194,6 @@ impl Classify for MeasureError {
             MeasureError::Catalog(e) => e.exit_class(),
             MeasureError::Dsp(e) => e.exit_class(),
             MeasureError::Storage(e) => e.exit_class(),
-            MeasureError::Journal(e) => e.exit_class(),
             MeasureError::Interrupted { signal, .. } => match signal {
                 interrupt::StopSignal::Interrupt => ExitClass::Interrupted,
                 interrupt::StopSignal::Terminate => ExitClass::Terminated,

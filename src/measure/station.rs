@@ -16,13 +16,11 @@ use crate::catalog::{Catalog, InstrumentModel};
 use crate::driver::m8195a::plan::{plan_clock, plan_download};
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
-    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, Gotmic,
-    IqCapture, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd, RfPermit, RfSettings, RfStatus,
-    SafeState, SafeStateReport,
+    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, Gotmic, Identity,
+    IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd, RfPermit, RfSettings,
+    RfStatus, SafeState, SafeStateReport,
 };
 use crate::dsp::C0;
-use crate::session::Identity;
-use crate::transport::Journal;
 use num_complex::Complex64;
 use serde::Serialize;
 use std::time::Duration;

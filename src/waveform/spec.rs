@@ -252,7 +252,7 @@ impl WaveformSpec {
     /// Ranges this waveform can measure without ambiguity: MSK-LFM, an echo within one pulse;
     /// OFDM, `c0 / (2 df)` (19.2 m by default).
     pub fn max_range_m(&self) -> f64 {
-        const C0: f64 = crate::dsp::C0;
+        use crate::physics::C0;
         match *self {
             WaveformSpec::MskLfm { pulse_s, .. } => C0 * pulse_s / 2.0,
             WaveformSpec::Ofdm {
@@ -275,7 +275,7 @@ impl WaveformSpec {
                 subcarriers,
                 cp_fraction,
                 ..
-            } => Some(crate::dsp::C0 * cp_fraction * subcarriers as f64 / bandwidth_hz / 2.0),
+            } => Some(crate::physics::C0 * cp_fraction * subcarriers as f64 / bandwidth_hz / 2.0),
             WaveformSpec::MskLfm { .. } => None,
         }
     }

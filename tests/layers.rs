@@ -1,0 +1,159 @@
+//! The layer map of `src/lib.rs` is true: every module imports only the layers below it (the
+//! table here is the crate docs' table), and mock_lab depends on nothing of radbench.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Module -> the modules it may import. Keep in step with the crate docs in src/lib.rs.
+const ALLOWED: &[(&str, &[&str])] = &[
+    ("exit", &[]),
+    ("physics", &[]),
+    ("rng", &[]),
+    ("time", &[]),
+    ("address", &["exit"]),
+    ("transport", &["address", "exit", "time"]),
+    ("session", &["address", "exit", "transport", "time"]),
+    ("catalog", &["exit"]),
+    (
+        "driver",
+        &[
+            "address",
+            "catalog",
+            "exit",
+            "rng",
+            "session",
+            "transport",
+            "time",
+        ],
+    ),
+    ("dsp", &["exit", "physics", "rng"]),
+    ("waveform", &["exit", "physics", "rng"]),
+    ("storage", &["exit", "physics", "time"]),
+    (
+        "measure",
+        &[
+            "address", "catalog", "driver", "dsp", "exit", "physics", "storage", "time", "waveform",
+        ],
+    ),
+    (
+        "simulate",
+        &[
+            "dsp", "exit", "measure", "physics", "rng", "storage", "waveform",
+        ],
+    ),
+    (
+        "campaign",
+        &[
+            "catalog", "driver", "dsp", "exit", "measure", "physics", "storage", "time", "waveform",
+        ],
+    ),
+];
+
+fn sources(path: &Path, out: &mut Vec<PathBuf>) {
+    if path.is_dir() {
+        for entry in std::fs::read_dir(path).unwrap() {
+            sources(&entry.unwrap().path(), out);
+        }
+    } else if path.extension().is_some_and(|e| e == "rs") {
+        out.push(path.to_path_buf());
+    }
+}
+
+/// The top-level modules a file names as `crate::x` (single and grouped imports, paths in code),
+/// comments excluded.
+fn imports(text: &str) -> BTreeSet<String> {
+    let mut found = BTreeSet::new();
+    for line in text.lines() {
+        let code = line.split("//").next().unwrap_or("");
+        let mut rest = code;
+        while let Some(i) = rest.find("crate::") {
+            rest = &rest[i + "crate::".len()..];
+            if let Some(group) = rest.strip_prefix('{') {
+                for item in group.split(['}', ',']) {
+                    let name: String = item
+                        .trim()
+                        .chars()
+                        .take_while(|c| c.is_alphanumeric() || *c == '_')
+                        .collect();
+                    if !name.is_empty() {
+                        found.insert(name);
+                    }
+                }
+            } else {
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                found.insert(name);
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn every_module_imports_only_the_layers_below_it() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut violations = Vec::new();
+    for (module, allowed) in ALLOWED {
+        let dir = src.join(module);
+        let file = src.join(format!("{module}.rs"));
+        let mut files = Vec::new();
+        if dir.is_dir() {
+            sources(&dir, &mut files);
+        }
+        if file.is_file() {
+            files.push(file);
+        }
+        for f in files {
+            let text = std::fs::read_to_string(&f).unwrap();
+            for used in imports(&text) {
+                if used != *module && !allowed.contains(&used.as_str()) {
+                    violations.push(format!(
+                        "{} imports crate::{used}, above or beside the {module} layer",
+                        f.strip_prefix(&src).unwrap().display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(violations.is_empty(), "{}", violations.join("\n"));
+}
+
+#[test]
+fn every_module_of_the_crate_is_in_the_layer_table() {
+    let lib =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs")).unwrap();
+    let declared: Vec<&str> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .map(|l| l.trim_end_matches(';'))
+        .collect();
+    for m in declared {
+        assert!(
+            m == "cli" || ALLOWED.iter().any(|(name, _)| *name == m),
+            "src/lib.rs declares `{m}` but tests/layers.rs does not place it in a layer"
+        );
+    }
+}
+
+#[test]
+fn the_checker_sees_grouped_and_inline_imports() {
+    let found =
+        imports("use crate::{dsp::C0, waveform};\nlet x = crate::storage::f(); // crate::cli");
+    assert_eq!(
+        found.into_iter().collect::<Vec<_>>(),
+        ["dsp", "storage", "waveform"]
+    );
+}
+
+#[test]
+fn mock_lab_depends_on_nothing_of_radbench() {
+    let manifest =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("mock_lab/Cargo.toml"))
+            .unwrap();
+    assert!(
+        !manifest.contains("radbench"),
+        "mock_lab must stay independent of radbench (two implementations check each other)"
+    );
+}
