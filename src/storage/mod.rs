@@ -1,5 +1,5 @@
 //! Outputs: atomic file writes, SigMF recordings, npy and CSV range profiles, and range-profile
-//! plots (SVG/PNG).
+//! plots (SVG/PNG); and the readers of recorded captures ([`recording`]: SigMF, `.trc`).
 //!
 //! Every writer goes through [`atomic::write_atomic`]: the bytes go to a temporary file in the
 //! destination's folder, which is then renamed over the destination, so a reader never sees half a
@@ -12,6 +12,7 @@ pub mod atomic;
 pub mod npy;
 pub mod plot;
 pub mod profile;
+pub mod recording;
 pub mod sigmf;
 
 /// Why an output could not be written.
