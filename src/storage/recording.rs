@@ -72,6 +72,23 @@ pub enum RecordingError {
     Archive { path: PathBuf },
 }
 
+impl RecordingError {
+    /// The file the error is about (for a missing data file: the metadata naming it).
+    pub fn path(&self) -> &Path {
+        match self {
+            RecordingError::Io { path, .. }
+            | RecordingError::Trc { path, .. }
+            | RecordingError::NotJson { path, .. }
+            | RecordingError::Field { path, .. }
+            | RecordingError::Datatype { path, .. }
+            | RecordingError::DataLength { path, .. }
+            | RecordingError::Sha512 { path, .. }
+            | RecordingError::Archive { path } => path,
+            RecordingError::MissingData { meta, .. } => meta,
+        }
+    }
+}
+
 impl Classify for RecordingError {
     fn exit_class(&self) -> ExitClass {
         ExitClass::BadInput
