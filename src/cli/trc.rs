@@ -79,10 +79,9 @@ pub(crate) fn si(value: f64, unit: &str) -> String {
         .find(|(s, _)| value.abs() >= *s * 0.9995)
         .copied()
         .unwrap_or((1e-15, "f"));
-    format!("{:.4} {prefix}{unit}", value / scale)
-        .replace(".0000 ", " ")
-        .trim_end()
-        .to_string()
+    let number = format!("{:.4}", value / scale);
+    let number = number.trim_end_matches('0').trim_end_matches('.');
+    format!("{number} {prefix}{unit}")
 }
 
 fn ends<T: Copy>(all: &[T], n: usize) -> (Vec<T>, Vec<T>) {
@@ -303,7 +302,8 @@ mod tests {
     #[test]
     fn si_prefixes() {
         assert_eq!(si(1e-9, "s"), "1 ns");
-        assert_eq!(si(-3.6457e-7, "s"), "-364.5700 ns");
+        assert_eq!(si(-3.6457e-7, "s"), "-364.57 ns");
+        assert_eq!(si(2.5e-3, "s"), "2.5 ms");
         assert_eq!(si(1e9, "Sa/s"), "1 GSa/s");
         assert_eq!(si(0.0, "V"), "0 V");
         assert_eq!(si(0.25, "V"), "250 mV");
