@@ -230,3 +230,34 @@ fn a_bad_recording_exits_2_naming_the_file_and_field() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("core:datatype"), "{}", stderr(&out));
 }
+
+/// What `radbench capture` writes reads back the same through the recording reader and the
+/// `.trc` reader (the SigMF volts equal the traces' volts sample for sample).
+#[test]
+fn a_radbench_capture_reads_back_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = radbench(&[
+        "capture",
+        "--allow-rf",
+        "--json",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r = read_sigmf(&dir.path().join("capture.sigmf-meta")).unwrap();
+    assert_eq!(r.unit, SampleUnit::Volts);
+    assert!(r.sha512_checked);
+    assert_eq!(r.sample_rate_hz, Some(80e9));
+    let rb = r.radbench.as_ref().unwrap();
+    assert!(rb.waveform().is_some() && rb.processing().is_some());
+    let i = read_trc(&dir.path().join("C1.trc")).unwrap();
+    let q = read_trc(&dir.path().join("C2.trc")).unwrap();
+    assert_eq!((i.channel, q.channel), (1, 2));
+    let iv = i.volts();
+    let qv = q.volts();
+    assert_eq!(iv.len(), r.samples.len());
+    assert_eq!(rb.trigger_offset_s, Some(i.first_sample_s()));
+    for (k, z) in r.samples.iter().enumerate().step_by(997) {
+        assert_eq!((z.re, z.im), (iv[k], qv[k]), "sample {k}");
+    }
+}

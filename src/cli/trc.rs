@@ -74,11 +74,13 @@ pub(crate) fn si(value: f64, unit: &str) -> String {
         (1e-9, "n"),
         (1e-12, "p"),
     ];
-    let (scale, prefix) = PREFIXES
+    let Some((scale, prefix)) = PREFIXES
         .iter()
         .find(|(s, _)| value.abs() >= *s * 0.9995)
         .copied()
-        .unwrap_or((1e-15, "f"));
+    else {
+        return format!("{value:.4e} {unit}");
+    };
     let number = format!("{:.4}", value / scale);
     let number = number.trim_end_matches('0').trim_end_matches('.');
     format!("{number} {prefix}{unit}")
@@ -307,6 +309,7 @@ mod tests {
         assert_eq!(si(1e9, "Sa/s"), "1 GSa/s");
         assert_eq!(si(0.0, "V"), "0 V");
         assert_eq!(si(0.25, "V"), "250 mV");
+        assert_eq!(si(8.47e-22, "s"), "8.4700e-22 s");
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! `volts = gain * word - offset`), otherwise in the datatype's native scale (integer codes as
 //! they are, floats as they are; no autoscaling to +-1). Captures' `core:header_bytes`, the global
 //! `core:trailing_bytes`, `core:dataset` (a data file of another name) and `core:sha512` are
-//! honoured. Every error names the file and the field; all of them are bad input (exit code 2).
+//! honoured; multi-channel recordings (`core:num_channels` > 1) are refused. Every error names the file and the field; all of them are bad input (exit code 2).
 
 use std::path::{Path, PathBuf};
 
@@ -433,6 +433,13 @@ pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
                 format!("must be positive, found {rate}"),
             ));
         }
+    }
+    let channels = f.count(global, "core:num_channels")?;
+    if channels > 1 {
+        return Err(f.err(
+            "core:num_channels",
+            format!("is {channels}: radbench reads one I/Q stream (num_channels 1)"),
+        ));
     }
     if global.get("core:metadata_only").and_then(Value::as_bool) == Some(true) {
         return Err(f.err(
@@ -880,6 +887,10 @@ mod tests {
         m["global"].as_object_mut().unwrap().remove("core:datatype");
         let e = err(m, &[0; 2], "nodt");
         assert!(e.contains("core:datatype") && e.contains("missing"), "{e}");
+        let mut m = meta("ci8");
+        m["global"]["core:num_channels"] = serde_json::json!(2);
+        let e = err(m, &[0; 4], "chan");
+        assert!(e.contains("core:num_channels"), "{e}");
         let e = err(Value::String("x".into()), &[], "notobj");
         assert!(e.contains("global"), "{e}");
 
