@@ -54,6 +54,13 @@ impl Stats {
     }
 }
 
+/// Statistics of every point of the trace (all segments), without a copy in volts.
+fn trace_stats(t: &Trace) -> Option<Stats> {
+    let gain = f64::from(t.desc.vertical_gain);
+    let offset = f64::from(t.desc.vertical_offset);
+    Stats::of(t.codes.iter().map(|c| gain * f64::from(*c) - offset))
+}
+
 fn segment_stats(s: &Segment<'_>) -> Option<Stats> {
     Stats::of(s.codes.iter().map(|c| s.volt(*c)))
 }
@@ -99,7 +106,10 @@ pub fn trace_json(path: &Path, t: &Trace, points: usize) -> Value {
     let segments: Vec<Value> = t
         .segments()
         .map(|s| {
-            let (first_volts, last_volts) = ends(&s.volts(), points);
+            let (first, last) = ends(s.codes, points);
+            let volts =
+                |codes: Vec<i16>| -> Vec<f64> { codes.iter().map(|c| s.volt(*c)).collect() };
+            let (first_volts, last_volts) = (volts(first), volts(last));
             let n = s.codes.len();
             let k = points.min(n);
             let first_times: Vec<f64> = (0..k).map(|i| s.time(i)).collect();
@@ -131,7 +141,7 @@ pub fn trace_json(path: &Path, t: &Trace, points: usize) -> Value {
         "sample_interval_s": interval,
         "sample_rate_hz": 1.0 / interval,
         "segment_duration_s": per_segment as f64 * interval,
-        "stats": Stats::of(t.volts().into_iter()),
+        "stats": trace_stats(t),
         "segments": segments,
     })
 }
@@ -204,7 +214,7 @@ fn print_text(path: &Path, t: &Trace, max_segments: usize) {
     if !t.ris_offsets.is_empty() {
         println!("  RIS sweeps       {}", t.ris_offsets.len());
     }
-    match Stats::of(t.volts().into_iter()) {
+    match trace_stats(t) {
         Some(s) => println!(
             "  volts            min {}  max {}  mean {}  RMS {}",
             si(s.min_v, unit),
