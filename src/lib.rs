@@ -14,7 +14,7 @@
 //!  |        |       +-> catalog
 //!  |        +-> driver -> session -> transport -> (tokio::net, serialport)
 //!  +---> storage
-//! leaves every layer may use: exit (exit classes), physics (c0), rng, time
+//! leaves every layer may use: exit (exit classes), physics (c0), rng, time; trc (pure codec)
 //! radbench -> mock_lab (the built-in bench); mock_lab -> nothing of radbench
 //! ```
 //!
@@ -30,6 +30,7 @@
 //! | [`catalog`] | data | schema and loader for `instruments/*.toml` |
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end), the drivers, permit, safe state |
 //! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
+//! | [`trc`] | pure | LeCroy waveform blocks and `.trc` files (WAVEDESC, segments): decode and build |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
 //! | [`storage`] | out | atomic files, SigMF (write and read), npy/CSV, plots |
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`], a capture's files |
@@ -50,4 +51,5 @@ pub mod simulate;
 pub mod storage;
 pub mod time;
 pub mod transport;
+pub mod trc;
 pub mod waveform;

@@ -5,7 +5,6 @@
 use std::time::Duration;
 
 use radbench::catalog::{Catalog, InstrumentModel};
-use radbench::driver::lecroy::wavedesc::BlockBuilder;
 use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::scripted::{Failure, ERROR_CHECK};
 use radbench::driver::{
@@ -13,6 +12,7 @@ use radbench::driver::{
     M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
 };
 use radbench::exit::{Classify, ExitClass};
+use radbench::trc::BlockBuilder;
 
 fn model(key: &str) -> InstrumentModel {
     Catalog::embedded().unwrap().get(key).unwrap().clone()

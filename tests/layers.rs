@@ -11,6 +11,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("rng", &[]),
     ("time", &[]),
     ("address", &["exit"]),
+    ("trc", &["exit", "rng"]),
     ("transport", &["address", "exit", "time"]),
     ("session", &["address", "exit", "transport", "time"]),
     ("catalog", &["exit"]),
@@ -24,15 +25,17 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "session",
             "transport",
             "time",
+            "trc",
         ],
     ),
     ("dsp", &["exit", "physics", "rng"]),
     ("waveform", &["exit", "physics", "rng"]),
-    ("storage", &["exit", "physics", "time"]),
+    ("storage", &["exit", "physics", "time", "trc"]),
     (
         "measure",
         &[
-            "address", "catalog", "driver", "dsp", "exit", "physics", "storage", "time", "waveform",
+            "address", "catalog", "driver", "dsp", "exit", "physics", "storage", "time", "trc",
+            "waveform",
         ],
     ),
     (

@@ -38,6 +38,7 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::driver::DriverError,
         crate::driver::TrcError,
         crate::storage::StorageError,
+        crate::storage::recording::RecordingError,
         crate::simulate::SimError,
         crate::measure::MeasureError,
         crate::measure::bench_file::BenchFileError,

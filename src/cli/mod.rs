@@ -16,8 +16,10 @@ pub mod exit_code;
 pub mod idn;
 pub mod mock_lab;
 pub mod progress;
+pub mod recording;
 pub mod scpi;
 pub mod simulate;
+pub mod trc;
 
 pub use exit_code::classify;
 
@@ -52,6 +54,10 @@ pub enum Command {
     MockLab(mock_lab::Args),
     /// Send SCPI commands to an instrument, one-shot or at an interactive prompt.
     Scpi(scpi::Args),
+    /// Show the header and a summary of LeCroy .trc files (every segment of a sequence).
+    Trc(trc::Args),
+    /// Show a SigMF recording: datatype, rate, samples, statistics, radbench's metadata.
+    Recording(recording::Args),
 }
 
 /// Options every subcommand can see.
@@ -72,6 +78,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(args) => calibrate::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
+        Command::Trc(args) => trc::run(args, &global),
+        Command::Recording(args) => recording::run(args, &global),
     }
 }
 

@@ -10,10 +10,10 @@ use serde::{Deserialize, Serialize};
 
 use super::error::DriverError;
 use super::io::BoxFuture;
-use super::lecroy::wavedesc::Trace;
 use super::permit::RfPermit;
 use crate::catalog::RfDirection;
 use crate::session::Identity;
+use crate::trc::Trace;
 
 /// Where the AWG's sample clock reference comes from. Share a 10 MHz reference with the scope so
 /// the 80 -> 16 GSa/s relationship stays phase-stable over long records (instruments.md section 8).

@@ -5,7 +5,7 @@ use crate::exit::{Classify, ExitClass};
 use crate::session::{DeviceError, SessionError};
 use crate::transport::ErrorKind;
 
-use super::lecroy::wavedesc::TrcError;
+use crate::trc::TrcError;
 
 fn join(errors: &[DeviceError]) -> String {
     errors

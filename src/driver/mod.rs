@@ -55,6 +55,7 @@ pub mod scripted;
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;
 pub use crate::transport::{ErrorKind, Journal};
+pub use crate::trc::{Trace, TrcError};
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
     IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, Slope,
@@ -62,7 +63,6 @@ pub use capability::{
 pub use error::DriverError;
 pub use gotmic::Gotmic;
 pub use io::{BoxFuture, InstrumentIo};
-pub use lecroy::wavedesc::{Trace, TrcError};
 pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;

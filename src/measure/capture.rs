@@ -117,22 +117,33 @@ fn read_background(
     path: &std::path::Path,
     capture_rate_hz: f64,
 ) -> Result<Aligned, MeasureError> {
-    let rec = crate::storage::sigmf::read_scope_recording(path)?;
-    if (rec.sample_rate_hz - capture_rate_hz).abs() > 1e-6 * capture_rate_hz {
+    use crate::storage::recording::{read_sigmf, SampleUnit};
+    let rec = read_sigmf(path)?;
+    let first_point_s = rec.radbench.as_ref().and_then(|r| r.trigger_offset_s);
+    let (Some(rate), SampleUnit::Volts, Some(first_point_s)) =
+        (rec.sample_rate_hz, rec.unit, first_point_s)
+    else {
+        return Err(MeasureError::option(
+            "background",
+            path.display(),
+            "a capture radbench wrote (core:sample_rate, radbench:vertical_gain/offset and \
+             radbench:trigger_offset_s give its volts and its timing)",
+        ));
+    };
+    if (rate - capture_rate_hz).abs() > 1e-6 * capture_rate_hz {
         return Err(MeasureError::option(
             "background",
             path.display(),
             format!(
                 "a capture at this bench's rate of {capture_rate_hz} Sa/s; this one was taken \
-                 at {} Sa/s",
-                rec.sample_rate_hz
+                 at {rate} Sa/s"
             ),
         ));
     }
     let raw = RawIq {
         samples: rec.samples,
-        sample_rate_hz: rec.sample_rate_hz,
-        first_point_s: rec.first_point_s,
+        sample_rate_hz: rate,
+        first_point_s,
     };
     pipeline.align(&raw).map_err(|e| match e {
         MeasureError::RecordTooShort { points, needed } => MeasureError::option(

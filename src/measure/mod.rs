@@ -105,6 +105,9 @@ pub enum MeasureError {
     /// A file could not be read or written.
     #[error(transparent)]
     Storage(#[from] crate::storage::StorageError),
+    /// A recording given as input cannot be read.
+    #[error(transparent)]
+    Recording(#[from] crate::storage::recording::RecordingError),
     /// The built-in mock lab did not start.
     #[error("cannot start the built-in mock lab: {0}")]
     Lab(#[from] mock_lab::lab::LabError),
@@ -157,7 +160,8 @@ impl MeasureError {
             | MeasureError::Waveform(_)
             | MeasureError::BenchFile(_)
             | MeasureError::Scene(_)
-            | MeasureError::Resource { .. } => ErrorKind::FixInput,
+            | MeasureError::Resource { .. }
+            | MeasureError::Recording(_) => ErrorKind::FixInput,
             MeasureError::Driver(e) => e.kind(),
             MeasureError::RecordTooShort { .. } => ErrorKind::Retry,
             MeasureError::Catalog(_)
@@ -194,6 +198,7 @@ impl Classify for MeasureError {
             MeasureError::Catalog(e) => e.exit_class(),
             MeasureError::Dsp(e) => e.exit_class(),
             MeasureError::Storage(e) => e.exit_class(),
+            MeasureError::Recording(e) => e.exit_class(),
             MeasureError::Interrupted { signal, .. } => match signal {
                 interrupt::StopSignal::Interrupt => ExitClass::Interrupted,
                 interrupt::StopSignal::Terminate => ExitClass::Terminated,

@@ -1,5 +1,5 @@
 //! Outputs: atomic file writes, SigMF recordings, npy and CSV range profiles, and range-profile
-//! plots (SVG/PNG).
+//! plots (SVG/PNG); and the readers of recorded captures ([`recording`]: SigMF, `.trc`).
 //!
 //! Every writer goes through [`atomic::write_atomic`]: the bytes go to a temporary file in the
 //! destination's folder, which is then renamed over the destination, so a reader never sees half a
@@ -12,6 +12,7 @@ pub mod atomic;
 pub mod npy;
 pub mod plot;
 pub mod profile;
+pub mod recording;
 pub mod sigmf;
 
 /// Why an output could not be written.
@@ -33,9 +34,6 @@ pub enum StorageError {
     /// The data handed to a writer is inconsistent (a caller bug or an empty result).
     #[error("cannot write {path}: {reason}")]
     BadData { path: PathBuf, reason: String },
-    /// A recording given as input cannot be used (names the file and the field).
-    #[error("{path}: {reason}")]
-    BadRecording { path: PathBuf, reason: String },
     /// The plotting library failed while drawing.
     #[error("cannot draw {path}: {reason}")]
     Plot { path: PathBuf, reason: String },
@@ -44,9 +42,7 @@ pub enum StorageError {
 impl Classify for StorageError {
     fn exit_class(&self) -> ExitClass {
         match self {
-            StorageError::UnsupportedFormat { .. } | StorageError::BadRecording { .. } => {
-                ExitClass::BadInput
-            }
+            StorageError::UnsupportedFormat { .. } => ExitClass::BadInput,
             StorageError::Io { .. } | StorageError::BadData { .. } | StorageError::Plot { .. } => {
                 ExitClass::Processing
             }

@@ -8,7 +8,8 @@
 //! configuration batch instead.
 
 pub mod commands;
-pub mod wavedesc;
+/// The LeCroy waveform format lives in [`crate::trc`] (a pure codec shared with file readers).
+pub use crate::trc as wavedesc;
 
 use bytes::Bytes;
 
