@@ -66,6 +66,7 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         let m = capture::measure(
             &bench,
             &request,
+            1,
             &RfPermit::granted_by_user(),
             journal(global)?,
             &interrupt,

@@ -51,6 +51,10 @@ pub struct Args {
     /// Ignore detections farther than this, metres.
     #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub max_range: f64,
+    /// Marker-triggered repetitions per measurement: each processed, and their coherent average
+    /// reported with the spread (mean and standard deviation) of the repetitions.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub repetitions: usize,
     /// Longest wait for the marker-triggered acquisition, seconds.
     #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub wait: f64,
@@ -159,6 +163,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let m = capture::measure(
         &bench,
         &request,
+        args.repetitions,
         &RfPermit::granted_by_user(),
         journal(global)?,
         &interrupt,
@@ -204,13 +209,40 @@ fn print_report(m: &Measurement, out: &Path) {
         println!("targets: none");
     } else {
         println!("targets:");
-        for t in &p.targets {
-            println!("  {:>9.4} m   {:>6.1} dB", t.range_m, t.level_db);
+        for (k, t) in p.targets.iter().enumerate() {
+            let spread = m
+                .spread
+                .as_ref()
+                .and_then(|s| s.targets.get(k))
+                .and_then(|s| s.range)
+                .map(|r| {
+                    format!(
+                        "   +- {:.2} mm over {} of {} repetitions",
+                        r.std * 1e3,
+                        r.n,
+                        m.captured.repetitions()
+                    )
+                })
+                .unwrap_or_default();
+            println!("  {:>9.4} m   {:>6.1} dB{spread}", t.range_m, t.level_db);
         }
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |x| format!("{x:.2} {unit}"));
-    println!("-3 dB width: {}", opt(p.width_3db_cm, "cm"));
-    println!("peak side-lobe: {}", opt(p.sidelobe_db, "dB"));
+    let pm = |s: Option<crate::measure::repeat::Stat>, unit: &str| {
+        s.map(|s| format!(" (repetitions: {:.2} +- {:.2} {unit})", s.mean, s.std))
+            .unwrap_or_default()
+    };
+    let spread = m.spread.as_ref();
+    println!(
+        "-3 dB width: {}{}",
+        opt(p.width_3db_cm, "cm"),
+        pm(spread.and_then(|s| s.width_3db_cm), "cm")
+    );
+    println!(
+        "peak side-lobe: {}{}",
+        opt(p.sidelobe_db, "dB"),
+        pm(spread.and_then(|s| s.sidelobe_db), "dB")
+    );
     println!("SNR (profile peak over median): {}", opt(p.snr_db, "dB"));
     if let Some(pl) = &p.payload {
         match (&pl.text, &pl.error) {

@@ -58,7 +58,8 @@ pub use crate::transport::{ErrorKind, Journal};
 pub use crate::trc::{Trace, TrcError};
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
-    IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, Slope,
+    IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry,
+    Slope,
 };
 pub use error::DriverError;
 pub use gotmic::Gotmic;

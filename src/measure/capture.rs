@@ -10,7 +10,8 @@ use super::bench::Bench;
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
-use super::station::{self, CapturePlan, Captured, Identities, Station};
+use super::repeat::{self, RepetitionResult, Spread};
+use super::station::{self, CapturePlan, Captured, Identities, Station, Uploaded};
 use super::transmit::{Dac, Transmission};
 use super::{off_runtime, MeasureError};
 use crate::catalog::Catalog;
@@ -39,8 +40,14 @@ pub struct CaptureRequest {
 pub struct Measurement {
     pub tx: Arc<Transmission>,
     pub plan: CapturePlan,
+    /// Every repetition's raw capture.
     pub captured: Captured,
+    /// The result: the coherent average of the repetitions (or the one repetition), processed.
     pub processed: Processed,
+    /// Each repetition processed alone (empty for a single repetition).
+    pub repetitions: Vec<RepetitionResult>,
+    /// The repetitions' spread around the result (several repetitions only).
+    pub spread: Option<Spread>,
     /// The options as used (with the AWG amplitude the instrument applied).
     pub options: ProcessOptions,
     pub identities: Identities,
@@ -60,8 +67,18 @@ impl Measurement {
 pub struct Prepared {
     pub tx: Arc<Transmission>,
     pub plan: CapturePlan,
-    pub pipeline: Pipeline,
+    /// `None` only while a worker thread processes with it.
+    pipeline: Option<Pipeline>,
     pub background: Option<Aligned>,
+}
+
+impl Prepared {
+    /// The pipeline captures of this preparation go through.
+    pub fn pipeline(&self) -> &Pipeline {
+        self.pipeline
+            .as_ref()
+            .expect("the pipeline is back from its worker")
+    }
 }
 
 /// Generates the waveform, checks every option, plans the instruments, reads the background and
@@ -106,7 +123,7 @@ pub async fn prepare(
     Ok(Prepared {
         tx,
         plan,
-        pipeline,
+        pipeline: Some(pipeline),
         background,
     })
 }
@@ -140,8 +157,41 @@ fn read_background(
             ),
         ));
     }
+    // The background must be of the same waveform: the same parameters (and bits, so the same
+    // seed or payload: checked through the sample count of one repetition below).
+    let meta = rec.radbench.as_ref().map(|r| &r.keys);
+    let spec = meta
+        .and_then(|k| k.get("waveform"))
+        .and_then(|w| w.get("spec"))
+        .and_then(|s| serde_json::from_value::<WaveformSpec>(s.clone()).ok());
+    let ours = pipeline.transmission().spec;
+    if let Some(theirs) = spec {
+        if theirs != ours {
+            return Err(MeasureError::option(
+                "background",
+                path.display(),
+                format!(
+                    "a capture of the same waveform; it holds {} ({:?}), this capture sends {} \
+                     ({:?})",
+                    theirs.name(),
+                    theirs,
+                    ours.name(),
+                    ours
+                ),
+            ));
+        }
+    }
+    // Several repetitions follow each other in the file: the first one is the background.
+    let first_count = meta
+        .and_then(|k| k.get("repetitions"))
+        .and_then(|r| r.get(0))
+        .and_then(|r| r.get("sample_count"))
+        .and_then(serde_json::Value::as_u64)
+        .map_or(rec.samples.len(), |n| (n as usize).min(rec.samples.len()));
+    let mut samples = rec.samples;
+    samples.truncate(first_count);
     let raw = RawIq {
-        samples: rec.samples,
+        samples,
         sample_rate_hz: rate,
         first_point_s,
     };
@@ -158,62 +208,171 @@ fn read_background(
     })
 }
 
-/// Runs one prepared capture on the bench and processes it.
-pub async fn run(
-    bench: &Bench,
-    catalog: &Catalog,
-    prepared: Prepared,
-    permit: &RfPermit,
-    journal: Option<Journal>,
-    interrupt: &Interrupt,
-) -> Result<Measurement, MeasureError> {
-    let Prepared {
-        tx,
-        plan,
-        mut pipeline,
-        background,
-    } = prepared;
-    let mut station = Station::connect(&bench.file, catalog, journal).await?;
-    station.install_panic_hook();
-    let (result, report) = station.capture(&tx, &plan, permit, interrupt).await;
-    if !report.is_safe() {
-        eprintln!(
-            "WARNING: the safe state did not complete: {report}; switch the bench off by hand"
-        );
-    }
-    let captured = result?;
-    pipeline.set_awg_amplitude(captured.applied.awg.i_amplitude_vpp)?;
-    let raw = captured.raw();
-    let (pipeline, processed) = off_runtime(move || {
-        let processed = pipeline
-            .align(&raw)
-            .and_then(|aligned| pipeline.process(aligned, background.as_ref()));
-        (pipeline, processed)
-    })
-    .await?;
-    let processed = processed?;
-    let ground_truth = bench.ground_truth().await;
-    Ok(Measurement {
-        tx,
-        plan,
-        captured,
-        processed,
-        options: pipeline.options().clone(),
-        identities: station.identities.clone(),
-        ground_truth,
-        safe_state: report,
-    })
+/// The connected bench, kept across the measurements of a campaign: the waveform is uploaded
+/// once and again only when it changes or the AWG lost it.
+pub struct Rig {
+    station: Station,
+    /// The transmission the AWG holds and what the upload left.
+    loaded: Option<(Arc<Transmission>, Uploaded)>,
 }
 
-/// [`prepare`], then [`run`].
+impl Rig {
+    /// Connects every instrument of the bench and arms the panic hook's safe state.
+    pub async fn connect(
+        bench: &Bench,
+        catalog: &Catalog,
+        journal: Option<Journal>,
+    ) -> Result<Rig, MeasureError> {
+        let station = Station::connect(&bench.file, catalog, journal).await?;
+        station.install_panic_hook();
+        Ok(Rig {
+            station,
+            loaded: None,
+        })
+    }
+
+    pub fn identities(&self) -> &Identities {
+        &self.station.identities
+    }
+
+    /// The bench's safe-state sequence.
+    pub fn safe_state(&self) -> &crate::driver::SafeState {
+        self.station.safe_state()
+    }
+
+    /// What the AWG reports now (the manifest's "applied" between steps).
+    pub async fn awg_applied(&mut self) -> Result<crate::driver::AwgApplied, MeasureError> {
+        self.station.awg_applied().await
+    }
+
+    /// One measurement of `repetitions` marker-triggered repetitions under the safe-state guard,
+    /// processed through the prepared pipeline off the runtime: each repetition alone, and their
+    /// coherent average as the result.
+    pub async fn measure(
+        &mut self,
+        bench: &Bench,
+        prepared: &mut Prepared,
+        repetitions: usize,
+        permit: &RfPermit,
+        interrupt: &Interrupt,
+    ) -> Result<Measurement, MeasureError> {
+        if !(1..=MAX_REPETITIONS).contains(&repetitions) {
+            return Err(MeasureError::option(
+                "repetitions",
+                repetitions,
+                format!("1..={MAX_REPETITIONS}"),
+            ));
+        }
+        let loaded = self
+            .loaded
+            .as_ref()
+            .filter(|(tx, _)| Arc::ptr_eq(tx, &prepared.tx))
+            .map(|(_, up)| up);
+        let (result, report) = self
+            .station
+            .capture(
+                &prepared.tx,
+                &prepared.plan,
+                loaded,
+                repetitions,
+                permit,
+                interrupt,
+            )
+            .await;
+        if !report.is_safe() {
+            eprintln!(
+                "WARNING: the safe state did not complete: {report}; switch the bench off by hand"
+            );
+        }
+        let captured = match result {
+            Ok(c) => c,
+            Err(e) => {
+                // Whatever the AWG holds now is unknown: upload again next time.
+                self.loaded = None;
+                return Err(e);
+            }
+        };
+        self.loaded = Some((prepared.tx.clone(), captured.uploaded.clone()));
+        let mut pipeline = prepared.pipeline.take().ok_or_else(|| {
+            MeasureError::Worker("an earlier measurement lost the pipeline".into())
+        })?;
+        if let Err(e) = pipeline.set_awg_amplitude(captured.applied.awg.i_amplitude_vpp) {
+            prepared.pipeline = Some(pipeline);
+            return Err(e);
+        }
+        let raws: Vec<RawIq> = (0..captured.repetitions())
+            .map(|k| captured.raw(k))
+            .collect();
+        // The pipeline goes to the worker thread and comes back.
+        let background = prepared.background.clone();
+        let bandwidth = prepared.tx.bandwidth_hz();
+        let (pipeline, outcome) = off_runtime(move || {
+            let mut pipeline = pipeline;
+            let outcome = process_repetitions(&mut pipeline, &raws, background.as_ref(), bandwidth);
+            (pipeline, outcome)
+        })
+        .await?;
+        let options = pipeline.options().clone();
+        prepared.pipeline = Some(pipeline);
+        let (processed, each, spread) = outcome?;
+        let ground_truth = bench.ground_truth().await;
+        Ok(Measurement {
+            tx: prepared.tx.clone(),
+            plan: prepared.plan.clone(),
+            captured,
+            processed,
+            repetitions: each,
+            spread,
+            options,
+            identities: self.station.identities.clone(),
+            ground_truth,
+            safe_state: report,
+        })
+    }
+}
+
+/// Most repetitions one measurement takes.
+pub const MAX_REPETITIONS: usize = 1000;
+
+/// Aligns every repetition, processes each alone (when there are several) and their coherent
+/// average.
+fn process_repetitions(
+    pipeline: &mut Pipeline,
+    raws: &[RawIq],
+    background: Option<&Aligned>,
+    bandwidth_hz: f64,
+) -> Result<(Processed, Vec<RepetitionResult>, Option<Spread>), MeasureError> {
+    let aligned = raws
+        .iter()
+        .map(|r| pipeline.align(r))
+        .collect::<Result<Vec<_>, _>>()?;
+    if aligned.len() == 1 {
+        let one = aligned.into_iter().next().expect("one repetition");
+        return Ok((pipeline.process(one, background)?, Vec::new(), None));
+    }
+    let mean = repeat::average(&aligned).expect("at least one repetition");
+    let mut each = Vec::with_capacity(aligned.len());
+    for a in aligned {
+        each.push(RepetitionResult::from(&pipeline.process(a, background)?));
+    }
+    let processed = pipeline.process(mean, background)?;
+    let tolerance = crate::physics::C0 / (4.0 * bandwidth_hz);
+    let spread = repeat::spread(&processed.targets, &each, tolerance);
+    Ok((processed, each, Some(spread)))
+}
+
+/// [`prepare`], connect, one measurement of `repetitions`.
 pub async fn measure(
     bench: &Bench,
     request: &CaptureRequest,
+    repetitions: usize,
     permit: &RfPermit,
     journal: Option<Journal>,
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
     let catalog = Catalog::embedded()?;
-    let prepared = prepare(bench, &catalog, request).await?;
-    run(bench, &catalog, prepared, permit, journal, interrupt).await
+    let mut prepared = prepare(bench, &catalog, request).await?;
+    let mut rig = Rig::connect(bench, &catalog, journal).await?;
+    rig.measure(bench, &mut prepared, repetitions, permit, interrupt)
+        .await
 }

@@ -12,6 +12,7 @@
 //! | [`payload`] | the communication receivers of the pipeline |
 //! | [`station`] | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
+//! | [`repeat`] | several repetitions: coherent average and spread |
 //! | [`record`] | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | [`calibration`] | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
@@ -26,6 +27,7 @@ pub mod options;
 pub mod payload;
 pub mod pipeline;
 pub mod record;
+pub mod repeat;
 pub mod station;
 pub mod transmit;
 

@@ -60,8 +60,8 @@ pub fn write_capture(
         path: out.to_path_buf(),
         source,
     })?;
-    let i = &m.captured.iq.i;
-    let q = &m.captured.iq.q;
+    let first = &m.captured.iq[0];
+    let (i, q) = (&first.i, &first.q);
     let o = &m.options;
     let mut ns = serde_json::Map::new();
     ns.insert(
@@ -73,6 +73,28 @@ pub fn write_capture(
         json!([i.desc.vertical_offset, q.desc.vertical_offset]),
     );
     ns.insert("trigger_offset_s".into(), json!(i.first_sample_s()));
+    // Several repetitions follow each other in the data; each keeps its own trigger offset.
+    let mut start = 0u64;
+    let mut reps = Vec::new();
+    let mut annotations = Vec::new();
+    let (mut i_words, mut q_words) = (Vec::new(), Vec::new());
+    for (k, iq) in m.captured.iq.iter().enumerate() {
+        let n = iq.i.codes.len().min(iq.q.codes.len()) as u64;
+        reps.push(json!({
+            "sample_start": start,
+            "sample_count": n,
+            "trigger_offset_s": iq.i.first_sample_s(),
+            "vertical_gain": [iq.i.desc.vertical_gain, iq.q.desc.vertical_gain],
+            "vertical_offset": [iq.i.desc.vertical_offset, iq.q.desc.vertical_offset],
+        }));
+        if m.captured.iq.len() > 1 {
+            annotations.push((start, n, format!("repetition {}", k + 1)));
+        }
+        i_words.extend_from_slice(&iq.i.codes[..n as usize]);
+        q_words.extend_from_slice(&iq.q.codes[..n as usize]);
+        start += n;
+    }
+    ns.insert("repetitions".into(), json!(reps));
     ns.insert("waveform".into(), m.tx.describe());
     ns.insert("instruments".into(), json!(m.identities));
     ns.insert(
@@ -101,9 +123,9 @@ pub fn write_capture(
         ),
         hw: m.identities.scope.clone(),
         radbench: ns,
-        annotations: Vec::new(),
+        annotations,
     };
-    let sig = sigmf::write_ci16(&out.join("capture"), &i.codes, &q.codes, &meta)?;
+    let sig = sigmf::write_ci16(&out.join("capture"), &i_words, &q_words, &meta)?;
     let trc = [out.join("C1.trc"), out.join("C2.trc")];
     write_atomic(&trc[0], &i.trc_bytes())?;
     write_atomic(&trc[1], &q.trc_bytes())?;
@@ -190,6 +212,9 @@ pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenan
         "sidelobe_db": p.sidelobe_db,
         "snr_db": p.snr_db,
         "payload": p.payload,
+        "repetitions": m.captured.repetitions(),
+        "spread": m.spread,
+        "each_repetition": m.repetitions,
         "warnings": p.warnings,
         "system_delay_s": o.system_delay_s,
         "processing": o,

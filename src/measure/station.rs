@@ -199,16 +199,18 @@ pub struct Applied {
     pub rx: Option<RfStatus>,
 }
 
-/// One raw capture and how it was made.
+/// The raw captures of one measurement (one per repetition) and how they were made.
 pub struct Captured {
-    pub iq: IqCapture,
+    pub iq: Vec<IqCapture>,
     pub applied: Applied,
+    /// What the AWG and scope held (kept to skip the next upload of the same waveform).
+    pub uploaded: Uploaded,
 }
 
 impl Captured {
-    /// I + jQ in volts with the time of the first point after the trigger.
-    pub fn raw(&self) -> RawIq {
-        let (i, q) = (&self.iq.i, &self.iq.q);
+    /// Repetition `k` as I + jQ in volts with the time of its first point after the trigger.
+    pub fn raw(&self, k: usize) -> RawIq {
+        let (i, q) = (&self.iq[k].i, &self.iq[k].q);
         let (gi, oi) = (
             f64::from(i.desc.vertical_gain),
             f64::from(i.desc.vertical_offset),
@@ -228,6 +230,11 @@ impl Captured {
             sample_rate_hz: self.applied.scope.sample_rate_hz,
             first_point_s: i.first_sample_s(),
         }
+    }
+
+    /// Repetitions captured.
+    pub fn repetitions(&self) -> usize {
+        self.iq.len()
     }
 }
 
@@ -336,14 +343,21 @@ impl Station {
         })
     }
 
+    /// What the AWG reports now: clock, levels, outputs and its segment table (read before each
+    /// measurement of a campaign, so a lost waveform is noticed and uploaded again).
+    pub async fn awg_applied(&mut self) -> Result<AwgApplied, MeasureError> {
+        Ok(self.awg.lock().await.applied().await?)
+    }
+
     /// Enables the receiver, the transmitter (unless `tx_off`) and the AWG outputs with the
-    /// user's permit, starts playback and captures one marker-triggered repetition. The caller's
-    /// guard puts the bench back in its safe state.
+    /// user's permit, starts playback and captures `repetitions` marker-triggered repetitions.
+    /// The caller's guard puts the bench back in its safe state.
     pub async fn acquire(
         &mut self,
         plan: &CapturePlan,
         permit: &RfPermit,
-    ) -> Result<(IqCapture, Option<RfStatus>, Option<RfStatus>), MeasureError> {
+        repetitions: usize,
+    ) -> Result<Acquired, MeasureError> {
         let mut rx_status = None;
         let mut tx_status = None;
         if let Some(rx) = &self.rx {
@@ -359,37 +373,67 @@ impl Station {
             awg.enable_outputs(permit).await?;
             awg.run().await?;
         }
-        let iq = self.scope.capture_iq(plan.wait_s).await?;
+        let mut captures = Vec::with_capacity(repetitions);
+        for _ in 0..repetitions.max(1) {
+            captures.push(self.scope.capture_iq(plan.wait_s).await?);
+        }
         if tx_status.is_none() {
             if let Some(txm) = &self.tx {
                 tx_status = Some(txm.lock().await.status().await?);
             }
         }
-        Ok((iq, tx_status, rx_status))
+        Ok(Acquired {
+            captures,
+            tx: tx_status,
+            rx: rx_status,
+        })
     }
 
-    /// Upload and acquire under the safe-state guard: the bench ends in its safe state whatever
-    /// happens, also when `interrupt` fires first.
+    /// Upload (unless `loaded` says the AWG still holds this waveform) and acquire under the
+    /// safe-state guard: the bench ends in its safe state whatever happens, also when
+    /// `interrupt` fires first.
     pub async fn capture(
         &mut self,
         tx: &Transmission,
         plan: &CapturePlan,
+        loaded: Option<&Uploaded>,
+        repetitions: usize,
         permit: &RfPermit,
         interrupt: &Interrupt,
     ) -> (Result<Captured, MeasureError>, SafeStateReport) {
         let safe = self.safe.clone();
         let work = async {
-            let up = self.upload(tx, plan).await?;
-            let (iq, tx_status, rx_status) = self.acquire(plan, permit).await?;
+            let up = match loaded {
+                Some(up) => {
+                    // The AWG may have been power-cycled or reset since: look before trusting it.
+                    let now = self.awg_applied().await?;
+                    let wanted = crate::driver::SegmentEntry {
+                        id: up.segment.segment_id,
+                        samples: up.segment.padded_samples,
+                    };
+                    if now.segments.contains(&wanted) && now.dac_rate_hz == up.awg.dac_rate_hz {
+                        Uploaded {
+                            awg: now,
+                            ..up.clone()
+                        }
+                    } else {
+                        tracing::warn!("the AWG no longer holds the waveform: uploading it again");
+                        self.upload(tx, plan).await?
+                    }
+                }
+                None => self.upload(tx, plan).await?,
+            };
+            let acquired = self.acquire(plan, permit, repetitions).await?;
             Ok(Captured {
-                iq,
+                iq: acquired.captures,
                 applied: Applied {
-                    awg: up.awg,
-                    segment: up.segment,
-                    scope: up.scope,
-                    tx: tx_status,
-                    rx: rx_status,
+                    awg: up.awg.clone(),
+                    segment: up.segment.clone(),
+                    scope: up.scope.clone(),
+                    tx: acquired.tx,
+                    rx: acquired.rx,
                 },
+                uploaded: up,
             })
         };
         let (outcome, report) = crate::driver::run_guarded(&safe, work, interrupt.wait()).await;
@@ -404,6 +448,14 @@ impl Station {
         };
         (result, report)
     }
+}
+
+/// What one acquisition brought back.
+pub struct Acquired {
+    /// One I/Q pair per repetition.
+    pub captures: Vec<IqCapture>,
+    pub tx: Option<RfStatus>,
+    pub rx: Option<RfStatus>,
 }
 
 async fn open_front(
