@@ -59,6 +59,26 @@ impl CorrelationProfiler {
         })
     }
 
+    /// The complex lags `r[l] / E` (E = transmit energy, so a unit echo peaks at magnitude 1), the
+    /// input of [`crate::dsp::detect`]; valid until the next call. Same definition and lag order as
+    /// [`CorrelationProfiler::profile`], whose amplitude is the magnitude of these values.
+    pub fn complex_profile(&mut self, rx: &[Complex64]) -> Result<&[Complex64], DspError> {
+        self.correlator.correlate_into(rx, &mut self.out)?;
+        let scale = 1.0 / self.energy;
+        for v in &mut self.out {
+            *v *= scale;
+        }
+        Ok(&self.out)
+    }
+
+    /// The range step of the lags, m: `C0 / (2 fs)`.
+    pub fn axis(&self) -> Axis {
+        Axis {
+            start: 0.0,
+            step: C0 / (2.0 * self.fs_hz),
+        }
+    }
+
     pub fn profile(&mut self, rx: &[Complex64]) -> Result<Profile, DspError> {
         self.correlator.correlate_into(rx, &mut self.out)?;
         Ok(Profile {
