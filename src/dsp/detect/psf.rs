@@ -404,8 +404,10 @@ pub struct PsfShape {
     /// `envelope[d]`: the highest `|g(x)|^2` at `|x| >= d` cells, 1 within the main lobe
     /// (`d <= first_null`). Beyond its end, its last value.
     pub envelope: Vec<f64>,
-    /// Half-width (cells) of the region holding the spread's highest side-lobes: beyond it the
-    /// envelope is at least 6 dB under the PSL.
+    /// Half-width (cells) of the region where a target's PSL is measured: three resolution cells,
+    /// or farther if the spread's envelope is still within 3 dB of its PSL there. (Farther lobes
+    /// can be nearly as high, e.g. the -19 dB plateau of the 128-bit MSK-LFM out to 6 m; a PSL over
+    /// the whole profile would rarely be free of other targets.)
     pub psl_span: f64,
 }
 
@@ -477,9 +479,10 @@ impl PsfShape {
             *e = 1.0;
         }
         let psl_db = 10.0 * psl.log10();
-        let limit = psl * 10f64.powf(-0.6);
+        // Where the envelope first drops 3 dB under the PSL: the highest side-lobes lie inside.
+        let limit = psl * 10f64.powf(-0.3);
         let span_cells = envelope.iter().position(|&e| e <= limit).unwrap_or(d_max) as f64;
-        let psl_span = span_cells.max(2.0 * resolution).min(d_max as f64);
+        let psl_span = span_cells.max(3.0 * resolution).min(d_max as f64);
         let noise_cells = 1.0 + 2.0 * envelope_sum(&pos, &neg, SUB);
         Ok(Self {
             first_null,
