@@ -313,3 +313,37 @@ fn bad_input_is_an_error_naming_the_field() {
     let psf = bench.psf();
     assert!((psf.value(0.0).norm() - 1.0).abs() < 1e-6);
 }
+
+#[test]
+fn bench_capture_path_with_the_decimator_in_the_spread() {
+    // 80 GSa/s, 30 dB per sample, decimated by the lab decimator: the spread takes the reference's
+    // spectrum times the decimator's response (what the capture pipeline supplies).
+    use radbench::dsp::decimate::PeriodicDecimator;
+    use radbench::dsp::detect::{Detector, TabulatedPsf};
+    let mut bench = Bench::new(Wave::MskLfm);
+    let axis = bench.axis;
+    let mut decimator = PeriodicDecimator::new(80e9, 5, 0.55e9).unwrap();
+    let lags = 1400 + 16;
+    let response = |nu: f64| num_complex::Complex64::new(decimator.response_at_output(nu), 0.0);
+    let psf = TabulatedPsf::correlation(&bench.reference, Some(&response), lags).unwrap();
+    let mut det = Detector::new(psf, DetectOptions::default()).unwrap();
+    let mut rng = SplitMix64::new(77);
+    for trial in 0..6u64 {
+        let pillars = if trial == 0 {
+            vec![Pillar::physical(1.0, 0.5), Pillar::physical(1.3, 0.3)]
+        } else {
+            random_scene(&mut rng, 0.3, 8.0, 2.0 * RES_M, 20.0)
+        };
+        let mut scene = pillars.clone();
+        scene.push(leakage(0.01));
+        let rx = bench.capture_80g(&scene, 30.0, 300 + trial, &mut decimator);
+        let z = bench.process(&rx).to_vec();
+        let d = det.detect(&z, axis, WINDOW).unwrap();
+        let found = ranges(&d);
+        let (matched, extra) = match_targets(&pillars, &found, 0.01);
+        assert!(
+            matched.iter().all(Option::is_some) && extra.is_empty(),
+            "trial {trial}: pillars {pillars:?}\nfound {found:?}"
+        );
+    }
+}

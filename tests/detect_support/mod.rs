@@ -5,6 +5,7 @@
 #![allow(dead_code)]
 
 use num_complex::Complex64;
+use radbench::dsp::decimate::PeriodicDecimator;
 use radbench::dsp::detect::{DetectOptions, Detector, SpectralLines, TabulatedPsf};
 use radbench::dsp::metrics::Axis;
 use radbench::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig};
@@ -232,6 +233,38 @@ impl Bench {
             SplitMix64::new(seed).add_noise(&mut acc, 10f64.powf(-snr / 10.0));
         }
         acc
+    }
+
+    /// The bench's capture path: the echoes at 80 GSa/s (ideal AWG interpolation of the periodic
+    /// segment), noise of power `10^(-snr/10)` per sample at 80 GSa/s, then the lab decimator by 5
+    /// back to 16 GSa/s (`PeriodicDecimator`, flat to 0.55 GHz as the capture processing asks).
+    pub fn capture_80g(
+        &self,
+        pillars: &[Pillar],
+        snr_db: f64,
+        seed: u64,
+        decimator: &mut PeriodicDecimator,
+    ) -> Vec<Complex64> {
+        let p = self.reference.len();
+        let up = 5 * p;
+        let mut acc = vec![Complex64::default(); up];
+        for t in pillars {
+            let d = 2.0 * t.range_m / C0 * self.fs;
+            let a = Complex64::from_polar(t.amp / p as f64, t.phase);
+            for (k, s) in self.spectrum.iter().enumerate() {
+                let signed = if k <= p / 2 {
+                    k as isize
+                } else {
+                    k as isize - p as isize
+                };
+                let nu = signed as f64 / p as f64;
+                acc[signed.rem_euclid(up as isize) as usize] +=
+                    s * a * Complex64::from_polar(1.0, -2.0 * PI * nu * d);
+            }
+        }
+        FftPlanner::new().plan_fft_inverse(up).process(&mut acc);
+        SplitMix64::new(seed).add_noise(&mut acc, 10f64.powf(-snr_db / 10.0));
+        decimator.decimate(&acc)
     }
 
     /// The complex profile of a capture, into `self.profile`.
