@@ -269,8 +269,9 @@ pub struct Detections {
     /// Targets fitted outside the window (leakage near 0 m, ...), removed from the profile with
     /// their side-lobes, not reported as targets; ascending range.
     pub outside: Vec<DetectedTarget>,
-    /// The final threshold per cell as an amplitude (same scale as `|z|`): what a further target
-    /// would need at that cell (noise plus every fitted target's floor).
+    /// The final threshold per cell as an amplitude (same scale as `|z|`). CLEAN: what a further
+    /// target would need at that cell (noise plus every fitted target's floor); CFAR: the CFAR's
+    /// threshold raised to the side-lobe mask of the detected peaks.
     pub threshold: Vec<f64>,
     /// Noise power per cell (global estimate on the final residual), `None` when too few cells
     /// were free of targets.
@@ -417,10 +418,13 @@ impl Detector {
         self.model.clear();
         self.rejected.clear();
         let capped = match self.options.method {
-            Method::Clean { .. } => self.clean(z, &fitw, min_sep),
+            Method::Clean { .. } => {
+                let capped = self.clean(z, &fitw, min_sep);
+                self.prune(z, &fitw);
+                capped
+            }
             Method::Cfar { .. } => self.cfar(z, &fitw, min_sep),
         };
-        self.prune(z, &fitw);
         Ok(self.report(z, axis, lo..=hi, capped))
     }
 
@@ -431,7 +435,7 @@ impl Detector {
         for _ in 0..max_iterations {
             self.model.rebuild(self.psf.as_ref(), n);
             self.model.residual(z, &mut self.residual);
-            self.thresholds(n, None);
+            self.thresholds(n);
             let best = self.best_candidate(min_sep);
             let Some(c) = best else {
                 return false;
@@ -522,23 +526,33 @@ impl Detector {
         }
         self.model.refine(psf, z, fitw, MAX_SWEEPS);
         self.merge_close(min_sep);
-        // The mask, for the reported threshold.
-        self.floor.clear();
-        self.floor.resize(n, 0.0);
+        // The reported threshold: the CFAR's, raised to the side-lobe mask of the kept peaks.
+        self.threshold.clear();
+        self.threshold.extend_from_slice(&self.noise_thr);
         for &k in &kept {
-            for (c, f) in self.floor.iter_mut().enumerate() {
+            for (c, t) in self.threshold.iter_mut().enumerate() {
                 let d = (c as f64 - k as f64).abs();
                 if d >= 1.0 {
-                    *f = f.max(self.power[k] * self.shape.envelope_at(d) * margin);
+                    *t = t.max(self.power[k] * self.shape.envelope_at(d) * margin);
                 }
             }
+        }
+        // Residual, its power and the cells near targets, for the noise estimate of the report.
+        self.model.rebuild(self.psf.as_ref(), n);
+        self.model.residual(z, &mut self.residual);
+        self.power.clear();
+        self.power
+            .extend(self.residual.iter().map(|v| v.norm_sqr()));
+        self.exclude.fill(false);
+        for c in &self.model.comps {
+            mark(&mut self.exclude, c.x, self.shape.first_null);
         }
         capped
     }
 
-    /// Residual, power, noise threshold, floors and their sum for the current model. With
-    /// `skip = Some(i)` the floor leaves out target `i` (its own test).
-    fn thresholds(&mut self, n: usize, skip: Option<usize>) {
+    /// Power of the residual, cells near targets, noise threshold, floors and their sum for the
+    /// current model.
+    fn thresholds(&mut self, n: usize) {
         self.power.clear();
         self.power
             .extend(self.residual.iter().map(|v| v.norm_sqr()));
@@ -567,10 +581,7 @@ impl Detector {
         let rho = 10f64.powf(self.options.model_floor_db / 10.0);
         self.floor.clear();
         self.floor.resize(n, 0.0);
-        for (i, comp) in self.model.comps.iter().enumerate() {
-            if Some(i) == skip {
-                continue;
-            }
+        for comp in &self.model.comps {
             let p = rho * comp.a.norm_sqr();
             for (c, f) in self.floor.iter_mut().enumerate() {
                 *f += p * self.shape.envelope_at(c as f64 - comp.x);
@@ -600,7 +611,7 @@ impl Detector {
         loop {
             self.model.rebuild(self.psf.as_ref(), n);
             self.model.residual(z, &mut self.residual);
-            self.thresholds(n, None);
+            self.thresholds(n);
             let rho = 10f64.powf(self.options.model_floor_db / 10.0);
             let weakest_failing = (0..self.model.comps.len())
                 .filter(|&i| {
@@ -649,7 +660,12 @@ impl Detector {
             let c = self.model.comps[i];
             let cell = (c.x.round().max(0.0) as usize).min(n - 1);
             let p = c.a.norm_sqr();
-            let others = (self.threshold[cell] - rho * p).max(1e-300);
+            // What the target had to pass: CLEAN's threshold less its own floor; the CFAR's.
+            let others = match self.options.method {
+                Method::Clean { .. } => self.threshold[cell] - rho * p,
+                Method::Cfar { .. } => self.noise_thr[cell],
+            }
+            .max(1e-300);
             let (width_3db_m, sidelobes) = self.own_metrics(i, noise_power, axis);
             let t = DetectedTarget {
                 range_m: axis.at(c.x),

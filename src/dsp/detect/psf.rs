@@ -260,11 +260,17 @@ impl TabulatedPsf {
         let ifft = FftPlanner::new().plan_fft_inverse(p);
         let mut buf = vec![ZERO; p];
         let mut scratch = vec![ZERO; ifft.get_inplace_scratch_len()];
+        // Shift by f / U cell for the table's points at x = m + f / U: the phasors
+        // exp(j 2 pi nu f / U), advanced by one multiply per bin and step.
+        let step: Vec<Complex64> = nu
+            .iter()
+            .map(|&n| Complex64::from_polar(1.0, 2.0 * PI * n / per_cell as f64))
+            .collect();
+        let mut rot: Vec<Complex64> = spectrum.iter().map(|s| s * inv).collect();
         for f in 0..per_cell {
-            // Shift by f / U cell: the table's points at x = m + f / U.
-            let shift = f as f64 / per_cell as f64;
-            for ((b, s), &n) in buf.iter_mut().zip(spectrum).zip(&nu) {
-                *b = s * inv * Complex64::from_polar(1.0, 2.0 * PI * n * shift);
+            buf.copy_from_slice(&rot);
+            for (r, st) in rot.iter_mut().zip(&step) {
+                *r *= st;
             }
             ifft.process_with_scratch(&mut buf, &mut scratch);
             for m in -(span as isize)..=(span as isize) {
