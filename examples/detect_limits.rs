@@ -24,7 +24,7 @@ use std::f64::consts::PI;
 
 /// A detector under study: ranges found in the window.
 enum Under {
-    New(Detector),
+    New(Box<Detector>),
     Legacy,
 }
 
@@ -132,15 +132,15 @@ fn two_pillars(quick: bool) {
                 (
                     name,
                     match m {
-                        Some(method) => Under::New(bench.detector(DetectOptions {
+                        Some(method) => Under::New(Box::new(bench.detector(DetectOptions {
                             method,
                             ..DetectOptions::default()
-                        })),
+                        }))),
                         None if name.starts_with("CLEAN") => {
-                            Under::New(bench.detector(DetectOptions {
+                            Under::New(Box::new(bench.detector(DetectOptions {
                                 model_floor_db: -60.0,
                                 ..DetectOptions::default()
-                            }))
+                            })))
                         }
                         None => Under::Legacy,
                     },
@@ -199,11 +199,8 @@ fn two_pillars(quick: bool) {
         for (ui, (name, _)) in unders.iter().enumerate() {
             for (si, &sep) in seps.iter().enumerate() {
                 print!("| {name} | {sep} |");
-                for wi in 0..weaker.len() {
-                    print!(
-                        " {:.0} % |",
-                        100.0 * table[ui][si][wi] as f64 / trials as f64
-                    );
+                for hits in &table[ui][si] {
+                    print!(" {:.0} % |", 100.0 * *hits as f64 / trials as f64);
                 }
                 println!();
             }

@@ -549,14 +549,14 @@ mod tests {
         // A small "correlation" spectrum: random powers on the lowest bins of a 400-point DFT.
         let p = 400;
         let mut spectrum = vec![ZERO; p];
-        for k in 0..p {
+        for (k, s) in spectrum.iter_mut().enumerate() {
             let signed = if k <= p / 2 {
                 k as isize
             } else {
                 k as isize - p as isize
             };
             if signed.abs() <= 25 {
-                spectrum[k] = Complex64::new(1.0 + ((k * 7919) % 13) as f64 / 13.0, 0.0);
+                *s = Complex64::new(1.0 + ((k * 7919) % 13) as f64 / 13.0, 0.0);
             }
         }
         let table = TabulatedPsf::from_dft_spectrum(&spectrum, 150).unwrap();
