@@ -21,7 +21,7 @@
 //! | [`catalog`] | data | schema and loader for `instruments/*.toml` |
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end) and the concrete drivers |
 //! | [`waveform`] | pure | MSK-LFM and OFDM generators, DAC quantisation, communication receivers |
-//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
+//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection |
 //! | [`rng`] | pure | seeded SplitMix64 bits and Gaussian noise |
 //! | [`processing`] | pure | the `--algorithm`, `--window` and `--fft-precision` names shared by simulate, measure and the CLI |
 //! | [`measure`] | 4 | one bench measurement: configure, arm, capture, decimate, align, process |
