@@ -31,7 +31,7 @@
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end), the drivers, permit, safe state |
 //! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
 //! | [`trc`] | pure | LeCroy waveform blocks and `.trc` files (WAVEDESC, segments): decode and build |
-//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics |
+//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR) |
 //! | [`storage`] | out | atomic files, SigMF (write and read), npy/CSV, plots |
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`], a capture's files |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations, on the same pipeline |

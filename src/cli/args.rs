@@ -4,7 +4,9 @@
 
 use crate::exit::bad_input;
 use crate::measure::bench::{AwgLink, ScopeLink};
-use crate::measure::options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
+use crate::measure::options::{
+    Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
+};
 use crate::simulate::scene::CarrierPhase;
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
 
@@ -90,6 +92,36 @@ impl From<FftPrecisionArg> for FftPrecisionName {
         match p {
             FftPrecisionArg::Single => FftPrecisionName::Single,
             FftPrecisionArg::Double => FftPrecisionName::Double,
+        }
+    }
+}
+
+/// `--detector`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DetectorArg {
+    /// CLEAN with the waveform's point spread: subtract each target, search again (default).
+    Clean,
+    /// CLEAN with a local ordered-statistic noise estimate.
+    CleanOs,
+    /// Ordered-statistic CFAR, side-lobes masked by the point spread's envelope.
+    OsCfar,
+    /// Cell-averaging CFAR.
+    CaCfar,
+    /// Greatest-of CFAR.
+    GoCfar,
+    /// Smallest-of CFAR.
+    SoCfar,
+}
+
+impl From<DetectorArg> for DetectorName {
+    fn from(d: DetectorArg) -> Self {
+        match d {
+            DetectorArg::Clean => DetectorName::Clean,
+            DetectorArg::CleanOs => DetectorName::CleanOs,
+            DetectorArg::OsCfar => DetectorName::OsCfar,
+            DetectorArg::CaCfar => DetectorName::CaCfar,
+            DetectorArg::GoCfar => DetectorName::GoCfar,
+            DetectorArg::SoCfar => DetectorName::SoCfar,
         }
     }
 }
@@ -328,9 +360,20 @@ pub struct ProcessingArgs {
     /// Report the on-grid peak (no sub-sample interpolation).
     #[arg(long)]
     pub no_interpolation: bool,
-    /// Probability of false alarm of the detector.
-    #[arg(long, value_name = "P", default_value_t = 1e-6)]
+    /// Detector of the correlation and Fourier profiles (docs/detection.md compares them).
+    #[arg(long, value_enum, value_name = "NAME", default_value = "clean")]
+    pub detector: DetectorArg,
+    /// Probability of false alarm of the detector, per profile cell.
+    #[arg(
+        long,
+        value_name = "P",
+        default_value_t = 1e-6,
+        allow_hyphen_values = true
+    )]
     pub pfa: f64,
+    /// Targets closer than this are reported as one, metres (default: 0.75 resolution cells).
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub min_separation: Option<f64>,
 }
 
 impl ProcessingArgs {
@@ -348,7 +391,9 @@ impl ProcessingArgs {
             window: self.window.into(),
             fft_precision: self.fft_precision.into(),
             interpolate: !self.no_interpolation,
+            detector: self.detector.into(),
             pfa: self.pfa,
+            min_separation_m: self.min_separation,
             ..ProcessOptions::default()
         }
     }

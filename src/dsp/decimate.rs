@@ -658,6 +658,23 @@ impl PeriodicDecimator {
         })
     }
 
+    /// The anti-alias filter's taps (linear phase, delay compensated: its response is real).
+    pub fn taps(&self) -> &[f64] {
+        self.decimator.taps()
+    }
+
+    /// The decimation factor.
+    pub fn factor(&self) -> usize {
+        self.decimator.factor()
+    }
+
+    /// The filter's (real, delay-compensated) response at `nu` cycles per *output* sample: the
+    /// extra spectral weight of a decimated capture's point spread
+    /// (`crate::dsp::detect::TabulatedPsf::correlation`).
+    pub fn response_at_output(&self, nu: f64) -> f64 {
+        magnitude_response(self.decimator.taps(), nu / self.decimator.factor() as f64)
+    }
+
     pub fn decimate(&mut self, x: &[Complex64]) -> Vec<Complex64> {
         let n = x.len();
         let g = self.guard.min(n);

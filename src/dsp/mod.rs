@@ -1,4 +1,5 @@
-//! Pure signal processing: decimation, correlation, OFDM range processing, MUSIC, windows, metrics.
+//! Pure signal processing: decimation, correlation, OFDM range processing, MUSIC, windows, metrics,
+//! target detection.
 
 use crate::exit::{Classify, ExitClass};
 
@@ -24,6 +25,7 @@ impl Classify for DspError {
 
 pub mod correlate;
 pub mod decimate;
+pub mod detect;
 pub mod metrics;
 pub mod music;
 pub mod ofdm_radar;

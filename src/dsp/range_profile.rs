@@ -64,67 +64,29 @@ impl CorrelationProfiler {
         })
     }
 
-    /// A weighted (mismatched) filter: across the occupied band `-bandwidth/2 ..= bandwidth/2`
-    /// (zero outside it) the matched filter's spectrum is flattened and multiplied by `window`,
-    /// so an echo's correlation has the window's side-lobes, for a wider main lobe and a small
-    /// loss of SNR. `tx` is one period of a periodic signal; levels stay normalised so a unit echo
-    /// peaks at 1.
-    pub fn weighted(
+    /// Correlation against `filter` (a mismatched filter, e.g. [`weighted_filter`]) instead of `tx`
+    /// itself; levels stay normalised so a unit echo of `tx` peaks at 1.
+    pub fn with_filter(
         tx: &[Complex64],
-        window: &super::window::Window,
-        bandwidth_hz: f64,
+        filter: &[Complex64],
         rx_len: usize,
         lags: usize,
         fs_hz: f64,
     ) -> Result<Self, DspError> {
-        let n = tx.len();
-        if n == 0 {
-            return Err(DspError::Param(
-                "weighted correlation: the transmit signal is empty".into(),
-            ));
-        }
-        if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0 && bandwidth_hz <= fs_hz) {
+        if filter.len() != tx.len() {
             return Err(DspError::Param(format!(
-                "weighted correlation: bandwidth {bandwidth_hz} Hz must be above 0 and at most \
-                 the sample rate {fs_hz} Sa/s"
+                "correlation filter of {} samples for a {}-sample transmit signal; give equal \
+                 lengths",
+                filter.len(),
+                tx.len()
             )));
         }
-        let mut planner = rustfft::FftPlanner::<f64>::new();
-        let mut spec = tx.to_vec();
-        planner.plan_fft_forward(n).process(&mut spec);
-        // Bins inside the band, ascending frequency, get the window's coefficients; the
-        // transmit spectrum's own ripple is divided out (regularised where it is weak) so the
-        // output spectrum of an echo is the window itself and the side-lobes are the window's.
-        let half = ((bandwidth_hz / 2.0) / fs_hz * n as f64).floor() as isize;
-        let width = (2 * half + 1) as usize;
-        let coeffs = window.coefficients(width)?;
-        let in_band = |k: usize| {
-            let f = if k <= n / 2 {
-                k as isize
-            } else {
-                k as isize - n as isize
-            };
-            (f.abs() <= half).then_some((f + half) as usize)
-        };
-        let mean_power = (0..n)
-            .filter_map(|k| in_band(k).map(|_| spec[k].norm_sqr()))
-            .sum::<f64>()
-            / width as f64;
-        let floor = REGULARISATION * mean_power;
-        for (k, v) in spec.iter_mut().enumerate() {
-            *v = match in_band(k) {
-                Some(i) => *v * (coeffs[i] / (v.norm_sqr() + floor)) * mean_power / n as f64,
-                None => ZERO,
-            };
-        }
-        planner.plan_fft_inverse(n).process(&mut spec);
-        let filter = spec;
         let last = (lags.max(1) - 1).min(rx_len - 1) as isize;
-        let correlator = CrossCorrelator::new(&filter, rx_len, 0..=last)?;
+        let correlator = CrossCorrelator::new(filter, rx_len, 0..=last)?;
         // A unit echo of tx peaks at |sum tx conj(filter)|.
         let gain = tx
             .iter()
-            .zip(&filter)
+            .zip(filter)
             .map(|(a, b)| a * b.conj())
             .sum::<Complex64>()
             .norm()
@@ -135,6 +97,26 @@ impl CorrelationProfiler {
             fs_hz,
             energy: gain,
         })
+    }
+
+    /// The complex lags `r[l] / E` (E = transmit energy, so a unit echo peaks at magnitude 1), the
+    /// input of [`crate::dsp::detect`]; valid until the next call. Same definition and lag order as
+    /// [`CorrelationProfiler::profile`], whose amplitude is the magnitude of these values.
+    pub fn complex_profile(&mut self, rx: &[Complex64]) -> Result<&[Complex64], DspError> {
+        self.correlator.correlate_into(rx, &mut self.out)?;
+        let scale = 1.0 / self.energy;
+        for v in &mut self.out {
+            *v *= scale;
+        }
+        Ok(&self.out)
+    }
+
+    /// The range step of the lags, m: `C0 / (2 fs)`.
+    pub fn axis(&self) -> Axis {
+        Axis {
+            start: 0.0,
+            step: C0 / (2.0 * self.fs_hz),
+        }
     }
 
     pub fn profile(&mut self, rx: &[Complex64]) -> Result<Profile, DspError> {
@@ -157,4 +139,58 @@ pub fn music_profile(range_m: &[f64], pseudo_spectrum: &[f64], m: usize, p: usiz
         axis: Axis::from_samples(range_m),
         amplitude: pseudo_spectrum.iter().map(|v| v.max(0.0).sqrt()).collect(),
     }
+}
+
+/// A weighted (mismatched) filter for [`CorrelationProfiler::with_filter`]: across the occupied band
+/// `-bandwidth/2 ..= bandwidth/2` (zero outside it) the matched filter's spectrum is flattened and
+/// multiplied by `window`, so an echo's correlation has the window's side-lobes, for a wider main
+/// lobe and a small loss of SNR. `tx` is one period of a periodic signal.
+pub fn weighted_filter(
+    tx: &[Complex64],
+    window: &super::window::Window,
+    bandwidth_hz: f64,
+    fs_hz: f64,
+) -> Result<Vec<Complex64>, DspError> {
+    let n = tx.len();
+    if n == 0 {
+        return Err(DspError::Param(
+            "weighted correlation: the transmit signal is empty".into(),
+        ));
+    }
+    if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0 && bandwidth_hz <= fs_hz) {
+        return Err(DspError::Param(format!(
+            "weighted correlation: bandwidth {bandwidth_hz} Hz must be above 0 and at most the \
+             sample rate {fs_hz} Sa/s"
+        )));
+    }
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    let mut spec = tx.to_vec();
+    planner.plan_fft_forward(n).process(&mut spec);
+    // Bins inside the band, ascending frequency, get the window's coefficients; the transmit
+    // spectrum's own ripple is divided out (regularised where it is weak) so the output spectrum
+    // of an echo is the window itself and the side-lobes are the window's.
+    let half = ((bandwidth_hz / 2.0) / fs_hz * n as f64).floor() as isize;
+    let width = (2 * half + 1) as usize;
+    let coeffs = window.coefficients(width)?;
+    let in_band = |k: usize| {
+        let f = if k <= n / 2 {
+            k as isize
+        } else {
+            k as isize - n as isize
+        };
+        (f.abs() <= half).then_some((f + half) as usize)
+    };
+    let mean_power = (0..n)
+        .filter_map(|k| in_band(k).map(|_| spec[k].norm_sqr()))
+        .sum::<f64>()
+        / width as f64;
+    let floor = REGULARISATION * mean_power;
+    for (k, v) in spec.iter_mut().enumerate() {
+        *v = match in_band(k) {
+            Some(i) => *v * (coeffs[i] / (v.norm_sqr() + floor)) * mean_power / n as f64,
+            None => ZERO,
+        };
+    }
+    planner.plan_fft_inverse(n).process(&mut spec);
+    Ok(spec)
 }

@@ -1,72 +1,157 @@
-//! The detection stage of the pipeline: which peaks of a range profile are targets.
+//! The detection stage of the pipeline: which echoes of a record are targets.
 //!
-//! Profile algorithms: peaks with >= 3 dB prominence that pass a CA-CFAR test, lie in the range
-//! window and are not side-lobes of a stronger target. Subspace algorithms: their own estimates
-//! (MUSIC's refined peaks, root-MUSIC's and ESPRIT's ranges) inside the range window.
+//! Correlation and Fourier profiles go through [`crate::dsp::detect`] with the waveform's exact
+//! point spread (CLEAN by default: every target is fitted and subtracted, so side-lobes never
+//! become targets and a weak target under them is found; docs/detection.md). The subspace
+//! algorithms give their own estimates (MUSIC's refined peaks, root-MUSIC's and ESPRIT's ranges),
+//! kept inside the range window.
 
 use super::options::ProcessOptions;
 use super::pipeline::RangeResult;
 use super::MeasureError;
-use crate::dsp::metrics::{find_peaks, interpolate_peak, CaCfar, Interpolation};
+use crate::dsp::detect::{DetectOptions, DetectedTarget, Detector, Sidelobes};
 use crate::dsp::range_profile::Profile;
-use crate::dsp::C0;
 use num_complex::Complex64;
 use serde::Serialize;
 
 /// One detected target.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Detection {
+    /// Range from the antennas, m (sub-sample interpolated unless `--no-interpolation`).
     pub range_m: f64,
     /// Echo amplitude relative to a unit-gain path from AWG output to scope input, dB.
     pub level_db: f64,
-    /// Height above the detection threshold, dB (absent for grid-free estimators).
+    /// Height above the detection threshold, dB (absent for the subspace estimators).
     pub above_threshold_db: Option<f64>,
-    /// The range of the profile cell that peaked, without sub-sample interpolation (absent for
+    /// The profile cell nearest to the target, m (no sub-sample interpolation; absent for the
     /// grid-free estimators).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub on_grid_m: Option<f64>,
+    /// Echo power over the noise power per profile cell, dB.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub snr_db: Option<f64>,
+    /// -3 dB width of the target's own response (the profile minus every other target), cm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub width_3db_cm: Option<f64>,
+    /// Peak side-lobe level of the target's own response, dB (absent when not meaningful: see
+    /// `sidelobe_note`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sidelobe_db: Option<f64>,
+    /// Why the side-lobe level is not given (another target shares the side-lobe region, the
+    /// side-lobes are under the noise, ...).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sidelobe_note: Option<String>,
+    /// Fractional profile cell of the target (for the payload receiver and plots).
+    #[serde(skip)]
+    pub cell: Option<f64>,
 }
 
 /// What detection decided for one record.
 #[derive(Debug, Clone, Default)]
 pub struct DetectionReport {
-    /// Targets, ascending range.
+    /// Targets inside the range window, ascending range.
     pub targets: Vec<Detection>,
-    /// Profile index of the strongest target (profile algorithms).
-    pub strongest_index: Option<usize>,
+    /// Index in `targets` of the strongest.
+    pub strongest: Option<usize>,
+    /// Reflectors fitted outside the range window (the Tx -> Rx leakage near 0 m, ...).
+    pub outside: Vec<Detection>,
+    /// The detection threshold per cell of the primary profile, as an amplitude on the profile's
+    /// scale (empty for the subspace estimators).
+    pub threshold: Vec<f64>,
+    /// Noise power per profile cell, dB (on the profile's scale).
+    pub noise_db: Option<f64>,
+    /// The detector stopped at its most targets: there may be more.
+    pub capped: bool,
 }
 
-/// Side-lobe mask margin: a peak within this of the mask of a stronger target is a side-lobe.
-const SIDELOBE_MARGIN_DB: f64 = 3.0;
+/// The detector options of the processing options.
+pub fn detect_options(options: &ProcessOptions) -> DetectOptions {
+    DetectOptions {
+        method: options.detector.to_dsp(),
+        pfa: options.pfa,
+        min_separation_m: options.min_separation_m,
+        ..DetectOptions::default()
+    }
+}
 
-/// Detects the targets of one record's range processing.
+fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) -> Detection {
+    let on_grid = start + t.cell.round() * axis_step;
+    Detection {
+        range_m: if interpolate { t.range_m } else { on_grid },
+        level_db: t.level_db,
+        above_threshold_db: Some(t.above_threshold_db),
+        on_grid_m: Some(on_grid),
+        snr_db: t.snr_db,
+        width_3db_cm: t.width_3db_m.map(|w| w * 100.0),
+        sidelobe_db: t.sidelobes.psl_db(),
+        sidelobe_note: match t.sidelobes {
+            Sidelobes::Measured { .. } => None,
+            other => Some(other.reason()),
+        },
+        cell: Some(t.cell),
+    }
+}
+
+/// Detects the targets of one record's range processing; `detector` serves the profile
+/// algorithms (those with a complex profile).
 pub fn detect(
     range: &RangeResult,
     options: &ProcessOptions,
+    detector: Option<&mut Detector>,
 ) -> Result<DetectionReport, MeasureError> {
     let window = options.min_range_m..=options.max_range_m;
-    let mut report = match &range.estimates_m {
-        Some(ranges) => {
+    let mut report = match (&range.estimates_m, &range.complex, detector) {
+        (Some(ranges), _, _) => {
             let levels = range.profiles.last().expect("at least one profile");
+            let targets: Vec<Detection> = ranges
+                .iter()
+                .filter(|r| window.contains(*r))
+                .map(|&range_m| Detection {
+                    range_m,
+                    level_db: level_at(levels, range_m),
+                    above_threshold_db: None,
+                    on_grid_m: None,
+                    snr_db: None,
+                    width_3db_cm: None,
+                    sidelobe_db: None,
+                    sidelobe_note: None,
+                    cell: None,
+                })
+                .collect();
             DetectionReport {
-                targets: ranges
-                    .iter()
-                    .filter(|r| window.contains(*r))
-                    .map(|&range_m| Detection {
-                        range_m,
-                        level_db: level_at(levels, range_m),
-                        above_threshold_db: None,
-                        on_grid_m: None,
-                    })
-                    .collect(),
-                strongest_index: None,
+                targets,
+                ..DetectionReport::default()
             }
         }
-        None => detect_profile(range.primary(), options)?,
+        (None, Some(z), Some(detector)) => {
+            let axis = range.primary().axis;
+            let found = detector.detect(z, axis, window)?;
+            let convert =
+                |t: &DetectedTarget| detection(t, axis.step, options.interpolate, axis.start);
+            DetectionReport {
+                targets: found.targets.iter().map(convert).collect(),
+                outside: found.outside.iter().map(convert).collect(),
+                threshold: found.threshold,
+                noise_db: found.noise_power.map(|p| 10.0 * p.max(1e-300).log10()),
+                capped: found.capped,
+                strongest: None,
+            }
+        }
+        _ => {
+            return Err(MeasureError::Worker(
+                "the pipeline has no detector for this profile".into(),
+            ))
+        }
     };
     report
         .targets
         .sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
+    report.strongest = report
+        .targets
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.level_db.total_cmp(&b.1.level_db))
+        .map(|(i, _)| i);
     Ok(report)
 }
 
@@ -80,68 +165,6 @@ fn level_at(p: &Profile, range_m: f64) -> f64 {
         .unwrap_or(0.0)
         .max(1e-300)
         .log10()
-}
-
-/// Peaks with >= 3 dB prominence that pass the CFAR test, lie in the range window and are not
-/// side-lobes of a stronger target.
-fn detect_profile(p: &Profile, options: &ProcessOptions) -> Result<DetectionReport, MeasureError> {
-    let amp = &p.amplitude;
-    let db: Vec<f64> = amp.iter().map(|a| 20.0 * a.max(1e-300).log10()).collect();
-    let power: Vec<f64> = amp.iter().map(|a| a * a).collect();
-    // Training cells span several resolution cells so a target's own main lobe does not mask it.
-    let cells_per_resolution = ((C0 / 2e9) / p.axis.step).max(1.0);
-    let guard = (2.0 * cells_per_resolution).ceil() as usize;
-    let training = (8.0 * cells_per_resolution).ceil() as usize;
-    let mut cfar = CaCfar::new(guard, training, options.pfa)?;
-    let mut thresholds = vec![0.0; power.len()];
-    cfar.detect(&power, &mut thresholds)?;
-    let window = options.min_range_m..=options.max_range_m;
-    let mut candidates: Vec<(usize, f64, f64)> = find_peaks(&db, 3.0)
-        .into_iter()
-        .filter_map(|pk| {
-            let range = p.axis.at(pk.index as f64);
-            let above = 10.0 * (power[pk.index] / thresholds[pk.index]).log10();
-            (window.contains(&range) && above > 0.0).then_some((pk.index, pk.value, above))
-        })
-        .collect();
-    candidates.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let mut kept: Vec<(usize, f64, f64)> = Vec::new();
-    for c in candidates {
-        let masked = kept.iter().any(|k| {
-            let cells = (c.0 as f64 - k.0 as f64).abs() / cells_per_resolution;
-            let mask = if cells < 1.0 {
-                0.0
-            } else {
-                -20.0 * (std::f64::consts::PI * cells).log10()
-            };
-            c.1 < k.1 + mask + SIDELOBE_MARGIN_DB
-        });
-        if !masked {
-            kept.push(c);
-        }
-    }
-    let interp = if options.interpolate {
-        Interpolation::ParabolicDb
-    } else {
-        Interpolation::None
-    };
-    let strongest_index = kept.first().map(|k| k.0);
-    let targets = kept
-        .iter()
-        .map(|&(index, _, above)| {
-            let (x, height) = interpolate_peak(amp, index, interp);
-            Detection {
-                range_m: p.axis.at(x),
-                level_db: 20.0 * height.max(1e-300).log10(),
-                above_threshold_db: Some(above),
-                on_grid_m: Some(p.axis.at(index as f64)),
-            }
-        })
-        .collect();
-    Ok(DetectionReport {
-        targets,
-        strongest_index,
-    })
 }
 
 /// A peak's height over the profile's median power, dB.
@@ -184,8 +207,8 @@ pub fn no_target_hint(rx: &[Complex64], profile: &Profile) -> String {
     } else {
         format!(
             "no target found in the range window: the strongest echo is outside it or below the \
-             CFAR threshold (peak {contrast_db:.1} dB over the median). Check --min-range/--max-range \
-             and the calibration"
+             detection threshold (peak {contrast_db:.1} dB over the median). Check \
+             --min-range/--max-range and the calibration"
         )
     }
 }

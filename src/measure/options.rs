@@ -133,6 +133,56 @@ impl WindowName {
     }
 }
 
+/// How targets are told from noise and side-lobes (docs/detection.md measures each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DetectorName {
+    /// CLEAN with the waveform's point spread: subtract each target, search again (default).
+    #[default]
+    Clean,
+    /// CLEAN with a local ordered-statistic noise estimate (noise that varies along the profile).
+    CleanOs,
+    /// Ordered-statistic CFAR (75 % rank), side-lobes masked by the point spread's envelope.
+    OsCfar,
+    /// Cell-averaging CFAR.
+    CaCfar,
+    /// Greatest-of CFAR (robust at clutter edges, masks close targets).
+    GoCfar,
+    /// Smallest-of CFAR.
+    SoCfar,
+}
+
+impl DetectorName {
+    pub fn name(self) -> &'static str {
+        match self {
+            DetectorName::Clean => "clean",
+            DetectorName::CleanOs => "clean-os",
+            DetectorName::OsCfar => "os-cfar",
+            DetectorName::CaCfar => "ca-cfar",
+            DetectorName::GoCfar => "go-cfar",
+            DetectorName::SoCfar => "so-cfar",
+        }
+    }
+
+    /// The `dsp` method.
+    pub fn to_dsp(self) -> crate::dsp::detect::Method {
+        use crate::dsp::detect::{CfarKind, Method, NoiseEstimate};
+        let os = CfarKind::Os { rank: 0.75 };
+        match self {
+            DetectorName::Clean => Method::Clean {
+                noise: NoiseEstimate::Global,
+            },
+            DetectorName::CleanOs => Method::Clean {
+                noise: NoiseEstimate::Local(os),
+            },
+            DetectorName::OsCfar => Method::Cfar { kind: os },
+            DetectorName::CaCfar => Method::Cfar { kind: CfarKind::Ca },
+            DetectorName::GoCfar => Method::Cfar { kind: CfarKind::Go },
+            DetectorName::SoCfar => Method::Cfar { kind: CfarKind::So },
+        }
+    }
+}
+
 /// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
 pub const MAX_ZERO_PAD: usize = 1000;
 
@@ -165,8 +215,12 @@ pub struct ProcessOptions {
     pub min_range_m: f64,
     /// Detections farther than this are ignored.
     pub max_range_m: f64,
-    /// Probability of false alarm of the detector.
+    /// The detector of the profile algorithms (the subspace ones give their own estimates).
+    pub detector: DetectorName,
+    /// Probability of false alarm of the detector, per profile cell.
     pub pfa: f64,
+    /// Targets closer than this are not separated, metres (`None`: 0.75 resolution cells).
+    pub min_separation_m: Option<f64>,
     /// The AWG's I/Q amplitude (peak to peak, volts): echo levels are given relative to a path
     /// of unit voltage gain from the AWG output to the scope input. `None` (simulations): levels
     /// are relative to the transmitted waveform itself.
@@ -187,7 +241,9 @@ impl Default for ProcessOptions {
             system_delay_s: 0.0,
             min_range_m: 0.15,
             max_range_m: 10.0,
+            detector: DetectorName::Clean,
             pfa: 1e-6,
+            min_separation_m: None,
             awg_amplitude_vpp: None,
         }
     }

@@ -3,8 +3,6 @@
 
 use super::transmit::{Modulation, Transmission};
 use super::MeasureError;
-use crate::dsp::metrics::{interpolate_peak, Interpolation};
-use crate::dsp::range_profile::Profile;
 use crate::waveform::bits::{count_bit_errors, unframe_payload};
 use crate::waveform::ofdm::{Equalisation, OfdmReceiver};
 use num_complex::Complex64;
@@ -64,14 +62,14 @@ impl PayloadDecoder {
         })
     }
 
-    /// Decodes the data of one aligned repetition `rx` from the echo at `strongest` (profile
-    /// index of the correlation profile `primary`); `None` when there is nothing to decode from.
+    /// Decodes the data of one aligned repetition `rx` from the strongest echo, at fractional
+    /// lag `lag` (samples; the correlation profile's cell); `None` when there is nothing to decode
+    /// from (MSK-LFM without a target).
     pub fn decode(
         &mut self,
         rx: &[Complex64],
         tx: &Transmission,
-        primary: &Profile,
-        strongest: Option<usize>,
+        lag: Option<f64>,
     ) -> Option<PayloadResult> {
         let result = match (self, &tx.modulation) {
             (
@@ -83,11 +81,9 @@ impl PayloadDecoder {
                 },
                 Modulation::MskLfm(gen),
             ) => {
-                let index = strongest?;
-                // The correlation profile's index is the echo's lag in samples of the aligned
+                // The correlation profile's cell is the echo's lag in samples of the aligned
                 // repetition: advance the capture by it so the echo starts at sample 0.
-                let (lag, _) =
-                    interpolate_peak(&primary.amplitude, index, Interpolation::ParabolicDb);
+                let lag = lag?;
                 buf.clear();
                 buf.extend_from_slice(rx);
                 fractional_shift(buf, -lag, forward.as_ref(), inverse.as_ref(), scratch);

@@ -15,22 +15,23 @@
 //! the time of the first sample after the trigger is added and the calibrated system delay
 //! subtracted.
 
-use super::detect::{self, DetectionReport};
+use super::detect;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
 use super::transmit::{Modulation, Transmission};
 use super::MeasureError;
 use crate::dsp::decimate::PeriodicDecimator;
-use crate::dsp::metrics::{interpolate_peak, sidelobe_levels, width_3db, Axis, Interpolation};
+use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
+use crate::dsp::metrics::Axis;
 use crate::dsp::music::root_music_ranges;
 use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
 use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
-use crate::dsp::range_profile::{music_profile, CorrelationProfiler, Profile};
+use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfiler, Profile};
 use crate::dsp::C0;
 use num_complex::Complex64;
 use std::sync::Arc;
 
-pub use super::detect::Detection;
+pub use super::detect::{Detection, DetectionReport};
 pub use super::payload::PayloadResult;
 
 const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
@@ -95,6 +96,9 @@ pub struct RangeResult {
     pub estimates_m: Option<Vec<f64>>,
     /// The subspace model order used (MUSIC, root-MUSIC, ESPRIT).
     pub model_order: Option<usize>,
+    /// The primary profile's complex values, on its scale (correlation and Fourier): what the
+    /// detector fits targets to.
+    pub complex: Option<Vec<Complex64>>,
 }
 
 impl RangeResult {
@@ -124,11 +128,27 @@ pub struct Processed {
     /// Strongest peak over the median of the profile, dB.
     pub snr_db: Option<f64>,
     pub payload: Option<PayloadResult>,
+    /// The detection threshold per primary-profile cell (amplitude; empty for the subspace
+    /// estimators), reflectors outside the range window, the noise level.
+    pub detection: DetectionReport,
     /// Things a user should check (no target, clipping, ...).
     pub warnings: Vec<String>,
     /// The capture decimated to the waveform rate and aligned to the marker (background
     /// subtracted).
     pub aligned: Vec<Complex64>,
+}
+
+/// The spectrum of a correlation profile's point spread: `REF_k conj(FILTER_k)` (the filter is the
+/// reference itself, or its weighted version).
+fn echo_spectrum(reference: &[Complex64], filter: &[Complex64]) -> Vec<Complex64> {
+    let n = reference.len();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(n);
+    let mut r = reference.to_vec();
+    let mut f = filter.to_vec();
+    fft.process(&mut r);
+    fft.process(&mut f);
+    r.iter().zip(&f).map(|(a, b)| a * b.conj()).collect()
 }
 
 /// Relative scale of the levels: 1 / (volts at the AWG output per unit of the reference).
@@ -146,6 +166,9 @@ enum RangeProcessor {
         profiler: Box<CorrelationProfiler>,
         lags: usize,
         extended: Vec<Complex64>,
+        /// The echo spectrum the profile sees: transmit spectrum times the conjugate filter
+        /// spectrum (before the capture chain's response), for the detector's point spread.
+        echo_spectrum: Vec<Complex64>,
     },
     Ofdm(Box<OfdmProcessor>),
 }
@@ -170,6 +193,8 @@ pub struct Pipeline {
     geometry: RecordGeometry,
     range: RangeProcessor,
     decimator: Option<(f64, usize, PeriodicDecimator)>,
+    /// The detector and the capture rate its point spread was made for.
+    detector: Option<(f64, Detector)>,
     payload: PayloadDecoder,
     level_scale: f64,
 }
@@ -234,6 +259,15 @@ pub fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<(), Measu
             "a false-alarm probability above 0 and below 0.1 (1e-6 by default)",
         ));
     }
+    if let Some(sep) = options.min_separation_m {
+        if !(sep.is_finite() && (0.0..=100.0).contains(&sep)) {
+            return Err(MeasureError::option(
+                "min-separation",
+                sep,
+                "a distance in metres, 0 to 100 (targets closer than this are reported as one)",
+            ));
+        }
+    }
     if !options.system_delay_s.is_finite() || options.system_delay_s.abs() > 1e-6 {
         return Err(MeasureError::option(
             "system_delay_s",
@@ -277,22 +311,24 @@ impl Pipeline {
                 let mut reference = tx.reference.clone();
                 reference.resize(period, ZERO);
                 let window = options.window.to_dsp();
-                let profiler = if window == crate::dsp::window::Window::Rectangular {
-                    CorrelationProfiler::new(&reference, period + lags - 1, lags, fs)?
+                let filter = if window == crate::dsp::window::Window::Rectangular {
+                    reference.clone()
                 } else {
-                    CorrelationProfiler::weighted(
-                        &reference,
-                        &window,
-                        tx.bandwidth_hz(),
-                        period + lags - 1,
-                        lags,
-                        fs,
-                    )?
+                    weighted_filter(&reference, &window, tx.bandwidth_hz(), fs)?
                 };
+                let profiler = CorrelationProfiler::with_filter(
+                    &reference,
+                    &filter,
+                    period + lags - 1,
+                    lags,
+                    fs,
+                )?;
+                let echo_spectrum = echo_spectrum(&reference, &filter);
                 RangeProcessor::Correlation {
                     profiler: Box::new(profiler),
                     lags,
                     extended: Vec::with_capacity(period + lags - 1),
+                    echo_spectrum,
                 }
             }
             (alg, Modulation::Ofdm { generator, symbols }) => {
@@ -365,8 +401,51 @@ impl Pipeline {
             geometry,
             range,
             decimator: None,
+            detector: None,
             payload,
         })
+    }
+
+    /// Builds (or keeps) the detector for captures at `capture_rate_hz`: its point spread
+    /// includes the decimator's pass band, so a fitted target leaves only noise behind.
+    fn prepare_detector(&mut self, capture_rate_hz: f64) -> Result<(), MeasureError> {
+        if matches!(&self.detector, Some((rate, _)) if *rate == capture_rate_hz) {
+            return Ok(());
+        }
+        let options = detect::detect_options(&self.options);
+        let detector = match &self.range {
+            RangeProcessor::Correlation {
+                echo_spectrum,
+                lags,
+                ..
+            } => {
+                let mut spectrum = echo_spectrum.clone();
+                if let Some((_, _, dec)) = &self.decimator {
+                    let p = spectrum.len();
+                    for (k, v) in spectrum.iter_mut().enumerate() {
+                        let signed = if k <= p / 2 {
+                            k as f64
+                        } else {
+                            k as f64 - p as f64
+                        };
+                        *v *= dec.response_at_output(signed / p as f64);
+                    }
+                }
+                let span = (*lags + 16).min(spectrum.len() / 2 - 1);
+                Detector::new(TabulatedPsf::from_dft_spectrum(&spectrum, span)?, options)?
+            }
+            RangeProcessor::Ofdm(o) => {
+                if o.music.is_some() {
+                    return Ok(());
+                }
+                let zero_pad = self.options.zero_pad;
+                let lines = SpectralLines::ofdm(zero_pad, o.radar.normalised_window())?;
+                let period = zero_pad * o.radar.config().subcarriers;
+                Detector::new(TabulatedPsf::from_lines(&lines, Some(period))?, options)?
+            }
+        };
+        self.detector = Some((capture_rate_hz, detector));
+        Ok(())
     }
 
     pub fn options(&self) -> &ProcessOptions {
@@ -409,7 +488,8 @@ impl Pipeline {
     pub fn prepare_capture_rate(&mut self, capture_rate_hz: f64) -> Result<(), MeasureError> {
         let factor = self.factor(capture_rate_hz)?;
         if factor == 1 {
-            return Ok(());
+            self.decimator = None;
+            return self.prepare_detector(capture_rate_hz);
         }
         if let Some((rate, f, _)) = &self.decimator {
             if *rate == capture_rate_hz && *f == factor {
@@ -419,7 +499,7 @@ impl Pipeline {
         // The pass band is a little wider than the signal's: MSK-LFM's skirts pass unharmed.
         let dec = PeriodicDecimator::new(capture_rate_hz, factor, 0.55 * self.tx.bandwidth_hz())?;
         self.decimator = Some((capture_rate_hz, factor, dec));
-        Ok(())
+        self.prepare_detector(capture_rate_hz)
     }
 
     /// Decimates one repetition of `raw` to the waveform rate and rotates it to the marker edge.
@@ -434,12 +514,10 @@ impl Pipeline {
             });
         }
         let one = &raw.samples[..needed];
-        let y = if factor == 1 {
-            one.to_vec()
-        } else {
-            self.prepare_capture_rate(raw.sample_rate_hz)?;
-            let (_, _, dec) = self.decimator.as_mut().expect("prepared above");
-            dec.decimate(one)
+        self.prepare_capture_rate(raw.sample_rate_hz)?;
+        let y = match self.decimator.as_mut() {
+            None => one.to_vec(),
+            Some((_, _, dec)) => dec.decimate(one),
         };
         // Rotate so sample m sits at m / fs after the marker edge, up to a sub-sample residual.
         let fs = self.tx.sample_rate_hz();
@@ -486,16 +564,31 @@ impl Pipeline {
                 profiler,
                 lags,
                 extended,
+                ..
             } => {
                 // Circular correlation over the period: the record extended by its own start.
                 extended.clear();
                 extended.extend_from_slice(rx);
                 extended.extend_from_slice(&rx[..*lags - 1]);
-                let p = profiler.profile(extended)?;
+                let axis = profiler.axis();
+                let z: Vec<Complex64> = profiler
+                    .complex_profile(extended)?
+                    .iter()
+                    .map(|v| v * scale)
+                    .collect();
+                let p = Profile {
+                    label: "correlation".into(),
+                    axis: Axis {
+                        start: axis.start + offset_m,
+                        step: axis.step,
+                    },
+                    amplitude: z.iter().map(|v| v.norm()).collect(),
+                };
                 Ok(RangeResult {
-                    profiles: vec![scaled(p)],
+                    profiles: vec![p],
                     estimates_m: None,
                     model_order: None,
+                    complex: Some(z),
                 })
             }
             RangeProcessor::Ofdm(o) => {
@@ -508,10 +601,17 @@ impl Pipeline {
                     amplitude: o.profile.amplitude.iter().map(|a| a / unit).collect(),
                 });
                 let Some(music) = &mut o.music else {
+                    let mut z = Vec::new();
+                    o.radar.complex_profile(&o.idiv, &mut z)?;
+                    let k = scale / unit;
+                    for v in &mut z {
+                        *v *= k;
+                    }
                     return Ok(RangeResult {
                         profiles: vec![fourier],
                         estimates_m: None,
                         model_order: None,
+                        complex: Some(z),
                     });
                 };
                 let idiv = o.idiv.as_slice();
@@ -523,6 +623,7 @@ impl Pipeline {
                         Ok(RangeResult {
                             profiles: vec![fourier],
                             estimates_m: Some(shift(r)),
+                            complex: None,
                             model_order: Some(order),
                         })
                     }
@@ -532,6 +633,7 @@ impl Pipeline {
                         Ok(RangeResult {
                             profiles: vec![fourier],
                             estimates_m: Some(shift(r)),
+                            complex: None,
                             model_order: Some(o.spectrum.order),
                         })
                     }
@@ -547,6 +649,7 @@ impl Pipeline {
                         Ok(RangeResult {
                             profiles: vec![mp, fourier],
                             estimates_m: Some(shift(o.spectrum.peaks_m.clone())),
+                            complex: None,
                             model_order: Some(o.spectrum.order),
                         })
                     }
@@ -564,7 +667,17 @@ impl Pipeline {
     pub fn analyse(&mut self, aligned: &Aligned) -> Result<Analysis, MeasureError> {
         let offset = self.offset_m(aligned.residual_s);
         let range = self.range_profiles(&aligned.samples, offset)?;
-        let detection = detect::detect(&range, &self.options)?;
+        let detector = match range.complex {
+            Some(_) => {
+                if self.detector.is_none() {
+                    // Records at the waveform rate (no decimation).
+                    self.prepare_detector(self.tx.sample_rate_hz())?;
+                }
+                self.detector.as_mut().map(|(_, d)| d)
+            }
+            None => None,
+        };
+        let detection = detect::detect(&range, &self.options, detector)?;
         Ok(Analysis { range, detection })
     }
 
@@ -589,31 +702,30 @@ impl Pipeline {
         let analysis = self.analyse(&aligned)?;
         let Analysis { range, detection } = analysis;
         let primary = range.primary();
-        let (mut width_3db_cm, mut sidelobe_db, mut snr_db) = (None, None, None);
-        if let Some(index) = detection.strongest_index {
-            let amp = &primary.amplitude;
-            let (_, height) = interpolate_peak(amp, index, Interpolation::ParabolicDb);
-            width_3db_cm = width_3db(amp, index, height).map(|w| w * primary.axis.step * 100.0);
-            sidelobe_db = sidelobe_levels(amp, index, Interpolation::ParabolicDb).map(|s| s.psl_db);
-            snr_db = Some(detect::peak_over_median_db(amp, height));
-        }
+        let strongest = detection.strongest.map(|i| &detection.targets[i]);
+        let width_3db_cm = strongest.and_then(|t| t.width_3db_cm);
+        let sidelobe_db = strongest.and_then(|t| t.sidelobe_db);
+        let snr_db = strongest.and_then(|t| t.snr_db);
         let mut warnings = Vec::new();
         if detection.targets.is_empty() {
             warnings.push(detect::no_target_hint(&aligned.samples, primary));
         }
-        let payload = self.payload.decode(
-            &aligned.samples,
-            &self.tx,
-            primary,
-            detection.strongest_index,
-        );
+        if detection.capped {
+            warnings.push(
+                "the detector stopped at its most targets: there may be more echoes than listed"
+                    .into(),
+            );
+        }
+        let lag = strongest.and_then(|t| t.cell);
+        let payload = self.payload.decode(&aligned.samples, &self.tx, lag);
         Ok(Processed {
             profiles: range.profiles,
-            targets: detection.targets,
+            targets: detection.targets.clone(),
             width_3db_cm,
             sidelobe_db,
             snr_db,
             payload,
+            detection,
             warnings,
             aligned: aligned.samples,
         })

@@ -228,7 +228,9 @@ pub fn process_options(spec: &RunSpec) -> ProcessOptions {
         system_delay_s: 0.0,
         min_range_m: 0.0,
         max_range_m: spec.max_range_m().min(1e4),
+        detector: Default::default(),
         pfa: spec.pfa,
+        min_separation_m: None,
         awg_amplitude_vpp: None,
     }
 }

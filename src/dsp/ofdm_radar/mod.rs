@@ -432,6 +432,45 @@ impl OfdmRadar {
         Ok(())
     }
 
+    /// The coherent (complex) range profile of `idiv` into `out` (resized to K values): the same
+    /// windowed, zero-padded IFFT of the symbol-averaged `I_div` as [`OfdmRadar::profile`] with
+    /// [`Averaging::Coherent`], before taking the magnitude. The input of [`crate::dsp::detect`],
+    /// whatever the configured averaging.
+    pub fn complex_profile(
+        &mut self,
+        idiv: &IDiv,
+        out: &mut Vec<Complex64>,
+    ) -> Result<(), DspError> {
+        let n = self.config.subcarriers;
+        if idiv.subcarriers != n || idiv.symbols == 0 {
+            return Err(DspError::Param(format!(
+                "OFDM radar: I_div has {} symbols of {} subcarriers; this receiver needs at least one \
+                 symbol of {n}",
+                idiv.symbols, idiv.subcarriers
+            )));
+        }
+        self.accumulator.fill(Complex64::default());
+        for s in 0..idiv.symbols {
+            for (a, v) in self.accumulator.iter_mut().zip(idiv.symbol(s)) {
+                *a += v;
+            }
+        }
+        let inv_s = 1.0 / idiv.symbols as f64;
+        out.clear();
+        out.resize(self.config.profile_len(), Complex64::default());
+        for ((b, a), w) in out.iter_mut().zip(&self.accumulator).zip(&self.weights) {
+            *b = a * (w * inv_s);
+        }
+        self.ifft.process_with_scratch(out, &mut self.ifft_scratch);
+        Ok(())
+    }
+
+    /// The window coefficients across subcarriers divided by their sum (ascending frequency): the
+    /// spectral lines of this receiver's point spread (`crate::dsp::detect::SpectralLines::ofdm`).
+    pub fn normalised_window(&self) -> &[f64] {
+        &self.weights
+    }
+
     /// [`OfdmRadar::divide`] then [`OfdmRadar::profile`].
     pub fn process(
         &mut self,
