@@ -146,6 +146,11 @@ mod tests {
             level_db,
             above_threshold_db: Some(10.0),
             on_grid_m: None,
+            snr_db: None,
+            width_3db_cm: None,
+            sidelobe_db: None,
+            sidelobe_note: None,
+            cell: None,
         }
     }
 
