@@ -73,6 +73,30 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Another preparation of the same transmission and capture plan, processed with `options`
+    /// (a campaign applies several algorithms to the same captures). Touches no instrument. The
+    /// capture plan was checked against this preparation's options: `options` must keep its
+    /// range window.
+    pub async fn with_options(&self, options: ProcessOptions) -> Result<Prepared, MeasureError> {
+        super::pipeline::validate(&self.tx, &options)?;
+        let fs = self.tx.sample_rate_hz();
+        let geometry = RecordGeometry::for_capture(self.plan.period, fs, &options);
+        let rate = self.plan.scope.sample_rate_hz;
+        let tx = self.tx.clone();
+        let pipeline = off_runtime(move || {
+            let mut pipeline = Pipeline::new(tx, options, geometry)?;
+            pipeline.prepare_capture_rate(rate)?;
+            Ok::<_, MeasureError>(pipeline)
+        })
+        .await??;
+        Ok(Prepared {
+            tx: self.tx.clone(),
+            plan: self.plan.clone(),
+            pipeline: Some(pipeline),
+            background: self.background.clone(),
+        })
+    }
+
     /// The pipeline captures of this preparation go through.
     pub fn pipeline(&self) -> &Pipeline {
         self.pipeline
@@ -293,28 +317,12 @@ impl Rig {
             }
         };
         self.loaded = Some((prepared.tx.clone(), captured.uploaded.clone()));
-        let mut pipeline = prepared.pipeline.take().ok_or_else(|| {
-            MeasureError::Worker("an earlier measurement lost the pipeline".into())
-        })?;
-        if let Err(e) = pipeline.set_awg_amplitude(captured.applied.awg.i_amplitude_vpp) {
-            prepared.pipeline = Some(pipeline);
-            return Err(e);
-        }
-        let raws: Vec<RawIq> = (0..captured.repetitions())
-            .map(|k| captured.raw(k))
-            .collect();
-        // The pipeline goes to the worker thread and comes back.
-        let background = prepared.background.clone();
-        let bandwidth = prepared.tx.bandwidth_hz();
-        let (pipeline, outcome) = off_runtime(move || {
-            let mut pipeline = pipeline;
-            let outcome = process_repetitions(&mut pipeline, &raws, background.as_ref(), bandwidth);
-            (pipeline, outcome)
-        })
-        .await?;
-        let options = pipeline.options().clone();
-        prepared.pipeline = Some(pipeline);
-        let (processed, each, spread) = outcome?;
+        let Processing {
+            processed,
+            repetitions: each,
+            spread,
+            options,
+        } = process_with(prepared, &captured).await?;
         let ground_truth = bench.ground_truth().await;
         Ok(Measurement {
             tx: prepared.tx.clone(),
@@ -329,6 +337,56 @@ impl Rig {
             safe_state: report,
         })
     }
+}
+
+/// What one pipeline made of a capture.
+pub struct Processing {
+    /// The coherent average of the repetitions (or the one repetition), processed.
+    pub processed: Processed,
+    /// Each repetition processed alone (empty for a single repetition).
+    pub repetitions: Vec<RepetitionResult>,
+    /// The repetitions' spread around the result (several repetitions only).
+    pub spread: Option<Spread>,
+    /// The options as used (with the AWG amplitude the instrument applied).
+    pub options: ProcessOptions,
+}
+
+/// Processes a capture through `prepared`'s pipeline, off the runtime: each repetition alone and
+/// their coherent average. [`Rig::measure`] does this for its own capture; a campaign calls it
+/// again with the preparation of another algorithm, so the capture is taken once.
+pub async fn process_with(
+    prepared: &mut Prepared,
+    captured: &Captured,
+) -> Result<Processing, MeasureError> {
+    let mut pipeline = prepared
+        .pipeline
+        .take()
+        .ok_or_else(|| MeasureError::Worker("an earlier measurement lost the pipeline".into()))?;
+    if let Err(e) = pipeline.set_awg_amplitude(captured.applied.awg.i_amplitude_vpp) {
+        prepared.pipeline = Some(pipeline);
+        return Err(e);
+    }
+    let raws: Vec<RawIq> = (0..captured.repetitions())
+        .map(|k| captured.raw(k))
+        .collect();
+    // The pipeline goes to the worker thread and comes back.
+    let background = prepared.background.clone();
+    let bandwidth = prepared.tx.bandwidth_hz();
+    let (pipeline, outcome) = off_runtime(move || {
+        let mut pipeline = pipeline;
+        let outcome = process_repetitions(&mut pipeline, &raws, background.as_ref(), bandwidth);
+        (pipeline, outcome)
+    })
+    .await?;
+    let options = pipeline.options().clone();
+    prepared.pipeline = Some(pipeline);
+    let (processed, repetitions, spread) = outcome?;
+    Ok(Processing {
+        processed,
+        repetitions,
+        spread,
+        options,
+    })
 }
 
 /// Most repetitions one measurement takes.

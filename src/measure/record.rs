@@ -50,16 +50,39 @@ pub struct Provenance {
     pub simulated: bool,
 }
 
+/// Where the raw capture of one measurement went.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RawFiles {
+    pub sigmf_meta: PathBuf,
+    pub sigmf_data: PathBuf,
+    pub trc: [PathBuf; 2],
+}
+
 /// Writes every file of `m` into `out` (created when missing), `summary.json` last.
 pub fn write_capture(
     out: &Path,
     m: &Measurement,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
+    let raw = write_raw(out, m, provenance)?;
+    write_processed(out, m, &raw, provenance)
+}
+
+fn create_dir(out: &Path) -> Result<(), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
         path: out.to_path_buf(),
         source,
     })?;
+    Ok(())
+}
+
+/// Writes the raw capture of `m` into `out`: SigMF (every repetition) and the scope's `.trc`.
+pub fn write_raw(
+    out: &Path,
+    m: &Measurement,
+    provenance: &Provenance,
+) -> Result<RawFiles, MeasureError> {
+    create_dir(out)?;
     let first = &m.captured.iq[0];
     let (i, q) = (&first.i, &first.q);
     let o = &m.options;
@@ -129,6 +152,24 @@ pub fn write_capture(
     let trc = [out.join("C1.trc"), out.join("C2.trc")];
     write_atomic(&trc[0], &i.trc_bytes())?;
     write_atomic(&trc[1], &q.trc_bytes())?;
+    Ok(RawFiles {
+        sigmf_meta: sig.meta,
+        sigmf_data: sig.data,
+        trc,
+    })
+}
+
+/// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
+/// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
+/// algorithm applied to the same capture.
+pub fn write_processed(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    create_dir(out)?;
+    let o = &m.options;
     let p = &m.processed;
     let primary = &p.profiles[0];
     let table = ProfileTable {
@@ -156,9 +197,9 @@ pub fn write_capture(
     };
     let files = CaptureFiles {
         dir: out.to_path_buf(),
-        sigmf_meta: sig.meta,
-        sigmf_data: sig.data,
-        trc,
+        sigmf_meta: raw.sigmf_meta.clone(),
+        sigmf_data: raw.sigmf_data.clone(),
+        trc: raw.trc.clone(),
         profile_csv: out.join("profile.csv"),
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),
