@@ -7,7 +7,9 @@
 //! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!
 //! ```text
-//! cli -> simulate ----------------------+
+//! cli -> campaign (spec, plan, run folder, resume) -> measure, storage
+//!  |
+//!  +---> simulate ----------------------+
 //!  |                                    v
 //!  +---> measure (bench, station, pipeline, record) -> dsp, waveform (pure)
 //!  |        |       |        +-> storage (atomic files, SigMF, npy/CSV, plots)
@@ -34,10 +36,12 @@
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR) |
 //! | [`storage`] | out | atomic files, SigMF (write and read), npy/CSV, plots |
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`], a capture's files |
+//! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios and free-form simulations, on the same pipeline |
 //! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
 
 pub mod address;
+pub mod campaign;
 pub mod catalog;
 pub mod cli;
 pub mod driver;

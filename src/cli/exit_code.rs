@@ -42,6 +42,8 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::simulate::SimError,
         crate::measure::MeasureError,
         crate::measure::bench_file::BenchFileError,
+        crate::campaign::CampaignError,
+        crate::campaign::SpecError,
     );
     None
 }

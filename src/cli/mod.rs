@@ -11,6 +11,7 @@ pub mod args;
 pub mod bench;
 pub mod bench_io;
 pub mod calibrate;
+pub mod campaign;
 pub mod capture;
 pub mod exit_code;
 pub mod idn;
@@ -47,6 +48,8 @@ pub enum Command {
     Idn(idn::Args),
     /// One measurement: waveform out, marker-triggered capture, range profile, targets, payload.
     Capture(Box<capture::Args>),
+    /// Measurement campaigns: run a spec into a run folder, resume, new, report, thesis-lab.
+    Campaign(campaign::Args),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -75,6 +78,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
         Command::Capture(args) => capture::run(*args, &global),
+        Command::Campaign(args) => campaign::run(args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),

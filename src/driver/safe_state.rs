@@ -277,6 +277,32 @@ pub async fn run_guarded<T, I>(
     (outcome, report)
 }
 
+/// Makes a panic run the safe state of the bench connected last (quick attempt; the guard
+/// retries during unwinding), then the previous hook. One hook per process: a program that
+/// connects again and again (a campaign starts a fresh simulated lab for each step) replaces the
+/// state the hook engages instead of piling up hooks that keep old connections alive.
+pub fn set_panic_safe_state(state: SafeState) {
+    static CURRENT: std::sync::Mutex<Option<SafeState>> = std::sync::Mutex::new(None);
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    *CURRENT.lock().unwrap_or_else(|p| p.into_inner()) = Some(state);
+    INSTALL.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            // try_lock: a panic while the slot is being replaced must not deadlock the hook.
+            let state = match CURRENT.try_lock() {
+                Ok(g) => g.clone(),
+                Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner().clone(),
+                Err(std::sync::TryLockError::WouldBlock) => None,
+            };
+            if let Some(state) = state {
+                let report = state.blocking(HOOK_LOCK_WAIT);
+                eprintln!("radbench: panic: safe state: {report}");
+            }
+            previous(info);
+        }));
+    });
+}
+
 /// Makes a panic run the safe state (quick attempt; the guard retries during unwinding), then
 /// the previous hook.
 pub fn install_panic_hook(state: SafeState) {

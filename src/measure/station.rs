@@ -316,9 +316,10 @@ impl Station {
         &self.safe
     }
 
-    /// Makes a panic run this bench's safe state.
+    /// Makes a panic run this bench's safe state (it replaces the state of a bench connected
+    /// earlier in the process).
     pub fn install_panic_hook(&self) {
-        crate::driver::install_panic_hook(self.safe.clone());
+        crate::driver::set_panic_safe_state(self.safe.clone());
     }
 
     /// Configures the AWG, downloads the waveform and configures the scope. Nothing radiates.

@@ -1,0 +1,158 @@
+//! Measurement campaigns: spec (TOML) -> plan (plain data, printable) -> run (one connected bench,
+//! every step under the safe-state guard) -> run folder (manifest, step captures, `results.json`,
+//! report), resumable after an interruption. docs/campaign.md describes the files.
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`spec`] | the spec file: serde with unknown fields refused, errors at file:line:field |
+//! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
+//! | [`positioner`] | who places the targets: the mock lab, the operator (prompt), a program |
+//! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
+//! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth |
+//! | [`run`] | executing a plan into a run folder, and resuming one |
+//! | [`report`] | the run's `report.md` |
+//! | [`builtin`] | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
+
+pub mod builtin;
+pub mod manifest;
+pub mod plan;
+pub mod positioner;
+pub mod report;
+pub mod results;
+pub mod run;
+pub mod spec;
+
+use crate::driver::ErrorKind;
+use crate::exit::{Classify, ExitClass};
+use crate::measure::interrupt::StopSignal;
+use crate::measure::MeasureError;
+use std::path::PathBuf;
+
+pub use plan::Plan;
+pub use spec::{SpecError, SpecFile};
+
+/// Why a campaign could not start, or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum CampaignError {
+    /// The spec is unusable (file, line, field, what is allowed).
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// A measurement failed (an instrument, a link, the processing).
+    #[error(transparent)]
+    Measure(#[from] MeasureError),
+    /// The positioner program could not be started (the spec names something that is not there).
+    #[error(
+        "positioner: cannot run {program:?}: {source}; check `positioner.program` (a path relative \
+         to the spec's folder, or a program on PATH)"
+    )]
+    PositionerStart {
+        program: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The positioner program failed or timed out: the targets are not where the step needs them.
+    #[error(
+        "positioner: {program} {reason}; the campaign stopped with the bench in its safe state"
+    )]
+    PositionerFailed { program: String, reason: String },
+    /// The operator ended the prompt (end of input, or `q`).
+    #[error("the operator stopped the campaign at the positioner prompt ({why})")]
+    OperatorStopped { why: String },
+    /// A stop signal arrived between measurements.
+    #[error("interrupted by {}: {where_}; the bench is in its safe state", signal.name())]
+    Interrupted { signal: StopSignal, where_: String },
+    /// The simulated bench's control channel refused or did not answer.
+    #[error("the simulated bench's scene control channel: {0}")]
+    Control(String),
+    /// A file of the run folder could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A storage writer failed.
+    #[error(transparent)]
+    Storage(#[from] crate::storage::StorageError),
+    /// The output folder already holds something.
+    #[error(
+        "{dir} already exists and is not empty: choose another --out, or continue that run with \
+         `radbench campaign resume {dir}`"
+    )]
+    OutExists { dir: PathBuf },
+    /// The run folder's manifest cannot be used.
+    #[error("{path}: {message}")]
+    Manifest { path: PathBuf, message: String },
+    /// Another radbench process works in this run folder.
+    #[error("{dir} is in use by another radbench process (its lock file is held)")]
+    Locked { dir: PathBuf },
+    /// Resume found another bench than the run was measured on.
+    #[error("{what}; pass --force to continue on this bench anyway (the manifest records it)")]
+    DifferentBench { what: String },
+    /// The run is already complete.
+    #[error("{dir}: the run is complete; nothing to resume")]
+    Complete { dir: PathBuf },
+}
+
+impl CampaignError {
+    /// What to do about it.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            CampaignError::Measure(e) => e.kind(),
+            CampaignError::Spec(_)
+            | CampaignError::PositionerStart { .. }
+            | CampaignError::OutExists { .. }
+            | CampaignError::Manifest { .. }
+            | CampaignError::DifferentBench { .. }
+            | CampaignError::Complete { .. } => ErrorKind::FixInput,
+            CampaignError::PositionerFailed { .. }
+            | CampaignError::Control(_)
+            | CampaignError::Locked { .. } => ErrorKind::Retry,
+            CampaignError::OperatorStopped { .. }
+            | CampaignError::Interrupted { .. }
+            | CampaignError::Io { .. }
+            | CampaignError::Storage(_) => ErrorKind::Abort,
+        }
+    }
+
+    /// The stop signal behind this error, when there is one.
+    pub fn signal(&self) -> Option<StopSignal> {
+        match self {
+            CampaignError::Interrupted { signal, .. } => Some(*signal),
+            CampaignError::Measure(MeasureError::Interrupted { signal, .. }) => Some(*signal),
+            _ => None,
+        }
+    }
+}
+
+impl Classify for CampaignError {
+    fn exit_class(&self) -> ExitClass {
+        match self {
+            CampaignError::Spec(e) => e.exit_class(),
+            CampaignError::Measure(e) => e.exit_class(),
+            CampaignError::Storage(e) => e.exit_class(),
+            CampaignError::PositionerStart { .. }
+            | CampaignError::OutExists { .. }
+            | CampaignError::Manifest { .. }
+            | CampaignError::Locked { .. }
+            | CampaignError::DifferentBench { .. }
+            | CampaignError::Complete { .. } => ExitClass::BadInput,
+            CampaignError::PositionerFailed { .. } | CampaignError::Control(_) => {
+                ExitClass::Instrument
+            }
+            CampaignError::Io { .. } => ExitClass::Processing,
+            CampaignError::OperatorStopped { .. } => ExitClass::Interrupted,
+            CampaignError::Interrupted { signal, .. } => match signal {
+                StopSignal::Interrupt => ExitClass::Interrupted,
+                StopSignal::Terminate => ExitClass::Terminated,
+                StopSignal::HangUp => ExitClass::HungUp,
+            },
+        }
+    }
+}
+
+/// An I/O error on `path`.
+pub(crate) fn io(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> CampaignError {
+    let path = path.into();
+    move |source| CampaignError::Io { path, source }
+}

@@ -1,0 +1,1225 @@
+//! The resolved plan: every step with its nominal set-points (target ranges, bandwidth, Tx
+//! attenuation, SNR), the waveforms and processing options, the noise seed of each step on a
+//! simulated bench. Plain data: `--dry-run` prints it, the manifest stores it, resume runs it.
+//!
+//! [`plan`] is pure; [`BenchInfo::load`] reads the bench file (or describes the built-in lab)
+//! without touching an instrument.
+
+use super::spec::{
+    AwgTransportName, PositionerKind, ScopeTransportName, SpecError, SpecFile, SweepParameter,
+    WaveformKindName,
+};
+use super::CampaignError;
+use crate::catalog::Catalog;
+use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink};
+use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
+use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
+use crate::measure::options::{Algorithm, ProcessOptions};
+use crate::waveform::spec::{WaveformKind, WaveformSpec};
+use mock_lab::scene::Scene;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Most steps one campaign may hold.
+pub const MAX_STEPS: usize = 10_000;
+
+/// Largest waveform repetition accepted, samples (as `radbench capture`).
+const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
+
+/// The resolved campaign.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    pub name: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    pub seed: u64,
+    pub repetitions: usize,
+    pub wait_s: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub payload: Option<String>,
+    pub bench: BenchPlan,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub positioner: Option<PositionerPlan>,
+    /// The distinct waveforms, in the order the steps first use them.
+    pub waveforms: Vec<WaveformSpec>,
+    /// One entry per algorithm (first = the primary, whose capture files sit in the step folder).
+    pub processing: Vec<ProcessOptions>,
+    pub steps: Vec<Step>,
+}
+
+/// The bench a plan runs on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BenchPlan {
+    /// The bench file (absolute); `None` for the built-in mock lab.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    pub simulated: bool,
+    /// Built-in mock lab: its scene (each step sets its seed, and its targets and SNR when the
+    /// step says so).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<Scene>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub awg_transport: Option<AwgTransportName>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scope_transport: Option<ScopeTransportName>,
+    /// The calibrated system delay subtracted from every range, seconds.
+    pub system_delay_s: f64,
+    pub calibrated: bool,
+}
+
+/// Who places the targets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PositionerPlan {
+    pub kind: PositionerKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub program: Option<String>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub args: Vec<String>,
+    /// The folder the program runs in (the spec's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub workdir: Option<PathBuf>,
+    pub timeout_s: f64,
+    pub settle_s: f64,
+}
+
+/// One target's range, metres (`{"range_m": ...}` in every JSON file).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Range {
+    pub range_m: f64,
+}
+
+/// The set-points of one step, as planned.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Nominal {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+    /// The swept parameter (`position`, `separation`, `bandwidth`, `tx-attenuation`, `snr`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parameter: Option<String>,
+    /// Its value at this step, in its unit (m, Hz, dB).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+    /// Where the targets stand, ascending (empty: not placed by the campaign).
+    pub targets: Vec<Range>,
+    pub bandwidth_hz: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tx_attenuation_db: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub snr_db: Option<f64>,
+}
+
+impl Nominal {
+    pub fn ranges(&self) -> Vec<f64> {
+        self.targets.iter().map(|t| t.range_m).collect()
+    }
+
+    /// One short line: `position 0.970 m`, `bandwidth 2 GHz, targets 1.000 / 1.080 m`.
+    pub fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(l) = &self.label {
+            parts.push(l.clone());
+        }
+        if let (Some(p), Some(v)) = (&self.parameter, self.value) {
+            parts.push(match p.as_str() {
+                "position" | "separation" => format!("{p} {v:.3} m"),
+                "bandwidth" => format!("{p} {} GHz", v / 1e9),
+                _ => format!("{p} {v} dB"),
+            });
+        }
+        if !self.targets.is_empty() {
+            let r: Vec<String> = self
+                .targets
+                .iter()
+                .map(|t| format!("{:.3}", t.range_m))
+                .collect();
+            parts.push(format!("targets {} m", r.join(" / ")));
+        }
+        parts.join(", ")
+    }
+}
+
+/// One step of the plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Step {
+    /// 1-based.
+    pub index: usize,
+    pub nominal: Nominal,
+    /// Index into [`Plan::waveforms`].
+    pub waveform: usize,
+    /// The simulated scene's noise seed for this step (simulated benches): a step's noise then
+    /// depends only on the campaign's seed and the step, so a resumed run equals an
+    /// uninterrupted one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_seed: Option<u64>,
+}
+
+impl Step {
+    /// The step's folder name inside the run folder.
+    pub fn dir_name(&self) -> String {
+        format!("step-{:03}", self.index)
+    }
+}
+
+/// The noise seed of step `index` (SplitMix64's finaliser over the campaign seed and the step),
+/// 63 bits so TOML (signed 64-bit integers) can hold it.
+pub fn noise_seed(seed: u64, index: usize) -> u64 {
+    let mut z = seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    (z ^ (z >> 31)) >> 1
+}
+
+/// What planning needs to know of the bench, read without touching an instrument.
+#[derive(Debug, Clone)]
+pub struct BenchInfo {
+    /// The bench file (absolute path) and its content; `None` for the built-in mock lab.
+    pub file: Option<(PathBuf, BenchFile)>,
+    /// The built-in lab's scene.
+    pub scene: Option<Scene>,
+    pub awg_transport: Option<AwgTransportName>,
+    pub scope_transport: Option<ScopeTransportName>,
+    pub simulated: bool,
+    /// The Tx attenuation radbench can set, dB (`None`: the bench has no `[tx]`).
+    pub tx_attenuation_db: Option<(f64, f64)>,
+}
+
+/// The models the built-in mock lab serves (as `mock-lab serve` writes its bench file).
+const BUILT_IN_MODELS: [&str; 4] = [
+    "keysight-m8195a",
+    "lecroy-labmaster10zi-a",
+    "gotmic-eband-tx",
+    "gotmic-eband-rx",
+];
+
+impl BenchInfo {
+    /// The bench of `--bench`, or of the spec's `[bench]`, or the built-in mock lab.
+    pub fn load(
+        spec: &SpecFile,
+        bench_override: Option<&Path>,
+        catalog: &Catalog,
+    ) -> Result<BenchInfo, CampaignError> {
+        let section = &spec.spec.bench;
+        let file = match bench_override {
+            Some(p) => Some(p.to_path_buf()),
+            None => section.file.as_ref().map(|p| spec.resolve(p)),
+        };
+        let built_in_only = |field: &str, given: bool| -> Result<(), CampaignError> {
+            if given && file.is_some() {
+                return Err(spec
+                    .error(
+                        &format!("bench.{field}"),
+                        "applies to the built-in mock lab only; with a bench file, change the \
+                         simulated scene through the lab's control channel",
+                    )
+                    .into());
+            }
+            Ok(())
+        };
+        built_in_only("scene", section.scene.is_some())?;
+        built_in_only("awg_transport", section.awg_transport.is_some())?;
+        built_in_only("scope_transport", section.scope_transport.is_some())?;
+        let tx_range = |entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
+            let model = catalog.get(&entry.as_ref()?.model).ok()?;
+            let step = model.rf.as_ref()?.attenuation_step_db;
+            let reg = model.registers.iter().find(|r| r.name == "GAIN_ATT")?;
+            Some((
+                f64::from(reg.min.unwrap_or(0)) * step,
+                f64::from(reg.max.unwrap_or(0)) * step,
+            ))
+        };
+        match file {
+            Some(path) => {
+                let bench = BenchFile::load(&path).map_err(crate::measure::MeasureError::from)?;
+                let path = std::path::absolute(&path).unwrap_or(path);
+                Ok(BenchInfo {
+                    tx_attenuation_db: tx_range(&bench.tx),
+                    simulated: bench.simulation.is_some(),
+                    file: Some((path, bench)),
+                    scene: None,
+                    awg_transport: None,
+                    scope_transport: None,
+                })
+            }
+            None => {
+                let scene = match &section.scene {
+                    Some(p) => {
+                        let p = spec.resolve(p);
+                        let text = std::fs::read_to_string(&p).map_err(|e| {
+                            spec.error("bench.scene", format!("cannot read {}: {e}", p.display()))
+                        })?;
+                        Scene::from_toml(&text, &p.display().to_string())
+                            .map_err(|e| spec.error("bench.scene", e.to_string()))?
+                    }
+                    None => Scene::default(),
+                };
+                let file = built_in_bench_file(&scene);
+                Ok(BenchInfo {
+                    tx_attenuation_db: tx_range(&file.tx),
+                    file: None,
+                    scene: Some(scene),
+                    awg_transport: Some(section.awg_transport.unwrap_or(AwgTransportName::Hislip)),
+                    scope_transport: Some(
+                        section.scope_transport.unwrap_or(ScopeTransportName::Vicp),
+                    ),
+                    simulated: true,
+                })
+            }
+        }
+    }
+
+    /// The bench file planning checks against (the built-in lab's models for the built-in lab).
+    pub fn bench_file(&self) -> BenchFile {
+        match (&self.file, &self.scene) {
+            (Some((_, f)), _) => f.clone(),
+            (None, scene) => built_in_bench_file(&scene.clone().unwrap_or_default()),
+        }
+    }
+}
+
+/// The built-in lab as a bench file, for planning (the resources are placeholders: the lab's
+/// ports are known only once it runs).
+fn built_in_bench_file(scene: &Scene) -> BenchFile {
+    let entry = |model: &str, resource: &str| InstrumentEntry {
+        model: model.to_string(),
+        resource: resource.to_string(),
+        volts_per_div: None,
+        attenuation_db: None,
+    };
+    BenchFile {
+        awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
+        scope: entry(BUILT_IN_MODELS[1], "VICP::127.0.0.1"),
+        tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
+        rx: Some(entry(BUILT_IN_MODELS[3], "ASRL/dev/null::INSTR")),
+        simulation: None,
+        calibration: Some(Calibration {
+            system_delay_s: scene.system_delay_s,
+            reference_range_m: None,
+            measured_at: None,
+        }),
+    }
+}
+
+impl BenchPlan {
+    /// A bench for planning and preparing (no instrument, no lab started).
+    pub fn planning_bench(&self, info_file: Option<&BenchFile>) -> Bench {
+        let file = match info_file {
+            Some(f) => f.clone(),
+            None => built_in_bench_file(&self.scene.clone().unwrap_or_default()),
+        };
+        Bench {
+            file,
+            path: self.file.clone(),
+            lab: None,
+        }
+    }
+
+    /// The built-in lab with `scene`.
+    pub fn built_in(&self, scene: Scene) -> BuiltIn {
+        BuiltIn {
+            scene,
+            awg: match self.awg_transport {
+                Some(AwgTransportName::Raw) => AwgLink::Raw,
+                Some(AwgTransportName::Vxi11) => AwgLink::Vxi11,
+                _ => AwgLink::Hislip,
+            },
+            scope: match self.scope_transport {
+                Some(ScopeTransportName::Vxi11) => ScopeLink::Vxi11,
+                _ => ScopeLink::Vicp,
+            },
+        }
+    }
+
+    pub fn describe(&self) -> String {
+        match &self.file {
+            Some(p) => format!(
+                "bench file {}{}",
+                p.display(),
+                if self.simulated { " (simulated)" } else { "" }
+            ),
+            None => "the built-in mock lab (simulated, in-process on 127.0.0.1)".into(),
+        }
+    }
+}
+
+impl Plan {
+    /// The capture request of waveform `w` with the primary processing.
+    pub fn request(&self, w: usize) -> CaptureRequest {
+        CaptureRequest {
+            waveform: self.waveforms[w],
+            payload: self.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+            seed: self.seed,
+            options: self.processing[0].clone(),
+            tx_off: false,
+            wait_s: self.wait_s,
+            background: None,
+        }
+    }
+
+    /// The algorithms' names, in order.
+    pub fn algorithm_names(&self) -> Vec<&'static str> {
+        self.processing.iter().map(|o| o.algorithm.name()).collect()
+    }
+
+    /// Whether step `k` (0-based) places targets (its targets differ from the step before, or it
+    /// is the first step of a session).
+    pub fn moves_at(&self, k: usize, first_of_session: bool) -> bool {
+        let here = &self.steps[k].nominal.targets;
+        !here.is_empty()
+            && (first_of_session || k == 0 || self.steps[k - 1].nominal.targets != *here)
+    }
+}
+
+/// Resolves a spec against the bench: every value checked, located in the spec on error.
+pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
+    let s = &spec.spec;
+    if !(1..=MAX_REPETITIONS).contains(&s.repetitions) {
+        return Err(spec.error(
+            "repetitions",
+            format!("{}: allowed 1..={MAX_REPETITIONS}", s.repetitions),
+        ));
+    }
+    if !(s.wait_s.is_finite() && s.wait_s > 0.0 && s.wait_s <= 3600.0) {
+        return Err(spec.error(
+            "wait_s",
+            format!("{}: allowed 0 < seconds <= 3600", s.wait_s),
+        ));
+    }
+    let base = base_waveform(spec)?;
+    let processing = processing(spec, base.kind(), bench)?;
+    let positioner = positioner(spec, bench)?;
+    let mut steps = raw_steps(spec, &base, bench)?;
+    let min = processing[0].min_range_m;
+    let max = processing[0].max_range_m;
+    let mut waveforms: Vec<WaveformSpec> = Vec::new();
+    for (k, step) in steps.iter_mut().enumerate() {
+        for (i, t) in step.nominal.targets.iter().enumerate() {
+            let r = t.range_m;
+            if !(r.is_finite() && r >= min && r <= max) {
+                return Err(spec.error(
+                    &step_field(spec, k, "targets", Some(i)),
+                    format!(
+                        "{r} m: a target must stand inside the processing window {min} .. {max} m \
+                         (processing.min_range_m / max_range_m)"
+                    ),
+                ));
+            }
+        }
+        if step.nominal.snr_db.is_some() && !bench.simulated {
+            return Err(spec.error(
+                &step_field(spec, k, "snr_db", None),
+                "the SNR is set only on a simulated bench (the built-in mock lab, or a bench file \
+                 with [simulation]); on a real bench sweep tx-attenuation instead",
+            ));
+        }
+        if let Some(att) = step.nominal.tx_attenuation_db {
+            let Some((lo, hi)) = bench.tx_attenuation_db else {
+                return Err(spec.error(
+                    &step_field(spec, k, "tx_attenuation_db", None),
+                    "the bench has no [tx] radbench controls: add the Tx to the bench file",
+                ));
+            };
+            if !(att.is_finite() && att >= lo && att <= hi) {
+                return Err(spec.error(
+                    &step_field(spec, k, "tx_attenuation_db", None),
+                    format!("{att} dB: the Tx sets {lo} .. {hi} dB"),
+                ));
+            }
+        }
+        let wf = base
+            .with_bandwidth(step.nominal.bandwidth_hz)
+            .map_err(|e| spec.error(&step_field(spec, k, "bandwidth_hz", None), e.to_string()))?;
+        step.waveform = match waveforms.iter().position(|w| *w == wf) {
+            Some(i) => i,
+            None => {
+                waveforms.push(wf);
+                waveforms.len() - 1
+            }
+        };
+        if bench.simulated {
+            step.noise_seed = Some(noise_seed(s.seed, step.index));
+        }
+    }
+    let places = steps.iter().any(|st| !st.nominal.targets.is_empty());
+    if places && positioner.is_none() {
+        return Err(spec.error(
+            "positioner",
+            "the steps place targets but no positioner is named: add [positioner] with kind = \
+             \"prompt\" (the operator places them) or \"command\" (a program does); \"mock-lab\" \
+             needs a simulated bench",
+        ));
+    }
+    Ok(Plan {
+        name: spec.name(),
+        description: s.description.clone(),
+        seed: s.seed,
+        repetitions: s.repetitions,
+        wait_s: s.wait_s,
+        payload: s.waveform.payload.clone(),
+        bench: BenchPlan {
+            file: bench.file.as_ref().map(|(p, _)| p.clone()),
+            simulated: bench.simulated,
+            scene: bench.scene.clone(),
+            awg_transport: bench.awg_transport,
+            scope_transport: bench.scope_transport,
+            system_delay_s: bench.bench_file().system_delay_s(),
+            calibrated: bench.bench_file().calibration.is_some(),
+        },
+        positioner,
+        waveforms,
+        processing,
+        steps,
+    })
+}
+
+/// The field of step `k`: `steps[k].name` for an explicit list, the sweep's field otherwise.
+fn step_field(spec: &SpecFile, k: usize, name: &str, item: Option<usize>) -> String {
+    let item = item.map(|i| format!("[{i}]")).unwrap_or_default();
+    if spec.spec.sweep.is_some() {
+        let p = spec.spec.sweep.as_ref().map(|s| s.parameter);
+        match (name, p) {
+            ("targets", Some(SweepParameter::Position | SweepParameter::Separation)) => {
+                "sweep.values".into()
+            }
+            ("targets", _) => format!("sweep.targets{item}"),
+            _ => "sweep.values".into(),
+        }
+    } else {
+        format!("steps[{k}].{name}{item}")
+    }
+}
+
+/// The spec's waveform: the thesis' defaults with the parameters given.
+fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
+    let w = &spec.spec.waveform;
+    let kind = match w.kind {
+        WaveformKindName::MskLfm => WaveformKind::MskLfm,
+        WaveformKindName::Ofdm => WaveformKind::Ofdm,
+    };
+    let positive = |v: Option<f64>, field: &str, unit: &str| -> Result<(), SpecError> {
+        match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => Err(spec.error(
+                &format!("waveform.{field}"),
+                format!("{x}: a positive number of {unit}"),
+            )),
+            _ => Ok(()),
+        }
+    };
+    positive(w.bandwidth_hz, "bandwidth_hz", "Hz")?;
+    positive(w.sample_rate_hz, "sample_rate_hz", "Sa/s")?;
+    positive(w.pulse_s, "pulse_s", "seconds")?;
+    let only = |given: bool, field: &str, applies: &str| -> Result<(), SpecError> {
+        if given {
+            return Err(spec.error(
+                &format!("waveform.{field}"),
+                format!(
+                    "applies to {applies} only; this waveform is {}",
+                    kind.name()
+                ),
+            ));
+        }
+        Ok(())
+    };
+    let mut spec_out = kind.thesis_default();
+    match &mut spec_out {
+        WaveformSpec::MskLfm {
+            sample_rate_hz,
+            bandwidth_hz,
+            pulse_s,
+            bits_per_pulse,
+        } => {
+            only(w.subcarriers.is_some(), "subcarriers", "OFDM")?;
+            only(w.oversampling.is_some(), "oversampling", "OFDM")?;
+            only(w.cp_fraction.is_some(), "cp_fraction", "OFDM")?;
+            only(w.symbols.is_some(), "symbols", "OFDM")?;
+            only(w.preamble_symbols.is_some(), "preamble_symbols", "OFDM")?;
+            if let Some(v) = w.sample_rate_hz {
+                *sample_rate_hz = v;
+            }
+            if let Some(v) = w.bandwidth_hz {
+                *bandwidth_hz = v;
+            }
+            if let Some(v) = w.pulse_s {
+                *pulse_s = v;
+            }
+            if let Some(v) = w.bits_per_pulse {
+                *bits_per_pulse = v;
+            }
+        }
+        WaveformSpec::Ofdm {
+            oversampling,
+            subcarriers,
+            cp_fraction,
+            symbols,
+            preamble_symbols,
+            ..
+        } => {
+            only(w.sample_rate_hz.is_some(), "sample_rate_hz", "MSK-LFM")?;
+            only(w.pulse_s.is_some(), "pulse_s", "MSK-LFM")?;
+            only(w.bits_per_pulse.is_some(), "bits_per_pulse", "MSK-LFM")?;
+            if let Some(v) = w.subcarriers {
+                *subcarriers = v;
+            }
+            if let Some(v) = w.cp_fraction {
+                *cp_fraction = v;
+            }
+            if let Some(v) = w.symbols {
+                *symbols = v;
+            }
+            if let Some(v) = w.preamble_symbols {
+                *preamble_symbols = v;
+            }
+            if let Some(v) = w.oversampling {
+                *oversampling = v;
+            }
+        }
+    }
+    if let Some(b) = w.bandwidth_hz {
+        if kind == WaveformKind::Ofdm {
+            spec_out = match w.oversampling {
+                // With the oversampling given, the bandwidth sets the rate.
+                Some(_) => match spec_out {
+                    WaveformSpec::Ofdm {
+                        subcarriers,
+                        oversampling,
+                        cp_fraction,
+                        symbols,
+                        preamble_symbols,
+                        ..
+                    } => WaveformSpec::Ofdm {
+                        bandwidth_hz: b,
+                        subcarriers,
+                        oversampling,
+                        cp_fraction,
+                        symbols,
+                        preamble_symbols,
+                    },
+                    other => other,
+                },
+                None => spec_out
+                    .with_bandwidth(b)
+                    .map_err(|e| spec.error("waveform.bandwidth_hz", e.to_string()))?,
+            };
+        }
+    }
+    // The generators check every parameter (named, with what is allowed); do it before anything
+    // else so the message points at the waveform.
+    match spec_out.samples_per_repetition() {
+        Ok(n) if n as f64 > MAX_SAMPLES_PER_REPETITION => {
+            return Err(spec.error(
+                "waveform",
+                format!(
+                    "one repetition of {n} samples; allowed at most \
+                     {MAX_SAMPLES_PER_REPETITION:.0e}"
+                ),
+            ))
+        }
+        Ok(_) => {}
+        Err(e) => return Err(spec.error("waveform", e.to_string())),
+    }
+    let check = match spec_out.kind() {
+        WaveformKind::MskLfm => spec_out
+            .msk_lfm_params()
+            .map(|p| crate::waveform::msk_lfm::MskLfm::new(p).map(|_| ())),
+        WaveformKind::Ofdm => spec_out
+            .ofdm_params()
+            .map(|p| crate::waveform::ofdm::Ofdm::new(p).map(|_| ())),
+    };
+    if let Some(Err(e)) = check {
+        return Err(spec.error("waveform", e.to_string()));
+    }
+    Ok(spec_out)
+}
+
+/// One set of processing options per algorithm.
+fn processing(
+    spec: &SpecFile,
+    kind: WaveformKind,
+    bench: &BenchInfo,
+) -> Result<Vec<ProcessOptions>, SpecError> {
+    let p = &spec.spec.processing;
+    let algorithms = if p.algorithms.is_empty() {
+        vec![Algorithm::default_for(kind)]
+    } else {
+        p.algorithms.clone()
+    };
+    let mut out: Vec<ProcessOptions> = Vec::new();
+    for (i, &a) in algorithms.iter().enumerate() {
+        if !a.supports(kind) {
+            return Err(spec.error(
+                &format!("processing.algorithms[{i}]"),
+                format!(
+                    "{} needs an OFDM waveform; MSK-LFM is processed by correlation",
+                    a.name()
+                ),
+            ));
+        }
+        if algorithms[..i].contains(&a) {
+            return Err(spec.error(
+                &format!("processing.algorithms[{i}]"),
+                format!("{} is listed twice", a.name()),
+            ));
+        }
+        let mut o = ProcessOptions {
+            algorithm: a,
+            ..ProcessOptions::default()
+        };
+        macro_rules! set {
+            ($($f:ident),*) => { $(if let Some(v) = p.$f { o.$f = v; })* };
+        }
+        set!(
+            music_m,
+            forward_backward,
+            zero_pad,
+            window,
+            fft_precision,
+            interpolate,
+            detector,
+            pfa,
+            min_range_m,
+            max_range_m
+        );
+        o.music_p = p.music_p;
+        o.min_separation_m = p.min_separation_m;
+        o.system_delay_s = bench.bench_file().system_delay_s();
+        out.push(o);
+    }
+    Ok(out)
+}
+
+/// The positioner, with defaults; `None` when nothing places targets.
+fn positioner(spec: &SpecFile, bench: &BenchInfo) -> Result<Option<PositionerPlan>, SpecError> {
+    let section = spec.spec.positioner.as_ref();
+    let kind = match section.map(|p| p.kind) {
+        Some(k) => k,
+        None if bench.simulated => PositionerKind::MockLab,
+        None => return Ok(None),
+    };
+    if kind == PositionerKind::MockLab && !bench.simulated {
+        return Err(spec.error(
+            "positioner.kind",
+            "mock-lab moves simulated targets: the bench is real; use \"prompt\" or \"command\"",
+        ));
+    }
+    let timeout_s = section.and_then(|p| p.timeout_s).unwrap_or(60.0);
+    if !(timeout_s.is_finite() && timeout_s > 0.0 && timeout_s <= 3600.0) {
+        return Err(spec.error(
+            "positioner.timeout_s",
+            format!("{timeout_s}: allowed 0 < seconds <= 3600"),
+        ));
+    }
+    let settle_s = section.and_then(|p| p.settle_s).unwrap_or(0.0);
+    if !(settle_s.is_finite() && (0.0..=600.0).contains(&settle_s)) {
+        return Err(spec.error(
+            "positioner.settle_s",
+            format!("{settle_s}: allowed 0 ..= 600 seconds"),
+        ));
+    }
+    let program = section.and_then(|p| p.program.clone());
+    let args = section.map(|p| p.args.clone()).unwrap_or_default();
+    match kind {
+        PositionerKind::Command if program.is_none() => {
+            return Err(spec.error(
+                "positioner.program",
+                "kind = \"command\" needs the program to run, e.g. program = \"./stage.sh\"",
+            ))
+        }
+        PositionerKind::Command => {}
+        _ => {
+            if program.is_some() || !args.is_empty() || section.and_then(|p| p.timeout_s).is_some()
+            {
+                return Err(spec.error(
+                    "positioner.program",
+                    format!(
+                        "program, args and timeout_s apply to kind = \"command\" only; this is \
+                         \"{}\"",
+                        kind.name()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(Some(PositionerPlan {
+        kind,
+        program,
+        args,
+        workdir: (kind == PositionerKind::Command).then(|| {
+            let folder = spec.folder();
+            std::path::absolute(&folder).unwrap_or(folder)
+        }),
+        timeout_s,
+        settle_s,
+    }))
+}
+
+/// The values of the sweep.
+fn sweep_values(spec: &SpecFile) -> Result<Vec<f64>, SpecError> {
+    let Some(sw) = &spec.spec.sweep else {
+        return Ok(Vec::new());
+    };
+    let values = match (&sw.values, sw.start, sw.step, sw.count) {
+        (Some(v), None, None, None) => v.clone(),
+        (None, Some(start), Some(step), Some(count)) => {
+            if !(1..=MAX_STEPS).contains(&count) {
+                return Err(spec.error("sweep.count", format!("{count}: allowed 1..={MAX_STEPS}")));
+            }
+            (0..count).map(|k| start + step * k as f64).collect()
+        }
+        (None, Some(start), None, None) => vec![start],
+        _ => {
+            return Err(spec.error(
+                "sweep",
+                "give either `values = [...]` or `start`, `step` and `count`",
+            ))
+        }
+    };
+    if values.is_empty() || values.len() > MAX_STEPS {
+        return Err(spec.error(
+            "sweep.values",
+            format!("{} values: allowed 1..={MAX_STEPS}", values.len()),
+        ));
+    }
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(spec.error(
+            &format!("sweep.values[{i}]"),
+            "a finite number in the parameter's unit",
+        ));
+    }
+    Ok(values)
+}
+
+/// The steps before waveforms and seeds are filled in.
+fn raw_steps(
+    spec: &SpecFile,
+    base: &WaveformSpec,
+    bench: &BenchInfo,
+) -> Result<Vec<Step>, SpecError> {
+    let s = &spec.spec;
+    let bandwidth = base.bandwidth_hz();
+    let sorted = |mut t: Vec<f64>| -> Vec<Range> {
+        t.sort_by(f64::total_cmp);
+        t.into_iter().map(|range_m| Range { range_m }).collect()
+    };
+    let step = |index: usize, nominal: Nominal| Step {
+        index,
+        nominal,
+        waveform: 0,
+        noise_seed: None,
+    };
+    match (&s.sweep, s.steps.is_empty()) {
+        (Some(_), false) => Err(spec.error("steps", "give either [sweep] or [[steps]], not both")),
+        (None, true) => Err(spec.error(
+            "steps",
+            "the campaign has no steps: add [sweep] or one [[steps]] table per step",
+        )),
+        (Some(sw), true) => {
+            let values = sweep_values(spec)?;
+            let targets = sw.targets.clone();
+            let p = sw.parameter;
+            if sw.target.is_some() && p != SweepParameter::Position {
+                return Err(spec.error("sweep.target", "applies to parameter = \"position\" only"));
+            }
+            if p == SweepParameter::Snr && !bench.simulated {
+                return Err(spec.error(
+                    "sweep.parameter",
+                    "snr is set only on a simulated bench (the built-in mock lab, or a bench file \
+                     with [simulation]); on a real bench sweep tx-attenuation instead",
+                ));
+            }
+            let mut out = Vec::new();
+            for (k, &v) in values.iter().enumerate() {
+                let mut n = Nominal {
+                    label: None,
+                    parameter: Some(p.name().to_string()),
+                    value: Some(v),
+                    targets: targets.clone().map(sorted).unwrap_or_default(),
+                    bandwidth_hz: bandwidth,
+                    tx_attenuation_db: None,
+                    snr_db: None,
+                };
+                match p {
+                    SweepParameter::Position => {
+                        let mut t = targets.clone().unwrap_or_else(|| vec![v]);
+                        let which = sw.target.unwrap_or(0);
+                        if which >= t.len() {
+                            return Err(spec.error(
+                                "sweep.target",
+                                format!(
+                                    "{which}: sweep.targets holds {} targets (0-based index)",
+                                    t.len()
+                                ),
+                            ));
+                        }
+                        t[which] = v;
+                        n.targets = sorted(t);
+                    }
+                    SweepParameter::Separation => {
+                        let base =
+                            match targets.as_deref() {
+                                Some([first]) => *first,
+                                _ => return Err(spec.error(
+                                    "sweep.targets",
+                                    "a separation sweep needs targets = [R]: the first target's \
+                                     range, metres (the second stands R + separation)",
+                                )),
+                            };
+                        if v <= 0.0 {
+                            return Err(spec.error(
+                                &format!("sweep.values[{k}]"),
+                                format!("{v}: a separation above 0 m"),
+                            ));
+                        }
+                        n.targets = sorted(vec![base, base + v]);
+                    }
+                    SweepParameter::Bandwidth => n.bandwidth_hz = v,
+                    SweepParameter::TxAttenuation => n.tx_attenuation_db = Some(v),
+                    SweepParameter::Snr => n.snr_db = Some(v),
+                }
+                out.push(step(k + 1, n));
+            }
+            Ok(out)
+        }
+        (None, false) => {
+            let mut out = Vec::new();
+            let mut targets: Vec<Range> = Vec::new();
+            let mut bw = bandwidth;
+            let mut att = None;
+            let mut snr = None;
+            for (k, st) in s.steps.iter().enumerate() {
+                if let Some(t) = &st.targets {
+                    targets = sorted(t.clone());
+                }
+                if let Some(b) = st.bandwidth_hz {
+                    bw = b;
+                }
+                if st.tx_attenuation_db.is_some() {
+                    att = st.tx_attenuation_db;
+                }
+                if st.snr_db.is_some() {
+                    snr = st.snr_db;
+                }
+                if let Some(v) = snr {
+                    if !(-60.0..=200.0).contains(&v) {
+                        return Err(spec.error(
+                            &format!("steps[{k}].snr_db"),
+                            format!("{v}: allowed -60 ..= 200 dB"),
+                        ));
+                    }
+                }
+                out.push(step(
+                    k + 1,
+                    Nominal {
+                        label: st.label.clone(),
+                        parameter: None,
+                        value: None,
+                        targets: targets.clone(),
+                        bandwidth_hz: bw,
+                        tx_attenuation_db: att,
+                        snr_db: snr,
+                    },
+                ));
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// What the plan needs to know of a prepared waveform to describe a step.
+#[derive(Debug, Clone, Copy)]
+pub struct WaveformCost {
+    /// Samples of one repetition at the waveform rate (the AWG segment).
+    pub samples: usize,
+    /// Points per channel of one capture at the scope's rate.
+    pub points: usize,
+    pub capture_rate_hz: f64,
+}
+
+/// Rough durations on the built-in mock lab and over a LAN, seconds (measured: docs/campaign.md).
+const CONNECT_S: f64 = 0.03;
+const PER_CAPTURE_S: f64 = 0.04;
+const CAPTURE_BYTES_PER_S: f64 = 4e8;
+const SYNTH_POINTS_PER_S: f64 = 1.2e7;
+const UPLOAD_BYTES_PER_S: f64 = 4e8;
+const FILES_PER_STEP_S: f64 = 0.12;
+const PROCESS_POINTS_PER_S: f64 = 3e7;
+
+impl Plan {
+    /// The estimated duration of step `k` (0-based) without the operator's time, seconds.
+    pub fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
+        let step = &self.steps[k];
+        let c = costs[step.waveform];
+        let reps = self.repetitions as f64;
+        let mut t = FILES_PER_STEP_S;
+        if self.bench.file.is_none() {
+            t += CONNECT_S;
+        }
+        if uploads {
+            t += 2.0 * c.samples as f64 / UPLOAD_BYTES_PER_S;
+        }
+        let points = c.points as f64;
+        let per_rep = PER_CAPTURE_S
+            + 4.0 * points / CAPTURE_BYTES_PER_S
+            + if self.bench.simulated {
+                points / SYNTH_POINTS_PER_S
+            } else {
+                0.0
+            };
+        t += reps * per_rep;
+        t += self.processing.len() as f64 * (reps + 1.0).min(reps * 2.0) * points
+            / PROCESS_POINTS_PER_S;
+        if let Some(p) = &self.positioner {
+            if self.moves_at(k, k == 0) {
+                t += p.settle_s;
+            }
+        }
+        t
+    }
+
+    /// Whether step `k` uploads a waveform (its waveform differs from the step before; every step
+    /// on the built-in lab, which starts afresh for each step).
+    pub fn uploads_at(&self, k: usize) -> bool {
+        self.bench.file.is_none() || k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
+    }
+
+    /// The dry-run text: every step, what will be sent, and the estimated duration.
+    pub fn describe(&self, costs: &[WaveformCost]) -> String {
+        let mut out = String::new();
+        let _ = writeln!(out, "campaign {}: {} steps", self.name, self.steps.len());
+        if let Some(d) = &self.description {
+            let _ = writeln!(out, "  {d}");
+        }
+        let _ = writeln!(out, "bench: {}", self.bench.describe());
+        let _ = writeln!(
+            out,
+            "calibration: system delay {:.3} ns{}",
+            self.bench.system_delay_s * 1e9,
+            if self.bench.calibrated {
+                ""
+            } else {
+                " (none: ranges include the fixed delay)"
+            }
+        );
+        for (w, spec) in self.waveforms.iter().enumerate() {
+            let c = costs[w];
+            let _ = writeln!(
+                out,
+                "waveform {}: {} {} GHz, {} samples per repetition at {} GSa/s; capture {} points \
+                 per channel at {} GSa/s",
+                w + 1,
+                spec.name(),
+                spec.bandwidth_hz() / 1e9,
+                c.samples,
+                spec.sample_rate_hz() / 1e9,
+                c.points,
+                c.capture_rate_hz / 1e9
+            );
+        }
+        let _ = writeln!(
+            out,
+            "processing: {} (each applied to the same captures); {} repetition(s) per step; seed {}",
+            self.algorithm_names().join(", "),
+            self.repetitions,
+            self.seed
+        );
+        if let Some(p) = &self.positioner {
+            let _ = writeln!(out, "positioner: {}", describe_positioner(p));
+        }
+        let mut total = 0.0;
+        let mut operator = false;
+        for k in 0..self.steps.len() {
+            let step = &self.steps[k];
+            let n = &step.nominal;
+            let _ = writeln!(
+                out,
+                "step {}/{}: {}",
+                step.index,
+                self.steps.len(),
+                n.describe()
+            );
+            let mut sends = Vec::new();
+            if let Some(p) = &self.positioner {
+                if self.moves_at(k, k == 0) {
+                    let r: Vec<String> = n.ranges().iter().map(|r| format!("{r:.4}")).collect();
+                    sends.push(match p.kind {
+                        PositionerKind::MockLab => {
+                            format!("mock lab: targets at {} m", r.join(", "))
+                        }
+                        PositionerKind::Prompt => {
+                            operator = true;
+                            format!(
+                                "prompt: the operator places the targets at {} m (RF off)",
+                                r.join(", ")
+                            )
+                        }
+                        PositionerKind::Command => format!(
+                            "command: {} (at most {} s)",
+                            command_line(p, &n.ranges(), step.index, self.steps.len()),
+                            p.timeout_s
+                        ),
+                    });
+                }
+            }
+            if let Some(seed) = step.noise_seed {
+                let snr = n
+                    .snr_db
+                    .map(|s| format!(", SNR {s} dB"))
+                    .unwrap_or_default();
+                sends.push(format!("scene: noise seed {seed:#018x}{snr}"));
+            }
+            let c = costs[step.waveform];
+            if self.uploads_at(k) {
+                sends.push(format!(
+                    "AWG: configure and upload waveform {} ({} samples per channel)",
+                    step.waveform + 1,
+                    c.samples
+                ));
+            }
+            if let Some(a) = n.tx_attenuation_db {
+                sends.push(format!("Tx: attenuation {a} dB"));
+            }
+            sends.push(format!(
+                "RF on, {} marker-triggered capture(s) of {} points per channel, RF off",
+                self.repetitions, c.points
+            ));
+            let t = self.estimate_step_s(k, costs, self.uploads_at(k));
+            total += t;
+            for s in sends {
+                let _ = writeln!(out, "    {s}");
+            }
+            let _ = writeln!(out, "    about {t:.2} s");
+        }
+        let _ = writeln!(
+            out,
+            "estimated duration: about {total:.1} s{}",
+            if operator {
+                ", plus the operator's time at each prompt"
+            } else {
+                ""
+            }
+        );
+        out
+    }
+}
+
+/// One line on the positioner.
+pub fn describe_positioner(p: &PositionerPlan) -> String {
+    match p.kind {
+        PositionerKind::MockLab => "mock-lab (moves the simulated targets)".into(),
+        PositionerKind::Prompt => {
+            "prompt (the operator places the targets and presses Enter)".into()
+        }
+        PositionerKind::Command => format!(
+            "command {} {} (timeout {} s)",
+            p.program.as_deref().unwrap_or(""),
+            p.args.join(" "),
+            p.timeout_s
+        ),
+    }
+}
+
+/// The positioner command of a step, placeholders replaced.
+pub fn command_line(p: &PositionerPlan, ranges: &[f64], step: usize, of: usize) -> String {
+    let mut parts = vec![p.program.clone().unwrap_or_default()];
+    parts.extend(substitute(&p.args, ranges, step, of));
+    parts.join(" ")
+}
+
+/// The arguments with `{position_m}`, `{positions_m}`, `{step}` and `{of}` replaced.
+pub fn substitute(args: &[String], ranges: &[f64], step: usize, of: usize) -> Vec<String> {
+    let first = ranges.first().map(|r| format!("{r}")).unwrap_or_default();
+    let all: Vec<String> = ranges.iter().map(|r| format!("{r}")).collect();
+    args.iter()
+        .map(|a| {
+            a.replace("{position_m}", &first)
+                .replace("{positions_m}", &all.join(","))
+                .replace("{step}", &step.to_string())
+                .replace("{of}", &of.to_string())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan_of(text: &str) -> Result<Plan, SpecError> {
+        let spec = SpecFile::parse(text, Path::new("t.toml")).unwrap();
+        let catalog = Catalog::embedded().unwrap();
+        let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+        plan(&spec, &bench)
+    }
+
+    #[test]
+    fn a_position_sweep_moves_one_target() {
+        let p =
+            plan_of("[sweep]\nparameter = \"position\"\nstart = 1.0\nstep = -0.03\ncount = 6\n")
+                .unwrap();
+        assert_eq!(p.steps.len(), 6);
+        assert!((p.steps[5].nominal.targets[0].range_m - 0.85).abs() < 1e-12);
+        assert_eq!(p.positioner.unwrap().kind, PositionerKind::MockLab);
+        assert!(p.steps.iter().all(|s| s.noise_seed.is_some()));
+        assert_ne!(p.steps[0].noise_seed, p.steps[1].noise_seed);
+    }
+
+    #[test]
+    fn a_bandwidth_sweep_makes_one_waveform_per_value() {
+        let p = plan_of(
+            "[sweep]\nparameter = \"bandwidth\"\nvalues = [1e9, 2e9, 1e9]\ntargets = [1.0, 1.08]\n",
+        )
+        .unwrap();
+        assert_eq!(p.waveforms.len(), 2);
+        assert_eq!(
+            p.steps.iter().map(|s| s.waveform).collect::<Vec<_>>(),
+            [0, 1, 0]
+        );
+        assert_eq!(p.steps[1].nominal.ranges(), [1.0, 1.08]);
+    }
+
+    #[test]
+    fn values_out_of_range_name_their_field() {
+        let err = plan_of("[[steps]]\ntargets = [1.0]\n\n[[steps]]\ntargets = [1.0, 12.0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("t.toml:5: `steps[1].targets[1]`"), "{err}");
+        let err = plan_of(
+            "[waveform]\nkind = \"msk-lfm\"\n[processing]\nalgorithms = [\"music\"]\n[[steps]]\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.starts_with("t.toml:4: `processing.algorithms[0]`"),
+            "{err}"
+        );
+        let err = plan_of("repetitions = 0\n[[steps]]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("t.toml:1: `repetitions`"), "{err}");
+        let err = plan_of("[[steps]]\ntx_attenuation_db = 40\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("steps[0].tx_attenuation_db") && err.contains("31.5"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn noise_seeds_differ_per_step_and_campaign() {
+        assert_ne!(noise_seed(1, 1), noise_seed(1, 2));
+        assert_ne!(noise_seed(1, 1), noise_seed(2, 1));
+        assert_eq!(noise_seed(7, 3), noise_seed(7, 3));
+    }
+
+    #[test]
+    fn the_plan_survives_toml() {
+        let p = plan_of(
+            "[waveform]\nkind = \"ofdm\"\n[processing]\nalgorithms = [\"fourier\", \"music\"]\n\
+             [sweep]\nparameter = \"separation\"\ntargets = [1.0]\nvalues = [0.3]\n",
+        )
+        .unwrap();
+        let text = toml::to_string(&p).unwrap();
+        let back: Plan = toml::from_str(&text).unwrap();
+        assert_eq!(back, p);
+    }
+}

@@ -1,0 +1,322 @@
+//! Who places the targets before a step: the mock lab (the runner sets the simulated scene), the
+//! operator at a prompt, or a program (a linear stage's script).
+//!
+//! A positioner runs only between measurements, when the bench is in its safe state: nothing
+//! radiates while the operator's hands are near the antennas or a stage moves. A stop signal
+//! ends the wait at once (the program is killed).
+
+use super::plan::{substitute, PositionerPlan};
+use super::spec::PositionerKind;
+use super::CampaignError;
+use crate::measure::interrupt::Interrupt;
+use std::io::BufRead;
+use std::path::PathBuf;
+use std::process::Stdio;
+use std::time::Duration;
+use tokio::sync::mpsc;
+
+/// Lines typed by the operator, read on a thread of their own (a blocking read of standard input
+/// cannot be cancelled; the thread simply ends with the process).
+pub struct LineSource {
+    rx: mpsc::Receiver<Option<String>>,
+}
+
+impl LineSource {
+    /// Reads `reader` line by line; the end of input is delivered as `None`.
+    pub fn spawn(reader: impl BufRead + Send + 'static) -> LineSource {
+        let (tx, rx) = mpsc::channel(4);
+        std::thread::spawn(move || {
+            let mut reader = reader;
+            loop {
+                let mut line = String::new();
+                let item = match reader.read_line(&mut line) {
+                    Ok(0) | Err(_) => None,
+                    Ok(_) => Some(line.trim_end_matches(['\r', '\n']).to_string()),
+                };
+                let end = item.is_none();
+                if tx.blocking_send(item).is_err() || end {
+                    break;
+                }
+            }
+        });
+        LineSource { rx }
+    }
+
+    /// Standard input.
+    pub fn stdin() -> LineSource {
+        Self::spawn(std::io::BufReader::new(std::io::stdin()))
+    }
+
+    async fn next(&mut self) -> Option<String> {
+        self.rx.recv().await.flatten()
+    }
+}
+
+/// The campaign's positioner.
+pub struct Positioner {
+    plan: PositionerPlan,
+    input: Option<LineSource>,
+    /// Where prompts go (standard error in the CLI, so standard output keeps its JSON).
+    prompt_out: Box<dyn std::io::Write + Send>,
+}
+
+impl Positioner {
+    /// A positioner of `plan`; `input` feeds the prompt (standard input when `None`).
+    pub fn new(plan: PositionerPlan, input: Option<LineSource>) -> Positioner {
+        Positioner {
+            plan,
+            input,
+            prompt_out: Box::new(std::io::stderr()),
+        }
+    }
+
+    pub fn kind(&self) -> PositionerKind {
+        self.plan.kind
+    }
+
+    /// Places the targets at `ranges` for step `step` of `of`. The mock lab's targets are set by
+    /// the runner with the step's scene; this waits for the operator or runs the program.
+    pub async fn place(
+        &mut self,
+        ranges: &[f64],
+        step: usize,
+        of: usize,
+        interrupt: &Interrupt,
+    ) -> Result<(), CampaignError> {
+        match self.plan.kind {
+            PositionerKind::MockLab => {}
+            PositionerKind::Prompt => self.prompt(ranges, step, of, interrupt).await?,
+            PositionerKind::Command => self.command(ranges, step, of, interrupt).await?,
+        }
+        if self.plan.settle_s > 0.0 {
+            let settle = Duration::from_secs_f64(self.plan.settle_s);
+            tokio::select! {
+                () = tokio::time::sleep(settle) => {}
+                s = interrupt.wait() => return Err(CampaignError::Interrupted {
+                    signal: s,
+                    where_: format!("while the targets of step {step} settled"),
+                }),
+            }
+        }
+        Ok(())
+    }
+
+    async fn prompt(
+        &mut self,
+        ranges: &[f64],
+        step: usize,
+        of: usize,
+        interrupt: &Interrupt,
+    ) -> Result<(), CampaignError> {
+        let places: Vec<String> = ranges
+            .iter()
+            .enumerate()
+            .map(|(i, r)| format!("target {} at {r:.4} m", i + 1))
+            .collect();
+        let _ = writeln!(
+            self.prompt_out,
+            "step {step}/{of}: RF is off. Place {}, then press Enter (q and Enter stops the \
+             campaign; resume it later)",
+            places.join(", ")
+        );
+        let _ = self.prompt_out.flush();
+        let input = self.input.get_or_insert_with(LineSource::stdin);
+        tokio::select! {
+            line = input.next() => match line {
+                None => Err(CampaignError::OperatorStopped {
+                    why: format!("end of input before step {step}"),
+                }),
+                Some(l) if l.trim().eq_ignore_ascii_case("q") => Err(CampaignError::OperatorStopped {
+                    why: format!("q before step {step}"),
+                }),
+                Some(_) => Ok(()),
+            },
+            s = interrupt.wait() => Err(CampaignError::Interrupted {
+                signal: s,
+                where_: format!("at the positioner prompt of step {step}"),
+            }),
+        }
+    }
+
+    async fn command(
+        &mut self,
+        ranges: &[f64],
+        step: usize,
+        of: usize,
+        interrupt: &Interrupt,
+    ) -> Result<(), CampaignError> {
+        let program = self.plan.program.clone().unwrap_or_default();
+        let workdir = self
+            .plan
+            .workdir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("."));
+        // A path (with a slash) is relative to the spec's folder; a bare name is looked up on PATH.
+        let exe = if program.contains('/') {
+            workdir.join(&program)
+        } else {
+            PathBuf::from(&program)
+        };
+        let args = substitute(&self.plan.args, ranges, step, of);
+        let mut cmd = tokio::process::Command::new(&exe);
+        cmd.args(&args)
+            .current_dir(&workdir)
+            .env(
+                "RADBENCH_POSITION_M",
+                ranges.first().map(|r| r.to_string()).unwrap_or_default(),
+            )
+            .env(
+                "RADBENCH_POSITIONS_M",
+                ranges
+                    .iter()
+                    .map(|r| r.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
+            )
+            .env("RADBENCH_STEP", step.to_string())
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .kill_on_drop(true);
+        let child = cmd
+            .spawn()
+            .map_err(|source| CampaignError::PositionerStart {
+                program: program.clone(),
+                source,
+            })?;
+        let timeout = Duration::from_secs_f64(self.plan.timeout_s);
+        let shown = format!(
+            "`{}`",
+            std::iter::once(program.clone())
+                .chain(args)
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        tokio::select! {
+            out = tokio::time::timeout(timeout, child.wait_with_output()) => match out {
+                Err(_) => Err(CampaignError::PositionerFailed {
+                    program: shown,
+                    reason: format!("did not finish within {} s (positioner.timeout_s) and was killed", self.plan.timeout_s),
+                }),
+                Ok(Err(e)) => Err(CampaignError::PositionerFailed {
+                    program: shown,
+                    reason: format!("could not be waited for: {e}"),
+                }),
+                Ok(Ok(out)) if out.status.success() => Ok(()),
+                Ok(Ok(out)) => {
+                    let stderr = String::from_utf8_lossy(&out.stderr);
+                    let tail: Vec<&str> = stderr.lines().rev().take(3).collect();
+                    let tail: Vec<&str> = tail.into_iter().rev().collect();
+                    Err(CampaignError::PositionerFailed {
+                        program: shown,
+                        reason: format!(
+                            "failed ({}){}",
+                            out.status,
+                            if tail.is_empty() { String::new() } else { format!(": {}", tail.join(" | ")) }
+                        ),
+                    })
+                }
+            },
+            s = interrupt.wait() => Err(CampaignError::Interrupted {
+                signal: s,
+                where_: format!("while the positioner moved the targets of step {step} (it was killed)"),
+            }),
+        }
+    }
+}
+
+use std::io::Write as _;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(
+        kind: PositionerKind,
+        program: Option<&str>,
+        args: &[&str],
+        timeout_s: f64,
+    ) -> PositionerPlan {
+        PositionerPlan {
+            kind,
+            program: program.map(String::from),
+            args: args.iter().map(|s| s.to_string()).collect(),
+            workdir: Some(std::env::temp_dir()),
+            timeout_s,
+            settle_s: 0.0,
+        }
+    }
+
+    fn block_on<F: std::future::Future>(f: F) -> F::Output {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap()
+            .block_on(f)
+    }
+
+    #[test]
+    fn the_prompt_waits_for_a_line_and_stops_on_q_or_end_of_input() {
+        block_on(async {
+            let input = LineSource::spawn(std::io::Cursor::new("\nq\n"));
+            let mut p = Positioner::new(plan(PositionerKind::Prompt, None, &[], 60.0), Some(input));
+            p.prompt_out = Box::new(std::io::sink());
+            let never = Interrupt::never();
+            p.place(&[1.0], 1, 2, &never).await.unwrap();
+            let err = p.place(&[0.97], 2, 2, &never).await.unwrap_err();
+            assert!(
+                matches!(err, CampaignError::OperatorStopped { .. }),
+                "{err}"
+            );
+            let err = p.place(&[0.97], 2, 2, &never).await.unwrap_err();
+            assert!(err.to_string().contains("end of input"), "{err}");
+        });
+    }
+
+    #[test]
+    fn a_command_gets_the_position_and_its_failure_stops() {
+        block_on(async {
+            let never = Interrupt::never();
+            let mut ok = Positioner::new(
+                plan(
+                    PositionerKind::Command,
+                    Some("sh"),
+                    &["-c", "test {position_m} = 0.97 && test $RADBENCH_STEP = 2"],
+                    10.0,
+                ),
+                None,
+            );
+            ok.place(&[0.97], 2, 6, &never).await.unwrap();
+            let mut bad = Positioner::new(
+                plan(
+                    PositionerKind::Command,
+                    Some("sh"),
+                    &["-c", "echo stage jammed >&2; exit 3"],
+                    10.0,
+                ),
+                None,
+            );
+            let err = bad.place(&[0.97], 2, 6, &never).await.unwrap_err();
+            assert!(
+                matches!(err, CampaignError::PositionerFailed { .. }),
+                "{err}"
+            );
+            assert!(err.to_string().contains("stage jammed"), "{err}");
+            let mut slow = Positioner::new(
+                plan(PositionerKind::Command, Some("sleep"), &["30"], 0.2),
+                None,
+            );
+            let err = slow.place(&[1.0], 1, 1, &never).await.unwrap_err();
+            assert!(err.to_string().contains("killed"), "{err}");
+            let mut missing = Positioner::new(
+                plan(PositionerKind::Command, Some("./no-such-stage"), &[], 1.0),
+                None,
+            );
+            let err = missing.place(&[1.0], 1, 1, &never).await.unwrap_err();
+            assert!(
+                matches!(err, CampaignError::PositionerStart { .. }),
+                "{err}"
+            );
+        });
+    }
+}

@@ -1,0 +1,300 @@
+//! `results.json`: what each step measured, per algorithm, and how far it is from where the targets
+//! were put (and, on a simulated bench, from where they really were). Only measured numbers: no
+//! times, no paths, so a resumed run's file equals an uninterrupted run's byte for byte.
+//!
+//! ```json
+//! {"steps": [{"index": 1, "nominal": {...}, "repetitions": 1,
+//!   "algorithms": {"correlation": {"targets": [{"range_m", "range_std_m", "level_db", "on_grid_m"}],
+//!     "width_3db_cm", "sidelobe_db", "snr_db", "error_m", "error_on_grid_m", "truth_error_m",
+//!     "truth_error_on_grid_m", "missed", "resolved", "payload"}},
+//!   "truth": {"targets": [{"range_m"}]}}]}
+//! ```
+//!
+//! Errors: each reference target (nominal, or the ground truth) takes the nearest detection within
+//! one resolution cell c0/(2B) not taken by another; the step's error is the largest of those in
+//! magnitude, sign kept; `missed` counts the nominal targets left without one. Two or more
+//! targets are `resolved` when each has its own detection within +-s/2 (s: the smallest
+//! separation), the thesis' rule, against the ground truth when it is known, else the nominal.
+
+use super::plan::{Nominal, Range, Step};
+use crate::measure::payload::PayloadResult;
+use crate::measure::pipeline::Processed;
+use crate::measure::repeat::Spread;
+use crate::physics::C0;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::collections::BTreeMap;
+
+/// The whole file.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Results {
+    pub steps: Vec<StepResult>,
+}
+
+/// One step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepResult {
+    pub index: usize,
+    pub nominal: Nominal,
+    pub repetitions: usize,
+    /// By algorithm name (`correlation`, `fourier`, `music`, `root-music`, `esprit`).
+    pub algorithms: BTreeMap<String, AlgorithmResult>,
+    /// The simulated scene of the capture (simulated benches only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth: Option<Truth>,
+}
+
+/// The ground truth of a simulated capture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    pub targets: Vec<Range>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub snr_db: Option<f64>,
+}
+
+/// What one algorithm made of the step's captures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AlgorithmResult {
+    /// Ascending range.
+    pub targets: Vec<TargetResult>,
+    /// Of the strongest target (null when none, or for the subspace algorithms).
+    pub width_3db_cm: Option<f64>,
+    pub sidelobe_db: Option<f64>,
+    pub snr_db: Option<f64>,
+    /// Measured minus nominal range, interpolated (the largest over the targets, sign kept).
+    pub error_m: Option<f64>,
+    /// The same on the profile's grid (no sub-cell interpolation).
+    pub error_on_grid_m: Option<f64>,
+    /// Measured minus the simulated ground truth.
+    pub truth_error_m: Option<f64>,
+    pub truth_error_on_grid_m: Option<f64>,
+    /// Nominal targets without a detection within one resolution cell.
+    pub missed: usize,
+    /// Two or more targets: whether each has its own detection within +-s/2.
+    pub resolved: Option<bool>,
+    pub payload: Option<PayloadFigures>,
+}
+
+/// One detected target.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetResult {
+    pub range_m: f64,
+    /// Standard deviation of the repetitions' own ranges (several repetitions only).
+    pub range_std_m: Option<f64>,
+    pub level_db: f64,
+    /// The nearest profile cell (absent for the grid-free estimators).
+    pub on_grid_m: Option<f64>,
+}
+
+/// The decoded data of the step (every repetition counted).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PayloadFigures {
+    pub bit_errors: usize,
+    pub bits: usize,
+    pub ber: f64,
+    /// Why the data could not be decoded.
+    pub error: Option<String>,
+}
+
+/// What one algorithm gave, as the runner hands it over.
+pub struct AlgorithmOutput<'a> {
+    pub name: &'static str,
+    pub processed: &'a Processed,
+    pub spread: Option<&'a Spread>,
+}
+
+/// The ranges of a simulated scene's targets (ascending), from its JSON.
+pub fn truth_of(scene: &Value) -> Truth {
+    let mut ranges: Vec<f64> = scene["targets"]
+        .as_array()
+        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
+        .unwrap_or_default();
+    ranges.sort_by(f64::total_cmp);
+    Truth {
+        targets: ranges
+            .into_iter()
+            .map(|range_m| Range { range_m })
+            .collect(),
+        snr_db: scene["snr_db"].as_f64(),
+    }
+}
+
+/// The result of one step.
+pub fn step_result(
+    step: &Step,
+    bandwidth_hz: f64,
+    repetitions: usize,
+    ground_truth: Option<&Value>,
+    outputs: &[AlgorithmOutput<'_>],
+) -> StepResult {
+    let truth = ground_truth.map(truth_of);
+    let nominal = step.nominal.ranges();
+    let truth_ranges: Option<Vec<f64>> = truth
+        .as_ref()
+        .map(|t| t.targets.iter().map(|r| r.range_m).collect());
+    let cell = C0 / (2.0 * bandwidth_hz);
+    let algorithms = outputs
+        .iter()
+        .map(|o| {
+            let targets = target_results(o.processed, o.spread);
+            let (error_m, error_on_grid_m, missed) = errors(&nominal, &targets, cell);
+            let (truth_error_m, truth_error_on_grid_m) = match &truth_ranges {
+                Some(t) => {
+                    let (e, g, _) = errors(t, &targets, cell);
+                    (e, g)
+                }
+                None => (None, None),
+            };
+            let reference = truth_ranges.as_deref().unwrap_or(&nominal);
+            let result = AlgorithmResult {
+                resolved: resolved(reference, &targets),
+                width_3db_cm: o.processed.width_3db_cm,
+                sidelobe_db: o.processed.sidelobe_db,
+                snr_db: o.processed.snr_db,
+                error_m,
+                error_on_grid_m,
+                truth_error_m,
+                truth_error_on_grid_m,
+                missed: if nominal.is_empty() { 0 } else { missed },
+                payload: payload(o.processed.payload.as_ref(), o.spread),
+                targets,
+            };
+            (o.name.to_string(), result)
+        })
+        .collect();
+    StepResult {
+        index: step.index,
+        nominal: step.nominal.clone(),
+        repetitions,
+        algorithms,
+        truth,
+    }
+}
+
+fn target_results(p: &Processed, spread: Option<&Spread>) -> Vec<TargetResult> {
+    p.targets
+        .iter()
+        .enumerate()
+        .map(|(k, t)| TargetResult {
+            range_m: t.range_m,
+            range_std_m: spread
+                .and_then(|s| s.targets.get(k))
+                .and_then(|s| s.range)
+                .map(|r| r.std),
+            level_db: t.level_db,
+            on_grid_m: t.on_grid_m,
+        })
+        .collect()
+}
+
+/// Each reference takes the nearest free detection within `tolerance`; the largest error (sign
+/// kept), on the grid too, and how many references found none.
+fn errors(
+    reference: &[f64],
+    targets: &[TargetResult],
+    tolerance: f64,
+) -> (Option<f64>, Option<f64>, usize) {
+    let mut taken = vec![false; targets.len()];
+    let mut worst: Option<f64> = None;
+    let mut worst_grid: Option<f64> = None;
+    let mut missed = 0;
+    let larger = |a: Option<f64>, b: f64| match a {
+        Some(x) if x.abs() >= b.abs() => Some(x),
+        _ => Some(b),
+    };
+    for &r in reference {
+        let best = targets
+            .iter()
+            .enumerate()
+            .filter(|(i, t)| !taken[*i] && (t.range_m - r).abs() <= tolerance)
+            .min_by(|a, b| (a.1.range_m - r).abs().total_cmp(&(b.1.range_m - r).abs()));
+        match best {
+            Some((i, t)) => {
+                taken[i] = true;
+                worst = larger(worst, t.range_m - r);
+                if let Some(g) = t.on_grid_m {
+                    worst_grid = larger(worst_grid, g - r);
+                }
+            }
+            None => missed += 1,
+        }
+    }
+    (worst, worst_grid, missed)
+}
+
+/// The thesis' rule: with two or more targets, each has its own detection within +-s/2.
+fn resolved(reference: &[f64], targets: &[TargetResult]) -> Option<bool> {
+    if reference.len() < 2 {
+        return None;
+    }
+    let s = reference
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(f64::INFINITY, f64::min);
+    let mut taken = vec![false; targets.len()];
+    for &r in reference {
+        let found = targets
+            .iter()
+            .enumerate()
+            .filter(|(i, t)| !taken[*i] && (t.range_m - r).abs() <= s / 2.0)
+            .min_by(|a, b| (a.1.range_m - r).abs().total_cmp(&(b.1.range_m - r).abs()));
+        match found {
+            Some((i, _)) => taken[i] = true,
+            None => return Some(false),
+        }
+    }
+    Some(true)
+}
+
+fn payload(p: Option<&PayloadResult>, spread: Option<&Spread>) -> Option<PayloadFigures> {
+    let p = p?;
+    let (bit_errors, bits) = match spread {
+        Some(s) if s.bits > 0 => (s.bit_errors, s.bits),
+        _ => (p.bit_errors, p.bits),
+    };
+    Some(PayloadFigures {
+        bit_errors,
+        bits,
+        ber: if bits > 0 {
+            bit_errors as f64 / bits as f64
+        } else {
+            0.0
+        },
+        error: p.error.clone(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(range_m: f64, on_grid_m: f64) -> TargetResult {
+        TargetResult {
+            range_m,
+            range_std_m: None,
+            level_db: -6.0,
+            on_grid_m: Some(on_grid_m),
+        }
+    }
+
+    #[test]
+    fn the_largest_error_keeps_its_sign_and_misses_are_counted() {
+        let found = [t(0.9996, 0.995), t(1.3009, 1.304)];
+        let (e, g, missed) = errors(&[1.0, 1.3, 2.0], &found, 0.15);
+        assert!((e.unwrap() - 0.0009).abs() < 1e-12);
+        assert!((g.unwrap() - (-0.005)).abs() < 1e-12);
+        assert_eq!(missed, 1);
+    }
+
+    #[test]
+    fn two_targets_are_resolved_only_with_a_detection_near_each() {
+        assert_eq!(resolved(&[1.0], &[t(1.0, 1.0)]), None);
+        assert_eq!(
+            resolved(&[1.0, 1.08], &[t(1.005, 1.0), t(1.07, 1.07)]),
+            Some(true)
+        );
+        assert_eq!(resolved(&[1.0, 1.08], &[t(1.04, 1.04)]), Some(false));
+        // One detection cannot serve both.
+        assert_eq!(resolved(&[1.0, 1.08], &[t(1.039, 1.04)]), Some(false));
+    }
+}

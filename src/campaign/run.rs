@@ -1,0 +1,929 @@
+//! Executing a plan into a run folder, and resuming one.
+//!
+//! Everything that can be built once is built once: one [`Prepared`] per (waveform, algorithm)
+//! before anything is connected (so a campaign that was going to be refused never radiates), one
+//! connection to a bench of a bench file for the whole run, the pipelines reused step after step.
+//! Each step: connect (see below), place the targets (RF off), set the simulated scene, capture
+//! `repetitions` under the safe-state guard, process the capture with every algorithm, write the
+//! step's files, hash them, update `results.json` and the manifest (atomic, fsynced).
+//!
+//! Reproducibility on a simulated bench: every step sets the scene's noise seed from the campaign
+//! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. mock_lab
+//! seeds its noise generator only when the lab starts (the control channel's `set` changes the
+//! scene's `seed` field but not the running generator), so on the built-in lab each step runs on
+//! a fresh lab started with its step's scene: a new connection and an upload per step (about
+//! 30 ms). A bench file's `mock-lab serve` cannot be restarted from here: its noise continues
+//! from capture to capture, and a resumed run on it differs from an uninterrupted one in the
+//! noise (docs/campaign.md).
+//!
+//! Stop paths: a stop signal during a capture is handled by the measurement's guard (safe state,
+//! then [`MeasureError::Interrupted`]); between steps nothing radiates and the loop checks for a
+//! signal before each step; a capture that completed before the signal is kept and written. Every
+//! stop writes the manifest with status `interrupted`, the reason and the step to resume at.
+
+use super::manifest::{
+    self, FileRecord, InputFile, Instruments, Manifest, Session, Status, StepRecord, StepStatus,
+    Timing,
+};
+use super::plan::{BenchInfo, Plan, Step};
+use super::positioner::{LineSource, Positioner};
+use super::results::{self, AlgorithmOutput, Results, StepResult};
+use super::spec::{PositionerKind, SpecFile};
+use super::{io, report, CampaignError};
+use crate::catalog::Catalog;
+use crate::driver::{Journal, RfPermit};
+use crate::exit::Classify;
+use crate::measure::bench::{Bench, BenchSource};
+use crate::measure::capture::{self, Measurement, Prepared, Processing, Rig};
+use crate::measure::interrupt::Interrupt;
+use crate::measure::record::{self, Provenance};
+use crate::measure::{off_runtime, MeasureError};
+use crate::storage::atomic::write_atomic;
+use mock_lab::scene::{Scene, Target};
+use serde::Serialize;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `results.json` in a run folder.
+pub const RESULTS_FILE: &str = "results.json";
+/// The spec's copy in a run folder.
+pub const SPEC_COPY: &str = "spec.toml";
+/// The bench file's copy in a run folder.
+pub const BENCH_COPY: &str = "bench.toml";
+/// Each step's own result (the entry of `results.json`), inside the step's folder.
+pub const STEP_RESULT: &str = "result.json";
+/// Held (flock) while a process works in the run folder.
+const LOCK_FILE: &str = ".radbench.lock";
+
+/// What a caller hears while the campaign runs.
+pub trait Observer: Send {
+    /// A step is about to be captured: the bench is connected, the targets placed, the scene set.
+    fn step_starting(&mut self, _step: &Step, _of: usize, _bench: &Bench) {}
+    /// A step is finished: measured now, or (`skipped`) measured by an earlier session.
+    fn step_done(&mut self, _done: &StepDone<'_>) {}
+    /// Something the user should know (on stderr in the CLI).
+    fn note(&mut self, _text: &str) {}
+}
+
+/// An observer that hears nothing.
+pub struct Quiet;
+impl Observer for Quiet {}
+
+/// One finished step.
+pub struct StepDone<'a> {
+    pub step: &'a Step,
+    pub of: usize,
+    pub result: &'a StepResult,
+    /// The primary algorithm (whose files sit in the step folder).
+    pub primary: &'static str,
+    /// The step's folder.
+    pub dir: PathBuf,
+    pub skipped: bool,
+}
+
+/// How a run ended.
+pub struct Finished {
+    pub dir: PathBuf,
+    pub status: Status,
+    pub summary: Summary,
+    /// Why it stopped early (the manifest says the same); `None` when complete.
+    pub stopped: Option<CampaignError>,
+}
+
+/// The `summary` of the CLI's last JSON line.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub name: String,
+    pub steps: usize,
+    /// Steps with results (measured in this session or before).
+    pub done: usize,
+    /// Steps measured by this session.
+    pub measured: usize,
+    /// Steps a resume skipped (already measured, files intact).
+    pub skipped: usize,
+    pub algorithms: Vec<&'static str>,
+    /// Largest |measured - nominal| over every step and algorithm, metres.
+    pub max_abs_error_m: Option<f64>,
+    /// Largest |measured - ground truth| (simulated benches), metres.
+    pub max_abs_truth_error_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped_at_step: Option<usize>,
+    pub manifest: PathBuf,
+    pub results: PathBuf,
+    pub report: PathBuf,
+}
+
+/// Everything a new run needs.
+pub struct NewRun {
+    pub spec: SpecFile,
+    pub bench: BenchInfo,
+    pub plan: Plan,
+    /// The run folder (created; must be empty or absent).
+    pub out: PathBuf,
+    /// The I/O journal (default: `io-journal.jsonl` in the run folder).
+    pub journal: Option<PathBuf>,
+    pub permit: RfPermit,
+    pub interrupt: Interrupt,
+    /// The operator's input for the prompt positioner (standard input when `None`).
+    pub input: Option<LineSource>,
+}
+
+/// Starts a new run. Errors before the run folder exists (a plan the instruments cannot play)
+/// come back as `Err`; once it exists, every stop is recorded and returned in [`Finished`].
+pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished, CampaignError> {
+    let t0 = Instant::now();
+    let catalog = Catalog::embedded().map_err(MeasureError::from)?;
+    let prepared = prepare_all(&run.plan, &run.bench, &catalog).await?;
+    let out = run.out.clone();
+    if out.exists() {
+        let empty = std::fs::read_dir(&out).map_err(io(&out))?.next().is_none();
+        if !empty {
+            return Err(CampaignError::OutExists { dir: out });
+        }
+    }
+    std::fs::create_dir_all(&out).map_err(io(&out))?;
+    let lock = lock(&out)?;
+    let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
+    write_atomic(&out.join(SPEC_COPY), run.spec.text.as_bytes())?;
+    let spec_path = std::path::absolute(&run.spec.path).unwrap_or(run.spec.path.clone());
+    let spec_in = InputFile {
+        path: spec_path,
+        copy: SPEC_COPY.into(),
+        sha256: manifest::sha256_bytes(run.spec.text.as_bytes()),
+    };
+    let bench_in = match &run.plan.bench.file {
+        Some(p) => {
+            let bytes = std::fs::read(p).map_err(io(p))?;
+            write_atomic(&out.join(BENCH_COPY), &bytes)?;
+            Some(InputFile {
+                path: p.clone(),
+                copy: BENCH_COPY.into(),
+                sha256: manifest::sha256_bytes(&bytes),
+            })
+        }
+        None => None,
+    };
+    let journal_path = run
+        .journal
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("io-journal.jsonl"));
+    let manifest = Manifest {
+        format: manifest::FORMAT,
+        status: Status::Running,
+        reason: None,
+        stopped_at_step: None,
+        exit_code: None,
+        radbench_version: env!("CARGO_PKG_VERSION").into(),
+        git_commit: manifest::git_commit(),
+        created: now.clone(),
+        updated: now.clone(),
+        spec: spec_in,
+        bench_file: bench_in,
+        instruments: None,
+        base_scene: None,
+        plan: run.plan.clone(),
+        sessions: vec![new_session("run", &now, &journal_path)],
+        steps: run
+            .plan
+            .steps
+            .iter()
+            .map(|s| StepRecord {
+                index: s.index,
+                status: StepStatus::Pending,
+                dir: s.dir_name().into(),
+                measured_at: None,
+                applied: None,
+                files: Vec::new(),
+            })
+            .collect(),
+        files: Vec::new(),
+    };
+    let mut runner = Runner::new(
+        out,
+        manifest,
+        prepared,
+        journal_path,
+        run.permit,
+        run.interrupt,
+        run.input,
+        false,
+    )?;
+    runner.timing.overhead_s += t0.elapsed().as_secs_f64();
+    let finished = runner.execute(observer).await;
+    drop(lock);
+    finished
+}
+
+/// Continues an interrupted run in `dir`.
+pub async fn resume(
+    dir: &Path,
+    permit: RfPermit,
+    force: bool,
+    interrupt: Interrupt,
+    input: Option<LineSource>,
+    observer: &mut dyn Observer,
+) -> Result<Finished, CampaignError> {
+    let t0 = Instant::now();
+    let lock = lock(dir)?;
+    let mut manifest = Manifest::load(dir)?;
+    if manifest.status == Status::Complete {
+        return Err(CampaignError::Complete {
+            dir: dir.to_path_buf(),
+        });
+    }
+    let spec_copy = dir.join(&manifest.spec.copy);
+    let (_, spec_hash) = manifest::sha256_file(&spec_copy)?;
+    if spec_hash != manifest.spec.sha256 {
+        return Err(CampaignError::Manifest {
+            path: spec_copy,
+            message:
+                "changed since the run started (its SHA-256 differs from the manifest's): the \
+                      run cannot be continued as planned"
+                    .into(),
+        });
+    }
+    let plan = manifest.plan.clone();
+    let mut forced = Vec::new();
+    let bench_file = match &plan.bench.file {
+        Some(p) => {
+            let file =
+                crate::measure::bench_file::BenchFile::load(p).map_err(MeasureError::from)?;
+            let delay = file.system_delay_s();
+            if delay != plan.bench.system_delay_s {
+                let what = format!(
+                    "the bench file {} now calibrates a system delay of {:.4} ns; the run was \
+                     measured with {:.4} ns",
+                    p.display(),
+                    delay * 1e9,
+                    plan.bench.system_delay_s * 1e9
+                );
+                if !force {
+                    return Err(CampaignError::DifferentBench { what });
+                }
+                forced.push(what);
+            }
+            Some(file)
+        }
+        None => None,
+    };
+    let info = BenchInfo {
+        file: plan.bench.file.clone().zip(bench_file.clone()),
+        scene: plan.bench.scene.clone(),
+        awg_transport: plan.bench.awg_transport,
+        scope_transport: plan.bench.scope_transport,
+        simulated: plan.bench.simulated,
+        tx_attenuation_db: None,
+    };
+    let catalog = Catalog::embedded().map_err(MeasureError::from)?;
+    let prepared = prepare_all(&plan, &info, &catalog).await?;
+    // Completed steps are kept only when every file is as it was written.
+    let mut remeasured = Vec::new();
+    for rec in manifest.steps.iter_mut() {
+        if rec.status != StepStatus::Done {
+            continue;
+        }
+        let has_result = rec.files.iter().any(|f| f.path.ends_with(STEP_RESULT));
+        let broken = rec
+            .files
+            .iter()
+            .find_map(|f| f.check(dir))
+            .or_else(|| (!has_result).then(|| format!("{STEP_RESULT} is not recorded")));
+        if let Some(why) = broken {
+            remeasured.push(format!("step {}: {why}: measured again", rec.index));
+            rec.status = StepStatus::Pending;
+            rec.files.clear();
+            rec.applied = None;
+            rec.measured_at = None;
+        }
+    }
+    let n = manifest.sessions.len();
+    let journal_path = PathBuf::from(format!("io-journal-resume-{n}.jsonl"));
+    let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
+    let mut session = new_session("resume", &now, &journal_path);
+    session.remeasured = remeasured;
+    if !forced.is_empty() {
+        session.forced = Some(forced.join("; "));
+    }
+    manifest.sessions.push(session);
+    manifest.status = Status::Running;
+    manifest.reason = None;
+    manifest.stopped_at_step = None;
+    manifest.exit_code = None;
+    let mut runner = Runner::new(
+        dir.to_path_buf(),
+        manifest,
+        prepared,
+        journal_path,
+        permit,
+        interrupt,
+        input,
+        force,
+    )?;
+    for note in runner.manifest.session_mut().remeasured.clone() {
+        observer.note(&note);
+    }
+    runner.timing.overhead_s += t0.elapsed().as_secs_f64();
+    let finished = runner.execute(observer).await;
+    drop(lock);
+    finished
+}
+
+fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
+    Session {
+        kind: kind.into(),
+        started: now.into(),
+        ended: None,
+        journal: journal.to_path_buf(),
+        skipped: Vec::new(),
+        remeasured: Vec::new(),
+        forced: None,
+        timing: Timing::default(),
+    }
+}
+
+/// Every (waveform, algorithm) prepared: transmissions generated, options checked, instrument
+/// settings planned against the catalog, pipelines built. Touches no instrument.
+pub async fn prepare_all(
+    plan: &Plan,
+    bench: &BenchInfo,
+    catalog: &Catalog,
+) -> Result<Vec<Vec<Prepared>>, CampaignError> {
+    let planning = plan
+        .bench
+        .planning_bench(bench.file.as_ref().map(|(_, f)| f));
+    let mut out = Vec::with_capacity(plan.waveforms.len());
+    for w in 0..plan.waveforms.len() {
+        let first = capture::prepare(&planning, catalog, &plan.request(w)).await?;
+        let mut all = Vec::with_capacity(plan.processing.len());
+        for o in &plan.processing[1..] {
+            all.push(first.with_options(o.clone()).await?);
+        }
+        all.insert(0, first);
+        out.push(all);
+    }
+    Ok(out)
+}
+
+/// An exclusive lock on the run folder for this process (released when dropped).
+struct Lock {
+    _file: std::fs::File,
+}
+
+fn lock(dir: &Path) -> Result<Lock, CampaignError> {
+    use std::os::fd::AsRawFd;
+    let path = dir.join(LOCK_FILE);
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(io(&path))?;
+    // SAFETY: flock on a file descriptor this function owns; no memory is shared.
+    let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    if rc != 0 {
+        return Err(CampaignError::Locked {
+            dir: dir.to_path_buf(),
+        });
+    }
+    Ok(Lock { _file: file })
+}
+
+/// The connected bench.
+struct Connection {
+    bench: Bench,
+    rig: Rig,
+}
+
+struct Runner {
+    dir: PathBuf,
+    manifest: Manifest,
+    plan: Plan,
+    prepared: Vec<Vec<Prepared>>,
+    /// The Tx attenuation each waveform's plan had before any step changed it.
+    base_tx_attenuation: Vec<f64>,
+    journal: Option<Journal>,
+    permit: RfPermit,
+    interrupt: Interrupt,
+    positioner: Option<Positioner>,
+    connection: Option<Connection>,
+    /// The scene every step starts from (simulated benches).
+    base_scene: Option<Scene>,
+    /// Whether the next placement is the first of this session (the targets' position unknown).
+    first_placement: bool,
+    /// Whether this session has checked the instruments' identities.
+    identified: bool,
+    force: bool,
+    results: Vec<Option<StepResult>>,
+    measured: usize,
+    skipped: usize,
+    timing: Timing,
+}
+
+impl Runner {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        dir: PathBuf,
+        manifest: Manifest,
+        prepared: Vec<Vec<Prepared>>,
+        journal_path: PathBuf,
+        permit: RfPermit,
+        interrupt: Interrupt,
+        input: Option<LineSource>,
+        force: bool,
+    ) -> Result<Runner, CampaignError> {
+        let plan = manifest.plan.clone();
+        let journal_file = if journal_path.is_absolute() {
+            journal_path
+        } else {
+            dir.join(journal_path)
+        };
+        let journal = Journal::create(&journal_file, false).map_err(|e| CampaignError::Io {
+            path: journal_file.clone(),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+        let positioner = plan.positioner.clone().map(|p| Positioner::new(p, input));
+        let n = plan.steps.len();
+        Ok(Runner {
+            base_tx_attenuation: prepared
+                .iter()
+                .map(|p| p[0].plan.tx.attenuation_db)
+                .collect(),
+            base_scene: plan.bench.scene.clone().or(manifest.base_scene.clone()),
+            dir,
+            plan,
+            manifest,
+            prepared,
+            journal: Some(journal),
+            permit,
+            interrupt,
+            positioner,
+            connection: None,
+            first_placement: true,
+            identified: false,
+            force,
+            results: vec![None; n],
+            measured: 0,
+            skipped: 0,
+            timing: Timing::default(),
+        })
+    }
+
+    /// Runs every step not done yet, then writes the results, the report and the manifest.
+    async fn execute(mut self, observer: &mut dyn Observer) -> Result<Finished, CampaignError> {
+        let t = Instant::now();
+        self.manifest.store(&self.dir)?;
+        self.timing.overhead_s += t.elapsed().as_secs_f64();
+        let stopped = self.steps(observer).await.err();
+        // Nothing radiates between measurements; the last measurement's guard ran the safe
+        // state. Dropping the connection closes the links (and stops a built-in lab).
+        self.connection = None;
+        let t = Instant::now();
+        let outcome = self.finish(stopped).await;
+        self.timing.overhead_s += t.elapsed().as_secs_f64();
+        outcome
+    }
+
+    async fn steps(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let n = self.plan.steps.len();
+        for k in 0..n {
+            let step = self.plan.steps[k].clone();
+            if self.manifest.steps[k].status == StepStatus::Done {
+                let result = self.stored_result(&step)?;
+                self.skipped += 1;
+                self.manifest.session_mut().skipped.push(step.index);
+                observer.step_done(&StepDone {
+                    step: &step,
+                    of: n,
+                    result: &result,
+                    primary: self.plan.algorithm_names()[0],
+                    dir: self.dir.join(step.dir_name()),
+                    skipped: true,
+                });
+                self.results[k] = Some(result);
+                // The targets may have been moved since: place them again at the next step.
+                self.first_placement = true;
+                continue;
+            }
+            if let Some(signal) = self.interrupt.received() {
+                return Err(CampaignError::Interrupted {
+                    signal,
+                    where_: format!("before step {} of {n}", step.index),
+                });
+            }
+            let result = self.measure_step(k, &step, observer).await?;
+            self.measured += 1;
+            observer.step_done(&StepDone {
+                step: &step,
+                of: n,
+                result: &result,
+                primary: self.plan.algorithm_names()[0],
+                dir: self.dir.join(step.dir_name()),
+                skipped: false,
+            });
+            self.results[k] = Some(result);
+            if let Some(signal) = self.interrupt.received() {
+                if k + 1 < n {
+                    return Err(CampaignError::Interrupted {
+                        signal,
+                        where_: format!("after step {} of {n} (its capture is kept)", step.index),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A step measured by an earlier session: its stored result.
+    fn stored_result(&self, step: &Step) -> Result<StepResult, CampaignError> {
+        let path = self.dir.join(step.dir_name()).join(STEP_RESULT);
+        let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+        serde_json::from_str(&text).map_err(|e| CampaignError::Manifest {
+            path,
+            message: format!("not a step result: {e}"),
+        })
+    }
+
+    /// The simulated scene of a step: the base scene with the step's noise seed, SNR and (with
+    /// the mock-lab positioner) targets.
+    fn step_scene(&self, step: &Step) -> Option<Scene> {
+        let mut scene = self.base_scene.clone()?;
+        if let Some(seed) = step.noise_seed {
+            scene.seed = seed;
+        }
+        if let Some(snr) = step.nominal.snr_db {
+            scene.snr_db = snr;
+        }
+        let mock = self
+            .positioner
+            .as_ref()
+            .is_some_and(|p| p.kind() == PositionerKind::MockLab);
+        if mock && !step.nominal.targets.is_empty() {
+            let amplitude = |i: usize| {
+                scene
+                    .targets
+                    .get(i)
+                    .or(scene.targets.last())
+                    .map_or(0.5, |t| t.amplitude)
+            };
+            scene.targets = step
+                .nominal
+                .targets
+                .iter()
+                .enumerate()
+                .map(|(i, t)| Target {
+                    range_m: t.range_m,
+                    amplitude: amplitude(i),
+                    velocity_mps: 0.0,
+                })
+                .collect();
+        }
+        Some(scene)
+    }
+
+    /// Connects for `step`: a fresh built-in lab with the step's scene, or the bench file's
+    /// instruments once.
+    async fn connect(&mut self, step: &Step) -> Result<(), CampaignError> {
+        let built_in = self.plan.bench.file.is_none();
+        if built_in {
+            // Close the previous lab's links before its servers go.
+            self.connection = None;
+            let scene = self.step_scene(step).unwrap_or_default();
+            let bench = Bench::open(BenchSource::BuiltIn(self.plan.bench.built_in(scene))).await?;
+            let rig = Rig::connect(&bench, &catalog()?, self.journal.clone()).await?;
+            self.connection = Some(Connection { bench, rig });
+        } else if self.connection.is_none() {
+            let path = self.plan.bench.file.clone().expect("a bench file");
+            let bench = Bench::open(BenchSource::File(path)).await?;
+            let rig = Rig::connect(&bench, &catalog()?, self.journal.clone()).await?;
+            self.connection = Some(Connection { bench, rig });
+        }
+        if !self.identified {
+            self.identified = true;
+            let conn = self.connection.as_ref().expect("connected");
+            let now = Instruments::from(conn.rig.identities());
+            match &self.manifest.instruments {
+                None => self.manifest.instruments = Some(now),
+                Some(then) if *then == now => {}
+                Some(then) => {
+                    let what = format!(
+                        "the instruments answer differently than when the run was measured \
+                         (then: {then:?}; now: {now:?})"
+                    );
+                    if !self.force {
+                        return Err(CampaignError::DifferentBench { what });
+                    }
+                    let s = self.manifest.session_mut();
+                    s.forced = Some(match s.forced.take() {
+                        Some(f) => format!("{f}; {what}"),
+                        None => what,
+                    });
+                }
+            }
+            // A bench file's simulated lab: the scene every step starts from.
+            if self.base_scene.is_none() && self.plan.bench.simulated {
+                let reply = conn.bench.control(&json!({"cmd": "get"})).await;
+                let scene = match reply {
+                    Some(Ok(v)) => serde_json::from_value::<Scene>(v["scene"].clone())
+                        .map_err(|e| CampaignError::Control(format!("`get` gave no scene: {e}")))?,
+                    Some(Err(e)) => return Err(CampaignError::Control(e)),
+                    None => {
+                        return Err(CampaignError::Control(
+                            "the bench file has no [simulation] control address".into(),
+                        ))
+                    }
+                };
+                self.manifest.base_scene = Some(scene.clone());
+                self.base_scene = Some(scene);
+            }
+        }
+        Ok(())
+    }
+
+    async fn measure_step(
+        &mut self,
+        k: usize,
+        step: &Step,
+        observer: &mut dyn Observer,
+    ) -> Result<StepResult, CampaignError> {
+        let n = self.plan.steps.len();
+        let t_bench = Instant::now();
+        self.connect(step).await?;
+        if self.plan.moves_at(k, self.first_placement) {
+            if let Some(p) = self.positioner.as_mut() {
+                p.place(&step.nominal.ranges(), step.index, n, &self.interrupt)
+                    .await?;
+            }
+            self.first_placement = false;
+        }
+        let scene = self.step_scene(step);
+        let conn = self.connection.as_mut().expect("connected");
+        if let (Some(scene), false) = (scene, self.plan.bench.file.is_none()) {
+            // A bench file's simulated lab (the built-in lab started with this scene).
+            let request = json!({"cmd": "set", "scene": scene});
+            match conn.bench.control(&request).await {
+                Some(Ok(_)) => {}
+                Some(Err(e)) => return Err(CampaignError::Control(e)),
+                None => {
+                    return Err(CampaignError::Control(
+                        "the bench file has no [simulation] control address".into(),
+                    ))
+                }
+            }
+        }
+        observer.step_starting(step, n, &conn.bench);
+        let w = step.waveform;
+        let primary = &mut self.prepared[w][0];
+        primary.plan.tx.attenuation_db = step
+            .nominal
+            .tx_attenuation_db
+            .unwrap_or(self.base_tx_attenuation[w]);
+        let m = conn
+            .rig
+            .measure(
+                &conn.bench,
+                primary,
+                self.plan.repetitions,
+                &self.permit,
+                &self.interrupt,
+            )
+            .await?;
+        let bench_s = t_bench.elapsed().as_secs_f64();
+        let t_proc = Instant::now();
+        let mut others = Vec::with_capacity(self.prepared[w].len() - 1);
+        for prepared in self.prepared[w][1..].iter_mut() {
+            others.push(capture::process_with(prepared, &m.captured).await?);
+        }
+        let processing_s = t_proc.elapsed().as_secs_f64();
+        let names = self.plan.algorithm_names();
+        let result = {
+            let mut outputs = vec![AlgorithmOutput {
+                name: names[0],
+                processed: &m.processed,
+                spread: m.spread.as_ref(),
+            }];
+            for (o, name) in others.iter().zip(&names[1..]) {
+                outputs.push(AlgorithmOutput {
+                    name,
+                    processed: &o.processed,
+                    spread: o.spread.as_ref(),
+                });
+            }
+            results::step_result(
+                step,
+                self.plan.waveforms[w].bandwidth_hz(),
+                m.captured.repetitions(),
+                m.ground_truth.as_ref(),
+                &outputs,
+            )
+        };
+        let applied = serde_json::to_value(&m.captured.applied)
+            .ok()
+            .as_ref()
+            .and_then(manifest::json_to_toml);
+        let t_files = Instant::now();
+        let rel = PathBuf::from(step.dir_name());
+        let provenance = Provenance {
+            bench_file: self.plan.bench.file.clone(),
+            simulated: self.plan.bench.simulated,
+        };
+        let dir = self.dir.clone();
+        let result_json = format!("{:#}\n", json!(result));
+        let names_owned: Vec<&'static str> = names.clone();
+        let rel2 = rel.clone();
+        let files = off_runtime(move || {
+            let mut m = m;
+            let mut others = others;
+            write_step_files(
+                &dir,
+                &rel2,
+                &mut m,
+                &mut others,
+                &names_owned,
+                &provenance,
+                &result_json,
+            )
+        })
+        .await??;
+        let files_s = t_files.elapsed().as_secs_f64();
+        let t_over = Instant::now();
+        let records = files
+            .iter()
+            .map(|p| FileRecord::of(&self.dir, p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let rec = self.manifest.step_mut(step.index);
+        rec.status = StepStatus::Done;
+        rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
+        rec.applied = applied;
+        rec.files = records;
+        self.results[k] = Some(result.clone());
+        self.write_results()?;
+        self.timing.bench_s += bench_s;
+        self.timing.processing_s += processing_s;
+        self.timing.files_s += files_s;
+        self.timing.overhead_s += t_over.elapsed().as_secs_f64();
+        self.manifest.session_mut().timing = self.timing.clone();
+        self.manifest.store(&self.dir)?;
+        Ok(result)
+    }
+
+    /// `results.json` with every step that has a result, in step order.
+    fn write_results(&mut self) -> Result<Results, CampaignError> {
+        let results = Results {
+            steps: self.results.iter().flatten().cloned().collect(),
+        };
+        let path = self.dir.join(RESULTS_FILE);
+        write_atomic(&path, format!("{:#}\n", json!(results)).as_bytes())?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(RESULTS_FILE))?);
+        Ok(results)
+    }
+
+    async fn finish(&mut self, stopped: Option<CampaignError>) -> Result<Finished, CampaignError> {
+        let results = self.write_results()?;
+        let status = if stopped.is_some() {
+            Status::Interrupted
+        } else {
+            Status::Complete
+        };
+        let first_pending = self
+            .manifest
+            .steps
+            .iter()
+            .find(|s| s.status != StepStatus::Done)
+            .map(|s| s.index);
+        self.manifest.status = status;
+        self.manifest.reason = stopped.as_ref().map(|e| error_chain(e));
+        self.manifest.stopped_at_step = stopped.as_ref().and(first_pending);
+        self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
+        let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
+        self.manifest.session_mut().ended = Some(now);
+        self.manifest.session_mut().timing = self.timing.clone();
+        // The journals are final now: hash them.
+        let journals: Vec<PathBuf> = self
+            .manifest
+            .sessions
+            .iter()
+            .map(|s| s.journal.clone())
+            .filter(|p| p.is_relative())
+            .collect();
+        self.journal = None;
+        for j in journals {
+            if self.dir.join(&j).exists() {
+                self.manifest.set_file(FileRecord::of(&self.dir, &j)?);
+            }
+        }
+        let report = report::write(&self.dir, &self.manifest, &results)?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
+        self.manifest.store(&self.dir)?;
+        let max = |f: fn(&results::AlgorithmResult) -> Option<f64>| {
+            results
+                .steps
+                .iter()
+                .flat_map(|s| s.algorithms.values())
+                .filter_map(f)
+                .map(f64::abs)
+                .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
+        };
+        let summary = Summary {
+            name: self.plan.name.clone(),
+            steps: self.plan.steps.len(),
+            done: results.steps.len(),
+            measured: self.measured,
+            skipped: self.skipped,
+            algorithms: self.plan.algorithm_names(),
+            max_abs_error_m: max(|a| a.error_m),
+            max_abs_truth_error_m: max(|a| a.truth_error_m),
+            reason: self.manifest.reason.clone(),
+            stopped_at_step: self.manifest.stopped_at_step,
+            manifest: self.dir.join(manifest::FILE),
+            results: self.dir.join(RESULTS_FILE),
+            report,
+        };
+        Ok(Finished {
+            dir: self.dir.clone(),
+            status,
+            summary,
+            stopped,
+        })
+    }
+}
+
+/// The error's message with its causes (each once), as the CLI prints it.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut out = String::new();
+    let mut cur: Option<&dyn std::error::Error> = Some(e);
+    while let Some(c) = cur {
+        let text = c.to_string();
+        if !text.is_empty() && !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+        cur = c.source();
+    }
+    out
+}
+
+fn catalog() -> Result<Catalog, CampaignError> {
+    Ok(Catalog::embedded().map_err(MeasureError::from)?)
+}
+
+/// Writes a step's files: the raw capture and the primary algorithm's profiles in the step's
+/// folder, each further algorithm's profiles in a subfolder named after it, the step's result.
+/// Returns every file, relative to the run folder.
+fn write_step_files(
+    dir: &Path,
+    rel: &Path,
+    m: &mut Measurement,
+    others: &mut [Processing],
+    names: &[&'static str],
+    provenance: &Provenance,
+    result_json: &str,
+) -> Result<Vec<PathBuf>, CampaignError> {
+    let out = dir.join(rel);
+    let raw = record::write_raw(&out, m, provenance)?;
+    let (files, _) = record::write_processed(&out, m, &raw, provenance)?;
+    let mut all: Vec<PathBuf> = files.all().into_iter().map(Path::to_path_buf).collect();
+    for (p, name) in others.iter_mut().zip(&names[1..]) {
+        swap_processing(m, p);
+        let written = record::write_processed(&out.join(name), m, &raw, provenance);
+        swap_processing(m, p);
+        let (f, _) = written?;
+        all.extend([
+            f.profile_csv,
+            f.profile_npy,
+            f.plot_svg,
+            f.plot_png,
+            f.summary,
+        ]);
+    }
+    let result = out.join(STEP_RESULT);
+    write_atomic(&result, result_json.as_bytes())?;
+    all.push(result);
+    manifest::sync_dir(&out)?;
+    Ok(all
+        .into_iter()
+        .map(|p| p.strip_prefix(dir).map(Path::to_path_buf).unwrap_or(p))
+        .collect())
+}
+
+/// Exchanges a measurement's processing with another algorithm's (to write that one's files).
+fn swap_processing(m: &mut Measurement, p: &mut Processing) {
+    std::mem::swap(&mut m.processed, &mut p.processed);
+    std::mem::swap(&mut m.repetitions, &mut p.repetitions);
+    std::mem::swap(&mut m.spread, &mut p.spread);
+    std::mem::swap(&mut m.options, &mut p.options);
+}
+
+/// The error class of a finished run's stop, for the exit code.
+pub fn exit_code(finished: &Finished) -> i32 {
+    finished
+        .stopped
+        .as_ref()
+        .map_or(0, |e| e.exit_class().code())
+}

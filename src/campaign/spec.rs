@@ -1,0 +1,557 @@
+//! The campaign spec: a TOML file naming the bench, the waveform, the processing (one or more
+//! algorithms applied to the same captures), the repetitions, the positioner and the steps (an
+//! explicit list or a sweep). `radbench campaign new KIND` prints a commented one; docs/campaign.md
+//! lists every field.
+//!
+//! Every error names the file, the line and the field, and what is allowed: unknown fields and
+//! wrong types come from the TOML parser's span; values out of range are located again in the
+//! text (toml_edit keeps the spans) when the checks after parsing find them.
+
+use crate::measure::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The whole spec, as written.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Name of the campaign (default: the file name without `.toml`).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// One line on what it measures.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Seed of the PRBS bits and, on a simulated bench, of each step's noise.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Marker-triggered repetitions per step (averaged coherently, their spread reported).
+    #[serde(default = "default_repetitions")]
+    pub repetitions: usize,
+    /// Longest wait for one marker-triggered acquisition, seconds.
+    #[serde(default = "default_wait")]
+    pub wait_s: f64,
+    #[serde(default)]
+    pub bench: BenchSection,
+    #[serde(default)]
+    pub waveform: WaveformSection,
+    #[serde(default)]
+    pub processing: ProcessingSection,
+    #[serde(default)]
+    pub positioner: Option<PositionerSection>,
+    #[serde(default)]
+    pub sweep: Option<SweepSection>,
+    #[serde(default)]
+    pub steps: Vec<StepSection>,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+fn default_repetitions() -> usize {
+    1
+}
+
+fn default_wait() -> f64 {
+    10.0
+}
+
+/// `[bench]`: a bench file, or (without one) the built-in mock lab.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchSection {
+    /// A bench file, relative to the spec's folder (`--bench` overrides it).
+    #[serde(default)]
+    pub file: Option<PathBuf>,
+    /// Built-in mock lab only: its scene file, relative to the spec's folder.
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    /// Built-in mock lab only: the AWG's transport.
+    #[serde(default)]
+    pub awg_transport: Option<AwgTransportName>,
+    /// Built-in mock lab only: the scope's transport.
+    #[serde(default)]
+    pub scope_transport: Option<ScopeTransportName>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AwgTransportName {
+    Raw,
+    Hislip,
+    Vxi11,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ScopeTransportName {
+    Vicp,
+    Vxi11,
+}
+
+/// `[waveform]`: the family and any parameters that differ from the thesis' defaults.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct WaveformSection {
+    pub kind: WaveformKindName,
+    #[serde(default)]
+    pub bandwidth_hz: Option<f64>,
+    /// MSK-LFM only.
+    #[serde(default)]
+    pub sample_rate_hz: Option<f64>,
+    /// MSK-LFM only.
+    #[serde(default)]
+    pub pulse_s: Option<f64>,
+    /// MSK-LFM only.
+    #[serde(default)]
+    pub bits_per_pulse: Option<usize>,
+    /// OFDM only.
+    #[serde(default)]
+    pub subcarriers: Option<usize>,
+    /// OFDM only.
+    #[serde(default)]
+    pub oversampling: Option<usize>,
+    /// OFDM only.
+    #[serde(default)]
+    pub cp_fraction: Option<f64>,
+    /// OFDM only.
+    #[serde(default)]
+    pub symbols: Option<usize>,
+    /// OFDM only.
+    #[serde(default)]
+    pub preamble_symbols: Option<usize>,
+    /// Text to send (default: PRBS bits from `seed`).
+    #[serde(default)]
+    pub payload: Option<String>,
+}
+
+impl Default for WaveformSection {
+    fn default() -> Self {
+        Self {
+            kind: WaveformKindName::MskLfm,
+            bandwidth_hz: None,
+            sample_rate_hz: None,
+            pulse_s: None,
+            bits_per_pulse: None,
+            subcarriers: None,
+            oversampling: None,
+            cp_fraction: None,
+            symbols: None,
+            preamble_symbols: None,
+            payload: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WaveformKindName {
+    MskLfm,
+    Ofdm,
+}
+
+/// `[processing]`: the algorithms (each applied to the same captures) and the options they share;
+/// anything not given takes the defaults of `radbench capture`.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessingSection {
+    /// Default: the waveform's own (correlation for MSK-LFM, fourier for OFDM).
+    #[serde(default)]
+    pub algorithms: Vec<Algorithm>,
+    #[serde(default)]
+    pub music_m: Option<usize>,
+    #[serde(default)]
+    pub music_p: Option<usize>,
+    #[serde(default)]
+    pub forward_backward: Option<bool>,
+    #[serde(default)]
+    pub zero_pad: Option<usize>,
+    #[serde(default)]
+    pub window: Option<WindowName>,
+    #[serde(default)]
+    pub fft_precision: Option<FftPrecisionName>,
+    #[serde(default)]
+    pub interpolate: Option<bool>,
+    #[serde(default)]
+    pub detector: Option<DetectorName>,
+    #[serde(default)]
+    pub pfa: Option<f64>,
+    #[serde(default)]
+    pub min_separation_m: Option<f64>,
+    #[serde(default)]
+    pub min_range_m: Option<f64>,
+    #[serde(default)]
+    pub max_range_m: Option<f64>,
+}
+
+/// `[positioner]`: who places the targets.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositionerSection {
+    pub kind: PositionerKind,
+    /// `command`: the program (a path relative to the spec's folder, or a name on `PATH`).
+    #[serde(default)]
+    pub program: Option<String>,
+    /// `command`: its arguments; `{position_m}`, `{positions_m}`, `{step}` and `{of}` are
+    /// replaced.
+    #[serde(default)]
+    pub args: Vec<String>,
+    /// `command`: longest run, seconds (killed after it, and the campaign stops).
+    #[serde(default)]
+    pub timeout_s: Option<f64>,
+    /// Wait after each move before measuring, seconds.
+    #[serde(default)]
+    pub settle_s: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PositionerKind {
+    /// Moves the simulated targets through the mock lab's control channel.
+    MockLab,
+    /// Tells the operator where to put the pillars and waits for Enter (RF is off meanwhile).
+    Prompt,
+    /// Runs a program with the positions (a linear stage's script).
+    Command,
+}
+
+impl PositionerKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PositionerKind::MockLab => "mock-lab",
+            PositionerKind::Prompt => "prompt",
+            PositionerKind::Command => "command",
+        }
+    }
+}
+
+/// `[sweep]`: one parameter over a list of values.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSection {
+    pub parameter: SweepParameter,
+    /// The values, in the parameter's unit (or `start`, `step`, `count`).
+    #[serde(default)]
+    pub values: Option<Vec<f64>>,
+    #[serde(default)]
+    pub start: Option<f64>,
+    #[serde(default)]
+    pub step: Option<f64>,
+    #[serde(default)]
+    pub count: Option<usize>,
+    /// Where the targets stand, metres (`position`: the moved one's entry is replaced by each
+    /// value; `separation`: the first target, the second stands one separation behind it).
+    #[serde(default)]
+    pub targets: Option<Vec<f64>>,
+    /// `position`: which target moves (0 = the first).
+    #[serde(default)]
+    pub target: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SweepParameter {
+    /// A target's range, metres.
+    Position,
+    /// The distance between two targets, metres.
+    Separation,
+    /// The waveform's bandwidth, Hz.
+    Bandwidth,
+    /// The Tx front end's attenuation, dB.
+    TxAttenuation,
+    /// The simulated scene's SNR, dB (mock lab only).
+    Snr,
+}
+
+impl SweepParameter {
+    pub fn name(self) -> &'static str {
+        match self {
+            SweepParameter::Position => "position",
+            SweepParameter::Separation => "separation",
+            SweepParameter::Bandwidth => "bandwidth",
+            SweepParameter::TxAttenuation => "tx-attenuation",
+            SweepParameter::Snr => "snr",
+        }
+    }
+
+    pub fn unit(self) -> &'static str {
+        match self {
+            SweepParameter::Position | SweepParameter::Separation => "m",
+            SweepParameter::Bandwidth => "Hz",
+            SweepParameter::TxAttenuation | SweepParameter::Snr => "dB",
+        }
+    }
+}
+
+/// `[[steps]]`: one explicit step; what it does not give stays as the step before left it (the
+/// first step starts from the spec's waveform and the bench's own settings).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct StepSection {
+    #[serde(default)]
+    pub label: Option<String>,
+    /// Where the targets stand, metres.
+    #[serde(default)]
+    pub targets: Option<Vec<f64>>,
+    #[serde(default)]
+    pub bandwidth_hz: Option<f64>,
+    #[serde(default)]
+    pub tx_attenuation_db: Option<f64>,
+    /// Mock lab only.
+    #[serde(default)]
+    pub snr_db: Option<f64>,
+}
+
+/// A spec that cannot be used: the file, the line, the field and what is allowed.
+#[derive(Debug, thiserror::Error)]
+pub enum SpecError {
+    #[error("cannot read the campaign spec {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: {message}", located(path, *line, field))]
+    Field {
+        path: PathBuf,
+        /// 1-based; `None` when the field is not written in the file (a default, or a command
+        /// line override).
+        line: Option<usize>,
+        /// Dotted path, e.g. `sweep.count` or `steps[2].targets`.
+        field: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+}
+
+fn located(path: &Path, line: Option<usize>, field: &str) -> String {
+    match line {
+        Some(l) => format!("{}:{l}: `{field}`", path.display()),
+        None => format!("{}: `{field}`", path.display()),
+    }
+}
+
+impl crate::exit::Classify for SpecError {
+    fn exit_class(&self) -> crate::exit::ExitClass {
+        crate::exit::ExitClass::BadInput
+    }
+}
+
+/// A spec read from a file, with its text (for locating fields) and its folder (for relative
+/// paths).
+#[derive(Debug, Clone)]
+pub struct SpecFile {
+    pub path: PathBuf,
+    pub text: String,
+    pub spec: Spec,
+}
+
+impl SpecFile {
+    /// Reads and parses a spec file.
+    pub fn load(path: &Path) -> Result<SpecFile, SpecError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses spec text; `path` names it in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<SpecFile, SpecError> {
+        let spec: Spec = toml::from_str(text).map_err(|e| syntax_error(text, path, &e))?;
+        Ok(SpecFile {
+            path: path.to_path_buf(),
+            text: text.to_string(),
+            spec,
+        })
+    }
+
+    /// The folder relative paths of the spec start from.
+    pub fn folder(&self) -> PathBuf {
+        match self.path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    }
+
+    /// `path` relative to the spec's folder (absolute paths stay).
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            self.folder().join(path)
+        }
+    }
+
+    /// An error on `field` (dotted, with `[i]` for array entries), located in the text.
+    pub fn error(&self, field: &str, message: impl Into<String>) -> SpecError {
+        SpecError::Field {
+            path: self.path.clone(),
+            line: locate(&self.text, field),
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// The campaign's name: `name`, or the file name without its extension.
+    pub fn name(&self) -> String {
+        self.spec.name.clone().unwrap_or_else(|| {
+            self.path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "campaign".into())
+        })
+    }
+}
+
+/// 1-based line of byte `offset` in `text`.
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].matches('\n').count() + 1
+}
+
+/// A parser error as file:line:field and the parser's message (which names what is allowed).
+fn syntax_error(text: &str, path: &Path, e: &toml::de::Error) -> SpecError {
+    let message = e.message().trim().to_string();
+    let Some(span) = e.span() else {
+        return SpecError::Field {
+            path: path.to_path_buf(),
+            line: None,
+            field: "(file)".into(),
+            message,
+        };
+    };
+    let line = line_of(text, span.start);
+    let field = field_at(text, span.start).unwrap_or_else(|| "(file)".into());
+    SpecError::Field {
+        path: path.to_path_buf(),
+        line: Some(line),
+        field,
+        message,
+    }
+}
+
+/// The dotted name of the key on the line holding `offset`, under the table header above it.
+fn field_at(text: &str, offset: usize) -> Option<String> {
+    let start = text[..offset.min(text.len())]
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let line = text[start..].lines().next().unwrap_or("");
+    let trimmed = line.trim();
+    let header = |l: &str| -> Option<String> {
+        let l = l.trim();
+        let inner = l
+            .strip_prefix("[[")
+            .and_then(|r| r.split("]]").next())
+            .or_else(|| l.strip_prefix('[').and_then(|r| r.split(']').next()))?;
+        Some(inner.trim().to_string())
+    };
+    if trimmed.starts_with('[') {
+        return header(trimmed);
+    }
+    let key = trimmed
+        .split('=')
+        .next()
+        .map(|k| k.trim().trim_matches('"').to_string())
+        .filter(|k| !k.is_empty() && !k.starts_with('#'));
+    let table = text[..start].lines().rev().find_map(|l| {
+        let l = l.trim();
+        if l.starts_with('[') {
+            header(l)
+        } else {
+            None
+        }
+    });
+    match (table, key) {
+        (Some(t), Some(k)) => Some(format!("{t}.{k}")),
+        (None, Some(k)) => Some(k),
+        (Some(t), None) => Some(t),
+        (None, None) => None,
+    }
+}
+
+/// The line of `field` (`a.b`, `steps[2].targets`) in `text`, when it is written there.
+pub fn locate(text: &str, field: &str) -> Option<usize> {
+    let doc = toml_edit::ImDocument::parse(text.to_string()).ok()?;
+    let mut table: &toml_edit::Table = doc.as_table();
+    let mut last_span = None;
+    let parts: Vec<&str> = field.split('.').collect();
+    for (k, part) in parts.iter().enumerate() {
+        let (name, index) = match part.split_once('[') {
+            Some((n, rest)) => (n, rest.trim_end_matches(']').parse::<usize>().ok()),
+            None => (*part, None),
+        };
+        let item = table.get(name)?;
+        let key_span = table.key(name).and_then(|key| key.span());
+        last_span = key_span.or_else(|| item.span()).or(last_span);
+        let is_last = k + 1 == parts.len();
+        match (item, index) {
+            (toml_edit::Item::ArrayOfTables(a), Some(i)) => {
+                let t = a.get(i)?;
+                last_span = t.span().or(last_span);
+                table = t;
+            }
+            (toml_edit::Item::Value(toml_edit::Value::Array(a)), Some(i)) => {
+                last_span = a.get(i).and_then(|v| v.span()).or(last_span);
+                break;
+            }
+            (toml_edit::Item::Table(t), None) if !is_last => {
+                last_span = t.span().or(last_span);
+                table = t;
+            }
+            _ => break,
+        }
+    }
+    last_span.map(|s| line_of(text, s.start))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<SpecFile, SpecError> {
+        SpecFile::parse(text, Path::new("c.toml"))
+    }
+
+    #[test]
+    fn an_unknown_field_names_file_line_field_and_what_is_allowed() {
+        let err = parse("seed = 3\n\n[sweep]\nparameter = \"position\"\nstpe = 0.03\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("c.toml:5: `sweep.stpe`"), "{err}");
+        assert!(err.contains("expected one of"), "{err}");
+    }
+
+    #[test]
+    fn a_wrong_variant_lists_the_allowed_ones() {
+        let err = parse("[sweep]\nparameter = \"height\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("c.toml:2: `sweep.parameter`"), "{err}");
+        assert!(err.contains("position") && err.contains("snr"), "{err}");
+    }
+
+    #[test]
+    fn a_wrong_type_is_located() {
+        let err = parse("repetitions = \"four\"\n").unwrap_err().to_string();
+        assert!(err.starts_with("c.toml:1: `repetitions`"), "{err}");
+    }
+
+    #[test]
+    fn fields_are_located_after_parsing() {
+        let text = "name = \"x\"\n[sweep]\nparameter = \"snr\"\ncount = 0\n\n[[steps]]\n\n[[steps]]\ntargets = [1.0, -2.0]\n";
+        assert_eq!(locate(text, "sweep.count"), Some(4));
+        assert_eq!(locate(text, "steps[1].targets"), Some(9));
+        assert_eq!(locate(text, "steps[1].targets[1]"), Some(9));
+        assert_eq!(locate(text, "steps[0]"), Some(6));
+        assert_eq!(locate(text, "seed"), None);
+    }
+
+    #[test]
+    fn defaults_fill_what_is_not_written() {
+        let f = parse("").unwrap();
+        assert_eq!(f.spec.seed, 1);
+        assert_eq!(f.spec.repetitions, 1);
+        assert_eq!(f.spec.waveform.kind, WaveformKindName::MskLfm);
+        assert_eq!(f.name(), "c");
+    }
+}

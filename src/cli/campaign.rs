@@ -1,0 +1,395 @@
+//! `radbench campaign`: run a campaign spec, resume an interrupted run, print a spec to start
+//! from, write a run's report again, run the thesis' lab chapter. Parses, calls `campaign`, prints.
+
+use crate::campaign::builtin;
+use crate::campaign::manifest::Status;
+use crate::campaign::plan::{self, BenchInfo, Step, WaveformCost};
+use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone};
+use crate::campaign::{report, CampaignError, SpecFile};
+use crate::catalog::Catalog;
+use crate::driver::RfPermit;
+use crate::exit::bad_input;
+use crate::measure::bench::Bench;
+use crate::measure::interrupt::Interrupt;
+use crate::measure::MeasureError;
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Run a campaign spec: every step measured into one run folder (manifest, captures,
+    /// results.json, report).
+    Run(RunArgs),
+    /// Continue an interrupted run: completed steps (files intact) are skipped.
+    Resume(ResumeArgs),
+    /// Print a commented campaign spec to start from.
+    New(NewArgs),
+    /// Write a run folder's report again from its manifest and results.json.
+    Report(ReportArgs),
+    /// Run the thesis' lab chapter (4.4.1-4.5.2) on the built-in mock lab and compare.
+    #[command(name = "thesis-lab")]
+    ThesisLab(ThesisLabArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// The campaign spec (TOML); `radbench campaign new KIND` prints one.
+    #[arg(value_name = "SPEC.toml")]
+    pub spec: PathBuf,
+    /// Bench file (overrides the spec's [bench] file); without either, the built-in mock lab.
+    #[arg(long, value_name = "FILE")]
+    pub bench: Option<PathBuf>,
+    /// Run folder (default runs/<UTC time>-<campaign name>); must be new or empty.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Explicit permit to switch on the AWG outputs and the Tx/Rx for each step's capture.
+    #[arg(long)]
+    pub allow_rf: bool,
+    /// Print every step, what will be sent and the estimated duration; touch no instrument.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// JSON Lines on stdout: one "step" event per step and a last "done" event.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ResumeArgs {
+    /// The run folder of an interrupted run.
+    #[arg(value_name = "RUN_DIR")]
+    pub run_dir: PathBuf,
+    /// Explicit permit to switch on the AWG outputs and the Tx/Rx for each step's capture.
+    #[arg(long)]
+    pub allow_rf: bool,
+    /// Continue even when the instruments or the bench's calibration differ from the run's.
+    #[arg(long)]
+    pub force: bool,
+    /// JSON Lines on stdout, as for `campaign run`.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct NewArgs {
+    /// accuracy | resolution | single-target | music | link
+    #[arg(value_name = "KIND", value_parser = clap::builder::PossibleValuesParser::new(builtin::kinds()))]
+    pub kind: String,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ReportArgs {
+    #[arg(value_name = "RUN_DIR")]
+    pub run_dir: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ThesisLabArgs {
+    /// Folder for the run folders (default runs/<UTC time>-thesis-lab).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// One JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+    match args.command {
+        Command::New(a) => {
+            let text = builtin::template(&a.kind).ok_or_else(|| {
+                bad_input(format!(
+                    "campaign new {}: allowed: {}",
+                    a.kind,
+                    builtin::kinds().join(", ")
+                ))
+            })?;
+            print!("{text}");
+            Ok(())
+        }
+        Command::Report(a) => {
+            let path = report::rewrite(&a.run_dir)?;
+            println!("report: {}", path.display());
+            Ok(())
+        }
+        Command::Run(a) => super::runtime()?.block_on(run_spec(a, global)),
+        Command::Resume(a) => super::runtime()?.block_on(resume(a)),
+        Command::ThesisLab(a) => super::runtime()?.block_on(thesis_lab(a)),
+    }
+}
+
+/// Prints step events (JSON Lines or one text line per step) and notes on stderr.
+struct Printer {
+    json: bool,
+}
+
+impl Observer for Printer {
+    fn step_starting(&mut self, step: &Step, of: usize, _bench: &Bench) {
+        if self.json {
+            println!(
+                "{}",
+                json!({"event": "start", "index": step.index, "of": of, "nominal": step.nominal})
+            );
+        }
+    }
+
+    fn step_done(&mut self, done: &StepDone<'_>) {
+        let r = done.result;
+        let primary = r.algorithms.get(done.primary);
+        if self.json {
+            let targets: Vec<_> = primary.map(|a| a.targets.clone()).unwrap_or_default();
+            println!(
+                "{}",
+                json!({
+                    "event": "step",
+                    "index": r.index,
+                    "of": done.of,
+                    "nominal": r.nominal,
+                    "targets": targets,
+                    "error_m": primary.and_then(|a| a.error_m),
+                    "primary": done.primary,
+                    "algorithms": r.algorithms,
+                    "truth": r.truth,
+                    "repetitions": r.repetitions,
+                    "skipped": done.skipped,
+                    "dir": done.dir,
+                })
+            );
+        } else {
+            println!("{}", step_line(done));
+        }
+    }
+
+    fn note(&mut self, text: &str) {
+        eprintln!("{text}");
+    }
+}
+
+fn step_line(done: &StepDone<'_>) -> String {
+    let r = done.result;
+    let mut parts = Vec::new();
+    for (name, a) in &r.algorithms {
+        let ranges: Vec<String> = a
+            .targets
+            .iter()
+            .map(|t| format!("{:.4}", t.range_m))
+            .collect();
+        let mut s = format!(
+            "{name} {} m",
+            if ranges.is_empty() {
+                "none".into()
+            } else {
+                ranges.join(" / ")
+            }
+        );
+        if let Some(e) = a.error_m {
+            s += &format!(" (error {:+.2} mm", e * 1e3);
+            if let Some(g) = a.error_on_grid_m {
+                s += &format!(", on the grid {:+.2} mm", g * 1e3);
+            }
+            s += ")";
+        }
+        if let Some(res) = a.resolved {
+            s += if res { " resolved" } else { " not resolved" };
+        }
+        if let Some(p) = &a.payload {
+            s += &format!(", {} bit errors in {}", p.bit_errors, p.bits);
+        }
+        parts.push(s);
+    }
+    format!(
+        "step {}/{} {}{}: {}",
+        r.index,
+        done.of,
+        r.nominal.describe(),
+        if done.skipped {
+            " (measured before, kept)"
+        } else {
+            ""
+        },
+        parts.join("; ")
+    )
+}
+
+/// Prints the end of a run and turns a stop into the command's error.
+fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
+    if json {
+        println!(
+            "{}",
+            json!({
+                "event": "done",
+                "dir": finished.dir,
+                "status": finished.status.name(),
+                "summary": finished.summary,
+            })
+        );
+    } else {
+        let s = &finished.summary;
+        let mm = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.2} mm", x * 1e3));
+        match finished.status {
+            Status::Complete => println!(
+                "complete: {} steps ({} measured, {} kept from before); largest error {} (vs \
+                 ground truth {})",
+                s.steps,
+                s.measured,
+                s.skipped,
+                mm(s.max_abs_error_m),
+                mm(s.max_abs_truth_error_m)
+            ),
+            _ => println!(
+                "interrupted at step {} of {}: {}\ncontinue with: radbench campaign resume {} \
+                 --allow-rf",
+                s.stopped_at_step.unwrap_or(s.done + 1),
+                s.steps,
+                s.reason.as_deref().unwrap_or("?"),
+                finished.dir.display()
+            ),
+        }
+        println!("results: {}", s.results.display());
+        println!("report: {}", s.report.display());
+        println!("run folder: {}", finished.dir.display());
+    }
+    match finished.stopped {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
+    }
+}
+
+async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
+    let spec = SpecFile::load(&a.spec)?;
+    let catalog = Catalog::embedded()?;
+    let bench = BenchInfo::load(&spec, a.bench.as_deref(), &catalog)?;
+    let plan = plan::plan(&spec, &bench)?;
+    if a.dry_run {
+        let prepared = run::prepare_all(&plan, &bench, &catalog).await?;
+        let costs: Vec<WaveformCost> = prepared
+            .iter()
+            .map(|p| {
+                let c = &p[0].plan;
+                WaveformCost {
+                    samples: c.period,
+                    points: c.period * c.decimation,
+                    capture_rate_hz: c.scope.sample_rate_hz,
+                }
+            })
+            .collect();
+        if a.json {
+            let steps: Vec<_> = (0..plan.steps.len())
+                .map(|k| {
+                    json!({
+                        "index": plan.steps[k].index,
+                        "nominal": plan.steps[k].nominal,
+                        "waveform": plan.steps[k].waveform,
+                        "noise_seed": plan.steps[k].noise_seed,
+                        "uploads": plan.uploads_at(k),
+                        "estimate_s": plan.estimate_step_s(k, &costs, plan.uploads_at(k)),
+                    })
+                })
+                .collect();
+            let total: f64 = (0..plan.steps.len())
+                .map(|k| plan.estimate_step_s(k, &costs, plan.uploads_at(k)))
+                .sum();
+            println!(
+                "{}",
+                json!({"event": "plan", "plan": plan, "steps": steps, "estimate_s": total})
+            );
+        } else {
+            print!("{}", plan.describe(&costs));
+            println!("dry run: nothing was sent to any instrument");
+        }
+        return Ok(());
+    }
+    if !a.allow_rf {
+        return Err(MeasureError::NoPermit.into());
+    }
+    let interrupt = Interrupt::listen()?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| super::capture::default_out(&plan.name));
+    if plan.bench.file.is_none() {
+        eprintln!(
+            "no bench file: running on the built-in mock lab (simulated, in-process on 127.0.0.1)"
+        );
+    }
+    if !plan.bench.calibrated {
+        eprintln!(
+            "note: the bench file has no [calibration]: ranges include the fixed system delay; run \
+             `radbench calibrate` first"
+        );
+    }
+    let mut printer = Printer { json: a.json };
+    let finished = run::start(
+        NewRun {
+            spec,
+            bench,
+            plan,
+            out,
+            journal: global.trace_io.clone(),
+            permit: RfPermit::granted_by_user(),
+            interrupt,
+            input: None,
+        },
+        &mut printer,
+    )
+    .await?;
+    conclude(finished, a.json)
+}
+
+async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
+    if !a.allow_rf {
+        return Err(MeasureError::NoPermit.into());
+    }
+    let interrupt = Interrupt::listen()?;
+    let mut printer = Printer { json: a.json };
+    let finished = match run::resume(
+        &a.run_dir,
+        RfPermit::granted_by_user(),
+        a.force,
+        interrupt,
+        None,
+        &mut printer,
+    )
+    .await
+    {
+        Err(CampaignError::Complete { dir }) => {
+            eprintln!(
+                "{}: the run is already complete; nothing to do",
+                dir.display()
+            );
+            return Ok(());
+        }
+        other => other?,
+    };
+    conclude(finished, a.json)
+}
+
+async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {
+    let interrupt = Interrupt::listen()?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| super::capture::default_out("thesis-lab"));
+    let mut quiet = Notes;
+    let rows = builtin::thesis_lab(&out, &interrupt, &mut quiet).await?;
+    if a.json {
+        println!("{}", json!({"rows": rows, "dir": out}));
+    } else {
+        print!("{}", builtin::lab_table(&rows));
+        println!("run folders: {}", out.display());
+    }
+    Ok(())
+}
+
+/// Notes on stderr, nothing else.
+struct Notes;
+
+impl Observer for Notes {
+    fn note(&mut self, text: &str) {
+        eprintln!("{text}");
+    }
+}
