@@ -59,7 +59,7 @@ pub enum CampaignError {
     #[error("the operator stopped the campaign at the positioner prompt ({why})")]
     OperatorStopped { why: String },
     /// A stop signal arrived between measurements.
-    #[error("interrupted by {}: {where_}; the bench is in its safe state", signal.name())]
+    #[error("interrupted by {}: {where_}", signal.name())]
     Interrupted { signal: StopSignal, where_: String },
     /// The simulated bench's control channel refused or did not answer.
     #[error("the simulated bench's scene control channel: {0}")]

@@ -6,8 +6,8 @@
 //! without touching an instrument.
 
 use super::spec::{
-    AwgTransportName, PositionerKind, ScopeTransportName, SpecError, SpecFile, SweepParameter,
-    WaveformKindName,
+    AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
+    SweepParameter, WaveformKindName,
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -45,6 +45,10 @@ pub struct Plan {
     pub waveforms: Vec<WaveformSpec>,
     /// One entry per algorithm (first = the primary, whose capture files sit in the step folder).
     pub processing: Vec<ProcessOptions>,
+    /// The subspace algorithms take each step's number of targets as their model order
+    /// (`music_p = "targets"`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub music_p_from_targets: bool,
     pub steps: Vec<Step>,
 }
 
@@ -152,6 +156,9 @@ pub struct Step {
     /// uninterrupted one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_seed: Option<u64>,
+    /// The subspace algorithms' model order at this step (`music_p = "targets"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub music_p: Option<usize>,
 }
 
 impl Step {
@@ -388,6 +395,8 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     }
     let base = base_waveform(spec)?;
     let processing = processing(spec, base.kind(), bench)?;
+    let from_targets = matches!(s.processing.music_p, Some(ModelOrder::Named(_)))
+        && processing.iter().any(|o| o.algorithm.is_subspace());
     let positioner = positioner(spec, bench)?;
     let mut steps = raw_steps(spec, &base, bench)?;
     let min = processing[0].min_range_m;
@@ -440,6 +449,20 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         if bench.simulated {
             step.noise_seed = Some(noise_seed(s.seed, step.index));
         }
+        if from_targets && !step.nominal.targets.is_empty() {
+            let p = step.nominal.targets.len();
+            let m = processing[0].music_m;
+            if p >= m {
+                return Err(spec.error(
+                    "processing.music_p",
+                    format!(
+                        "\"targets\" gives p = {p} at step {}, which must stay below music_m = {m}",
+                        step.index
+                    ),
+                ));
+            }
+            step.music_p = Some(p);
+        }
     }
     let places = steps.iter().any(|st| !st.nominal.targets.is_empty());
     if places && positioner.is_none() {
@@ -469,6 +492,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         positioner,
         waveforms,
         processing,
+        music_p_from_targets: from_targets,
         steps,
     })
 }
@@ -680,7 +704,10 @@ fn processing(
             min_range_m,
             max_range_m
         );
-        o.music_p = p.music_p;
+        o.music_p = match p.music_p {
+            Some(ModelOrder::Fixed(n)) => Some(n),
+            _ => None,
+        };
         o.min_separation_m = p.min_separation_m;
         o.system_delay_s = bench.bench_file().system_delay_s();
         out.push(o);
@@ -806,6 +833,7 @@ fn raw_steps(
         nominal,
         waveform: 0,
         noise_seed: None,
+        music_p: None,
     };
     match (&s.sweep, s.steps.is_empty()) {
         (Some(_), false) => Err(spec.error("steps", "give either [sweep] or [[steps]], not both")),
@@ -1077,6 +1105,9 @@ impl Plan {
             }
             if let Some(a) = n.tx_attenuation_db {
                 sends.push(format!("Tx: attenuation {a} dB"));
+            }
+            if let Some(p) = step.music_p {
+                sends.push(format!("processing: subspace model order p = {p}"));
             }
             sends.push(format!(
                 "RF on, {} marker-triggered capture(s) of {} points per channel, RF off",

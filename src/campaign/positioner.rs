@@ -94,7 +94,7 @@ impl Positioner {
                 () = tokio::time::sleep(settle) => {}
                 s = interrupt.wait() => return Err(CampaignError::Interrupted {
                     signal: s,
-                    where_: format!("while the targets of step {step} settled"),
+                    where_: format!("while the targets of step {step} settled; RF was off"),
                 }),
             }
         }
@@ -133,7 +133,7 @@ impl Positioner {
             },
             s = interrupt.wait() => Err(CampaignError::Interrupted {
                 signal: s,
-                where_: format!("at the positioner prompt of step {step}"),
+                where_: format!("at the positioner prompt of step {step}; RF was off"),
             }),
         }
     }
@@ -219,7 +219,7 @@ impl Positioner {
             },
             s = interrupt.wait() => Err(CampaignError::Interrupted {
                 signal: s,
-                where_: format!("while the positioner moved the targets of step {step} (it was killed)"),
+                where_: format!("while the positioner moved the targets of step {step} (it was killed); RF was off"),
             }),
         }
     }

@@ -268,6 +268,20 @@ fn payload(p: Option<&PayloadResult>, spread: Option<&Spread>) -> Option<Payload
 mod tests {
     use super::*;
 
+    #[test]
+    fn floats_survive_json_exactly() {
+        // A resumed run reads the earlier steps' results back: they must come out bit for bit
+        // (serde_json's float_roundtrip feature; without it this value moves by one ulp).
+        for x in [
+            -13.339831317062941_f64,
+            0.9700012394236971,
+            1.2394236971191575e-6,
+        ] {
+            let back: f64 = serde_json::from_str(&serde_json::to_string(&x).unwrap()).unwrap();
+            assert_eq!(back.to_bits(), x.to_bits());
+        }
+    }
+
     fn t(range_m: f64, on_grid_m: f64) -> TargetResult {
         TargetResult {
             range_m,

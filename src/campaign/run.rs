@@ -344,17 +344,38 @@ fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
     }
 }
 
-/// Every (waveform, algorithm) prepared: transmissions generated, options checked, instrument
-/// settings planned against the catalog, pipelines built. Touches no instrument.
+/// Every (waveform, algorithm) prepared, and for `music_p = "targets"` every (waveform,
+/// subspace algorithm, model order) the steps need: transmissions generated, options checked,
+/// instrument settings planned against the catalog, pipelines built. Touches no instrument.
+pub struct PreparedSet {
+    /// `[waveform][algorithm]`.
+    pub base: Vec<Vec<Prepared>>,
+    /// `(waveform, algorithm, p)` for the steps' own model orders.
+    ordered: Vec<((usize, usize, usize), Prepared)>,
+}
+
+impl PreparedSet {
+    /// The preparation for waveform `w`, algorithm `a` at a step whose model order is `p`.
+    fn get_mut(&mut self, w: usize, a: usize, p: Option<usize>) -> &mut Prepared {
+        if let Some(p) = p {
+            if let Some(i) = self.ordered.iter().position(|(k, _)| *k == (w, a, p)) {
+                return &mut self.ordered[i].1;
+            }
+        }
+        &mut self.base[w][a]
+    }
+}
+
+/// Prepares everything a plan needs (see [`PreparedSet`]).
 pub async fn prepare_all(
     plan: &Plan,
     bench: &BenchInfo,
     catalog: &Catalog,
-) -> Result<Vec<Vec<Prepared>>, CampaignError> {
+) -> Result<PreparedSet, CampaignError> {
     let planning = plan
         .bench
         .planning_bench(bench.file.as_ref().map(|(_, f)| f));
-    let mut out = Vec::with_capacity(plan.waveforms.len());
+    let mut base = Vec::with_capacity(plan.waveforms.len());
     for w in 0..plan.waveforms.len() {
         let first = capture::prepare(&planning, catalog, &plan.request(w)).await?;
         let mut all = Vec::with_capacity(plan.processing.len());
@@ -362,9 +383,23 @@ pub async fn prepare_all(
             all.push(first.with_options(o.clone()).await?);
         }
         all.insert(0, first);
-        out.push(all);
+        base.push(all);
     }
-    Ok(out)
+    let mut ordered: Vec<((usize, usize, usize), Prepared)> = Vec::new();
+    for step in &plan.steps {
+        let Some(p) = step.music_p else { continue };
+        for (a, o) in plan.processing.iter().enumerate() {
+            let key = (step.waveform, a, p);
+            if !o.algorithm.is_subspace() || ordered.iter().any(|(k, _)| *k == key) {
+                continue;
+            }
+            let mut options = o.clone();
+            options.music_p = Some(p);
+            let prepared = base[step.waveform][0].with_options(options).await?;
+            ordered.push((key, prepared));
+        }
+    }
+    Ok(PreparedSet { base, ordered })
 }
 
 /// An exclusive lock on the run folder for this process (released when dropped).
@@ -401,7 +436,7 @@ struct Runner {
     dir: PathBuf,
     manifest: Manifest,
     plan: Plan,
-    prepared: Vec<Vec<Prepared>>,
+    prepared: PreparedSet,
     /// The Tx attenuation each waveform's plan had before any step changed it.
     base_tx_attenuation: Vec<f64>,
     journal: Option<Journal>,
@@ -427,7 +462,7 @@ impl Runner {
     fn new(
         dir: PathBuf,
         manifest: Manifest,
-        prepared: Vec<Vec<Prepared>>,
+        prepared: PreparedSet,
         journal_path: PathBuf,
         permit: RfPermit,
         interrupt: Interrupt,
@@ -448,6 +483,7 @@ impl Runner {
         let n = plan.steps.len();
         Ok(Runner {
             base_tx_attenuation: prepared
+                .base
                 .iter()
                 .map(|p| p[0].plan.tx.attenuation_db)
                 .collect(),
@@ -510,7 +546,7 @@ impl Runner {
             if let Some(signal) = self.interrupt.received() {
                 return Err(CampaignError::Interrupted {
                     signal,
-                    where_: format!("before step {} of {n}", step.index),
+                    where_: format!("before step {} of {n}; nothing was radiating", step.index),
                 });
             }
             let result = self.measure_step(k, &step, observer).await?;
@@ -675,7 +711,7 @@ impl Runner {
         }
         observer.step_starting(step, n, &conn.bench);
         let w = step.waveform;
-        let primary = &mut self.prepared[w][0];
+        let primary = self.prepared.get_mut(w, 0, step.music_p);
         primary.plan.tx.attenuation_db = step
             .nominal
             .tx_attenuation_db
@@ -689,11 +725,23 @@ impl Runner {
                 &self.permit,
                 &self.interrupt,
             )
-            .await?;
+            .await
+            .map_err(|e| match e {
+                MeasureError::Interrupted { signal, report } => CampaignError::Interrupted {
+                    signal,
+                    where_: format!(
+                        "during step {} of {n}, which will be measured again (safe state: \
+                         {report})",
+                        step.index
+                    ),
+                },
+                other => other.into(),
+            })?;
         let bench_s = t_bench.elapsed().as_secs_f64();
         let t_proc = Instant::now();
-        let mut others = Vec::with_capacity(self.prepared[w].len() - 1);
-        for prepared in self.prepared[w][1..].iter_mut() {
+        let mut others = Vec::with_capacity(self.plan.processing.len() - 1);
+        for a in 1..self.plan.processing.len() {
+            let prepared = self.prepared.get_mut(w, a, step.music_p);
             others.push(capture::process_with(prepared, &m.captured).await?);
         }
         let processing_s = t_proc.elapsed().as_secs_f64();
@@ -795,7 +843,11 @@ impl Runner {
             .find(|s| s.status != StepStatus::Done)
             .map(|s| s.index);
         self.manifest.status = status;
-        self.manifest.reason = stopped.as_ref().map(|e| error_chain(e));
+        let n = self.plan.steps.len();
+        self.manifest.reason = stopped.as_ref().map(|e| match (e, first_pending) {
+            (CampaignError::Interrupted { .. }, _) | (_, None) => error_chain(e),
+            (_, Some(k)) => format!("step {k} of {n}: {}", error_chain(e)),
+        });
         self.manifest.stopped_at_step = stopped.as_ref().and(first_pending);
         self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
         let now = crate::time::rfc3339_millis(std::time::SystemTime::now());

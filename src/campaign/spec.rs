@@ -160,8 +160,10 @@ pub struct ProcessingSection {
     pub algorithms: Vec<Algorithm>,
     #[serde(default)]
     pub music_m: Option<usize>,
+    /// The subspace algorithms' model order: a number, or `"targets"` (each step's number of
+    /// targets, as the thesis set it by hand); estimated from the eigenvalues (MDL) when absent.
     #[serde(default)]
-    pub music_p: Option<usize>,
+    pub music_p: Option<ModelOrder>,
     #[serde(default)]
     pub forward_backward: Option<bool>,
     #[serde(default)]
@@ -182,6 +184,21 @@ pub struct ProcessingSection {
     pub min_range_m: Option<f64>,
     #[serde(default)]
     pub max_range_m: Option<f64>,
+}
+
+/// `processing.music_p`: a number of targets, or `"targets"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum ModelOrder {
+    Fixed(usize),
+    Named(ModelOrderName),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelOrderName {
+    /// The step's number of nominal targets.
+    Targets,
 }
 
 /// `[positioner]`: who places the targets.
@@ -411,7 +428,12 @@ fn line_of(text: &str, offset: usize) -> usize {
 
 /// A parser error as file:line:field and the parser's message (which names what is allowed).
 fn syntax_error(text: &str, path: &Path, e: &toml::de::Error) -> SpecError {
-    let message = e.message().trim().to_string();
+    let mut message = e.message().trim().to_string();
+    if message.contains("untagged enum ModelOrder") {
+        message = "allowed: a number of targets (1 or more, below music_m), or \"targets\" (each \
+                   step's number of targets)"
+            .into();
+    }
     let Some(span) = e.span() else {
         return SpecError::Field {
             path: path.to_path_buf(),
@@ -544,6 +566,22 @@ mod tests {
         assert_eq!(locate(text, "steps[1].targets[1]"), Some(9));
         assert_eq!(locate(text, "steps[0]"), Some(6));
         assert_eq!(locate(text, "seed"), None);
+    }
+
+    #[test]
+    fn the_model_order_is_a_number_or_targets() {
+        let f = parse("[processing]\nmusic_p = \"targets\"\n").unwrap();
+        assert_eq!(
+            f.spec.processing.music_p,
+            Some(ModelOrder::Named(ModelOrderName::Targets))
+        );
+        let f = parse("[processing]\nmusic_p = 2\n").unwrap();
+        assert_eq!(f.spec.processing.music_p, Some(ModelOrder::Fixed(2)));
+        let err = parse("[processing]\nmusic_p = \"many\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("c.toml:2: `processing.music_p`"), "{err}");
+        assert!(err.contains("\"targets\""), "{err}");
     }
 
     #[test]

@@ -3,8 +3,9 @@
 
 use crate::campaign::builtin;
 use crate::campaign::manifest::Status;
-use crate::campaign::plan::{self, BenchInfo, Step, WaveformCost};
-use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone};
+use crate::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
+use crate::campaign::results::{AlgorithmResult, TargetResult, Truth};
+use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
 use crate::campaign::{report, CampaignError, SpecFile};
 use crate::catalog::Catalog;
 use crate::driver::RfPermit;
@@ -12,8 +13,10 @@ use crate::exit::bad_input;
 use crate::measure::bench::Bench;
 use crate::measure::interrupt::Interrupt;
 use crate::measure::MeasureError;
+use serde::Serialize;
 use serde_json::json;
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -127,36 +130,82 @@ struct Printer {
     json: bool,
 }
 
+/// `{"event":"start",...}` before a step is captured.
+#[derive(Serialize)]
+struct StartEvent<'a> {
+    event: &'static str,
+    index: usize,
+    of: usize,
+    nominal: &'a Nominal,
+}
+
+/// `{"event":"step",...}` once a step is done.
+#[derive(Serialize)]
+struct StepEvent<'a> {
+    event: &'static str,
+    index: usize,
+    of: usize,
+    nominal: &'a Nominal,
+    /// The primary algorithm's targets.
+    targets: &'a [TargetResult],
+    error_m: Option<f64>,
+    primary: &'a str,
+    algorithms: &'a BTreeMap<String, AlgorithmResult>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    truth: Option<&'a Truth>,
+    repetitions: usize,
+    skipped: bool,
+    dir: &'a Path,
+}
+
+/// The last line: `{"event":"done","dir","status","summary"}`.
+#[derive(Serialize)]
+struct DoneEvent<'a> {
+    event: &'static str,
+    dir: &'a Path,
+    status: &'static str,
+    summary: &'a Summary,
+}
+
+fn line(v: &impl Serialize) -> String {
+    serde_json::to_string(v)
+        .unwrap_or_else(|e| format!("{{\"event\":\"error\",\"error\":\"{e}\"}}"))
+}
+
 impl Observer for Printer {
     fn step_starting(&mut self, step: &Step, of: usize, _bench: &Bench) {
         if self.json {
             println!(
                 "{}",
-                json!({"event": "start", "index": step.index, "of": of, "nominal": step.nominal})
+                line(&StartEvent {
+                    event: "start",
+                    index: step.index,
+                    of,
+                    nominal: &step.nominal,
+                })
             );
         }
     }
 
     fn step_done(&mut self, done: &StepDone<'_>) {
         let r = done.result;
-        let primary = r.algorithms.get(done.primary);
         if self.json {
-            let targets: Vec<_> = primary.map(|a| a.targets.clone()).unwrap_or_default();
+            let primary = r.algorithms.get(done.primary);
             println!(
                 "{}",
-                json!({
-                    "event": "step",
-                    "index": r.index,
-                    "of": done.of,
-                    "nominal": r.nominal,
-                    "targets": targets,
-                    "error_m": primary.and_then(|a| a.error_m),
-                    "primary": done.primary,
-                    "algorithms": r.algorithms,
-                    "truth": r.truth,
-                    "repetitions": r.repetitions,
-                    "skipped": done.skipped,
-                    "dir": done.dir,
+                line(&StepEvent {
+                    event: "step",
+                    index: r.index,
+                    of: done.of,
+                    nominal: &r.nominal,
+                    targets: primary.map_or(&[], |a| a.targets.as_slice()),
+                    error_m: primary.and_then(|a| a.error_m),
+                    primary: done.primary,
+                    algorithms: &r.algorithms,
+                    truth: r.truth.as_ref(),
+                    repetitions: r.repetitions,
+                    skipped: done.skipped,
+                    dir: &done.dir,
                 })
             );
         } else {
@@ -220,11 +269,11 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
     if json {
         println!(
             "{}",
-            json!({
-                "event": "done",
-                "dir": finished.dir,
-                "status": finished.status.name(),
-                "summary": finished.summary,
+            line(&DoneEvent {
+                event: "done",
+                dir: &finished.dir,
+                status: finished.status.name(),
+                summary: &finished.summary,
             })
         );
     } else {
@@ -267,6 +316,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     if a.dry_run {
         let prepared = run::prepare_all(&plan, &bench, &catalog).await?;
         let costs: Vec<WaveformCost> = prepared
+            .base
             .iter()
             .map(|p| {
                 let c = &p[0].plan;
