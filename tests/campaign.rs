@@ -1,0 +1,556 @@
+//! `radbench campaign` end to end on the built-in mock lab: the accuracy campaign and its
+//! results.json, SIGINT / SIGTERM then resume (earlier steps not captured again, results equal an
+//! uninterrupted run's), mock_lab dropping the AWG link mid-step, a tampered step file, dry run,
+//! spec errors, the prompt and command positioners, `campaign new`, the thesis' lab chapter.
+
+use radbench::campaign::manifest::{Manifest, Status};
+use radbench::campaign::plan::{self, BenchInfo, Step};
+use radbench::campaign::run::{self, NewRun, Observer, Quiet};
+use radbench::campaign::SpecFile;
+use radbench::catalog::Catalog;
+use radbench::driver::RfPermit;
+use radbench::exit::Classify;
+use radbench::measure::bench::Bench;
+use radbench::measure::interrupt::Interrupt;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_radbench");
+const C0: f64 = 299_792_458.0;
+/// Longest any one radbench invocation may take here.
+const LIMIT: Duration = Duration::from_secs(120);
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name)
+}
+
+/// Runs radbench with `args` and `stdin`; (exit code, stdout, stderr), bounded.
+async fn radbench(args: &[&str], stdin: &str) -> (i32, String, String) {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .expect("radbench runs");
+    let mut input = child.stdin.take().unwrap();
+    input.write_all(stdin.as_bytes()).await.unwrap();
+    drop(input);
+    let out = tokio::time::timeout(LIMIT, child.wait_with_output())
+        .await
+        .expect("radbench finishes in time")
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn read_json(path: &Path) -> Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Acquisitions in an I/O journal (the scope armed for a marker-triggered capture).
+fn acquisitions(journal: &Path) -> usize {
+    std::fs::read_to_string(journal)
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| l.contains("TRMD SINGLE;ARM"))
+        .count()
+}
+
+/// The uninterrupted accuracy run (spawned once, shared by the tests that compare with it).
+async fn reference() -> &'static (tempfile::TempDir, Value) {
+    static REFERENCE: tokio::sync::OnceCell<(tempfile::TempDir, Value)> =
+        tokio::sync::OnceCell::const_new();
+    REFERENCE
+        .get_or_init(|| async {
+            let dir = tempfile::tempdir().unwrap();
+            let out = dir.path().join("run");
+            let spec = example("accuracy.toml");
+            let (code, stdout, err) = radbench(
+                &[
+                    "campaign",
+                    "run",
+                    spec.to_str().unwrap(),
+                    "--allow-rf",
+                    "--json",
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
+                "",
+            )
+            .await;
+            assert_eq!(code, 0, "{err}");
+            let lines: Vec<Value> = stdout
+                .lines()
+                .map(|l| serde_json::from_str(l).unwrap())
+                .collect();
+            let steps: Vec<&Value> = lines.iter().filter(|l| l["event"] == "step").collect();
+            assert_eq!(steps.len(), 6, "{stdout}");
+            for (k, s) in steps.iter().enumerate() {
+                assert_eq!(s["index"], k + 1);
+                assert_eq!(s["of"], 6);
+                assert!(s["nominal"]["targets"][0]["range_m"].is_f64());
+                assert!(s["targets"][0]["range_m"].is_f64());
+            }
+            let done = lines.last().unwrap();
+            assert_eq!(done["event"], "done");
+            assert_eq!(done["status"], "complete");
+            assert_eq!(done["dir"], out.to_str().unwrap());
+            assert!(done["summary"]["max_abs_truth_error_m"].as_f64().unwrap() < 1e-3);
+            let results = read_json(&out.join("results.json"));
+            (dir, results)
+        })
+        .await
+}
+
+/// results.json holds the interface's schema.
+fn check_schema(results: &Value, steps: usize, algorithms: &[&str]) {
+    let list = results["steps"].as_array().expect("steps");
+    assert_eq!(list.len(), steps);
+    for (k, s) in list.iter().enumerate() {
+        assert_eq!(s["index"], k + 1);
+        assert!(s["nominal"].is_object());
+        assert!(s["repetitions"].as_u64().unwrap() >= 1);
+        assert!(s["truth"]["targets"][0]["range_m"].is_f64(), "{s}");
+        for name in algorithms {
+            let a = &s["algorithms"][name];
+            assert!(a.is_object(), "step {k} lacks {name}");
+            for key in ["width_3db_cm", "sidelobe_db", "error_m"] {
+                assert!(a.get(key).is_some(), "{name} lacks {key}");
+            }
+            for t in a["targets"].as_array().unwrap() {
+                assert!(t["range_m"].is_f64());
+                assert!(t.get("range_std_m").is_some());
+            }
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_accuracy_campaign_measures_within_a_millimetre() {
+    let (dir, results) = reference().await;
+    check_schema(results, 6, &["correlation"]);
+    let fs = 16e9;
+    let grid_bound = C0 / (4.0 * fs);
+    for s in results["steps"].as_array().unwrap() {
+        let a = &s["algorithms"]["correlation"];
+        let truth = a["truth_error_m"].as_f64().unwrap();
+        let on_grid = a["truth_error_on_grid_m"].as_f64().unwrap();
+        assert!(truth.abs() < 1e-3, "interpolated error {truth} m");
+        assert!(on_grid.abs() <= grid_bound, "on-grid error {on_grid} m");
+        assert!(a["error_m"].as_f64().unwrap().abs() < 1e-3);
+        assert!(a["error_on_grid_m"].as_f64().unwrap().abs() <= grid_bound);
+        assert_eq!(a["missed"], 0);
+    }
+    // The nominal ranges: 1.00 m, then 5 steps of 3 cm toward the radar.
+    let nominal: Vec<f64> = results["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["nominal"]["targets"][0]["range_m"].as_f64().unwrap())
+        .collect();
+    for (k, r) in nominal.iter().enumerate() {
+        assert!((r - (1.0 - 0.03 * k as f64)).abs() < 1e-9, "{nominal:?}");
+    }
+    // The manifest: complete, every file as hashed, the instruments identified.
+    let run = dir.path().join("run");
+    let m = Manifest::load(&run).unwrap();
+    assert_eq!(m.status, Status::Complete);
+    assert!(m.instruments.as_ref().unwrap().awg.contains("M8195A"));
+    for step in &m.steps {
+        assert!(step.applied.is_some());
+        assert!(step.files.len() >= 10, "{:?}", step.files);
+        for f in &step.files {
+            assert_eq!(f.check(&run), None);
+        }
+    }
+    for f in &m.files {
+        assert_eq!(f.check(&run), None, "{}", f.path.display());
+    }
+    assert!(run.join("report.md").is_file());
+    assert_eq!(acquisitions(&run.join("io-journal.jsonl")), 6);
+}
+
+/// Starts the accuracy campaign, sends `signal` once step 4 starts, checks the stop, optionally
+/// tampers with a finished step's file, resumes and compares with the uninterrupted run.
+async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
+    let (_, expected) = reference().await;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let spec = example("accuracy.toml");
+    let mut child = Command::new(BIN)
+        .args(["campaign", "run", spec.to_str().unwrap(), "--allow-rf", "--json"])
+        .arg("--out")
+        .arg(&out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let wait_for_step_4 = async {
+        while let Some(line) = lines.next_line().await.unwrap() {
+            let v: Value = serde_json::from_str(&line).unwrap();
+            if v["event"] == "start" && v["index"] == 4 {
+                return;
+            }
+        }
+        panic!("the campaign ended before step 4");
+    };
+    tokio::time::timeout(LIMIT, wait_for_step_4)
+        .await
+        .expect("step 4 starts");
+    let pid = child.id().unwrap().to_string();
+    assert!(std::process::Command::new("kill")
+        .args([signal, &pid])
+        .status()
+        .unwrap()
+        .success());
+    let status = tokio::time::timeout(LIMIT, child.wait())
+        .await
+        .expect("radbench stops")
+        .unwrap();
+    assert_eq!(status.code(), Some(code));
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.status, Status::Interrupted);
+    let stopped = m.stopped_at_step.unwrap();
+    assert!(stopped == 4 || stopped == 5, "stopped at {stopped}");
+    assert_eq!(m.exit_code, Some(code));
+    assert!(m.reason.as_ref().unwrap().contains(&signal[1..]), "{:?}", m.reason);
+    // The bench was put in its safe state after the last RF-on.
+    let journal = std::fs::read_to_string(out.join("io-journal.jsonl")).unwrap();
+    let last_on = journal.rfind(":OUTP1 ON").unwrap();
+    assert!(journal[last_on..].contains(":OUTP1 OFF"));
+    assert!(journal[last_on..].contains(":ABOR"));
+    let mut remeasure = Vec::new();
+    if tamper {
+        let f = out.join("step-002/C1.trc");
+        let mut bytes = std::fs::read(&f).unwrap();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 1;
+        std::fs::write(&f, bytes).unwrap();
+        remeasure.push(2);
+    }
+    let (rc, stdout, err) = radbench(
+        &["campaign", "resume", out.to_str().unwrap(), "--allow-rf", "--json"],
+        "",
+    )
+    .await;
+    assert_eq!(rc, 0, "{err}");
+    let done: Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(done["status"], "complete");
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.status, Status::Complete);
+    let session = &m.sessions[1];
+    let kept: Vec<usize> = (1..stopped).filter(|k| !remeasure.contains(k)).collect();
+    assert_eq!(session.skipped, kept);
+    assert_eq!(session.remeasured.len(), remeasure.len(), "{:?}", session.remeasured);
+    // Steps 1-3 (but a tampered one) were not captured again.
+    let resumed = out.join(&session.journal);
+    assert_eq!(acquisitions(&resumed), 6 - kept.len());
+    assert_eq!(read_json(&out.join("results.json")), *expected);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigint_during_step_4_then_resume_equals_an_uninterrupted_run() {
+    interrupt_then_resume("-INT", 130, false).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_then_a_tampered_step_is_measured_again_on_resume() {
+    interrupt_then_resume("-TERM", 143, true).await;
+}
+
+/// Drops the AWG's link in the middle of step `at` (the next reply of the step's lab is cut).
+struct DropAwgLink {
+    at: usize,
+    lab: Option<Arc<mock_lab::bench::Bench>>,
+}
+
+impl Observer for DropAwgLink {
+    fn step_starting(&mut self, step: &Step, _of: usize, bench: &Bench) {
+        if step.index == self.at {
+            let lab = bench.lab.as_ref().expect("the built-in lab");
+            lab.faults.drop_next_reply_midway();
+            self.lab = Some(lab.bench.clone());
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
+    let (_, expected) = reference().await;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let spec = SpecFile::load(&example("accuracy.toml")).unwrap();
+    let catalog = Catalog::embedded().unwrap();
+    let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+    let plan = plan::plan(&spec, &bench).unwrap();
+    let mut saboteur = DropAwgLink { at: 4, lab: None };
+    let finished = tokio::time::timeout(
+        LIMIT,
+        run::start(
+            NewRun {
+                spec,
+                bench,
+                plan,
+                out: out.clone(),
+                journal: None,
+                permit: RfPermit::granted_by_user(),
+                interrupt: Interrupt::never(),
+                input: None,
+            },
+            &mut saboteur,
+        ),
+    )
+    .await
+    .expect("the run ends")
+    .unwrap();
+    let err = finished.stopped.expect("the lost link stops the run");
+    assert_eq!(err.exit_class().code(), 3, "{err}");
+    assert_eq!(finished.status, Status::Interrupted);
+    assert!(saboteur.lab.unwrap().is_safe());
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.stopped_at_step, Some(4));
+    assert!(m.reason.unwrap().starts_with("step 4 of 6: "));
+    let finished = tokio::time::timeout(
+        LIMIT,
+        run::resume(
+            &out,
+            RfPermit::granted_by_user(),
+            false,
+            Interrupt::never(),
+            None,
+            &mut Quiet,
+        ),
+    )
+    .await
+    .expect("the resume ends")
+    .unwrap();
+    assert!(finished.stopped.is_none());
+    let journal = std::fs::read_to_string(out.join("io-journal-resume-1.jsonl")).unwrap();
+    // Steps 4-6 only, each uploading its waveform to its (fresh) lab.
+    assert_eq!(journal.matches("TRMD SINGLE;ARM").count(), 3);
+    assert_eq!(journal.matches(":TRAC1:DEF").count(), 3);
+    assert_eq!(read_json(&out.join("results.json")), *expected);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dry_run_sends_nothing_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("io.jsonl");
+    let out = dir.path().join("run");
+    let spec = example("accuracy.toml");
+    let (code, stdout, err) = radbench(
+        &[
+            "--trace-io",
+            journal.to_str().unwrap(),
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--dry-run",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    for k in 1..=6 {
+        assert!(stdout.contains(&format!("step {k}/6")), "{stdout}");
+    }
+    assert!(stdout.contains("estimated duration"));
+    assert!(stdout.contains("mock lab: targets at 0.8500 m"));
+    assert!(!out.exists());
+    assert_eq!(std::fs::read_to_string(&journal).unwrap_or_default(), "");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_spec_with_a_wrong_field_fails_with_file_line_field_and_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("bad.toml");
+    std::fs::write(
+        &spec,
+        "name = \"bad\"\n\n[sweep]\nparameter = \"position\"\nstart = 1.0\nstpe = -0.03\n",
+    )
+    .unwrap();
+    let (code, _, err) = radbench(
+        &["campaign", "run", spec.to_str().unwrap(), "--allow-rf"],
+        "",
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.toml:6: `sweep.stpe`"), "{err}");
+    assert!(err.contains("expected one of"), "{err}");
+    std::fs::write(
+        &spec,
+        "[sweep]\nparameter = \"position\"\nstart = 1.0\nstep = -0.03\ncount = 0\n",
+    )
+    .unwrap();
+    let (code, _, err) = radbench(
+        &["campaign", "run", spec.to_str().unwrap(), "--dry-run"],
+        "",
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.toml:5: `sweep.count`"), "{err}");
+}
+
+fn write_spec(dir: &Path, text: &str) -> PathBuf {
+    let p = dir.join("spec.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_prompt_positioner_waits_for_the_operator_on_stdin() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(
+        dir.path(),
+        "name = \"prompted\"\n[positioner]\nkind = \"prompt\"\n\
+         [[steps]]\ntargets = [1.0]\n[[steps]]\ntargets = [1.0]\n[[steps]]\ntargets = [0.97]\n",
+    );
+    let out = dir.path().join("run");
+    let (code, _, err) = radbench(
+        &[
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "\n\n",
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    // Steps 1 and 3 move the pillar; step 2 keeps it where it is.
+    assert_eq!(err.matches("RF is off. Place").count(), 2, "{err}");
+    assert!(err.contains("step 1/3: RF is off. Place target 1 at 1.0000 m"));
+    assert!(err.contains("step 3/3: RF is off. Place target 1 at 0.9700 m"));
+    // The end of the operator's input stops the campaign before its first capture.
+    let out = dir.path().join("run2");
+    let (code, _, err) = radbench(
+        &[
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    )
+    .await;
+    assert_eq!(code, 130, "{err}");
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.status, Status::Interrupted);
+    assert_eq!(m.stopped_at_step, Some(1));
+    assert!(m.reason.unwrap().contains("end of input"));
+    assert_eq!(acquisitions(&out.join("io-journal.jsonl")), 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_failing_positioner_command_stops_the_campaign_in_the_safe_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(
+        dir.path(),
+        "[positioner]\nkind = \"command\"\nprogram = \"sh\"\n\
+         args = [\"-c\", \"echo {position_m} >> moves.txt; test {step} -lt 2 || { echo stage jammed >&2; exit 7; }\"]\n\
+         timeout_s = 20\n[sweep]\nparameter = \"position\"\nvalues = [1.0, 0.97, 0.94]\n",
+    );
+    let out = dir.path().join("run");
+    let (code, stdout, err) = radbench(
+        &[
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--json",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    )
+    .await;
+    assert_eq!(code, 3, "{err}");
+    assert!(err.contains("stage jammed"), "{err}");
+    let moves = std::fs::read_to_string(dir.path().join("moves.txt")).unwrap();
+    assert_eq!(moves, "1\n0.97\n");
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.status, Status::Interrupted);
+    assert_eq!(m.stopped_at_step, Some(2));
+    assert!(m.reason.unwrap().contains("positioner"));
+    assert_eq!(acquisitions(&out.join("io-journal.jsonl")), 1);
+    let done: Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(done["event"], "done");
+    assert_eq!(done["status"], "interrupted");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn campaign_new_prints_the_examples() {
+    for kind in ["accuracy", "resolution", "single-target", "music", "link"] {
+        let (code, stdout, err) = radbench(&["campaign", "new", kind], "").await;
+        assert_eq!(code, 0, "{err}");
+        let file = std::fs::read_to_string(example(&format!("{kind}.toml"))).unwrap();
+        assert_eq!(stdout, file);
+        SpecFile::parse(&stdout, Path::new("new.toml")).unwrap();
+    }
+    let (code, _, err) = radbench(&["campaign", "new", "speed"], "").await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("accuracy"), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_thesis_lab_chapter_resolves_8_cm_at_2_ghz_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab");
+    let (code, stdout, err) = radbench(
+        &[
+            "campaign",
+            "thesis-lab",
+            "--json",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "",
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    let sections: Vec<&str> = rows.iter().map(|r| r["section"].as_str().unwrap()).collect();
+    assert_eq!(
+        sections,
+        ["4.4.1", "4.4.2", "4.4.3", "4.4.3", "4.5.1", "4.5.2", "4.5.2"]
+    );
+    for r in rows {
+        assert!(r["agrees"].as_bool().unwrap() || r["reason"].is_string(), "{r}");
+    }
+    // 4.4.3: the 8 cm pair is not resolved at 1 GHz and is at 2 GHz.
+    let res = read_json(&out.join("resolution/results.json"));
+    let resolved = |k: usize| res["steps"][k]["algorithms"]["correlation"]["resolved"].clone();
+    assert_eq!(res["steps"][0]["nominal"]["bandwidth_hz"], 1e9);
+    assert_eq!(resolved(0), false);
+    assert_eq!(res["steps"][1]["nominal"]["bandwidth_hz"], 2e9);
+    assert_eq!(resolved(1), true);
+    assert_eq!(rows[2]["agrees"], true);
+    assert_eq!(rows[3]["agrees"], true);
+    // 4.4.2 within the thesis' bound; 4.5.2's pair resolved by MUSIC with the thesis' p.
+    assert_eq!(rows[1]["agrees"], true);
+    assert_eq!(rows[6]["agrees"], true);
+    check_schema(&read_json(&out.join("music/results.json")), 2, &["fourier", "music"]);
+}
