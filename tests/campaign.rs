@@ -191,7 +191,13 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
     let out = dir.path().join("run");
     let spec = example("accuracy.toml");
     let mut child = Command::new(BIN)
-        .args(["campaign", "run", spec.to_str().unwrap(), "--allow-rf", "--json"])
+        .args([
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--json",
+        ])
         .arg("--out")
         .arg(&out)
         .stdin(Stdio::null())
@@ -229,7 +235,11 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
     let stopped = m.stopped_at_step.unwrap();
     assert!(stopped == 4 || stopped == 5, "stopped at {stopped}");
     assert_eq!(m.exit_code, Some(code));
-    assert!(m.reason.as_ref().unwrap().contains(&signal[1..]), "{:?}", m.reason);
+    assert!(
+        m.reason.as_ref().unwrap().contains(&signal[1..]),
+        "{:?}",
+        m.reason
+    );
     // The bench was put in its safe state after the last RF-on.
     let journal = std::fs::read_to_string(out.join("io-journal.jsonl")).unwrap();
     let last_on = journal.rfind(":OUTP1 ON").unwrap();
@@ -245,7 +255,13 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
         remeasure.push(2);
     }
     let (rc, stdout, err) = radbench(
-        &["campaign", "resume", out.to_str().unwrap(), "--allow-rf", "--json"],
+        &[
+            "campaign",
+            "resume",
+            out.to_str().unwrap(),
+            "--allow-rf",
+            "--json",
+        ],
         "",
     )
     .await;
@@ -257,7 +273,12 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
     let session = &m.sessions[1];
     let kept: Vec<usize> = (1..stopped).filter(|k| !remeasure.contains(k)).collect();
     assert_eq!(session.skipped, kept);
-    assert_eq!(session.remeasured.len(), remeasure.len(), "{:?}", session.remeasured);
+    assert_eq!(
+        session.remeasured.len(),
+        remeasure.len(),
+        "{:?}",
+        session.remeasured
+    );
     // Steps 1-3 (but a tampered one) were not captured again.
     let resumed = out.join(&session.journal);
     assert_eq!(acquisitions(&resumed), 6 - kept.len());
@@ -532,13 +553,19 @@ async fn the_thesis_lab_chapter_resolves_8_cm_at_2_ghz_only() {
     assert_eq!(code, 0, "{err}");
     let v: Value = serde_json::from_str(&stdout).unwrap();
     let rows = v["rows"].as_array().unwrap();
-    let sections: Vec<&str> = rows.iter().map(|r| r["section"].as_str().unwrap()).collect();
+    let sections: Vec<&str> = rows
+        .iter()
+        .map(|r| r["section"].as_str().unwrap())
+        .collect();
     assert_eq!(
         sections,
         ["4.4.1", "4.4.2", "4.4.3", "4.4.3", "4.5.1", "4.5.2", "4.5.2"]
     );
     for r in rows {
-        assert!(r["agrees"].as_bool().unwrap() || r["reason"].is_string(), "{r}");
+        assert!(
+            r["agrees"].as_bool().unwrap() || r["reason"].is_string(),
+            "{r}"
+        );
     }
     // 4.4.3: the 8 cm pair is not resolved at 1 GHz and is at 2 GHz.
     let res = read_json(&out.join("resolution/results.json"));
@@ -552,5 +579,105 @@ async fn the_thesis_lab_chapter_resolves_8_cm_at_2_ghz_only() {
     // 4.4.2 within the thesis' bound; 4.5.2's pair resolved by MUSIC with the thesis' p.
     assert_eq!(rows[1]["agrees"], true);
     assert_eq!(rows[6]["agrees"], true);
-    check_schema(&read_json(&out.join("music/results.json")), 2, &["fourier", "music"]);
+    check_schema(
+        &read_json(&out.join("music/results.json")),
+        2,
+        &["fourier", "music"],
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resume_refuses_a_recalibrated_bench_unless_forced() {
+    use mock_lab::server::launch::Transport;
+    let lab = tokio::time::timeout(
+        Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let bench_file = dir.path().join("bench.toml");
+    let calibrated = |delay: &str| {
+        format!(
+            "{}\n[calibration]\nsystem_delay_s = {delay}\n",
+            lab.bench_toml(Transport::Hislip, Transport::Vicp)
+        )
+    };
+    std::fs::write(&bench_file, calibrated("2.5e-9")).unwrap();
+    // A stage that jams at step 2 until the file `go` exists.
+    let spec_path = write_spec(
+        dir.path(),
+        "[bench]\nfile = \"bench.toml\"\n[positioner]\nkind = \"command\"\nprogram = \"sh\"\n\
+         args = [\"-c\", \"test -e go || test {step} -lt 2\"]\n\
+         [sweep]\nparameter = \"position\"\nvalues = [1.0, 0.97, 0.94]\n",
+    );
+    let spec = SpecFile::load(&spec_path).unwrap();
+    let catalog = Catalog::embedded().unwrap();
+    let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+    let plan = plan::plan(&spec, &bench).unwrap();
+    let out = dir.path().join("run");
+    let finished = tokio::time::timeout(
+        LIMIT,
+        run::start(
+            NewRun {
+                spec,
+                bench,
+                plan,
+                out: out.clone(),
+                journal: None,
+                permit: RfPermit::granted_by_user(),
+                interrupt: Interrupt::never(),
+                input: None,
+            },
+            &mut Quiet,
+        ),
+    )
+    .await
+    .unwrap()
+    .unwrap();
+    assert_eq!(finished.stopped.unwrap().exit_class().code(), 3);
+    assert!(lab.bench.is_safe());
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.stopped_at_step, Some(2));
+    assert!(
+        m.base_scene.is_some(),
+        "the lab's scene, read through its control channel"
+    );
+    assert!(m.bench_file.is_some());
+    std::fs::write(&bench_file, calibrated("2.6e-9")).unwrap();
+    let resume = |force: bool| {
+        let out = out.clone();
+        async move {
+            tokio::time::timeout(
+                LIMIT,
+                run::resume(
+                    &out,
+                    RfPermit::granted_by_user(),
+                    force,
+                    Interrupt::never(),
+                    None,
+                    &mut Quiet,
+                ),
+            )
+            .await
+            .unwrap()
+        }
+    };
+    let err = resume(false)
+        .await
+        .err()
+        .expect("a different calibration is refused");
+    assert_eq!(err.exit_class().code(), 2, "{err}");
+    assert!(err.to_string().contains("--force"), "{err}");
+    std::fs::write(dir.path().join("go"), "").unwrap();
+    let finished = resume(true).await.unwrap();
+    if let Some(e) = &finished.stopped {
+        panic!("{e}");
+    }
+    let m = Manifest::load(&out).unwrap();
+    assert_eq!(m.status, Status::Complete);
+    assert_eq!(m.sessions[1].skipped, [1]);
+    assert!(m.sessions[1].forced.as_ref().unwrap().contains("2.6000 ns"));
+    assert!(lab.bench.is_safe());
 }

@@ -68,7 +68,7 @@ pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;
 pub use safe_state::{
-    install_panic_hook, run_guarded, set_panic_safe_state, Outcome, SafeState, SafeStateGuard,
-    SafeStateReport,
+    clear_panic_safe_state, install_panic_hook, run_guarded, set_panic_safe_state, Outcome,
+    SafeState, SafeStateGuard, SafeStateReport,
 };
 pub use scripted::{ScriptLog, Scripted};

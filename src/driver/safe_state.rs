@@ -277,19 +277,21 @@ pub async fn run_guarded<T, I>(
     (outcome, report)
 }
 
+/// The safe state the process-wide panic hook engages (see [`set_panic_safe_state`]).
+static PANIC_SAFE_STATE: std::sync::Mutex<Option<SafeState>> = std::sync::Mutex::new(None);
+
 /// Makes a panic run the safe state of the bench connected last (quick attempt; the guard
 /// retries during unwinding), then the previous hook. One hook per process: a program that
 /// connects again and again (a campaign starts a fresh simulated lab for each step) replaces the
 /// state the hook engages instead of piling up hooks that keep old connections alive.
 pub fn set_panic_safe_state(state: SafeState) {
-    static CURRENT: std::sync::Mutex<Option<SafeState>> = std::sync::Mutex::new(None);
     static INSTALL: std::sync::Once = std::sync::Once::new();
-    *CURRENT.lock().unwrap_or_else(|p| p.into_inner()) = Some(state);
+    *PANIC_SAFE_STATE.lock().unwrap_or_else(|p| p.into_inner()) = Some(state);
     INSTALL.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             // try_lock: a panic while the slot is being replaced must not deadlock the hook.
-            let state = match CURRENT.try_lock() {
+            let state = match PANIC_SAFE_STATE.try_lock() {
                 Ok(g) => g.clone(),
                 Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner().clone(),
                 Err(std::sync::TryLockError::WouldBlock) => None,
@@ -301,6 +303,18 @@ pub fn set_panic_safe_state(state: SafeState) {
             previous(info);
         }));
     });
+}
+
+/// Forgets `state` in the panic hook when it is the one the hook would engage (its bench is being
+/// closed: the hook must not keep its connections, e.g. a serial port, open).
+pub fn clear_panic_safe_state(state: &SafeState) {
+    let mut slot = PANIC_SAFE_STATE.lock().unwrap_or_else(|p| p.into_inner());
+    if slot
+        .as_ref()
+        .is_some_and(|s| Arc::ptr_eq(&s.inner, &state.inner))
+    {
+        *slot = None;
+    }
 }
 
 /// Makes a panic run the safe state (quick attempt; the guard retries during unwinding), then

@@ -451,6 +451,13 @@ impl Station {
     }
 }
 
+impl Drop for Station {
+    fn drop(&mut self) {
+        // The panic hook must not keep this bench's links (a serial port) open after it closes.
+        crate::driver::clear_panic_safe_state(&self.safe);
+    }
+}
+
 /// What one acquisition brought back.
 pub struct Acquired {
     /// One I/Q pair per repetition.
