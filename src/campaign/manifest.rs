@@ -135,13 +135,17 @@ pub struct Session {
 /// Where a session's time went, seconds.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Timing {
-    /// Connecting, positioning, uploading and capturing (the instruments' time).
+    /// Generating the waveforms and building every pipeline, once (what a single capture does
+    /// too).
+    #[serde(default)]
+    pub prepare_s: f64,
+    /// Connecting, positioning, uploading, capturing, and processing with the primary algorithm.
     pub bench_s: f64,
-    /// Processing every algorithm.
+    /// Processing with the further algorithms.
     pub processing_s: f64,
-    /// Writing the steps' capture and profile files.
+    /// Writing the steps' capture and profile files (as `radbench capture` writes them).
     pub files_s: f64,
-    /// The campaign's own work: planning, preparing, hashing, manifest, results, report.
+    /// The campaign's own work: the run folder, hashing, manifest, results, report.
     pub overhead_s: f64,
 }
 

@@ -9,12 +9,14 @@
 //!
 //! Reproducibility on a simulated bench: every step sets the scene's noise seed from the campaign
 //! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. mock_lab
-//! seeds its noise generator only when the lab starts (the control channel's `set` changes the
-//! scene's `seed` field but not the running generator), so on the built-in lab each step runs on
-//! a fresh lab started with its step's scene: a new connection and an upload per step (about
-//! 30 ms). A bench file's `mock-lab serve` cannot be restarted from here: its noise continues
-//! from capture to capture, and a resumed run on it differs from an uninterrupted one in the
-//! noise (docs/campaign.md).
+//! seeds its noise generator when the lab starts; the control channel's `set` changes the scene's
+//! `seed` field but not the running generator. The runner asks the lab once for
+//! `{"cmd":"seed","seed":N}` (reseed the generator now): a lab that does it keeps one connection
+//! for the whole run and is reseeded at each step. Today's mock_lab refuses it, so on the
+//! built-in lab each step runs on a fresh lab started with its step's scene: a new connection and
+//! an upload per step (about 40 ms). A bench file's `mock-lab serve` cannot be restarted from
+//! here: its noise continues from capture to capture, and a resumed run on it differs from an
+//! uninterrupted one in the noise (the runner says so; docs/campaign.md).
 //!
 //! Stop paths: a stop signal during a capture is handled by the measurement's guard (safe state,
 //! then [`MeasureError::Interrupted`]); between steps nothing radiates and the loop checks for a
@@ -134,9 +136,11 @@ pub struct NewRun {
 /// Starts a new run. Errors before the run folder exists (a plan the instruments cannot play)
 /// come back as `Err`; once it exists, every stop is recorded and returned in [`Finished`].
 pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished, CampaignError> {
-    let t0 = Instant::now();
+    let t_prepare = Instant::now();
     let catalog = Catalog::embedded().map_err(MeasureError::from)?;
     let prepared = prepare_all(&run.plan, &run.bench, &catalog).await?;
+    let prepare_s = t_prepare.elapsed().as_secs_f64();
+    let t0 = Instant::now();
     let out = run.out.clone();
     if out.exists() {
         let empty = std::fs::read_dir(&out).map_err(io(&out))?.next().is_none();
@@ -212,6 +216,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         false,
     )?;
     runner.timing.overhead_s += t0.elapsed().as_secs_f64();
+    runner.timing.prepare_s = prepare_s;
     let finished = runner.execute(observer).await;
     drop(lock);
     finished
@@ -228,6 +233,8 @@ pub async fn resume(
 ) -> Result<Finished, CampaignError> {
     let t0 = Instant::now();
     let lock = lock(dir)?;
+    // TODO(storage::atomic::remove_stale_temporaries): once that function is merged, call it on
+    // `dir` and each step folder here: a run killed mid-write leaves `.<name>.tmp-<pid>` files.
     let mut manifest = Manifest::load(dir)?;
     if manifest.status == Status::Complete {
         return Err(CampaignError::Complete {
@@ -278,7 +285,9 @@ pub async fn resume(
         tx_attenuation_db: None,
     };
     let catalog = Catalog::embedded().map_err(MeasureError::from)?;
+    let t_prepare = Instant::now();
     let prepared = prepare_all(&plan, &info, &catalog).await?;
+    let prepare_s = t_prepare.elapsed().as_secs_f64();
     // Completed steps are kept only when every file is as it was written.
     let mut remeasured = Vec::new();
     for rec in manifest.steps.iter_mut() {
@@ -325,7 +334,8 @@ pub async fn resume(
     for note in runner.manifest.session_mut().remeasured.clone() {
         observer.note(&note);
     }
-    runner.timing.overhead_s += t0.elapsed().as_secs_f64();
+    runner.timing.overhead_s += t0.elapsed().as_secs_f64() - prepare_s;
+    runner.timing.prepare_s = prepare_s;
     let finished = runner.execute(observer).await;
     drop(lock);
     finished
@@ -450,6 +460,10 @@ struct Runner {
     first_placement: bool,
     /// Whether this session has checked the instruments' identities.
     identified: bool,
+    /// Whether the simulated lab reseeds its noise on request (`None`: not asked yet).
+    reseed: Option<bool>,
+    /// Whether the user was told that the noise will not be reproducible.
+    warned_noise: bool,
     force: bool,
     results: Vec<Option<StepResult>>,
     measured: usize,
@@ -499,6 +513,8 @@ impl Runner {
             connection: None,
             first_placement: true,
             identified: false,
+            reseed: None,
+            warned_noise: false,
             force,
             results: vec![None; n],
             measured: 0,
@@ -623,8 +639,9 @@ impl Runner {
     /// instruments once.
     async fn connect(&mut self, step: &Step) -> Result<(), CampaignError> {
         let built_in = self.plan.bench.file.is_none();
-        if built_in {
-            // Close the previous lab's links before its servers go.
+        if built_in && (self.reseed != Some(true) || self.connection.is_none()) {
+            // A fresh lab per step unless it can reseed its noise (see the module docs). Close
+            // the previous lab's links before its servers go.
             self.connection = None;
             let scene = self.step_scene(step).unwrap_or_default();
             let bench = Bench::open(BenchSource::BuiltIn(self.plan.bench.built_in(scene))).await?;
@@ -635,6 +652,17 @@ impl Runner {
             let bench = Bench::open(BenchSource::File(path)).await?;
             let rig = Rig::connect(&bench, &catalog()?, self.journal.clone()).await?;
             self.connection = Some(Connection { bench, rig });
+        }
+        if self.plan.bench.simulated && self.reseed.is_none() {
+            // Does the lab reseed its noise on request? (mock_lab's `seed` control request; a lab
+            // without it refuses and changes nothing.)
+            let conn = self.connection.as_ref().expect("connected");
+            let seed = step.noise_seed.unwrap_or(self.plan.seed);
+            let reply = conn
+                .bench
+                .control(&json!({"cmd": "seed", "seed": seed}))
+                .await;
+            self.reseed = Some(matches!(reply, Some(Ok(_))));
         }
         if !self.identified {
             self.identified = true;
@@ -695,17 +723,33 @@ impl Runner {
             self.first_placement = false;
         }
         let scene = self.step_scene(step);
+        let reseeds = self.reseed == Some(true);
+        // A built-in lab started afresh for this step already has its scene.
+        let started_with_scene = self.plan.bench.file.is_none() && !reseeds;
+        if !reseeds && !started_with_scene && !self.warned_noise {
+            self.warned_noise = true;
+            observer.note(
+                "note: this simulated bench cannot reseed its noise per step (it refused \
+                 {\"cmd\":\"seed\"}): a resumed run will differ from an uninterrupted one in \
+                 the noise",
+            );
+        }
         let conn = self.connection.as_mut().expect("connected");
-        if let (Some(scene), false) = (scene, self.plan.bench.file.is_none()) {
-            // A bench file's simulated lab (the built-in lab started with this scene).
-            let request = json!({"cmd": "set", "scene": scene});
-            match conn.bench.control(&request).await {
-                Some(Ok(_)) => {}
-                Some(Err(e)) => return Err(CampaignError::Control(e)),
-                None => {
-                    return Err(CampaignError::Control(
-                        "the bench file has no [simulation] control address".into(),
-                    ))
+        if let (Some(scene), false) = (scene, started_with_scene) {
+            let seed = scene.seed;
+            let mut requests = vec![json!({"cmd": "set", "scene": scene})];
+            if reseeds {
+                requests.push(json!({"cmd": "seed", "seed": seed}));
+            }
+            for request in requests {
+                match conn.bench.control(&request).await {
+                    Some(Ok(_)) => {}
+                    Some(Err(e)) => return Err(CampaignError::Control(e)),
+                    None => {
+                        return Err(CampaignError::Control(
+                            "the bench file has no [simulation] control address".into(),
+                        ))
+                    }
                 }
             }
         }
@@ -812,6 +856,14 @@ impl Runner {
         self.timing.processing_s += processing_s;
         self.timing.files_s += files_s;
         self.timing.overhead_s += t_over.elapsed().as_secs_f64();
+        tracing::debug!(
+            step = step.index,
+            bench_s,
+            processing_s,
+            files_s,
+            bookkeeping_s = t_over.elapsed().as_secs_f64(),
+            "step timing"
+        );
         self.manifest.session_mut().timing = self.timing.clone();
         self.manifest.store(&self.dir)?;
         Ok(result)
