@@ -236,9 +236,9 @@ fn step_line(done: &StepDone<'_>) -> String {
             }
         );
         if let Some(e) = a.error_m {
-            s += &format!(" (error {:+.2} mm", e * 1e3);
+            s += &format!(" (error {:+.3} mm", e * 1e3);
             if let Some(g) = a.error_on_grid_m {
-                s += &format!(", on the grid {:+.2} mm", g * 1e3);
+                s += &format!(", on the grid {:+.3} mm", g * 1e3);
             }
             s += ")";
         }
@@ -278,7 +278,7 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
         );
     } else {
         let s = &finished.summary;
-        let mm = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.2} mm", x * 1e3));
+        let mm = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.3} mm", x * 1e3));
         match finished.status {
             Status::Complete => println!(
                 "complete: {} steps ({} measured, {} kept from before); largest error {} (vs \
