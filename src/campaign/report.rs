@@ -2,7 +2,7 @@
 //! report RUN_DIR` can write it again at any time).
 //!
 //! This is the minimal report: a Markdown table of the steps. The full report (plots, HTML) builds
-//! on the same two files and replaces [`write`]'s body.
+//! on the same two files and replaces [`write()`]'s body.
 
 use super::manifest::Manifest;
 use super::results::Results;
