@@ -181,6 +181,8 @@ async fn the_accuracy_campaign_measures_within_a_millimetre() {
     }
     assert!(run.join("report.md").is_file());
     assert_eq!(acquisitions(&run.join("io-journal.jsonl")), 6);
+    let last = m.sessions[0].final_safe_state.as_deref().unwrap();
+    assert!(!last.contains("failed"), "{last}");
 }
 
 /// Starts the accuracy campaign, sends `signal` once step 4 starts, checks the stop, optionally

@@ -128,6 +128,9 @@ pub struct Session {
     /// `--force`: what differed and was accepted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forced: Option<String>,
+    /// The safe-state sequence run on the bench at the end of the session (step by step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_safe_state: Option<String>,
     #[serde(default)]
     pub timing: Timing,
 }

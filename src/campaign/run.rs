@@ -350,6 +350,7 @@ fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
         skipped: Vec::new(),
         remeasured: Vec::new(),
         forced: None,
+        final_safe_state: None,
         timing: Timing::default(),
     }
 }
@@ -529,9 +530,19 @@ impl Runner {
         self.manifest.store(&self.dir)?;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
         let stopped = self.steps(observer).await.err();
-        // Nothing radiates between measurements; the last measurement's guard ran the safe
-        // state. Dropping the connection closes the links (and stops a built-in lab).
-        self.connection = None;
+        // Nothing radiates between measurements and every measurement's guard ran the safe
+        // state; run it once more on whatever is connected (a bench found in an unknown state
+        // and left by an error before its first capture), then close the links.
+        if let Some(conn) = self.connection.take() {
+            let report = conn.rig.safe_state().engage().await;
+            if !report.is_safe() {
+                observer.note(&format!(
+                    "WARNING: the final safe state did not complete: {report}; switch the bench \
+                     off by hand"
+                ));
+            }
+            self.manifest.session_mut().final_safe_state = Some(report.to_string());
+        }
         let t = Instant::now();
         let outcome = self.finish(stopped).await;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
