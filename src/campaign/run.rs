@@ -232,6 +232,8 @@ pub async fn resume(
     observer: &mut dyn Observer,
 ) -> Result<Finished, CampaignError> {
     let t0 = Instant::now();
+    // A run folder at all? (Before the lock file is created in it.)
+    Manifest::load(dir)?;
     let lock = lock(dir)?;
     // TODO(storage::atomic::remove_stale_temporaries): once that function is merged, call it on
     // `dir` and each step folder here: a run killed mid-write leaves `.<name>.tmp-<pid>` files.
