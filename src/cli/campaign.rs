@@ -357,10 +357,21 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         return Err(MeasureError::NoPermit.into());
     }
     let interrupt = Interrupt::listen()?;
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| super::capture::default_out(&plan.name));
+    let out = a.out.clone().unwrap_or_else(|| {
+        // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`.
+        let name: String = plan
+            .name
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                    c
+                } else {
+                    '-'
+                }
+            })
+            .collect();
+        super::capture::default_out(&name)
+    });
     if plan.bench.file.is_none() {
         eprintln!(
             "no bench file: running on the built-in mock lab (simulated, in-process on 127.0.0.1)"
