@@ -11,9 +11,13 @@
 //! | `{"cmd":"add","target":{"range_m":2.0,"amplitude":0.3}}` | add a target; reply has its `"index"` |
 //! | `{"cmd":"remove","target":1}` | remove target 1 |
 //! | `{"cmd":"snr","snr_db":15.0}` | change the SNR |
+//! | `{"cmd":"seed","seed":7}` | restart the noise and jitter generator from this seed |
 //! | `{"cmd":"last_capture"}` | `{"ok":true,"captures":N,"scene":{...}}`: the scene of the last capture |
 //!
 //! Errors reply `{"ok":false,"error":"..."}` and change nothing.
+//!
+//! `set` and `seed` restart the noise generator from the scene's seed, so the captures that follow
+//! are the same whatever was captured before (a campaign step replays identically when resumed).
 
 use crate::scene::{Scene, Target};
 use serde::Deserialize;
@@ -29,6 +33,8 @@ use tokio::net::TcpListener;
 pub struct SharedScene {
     scene: Mutex<Scene>,
     last: Mutex<(u64, Option<Scene>)>,
+    /// A seed the noise generator must restart from before the next capture.
+    reseed: Mutex<Option<u64>>,
 }
 
 impl SharedScene {
@@ -36,12 +42,18 @@ impl SharedScene {
         Arc::new(Self {
             scene: Mutex::new(scene),
             last: Mutex::new((0, None)),
+            reseed: Mutex::new(None),
         })
     }
 
     /// The scene now.
     pub fn snapshot(&self) -> Scene {
         lock(&self.scene).clone()
+    }
+
+    /// The seed the noise generator must restart from, once (after `set` or `seed`).
+    pub fn take_reseed(&self) -> Option<u64> {
+        lock(&self.reseed).take()
     }
 
     /// Records that a capture was made with `scene`.
@@ -68,7 +80,7 @@ impl SharedScene {
         let req: Request = serde_json::from_str(line).map_err(|e| {
             format!(
                 "bad request ({e}); send one JSON object per line with \"cmd\" one of get, set, \
-                 move, add, remove, snr, last_capture"
+                 move, add, remove, snr, seed, last_capture"
             )
         })?;
         if let Request::Get = req {
@@ -81,8 +93,16 @@ impl SharedScene {
         let mut guard = lock(&self.scene);
         let mut next = guard.clone();
         let mut reply = json!({"ok": true});
+        let mut reseed = None;
         match req {
-            Request::Set { scene } => next = scene,
+            Request::Set { scene } => {
+                reseed = Some(scene.seed);
+                next = scene;
+            }
+            Request::Seed { seed } => {
+                next.seed = seed;
+                reseed = Some(seed);
+            }
             Request::Move { target, range_m } => {
                 let n = next.targets.len();
                 let t = next
@@ -109,6 +129,9 @@ impl SharedScene {
         }
         next.validate().map_err(|e| e.to_string())?;
         *guard = next;
+        if reseed.is_some() {
+            *lock(&self.reseed) = reseed;
+        }
         Ok(reply)
     }
 }
@@ -127,6 +150,7 @@ enum Request {
     Add { target: Target },
     Remove { target: usize },
     Snr { snr_db: f64 },
+    Seed { seed: u64 },
     LastCapture,
 }
 

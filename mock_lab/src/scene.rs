@@ -313,6 +313,11 @@ impl Synthesizer {
         }
     }
 
+    /// Restarts the noise and jitter generator from `seed`.
+    pub fn reseed(&mut self, seed: u64) {
+        self.rng = SplitMix64::new(seed);
+    }
+
     fn plan(&mut self, len: usize, inverse: bool) -> Arc<dyn Fft<f64>> {
         let planner = &mut self.planner;
         self.plans
