@@ -20,7 +20,7 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
-use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpListener;
 
 /// The scene shared by the emulators and the control channel, with the ground truth of the last
@@ -133,6 +133,68 @@ enum Request {
 /// Longest request line accepted (a whole scene with many targets fits easily).
 const MAX_LINE: usize = 1 << 20;
 
+/// One line read from a control client.
+#[derive(Debug, PartialEq, Eq)]
+enum Line {
+    /// A request (without its LF); the last one may lack its LF when the client closed.
+    Request(Vec<u8>),
+    /// A line over [`MAX_LINE`]: read to its end and dropped whole, none of it runs.
+    TooLong,
+    /// The client closed.
+    End,
+}
+
+/// Reads one line of at most `MAX_LINE` bytes, holding no more than that in memory; an over-long
+/// line is skipped to its LF so that its tail is never taken for the next request.
+async fn read_request<R: AsyncBufRead + Unpin>(rd: &mut R) -> std::io::Result<Line> {
+    let mut line = Vec::new();
+    let mut too_long = false;
+    loop {
+        let available = rd.fill_buf().await?;
+        if available.is_empty() {
+            return Ok(match (too_long, line.is_empty()) {
+                (true, _) => Line::TooLong,
+                (false, true) => Line::End,
+                (false, false) => Line::Request(line),
+            });
+        }
+        let (chunk, found) = match available.iter().position(|&b| b == b'\n') {
+            Some(i) => (&available[..i], Some(i + 1)),
+            None => (available, None),
+        };
+        if !too_long && line.len() + chunk.len() <= MAX_LINE {
+            line.extend_from_slice(chunk);
+        } else {
+            too_long = true;
+            line = Vec::new();
+        }
+        let used = found.unwrap_or(available.len());
+        rd.consume(used);
+        if found.is_some() {
+            return Ok(if too_long {
+                Line::TooLong
+            } else {
+                Line::Request(line)
+            });
+        }
+    }
+}
+
+/// The reply to one line.
+fn answer(shared: &SharedScene, line: Line) -> Option<Value> {
+    match line {
+        Line::End => None,
+        Line::TooLong => Some(json!({
+            "ok": false,
+            "error": format!("request longer than {MAX_LINE} bytes: ignored whole, nothing changed")
+        })),
+        Line::Request(bytes) => Some(match std::str::from_utf8(&bytes) {
+            Ok(text) => shared.apply(text.trim()),
+            Err(_) => json!({"ok": false, "error": "request is not UTF-8 text: nothing changed"}),
+        }),
+    }
+}
+
 /// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns the bound
 /// address at once and serves until the runtime shuts down.
 pub async fn serve(shared: Arc<SharedScene>, addr: SocketAddr) -> std::io::Result<SocketAddr> {
@@ -140,24 +202,22 @@ pub async fn serve(shared: Arc<SharedScene>, addr: SocketAddr) -> std::io::Resul
     let local = listener.local_addr()?;
     tokio::spawn(async move {
         loop {
-            let Ok((stream, _)) = listener.accept().await else {
-                continue;
+            let stream = match listener.accept().await {
+                Ok((stream, _)) => stream,
+                Err(err) => {
+                    // Typically EMFILE: back off instead of spinning.
+                    tracing::warn!("control channel: accept failed: {err}");
+                    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                    continue;
+                }
             };
             let shared = shared.clone();
             tokio::spawn(async move {
                 let (rd, mut wr) = stream.into_split();
                 let mut rd = BufReader::new(rd);
-                let mut line = String::new();
-                loop {
-                    line.clear();
-                    match (&mut rd).take(MAX_LINE as u64).read_line(&mut line).await {
-                        Ok(0) | Err(_) => break,
-                        Ok(_) => {}
-                    }
-                    let reply = if line.ends_with('\n') {
-                        shared.apply(line.trim())
-                    } else {
-                        json!({"ok": false, "error": format!("request longer than {MAX_LINE} bytes")})
+                while let Ok(line) = read_request(&mut rd).await {
+                    let Some(reply) = answer(&shared, line) else {
+                        break;
                     };
                     let mut text = reply.to_string();
                     text.push('\n');
@@ -240,5 +300,86 @@ mod tests {
         assert_eq!(v["scene"]["targets"][0]["range_m"], 1.5);
         let v = ask(&mut wr, &mut rd, r#"{"cmd":"fly"}"#).await;
         assert_eq!(v["ok"], false);
+    }
+
+    #[tokio::test]
+    async fn a_100_mib_line_is_dropped_whole_and_its_tail_never_runs() {
+        use tokio::io::AsyncReadExt;
+        let shared = SharedScene::new(Scene::default());
+        let tail = br#"{"cmd":"snr","snr_db":3.0}"#;
+        // 100 MiB of spaces, then a valid request on the same line, then a real next request:
+        // streamed, never held in memory.
+        let input = tokio::io::repeat(b' ')
+            .take(100 << 20)
+            .chain(&tail[..])
+            .chain(&b"\n{\"cmd\":\"get\"}\n"[..]);
+        let mut rd = BufReader::new(input);
+        let first = read_request(&mut rd).await.unwrap();
+        assert_eq!(first, Line::TooLong);
+        let reply = answer(&shared, first).unwrap();
+        assert!(
+            reply["error"].as_str().unwrap().contains("longer than"),
+            "{reply}"
+        );
+        assert_eq!(shared.snapshot().snr_db, Scene::default().snr_db);
+        let next = read_request(&mut rd).await.unwrap();
+        assert_eq!(answer(&shared, next).unwrap()["ok"], true);
+        assert_eq!(read_request(&mut rd).await.unwrap(), Line::End);
+    }
+
+    #[tokio::test]
+    async fn lines_at_the_limit_unterminated_and_not_utf8() {
+        let shared = SharedScene::new(Scene::default());
+        let request = br#"{"cmd":"snr","snr_db":12.0}"#;
+        let mut at_limit = vec![b' '; MAX_LINE - request.len()];
+        at_limit.extend_from_slice(request);
+        at_limit.extend_from_slice(b"\n\xff\xfe\n{\"cmd\":\"get\"}");
+        let mut rd = BufReader::with_capacity(4096, &at_limit[..]);
+        let line = read_request(&mut rd).await.unwrap();
+        assert_eq!(answer(&shared, line).unwrap()["ok"], true);
+        assert_eq!(shared.snapshot().snr_db, 12.0);
+        let line = read_request(&mut rd).await.unwrap();
+        let reply = answer(&shared, line).unwrap();
+        assert!(
+            reply["error"].as_str().unwrap().contains("UTF-8"),
+            "{reply}"
+        );
+        // The last request may lack its LF when the client closes.
+        let line = read_request(&mut rd).await.unwrap();
+        assert_eq!(answer(&shared, line).unwrap()["ok"], true);
+        assert_eq!(read_request(&mut rd).await.unwrap(), Line::End);
+    }
+
+    #[tokio::test]
+    async fn over_long_line_over_loopback_changes_nothing_and_the_session_goes_on() {
+        let shared = SharedScene::new(Scene::default());
+        let addr = serve(shared.clone(), "127.0.0.1:0".parse().unwrap())
+            .await
+            .unwrap();
+        let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
+            .await
+            .unwrap()
+            .unwrap();
+        let (rd, mut wr) = stream.into_split();
+        let mut rd = BufReader::new(rd);
+        let mut long = vec![b' '; 3 * MAX_LINE];
+        long.extend_from_slice(b"{\"cmd\":\"snr\",\"snr_db\":3.0}\n");
+        let writer = tokio::spawn(async move {
+            wr.write_all(&long).await.unwrap();
+            wr
+        });
+        let mut line = String::new();
+        tokio::time::timeout(Duration::from_secs(20), rd.read_line(&mut line))
+            .await
+            .expect("reply within 20 s")
+            .unwrap();
+        let v: Value = serde_json::from_str(&line).unwrap();
+        assert_eq!(v["ok"], false, "{v}");
+        let mut wr = tokio::time::timeout(Duration::from_secs(20), writer)
+            .await
+            .unwrap()
+            .unwrap();
+        let v = ask(&mut wr, &mut rd, r#"{"cmd":"get"}"#).await;
+        assert_eq!(v["scene"]["snr_db"], Scene::default().snr_db);
     }
 }
