@@ -12,13 +12,19 @@
 //! | `{"cmd":"remove","target":1}` | remove target 1 |
 //! | `{"cmd":"snr","snr_db":15.0}` | change the SNR |
 //! | `{"cmd":"last_capture"}` | `{"ok":true,"captures":N,"scene":{...}}`: the scene of the last capture |
+//! | `{"cmd":"scope_remote","interface":"vxi11"}` | switch the scope's remote interface (`vicp` or `vxi11`); replies once only that endpoint accepts connections |
+//! | `{"cmd":"endpoints"}` | `{"ok":true,"endpoints":[...]}`: every endpoint now, with `active` |
 //!
-//! Errors reply `{"ok":false,"error":"..."}` and change nothing.
+//! Errors reply `{"ok":false,"error":"..."}` and change nothing. A line longer than 1 MiB is
+//! read to its end and refused whole.
 
+use crate::emulator::lecroy::RemoteInterface;
 use crate::scene::{Scene, Target};
 use serde::Deserialize;
 use serde_json::{json, Value};
+use std::future::Future;
 use std::net::SocketAddr;
+use std::pin::Pin;
 use std::sync::{Arc, Mutex, MutexGuard};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpListener;
@@ -56,21 +62,13 @@ impl SharedScene {
         lock(&self.last).clone()
     }
 
-    /// Applies one control request and returns the reply (never panics on bad input).
+    /// Applies one scene request and returns the reply (never panics on bad input). The lab's
+    /// own requests (`scope_remote`, `endpoints`) need the control channel's [`Panel`].
     pub fn apply(&self, line: &str) -> Value {
-        match self.try_apply(line) {
-            Ok(v) => v,
-            Err(e) => json!({"ok": false, "error": e}),
-        }
+        reply(parse(line).and_then(|req| self.try_apply(req)))
     }
 
-    fn try_apply(&self, line: &str) -> Result<Value, String> {
-        let req: Request = serde_json::from_str(line).map_err(|e| {
-            format!(
-                "bad request ({e}); send one JSON object per line with \"cmd\" one of get, set, \
-                 move, add, remove, snr, last_capture"
-            )
-        })?;
+    fn try_apply(&self, req: Request) -> Result<Value, String> {
         if let Request::Get = req {
             return Ok(json!({"ok": true, "scene": self.snapshot()}));
         }
@@ -106,11 +104,48 @@ impl SharedScene {
             }
             Request::Snr { snr_db } => next.snr_db = snr_db,
             Request::Get | Request::LastCapture => {}
+            Request::ScopeRemote { .. } | Request::Endpoints => {
+                return Err("this request needs the lab's control channel".into())
+            }
         }
         next.validate().map_err(|e| e.to_string())?;
         *guard = next;
         Ok(reply)
     }
+}
+
+/// Parses one request line.
+fn parse(line: &str) -> Result<Request, String> {
+    serde_json::from_str(line).map_err(|e| {
+        format!(
+            "bad request ({e}); send one JSON object per line with \"cmd\" one of get, set, \
+             move, add, remove, snr, last_capture, scope_remote, endpoints"
+        )
+    })
+}
+
+/// `{"ok":true,...}` or `{"ok":false,"error":...}`.
+fn reply(result: Result<Value, String>) -> Value {
+    match result {
+        Ok(mut v) => {
+            if v.get("ok").is_none() {
+                v["ok"] = json!(true);
+            }
+            v
+        }
+        Err(e) => json!({"ok": false, "error": e}),
+    }
+}
+
+/// A boxed future of a [`Panel`] action.
+pub type PanelFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
+
+/// What the control channel can do to the lab besides the scene: its "front panel".
+pub trait Panel: Send + Sync + 'static {
+    /// Switches the scope's remote interface; resolves once the endpoints follow.
+    fn set_scope_remote(&self, remote: RemoteInterface) -> PanelFuture<'_, Result<Value, String>>;
+    /// Every endpoint as it is now.
+    fn endpoints(&self) -> Value;
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -128,6 +163,8 @@ enum Request {
     Remove { target: usize },
     Snr { snr_db: f64 },
     LastCapture,
+    ScopeRemote { interface: RemoteInterface },
+    Endpoints,
 }
 
 /// Longest request line accepted (a whole scene with many targets fits easily).
@@ -180,24 +217,43 @@ async fn read_request<R: AsyncBufRead + Unpin>(rd: &mut R) -> std::io::Result<Li
     }
 }
 
-/// The reply to one line.
-fn answer(shared: &SharedScene, line: Line) -> Option<Value> {
-    match line {
-        Line::End => None,
-        Line::TooLong => Some(json!({
-            "ok": false,
-            "error": format!("request longer than {MAX_LINE} bytes: ignored whole, nothing changed")
-        })),
-        Line::Request(bytes) => Some(match std::str::from_utf8(&bytes) {
-            Ok(text) => shared.apply(text.trim()),
-            Err(_) => json!({"ok": false, "error": "request is not UTF-8 text: nothing changed"}),
-        }),
-    }
+/// The reply to one line (`None` at the end of the input).
+async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> Option<Value> {
+    let text = match line {
+        Line::End => return None,
+        Line::TooLong => {
+            return Some(reply(Err(format!(
+                "request longer than {MAX_LINE} bytes: ignored whole, nothing changed"
+            ))))
+        }
+        Line::Request(bytes) => match String::from_utf8(bytes) {
+            Ok(text) => text,
+            Err(_) => {
+                return Some(reply(Err(
+                    "request is not UTF-8 text: nothing changed".into()
+                )))
+            }
+        },
+    };
+    let result = match (parse(text.trim()), panel) {
+        (Ok(Request::ScopeRemote { interface }), Some(panel)) => {
+            panel.set_scope_remote(interface).await
+        }
+        (Ok(Request::Endpoints), Some(panel)) => Ok(json!({ "endpoints": panel.endpoints() })),
+        (Ok(req), _) => shared.try_apply(req),
+        (Err(e), _) => Err(e),
+    };
+    Some(reply(result))
 }
 
 /// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns the bound
-/// address at once and serves until the runtime shuts down.
-pub async fn serve(shared: Arc<SharedScene>, addr: SocketAddr) -> std::io::Result<SocketAddr> {
+/// address at once and serves until the runtime shuts down. Without a `panel` the lab's own
+/// requests (`scope_remote`, `endpoints`) are refused.
+pub async fn serve(
+    shared: Arc<SharedScene>,
+    panel: Option<Arc<dyn Panel>>,
+    addr: SocketAddr,
+) -> std::io::Result<SocketAddr> {
     let listener = TcpListener::bind(addr).await?;
     let local = listener.local_addr()?;
     tokio::spawn(async move {
@@ -212,11 +268,12 @@ pub async fn serve(shared: Arc<SharedScene>, addr: SocketAddr) -> std::io::Resul
                 }
             };
             let shared = shared.clone();
+            let panel = panel.clone();
             tokio::spawn(async move {
                 let (rd, mut wr) = stream.into_split();
                 let mut rd = BufReader::new(rd);
                 while let Ok(line) = read_request(&mut rd).await {
-                    let Some(reply) = answer(&shared, line) else {
+                    let Some(reply) = answer(&shared, panel.as_deref(), line).await else {
                         break;
                     };
                     let mut text = reply.to_string();
@@ -254,6 +311,19 @@ mod tests {
         let r = shared.apply(r#"{"cmd":"snr","snr_db":900}"#);
         assert!(r["error"].as_str().unwrap().contains("snr_db"));
         assert_eq!(shared.snapshot().snr_db, Scene::default().snr_db);
+        let r = shared.apply(r#"{"cmd":"add","target":{"range_m":2.0,"amplitude":1e300}}"#);
+        let error = r["error"].as_str().unwrap();
+        assert!(
+            error.contains("targets[2].amplitude") && error.contains("1e300"),
+            "{r}"
+        );
+        let r =
+            shared.apply(r#"{"cmd":"set","scene":{"impairments":{"dc_offset_v":[0.0,0.0,0.1]}}}"#);
+        assert!(
+            r["error"].as_str().unwrap().contains("exactly 2 values"),
+            "{r}"
+        );
+        assert_eq!(shared.snapshot().targets.len(), 2);
         let r = shared.apply("not json");
         assert!(r["error"].as_str().unwrap().contains("cmd"));
         assert_eq!(shared.apply(r#"{"cmd":"remove","target":0}"#)["ok"], true);
@@ -278,7 +348,7 @@ mod tests {
     #[tokio::test]
     async fn control_channel_over_loopback() {
         let shared = SharedScene::new(Scene::default());
-        let addr = serve(shared.clone(), "127.0.0.1:0".parse().unwrap())
+        let addr = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
             .await
             .unwrap();
         let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
@@ -316,14 +386,14 @@ mod tests {
         let mut rd = BufReader::new(input);
         let first = read_request(&mut rd).await.unwrap();
         assert_eq!(first, Line::TooLong);
-        let reply = answer(&shared, first).unwrap();
+        let reply = answer(&shared, None, first).await.unwrap();
         assert!(
             reply["error"].as_str().unwrap().contains("longer than"),
             "{reply}"
         );
         assert_eq!(shared.snapshot().snr_db, Scene::default().snr_db);
         let next = read_request(&mut rd).await.unwrap();
-        assert_eq!(answer(&shared, next).unwrap()["ok"], true);
+        assert_eq!(answer(&shared, None, next).await.unwrap()["ok"], true);
         assert_eq!(read_request(&mut rd).await.unwrap(), Line::End);
     }
 
@@ -336,24 +406,24 @@ mod tests {
         at_limit.extend_from_slice(b"\n\xff\xfe\n{\"cmd\":\"get\"}");
         let mut rd = BufReader::with_capacity(4096, &at_limit[..]);
         let line = read_request(&mut rd).await.unwrap();
-        assert_eq!(answer(&shared, line).unwrap()["ok"], true);
+        assert_eq!(answer(&shared, None, line).await.unwrap()["ok"], true);
         assert_eq!(shared.snapshot().snr_db, 12.0);
         let line = read_request(&mut rd).await.unwrap();
-        let reply = answer(&shared, line).unwrap();
+        let reply = answer(&shared, None, line).await.unwrap();
         assert!(
             reply["error"].as_str().unwrap().contains("UTF-8"),
             "{reply}"
         );
         // The last request may lack its LF when the client closes.
         let line = read_request(&mut rd).await.unwrap();
-        assert_eq!(answer(&shared, line).unwrap()["ok"], true);
+        assert_eq!(answer(&shared, None, line).await.unwrap()["ok"], true);
         assert_eq!(read_request(&mut rd).await.unwrap(), Line::End);
     }
 
     #[tokio::test]
     async fn over_long_line_over_loopback_changes_nothing_and_the_session_goes_on() {
         let shared = SharedScene::new(Scene::default());
-        let addr = serve(shared.clone(), "127.0.0.1:0".parse().unwrap())
+        let addr = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
             .await
             .unwrap();
         let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
