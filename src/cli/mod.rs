@@ -16,6 +16,7 @@ pub mod mock_lab;
 pub mod progress;
 pub mod scpi;
 pub mod simulate;
+pub mod terminal;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
 #[derive(Debug, Parser)]
