@@ -73,6 +73,8 @@ pub enum LabError {
     },
     #[error("cannot start the scene control channel: {0}")]
     Control(std::io::Error),
+    #[error("cannot install the handlers that stop the lab on SIGINT and SIGTERM: {0}")]
+    Signals(std::io::Error),
     #[error(
         "--port-base {base} is out of range: the lab uses {needed} consecutive ports from it, \
          so give 1 ..= {highest} (or leave it out for ports chosen by the OS)"
@@ -90,7 +92,7 @@ impl LabError {
     pub fn exit_code(&self) -> u8 {
         match self {
             LabError::PortBase { .. } => 2,
-            LabError::Server { .. } | LabError::Control(_) => 3,
+            LabError::Server { .. } | LabError::Control(_) | LabError::Signals(_) => 3,
             LabError::Catalog(_) => 1,
         }
     }
@@ -466,66 +468,111 @@ pub enum Announce {
     Json,
 }
 
-/// Starts the lab, announces it on standard output, and serves until Ctrl-C (or, with
-/// `until_stdin_closes`, until standard input reaches end of file, so a parent process that dies
-/// takes the lab along).
+/// Starts the lab, announces it on standard output, and serves until SIGINT (Ctrl-C), SIGTERM
+/// or SIGHUP, or, with `until_stdin_closes`, until standard input reaches end of file (so a
+/// parent process that dies takes the lab along). Every server is stopped before it returns.
 pub async fn serve_until_stopped(
     options: LabOptions,
     announce: Announce,
     until_stdin_closes: bool,
 ) -> Result<(), LabError> {
     use std::io::Write;
+    // Handlers first: from here on a signal stops the lab cleanly instead of killing it.
+    let stop = stop_requested(until_stdin_closes).map_err(LabError::Signals)?;
     let lab = start(options).await?;
-    let mut out = std::io::stdout().lock();
     let text = match announce {
         Announce::Json => format!("{}\n", lab.describe_json()),
-        Announce::Human => {
-            // Everything printed is a valid bench file: the table is made of comments.
-            let mut t = format!(
-                "# {:<9} {:<7} {:<24} resource\n",
-                "instrument", "proto", "address"
-            );
-            for e in &lab.endpoints() {
-                t += &format!(
-                    "# {:<9} {:<7} {:<24} {}\n",
-                    e.instrument,
-                    e.transport.name(),
-                    e.address,
-                    e.resource
-                );
-                if let Some(reason) = &e.reason {
-                    t += &format!("#   closed: {reason}\n");
-                }
-            }
-            t += &format!("# {:<9} {:<7} {}\n#\n", "control", "json", lab.control);
-            t +=
-                "# serving on 127.0.0.1 until Ctrl-C; this output is a ready-to-use bench file\n\n";
-            t += &lab.bench_toml(Transport::Hislip, Transport::Vicp);
-            t
-        }
+        Announce::Human => describe_human(&lab),
     };
     // A closed stdout (a script that read the first line and left) must not stop the lab.
+    let mut out = std::io::stdout().lock();
     let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
     drop(out);
-    let stdin_closed = async {
-        if until_stdin_closes {
-            let _ = tokio::task::spawn_blocking(|| {
-                use std::io::Read;
-                let mut sink = [0u8; 4096];
-                let mut stdin = std::io::stdin();
-                while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
-            })
-            .await;
-        } else {
-            std::future::pending::<()>().await;
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = stdin_closed => {}
-    }
+    let why = stop.await;
+    tracing::info!("stopping: {why}");
     drop(lab);
     Ok(())
+}
+
+/// The endpoint table (comments) followed by a ready-to-use bench file.
+fn describe_human(lab: &Lab) -> String {
+    // Everything printed is a valid bench file: the table is made of comments.
+    let mut t = format!(
+        "# {:<9} {:<7} {:<24} resource\n",
+        "instrument", "proto", "address"
+    );
+    for e in &lab.endpoints() {
+        t += &format!(
+            "# {:<9} {:<7} {:<24} {}\n",
+            e.instrument,
+            e.transport.name(),
+            e.address,
+            e.resource
+        );
+        if let Some(reason) = &e.reason {
+            t += &format!("#   closed: {reason}\n");
+        }
+    }
+    t += &format!("# {:<9} {:<7} {}\n#\n", "control", "json", lab.control);
+    t += "# serving on 127.0.0.1 until Ctrl-C; this output is a ready-to-use bench file\n\n";
+    t += &lab.bench_toml(Transport::Hislip, Transport::Vicp);
+    t
+}
+
+/// A future that resolves with what asked the lab to stop. Signal handlers are installed now,
+/// before the future is first polled, so no signal is lost in between.
+fn stop_requested(
+    until_stdin_closes: bool,
+) -> std::io::Result<impl std::future::Future<Output = &'static str>> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let mut interrupt = signal(SignalKind::interrupt())?;
+    let mut terminate = signal(SignalKind::terminate())?;
+    let mut hangup = signal(SignalKind::hangup())?;
+    let stdin_closed = if until_stdin_closes {
+        stdin_closed()
+    } else {
+        None
+    };
+    Ok(async move {
+        let stdin = async {
+            match stdin_closed {
+                // A sender dropped without sending (the reader thread died) counts as closed.
+                Some(closed) => {
+                    let _ = closed.await;
+                }
+                None => std::future::pending::<()>().await,
+            }
+        };
+        tokio::select! {
+            _ = interrupt.recv() => "SIGINT",
+            _ = terminate.recv() => "SIGTERM",
+            _ = hangup.recv() => "SIGHUP",
+            () = stdin => "standard input closed",
+        }
+    })
+}
+
+/// Resolves when standard input reaches end of file (or fails). The reading thread is detached:
+/// it must never hold up the process's exit (a runtime waits for its blocking tasks). `None`
+/// when no thread could be started (the lab then stops on signals only, and says so).
+fn stdin_closed() -> Option<tokio::sync::oneshot::Receiver<()>> {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let spawned = std::thread::Builder::new()
+        .name("mock-lab-stdin".into())
+        .spawn(move || {
+            use std::io::Read;
+            let mut sink = [0u8; 4096];
+            let mut stdin = std::io::stdin();
+            while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+            let _ = tx.send(());
+        });
+    match spawned {
+        Ok(_) => Some(rx),
+        Err(err) => {
+            tracing::warn!("cannot watch standard input ({err}); stop the lab with Ctrl-C");
+            None
+        }
+    }
 }
 
 #[cfg(test)]
