@@ -246,13 +246,8 @@ pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
         }
         return (text, Some(payload));
     }
-    let is_text = std::str::from_utf8(raw).is_ok_and(|t| {
-        t.chars()
-            .all(|c| !c.is_control() || matches!(c, '\n' | '\r' | '\t'))
-    });
-    if is_text {
-        let text = String::from_utf8_lossy(raw);
-        return (printable(reply::trim_reply(&text)).into_owned(), None);
+    if let Some(text) = looks_like_text(raw) {
+        return (printable(reply::trim_reply(text)).into_owned(), None);
     }
     let head: Vec<String> = raw.iter().take(16).map(|b| format!("{b:02x}")).collect();
     (
@@ -264,6 +259,24 @@ pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
         ),
         Some(raw.clone()),
     )
+}
+
+/// The reply as text when it reads as text: UTF-8 without NUL, at most one character in eight a
+/// control character (an escape sequence in a message); those are shown escaped.
+fn looks_like_text(raw: &[u8]) -> Option<&str> {
+    let text = std::str::from_utf8(raw).ok()?;
+    let mut chars = 0usize;
+    let mut controls = 0usize;
+    for c in text.chars() {
+        chars += 1;
+        if c == '\0' {
+            return None;
+        }
+        if c.is_control() && !matches!(c, '\n' | '\r' | '\t') {
+            controls += 1;
+        }
+    }
+    (controls * 8 <= chars).then_some(text)
 }
 
 /// A block payload short and plain enough to show as text as well.
@@ -357,13 +370,11 @@ fn interactive(
             // Written at once: no way of leaving (a signal, a lost terminal) loses it.
             let _ = editor.append_history(h);
         }
-        let step = runtime.block_on(line_or_cancel(
-            session,
-            &line,
-            saver,
-            check_errors,
-            interrupted(),
-        ));
+        let step = runtime.block_on(async {
+            // Listening for Ctrl-C starts before the command is sent.
+            let interrupt = interrupted();
+            line_or_cancel(session, &line, saver, check_errors, interrupt).await
+        });
         bar.finish();
         let shown = match step {
             Step::Done(Ok(Some(Flow::Quit))) => break,
@@ -393,11 +404,20 @@ fn interactive(
     Ok(())
 }
 
-/// Resolves when the user presses Ctrl-C (SIGINT) while a command runs.
-async fn interrupted() {
-    if tokio::signal::ctrl_c().await.is_err() {
-        // No signal handling: never interrupted.
-        std::future::pending::<()>().await;
+/// Resolves when the user presses Ctrl-C (SIGINT) while a command runs. The handler is
+/// installed here, before the command is sent, so a Ctrl-C right after it cannot fall through
+/// to the default action (which would kill the process with the reply pending).
+fn interrupted() -> impl Future<Output = ()> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let listener = signal(SignalKind::interrupt());
+    async move {
+        match listener {
+            Ok(mut sigint) => {
+                sigint.recv().await;
+            }
+            // No signal handling: never interrupted.
+            Err(_) => std::future::pending::<()>().await,
+        }
     }
 }
 
@@ -552,11 +572,16 @@ mod tests {
         let (text, saved) = describe_reply(&Bytes::from_static(b"OK\rFAIL\n"));
         assert_eq!(text, "OK\\x0dFAIL");
         assert!(saved.is_none());
-        // Escape sequences make it a binary reply: summarised, never printed raw.
-        let (text, saved) = describe_reply(&Bytes::from_static(b"\x1b]0;pwned\x07\n"));
-        assert!(text.starts_with("binary reply: 11 bytes"), "{text}");
+        // Escape sequences in text are shown escaped; mostly control bytes make a binary reply.
+        let (text, saved) = describe_reply(&Bytes::from_static(b"\x1b]0;pwned by text\x07\n"));
+        assert_eq!(text, "\\x1b]0;pwned by text\\x07");
+        assert!(saved.is_none());
+        let (text, saved) = describe_reply(&Bytes::from_static(b"\x1b\x1b\x07\x01ab\n"));
+        assert!(text.starts_with("binary reply: 7 bytes"), "{text}");
         assert!(!text.contains('\x1b'));
         assert!(saved.is_some());
+        let (text, _) = describe_reply(&Bytes::from_static(b"a\0b\n"));
+        assert!(text.starts_with("binary reply"), "{text}");
         let (text, _) = describe_reply(&Bytes::from_static(b"\x1b[31m,#13\x1b[m\n"));
         assert!(!text.contains('\x1b'), "{text}");
     }
