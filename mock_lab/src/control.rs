@@ -246,30 +246,55 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
     Some(reply(result))
 }
 
-/// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns the bound
-/// address at once and serves until the runtime shuts down. Without a `panel` the lab's own
+/// The running control channel; dropping it closes the listener and every connection.
+#[derive(Debug)]
+pub struct ControlServer {
+    addr: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl ControlServer {
+    /// Where clients connect.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+}
+
+impl Drop for ControlServer {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns once it
+/// listens, and serves until the returned server is dropped. Without a `panel` the lab's own
 /// requests (`scope_remote`, `endpoints`) are refused.
 pub async fn serve(
     shared: Arc<SharedScene>,
     panel: Option<Arc<dyn Panel>>,
     addr: SocketAddr,
-) -> std::io::Result<SocketAddr> {
+) -> std::io::Result<ControlServer> {
     let listener = TcpListener::bind(addr).await?;
     let local = listener.local_addr()?;
-    tokio::spawn(async move {
+    let task = tokio::spawn(async move {
+        // Connections belong to the loop: aborting it drops them all.
+        let mut connections = tokio::task::JoinSet::new();
         loop {
-            let stream = match listener.accept().await {
-                Ok((stream, _)) => stream,
-                Err(err) => {
-                    // Typically EMFILE: back off instead of spinning.
-                    tracing::warn!("control channel: accept failed: {err}");
-                    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-                    continue;
-                }
+            let stream = tokio::select! {
+                accepted = listener.accept() => match accepted {
+                    Ok((stream, _)) => stream,
+                    Err(err) => {
+                        // Typically EMFILE: back off instead of spinning.
+                        tracing::warn!("control channel: accept failed: {err}");
+                        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                        continue;
+                    }
+                },
+                Some(_) = connections.join_next(), if !connections.is_empty() => continue,
             };
             let shared = shared.clone();
             let panel = panel.clone();
-            tokio::spawn(async move {
+            connections.spawn(async move {
                 let (rd, mut wr) = stream.into_split();
                 let mut rd = BufReader::new(rd);
                 while let Ok(line) = read_request(&mut rd).await {
@@ -285,7 +310,7 @@ pub async fn serve(
             });
         }
     });
-    Ok(local)
+    Ok(ControlServer { addr: local, task })
 }
 
 #[cfg(test)]
@@ -348,9 +373,10 @@ mod tests {
     #[tokio::test]
     async fn control_channel_over_loopback() {
         let shared = SharedScene::new(Scene::default());
-        let addr = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
+        let server = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
             .await
             .unwrap();
+        let addr = server.local_addr();
         let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
             .await
             .unwrap()
@@ -423,9 +449,10 @@ mod tests {
     #[tokio::test]
     async fn over_long_line_over_loopback_changes_nothing_and_the_session_goes_on() {
         let shared = SharedScene::new(Scene::default());
-        let addr = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
+        let server = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
             .await
             .unwrap();
+        let addr = server.local_addr();
         let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
             .await
             .unwrap()

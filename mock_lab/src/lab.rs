@@ -140,6 +140,7 @@ pub struct Lab {
     scope_switch: Arc<ScopeSwitch>,
     _running: Vec<Running>,
     _follower: AbortOnDrop,
+    _control: control::ControlServer,
 }
 
 struct Served {
@@ -350,7 +351,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         }
     });
     let panel: Arc<dyn control::Panel> = scope_switch.clone();
-    let control = control::serve(
+    let control_server = control::serve(
         bench.scene.clone(),
         Some(panel),
         SocketAddr::from((Ipv4Addr::LOCALHOST, 0)),
@@ -359,7 +360,8 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     .map_err(LabError::Control)?;
     Ok(Lab {
         bench,
-        control,
+        control: control_server.local_addr(),
+        _control: control_server,
         faults,
         endpoints: endpoints_now,
         scope_switch,
