@@ -60,6 +60,8 @@ pub fn write_capture(
         path: out.to_path_buf(),
         source,
     })?;
+    // Temporary files a killed run left behind go first.
+    crate::storage::atomic::remove_stale_temporaries(out)?;
     let first = &m.captured.iq[0];
     let (i, q) = (&first.i, &first.q);
     let o = &m.options;
