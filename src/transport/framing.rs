@@ -148,7 +148,7 @@ impl Decode for TerminatedDecoder {
                         let end = end as usize;
                         if src.len() < end {
                             // Room for the payload plus its terminator, read straight in.
-                            reserve_announced(src, end + 2 - src.len());
+                            reserve_announced(src, end + 2 - src.len(), self.limit as u64);
                         }
                         self.state = Scan::Body { end };
                     }

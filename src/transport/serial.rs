@@ -98,10 +98,28 @@ pub fn device_path(device: &str) -> String {
 
 /// How long one blocking read waits before the thread checks its deadline again.
 const POLL: Duration = Duration::from_millis(20);
+/// A line silent this long has no reply left in flight: how a drain knows it is done.
+pub const SETTLE: Duration = Duration::from_millis(50);
+/// A drain gives up when the device keeps talking this long (it is then not a reply left over).
+pub const DRAIN_LIMIT: Duration = Duration::from_secs(1);
+
+/// The deadline rule of [`Timeouts`](super::Timeouts), carried to the serial thread.
+#[derive(Debug, Clone, Copy)]
+struct ReadBudget {
+    base: Duration,
+    timeouts: super::Timeouts,
+    max_counted: u64,
+}
+
+impl ReadBudget {
+    fn allowed(&self, counted: u64) -> Duration {
+        self.base + self.timeouts.allowance_for(counted.min(self.max_counted))
+    }
+}
 
 enum Request {
     Write(Vec<u8>, Duration, oneshot::Sender<Result<(), LinkError>>),
-    Read(Duration, oneshot::Sender<Result<Bytes, LinkError>>),
+    Read(ReadBudget, oneshot::Sender<Result<Bytes, LinkError>>),
     Clear(oneshot::Sender<Result<(), LinkError>>),
 }
 
@@ -177,11 +195,17 @@ impl SerialLink {
     }
 
     pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
-        let allowed = options.timeouts.read;
-        self.ask(|tx| Request::Read(allowed, tx)).await
+        let budget = ReadBudget {
+            base: options.timeouts.read,
+            timeouts: options.timeouts,
+            max_counted: options.max_message_bytes as u64,
+        };
+        self.ask(|tx| Request::Read(budget, tx)).await
     }
 
-    /// Discards everything buffered in both directions.
+    /// Discards everything buffered in both directions, then drains: bytes are read and thrown
+    /// away until the line has been quiet for [`SETTLE`], so a late reply to an abandoned request
+    /// is not taken for the next answer.
     pub async fn device_clear(&mut self) -> Result<(), LinkError> {
         self.ask(Request::Clear).await
     }
@@ -195,10 +219,21 @@ fn serve(
 ) {
     let mut decoder = TerminatedDecoder::new(b'\n', limit);
     let mut buf = BytesMut::with_capacity(4096);
-    let io = |op: &'static str, e: std::io::Error| LinkError::Io { op, source: e };
+    let io = |op: &'static str, e: std::io::Error| serial_io_error(op, e);
+    // A reply a previous user of the port left unread is not the answer to our first request.
+    let mut opened = Some(drain(port.as_mut(), &device));
     while let Ok(request) = requests.recv() {
+        if let Some(Err(e)) = opened.take() {
+            // Reported once, with the first request.
+            tracing::warn!("{e}");
+        }
         match request {
             Request::Write(data, allowed, reply) => {
+                // Whatever arrived before this request cannot be its reply: a reply nobody read
+                // (a command that answers, an abandoned query) is dropped here.
+                decoder.reset();
+                buf.clear();
+                let _ = port.clear(serialport::ClearBuffer::Input);
                 let started = Instant::now();
                 let mut result = Ok(());
                 let mut rest = &data[..];
@@ -224,9 +259,10 @@ fn serve(
                 }
                 let _ = reply.send(result);
             }
-            Request::Read(allowed, reply) => {
+            Request::Read(budget, reply) => {
                 let started = Instant::now();
                 let mut chunk = [0u8; 4096];
+                let mut counted = 0u64;
                 let result = loop {
                     match decoder.decode(&mut buf) {
                         Ok(Some(frame)) => break Ok(frame),
@@ -238,7 +274,7 @@ fn serve(
                         }
                     }
                     let elapsed = started.elapsed();
-                    if elapsed > allowed {
+                    if elapsed > budget.allowed(counted) {
                         break Err(LinkError::Timeout {
                             op: "serial read",
                             after: elapsed,
@@ -248,7 +284,10 @@ fn serve(
                         Ok(0) => {
                             break Err(LinkError::Closed { op: "serial read" });
                         }
-                        Ok(n) => buf.extend_from_slice(&chunk[..n]),
+                        Ok(n) => {
+                            counted += n as u64;
+                            buf.extend_from_slice(&chunk[..n]);
+                        }
                         Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                         Err(e) => break Err(io("serial read", e)),
                     }
@@ -258,16 +297,63 @@ fn serve(
             Request::Clear(reply) => {
                 decoder.reset();
                 buf.clear();
-                let result =
-                    port.clear(serialport::ClearBuffer::All)
-                        .map_err(|e| LinkError::Serial {
-                            device: device.clone(),
-                            detail: format!("cannot clear buffers: {e}"),
-                        });
+                let result = port
+                    .clear(serialport::ClearBuffer::All)
+                    .map_err(|e| LinkError::Serial {
+                        device: device.clone(),
+                        detail: format!("cannot clear buffers: {e}"),
+                    })
+                    .and_then(|()| drain(port.as_mut(), &device));
                 let _ = reply.send(result);
             }
         }
     }
+}
+
+/// Reads and throws away bytes until the line has been quiet for [`SETTLE`]; an error when it
+/// never goes quiet within [`DRAIN_LIMIT`].
+fn drain(port: &mut dyn serialport::SerialPort, device: &str) -> Result<(), LinkError> {
+    let started = Instant::now();
+    let mut quiet_since = Instant::now();
+    let mut chunk = [0u8; 4096];
+    let mut thrown = 0usize;
+    loop {
+        if quiet_since.elapsed() >= SETTLE {
+            if thrown > 0 {
+                tracing::debug!(device, thrown, "serial: drained bytes nobody asked for");
+            }
+            return Ok(());
+        }
+        if started.elapsed() >= DRAIN_LIMIT {
+            return Err(LinkError::Serial {
+                device: device.to_string(),
+                detail: format!(
+                    "the device kept sending for {} without being asked ({thrown} bytes thrown \
+                     away); check the line settings and that it is not in a streaming mode",
+                    super::error::Rounded(DRAIN_LIMIT)
+                ),
+            });
+        }
+        match port.read(&mut chunk) {
+            Ok(0) => return Ok(()),
+            Ok(n) => {
+                thrown += n;
+                quiet_since = Instant::now();
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(e) => return Err(serial_io_error("serial drain", e)),
+        }
+    }
+}
+
+/// Maps a serial I/O error; a device that went away (a USB adapter unplugged, the far end of a
+/// pseudo-terminal closed: EIO) is [`LinkError::Closed`].
+fn serial_io_error(op: &'static str, e: std::io::Error) -> LinkError {
+    #[cfg(unix)]
+    if e.raw_os_error() == Some(libc::EIO) {
+        return LinkError::Closed { op };
+    }
+    super::io::io_error(op, e)
 }
 
 #[cfg(test)]

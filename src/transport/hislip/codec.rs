@@ -159,7 +159,7 @@ impl Decode for FrameDecoder {
         };
         let len = header.len as usize;
         if src.len() < len {
-            reserve_announced(src, len - src.len());
+            reserve_announced(src, len - src.len(), self.limit);
             return Ok(None);
         }
         self.pending = None;

@@ -119,7 +119,7 @@ impl Decode for BlockDecoder {
         };
         let len = header.len as usize;
         if src.len() < len {
-            reserve_announced(src, len - src.len());
+            reserve_announced(src, len - src.len(), self.limit);
             return Ok(None);
         }
         self.pending = None;

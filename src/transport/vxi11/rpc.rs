@@ -2,7 +2,7 @@
 //! and call/reply headers with AUTH_NONE.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::{reserve_announced, Decode};
+use crate::transport::io::{buffer_ceiling, reserve_announced, reserve_within, Decode};
 use bytes::{Buf, Bytes, BytesMut};
 
 const FORMAT: &str = "ONC-RPC record";
@@ -62,19 +62,21 @@ impl Decode for RecordDecoder {
             };
             let len = len as usize;
             if src.len() < len {
-                reserve_announced(src, len - src.len());
+                reserve_announced(src, len - src.len(), self.limit);
                 return Ok(None);
             }
             self.pending = None;
             let fragment = src.split_to(len);
+            if last && self.assembled.is_empty() {
+                return Ok(Some(fragment.freeze()));
+            }
+            // The total was checked against the limit with the fragment's header.
+            let ceiling = buffer_ceiling(usize::try_from(self.limit).unwrap_or(usize::MAX));
+            reserve_within(&mut self.assembled, fragment.len(), ceiling);
+            self.assembled.extend_from_slice(&fragment);
             if last {
-                if self.assembled.is_empty() {
-                    return Ok(Some(fragment.freeze()));
-                }
-                self.assembled.extend_from_slice(&fragment);
                 return Ok(Some(std::mem::take(&mut self.assembled).freeze()));
             }
-            self.assembled.extend_from_slice(&fragment);
         }
     }
 
