@@ -182,17 +182,24 @@ impl<'a> ReadContext<'a> {
     }
 
     pub fn deadline(&self) -> Instant {
-        self.started + self.timeouts.read + self.timeouts.allowance_for(self.counted())
+        self.started + self.allowed()
     }
 
     pub fn elapsed(&self) -> Duration {
         self.started.elapsed()
     }
 
+    /// The time this read is allowed so far: the read timeout plus the allowance earned.
+    pub fn allowed(&self) -> Duration {
+        self.timeouts.read + self.timeouts.allowance_for(self.counted())
+    }
+
+    /// The timeout, reported with the time that was allowed (what the user set, plus the
+    /// allowance), or the time taken if the peer gave up first.
     pub fn timeout_error(&self) -> LinkError {
         LinkError::Timeout {
             op: self.op,
-            after: self.elapsed(),
+            after: self.elapsed().min(self.allowed()),
         }
     }
 

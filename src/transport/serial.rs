@@ -273,11 +273,11 @@ fn serve(
                             break Err(LinkError::codec("serial")(e));
                         }
                     }
-                    let elapsed = started.elapsed();
-                    if elapsed > budget.allowed(counted) {
+                    let allowed = budget.allowed(counted);
+                    if started.elapsed() > allowed {
                         break Err(LinkError::Timeout {
                             op: "serial read",
-                            after: elapsed,
+                            after: allowed,
                         });
                     }
                     match port.read(&mut chunk) {

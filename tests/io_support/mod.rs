@@ -43,8 +43,12 @@ pub struct Bench {
 }
 
 pub async fn start(proto: Proto) -> Bench {
+    start_serving(proto, Arc::new(Loopback::new())).await
+}
+
+/// A mock server of `proto` serving `handler` (an emulated instrument).
+pub async fn start_serving(proto: Proto, handler: Arc<dyn Handler>) -> Bench {
     let faults = Faults::new();
-    let handler: Arc<dyn Handler> = Arc::new(Loopback::new());
     let options = ServerOptions::with_faults(faults.clone());
     let any = server::loopback_any();
     let server = match proto {

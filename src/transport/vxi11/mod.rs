@@ -315,7 +315,12 @@ impl Vxi11Link {
                 .await?;
             let resp = messages::decode_read_resp(&mut r).map_err(codec)?;
             if resp.error == messages::ERR_IO_TIMEOUT {
-                return Err(ctx.timeout_error());
+                // The server gave up after the io_timeout it was given: the read timeout (and
+                // any allowance), without the grace kept for its reply.
+                return Err(LinkError::Timeout {
+                    op: ctx.op(),
+                    after: ctx.elapsed().min(ctx.allowed().saturating_sub(REPLY_GRACE)),
+                });
             }
             device_error("device_read", resp.error)?;
             received += resp.data.len();
