@@ -246,3 +246,56 @@ async fn bench_io_on_the_awg_reports_its_refusal() {
     assert!(err.contains("loopback instrument"), "{err}");
     assert!(!err.contains("timed out"), "{err}");
 }
+
+/// The Gotmic modules from `radbench idn` and `radbench scpi` on their serial resource: register
+/// reads (no `?`) are read and printed, CRC is added once the module has it on, and a refused
+/// request exits 3 with the module's error.
+#[cfg(unix)]
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_modules_from_idn_and_scpi() {
+    use mock_lab::server::{serial, ServerOptions};
+    let module = mock_lab::emulator::gotmic::Gotmic::rx_embedded().unwrap();
+    let endpoint = serial::serve(
+        std::sync::Arc::new(module),
+        ServerOptions::with_faults(mock_lab::faults::Faults::new()),
+    )
+    .expect("pty endpoint starts");
+    let address = format!("ASRL{}::INSTR", endpoint.device_path());
+    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("GOTMIC-EBAND-RX-EMU"),
+        "{}",
+        stdout(&out)
+    );
+
+    let out = radbench(args(&[
+        "scpi",
+        &address,
+        "R 03",
+        "CRC ON",
+        "W 03 0011",
+        "R 03",
+    ]))
+    .await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lines: Vec<String> = stdout(&out).lines().map(str::to_string).collect();
+    assert_eq!(
+        lines,
+        ["OK 003F", "OK", "OK", "OK 0011"],
+        "{}",
+        stderr(&out)
+    );
+
+    // The module kept CRC on: a new process finds out and frames its requests.
+    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = radbench(args(&["scpi", &address, "R 03", "R 7F", "--timeout", "2"])).await;
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert_eq!(stdout(&out).trim(), "OK 0011");
+    assert!(
+        stderr(&out).contains("unknown register"),
+        "{}",
+        stderr(&out)
+    );
+}

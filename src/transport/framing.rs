@@ -40,7 +40,7 @@ enum Scan {
     },
 }
 
-const FORMAT: &str = "terminated message";
+const FORMAT: &str = "newline-terminated";
 
 impl TerminatedDecoder {
     pub fn new(terminator: u8, limit: usize) -> Self {

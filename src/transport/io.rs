@@ -302,9 +302,13 @@ pub fn reserve_within(buf: &mut BytesMut, additional: usize, ceiling: usize) {
     if doubled <= ceiling / 2 {
         buf.reserve(additional);
     } else {
-        let mut fresh = BytesMut::with_capacity(doubled.min(ceiling).max(needed));
-        fresh.extend_from_slice(buf);
-        *buf = fresh;
+        // Through the Vec: an unshared buffer is taken without a copy and grown by realloc, which
+        // for a large block remaps its pages rather than holding old and new side by side.
+        let target = doubled.min(ceiling).max(needed);
+        let mut bytes: Vec<u8> = std::mem::take(buf).into();
+        bytes.reserve_exact(target - bytes.len());
+        // Spare capacity, so Bytes keeps the Vec whole and hands it back unshared: no copy.
+        *buf = BytesMut::from(bytes::Bytes::from(bytes));
     }
 }
 

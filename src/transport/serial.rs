@@ -6,7 +6,7 @@
 
 use super::error::LinkError;
 use super::framing::TerminatedDecoder;
-use super::io::{Decode, LinkOptions};
+use super::io::{buffer_ceiling, reserve_within, Decode, LinkOptions};
 use bytes::{Bytes, BytesMut};
 use std::io::{Read, Write};
 use std::sync::mpsc;
@@ -218,6 +218,7 @@ fn serve(
     limit: usize,
 ) {
     let mut decoder = TerminatedDecoder::new(b'\n', limit);
+    let ceiling = buffer_ceiling(limit);
     let mut buf = BytesMut::with_capacity(4096);
     let io = |op: &'static str, e: std::io::Error| serial_io_error(op, e);
     // A reply a previous user of the port left unread is not the answer to our first request.
@@ -286,6 +287,7 @@ fn serve(
                         }
                         Ok(n) => {
                             counted += n as u64;
+                            reserve_within(&mut buf, n, ceiling);
                             buf.extend_from_slice(&chunk[..n]);
                         }
                         Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
