@@ -96,6 +96,11 @@ pub fn device_path(device: &str) -> String {
     }
 }
 
+/// The largest message a serial link takes, whatever `max_message_bytes` says: 1 MiB is 91 s at
+/// 115200 baud. It bounds how long a device that streams without ever ending a line keeps a read
+/// alive (its bytes arrive at a healthy rate, so only their number can stop it).
+pub const MAX_MESSAGE: usize = 1 << 20;
+
 /// How long one blocking read waits before the thread checks its deadline again.
 const POLL: Duration = Duration::from_millis(20);
 /// A line silent this long has no reply left in flight: how a drain knows it is done.
@@ -147,12 +152,14 @@ impl SerialLink {
         Self::from_port(port, path, limit)
     }
 
-    /// Runs a link over an already open port (tests use a pseudo-terminal pair).
+    /// Runs a link over an already open port (tests use a pseudo-terminal pair). Messages are at
+    /// most `limit` bytes, and never more than [`MAX_MESSAGE`].
     pub fn from_port(
         port: Box<dyn serialport::SerialPort>,
         device: String,
         limit: usize,
     ) -> Result<Self, LinkError> {
+        let limit = limit.min(MAX_MESSAGE);
         let (tx, rx) = mpsc::channel();
         let name = device.clone();
         std::thread::Builder::new()
@@ -198,7 +205,7 @@ impl SerialLink {
         let budget = ReadBudget {
             base: options.timeouts.read,
             timeouts: options.timeouts,
-            max_counted: options.max_message_bytes as u64,
+            max_counted: options.max_message_bytes.min(MAX_MESSAGE) as u64,
         };
         self.ask(|tx| Request::Read(budget, tx)).await
     }

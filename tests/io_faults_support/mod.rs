@@ -13,12 +13,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-/// The largest message in these tests.
-pub const LIMIT: usize = 4 << 20;
+/// The largest message in these tests (also serial's own limit).
+pub const LIMIT: usize = 1 << 20;
 /// The read timeout.
 pub const READ: Duration = Duration::from_millis(300);
 /// The slowest healthy rate: low, so that any deadline still stretched by an announced length
-/// (4 MiB = 42 s) or by stale replies would overrun the margin below.
+/// (1 MiB = 10.5 s) or by stale replies would overrun the margin below.
 pub const RATE: u64 = 100_000;
 /// Added to every documented bound before a test gives up waiting.
 pub const MARGIN: Duration = Duration::from_secs(5);
