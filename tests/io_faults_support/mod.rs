@@ -174,21 +174,21 @@ async fn setup(proto: Proto, fault: Fault) -> Setup {
     }
 }
 
-fn matches(expect: Expect, result: &Result<bytes::Bytes, LinkError>) -> bool {
-    match (expect, result) {
-        (Expect::AnyOutcome, _) => true,
-        (Expect::Timeout, Err(LinkError::Timeout { .. })) => true,
-        (Expect::Closed, Err(LinkError::Closed { .. })) => true,
-        (
-            Expect::TooLarge,
-            Err(LinkError::Codec {
-                source: CodecError::TooLarge { .. },
-                ..
-            }),
-        ) => true,
-        (Expect::Undecodable, Err(LinkError::Codec { .. })) => true,
-        _ => false,
-    }
+fn as_expected(expect: Expect, result: &Result<bytes::Bytes, LinkError>) -> bool {
+    matches!(
+        (expect, result),
+        (Expect::AnyOutcome, _)
+            | (Expect::Timeout, Err(LinkError::Timeout { .. }))
+            | (Expect::Closed, Err(LinkError::Closed { .. }))
+            | (
+                Expect::TooLarge,
+                Err(LinkError::Codec {
+                    source: CodecError::TooLarge { .. },
+                    ..
+                })
+            )
+            | (Expect::Undecodable, Err(LinkError::Codec { .. }))
+    )
 }
 
 /// Runs one cell of the matrix.
@@ -218,7 +218,7 @@ pub async fn run(proto: Proto, fault: Fault) {
         Err(e) => e.to_string(),
     };
     assert!(
-        matches(expect, &result),
+        as_expected(expect, &result),
         "{proto:?} {fault:?}: expected {expect:?}, got {shown}"
     );
     assert!(
