@@ -6,7 +6,7 @@
 //! | form | protocol |
 //! |---|---|
 //! | `TCPIP[n]::host::port::SOCKET` | raw socket, messages end with a newline |
-//! | `TCPIP[n]::host[,port][::device][::INSTR]` | VXI-11 (device `inst0` when not given); an explicit port skips the portmapper |
+//! | `TCPIP[n]::host[,port]::device[::INSTR]`, `TCPIP[n]::host[,port]::INSTR` | VXI-11 (device `inst0` when not given); an explicit port skips the portmapper |
 //! | `TCPIP[n]::host::hislipN[,port][::INSTR]` | HiSLIP (default port 4880) |
 //! | `VICP::host[,port][::INSTR]` | LeCroy VICP (default port 1861) |
 //! | `ASRL<device>::INSTR` | serial; speed and framing come from the bench file |
@@ -27,7 +27,7 @@ pub const PORTMAPPER_PORT: u16 = 111;
 
 /// The accepted forms, shown in every parse error.
 pub const ACCEPTED_FORMS: &str =
-    "TCPIP[n]::host::port::SOCKET, TCPIP[n]::host[,port][::inst0][::INSTR], \
+    "TCPIP[n]::host::port::SOCKET, TCPIP[n]::host[,port][::inst0]::INSTR, TCPIP[n]::host[,port]::inst0, \
 TCPIP[n]::host::hislipN[,port][::INSTR], VICP::host[,port][::INSTR], ASRL<device>::INSTR";
 
 /// A parsed instrument resource string.
@@ -241,7 +241,14 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
                 "a TCPIP resource needs a host, e.g. `TCPIP0::192.168.1.5::INSTR`".to_string(),
             )
         }
-        [host] => (host, None, false),
+        // pyvisa also reads a bare `TCPIP::host` as VXI-11; here it is refused, as a string cut
+        // short is likelier than a deliberate abbreviation.
+        [host] => {
+            return Err(format!(
+                "`TCPIP::{host}` needs its resource class: `TCPIP::{host}::INSTR` (VXI-11), \
+                 `TCPIP::{host}::hislip0` (HiSLIP) or `TCPIP::{host}::PORT::SOCKET`"
+            ))
+        }
         [host, last] if last.eq_ignore_ascii_case("INSTR") => (host, None, true),
         [_, last] if last.eq_ignore_ascii_case("SOCKET") => {
             return Err("a raw socket needs its port: `TCPIP::host::5025::SOCKET`".to_string())
@@ -457,7 +464,6 @@ mod tests {
         assert!(
             matches!(r, Resource::Vxi11 { ref device, instr_suffix: false, .. } if device == "inst0")
         );
-        round_trip("TCPIP::scope.lab");
         round_trip("TCPIP::127.0.0.1,19009::INSTR");
         round_trip("TCPIP::127.0.0.1,19009::gpib0,5");
         let r = round_trip("TCPIP0::host::hislip0");
@@ -487,6 +493,8 @@ mod tests {
 
     #[test]
     fn a_forgotten_socket_suffix_is_named() {
+        let e = "TCPIP::x".parse::<Resource>().unwrap_err();
+        assert!(e.to_string().contains("TCPIP::x::INSTR"), "{e}");
         let e = "TCPIP::host::5025".parse::<Resource>().unwrap_err();
         assert!(e.to_string().contains("TCPIP::host::5025::SOCKET"), "{e}");
         let e = "TCPIP::host::SOCKET".parse::<Resource>().unwrap_err();
