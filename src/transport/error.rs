@@ -67,7 +67,7 @@ pub enum LinkError {
     #[error("{op} timed out after {}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. Raise the timeout if the instrument is just slow", Rounded(*.after))]
     Timeout { op: &'static str, after: Duration },
     #[error(
-        "the instrument closed the connection during {op}; reconnect (the session can reopen it)"
+        "the instrument closed the connection during {op}; it is reopened before the next operation"
     )]
     Closed { op: &'static str },
     #[error("I/O error during {op}: {source}")]

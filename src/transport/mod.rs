@@ -16,7 +16,8 @@
 //! Deadlines and limits (docs/io-timeouts.md): a read ends by `start + read timeout +
 //! min(bytes of this message received, max_message_bytes) / min_rate`; bytes thrown away (stale
 //! replies) and lengths a header only announces earn no time, and no receive buffer grows past
-//! the largest message plus a little framing slack. After undecodable bytes the link is reopened.
+//! the largest message plus a little framing slack. After undecodable bytes, or the instrument
+//! closing the connection, the link is reopened.
 //!
 //! Cancellation: every operation may be dropped (e.g. by `tokio::time::timeout` or `select!`).
 //! Reads keep their progress in the link, so nothing is lost; an operation dropped half-way marks
@@ -266,6 +267,8 @@ impl Link {
             // (A serial clear already forgets the buffered bytes, and reopening a port the
             // serial thread may still hold would fail.)
             Err(LinkError::Codec { .. } | LinkError::Protocol { .. }) if !serial => Dirty::Write,
+            // A connection the instrument closed cannot be cleared, only reopened.
+            Err(LinkError::Closed { .. }) if !serial => Dirty::Write,
             Err(e) if e.leaves_link_dirty() => on_error,
             Err(_) => Dirty::Clean,
         };
