@@ -84,10 +84,12 @@ pub async fn start_serving(proto: Proto, handler: Arc<dyn Handler>) -> Bench {
 }
 
 pub fn options(bench: &Bench, read: Duration) -> SessionOptions {
-    let mut o = SessionOptions::default();
-    // The loopback instrument keeps a SCPI error queue on every transport, VICP included (where
-    // the session would otherwise read a LeCroy scope's CMR? register).
-    o.error_query = radbench::session::SCPI_ERROR_QUERY.into();
+    let mut o = SessionOptions {
+        // The loopback instrument keeps a SCPI error queue on every transport, VICP included
+        // (where the session would otherwise read a LeCroy scope's CMR? register).
+        error_query: radbench::session::SCPI_ERROR_QUERY.into(),
+        ..SessionOptions::default()
+    };
     if let Some(port) = bench.portmapper_port {
         o.link.portmapper_port = port;
     }
