@@ -93,9 +93,31 @@ impl ConnectArgs {
             Some(path) => Some(Journal::create(path, self.trace_io_keep_binary)?),
             None => None,
         };
-        let options = self.session_options()?;
+        let mut options = self.session_options()?;
+        if let Resource::Serial { .. } = resource {
+            options.line = Some(serial_line_protocol()?);
+        }
         Ok(Session::open(resource, options, journal, "").await?)
     }
+}
+
+/// The serial instruments of the catalog are the Gotmic modules: every request gets one reply
+/// line, framed with the catalog's CRC-8 once the module has CRC on.
+fn serial_line_protocol() -> anyhow::Result<crate::session::LineProtocol> {
+    let catalog = crate::catalog::Catalog::embedded()?;
+    let crc = catalog
+        .models()
+        .filter(|(m, _)| {
+            m.transports
+                .iter()
+                .any(|t| t.kind == crate::catalog::TransportKind::Serial)
+        })
+        .find_map(|(m, _)| m.protocol.as_ref())
+        .map(|p| crate::session::Crc8 {
+            poly: p.crc_poly,
+            init: p.crc_init,
+        });
+    Ok(crate::session::LineProtocol { crc })
 }
 
 #[derive(Debug, clap::Args)]
@@ -297,7 +319,7 @@ async fn execute(
         return Ok(None);
     }
     let mut output = None;
-    if expects_reply(command) {
+    if expects_reply(command) || session.answers_every_request() {
         let raw = session.query_raw(command).await?;
         let (mut text, binary) = describe_reply(&raw);
         if let Some(payload) = binary {
