@@ -95,29 +95,47 @@ impl ConnectArgs {
         };
         let mut options = self.session_options()?;
         if let Resource::Serial { .. } = resource {
-            options.line = Some(serial_line_protocol()?);
+            options.line = serial_line_protocol(&resource, &options).await?;
         }
         Ok(Session::open(resource, options, journal, "").await?)
     }
 }
 
-/// The serial instruments of the catalog are the Gotmic modules: every request gets one reply
-/// line, framed with the catalog's CRC-8 once the module has CRC on.
-fn serial_line_protocol() -> anyhow::Result<crate::session::LineProtocol> {
+/// Which protocol a serial device speaks. A module of the catalog with a line protocol (the
+/// Gotmic modules) answers every request with one line, framed with its CRC-8 once the module has
+/// CRC on; a SCPI device answers queries only. Asked with `*IDN?`: a catalog identity with a line
+/// protocol, or the line protocol's own refusal (`ERR ...`, e.g. a module with CRC on that wants
+/// the request framed), selects it.
+async fn serial_line_protocol(
+    resource: &Resource,
+    options: &SessionOptions,
+) -> anyhow::Result<Option<crate::session::LineProtocol>> {
     let catalog = crate::catalog::Catalog::embedded()?;
-    let crc = catalog
-        .models()
-        .filter(|(m, _)| {
-            m.transports
-                .iter()
-                .any(|t| t.kind == crate::catalog::TransportKind::Serial)
-        })
-        .find_map(|(m, _)| m.protocol.as_ref())
-        .map(|p| crate::session::Crc8 {
+    let line_models = || {
+        catalog
+            .models()
+            .filter(|(m, _)| m.protocol.is_some())
+            .filter_map(|(m, _)| m.protocol.as_ref())
+    };
+    let as_protocol = |p: &crate::catalog::LineProtocol| crate::session::LineProtocol {
+        crc: Some(crate::session::Crc8 {
             poly: p.crc_poly,
             init: p.crc_init,
-        });
-    Ok(crate::session::LineProtocol { crc })
+        }),
+    };
+    let mut probe = Session::open(resource.clone(), options.clone(), None, "").await?;
+    let reply = probe.query("*IDN?").await;
+    let _ = probe.close().await;
+    let Ok(reply) = reply else {
+        return Ok(None);
+    };
+    if let Some(found) = catalog.identify(&reply) {
+        return Ok(found.model.protocol.as_ref().map(as_protocol));
+    }
+    if reply.trim_start().starts_with("ERR ") {
+        return Ok(line_models().next().map(as_protocol));
+    }
+    Ok(None)
 }
 
 #[derive(Debug, clap::Args)]
