@@ -5,6 +5,7 @@ import os
 import select
 import signal
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -75,6 +76,39 @@ class MockLab:
             self.proc.kill()
             self.proc.wait(timeout=10)
         self.log.close()
+
+
+def radbench_binary() -> str:
+    path = os.environ.get("RADBENCH_BIN", str(REPO / "target" / "debug" / "radbench"))
+    if not Path(path).exists():
+        pytest.fail(f"radbench binary not found at {path}; run `cargo build -p radbench` or interop/run.sh")
+    return path
+
+
+class ForeignServer:
+    """A server script from interop/servers/, run with this interpreter: the first line it
+    prints is a JSON description of where it listens. Killed (and waited for) on stop."""
+
+    def __init__(self, script: str):
+        self.log = tempfile.TemporaryFile()
+        self.proc = subprocess.Popen(
+            [sys.executable, str(REPO / "interop" / "servers" / script)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self.log,
+        )
+        ready, _, _ = select.select([self.proc.stdout], [], [], STARTUP_LIMIT_S)
+        line = self.proc.stdout.readline() if ready else b""
+        if not line:
+            self.stop()
+            self.log.seek(0)
+            raise RuntimeError(f"{script} did not start: {self.log.read().decode(errors='replace')}")
+        self.info = json.loads(line)
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
 
 
 @pytest.fixture(scope="session")

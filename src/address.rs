@@ -6,12 +6,14 @@
 //! | form | protocol |
 //! |---|---|
 //! | `TCPIP[n]::host::port::SOCKET` | raw socket, messages end with a newline |
-//! | `TCPIP[n]::host[,port]::inst0::INSTR` | VXI-11; an explicit port skips the portmapper |
-//! | `TCPIP[n]::host::hislipN[,port]::INSTR` | HiSLIP (default port 4880) |
+//! | `TCPIP[n]::host[,port]::device[::INSTR]`, `TCPIP[n]::host[,port]::INSTR` | VXI-11 (device `inst0` when not given); an explicit port skips the portmapper |
+//! | `TCPIP[n]::host::hislipN[,port][::INSTR]` | HiSLIP (default port 4880) |
 //! | `VICP::host[,port][::INSTR]` | LeCroy VICP (default port 1861) |
 //! | `ASRL<device>::INSTR` | serial; speed and framing come from the bench file |
 //!
-//! IPv6 hosts are written in brackets: `TCPIP::[::1]::5025::SOCKET`.
+//! The optional parts are those pyvisa and instrument manuals leave out: `TCPIP0::host::INSTR`
+//! (device `inst0` implied), `TCPIP0::host::inst0`, `TCPIP0::host::hislip0,4880`. Each prints back
+//! the way it was written. IPv6 hosts are written in brackets: `TCPIP::[::1]::5025::SOCKET`.
 
 use std::fmt;
 use std::str::FromStr;
@@ -25,8 +27,8 @@ pub const PORTMAPPER_PORT: u16 = 111;
 
 /// The accepted forms, shown in every parse error.
 pub const ACCEPTED_FORMS: &str =
-    "TCPIP[n]::host::port::SOCKET, TCPIP[n]::host[,port]::inst0::INSTR, \
-TCPIP[n]::host::hislipN[,port]::INSTR, VICP::host[,port][::INSTR], ASRL<device>::INSTR";
+    "TCPIP[n]::host::port::SOCKET, TCPIP[n]::host[,port][::inst0]::INSTR, TCPIP[n]::host[,port]::inst0, \
+TCPIP[n]::host::hislipN[,port][::INSTR], VICP::host[,port][::INSTR], ASRL<device>::INSTR";
 
 /// A parsed instrument resource string.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -37,7 +39,7 @@ pub enum Resource {
         host: String,
         port: u16,
     },
-    /// `TCPIP[n]::host[,port]::device::INSTR` (VXI-11)
+    /// `TCPIP[n]::host[,port][::device][::INSTR]` (VXI-11)
     Vxi11 {
         board: Option<u32>,
         host: String,
@@ -45,14 +47,20 @@ pub enum Resource {
         port: Option<u16>,
         /// The VXI-11 device name, e.g. `inst0` or `gpib0,5`.
         device: String,
+        /// The string left the device out (`TCPIP0::host::INSTR`): `inst0`, not printed.
+        device_implied: bool,
+        /// Whether the string ended in `::INSTR` (kept so it prints back identically).
+        instr_suffix: bool,
     },
-    /// `TCPIP[n]::host::hislipN[,port]::INSTR`
+    /// `TCPIP[n]::host::hislipN[,port][::INSTR]`
     Hislip {
         board: Option<u32>,
         host: String,
         /// The sub-address index N of `hislipN`.
         index: u32,
         port: Option<u16>,
+        /// Whether the string ended in `::INSTR` (kept so it prints back identically).
+        instr_suffix: bool,
     },
     /// `VICP::host[,port][::INSTR]`
     Vicp {
@@ -223,26 +231,58 @@ fn split_port(field: &str) -> Result<(String, Option<u16>), String> {
     }
 }
 
+/// The VXI-11 device a `TCPIP::host::INSTR` string means.
+pub const VXI11_DEFAULT_DEVICE: &str = "inst0";
+
 fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String> {
-    let [host_field, middle, last] = parts else {
-        return Err(match parts.len() {
-            0 | 1 => "a TCPIP resource needs a host and a resource class (`::SOCKET` or `::INSTR`)",
-            _ => "a TCPIP resource has four `::`-separated fields",
+    let (host_field, middle, instr_suffix) = match parts {
+        [] => {
+            return Err(
+                "a TCPIP resource needs a host, e.g. `TCPIP0::192.168.1.5::INSTR`".to_string(),
+            )
         }
-        .to_string());
+        // pyvisa also reads a bare `TCPIP::host` as VXI-11; here it is refused, as a string cut
+        // short is likelier than a deliberate abbreviation.
+        [host] => {
+            return Err(format!(
+                "`TCPIP::{host}` needs its resource class: `TCPIP::{host}::INSTR` (VXI-11), \
+                 `TCPIP::{host}::hislip0` (HiSLIP) or `TCPIP::{host}::PORT::SOCKET`"
+            ))
+        }
+        [host, last] if last.eq_ignore_ascii_case("INSTR") => (host, None, true),
+        [_, last] if last.eq_ignore_ascii_case("SOCKET") => {
+            return Err("a raw socket needs its port: `TCPIP::host::5025::SOCKET`".to_string())
+        }
+        [_, middle] if !middle.is_empty() && middle.bytes().all(|b| b.is_ascii_digit()) => {
+            return Err(format!(
+                "`{middle}` looks like a port: a raw socket is `TCPIP::host::{middle}::SOCKET`"
+            ))
+        }
+        [host, middle] => (host, Some(middle), false),
+        [host, middle, last] if last.eq_ignore_ascii_case("SOCKET") => {
+            check_host(host)?;
+            return Ok(Resource::Socket {
+                board,
+                host: host.clone(),
+                port: parse_port(middle, "socket port")?,
+            });
+        }
+        [host, middle, last] if last.eq_ignore_ascii_case("INSTR") => (host, Some(middle), true),
+        [_, _, last] => return Err(format!("resource class `{last}` is not SOCKET or INSTR")),
+        _ => return Err("a TCPIP resource has at most four `::`-separated fields".to_string()),
     };
-    if last.eq_ignore_ascii_case("SOCKET") {
-        check_host(host_field)?;
-        let port = parse_port(middle, "socket port")?;
-        return Ok(Resource::Socket {
+    let Some(middle) = middle else {
+        let (host, port) = split_port(host_field)?;
+        check_host(&host)?;
+        return Ok(Resource::Vxi11 {
             board,
-            host: host_field.clone(),
+            host,
             port,
+            device: VXI11_DEFAULT_DEVICE.to_string(),
+            device_implied: true,
+            instr_suffix,
         });
-    }
-    if !last.eq_ignore_ascii_case("INSTR") {
-        return Err(format!("resource class `{last}` is not SOCKET or INSTR"));
-    }
+    };
     let lower = middle.to_ascii_lowercase();
     if let Some(rest) = lower.strip_prefix("hislip") {
         check_host(host_field)?;
@@ -257,6 +297,7 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
             host: host_field.clone(),
             index,
             port,
+            instr_suffix,
         });
     }
     let (host, port) = split_port(host_field)?;
@@ -269,6 +310,8 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
         host,
         port,
         device: middle.clone(),
+        device_implied: false,
+        instr_suffix,
     })
 }
 
@@ -295,6 +338,13 @@ fn port_text(port: &Option<u16>) -> String {
     port.map(|p| format!(",{p}")).unwrap_or_default()
 }
 
+fn instr_text(f: &mut fmt::Formatter<'_>, instr_suffix: bool) -> fmt::Result {
+    if instr_suffix {
+        f.write_str("::INSTR")?;
+    }
+    Ok(())
+}
+
 impl fmt::Display for Resource {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -306,33 +356,37 @@ impl fmt::Display for Resource {
                 host,
                 port,
                 device,
-            } => write!(
-                f,
-                "TCPIP{}::{host}{}::{device}::INSTR",
-                board_text(board),
-                port_text(port)
-            ),
+                device_implied,
+                instr_suffix,
+            } => {
+                write!(f, "TCPIP{}::{host}{}", board_text(board), port_text(port))?;
+                if !device_implied {
+                    write!(f, "::{device}")?;
+                }
+                instr_text(f, *instr_suffix)
+            }
             Resource::Hislip {
                 board,
                 host,
                 index,
                 port,
-            } => write!(
-                f,
-                "TCPIP{}::{host}::hislip{index}{}::INSTR",
-                board_text(board),
-                port_text(port)
-            ),
+                instr_suffix,
+            } => {
+                write!(
+                    f,
+                    "TCPIP{}::{host}::hislip{index}{}",
+                    board_text(board),
+                    port_text(port)
+                )?;
+                instr_text(f, *instr_suffix)
+            }
             Resource::Vicp {
                 host,
                 port,
                 instr_suffix,
             } => {
                 write!(f, "VICP::{host}{}", port_text(port))?;
-                if *instr_suffix {
-                    f.write_str("::INSTR")?;
-                }
-                Ok(())
+                instr_text(f, *instr_suffix)
             }
             Resource::Serial { device } => write!(f, "ASRL{device}::INSTR"),
         }
@@ -365,7 +419,9 @@ mod tests {
                 board: None,
                 host: "127.0.0.1".into(),
                 port: Some(19009),
-                device: "inst0".into()
+                device: "inst0".into(),
+                device_implied: false,
+                instr_suffix: true,
             }
         );
         round_trip("TCPIP0::scope.lab::inst0::INSTR");
@@ -376,7 +432,8 @@ mod tests {
                 board: Some(0),
                 host: "localhost".into(),
                 index: 0,
-                port: None
+                port: None,
+                instr_suffix: true,
             }
         );
         round_trip("TCPIP::127.0.0.1::hislip3,14880::INSTR");
@@ -385,6 +442,63 @@ mod tests {
         round_trip("ASRL/dev/ttyUSB0::INSTR");
         round_trip("ASRL3::INSTR");
         round_trip("TCPIP::[::1]::5025::SOCKET");
+    }
+
+    /// The forms pyvisa and instrument manuals print, which leave out the device or `::INSTR`.
+    #[test]
+    fn short_forms_as_pyvisa_writes_them() {
+        let r = round_trip("TCPIP0::192.168.1.5::INSTR");
+        assert_eq!(
+            r,
+            Resource::Vxi11 {
+                board: Some(0),
+                host: "192.168.1.5".into(),
+                port: None,
+                device: "inst0".into(),
+                device_implied: true,
+                instr_suffix: true,
+            }
+        );
+        assert_eq!(r.protocol(), "vxi11");
+        let r = round_trip("TCPIP0::192.168.1.5::inst0");
+        assert!(
+            matches!(r, Resource::Vxi11 { ref device, instr_suffix: false, .. } if device == "inst0")
+        );
+        round_trip("TCPIP::127.0.0.1,19009::INSTR");
+        round_trip("TCPIP::127.0.0.1,19009::gpib0,5");
+        let r = round_trip("TCPIP0::host::hislip0");
+        assert!(matches!(
+            r,
+            Resource::Hislip {
+                index: 0,
+                port: None,
+                instr_suffix: false,
+                ..
+            }
+        ));
+        let r = round_trip("TCPIP0::host::hislip0,4881");
+        assert!(matches!(
+            r,
+            Resource::Hislip {
+                port: Some(4881),
+                ..
+            }
+        ));
+        // The user's spelling of keywords is normalised, the rest kept.
+        let r: Resource = "tcpip0::Host::HiSLIP2,4881".parse().unwrap();
+        assert_eq!(r.to_string(), "TCPIP0::Host::hislip2,4881");
+        let r: Resource = "tcpip::h::instr".parse().unwrap();
+        assert_eq!(r.to_string(), "TCPIP::h::INSTR");
+    }
+
+    #[test]
+    fn a_forgotten_socket_suffix_is_named() {
+        let e = "TCPIP::x".parse::<Resource>().unwrap_err();
+        assert!(e.to_string().contains("TCPIP::x::INSTR"), "{e}");
+        let e = "TCPIP::host::5025".parse::<Resource>().unwrap_err();
+        assert!(e.to_string().contains("TCPIP::host::5025::SOCKET"), "{e}");
+        let e = "TCPIP::host::SOCKET".parse::<Resource>().unwrap_err();
+        assert!(e.to_string().contains("needs its port"), "{e}");
     }
 
     #[test]
@@ -431,8 +545,11 @@ mod tests {
         fn generated_resources_round_trip(host in "[a-z][a-z0-9.-]{0,12}", port in 1u16.., idx in 0u32..10, board in proptest::option::of(0u32..4)) {
             for r in [
                 Resource::Socket { board, host: host.clone(), port },
-                Resource::Vxi11 { board, host: host.clone(), port: Some(port), device: "inst0".into() },
-                Resource::Hislip { board, host: host.clone(), index: idx, port: Some(port) },
+                Resource::Vxi11 { board, host: host.clone(), port: Some(port), device: "inst0".into(), device_implied: false, instr_suffix: true },
+                Resource::Vxi11 { board, host: host.clone(), port: None, device: "inst0".into(), device_implied: true, instr_suffix: true },
+                Resource::Vxi11 { board, host: host.clone(), port: Some(port), device: "inst1".into(), device_implied: false, instr_suffix: false },
+                Resource::Hislip { board, host: host.clone(), index: idx, port: Some(port), instr_suffix: true },
+                Resource::Hislip { board, host: host.clone(), index: idx, port: None, instr_suffix: false },
                 Resource::Vicp { host: host.clone(), port: None, instr_suffix: true },
             ] {
                 let text = r.to_string();

@@ -368,7 +368,9 @@ async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
     // Steps 4-6 only; the waveform is uploaded again before the first of them is captured (once
     // for a lab that reseeds on request, once per step on a lab started afresh for each step).
     assert_eq!(journal.matches("TRMD SINGLE;ARM").count(), 3);
-    let upload = journal.find(":TRAC1:DEF").expect("the waveform is uploaded again");
+    let upload = journal
+        .find(":TRAC1:DEF")
+        .expect("the waveform is uploaded again");
     assert!(upload < journal.find("TRMD SINGLE;ARM").unwrap());
     assert_eq!(read_json(&out.join("results.json")), *expected);
 }

@@ -2,7 +2,7 @@
 
 mod io_support;
 
-use io_support::{bounded, start, Proto};
+use io_support::{bounded, start, start_serving, Proto};
 use std::process::{Command, Output};
 
 /// Runs the radbench binary off the async runtime; every run is bounded by the tool's own
@@ -115,13 +115,15 @@ async fn refused_command_exits_3_with_the_device_error() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn unanswered_query_shows_the_device_error_once_each() {
-    let bench = start(Proto::Vicp).await;
-    let address = bench.resource.to_string();
-    let out = radbench(args(&["scpi", &address, "BOGUS?", "--timeout", "0.3"])).await;
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(3), "{err}");
-    assert!(err.contains("no reply to `BOGUS?`"), "{err}");
-    assert_eq!(err.matches("-113").count(), 1, "{err}");
+    for proto in [Proto::Hislip, Proto::Socket, Proto::Vxi11] {
+        let bench = start(proto).await;
+        let address = bench.resource.to_string();
+        let out = radbench(args(&["scpi", &address, "BOGUS?", "--timeout", "0.3"])).await;
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(3), "{proto:?}: {err}");
+        assert!(err.contains("no reply to `BOGUS?` within 300 ms"), "{err}");
+        assert_eq!(err.matches("-113").count(), 1, "{err}");
+    }
     // A link error names its cause once, not once per layer.
     let port = {
         let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
@@ -195,4 +197,105 @@ async fn bench_io_moves_the_block_both_ways_and_reports_its_hash() {
     // No timed run is bad input (exit 2).
     let out = radbench(args(&["bench", "io", "--runs", "0", &a])).await;
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}
+
+/// The LeCroy scope (the only VICP instrument) has no SCPI error queue: a query it refuses is
+/// reported from its command error register `CMR?`, not as a timeout to raise.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_query_the_scope_refuses_is_read_from_its_command_register() {
+    let scope = mock_lab::emulator::lecroy::Lecroy::embedded().expect("scope model");
+    let bench = start_serving(Proto::Vicp, std::sync::Arc::new(scope)).await;
+    let address = bench.resource.to_string();
+    let out = radbench(args(&["scpi", &address, "SARA?", "--timeout", "0.5"])).await;
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains("no reply to `SARA?` within 500 ms"), "{err}");
+    assert!(
+        err.contains("unrecognized command/query header"),
+        "the CMR? code is not explained: {err}"
+    );
+    assert!(!err.contains("timed out"), "{err}");
+    // A query it knows still answers on the same kind of session.
+    let out = radbench(args(&["scpi", &address, "CHDR OFF", "INR?"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
+/// `bench io` on an instrument without the loopback commands (the AWG) reports the AWG's own
+/// refusal and what `bench io` needs, not a timeout.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_io_on_the_awg_reports_its_refusal() {
+    let awg = mock_lab::emulator::m8195a::M8195a::embedded().expect("AWG model");
+    let bench = start_serving(Proto::Hislip, std::sync::Arc::new(awg)).await;
+    let address = bench.resource.to_string();
+    let out = radbench(args(&[
+        "bench",
+        "io",
+        "--size",
+        "1000",
+        "--runs",
+        "1",
+        "--timeout",
+        "0.5",
+        &address,
+    ]))
+    .await;
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains("-113"), "{err}");
+    assert!(err.contains("DATA?"), "{err}");
+    assert!(err.contains("loopback instrument"), "{err}");
+    assert!(!err.contains("timed out"), "{err}");
+}
+
+/// The Gotmic modules from `radbench idn` and `radbench scpi` on their serial resource: register
+/// reads (no `?`) are read and printed, CRC is added once the module has it on, and a refused
+/// request exits 3 with the module's error.
+#[cfg(unix)]
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_modules_from_idn_and_scpi() {
+    use mock_lab::server::{serial, ServerOptions};
+    let module = mock_lab::emulator::gotmic::Gotmic::rx_embedded().unwrap();
+    let endpoint = serial::serve(
+        std::sync::Arc::new(module),
+        ServerOptions::with_faults(mock_lab::faults::Faults::new()),
+    )
+    .expect("pty endpoint starts");
+    let address = format!("ASRL{}::INSTR", endpoint.device_path());
+    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("GOTMIC-EBAND-RX-EMU"),
+        "{}",
+        stdout(&out)
+    );
+
+    let out = radbench(args(&[
+        "scpi",
+        &address,
+        "R 03",
+        "CRC ON",
+        "W 03 0011",
+        "R 03",
+    ]))
+    .await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lines: Vec<String> = stdout(&out).lines().map(str::to_string).collect();
+    assert_eq!(
+        lines,
+        ["OK 003F", "OK", "OK", "OK 0011"],
+        "{}",
+        stderr(&out)
+    );
+
+    // The module kept CRC on: a new process finds out and frames its requests.
+    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = radbench(args(&["scpi", &address, "R 03", "R 7F", "--timeout", "2"])).await;
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert_eq!(stdout(&out).trim(), "OK 0011");
+    assert!(
+        stderr(&out).contains("unknown register"),
+        "{}",
+        stderr(&out)
+    );
 }

@@ -137,6 +137,9 @@ impl BenchSource {
             marker_out: true,
         };
         let mut synth = self.synth.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(seed) = self.scene.take_reseed() {
+            synth.reseed(seed);
+        }
         let volts = synth.volts(
             &scene,
             &awg,

@@ -5,21 +5,22 @@
 //! | instrument | transports |
 //! |---|---|
 //! | `awg` (M8195A) | raw socket, HiSLIP, VXI-11 |
-//! | `scope` (LabMaster) | VICP, VXI-11 (only the one selected as its remote interface answers) |
+//! | `scope` (LabMaster) | VICP, VXI-11 (only the one selected as its remote interface listens; the other refuses connections and is listed with `"active": false` and the reason) |
 //! | `tx`, `rx` (Gotmic) | serial, on pseudo-terminals |
 //! | `loopback` (test instrument, optional) | raw socket, VXI-11, HiSLIP, VICP, serial |
 
 use crate::bench::Bench;
 use crate::catalog::CatalogError;
 use crate::control;
-use crate::emulator::lecroy::RemoteInterface;
+use crate::emulator::lecroy::{Lecroy, RemoteInterface};
 use crate::emulator::loopback::Loopback;
 use crate::faults::Faults;
 use crate::scene::Scene;
 use crate::server::launch::{self, Endpoint, Ports, Running, Transport};
+use crate::server::switch::Switchable;
 use crate::server::{Handler, ServerError, ServerOptions, DEFAULT_MAX_MESSAGE_SIZE};
 use std::net::{Ipv4Addr, SocketAddr};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 /// How to start the lab.
 #[derive(Debug, Clone)]
@@ -72,29 +73,164 @@ pub enum LabError {
     },
     #[error("cannot start the scene control channel: {0}")]
     Control(std::io::Error),
-    #[error("--port-base {0} is too high: the lab's ports would pass 65535; choose a lower base")]
-    PortBase(u16),
+    #[error("cannot install the handlers that stop the lab on SIGINT and SIGTERM: {0}")]
+    Signals(std::io::Error),
+    #[error(
+        "--port-base {base} is out of range: the lab uses {needed} consecutive ports from it, \
+         so give 1 ..= {highest} (or leave it out for ports chosen by the OS)"
+    )]
+    PortBase {
+        base: u16,
+        needed: u16,
+        highest: u16,
+    },
+}
+
+impl LabError {
+    /// The process exit code this failure calls for: 2 bad input (an option out of range), 3 the
+    /// lab cannot serve (a port taken, no pseudo-terminal), 1 a bug (the built-in catalog).
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            LabError::PortBase { .. } => 2,
+            LabError::Server { .. } | LabError::Control(_) | LabError::Signals(_) => 3,
+            LabError::Catalog(_) => 1,
+        }
+    }
+}
+
+impl LabOptions {
+    /// Instrument slots of [`PORTS_PER_INSTRUMENT`] ports each, up to the last one with network
+    /// ports, in serving order: awg, scope, tx, rx (serial: their slots stay unused), loopback.
+    fn slots(&self) -> u16 {
+        if self.with_loopback {
+            5
+        } else {
+            2
+        }
+    }
+
+    /// Checks the options before anything is bound: a port base whose ports would pass 65535
+    /// (or start at 0) is refused here, as bad input.
+    pub fn validate(&self) -> Result<(), LabError> {
+        let Some(base) = self.port_base else {
+            return Ok(());
+        };
+        let needed = self.slots() * PORTS_PER_INSTRUMENT;
+        let highest = u16::MAX - (needed - 1);
+        if base == 0 || base > highest {
+            return Err(LabError::PortBase {
+                base,
+                needed,
+                highest,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// The running lab; dropping it stops every server.
 pub struct Lab {
     pub bench: Arc<Bench>,
-    pub endpoints: Vec<Endpoint>,
     /// The scene control channel's address.
     pub control: SocketAddr,
     /// Fault switches shared by every server of the lab.
     pub faults: Arc<Faults>,
+    /// Every endpoint as it is now, in serving order.
+    endpoints: Arc<Mutex<Vec<Endpoint>>>,
+    scope_switch: Arc<ScopeSwitch>,
     _running: Vec<Running>,
+    _follower: AbortOnDrop,
+    _control: control::ControlServer,
 }
 
 struct Served {
     name: &'static str,
     handler: Arc<dyn Handler>,
     transports: &'static [Transport],
+    /// The scope's endpoints: open only while the scope's remote interface is this one.
+    remote: Option<RemoteInterface>,
+}
+
+/// The scope's VICP and VXI-11 endpoints, opened and closed with its remote interface.
+struct ScopeSwitch {
+    scope: Arc<Lecroy>,
+    /// (protocol, index in the lab's endpoint list, server).
+    servers: tokio::sync::Mutex<Vec<(RemoteInterface, usize, Switchable)>>,
+    endpoints: Arc<Mutex<Vec<Endpoint>>>,
+}
+
+impl ScopeSwitch {
+    /// Why the endpoint for `via` is closed, and how to open it.
+    fn reason(&self, via: RemoteInterface) -> String {
+        let refusal = self.scope.accepts(via).err().unwrap_or_default();
+        let name = match via {
+            RemoteInterface::Vicp => "vicp",
+            RemoteInterface::Vxi11 => "vxi11",
+        };
+        format!(
+            "{refusal} (on mock_lab: send {{\"cmd\":\"scope_remote\",\"interface\":\"{name}\"}} \
+             to the control channel)"
+        )
+    }
+
+    /// Opens the endpoint of the scope's remote interface and closes the other; returns when
+    /// both are in their new state (the first error is returned, each endpoint says its own).
+    async fn apply(&self) -> Result<(), ServerError> {
+        let mut servers = self.servers.lock().await;
+        let enabled = self.scope.remote_interface();
+        let mut first_error = None;
+        for (via, index, server) in servers.iter_mut() {
+            let result = if *via == enabled {
+                server.open().await
+            } else {
+                server.close(self.reason(*via)).await
+            };
+            if let Err(err) = result {
+                tracing::warn!(protocol = ?via, "scope endpoint: {err}");
+                first_error.get_or_insert(err);
+            }
+            if let Some(slot) = lock(&self.endpoints).get_mut(*index) {
+                *slot = server.endpoint().clone();
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+}
+
+impl control::Panel for ScopeSwitch {
+    fn set_scope_remote(
+        &self,
+        remote: RemoteInterface,
+    ) -> control::PanelFuture<'_, Result<serde_json::Value, String>> {
+        Box::pin(async move {
+            self.scope.set_remote_interface(remote);
+            self.apply().await.map_err(|e| e.to_string())?;
+            Ok(serde_json::json!({ "scope_remote": remote }))
+        })
+    }
+
+    fn endpoints(&self) -> serde_json::Value {
+        serde_json::json!(*lock(&self.endpoints))
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // Plain data: a panic elsewhere leaves it consistent.
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Aborts a background task when dropped.
+struct AbortOnDrop(tokio::task::JoinHandle<()>);
+
+impl Drop for AbortOnDrop {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
 }
 
 /// Starts the lab. Must run inside a tokio runtime; returns once every endpoint listens.
 pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
+    options.validate()?;
     let bench = Arc::new(Bench::new(options.scene.clone())?);
     bench.scope.set_remote_interface(options.scope_remote);
     let mut served = vec![
@@ -102,26 +238,31 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             name: "awg",
             handler: bench.awg.clone(),
             transports: &[Transport::Raw, Transport::Hislip, Transport::Vxi11],
+            remote: None,
         },
         Served {
             name: "scope",
             handler: Arc::new(bench.scope.port(RemoteInterface::Vicp)),
             transports: &[Transport::Vicp],
+            remote: Some(RemoteInterface::Vicp),
         },
         Served {
             name: "scope",
             handler: Arc::new(bench.scope.port(RemoteInterface::Vxi11)),
             transports: &[Transport::Vxi11],
+            remote: Some(RemoteInterface::Vxi11),
         },
         Served {
             name: "tx",
             handler: bench.tx.clone(),
             transports: &[Transport::Serial],
+            remote: None,
         },
         Served {
             name: "rx",
             handler: bench.rx.clone(),
             transports: &[Transport::Serial],
+            remote: None,
         },
     ];
     if options.with_loopback {
@@ -135,8 +276,15 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
                 Transport::Vicp,
                 Transport::Serial,
             ],
+            remote: None,
         });
     }
+    let endpoints_now = Arc::new(Mutex::new(Vec::new()));
+    let scope_switch = Arc::new(ScopeSwitch {
+        scope: bench.scope.clone(),
+        servers: tokio::sync::Mutex::new(Vec::new()),
+        endpoints: endpoints_now.clone(),
+    });
     let faults = Faults::new();
     let mut running = Vec::new();
     let mut endpoints = Vec::new();
@@ -156,37 +304,69 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             if transport == Transport::Vicp && s.name == "loopback" {
                 ports.main = options.loopback_vicp_port.unwrap_or(ports.main);
             }
-            if transport == Transport::Vxi11 {
+            if transport == Transport::Vxi11 && s.remote.is_none() {
                 ports.portmapper = portmapper.take();
             }
             let server_options = ServerOptions {
                 max_message_size: options.max_message_size,
                 faults: faults.clone(),
             };
+            let failed = |source| LabError::Server {
+                instrument: s.name.to_string(),
+                transport: transport.name(),
+                source,
+            };
+            if let Some(via) = s.remote {
+                let closed = (via != options.scope_remote).then(|| scope_switch.reason(via));
+                let server = Switchable::start(
+                    s.name,
+                    s.handler.clone(),
+                    transport,
+                    ports,
+                    server_options,
+                    closed,
+                )
+                .await
+                .map_err(failed)?;
+                endpoints.push(server.endpoint().clone());
+                let index = endpoints.len() - 1;
+                scope_switch.servers.lock().await.push((via, index, server));
+                continue;
+            }
             let (server, endpoint) =
                 launch::start(s.name, s.handler.clone(), transport, ports, server_options)
                     .await
-                    .map_err(|source| LabError::Server {
-                        instrument: s.name.to_string(),
-                        transport: transport.name(),
-                        source,
-                    })?;
+                    .map_err(failed)?;
             running.push(server);
             endpoints.push(endpoint);
         }
     }
-    let control = control::serve(
+    *lock(&endpoints_now) = endpoints;
+    // Follows the scope's remote interface however it is changed (control channel, tests).
+    let mut changes = bench.scope.watch_remote_interface();
+    let follower_switch = scope_switch.clone();
+    let follower = tokio::spawn(async move {
+        while changes.changed().await.is_ok() {
+            let _ = follower_switch.apply().await;
+        }
+    });
+    let panel: Arc<dyn control::Panel> = scope_switch.clone();
+    let control_server = control::serve(
         bench.scene.clone(),
+        Some(panel),
         SocketAddr::from((Ipv4Addr::LOCALHOST, 0)),
     )
     .await
     .map_err(LabError::Control)?;
     Ok(Lab {
         bench,
-        endpoints,
-        control,
+        control: control_server.local_addr(),
+        _control: control_server,
         faults,
+        endpoints: endpoints_now,
+        scope_switch,
         _running: running,
+        _follower: AbortOnDrop(follower),
     })
 }
 
@@ -196,7 +376,15 @@ fn ports_for(base: Option<u16>, slot: u16, transport: Transport) -> Result<Ports
         return Ok(ports);
     };
     let first = u32::from(base) + u32::from(slot) * u32::from(PORTS_PER_INSTRUMENT);
-    let port = |offset: u32| u16::try_from(first + offset).map_err(|_| LabError::PortBase(base));
+    // `validate` has checked the whole range; this only keeps the arithmetic honest.
+    let port = |offset: u32| {
+        let needed = PORTS_PER_INSTRUMENT * (slot + 1);
+        u16::try_from(first + offset).map_err(|_| LabError::PortBase {
+            base,
+            needed,
+            highest: u16::MAX - (needed - 1),
+        })
+    };
     ports.main = match transport {
         Transport::Raw => port(0)?,
         Transport::Vxi11 => port(1)?,
@@ -211,17 +399,40 @@ fn ports_for(base: Option<u16>, slot: u16, transport: Transport) -> Result<Ports
 }
 
 impl Lab {
+    /// Every endpoint as it is now (`active` follows the scope's remote interface).
+    pub fn endpoints(&self) -> Vec<Endpoint> {
+        lock(&self.endpoints).clone()
+    }
+
     /// The endpoint of `instrument` on `transport`, if served.
-    pub fn endpoint(&self, instrument: &str, transport: Transport) -> Option<&Endpoint> {
-        self.endpoints
+    pub fn endpoint(&self, instrument: &str, transport: Transport) -> Option<Endpoint> {
+        lock(&self.endpoints)
             .iter()
             .find(|e| e.instrument == instrument && e.transport == transport)
+            .cloned()
+    }
+
+    /// Switches the scope's remote interface (Utilities > Remote) and returns once its endpoint
+    /// for that protocol accepts connections and the other refuses them.
+    pub async fn set_scope_remote(&self, remote: RemoteInterface) -> Result<(), LabError> {
+        self.bench.scope.set_remote_interface(remote);
+        self.scope_switch
+            .apply()
+            .await
+            .map_err(|source| LabError::Server {
+                instrument: "scope".into(),
+                transport: match remote {
+                    RemoteInterface::Vicp => "vicp",
+                    RemoteInterface::Vxi11 => "vxi11",
+                },
+                source,
+            })
     }
 
     /// One JSON object naming every endpoint and the control channel.
     pub fn describe_json(&self) -> serde_json::Value {
         serde_json::json!({
-            "endpoints": self.endpoints,
+            "endpoints": self.endpoints(),
             "control": self.control.to_string(),
         })
     }
@@ -259,63 +470,111 @@ pub enum Announce {
     Json,
 }
 
-/// Starts the lab, announces it on standard output, and serves until Ctrl-C (or, with
-/// `until_stdin_closes`, until standard input reaches end of file, so a parent process that dies
-/// takes the lab along).
+/// Starts the lab, announces it on standard output, and serves until SIGINT (Ctrl-C), SIGTERM
+/// or SIGHUP, or, with `until_stdin_closes`, until standard input reaches end of file (so a
+/// parent process that dies takes the lab along). Every server is stopped before it returns.
 pub async fn serve_until_stopped(
     options: LabOptions,
     announce: Announce,
     until_stdin_closes: bool,
 ) -> Result<(), LabError> {
     use std::io::Write;
+    // Handlers first: from here on a signal stops the lab cleanly instead of killing it.
+    let stop = stop_requested(until_stdin_closes).map_err(LabError::Signals)?;
     let lab = start(options).await?;
-    let mut out = std::io::stdout().lock();
     let text = match announce {
         Announce::Json => format!("{}\n", lab.describe_json()),
-        Announce::Human => {
-            // Everything printed is a valid bench file: the table is made of comments.
-            let mut t = format!(
-                "# {:<9} {:<7} {:<24} resource\n",
-                "instrument", "proto", "address"
-            );
-            for e in &lab.endpoints {
-                t += &format!(
-                    "# {:<9} {:<7} {:<24} {}\n",
-                    e.instrument,
-                    e.transport.name(),
-                    e.address,
-                    e.resource
-                );
-            }
-            t += &format!("# {:<9} {:<7} {}\n#\n", "control", "json", lab.control);
-            t +=
-                "# serving on 127.0.0.1 until Ctrl-C; this output is a ready-to-use bench file\n\n";
-            t += &lab.bench_toml(Transport::Hislip, Transport::Vicp);
-            t
-        }
+        Announce::Human => describe_human(&lab),
     };
     // A closed stdout (a script that read the first line and left) must not stop the lab.
+    let mut out = std::io::stdout().lock();
     let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
     drop(out);
-    let stdin_closed = async {
-        if until_stdin_closes {
-            let _ = tokio::task::spawn_blocking(|| {
-                use std::io::Read;
-                let mut sink = [0u8; 4096];
-                let mut stdin = std::io::stdin();
-                while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
-            })
-            .await;
-        } else {
-            std::future::pending::<()>().await;
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = stdin_closed => {}
-    }
+    let why = stop.await;
+    tracing::info!("stopping: {why}");
     drop(lab);
     Ok(())
+}
+
+/// The endpoint table (comments) followed by a ready-to-use bench file.
+fn describe_human(lab: &Lab) -> String {
+    // Everything printed is a valid bench file: the table is made of comments.
+    let mut t = format!(
+        "# {:<9} {:<7} {:<24} resource\n",
+        "instrument", "proto", "address"
+    );
+    for e in &lab.endpoints() {
+        t += &format!(
+            "# {:<9} {:<7} {:<24} {}\n",
+            e.instrument,
+            e.transport.name(),
+            e.address,
+            e.resource
+        );
+        if let Some(reason) = &e.reason {
+            t += &format!("#   closed: {reason}\n");
+        }
+    }
+    t += &format!("# {:<9} {:<7} {}\n#\n", "control", "json", lab.control);
+    t += "# serving on 127.0.0.1 until Ctrl-C; this output is a ready-to-use bench file\n\n";
+    t += &lab.bench_toml(Transport::Hislip, Transport::Vicp);
+    t
+}
+
+/// A future that resolves with what asked the lab to stop. Signal handlers are installed now,
+/// before the future is first polled, so no signal is lost in between.
+fn stop_requested(
+    until_stdin_closes: bool,
+) -> std::io::Result<impl std::future::Future<Output = &'static str>> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let mut interrupt = signal(SignalKind::interrupt())?;
+    let mut terminate = signal(SignalKind::terminate())?;
+    let mut hangup = signal(SignalKind::hangup())?;
+    let stdin_closed = if until_stdin_closes {
+        stdin_closed()
+    } else {
+        None
+    };
+    Ok(async move {
+        let stdin = async {
+            match stdin_closed {
+                // A sender dropped without sending (the reader thread died) counts as closed.
+                Some(closed) => {
+                    let _ = closed.await;
+                }
+                None => std::future::pending::<()>().await,
+            }
+        };
+        tokio::select! {
+            _ = interrupt.recv() => "SIGINT",
+            _ = terminate.recv() => "SIGTERM",
+            _ = hangup.recv() => "SIGHUP",
+            () = stdin => "standard input closed",
+        }
+    })
+}
+
+/// Resolves when standard input reaches end of file (or fails). The reading thread is detached:
+/// it must never hold up the process's exit (a runtime waits for its blocking tasks). `None`
+/// when no thread could be started (the lab then stops on signals only, and says so).
+fn stdin_closed() -> Option<tokio::sync::oneshot::Receiver<()>> {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let spawned = std::thread::Builder::new()
+        .name("mock-lab-stdin".into())
+        .spawn(move || {
+            use std::io::Read;
+            let mut sink = [0u8; 4096];
+            let mut stdin = std::io::stdin();
+            while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+            let _ = tx.send(());
+        });
+    match spawned {
+        Ok(_) => Some(rx),
+        Err(err) => {
+            tracing::warn!("cannot watch standard input ({err}); stop the lab with Ctrl-C");
+            None
+        }
+    }
 }
 
 #[cfg(test)]
@@ -323,6 +582,26 @@ mod tests {
     use super::*;
     use std::time::Duration;
     use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    #[test]
+    fn port_bases_whose_ports_pass_65535_are_bad_input() {
+        let with = |port_base, with_loopback| LabOptions {
+            port_base: Some(port_base),
+            with_loopback,
+            ..LabOptions::default()
+        };
+        for (base, loopback) in [(65535, false), (0, false), (65527, false), (65512, true)] {
+            let err = with(base, loopback).validate().unwrap_err();
+            assert_eq!(err.exit_code(), 2, "{base}: {err}");
+        }
+        assert!(with(65526, false).validate().is_ok());
+        assert!(with(65511, true).validate().is_ok());
+        let err = with(65535, true).validate().unwrap_err().to_string();
+        assert!(
+            err.contains("25 consecutive ports") && err.contains("1 ..= 65511"),
+            "{err}"
+        );
+    }
 
     #[tokio::test]
     async fn lab_serves_every_instrument_and_describes_itself() {
@@ -368,5 +647,94 @@ mod tests {
         .unwrap()
         .unwrap();
         assert!(line.starts_with("MOCK_LAB,M8195A-EMU"), "{line}");
+    }
+
+    async fn connects(addr: &str) -> bool {
+        match tokio::time::timeout(Duration::from_secs(5), tokio::net::TcpStream::connect(addr))
+            .await
+            .expect("accepted or refused at once, never left hanging")
+        {
+            Ok(_) => true,
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => false,
+            Err(e) => panic!("{addr}: {e}"),
+        }
+    }
+
+    async fn control(lab: &Lab, request: &str) -> serde_json::Value {
+        let stream = tokio::net::TcpStream::connect(lab.control).await.unwrap();
+        let (rd, mut wr) = stream.into_split();
+        wr.write_all(format!("{request}\n").as_bytes())
+            .await
+            .unwrap();
+        let mut line = String::new();
+        tokio::time::timeout(
+            Duration::from_secs(10),
+            BufReader::new(rd).read_line(&mut line),
+        )
+        .await
+        .unwrap()
+        .unwrap();
+        serde_json::from_str(&line).unwrap()
+    }
+
+    #[tokio::test]
+    async fn only_the_scopes_remote_interface_listens_and_a_switch_moves_it() {
+        let lab = tokio::time::timeout(Duration::from_secs(10), start(LabOptions::default()))
+            .await
+            .unwrap()
+            .unwrap();
+        let vicp = lab.endpoint("scope", Transport::Vicp).unwrap();
+        let vxi11 = lab.endpoint("scope", Transport::Vxi11).unwrap();
+        assert!(vicp.active && vicp.reason.is_none());
+        assert!(!vxi11.active);
+        assert!(
+            vxi11.reason.as_deref().unwrap().contains("TCPIP (VICP)"),
+            "{vxi11:?}"
+        );
+        let json = lab.describe_json();
+        let listed = json["endpoints"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["instrument"] == "scope" && e["transport"] == "vxi11")
+            .unwrap();
+        assert_eq!(listed["active"], false);
+        assert!(listed["reason"]
+            .as_str()
+            .unwrap()
+            .contains("remote interface"));
+        assert!(connects(&vicp.address).await);
+        assert!(!connects(&vxi11.address).await, "closed port refuses");
+        assert!(!connects(vxi11.abort_address.as_deref().unwrap()).await);
+
+        lab.set_scope_remote(RemoteInterface::Vxi11).await.unwrap();
+        let now = lab.endpoint("scope", Transport::Vxi11).unwrap();
+        assert_eq!(now.address, vxi11.address, "same port after the switch");
+        assert!(now.active);
+        assert!(connects(&vxi11.address).await);
+        assert!(!connects(&vicp.address).await);
+        assert!(!lab.endpoint("scope", Transport::Vicp).unwrap().active);
+
+        // The control channel switches it back, and lists the endpoints as they are.
+        let v = control(&lab, r#"{"cmd":"scope_remote","interface":"vicp"}"#).await;
+        assert_eq!(v["ok"], true, "{v}");
+        assert!(connects(&vicp.address).await);
+        assert!(!connects(&vxi11.address).await);
+        let v = control(&lab, r#"{"cmd":"endpoints"}"#).await;
+        let scope: Vec<(String, bool)> = v["endpoints"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["instrument"] == "scope")
+            .map(|e| {
+                (
+                    e["transport"].as_str().unwrap().to_string(),
+                    e["active"] == true,
+                )
+            })
+            .collect();
+        assert_eq!(scope, [("vicp".into(), true), ("vxi11".into(), false)]);
+        let v = control(&lab, r#"{"cmd":"scope_remote","interface":"gpib"}"#).await;
+        assert_eq!(v["ok"], false, "{v}");
     }
 }

@@ -3,8 +3,12 @@
 //! `mock-lab serve` starts every instrument of the bench (AWG, scope, Gotmic Tx/Rx) and the
 //! generic loopback test instrument on 127.0.0.1, prints where each endpoint is (a table that is
 //! also a ready-to-use radbench bench file, or with `--json` one JSON line), then serves until
-//! Ctrl-C or until its standard input reaches end of file (so a parent process that dies takes it
-//! along; `--ignore-stdin` for detached runs).
+//! SIGINT (Ctrl-C), SIGTERM or SIGHUP, or until its standard input reaches end of file (so a
+//! parent process that dies takes it along; `--ignore-stdin` for detached runs).
+//!
+//! Exit codes: 0 stopped as asked, 2 bad input (options, scene file), 3 the lab cannot serve
+//! (a port taken, no pseudo-terminal), 1 a bug. Messages are printed with control characters
+//! escaped: they may quote a scene file.
 
 use std::process::ExitCode;
 
@@ -56,9 +60,13 @@ struct ServeArgs {
     #[arg(long, value_enum, default_value = "vicp")]
     scope_remote: ScopeRemote,
     /// Keep serving when standard input closes (for running detached, `< /dev/null`); stop
-    /// with Ctrl-C / SIGINT only.
+    /// with Ctrl-C / SIGINT or SIGTERM only.
     #[arg(long)]
     ignore_stdin: bool,
+    /// Stop when standard input closes: the default, accepted for the same command line as
+    /// `radbench mock-lab serve`.
+    #[arg(long, conflicts_with = "ignore_stdin")]
+    until_stdin_closes: bool,
     /// Largest message accepted from a client, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_MAX_MESSAGE_SIZE)]
     max_message_size: usize,
@@ -81,11 +89,13 @@ fn main() -> ExitCode {
         .init();
     let Command::Serve(args) = cli.command;
     if args.max_message_size < 1024 {
-        eprintln!(
-            "mock-lab: --max-message-size must be at least 1024 bytes, got {}",
-            args.max_message_size
+        return fail(
+            2,
+            &format!(
+                "--max-message-size must be at least 1024 bytes, got {}",
+                args.max_message_size
+            ),
         );
-        return ExitCode::from(2);
     }
     let scene = match &args.scene {
         None => Scene::default(),
@@ -97,18 +107,8 @@ fn main() -> ExitCode {
                 });
             match loaded {
                 Ok(s) => s,
-                Err(e) => {
-                    eprintln!("mock-lab: {e}");
-                    return ExitCode::from(2);
-                }
+                Err(e) => return fail(2, &e),
             }
-        }
-    };
-    let runtime = match tokio::runtime::Runtime::new() {
-        Ok(rt) => rt,
-        Err(err) => {
-            eprintln!("mock-lab: cannot start the async runtime: {err}");
-            return ExitCode::from(3);
         }
     };
     let options = LabOptions {
@@ -124,6 +124,13 @@ fn main() -> ExitCode {
         with_loopback: true,
         loopback_vicp_port: args.loopback_vicp_port,
     };
+    if let Err(err) = options.validate() {
+        return fail(err.exit_code(), &err.to_string());
+    }
+    let runtime = match tokio::runtime::Runtime::new() {
+        Ok(rt) => rt,
+        Err(err) => return fail(3, &format!("cannot start the async runtime: {err}")),
+    };
     let announce = if args.json {
         Announce::Json
     } else {
@@ -134,13 +141,36 @@ fn main() -> ExitCode {
         announce,
         !args.ignore_stdin,
     ));
-    // Do not wait for the thread blocked on stdin.
     runtime.shutdown_background();
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(err) => {
-            eprintln!("mock-lab: {err}");
-            ExitCode::from(3)
+        Err(err) => fail(err.exit_code(), &err.to_string()),
+    }
+}
+
+/// Prints `message` on stderr, control characters escaped, and returns `code`.
+fn fail(code: u8, message: &str) -> ExitCode {
+    use std::io::Write;
+    // A closed stderr leaves nothing to tell.
+    let _ = writeln!(std::io::stderr(), "mock-lab: {}", escape_controls(message));
+    ExitCode::from(code)
+}
+
+/// `text` with control characters other than LF and tab shown as `\xNN` / `\u{NNNN}`, so a
+/// scene file quoted in a message cannot drive the terminal.
+fn escape_controls(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        let invisible = matches!(c, '\u{200b}'..='\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}');
+        if (c.is_control() && c != '\n' && c != '\t') || invisible {
+            if (c as u32) < 0x100 {
+                out.push_str(&format!("\\x{:02x}", c as u32));
+            } else {
+                out.push_str(&format!("\\u{{{:04x}}}", c as u32));
+            }
+        } else {
+            out.push(c);
         }
     }
+    out
 }

@@ -77,6 +77,7 @@ impl Default for Leakage {
 #[serde(deny_unknown_fields, default)]
 pub struct Impairments {
     /// DC offset added to I and Q at the scope input, volts.
+    #[serde(deserialize_with = "exactly_two")]
     pub dc_offset_v: [f64; 2],
     /// Q gain relative to I, dB.
     pub iq_gain_db: f64,
@@ -84,6 +85,18 @@ pub struct Impairments {
     pub iq_phase_deg: f64,
     /// Residual phase-noise linewidth after LO sharing, Hz (0 = none).
     pub phase_noise_linewidth_hz: f64,
+}
+
+/// `[I, Q]`: exactly two numbers. serde's own `[f64; 2]` takes the first two of a longer TOML
+/// array and drops the rest without a word.
+fn exactly_two<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    let values = Vec::<f64>::deserialize(d)?;
+    <[f64; 2]>::try_from(values.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!(
+            "dc_offset_v takes exactly 2 values, [I, Q] in volts; got {}",
+            values.len()
+        ))
+    })
 }
 
 /// Everything about the bench that is not an instrument setting. Loaded from a TOML scene file and
@@ -138,6 +151,13 @@ pub enum SceneError {
     Parse { path: String, message: String },
     #[error("scene field `{field}`: {message}")]
     Invalid { field: String, message: String },
+    #[error("scene file {path}, line {line}: `{field}`: {message}")]
+    Field {
+        path: String,
+        line: usize,
+        field: String,
+        message: String,
+    },
     #[error("cannot synthesise a capture: {0}")]
     Synthesis(String),
 }
@@ -156,7 +176,21 @@ impl Scene {
             path: origin.to_string(),
             message: e.to_string(),
         })?;
-        scene.validate()?;
+        scene.validate().map_err(|err| match err {
+            SceneError::Invalid { field, message } => match locate::line_of_field(text, &field) {
+                Some(line) => SceneError::Field {
+                    path: origin.to_string(),
+                    line,
+                    field,
+                    message,
+                },
+                None => SceneError::Parse {
+                    path: origin.to_string(),
+                    message: format!("`{field}`: {message}"),
+                },
+            },
+            other => other,
+        })?;
         Ok(scene)
     }
 
@@ -169,6 +203,15 @@ impl Scene {
         finite_in("leakage.amplitude", self.leakage.amplitude, 0.0, 10.0)?;
         finite_in("leakage.delay_s", self.leakage.delay_s, 0.0, 1e-6)?;
         for (list, name) in [(&self.targets, "targets"), (&self.clutter, "clutter")] {
+            if list.len() > MAX_REFLECTORS {
+                return Err(invalid(
+                    name,
+                    format!(
+                        "{} entries; at most {MAX_REFLECTORS} (each costs synthesis time on every capture)",
+                        list.len()
+                    ),
+                ));
+            }
             for (i, t) in list.iter().enumerate() {
                 finite_in(&format!("{name}[{i}].range_m"), t.range_m, 0.0, 150.0)?;
                 finite_in(&format!("{name}[{i}].amplitude"), t.amplitude, 0.0, 10.0)?;
@@ -196,14 +239,32 @@ impl Scene {
     }
 }
 
+/// Most targets, and most clutter reflectors, a scene may hold.
+pub const MAX_REFLECTORS: usize = 100;
+
 fn finite_in(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
         Err(invalid(
             field,
-            format!("{v} is outside the allowed range {lo} ..= {hi}"),
+            format!(
+                "{} is outside the allowed range {} ..= {}",
+                readable(v),
+                readable(lo),
+                readable(hi)
+            ),
         ))
+    }
+}
+
+/// A number as a person writes it: `1e300`, not three hundred digits.
+fn readable(v: f64) -> String {
+    let magnitude = v.abs();
+    if magnitude != 0.0 && !(1e-3..1e6).contains(&magnitude) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
     }
 }
 
@@ -311,6 +372,11 @@ impl Synthesizer {
             cached: None,
             rng: SplitMix64::new(seed),
         }
+    }
+
+    /// Restarts the noise and jitter generator from `seed`.
+    pub fn reseed(&mut self, seed: u64) {
+        self.rng = SplitMix64::new(seed);
     }
 
     fn plan(&mut self, len: usize, inverse: bool) -> Arc<dyn Fft<f64>> {
@@ -698,6 +764,7 @@ impl SplitMix64 {
     }
 }
 
+mod locate;
 mod ziggurat;
 
 #[cfg(test)]

@@ -122,3 +122,177 @@ fn ignore_stdin_keeps_serving_after_stdin_closes() {
     child.kill().unwrap();
     child.wait().unwrap();
 }
+
+/// A spawned `mock-lab serve --json` that is killed if the test ends early.
+struct Served {
+    child: std::process::Child,
+    listing: serde_json::Value,
+}
+
+impl Served {
+    fn start(args: &[&str]) -> Served {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+            .arg("serve")
+            .arg("--json")
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("mock-lab starts");
+        let stdout = child.stdout.take().unwrap();
+        // Read the first line on a thread so the wait is bounded.
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let _ = BufReader::new(stdout).read_line(&mut line);
+            let _ = tx.send(line);
+        });
+        let mut served = Served {
+            child,
+            listing: serde_json::Value::Null,
+        };
+        let line = rx
+            .recv_timeout(common::LIMIT)
+            .expect("endpoints printed in time");
+        served.listing = serde_json::from_str(&line).expect("one JSON line");
+        served
+    }
+
+    fn endpoint(&self, instrument: &str, transport: &str) -> serde_json::Value {
+        self.listing["endpoints"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["instrument"] == instrument && e["transport"] == transport)
+            .cloned()
+            .unwrap()
+    }
+
+    fn signal(&self, signal: i32) {
+        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
+        // SAFETY: sends a signal to our own child; no memory is involved.
+        assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+    }
+
+    /// Waits (bounded) for the process to end; its exit status.
+    fn wait(mut self) -> std::process::ExitStatus {
+        let deadline = Instant::now() + common::LIMIT;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "mock-lab did not stop in time");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn serve_stops_on_sigint_and_sigterm_while_stdin_stays_open() {
+    for (signal, flags) in [
+        (libc::SIGTERM, &["--until-stdin-closes"][..]),
+        (libc::SIGINT, &[][..]),
+        (libc::SIGTERM, &["--ignore-stdin"][..]),
+    ] {
+        let served = Served::start(flags);
+        let raw = served.endpoint("loopback", "raw")["address"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        std::net::TcpStream::connect(&raw).expect("serving");
+        served.signal(signal);
+        // stdin is still open (the pipe is held by `served`): only the signal can stop it.
+        let status = served.wait();
+        assert!(status.success(), "signal {signal} {flags:?}: {status:?}");
+        let err = std::net::TcpStream::connect(&raw).expect_err("stopped");
+        assert_eq!(err.kind(), std::io::ErrorKind::ConnectionRefused);
+    }
+}
+
+#[test]
+fn the_scopes_other_endpoint_is_marked_inactive_and_refuses_at_once() {
+    let served = Served::start(&[]);
+    let vxi11 = served.endpoint("scope", "vxi11");
+    assert_eq!(vxi11["active"], false);
+    let reason = vxi11["reason"].as_str().unwrap();
+    assert!(reason.contains("TCPIP (VICP)"), "{reason}");
+    let vicp = served.endpoint("scope", "vicp");
+    assert_eq!(vicp["active"], true);
+    assert!(vicp.get("reason").is_none());
+    let err = std::net::TcpStream::connect_timeout(
+        &vxi11["address"].as_str().unwrap().parse().unwrap(),
+        common::LIMIT,
+    )
+    .expect_err("a closed port refuses");
+    assert_eq!(err.kind(), std::io::ErrorKind::ConnectionRefused);
+    let served = Served::start(&["--scope-remote", "vxi11"]);
+    assert_eq!(served.endpoint("scope", "vxi11")["active"], true);
+    assert_eq!(served.endpoint("scope", "vicp")["active"], false);
+}
+
+/// Runs `mock-lab serve ARGS` expecting it to refuse at once; (exit code, stderr).
+fn refused(args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+        .arg("serve")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn out_of_range_port_base_and_bad_scenes_are_bad_input() {
+    for base in ["65535", "0", "65512"] {
+        let (code, err) = refused(&["--port-base", base]);
+        assert_eq!(code, Some(2), "{base}: {err}");
+        assert!(
+            err.contains("--port-base") && err.contains("1 ..= 65511"),
+            "{err}"
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("mock-lab-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, text, expected) in [
+        (
+            "three.toml",
+            "[impairments]\ndc_offset_v = [0.0, 0.0, 0.1]\n",
+            &["three.toml", "line 2", "dc_offset_v", "exactly 2 values"][..],
+        ),
+        (
+            "huge.toml",
+            "snr_db = 20\n\n[[targets]]\nrange_m = 1.0\namplitude = 1e300\n",
+            &["huge.toml", "line 5", "targets[0].amplitude", "1e300"][..],
+        ),
+        (
+            "escape.toml",
+            "[[targets]]\nrange_m = \"\x1b]0;pwned\x07\"\n",
+            &["escape.toml", "line 2", "\\x1b]0;pwned\\x07"][..],
+        ),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        let (code, err) = refused(&["--scene", path.to_str().unwrap()]);
+        assert_eq!(code, Some(2), "{err}");
+        for part in expected {
+            assert!(err.contains(part), "{part}: {err}");
+        }
+        assert!(
+            !err.contains('\x1b'),
+            "no raw escape reaches the terminal: {err:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

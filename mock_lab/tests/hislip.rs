@@ -283,3 +283,18 @@ async fn message_over_the_limit_gets_error_4_and_the_session_continues() {
     assert_eq!((kind, code), (3, 4), "Error: message too large");
     assert_eq!(c.query("*OPC?").await, b"1\n");
 }
+
+#[tokio::test]
+async fn blocks_ending_in_whitespace_reach_the_awg_byte_exact() {
+    let (handler, options) = common::awg();
+    let server = hislip::serve(loopback_any(), handler, options)
+        .await
+        .unwrap();
+    let mut client = Client::open(server.local_addr()).await;
+    for exchange in common::whitespace_tail_uploads() {
+        let id = client.write(&exchange.message).await;
+        if let Some(reply) = exchange.reply {
+            assert_eq!(client.read(id).await, format!("{reply}\n").into_bytes());
+        }
+    }
+}

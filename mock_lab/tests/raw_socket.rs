@@ -215,3 +215,21 @@ async fn panicking_handler_closes_only_that_connection() {
     s.write_all(b"still here\n").await.unwrap();
     assert_eq!(read_line(&mut s).await, b"still here");
 }
+
+#[tokio::test]
+async fn blocks_ending_in_whitespace_reach_the_awg_byte_exact() {
+    let (handler, options) = common::awg();
+    let server = raw::serve(loopback_any(), handler, options).await.unwrap();
+    let mut stream = bounded(TcpStream::connect(server.local_addr()))
+        .await
+        .unwrap();
+    for exchange in common::whitespace_tail_uploads() {
+        bounded(stream.write_all(&exchange.message)).await.unwrap();
+        if let Some(reply) = exchange.reply {
+            assert_eq!(
+                String::from_utf8(read_line(&mut stream).await).unwrap(),
+                reply
+            );
+        }
+    }
+}

@@ -49,3 +49,19 @@ fn lines_in_lines_out_with_faults() {
     port.write_all(b"*OPC?\n").unwrap();
     assert_eq!(read_line(port.as_mut()), "1\n");
 }
+
+#[test]
+fn blocks_ending_in_whitespace_reach_the_awg_byte_exact() {
+    let (handler, options) = common::awg();
+    let server = serial::serve(handler, options).unwrap();
+    let mut port = serialport::new(server.device_path(), 115_200)
+        .timeout(Duration::from_secs(10))
+        .open()
+        .unwrap();
+    for exchange in common::whitespace_tail_uploads() {
+        port.write_all(&exchange.message).unwrap();
+        if let Some(reply) = exchange.reply {
+            assert_eq!(read_line(port.as_mut()), format!("{reply}\n"));
+        }
+    }
+}

@@ -273,3 +273,16 @@ fn set_zero_linger(s: &std::net::TcpStream) {
     };
     assert_eq!(rc, 0, "setsockopt(SO_LINGER)");
 }
+
+#[tokio::test]
+async fn blocks_ending_in_whitespace_reach_the_awg_byte_exact() {
+    let (handler, options) = common::awg();
+    let server = vicp::serve(loopback_any(), handler, options).await.unwrap();
+    let mut client = Client::connect(server.local_addr()).await;
+    for exchange in common::whitespace_tail_uploads() {
+        let seq = client.send(&exchange.message).await;
+        if let Some(reply) = exchange.reply {
+            assert_eq!(client.read(seq).await, format!("{reply}\n").into_bytes());
+        }
+    }
+}

@@ -395,3 +395,18 @@ async fn device_lock_with_waitlock_waits_for_the_release() {
         .await;
     assert_eq!(word(&r, 0), 11, "lock_timeout expired");
 }
+
+#[tokio::test]
+async fn blocks_ending_in_whitespace_reach_the_awg_byte_exact() {
+    let (handler, options) = common::awg();
+    let server = vxi11::serve(Vxi11Addresses::loopback(), handler, options)
+        .await
+        .unwrap();
+    let mut link = Link::open(server.local_addr()).await;
+    for exchange in common::whitespace_tail_uploads() {
+        link.write(&exchange.message).await;
+        if let Some(reply) = exchange.reply {
+            assert_eq!(link.read().await, format!("{reply}\n").into_bytes());
+        }
+    }
+}

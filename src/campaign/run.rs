@@ -235,8 +235,9 @@ pub async fn resume(
     // A run folder at all? (Before the lock file is created in it.)
     Manifest::load(dir)?;
     let lock = lock(dir)?;
-    // TODO(storage::atomic::remove_stale_temporaries): once that function is merged, call it on
-    // `dir` and each step folder here: a run killed mid-write leaves `.<name>.tmp-<pid>` files.
+    // A run killed mid-write leaves temporaries behind (the step folders are cleaned when their
+    // files are written again).
+    crate::storage::atomic::remove_stale_temporaries(dir)?;
     let mut manifest = Manifest::load(dir)?;
     if manifest.status == Status::Complete {
         return Err(CampaignError::Complete {

@@ -9,7 +9,7 @@
 
 use crate::address::Resource;
 use crate::exit::bad_input;
-use crate::session::{BlockForm, Session, SessionOptions};
+use crate::session::{BlockForm, Session, SessionError, SessionOptions};
 use sha2::{Digest, Sha256};
 use std::time::{Duration, Instant};
 
@@ -30,6 +30,9 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Seconds allowed for a reply to start (the block itself gets its size at 10 MB/s on top).
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    pub timeout: f64,
 }
 
 /// Throughput of one address in one direction.
@@ -120,21 +123,46 @@ fn check(address: &str, got: &[u8], want: &[u8]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What `bench io` needs of the instrument, said when the instrument refuses it.
+const NEEDS_LOOPBACK: &str =
+    "bench io needs an instrument that stores a block with `DATA <block>` \
+and returns it with `DATA?` (mock-lab's loopback instrument)";
+
+/// Adds [`NEEDS_LOOPBACK`] to a refusal by the instrument (e.g. an AWG's -113 for `DATA?`).
+fn explain_refusal(address: &str, result: anyhow::Result<()>) -> anyhow::Result<()> {
+    result.map_err(|e| {
+        let refused = e
+            .downcast_ref::<SessionError>()
+            .is_some_and(|s| s.device_errors().is_some());
+        if refused {
+            e.context(format!("{address}: {NEEDS_LOOPBACK}"))
+        } else {
+            e
+        }
+    })
+}
+
 async fn measure(
     address: &str,
     data: &[u8],
     runs: usize,
+    timeout: Duration,
 ) -> anyhow::Result<(Measurement, Measurement)> {
     let resource: Resource = address.parse()?;
     let protocol = resource.protocol();
     let mut options = SessionOptions::default();
+    options.link.timeouts.read = timeout;
     options.link.max_message_bytes = options.link.max_message_bytes.max(data.len() + 4096);
     let mut session = Session::open(resource, options, None, "bench").await?;
-    // Warm-up: connections, buffers and the instrument's stored block exist before timing.
-    upload(&mut session, data).await?;
-    let warm = download(&mut session).await?;
-    check(address, &warm, data)?;
-    drop(warm);
+    // Warm-up: connections, buffers and the instrument's stored block exist before timing. An
+    // instrument without the loopback commands refuses here (`DATA?` goes unanswered and its
+    // error queue says why).
+    let warm = async {
+        upload(&mut session, data).await?;
+        let warm = download(&mut session).await?;
+        check(address, &warm, data)
+    };
+    explain_refusal(address, warm.await)?;
 
     let mut writes = Vec::with_capacity(runs);
     for _ in 0..runs {
@@ -161,6 +189,13 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if args.runs == 0 {
         return Err(bad_input("--runs must be at least 1"));
     }
+    if !(args.timeout.is_finite() && args.timeout > 0.0 && args.timeout <= 86_400.0) {
+        return Err(bad_input(format!(
+            "--timeout {}: give a number of seconds between 0 and 86400",
+            args.timeout
+        )));
+    }
+    let timeout = Duration::from_secs_f64(args.timeout);
     if args.size == 0 || args.size > 1 << 30 {
         return Err(bad_input(format!(
             "--size {}: give a block size between 1 byte and 1 GiB",
@@ -184,7 +219,7 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         // wakes it; awaited from block_on, every readiness event would also hand over to the
         // main thread (measured: reads 20-50 % slower on this 2-core machine).
         let (address, payload, runs) = (address.clone(), data.clone(), args.runs);
-        let task = runtime.spawn(async move { measure(&address, &payload, runs).await });
+        let task = runtime.spawn(async move { measure(&address, &payload, runs, timeout).await });
         let (read, write) = runtime.block_on(task)??;
         results.push(read);
         results.push(write);

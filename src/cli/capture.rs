@@ -188,14 +188,20 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         .into());
     }
     if args.json {
-        println!("{summary}");
+        super::terminal::out(&summary.to_string())
     } else {
-        print_report(&m, &out);
+        super::terminal::out(&report(&m, &out))
     }
-    Ok(())
 }
 
-fn print_report(m: &Measurement, out: &Path) {
+/// The text report of a measurement.
+fn report(m: &Measurement, out: &Path) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    // Writing to a String cannot fail.
+    macro_rules! println {
+        ($($arg:tt)*) => { writeln!(text, $($arg)*).unwrap_or(()) };
+    }
     let p = &m.processed;
     let o = &m.options;
     println!(
@@ -273,4 +279,5 @@ fn print_report(m: &Measurement, out: &Path) {
         println!("warning: {w}");
     }
     println!("files: {}", out.display());
+    text.trim_end().to_string()
 }

@@ -1,6 +1,9 @@
 //! `radbench idn ADDRESS`: asks an instrument who it is (`*IDN?`) and prints the parsed identity.
+//! The fields are the instrument's text: control characters in them are shown escaped.
 
 use super::scpi::ConnectArgs;
+use super::terminal::{out, printable};
+use crate::session::reply::Identity;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -13,19 +16,27 @@ pub struct Args {
 
 pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
-    runtime.block_on(async {
+    let identity = runtime.block_on(async {
         let mut session = args.connect.open(global).await?;
         let identity = session.idn().await;
         let _ = session.close().await;
-        let identity = identity?;
-        if args.json {
-            println!("{}", serde_json::to_string_pretty(&identity)?);
-        } else {
-            println!("manufacturer: {}", identity.manufacturer);
-            println!("model:        {}", identity.model);
-            println!("serial:       {}", identity.serial);
-            println!("firmware:     {}", identity.firmware);
-        }
-        Ok(())
-    })
+        anyhow::Ok(identity?)
+    })?;
+    if args.json {
+        // JSON escapes control characters itself.
+        out(&serde_json::to_string_pretty(&identity)?)
+    } else {
+        out(&describe(&identity))
+    }
+}
+
+/// The identity as four aligned lines, safe for a terminal.
+pub fn describe(identity: &Identity) -> String {
+    format!(
+        "manufacturer: {}\nmodel:        {}\nserial:       {}\nfirmware:     {}",
+        printable(&identity.manufacturer),
+        printable(&identity.model),
+        printable(&identity.serial),
+        printable(&identity.firmware)
+    )
 }

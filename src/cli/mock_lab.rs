@@ -1,9 +1,10 @@
 //! `radbench mock-lab serve`: the simulated bench on 127.0.0.1 (the same as the `mock-lab` binary).
+//! It serves until SIGINT (Ctrl-C), SIGTERM or SIGHUP, and with `--until-stdin-closes` also until
+//! standard input closes; a stop asked for that way is a success (exit code 0).
 
-use crate::exit::bad_input;
-use anyhow::Context;
+use crate::exit::{bad_input, Classified, ExitClass};
 use mock_lab::emulator::lecroy::RemoteInterface;
-use mock_lab::lab::{self, Announce, LabOptions};
+use mock_lab::lab::{self, Announce, LabError, LabOptions};
 use mock_lab::scene::Scene;
 use std::path::PathBuf;
 
@@ -16,7 +17,7 @@ pub struct Args {
 #[derive(Debug, clap::Subcommand)]
 pub enum MockLabCommand {
     /// Start the simulated bench on 127.0.0.1, print its endpoints and a bench file, serve until
-    /// Ctrl-C.
+    /// Ctrl-C (SIGINT), SIGTERM or SIGHUP.
     Serve(ServeArgs),
 }
 
@@ -44,7 +45,8 @@ pub struct ServeArgs {
     /// Also serve the generic loopback test instrument on every transport.
     #[arg(long)]
     pub with_loopback: bool,
-    /// Also stop when standard input reaches end of file (for parent processes).
+    /// Also stop when standard input reaches end of file (for parent processes); SIGINT and
+    /// SIGTERM stop it as well.
     #[arg(long)]
     pub until_stdin_closes: bool,
 }
@@ -80,16 +82,32 @@ pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         with_loopback: a.with_loopback,
         ..LabOptions::default()
     };
+    options.validate().map_err(classified)?;
     let announce = if a.json {
         Announce::Json
     } else {
         Announce::Human
     };
-    super::runtime()?
-        .block_on(lab::serve_until_stopped(
-            options,
-            announce,
-            a.until_stdin_closes,
-        ))
-        .context("the simulated lab stopped")
+    let runtime = super::runtime()?;
+    let result = runtime.block_on(lab::serve_until_stopped(
+        options,
+        announce,
+        a.until_stdin_closes,
+    ));
+    // Nothing of the lab may outlive this call, and nothing may hold up the exit.
+    runtime.shutdown_background();
+    result.map_err(classified)
+}
+
+/// The lab's error with the exit class it calls for (2 bad input, 3 cannot serve, 1 bug).
+fn classified(err: LabError) -> anyhow::Error {
+    let class = match err.exit_code() {
+        2 => ExitClass::BadInput,
+        3 => ExitClass::Instrument,
+        _ => ExitClass::Internal,
+    };
+    anyhow::Error::new(Classified {
+        class,
+        message: err.to_string(),
+    })
 }

@@ -20,6 +20,7 @@ pub mod progress;
 pub mod recording;
 pub mod scpi;
 pub mod simulate;
+pub mod terminal;
 pub mod trc;
 
 pub use exit_code::classify;

@@ -1,14 +1,24 @@
 //! `radbench scpi ADDRESS [COMMAND ...]`: sends SCPI commands one-shot, or at an interactive prompt
 //! with history when no command is given. A command ending in `?` reads a reply; binary replies are
-//! summarised (length, SHA-256, first bytes) and can be saved with `--save-binary`.
+//! summarised (length, SHA-256, first bytes) and can be saved with `--save-binary`. Replies are
+//! the instrument's bytes: control characters in them are shown escaped, never sent to the
+//! terminal raw.
+//!
+//! At the prompt, Ctrl-C while a command runs abandons it, clears the device (so a late reply is
+//! never taken for the next answer) and keeps the session. History (`~/.radbench_scpi_history`)
+//! is written after every line entered, so no way of leaving loses it, and neither read nor
+//! written when standard input is not a terminal (commands piped in are not history).
 
 use super::progress::TransferBar;
+use super::terminal::{is_stdout_closed, out, printable, printable_bytes};
 use crate::address::Resource;
 use crate::session::{reply, Session, SessionError, SessionOptions};
 use crate::transport::{journal, Journal, Timeouts};
 use anyhow::Context;
 use bytes::Bytes;
-use std::path::{Path, PathBuf};
+use std::future::Future;
+use std::io::IsTerminal;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// How to reach an instrument: shared by `idn` and `scpi`.
@@ -33,10 +43,13 @@ pub struct ConnectArgs {
     /// Keep binary messages beside the --trace-io journal (in <journal>.blobs/).
     #[arg(long)]
     pub trace_io_keep_binary: bool,
-    /// Serial speed for ASRL resources.
+    /// Serial speed for ASRL resources, in baud (1 ..= 12000000).
     #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
 }
+
+/// Fastest serial line speed accepted (USB-serial bridges reach 12 Mbaud).
+const MAX_BAUD: u32 = 12_000_000;
 
 fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
     if value.is_finite() && value > 0.0 && value <= 86_400.0 {
@@ -63,6 +76,12 @@ impl ConnectArgs {
             write: seconds(self.write_timeout, "write-timeout")?,
             min_rate_bytes_per_s: (self.min_rate * 1e6) as u64,
         };
+        if !(1..=MAX_BAUD).contains(&self.baud) {
+            return Err(crate::exit::bad_input(format!(
+                "--baud {}: give the serial line speed in baud, 1 ..= {MAX_BAUD} (e.g. 115200)",
+                self.baud
+            )));
+        }
         options.link.serial.baud = self.baud;
         Ok(options)
     }
@@ -74,9 +93,49 @@ impl ConnectArgs {
             Some(path) => Some(Journal::create(path, self.trace_io_keep_binary)?),
             None => None,
         };
-        let options = self.session_options()?;
+        let mut options = self.session_options()?;
+        if let Resource::Serial { .. } = resource {
+            options.line = serial_line_protocol(&resource, &options).await?;
+        }
         Ok(Session::open(resource, options, journal, "").await?)
     }
+}
+
+/// Which protocol a serial device speaks. A module of the catalog with a line protocol (the
+/// Gotmic modules) answers every request with one line, framed with its CRC-8 once the module has
+/// CRC on; a SCPI device answers queries only. Asked with `*IDN?`: a catalog identity with a line
+/// protocol, or the line protocol's own refusal (`ERR ...`, e.g. a module with CRC on that wants
+/// the request framed), selects it.
+async fn serial_line_protocol(
+    resource: &Resource,
+    options: &SessionOptions,
+) -> anyhow::Result<Option<crate::session::LineProtocol>> {
+    let catalog = crate::catalog::Catalog::embedded()?;
+    let line_models = || {
+        catalog
+            .models()
+            .filter(|(m, _)| m.protocol.is_some())
+            .filter_map(|(m, _)| m.protocol.as_ref())
+    };
+    let as_protocol = |p: &crate::catalog::LineProtocol| crate::session::LineProtocol {
+        crc: Some(crate::session::Crc8 {
+            poly: p.crc_poly,
+            init: p.crc_init,
+        }),
+    };
+    let mut probe = Session::open(resource.clone(), options.clone(), None, "").await?;
+    let reply = probe.query("*IDN?").await;
+    let _ = probe.close().await;
+    let Ok(reply) = reply else {
+        return Ok(None);
+    };
+    if let Some(found) = catalog.identify(&reply) {
+        return Ok(found.model.protocol.as_ref().map(as_protocol));
+    }
+    if reply.trim_start().starts_with("ERR ") {
+        return Ok(line_models().next().map(as_protocol));
+    }
+    Ok(None)
 }
 
 #[derive(Debug, clap::Args)]
@@ -87,7 +146,8 @@ pub struct Args {
     /// interactive prompt opens (type \help there).
     #[arg(value_name = "COMMAND")]
     pub commands: Vec<String>,
-    /// Save binary (block) replies to this file; with several, the 2nd goes to FILE.2 and so on.
+    /// Save every block reply (definite or indefinite, however short, text or not) and every
+    /// binary reply to this file; with several, the 2nd goes to FILE.2 and so on.
     #[arg(long, value_name = "FILE")]
     pub save_binary: Option<PathBuf>,
     /// Drain SYST:ERR? after every command and fail if the instrument refused something.
@@ -105,20 +165,41 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let result = if args.commands.is_empty() {
         interactive(&runtime, &mut session, &mut saver, args.check_errors, &bar)
     } else {
-        runtime.block_on(async {
-            for command in &args.commands {
-                let output = execute(&mut session, command, &mut saver, args.check_errors).await;
-                bar.finish();
-                let output = output?;
-                if let Some(text) = output {
-                    println!("{text}");
-                }
-            }
-            anyhow::Ok(())
-        })
+        runtime.block_on(one_shot(
+            &mut session,
+            &args.commands,
+            &mut saver,
+            args.check_errors,
+            &bar,
+        ))
     };
     let _ = runtime.block_on(session.close());
     result
+}
+
+/// Sends the commands in order and prints the replies. When standard output is closed early
+/// (`| head`), the remaining commands are still sent, their replies not shown: a sequence that
+/// switches something on and then off again is never cut in the middle by the reader leaving.
+async fn one_shot(
+    session: &mut Session,
+    commands: &[String],
+    saver: &mut BinarySaver,
+    check_errors: bool,
+    bar: &TransferBar,
+) -> anyhow::Result<()> {
+    let mut stdout_open = true;
+    for command in commands {
+        let output = execute(session, command, saver, check_errors).await;
+        bar.finish();
+        if let (Some(text), true) = (output?, stdout_open) {
+            match out(&text) {
+                Ok(()) => {}
+                Err(e) if is_stdout_closed(&e) => stdout_open = false,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Numbers saved binary replies: FILE, FILE.2, FILE.3...
@@ -144,19 +225,10 @@ impl BinarySaver {
             p.push(format!(".{}", self.count));
             PathBuf::from(p)
         };
-        write_atomically(&path, payload)
+        crate::storage::atomic::write_atomic(&path, payload)
             .with_context(|| format!("cannot save the binary reply to {}", path.display()))?;
         Ok(Some(path))
     }
-}
-
-/// Writes to a temporary file beside `path`, then renames it over `path`.
-fn write_atomically(path: &Path, data: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".part");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, data)?;
-    std::fs::rename(&tmp, path)
 }
 
 /// Whether a command reads a reply: one of its `;`-separated parts has a header ending in `?`
@@ -169,42 +241,53 @@ pub fn expects_reply(command: &str) -> bool {
     })
 }
 
-/// Describes a reply for the terminal: the text, or a summary of a binary block.
-pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
-    let is_text = std::str::from_utf8(raw).is_ok_and(|t| {
-        t.chars()
-            .all(|c| !c.is_control() || matches!(c, '\n' | '\r' | '\t'))
-    });
-    if let Ok(block) = reply::parse_block(raw.clone()) {
-        if !is_text || block.len() > 64 {
-            let payload = block.clone().into_payload();
-            let form = match block.form {
-                reply::BlockForm::Definite => "definite",
-                reply::BlockForm::Indefinite => "indefinite",
-            };
-            let prefix = String::from_utf8_lossy(block.prefix()).to_string();
-            let head: Vec<String> = payload
-                .iter()
-                .take(16)
-                .map(|b| format!("{b:02x}"))
-                .collect();
-            let text = format!(
-                "{}binary block ({form}): {} bytes, sha256 {}, first bytes: {}",
-                if prefix.is_empty() {
-                    String::new()
-                } else {
-                    format!("{prefix} ")
-                },
-                payload.len(),
-                journal::sha256_hex(&payload),
-                head.join(" ")
-            );
-            return (text, Some(payload));
+/// The block of a reply, when it holds one: a `#<digit>` outside quoted strings (488.2 response
+/// data has no other use for it), definite or indefinite, at any length.
+fn block_of(raw: &Bytes) -> Option<reply::Block> {
+    let mut quoted = false;
+    let start = raw.windows(2).position(|w| {
+        if w[0] == b'"' {
+            quoted = !quoted;
         }
+        !quoted && w[0] == b'#' && w[1].is_ascii_digit()
+    })?;
+    let block = reply::parse_block(raw.clone()).ok()?;
+    (block.prefix().len() == start).then_some(block)
+}
+
+/// Describes a reply for the terminal: the text, or a summary of a block or binary reply (with
+/// the bytes to save). Everything returned is safe to print: control characters are escaped.
+pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
+    if let Some(block) = block_of(raw) {
+        let form = match block.form {
+            reply::BlockForm::Definite => "definite",
+            reply::BlockForm::Indefinite => "indefinite",
+        };
+        let prefix = printable_bytes(block.prefix());
+        let payload = block.into_payload();
+        let head: Vec<String> = payload
+            .iter()
+            .take(16)
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let mut text = format!(
+            "{}binary block ({form}): {} bytes, sha256 {}, first bytes: {}",
+            if prefix.is_empty() {
+                String::new()
+            } else {
+                format!("{prefix} ")
+            },
+            payload.len(),
+            journal::sha256_hex(&payload),
+            head.join(" ")
+        );
+        if let Some(short) = short_text(&payload) {
+            text.push_str(&format!(", text \"{}\"", printable(short)));
+        }
+        return (text, Some(payload));
     }
-    if is_text {
-        let text = String::from_utf8_lossy(raw);
-        return (reply::trim_reply(&text).to_string(), None);
+    if let Some(text) = looks_like_text(raw) {
+        return (printable(reply::trim_reply(text)).into_owned(), None);
     }
     let head: Vec<String> = raw.iter().take(16).map(|b| format!("{b:02x}")).collect();
     (
@@ -216,6 +299,30 @@ pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
         ),
         Some(raw.clone()),
     )
+}
+
+/// The reply as text when it reads as text: UTF-8 without NUL, at most one character in eight a
+/// control character (an escape sequence in a message); those are shown escaped.
+fn looks_like_text(raw: &[u8]) -> Option<&str> {
+    let text = std::str::from_utf8(raw).ok()?;
+    let mut chars = 0usize;
+    let mut controls = 0usize;
+    for c in text.chars() {
+        chars += 1;
+        if c == '\0' {
+            return None;
+        }
+        if c.is_control() && !matches!(c, '\n' | '\r' | '\t') {
+            controls += 1;
+        }
+    }
+    (controls * 8 <= chars).then_some(text)
+}
+
+/// A block payload short and plain enough to show as text as well.
+fn short_text(payload: &[u8]) -> Option<&str> {
+    let text = std::str::from_utf8(payload).ok()?;
+    (payload.len() <= 64 && !text.chars().any(char::is_control)).then_some(text)
 }
 
 /// Sends one command; returns what to print.
@@ -230,7 +337,7 @@ async fn execute(
         return Ok(None);
     }
     let mut output = None;
-    if expects_reply(command) {
+    if expects_reply(command) || session.answers_every_request() {
         let raw = session.query_raw(command).await?;
         let (mut text, binary) = describe_reply(&raw);
         if let Some(payload) = binary {
@@ -250,6 +357,7 @@ async fn execute(
 
 const HELP: &str = "\
 Type SCPI commands; a command ending in `?` prints the reply.
+Ctrl-C while a command runs abandons it and clears the device; the session stays open.
   \\clear        device clear
   \\stb          status byte
   \\errors       drain the error queue (SYST:ERR?)
@@ -269,44 +377,130 @@ fn interactive(
     bar: &TransferBar,
 ) -> anyhow::Result<()> {
     let mut editor = rustyline::DefaultEditor::new().context("cannot start the prompt")?;
-    let history = history_path();
+    // Commands piped in (`radbench scpi ADDR < script`) are not typed history.
+    let typed = std::io::stdin().is_terminal();
+    let history = typed.then(history_path).flatten();
     if let Some(h) = &history {
         let _ = editor.load_history(h);
     }
-    let prompt = format!("{}> ", session.resource());
-    eprintln!("connected to {}; \\help for help", session.resource());
+    let prompt = format!("{}> ", printable(&session.resource().to_string()));
+    eprintln!(
+        "connected to {}; \\help for help",
+        printable(&session.resource().to_string())
+    );
     loop {
         let line = match editor.readline(&prompt) {
             Ok(line) => line,
-            Err(rustyline::error::ReadlineError::Interrupted)
-            | Err(rustyline::error::ReadlineError::Eof) => break,
+            // Ctrl-C at the prompt drops the line being typed, as in a shell.
+            Err(rustyline::error::ReadlineError::Interrupted) => {
+                eprintln!("(\\quit or Ctrl-D to leave)");
+                continue;
+            }
+            Err(rustyline::error::ReadlineError::Eof) => break,
             Err(e) => return Err(e).context("prompt failed"),
         };
         let line = line.trim().to_string();
         if line.is_empty() {
             continue;
         }
-        let _ = editor.add_history_entry(line.as_str());
-        let outcome = runtime.block_on(interactive_line(session, &line, saver, check_errors));
+        if typed {
+            let _ = editor.add_history_entry(line.as_str());
+        }
+        if let Some(h) = &history {
+            // Written at once: no way of leaving (a signal, a lost terminal) loses it.
+            let _ = editor.append_history(h);
+        }
+        let step = runtime.block_on(async {
+            // Listening for Ctrl-C starts before the command is sent.
+            let interrupt = interrupted();
+            line_or_cancel(session, &line, saver, check_errors, interrupt).await
+        });
         bar.finish();
-        match outcome {
-            Ok(Some(Flow::Quit)) => break,
-            Ok(Some(Flow::Print(text))) => println!("{text}"),
-            Ok(None) => {}
-            Err(e) => {
-                eprintln!("error: {}", crate::exit::render(&e));
-                if let Some(SessionError::Link { source, .. }) = e.downcast_ref::<SessionError>() {
-                    if matches!(source, crate::transport::LinkError::Closed { .. }) {
-                        eprintln!("(the connection is gone: \\reconnect to reopen it)");
-                    }
-                }
+        let shown = match step {
+            Step::Done(Ok(Some(Flow::Quit))) => break,
+            Step::Done(Ok(Some(Flow::Print(text)))) => out(&text),
+            Step::Done(Ok(None)) => Ok(()),
+            Step::Done(Err(e)) => {
+                report(&e);
+                Ok(())
             }
+            Step::Cancelled(Ok(())) => {
+                eprintln!("cancelled; the device was cleared");
+                Ok(())
+            }
+            Step::Cancelled(Err(e)) => {
+                report(&anyhow::Error::new(e).context("cancelled, but the device clear failed"));
+                Ok(())
+            }
+        };
+        if let Err(e) = shown {
+            // Nowhere to show replies any more: leave as if the user had.
+            if is_stdout_closed(&e) {
+                break;
+            }
+            return Err(e);
         }
     }
-    if let Some(h) = &history {
-        let _ = editor.save_history(h);
-    }
     Ok(())
+}
+
+/// Resolves when the user presses Ctrl-C (SIGINT) while a command runs. The handler is
+/// installed here, before the command is sent, so a Ctrl-C right after it cannot fall through
+/// to the default action (which would kill the process with the reply pending).
+fn interrupted() -> impl Future<Output = ()> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let listener = signal(SignalKind::interrupt());
+    async move {
+        match listener {
+            Ok(mut sigint) => {
+                sigint.recv().await;
+            }
+            // No signal handling: never interrupted.
+            Err(_) => std::future::pending::<()>().await,
+        }
+    }
+}
+
+fn report(e: &anyhow::Error) {
+    eprintln!("error: {}", printable(&crate::exit::render(e)));
+    if let Some(SessionError::Link { source, .. }) = e.downcast_ref::<SessionError>() {
+        if matches!(source, crate::transport::LinkError::Closed { .. }) {
+            eprintln!("(the connection is gone: \\reconnect to reopen it)");
+        }
+    }
+}
+
+/// How one line at the prompt ended.
+enum Step {
+    /// It ran to its end.
+    Done(anyhow::Result<Option<Flow>>),
+    /// `interrupt` fired first: the line was abandoned and the device cleared (the result).
+    Cancelled(Result<(), SessionError>),
+}
+
+/// Runs one prompt line unless `interrupt` fires first. Then the unfinished exchange is dropped
+/// (the link knows it is mid-message and recovers) and the device is cleared, so the
+/// instrument drops the command and its late reply, and the session goes on.
+async fn line_or_cancel(
+    session: &mut Session,
+    line: &str,
+    saver: &mut BinarySaver,
+    check_errors: bool,
+    interrupt: impl Future<Output = ()>,
+) -> Step {
+    let finished = {
+        let work = interactive_line(session, line, saver, check_errors);
+        tokio::pin!(work);
+        tokio::pin!(interrupt);
+        tokio::select! {
+            result = &mut work => Some(result),
+            () = &mut interrupt => None,
+        }
+    };
+    match finished {
+        Some(result) => Step::Done(result),
+        None => Step::Cancelled(session.device_clear().await),
+    }
 }
 
 enum Flow {
@@ -391,5 +585,129 @@ mod tests {
         let (text, payload) = describe_reply(&Bytes::from_static(b"1.5E+09\n"));
         assert_eq!(text, "1.5E+09");
         assert!(payload.is_none());
+    }
+
+    #[test]
+    fn every_block_is_a_block_however_short_or_printable() {
+        for (raw, form, payload) in [
+            (&b"#15hello\n"[..], "definite", &b"hello"[..]),
+            (b"#10\n", "definite", b""),
+            (b"#0hi there\n", "indefinite", b"hi there"),
+            (b"ALL,#13a\nb\n", "definite", b"a\nb"),
+        ] {
+            let (text, saved) = describe_reply(&Bytes::copy_from_slice(raw));
+            assert!(text.contains(&format!("({form})")), "{text}");
+            assert_eq!(saved.as_deref(), Some(payload), "{text}");
+        }
+        let (text, _) = describe_reply(&Bytes::from_static(b"#15hello\n"));
+        assert!(text.ends_with("text \"hello\""), "{text}");
+        // A `#<digit>` inside a quoted string is text, not a block.
+        let (text, saved) = describe_reply(&Bytes::from_static(b"-113,\"Undefined header #10\"\n"));
+        assert_eq!(text, "-113,\"Undefined header #10\"");
+        assert!(saved.is_none());
+    }
+
+    #[test]
+    fn instrument_text_is_shown_escaped() {
+        let (text, saved) = describe_reply(&Bytes::from_static(b"OK\rFAIL\n"));
+        assert_eq!(text, "OK\\x0dFAIL");
+        assert!(saved.is_none());
+        // Escape sequences in text are shown escaped; mostly control bytes make a binary reply.
+        let (text, saved) = describe_reply(&Bytes::from_static(b"\x1b]0;pwned by text\x07\n"));
+        assert_eq!(text, "\\x1b]0;pwned by text\\x07");
+        assert!(saved.is_none());
+        let (text, saved) = describe_reply(&Bytes::from_static(b"\x1b\x1b\x07\x01ab\n"));
+        assert!(text.starts_with("binary reply: 7 bytes"), "{text}");
+        assert!(!text.contains('\x1b'));
+        assert!(saved.is_some());
+        let (text, _) = describe_reply(&Bytes::from_static(b"a\0b\n"));
+        assert!(text.starts_with("binary reply"), "{text}");
+        let (text, _) = describe_reply(&Bytes::from_static(b"\x1b[31m,#13\x1b[m\n"));
+        assert!(!text.contains('\x1b'), "{text}");
+    }
+
+    #[test]
+    fn baud_zero_is_bad_input() {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            connect: ConnectArgs,
+        }
+        for baud in ["0", "12000001"] {
+            let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", baud]);
+            let err = cli.connect.session_options().unwrap_err();
+            assert_eq!(crate::cli::classify(&err), crate::exit::ExitClass::BadInput);
+            assert!(err.to_string().contains("--baud"), "{err}");
+        }
+        let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", "9600"]);
+        assert_eq!(
+            cli.connect.session_options().unwrap().link.serial.baud,
+            9600
+        );
+    }
+
+    /// The Ctrl-C path with the signal replaced by a timer: a query the instrument sits on is
+    /// abandoned, the device cleared, and the next query gets its own answer, not the late one.
+    #[test]
+    fn an_interrupted_command_is_abandoned_and_the_session_goes_on() {
+        use mock_lab::emulator::loopback::Loopback;
+        use mock_lab::server::launch::{self, Ports, Transport};
+        use mock_lab::server::ServerOptions;
+        let runtime = crate::cli::runtime().unwrap();
+        runtime.block_on(async {
+            for transport in [Transport::Raw, Transport::Hislip, Transport::Vxi11] {
+                let (_server, endpoint) = launch::start(
+                    "loopback",
+                    std::sync::Arc::new(Loopback::new()),
+                    transport,
+                    Ports::default(),
+                    ServerOptions::default(),
+                )
+                .await
+                .unwrap();
+                let resource: Resource = endpoint.resource.parse().unwrap();
+                let mut session = Session::open(resource, SessionOptions::default(), None, "")
+                    .await
+                    .unwrap();
+                let mut saver = BinarySaver::new(None);
+                let limit = Duration::from_secs(20);
+                let step = tokio::time::timeout(
+                    limit,
+                    line_or_cancel(
+                        &mut session,
+                        "SLOW? 60000",
+                        &mut saver,
+                        false,
+                        tokio::time::sleep(Duration::from_millis(200)),
+                    ),
+                )
+                .await
+                .expect("cancelled well before the 60 s reply");
+                assert!(matches!(step, Step::Cancelled(Ok(()))), "{transport:?}");
+                let step = tokio::time::timeout(
+                    limit,
+                    line_or_cancel(
+                        &mut session,
+                        "*IDN?",
+                        &mut saver,
+                        false,
+                        std::future::pending(),
+                    ),
+                )
+                .await
+                .unwrap();
+                let Step::Done(Ok(Some(Flow::Print(text)))) = step else {
+                    panic!("{transport:?}: *IDN? after the cancel did not answer");
+                };
+                assert_eq!(
+                    text,
+                    mock_lab::emulator::loopback::IDENTITY,
+                    "{transport:?}"
+                );
+            }
+        });
+        // A raw socket has no device clear: the emulator's SLOW? thread sleeps on; do not wait.
+        runtime.shutdown_background();
     }
 }

@@ -208,14 +208,18 @@ async fn step_result<T: ?Sized + Send>(
         Ok(g) => g,
         Err(_) => {
             return Some(format!(
-                "the driver stayed busy for {lock_wait:?} (another operation holds it)"
+                "the driver stayed busy for {} (another operation holds it)",
+                crate::transport::Rounded(lock_wait)
             ))
         }
     };
     match tokio::time::timeout(limit, op(&mut guard)).await {
         Ok(Ok(())) => None,
         Ok(Err(e)) => Some(e.to_string()),
-        Err(_) => Some(format!("no answer within {limit:?}")),
+        Err(_) => Some(format!(
+            "no answer within {}",
+            crate::transport::Rounded(limit)
+        )),
     }
 }
 

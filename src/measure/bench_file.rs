@@ -199,7 +199,10 @@ pub fn store_calibration(path: &Path, calibration: &Calibration) -> Result<(), B
     })?;
     out.push_str("\n\n# Written by `radbench calibrate`.\n[calibration]\n");
     out.push_str(&section);
-    crate::storage::atomic::write_atomic(path, out.as_bytes()).map_err(|source| {
+    // A bench file kept as a symlink (e.g. into a shared configuration folder) is updated where
+    // it really lives; the atomic writer never writes through a link itself.
+    let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    crate::storage::atomic::write_atomic(&target, out.as_bytes()).map_err(|source| {
         BenchFileError::Write {
             path: path.to_path_buf(),
             source,

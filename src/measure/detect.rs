@@ -58,6 +58,10 @@ pub struct DetectionReport {
     /// The detection threshold per cell of the primary profile, as an amplitude on the profile's
     /// scale (empty for the subspace estimators).
     pub threshold: Vec<f64>,
+    /// What is left of the primary profile once every fitted target (leakage included) is
+    /// subtracted, as an amplitude (empty for the subspace estimators): the threshold applies to
+    /// it.
+    pub residual: Vec<f64>,
     /// Noise power per profile cell, dB (on the profile's scale).
     pub noise_db: Option<f64>,
     /// The detector stopped at its most targets: there may be more.
@@ -132,6 +136,7 @@ pub fn detect(
                 targets: found.targets.iter().map(convert).collect(),
                 outside: found.outside.iter().map(convert).collect(),
                 threshold: found.threshold,
+                residual: found.residual.iter().map(|v| v.norm()).collect(),
                 noise_db: found.noise_power.map(|p| 10.0 * p.max(1e-300).log10()),
                 capped: found.capped,
                 strongest: None,

@@ -13,6 +13,7 @@
 //! | [`station`] | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
 //! | [`repeat`] | several repetitions: coherent average and spread |
+//! | [`figure`] | what a measurement's plot and profile table show |
 //! | [`record`] | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | [`calibration`] | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
@@ -22,6 +23,7 @@ pub mod bench_file;
 pub mod calibration;
 pub mod capture;
 pub mod detect;
+pub mod figure;
 pub mod interrupt;
 pub mod options;
 pub mod payload;

@@ -4,8 +4,7 @@
 use super::capture::Measurement;
 use super::MeasureError;
 use crate::storage::atomic::write_atomic;
-use crate::storage::plot::{self, Curve, ProfilePlot};
-use crate::storage::profile::ProfileTable;
+use crate::storage::plot;
 use crate::storage::sigmf::{self, SigmfMeta};
 use crate::storage::StorageError;
 use serde::Serialize;
@@ -73,6 +72,8 @@ fn create_dir(out: &Path) -> Result<(), MeasureError> {
         path: out.to_path_buf(),
         source,
     })?;
+    // Temporary files a killed run left behind go first.
+    crate::storage::atomic::remove_stale_temporaries(out)?;
     Ok(())
 }
 
@@ -170,31 +171,6 @@ pub fn write_processed(
 ) -> Result<(CaptureFiles, Value), MeasureError> {
     create_dir(out)?;
     let o = &m.options;
-    let p = &m.processed;
-    let primary = &p.profiles[0];
-    let table = ProfileTable {
-        range_m: primary.ranges(),
-        columns: p
-            .profiles
-            .iter()
-            .filter(|x| x.axis == primary.axis && x.amplitude.len() == primary.amplitude.len())
-            .map(|x| {
-                let name = x
-                    .label
-                    .split(' ')
-                    .next()
-                    .unwrap_or("profile")
-                    .to_lowercase();
-                (
-                    format!("{name}_db"),
-                    x.amplitude
-                        .iter()
-                        .map(|a| 20.0 * a.max(1e-300).log10())
-                        .collect(),
-                )
-            })
-            .collect(),
-    };
     let files = CaptureFiles {
         dir: out.to_path_buf(),
         sigmf_meta: raw.sigmf_meta.clone(),
@@ -206,34 +182,20 @@ pub fn write_processed(
         plot_png: out.join("profile.png"),
         summary: out.join("summary.json"),
     };
-    table.write(&files.profile_csv)?;
-    table.write(&files.profile_npy)?;
-    let targets: Vec<f64> = m
+    let truth: Vec<f64> = m
         .ground_truth
         .as_ref()
         .and_then(|s| s["targets"].as_array().cloned())
         .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
         .unwrap_or_default();
-    let plot = ProfilePlot {
-        title: format!("radbench capture: {} {}", m.tx.name(), o.algorithm.name()),
-        curves: p
-            .profiles
-            .iter()
-            .map(|x| Curve {
-                label: x.label.clone(),
-                range_m: x.ranges(),
-                db: x.normalised_db(),
-            })
-            .collect(),
-        targets_m: targets,
-        window_m: Some((
-            o.min_range_m.max(0.0) - 0.2,
-            o.max_range_m
-                .min(p.targets.iter().map(|t| t.range_m).fold(1.0, f64::max) + 1.0),
-        )),
-        floor_db: -60.0,
-        reference_db: None,
-    };
+    let (plot, table) = super::figure::profile_figure(
+        format!("radbench capture: {} {}", m.tx.name(), o.algorithm.name()),
+        &m.processed,
+        o,
+        truth,
+    );
+    table.write(&files.profile_csv)?;
+    table.write(&files.profile_npy)?;
     plot::draw(&files.plot_svg, &plot)?;
     plot::draw(&files.plot_png, &plot)?;
     let summary = summary_json(m, &files, provenance);

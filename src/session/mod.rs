@@ -8,38 +8,68 @@
 //! * "the instrument refused" ([`SessionError::Device`]) and "the link failed"
 //!   ([`SessionError::Link`]) are different errors, each with a [`kind`](SessionError::kind);
 //!   a query left unanswered while the error queue holds entries is
-//!   [`SessionError::Unanswered`], with those entries, rather than a bare timeout.
+//!   [`SessionError::Unanswered`], with those entries, rather than a bare timeout. This holds on
+//!   every transport: the error query is the instrument's own (`SYST:ERR?`, or the command error
+//!   register `CMR?` of the LeCroy scopes, the only instruments speaking VICP).
+//!
+//! Devices with a [`LineProtocol`] (the serial Gotmic modules) answer every request with one
+//! line; the session then reads every reply, adds the CRC when the device has it on, and reports
+//! an `ERR` line as the device's refusal.
 
 pub mod error;
+pub mod line;
 pub mod reply;
 
 pub use error::{DeviceError, SessionError};
+pub use line::{Crc8, LineProtocol};
 pub use reply::{Block, BlockForm, Identity};
 
+use self::line::LineReply;
 use crate::address::Resource;
 use crate::transport::{Journal, Link, LinkError, LinkOptions};
 use bytes::Bytes;
+use std::time::Duration;
 
-/// The read timeout for the error queue after a query went unanswered.
-const ERROR_QUEUE_AFTER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(2);
+/// The longest the error queue is read for, in all, after a query went unanswered.
+pub const ERROR_QUEUE_AFTER_TIMEOUT: Duration = Duration::from_secs(2);
+/// The SCPI error queue: each read pops one `<code>,"<text>"` entry.
+pub const SCPI_ERROR_QUERY: &str = "SYST:ERR?";
+/// LeCroy's command error register (legacy IEEE 488.2 command set; cleared when read): the scopes
+/// that speak VICP have no SCPI error queue.
+pub const VICP_ERROR_QUERY: &str = "CMR?";
 
 /// How a session talks to its instrument.
 #[derive(Debug, Clone)]
 pub struct SessionOptions {
     pub link: LinkOptions,
-    /// The query that pops one error-queue entry.
+    /// The query that pops one error-queue entry, or reads an error register that clears when
+    /// read (each non-zero value is one error). Empty: chosen by the transport, [`SCPI_ERROR_QUERY`]
+    /// or, on VICP, [`VICP_ERROR_QUERY`].
     pub error_query: String,
     /// At most this many entries are drained at once (a queue that never empties is reported).
     pub max_error_entries: usize,
+    /// Set for devices that answer every request with one line (the Gotmic modules); `None` for
+    /// IEEE 488.2 instruments, where only queries answer.
+    pub line: Option<LineProtocol>,
 }
 
 impl Default for SessionOptions {
     fn default() -> Self {
         Self {
             link: LinkOptions::default(),
-            error_query: "SYST:ERR?".into(),
+            error_query: String::new(),
             max_error_entries: 64,
+            line: None,
         }
+    }
+}
+
+/// The error query a session uses: the one given, else the transport's.
+pub fn error_query_for(resource: &Resource, configured: &str) -> String {
+    match (configured.trim(), resource) {
+        ("", Resource::Vicp { .. }) => VICP_ERROR_QUERY.to_string(),
+        ("", _) => SCPI_ERROR_QUERY.to_string(),
+        (given, _) => given.to_string(),
     }
 }
 
@@ -48,6 +78,10 @@ pub struct Session {
     link: Link,
     resource_text: String,
     options: SessionOptions,
+    /// The error query in use (see [`SessionOptions::error_query`]).
+    error_query: String,
+    /// A line-protocol device has shown it frames lines with its CRC.
+    crc_on: bool,
 }
 
 impl Session {
@@ -72,9 +106,22 @@ impl Session {
     pub fn from_link(link: Link, options: SessionOptions) -> Self {
         Self {
             resource_text: link.resource().to_string(),
+            error_query: error_query_for(link.resource(), &options.error_query),
             link,
             options,
+            crc_on: false,
         }
+    }
+
+    /// The query that reads the instrument's errors on this session.
+    pub fn error_query(&self) -> &str {
+        &self.error_query
+    }
+
+    /// Whether every request gets a reply line ([`SessionOptions::line`]): then
+    /// [`query_raw`](Self::query_raw) is the way to send anything whose answer should be seen.
+    pub fn answers_every_request(&self) -> bool {
+        self.options.line.is_some()
     }
 
     pub fn resource(&self) -> &Resource {
@@ -119,9 +166,13 @@ impl Session {
         Ok(())
     }
 
-    /// Sends a command (a newline is appended).
+    /// Sends a command (a newline is appended). On a line-protocol device the reply line is read
+    /// too, and an `ERR` reply is the device's refusal.
     pub async fn write(&mut self, command: &str) -> Result<(), SessionError> {
         Self::check_command(command)?;
+        if self.options.line.is_some() {
+            return self.line_exchange(command).await.map(drop);
+        }
         self.send_parts(&[command.as_bytes(), b"\n"]).await
     }
 
@@ -143,12 +194,21 @@ impl Session {
     /// Sends a query and returns the raw reply. A query that gets no reply within the read
     /// timeout is usually one the instrument refused (488.2: a query in error has no answer), so
     /// the error queue is then read: its entries, if any, are the error instead of a bare timeout.
+    ///
+    /// On a line-protocol device the reply line comes back without its CRC, and an `ERR` line is
+    /// the device's refusal ([`SessionError::Device`]).
     pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+        if self.options.line.is_some() {
+            Self::check_command(query)?;
+            let mut text = self.line_exchange(query).await?;
+            text.push('\n');
+            return Ok(Bytes::from(text));
+        }
         match self.query_raw_plain(query).await {
             Err(SessionError::Link {
                 source: timeout @ LinkError::Timeout { .. },
                 ..
-            }) if query != self.options.error_query => Err(self.refusal_or(query, timeout).await),
+            }) if query != self.error_query => Err(self.refusal_or(query, timeout).await),
             other => other,
         }
     }
@@ -159,18 +219,20 @@ impl Session {
     }
 
     /// After `query` timed out (and the device was cleared): the instrument's error queue when
-    /// it holds anything, else the timeout itself. The queue gets a short read timeout of its
-    /// own, so a hung instrument does not double the wait.
+    /// it holds anything, else the timeout itself. Reading the queue gets at most
+    /// min(read timeout, [`ERROR_QUEUE_AFTER_TIMEOUT`]) in all, so a hung instrument does not
+    /// double the wait (an interrupted read leaves the link to be cleared before its next use).
     async fn refusal_or(&mut self, query: &str, timeout: LinkError) -> SessionError {
         let LinkError::Timeout { after, .. } = timeout else {
             return self.link_err(timeout);
         };
         let read = self.link.options_mut().timeouts.read;
-        self.link.options_mut().timeouts.read = read.min(ERROR_QUEUE_AFTER_TIMEOUT);
-        let errors = self.errors().await;
+        let window = read.min(ERROR_QUEUE_AFTER_TIMEOUT);
+        self.link.options_mut().timeouts.read = window;
+        let errors = tokio::time::timeout(window, self.errors()).await;
         self.link.options_mut().timeouts.read = read;
         match errors {
-            Ok(errors) if !errors.is_empty() => SessionError::Unanswered {
+            Ok(Ok(errors)) if !errors.is_empty() => SessionError::Unanswered {
                 resource: self.resource_text.clone(),
                 query: query.to_string(),
                 after,
@@ -178,6 +240,69 @@ impl Session {
             },
             _ => self.link_err(timeout),
         }
+    }
+
+    /// One request and its reply line on a line-protocol device, CRC added and checked as the
+    /// device has it; an `ERR` line is the device's refusal.
+    async fn line_exchange(&mut self, request: &str) -> Result<String, SessionError> {
+        let crc = self.options.line.as_ref().and_then(|l| l.crc);
+        let reply = self.line_round_trip(request, crc).await?;
+        let body = match crc {
+            None => reply,
+            Some(crc) => match crc.unframe(&reply) {
+                Some(body) if !self.crc_on => {
+                    // A framed reply: the device has CRC on. A plain request it refused (for its
+                    // missing CRC) goes again, framed.
+                    self.crc_on = true;
+                    if matches!(line::classify(body), LineReply::Refused(_)) {
+                        let again = self.line_round_trip(request, Some(crc)).await?;
+                        self.unframed(crc, request, &again)?
+                    } else {
+                        body.to_string()
+                    }
+                }
+                Some(body) => body.to_string(),
+                None if self.crc_on => self.unframed(crc, request, &reply)?,
+                None => reply,
+            },
+        };
+        match line::classify(&body) {
+            LineReply::Refused(error) => Err(SessionError::Device {
+                resource: self.resource_text.clone(),
+                after: Some(request.to_string()),
+                errors: vec![error],
+            }),
+            LineReply::Answer(text) => {
+                if let (Some(on), Some(_)) = (line::crc_switch(request), crc) {
+                    self.crc_on = on;
+                }
+                Ok(text)
+            }
+        }
+    }
+
+    fn unframed(&self, crc: Crc8, request: &str, reply: &str) -> Result<String, SessionError> {
+        crc.unframe(reply).map(str::to_string).ok_or_else(|| {
+            self.bad_reply(
+                request,
+                "a line ending in a valid *<hh> CRC-8 (check the cable and the line settings)",
+                reply,
+            )
+        })
+    }
+
+    async fn line_round_trip(
+        &mut self,
+        request: &str,
+        crc: Option<Crc8>,
+    ) -> Result<String, SessionError> {
+        let line = match crc {
+            Some(crc) if self.crc_on => crc.frame(request),
+            _ => request.to_string(),
+        };
+        self.send_parts(&[line.as_bytes(), b"\n"]).await?;
+        let raw = self.read_raw().await?;
+        Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
     }
 
     /// Sends a query and returns the reply as text without its terminator.
@@ -216,15 +341,20 @@ impl Session {
         Ok(reply::parse_string(&text))
     }
 
-    /// Sends a query and returns the block in its reply (payload not copied).
+    /// Sends a query and returns the block in its reply (payload not copied). A query left
+    /// unanswered is reported with the instrument's errors, as by [`query_raw`](Self::query_raw).
     pub async fn query_block(&mut self, query: &str) -> Result<Block, SessionError> {
-        self.write(query).await?;
-        self.read_block(query).await
+        let raw = self.query_raw(query).await?;
+        self.parse_block_reply(query, raw)
     }
 
     /// Reads a reply that carries a block; `command` is used in error messages.
     pub async fn read_block(&mut self, command: &str) -> Result<Block, SessionError> {
         let raw = self.read_raw().await?;
+        self.parse_block_reply(command, raw)
+    }
+
+    fn parse_block_reply(&self, command: &str, raw: Bytes) -> Result<Block, SessionError> {
         reply::parse_block(raw.clone()).map_err(|problem| SessionError::Reply {
             resource: self.resource_text.clone(),
             command: command.to_string(),
@@ -293,17 +423,24 @@ impl Session {
         self.write("*CLS").await
     }
 
-    /// Drains the error queue; empty when the instrument has nothing to report.
+    /// Drains the error queue; empty when the instrument has nothing to report. A line-protocol
+    /// device has no queue (it refuses each request in its reply): always empty.
     pub async fn errors(&mut self) -> Result<Vec<DeviceError>, SessionError> {
-        let query = self.options.error_query.clone();
+        if self.options.line.is_some() {
+            return Ok(Vec::new());
+        }
+        let query = self.error_query.clone();
         let mut found = Vec::new();
         for _ in 0..self.options.max_error_entries {
             let raw = self.query_raw_plain(&query).await?;
             let text = reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string();
-            let entry = reply::parse_error_entry(&text)
+            let mut entry = reply::parse_error_entry(&text)
                 .ok_or_else(|| self.bad_reply(&query, "<code>,\"<text>\"", &text))?;
             if entry.code == 0 {
                 return Ok(found);
+            }
+            if entry.message.is_empty() {
+                entry.message = reply::register_error_text(&query, entry.code).to_string();
             }
             found.push(entry);
         }

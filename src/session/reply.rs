@@ -95,9 +95,11 @@ pub fn parse_idn(text: &str) -> Option<Identity> {
     })
 }
 
-/// Parses a `SYST:ERR?` reply: `<code>,"<text>"`. Code 0 means the queue is empty.
+/// Parses a `SYST:ERR?` reply, `<code>,"<text>"`, or an error register's `<code>` (LeCroy
+/// `CMR?`), with or without a response header (`CMR 1`, `:SYST:ERR -113,"..."`). Code 0 means
+/// the queue is empty.
 pub fn parse_error_entry(text: &str) -> Option<DeviceError> {
-    let t = trim_reply(text);
+    let t = without_header(trim_reply(text));
     let (code, message) = match t.split_once(',') {
         Some((c, m)) => (c, m),
         None => (t, ""),
@@ -108,6 +110,42 @@ pub fn parse_error_entry(text: &str) -> Option<DeviceError> {
         code,
         message: parse_string(message),
     })
+}
+
+/// A response with its header word removed (`CMR 1` -> `1`): instruments with response headers on
+/// repeat the query's header before the value.
+fn without_header(t: &str) -> &str {
+    match t.split_once(char::is_whitespace) {
+        Some((head, rest))
+            if head.starts_with(|c: char| c.is_ascii_alphabetic() || c == ':' || c == '*') =>
+        {
+            rest.trim_start()
+        }
+        _ => t,
+    }
+}
+
+/// The meaning of a code read from an error register that carries no text: LeCroy's command
+/// error register `CMR?` (the X-Stream remote control manual's legacy command set; the driver
+/// keeps the same table for its own messages), else a plain description.
+pub fn register_error_text(query: &str, code: i32) -> &'static str {
+    if !query.trim().eq_ignore_ascii_case("CMR?") {
+        return "error reported without text";
+    }
+    match code {
+        1 => "command error: unrecognized command/query header",
+        2 => "command error: illegal header path",
+        3 => "command error: illegal number",
+        4 => "command error: illegal number suffix",
+        5 => "command error: unrecognized keyword",
+        6 => "command error: string error",
+        7 => "command error: GET embedded in another message",
+        10 => "command error: arbitrary data block expected",
+        11 => "command error: non-digit character in byte count field of arbitrary data block",
+        12 => "command error: EOI detected during definite length data block transfer",
+        13 => "command error: extra bytes detected during definite length data block transfer",
+        _ => "command error",
+    }
 }
 
 /// How a block's length is given.
@@ -273,6 +311,16 @@ mod tests {
         assert_eq!(parse_error_entry("+0,\"No error\"").unwrap().code, 0);
         assert_eq!(parse_error_entry("0").unwrap().code, 0);
         assert!(parse_error_entry("No error").is_none());
+        // Error registers, with response headers on or off.
+        assert_eq!(parse_error_entry("CMR 1\n").unwrap().code, 1);
+        assert_eq!(parse_error_entry("1").unwrap().code, 1);
+        assert_eq!(parse_error_entry("CMR 0").unwrap().code, 0);
+        let e = parse_error_entry(":SYST:ERR -113,\"Undefined header\"").unwrap();
+        assert_eq!((e.code, e.message.as_str()), (-113, "Undefined header"));
+        assert_eq!(
+            register_error_text("CMR?", 1),
+            "command error: unrecognized command/query header"
+        );
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::measure::options::ProcessOptions;
 use crate::measure::pipeline::{Pipeline, RangeResult, RawIq, RecordGeometry};
 use crate::measure::transmit::{Dac, Transmission};
 use crate::rng::SplitMix64;
-use crate::storage::plot::{Curve, ProfilePlot};
+use crate::storage::plot::{Curve, Marker, ProfilePlot};
 use crate::storage::profile::ProfileTable;
 use crate::waveform::spec::WaveformSpec;
 use num_complex::Complex64;
@@ -41,30 +41,48 @@ impl SimOutcome {
     /// The profiles in dB against range, like the thesis' figures.
     pub fn plot(&self, spec: &RunSpec) -> ProfilePlot {
         let single = spec.targets.len() == 1 && !self.profiles.is_empty();
+        // Detections sit on the primary profile's normalised curve.
+        let markers = self
+            .profiles
+            .first()
+            .map(|p| {
+                let db = p.normalised_db();
+                self.result
+                    .detected_m
+                    .iter()
+                    .map(|&r| {
+                        let i = ((r - p.axis.start) / p.axis.step).round();
+                        let i = (i.max(0.0) as usize).min(db.len().saturating_sub(1));
+                        Marker {
+                            range_m: r,
+                            db: db.get(i).copied().unwrap_or(0.0),
+                            label: format!("{r:.3} m"),
+                        }
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
         ProfilePlot {
-            title: format!(
-                "{}: {} {} (phase {}{})",
-                spec.id,
-                spec.waveform.name(),
-                spec.algorithm.name(),
-                spec.carrier,
-                spec.snr_db
-                    .map(|s| format!(", {s} dB/sample"))
-                    .unwrap_or_default()
-            ),
-            curves: self
-                .profiles
-                .iter()
-                .map(|p| Curve {
-                    label: p.label.clone(),
-                    range_m: p.ranges(),
-                    db: p.normalised_db(),
-                })
-                .collect(),
             targets_m: spec.targets.iter().map(|t| t.range_m).collect(),
-            window_m: None,
-            floor_db: -60.0,
+            markers,
+            floor_db: Some(-60.0),
             reference_db: single.then_some(-3.0),
+            ..ProfilePlot::new(
+                format!(
+                    "{}: {} {} (phase {}{})",
+                    spec.id,
+                    spec.waveform.name(),
+                    spec.algorithm.name(),
+                    spec.carrier,
+                    spec.snr_db
+                        .map(|s| format!(", {s} dB/sample"))
+                        .unwrap_or_default()
+                ),
+                self.profiles
+                    .iter()
+                    .map(|p| Curve::solid(p.label.clone(), p.ranges(), p.normalised_db()))
+                    .collect(),
+            )
         }
     }
 

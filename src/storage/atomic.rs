@@ -1,44 +1,195 @@
 //! Atomic writes: write a temporary file next to the destination, flush it, then rename.
+//!
+//! The temporary file is `.<name>.radbench-tmp-<pid>-<16 random hex digits>` in the
+//! destination's folder (a rename is only atomic within one file system). It is created with
+//! `O_CREAT | O_EXCL | O_NOFOLLOW`, so nothing planted under that name, a symbolic link least of
+//! all, is ever opened or followed, and its random part cannot be guessed in advance.
+//!
+//! Symbolic links: a destination that is a symbolic link is refused (an error naming it), so a
+//! link planted in a run folder cannot make radbench write to the file it points at. Should a
+//! link appear between that check and the rename, the rename replaces the link itself, never its
+//! target: nothing outside the folder is written either way.
+//!
+//! A write that fails or panics removes its temporary file. One that is killed leaves it behind;
+//! [`remove_stale_temporaries`] removes such leftovers (run it on a run folder at the start of a
+//! run, and on a signal once no write of this process is in flight).
 
 use super::StorageError;
-use std::io::Write;
+use std::io::{Read, Write};
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
+/// What every radbench temporary file name contains (after `.<name>`).
+pub const TEMP_MARKER: &str = ".radbench-tmp-";
+
 /// Writes `bytes` to `path` atomically: readers see either the old file or the complete new one.
-///
-/// The temporary file lives in the same folder (a rename is only atomic within one file system) and
-/// carries the process id so two radbench processes never share one.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
-    let tmp = temp_path(path);
     let io = |source| StorageError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
+    refuse_symlink(path).map_err(io)?;
+    let (mut file, tmp) = create_temporary(path).map_err(io)?;
+    // Removes the temporary file on every way out but success (errors and panics alike).
+    let mut guard = TempGuard(Some(tmp.clone()));
+    let written = (|| {
         file.write_all(bytes)?;
         file.sync_all()?;
+        drop(file);
         std::fs::rename(&tmp, path)
     })();
-    if result.is_err() {
-        // Best effort: do not leave a stray temporary file behind.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io)
+    written.map_err(io)?;
+    guard.0 = None;
+    sync_folder(path);
+    Ok(())
 }
 
-/// `dir/.name.tmp-<pid>` next to `path`.
-fn temp_path(path: &Path) -> PathBuf {
+/// Removes the radbench temporary files in `dir` (not its subfolders) left by writes that never
+/// finished: those of processes no longer running, and this process's own. Returns what it
+/// removed. Other files, and temporaries of another radbench still running, are left alone.
+pub fn remove_stale_temporaries(dir: &Path) -> Result<Vec<PathBuf>, StorageError> {
+    let io = |source| StorageError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut removed = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let entry = entry.map_err(io)?;
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temporary_pid) else {
+            continue;
+        };
+        if pid != std::process::id() && process_alive(pid) {
+            continue;
+        }
+        // A link or a file: either way the entry itself goes, never what a link points at.
+        match std::fs::remove_file(entry.path()) {
+            Ok(()) => removed.push(entry.path()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(StorageError::Io {
+                    path: entry.path(),
+                    source: e,
+                })
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// The writer's process id when `name` is a radbench temporary file name.
+fn temporary_pid(name: &str) -> Option<u32> {
+    let (_, tail) = name.rsplit_once(TEMP_MARKER)?;
+    if !name.starts_with('.') {
+        return None;
+    }
+    let (pid, random) = tail.split_once('-')?;
+    let hex = random.len() == 16 && random.bytes().all(|b| b.is_ascii_hexdigit());
+    hex.then(|| pid.parse().ok()).flatten()
+}
+
+/// Whether a process with this id exists (signal 0 probes without sending anything).
+fn process_alive(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: kill with signal 0 only checks for existence and permission; no memory involved.
+    let rc = unsafe { libc::kill(pid, 0) };
+    rc == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+fn refuse_symlink(path: &Path) -> std::io::Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => Err(std::io::Error::other(
+            "it is a symbolic link, and radbench never writes through one: remove the link or \
+             choose another name",
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Creates a new temporary file beside `path`; a name that exists (anything planted there) is
+/// never opened, another random name is tried.
+fn create_temporary(path: &Path) -> std::io::Result<(std::fs::File, PathBuf)> {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".to_string());
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+    let mut last = None;
+    for _ in 0..8 {
+        let tmp = path.with_file_name(format!(
+            ".{name}{TEMP_MARKER}{}-{:016x}",
+            std::process::id(),
+            random_u64()
+        ));
+        let opened = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC)
+            .open(&tmp);
+        match opened {
+            Ok(file) => return Ok((file, tmp)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
+}
+
+/// 64 unpredictable bits: the kernel's random source, or std's randomly keyed hasher where
+/// that cannot be read.
+fn random_u64() -> u64 {
+    let mut bytes = [0u8; 8];
+    let urandom = std::fs::File::open("/dev/urandom").and_then(|mut f| f.read_exact(&mut bytes));
+    if urandom.is_ok() {
+        return u64::from_le_bytes(bytes);
+    }
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos()),
+    );
+    h.finish()
+}
+
+/// Makes the rename durable (a power cut after a run must not lose the file). Best effort: a
+/// folder that cannot be opened or synced does not make the write fail.
+fn sync_folder(path: &Path) {
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let Ok(dir) = std::fs::File::open(folder) {
+        let _ = dir.sync_all();
+    }
+}
+
+/// Deletes the temporary file unless disarmed (set to `None`) after the rename.
+struct TempGuard(Option<PathBuf>);
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if let Some(tmp) = self.0.take() {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::os::unix::fs::symlink;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
 
     #[test]
     fn replaces_the_file_and_leaves_no_temporary() {
@@ -47,8 +198,7 @@ mod tests {
         write_atomic(&path, b"first").unwrap();
         write_atomic(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
-        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
-        assert_eq!(names.len(), 1, "only the destination remains");
+        assert_eq!(names(dir.path()), ["a.txt"], "only the destination remains");
     }
 
     #[test]
@@ -57,5 +207,139 @@ mod tests {
         let path = dir.path().join("no/such/dir/a.txt");
         let err = write_atomic(&path, b"x").unwrap_err();
         assert!(err.to_string().contains("no/such/dir"), "{err}");
+    }
+
+    #[test]
+    fn a_planted_symlink_is_refused_and_its_target_untouched() {
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let run = tempfile::tempdir().unwrap();
+        let planted = run.path().join("summary.json");
+        symlink(&victim, &planted).unwrap();
+        let err = write_atomic(&planted, b"radbench output").unwrap_err();
+        assert!(err.to_string().contains("symbolic link"), "{err}");
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert!(std::fs::symlink_metadata(&planted)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(names(run.path()), ["summary.json"], "no temporary left");
+        // A dangling link is refused too (it would create the file it names).
+        let dangling = run.path().join("profile.csv");
+        let target = outside.path().join("created.txt");
+        symlink(&target, &dangling).unwrap();
+        assert!(write_atomic(&dangling, b"x").is_err());
+        assert!(!target.exists());
+    }
+
+    #[test]
+    fn a_symlink_planted_at_a_guessable_temporary_name_is_not_followed() {
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let run = tempfile::tempdir().unwrap();
+        let dest = run.path().join("a.bin");
+        // The names earlier versions used (`.a.bin.tmp-<pid>`), and this version's prefix.
+        let pid = std::process::id();
+        for guess in [
+            format!(".a.bin.tmp-{pid}"),
+            format!(".a.bin{TEMP_MARKER}{pid}"),
+        ] {
+            symlink(&victim, run.path().join(guess)).unwrap();
+        }
+        write_atomic(&dest, b"radbench output").unwrap();
+        assert_eq!(std::fs::read(&dest).unwrap(), b"radbench output");
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+    }
+
+    #[test]
+    fn temporaries_are_created_exclusively_and_never_followed() {
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let run = tempfile::tempdir().unwrap();
+        let dest = run.path().join("a.bin");
+        // Whatever name is planted, create_new + O_NOFOLLOW never opens it.
+        for _ in 0..3 {
+            let (file, tmp) = create_temporary(&dest).unwrap();
+            drop(file);
+            std::fs::remove_file(&tmp).unwrap();
+            symlink(&victim, &tmp).unwrap();
+            let opened = std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .custom_flags(libc::O_NOFOLLOW)
+                .open(&tmp);
+            assert!(opened.is_err(), "a planted link is never opened");
+            std::fs::remove_file(&tmp).unwrap();
+        }
+        // Two names for the same destination differ in their random part.
+        let (_, a) = create_temporary(&dest).unwrap();
+        let (_, b) = create_temporary(&dest).unwrap();
+        assert_ne!(a, b);
+        let a = a.file_name().unwrap().to_str().unwrap().to_string();
+        assert!(a.starts_with(".a.bin.radbench-tmp-"), "{a}");
+        assert_eq!(temporary_pid(&a), Some(std::process::id()));
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+    }
+
+    #[test]
+    fn stale_temporaries_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let own = format!(
+            ".C1.trc{TEMP_MARKER}{}-0123456789abcdef",
+            std::process::id()
+        );
+        // pid 2^22 + 1 is above Linux's pid_max limit: never a running process.
+        let dead = format!(".capture.sigmf-data{TEMP_MARKER}4194305-fedcba9876543210");
+        // This test's own parent process is alive: its temporaries stay.
+        let alive = format!(
+            ".profile.csv{TEMP_MARKER}{}-00000000000000ff",
+            std::os::unix::process::parent_id()
+        );
+        for name in [&own, &dead, &alive] {
+            std::fs::write(d.join(name), b"half").unwrap();
+        }
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let linked = format!(".x{TEMP_MARKER}4194305-1111111111111111");
+        symlink(&victim, d.join(&linked)).unwrap();
+        for keep in [
+            "summary.json",
+            ".hidden",
+            "notes.radbench-tmp-1-0123456789abcdef",
+            ".a.radbench-tmp-1-short",
+        ] {
+            std::fs::write(d.join(keep), b"keep").unwrap();
+        }
+        let mut removed: Vec<String> = remove_stale_temporaries(d)
+            .unwrap()
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        removed.sort();
+        let mut expected = vec![own, dead, linked];
+        expected.sort();
+        assert_eq!(removed, expected);
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        let left = names(d);
+        assert!(left.contains(&alive), "{left:?}");
+        assert_eq!(left.len(), 5, "{left:?}");
+    }
+
+    #[test]
+    fn a_panicking_write_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.bin");
+        let result = std::panic::catch_unwind(|| {
+            let (_file, tmp) = create_temporary(&path).unwrap();
+            let _guard = TempGuard(Some(tmp));
+            panic!("a bug while writing");
+        });
+        assert!(result.is_err());
+        assert!(names(dir.path()).is_empty());
     }
 }

@@ -12,12 +12,42 @@ use std::path::{Path, PathBuf};
 /// The font embedded for PNG text (licence in assets/README.md).
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
-/// One curve: a label for the legend and the profile in dB (already normalised by the caller).
+/// How a curve is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LineStyle {
+    #[default]
+    Solid,
+    /// Dashed (thresholds, references).
+    Dashed,
+}
+
+/// One curve: a label for the legend and the profile in dB on the plot's scale.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Curve {
     pub label: String,
     pub range_m: Vec<f64>,
     pub db: Vec<f64>,
+    pub style: LineStyle,
+}
+
+impl Curve {
+    /// A solid curve.
+    pub fn solid(label: impl Into<String>, range_m: Vec<f64>, db: Vec<f64>) -> Self {
+        Self {
+            label: label.into(),
+            range_m,
+            db,
+            style: LineStyle::Solid,
+        }
+    }
+}
+
+/// A point marked on the plot with its text (a detection: range and level).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Marker {
+    pub range_m: f64,
+    pub db: f64,
+    pub label: String,
 }
 
 /// What one plot shows.
@@ -27,13 +57,39 @@ pub struct ProfilePlot {
     pub curves: Vec<Curve>,
     /// True target ranges, drawn as dashed vertical lines.
     pub targets_m: Vec<f64>,
+    /// Ranges estimated without a profile (root-MUSIC, ESPRIT), drawn as dotted vertical lines.
+    pub estimates_m: Vec<f64>,
+    /// Detections, marked on the curve with their text.
+    pub markers: Vec<Marker>,
     /// Range window to show; `None` = around the targets (or the whole axis without targets).
     pub window_m: Option<(f64, f64)>,
-    /// Lowest dB shown (values below are clipped to it).
-    pub floor_db: f64,
+    /// Lowest dB shown (values below are clipped to it); `None`: from the data in the window.
+    pub floor_db: Option<f64>,
     /// Draw a horizontal reference line at this level (the thesis' red dashed -3 dB line).
     pub reference_db: Option<f64>,
+    /// The y axis' title.
+    pub y_label: String,
 }
+
+impl ProfilePlot {
+    /// A plot of `curves` with nothing else marked, normalised-dB axis title.
+    pub fn new(title: impl Into<String>, curves: Vec<Curve>) -> Self {
+        Self {
+            title: title.into(),
+            curves,
+            targets_m: Vec::new(),
+            estimates_m: Vec::new(),
+            markers: Vec::new(),
+            window_m: None,
+            floor_db: None,
+            reference_db: None,
+            y_label: "Normalised magnitude (dB)".into(),
+        }
+    }
+}
+
+/// Widest dynamic range an automatic floor shows, dB.
+const MAX_AUTO_RANGE_DB: f64 = 120.0;
 
 const SIZE: (u32, u32) = (960, 540);
 const PALETTE: [RGBColor; 4] = [
@@ -136,6 +192,31 @@ fn x_window(plot: &ProfilePlot) -> (f64, f64) {
     (lo, hi)
 }
 
+/// The y range: the requested floor (or one from the data: the lowest curve value in the window,
+/// at most [`MAX_AUTO_RANGE_DB`] under the highest) up to a little above the highest value.
+fn y_range(plot: &ProfilePlot, x0: f64, x1: f64) -> (f64, f64) {
+    let values = plot.curves.iter().flat_map(|c| {
+        c.range_m
+            .iter()
+            .zip(&c.db)
+            .filter(move |(r, d)| **r >= x0 && **r <= x1 && d.is_finite())
+            .map(|(_, d)| *d)
+    });
+    let (lo, hi) = values
+        .chain(plot.markers.iter().map(|m| m.db))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| {
+            (lo.min(d), hi.max(d))
+        });
+    let hi = if hi.is_finite() { hi } else { 0.0 };
+    let top = hi + 0.08 * (hi - lo).clamp(10.0, MAX_AUTO_RANGE_DB) + 3.0;
+    let bottom = match plot.floor_db {
+        Some(f) => f,
+        None if lo.is_finite() => (lo - 3.0).max(hi - MAX_AUTO_RANGE_DB),
+        None => hi - 60.0,
+    };
+    (bottom.min(top - 1.0), top)
+}
+
 fn render<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     plot: &ProfilePlot,
@@ -148,8 +229,7 @@ fn render<DB: DrawingBackend>(
     } else {
         (x0 - 0.5, x0 + 0.5)
     };
-    let y0 = plot.floor_db;
-    let y1 = 3.0;
+    let (y0, y1) = y_range(plot, x0, x1);
     let mut chart = ChartBuilder::on(&root)
         .caption(&plot.title, ("sans-serif", 20))
         .margin(12)
@@ -160,7 +240,7 @@ fn render<DB: DrawingBackend>(
     chart
         .configure_mesh()
         .x_desc("Range (m)")
-        .y_desc("Normalised magnitude (dB)")
+        .y_desc(plot.y_label.as_str())
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(e)?;
@@ -171,15 +251,67 @@ fn render<DB: DrawingBackend>(
             .iter()
             .zip(&curve.db)
             .filter(|(r, _)| **r >= x0 && **r <= x1)
-            .map(|(&r, &d)| (r, if d.is_finite() { d.max(y0) } else { y0 }))
+            .map(|(&r, &d)| (r, if d.is_finite() { d.clamp(y0, y1) } else { y0 }))
             .collect();
-        chart
-            .draw_series(LineSeries::new(points, color.stroke_width(2)))
-            .map_err(e)?
+        let style = color.stroke_width(2);
+        let series = match curve.style {
+            LineStyle::Solid => chart
+                .draw_series(LineSeries::new(points, style))
+                .map_err(e)?,
+            LineStyle::Dashed => chart
+                .draw_series(DashedLineSeries::new(points, 5, 4, color.stroke_width(1)))
+                .map_err(e)?,
+        };
+        series
             .label(curve.label.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    let estimate_style = RGBColor(150, 80, 160).stroke_width(2);
+    for (i, &r) in plot.estimates_m.iter().enumerate() {
+        if !(x0..=x1).contains(&r) {
+            continue;
+        }
+        let series = chart
+            .draw_series(DashedLineSeries::new(
+                vec![(r, y0), (r, y1)],
+                2,
+                3,
+                estimate_style,
+            ))
+            .map_err(e)?;
+        if i == 0 {
+            series
+                .label("estimated range")
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], estimate_style));
+        }
+    }
+    let marker_color = RGBColor(200, 30, 30);
+    let shown: Vec<&Marker> = plot
+        .markers
+        .iter()
+        .filter(|m| (x0..=x1).contains(&m.range_m))
+        .collect();
+    if !shown.is_empty() {
+        chart
+            .draw_series(shown.iter().map(|m| {
+                Cross::new(
+                    (m.range_m, m.db.clamp(y0, y1)),
+                    6,
+                    marker_color.stroke_width(2),
+                )
+            }))
+            .map_err(e)?
+            .label("detection")
+            .legend(move |(x, y)| Cross::new((x + 10, y), 5, marker_color.stroke_width(2)));
+        for m in shown {
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    m.label.clone(),
+                    (m.range_m, (m.db + 0.04 * (y1 - y0)).min(y1)),
+                    ("sans-serif", 13).into_font().color(&marker_color),
+                )))
+                .map_err(e)?;
+        }
     }
     if let Some(level) = plot.reference_db {
         let style = RED.stroke_width(1);
@@ -233,16 +365,18 @@ mod tests {
             .map(|r| -40.0 * (r - 3.0_f64).abs().min(1.0))
             .collect();
         ProfilePlot {
-            title: "one target at 3 m".into(),
-            curves: vec![Curve {
-                label: "Fourier".into(),
-                range_m,
-                db,
-            }],
             targets_m: vec![3.0],
-            window_m: None,
-            floor_db: -50.0,
+            floor_db: Some(-50.0),
             reference_db: Some(-3.0),
+            markers: vec![Marker {
+                range_m: 3.0,
+                db: 0.0,
+                label: "3.000 m, 0.0 dB".into(),
+            }],
+            ..ProfilePlot::new(
+                "one target at 3 m",
+                vec![Curve::solid("Fourier", range_m, db)],
+            )
         }
     }
 
@@ -254,6 +388,7 @@ mod tests {
         let svg = std::fs::read_to_string(&path).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("one target at 3 m"));
         assert!(svg.contains("Fourier") && svg.contains("true range"));
+        assert!(svg.contains("3.000 m, 0.0 dB") && svg.contains("detection"));
     }
 
     #[test]

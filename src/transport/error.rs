@@ -2,6 +2,27 @@
 
 use std::time::Duration;
 
+/// A duration as people read it: `300 ms`, `2 s`, `2.5 s`, `107 s`; never `1.999385989s`.
+/// Below a second, whole milliseconds; up to ten seconds, tenths (a trailing `.0` dropped);
+/// beyond, whole seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rounded(pub Duration);
+
+impl std::fmt::Display for Rounded {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ms = self.0.as_secs_f64() * 1e3;
+        if ms < 999.5 {
+            return write!(f, "{} ms", ms.round() as u64);
+        }
+        let tenths = (ms / 100.0).round() as u64;
+        if tenths < 100 && tenths % 10 != 0 {
+            write!(f, "{}.{} s", tenths / 10, tenths % 10)
+        } else {
+            write!(f, "{} s", (ms / 1e3).round() as u64)
+        }
+    }
+}
+
 /// What the caller should do about an error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ErrorKind {
@@ -43,10 +64,10 @@ pub enum LinkError {
     },
     #[error("cannot resolve host `{host}`: check the resource string")]
     Resolve { host: String },
-    #[error("{op} timed out after {after:?}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. Raise the timeout if the instrument is just slow")]
+    #[error("{op} timed out after {}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. Raise the timeout if the instrument is just slow", Rounded(*.after))]
     Timeout { op: &'static str, after: Duration },
     #[error(
-        "the instrument closed the connection during {op}; reconnect (the session can reopen it)"
+        "the instrument closed the connection during {op}; it is reopened before the next operation"
     )]
     Closed { op: &'static str },
     #[error("I/O error during {op}: {source}")]
@@ -131,5 +152,32 @@ impl crate::exit::Classify for LinkError {
             LinkError::Resolve { .. } => crate::exit::ExitClass::BadInput,
             _ => crate::exit::ExitClass::Instrument,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations_are_printed_rounded() {
+        let text = |d: Duration| Rounded(d).to_string();
+        assert_eq!(text(Duration::from_nanos(1_999_385_989)), "2 s");
+        assert_eq!(text(Duration::from_millis(300)), "300 ms");
+        assert_eq!(text(Duration::from_micros(999_400)), "999 ms");
+        assert_eq!(text(Duration::from_micros(999_600)), "1 s");
+        assert_eq!(text(Duration::from_millis(2_460)), "2.5 s");
+        assert_eq!(text(Duration::from_millis(9_960)), "10 s");
+        assert_eq!(text(Duration::from_millis(107_374)), "107 s");
+        assert_eq!(text(Duration::ZERO), "0 ms");
+        let e = LinkError::Timeout {
+            op: "HiSLIP read",
+            after: Duration::from_nanos(1_999_385_989),
+        };
+        assert!(
+            e.to_string()
+                .starts_with("HiSLIP read timed out after 2 s;"),
+            "{e}"
+        );
     }
 }

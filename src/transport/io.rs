@@ -36,7 +36,10 @@ pub enum Direction {
 pub type ProgressFn = Arc<dyn Fn(Progress) + Send + Sync>;
 
 /// Connect, read and write timeouts, kept apart, plus the rate that stretches deadlines for big
-/// transfers: a transfer of `n` bytes gets `base + n / min_rate` before it times out.
+/// transfers. The rule (docs/io-timeouts.md): a read must end by
+/// `start + read + min(counted, max_message_bytes) / min_rate`, where `counted` is the bytes of
+/// *this* message received so far. Bytes thrown away (stale replies, frames of other messages) and
+/// lengths a header merely announces earn nothing; a write of `n` bytes gets `write + n / min_rate`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Timeouts {
     pub connect: Duration,
@@ -67,6 +70,10 @@ impl Timeouts {
     }
 }
 
+/// The default largest message, either way: 1 GiB (a 32 Mpoint scope trace is 64 MB; `bench io`
+/// raises it for bigger test blocks). It also caps the transfer allowance of a read.
+pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 1 << 30;
+
 /// Everything a transport needs besides its address.
 #[derive(Clone)]
 pub struct LinkOptions {
@@ -87,7 +94,7 @@ impl Default for LinkOptions {
     fn default() -> Self {
         Self {
             timeouts: Timeouts::default(),
-            max_message_bytes: 1 << 30,
+            max_message_bytes: DEFAULT_MAX_MESSAGE_BYTES,
             progress: None,
             progress_step_bytes: 4 << 20,
             serial: Default::default(),
@@ -121,12 +128,21 @@ pub trait Decode {
     }
 }
 
-/// One message's worth of reading: its deadline grows with the bytes announced or received.
+/// One message's worth of reading, with the deadline of [`Timeouts`]: it grows only with the bytes
+/// of this message that actually arrived, never with a length a header announces, and bytes the
+/// transport throws away ([`ReadContext::discard`]) give their time back.
 pub struct ReadContext<'a> {
     op: &'static str,
     started: Instant,
     timeouts: Timeouts,
+    /// Every byte read, for progress reports.
     received: u64,
+    /// Bytes read and then thrown away (stale replies, frames of other messages).
+    discarded: u64,
+    /// Cap on the bytes that earn time: the largest message.
+    max_counted: u64,
+    /// The receive buffer never grows beyond this (largest message plus framing slack).
+    buffer_ceiling: usize,
     expected: u64,
     frame_start: u64,
     progress: Option<&'a ProgressFn>,
@@ -141,6 +157,9 @@ impl<'a> ReadContext<'a> {
             started: Instant::now(),
             timeouts: options.timeouts,
             received: 0,
+            discarded: 0,
+            max_counted: options.max_message_bytes as u64,
+            buffer_ceiling: buffer_ceiling(options.max_message_bytes),
             expected: 0,
             frame_start: 0,
             progress: options.progress.as_ref(),
@@ -149,28 +168,38 @@ impl<'a> ReadContext<'a> {
         }
     }
 
-    /// Restarts the clock, e.g. for a second round trip within one operation.
+    /// Replaces the base time (the read timeout), e.g. with the write timeout for the replies to
+    /// VXI-11 device_write.
     pub fn with_base(mut self, base: Duration) -> Self {
         self.timeouts.read = base;
         self
     }
 
+    /// The bytes that earn transfer time: those of this message received so far, at most the
+    /// largest message.
+    pub fn counted(&self) -> u64 {
+        (self.received - self.discarded).min(self.max_counted)
+    }
+
     pub fn deadline(&self) -> Instant {
-        self.started
-            + self.timeouts.read
-            + self
-                .timeouts
-                .allowance_for(self.received.max(self.expected))
+        self.started + self.allowed()
     }
 
     pub fn elapsed(&self) -> Duration {
         self.started.elapsed()
     }
 
+    /// The time this read is allowed so far: the read timeout plus the allowance earned.
+    pub fn allowed(&self) -> Duration {
+        self.timeouts.read + self.timeouts.allowance_for(self.counted())
+    }
+
+    /// The timeout, reported with the time that was allowed (what the user set, plus the
+    /// allowance), or the time taken if the peer gave up first.
     pub fn timeout_error(&self) -> LinkError {
         LinkError::Timeout {
             op: self.op,
-            after: self.elapsed(),
+            after: self.elapsed().min(self.allowed()),
         }
     }
 
@@ -183,9 +212,16 @@ impl<'a> ReadContext<'a> {
         self.deadline().saturating_duration_since(Instant::now())
     }
 
-    /// Declares the total message size once known, e.g. from a block header.
+    /// Declares the total message size once known, e.g. from a block header. Used for progress
+    /// reports only: a claim earns no time.
     pub fn expect_total(&mut self, total: u64) {
         self.expected = self.expected.max(total);
+    }
+
+    /// Gives back the time earned by `bytes` the transport has thrown away (a stale reply, a
+    /// frame that is not part of the message): they do not stretch the deadline.
+    pub fn discard(&mut self, bytes: u64) {
+        self.discarded = self.discarded.saturating_add(bytes).min(self.received);
     }
 
     fn add(&mut self, n: usize) {
@@ -202,7 +238,8 @@ impl<'a> ReadContext<'a> {
         }
     }
 
-    /// Reads until `decoder` yields a frame. Cancel safe (see the module docs).
+    /// Reads until `decoder` yields a frame. Cancel safe (see the module docs). The buffer grows
+    /// as bytes arrive, never beyond the largest message plus framing slack.
     pub async fn read_frame<S, D>(
         &mut self,
         stream: &mut S,
@@ -228,7 +265,7 @@ impl<'a> ReadContext<'a> {
             // complete 64 MB frame for the sake of its last few kB.
             let spare = buf.capacity() - buf.len();
             if spare == 0 || (spare < MIN_READ_SPACE && announced == 0) {
-                buf.reserve(READ_CHUNK);
+                reserve_within(buf, READ_CHUNK, self.buffer_ceiling);
             }
             let n = match tokio::time::timeout_at(self.deadline(), stream.read_buf(buf)).await {
                 Err(_) => return Err(self.timeout_error()),
@@ -241,6 +278,69 @@ impl<'a> ReadContext<'a> {
     }
 }
 
+/// Framing overhead allowed on top of the largest message in a receive buffer: headers, record
+/// marks, XDR fields, and the start of the next frame read along with this one.
+pub const FRAMING_SLACK: usize = 64 << 10;
+
+/// The most a receive buffer holds for messages of at most `max_message` bytes.
+pub fn buffer_ceiling(max_message: usize) -> usize {
+    max_message
+        .saturating_add(FRAMING_SLACK)
+        .saturating_add(RECLAIM_SLACK)
+}
+
+/// Makes room for `additional` more bytes in `buf` without letting its capacity pass `ceiling`
+/// (unless `additional` itself needs more): far below the ceiling, the usual amortised doubling;
+/// near it, one exact allocation. A message that never ends therefore costs at most its limit,
+/// not the 1.5x to 2x a doubling buffer overshoots by.
+pub fn reserve_within(buf: &mut BytesMut, additional: usize, ceiling: usize) {
+    if buf.capacity() - buf.len() >= additional || buf.try_reclaim(additional) {
+        return;
+    }
+    let needed = buf.len().saturating_add(additional);
+    let doubled = buf.capacity().saturating_mul(2).max(needed);
+    if doubled <= ceiling / 2 {
+        buf.reserve(additional);
+    } else {
+        // Through the Vec: an unshared buffer is taken without a copy and grown by realloc, which
+        // for a large block remaps its pages rather than holding old and new side by side.
+        let target = doubled.min(ceiling).max(needed);
+        let mut bytes: Vec<u8> = std::mem::take(buf).into();
+        bytes.reserve_exact(target - bytes.len());
+        // Spare capacity, so Bytes keeps the Vec whole and hands it back unshared: no copy.
+        *buf = BytesMut::from(bytes::Bytes::from(bytes));
+    }
+}
+
+/// A reply of `total` bytes (so far) over the `limit` of the largest message.
+pub fn reply_too_large(protocol: &'static str, total: u64, limit: usize) -> LinkError {
+    LinkError::Codec {
+        protocol,
+        source: CodecError::TooLarge {
+            format: protocol,
+            announced: total,
+            limit: limit as u64,
+        },
+    }
+}
+
+/// Appends one frame's payload to a message assembled from several frames, refusing a message
+/// over `limit` bytes (a peer that never sends the last frame) before growing the buffer.
+pub fn append_within(
+    message: &mut BytesMut,
+    data: &[u8],
+    limit: usize,
+    protocol: &'static str,
+) -> Result<(), LinkError> {
+    let total = message.len() as u64 + data.len() as u64;
+    if total > limit as u64 {
+        return Err(reply_too_large(protocol, total, limit));
+    }
+    reserve_within(message, data.len(), limit);
+    message.extend_from_slice(data);
+    Ok(())
+}
+
 /// Largest reservation made from a length field alone (after its check against the limit): a
 /// frame announced larger grows as its bytes actually arrive, so a peer's claim cannot make us
 /// reserve more than this up front. Big enough for a 64 MB block in one piece.
@@ -249,7 +349,8 @@ pub const PRESIZE_LIMIT: usize = 128 << 20;
 /// Makes room for `wanted` more bytes of a frame whose length a header announced (already
 /// checked against the limit), at most [`PRESIZE_LIMIT`]: the payload is then read straight
 /// into place, without regrowth copies.
-pub fn reserve_announced(src: &mut BytesMut, wanted: usize) {
+pub fn reserve_announced(src: &mut BytesMut, wanted: usize, limit: u64) {
+    let ceiling = buffer_ceiling(usize::try_from(limit).unwrap_or(usize::MAX));
     let wanted = wanted.min(PRESIZE_LIMIT);
     if src.capacity() - src.len() >= wanted {
         return;
@@ -264,7 +365,7 @@ pub fn reserve_announced(src: &mut BytesMut, wanted: usize) {
     } else {
         wanted
     };
-    src.reserve(wanted);
+    reserve_within(src, wanted, ceiling);
     if wanted >= HUGE_PAGE {
         let spare = src.spare_capacity_mut();
         advise_huge_pages(spare.as_mut_ptr().cast(), spare.len());
@@ -412,7 +513,10 @@ pub async fn connect_tcp(
                 protocol,
                 source: std::io::Error::new(
                     std::io::ErrorKind::TimedOut,
-                    format!("no answer within {:?}", options.timeouts.connect),
+                    format!(
+                        "no answer within {}",
+                        super::error::Rounded(options.timeouts.connect)
+                    ),
                 ),
             })
         }
@@ -454,8 +558,53 @@ mod tests {
         };
         let mut ctx = ReadContext::new("read", &options);
         let small = ctx.deadline();
+        // A header's claim earns nothing: the bytes must arrive.
         ctx.expect_total(100_000_000);
-        assert_eq!(ctx.deadline() - small, Duration::from_secs(10));
+        assert_eq!(ctx.deadline(), small);
+        ctx.add(50_000_000);
+        assert_eq!(ctx.deadline() - small, Duration::from_secs(5));
+        // Bytes thrown away (a stale reply) give their time back.
+        ctx.discard(30_000_000);
+        assert_eq!(ctx.deadline() - small, Duration::from_secs(2));
+        ctx.discard(u64::MAX);
+        assert_eq!(ctx.deadline(), small);
+    }
+
+    #[test]
+    fn the_allowance_is_capped_by_the_largest_message() {
+        let options = LinkOptions {
+            timeouts: Timeouts {
+                min_rate_bytes_per_s: 1_000_000,
+                ..Timeouts::default()
+            },
+            max_message_bytes: 4_000_000,
+            ..LinkOptions::default()
+        };
+        let mut ctx = ReadContext::new("read", &options);
+        let small = ctx.deadline();
+        ctx.add(usize::MAX / 2);
+        assert_eq!(ctx.deadline() - small, Duration::from_secs(4));
+    }
+
+    #[test]
+    fn buffers_stop_growing_at_their_ceiling() {
+        let ceiling = 1 << 20;
+        let mut buf = BytesMut::new();
+        while buf.len() < ceiling - 4096 {
+            reserve_within(&mut buf, 4096, ceiling);
+            assert!(buf.capacity() <= ceiling, "{}", buf.capacity());
+            let n = buf.capacity() - buf.len();
+            buf.extend_from_slice(&vec![0; n.min(4096)]);
+        }
+        // A request beyond the ceiling still gets what it needs, no more.
+        reserve_within(&mut buf, ceiling, ceiling);
+        assert!(buf.capacity() >= buf.len() + ceiling);
+        assert!(buf.capacity() <= 2 * ceiling);
+        let mut message = BytesMut::new();
+        append_within(&mut message, &[1; 100], 150, "test").unwrap();
+        let err = append_within(&mut message, &[1; 51], 150, "test").unwrap_err();
+        assert!(err.to_string().contains("151 bytes"), "{err}");
+        assert_eq!(message.len(), 100);
     }
 
     /// One reply as a socket delivers it: the frame header and a few bytes first (the server

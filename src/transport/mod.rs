@@ -13,6 +13,12 @@
 //! | [`vicp`] | LeCroy VICP headers with sequence numbers |
 //! | [`serial`] | `serialport` on its own thread |
 //!
+//! Deadlines and limits (docs/io-timeouts.md): a read ends by `start + read timeout +
+//! min(bytes of this message received, max_message_bytes) / min_rate`; bytes thrown away (stale
+//! replies) and lengths a header only announces earn no time, and no receive buffer grows past
+//! the largest message plus a little framing slack. After undecodable bytes, or the instrument
+//! closing the connection, the link is reopened.
+//!
 //! Cancellation: every operation may be dropped (e.g. by `tokio::time::timeout` or `select!`).
 //! Reads keep their progress in the link, so nothing is lost; an operation dropped half-way marks
 //! the link dirty, and the next operation first clears the device (after an abandoned read) or
@@ -28,7 +34,7 @@ pub mod socket;
 pub mod vicp;
 pub mod vxi11;
 
-pub use error::{CodecError, ErrorKind, LinkError};
+pub use error::{CodecError, ErrorKind, LinkError, Rounded};
 pub use io::{Direction, LinkOptions, Progress, ProgressFn, Timeouts};
 pub use journal::{Journal, Origin};
 
@@ -253,8 +259,16 @@ impl Link {
     }
 
     fn settle<T>(&mut self, result: &Result<T, LinkError>, on_error: Dirty) {
+        let serial = matches!(self.inner, Some(Inner::Serial(_)));
         self.dirty = match result {
             Ok(_) => Dirty::Clean,
+            // Undecodable bytes: where the next frame starts is unknown, and a protocol clear
+            // would read through the same bytes. A fresh connection starts at a frame boundary.
+            // (A serial clear already forgets the buffered bytes, and reopening a port the
+            // serial thread may still hold would fail.)
+            Err(LinkError::Codec { .. } | LinkError::Protocol { .. }) if !serial => Dirty::Write,
+            // A connection the instrument closed cannot be cleared, only reopened.
+            Err(LinkError::Closed { .. }) if !serial => Dirty::Write,
             Err(e) if e.leaves_link_dirty() => on_error,
             Err(_) => Dirty::Clean,
         };

@@ -6,7 +6,7 @@
 
 use super::error::LinkError;
 use super::framing::TerminatedDecoder;
-use super::io::{Decode, LinkOptions};
+use super::io::{buffer_ceiling, reserve_within, Decode, LinkOptions};
 use bytes::{Bytes, BytesMut};
 use std::io::{Read, Write};
 use std::sync::mpsc;
@@ -96,12 +96,35 @@ pub fn device_path(device: &str) -> String {
     }
 }
 
+/// The largest message a serial link takes, whatever `max_message_bytes` says: 1 MiB is 91 s at
+/// 115200 baud. It bounds how long a device that streams without ever ending a line keeps a read
+/// alive (its bytes arrive at a healthy rate, so only their number can stop it).
+pub const MAX_MESSAGE: usize = 1 << 20;
+
 /// How long one blocking read waits before the thread checks its deadline again.
 const POLL: Duration = Duration::from_millis(20);
+/// A line silent this long has no reply left in flight: how a drain knows it is done.
+pub const SETTLE: Duration = Duration::from_millis(50);
+/// A drain gives up when the device keeps talking this long (it is then not a reply left over).
+pub const DRAIN_LIMIT: Duration = Duration::from_secs(1);
+
+/// The deadline rule of [`Timeouts`](super::Timeouts), carried to the serial thread.
+#[derive(Debug, Clone, Copy)]
+struct ReadBudget {
+    base: Duration,
+    timeouts: super::Timeouts,
+    max_counted: u64,
+}
+
+impl ReadBudget {
+    fn allowed(&self, counted: u64) -> Duration {
+        self.base + self.timeouts.allowance_for(counted.min(self.max_counted))
+    }
+}
 
 enum Request {
     Write(Vec<u8>, Duration, oneshot::Sender<Result<(), LinkError>>),
-    Read(Duration, oneshot::Sender<Result<Bytes, LinkError>>),
+    Read(ReadBudget, oneshot::Sender<Result<Bytes, LinkError>>),
     Clear(oneshot::Sender<Result<(), LinkError>>),
 }
 
@@ -129,12 +152,14 @@ impl SerialLink {
         Self::from_port(port, path, limit)
     }
 
-    /// Runs a link over an already open port (tests use a pseudo-terminal pair).
+    /// Runs a link over an already open port (tests use a pseudo-terminal pair). Messages are at
+    /// most `limit` bytes, and never more than [`MAX_MESSAGE`].
     pub fn from_port(
         port: Box<dyn serialport::SerialPort>,
         device: String,
         limit: usize,
     ) -> Result<Self, LinkError> {
+        let limit = limit.min(MAX_MESSAGE);
         let (tx, rx) = mpsc::channel();
         let name = device.clone();
         std::thread::Builder::new()
@@ -177,11 +202,17 @@ impl SerialLink {
     }
 
     pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
-        let allowed = options.timeouts.read;
-        self.ask(|tx| Request::Read(allowed, tx)).await
+        let budget = ReadBudget {
+            base: options.timeouts.read,
+            timeouts: options.timeouts,
+            max_counted: options.max_message_bytes.min(MAX_MESSAGE) as u64,
+        };
+        self.ask(|tx| Request::Read(budget, tx)).await
     }
 
-    /// Discards everything buffered in both directions.
+    /// Discards everything buffered in both directions, then drains: bytes are read and thrown
+    /// away until the line has been quiet for [`SETTLE`], so a late reply to an abandoned request
+    /// is not taken for the next answer.
     pub async fn device_clear(&mut self) -> Result<(), LinkError> {
         self.ask(Request::Clear).await
     }
@@ -194,11 +225,23 @@ fn serve(
     limit: usize,
 ) {
     let mut decoder = TerminatedDecoder::new(b'\n', limit);
+    let ceiling = buffer_ceiling(limit);
     let mut buf = BytesMut::with_capacity(4096);
-    let io = |op: &'static str, e: std::io::Error| LinkError::Io { op, source: e };
+    let io = |op: &'static str, e: std::io::Error| serial_io_error(op, e);
+    // A reply a previous user of the port left unread is not the answer to our first request.
+    let mut opened = Some(drain(port.as_mut(), &device));
     while let Ok(request) = requests.recv() {
+        if let Some(Err(e)) = opened.take() {
+            // Reported once, with the first request.
+            tracing::warn!("{e}");
+        }
         match request {
             Request::Write(data, allowed, reply) => {
+                // Whatever arrived before this request cannot be its reply: a reply nobody read
+                // (a command that answers, an abandoned query) is dropped here.
+                decoder.reset();
+                buf.clear();
+                let _ = port.clear(serialport::ClearBuffer::Input);
                 let started = Instant::now();
                 let mut result = Ok(());
                 let mut rest = &data[..];
@@ -224,9 +267,10 @@ fn serve(
                 }
                 let _ = reply.send(result);
             }
-            Request::Read(allowed, reply) => {
+            Request::Read(budget, reply) => {
                 let started = Instant::now();
                 let mut chunk = [0u8; 4096];
+                let mut counted = 0u64;
                 let result = loop {
                     match decoder.decode(&mut buf) {
                         Ok(Some(frame)) => break Ok(frame),
@@ -237,18 +281,22 @@ fn serve(
                             break Err(LinkError::codec("serial")(e));
                         }
                     }
-                    let elapsed = started.elapsed();
-                    if elapsed > allowed {
+                    let allowed = budget.allowed(counted);
+                    if started.elapsed() > allowed {
                         break Err(LinkError::Timeout {
                             op: "serial read",
-                            after: elapsed,
+                            after: allowed,
                         });
                     }
                     match port.read(&mut chunk) {
                         Ok(0) => {
                             break Err(LinkError::Closed { op: "serial read" });
                         }
-                        Ok(n) => buf.extend_from_slice(&chunk[..n]),
+                        Ok(n) => {
+                            counted += n as u64;
+                            reserve_within(&mut buf, n, ceiling);
+                            buf.extend_from_slice(&chunk[..n]);
+                        }
                         Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                         Err(e) => break Err(io("serial read", e)),
                     }
@@ -258,16 +306,63 @@ fn serve(
             Request::Clear(reply) => {
                 decoder.reset();
                 buf.clear();
-                let result =
-                    port.clear(serialport::ClearBuffer::All)
-                        .map_err(|e| LinkError::Serial {
-                            device: device.clone(),
-                            detail: format!("cannot clear buffers: {e}"),
-                        });
+                let result = port
+                    .clear(serialport::ClearBuffer::All)
+                    .map_err(|e| LinkError::Serial {
+                        device: device.clone(),
+                        detail: format!("cannot clear buffers: {e}"),
+                    })
+                    .and_then(|()| drain(port.as_mut(), &device));
                 let _ = reply.send(result);
             }
         }
     }
+}
+
+/// Reads and throws away bytes until the line has been quiet for [`SETTLE`]; an error when it
+/// never goes quiet within [`DRAIN_LIMIT`].
+fn drain(port: &mut dyn serialport::SerialPort, device: &str) -> Result<(), LinkError> {
+    let started = Instant::now();
+    let mut quiet_since = Instant::now();
+    let mut chunk = [0u8; 4096];
+    let mut thrown = 0usize;
+    loop {
+        if quiet_since.elapsed() >= SETTLE {
+            if thrown > 0 {
+                tracing::debug!(device, thrown, "serial: drained bytes nobody asked for");
+            }
+            return Ok(());
+        }
+        if started.elapsed() >= DRAIN_LIMIT {
+            return Err(LinkError::Serial {
+                device: device.to_string(),
+                detail: format!(
+                    "the device kept sending for {} without being asked ({thrown} bytes thrown \
+                     away); check the line settings and that it is not in a streaming mode",
+                    super::error::Rounded(DRAIN_LIMIT)
+                ),
+            });
+        }
+        match port.read(&mut chunk) {
+            Ok(0) => return Ok(()),
+            Ok(n) => {
+                thrown += n;
+                quiet_since = Instant::now();
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(e) => return Err(serial_io_error("serial drain", e)),
+        }
+    }
+}
+
+/// Maps a serial I/O error; a device that went away (a USB adapter unplugged, the far end of a
+/// pseudo-terminal closed: EIO) is [`LinkError::Closed`].
+fn serial_io_error(op: &'static str, e: std::io::Error) -> LinkError {
+    #[cfg(unix)]
+    if e.raw_os_error() == Some(libc::EIO) {
+        return LinkError::Closed { op };
+    }
+    super::io::io_error(op, e)
 }
 
 #[cfg(test)]

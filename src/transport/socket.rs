@@ -2,7 +2,9 @@
 //!
 //! A raw socket has no device clear and no status byte. The only way to be sure no stale reply
 //! follows a timeout is a fresh connection, so [`SocketLink::device_clear`] reconnects; the status
-//! byte is read by the session with `*STB?`.
+//! byte is read by the session with `*STB?`. Nor does it number replies: whatever arrived before a
+//! request is thrown away when the request is sent, so an unread reply is never taken for its
+//! answer.
 
 use super::error::LinkError;
 use super::framing::TerminatedDecoder;
@@ -11,6 +13,8 @@ use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
 const PROTOCOL: &str = "socket";
+/// At most this much unread input is thrown away before one request.
+const DISCARD_LIMIT: usize = 1 << 20;
 
 pub struct SocketLink {
     host: String,
@@ -37,7 +41,27 @@ impl SocketLink {
         parts: &[&[u8]],
         options: &LinkOptions,
     ) -> Result<(), LinkError> {
+        self.discard_unread();
         write_parts(&mut self.stream, parts, "write", options).await
+    }
+
+    /// Bytes that arrived before a request cannot be its reply (a reply nobody read, to a command
+    /// that answers): they are thrown away, from the buffer and from the socket, without waiting.
+    fn discard_unread(&mut self) {
+        self.decoder.reset();
+        let mut thrown = self.buf.len();
+        self.buf.clear();
+        let mut scratch = [0u8; 4096];
+        // Bounded, so a peer that never stops talking cannot hold the write up.
+        while thrown < DISCARD_LIMIT {
+            match self.stream.try_read(&mut scratch) {
+                Ok(n) if n > 0 => thrown += n,
+                _ => break,
+            }
+        }
+        if thrown > 0 {
+            tracing::debug!(thrown, "socket: dropped unread bytes before a request");
+        }
     }
 
     pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {

@@ -43,8 +43,12 @@ pub struct Bench {
 }
 
 pub async fn start(proto: Proto) -> Bench {
+    start_serving(proto, Arc::new(Loopback::new())).await
+}
+
+/// A mock server of `proto` serving `handler` (an emulated instrument).
+pub async fn start_serving(proto: Proto, handler: Arc<dyn Handler>) -> Bench {
     let faults = Faults::new();
-    let handler: Arc<dyn Handler> = Arc::new(Loopback::new());
     let options = ServerOptions::with_faults(faults.clone());
     let any = server::loopback_any();
     let server = match proto {
@@ -80,7 +84,12 @@ pub async fn start(proto: Proto) -> Bench {
 }
 
 pub fn options(bench: &Bench, read: Duration) -> SessionOptions {
-    let mut o = SessionOptions::default();
+    let mut o = SessionOptions {
+        // The loopback instrument keeps a SCPI error queue on every transport, VICP included
+        // (where the session would otherwise read a LeCroy scope's CMR? register).
+        error_query: radbench::session::SCPI_ERROR_QUERY.into(),
+        ..SessionOptions::default()
+    };
     if let Some(port) = bench.portmapper_port {
         o.link.portmapper_port = port;
     }

@@ -52,6 +52,8 @@ pub struct Lecroy {
     source: Arc<dyn TriggerSource>,
     log: ReceivedLog,
     wait_cap: Mutex<Duration>,
+    /// Tells the lab when the remote interface changes, so it opens and closes the endpoints.
+    remote_changes: tokio::sync::watch::Sender<RemoteInterface>,
 }
 
 impl Lecroy {
@@ -68,6 +70,7 @@ impl Lecroy {
             source,
             log: ReceivedLog::new("lecroy", LOG_CAPACITY),
             wait_cap: Mutex::new(Duration::from_secs(10)),
+            remote_changes: tokio::sync::watch::Sender::new(RemoteInterface::Vicp),
             model,
         })
     }
@@ -103,6 +106,17 @@ impl Lecroy {
     /// Chooses the remote-control protocol, as in Utilities > Remote on the scope.
     pub fn set_remote_interface(&self, remote: RemoteInterface) {
         self.lock().remote = remote;
+        self.remote_changes.send_if_modified(|current| {
+            let changed = *current != remote;
+            *current = remote;
+            changed
+        });
+    }
+
+    /// Follows the remote interface: the receiver sees every change made by
+    /// [`Lecroy::set_remote_interface`].
+    pub fn watch_remote_interface(&self) -> tokio::sync::watch::Receiver<RemoteInterface> {
+        self.remote_changes.subscribe()
     }
 
     pub fn remote_interface(&self) -> RemoteInterface {

@@ -262,6 +262,32 @@ fn bad_scene_files_name_the_field() {
         err.to_string().contains("s.toml") && err.to_string().contains("colour"),
         "{err}"
     );
+    let err = Scene::from_toml(
+        "snr_db = 20\n\n[[targets]]\nrange_m = 1.0\namplitude = 1e300\n",
+        "s.toml",
+    )
+    .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "scene file s.toml, line 5: `targets[0].amplitude`: 1e300 is outside the allowed range 0 ..= 10"
+    );
+    let err = Scene::from_toml("[impairments]\ndc_offset_v = [0.0, 0.0, 0.1]\n", "s.toml")
+        .unwrap_err()
+        .to_string();
+    for part in [
+        "s.toml",
+        "line 2",
+        "dc_offset_v",
+        "exactly 2 values",
+        "got 3",
+    ] {
+        assert!(err.contains(part), "{part}: {err}");
+    }
+    let too_many = "[[targets]]\nrange_m = 1.0\n".repeat(MAX_REFLECTORS + 1);
+    let err = Scene::from_toml(&too_many, "s.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("line 1: `targets`: 101 entries"), "{err}");
     let ok = Scene::from_toml(
         "snr_db = 25.0\n[[targets]]\nrange_m = 1.5\namplitude = 0.3\n",
         "s.toml",

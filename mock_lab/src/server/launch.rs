@@ -64,6 +64,13 @@ pub struct Endpoint {
     /// VXI-11 only: the portmapper's `host:port`, when one runs.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub portmapper_address: Option<String>,
+    /// Whether the endpoint accepts connections now. A closed one refuses them at once, as a
+    /// real instrument's closed port does (the scope's VXI-11 port while its remote interface is
+    /// VICP); `reason` says why and what opens it.
+    pub active: bool,
+    /// Why the endpoint is closed (only when it is).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
 }
 
 /// A running server of any kind; dropping it stops it.
@@ -98,64 +105,87 @@ pub async fn start(
     ports: Ports,
     options: ServerOptions,
 ) -> Result<(Running, Endpoint), ServerError> {
-    let endpoint = |address: String, resource: String| Endpoint {
-        instrument: instrument.to_string(),
-        transport,
-        address,
-        resource,
-        abort_address: None,
-        portmapper_address: None,
-    };
-    match transport {
+    if transport == Transport::Serial {
+        let handle = serial::serve(handler, options)?;
+        let path = handle.device_path().to_string();
+        let ep = Endpoint {
+            instrument: instrument.to_string(),
+            transport,
+            address: path.clone(),
+            resource: format!("ASRL{path}::INSTR"),
+            abort_address: None,
+            portmapper_address: None,
+            active: true,
+            reason: None,
+        };
+        return Ok((Running::Serial(handle), ep));
+    }
+    let (handle, ep) = start_network(instrument, handler, transport, ports, options).await?;
+    Ok((Running::Network(handle), ep))
+}
+
+/// [`start`] for the network transports; `Serial` is refused.
+pub async fn start_network(
+    instrument: &str,
+    handler: Arc<dyn Handler>,
+    transport: Transport,
+    ports: Ports,
+    options: ServerOptions,
+) -> Result<(ServerHandle, Endpoint), ServerError> {
+    let handle = match transport {
         Transport::Serial => {
-            let handle = serial::serve(handler, options)?;
-            let path = handle.device_path().to_string();
-            let ep = endpoint(path.clone(), format!("ASRL{path}::INSTR"));
-            Ok((Running::Serial(handle), ep))
+            return Err(ServerError::Start {
+                protocol: transport.name(),
+                source: std::io::Error::other("a serial endpoint has no network server"),
+            })
         }
-        Transport::Raw => {
-            let handle = raw::serve(loopback(ports.main), handler, options).await?;
-            let a = handle.local_addr();
-            let ep = endpoint(
-                a.to_string(),
-                format!("TCPIP::{}::{}::SOCKET", a.ip(), a.port()),
-            );
-            Ok((Running::Network(handle), ep))
-        }
-        Transport::Hislip => {
-            let handle = hislip::serve(loopback(ports.main), handler, options).await?;
-            let a = handle.local_addr();
-            let ep = endpoint(
-                a.to_string(),
-                format!("TCPIP::{}::hislip0,{}::INSTR", a.ip(), a.port()),
-            );
-            Ok((Running::Network(handle), ep))
-        }
-        Transport::Vicp => {
-            let handle = vicp::serve(loopback(ports.main), handler, options).await?;
-            let a = handle.local_addr();
-            let resource = if a.port() == 1861 {
-                format!("VICP::{}::INSTR", a.ip())
-            } else {
-                format!("VICP::{},{}::INSTR", a.ip(), a.port())
-            };
-            Ok((Running::Network(handle), endpoint(a.to_string(), resource)))
-        }
+        Transport::Raw => raw::serve(loopback(ports.main), handler, options).await?,
+        Transport::Hislip => hislip::serve(loopback(ports.main), handler, options).await?,
+        Transport::Vicp => vicp::serve(loopback(ports.main), handler, options).await?,
         Transport::Vxi11 => {
             let addrs = Vxi11Addresses {
                 core: loopback(ports.main),
                 abort: loopback(ports.abort),
                 portmapper: ports.portmapper.map(loopback),
             };
-            let handle = vxi11::serve(addrs, handler, options).await?;
-            let a = handle.local_addr();
-            let mut ep = endpoint(
-                a.to_string(),
-                format!("TCPIP::{},{}::inst0::INSTR", a.ip(), a.port()),
-            );
-            ep.abort_address = handle.listener("abort").map(|a| a.to_string());
-            ep.portmapper_address = handle.listener("portmapper").map(|a| a.to_string());
-            Ok((Running::Network(handle), ep))
+            vxi11::serve(addrs, handler, options).await?
         }
+    };
+    let ep = describe(
+        instrument,
+        transport,
+        handle.local_addr(),
+        handle.listener("abort"),
+        handle.listener("portmapper"),
+    );
+    Ok((handle, ep))
+}
+
+/// Describes a network endpoint listening (or closed) at these addresses.
+pub fn describe(
+    instrument: &str,
+    transport: Transport,
+    main: SocketAddr,
+    abort: Option<SocketAddr>,
+    portmapper: Option<SocketAddr>,
+) -> Endpoint {
+    let (ip, port) = (main.ip(), main.port());
+    let resource = match transport {
+        Transport::Raw => format!("TCPIP::{ip}::{port}::SOCKET"),
+        Transport::Hislip => format!("TCPIP::{ip}::hislip0,{port}::INSTR"),
+        Transport::Vicp if port == 1861 => format!("VICP::{ip}::INSTR"),
+        Transport::Vicp => format!("VICP::{ip},{port}::INSTR"),
+        Transport::Vxi11 => format!("TCPIP::{ip},{port}::inst0::INSTR"),
+        Transport::Serial => format!("ASRL{main}::INSTR"),
+    };
+    Endpoint {
+        instrument: instrument.to_string(),
+        transport,
+        address: main.to_string(),
+        resource,
+        abort_address: abort.map(|a| a.to_string()),
+        portmapper_address: portmapper.map(|a| a.to_string()),
+        active: true,
+        reason: None,
     }
 }

@@ -10,7 +10,8 @@
 //! | [`serial`] | line-based serial endpoint on a pseudo-terminal |
 //!
 //! [`launch`] starts an instrument on any of them and describes the endpoint (address, VISA
-//! resource string); [`framing`] holds the block-aware 488.2 message splitter they share.
+//! resource string); [`switch`] closes and reopens a network endpoint on the same ports (a
+//! scope's remote interface); [`framing`] holds the block-aware 488.2 message splitter they share.
 //!
 //! Every server takes [`ServerOptions`]: the largest message it accepts (length fields are
 //! checked against it before anything is allocated) and the [`Faults`] the tests can switch on.
@@ -24,6 +25,7 @@ pub mod launch;
 pub mod pool;
 pub mod raw;
 pub mod serial;
+pub mod switch;
 pub mod vicp;
 pub mod vxi11;
 
@@ -263,6 +265,19 @@ impl ServerHandle {
     pub fn shutdown(&mut self) {
         for task in self.tasks.drain(..) {
             task.abort();
+        }
+    }
+
+    /// Stops accepting and returns once the listening sockets are closed (a port can then be
+    /// bound again at once; [`ServerHandle::shutdown`] only asks the tasks to stop).
+    pub async fn stop(mut self) {
+        let tasks: Vec<JoinHandle<()>> = self.tasks.drain(..).collect();
+        for task in &tasks {
+            task.abort();
+        }
+        for task in tasks {
+            // Cancelled (or already finished): either way its listener is gone.
+            let _ = task.await;
         }
     }
 }

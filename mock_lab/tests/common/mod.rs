@@ -36,3 +36,47 @@ pub fn block_header(len: usize) -> Vec<u8> {
     let digits = len.to_string();
     format!("#{}{}", digits.len(), digits).into_bytes()
 }
+
+/// An M8195A emulator as a server handler (it parses with the shared 488.2 message reader).
+pub fn awg() -> (Arc<dyn Handler>, ServerOptions) {
+    let awg = mock_lab::emulator::m8195a::M8195a::embedded().expect("built-in catalog loads");
+    (Arc::new(awg), ServerOptions::default())
+}
+
+/// One message to the AWG and, for queries, the reply expected (without its terminator).
+pub struct Exchange {
+    pub message: Vec<u8>,
+    pub reply: Option<String>,
+}
+
+/// Uploads whose block payload ends in whitespace bytes (space, LF, tab, CR: what an OFDM
+/// waveform's last samples can be), each read back: the block must stay byte-exact, with no
+/// `-161 Invalid block data` in the error queue. Every message ends in LF, as clients send it.
+pub fn whitespace_tail_uploads() -> Vec<Exchange> {
+    const N: usize = 1280;
+    let mut out = vec![Exchange {
+        message: b"*RST;:INST:DACM SING;:TRAC1:DEF 1,1280\n".to_vec(),
+        reply: None,
+    }];
+    for tail in [b' ', b'\n', b'\t', b'\r'] {
+        let mut payload: Vec<u8> = (0..N).map(|k| (k % 97) as u8 + 33).collect();
+        payload[N - 2] = tail;
+        payload[N - 1] = tail;
+        let mut message = b":TRAC1:DATA 1,0,".to_vec();
+        message.extend(block_header(N));
+        message.extend(&payload);
+        message.push(b'\n');
+        out.push(Exchange {
+            message,
+            reply: None,
+        });
+        out.push(Exchange {
+            message: format!(":TRAC1:DATA? 1,{},3;:SYST:ERR?\n", N - 3).into_bytes(),
+            reply: Some(format!(
+                "{},{tail},{tail};0,\"No error\"",
+                payload[N - 3] as i8
+            )),
+        });
+    }
+    out
+}

@@ -6,9 +6,9 @@
 
 pub mod codec;
 
-use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID};
+use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID, HEADER_LEN};
 use super::error::LinkError;
-use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{append_within, connect_tcp, write_parts, LinkOptions, ReadContext};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -46,6 +46,11 @@ impl Channel {
         ctx.read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
             .await
     }
+}
+
+/// The wire size of a frame, given back to the deadline when the frame is thrown away.
+fn wire_len(frame: &Frame) -> u64 {
+    HEADER_LEN as u64 + frame.payload.len() as u64
 }
 
 pub struct HislipLink {
@@ -208,6 +213,7 @@ impl HislipLink {
     /// Reads Data frames up to DataEnd for the last message sent; older replies are dropped.
     pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("HiSLIP read", options);
+        let limit = options.max_message_bytes;
         let mut first: Option<Bytes> = None;
         let mut rest = BytesMut::new();
         loop {
@@ -217,15 +223,16 @@ impl HislipLink {
                     let id = frame.header.param;
                     if id != self.last_sent_id && id != ANY_MESSAGE_ID {
                         tracing::debug!(id, "HiSLIP: dropped a stale reply frame");
+                        ctx.discard(wire_len(&frame));
                         continue;
                     }
                     match &first {
                         None => first = Some(frame.payload),
                         Some(head) => {
                             if rest.is_empty() {
-                                rest.extend_from_slice(head);
+                                append_within(&mut rest, head, limit, PROTOCOL)?;
                             }
-                            rest.extend_from_slice(&frame.payload);
+                            append_within(&mut rest, &frame.payload, limit, PROTOCOL)?;
                         }
                     }
                     if frame.header.msg_type == msg::DATA_END {
@@ -238,7 +245,9 @@ impl HislipLink {
                     }
                 }
                 msg::INTERRUPTED => {
-                    first = None;
+                    // What came so far belonged to an abandoned message.
+                    let dropped = first.take().map_or(0, |f| f.len()).max(rest.len());
+                    ctx.discard(dropped as u64 + wire_len(&frame));
                     rest.clear();
                 }
                 msg::ERROR | msg::FATAL_ERROR => return Err(fatal(&frame, "read")),
@@ -261,7 +270,10 @@ impl HislipLink {
             let frame = self.async_.next(&mut ctx).await?;
             match frame.header.msg_type {
                 msg::ASYNC_DEVICE_CLEAR_ACKNOWLEDGE => break frame.header.control,
-                msg::ASYNC_SERVICE_REQUEST | msg::ASYNC_INTERRUPTED => continue,
+                msg::ASYNC_SERVICE_REQUEST | msg::ASYNC_INTERRUPTED => {
+                    ctx.discard(wire_len(&frame));
+                    continue;
+                }
                 msg::ERROR | msg::FATAL_ERROR => return Err(fatal(&frame, "device clear")),
                 _ => return Err(unexpected(&frame, "AsyncDeviceClearAcknowledge")),
             }
@@ -277,7 +289,8 @@ impl HislipLink {
             match frame.header.msg_type {
                 msg::DEVICE_CLEAR_ACKNOWLEDGE => break,
                 msg::FATAL_ERROR => return Err(fatal(&frame, "device clear")),
-                _ => continue,
+                // Replies still in flight are thrown away, and earn no time.
+                _ => ctx.discard(wire_len(&frame)),
             }
         }
         self.overlapped = features & 1 != 0;
@@ -301,7 +314,7 @@ impl HislipLink {
             let frame = self.async_.next(&mut ctx).await?;
             match frame.header.msg_type {
                 msg::ASYNC_STATUS_RESPONSE => return Ok(frame.header.control),
-                msg::ASYNC_SERVICE_REQUEST => continue,
+                msg::ASYNC_SERVICE_REQUEST => ctx.discard(wire_len(&frame)),
                 msg::ERROR | msg::FATAL_ERROR => return Err(fatal(&frame, "status query")),
                 _ => return Err(unexpected(&frame, "AsyncStatusResponse")),
             }

@@ -7,9 +7,9 @@
 
 pub mod codec;
 
-use self::codec::{next_seq, op, BlockDecoder, Header};
+use self::codec::{next_seq, op, BlockDecoder, Header, HEADER_LEN};
 use super::error::LinkError;
-use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{append_within, connect_tcp, write_parts, LinkOptions, ReadContext};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -59,6 +59,7 @@ impl VicpLink {
 
     pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("VICP read", options);
+        let limit = options.max_message_bytes;
         let mut first: Option<Bytes> = None;
         let mut rest = BytesMut::new();
         loop {
@@ -66,20 +67,22 @@ impl VicpLink {
                 .read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
                 .await?;
             let h = block.header;
-            if h.op & op::DATA == 0 {
-                continue;
-            }
-            if h.seq != 0 && self.last_sent_seq != 0 && h.seq != self.last_sent_seq {
-                tracing::debug!(seq = h.seq, "VICP: dropped a stale reply block");
+            let stale = h.seq != 0 && self.last_sent_seq != 0 && h.seq != self.last_sent_seq;
+            if h.op & op::DATA == 0 || stale {
+                if stale {
+                    tracing::debug!(seq = h.seq, "VICP: dropped a stale reply block");
+                }
+                // Thrown away, so it earns the deadline no time.
+                ctx.discard(HEADER_LEN as u64 + block.payload.len() as u64);
                 continue;
             }
             match &first {
                 None => first = Some(block.payload),
                 Some(head) => {
                     if rest.is_empty() {
-                        rest.extend_from_slice(head);
+                        append_within(&mut rest, head, limit, PROTOCOL)?;
                     }
-                    rest.extend_from_slice(&block.payload);
+                    append_within(&mut rest, &block.payload, limit, PROTOCOL)?;
                 }
             }
             if h.eoi() {

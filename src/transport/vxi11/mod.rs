@@ -12,7 +12,9 @@ pub mod rpc;
 use self::messages::{flags, proc_, reason, CreateLinkResp};
 use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
 use super::error::LinkError;
-use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{
+    append_within, connect_tcp, reply_too_large, write_parts, LinkOptions, ReadContext,
+};
 use bytes::{Bytes, BytesMut};
 use std::time::Duration;
 use tokio::net::TcpStream;
@@ -92,9 +94,12 @@ impl RpcChannel {
             let record = ctx
                 .read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
                 .await?;
+            let wire_len = record.len() as u64 + 4;
             let reply = rpc::decode_reply(record).map_err(LinkError::codec(PROTOCOL))?;
             if reply.xid != xid {
                 tracing::debug!(xid = reply.xid, "VXI-11: dropped a stale reply");
+                // Thrown away, so it earns the deadline no time.
+                ctx.discard(wire_len);
                 continue;
             }
             self.outstanding = None;
@@ -240,8 +245,6 @@ impl Vxi11Link {
         let io_timeout = ms(options.timeouts.write);
         // Walk the parts in chunks of at most maxRecvSize, END on the last.
         let mut offset = 0usize;
-        let mut ctx = ReadContext::new("VXI-11 device_write", options)
-            .with_base(options.timeouts.write + REPLY_GRACE);
         loop {
             let len = (total - offset).min(chunk);
             let last = offset + len == total;
@@ -264,6 +267,10 @@ impl Vxi11Link {
                     options,
                 )
                 .await?;
+            // Each chunk's reply gets its own clock, started once the chunk is out: the chunk's
+            // own transfer time is bounded by write_parts.
+            let mut ctx = ReadContext::new("VXI-11 device_write", options)
+                .with_base(options.timeouts.write + REPLY_GRACE);
             let mut r = self.core.receive(xid, "device_write", &mut ctx).await?;
             let (error, size) = messages::decode_write_resp(&mut r).map_err(codec)?;
             device_error("device_write", error)?;
@@ -308,23 +315,26 @@ impl Vxi11Link {
                 .await?;
             let resp = messages::decode_read_resp(&mut r).map_err(codec)?;
             if resp.error == messages::ERR_IO_TIMEOUT {
-                return Err(ctx.timeout_error());
+                // The server gave up after the io_timeout it was given: the read timeout (and
+                // any allowance), without the grace kept for its reply.
+                return Err(LinkError::Timeout {
+                    op: ctx.op(),
+                    after: ctx.elapsed().min(ctx.allowed().saturating_sub(REPLY_GRACE)),
+                });
             }
             device_error("device_read", resp.error)?;
             received += resp.data.len();
-            if received > options.max_message_bytes {
-                return Err(LinkError::MessageTooLarge {
-                    size: received as u64,
-                    limit: options.max_message_bytes as u64,
-                });
-            }
+            let limit = options.max_message_bytes;
             match &first {
+                None if resp.data.len() > limit => {
+                    return Err(reply_too_large(PROTOCOL, received as u64, limit))
+                }
                 None => first = Some(resp.data),
                 Some(head) => {
                     if rest.is_empty() {
-                        rest.extend_from_slice(head);
+                        append_within(&mut rest, head, limit, PROTOCOL)?;
                     }
-                    rest.extend_from_slice(&resp.data);
+                    append_within(&mut rest, &resp.data, limit, PROTOCOL)?;
                 }
             }
             if resp.reason & (reason::END | reason::CHR) != 0 {

@@ -75,13 +75,20 @@ impl ReceivedLog {
 /// Readable form of a message: printable ASCII kept, `#N` definite blocks replaced by their size,
 /// other bytes escaped, trailing CR/LF dropped, cut at `MAX_TEXT` characters.
 pub fn summarise(data: &[u8]) -> String {
-    let data = trim_terminator(data);
+    // The terminator is cut from the text only: a block may end in CR or LF bytes of its own.
+    let text_end = trim_terminator(data).len();
     let mut out = String::new();
     let mut i = 0;
-    while i < data.len() && out.len() < MAX_TEXT {
+    while i < text_end && out.len() < MAX_TEXT {
         if data[i] == b'#' {
             if let Some((header_len, payload_len)) = super::message::block_header(&data[i..]) {
-                let available = data.len() - i - header_len;
+                // An indefinite block (`#0`) runs to the terminator, a definite one may hold it.
+                let end = if data[i + 1] == b'0' {
+                    text_end
+                } else {
+                    data.len()
+                };
+                let available = end - i - header_len;
                 out.push_str(&format!("#<{} bytes>", payload_len.min(available)));
                 i += header_len + payload_len.min(available);
                 continue;
@@ -95,7 +102,7 @@ pub fn summarise(data: &[u8]) -> String {
         }
         i += 1;
     }
-    if i < data.len() {
+    if i < text_end {
         out.push_str("...");
     }
     out
@@ -123,5 +130,7 @@ mod tests {
         assert_eq!(entries[0].seq, 1);
         assert_eq!(entries[0].text, ":TRAC1:DATA 1,0,#<4 bytes>");
         assert_eq!(entries[1].text, "\\x00bin");
+        assert_eq!(summarise(b"DATA #12\r\n\r\n"), "DATA #<2 bytes>");
+        assert_eq!(summarise(b"DATA #0ab\r\n"), "DATA #<2 bytes>");
     }
 }

@@ -2,6 +2,8 @@
 //! `#N` binary blocks, then each unit into a header and its comma-separated parameters.
 //!
 //! Blocks may contain any byte, including `;`, `,` and LF: they are framed by their length only.
+//! Whitespace around units and parameters is dropped, but never a byte of a block: a payload
+//! whose last byte is a space, tab or LF stays whole.
 
 use super::error_queue::ScpiError;
 
@@ -61,6 +63,8 @@ pub fn block_header(data: &[u8]) -> Option<(usize, usize)> {
 pub fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
     let mut units = Vec::new();
     let mut start = 0;
+    // End of the last block seen in the current unit: trimming stops there.
+    let mut block_end = 0;
     let mut i = 0;
     let mut quote: Option<u8> = None;
     while i < message.len() {
@@ -92,9 +96,14 @@ pub fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
                     ));
                 }
                 i = end;
+                block_end = end;
             }
             b';' | b'\n' => {
-                push_unit(&mut units, &message[start..i]);
+                push_unit(
+                    &mut units,
+                    &message[start..i],
+                    block_end.saturating_sub(start),
+                );
                 i += 1;
                 start = i;
             }
@@ -104,38 +113,50 @@ pub fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
     if quote.is_some() {
         return Err(ScpiError::new(-102, "unterminated quoted string"));
     }
-    push_unit(&mut units, &message[start..]);
+    push_unit(
+        &mut units,
+        &message[start..],
+        block_end.saturating_sub(start),
+    );
     Ok(units)
 }
 
-fn push_unit<'a>(units: &mut Vec<&'a [u8]>, unit: &'a [u8]) {
-    let trimmed = trim(unit);
+/// Pushes `unit` without its surrounding whitespace; the first `keep` bytes (up to the end of
+/// its last block) are never trimmed from the end.
+fn push_unit<'a>(units: &mut Vec<&'a [u8]>, unit: &'a [u8], keep: usize) {
+    let mut end = unit.len();
+    while end > keep && unit[end - 1].is_ascii_whitespace() {
+        end -= 1;
+    }
+    let trimmed = trim_start(&unit[..end]);
     if !trimmed.is_empty() {
         units.push(trimmed);
     }
 }
 
-fn trim(mut data: &[u8]) -> &[u8] {
-    while let [first, rest @ ..] = data {
-        if first.is_ascii_whitespace() {
-            data = rest;
-        } else {
-            break;
-        }
-    }
-    while let [rest @ .., last] = data {
-        if last.is_ascii_whitespace() {
-            data = rest;
-        } else {
-            break;
-        }
-    }
-    data
+/// Leading whitespace is never block data (a block starts with `#`).
+fn trim_start(data: &[u8]) -> &[u8] {
+    let start = data
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(data.len());
+    &data[start..]
 }
 
-/// Parses one unit into header and parameters.
+/// Both ends: only for text that holds no block.
+fn trim(data: &[u8]) -> &[u8] {
+    let data = trim_start(data);
+    let end = data
+        .iter()
+        .rposition(|b| !b.is_ascii_whitespace())
+        .map_or(0, |e| e + 1);
+    &data[..end]
+}
+
+/// Parses one unit into header and parameters. Trailing whitespace is left to the parameter
+/// parser, which knows where a block ends.
 pub fn parse_unit(unit: &[u8]) -> Result<Unit, ScpiError> {
-    let unit = trim(unit);
+    let unit = trim_start(unit);
     let header_end = unit
         .iter()
         .position(|b| b.is_ascii_whitespace())
@@ -146,13 +167,13 @@ pub fn parse_unit(unit: &[u8]) -> Result<Unit, ScpiError> {
     if header.is_empty() {
         return Err(ScpiError::new(-102, "empty header"));
     }
-    let params = parse_params(trim(&unit[header_end..]))?;
+    let params = parse_params(trim_start(&unit[header_end..]))?;
     Ok(Unit { header, params })
 }
 
 fn parse_params(data: &[u8]) -> Result<Vec<Param>, ScpiError> {
     let mut params = Vec::new();
-    if data.is_empty() {
+    if data.iter().all(u8::is_ascii_whitespace) {
         return Ok(params);
     }
     let mut i = 0;
@@ -259,5 +280,39 @@ mod tests {
         assert_eq!(unit.code, -161);
         assert_eq!(parse_unit(b"A 1,").unwrap_err().code, -109);
         assert_eq!(block_header(b"#0abc"), Some((2, 3)));
+    }
+
+    #[test]
+    fn blocks_ending_in_whitespace_stay_whole() {
+        for tail in [b' ', b'\n', b'\t', b'\r'] {
+            let payload = [b'a', tail, tail];
+            for message in [
+                [&b":TRAC1:DATA 1,0,#13"[..], &payload].concat(),
+                [&b":TRAC1:DATA 1,0,#13"[..], &payload, b" \r"].concat(),
+                [&b":TRAC1:DATA 1,0,#13"[..], &payload, b" ;*OPC?"].concat(),
+            ] {
+                let units = split_units(&message).unwrap();
+                let unit = parse_unit(units[0]).unwrap();
+                assert_eq!(
+                    unit.params[2],
+                    Param::Block(payload.to_vec()),
+                    "{message:?}"
+                );
+            }
+            let indefinite = [&b"DATA #0ab"[..], &[tail]].concat();
+            let units = split_units(&indefinite).unwrap();
+            assert_eq!(
+                parse_unit(units[0]).unwrap().params,
+                [Param::Block([&b"ab"[..], &[tail]].concat())]
+            );
+        }
+        // Text keeps being trimmed.
+        let units = split_units(b"  :VOLT1 0.5 \t; *IDN? \r").unwrap();
+        assert_eq!(units, [&b":VOLT1 0.5"[..], b"*IDN?"]);
+        assert_eq!(
+            parse_unit(units[0]).unwrap().params,
+            [Param::Text("0.5".into())]
+        );
+        assert!(parse_unit(b"*RST   ").unwrap().params.is_empty());
     }
 }

@@ -46,7 +46,8 @@ impl TriggerMode {
 }
 
 /// The remote-control protocol enabled on the scope (Utilities > Remote): only one at a time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum RemoteInterface {
     Vicp,
     Vxi11,
