@@ -6,7 +6,8 @@
 //! the reason and the step where it stopped. A manifest left at `running` means the process died
 //! without a word (a crash, SIGKILL, power loss); resume treats it as interrupted.
 //!
-//! It is rewritten atomically after each step and fsynced with its folder.
+//! It is rewritten atomically after each step and fsynced with its folder (`write_atomic` syncs
+//! both).
 
 use super::plan::Plan;
 use super::{io, CampaignError};
@@ -146,10 +147,19 @@ pub struct Timing {
     pub bench_s: f64,
     /// Processing with the further algorithms.
     pub processing_s: f64,
-    /// Writing the steps' capture and profile files (as `radbench capture` writes them).
+    /// Writing the steps' capture and profile files (as `radbench capture` writes them), on a
+    /// thread of its own while the next step is measured.
     pub files_s: f64,
-    /// The campaign's own work: the run folder, hashing, manifest, results, report.
+    /// The campaign's own work: the run folder, hashing, manifest, results, report (the per-step
+    /// part beside the files, while the next step is measured).
     pub overhead_s: f64,
+    /// How long the steps waited for the writer: the part of `files_s` and `overhead_s` the next
+    /// step's measurement did not hide.
+    #[serde(default)]
+    pub wait_s: f64,
+    /// The session from start to end.
+    #[serde(default)]
+    pub total_s: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -298,8 +308,9 @@ impl Manifest {
             path: dir.join(FILE),
             message: format!("cannot be written: {e} (a radbench bug, please report it)"),
         })?;
+        // write_atomic makes the file and its folder entry durable (fsync of both).
         write_atomic(&dir.join(FILE), text.as_bytes())?;
-        sync_dir(dir)
+        Ok(())
     }
 
     /// The record of step `index` (1-based).

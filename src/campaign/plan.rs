@@ -979,7 +979,7 @@ impl Plan {
         let c = costs[step.waveform];
         let reps = self.repetitions as f64;
         let mut t = FILES_PER_STEP_S;
-        if self.bench.file.is_none() {
+        if k == 0 {
             t += CONNECT_S;
         }
         if uploads {
@@ -1004,10 +1004,10 @@ impl Plan {
         t
     }
 
-    /// Whether step `k` uploads a waveform (its waveform differs from the step before; every step
-    /// on the built-in lab, which starts afresh for each step).
+    /// Whether step `k` uploads a waveform (the first step, and a waveform that differs from the
+    /// step before's; also whenever the AWG lost it, which the plan cannot know).
     pub fn uploads_at(&self, k: usize) -> bool {
-        self.bench.file.is_none() || k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
+        k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
     }
 
     /// The dry-run text: every step, what will be sent, and the estimated duration.

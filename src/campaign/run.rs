@@ -4,19 +4,19 @@
 //! before anything is connected (so a campaign that was going to be refused never radiates), one
 //! connection to a bench of a bench file for the whole run, the pipelines reused step after step.
 //! Each step: connect (see below), place the targets (RF off), set the simulated scene, capture
-//! `repetitions` under the safe-state guard, process the capture with every algorithm, write the
-//! step's files, hash them, update `results.json` and the manifest (atomic, fsynced).
+//! `repetitions` under the safe-state guard, process the capture with every algorithm; then a
+//! blocking thread writes the step's files, hashes them and stores the manifest that records the
+//! step (atomic, fsynced) while the next step is measured. One step is in flight at a time, so
+//! manifests reach the disk in step order; `results.json` and the report follow at the end.
 //!
 //! Reproducibility on a simulated bench: every step sets the scene's noise seed from the campaign
-//! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. mock_lab
-//! seeds its noise generator when the lab starts; the control channel's `set` changes the scene's
-//! `seed` field but not the running generator. The runner asks the lab once for
-//! `{"cmd":"seed","seed":N}` (reseed the generator now): a lab that does it keeps one connection
-//! for the whole run and is reseeded at each step. Today's mock_lab refuses it, so on the
-//! built-in lab each step runs on a fresh lab started with its step's scene: a new connection and
-//! an upload per step (about 40 ms). A bench file's `mock-lab serve` cannot be restarted from
-//! here: its noise continues from capture to capture, and a resumed run on it differs from an
-//! uninterrupted one in the noise (the runner says so; docs/campaign.md).
+//! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. The runner
+//! asks the lab once for `{"cmd":"seed","seed":N}` (restart the noise generator from N; mock_lab's
+//! `set` does the same): a lab that does it keeps one connection for the whole run, the waveform
+//! uploaded once, and is reseeded at each step. A lab that refuses (an older mock_lab) cannot
+//! replay a step's noise: the built-in one is then started afresh for each step with its step's
+//! scene (a new connection and an upload per step); on a bench file's `mock-lab serve` the noise
+//! continues from capture to capture and the runner says that a resumed run will differ in it.
 //!
 //! Stop paths: a stop signal during a capture is handled by the measurement's guard (safe state,
 //! then [`MeasureError::Interrupted`]); between steps nothing radiates and the loop checks for a
@@ -39,7 +39,7 @@ use crate::measure::bench::{Bench, BenchSource};
 use crate::measure::capture::{self, Measurement, Prepared, Processing, Rig};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
-use crate::measure::{off_runtime, MeasureError};
+use crate::measure::MeasureError;
 use crate::storage::atomic::write_atomic;
 use mock_lab::scene::{Scene, Target};
 use serde::Serialize;
@@ -217,6 +217,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
     )?;
     runner.timing.overhead_s += t0.elapsed().as_secs_f64();
     runner.timing.prepare_s = prepare_s;
+    runner.started = t_prepare;
     let finished = runner.execute(observer).await;
     drop(lock);
     finished
@@ -339,6 +340,7 @@ pub async fn resume(
     }
     runner.timing.overhead_s += t0.elapsed().as_secs_f64() - prepare_s;
     runner.timing.prepare_s = prepare_s;
+    runner.started = t0;
     let finished = runner.execute(observer).await;
     drop(lock);
     finished
@@ -440,6 +442,24 @@ fn lock(dir: &Path) -> Result<Lock, CampaignError> {
     Ok(Lock { _file: file })
 }
 
+/// A measured step whose files, hashes and manifest a blocking thread is writing while the next
+/// step is measured.
+struct PendingStep {
+    k: usize,
+    step: Step,
+    result: StepResult,
+    handle: tokio::task::JoinHandle<Result<Written, CampaignError>>,
+}
+
+/// What the writer did for a step.
+struct Written {
+    /// The step's manifest record, as stored.
+    record: StepRecord,
+    files_s: f64,
+    /// Hashing and storing the manifest.
+    overhead_s: f64,
+}
+
 /// The connected bench.
 struct Connection {
     bench: Bench,
@@ -470,6 +490,10 @@ struct Runner {
     warned_noise: bool,
     force: bool,
     results: Vec<Option<StepResult>>,
+    /// The step whose files are being written.
+    pending: Option<PendingStep>,
+    /// When the session began (before its preparation).
+    started: Instant,
     measured: usize,
     skipped: usize,
     timing: Timing,
@@ -521,6 +545,8 @@ impl Runner {
             warned_noise: false,
             force,
             results: vec![None; n],
+            pending: None,
+            started: Instant::now(),
             measured: 0,
             skipped: 0,
             timing: Timing::default(),
@@ -532,7 +558,14 @@ impl Runner {
         let t = Instant::now();
         self.manifest.store(&self.dir)?;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
-        let stopped = self.steps(observer).await.err();
+        let mut stopped = self.steps(observer).await.err();
+        // The last step's files (also when the run stopped: a capture taken is kept).
+        if let Err(e) = self.settle(observer).await {
+            match &stopped {
+                None => stopped = Some(e),
+                Some(_) => observer.note(&format!("the last step's files: {e}")),
+            }
+        }
         // Nothing radiates between measurements and every measurement's guard ran the safe
         // state; run it once more on whatever is connected (a bench found in an unknown state
         // and left by an error before its first capture), then close the links.
@@ -557,6 +590,7 @@ impl Runner {
         for k in 0..n {
             let step = self.plan.steps[k].clone();
             if self.manifest.steps[k].status == StepStatus::Done {
+                self.settle(observer).await?;
                 let result = self.stored_result(&step)?;
                 self.skipped += 1;
                 self.manifest.session_mut().skipped.push(step.index);
@@ -579,17 +613,7 @@ impl Runner {
                     where_: format!("before step {} of {n}; nothing was radiating", step.index),
                 });
             }
-            let result = self.measure_step(k, &step, observer).await?;
-            self.measured += 1;
-            observer.step_done(&StepDone {
-                step: &step,
-                of: n,
-                result: &result,
-                primary: self.plan.algorithm_names()[0],
-                dir: self.dir.join(step.dir_name()),
-                skipped: false,
-            });
-            self.results[k] = Some(result);
+            self.measure_step(k, &step, observer).await?;
             if let Some(signal) = self.interrupt.received() {
                 if k + 1 < n {
                     return Err(CampaignError::Interrupted {
@@ -653,8 +677,8 @@ impl Runner {
     /// instruments once.
     async fn connect(&mut self, step: &Step) -> Result<(), CampaignError> {
         let built_in = self.plan.bench.file.is_none();
-        if built_in && (self.reseed != Some(true) || self.connection.is_none()) {
-            // A fresh lab per step unless it can reseed its noise (see the module docs). Close
+        if built_in && (self.reseed == Some(false) || self.connection.is_none()) {
+            // A fresh lab per step when it cannot reseed its noise (see the module docs). Close
             // the previous lab's links before its servers go.
             self.connection = None;
             let scene = self.step_scene(step).unwrap_or_default();
@@ -720,12 +744,13 @@ impl Runner {
         Ok(())
     }
 
+    /// Measures step `k` and hands its files to the writer (see [`Runner::settle`]).
     async fn measure_step(
         &mut self,
         k: usize,
         step: &Step,
         observer: &mut dyn Observer,
-    ) -> Result<StepResult, CampaignError> {
+    ) -> Result<(), CampaignError> {
         let n = self.plan.steps.len();
         let t_bench = Instant::now();
         self.connect(step).await?;
@@ -829,58 +854,95 @@ impl Runner {
             .ok()
             .as_ref()
             .and_then(manifest::json_to_toml);
-        let t_files = Instant::now();
-        let rel = PathBuf::from(step.dir_name());
+        self.timing.bench_s += bench_s;
+        self.timing.processing_s += processing_s;
+        // The step before's files were written while this step was captured: wait for them and
+        // its manifest, then hand this step's to the writer (one step in flight at a time, so the
+        // manifests are stored in step order).
+        self.settle(observer).await?;
+        let mut snapshot = self.manifest.clone();
+        snapshot.session_mut().timing = self.timing.clone();
         let provenance = Provenance {
             bench_file: self.plan.bench.file.clone(),
             simulated: self.plan.bench.simulated,
         };
         let dir = self.dir.clone();
+        let rel = PathBuf::from(step.dir_name());
         let result_json = format!("{:#}\n", json!(result));
-        let names_owned: Vec<&'static str> = names.clone();
-        let rel2 = rel.clone();
-        let files = off_runtime(move || {
-            let mut m = m;
-            let mut others = others;
-            write_step_files(
+        let index = step.index;
+        let handle = tokio::task::spawn_blocking(move || -> Result<Written, CampaignError> {
+            let (mut m, mut others) = (m, others);
+            let t_files = Instant::now();
+            let files = write_step_files(
                 &dir,
-                &rel2,
+                &rel,
                 &mut m,
                 &mut others,
-                &names_owned,
+                &names,
                 &provenance,
                 &result_json,
-            )
-        })
-        .await??;
-        let files_s = t_files.elapsed().as_secs_f64();
-        let t_over = Instant::now();
-        let records = files
-            .iter()
-            .map(|p| FileRecord::of(&self.dir, p))
-            .collect::<Result<Vec<_>, _>>()?;
-        let rec = self.manifest.step_mut(step.index);
-        rec.status = StepStatus::Done;
-        rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
-        rec.applied = applied;
-        rec.files = records;
-        self.results[k] = Some(result.clone());
-        self.write_results()?;
-        self.timing.bench_s += bench_s;
-        self.timing.processing_s += processing_s;
-        self.timing.files_s += files_s;
-        self.timing.overhead_s += t_over.elapsed().as_secs_f64();
+            )?;
+            let files_s = t_files.elapsed().as_secs_f64();
+            let t_over = Instant::now();
+            let records = files
+                .iter()
+                .map(|p| FileRecord::of(&dir, p))
+                .collect::<Result<Vec<_>, _>>()?;
+            let rec = snapshot.step_mut(index);
+            rec.status = StepStatus::Done;
+            rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
+            rec.applied = applied;
+            rec.files = records;
+            let record = rec.clone();
+            snapshot.store(&dir)?;
+            Ok(Written {
+                record,
+                files_s,
+                overhead_s: t_over.elapsed().as_secs_f64(),
+            })
+        });
+        self.pending = Some(PendingStep {
+            k,
+            step: step.clone(),
+            result,
+            handle,
+        });
+        Ok(())
+    }
+
+    /// Waits for the step whose files are being written, records it done and tells the observer.
+    async fn settle(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let Some(p) = self.pending.take() else {
+            return Ok(());
+        };
+        let t = Instant::now();
+        let written = p
+            .handle
+            .await
+            .map_err(|e| CampaignError::Measure(MeasureError::Worker(e.to_string())))??;
+        let waited = t.elapsed().as_secs_f64();
+        self.timing.wait_s += waited;
+        self.timing.files_s += written.files_s;
+        self.timing.overhead_s += written.overhead_s;
         tracing::debug!(
-            step = step.index,
-            bench_s,
-            processing_s,
-            files_s,
-            bookkeeping_s = t_over.elapsed().as_secs_f64(),
-            "step timing"
+            step = p.step.index,
+            files_s = written.files_s,
+            bookkeeping_s = written.overhead_s,
+            waited_s = waited,
+            "step written"
         );
-        self.manifest.session_mut().timing = self.timing.clone();
-        self.manifest.store(&self.dir)?;
-        Ok(result)
+        *self.manifest.step_mut(p.step.index) = written.record;
+        self.measured += 1;
+        observer.step_done(&StepDone {
+            step: &p.step,
+            of: self.plan.steps.len(),
+            result: &p.result,
+            primary: self.plan.algorithm_names()[0],
+            dir: self.dir.join(p.step.dir_name()),
+            skipped: false,
+        });
+        self.results[p.k] = Some(p.result);
+        Ok(())
     }
 
     /// `results.json` with every step that has a result, in step order.
@@ -918,6 +980,7 @@ impl Runner {
         self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
         let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
         self.manifest.session_mut().ended = Some(now);
+        self.timing.total_s = self.started.elapsed().as_secs_f64();
         self.manifest.session_mut().timing = self.timing.clone();
         // The journals are final now: hash them.
         let journals: Vec<PathBuf> = self
@@ -1023,7 +1086,6 @@ fn write_step_files(
     let result = out.join(STEP_RESULT);
     write_atomic(&result, result_json.as_bytes())?;
     all.push(result);
-    manifest::sync_dir(&out)?;
     Ok(all
         .into_iter()
         .map(|p| p.strip_prefix(dir).map(Path::to_path_buf).unwrap_or(p))
