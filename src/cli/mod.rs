@@ -15,6 +15,7 @@ pub mod capture;
 pub mod exit_code;
 pub mod idn;
 pub mod mock_lab;
+pub mod process;
 pub mod progress;
 pub mod recording;
 pub mod scpi;
@@ -48,6 +49,9 @@ pub enum Command {
     Idn(idn::Args),
     /// One measurement: waveform out, marker-triggered capture, range profile, targets, payload.
     Capture(Box<capture::Args>),
+    /// Process saved captures again: capture folders, SigMF recordings or .trc pairs, with the
+    /// options they were captured with or any others, in parallel.
+    Process(Box<process::Args>),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -77,6 +81,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Idn(args) => idn::run(args, &global),
         Command::Capture(args) => capture::run(*args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
+        Command::Process(args) => process::run(*args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
         Command::Trc(args) => trc::run(args, &global),

@@ -73,6 +73,10 @@ pub struct Transmission {
     pub bits: Vec<u8>,
     /// The user payload, if one was sent.
     pub payload: Option<Vec<u8>>,
+    /// The PRBS seed of the bits when no payload was sent.
+    pub seed: u64,
+    /// How the reference was modelled.
+    pub dac: Dac,
     /// What quantising to the DAC cost.
     pub quantised: QuantisationReport,
 }
@@ -138,6 +142,8 @@ impl Transmission {
             reference,
             bits,
             payload: payload.map(<[u8]>::to_vec),
+            seed,
+            dac,
             modulation,
         })
     }
@@ -176,6 +182,13 @@ impl Transmission {
             "payload_bytes": self.payload.as_ref().map(Vec::len),
             "quantisation": self.quantised,
             "spec": self.spec,
+            // Enough to make the same transmission again (re-processing).
+            "seed": self.seed,
+            "payload_hex": self.payload.as_ref().map(|p| hex(p)),
+            "dac": match self.dac {
+                Dac::Codes { backoff_db } => serde_json::json!({"codes": {"backoff_db": backoff_db}}),
+                Dac::Ideal => serde_json::json!("ideal"),
+            },
         });
         match &self.spec {
             WaveformSpec::MskLfm {
@@ -203,4 +216,37 @@ impl Transmission {
         }
         v
     }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The bytes of a hex string (two digits a byte), `None` when it is not one.
+pub fn from_hex(text: &str) -> Option<Vec<u8>> {
+    if text.len() % 2 != 0 {
+        return None;
+    }
+    (0..text.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(text.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
+/// The transmission a capture's `radbench:waveform` description (from [`Transmission::describe`])
+/// was made from: spec, bits (seed or payload) and DAC model. `None` when something is missing.
+pub fn from_description(v: &serde_json::Value) -> Option<Result<Transmission, MeasureError>> {
+    let spec: WaveformSpec = serde_json::from_value(v.get("spec")?.clone()).ok()?;
+    let seed = v.get("seed")?.as_u64()?;
+    let payload = match v.get("payload_hex") {
+        Some(serde_json::Value::String(h)) => Some(from_hex(h)?),
+        _ => None,
+    };
+    let dac = match v.get("dac")? {
+        serde_json::Value::String(s) if s == "ideal" => Dac::Ideal,
+        other => Dac::Codes {
+            backoff_db: other.get("codes")?.get("backoff_db")?.as_f64()?,
+        },
+    };
+    Some(Transmission::new(&spec, payload.as_deref(), seed, dac))
 }
