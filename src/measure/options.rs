@@ -221,6 +221,8 @@ pub struct ProcessOptions {
     pub pfa: f64,
     /// Targets closer than this are not separated, metres (`None`: 0.75 resolution cells).
     pub min_separation_m: Option<f64>,
+    /// RF carrier of the front ends, Hz: the velocity scale of the OFDM range-Doppler processing.
+    pub carrier_hz: f64,
     /// The AWG's I/Q amplitude (peak to peak, volts): echo levels are given relative to a path
     /// of unit voltage gain from the AWG output to the scope input. `None` (simulations): levels
     /// are relative to the transmitted waveform itself.
@@ -244,6 +246,7 @@ impl Default for ProcessOptions {
             detector: DetectorName::Clean,
             pfa: 1e-6,
             min_separation_m: None,
+            carrier_hz: 80e9,
             awg_amplitude_vpp: None,
         }
     }
@@ -300,6 +303,7 @@ impl ProcessOverrides {
             detector: self.detector.unwrap_or(base.detector),
             pfa: self.pfa.unwrap_or(base.pfa),
             min_separation_m: self.min_separation_m.unwrap_or(base.min_separation_m),
+            carrier_hz: base.carrier_hz,
             awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
         }
     }

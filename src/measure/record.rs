@@ -22,13 +22,16 @@ pub struct CaptureFiles {
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
     pub plot_png: PathBuf,
+    /// The range-Doppler map (OFDM frames of two symbols or more).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_doppler_png: Option<PathBuf>,
     pub summary: PathBuf,
 }
 
 impl CaptureFiles {
     /// Every file, for manifests and hashing.
     pub fn all(&self) -> Vec<&Path> {
-        vec![
+        [
             &self.sigmf_meta,
             &self.sigmf_data,
             &self.trc[0],
@@ -39,6 +42,10 @@ impl CaptureFiles {
             &self.plot_png,
             &self.summary,
         ]
+        .into_iter()
+        .map(PathBuf::as_path)
+        .chain(self.range_doppler_png.as_deref())
+        .collect()
     }
 }
 
@@ -147,6 +154,11 @@ pub fn write_capture(
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),
         plot_png: out.join("profile.png"),
+        range_doppler_png: m
+            .processed
+            .range_doppler
+            .as_ref()
+            .map(|_| out.join("range_doppler.png")),
         summary: out.join("summary.json"),
     };
     let truth: Vec<f64> = m
@@ -165,6 +177,15 @@ pub fn write_capture(
     table.write(&files.profile_npy)?;
     plot::draw(&files.plot_svg, &plot)?;
     plot::draw(&files.plot_png, &plot)?;
+    if let (Some(map), Some(path)) = (&m.processed.range_doppler, &files.range_doppler_png) {
+        let fig = super::figure::range_doppler_figure(
+            format!("radbench capture: {} range-Doppler", m.tx.name()),
+            map,
+            &m.processed.targets,
+            o,
+        );
+        plot::draw_heatmap(path, &fig)?;
+    }
     let summary = summary_json(m, &files, provenance);
     write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
     Ok((files, summary))
@@ -181,6 +202,7 @@ pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenan
         "width_3db_cm": p.width_3db_cm,
         "sidelobe_db": p.sidelobe_db,
         "snr_db": p.snr_db,
+        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
         "payload": p.payload,
         "repetitions": m.captured.repetitions(),
         "background": m.background,
@@ -208,6 +230,8 @@ pub struct ReprocessFiles {
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
     pub plot_png: PathBuf,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_doppler_png: Option<PathBuf>,
     pub summary: PathBuf,
 }
 
@@ -247,6 +271,11 @@ pub fn write_reprocessed(
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),
         plot_png: out.join("profile.png"),
+        range_doppler_png: r
+            .processed
+            .range_doppler
+            .as_ref()
+            .map(|_| out.join("range_doppler.png")),
         summary: out.join("summary.json"),
     };
     let o = &r.resolved.options;
@@ -266,6 +295,15 @@ pub fn write_reprocessed(
     table.write(&files.profile_npy)?;
     plot::draw(&files.plot_svg, &plot)?;
     plot::draw(&files.plot_png, &plot)?;
+    if let (Some(map), Some(path)) = (&r.processed.range_doppler, &files.range_doppler_png) {
+        let fig = super::figure::range_doppler_figure(
+            format!("radbench process: {} range-Doppler", tx.name()),
+            map,
+            &r.processed.targets,
+            o,
+        );
+        plot::draw_heatmap(path, &fig)?;
+    }
     let manifest = ReprocessManifest {
         radbench_version: env!("CARGO_PKG_VERSION"),
         written_at: crate::storage::sigmf::utc_now_rfc3339(),
@@ -285,6 +323,7 @@ pub fn write_reprocessed(
         "width_3db_cm": p.width_3db_cm,
         "sidelobe_db": p.sidelobe_db,
         "snr_db": p.snr_db,
+        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
         "payload": p.payload,
         "repetitions": loaded.repetitions.len(),
         "background": r.resolved.background,
