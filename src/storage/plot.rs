@@ -539,3 +539,129 @@ pub fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
     .map_err(|reason| plot_error(path, reason))?;
     write_atomic(path, &png)
 }
+
+/// One waveform's measured bit-error rates and its theory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BerSeries {
+    pub label: String,
+    pub eb_n0_db: Vec<f64>,
+    pub ber: Vec<f64>,
+    /// 95 % confidence interval of each measured point.
+    pub ci: Vec<(f64, f64)>,
+    pub theory: Vec<f64>,
+}
+
+/// BER against Eb/N0 on a log scale, measured points with their 95 % intervals, theory dashed.
+pub fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
+    let all = series.iter().flat_map(|s| s.ber.iter().chain(&s.theory));
+    let lowest = all
+        .copied()
+        .filter(|b| *b > 0.0)
+        .fold(1.0_f64, f64::min)
+        .max(1e-12);
+    let y0 = 10f64.powf(lowest.log10().floor());
+    let (x0, x1) = series
+        .iter()
+        .flat_map(|s| s.eb_n0_db.iter())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(*x), b.max(*x))
+        });
+    if !(x0.is_finite() && x1 > x0) {
+        return Err(StorageError::BadData {
+            path: path.to_path_buf(),
+            reason: "nothing to plot: give at least two Eb/N0 points".into(),
+        });
+    }
+    register_font_once();
+    match extension(path).as_deref() {
+        Some("svg") => {
+            let mut svg = String::new();
+            {
+                let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+                render_ber(root, title, series, (x0, x1), y0).map_err(|r| plot_error(path, r))?;
+            }
+            write_atomic(path, svg.as_bytes())
+        }
+        Some("png") => {
+            let png = render_png(|root| render_ber(root, title, series, (x0, x1), y0))
+                .map_err(|r| plot_error(path, r))?;
+            write_atomic(path, &png)
+        }
+        _ => Err(StorageError::UnsupportedFormat {
+            path: path.to_path_buf(),
+            allowed: "plots are written as .svg or .png",
+        }),
+    }
+}
+
+fn render_ber<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    series: &[BerSeries],
+    (x0, x1): (f64, f64),
+    y0: f64,
+) -> Result<(), String> {
+    let e = |err: DrawingAreaErrorKind<_>| format!("{err}");
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0 - 0.5..x1 + 0.5, (y0..1.0).log_scale())
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("Eb/N0 (dB)")
+        .y_desc("Bit-error rate")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    for (i, s) in series.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let theory: Vec<(f64, f64)> = s
+            .eb_n0_db
+            .iter()
+            .zip(&s.theory)
+            .filter(|(_, t)| **t > 0.0)
+            .map(|(x, t)| (*x, t.max(y0)))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(theory, 6, 4, color.stroke_width(1)))
+            .map_err(e)?
+            .label(format!("{} theory", s.label))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        let measured: Vec<(f64, f64)> = s
+            .eb_n0_db
+            .iter()
+            .zip(&s.ber)
+            .filter(|(_, b)| **b > 0.0)
+            .map(|(x, b)| (*x, *b))
+            .collect();
+        chart
+            .draw_series(
+                measured
+                    .iter()
+                    .map(|&(x, b)| Circle::new((x, b), 4, color.filled())),
+            )
+            .map_err(e)?
+            .label(format!("{} measured (95 % interval)", s.label))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        chart
+            .draw_series(s.eb_n0_db.iter().zip(&s.ci).filter(|(_, c)| c.1 > 0.0).map(
+                |(x, (lo, hi))| PathElement::new(vec![(*x, lo.max(y0)), (*x, hi.max(y0))], color),
+            ))
+            .map_err(e)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
+}
