@@ -65,7 +65,7 @@ async fn awg_over(net: Net, driver_model: &InstrumentModel) -> (Arc<AwgEmu>, M81
     let (server, resource) = serve(net, emu.clone()).await;
     let session = bounded(open_session(
         resource,
-        &driver_model.timeouts,
+        driver_model,
         "SYST:ERR?",
         None,
         "awg",

@@ -135,6 +135,12 @@ async fn m8195a_download_interleaves_i_with_the_marker_and_pads_to_granularity()
     let loaded = bounded(awg.load(&waveform)).await.unwrap();
     assert_eq!(loaded.padded_samples, 1024);
     assert_eq!(loaded.chunks_per_channel, 1);
+    // `*OPC?` after the download waits the catalog's operation-complete time, passed per call.
+    let opc_ms = model("keysight-m8195a").timeouts.operation_complete_ms;
+    assert_eq!(
+        log.timeouts(),
+        [("*OPC?".to_string(), Duration::from_millis(opc_ms))]
+    );
     assert_eq!(
         log.ops(),
         [
@@ -722,10 +728,14 @@ async fn a_dropped_guard_runs_the_safe_state_synchronously() {
 
 #[tokio::test]
 async fn gotmic_crc_framing_frames_requests_and_rejects_corrupted_replies() {
-    use radbench::driver::gotmic::commands::framed;
     use radbench::driver::gotmic::Framing;
+    use radbench::session::Crc8;
     let m = model("gotmic-eband-tx");
-    let f = |s: &str| framed(s, 0x07, 0x00);
+    let smbus = Crc8 {
+        poly: 0x07,
+        init: 0x00,
+    };
+    let f = |s: &str| smbus.frame(s);
     let fake = Scripted::new("tx")
         .reply("CRC ON", "OK")
         .reply(&f("*IDN?"), &f(TX_IDN))

@@ -3,7 +3,10 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`capability`] | the traits [`Awg`], [`Digitizer`], [`RfFrontEnd`] and their plain-data settings |
-//! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session` |
+//! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
+//! | [`scpi`] | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
+//! | [`identity`] | `*IDN?` checked against the catalog model |
+//! | [`limits`] | settings checked against the catalog's limits before anything is sent |
 //! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
 //! | [`m8195a`] | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot, WAVEDESC, `.trc` |
@@ -42,14 +45,16 @@
 //! pin each operation's command sequence, and tests against its mock_lab emulator.
 
 pub mod capability;
-pub mod common;
 pub mod error;
 pub mod gotmic;
+pub mod identity;
 pub mod io;
 pub mod lecroy;
+pub mod limits;
 pub mod m8195a;
 pub mod permit;
 pub mod safe_state;
+pub mod scpi;
 pub mod scripted;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
@@ -70,4 +75,5 @@ pub use permit::RfPermit;
 pub use safe_state::{
     install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard, SafeStateReport,
 };
+pub use scpi::Scpi;
 pub use scripted::{ScriptLog, Scripted};

@@ -4,8 +4,8 @@
 
 use crate::catalog::{AwgLimits, DacMode, DividerLimits};
 use crate::driver::capability::{AwgSettings, IqWaveform};
-use crate::driver::common::within;
 use crate::driver::error::DriverError;
+use crate::driver::limits::within;
 
 /// The DAC mode the driver uses: I and Q on two channels, channel 1's marker bits on a third.
 pub const DAC_MODE: &str = "DCM";
