@@ -39,10 +39,12 @@
 //! # Adding an instrument model
 //!
 //! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
-//! with the same register protocol) needs only a catalog file in `instruments/`. A new command
-//! set needs a driver module here: a `commands.rs` with every spelling, pure checks against the
-//! catalog before any I/O, an implementation of the capability trait, tests with [`Scripted`] that
-//! pin each operation's command sequence, and tests against its mock_lab emulator.
+//! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
+//! scope model with data only", walks through one (`tests/driver_second_scope.rs` does it). A new
+//! command set needs a driver module here: a `commands.rs` with every spelling, pure checks
+//! against the catalog before any I/O ([`limits`]), the session through [`Scpi`], an
+//! implementation of the capability trait, tests with [`Scripted`] that pin each operation's
+//! command sequence, and tests against its mock_lab emulator.
 
 pub mod capability;
 pub mod error;
