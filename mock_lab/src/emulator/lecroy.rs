@@ -26,8 +26,8 @@ pub use state::{
 };
 pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
 
-use super::common::log::ReceivedLog;
-use super::common::message::{parse_unit, split_units};
+use super::received_log::ReceivedLog;
+use super::scpi::message::{parse_unit, split_units};
 use crate::catalog::{self, CatalogError, DigitizerModel};
 use crate::server::Handler;
 

@@ -2,7 +2,7 @@
 //! instrument's rules (raster range, granularity and minimum length per divider, amplitude ranges,
 //! no output or run without a waveform), real SCPI error codes, and the played waveform for the scene.
 //!
-//! Parsing: IEEE 488.2 messages are split by [`common::message`](super::common::message) (block-aware),
+//! Parsing: IEEE 488.2 messages are split by [`scpi::message`](super::scpi::message) (block-aware),
 //! headers matched against the manual-style table in `commands` (see there why not the `scpi` crate).
 //! Command errors (`-1xx`) abandon the rest of the program message, as IEEE 488.2 requires; execution
 //! errors (`-2xx`) are queued and the following units still run. Several queries in one message are
@@ -18,11 +18,11 @@ pub use state::{
 };
 
 use self::commands::{Command, Forms};
-use super::common::error_queue::{ErrorQueue, ScpiError};
-use super::common::log::ReceivedLog;
-use super::common::message::{parse_unit, split_units, unquote, Param, Unit};
-use super::common::numeric::{self, nr3, NumericSpec};
-use super::common::scpi_header::{Header, PathContext, Pattern};
+use super::scpi::error_queue::{ErrorQueue, ScpiError};
+use super::received_log::ReceivedLog;
+use super::scpi::message::{parse_unit, split_units, unquote, Param, Unit};
+use super::scpi::numeric::{self, nr3, NumericSpec};
+use super::scpi::header::{Header, PathContext, Pattern};
 use crate::catalog::{self, AwgModel, CatalogError};
 use crate::server::Handler;
 

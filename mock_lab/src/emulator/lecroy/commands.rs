@@ -9,8 +9,8 @@ use super::state::{HeaderMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::wavedesc::{SampleWidth, WAVEDESC_LEN};
 use super::{Fault, Lecroy, WAVEDESC_INSTRUMENT_NAME};
-use crate::emulator::common::message::{unquote, Param, Unit};
-use crate::emulator::common::numeric::{parse_with_unit, Unit as NumUnit};
+use crate::emulator::scpi::message::{unquote, Param, Unit};
+use crate::emulator::scpi::numeric::{parse_with_unit, Unit as NumUnit};
 
 /// `(long, short)` names of every legacy command the emulator knows.
 const COMMANDS: &[(&str, &str)] = &[

@@ -6,7 +6,7 @@
 //! instrument's own error texts. A pattern table over [`Pattern`] keeps long/short forms, optional
 //! nodes, suffixes and the compound-header rule in ~200 tested lines.
 
-use crate::emulator::common::scpi_header::Pattern;
+use crate::emulator::scpi::header::Pattern;
 
 /// A command of the M8195A tree (suffixed ones carry their channel at dispatch time).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
