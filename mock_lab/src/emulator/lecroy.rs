@@ -12,6 +12,8 @@
 //! STB bit 2 (VAB), as the scope does.
 
 mod commands;
+mod params;
+mod settings;
 mod state;
 pub mod trigger;
 mod vbs;

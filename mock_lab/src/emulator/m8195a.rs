@@ -18,11 +18,11 @@ pub use state::{
 };
 
 use self::commands::{Command, Forms};
-use super::scpi::error_queue::{ErrorQueue, ScpiError};
 use super::received_log::ReceivedLog;
+use super::scpi::error_queue::{ErrorQueue, ScpiError};
+use super::scpi::header::{Header, PathContext, Pattern};
 use super::scpi::message::{parse_unit, split_units, unquote, Param, Unit};
 use super::scpi::numeric::{self, nr3, NumericSpec};
-use super::scpi::header::{Header, PathContext, Pattern};
 use crate::catalog::{self, AwgModel, CatalogError};
 use crate::server::Handler;
 
