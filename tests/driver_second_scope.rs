@@ -4,9 +4,10 @@
 //! reading the same file), and its own limits hold: what the LabMaster allows and the WaveMaster
 //! does not is refused before anything is sent.
 
+mod driver_support;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Duration;
 
 use mock_lab::catalog::digitizer_from_str;
 use mock_lab::emulator::lecroy::{Lecroy as ScopeEmu, RemoteInterface, TestSignal};
@@ -16,14 +17,10 @@ use radbench::catalog::{Catalog, InstrumentModel, Origin};
 use radbench::driver::{Digitizer, DigitizerSettings, DriverError, Lecroy, Scripted};
 use radbench::exit::{Classify, ExitClass};
 
+use driver_support::bounded;
+
 const WAVEMASTER: &str = "lecroy-wavemaster820zi-b";
 const LABMASTER: &str = "lecroy-labmaster10zi-a";
-
-async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
-    tokio::time::timeout(Duration::from_secs(60), f)
-        .await
-        .expect("operation did not finish within 60 s")
-}
 
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments/examples")
