@@ -174,14 +174,7 @@ pub fn number(value: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::driver::scripted::{Scripted, ERROR_CHECK};
-
-    fn block_on<T>(f: impl std::future::Future<Output = T>) -> T {
-        tokio::runtime::Builder::new_current_thread()
-            .build()
-            .unwrap()
-            .block_on(f)
-    }
+    use crate::driver::scripted::{block_on, Scripted, ERROR_CHECK};
 
     #[test]
     fn numbers_are_plain_decimals() {

@@ -122,36 +122,18 @@ impl M8195a {
         self.scpi.send(commands::CONTINUOUS).await?;
         self.scpi.send(commands::GATE_OFF).await?;
         self.scpi.check("the DAC mode and sample clock").await?;
-        self.scpi
-            .send(&commands::amplitude(
-                clock.i_channel,
-                settings.i_amplitude_vpp,
-            ))
-            .await?;
-        self.scpi
-            .send(&commands::offset(clock.i_channel, settings.i_offset_v))
-            .await?;
-        self.scpi
-            .send(&commands::amplitude(
-                clock.q_channel,
-                settings.q_amplitude_vpp,
-            ))
-            .await?;
-        self.scpi
-            .send(&commands::offset(clock.q_channel, settings.q_offset_v))
-            .await?;
-        self.scpi
-            .send(&commands::marker_amplitude(
-                clock.marker_channel,
-                settings.marker_amplitude_v,
-            ))
-            .await?;
-        self.scpi
-            .send(&commands::offset(
-                clock.marker_channel,
-                settings.marker_offset_v,
-            ))
-            .await?;
+        let (i, q, m) = (clock.i_channel, clock.q_channel, clock.marker_channel);
+        let levels = [
+            commands::amplitude(i, settings.i_amplitude_vpp),
+            commands::offset(i, settings.i_offset_v),
+            commands::amplitude(q, settings.q_amplitude_vpp),
+            commands::offset(q, settings.q_offset_v),
+            commands::marker_amplitude(m, settings.marker_amplitude_v),
+            commands::offset(m, settings.marker_offset_v),
+        ];
+        for command in &levels {
+            self.scpi.send(command).await?;
+        }
         self.scpi.check("the amplitudes and marker levels").await?;
         self.clock = Some(clock.clone());
         let applied = self.applied_impl().await?;

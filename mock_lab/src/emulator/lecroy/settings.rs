@@ -4,7 +4,7 @@
 
 use super::commands::{Call, Report};
 use super::params::{adapt, channel_index, cmd_err, exe_err, number, one, text, value, words};
-use super::state::{HeaderMode, ScopeState, TriggerMode};
+use super::state::{ChannelSettings, HeaderMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::wavedesc::{ByteOrder, SampleWidth};
 use super::Fault;
@@ -321,12 +321,9 @@ pub(super) fn get_volts_per_div(st: &ScopeState, call: &Call) -> Result<Report, 
 }
 
 pub(super) fn set_volts_per_div(st: &mut ScopeState, call: &Call) -> Result<(), Fault> {
-    let index = call.channel()?;
-    let v = value(call.one()?, Unit::Volt)?;
     let limits = &call.model.limits;
-    let v = adapt(st, v, limits.volts_per_div_min, limits.volts_per_div_max);
-    st.channels[index].volts_per_div = v;
-    Ok(())
+    let (min, max) = (limits.volts_per_div_min, limits.volts_per_div_max);
+    set_channel_volts(st, call, min, max, |c| &mut c.volts_per_div)
 }
 
 /// `C<n>:OFFSET`.
@@ -336,11 +333,23 @@ pub(super) fn get_offset(st: &ScopeState, call: &Call) -> Result<Report, Fault> 
 }
 
 pub(super) fn set_offset(st: &mut ScopeState, call: &Call) -> Result<(), Fault> {
+    let limits = &call.model.limits;
+    let (min, max) = (limits.offset_v_min, limits.offset_v_max);
+    set_channel_volts(st, call, min, max, |c| &mut c.offset_v)
+}
+
+/// Sets a channel's value in volts, adapted into `min..=max`.
+fn set_channel_volts(
+    st: &mut ScopeState,
+    call: &Call,
+    min: f64,
+    max: f64,
+    field: fn(&mut ChannelSettings) -> &mut f64,
+) -> Result<(), Fault> {
     let index = call.channel()?;
     let v = value(call.one()?, Unit::Volt)?;
-    let limits = &call.model.limits;
-    let v = adapt(st, v, limits.offset_v_min, limits.offset_v_max);
-    st.channels[index].offset_v = v;
+    let v = adapt(st, v, min, max);
+    *field(&mut st.channels[index]) = v;
     Ok(())
 }
 
