@@ -14,8 +14,7 @@ use std::time::Duration;
 use bytes::Bytes;
 
 use super::io::{BoxFuture, InstrumentIo};
-use crate::session::reply::parse_block;
-use crate::session::{Block, DeviceError, SessionError};
+use crate::session::{parse_block, Block, DeviceError, SessionError};
 use crate::transport::LinkError;
 
 /// The log entry of an error-queue drain.
