@@ -114,10 +114,10 @@ pub fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
 }
 
 /// Headroom over a model's largest data message, for headers, prefixes and text replies.
-const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
+pub const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
 
 /// The longest line of a line-protocol module (`[protocol]`): its replies are tens of bytes.
-const LINE_MESSAGE_BYTES: usize = 64 << 10;
+pub const LINE_MESSAGE_BYTES: usize = 64 << 10;
 
 /// The largest message a driver exchanges with `model`, from its catalog limits, so a peer that
 /// never ends a message is stopped early (docs/io-timeouts.md): for an AWG, one download chunk
