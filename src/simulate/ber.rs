@@ -111,6 +111,23 @@ pub fn run_curves(
     Ok(points)
 }
 
+/// The curves as plot series, one per waveform, ascending Eb/N0.
+pub fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
+    ["msk-lfm", "ofdm"]
+        .iter()
+        .map(|w| {
+            let p: Vec<&BerCurvePoint> = points.iter().filter(|p| p.waveform == *w).collect();
+            crate::storage::plot::BerSeries {
+                label: w.to_uppercase(),
+                eb_n0_db: p.iter().map(|p| p.eb_n0_db).collect(),
+                ber: p.iter().map(|p| p.ber).collect(),
+                ci: p.iter().map(|p| (p.ci95_low, p.ci95_high)).collect(),
+                theory: p.iter().map(|p| p.ber_theory).collect(),
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -131,21 +148,4 @@ mod tests {
         assert!((z - 2.0101).abs() < 1e-3, "{z}");
         assert!(deviation_sigma(100, 10_000, 0.01).abs() < 1e-12);
     }
-}
-
-/// The curves as plot series, one per waveform, ascending Eb/N0.
-pub fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
-    ["msk-lfm", "ofdm"]
-        .iter()
-        .map(|w| {
-            let p: Vec<&BerCurvePoint> = points.iter().filter(|p| p.waveform == *w).collect();
-            crate::storage::plot::BerSeries {
-                label: w.to_uppercase(),
-                eb_n0_db: p.iter().map(|p| p.eb_n0_db).collect(),
-                ber: p.iter().map(|p| p.ber).collect(),
-                ci: p.iter().map(|p| (p.ci95_low, p.ci95_high)).collect(),
-                theory: p.iter().map(|p| p.ber_theory).collect(),
-            }
-        })
-        .collect()
 }
