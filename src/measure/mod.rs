@@ -127,6 +127,14 @@ pub enum MeasureError {
         text: String,
         source: crate::address::AddressError,
     },
+    /// The capture did not finish while RF was on within its deadline: the bench was put in its
+    /// safe state at once.
+    #[error(
+        "the capture did not finish within {seconds:.0} s of switching RF on (acquisition wait plus \
+         fetching at the catalog's slowest rate): RF was switched off at once; check the marker \
+         cable and the scope's link, or raise --wait"
+    )]
+    RfDeadline { seconds: f64 },
     /// A saved capture does not say which waveform it holds.
     #[error(
         "the capture does not say which waveform it holds (radbench did not make it): give \
@@ -176,7 +184,9 @@ impl MeasureError {
             | MeasureError::Recording(_)
             | MeasureError::NeedsWaveform => ErrorKind::FixInput,
             MeasureError::Driver(e) => e.kind(),
-            MeasureError::RecordTooShort { .. } => ErrorKind::Retry,
+            MeasureError::RecordTooShort { .. } | MeasureError::RfDeadline { .. } => {
+                ErrorKind::Retry
+            }
             MeasureError::Catalog(_)
             | MeasureError::Dsp(_)
             | MeasureError::Storage(_)
@@ -202,7 +212,9 @@ impl Classify for MeasureError {
             | MeasureError::Scene(_)
             | MeasureError::Resource { .. }
             | MeasureError::NeedsWaveform => ExitClass::BadInput,
-            MeasureError::RecordTooShort { .. } | MeasureError::Lab(_) => ExitClass::Instrument,
+            MeasureError::RecordTooShort { .. }
+            | MeasureError::Lab(_)
+            | MeasureError::RfDeadline { .. } => ExitClass::Instrument,
             MeasureError::NoReferenceEcho { .. } => ExitClass::Processing,
             MeasureError::RecordShorterThanWaveform { .. } | MeasureError::Worker(_) => {
                 ExitClass::Internal

@@ -18,6 +18,10 @@ pub const MARKER_SAMPLES: usize = 64;
 /// Back-off of the DAC codes below full scale, dB (peak reference): no clipping.
 pub const DEFAULT_BACKOFF_DB: f64 = 0.5;
 
+/// Most samples one repetition (all pulses or frames of a payload) may hold: 64 M samples at
+/// 16 GSa/s is 4 ms, 1 GB as complex doubles.
+pub const MAX_SAMPLES: usize = 64_000_000;
+
 /// How the transmitted reference is modelled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Dac {
@@ -93,6 +97,9 @@ impl Transmission {
             Some(p) => BitSource::Payload(p.to_vec()),
             None => BitSource::Prbs { seed },
         };
+        if let Some(p) = payload {
+            check_payload(spec, p.len())?;
+        }
         let (samples, bits, modulation) = match spec {
             WaveformSpec::MskLfm { .. } => {
                 let gen = MskLfm::new(spec.msk_lfm_params().expect("an MSK-LFM spec"))?;
@@ -216,6 +223,43 @@ impl Transmission {
         }
         v
     }
+}
+
+/// A payload too long for one repetition is refused before anything is generated, naming the
+/// longest that fits.
+fn check_payload(spec: &WaveformSpec, bytes: usize) -> Result<(), MeasureError> {
+    use crate::waveform::bits::HEADER_BITS;
+    let per_unit_samples = match spec {
+        WaveformSpec::MskLfm { .. } => spec.samples_per_repetition()?,
+        WaveformSpec::Ofdm { .. } => spec.samples_per_repetition()?,
+    };
+    let bits_per_unit = match *spec {
+        WaveformSpec::MskLfm { bits_per_pulse, .. } => bits_per_pulse,
+        WaveformSpec::Ofdm {
+            subcarriers,
+            symbols,
+            preamble_symbols,
+            ..
+        } => 2 * subcarriers * symbols.saturating_sub(preamble_symbols),
+    };
+    if bits_per_unit == 0 || per_unit_samples == 0 {
+        return Ok(());
+    }
+    let units = (HEADER_BITS + 8 * bytes).div_ceil(bits_per_unit);
+    if units.saturating_mul(per_unit_samples) > MAX_SAMPLES {
+        let max_units = MAX_SAMPLES / per_unit_samples;
+        let max_bytes = (max_units * bits_per_unit).saturating_sub(HEADER_BITS) / 8;
+        return Err(MeasureError::option(
+            "payload",
+            format!("of {bytes} bytes"),
+            format!(
+                "at most {max_bytes} bytes with this {} waveform ({units} pulses or frames of \
+                 {per_unit_samples} samples would exceed {MAX_SAMPLES} samples per repetition)",
+                spec.name()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn hex(bytes: &[u8]) -> String {
