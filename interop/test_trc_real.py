@@ -290,3 +290,21 @@ def test_8_bit_variants(real_files, variants, name):
     for seg8, seg16 in zip(ours["segments"], full["segments"]):
         diff = np.asarray(seg16["first_volts"]) - np.asarray(seg8["first_volts"])
         assert np.all((diff >= -1e-9) & (diff < step + 1e-9))
+
+
+def test_process_sees_the_segments_of_a_real_sequence_file(real_files, tmp_path):
+    """`radbench process` on a real 20-segment sequence .trc (lecroyscope's test file, I and Q
+    from the same file) takes every segment as one repetition."""
+    seq = str(real_files / "pulse_sequence.trc")
+    out = tmp_path / "p"
+    proc = subprocess.run(
+        [RADBENCH, "process", seq, seq, "--waveform", "msk-lfm", "--sample-rate", "1e9",
+         "--bandwidth", "2.5e8", "--pulse-us", "0.5", "--bits-per-pulse", "16",
+         "--out", str(out), "--json"],
+        capture_output=True, timeout=120, stdin=subprocess.DEVNULL,
+    )
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    summary = doc["processed"][0]["summary"]
+    assert summary["repetitions"] == 20
+    assert len(summary["each_repetition"]) == 20

@@ -304,9 +304,13 @@ async fn interrupted_capture_leaves_the_bench_safe() {
         .expect("the capture switches RF on");
     assert!(!lab.bench.is_safe());
     let pid = child.id().unwrap().to_string();
-    let status = std::process::Command::new("kill")
+    let signal = Command::new("kill")
         .args(["-INT", &pid])
-        .status()
+        .kill_on_drop(true)
+        .status();
+    let status = tokio::time::timeout(Duration::from_secs(30), signal)
+        .await
+        .expect("kill ends within 30 s")
         .unwrap();
     assert!(status.success());
     let status = tokio::time::timeout(Duration::from_secs(30), child.wait())

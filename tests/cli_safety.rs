@@ -2,12 +2,16 @@
 //! sequences, bad options, history and block saving, `mock-lab serve` stopped by signals, and
 //! Ctrl-C at the interactive `scpi` prompt (driven through a pseudo-terminal).
 
+mod process_support;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener};
 use std::os::fd::{FromRawFd, OwnedFd};
-use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
+
+use process_support::Spawned;
 
 use mock_lab::emulator::loopback::{Loopback, IDENTITY};
 use mock_lab::server::launch::{self, Endpoint, Ports, Running, Transport};
@@ -102,24 +106,7 @@ fn radbench_with(args: &[&str], setup: impl FnOnce(&mut Command)) -> Output {
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     setup(&mut command);
-    let child = command.spawn().expect("radbench runs");
-    wait_output(child)
-}
-
-fn wait_output(child: Child) -> Output {
-    let (tx, rx) = mpsc::channel();
-    let pid = child.id();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    match rx.recv_timeout(LIMIT) {
-        Ok(out) => out.unwrap(),
-        Err(_) => {
-            // SAFETY: kills our own child, which outlived its time limit.
-            unsafe { libc::kill(pid as libc::pid_t, libc::SIGKILL) };
-            panic!("radbench did not finish within {LIMIT:?}");
-        }
-    }
+    Spawned::new(&mut command).output_within(LIMIT)
 }
 
 fn text(bytes: &[u8]) -> String {
@@ -262,21 +249,21 @@ fn save_binary_keeps_every_block_short_printable_and_indefinite() {
 fn piped_commands_at_the_prompt_leave_no_history() {
     let lab = Instrument::loopback();
     let home = tempfile::tempdir().unwrap();
-    let mut child = Command::new(BIN)
-        .args(["scpi", lab.resource()])
-        .env("HOME", home.path())
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = Spawned::new(
+        Command::new(BIN)
+            .args(["scpi", lab.resource()])
+            .env("HOME", home.path())
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+    );
     child
         .stdin
         .take()
         .unwrap()
         .write_all(b"*IDN?\n\\quit\n")
         .unwrap();
-    let out = wait_output(child);
+    let out = child.output_within(LIMIT);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(
         text(&out.stdout).contains(IDENTITY),
@@ -321,22 +308,15 @@ fn mock_lab_serve_options_and_scenes_are_checked_as_bad_input() {
 #[test]
 fn mock_lab_serve_until_stdin_closes_also_stops_on_signals() {
     for signal in [libc::SIGTERM, libc::SIGINT] {
-        let mut child = Command::new(BIN)
-            .args(["mock-lab", "serve", "--json", "--until-stdin-closes"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
+        let mut child = Spawned::new(
+            Command::new(BIN)
+                .args(["mock-lab", "serve", "--json", "--until-stdin-closes"])
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null()),
+        );
         let stdin = child.stdin.take();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut line);
-            let _ = tx.send(line);
-        });
-        let line = rx.recv_timeout(LIMIT).expect("endpoints printed");
+        let line = child.first_line_within(LIMIT);
         let listing: serde_json::Value = serde_json::from_str(&line).unwrap();
         let awg = listing["endpoints"][0]["address"]
             .as_str()
@@ -345,27 +325,11 @@ fn mock_lab_serve_until_stdin_closes_also_stops_on_signals() {
         std::net::TcpStream::connect(&awg).expect("serving");
         // SAFETY: signals our own child.
         assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
-        let status = wait_status(&mut child);
+        let status = child.wait_within(LIMIT);
         drop(stdin);
         assert_eq!(status.code(), Some(0), "signal {signal}: {status:?}");
         let err = std::net::TcpStream::connect(&awg).expect_err("stopped");
         assert_eq!(err.kind(), std::io::ErrorKind::ConnectionRefused);
-    }
-}
-
-/// Waits for `child` to end within [`LIMIT`], killing it otherwise.
-fn wait_status(child: &mut Child) -> ExitStatus {
-    let deadline = Instant::now() + LIMIT;
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            return status;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("the process did not end within {LIMIT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(10));
     }
 }
 
@@ -402,7 +366,7 @@ struct Terminal {
 impl Terminal {
     /// Spawns `command` as the session leader of a new pseudo-terminal (its controlling
     /// terminal, so Ctrl-C there is SIGINT to it).
-    fn spawn(command: &mut Command) -> (Terminal, Child) {
+    fn spawn(command: &mut Command) -> (Terminal, Spawned) {
         let (mut master, mut slave) = (0, 0);
         // SAFETY: openpty fills two new descriptors; null name/termios/winsize are allowed.
         let rc = unsafe {
@@ -433,7 +397,7 @@ impl Terminal {
                 Ok(())
             });
         }
-        let child = command.spawn().expect("radbench runs on the terminal");
+        let child = Spawned::new(command);
         drop(slave);
         let seen = Arc::new(std::sync::Mutex::new(String::new()));
         let mut reader = master.try_clone().unwrap();
@@ -501,7 +465,7 @@ fn ctrl_c_at_the_prompt_cancels_the_command_and_keeps_the_session() {
     term.type_text("*IDN?\r");
     term.wait_for(IDENTITY, 1);
     term.type_text("\\quit\r");
-    let status = wait_status(&mut child);
+    let status = child.wait_within(LIMIT);
     assert!(
         status.success(),
         "{status:?}\n{}",

@@ -222,3 +222,35 @@ fn random_scenes_in_simulation_every_pillar_and_no_false_target() {
         }
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_moving_target_reports_its_radial_velocity_on_ofdm() {
+    let mut lab = Lab::start(false).await;
+    let mut scene = scene(&[(1.0, 0.5), (2.0, 0.5)], 30.0, 5);
+    scene["targets"][0]["velocity_mps"] = json!(600.0);
+    lab.bench
+        .control(&json!({"cmd": "set", "scene": scene}))
+        .await
+        .unwrap()
+        .unwrap();
+    let prepared = &mut lab.prepared[1].1;
+    let m = lab
+        .rig
+        .measure(
+            &lab.bench,
+            prepared,
+            1,
+            &RfPermit::granted_by_user(),
+            &lab.interrupt,
+        )
+        .await
+        .unwrap();
+    let p = &m.processed;
+    let resolution = p.detection.velocity_resolution_mps.unwrap();
+    assert!((resolution - 117.1).abs() < 0.5, "{resolution}");
+    let v: Vec<f64> = p.targets.iter().map(|t| t.velocity_mps.unwrap()).collect();
+    assert_eq!(v.len(), 2, "{:?}", p.targets);
+    assert!((v[0] - 600.0).abs() < resolution / 4.0, "{v:?}");
+    assert!(v[1].abs() < resolution / 4.0, "{v:?}");
+    assert!(p.range_doppler.is_some());
+}

@@ -3,32 +3,23 @@
 //! over a serial pseudo-terminal. Emulator rejections surface as device errors with code and text,
 //! and the safe state leaves the emulated bench off.
 
-use std::sync::Arc;
-use std::time::Duration;
+mod driver_support;
 
+use std::sync::Arc;
+
+use driver_support::{bounded, guarded, model};
 use mock_lab::emulator::gotmic::Gotmic as GotmicEmu;
 use mock_lab::emulator::lecroy::{Lecroy as ScopeEmu, RemoteInterface, TestSignal};
 use mock_lab::emulator::m8195a::M8195a as AwgEmu;
 use mock_lab::server::vxi11::Vxi11Addresses;
 use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
 use radbench::address::Resource;
-use radbench::catalog::{Catalog, InstrumentModel};
+use radbench::catalog::InstrumentModel;
 use radbench::driver::io::open_session;
-use radbench::driver::safe_state::{share, Bench};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings,
 };
-
-async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
-    tokio::time::timeout(Duration::from_secs(60), f)
-        .await
-        .expect("operation did not finish within 60 s")
-}
-
-fn model(key: &str) -> InstrumentModel {
-    Catalog::embedded().unwrap().get(key).unwrap().clone()
-}
 
 #[derive(Debug, Clone, Copy)]
 enum Net {
@@ -65,7 +56,7 @@ async fn awg_over(net: Net, driver_model: &InstrumentModel) -> (Arc<AwgEmu>, M81
     let (server, resource) = serve(net, emu.clone()).await;
     let session = bounded(open_session(
         resource,
-        &driver_model.timeouts,
+        driver_model,
         "SYST:ERR?",
         None,
         "awg",
@@ -160,9 +151,8 @@ async fn m8195a_output_on_before_a_waveform_is_refused_with_code_and_text() {
     assert!(errors[0].message.contains("no waveform"), "{e}");
 }
 
-#[tokio::test]
-async fn m8195a_catalog_disagreeing_with_the_instrument_surfaces_its_refusals() {
-    // A catalog override that is wrong about the instrument: finer granularity, wider raster.
+/// A catalog override that is wrong about the instrument: finer granularity, wider raster.
+fn overconfident_awg_model() -> InstrumentModel {
     let mut m = model("keysight-m8195a");
     let awg_limits = m.awg.as_mut().unwrap();
     awg_limits.dac_rate_max = 70e9;
@@ -172,6 +162,12 @@ async fn m8195a_catalog_disagreeing_with_the_instrument_surfaces_its_refusals() 
             d.min_segment_samples = 160;
         }
     }
+    m
+}
+
+#[tokio::test]
+async fn m8195a_a_rate_the_catalog_wrongly_allows_is_refused_by_the_instrument() {
+    let m = overconfident_awg_model();
     let (_emu, mut awg, _server) = awg_over(Net::Hislip, &m).await;
     let fast = AwgSettings {
         sample_rate_hz: 17e9,
@@ -184,6 +180,12 @@ async fn m8195a_catalog_disagreeing_with_the_instrument_surfaces_its_refusals() 
         -222,
         "rate outside the range: {e}"
     );
+}
+
+#[tokio::test]
+async fn m8195a_a_granularity_the_catalog_wrongly_allows_is_refused_by_the_instrument() {
+    let m = overconfident_awg_model();
+    let (_emu, mut awg, _server) = awg_over(Net::Hislip, &m).await;
     bounded(awg.configure(&AwgSettings::default()))
         .await
         .unwrap();
@@ -276,39 +278,39 @@ async fn lecroy_without_marker_reports_no_marker_edge() {
     assert!(matches!(e, DriverError::NoTrigger { .. }), "{e}");
 }
 
+/// Opens the scope over `net` while its remote interface is set to `enabled`; the error.
+async fn open_with_the_other_interface(
+    net: Net,
+    via: RemoteInterface,
+    enabled: RemoteInterface,
+) -> DriverError {
+    let signal = Arc::new(TestSignal::default());
+    let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
+    emu.set_remote_interface(enabled);
+    let (_server, resource) = serve(net, Arc::new(emu.port(via))).await;
+    let mut m = model("lecroy-labmaster10zi-a");
+    m.timeouts.read_ms = 300;
+    bounded(Lecroy::open(resource, &m, None, "scope"))
+        .await
+        .err()
+        .unwrap()
+}
+
 #[tokio::test]
-async fn lecroy_set_to_the_other_protocol_says_so() {
-    for (net, via, enabled, named) in [
-        (
-            Net::Vicp,
-            RemoteInterface::Vicp,
-            RemoteInterface::Vxi11,
-            "LXI (VXI-11)",
-        ),
-        (
-            Net::Vxi11,
-            RemoteInterface::Vxi11,
-            RemoteInterface::Vicp,
-            "TCPIP (VICP)",
-        ),
-    ] {
-        let signal = Arc::new(TestSignal::default());
-        let emu = Arc::new(ScopeEmu::embedded_with(signal).unwrap());
-        emu.set_remote_interface(enabled);
-        let (_server, resource) = serve(net, Arc::new(emu.port(via))).await;
-        let mut m = model("lecroy-labmaster10zi-a");
-        m.timeouts.read_ms = 300;
-        let e = bounded(Lecroy::open(resource, &m, None, "scope"))
-            .await
-            .err()
-            .unwrap();
-        let text = e.to_string();
-        assert!(
-            matches!(e, DriverError::RemoteInterface { .. }),
-            "{net:?}: {text}"
-        );
-        assert!(text.contains(named), "{net:?}: {text}");
-    }
+async fn lecroy_over_vicp_while_set_to_vxi11_says_so() {
+    let e = open_with_the_other_interface(Net::Vicp, RemoteInterface::Vicp, RemoteInterface::Vxi11)
+        .await;
+    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{e}");
+    assert!(e.to_string().contains("LXI (VXI-11)"), "{e}");
+}
+
+#[tokio::test]
+async fn lecroy_over_vxi11_while_set_to_vicp_says_so() {
+    let e =
+        open_with_the_other_interface(Net::Vxi11, RemoteInterface::Vxi11, RemoteInterface::Vicp)
+            .await;
+    assert!(matches!(e, DriverError::RemoteInterface { .. }), "{e}");
+    assert!(e.to_string().contains("TCPIP (VICP)"), "{e}");
 }
 
 // ---------------------------------------------------------------- Gotmic
@@ -317,66 +319,68 @@ fn serial_resource(path: &str) -> Resource {
     format!("ASRL{path}::INSTR").parse().unwrap()
 }
 
-#[tokio::test]
-async fn gotmic_tx_and_rx_over_serial_enable_read_back_and_disable() {
-    for (key, emu) in [
-        ("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()),
-        ("gotmic-eband-rx", GotmicEmu::rx_embedded().unwrap()),
-    ] {
-        let emu = Arc::new(emu);
-        let endpoint = server::serial::serve(emu.clone(), ServerOptions::default()).unwrap();
-        let m = model(key);
-        let mut rf = bounded(Gotmic::open(
-            serial_resource(endpoint.device_path()),
-            &m,
-            None,
-            key,
-        ))
-        .await
-        .unwrap();
-        let before = bounded(rf.status()).await.unwrap();
-        assert!(!before.rf_enabled && before.powered);
-        let permit = RfPermit::granted_by_user();
-        let settings = RfSettings {
-            attenuation_db: 12.5,
-            lo_frequency_hz: Some(13.333e9),
-        };
-        let on = bounded(rf.enable(&permit, &settings)).await.unwrap();
-        assert!(on.rf_enabled && on.lo_locked, "{key}: {on:?}");
-        assert_eq!(on.attenuation_db, 12.5);
-        assert!(emu.front_end().rf_enabled, "{key}");
-        let framed = emu.log().texts();
-        assert!(
-            framed.iter().any(|t| t.starts_with("W 02 000F*")),
-            "CRC-framed requests: {framed:?}"
-        );
-        bounded(rf.disable()).await.unwrap();
-        let off = bounded(rf.status()).await.unwrap();
-        assert!(!off.rf_enabled);
-        assert_eq!(
-            off.attenuation_db, 31.5,
-            "maximum attenuation after disable"
-        );
-        assert!(!emu.front_end().rf_enabled);
-    }
-}
-
-#[tokio::test]
-async fn gotmic_refuses_with_open_interlock_and_switches_off_without_lo() {
-    let emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
+/// A Gotmic emulator on a serial pseudo-terminal and the driver connected to it.
+async fn gotmic_over_serial(
+    key: &str,
+    emu: GotmicEmu,
+) -> (Arc<GotmicEmu>, Gotmic, server::serial::SerialHandle) {
+    let emu = Arc::new(emu);
     let endpoint = server::serial::serve(emu.clone(), ServerOptions::default()).unwrap();
-    let m = model("gotmic-eband-tx");
-    let mut tx = bounded(Gotmic::open(
+    let rf = bounded(Gotmic::open(
         serial_resource(endpoint.device_path()),
-        &m,
+        &model(key),
         None,
-        "tx",
+        key,
     ))
     .await
     .unwrap();
+    (emu, rf, endpoint)
+}
+
+async fn enable_read_back_and_disable(key: &str, emu: GotmicEmu) {
+    let (emu, mut rf, _endpoint) = gotmic_over_serial(key, emu).await;
+    let before = bounded(rf.status()).await.unwrap();
+    assert!(!before.rf_enabled && before.powered);
     let permit = RfPermit::granted_by_user();
+    let settings = RfSettings {
+        attenuation_db: 12.5,
+        lo_frequency_hz: Some(13.333e9),
+    };
+    let on = bounded(rf.enable(&permit, &settings)).await.unwrap();
+    assert!(on.rf_enabled && on.lo_locked, "{key}: {on:?}");
+    assert_eq!(on.attenuation_db, 12.5);
+    assert!(emu.front_end().rf_enabled, "{key}");
+    let framed = emu.log().texts();
+    assert!(
+        framed.iter().any(|t| t.starts_with("W 02 000F*")),
+        "CRC-framed requests: {framed:?}"
+    );
+    bounded(rf.disable()).await.unwrap();
+    let off = bounded(rf.status()).await.unwrap();
+    assert!(!off.rf_enabled);
+    assert_eq!(
+        off.attenuation_db, 31.5,
+        "maximum attenuation after disable"
+    );
+    assert!(!emu.front_end().rf_enabled);
+}
+
+#[tokio::test]
+async fn gotmic_tx_over_serial_enables_reads_back_and_disables() {
+    enable_read_back_and_disable("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
+}
+
+#[tokio::test]
+async fn gotmic_rx_over_serial_enables_reads_back_and_disables() {
+    enable_read_back_and_disable("gotmic-eband-rx", GotmicEmu::rx_embedded().unwrap()).await;
+}
+
+#[tokio::test]
+async fn gotmic_refuses_to_enable_with_the_interlock_open() {
+    let (emu, mut tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
     emu.set_interlock_open(true);
-    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+    let e = bounded(tx.enable(&RfPermit::granted_by_user(), &RfSettings::default()))
         .await
         .unwrap_err();
     assert!(
@@ -384,17 +388,22 @@ async fn gotmic_refuses_with_open_interlock_and_switches_off_without_lo() {
         "{e}"
     );
     assert!(!emu.front_end().rf_enabled);
-    emu.set_interlock_open(false);
-    if !bounded(tx.status()).await.unwrap().faults.is_empty() {
-        bounded(tx.clear_faults()).await.unwrap();
-    }
+}
+
+#[tokio::test]
+async fn gotmic_switches_off_again_without_lo() {
+    let (emu, mut tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
     emu.set_lo_present(false);
-    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+    let e = bounded(tx.enable(&RfPermit::granted_by_user(), &RfSettings::default()))
         .await
         .unwrap_err();
+    assert!(e.to_string().contains("LO not present"), "{e}");
+    assert!(!emu.front_end().rf_enabled);
+    let sent = emu.log().texts();
     assert!(
-        !emu.front_end().rf_enabled,
-        "switched off after the failed enable: {e}"
+        sent.iter().any(|t| t.starts_with("W 02 0000")),
+        "switched off after the failed enable: {sent:?}"
     );
 }
 
@@ -404,16 +413,8 @@ async fn gotmic_refuses_with_open_interlock_and_switches_off_without_lo() {
 async fn safe_state_leaves_the_emulated_bench_off() {
     let m = model("keysight-m8195a");
     let (awg_emu, mut awg, _awg_server) = awg_over(Net::Socket, &m).await;
-    let tx_emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
-    let endpoint = server::serial::serve(tx_emu.clone(), ServerOptions::default()).unwrap();
-    let mut tx = bounded(Gotmic::open(
-        serial_resource(endpoint.device_path()),
-        &model("gotmic-eband-tx"),
-        None,
-        "tx",
-    ))
-    .await
-    .unwrap();
+    let (tx_emu, mut tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
     let permit = RfPermit::granted_by_user();
     bounded(awg.configure(&AwgSettings::default()))
         .await
@@ -425,14 +426,7 @@ async fn safe_state_leaves_the_emulated_bench_off() {
         .await
         .unwrap();
     assert!(awg_emu.playback().running && tx_emu.front_end().rf_enabled);
-    let safe = SafeState::new(
-        Bench {
-            tx: Some(share::<dyn RfFrontEnd>(Box::new(tx))),
-            rx: None,
-            awg: Some(share::<dyn Awg>(Box::new(awg))),
-        },
-        Duration::from_secs(10),
-    );
+    let (safe, _awg, _tx) = guarded(Box::new(awg), Some(Box::new(tx)));
     // Dropping the guard (an error path that forgot the explicit call) still runs the sequence.
     drop(safe.guard());
     assert!(!tx_emu.front_end().rf_enabled);
@@ -447,26 +441,10 @@ async fn safe_state_leaves_the_emulated_bench_off() {
 async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
     let m = model("keysight-m8195a");
     let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
-    let tx_emu = Arc::new(GotmicEmu::tx_embedded().unwrap());
-    let endpoint = server::serial::serve(tx_emu.clone(), ServerOptions::default()).unwrap();
-    let tx = bounded(Gotmic::open(
-        serial_resource(endpoint.device_path()),
-        &model("gotmic-eband-tx"),
-        None,
-        "tx",
-    ))
-    .await
-    .unwrap();
-    let awg = share::<dyn Awg>(Box::new(awg));
-    let tx = share::<dyn RfFrontEnd>(Box::new(tx));
-    let safe = SafeState::new(
-        Bench {
-            tx: Some(tx.clone()),
-            rx: None,
-            awg: Some(awg.clone()),
-        },
-        Duration::from_secs(10),
-    );
+    let (tx_emu, tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
+    let (safe, awg, tx) = guarded(Box::new(awg), Some(Box::new(tx)));
+    let tx = tx.expect("a transmitter");
     let (radiating, interrupt) = tokio::sync::oneshot::channel::<()>();
     let work = async {
         let permit = RfPermit::granted_by_user();

@@ -2,27 +2,18 @@
 //! limits refused before anything is sent, refusals surfaced with code and text, and the safe
 //! state still sent after an error mid-configuration.
 
+mod driver_support;
+
 use std::time::Duration;
 
-use radbench::catalog::{Catalog, InstrumentModel};
-use radbench::driver::safe_state::{share, Bench};
+use driver_support::{bounded, guarded, model, AWG_SAFE_STATE};
 use radbench::driver::scripted::{Failure, ERROR_CHECK};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
-    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, SafeState, ScriptLog, Scripted,
+    M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, ScriptLog, Scripted,
 };
 use radbench::exit::{Classify, ExitClass};
 use radbench::trc::BlockBuilder;
-
-fn model(key: &str) -> InstrumentModel {
-    Catalog::embedded().unwrap().get(key).unwrap().clone()
-}
-
-async fn bounded<T>(f: impl std::future::Future<Output = T>) -> T {
-    tokio::time::timeout(Duration::from_secs(10), f)
-        .await
-        .expect("operation did not finish within 10 s")
-}
 
 // ---------------------------------------------------------------- M8195A
 
@@ -135,6 +126,12 @@ async fn m8195a_download_interleaves_i_with_the_marker_and_pads_to_granularity()
     let loaded = bounded(awg.load(&waveform)).await.unwrap();
     assert_eq!(loaded.padded_samples, 1024);
     assert_eq!(loaded.chunks_per_channel, 1);
+    // `*OPC?` after the download waits the catalog's operation-complete time, passed per call.
+    let opc_ms = model("keysight-m8195a").timeouts.operation_complete_ms;
+    assert_eq!(
+        log.timeouts(),
+        [("*OPC?".to_string(), Duration::from_millis(opc_ms))]
+    );
     assert_eq!(
         log.ops(),
         [
@@ -173,52 +170,71 @@ async fn m8195a_outputs_run_stop_and_safe_state() {
     bounded(awg.run()).await.unwrap();
     bounded(awg.stop()).await.unwrap();
     bounded(awg.safe_state()).await.unwrap();
-    assert_eq!(
-        log.ops(),
-        [
-            ":OUTP1 ON",
-            ":OUTP2 ON",
-            ":OUTP3 ON",
-            ERROR_CHECK,
-            ":INIT:IMM",
-            ERROR_CHECK,
-            ":ABOR",
-            ERROR_CHECK,
-            ":OUTP1 OFF",
-            ":OUTP2 OFF",
-            ":OUTP3 OFF",
-            ":OUTP4 OFF",
-            ":ABOR",
-            ERROR_CHECK,
-        ]
+    let mut expected = vec![
+        ":OUTP1 ON",
+        ":OUTP2 ON",
+        ":OUTP3 ON",
+        ERROR_CHECK,
+        ":INIT:IMM",
+        ERROR_CHECK,
+        ":ABOR",
+        ERROR_CHECK,
+    ];
+    expected.extend(AWG_SAFE_STATE);
+    assert_eq!(log.ops(), expected);
+}
+
+/// Configures `settings` on a scripted AWG: the limit error, and nothing sent.
+async fn awg_refuses(settings: AwgSettings, field: &str) {
+    let (mut awg, log) = awg(Scripted::new("awg")).await;
+    let e = bounded(awg.configure(&settings)).await.unwrap_err();
+    assert!(
+        matches!(&e, DriverError::OutOfLimits { field: f, .. } if f.contains(field)),
+        "{e}"
     );
+    assert_eq!(e.exit_class(), ExitClass::BadInput);
+    assert!(log.ops().is_empty(), "sent {:?}", log.ops());
 }
 
 #[tokio::test]
-async fn m8195a_out_of_limits_settings_send_nothing() {
+async fn m8195a_a_sample_rate_off_the_divider_ranges_sends_nothing() {
+    let settings = AwgSettings {
+        sample_rate_hz: 20e9,
+        ..AwgSettings::default()
+    };
+    awg_refuses(settings, "sample_rate_hz").await;
+}
+
+#[tokio::test]
+async fn m8195a_an_amplitude_above_the_catalog_sends_nothing() {
+    let settings = AwgSettings {
+        i_amplitude_vpp: 1.5,
+        ..AwgSettings::default()
+    };
+    awg_refuses(settings, "i_amplitude_vpp").await;
+}
+
+#[tokio::test]
+async fn m8195a_a_marker_level_below_the_catalog_sends_nothing() {
+    let settings = AwgSettings {
+        marker_amplitude_v: 0.01,
+        ..AwgSettings::default()
+    };
+    awg_refuses(settings, "marker_amplitude_v").await;
+}
+
+#[tokio::test]
+async fn m8195a_a_reference_frequency_off_the_range_sends_nothing() {
+    let settings = AwgSettings {
+        reference_clock: ReferenceClock::External { frequency_hz: 5e6 },
+        ..AwgSettings::default()
+    };
+    awg_refuses(settings, "frequency").await;
+}
+
+#[tokio::test]
+async fn m8195a_loading_before_configuring_sends_nothing() {
     let (mut awg, log) = awg(Scripted::new("awg")).await;
-    for settings in [
-        AwgSettings {
-            sample_rate_hz: 20e9,
-            ..AwgSettings::default()
-        },
-        AwgSettings {
-            i_amplitude_vpp: 1.5,
-            ..AwgSettings::default()
-        },
-        AwgSettings {
-            marker_amplitude_v: 0.01,
-            ..AwgSettings::default()
-        },
-        AwgSettings {
-            reference_clock: ReferenceClock::External { frequency_hz: 5e6 },
-            ..AwgSettings::default()
-        },
-    ] {
-        let e = bounded(awg.configure(&settings)).await.unwrap_err();
-        assert!(matches!(e, DriverError::OutOfLimits { .. }), "{e}");
-        assert_eq!(e.exit_class(), ExitClass::BadInput);
-    }
     let e = bounded(awg.load(&IqWaveform {
         i: vec![0; 10],
         q: vec![0; 10],
@@ -338,27 +354,43 @@ async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
     log.assert_no_surprises();
 }
 
-#[tokio::test]
-async fn lecroy_refuses_rates_and_records_outside_the_catalog() {
+/// Configures `settings` on a scripted scope: refused as bad input, nothing sent.
+async fn scope_refuses(settings: DigitizerSettings, field: &str) {
     let (mut scope, log) = scope(Scripted::new("scope")).await;
-    for s in [
-        DigitizerSettings {
-            sample_rate_hz: 40e9,
-            ..DigitizerSettings::default()
-        },
-        DigitizerSettings {
-            repetition_s: 1.0e-3,
-            ..DigitizerSettings::default()
-        },
-        DigitizerSettings {
-            trigger_level_v: 3.0,
-            ..DigitizerSettings::default()
-        },
-    ] {
-        let e = bounded(scope.configure(&s)).await.unwrap_err();
-        assert_eq!(e.exit_class(), ExitClass::BadInput, "{e}");
-    }
+    let e = bounded(scope.configure(&settings)).await.unwrap_err();
+    assert!(
+        matches!(&e, DriverError::OutOfLimits { field: f, .. } if f.contains(field)),
+        "{e}"
+    );
+    assert_eq!(e.exit_class(), ExitClass::BadInput, "{e}");
     assert!(log.ops().is_empty());
+}
+
+#[tokio::test]
+async fn lecroy_refuses_a_rate_outside_the_catalog() {
+    let settings = DigitizerSettings {
+        sample_rate_hz: 40e9,
+        ..DigitizerSettings::default()
+    };
+    scope_refuses(settings, "sample_rate_hz").await;
+}
+
+#[tokio::test]
+async fn lecroy_refuses_a_record_longer_than_its_memory() {
+    let settings = DigitizerSettings {
+        repetition_s: 1.0e-3,
+        ..DigitizerSettings::default()
+    };
+    scope_refuses(settings, "repetition_s").await;
+}
+
+#[tokio::test]
+async fn lecroy_refuses_a_trigger_level_outside_the_catalog() {
+    let settings = DigitizerSettings {
+        trigger_level_v: 3.0,
+        ..DigitizerSettings::default()
+    };
+    scope_refuses(settings, "trigger_level_v").await;
 }
 
 fn wf_reply(codes: &[i16], source: i16) -> Vec<u8> {
@@ -567,7 +599,7 @@ async fn gotmic_latched_faults_or_open_interlock_refuse_before_enabling() {
 }
 
 #[tokio::test]
-async fn gotmic_module_errors_carry_code_and_text_and_limits_are_checked() {
+async fn gotmic_module_errors_carry_code_and_text() {
     let fake = Scripted::new("tx").reply("W 03 003F", "ERR 5 not allowed");
     let (mut tx, log) = tx(fake).await;
     let e = bounded(tx.set_attenuation(31.5)).await.unwrap_err();
@@ -575,50 +607,34 @@ async fn gotmic_module_errors_carry_code_and_text_and_limits_are_checked() {
         matches!(&e, DriverError::LineRefused { code: 5, text, .. } if text == "not allowed"),
         "{e}"
     );
+    assert_eq!(log.ops(), ["W 03 003F"]);
+}
+
+#[tokio::test]
+async fn gotmic_attenuation_beyond_the_register_range_sends_nothing() {
+    let (mut tx, log) = tx(Scripted::new("tx")).await;
     let e = bounded(tx.set_attenuation(40.0)).await.unwrap_err();
     assert_eq!(e.exit_class(), ExitClass::BadInput);
-    assert_eq!(log.ops(), ["W 03 003F"]);
+    assert!(log.ops().is_empty(), "sent {:?}", log.ops());
 }
 
 // ---------------------------------------------------------------- safe state
 
 #[tokio::test]
 async fn error_mid_configuration_still_sends_the_safe_state_in_order() {
-    let awg_fake = Scripted::new("awg").reply("*IDN?", AWG_IDN).refuse(
-        ":INST:DACM DCM",
-        -221,
-        "Settings conflict",
-    );
-    let awg_log = awg_fake.log();
-    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
-        .await
-        .unwrap();
+    let awg_fake = Scripted::new("awg").refuse(":INST:DACM DCM", -221, "Settings conflict");
+    let (awg, awg_log) = awg(awg_fake).await;
     let tx_fake = Scripted::new("tx")
-        .reply("*IDN?", TX_IDN)
-        .reply("R 00", "OK 5458")
         .reply("W 02 0000", "OK")
         .reply("R 02", "OK 0000")
         .reply("W 03 003F", "OK")
         .reply("R 03", "OK 003F");
-    let tx_log = tx_fake.log();
-    let tx = Gotmic::connect(Box::new(tx_fake), &model("gotmic-eband-tx"), "tx")
-        .await
-        .unwrap();
-    let awg = share::<dyn Awg>(Box::new(awg));
-    let tx = share::<dyn RfFrontEnd>(Box::new(tx));
-    let safe = SafeState::new(
-        Bench {
-            tx: Some(tx.clone()),
-            rx: None,
-            awg: Some(awg.clone()),
-        },
-        Duration::from_secs(5),
-    );
+    let (tx, tx_log) = tx(tx_fake).await;
+    let (safe, awg, _tx) = guarded(Box::new(awg), Some(Box::new(tx)));
     let guard = safe.guard();
     let result = bounded(async { awg.lock().await.configure(&AwgSettings::default()).await }).await;
     assert!(matches!(result, Err(DriverError::Refused { .. })));
     awg_log.clear();
-    tx_log.clear();
     let report = bounded(guard.engage()).await;
     assert!(report.is_safe(), "{report}");
     assert_eq!(
@@ -626,48 +642,19 @@ async fn error_mid_configuration_still_sends_the_safe_state_in_order() {
         ["Tx RF off", "AWG outputs off and :ABOR"]
     );
     assert_eq!(tx_log.ops(), ["W 02 0000", "R 02", "W 03 003F", "R 03"]);
-    assert_eq!(
-        awg_log.ops(),
-        [
-            ":OUTP1 OFF",
-            ":OUTP2 OFF",
-            ":OUTP3 OFF",
-            ":OUTP4 OFF",
-            ":ABOR",
-            ERROR_CHECK
-        ]
-    );
+    assert_eq!(awg_log.ops(), AWG_SAFE_STATE);
 }
 
 #[tokio::test]
 async fn safe_state_tries_every_step_even_when_one_fails() {
-    let awg_fake = Scripted::new("awg")
-        .reply("*IDN?", AWG_IDN)
-        .fail_write(":OUTP2 OFF", Failure::Closed);
-    let awg_log = awg_fake.log();
-    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
-        .await
-        .unwrap();
+    let awg_fake = Scripted::new("awg").fail_write(":OUTP2 OFF", Failure::Closed);
+    let (awg, awg_log) = awg(awg_fake).await;
     let tx_fake = Scripted::new("tx")
-        .reply("*IDN?", TX_IDN)
-        .reply("R 00", "OK 5458")
         .reply("W 02 0000", "ERR 5 not allowed")
         .reply("W 03 003F", "OK")
         .reply("R 03", "OK 003F");
-    let tx_log = tx_fake.log();
-    let tx = Gotmic::connect(Box::new(tx_fake), &model("gotmic-eband-tx"), "tx")
-        .await
-        .unwrap();
-    let safe = SafeState::new(
-        Bench {
-            tx: Some(share::<dyn RfFrontEnd>(Box::new(tx))),
-            rx: None,
-            awg: Some(share::<dyn Awg>(Box::new(awg))),
-        },
-        Duration::from_secs(5),
-    );
-    awg_log.clear();
-    tx_log.clear();
+    let (tx, tx_log) = tx(tx_fake).await;
+    let (safe, _awg, _tx) = guarded(Box::new(awg), Some(Box::new(tx)));
     let report = bounded(safe.engage()).await;
     assert!(!report.is_safe());
     assert!(report.steps[0].error.as_deref().unwrap().contains("ERR 5"));
@@ -676,56 +663,29 @@ async fn safe_state_tries_every_step_even_when_one_fails() {
         ["W 02 0000", "W 03 003F", "R 03"],
         "attenuation still maxed"
     );
-    assert_eq!(
-        awg_log.ops(),
-        [
-            ":OUTP1 OFF",
-            ":OUTP2 OFF",
-            ":OUTP3 OFF",
-            ":OUTP4 OFF",
-            ":ABOR",
-            ERROR_CHECK
-        ]
-    );
+    assert_eq!(awg_log.ops(), AWG_SAFE_STATE);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_dropped_guard_runs_the_safe_state_synchronously() {
-    let awg_fake = Scripted::new("awg").reply("*IDN?", AWG_IDN);
-    let awg_log = awg_fake.log();
-    let awg = M8195a::connect(Box::new(awg_fake), &model("keysight-m8195a"), "awg")
-        .await
-        .unwrap();
-    let safe = SafeState::new(
-        Bench {
-            awg: Some(share::<dyn Awg>(Box::new(awg))),
-            ..Bench::default()
-        },
-        Duration::from_secs(5),
-    );
-    awg_log.clear();
+    let (awg, awg_log) = awg(Scripted::new("awg")).await;
+    let (safe, _awg, _tx) = guarded(Box::new(awg), None);
     {
         let _guard = safe.guard();
     }
-    assert_eq!(
-        awg_log.ops(),
-        [
-            ":OUTP1 OFF",
-            ":OUTP2 OFF",
-            ":OUTP3 OFF",
-            ":OUTP4 OFF",
-            ":ABOR",
-            ERROR_CHECK
-        ]
-    );
+    assert_eq!(awg_log.ops(), AWG_SAFE_STATE);
 }
 
 #[tokio::test]
 async fn gotmic_crc_framing_frames_requests_and_rejects_corrupted_replies() {
-    use radbench::driver::gotmic::commands::framed;
     use radbench::driver::gotmic::Framing;
+    use radbench::session::Crc8;
     let m = model("gotmic-eband-tx");
-    let f = |s: &str| framed(s, 0x07, 0x00);
+    let smbus = Crc8 {
+        poly: 0x07,
+        init: 0x00,
+    };
+    let f = |s: &str| smbus.frame(s);
     let fake = Scripted::new("tx")
         .reply("CRC ON", "OK")
         .reply(&f("*IDN?"), &f(TX_IDN))

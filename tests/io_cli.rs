@@ -1,6 +1,7 @@
 //! `radbench idn` and `radbench scpi` as a user runs them, against a mock_lab HiSLIP server.
 
 mod io_support;
+mod process_support;
 
 use io_support::{bounded, start, start_serving, Proto};
 use std::process::{Command, Output};
@@ -9,10 +10,10 @@ use std::process::{Command, Output};
 /// timeouts (given on the command line) and by the test's limit.
 async fn radbench(args: Vec<String>) -> Output {
     bounded(tokio::task::spawn_blocking(move || {
-        Command::new(env!("CARGO_BIN_EXE_radbench"))
-            .args(&args)
-            .output()
-            .expect("radbench runs")
+        process_support::output_within(
+            Command::new(env!("CARGO_BIN_EXE_radbench")).args(&args),
+            io_support::LIMIT,
+        )
     }))
     .await
     .expect("the runner thread finished")

@@ -2,8 +2,11 @@
 //! on files in a temporary folder, and the golden `.trc` file written by
 //! `tests/data/make_golden_trc.py` (struct-packed from the template, not by radbench).
 
+mod process_support;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::time::Duration;
 
 use bytes::Bytes;
 use radbench::storage::recording::{read_sigmf, read_trc, SampleUnit};
@@ -13,10 +16,10 @@ use serde_json::{json, Value};
 const GOLDEN: &str = "tests/data/lecroy_seq_hifirst_byte.trc";
 
 fn radbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_radbench"))
-        .args(args)
-        .output()
-        .expect("radbench runs")
+    process_support::output_within(
+        Command::new(env!("CARGO_BIN_EXE_radbench")).args(args),
+        Duration::from_secs(120),
+    )
 }
 
 fn stderr(o: &Output) -> String {

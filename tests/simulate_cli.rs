@@ -1,12 +1,18 @@
 //! `radbench simulate` and `radbench bench` as a user runs them: JSON shape, exit codes, files.
 
+mod process_support;
+
 use std::process::{Command, Output};
+use std::time::Duration;
+
+/// Every run is bounded by this.
+const LIMIT: Duration = Duration::from_secs(120);
 
 fn radbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_radbench"))
-        .args(args)
-        .output()
-        .expect("radbench runs")
+    process_support::output_within(
+        Command::new(env!("CARGO_BIN_EXE_radbench")).args(args),
+        LIMIT,
+    )
 }
 
 fn json_of(out: &Output) -> serde_json::Value {

@@ -21,6 +21,8 @@ pub struct Faults {
     byte_segments: AtomicBool,
     drop_next: AtomicU32,
     swallow_next: AtomicU32,
+    /// Faults of a wider scope (the whole lab) that apply here too.
+    shared: Option<Arc<Faults>>,
 }
 
 /// How one response is to be delivered.
@@ -60,6 +62,15 @@ impl Faults {
         Arc::new(Faults::default())
     }
 
+    /// Faults of one server that also obeys `shared` (the lab-wide switches): a test can stall one
+    /// instrument while the others keep answering.
+    pub fn layered(shared: Arc<Faults>) -> Arc<Faults> {
+        Arc::new(Faults {
+            shared: Some(shared),
+            ..Faults::default()
+        })
+    }
+
     /// Delay every response by `delay` (zero switches it off).
     pub fn set_reply_delay(&self, delay: Duration) {
         let us = u64::try_from(delay.as_micros()).unwrap_or(u64::MAX);
@@ -91,6 +102,25 @@ impl Faults {
 
     /// Decide how the next response is delivered, consuming a pending one-shot fault.
     pub fn plan_reply(&self) -> ReplyPlan {
+        let own = self.plan_own();
+        match &self.shared {
+            None => own,
+            Some(shared) => {
+                let wide = shared.plan_own();
+                ReplyPlan {
+                    delay: own.delay.max(wide.delay),
+                    byte_segments: own.byte_segments || wide.byte_segments,
+                    fate: if own.fate == ReplyFate::Deliver {
+                        wide.fate
+                    } else {
+                        own.fate
+                    },
+                }
+            }
+        }
+    }
+
+    fn plan_own(&self) -> ReplyPlan {
         let fate = if take_one(&self.swallow_next) {
             ReplyFate::Swallow
         } else if take_one(&self.drop_next) {
@@ -139,5 +169,22 @@ mod tests {
         }
         faults.clear();
         assert_eq!(faults.plan_reply(), ReplyPlan::CLEAN);
+    }
+
+    #[test]
+    fn layered_faults_add_the_lab_wide_ones_to_their_own() {
+        let lab = Faults::new();
+        let scope = Faults::layered(lab.clone());
+        scope.set_reply_delay(Duration::from_secs(2));
+        lab.set_reply_delay(Duration::from_secs(1));
+        lab.swallow_next_reply();
+        assert_eq!(lab.plan_reply().delay, Duration::from_secs(1));
+        lab.swallow_next_reply();
+        let plan = scope.plan_reply();
+        assert_eq!(plan.delay, Duration::from_secs(2));
+        assert_eq!(plan.fate, ReplyFate::Swallow);
+        scope.clear();
+        lab.clear();
+        assert_eq!(scope.plan_reply(), ReplyPlan::CLEAN);
     }
 }

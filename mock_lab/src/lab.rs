@@ -135,6 +135,8 @@ pub struct Lab {
     pub control: SocketAddr,
     /// Fault switches shared by every server of the lab.
     pub faults: Arc<Faults>,
+    /// Fault switches of the scope's servers only (the lab-wide ones apply to them too).
+    pub scope_faults: Arc<Faults>,
     /// Every endpoint as it is now, in serving order.
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
     scope_switch: Arc<ScopeSwitch>,
@@ -286,6 +288,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         endpoints: endpoints_now.clone(),
     });
     let faults = Faults::new();
+    let scope_faults = Faults::layered(faults.clone());
     let mut running = Vec::new();
     let mut endpoints = Vec::new();
     let mut slot = 0u16;
@@ -309,7 +312,11 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             }
             let server_options = ServerOptions {
                 max_message_size: options.max_message_size,
-                faults: faults.clone(),
+                faults: if s.name == "scope" {
+                    scope_faults.clone()
+                } else {
+                    faults.clone()
+                },
             };
             let failed = |source| LabError::Server {
                 instrument: s.name.to_string(),
@@ -363,6 +370,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         control: control_server.local_addr(),
         _control: control_server,
         faults,
+        scope_faults,
         endpoints: endpoints_now,
         scope_switch,
         _running: running,

@@ -1,23 +1,22 @@
 //! The `mock-lab` binary: one JSON line naming every endpoint, and a clean stop on stdin EOF.
 
 mod common;
+mod process_support;
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+
+use process_support::{output_within, Spawned};
 
 #[test]
 fn serve_json_lists_every_endpoint_and_stops_on_stdin_eof() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
-        .args(["serve", "--json"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("mock-lab starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let mut child = Spawned::new(
+        Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+            .args(["serve", "--json"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped()),
+    );
+    let line = child.first_line_within(common::LIMIT);
     let listing: serde_json::Value = serde_json::from_str(&line).expect("one JSON line");
     let endpoints = listing["endpoints"].as_array().unwrap();
     let served: Vec<(&str, &str)> = endpoints
@@ -69,43 +68,29 @@ fn serve_json_lists_every_endpoint_and_stops_on_stdin_eof() {
     assert_eq!(reply, "MOCK_LAB,LOOPBACK,0,0.1\n");
     // End of stdin stops the server.
     drop(child.stdin.take());
-    let deadline = Instant::now() + common::LIMIT;
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "mock-lab did not stop on stdin EOF"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let status = child.wait_within(common::LIMIT);
     assert!(status.success());
 }
 
 #[test]
 fn bad_options_fail_with_a_message() {
-    let out = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
-        .args(["serve", "--max-message-size", "10"])
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
+    let out = output_within(
+        Command::new(env!("CARGO_BIN_EXE_mock-lab")).args(["serve", "--max-message-size", "10"]),
+        common::LIMIT,
+    );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--max-message-size"));
 }
 
 #[test]
 fn ignore_stdin_keeps_serving_after_stdin_closes() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
-        .args(["serve", "--json", "--ignore-stdin"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("mock-lab starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let mut child = Spawned::new(
+        Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+            .args(["serve", "--json", "--ignore-stdin"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped()),
+    );
+    let line = child.first_line_within(common::LIMIT);
     let listing: serde_json::Value = serde_json::from_str(&line).unwrap();
     let raw = listing["endpoints"][0]["address"]
         .as_str()
@@ -119,44 +104,28 @@ fn ignore_stdin_keeps_serving_after_stdin_closes() {
     BufReader::new(&s).read_line(&mut reply).unwrap();
     assert_eq!(reply, "1\n");
     assert!(child.try_wait().unwrap().is_none(), "still running");
-    child.kill().unwrap();
-    child.wait().unwrap();
 }
 
-/// A spawned `mock-lab serve --json` that is killed if the test ends early.
+/// A spawned `mock-lab serve --json`, killed if the test ends early.
 struct Served {
-    child: std::process::Child,
+    child: Spawned,
     listing: serde_json::Value,
 }
 
 impl Served {
     fn start(args: &[&str]) -> Served {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
-            .arg("serve")
-            .arg("--json")
-            .args(args)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mock-lab starts");
-        let stdout = child.stdout.take().unwrap();
-        // Read the first line on a thread so the wait is bounded.
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut line);
-            let _ = tx.send(line);
-        });
-        let mut served = Served {
-            child,
-            listing: serde_json::Value::Null,
-        };
-        let line = rx
-            .recv_timeout(common::LIMIT)
-            .expect("endpoints printed in time");
-        served.listing = serde_json::from_str(&line).expect("one JSON line");
-        served
+        let mut child = Spawned::new(
+            Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+                .arg("serve")
+                .arg("--json")
+                .args(args)
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null()),
+        );
+        let line = child.first_line_within(common::LIMIT);
+        let listing = serde_json::from_str(&line).expect("one JSON line");
+        Served { child, listing }
     }
 
     fn endpoint(&self, instrument: &str, transport: &str) -> serde_json::Value {
@@ -177,21 +146,7 @@ impl Served {
 
     /// Waits (bounded) for the process to end; its exit status.
     fn wait(mut self) -> std::process::ExitStatus {
-        let deadline = Instant::now() + common::LIMIT;
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                return status;
-            }
-            assert!(Instant::now() < deadline, "mock-lab did not stop in time");
-            std::thread::sleep(Duration::from_millis(10));
-        }
-    }
-}
-
-impl Drop for Served {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.child.wait_within(common::LIMIT)
     }
 }
 
@@ -240,13 +195,12 @@ fn the_scopes_other_endpoint_is_marked_inactive_and_refuses_at_once() {
 
 /// Runs `mock-lab serve ARGS` expecting it to refuse at once; (exit code, stderr).
 fn refused(args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_mock-lab"))
-        .arg("serve")
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .output()
-        .unwrap();
+    let out = output_within(
+        Command::new(env!("CARGO_BIN_EXE_mock-lab"))
+            .arg("serve")
+            .args(args),
+        common::LIMIT,
+    );
     (
         out.status.code(),
         String::from_utf8_lossy(&out.stderr).into_owned(),

@@ -138,44 +138,71 @@ fn over_temperature_trips_and_reads_back() {
 }
 
 #[test]
-fn protocol_errors() {
-    let t = tx();
-    assert_eq!(t.line("R 42"), "ERR 2 unknown register: no register 0x42");
-    assert!(t
-        .line("W 01 0001")
-        .starts_with("ERR 3 register is read-only: STATUS"));
-    assert!(t.line("W 03 0040").starts_with("ERR 4 value out of range"));
-    assert!(t.line("W 03").starts_with("ERR 1 syntax error"));
-    assert!(t.line("R xyz").starts_with("ERR 1 syntax error"));
-    assert!(t.line("W 03 12345").starts_with("ERR 1 syntax error"));
-    assert!(t.line("").starts_with("ERR 1"));
+fn an_unknown_register_is_refused() {
     assert_eq!(
-        t.line("r 0x03\r\n"),
-        "OK 003F",
-        "case, 0x prefix and CR LF are accepted"
+        tx().line("R 42"),
+        "ERR 2 unknown register: no register 0x42"
     );
 }
 
 #[test]
-fn crc_framing() {
+fn a_read_only_register_is_refused() {
+    assert!(tx()
+        .line("W 01 0001")
+        .starts_with("ERR 3 register is read-only: STATUS"));
+}
+
+#[test]
+fn a_value_out_of_the_register_range_is_refused() {
+    assert!(tx()
+        .line("W 03 0040")
+        .starts_with("ERR 4 value out of range"));
+}
+
+#[test]
+fn malformed_requests_are_syntax_errors() {
     let t = tx();
-    let p = t.model().protocol.clone();
-    let framed = |body: &str| {
-        format!(
-            "{body}*{:02X}",
-            crc8(body.as_bytes(), p.crc_poly, p.crc_init)
-        )
-    };
+    for line in ["W 03", "R xyz", "W 03 12345", ""] {
+        assert!(t.line(line).starts_with("ERR 1"), "{line:?}");
+    }
+}
+
+#[test]
+fn case_hex_prefix_and_crlf_are_accepted() {
+    assert_eq!(tx().line("r 0x03\r\n"), "OK 003F");
+}
+
+/// `body*<hh>` with the module's CRC-8.
+fn framed(m: &Gotmic, body: &str) -> String {
+    let p = &m.model().protocol;
+    format!(
+        "{body}*{:02X}",
+        crc8(body.as_bytes(), p.crc_poly, p.crc_init)
+    )
+}
+
+#[test]
+fn crc_on_frames_replies_and_refuses_unframed_requests() {
+    let t = tx();
+    let framed = |body: &str| framed(&t, body);
     assert_eq!(t.line("CRC ON"), "OK");
     assert_eq!(t.line(&framed("R 03")), framed("OK 003F"));
     let missing = t.line("R 03");
     assert!(missing.starts_with("ERR 6 CRC mismatch"), "{missing}");
     let (body, sum) = missing.rsplit_once('*').unwrap();
     assert_eq!(
-        u8::from_str_radix(sum, 16).unwrap(),
-        crc8(body.as_bytes(), p.crc_poly, p.crc_init)
+        framed(body),
+        missing,
+        "the refusal carries its own CRC: {sum}"
     );
     assert!(t.line("R 03*00").starts_with("ERR 6"));
+}
+
+#[test]
+fn crc_off_returns_to_plain_lines() {
+    let t = tx();
+    let framed = |body: &str| framed(&t, body);
+    assert_eq!(t.line("CRC ON"), "OK");
     assert_eq!(t.line(&framed("CRC OFF")), framed("OK"));
     assert_eq!(t.line("R 03"), "OK 003F");
 }

@@ -292,9 +292,8 @@ fn force_trigger_acquires_without_a_marker() {
 }
 
 #[test]
-fn vbs_reads_and_blocking_acquire() {
-    let signal = Arc::new(TestSignal::new(false, 1e9, 0.1));
-    let scope = scope_with(signal.clone());
+fn vbs_sample_rate_adapts_to_the_fixed_rate_and_flags_vab() {
+    let scope = scope_with(Arc::new(TestSignal::new(false, 1e9, 0.1)));
     send(&*scope, "CHDR SHORT");
     send(
         &*scope,
@@ -316,6 +315,11 @@ fn vbs_reads_and_blocking_acquire() {
         0,
         "VAB"
     );
+}
+
+#[test]
+fn vbs_horizontal_scale_sets_the_points() {
+    let scope = scope_with(Arc::new(TestSignal::new(false, 1e9, 0.1)));
     send(&*scope, "CHDR OFF");
     send(&*scope, "VBS 'app.Acquisition.Horizontal.HorScale = 1e-9'");
     assert_eq!(
@@ -325,9 +329,24 @@ fn vbs_reads_and_blocking_acquire() {
         ),
         "800"
     );
+}
+
+#[test]
+fn vbs_trigger_settings_reach_the_legacy_commands() {
+    let scope = scope_with(Arc::new(TestSignal::new(false, 1e9, 0.1)));
+    send(&*scope, "CHDR OFF");
     send(&*scope, "VBS 'app.Acquisition.Trigger.Source = \"Ext\"';VBS 'app.Acquisition.Trigger.Edge.Level = 0.25'");
     assert_eq!(q(&*scope, "EX:TRLV?"), "2.50E-01 V");
     assert_eq!(q(&*scope, "TRSE?"), "EDGE,SR,EX,HT,OFF");
+}
+
+#[test]
+fn vbs_acquire_without_a_marker_times_out_and_forcing_still_records() {
+    let scope = scope_with(Arc::new(TestSignal::new(false, 1e9, 0.1)));
+    send(
+        &*scope,
+        "CHDR OFF;VBS 'app.Acquisition.Horizontal.HorScale = 1e-9'",
+    );
     assert_eq!(
         q(
             &*scope,
@@ -346,6 +365,16 @@ fn vbs_reads_and_blocking_acquire() {
         q(&*scope, "INR?").parse::<u32>().unwrap() & 1,
         1,
         "forced acquisition exists"
+    );
+}
+
+#[test]
+fn vbs_acquire_with_a_marker_triggers_and_stops() {
+    let signal = Arc::new(TestSignal::new(false, 1e9, 0.1));
+    let scope = scope_with(signal.clone());
+    send(
+        &*scope,
+        "CHDR OFF;VBS 'app.Acquisition.Horizontal.HorScale = 1e-9'",
     );
     signal.set_marker(true);
     assert_eq!(
@@ -375,31 +404,54 @@ fn response_headers_follow_comm_header() {
     assert_eq!(q(&*scope, "CFMT?;CORD?"), "CFMT DEF9,BYTE,BIN;CORD HI");
 }
 
-#[test]
-fn errors_set_cmr_and_exr() {
+/// A scope with response headers off.
+fn plain_scope() -> Arc<Lecroy> {
     let scope = scope_with(Arc::new(TestSignal::default()));
     send(&*scope, "CHDR OFF");
+    scope
+}
+
+#[test]
+fn command_errors_set_cmr_and_reading_clears_it() {
+    let scope = plain_scope();
     send(&*scope, "BOGUS 1");
     assert_eq!(q(&*scope, "CMR?"), "1");
     assert_eq!(q(&*scope, "CMR?"), "0", "reading clears");
-    send(&*scope, "C9:VDIV 0.1");
-    assert_eq!(q(&*scope, "CMR?"), "2");
-    send(&*scope, "TRMD SOMETIMES");
-    assert_eq!(q(&*scope, "CMR?"), "5");
-    send(&*scope, "TDIV fast");
-    assert_eq!(q(&*scope, "CMR?"), "3");
+    for (command, code) in [
+        ("C9:VDIV 0.1", "2"),
+        ("TRMD SOMETIMES", "5"),
+        ("TDIV fast", "3"),
+    ] {
+        send(&*scope, command);
+        assert_eq!(q(&*scope, "CMR?"), code, "{command}");
+    }
+}
+
+#[test]
+fn execution_errors_set_exr() {
+    let scope = plain_scope();
+    for (command, code) in [
+        ("CFMT IND0,WORD,BIN", "26"),
+        ("VBS 'app.Display.GridMode = \"Dual\"'", "26"),
+        ("EX:WF? ALL", "22"),
+    ] {
+        send(&*scope, command);
+        assert_eq!(q(&*scope, "EXR?"), code, "{command}");
+    }
+}
+
+#[test]
+fn command_and_execution_errors_set_their_esr_bits() {
+    let scope = plain_scope();
+    send(&*scope, "BOGUS 1");
     send(&*scope, "CFMT IND0,WORD,BIN");
-    assert_eq!(q(&*scope, "EXR?"), "26");
-    send(&*scope, "VBS 'app.Display.GridMode = \"Dual\"'");
-    assert_eq!(q(&*scope, "EXR?"), "26");
-    send(&*scope, "EX:WF? ALL");
-    assert_eq!(q(&*scope, "EXR?"), "22");
     assert_eq!(q(&*scope, "*ESR?"), "48", "CME and EXE");
-    assert_eq!(
-        q(&*scope, "BOGUS;*IDN?"),
-        "",
-        "a command error abandons the message"
-    );
+}
+
+#[test]
+fn a_command_error_abandons_the_message() {
+    let scope = plain_scope();
+    assert_eq!(q(&*scope, "BOGUS;*IDN?"), "");
 }
 
 #[test]

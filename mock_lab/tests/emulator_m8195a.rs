@@ -206,13 +206,19 @@ fn raster_outside_the_catalog_range_is_refused() {
     assert_eq!(awg.playback().dac_rate, 65e9);
 }
 
-#[test]
-fn granularity_and_minimum_length_follow_the_divider() {
+/// DCM at DIV4 with both signal channels in extended memory.
+fn dcm_div4() -> M8195a {
     let awg = awg();
     send(
         &awg,
         b":INST:DACM DCM;:INST:MEM:EXT:RDIV DIV4;:TRAC2:MMOD EXT",
     );
+    awg
+}
+
+#[test]
+fn at_div4_segments_need_the_granularity_and_the_minimum_length() {
+    let awg = dcm_div4();
     send(&awg, b":TRAC1:DEF 1,1000");
     send(&awg, b":TRAC1:DEF 1,256");
     send(&awg, b":TRAC1:DEF 1,320");
@@ -222,20 +228,26 @@ fn granularity_and_minimum_length_follow_the_divider() {
         "1,320",
         "defined on every extended channel"
     );
+}
+
+#[test]
+fn a_segment_cannot_be_defined_twice() {
+    let awg = dcm_div4();
+    send(&awg, b":TRAC1:DEF 1,320");
     send(&awg, b":TRAC1:DEF 1,320");
     assert_eq!(error_codes(&awg), [-221]);
+}
 
+#[test]
+fn a_divider_change_clears_extended_memory_and_brings_its_own_rules() {
+    let awg = dcm_div4();
+    send(&awg, b":TRAC1:DEF 1,320");
     send(&awg, b":INST:MEM:EXT:RDIV DIV1");
-    assert_eq!(
-        q(&awg, ":TRAC1:CAT?"),
-        "0,0",
-        "a divider change clears extended memory"
-    );
+    assert_eq!(q(&awg, ":TRAC1:CAT?"), "0,0");
     send(&awg, b":TRAC1:DEF 1,1024");
     send(&awg, b":TRAC1:DEF 1,1280");
-    assert_eq!(error_codes(&awg), [-222]);
-    let pending = awg.pending_errors();
-    assert!(pending.is_empty());
+    assert_eq!(error_codes(&awg), [-222], "1024 is below DIV1's minimum");
+    assert!(awg.pending_errors().is_empty());
 }
 
 #[test]
@@ -250,40 +262,92 @@ fn error_texts_say_what_is_allowed() {
     assert!(reply.contains("granularity 64"), "{reply}");
 }
 
-#[test]
-fn downloads_beyond_the_segment_or_at_odd_offsets_are_refused() {
+/// FOUR mode with a 1280-sample segment 1 on channel 1.
+fn one_segment() -> M8195a {
     let awg = awg();
     send(&awg, b":INST:DACM FOUR;:TRAC1:DEF 1,1280");
-    let mut msg = b":TRAC1:DATA 1,1024,".to_vec();
-    msg.extend(block(&[0u8; 512]));
-    send(&awg, &msg);
-    let mut msg = b":TRAC1:DATA 1,100,".to_vec();
-    msg.extend(block(&[0u8; 4]));
-    send(&awg, &msg);
-    send(&awg, b":TRAC1:DATA 2,0,#11\x00");
+    awg
+}
+
+/// `:TRAC1:DATA <id>,<offset>,<block>`.
+fn download(awg: &M8195a, id: u32, offset: u64, payload: &[u8]) {
+    let mut msg = format!(":TRAC1:DATA {id},{offset},").into_bytes();
+    msg.extend(block(payload));
+    send(awg, &msg);
+}
+
+#[test]
+fn a_download_past_the_segment_end_is_too_much_data() {
+    let awg = one_segment();
+    download(&awg, 1, 1024, &[0u8; 512]);
+    assert_eq!(error_codes(&awg), [-223]);
+}
+
+#[test]
+fn a_download_at_an_offset_off_the_granularity_is_refused() {
+    let awg = one_segment();
+    download(&awg, 1, 100, &[0u8; 4]);
+    assert_eq!(error_codes(&awg), [-222]);
+}
+
+#[test]
+fn a_download_to_an_undefined_segment_is_refused() {
+    let awg = one_segment();
+    download(&awg, 2, 0, &[0u8]);
+    assert_eq!(error_codes(&awg), [-222]);
+}
+
+#[test]
+fn ascii_download_values_must_be_bytes() {
+    let awg = one_segment();
     send(&awg, b":TRAC1:DATA 1,0,1,2,300");
-    assert_eq!(error_codes(&awg), [-223, -222, -222, -222]);
+    assert_eq!(error_codes(&awg), [-222]);
+}
+
+#[test]
+fn ascii_downloads_read_back() {
+    let awg = one_segment();
     send(&awg, b":TRAC1:DATA 1,0,1,-2,127");
     assert_eq!(error_codes(&awg), Vec::<i32>::new());
     assert_eq!(q(&awg, ":TRAC1:DATA? 1,0,3"), "1,-2,127");
 }
 
-#[test]
-fn output_and_run_need_a_waveform() {
+/// DCM with channel 2 in extended memory, and nothing loaded.
+fn dcm() -> M8195a {
     let awg = awg();
     send(&awg, b":INST:DACM DCM;:TRAC2:MMOD EXT");
+    awg
+}
+
+/// DCM playing segment 1 with its outputs on.
+fn dcm_running() -> M8195a {
+    let awg = dcm();
+    send(&awg, b":TRAC1:DEF 1,1280;:TRAC1:SEL 1");
+    send(&awg, b":OUTP1 ON;:OUTP3 ON;:OUTP2 OFF;:INIT:IMM");
+    awg
+}
+
+#[test]
+fn outputs_and_run_are_refused_without_a_waveform() {
+    let awg = dcm();
     send(&awg, b":OUTP1 ON");
     send(&awg, b":OUTP3 ON");
     send(&awg, b":INIT:IMM");
     assert_eq!(error_codes(&awg), [-221, -221, -221]);
     let play = awg.playback();
     assert!(!play.running && play.channels.iter().all(|c| !c.output_on));
+}
 
-    send(&awg, b":TRAC1:DEF 1,1280;:TRAC1:SEL 1");
-    send(&awg, b":OUTP1 ON;:OUTP3 ON;:OUTP2 OFF;:INIT:IMM");
+#[test]
+fn with_a_waveform_outputs_and_run_are_accepted() {
+    let awg = dcm_running();
     assert_eq!(error_codes(&awg), Vec::<i32>::new());
     assert!(awg.playback().running);
-    // While running, the memory layout cannot change.
+}
+
+#[test]
+fn while_running_the_memory_layout_cannot_change() {
+    let awg = dcm_running();
     send(&awg, b":TRAC1:DEL:ALL");
     send(&awg, b":INST:DACM FOUR");
     assert_eq!(error_codes(&awg), [-221, -221]);

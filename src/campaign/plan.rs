@@ -305,6 +305,8 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
             reference_range_m: None,
             measured_at: None,
         }),
+        lines: Default::default(),
+        path: PathBuf::from("(built-in mock lab)"),
     }
 }
 

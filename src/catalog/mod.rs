@@ -8,7 +8,7 @@
 
 mod error;
 mod identity;
-mod locate;
+pub mod locate;
 mod schema;
 mod validate;
 

@@ -33,6 +33,10 @@ pub struct Args {
     /// Explicit permit to switch on the AWG outputs and the Tx/Rx front ends for this capture.
     #[arg(long)]
     pub allow_rf: bool,
+    /// Write into an --out folder that holds files already (they are replaced; the command says
+    /// which).
+    #[arg(long)]
+    pub force: bool,
     /// Leave the transmitter off (noise-floor and leakage checks); needs --allow-rf for the rest.
     #[arg(long)]
     pub tx_off: bool,
@@ -114,6 +118,57 @@ pub fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport
     })
 }
 
+/// Checks the output folder before anything radiates: a new or empty folder is created and
+/// written to; one that holds files needs `force` (the files it holds are listed in the message,
+/// or printed as replaced). A file, or a folder that cannot be written, is bad input.
+pub fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
+    if out.exists() && !out.is_dir() {
+        return Err(bad_input(format!(
+            "--out {}: is a file; give a folder (it is created when missing)",
+            out.display()
+        )));
+    }
+    if out.is_dir() {
+        let mut held: Vec<String> = std::fs::read_dir(out)
+            .map_err(|e| bad_input(format!("--out {}: cannot read it: {e}", out.display())))?
+            .filter_map(Result::ok)
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with('.'))
+            .collect();
+        held.sort();
+        if !held.is_empty() {
+            let list = held.join(", ");
+            if !force {
+                return Err(bad_input(format!(
+                    "--out {}: holds files already ({list}); give a new folder, or --force to \
+                     replace them",
+                    out.display()
+                )));
+            }
+            eprintln!(
+                "--force: files in {} are replaced where this capture writes the same names ({list})",
+                out.display()
+            );
+        }
+    }
+    std::fs::create_dir_all(out)
+        .map_err(|e| bad_input(format!("--out {}: cannot create it: {e}", out.display())))?;
+    // A folder that cannot be written must not cost a capture: try before RF goes on.
+    let probe = out.join(format!(".radbench-write-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .and_then(|_| std::fs::remove_file(&probe))
+        .map_err(|e| {
+            bad_input(format!(
+                "--out {}: cannot write into it: {e}",
+                out.display()
+            ))
+        })?;
+    Ok(())
+}
+
 /// The default output folder: `runs/<UTC time>-<name>`.
 pub fn default_out(name: &str) -> PathBuf {
     let stamp = crate::storage::sigmf::utc_now_rfc3339()
@@ -139,6 +194,8 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?;
+    let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
+    prepare_out(&out, args.force)?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
@@ -169,7 +226,6 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         &interrupt,
     )
     .await?;
-    let out = args.out.clone().unwrap_or_else(|| default_out(m.tx.name()));
     let provenance = Provenance {
         bench_file: bench.path.clone(),
         simulated: bench.is_simulated(),

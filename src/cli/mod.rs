@@ -16,6 +16,7 @@ pub mod capture;
 pub mod exit_code;
 pub mod idn;
 pub mod mock_lab;
+pub mod process;
 pub mod progress;
 pub mod recording;
 pub mod scpi;
@@ -51,6 +52,9 @@ pub enum Command {
     Capture(Box<capture::Args>),
     /// Measurement campaigns: run a spec into a run folder, resume, new, report, thesis-lab.
     Campaign(campaign::Args),
+    /// Process saved captures again: capture folders, SigMF recordings or .trc pairs, with the
+    /// options they were captured with or any others, in parallel.
+    Process(Box<process::Args>),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -81,6 +85,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Capture(args) => capture::run(*args, &global),
         Command::Campaign(args) => campaign::run(args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
+        Command::Process(args) => process::run(*args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
         Command::Trc(args) => trc::run(args, &global),

@@ -86,7 +86,13 @@ pub struct BerArgs {
     /// Seed of the bits and the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Draw BER against Eb/N0 with theory to FILE.svg or FILE.png.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
 }
+
+/// Most bits one Eb/N0 point may ask for: 100 million take about a minute per point on one core.
+const MAX_BER_BITS: usize = 100_000_000;
 
 pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     match args.command {
@@ -151,10 +157,34 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
 }
 
 fn run_ber(a: BerArgs) -> anyhow::Result<()> {
-    if a.bits < 1000 {
-        return Err(bad_input("--bits: must be at least 1000 per Eb/N0 point"));
+    if !(1000..=MAX_BER_BITS).contains(&a.bits) {
+        return Err(bad_input(format!(
+            "--bits {}: allowed 1000 ..= {MAX_BER_BITS} bits per Eb/N0 point (100 million take \
+             about a minute per point on one core)",
+            a.bits
+        )));
     }
-    let curves = ber::run_curves(a.bits, a.seed)?;
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) && !a.json {
+        indicatif::ProgressBar::with_draw_target(None, indicatif::ProgressDrawTarget::stderr())
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} Eb/N0 points, eta {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let curves = ber::run_curves(a.bits, a.seed, &|done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    if let Some(path) = &a.plot {
+        crate::storage::plot::draw_ber(
+            path,
+            "Bit-error rate against Eb/N0 (AWGN), measured and theory",
+            &ber::plot_series(&curves),
+        )?;
+    }
     if a.json {
         println!(
             "{}",

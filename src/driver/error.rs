@@ -2,18 +2,10 @@
 //! knows whether to fix the settings (exit 2), look at the bench (exit 3), or retry.
 
 use crate::exit::{Classify, ExitClass};
-use crate::session::{DeviceError, SessionError};
+use crate::session::{DeviceError, ErrorList, SessionError};
 use crate::transport::ErrorKind;
 
 use crate::trc::TrcError;
-
-fn join(errors: &[DeviceError]) -> String {
-    errors
-        .iter()
-        .map(ToString::to_string)
-        .collect::<Vec<_>>()
-        .join("; ")
-}
 
 /// Everything a driver operation can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -39,7 +31,7 @@ pub enum DriverError {
     Catalog { key: String, reason: String },
     /// The instrument's error queue held entries after a batch of commands (code and text as the
     /// instrument gave them).
-    #[error("{instrument} refused {batch}: {}", join(.errors))]
+    #[error("{instrument} refused {batch}: {}", ErrorList(.errors))]
     Refused {
         instrument: String,
         batch: String,
@@ -122,6 +114,14 @@ pub enum DriverError {
     /// Operations called in an order the driver cannot serve (a program error, not a user one).
     #[error("{instrument}: {what}")]
     Sequence { instrument: String, what: String },
+}
+
+/// Wraps a session error with the instrument's name: `.map_err(session(name))`.
+pub fn session(instrument: &str) -> impl Fn(SessionError) -> DriverError + '_ {
+    move |source| DriverError::Session {
+        instrument: instrument.to_string(),
+        source: Box::new(source),
+    }
 }
 
 impl DriverError {

@@ -10,7 +10,7 @@ use std::pin::Pin;
 use std::time::Duration;
 
 use crate::address::Resource;
-use crate::catalog::TimeoutPolicy;
+use crate::catalog::{InstrumentModel, TimeoutPolicy};
 use crate::session::{Block, BlockForm, DeviceError, Session, SessionError, SessionOptions};
 use crate::transport::{Journal, LinkOptions, Timeouts};
 
@@ -70,13 +70,7 @@ impl InstrumentIo for Session {
         query: &'a str,
         timeout: Duration,
     ) -> BoxFuture<'a, Result<String, SessionError>> {
-        Box::pin(async move {
-            let before = self.link_options_mut().timeouts.read;
-            self.link_options_mut().timeouts.read = timeout;
-            let result = Session::query(self, query).await;
-            self.link_options_mut().timeouts.read = before;
-            result
-        })
+        Box::pin(Session::query_within(self, query, timeout))
     }
 
     fn write_block<'a>(
@@ -119,12 +113,58 @@ pub fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
     }
 }
 
-/// Session options for a model: its timeouts and `error_query` (the SCPI error queue for SCPI
-/// instruments; drivers of instruments without one never call [`InstrumentIo::errors`]).
-pub fn session_options(policy: &TimeoutPolicy, error_query: &str) -> SessionOptions {
+/// Headroom over a model's largest data message, for headers, prefixes and text replies.
+pub const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
+
+/// The longest line of a line-protocol module (`[protocol]`): its replies are tens of bytes.
+pub const LINE_MESSAGE_BYTES: usize = 64 << 10;
+
+/// The largest message a driver exchanges with `model`, from its catalog limits, so a peer that
+/// never ends a message is stopped early (docs/io-timeouts.md): for an AWG, one download chunk
+/// (two bytes per sample when the marker is interleaved); for a digitizer, one channel's record
+/// in 16-bit words plus its WAVEDESC; each plus [`MESSAGE_HEADROOM_BYTES`]. A line-protocol
+/// module gets [`LINE_MESSAGE_BYTES`]; anything else the link's default.
+pub fn max_message_bytes(model: &InstrumentModel) -> usize {
+    let default = LinkOptions::default().max_message_bytes;
+    if model.protocol.is_some() {
+        return LINE_MESSAGE_BYTES.min(default);
+    }
+    let data = if let Some(awg) = &model.awg {
+        let granularity = awg
+            .dividers
+            .iter()
+            .map(|d| d.granularity)
+            .max()
+            .unwrap_or(1);
+        Some(
+            awg.download_chunk_samples
+                .max(granularity)
+                .saturating_mul(2),
+        )
+    } else {
+        model.digitizer.as_ref().map(|d| {
+            d.max_points_per_channel
+                .saturating_mul(2)
+                .saturating_add(u64::from(d.wavedesc_bytes))
+        })
+    };
+    match data {
+        Some(bytes) => usize::try_from(bytes)
+            .unwrap_or(usize::MAX)
+            .saturating_add(MESSAGE_HEADROOM_BYTES)
+            .min(default),
+        None => default,
+    }
+}
+
+/// Session options for a model: its timeouts, its largest message ([`max_message_bytes`]) and
+/// `error_query` (the SCPI error queue for SCPI instruments; drivers of instruments without one
+/// never call [`InstrumentIo::errors`]).
+pub fn session_options(model: &InstrumentModel, error_query: &str) -> SessionOptions {
     SessionOptions {
         link: LinkOptions {
-            timeouts: timeouts_from_catalog(policy),
+            timeouts: timeouts_from_catalog(&model.timeouts),
+            max_message_bytes: max_message_bytes(model),
             ..LinkOptions::default()
         },
         error_query: error_query.to_string(),
@@ -132,17 +172,18 @@ pub fn session_options(policy: &TimeoutPolicy, error_query: &str) -> SessionOpti
     }
 }
 
-/// Opens a session to `resource` with the model's timeouts, journalled under `instrument`.
+/// Opens a session to `resource` with the model's timeouts and message limit, journalled under
+/// `instrument`.
 pub async fn open_session(
     resource: Resource,
-    policy: &TimeoutPolicy,
+    model: &InstrumentModel,
     error_query: &str,
     journal: Option<Journal>,
     instrument: &str,
 ) -> Result<Session, SessionError> {
     Session::open(
         resource,
-        session_options(policy, error_query),
+        session_options(model, error_query),
         journal,
         instrument,
     )
@@ -167,5 +208,22 @@ mod tests {
         assert_eq!(t.min_rate_bytes_per_s, 2_000_000);
         // One megabyte is allowed exactly the catalog's per-megabyte time.
         assert_eq!(t.allowance_for(1_000_000), Duration::from_millis(500));
+    }
+
+    #[test]
+    fn message_limits_follow_the_catalog() {
+        let catalog = crate::catalog::Catalog::embedded().unwrap();
+        let awg = catalog.get("keysight-m8195a").unwrap();
+        // 512 000 samples a chunk, sample and marker byte each: 1 024 000 bytes, plus headroom.
+        assert_eq!(max_message_bytes(awg), 1_024_000 + (1 << 20));
+        let scope = catalog.get("lecroy-labmaster10zi-a").unwrap();
+        // 32 Mpoints in 16-bit words plus the 346-byte WAVEDESC, plus headroom.
+        assert_eq!(max_message_bytes(scope), 64_000_346 + (1 << 20));
+        let tx = catalog.get("gotmic-eband-tx").unwrap();
+        assert_eq!(max_message_bytes(tx), 64 << 10);
+        assert_eq!(
+            session_options(scope, "CMR?").link.max_message_bytes,
+            max_message_bytes(scope)
+        );
     }
 }

@@ -3,7 +3,10 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`capability`] | the traits [`Awg`], [`Digitizer`], [`RfFrontEnd`] and their plain-data settings |
-//! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session` |
+//! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
+//! | [`scpi`] | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
+//! | [`identity`] | `*IDN?` checked against the catalog model |
+//! | [`limits`] | settings checked against the catalog's limits before anything is sent |
 //! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
 //! | [`m8195a`] | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot, WAVEDESC, `.trc` |
@@ -36,20 +39,24 @@
 //! # Adding an instrument model
 //!
 //! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
-//! with the same register protocol) needs only a catalog file in `instruments/`. A new command
-//! set needs a driver module here: a `commands.rs` with every spelling, pure checks against the
-//! catalog before any I/O, an implementation of the capability trait, tests with [`Scripted`] that
-//! pin each operation's command sequence, and tests against its mock_lab emulator.
+//! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
+//! scope model with data only", walks through one (`tests/driver_second_scope.rs` does it). A new
+//! command set needs a driver module here: a `commands.rs` with every spelling, pure checks
+//! against the catalog before any I/O ([`limits`]), the session through [`Scpi`], an
+//! implementation of the capability trait, tests with [`Scripted`] that pin each operation's
+//! command sequence, and tests against its mock_lab emulator.
 
 pub mod capability;
-pub mod common;
 pub mod error;
 pub mod gotmic;
+pub mod identity;
 pub mod io;
 pub mod lecroy;
+pub mod limits;
 pub mod m8195a;
 pub mod permit;
 pub mod safe_state;
+pub mod scpi;
 pub mod scripted;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
@@ -71,4 +78,5 @@ pub use safe_state::{
     clear_panic_safe_state, install_panic_hook, run_guarded, set_panic_safe_state, Outcome,
     SafeState, SafeStateGuard, SafeStateReport,
 };
+pub use scpi::Scpi;
 pub use scripted::{ScriptLog, Scripted};

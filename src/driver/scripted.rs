@@ -14,8 +14,7 @@ use std::time::Duration;
 use bytes::Bytes;
 
 use super::io::{BoxFuture, InstrumentIo};
-use crate::session::reply::parse_block;
-use crate::session::{Block, DeviceError, SessionError};
+use crate::session::{parse_block, Block, DeviceError, SessionError};
 use crate::transport::LinkError;
 
 /// The log entry of an error-queue drain.
@@ -320,16 +319,19 @@ impl InstrumentIo for Scripted {
     }
 }
 
+/// Runs a future to completion on a fresh single-threaded runtime (the layer's unit tests).
+#[cfg(test)]
+pub(crate) fn block_on<T>(f: impl std::future::Future<Output = T>) -> T {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()
+        .expect("a test runtime")
+        .block_on(f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn block_on<T>(f: impl std::future::Future<Output = T>) -> T {
-        tokio::runtime::Builder::new_current_thread()
-            .build()
-            .unwrap()
-            .block_on(f)
-    }
 
     #[test]
     fn replies_come_in_order_and_surprises_are_loud() {

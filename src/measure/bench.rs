@@ -61,11 +61,15 @@ impl Bench {
     /// Opens the bench file, or starts the built-in mock lab (inside the runtime).
     pub async fn open(source: BenchSource) -> Result<Bench, MeasureError> {
         match source {
-            BenchSource::File(path) => Ok(Bench {
-                file: BenchFile::load(&path)?,
-                path: Some(path),
-                lab: None,
-            }),
+            BenchSource::File(path) => {
+                let file = BenchFile::load(&path)?;
+                file.check_models(&crate::catalog::Catalog::embedded()?)?;
+                Ok(Bench {
+                    file,
+                    path: Some(path),
+                    lab: None,
+                })
+            }
             BenchSource::BuiltIn(b) => {
                 let nominal_delay = b.scene.system_delay_s;
                 let remote = match b.scope {

@@ -84,6 +84,12 @@ pub struct BenchFile {
     pub simulation: Option<Simulation>,
     #[serde(default)]
     pub calibration: Option<Calibration>,
+    /// Where each `section.key` is written (1-based lines), for errors found after parsing.
+    #[serde(skip)]
+    pub lines: std::collections::BTreeMap<String, usize>,
+    /// The file this came from (for errors).
+    #[serde(skip)]
+    pub path: PathBuf,
 }
 
 /// A bench file that cannot be used.
@@ -128,7 +134,32 @@ impl BenchFile {
             path: path.to_path_buf(),
             message,
         };
-        let bench: BenchFile = toml::from_str(text).map_err(|e| invalid(e.to_string()))?;
+        let mut bench: BenchFile = toml::from_str(text).map_err(|e| invalid(e.to_string()))?;
+        let index = crate::catalog::locate::FieldIndex::new(text);
+        bench.path = path.to_path_buf();
+        for section in ["awg", "scope", "tx", "rx", "calibration", "simulation"] {
+            for key in [
+                "model",
+                "resource",
+                "volts_per_div",
+                "attenuation_db",
+                "system_delay_s",
+                "control",
+            ] {
+                let field = format!("{section}.{key}");
+                if let Some(line) = index.line_of_path(&field) {
+                    bench.lines.insert(field, line);
+                }
+            }
+        }
+        let at = |field: &str| {
+            bench
+                .lines
+                .get(field)
+                .map(|l| format!("line {l}: "))
+                .unwrap_or_default()
+        };
+        let invalid_at = |field: &str, message: String| invalid(format!("{}{message}", at(field)));
         for (section, entry) in [
             ("awg", Some(&bench.awg)),
             ("scope", Some(&bench.scope)),
@@ -137,32 +168,83 @@ impl BenchFile {
         ] {
             let Some(entry) = entry else { continue };
             entry.resource.parse::<Resource>().map_err(|e| {
-                invalid(format!("[{section}] resource = {:?}: {e}", entry.resource))
+                invalid_at(
+                    &format!("{section}.resource"),
+                    format!("[{section}] resource = {:?}: {e}", entry.resource),
+                )
             })?;
             if let Some(v) = entry.volts_per_div {
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(invalid(format!(
-                        "[{section}] volts_per_div = {v}: must be a positive number of volts"
-                    )));
+                    return Err(invalid_at(
+                        &format!("{section}.volts_per_div"),
+                        format!(
+                            "[{section}] volts_per_div = {v}: must be a positive number of volts"
+                        ),
+                    ));
                 }
             }
             if let Some(a) = entry.attenuation_db {
                 if !(a.is_finite() && a >= 0.0) {
-                    return Err(invalid(format!(
-                        "[{section}] attenuation_db = {a}: must be 0 dB or more"
-                    )));
+                    return Err(invalid_at(
+                        &format!("{section}.attenuation_db"),
+                        format!("[{section}] attenuation_db = {a}: must be 0 dB or more"),
+                    ));
                 }
             }
         }
         if let Some(c) = &bench.calibration {
             if !(c.system_delay_s.is_finite() && c.system_delay_s.abs() < 1e-6) {
-                return Err(invalid(format!(
-                    "[calibration] system_delay_s = {}: must be a finite delay under 1 us",
-                    c.system_delay_s
-                )));
+                return Err(invalid_at(
+                    "calibration.system_delay_s",
+                    format!(
+                        "[calibration] system_delay_s = {}: must be a finite delay under 1 us",
+                        c.system_delay_s
+                    ),
+                ));
             }
         }
         Ok(bench)
+    }
+
+    /// Checks that every model names an instrument of the catalog of the right kind; the error
+    /// names the file, the line and the field, and lists the models there are.
+    pub fn check_models(&self, catalog: &crate::catalog::Catalog) -> Result<(), BenchFileError> {
+        use crate::catalog::InstrumentKind;
+        for (section, entry, kind) in [
+            ("awg", Some(&self.awg), InstrumentKind::Awg),
+            ("scope", Some(&self.scope), InstrumentKind::Digitizer),
+            ("tx", self.tx.as_ref(), InstrumentKind::RfTx),
+            ("rx", self.rx.as_ref(), InstrumentKind::RfRx),
+        ] {
+            let Some(entry) = entry else { continue };
+            let line = self
+                .lines
+                .get(&format!("{section}.model"))
+                .map(|l| format!("line {l}: "))
+                .unwrap_or_default();
+            let fits: Vec<&str> = catalog
+                .models()
+                .filter(|(m, _)| m.instrument.kind == kind)
+                .map(|(m, _)| m.instrument.key.as_str())
+                .collect();
+            let model = catalog.get(&entry.model).ok();
+            if model.is_none_or(|m| m.instrument.kind != kind) {
+                return Err(BenchFileError::Invalid {
+                    path: self.path.clone(),
+                    message: format!(
+                        "{line}[{section}] model = {:?}: {}; allowed: {}",
+                        entry.model,
+                        if model.is_some() {
+                            "that model is not this kind of instrument"
+                        } else {
+                            "not in the instrument catalog"
+                        },
+                        fits.join(", ")
+                    ),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// The stored system delay, or 0 when the bench was never calibrated.

@@ -54,6 +54,15 @@ pub struct Measurement {
     /// The simulated scene of this capture (ground truth), on a simulated bench.
     pub ground_truth: Option<Value>,
     pub safe_state: SafeStateReport,
+    /// The background subtracted, if any: its file and SHA-256.
+    pub background: Option<BackgroundFile>,
+}
+
+/// A background capture as used: where it is and what it held.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BackgroundFile {
+    pub path: PathBuf,
+    pub sha256: String,
 }
 
 impl Measurement {
@@ -70,6 +79,8 @@ pub struct Prepared {
     /// `None` only while a worker thread processes with it.
     pipeline: Option<Pipeline>,
     pub background: Option<Aligned>,
+    /// The background's file, for the records.
+    pub background_file: Option<BackgroundFile>,
 }
 
 impl Prepared {
@@ -94,6 +105,7 @@ impl Prepared {
             plan: self.plan.clone(),
             pipeline: Some(pipeline),
             background: self.background.clone(),
+            background_file: self.background_file.clone(),
         })
     }
 
@@ -134,14 +146,21 @@ pub async fn prepare(
     let rate = plan.scope.sample_rate_hz;
     let geometry = RecordGeometry::for_capture(plan.period, fs, &options);
     let tx2 = tx.clone();
-    let (pipeline, background) = off_runtime(move || {
+    let (pipeline, background, background_file) = off_runtime(move || {
         let mut pipeline = Pipeline::new(tx2, options, geometry)?;
         pipeline.prepare_capture_rate(rate)?;
-        let background = match background {
-            Some(path) => Some(read_background(&mut pipeline, &path, rate)?),
-            None => None,
+        let (background, file) = match background {
+            Some(path) => {
+                let aligned = read_background(&mut pipeline, &path, rate)?;
+                let data = crate::storage::recording::sigmf_paths(&path)?.1;
+                let sha256 = crate::storage::hash::sha256_file(&data)?;
+                // Recorded absolute, so the capture can be re-processed from anywhere.
+                let path = std::fs::canonicalize(&path).unwrap_or(path);
+                (Some(aligned), Some(BackgroundFile { path, sha256 }))
+            }
+            None => (None, None),
         };
-        Ok::<_, MeasureError>((pipeline, background))
+        Ok::<_, MeasureError>((pipeline, background, file))
     })
     .await??;
     Ok(Prepared {
@@ -149,11 +168,12 @@ pub async fn prepare(
         plan,
         pipeline: Some(pipeline),
         background,
+        background_file,
     })
 }
 
 /// Reads and aligns a background capture, checking that it fits this measurement.
-fn read_background(
+pub fn read_background(
     pipeline: &mut Pipeline,
     path: &std::path::Path,
     capture_rate_hz: f64,
@@ -335,6 +355,7 @@ impl Rig {
             identities: self.station.identities.clone(),
             ground_truth,
             safe_state: report,
+            background: prepared.background_file.clone(),
         })
     }
 }
@@ -392,9 +413,9 @@ pub async fn process_with(
 /// Most repetitions one measurement takes.
 pub const MAX_REPETITIONS: usize = 1000;
 
-/// Aligns every repetition, processes each alone (when there are several) and their coherent
+/// Aligns every repetition (raw captures at the capture rate), processes each alone (when there are several) and their coherent
 /// average.
-fn process_repetitions(
+pub fn process_repetitions(
     pipeline: &mut Pipeline,
     raws: &[RawIq],
     background: Option<&Aligned>,

@@ -41,6 +41,9 @@ pub struct Detection {
     /// side-lobes are under the noise, ...).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sidelobe_note: Option<String>,
+    /// Radial velocity (range rate, positive = receding), m/s: OFDM frames of several symbols.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub velocity_mps: Option<f64>,
     /// Fractional profile cell of the target (for the payload receiver and plots).
     #[serde(skip)]
     pub cell: Option<f64>,
@@ -66,6 +69,8 @@ pub struct DetectionReport {
     pub noise_db: Option<f64>,
     /// The detector stopped at its most targets: there may be more.
     pub capped: bool,
+    /// The velocity resolution of the targets' `velocity_mps` (OFDM frames), m/s.
+    pub velocity_resolution_mps: Option<f64>,
 }
 
 /// The detector options of the processing options.
@@ -92,6 +97,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
             Sidelobes::Measured { .. } => None,
             other => Some(other.reason()),
         },
+        velocity_mps: None,
         cell: Some(t.cell),
     }
 }
@@ -119,6 +125,7 @@ pub fn detect(
                     width_3db_cm: None,
                     sidelobe_db: None,
                     sidelobe_note: None,
+                    velocity_mps: None,
                     cell: None,
                 })
                 .collect();
@@ -140,6 +147,7 @@ pub fn detect(
                 noise_db: found.noise_power.map(|p| 10.0 * p.max(1e-300).log10()),
                 capped: found.capped,
                 strongest: None,
+                velocity_resolution_mps: None,
             }
         }
         _ => {

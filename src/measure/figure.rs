@@ -179,3 +179,27 @@ pub fn profile_figure(
     };
     (plot, table)
 }
+
+/// The range-Doppler map of an OFDM frame as a heat map over the processed range, the detections
+/// marked at their velocity.
+pub fn range_doppler_figure(
+    title: String,
+    map: &crate::dsp::ofdm_radar::RangeDopplerMap,
+    targets: &[Detection],
+    options: &ProcessOptions,
+) -> crate::storage::plot::Heatmap {
+    crate::storage::plot::Heatmap {
+        title,
+        x_label: "Range (m)".into(),
+        y_label: "Radial velocity (m/s, + receding)".into(),
+        x: map.range_m.clone(),
+        y: map.velocity_mps.clone(),
+        db: map.amplitude.iter().map(|a| db(*a)).collect(),
+        x_window: (0.0_f64.min(options.min_range_m), options.max_range_m),
+        range_db: 50.0,
+        marks: targets
+            .iter()
+            .filter_map(|t| Some((t.range_m, t.velocity_mps?)))
+            .collect(),
+    }
+}

@@ -12,6 +12,7 @@
 //! | [`payload`] | the communication receivers of the pipeline |
 //! | [`station`] | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
+//! | [`reprocess`] | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
 //! | [`repeat`] | several repetitions: coherent average and spread |
 //! | [`figure`] | what a measurement's plot and profile table show |
 //! | [`record`] | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
@@ -30,6 +31,7 @@ pub mod payload;
 pub mod pipeline;
 pub mod record;
 pub mod repeat;
+pub mod reprocess;
 pub mod station;
 pub mod transmit;
 
@@ -125,6 +127,20 @@ pub enum MeasureError {
         text: String,
         source: crate::address::AddressError,
     },
+    /// The capture did not finish while RF was on within its deadline: the bench was put in its
+    /// safe state at once.
+    #[error(
+        "the capture did not finish within {seconds:.0} s of switching RF on (acquisition wait plus \
+         fetching at the catalog's slowest rate): RF was switched off at once; check the marker \
+         cable and the scope's link, or raise --wait"
+    )]
+    RfDeadline { seconds: f64 },
+    /// A saved capture does not say which waveform it holds.
+    #[error(
+        "the capture does not say which waveform it holds (radbench did not make it): give \
+         --waveform and its parameters, and --seed or --payload for its bits"
+    )]
+    NeedsWaveform,
     /// A calibration found no echo where the reference target should be.
     #[error(
         "no echo between {from_m:.3} m and {to_m:.3} m (uncalibrated): place the reference target \
@@ -165,9 +181,12 @@ impl MeasureError {
             | MeasureError::BenchFile(_)
             | MeasureError::Scene(_)
             | MeasureError::Resource { .. }
-            | MeasureError::Recording(_) => ErrorKind::FixInput,
+            | MeasureError::Recording(_)
+            | MeasureError::NeedsWaveform => ErrorKind::FixInput,
             MeasureError::Driver(e) => e.kind(),
-            MeasureError::RecordTooShort { .. } => ErrorKind::Retry,
+            MeasureError::RecordTooShort { .. } | MeasureError::RfDeadline { .. } => {
+                ErrorKind::Retry
+            }
             MeasureError::Catalog(_)
             | MeasureError::Dsp(_)
             | MeasureError::Storage(_)
@@ -191,8 +210,11 @@ impl Classify for MeasureError {
             | MeasureError::BackgroundShape { .. }
             | MeasureError::Waveform(_)
             | MeasureError::Scene(_)
-            | MeasureError::Resource { .. } => ExitClass::BadInput,
-            MeasureError::RecordTooShort { .. } | MeasureError::Lab(_) => ExitClass::Instrument,
+            | MeasureError::Resource { .. }
+            | MeasureError::NeedsWaveform => ExitClass::BadInput,
+            MeasureError::RecordTooShort { .. }
+            | MeasureError::Lab(_)
+            | MeasureError::RfDeadline { .. } => ExitClass::Instrument,
             MeasureError::NoReferenceEcho { .. } => ExitClass::Processing,
             MeasureError::RecordShorterThanWaveform { .. } | MeasureError::Worker(_) => {
                 ExitClass::Internal

@@ -221,6 +221,8 @@ pub struct ProcessOptions {
     pub pfa: f64,
     /// Targets closer than this are not separated, metres (`None`: 0.75 resolution cells).
     pub min_separation_m: Option<f64>,
+    /// RF carrier of the front ends, Hz: the velocity scale of the OFDM range-Doppler processing.
+    pub carrier_hz: f64,
     /// The AWG's I/Q amplitude (peak to peak, volts): echo levels are given relative to a path
     /// of unit voltage gain from the AWG output to the scope input. `None` (simulations): levels
     /// are relative to the transmitted waveform itself.
@@ -244,6 +246,7 @@ impl Default for ProcessOptions {
             detector: DetectorName::Clean,
             pfa: 1e-6,
             min_separation_m: None,
+            carrier_hz: 80e9,
             awg_amplitude_vpp: None,
         }
     }
@@ -255,6 +258,53 @@ impl ProcessOptions {
         Self {
             algorithm: Algorithm::default_for(waveform),
             ..Self::default()
+        }
+    }
+}
+
+/// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
+/// defaults): `None` keeps the base's value.
+#[derive(Debug, Clone, Default)]
+pub struct ProcessOverrides {
+    pub algorithm: Option<Algorithm>,
+    pub music_m: Option<usize>,
+    pub music_p: Option<Option<usize>>,
+    pub forward_backward: Option<bool>,
+    pub zero_pad: Option<usize>,
+    pub window: Option<WindowName>,
+    pub fft_precision: Option<FftPrecisionName>,
+    pub interpolate: Option<bool>,
+    pub system_delay_s: Option<f64>,
+    pub min_range_m: Option<f64>,
+    pub max_range_m: Option<f64>,
+    pub detector: Option<DetectorName>,
+    pub pfa: Option<f64>,
+    pub min_separation_m: Option<Option<f64>>,
+    pub awg_amplitude_vpp: Option<Option<f64>>,
+    /// Subtract the background the capture recorded (when it had one).
+    pub keep_background: bool,
+}
+
+impl ProcessOverrides {
+    /// `base` with every given value replaced.
+    pub fn apply(&self, base: ProcessOptions) -> ProcessOptions {
+        ProcessOptions {
+            algorithm: self.algorithm.unwrap_or(base.algorithm),
+            music_m: self.music_m.unwrap_or(base.music_m),
+            music_p: self.music_p.unwrap_or(base.music_p),
+            forward_backward: self.forward_backward.unwrap_or(base.forward_backward),
+            zero_pad: self.zero_pad.unwrap_or(base.zero_pad),
+            window: self.window.unwrap_or(base.window),
+            fft_precision: self.fft_precision.unwrap_or(base.fft_precision),
+            interpolate: self.interpolate.unwrap_or(base.interpolate),
+            system_delay_s: self.system_delay_s.unwrap_or(base.system_delay_s),
+            min_range_m: self.min_range_m.unwrap_or(base.min_range_m),
+            max_range_m: self.max_range_m.unwrap_or(base.max_range_m),
+            detector: self.detector.unwrap_or(base.detector),
+            pfa: self.pfa.unwrap_or(base.pfa),
+            min_separation_m: self.min_separation_m.unwrap_or(base.min_separation_m),
+            carrier_hz: base.carrier_hz,
+            awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
         }
     }
 }

@@ -25,7 +25,10 @@ use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
 use crate::dsp::metrics::Axis;
 use crate::dsp::music::root_music_ranges;
 use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
-use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::ofdm_radar::{
+    IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig, RangeDopplerMap,
+    RangeProfile, VelocityEstimator,
+};
 use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfiler, Profile};
 use crate::dsp::C0;
 use num_complex::Complex64;
@@ -131,6 +134,8 @@ pub struct Processed {
     /// The detection threshold per primary-profile cell (amplitude; empty for the subspace
     /// estimators), reflectors outside the range window, the noise level.
     pub detection: DetectionReport,
+    /// The range-Doppler map (OFDM frames of two symbols or more).
+    pub range_doppler: Option<RangeDopplerMap>,
     /// Things a user should check (no target, clipping, ...).
     pub warnings: Vec<String>,
     /// The capture decimated to the waveform rate and aligned to the marker (background
@@ -184,6 +189,8 @@ struct OfdmProcessor {
     music: Option<Music>,
     spectrum: MusicSpectrum,
     df_hz: f64,
+    /// Radial velocity per target from the slow time across symbols (frames of 2+ symbols).
+    velocity: Option<VelocityEstimator>,
 }
 
 /// The configured pipeline (see the module docs).
@@ -376,6 +383,15 @@ impl Pipeline {
                 } else {
                     None
                 };
+                let velocity = (symbols.symbols() >= 2)
+                    .then(|| {
+                        VelocityEstimator::new(
+                            symbols.symbols(),
+                            radar.config().symbol_period_s(),
+                            options.carrier_hz,
+                        )
+                    })
+                    .transpose()?;
                 RangeProcessor::Ofdm(Box::new(OfdmProcessor {
                     radar,
                     symbols: symbols.as_slice().to_vec(),
@@ -385,6 +401,7 @@ impl Pipeline {
                     music,
                     spectrum: MusicSpectrum::default(),
                     df_hz: generator.subcarrier_spacing_hz(),
+                    velocity,
                 }))
             }
             (alg, Modulation::MskLfm(_)) => {
@@ -658,6 +675,65 @@ impl Pipeline {
         }
     }
 
+    /// Radial velocities of the detections from the last record's slow time (OFDM frames).
+    fn velocities(
+        &mut self,
+        detection: &mut DetectionReport,
+        offset_m: f64,
+    ) -> Result<(), MeasureError> {
+        let RangeProcessor::Ofdm(o) = &mut self.range else {
+            return Ok(());
+        };
+        let Some(estimator) = &mut o.velocity else {
+            return Ok(());
+        };
+        let k_len = o.radar.config().profile_len();
+        let bin = o.radar.config().range_bin_m();
+        for t in &mut detection.targets {
+            let x = (t.range_m - offset_m) / bin;
+            t.velocity_mps =
+                Some(estimator.estimate(&o.idiv, o.radar.normalised_window(), x, k_len)?);
+        }
+        detection.velocity_resolution_mps = Some(estimator.resolution_mps());
+        Ok(())
+    }
+
+    /// The range-Doppler map of the last record (OFDM frames of 2+ symbols), ranges from the
+    /// antennas, amplitudes relative to a unit-gain path.
+    pub fn range_doppler_map(
+        &self,
+        residual_s: f64,
+    ) -> Option<Result<RangeDopplerMap, MeasureError>> {
+        let RangeProcessor::Ofdm(o) = &self.range else {
+            return None;
+        };
+        if o.idiv.symbols() < 2 {
+            return None;
+        }
+        let offset = self.offset_m(residual_s);
+        let scale = self.level_scale / o.unit;
+        Some((|| {
+            let mut rd = RangeDoppler::new(
+                o.radar.config(),
+                o.idiv.symbols(),
+                &RangeDopplerConfig {
+                    carrier_hz: self.options.carrier_hz,
+                    doppler_bins: Some((4 * o.idiv.symbols()).next_power_of_two()),
+                    ..RangeDopplerConfig::default()
+                },
+            )?;
+            let mut map = RangeDopplerMap::default();
+            rd.process(&o.idiv, &mut map)?;
+            for r in &mut map.range_m {
+                *r += offset;
+            }
+            for a in &mut map.amplitude {
+                *a *= scale;
+            }
+            Ok(map)
+        })())
+    }
+
     /// Range offset of an aligned record: the residual after the trigger minus the system delay.
     pub fn offset_m(&self, residual_s: f64) -> f64 {
         (residual_s - self.options.system_delay_s) * C0 / 2.0
@@ -677,7 +753,8 @@ impl Pipeline {
             }
             None => None,
         };
-        let detection = detect::detect(&range, &self.options, detector)?;
+        let mut detection = detect::detect(&range, &self.options, detector)?;
+        self.velocities(&mut detection, offset)?;
         Ok(Analysis { range, detection })
     }
 
@@ -718,6 +795,7 @@ impl Pipeline {
         }
         let lag = strongest.and_then(|t| t.cell);
         let payload = self.payload.decode(&aligned.samples, &self.tx, lag);
+        let range_doppler = self.range_doppler_map(aligned.residual_s).transpose()?;
         Ok(Processed {
             profiles: range.profiles,
             targets: detection.targets.clone(),
@@ -726,6 +804,7 @@ impl Pipeline {
             snr_db,
             payload,
             detection,
+            range_doppler,
             warnings,
             aligned: aligned.samples,
         })

@@ -22,13 +22,16 @@ pub struct CaptureFiles {
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
     pub plot_png: PathBuf,
+    /// The range-Doppler map (OFDM frames of two symbols or more).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_doppler_png: Option<PathBuf>,
     pub summary: PathBuf,
 }
 
 impl CaptureFiles {
     /// Every file, for manifests and hashing.
     pub fn all(&self) -> Vec<&Path> {
-        vec![
+        [
             &self.sigmf_meta,
             &self.sigmf_data,
             &self.trc[0],
@@ -39,6 +42,10 @@ impl CaptureFiles {
             &self.plot_png,
             &self.summary,
         ]
+        .into_iter()
+        .map(PathBuf::as_path)
+        .chain(self.range_doppler_png.as_deref())
+        .collect()
     }
 }
 
@@ -88,13 +95,16 @@ pub fn write_raw(
     let (i, q) = (&first.i, &first.q);
     let o = &m.options;
     let mut ns = serde_json::Map::new();
+    // The scope's f32 scaling, written as the f64 radbench computes with, so a reader gets the
+    // same volts bit for bit.
+    let f = |v: f32| f64::from(v);
     ns.insert(
         "vertical_gain".into(),
-        json!([i.desc.vertical_gain, q.desc.vertical_gain]),
+        json!([f(i.desc.vertical_gain), f(q.desc.vertical_gain)]),
     );
     ns.insert(
         "vertical_offset".into(),
-        json!([i.desc.vertical_offset, q.desc.vertical_offset]),
+        json!([f(i.desc.vertical_offset), f(q.desc.vertical_offset)]),
     );
     ns.insert("trigger_offset_s".into(), json!(i.first_sample_s()));
     // Several repetitions follow each other in the data; each keeps its own trigger offset.
@@ -108,8 +118,8 @@ pub fn write_raw(
             "sample_start": start,
             "sample_count": n,
             "trigger_offset_s": iq.i.first_sample_s(),
-            "vertical_gain": [iq.i.desc.vertical_gain, iq.q.desc.vertical_gain],
-            "vertical_offset": [iq.i.desc.vertical_offset, iq.q.desc.vertical_offset],
+            "vertical_gain": [f(iq.i.desc.vertical_gain), f(iq.q.desc.vertical_gain)],
+            "vertical_offset": [f(iq.i.desc.vertical_offset), f(iq.q.desc.vertical_offset)],
         }));
         if m.captured.iq.len() > 1 {
             annotations.push((start, n, format!("repetition {}", k + 1)));
@@ -126,6 +136,11 @@ pub fn write_raw(
         json!({"awg": m.tx.sample_rate_hz(), "scope": m.captured.applied.scope.sample_rate_hz, "processing": m.tx.sample_rate_hz()}),
     );
     ns.insert("system_delay_s".into(), json!(o.system_delay_s));
+    // One repetition at the waveform rate after the AWG's padding: the record's period.
+    ns.insert("period_samples".into(), json!(m.plan.period));
+    if let Some(bg) = &m.background {
+        ns.insert("background".into(), json!(bg));
+    }
     ns.insert("processing".into(), json!(o));
     if let Some(truth) = &m.ground_truth {
         ns.insert("scene".into(), truth.clone());
@@ -180,6 +195,11 @@ pub fn write_processed(
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),
         plot_png: out.join("profile.png"),
+        range_doppler_png: m
+            .processed
+            .range_doppler
+            .as_ref()
+            .map(|_| out.join("range_doppler.png")),
         summary: out.join("summary.json"),
     };
     let truth: Vec<f64> = m
@@ -198,6 +218,15 @@ pub fn write_processed(
     table.write(&files.profile_npy)?;
     plot::draw(&files.plot_svg, &plot)?;
     plot::draw(&files.plot_png, &plot)?;
+    if let (Some(map), Some(path)) = (&m.processed.range_doppler, &files.range_doppler_png) {
+        let fig = super::figure::range_doppler_figure(
+            format!("radbench capture: {} range-Doppler", m.tx.name()),
+            map,
+            &m.processed.targets,
+            o,
+        );
+        plot::draw_heatmap(path, &fig)?;
+    }
     let summary = summary_json(m, &files, provenance);
     write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
     Ok((files, summary))
@@ -214,8 +243,10 @@ pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenan
         "width_3db_cm": p.width_3db_cm,
         "sidelobe_db": p.sidelobe_db,
         "snr_db": p.snr_db,
+        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
         "payload": p.payload,
         "repetitions": m.captured.repetitions(),
+        "background": m.background,
         "spread": m.spread,
         "each_repetition": m.repetitions,
         "warnings": p.warnings,
@@ -229,4 +260,126 @@ pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenan
         "transmission": m.tx.describe(),
         "files": files,
     })
+}
+
+/// Where the files of one re-processed capture went.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ReprocessFiles {
+    pub dir: PathBuf,
+    pub manifest: PathBuf,
+    pub profile_csv: PathBuf,
+    pub profile_npy: PathBuf,
+    pub plot_svg: PathBuf,
+    pub plot_png: PathBuf,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_doppler_png: Option<PathBuf>,
+    pub summary: PathBuf,
+}
+
+/// A source file of a re-processing, with its SHA-256.
+#[derive(Debug, Clone, Serialize, serde::Deserialize, PartialEq)]
+pub struct SourceFile {
+    pub path: PathBuf,
+    pub sha256: String,
+}
+
+#[derive(Serialize)]
+struct ReprocessManifest<'a> {
+    radbench_version: &'a str,
+    written_at: String,
+    /// What was read (never written to).
+    sources: &'a [SourceFile],
+    processing: &'a super::options::ProcessOptions,
+}
+
+/// Writes a re-processed capture into `out` (a new folder): `manifest.toml` naming the sources
+/// with their SHA-256, the profiles, the plots and `summary.json` (same keys as a capture's).
+pub fn write_reprocessed(
+    out: &Path,
+    sources: &[SourceFile],
+    loaded: &super::reprocess::Loaded,
+    r: &super::reprocess::Reprocessed,
+) -> Result<(ReprocessFiles, Value), MeasureError> {
+    std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    crate::storage::atomic::remove_stale_temporaries(out)?;
+    let files = ReprocessFiles {
+        dir: out.to_path_buf(),
+        manifest: out.join("manifest.toml"),
+        profile_csv: out.join("profile.csv"),
+        profile_npy: out.join("profile.npy"),
+        plot_svg: out.join("profile.svg"),
+        plot_png: out.join("profile.png"),
+        range_doppler_png: r
+            .processed
+            .range_doppler
+            .as_ref()
+            .map(|_| out.join("range_doppler.png")),
+        summary: out.join("summary.json"),
+    };
+    let o = &r.resolved.options;
+    let tx = &r.resolved.tx;
+    let truth: Vec<f64> = loaded
+        .ground_truth()
+        .and_then(|s| s["targets"].as_array().cloned())
+        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
+        .unwrap_or_default();
+    let (plot, table) = super::figure::profile_figure(
+        format!("radbench process: {} {}", tx.name(), o.algorithm.name()),
+        &r.processed,
+        o,
+        truth,
+    );
+    table.write(&files.profile_csv)?;
+    table.write(&files.profile_npy)?;
+    plot::draw(&files.plot_svg, &plot)?;
+    plot::draw(&files.plot_png, &plot)?;
+    if let (Some(map), Some(path)) = (&r.processed.range_doppler, &files.range_doppler_png) {
+        let fig = super::figure::range_doppler_figure(
+            format!("radbench process: {} range-Doppler", tx.name()),
+            map,
+            &r.processed.targets,
+            o,
+        );
+        plot::draw_heatmap(path, &fig)?;
+    }
+    let manifest = ReprocessManifest {
+        radbench_version: env!("CARGO_PKG_VERSION"),
+        written_at: crate::storage::sigmf::utc_now_rfc3339(),
+        sources,
+        processing: o,
+    };
+    let text = toml::to_string(&manifest).map_err(|e| StorageError::BadData {
+        path: files.manifest.clone(),
+        reason: e.to_string(),
+    })?;
+    write_atomic(&files.manifest, text.as_bytes())?;
+    let p = &r.processed;
+    let summary = json!({
+        "waveform": tx.name(),
+        "algorithm": o.algorithm.name(),
+        "targets": p.targets,
+        "width_3db_cm": p.width_3db_cm,
+        "sidelobe_db": p.sidelobe_db,
+        "snr_db": p.snr_db,
+        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
+        "payload": p.payload,
+        "repetitions": loaded.repetitions.len(),
+        "background": r.resolved.background,
+        "spread": r.spread,
+        "each_repetition": r.repetitions,
+        "warnings": p.warnings,
+        "system_delay_s": o.system_delay_s,
+        "processing": o,
+        "radbench_version": env!("CARGO_PKG_VERSION"),
+        "simulated": loaded.ground_truth().is_some(),
+        "scene": loaded.ground_truth(),
+        "transmission": tx.describe(),
+        "sources": sources,
+        "files": files,
+    });
+    write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
+    Ok((files, summary))
 }

@@ -150,6 +150,7 @@ mod tests {
             width_3db_cm: None,
             sidelobe_db: None,
             sidelobe_note: None,
+            velocity_mps: None,
             cell: None,
         }
     }

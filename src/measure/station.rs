@@ -25,6 +25,10 @@ use num_complex::Complex64;
 use serde::Serialize;
 use std::time::Duration;
 
+/// Time allowed for enabling the front ends (serial register writes and read-backs) and starting
+/// the AWG, seconds.
+const RF_SETUP_S: f64 = 30.0;
+
 /// Bound on each step of the safe-state sequence.
 const SAFE_STEP_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -64,6 +68,19 @@ pub struct CapturePlan {
     pub period: usize,
     /// Capture samples per waveform sample (scope rate / AWG rate).
     pub decimation: usize,
+    /// Longest time RF may stay on for one repetition: the acquisition wait plus fetching both
+    /// channels at the catalog's slowest healthy rate, seconds. Past it the capture is failing
+    /// and the safe state runs at once, whatever the links would still allow.
+    pub rf_seconds_per_repetition: f64,
+    /// Enabling the front ends and starting the AWG, seconds allowed.
+    pub rf_setup_s: f64,
+}
+
+impl CapturePlan {
+    /// The RF-on deadline of `repetitions` repetitions, seconds.
+    pub fn rf_deadline_s(&self, repetitions: usize) -> f64 {
+        self.rf_setup_s + repetitions.max(1) as f64 * self.rf_seconds_per_repetition
+    }
 }
 
 /// Derives every instrument setting of a capture and checks it against the catalog; touches no
@@ -167,6 +184,10 @@ pub fn plan(
         attenuation_db: e.as_ref().and_then(|t| t.attenuation_db).unwrap_or(0.0),
         lo_frequency_hz: None,
     };
+    // Fetching one channel: the read timeout plus its bytes at the catalog's slowest rate.
+    let t = &scope_model.timeouts;
+    let channel_bytes = 2.0 * points + 1e6;
+    let fetch_s = t.read_ms as f64 / 1e3 + channel_bytes / 1e6 * t.per_megabyte_ms as f64 / 1e3;
     Ok(CapturePlan {
         awg,
         scope,
@@ -176,6 +197,8 @@ pub fn plan(
         wait_s,
         period,
         decimation: (rate / fs).round() as usize,
+        rf_seconds_per_repetition: wait_s + 2.0 * fetch_s,
+        rf_setup_s: RF_SETUP_S,
     })
 }
 
@@ -424,7 +447,13 @@ impl Station {
                 }
                 None => self.upload(tx, plan).await?,
             };
-            let acquired = self.acquire(plan, permit, repetitions).await?;
+            let deadline = plan.rf_deadline_s(repetitions);
+            let acquired = tokio::time::timeout(
+                std::time::Duration::from_secs_f64(deadline),
+                self.acquire(plan, permit, repetitions),
+            )
+            .await
+            .map_err(|_| MeasureError::RfDeadline { seconds: deadline })??;
             Ok(Captured {
                 iq: acquired.captures,
                 applied: Applied {

@@ -18,6 +18,10 @@ pub const MARKER_SAMPLES: usize = 64;
 /// Back-off of the DAC codes below full scale, dB (peak reference): no clipping.
 pub const DEFAULT_BACKOFF_DB: f64 = 0.5;
 
+/// Most samples one repetition (all pulses or frames of a payload) may hold: 64 M samples at
+/// 16 GSa/s is 4 ms, 1 GB as complex doubles.
+pub const MAX_SAMPLES: usize = 64_000_000;
+
 /// How the transmitted reference is modelled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Dac {
@@ -73,6 +77,10 @@ pub struct Transmission {
     pub bits: Vec<u8>,
     /// The user payload, if one was sent.
     pub payload: Option<Vec<u8>>,
+    /// The PRBS seed of the bits when no payload was sent.
+    pub seed: u64,
+    /// How the reference was modelled.
+    pub dac: Dac,
     /// What quantising to the DAC cost.
     pub quantised: QuantisationReport,
 }
@@ -89,6 +97,9 @@ impl Transmission {
             Some(p) => BitSource::Payload(p.to_vec()),
             None => BitSource::Prbs { seed },
         };
+        if let Some(p) = payload {
+            check_payload(spec, p.len())?;
+        }
         let (samples, bits, modulation) = match spec {
             WaveformSpec::MskLfm { .. } => {
                 let gen = MskLfm::new(spec.msk_lfm_params().expect("an MSK-LFM spec"))?;
@@ -138,6 +149,8 @@ impl Transmission {
             reference,
             bits,
             payload: payload.map(<[u8]>::to_vec),
+            seed,
+            dac,
             modulation,
         })
     }
@@ -176,6 +189,13 @@ impl Transmission {
             "payload_bytes": self.payload.as_ref().map(Vec::len),
             "quantisation": self.quantised,
             "spec": self.spec,
+            // Enough to make the same transmission again (re-processing).
+            "seed": self.seed,
+            "payload_hex": self.payload.as_ref().map(|p| hex(p)),
+            "dac": match self.dac {
+                Dac::Codes { backoff_db } => serde_json::json!({"codes": {"backoff_db": backoff_db}}),
+                Dac::Ideal => serde_json::json!("ideal"),
+            },
         });
         match &self.spec {
             WaveformSpec::MskLfm {
@@ -203,4 +223,74 @@ impl Transmission {
         }
         v
     }
+}
+
+/// A payload too long for one repetition is refused before anything is generated, naming the
+/// longest that fits.
+fn check_payload(spec: &WaveformSpec, bytes: usize) -> Result<(), MeasureError> {
+    use crate::waveform::bits::HEADER_BITS;
+    let per_unit_samples = match spec {
+        WaveformSpec::MskLfm { .. } => spec.samples_per_repetition()?,
+        WaveformSpec::Ofdm { .. } => spec.samples_per_repetition()?,
+    };
+    let bits_per_unit = match *spec {
+        WaveformSpec::MskLfm { bits_per_pulse, .. } => bits_per_pulse,
+        WaveformSpec::Ofdm {
+            subcarriers,
+            symbols,
+            preamble_symbols,
+            ..
+        } => 2 * subcarriers * symbols.saturating_sub(preamble_symbols),
+    };
+    if bits_per_unit == 0 || per_unit_samples == 0 {
+        return Ok(());
+    }
+    let units = (HEADER_BITS + 8 * bytes).div_ceil(bits_per_unit);
+    if units.saturating_mul(per_unit_samples) > MAX_SAMPLES {
+        let max_units = MAX_SAMPLES / per_unit_samples;
+        let max_bytes = (max_units * bits_per_unit).saturating_sub(HEADER_BITS) / 8;
+        return Err(MeasureError::option(
+            "payload",
+            format!("of {bytes} bytes"),
+            format!(
+                "at most {max_bytes} bytes with this {} waveform ({units} pulses or frames of \
+                 {per_unit_samples} samples would exceed {MAX_SAMPLES} samples per repetition)",
+                spec.name()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The bytes of a hex string (two digits a byte), `None` when it is not one.
+pub fn from_hex(text: &str) -> Option<Vec<u8>> {
+    if text.len() % 2 != 0 {
+        return None;
+    }
+    (0..text.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(text.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
+/// The transmission a capture's `radbench:waveform` description (from [`Transmission::describe`])
+/// was made from: spec, bits (seed or payload) and DAC model. `None` when something is missing.
+pub fn from_description(v: &serde_json::Value) -> Option<Result<Transmission, MeasureError>> {
+    let spec: WaveformSpec = serde_json::from_value(v.get("spec")?.clone()).ok()?;
+    let seed = v.get("seed")?.as_u64()?;
+    let payload = match v.get("payload_hex") {
+        Some(serde_json::Value::String(h)) => Some(from_hex(h)?),
+        _ => None,
+    };
+    let dac = match v.get("dac")? {
+        serde_json::Value::String(s) if s == "ideal" => Dac::Ideal,
+        other => Dac::Codes {
+            backoff_db: other.get("codes")?.get("backoff_db")?.as_f64()?,
+        },
+    };
+    Some(Transmission::new(&spec, payload.as_deref(), seed, dac))
 }

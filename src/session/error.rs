@@ -29,24 +29,32 @@ impl DeviceError {
     }
 }
 
-fn join(errors: &[DeviceError]) -> String {
-    errors
-        .iter()
-        .map(ToString::to_string)
-        .collect::<Vec<_>>()
-        .join("; ")
+/// Error entries as one line, `-222,"Data out of range"; -221,"Settings conflict"`.
+#[derive(Debug, Clone, Copy)]
+pub struct ErrorList<'a>(pub &'a [DeviceError]);
+
+impl fmt::Display for ErrorList<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str("; ")?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
-    #[error("{resource}: the instrument refused{}: {}", .after.as_deref().map(|c| format!(" `{c}`")).unwrap_or_default(), join(.errors))]
+    #[error("{resource}: the instrument refused{}: {}", .after.as_deref().map(|c| format!(" `{c}`")).unwrap_or_default(), ErrorList(.errors))]
     Device {
         resource: String,
         /// The command after which the errors were read, when known.
         after: Option<String>,
         errors: Vec<DeviceError>,
     },
-    #[error("{resource}: no reply to `{query}` within {}, and the instrument's error queue holds: {}. A query the instrument refuses gets no reply; if it was only slow, raise the timeout", crate::transport::Rounded(*.after), join(.errors))]
+    #[error("{resource}: no reply to `{query}` within {}, and the instrument's error queue holds: {}. A query the instrument refuses gets no reply; if it was only slow, raise the timeout", crate::transport::Rounded(*.after), ErrorList(.errors))]
     Unanswered {
         resource: String,
         query: String,
@@ -106,6 +114,12 @@ impl SessionError {
             }
             _ => None,
         }
+    }
+
+    /// Whether the link failed because nobody answered (refused or dropped connection, no reply
+    /// in time): see [`LinkError::is_no_answer`].
+    pub fn is_no_answer(&self) -> bool {
+        self.link_error().is_some_and(LinkError::is_no_answer)
     }
 
     /// The link error, if the link failed.

@@ -20,9 +20,12 @@ pub mod error;
 pub mod line;
 pub mod reply;
 
-pub use error::{DeviceError, SessionError};
+pub use error::{DeviceError, ErrorList, SessionError};
 pub use line::{Crc8, LineProtocol};
-pub use reply::{Block, BlockForm, Identity};
+pub use reply::{
+    parse_block, parse_bool, parse_f64, parse_i64, parse_idn, register_error_text, without_header,
+    Block, BlockForm, Identity,
+};
 
 use self::line::LineReply;
 use crate::address::Resource;
@@ -171,7 +174,7 @@ impl Session {
     pub async fn write(&mut self, command: &str) -> Result<(), SessionError> {
         Self::check_command(command)?;
         if self.options.line.is_some() {
-            return self.line_exchange(command).await.map(drop);
+            return self.line_exchange(command, None).await.map(drop);
         }
         self.send_parts(&[command.as_bytes(), b"\n"]).await
     }
@@ -185,7 +188,16 @@ impl Session {
 
     /// Reads one whole response message, terminator included.
     pub async fn read_raw(&mut self) -> Result<Bytes, SessionError> {
-        match self.link.read_message().await {
+        self.read_raw_waiting(None).await
+    }
+
+    /// Reads one response message, waiting `read` (or the link's read timeout) for it to start.
+    async fn read_raw_waiting(&mut self, read: Option<Duration>) -> Result<Bytes, SessionError> {
+        let received = match read {
+            Some(read) => self.link.read_message_within(read).await,
+            None => self.link.read_message().await,
+        };
+        match received {
             Ok(m) => Ok(m),
             Err(e) => Err(self.after_failure(e).await),
         }
@@ -198,13 +210,23 @@ impl Session {
     /// On a line-protocol device the reply line comes back without its CRC, and an `ERR` line is
     /// the device's refusal ([`SessionError::Device`]).
     pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+        self.query_raw_waiting(query, None).await
+    }
+
+    /// [`query_raw`](Self::query_raw) with the reply allowed `read` (or the link's read timeout)
+    /// to start; the link's own timeouts are never changed.
+    async fn query_raw_waiting(
+        &mut self,
+        query: &str,
+        read: Option<Duration>,
+    ) -> Result<Bytes, SessionError> {
         if self.options.line.is_some() {
             Self::check_command(query)?;
-            let mut text = self.line_exchange(query).await?;
+            let mut text = self.line_exchange(query, read).await?;
             text.push('\n');
             return Ok(Bytes::from(text));
         }
-        match self.query_raw_plain(query).await {
+        match self.query_raw_plain(query, read).await {
             Err(SessionError::Link {
                 source: timeout @ LinkError::Timeout { .. },
                 ..
@@ -213,9 +235,13 @@ impl Session {
         }
     }
 
-    async fn query_raw_plain(&mut self, query: &str) -> Result<Bytes, SessionError> {
+    async fn query_raw_plain(
+        &mut self,
+        query: &str,
+        read: Option<Duration>,
+    ) -> Result<Bytes, SessionError> {
         self.write(query).await?;
-        self.read_raw().await
+        self.read_raw_waiting(read).await
     }
 
     /// After `query` timed out (and the device was cleared): the instrument's error queue when
@@ -226,11 +252,13 @@ impl Session {
         let LinkError::Timeout { after, .. } = timeout else {
             return self.link_err(timeout);
         };
-        let read = self.link.options_mut().timeouts.read;
-        let window = read.min(ERROR_QUEUE_AFTER_TIMEOUT);
-        self.link.options_mut().timeouts.read = window;
-        let errors = tokio::time::timeout(window, self.errors()).await;
-        self.link.options_mut().timeouts.read = read;
+        let window = self
+            .link
+            .options()
+            .timeouts
+            .read
+            .min(ERROR_QUEUE_AFTER_TIMEOUT);
+        let errors = tokio::time::timeout(window, self.errors_waiting(Some(window))).await;
         match errors {
             Ok(Ok(errors)) if !errors.is_empty() => SessionError::Unanswered {
                 resource: self.resource_text.clone(),
@@ -244,9 +272,13 @@ impl Session {
 
     /// One request and its reply line on a line-protocol device, CRC added and checked as the
     /// device has it; an `ERR` line is the device's refusal.
-    async fn line_exchange(&mut self, request: &str) -> Result<String, SessionError> {
+    async fn line_exchange(
+        &mut self,
+        request: &str,
+        read: Option<Duration>,
+    ) -> Result<String, SessionError> {
         let crc = self.options.line.as_ref().and_then(|l| l.crc);
-        let reply = self.line_round_trip(request, crc).await?;
+        let reply = self.line_round_trip(request, crc, read).await?;
         let body = match crc {
             None => reply,
             Some(crc) => match crc.unframe(&reply) {
@@ -255,7 +287,7 @@ impl Session {
                     // missing CRC) goes again, framed.
                     self.crc_on = true;
                     if matches!(line::classify(body), LineReply::Refused(_)) {
-                        let again = self.line_round_trip(request, Some(crc)).await?;
+                        let again = self.line_round_trip(request, Some(crc), read).await?;
                         self.unframed(crc, request, &again)?
                     } else {
                         body.to_string()
@@ -295,19 +327,32 @@ impl Session {
         &mut self,
         request: &str,
         crc: Option<Crc8>,
+        read: Option<Duration>,
     ) -> Result<String, SessionError> {
         let line = match crc {
             Some(crc) if self.crc_on => crc.frame(request),
             _ => request.to_string(),
         };
         self.send_parts(&[line.as_bytes(), b"\n"]).await?;
-        let raw = self.read_raw().await?;
+        let raw = self.read_raw_waiting(read).await?;
         Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
     }
 
     /// Sends a query and returns the reply as text without its terminator.
     pub async fn query(&mut self, query: &str) -> Result<String, SessionError> {
         let raw = self.query_raw(query).await?;
+        Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
+    }
+
+    /// Like [`query`](Self::query), but the reply may take up to `read` to start (a scope's
+    /// `WAIT`, a long `*OPC?`). The timeout is this call's alone: the session's own timeouts are
+    /// never changed, so a dropped call leaves nothing behind.
+    pub async fn query_within(
+        &mut self,
+        query: &str,
+        read: Duration,
+    ) -> Result<String, SessionError> {
+        let raw = self.query_raw_waiting(query, Some(read)).await?;
         Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
     }
 
@@ -426,13 +471,20 @@ impl Session {
     /// Drains the error queue; empty when the instrument has nothing to report. A line-protocol
     /// device has no queue (it refuses each request in its reply): always empty.
     pub async fn errors(&mut self) -> Result<Vec<DeviceError>, SessionError> {
+        self.errors_waiting(None).await
+    }
+
+    async fn errors_waiting(
+        &mut self,
+        read: Option<Duration>,
+    ) -> Result<Vec<DeviceError>, SessionError> {
         if self.options.line.is_some() {
             return Ok(Vec::new());
         }
         let query = self.error_query.clone();
         let mut found = Vec::new();
         for _ in 0..self.options.max_error_entries {
-            let raw = self.query_raw_plain(&query).await?;
+            let raw = self.query_raw_plain(&query, read).await?;
             let text = reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string();
             let mut entry = reply::parse_error_entry(&text)
                 .ok_or_else(|| self.bad_reply(&query, "<code>,\"<text>\"", &text))?;

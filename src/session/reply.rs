@@ -114,7 +114,7 @@ pub fn parse_error_entry(text: &str) -> Option<DeviceError> {
 
 /// A response with its header word removed (`CMR 1` -> `1`): instruments with response headers on
 /// repeat the query's header before the value.
-fn without_header(t: &str) -> &str {
+pub fn without_header(t: &str) -> &str {
     match t.split_once(char::is_whitespace) {
         Some((head, rest))
             if head.starts_with(|c: char| c.is_ascii_alphabetic() || c == ':' || c == '*') =>
@@ -126,12 +126,21 @@ fn without_header(t: &str) -> &str {
 }
 
 /// The meaning of a code read from an error register that carries no text: LeCroy's command
-/// error register `CMR?` (the X-Stream remote control manual's legacy command set; the driver
-/// keeps the same table for its own messages), else a plain description.
+/// error register `CMR?` and execution error register `EXR?` (the X-Stream remote control
+/// manual's legacy command set \[V-src\]), else a plain description. Drivers reading these
+/// registers themselves use the same table.
 pub fn register_error_text(query: &str, code: i32) -> &'static str {
-    if !query.trim().eq_ignore_ascii_case("CMR?") {
-        return "error reported without text";
+    let register = query.trim();
+    if register.eq_ignore_ascii_case("CMR?") {
+        command_register_text(code)
+    } else if register.eq_ignore_ascii_case("EXR?") {
+        execution_register_text(code)
+    } else {
+        "error reported without text"
     }
+}
+
+fn command_register_text(code: i32) -> &'static str {
     match code {
         1 => "command error: unrecognized command/query header",
         2 => "command error: illegal header path",
@@ -145,6 +154,26 @@ pub fn register_error_text(query: &str, code: i32) -> &'static str {
         12 => "command error: EOI detected during definite length data block transfer",
         13 => "command error: extra bytes detected during definite length data block transfer",
         _ => "command error",
+    }
+}
+
+fn execution_register_text(code: i32) -> &'static str {
+    match code {
+        21 => "execution error: permission error",
+        22 => "execution error: environment error",
+        23 => "execution error: option error",
+        24 => "execution error: unresolved parsing error",
+        25 => "execution error: parameter error",
+        26 => "execution error: command not implemented",
+        27 => "execution error: parameter missing",
+        30 => "execution error: hex data error",
+        31 => "execution error: waveform error",
+        32 => "execution error: waveform descriptor error",
+        33 => "execution error: waveform text error",
+        34 => "execution error: waveform time error",
+        35 => "execution error: waveform data error",
+        36 => "execution error: panel setup error",
+        _ => "execution error",
     }
 }
 
@@ -320,6 +349,14 @@ mod tests {
         assert_eq!(
             register_error_text("CMR?", 1),
             "command error: unrecognized command/query header"
+        );
+        assert_eq!(
+            register_error_text("EXR?", 25),
+            "execution error: parameter error"
+        );
+        assert_eq!(
+            register_error_text("SYST:ERR?", 1),
+            "error reported without text"
         );
     }
 

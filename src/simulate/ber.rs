@@ -67,7 +67,13 @@ fn to_point(waveform: &'static str, p: BerPoint) -> BerCurvePoint {
 
 /// Both curves with the default waveforms (Tables 4.1/4.2). Each point sends at least `min_bits`
 /// bits and goes on to 100 errors or 5 x `min_bits`, whichever comes first.
-pub fn run_curves(min_bits: usize, seed: u64) -> Result<Vec<BerCurvePoint>, SimError> {
+///
+/// `progress(done, total)` is called after each point (from the worker threads).
+pub fn run_curves(
+    min_bits: usize,
+    seed: u64,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Vec<BerCurvePoint>, SimError> {
     let budget = BerBudget {
         min_bits,
         min_errors: 100,
@@ -78,16 +84,23 @@ pub fn run_curves(min_bits: usize, seed: u64) -> Result<Vec<BerCurvePoint>, SimE
     let jobs: Vec<(bool, usize)> = (0..EB_N0_DB.len())
         .flat_map(|i| [(true, i), (false, i)])
         .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let total = jobs.len();
     let mut points = jobs
         .par_iter()
         .map(|&(is_msk, i)| {
             let ebn0 = EB_N0_DB[i];
             let point_seed = seed.wrapping_add(i as u64);
-            if is_msk {
+            let point = if is_msk {
                 measure_ber_msk_lfm(&msk, ebn0, &budget, point_seed).map(|p| to_point("msk-lfm", p))
             } else {
                 measure_ber_ofdm(&ofdm, ebn0, &budget, point_seed).map(|p| to_point("ofdm", p))
-            }
+            };
+            progress(
+                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
+                total,
+            );
+            point
         })
         .collect::<Result<Vec<_>, _>>()?;
     points.sort_by(|a, b| {
@@ -96,6 +109,23 @@ pub fn run_curves(min_bits: usize, seed: u64) -> Result<Vec<BerCurvePoint>, SimE
             .unwrap_or(std::cmp::Ordering::Equal)
     });
     Ok(points)
+}
+
+/// The curves as plot series, one per waveform, ascending Eb/N0.
+pub fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
+    ["msk-lfm", "ofdm"]
+        .iter()
+        .map(|w| {
+            let p: Vec<&BerCurvePoint> = points.iter().filter(|p| p.waveform == *w).collect();
+            crate::storage::plot::BerSeries {
+                label: w.to_uppercase(),
+                eb_n0_db: p.iter().map(|p| p.eb_n0_db).collect(),
+                ber: p.iter().map(|p| p.ber).collect(),
+                ci: p.iter().map(|p| (p.ci95_low, p.ci95_high)).collect(),
+                theory: p.iter().map(|p| p.ber_theory).collect(),
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

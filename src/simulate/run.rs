@@ -249,6 +249,7 @@ pub fn process_options(spec: &RunSpec) -> ProcessOptions {
         detector: Default::default(),
         pfa: spec.pfa,
         min_separation_m: None,
+        carrier_hz: crate::simulate::scene::BENCH_CARRIER_HZ,
         awg_amplitude_vpp: None,
     }
 }

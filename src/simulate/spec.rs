@@ -10,6 +10,11 @@ pub use crate::waveform::spec::WaveformSpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
+/// Most Monte-Carlo trials of one run.
+pub const MAX_TRIALS: usize = 100_000;
+/// Largest capture-to-waveform rate ratio simulated.
+pub const MAX_UPSAMPLE: usize = 16;
+
 /// One simulation: waveform, scene, processing, randomness.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunSpec {
@@ -99,8 +104,11 @@ impl RunSpec {
                 "give at least one target, e.g. --targets 3".into(),
             );
         }
-        if self.trials == 0 {
-            return bad("--trials", "must be at least 1".into());
+        if self.trials == 0 || self.trials > MAX_TRIALS {
+            return bad(
+                "--trials",
+                format!("{}: allowed 1 ..= {MAX_TRIALS}", self.trials),
+            );
         }
         if let Some(snr) = self.snr_db {
             if !snr.is_finite() {
@@ -129,6 +137,15 @@ impl RunSpec {
         if let Some(rate) = self.capture_rate_hz {
             let fs = self.waveform.sample_rate_hz();
             let ratio = rate / fs;
+            if ratio.is_finite() && ratio > MAX_UPSAMPLE as f64 {
+                return bad(
+                    "--capture-rate",
+                    format!(
+                        "{rate} Sa/s is {ratio:.0} times the waveform rate {fs} Sa/s; allowed at \
+                         most {MAX_UPSAMPLE} times (80e9 for 16 GSa/s is the bench's 5)"
+                    ),
+                );
+            }
             if !(rate.is_finite() && ratio >= 1.0 && (ratio - ratio.round()).abs() < 1e-9) {
                 return bad(
                     "--capture-rate",

@@ -9,6 +9,7 @@ use crate::exit::{Classify, ExitClass};
 use std::path::PathBuf;
 
 pub mod atomic;
+pub mod hash;
 pub mod npy;
 pub mod plot;
 pub mod profile;

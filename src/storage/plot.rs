@@ -7,7 +7,7 @@
 
 use super::{atomic::write_atomic, profile::extension, StorageError};
 use plotters::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The font embedded for PNG text (licence in assets/README.md).
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
@@ -119,25 +119,8 @@ pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
             write_atomic(path, svg.as_bytes())
         }
         Some("png") => {
-            // The bitmap backend encodes to a file itself: draw into a temporary PNG next to the
-            // destination and rename it, so the write stays atomic.
-            let tmp = temp_png(path);
-            let drawn = {
-                let root = BitMapBackend::new(&tmp, SIZE).into_drawing_area();
-                render(root, plot)
-            };
-            let result = drawn
-                .map_err(|reason| plot_error(path, reason))
-                .and_then(|()| {
-                    std::fs::rename(&tmp, path).map_err(|source| StorageError::Io {
-                        path: path.to_path_buf(),
-                        source,
-                    })
-                });
-            if result.is_err() {
-                let _ = std::fs::remove_file(&tmp);
-            }
-            result
+            let png = render_png(|root| render(root, plot)).map_err(|r| plot_error(path, r))?;
+            write_atomic(path, &png)
         }
         _ => Err(StorageError::UnsupportedFormat {
             path: path.to_path_buf(),
@@ -153,12 +136,24 @@ fn plot_error(path: &Path, reason: String) -> StorageError {
     }
 }
 
-fn temp_png(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "plot.png".into());
-    path.with_file_name(format!(".{name}.tmp-{}.png", std::process::id()))
+/// Renders into memory and encodes a PNG, so the file is written like every other output
+/// (atomically, through an unpredictable temporary name, never through a symlink).
+fn render_png(
+    draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+) -> Result<Vec<u8>, String> {
+    let (w, h) = SIZE;
+    let mut rgb = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
+        draw(root)?;
+    }
+    let image = image::RgbImage::from_raw(w, h, rgb)
+        .ok_or_else(|| "the rendered image has the wrong size".to_string())?;
+    let mut png = std::io::Cursor::new(Vec::new());
+    image
+        .write_to(&mut png, image::ImageFormat::Png)
+        .map_err(|e| e.to_string())?;
+    Ok(png.into_inner())
 }
 
 fn register_font_once() {
@@ -407,4 +402,266 @@ mod tests {
         let err = draw(&dir.path().join("p.jpg"), &plot()).unwrap_err();
         assert!(matches!(err, StorageError::UnsupportedFormat { .. }));
     }
+}
+
+/// A map over range and another axis (velocity), in dB.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heatmap {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    /// Cell centres along x (range, m) and y (velocity, m/s), ascending and uniform.
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    /// `db[ix * y.len() + iy]`.
+    pub db: Vec<f64>,
+    /// x range shown.
+    pub x_window: (f64, f64),
+    /// Dynamic range shown under the maximum, dB.
+    pub range_db: f64,
+    /// Points marked (detections: x, y).
+    pub marks: Vec<(f64, f64)>,
+}
+
+/// Most cells drawn per axis: finer maps are reduced (maximum of each block) first.
+const HEATMAP_CELLS: (usize, usize) = (480, 240);
+
+/// A perceptually even blue-green-yellow scale (viridis' endpoints and midpoints).
+fn heat_colour(f: f64) -> RGBColor {
+    const STOPS: [(f64, (f64, f64, f64)); 5] = [
+        (0.0, (68.0, 1.0, 84.0)),
+        (0.25, (59.0, 82.0, 139.0)),
+        (0.5, (33.0, 145.0, 140.0)),
+        (0.75, (94.0, 201.0, 98.0)),
+        (1.0, (253.0, 231.0, 37.0)),
+    ];
+    let f = f.clamp(0.0, 1.0);
+    let k = STOPS.iter().position(|s| s.0 >= f).unwrap_or(4).max(1);
+    let (a, b) = (STOPS[k - 1], STOPS[k]);
+    let t = (f - a.0) / (b.0 - a.0);
+    let mix = |x: f64, y: f64| (x + (y - x) * t).round() as u8;
+    RGBColor(
+        mix(a.1 .0, b.1 .0),
+        mix(a.1 .1, b.1 .1),
+        mix(a.1 .2, b.1 .2),
+    )
+}
+
+/// Draws `map` as a PNG heat map (colour = dB under the maximum), atomically.
+pub fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
+    let bad = |reason: &str| StorageError::BadData {
+        path: path.to_path_buf(),
+        reason: reason.to_string(),
+    };
+    let (nx, ny) = (map.x.len(), map.y.len());
+    if nx < 2 || ny < 2 || map.db.len() != nx * ny {
+        return Err(bad(
+            "a heat map needs at least 2 x 2 cells and one value per cell",
+        ));
+    }
+    if extension(path).as_deref() != Some("png") {
+        return Err(StorageError::UnsupportedFormat {
+            path: path.to_path_buf(),
+            allowed: "heat maps are written as .png",
+        });
+    }
+    register_font_once();
+    let (x0, x1) = map.x_window;
+    let cols: Vec<usize> = (0..nx)
+        .filter(|&i| map.x[i] >= x0 && map.x[i] <= x1)
+        .collect();
+    if cols.len() < 2 {
+        return Err(bad("the x window holds fewer than 2 cells"));
+    }
+    // Reduce to at most HEATMAP_CELLS, keeping each block's maximum (peaks stay visible).
+    let bx = cols.len().div_ceil(HEATMAP_CELLS.0);
+    let by = ny.div_ceil(HEATMAP_CELLS.1);
+    let max = cols
+        .iter()
+        .flat_map(|&i| map.db[i * ny..(i + 1) * ny].iter())
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let dx = map.x[1] - map.x[0];
+    let dy = map.y[1] - map.y[0];
+    let png = render_png(|root| -> Result<(), String> {
+        let e = |err: DrawingAreaErrorKind<_>| format!("{err}");
+        root.fill(&WHITE).map_err(e)?;
+        let y0 = map.y[0] - dy / 2.0;
+        let y1 = map.y[ny - 1] + dy / 2.0;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(&map.title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(map.x_label.as_str())
+            .y_desc(map.y_label.as_str())
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(e)?;
+        let mut cells = Vec::new();
+        for block in cols.chunks(bx) {
+            let xa = map.x[block[0]] - dx / 2.0;
+            let xb = map.x[*block.last().expect("non-empty")] + dx / 2.0;
+            for iy in (0..ny).step_by(by) {
+                let top = (iy + by).min(ny);
+                let v = block
+                    .iter()
+                    .flat_map(|&i| map.db[i * ny + iy..i * ny + top].iter())
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let f = 1.0 - (max - v) / map.range_db;
+                let ya = map.y[iy] - dy / 2.0;
+                let yb = map.y[top - 1] + dy / 2.0;
+                cells.push(Rectangle::new(
+                    [(xa, ya), (xb, yb)],
+                    heat_colour(f).filled(),
+                ));
+            }
+        }
+        chart.draw_series(cells).map_err(e)?;
+        let mark = RGBColor(230, 30, 30);
+        chart
+            .draw_series(
+                map.marks
+                    .iter()
+                    .filter(|(x, _)| (x0..=x1).contains(x))
+                    .map(|&(x, y)| Circle::new((x, y), 7, mark.stroke_width(2))),
+            )
+            .map_err(e)?;
+        root.present().map_err(e)?;
+        Ok(())
+    })
+    .map_err(|reason| plot_error(path, reason))?;
+    write_atomic(path, &png)
+}
+
+/// One waveform's measured bit-error rates and its theory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BerSeries {
+    pub label: String,
+    pub eb_n0_db: Vec<f64>,
+    pub ber: Vec<f64>,
+    /// 95 % confidence interval of each measured point.
+    pub ci: Vec<(f64, f64)>,
+    pub theory: Vec<f64>,
+}
+
+/// BER against Eb/N0 on a log scale, measured points with their 95 % intervals, theory dashed.
+pub fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
+    let all = series.iter().flat_map(|s| s.ber.iter().chain(&s.theory));
+    let lowest = all
+        .copied()
+        .filter(|b| *b > 0.0)
+        .fold(1.0_f64, f64::min)
+        .max(1e-12);
+    let y0 = 10f64.powf(lowest.log10().floor());
+    let (x0, x1) = series
+        .iter()
+        .flat_map(|s| s.eb_n0_db.iter())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(*x), b.max(*x))
+        });
+    if !(x0.is_finite() && x1 > x0) {
+        return Err(StorageError::BadData {
+            path: path.to_path_buf(),
+            reason: "nothing to plot: give at least two Eb/N0 points".into(),
+        });
+    }
+    register_font_once();
+    match extension(path).as_deref() {
+        Some("svg") => {
+            let mut svg = String::new();
+            {
+                let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+                render_ber(root, title, series, (x0, x1), y0).map_err(|r| plot_error(path, r))?;
+            }
+            write_atomic(path, svg.as_bytes())
+        }
+        Some("png") => {
+            let png = render_png(|root| render_ber(root, title, series, (x0, x1), y0))
+                .map_err(|r| plot_error(path, r))?;
+            write_atomic(path, &png)
+        }
+        _ => Err(StorageError::UnsupportedFormat {
+            path: path.to_path_buf(),
+            allowed: "plots are written as .svg or .png",
+        }),
+    }
+}
+
+fn render_ber<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    series: &[BerSeries],
+    (x0, x1): (f64, f64),
+    y0: f64,
+) -> Result<(), String> {
+    let e = |err: DrawingAreaErrorKind<_>| format!("{err}");
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0 - 0.5..x1 + 0.5, (y0..1.0).log_scale())
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("Eb/N0 (dB)")
+        .y_desc("Bit-error rate")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    for (i, s) in series.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let theory: Vec<(f64, f64)> = s
+            .eb_n0_db
+            .iter()
+            .zip(&s.theory)
+            .filter(|(_, t)| **t > 0.0)
+            .map(|(x, t)| (*x, t.max(y0)))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(theory, 6, 4, color.stroke_width(1)))
+            .map_err(e)?
+            .label(format!("{} theory", s.label))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        let measured: Vec<(f64, f64)> = s
+            .eb_n0_db
+            .iter()
+            .zip(&s.ber)
+            .filter(|(_, b)| **b > 0.0)
+            .map(|(x, b)| (*x, *b))
+            .collect();
+        chart
+            .draw_series(
+                measured
+                    .iter()
+                    .map(|&(x, b)| Circle::new((x, b), 4, color.filled())),
+            )
+            .map_err(e)?
+            .label(format!("{} measured (95 % interval)", s.label))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        chart
+            .draw_series(s.eb_n0_db.iter().zip(&s.ci).filter(|(_, c)| c.1 > 0.0).map(
+                |(x, (lo, hi))| PathElement::new(vec![(*x, lo.max(y0)), (*x, hi.max(y0))], color),
+            ))
+            .map_err(e)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
 }

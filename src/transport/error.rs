@@ -129,6 +129,19 @@ impl LinkError {
         }
     }
 
+    /// Whether nobody answered: the connection was refused or dropped, the server refused the
+    /// link, or no reply came in time. At connection time this usually means the instrument does
+    /// not serve this protocol at this address (or is off), rather than a fault on a working link.
+    pub fn is_no_answer(&self) -> bool {
+        matches!(
+            self,
+            LinkError::Timeout { .. }
+                | LinkError::Closed { .. }
+                | LinkError::Connect { .. }
+                | LinkError::Refused { .. }
+        )
+    }
+
     /// Whether the stream may hold a partial frame or a pending reply after this error, so the
     /// link must be cleared (or reopened) before it is used again.
     pub fn leaves_link_dirty(&self) -> bool {

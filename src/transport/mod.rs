@@ -37,10 +37,11 @@ pub mod vxi11;
 pub use error::{CodecError, ErrorKind, LinkError, Rounded};
 pub use io::{Direction, LinkOptions, Progress, ProgressFn, Timeouts};
 pub use journal::{Journal, Origin};
+pub use serial::SerialSettings;
 
 use crate::address::{Resource, HISLIP_DEFAULT_PORT, VICP_DEFAULT_PORT};
 use bytes::Bytes;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 enum Inner {
     Socket(socket::SocketLink),
@@ -241,10 +242,34 @@ impl Link {
 
     /// Reads one whole message (terminator included when the transport uses one).
     pub async fn read_message(&mut self) -> Result<Bytes, LinkError> {
+        self.read_message_waiting(None).await
+    }
+
+    /// Like [`read_message`](Self::read_message), but the reply may take up to `read` to start
+    /// (a long `*OPC?`, a scope's `WAIT`). The link's own timeouts stay as they are, so a dropped
+    /// read cannot leave them changed.
+    pub async fn read_message_within(&mut self, read: Duration) -> Result<Bytes, LinkError> {
+        self.read_message_waiting(Some(read)).await
+    }
+
+    async fn read_message_waiting(&mut self, read: Option<Duration>) -> Result<Bytes, LinkError> {
         self.recover().await?;
         let started = Instant::now();
         self.dirty = Dirty::Read;
-        let options = &self.options;
+        let adjusted;
+        let options = match read {
+            Some(read) => {
+                adjusted = LinkOptions {
+                    timeouts: Timeouts {
+                        read,
+                        ..self.options.timeouts
+                    },
+                    ..self.options.clone()
+                };
+                &adjusted
+            }
+            None => &self.options,
+        };
         let result = match self.inner.as_mut().ok_or(LinkError::NotOpen)? {
             Inner::Socket(l) => l.read_message(options).await,
             Inner::Vxi11(l) => l.read_message(options).await,

@@ -23,7 +23,7 @@
 
 use std::sync::{Mutex, MutexGuard};
 
-use super::common::log::ReceivedLog;
+use super::received_log::ReceivedLog;
 use crate::catalog::{self, Access, CatalogError, Register, RfModel};
 use crate::server::Handler;
 

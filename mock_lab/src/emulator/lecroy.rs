@@ -12,6 +12,8 @@
 //! STB bit 2 (VAB), as the scope does.
 
 mod commands;
+mod params;
+mod settings;
 mod state;
 pub mod trigger;
 mod vbs;
@@ -26,8 +28,8 @@ pub use state::{
 };
 pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
 
-use super::common::log::ReceivedLog;
-use super::common::message::{parse_unit, split_units};
+use super::received_log::ReceivedLog;
+use super::scpi::message::{parse_unit, split_units};
 use crate::catalog::{self, CatalogError, DigitizerModel};
 use crate::server::Handler;
 

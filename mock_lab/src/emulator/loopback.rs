@@ -25,6 +25,7 @@ use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 
+use super::scpi::message::split_units;
 use crate::server::framing::{block_header, MAX_DEFINITE_BLOCK};
 use crate::server::{pool, Handler, Response};
 
@@ -259,7 +260,14 @@ impl Loopback {
 impl Loopback {
     /// The responses to one program message, joined with `;` when several units answer.
     fn answers(&self, data: &[u8]) -> Vec<Response> {
-        let answers: Vec<Response> = split_units(data)
+        let units = match split_units(data) {
+            Ok(units) => units,
+            Err(e) => {
+                self.push_error(e.code, &e.text);
+                return Vec::new();
+            }
+        };
+        let answers: Vec<Response> = units
             .into_iter()
             .filter(|unit| !trim(unit).is_empty())
             .filter_map(|unit| self.command(unit))
@@ -309,7 +317,7 @@ impl Handler for Loopback {
 
 /// When `data` is one `DATA <valid block>` command, the block payload's byte range.
 fn lone_data_block(data: &[u8]) -> Option<std::ops::Range<usize>> {
-    let units = split_units(data);
+    let units = split_units(data).ok()?;
     let [unit] = units.as_slice() else {
         return None;
     };
@@ -333,45 +341,6 @@ fn mnemonic_path(parts: &[&str], spec: &[(&str, &str)]) -> bool {
             .iter()
             .zip(spec)
             .all(|(part, (short, long))| part == short || part == long)
-}
-
-/// Splits a program message into `;`-separated units, skipping `;` inside blocks and quotes.
-fn split_units(data: &[u8]) -> Vec<&[u8]> {
-    let mut units = Vec::new();
-    let mut start = 0;
-    let mut i = 0;
-    let mut quote: Option<u8> = None;
-    while i < data.len() {
-        let b = data[i];
-        match quote {
-            Some(q) if b == q => quote = None,
-            Some(_) => {}
-            None => match b {
-                b'"' | b'\'' => quote = Some(b),
-                b';' => {
-                    units.push(&data[start..i]);
-                    start = i + 1;
-                }
-                b'#' => match data.get(i + 1) {
-                    // An indefinite block runs to the end of the message.
-                    Some(b'0') => break,
-                    Some(d @ b'1'..=b'9') => {
-                        let digits = usize::from(d - b'0');
-                        let len_field = data.get(i + 2..i + 2 + digits);
-                        if let Some(len) = len_field.and_then(parse_u64) {
-                            i = (i + 2 + digits).saturating_add(len as usize);
-                            continue;
-                        }
-                    }
-                    _ => {}
-                },
-                _ => {}
-            },
-        }
-        i += 1;
-    }
-    units.push(&data[start.min(data.len())..]);
-    units
 }
 
 /// Parses a definite (`#N`) or indefinite (`#0`) block argument.

@@ -2,13 +2,14 @@
 //! instrument's rules (raster range, granularity and minimum length per divider, amplitude ranges,
 //! no output or run without a waveform), real SCPI error codes, and the played waveform for the scene.
 //!
-//! Parsing: IEEE 488.2 messages are split by [`common::message`](super::common::message) (block-aware),
+//! Parsing: IEEE 488.2 messages are split by [`scpi::message`](super::scpi::message) (block-aware),
 //! headers matched against the manual-style table in `commands` (see there why not the `scpi` crate).
 //! Command errors (`-1xx`) abandon the rest of the program message, as IEEE 488.2 requires; execution
 //! errors (`-2xx`) are queued and the following units still run. Several queries in one message are
 //! answered in one response, separated by `;`.
 
 mod commands;
+mod handlers;
 mod state;
 
 use std::sync::Mutex;
@@ -17,12 +18,13 @@ pub use state::{
     AwgState, Channel, ChannelPlayback, Memory, Playback, Segment, EMULATOR_MAX_SEGMENT_SAMPLES,
 };
 
-use self::commands::{Command, Forms};
-use super::common::error_queue::{ErrorQueue, ScpiError};
-use super::common::log::ReceivedLog;
-use super::common::message::{parse_unit, split_units, unquote, Param, Unit};
-use super::common::numeric::{self, nr3, NumericSpec};
-use super::common::scpi_header::{Header, PathContext, Pattern};
+use self::commands::Entry;
+use self::handlers::Call;
+use super::received_log::ReceivedLog;
+use super::scpi::error_queue::{ErrorQueue, ScpiError};
+use super::scpi::header::{Header, PathContext, Pattern};
+use super::scpi::message::{parse_unit, split_units, Param, Unit};
+use super::scpi::numeric;
 use crate::catalog::{self, AwgModel, CatalogError};
 use crate::server::Handler;
 
@@ -51,7 +53,7 @@ struct Inner {
 /// The emulated M8195A.
 pub struct M8195a {
     model: AwgModel,
-    tree: Vec<(Pattern, Command, Forms)>,
+    tree: Vec<(Pattern, &'static Entry)>,
     inner: Mutex<Inner>,
     log: ReceivedLog,
 }
@@ -152,23 +154,18 @@ impl M8195a {
         }
         let header = Header::parse(&unit.header)?;
         for nodes in path.candidates(&header) {
-            for (pattern, command, forms) in &self.tree {
+            for (pattern, entry) in &self.tree {
                 let Some(suffixes) = pattern.matches(&nodes) else {
                     continue;
                 };
                 path.matched(&nodes);
-                let allowed = match forms {
-                    Forms::SetAndQuery => true,
-                    Forms::SetOnly => !header.query,
-                    Forms::QueryOnly => header.query,
-                };
-                if !allowed {
+                let Some(form) = entry.form(header.query) else {
                     let form = if header.query { "query" } else { "command" };
                     return Err(ScpiError::new(
                         -113,
                         format!("{} has no {form} form", unit.header),
                     ));
-                }
+                };
                 let channel = match suffixes.first() {
                     Some(&n) if n == 0 || n > u32::from(self.model.limits.channels) => {
                         return Err(ScpiError::new(
@@ -182,7 +179,13 @@ impl M8195a {
                     Some(&n) => n as u8,
                     None => 1,
                 };
-                return self.run(inner, *command, channel, &unit.header, &unit.params);
+                let call = Call {
+                    model: &self.model,
+                    channel,
+                    header: &unit.header,
+                    params: &unit.params,
+                };
+                return form.run(inner, &call);
             }
         }
         Err(ScpiError::new(-113, unit.header.clone()))
@@ -245,311 +248,6 @@ impl M8195a {
             _ => Err(ScpiError::new(-113, unit.header.clone())),
         }
     }
-
-    fn run(
-        &self,
-        inner: &mut Inner,
-        command: Command,
-        ch: u8,
-        header: &str,
-        params: &[Param],
-    ) -> Result<Option<String>, ScpiError> {
-        if header.ends_with('?') {
-            return self.query(inner, command, ch, header, params).map(Some);
-        }
-        let model = &self.model;
-        let limits = &model.limits;
-        let st = &mut inner.state;
-        match command {
-            Command::DacMode => {
-                let choices: Vec<(&str, &str)> = limits
-                    .dac_modes
-                    .iter()
-                    .map(|m| (m.keyword.as_str(), m.long.as_str()))
-                    .collect();
-                let keyword = numeric::keyword(one_text(params, header)?, &choices)?;
-                st.set_dac_mode(model, keyword)?;
-            }
-            Command::ExtRateDivider => {
-                let text = one_text(params, header)?;
-                let divider = limits
-                    .dividers
-                    .iter()
-                    .find(|d| d.keyword.eq_ignore_ascii_case(text.trim()))
-                    .ok_or_else(|| {
-                        let allowed: Vec<_> =
-                            limits.dividers.iter().map(|d| d.keyword.as_str()).collect();
-                        ScpiError::new(
-                            -224,
-                            format!("{text:?} is not one of {}", allowed.join("|")),
-                        )
-                    })?;
-                st.set_divider(divider.divider)?;
-            }
-            Command::MemoryMode => {
-                let keyword = numeric::keyword(
-                    one_text(params, header)?,
-                    &[("INT", "INTERNAL"), ("EXT", "EXTENDED")],
-                )?;
-                let memory = if keyword == "EXT" {
-                    Memory::Extended
-                } else {
-                    Memory::Internal
-                };
-                st.set_memory(model, ch, memory)?;
-            }
-            Command::Raster => {
-                let rate = numeric::numeric(
-                    one_text(params, header)?,
-                    NumericSpec {
-                        unit: numeric::Unit::Hertz,
-                        min: limits.dac_rate_min,
-                        max: limits.dac_rate_max,
-                        default: limits.dac_rate_default,
-                    },
-                )?;
-                st.set_raster(rate);
-            }
-            Command::FunctionMode => {
-                let keyword = numeric::keyword(
-                    one_text(params, header)?,
-                    &[
-                        ("ARB", "ARBITRARY"),
-                        ("STS", "STSEQUENCE"),
-                        ("STSC", "STSCENARIO"),
-                    ],
-                )?;
-                if keyword != "ARB" && !limits.options.iter().any(|o| o == "SEQ") {
-                    return Err(ScpiError::new(
-                        -241,
-                        format!("function mode {keyword} needs option SEQ, which is not installed"),
-                    ));
-                }
-                st.refuse_running_change(keyword)?;
-            }
-            Command::InitContinuous => st.continuous = numeric::boolean(one_text(params, header)?)?,
-            Command::InitGate => st.gate = numeric::boolean(one_text(params, header)?)?,
-            Command::InitImmediate => {
-                no_params(params, header)?;
-                st.start(model)?;
-            }
-            Command::Abort => {
-                no_params(params, header)?;
-                st.stop();
-            }
-            Command::TraceDefine => {
-                let (id, length, fill) = match params {
-                    [id, len] => (id, len, None),
-                    [id, len, fill] => (id, len, Some(fill)),
-                    [] | [_] => {
-                        return Err(ScpiError::new(
-                            -109,
-                            ":TRAC:DEF needs <id>,<length>[,<init value>]",
-                        ))
-                    }
-                    _ => {
-                        return Err(ScpiError::new(
-                            -108,
-                            ":TRAC:DEF takes <id>,<length>[,<init value>]",
-                        ))
-                    }
-                };
-                let id = numeric::unsigned(text(id)?)?;
-                let length = numeric::unsigned(text(length)?)?;
-                let fill = fill
-                    .map(|f| sample_value(text(f)?, limits.sample_min, limits.sample_max))
-                    .transpose()?;
-                st.define(model, ch, id, length, fill)?;
-            }
-            Command::TraceData => {
-                let [id, offset, data @ ..] = params else {
-                    return Err(ScpiError::new(
-                        -109,
-                        ":TRAC:DATA needs <id>,<offset>,<block or values>",
-                    ));
-                };
-                let id = numeric::unsigned(text(id)?)?;
-                let offset = numeric::unsigned(text(offset)?)?;
-                let interleaved = st.channel_interleaved(model, ch);
-                let bytes: Vec<i16> = match data {
-                    [Param::Block(block)] => block.iter().map(|b| i16::from(*b as i8)).collect(),
-                    [] => {
-                        return Err(ScpiError::new(
-                            -109,
-                            ":TRAC:DATA needs data after the offset",
-                        ))
-                    }
-                    values => values
-                        .iter()
-                        .map(|v| {
-                            let v = text(v)?;
-                            let n = numeric::parse_with_unit(
-                                &v.to_ascii_uppercase(),
-                                numeric::Unit::None,
-                            )?;
-                            if n.fract() != 0.0 || !(-128.0..=255.0).contains(&n) {
-                                return Err(ScpiError::new(
-                                    -222,
-                                    format!("value {v} is not a byte"),
-                                ));
-                            }
-                            Ok(n as i16)
-                        })
-                        .collect::<Result<_, _>>()?,
-                };
-                let (samples, markers) =
-                    split_data(&bytes, interleaved, limits.sample_min, limits.sample_max)?;
-                st.write(model, ch, id, offset, &samples, markers.as_deref())?;
-            }
-            Command::TraceDelete => {
-                let id = numeric::unsigned(one_text(params, header)?)?;
-                st.delete(model, ch, Some(id))?;
-            }
-            Command::TraceDeleteAll => {
-                no_params(params, header)?;
-                st.delete(model, ch, None)?;
-            }
-            Command::TraceSelect => {
-                let id = numeric::unsigned(one_text(params, header)?)?;
-                st.select(model, ch, id)?;
-            }
-            Command::Amplitude | Command::Offset => {
-                let ((amin, amax), (omin, omax)) = st.level_limits(model, ch);
-                let (min, max, default) = if command == Command::Amplitude {
-                    (amin, amax, limits.amplitude_vpp_default.clamp(amin, amax))
-                } else {
-                    (omin, omax, 0.0f64.clamp(omin, omax))
-                };
-                let value = numeric::numeric(
-                    one_text(params, header)?,
-                    NumericSpec {
-                        unit: numeric::Unit::Volt,
-                        min,
-                        max,
-                        default,
-                    },
-                )?;
-                if command == Command::Amplitude {
-                    st.set_amplitude(ch, value);
-                } else {
-                    st.set_offset(ch, value);
-                }
-            }
-            Command::Output => {
-                let on = numeric::boolean(one_text(params, header)?)?;
-                st.set_output(model, ch, on)?;
-            }
-            Command::RefSource => {
-                let keyword = numeric::keyword(
-                    one_text(params, header)?,
-                    &[("INT", "INTERNAL"), ("EXT", "EXTERNAL"), ("AXI", "AXI")],
-                )?;
-                st.ref_source = keyword;
-            }
-            Command::RefFrequency => {
-                st.ref_frequency = numeric::numeric(
-                    one_text(params, header)?,
-                    NumericSpec {
-                        unit: numeric::Unit::Hertz,
-                        min: 10e6,
-                        max: 300e6,
-                        default: 100e6,
-                    },
-                )?;
-            }
-            Command::TraceCatalog
-            | Command::TraceFree
-            | Command::High
-            | Command::Low
-            | Command::SystemError
-            | Command::SystemErrorCount => unreachable_form(command)?,
-        }
-        Ok(None)
-    }
-
-    fn query(
-        &self,
-        inner: &mut Inner,
-        command: Command,
-        ch: u8,
-        header: &str,
-        params: &[Param],
-    ) -> Result<String, ScpiError> {
-        let model = &self.model;
-        let st = &inner.state;
-        if command != Command::TraceData && !params.is_empty() {
-            return Err(ScpiError::new(-108, format!("{header} takes no parameter")));
-        }
-        let reply = match command {
-            Command::DacMode => st.dac_mode.clone(),
-            Command::ExtRateDivider => format!("DIV{}", st.divider),
-            Command::MemoryMode => st.channel(ch).memory.keyword().to_string(),
-            Command::Raster => nr3(st.raster),
-            Command::FunctionMode => st.function_mode.to_string(),
-            Command::InitContinuous => u8::from(st.continuous).to_string(),
-            Command::InitGate => u8::from(st.gate).to_string(),
-            Command::TraceData => {
-                let [id, offset, count] = params else {
-                    return Err(ScpiError::new(
-                        -109,
-                        ":TRAC:DATA? needs <id>,<offset>,<length>",
-                    ));
-                };
-                st.read(
-                    ch,
-                    numeric::unsigned(text(id)?)?,
-                    numeric::unsigned(text(offset)?)?,
-                    numeric::unsigned(text(count)?)?,
-                    st.channel_interleaved(model, ch),
-                )?
-            }
-            Command::TraceCatalog => st.catalog(ch),
-            Command::TraceSelect => st.channel(ch).selected.to_string(),
-            Command::TraceFree => st.free(model, ch),
-            Command::Amplitude => nr3(st.channel(ch).amplitude_vpp),
-            Command::Offset => nr3(st.channel(ch).offset_v),
-            Command::High => {
-                let c = st.channel(ch);
-                nr3(c.offset_v + c.amplitude_vpp / 2.0)
-            }
-            Command::Low => {
-                let c = st.channel(ch);
-                nr3(c.offset_v - c.amplitude_vpp / 2.0)
-            }
-            Command::Output => u8::from(st.channel(ch).output).to_string(),
-            Command::SystemError => inner.errors.pop().reply(),
-            Command::SystemErrorCount => inner.errors.len().to_string(),
-            Command::RefSource => st.ref_source.to_string(),
-            Command::RefFrequency => nr3(st.ref_frequency),
-            Command::InitImmediate
-            | Command::Abort
-            | Command::TraceDefine
-            | Command::TraceDelete
-            | Command::TraceDeleteAll => return Err(unreachable_form(command).unwrap_err()),
-        };
-        Ok(reply)
-    }
-}
-
-impl AwgState {
-    fn refuse_running_change(&mut self, function_mode: &'static str) -> Result<(), ScpiError> {
-        if self.running && self.function_mode != function_mode {
-            return Err(ScpiError::new(
-                -221,
-                "changing the function mode is not allowed while the output runs; send :ABOR first",
-            ));
-        }
-        self.function_mode = function_mode;
-        Ok(())
-    }
-}
-
-/// The table's `Forms` already rejected this form; kept as an error rather than a panic.
-fn unreachable_form(command: Command) -> Result<(), ScpiError> {
-    Err(ScpiError::new(
-        -113,
-        format!("{command:?} has no such form"),
-    ))
 }
 
 fn push_error(inner: &mut Inner, error: ScpiError) {
@@ -577,84 +275,15 @@ fn status_byte(inner: &Inner) -> u8 {
     stb
 }
 
-fn text(param: &Param) -> Result<&str, ScpiError> {
-    param
-        .text()
-        .map(unquote)
-        .ok_or_else(|| ScpiError::new(-104, "a block is not allowed here"))
-}
-
 fn one_text<'a>(params: &'a [Param], header: &str) -> Result<&'a str, ScpiError> {
     match params {
-        [p] => text(p),
+        [p] => handlers::text(p),
         [] => Err(ScpiError::new(-109, format!("{header} needs a parameter"))),
         _ => Err(ScpiError::new(
             -108,
             format!("{header} takes one parameter"),
         )),
     }
-}
-
-fn no_params(params: &[Param], header: &str) -> Result<(), ScpiError> {
-    if params.is_empty() {
-        Ok(())
-    } else {
-        Err(ScpiError::new(-108, format!("{header} takes no parameter")))
-    }
-}
-
-fn sample_value(text: &str, min: i32, max: i32) -> Result<i8, ScpiError> {
-    let v = numeric::parse_with_unit(&text.to_ascii_uppercase(), numeric::Unit::None)?;
-    if v.fract() != 0.0 || v < f64::from(min) || v > f64::from(max) {
-        return Err(ScpiError::new(
-            -222,
-            format!("sample {text} is outside {min}..={max}"),
-        ));
-    }
-    Ok(v as i8)
-}
-
-/// Splits download bytes into samples and (interleaved mode) marker bytes.
-#[allow(clippy::type_complexity)]
-fn split_data(
-    bytes: &[i16],
-    interleaved: bool,
-    min: i32,
-    max: i32,
-) -> Result<(Vec<i8>, Option<Vec<u8>>), ScpiError> {
-    let sample = |v: i16| -> Result<i8, ScpiError> {
-        // Block bytes arrive as two's complement; ASCII values may be written 0..255 or -128..127.
-        let s = if v > 127 { v - 256 } else { v };
-        if i32::from(s) < min || i32::from(s) > max {
-            return Err(ScpiError::new(
-                -222,
-                format!("sample {v} is outside {min}..={max}"),
-            ));
-        }
-        Ok(s as i8)
-    };
-    if !interleaved {
-        return Ok((
-            bytes.iter().map(|b| sample(*b)).collect::<Result<_, _>>()?,
-            None,
-        ));
-    }
-    if bytes.len() % 2 != 0 {
-        return Err(ScpiError::new(
-            -161,
-            format!(
-                "channel 1 data in a marker DAC mode is [sample, marker] byte pairs; got an odd {} bytes",
-                bytes.len()
-            ),
-        ));
-    }
-    let mut samples = Vec::with_capacity(bytes.len() / 2);
-    let mut markers = Vec::with_capacity(bytes.len() / 2);
-    for pair in bytes.chunks_exact(2) {
-        samples.push(sample(pair[0])?);
-        markers.push((pair[1] & 0xff) as u8);
-    }
-    Ok((samples, Some(markers)))
 }
 
 impl Handler for M8195a {

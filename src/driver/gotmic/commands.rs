@@ -16,36 +16,8 @@ pub const IDN: &str = "*IDN?";
 /// way CRC framing is on afterwards.
 pub const CRC_ON: &str = "CRC ON";
 
-/// CRC-8, MSB first, no reflection, no final XOR (CRC-8/SMBUS for poly 0x07, init 0x00).
-pub fn crc8(data: &[u8], poly: u8, init: u8) -> u8 {
-    let mut crc = init;
-    for byte in data {
-        crc ^= byte;
-        for _ in 0..8 {
-            crc = if crc & 0x80 != 0 {
-                (crc << 1) ^ poly
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
-}
-
-/// A request with its CRC suffix: `R 03*hh`.
-pub fn framed(line: &str, poly: u8, init: u8) -> String {
-    format!("{line}*{:02X}", crc8(line.as_bytes(), poly, init))
-}
-
-/// Checks and strips the CRC suffix of a reply; `None` when it is missing or wrong.
-pub fn unframe(reply: &str, poly: u8, init: u8) -> Option<&str> {
-    let reply = reply.trim();
-    let (body, sum) = reply.rsplit_once('*')?;
-    let got = u8::from_str_radix(sum, 16)
-        .ok()
-        .filter(|_| sum.len() == 2)?;
-    (got == crc8(body.as_bytes(), poly, init)).then_some(body)
-}
+// CRC framing (`*<hh>` suffixes) is the session's [`Crc8`](crate::session::Crc8): one CRC-8 for
+// the driver and the session's line protocol.
 
 pub fn read(address: u8) -> String {
     format!("R {address:02X}")
@@ -108,14 +80,5 @@ mod tests {
         assert_eq!(parse_reply("OK 12345"), None);
         assert_eq!(parse_reply("hello"), None);
         assert_eq!(parse_reply("ERR x y"), None);
-    }
-
-    #[test]
-    fn crc_framing() {
-        assert_eq!(crc8(b"123456789", 0x07, 0x00), 0xF4);
-        let line = framed("R 03", 0x07, 0);
-        assert_eq!(unframe(&line, 0x07, 0), Some("R 03"));
-        assert_eq!(unframe("OK 003F*00", 0x07, 0), None);
-        assert_eq!(unframe("OK 003F", 0x07, 0), None);
     }
 }

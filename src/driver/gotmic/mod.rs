@@ -11,15 +11,15 @@ pub mod commands;
 
 use self::commands::Reply;
 use super::capability::{RfFrontEnd, RfSettings, RfStatus};
-use super::common::{self, session};
-use super::error::DriverError;
-use super::io::{BoxFuture, InstrumentIo};
+use super::error::{session, DriverError};
+use super::identity;
+use super::io::{session_options, BoxFuture, InstrumentIo};
+use super::limits::within;
 use super::permit::RfPermit;
 use crate::address::Resource;
 use crate::catalog::{InstrumentModel, Register, RfDirection, RfLimits};
-use crate::session::reply::parse_idn;
-use crate::session::{Identity, Session, SessionOptions};
-use crate::transport::{Journal, LinkOptions};
+use crate::session::{Crc8, Identity, Session};
+use crate::transport::{Journal, SerialSettings};
 
 /// The registers and bits the driver uses, resolved from the catalog once.
 #[derive(Debug, Clone)]
@@ -105,17 +105,17 @@ pub enum Framing {
     Plain,
     /// `*<hh>` CRC-8 suffix on every request and reply (`CRC ON`), with the catalog's polynomial
     /// and initial value: a corrupted line on the serial link is detected, never acted on.
-    Crc8 { poly: u8, init: u8 },
+    Crc8(Crc8),
 }
 
 impl Framing {
     /// CRC-8 when the catalog's `[protocol]` defines one, else plain lines.
     pub fn from_catalog(model: &InstrumentModel) -> Framing {
         match &model.protocol {
-            Some(p) => Framing::Crc8 {
+            Some(p) => Framing::Crc8(Crc8 {
                 poly: p.crc_poly,
                 init: p.crc_init,
-            },
+            }),
             None => Framing::Plain,
         }
     }
@@ -133,8 +133,8 @@ pub struct Gotmic {
 }
 
 /// Serial settings from the catalog's `[serial]` section.
-fn serial_settings(model: &InstrumentModel) -> crate::transport::serial::SerialSettings {
-    let mut s = crate::transport::serial::SerialSettings::default();
+fn serial_settings(model: &InstrumentModel) -> SerialSettings {
+    let mut s = SerialSettings::default();
     if let Some(c) = &model.serial {
         s.baud = c.baud;
         s.data_bits = c.data_bits;
@@ -157,14 +157,8 @@ impl Gotmic {
         journal: Option<Journal>,
         name: &str,
     ) -> Result<Gotmic, DriverError> {
-        let options = SessionOptions {
-            link: LinkOptions {
-                timeouts: super::io::timeouts_from_catalog(&model.timeouts),
-                serial: serial_settings(model),
-                ..LinkOptions::default()
-            },
-            ..SessionOptions::default()
-        };
+        let mut options = session_options(model, "");
+        options.link.serial = serial_settings(model);
         let session = Session::open(resource, options, journal, name)
             .await
             .map_err(session(name))?;
@@ -207,7 +201,7 @@ impl Gotmic {
             },
             name: name.to_string(),
         };
-        if let Framing::Crc8 { .. } = framing {
+        if let Framing::Crc8(_) = framing {
             // Whatever the module answers (OK, or the CRC error of a module already in CRC
             // mode), CRC framing is on afterwards; the framed *IDN? below proves it.
             let reply = driver
@@ -218,23 +212,13 @@ impl Gotmic {
             tracing::debug!(instrument = name, "CRC ON -> {reply}");
         }
         let idn_text = driver.line(commands::IDN).await?;
-        let identity = parse_idn(&idn_text).ok_or_else(|| DriverError::Reply {
-            instrument: name.to_string(),
-            command: commands::IDN.into(),
-            expected: "manufacturer,model,serial,firmware",
-            reply: idn_text.clone(),
-        })?;
-        if !common::identity_matches(model, &identity) {
-            return Err(DriverError::WrongInstrument {
-                resource: driver.io.resource_text(),
-                expected: format!(
-                    "{} {} (catalog key `{}`)",
-                    model.instrument.manufacturer, model.instrument.model, model.instrument.key
-                ),
-                idn: idn_text,
-            });
-        }
-        driver.identity = identity;
+        driver.identity = identity::check(
+            model,
+            name,
+            &driver.io.resource_text(),
+            commands::IDN,
+            &idn_text,
+        )?;
         let id = driver.read(&driver.map.id.clone()).await?;
         if id != driver.map.id.reset {
             return Err(DriverError::WrongInstrument {
@@ -253,10 +237,10 @@ impl Gotmic {
     async fn line(&mut self, request: &str) -> Result<String, DriverError> {
         match self.framing {
             Framing::Plain => self.io.query(request).await.map_err(session(&self.name)),
-            Framing::Crc8 { poly, init } => {
-                let sent = commands::framed(request, poly, init);
+            Framing::Crc8(crc) => {
+                let sent = crc.frame(request);
                 let reply = self.io.query(&sent).await.map_err(session(&self.name))?;
-                commands::unframe(&reply, poly, init)
+                crc.unframe(reply.trim())
                     .map(str::to_string)
                     .ok_or_else(|| DriverError::Reply {
                         instrument: self.name.clone(),
@@ -339,7 +323,7 @@ impl Gotmic {
         let min = self.map.attenuation.min.unwrap_or(0);
         let highest = f64::from(max) * step;
         let lowest = f64::from(min) * step;
-        common::within(&self.name, "attenuation_db", db, lowest, highest, "dB")?;
+        within(&self.name, "attenuation_db", db, lowest, highest, "dB")?;
         Ok(((db / step).round() as u16).clamp(min, max))
     }
 
@@ -390,7 +374,7 @@ impl Gotmic {
         let code = self.attenuation_code(settings.attenuation_db)?;
         let lo_mhz = match settings.lo_frequency_hz {
             Some(f) => {
-                common::within(
+                within(
                     &self.name,
                     "lo_frequency_hz",
                     f,

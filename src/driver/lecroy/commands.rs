@@ -2,7 +2,7 @@
 //! The same spellings go over VICP and VXI-11.
 
 use crate::driver::capability::Slope;
-use crate::driver::common::number;
+use crate::driver::scpi::number;
 
 pub const HEADERS_OFF: &str = "CHDR OFF";
 /// 16-bit words: BYTE would transfer only the upper 8 bits of the scope's internal values.
@@ -12,7 +12,10 @@ pub const WHOLE_RECORD: &str = "WFSU SP,0,NP,0,FP,0,SN,0";
 pub const FIXED_RATE: &str = "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'";
 pub const SAMPLING_RATE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'";
 pub const HOR_SCALE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.HorScale'";
+/// The command error register; its codes' texts are the session's
+/// [`register_error_text`](crate::session::register_error_text).
 pub const COMMAND_ERRORS: &str = "CMR?";
+/// The execution error register (texts as for [`COMMAND_ERRORS`]).
 pub const EXECUTION_ERRORS: &str = "EXR?";
 pub const STATUS: &str = "INR?";
 pub const STOP: &str = "STOP";
@@ -74,43 +77,4 @@ pub fn single_shot(wait_s: f64) -> String {
 
 pub fn waveform(channel: u8) -> String {
     format!("C{channel}:WF? ALL")
-}
-
-/// Texts of the legacy command-error register (CMR?) codes [V-src: X-Stream remote manual].
-pub fn command_error_text(code: i64) -> &'static str {
-    match code {
-        1 => "unrecognized command/query header",
-        2 => "illegal header path",
-        3 => "illegal number",
-        4 => "illegal number suffix",
-        5 => "unrecognized keyword",
-        6 => "string error",
-        7 => "GET embedded in another message",
-        10 => "arbitrary data block expected",
-        11 => "non-digit character in byte count field of arbitrary data block",
-        12 => "EOI detected during definite length data block transfer",
-        13 => "extra bytes detected during definite length data block transfer",
-        _ => "command error",
-    }
-}
-
-/// Texts of the execution-error register (EXR?) codes [V-src: X-Stream remote manual].
-pub fn execution_error_text(code: i64) -> &'static str {
-    match code {
-        21 => "permission error",
-        22 => "environment error",
-        23 => "option error",
-        24 => "unresolved parsing error",
-        25 => "parameter error",
-        26 => "command not implemented",
-        27 => "parameter missing",
-        30 => "hex data error",
-        31 => "waveform error",
-        32 => "waveform descriptor error",
-        33 => "waveform text error",
-        34 => "waveform time error",
-        35 => "waveform data error",
-        36 => "panel setup error",
-        _ => "execution error",
-    }
 }

@@ -11,18 +11,20 @@ pub mod commands;
 /// The LeCroy waveform format lives in [`crate::trc`] (a pure codec shared with file readers).
 pub use crate::trc as wavedesc;
 
+use std::time::Duration;
+
 use bytes::Bytes;
 
 use self::wavedesc::Trace;
 use super::capability::{Digitizer, DigitizerApplied, DigitizerSettings, IqCapture};
-use super::common::{self, close, session, within};
-use super::error::DriverError;
+use super::error::{session, DriverError};
 use super::io::{open_session, BoxFuture, InstrumentIo};
+use super::limits::{close, within};
+use super::scpi::Scpi;
 use crate::address::Resource;
 use crate::catalog::{DigitizerLimits, InstrumentModel};
-use crate::session::reply::{parse_f64, parse_i64};
-use crate::session::{DeviceError, Identity, SessionError};
-use crate::transport::{Journal, LinkError};
+use crate::session::{parse_f64, register_error_text, DeviceError, Identity, SessionError};
+use crate::transport::Journal;
 
 /// Channel that carries I.
 pub const I_CHANNEL: u8 = 1;
@@ -37,11 +39,10 @@ const WAIT_SLACK_S: f64 = 5.0;
 
 /// A connected LeCroy scope.
 pub struct Lecroy {
-    io: Box<dyn InstrumentIo>,
+    scpi: Scpi,
     model: InstrumentModel,
     limits: DigitizerLimits,
     identity: Identity,
-    name: String,
     vbs_prefix: Option<String>,
 }
 
@@ -52,19 +53,6 @@ fn protocol_names(protocol: &str) -> (&'static str, &'static str) {
     } else {
         ("LXI (VXI-11)", "TCPIP (VICP)")
     }
-}
-
-/// Link failures at connection time that mean "nobody answers this protocol here".
-fn no_answer(e: &SessionError) -> bool {
-    matches!(
-        e.link_error(),
-        Some(
-            LinkError::Timeout { .. }
-                | LinkError::Closed { .. }
-                | LinkError::Connect { .. }
-                | LinkError::Refused { .. }
-        )
-    )
 }
 
 fn remote_interface(resource: String, protocol: &str, source: SessionError) -> DriverError {
@@ -88,10 +76,10 @@ impl Lecroy {
     ) -> Result<Lecroy, DriverError> {
         let text = resource.to_string();
         let protocol = resource.protocol();
-        let session = open_session(resource, &model.timeouts, "CMR?", journal, name)
+        let session = open_session(resource, model, commands::COMMAND_ERRORS, journal, name)
             .await
             .map_err(|e| {
-                if no_answer(&e) {
+                if e.is_no_answer() {
                     remote_interface(text.clone(), protocol, e)
                 } else {
                     session(name)(e)
@@ -102,7 +90,7 @@ impl Lecroy {
 
     /// Identifies the scope on an open session (or a scripted fake).
     pub async fn connect(
-        mut io: Box<dyn InstrumentIo>,
+        io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,
         name: &str,
     ) -> Result<Lecroy, DriverError> {
@@ -113,24 +101,28 @@ impl Lecroy {
                 key: model.instrument.key.clone(),
                 reason: "the model has no [digitizer] section; it is not a scope".into(),
             })?;
+        let mut scpi = Scpi::new(io, name);
         // Response headers are on after power-up (`*IDN LECROY,...`); switch them off first.
-        let identified = match io.write(commands::HEADERS_OFF).await {
-            Ok(()) => common::identify(io.as_mut(), model, name).await,
-            Err(e) => Err(session(name)(e)),
+        let identified = match scpi.send(commands::HEADERS_OFF).await {
+            Ok(()) => scpi.identify(model).await,
+            Err(e) => Err(e),
         };
         let identity = match identified {
-            Err(DriverError::Session { source, .. }) if no_answer(&source) => {
-                return Err(remote_interface(io.resource_text(), io.protocol(), *source))
+            Err(DriverError::Session { source, .. }) if source.is_no_answer() => {
+                return Err(remote_interface(
+                    scpi.resource_text(),
+                    scpi.protocol(),
+                    *source,
+                ))
             }
             other => other?,
         };
         Ok(Lecroy {
-            io,
+            scpi,
             vbs_prefix: model.quirks.vbs_reply_prefix.clone(),
             model: model.clone(),
             limits,
             identity,
-            name: name.to_string(),
         })
     }
 
@@ -138,80 +130,48 @@ impl Lecroy {
         &self.model
     }
 
-    async fn send(&mut self, command: &str) -> Result<(), DriverError> {
-        self.io.write(command).await.map_err(session(&self.name))
-    }
-
-    async fn ask(&mut self, query: &str) -> Result<String, DriverError> {
-        self.io.query(query).await.map_err(session(&self.name))
-    }
-
-    fn reply_error(&self, command: &str, expected: &'static str, reply: &str) -> DriverError {
-        DriverError::Reply {
-            instrument: self.name.clone(),
-            command: command.to_string(),
-            expected,
-            reply: reply.to_string(),
-        }
-    }
-
-    /// An integer reply, with or without a response header (`INR 8193` or `8193`).
-    async fn ask_int(&mut self, query: &str) -> Result<i64, DriverError> {
-        let text = self.ask(query).await?;
-        text.split_whitespace()
-            .last()
-            .and_then(parse_i64)
-            .ok_or_else(|| self.reply_error(query, "an integer", &text))
-    }
-
-    /// A `VBS?` number, with the `VBS ` header stripped when present.
+    /// A `VBS?` number, with the catalog's `VBS ` reply prefix stripped when present.
     async fn ask_vbs_number(&mut self, query: &str) -> Result<f64, DriverError> {
-        let text = self.ask(query).await?;
+        let text = self.scpi.ask(query).await?;
         let mut body = text.trim();
         if let Some(prefix) = &self.vbs_prefix {
             body = body.strip_prefix(prefix.as_str()).unwrap_or(body);
         }
-        parse_f64(body.trim()).ok_or_else(|| self.reply_error(query, "a number", &text))
+        parse_f64(body.trim()).ok_or_else(|| self.scpi.reply_error(query, "a number", &text))
+    }
+
+    /// Reads one error register (which clears it): its entry, if it holds an error.
+    async fn register_error(&mut self, register: &str) -> Result<Option<DeviceError>, DriverError> {
+        let code = self.scpi.ask_i64(register).await?;
+        let code = i32::try_from(code).map_err(|_| {
+            self.scpi
+                .reply_error(register, "an error code", &code.to_string())
+        })?;
+        Ok((code != 0).then(|| DeviceError {
+            code,
+            message: register_error_text(register, code).to_string(),
+        }))
     }
 
     /// Reads (and thereby clears) the command and execution error registers.
     async fn check(&mut self, batch: &str) -> Result<(), DriverError> {
         let mut errors = Vec::new();
-        let cmr = self.ask_int(commands::COMMAND_ERRORS).await?;
-        if cmr != 0 {
-            errors.push(DeviceError {
-                code: cmr as i32,
-                message: commands::command_error_text(cmr).to_string(),
-            });
+        for register in [commands::COMMAND_ERRORS, commands::EXECUTION_ERRORS] {
+            errors.extend(self.register_error(register).await?);
         }
-        let exr = self.ask_int(commands::EXECUTION_ERRORS).await?;
-        if exr != 0 {
-            errors.push(DeviceError {
-                code: exr as i32,
-                message: commands::execution_error_text(exr).to_string(),
-            });
-        }
-        if errors.is_empty() {
-            Ok(())
-        } else {
-            Err(DriverError::Refused {
-                instrument: self.name.clone(),
-                batch: batch.to_string(),
-                errors,
-            })
-        }
+        self.scpi.refused_if_any(batch, errors)
     }
 
     fn validate(&self, s: &DigitizerSettings) -> Result<(), DriverError> {
         let l = &self.limits;
-        let n = &self.name;
+        let n = self.scpi.name();
         if !l
             .sample_rates
             .iter()
             .any(|r| close(*r, s.sample_rate_hz, RATE_TOLERANCE))
         {
             return Err(DriverError::OutOfLimits {
-                instrument: n.clone(),
+                instrument: n.to_string(),
                 field: "sample_rate_hz",
                 value: format!("{} Sa/s", s.sample_rate_hz),
                 allowed: format!("one of {:?} Sa/s", l.sample_rates),
@@ -230,7 +190,7 @@ impl Lecroy {
         let points = (s.record_s() * s.sample_rate_hz).ceil();
         if points > l.max_points_per_channel as f64 {
             return Err(DriverError::OutOfLimits {
-                instrument: n.clone(),
+                instrument: n.to_string(),
                 field: "repetition_s + longest_echo_s + pre_trigger_s",
                 value: format!("{} s = {points} points", s.record_s()),
                 allowed: format!(
@@ -287,38 +247,44 @@ impl Lecroy {
         self.validate(s)?;
         let divisions = f64::from(self.limits.horizontal_divisions);
         // Clear stale error bits so they are not blamed on this configuration.
-        let _ = self.ask_int(commands::COMMAND_ERRORS).await?;
-        let _ = self.ask_int(commands::EXECUTION_ERRORS).await?;
+        for register in [commands::COMMAND_ERRORS, commands::EXECUTION_ERRORS] {
+            if let Some(stale) = self.register_error(register).await? {
+                tracing::warn!(instrument = %self.scpi.name(), "error register entry from before this configuration: {stale}");
+            }
+        }
         for command in [
             commands::HEADERS_OFF,
             commands::WORD_FORMAT,
             commands::LSB_FIRST,
             commands::WHOLE_RECORD,
         ] {
-            self.send(command).await?;
+            self.scpi.send(command).await?;
         }
         self.check("the transfer format").await?;
         for (ch, vdiv, offset) in [
             (I_CHANNEL, s.i_volts_per_div, s.i_offset_v),
             (Q_CHANNEL, s.q_volts_per_div, s.q_offset_v),
         ] {
-            self.send(&commands::trace_on(ch)).await?;
-            self.send(&commands::volts_per_div(ch, vdiv)).await?;
-            self.send(&commands::offset(ch, offset)).await?;
+            self.scpi.send(&commands::trace_on(ch)).await?;
+            self.scpi.send(&commands::volts_per_div(ch, vdiv)).await?;
+            self.scpi.send(&commands::offset(ch, offset)).await?;
         }
         if s.external_reference {
-            self.send(commands::EXTERNAL_REFERENCE).await?;
+            self.scpi.send(commands::EXTERNAL_REFERENCE).await?;
         }
         self.check("the channel settings").await?;
-        self.send(commands::FIXED_RATE).await?;
-        self.send(&commands::sample_rate(s.sample_rate_hz)).await?;
-        self.send(&commands::hor_scale(s.record_s() / divisions))
+        self.scpi.send(commands::FIXED_RATE).await?;
+        self.scpi
+            .send(&commands::sample_rate(s.sample_rate_hz))
+            .await?;
+        self.scpi
+            .send(&commands::hor_scale(s.record_s() / divisions))
             .await?;
         self.check("the sample rate and record length").await?;
         let rate = self.ask_vbs_number(commands::SAMPLING_RATE_QUERY).await?;
         if !close(rate, s.sample_rate_hz, RATE_TOLERANCE) {
             return Err(DriverError::NotApplied {
-                instrument: self.name.clone(),
+                instrument: self.scpi.name().to_string(),
                 setting: "sample rate (Sa/s)",
                 wanted: s.sample_rate_hz.to_string(),
                 applied: rate.to_string(),
@@ -328,7 +294,7 @@ impl Lecroy {
         let record_s = hor_scale * divisions;
         if record_s < s.record_s() * (1.0 - 1e-9) {
             return Err(DriverError::NotApplied {
-                instrument: self.name.clone(),
+                instrument: self.scpi.name().to_string(),
                 setting: "record length (s)",
                 wanted: s.record_s().to_string(),
                 applied: record_s.to_string(),
@@ -337,19 +303,24 @@ impl Lecroy {
         // The record starts pre_trigger_s before the trigger: the scope puts the trigger at the
         // grid's centre for a delay of 0, so move it by half the record.
         let trigger_delay_s = s.pre_trigger_s - divisions / 2.0 * hor_scale;
-        self.send(&commands::edge_trigger(commands::EXTERNAL))
+        self.scpi
+            .send(&commands::edge_trigger(commands::EXTERNAL))
             .await?;
-        self.send(&commands::trigger_level(
-            commands::EXTERNAL,
-            s.trigger_level_v,
-        ))
-        .await?;
-        self.send(&commands::trigger_slope(
-            commands::EXTERNAL,
-            s.trigger_slope,
-        ))
-        .await?;
-        self.send(&commands::trigger_delay(trigger_delay_s)).await?;
+        self.scpi
+            .send(&commands::trigger_level(
+                commands::EXTERNAL,
+                s.trigger_level_v,
+            ))
+            .await?;
+        self.scpi
+            .send(&commands::trigger_slope(
+                commands::EXTERNAL,
+                s.trigger_slope,
+            ))
+            .await?;
+        self.scpi
+            .send(&commands::trigger_delay(trigger_delay_s))
+            .await?;
         self.check("the trigger settings").await?;
         Ok(DigitizerApplied {
             sample_rate_hz: rate,
@@ -363,26 +334,19 @@ impl Lecroy {
     }
 
     async fn acquire_impl(&mut self, wait_s: f64) -> Result<(), DriverError> {
-        within(&self.name, "wait_s", wait_s, 0.0, 1.0e5, "s")?;
+        within(self.scpi.name(), "wait_s", wait_s, 0.0, 1.0e5, "s")?;
         // Reading INR clears it, so bit 0 afterwards means this acquisition.
-        self.ask_int(commands::STATUS).await?;
+        self.scpi.ask_i64(commands::STATUS).await?;
         let query = commands::single_shot(wait_s);
-        let allowed = std::time::Duration::from_secs_f64(wait_s + WAIT_SLACK_S)
-            + std::time::Duration::from_millis(self.model.timeouts.read_ms);
-        let opc = self
-            .io
-            .query_with_timeout(&query, allowed)
-            .await
-            .map_err(session(&self.name))?;
-        if parse_i64(opc.split_whitespace().last().unwrap_or("")) != Some(1) {
-            return Err(self.reply_error(&query, "1", &opc));
-        }
-        let inr = self.ask_int(commands::STATUS).await?;
+        let allowed = Duration::from_secs_f64(wait_s + WAIT_SLACK_S)
+            + Duration::from_millis(self.model.timeouts.read_ms);
+        self.scpi.complete_within(&query, allowed).await?;
+        let inr = self.scpi.ask_i64(commands::STATUS).await?;
         if inr & INR_NEW_ACQUISITION == 0 {
             // Disarm so a late edge does not complete an acquisition nobody reads.
-            self.send(commands::STOP).await?;
+            self.scpi.send(commands::STOP).await?;
             return Err(DriverError::NoTrigger {
-                instrument: self.name.clone(),
+                instrument: self.scpi.name().to_string(),
                 source_name: commands::EXTERNAL.to_string(),
                 waited_s: wait_s,
             });
@@ -393,7 +357,7 @@ impl Lecroy {
     async fn fetch_impl(&mut self, channel: u8) -> Result<Trace, DriverError> {
         if channel == 0 || channel > self.limits.channels {
             return Err(DriverError::BadSettings {
-                instrument: self.name.clone(),
+                instrument: self.scpi.name().to_string(),
                 field: "channel",
                 reason: format!(
                     "C{channel} does not exist; allowed C1..=C{}",
@@ -402,14 +366,10 @@ impl Lecroy {
             });
         }
         let query = commands::waveform(channel);
-        let block = self
-            .io
-            .query_block(&query)
-            .await
-            .map_err(session(&self.name))?;
+        let block = self.scpi.query_block(&query).await?;
         let payload: Bytes = block.into_payload();
         Trace::decode(channel, payload).map_err(|source| DriverError::Waveform {
-            instrument: self.name.clone(),
+            instrument: self.scpi.name().to_string(),
             channel,
             source,
         })
@@ -446,6 +406,6 @@ impl Digitizer for Lecroy {
     }
 
     fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
-        Box::pin(async move { self.send(commands::STOP).await })
+        Box::pin(async move { self.scpi.send(commands::STOP).await })
     }
 }

@@ -1,9 +1,10 @@
 //! Every SCPI spelling the M8195A driver sends, in one place (instruments.md section 1.4).
 
-use crate::driver::common::number;
+use crate::driver::scpi::number;
 
 pub const ABORT: &str = ":ABOR";
 pub const RUN: &str = ":INIT:IMM";
+/// Answers `1` once pending operations (a download) are complete.
 pub const OPC: &str = "*OPC?";
 pub const FUNCTION_ARB: &str = ":FUNC:MODE ARB";
 pub const CONTINUOUS: &str = ":INIT:CONT 1";

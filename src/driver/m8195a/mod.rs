@@ -8,50 +8,52 @@
 pub mod commands;
 pub mod plan;
 
+use std::time::Duration;
+
 use self::plan::{ClockPlan, DownloadPlan, SEGMENT_ID};
 use super::capability::{
     Awg, AwgApplied, AwgSettings, IqWaveform, LoadedSegment, OutputState, ReferenceClock,
     SegmentEntry,
 };
-use super::common::{self, check_batch, close, session};
-use super::error::DriverError;
-use super::io::{BoxFuture, InstrumentIo};
+use super::error::{session, DriverError};
+use super::io::{open_session, BoxFuture, InstrumentIo};
+use super::limits::close;
 use super::permit::RfPermit;
+use super::scpi::Scpi;
+use crate::address::Resource;
 use crate::catalog::{AwgLimits, InstrumentModel};
-use crate::session::reply::{parse_f64, parse_i64};
-use crate::session::Identity;
+use crate::session::{parse_i64, Identity, SCPI_ERROR_QUERY};
+use crate::transport::Journal;
 
 /// Relative tolerance when comparing a read-back rate with the requested one.
 const RATE_TOLERANCE: f64 = 1e-9;
 
 /// A connected M8195A.
 pub struct M8195a {
-    io: Box<dyn InstrumentIo>,
+    scpi: Scpi,
     model: InstrumentModel,
     limits: AwgLimits,
     identity: Identity,
-    name: String,
     clock: Option<ClockPlan>,
 }
 
 impl M8195a {
     /// Opens the resource (raw socket, HiSLIP or VXI-11) with the model's timeouts and connects.
     pub async fn open(
-        resource: crate::address::Resource,
+        resource: Resource,
         model: &InstrumentModel,
-        journal: Option<crate::transport::Journal>,
+        journal: Option<Journal>,
         name: &str,
     ) -> Result<M8195a, DriverError> {
-        let session =
-            super::io::open_session(resource, &model.timeouts, "SYST:ERR?", journal, name)
-                .await
-                .map_err(session(name))?;
+        let session = open_session(resource, model, SCPI_ERROR_QUERY, journal, name)
+            .await
+            .map_err(session(name))?;
         M8195a::connect(Box::new(session), model, name).await
     }
 
     /// Checks `*IDN?` against the catalog model and returns the driver.
     pub async fn connect(
-        mut io: Box<dyn InstrumentIo>,
+        io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,
         name: &str,
     ) -> Result<M8195a, DriverError> {
@@ -60,13 +62,13 @@ impl M8195a {
             reason: "the model has no [awg] section; it is not an AWG".into(),
         })?;
         plan::iq_marker_mode(&limits, &model.instrument.key)?;
-        let identity = common::identify(io.as_mut(), model, name).await?;
+        let mut scpi = Scpi::new(io, name);
+        let identity = scpi.identify(model).await?;
         Ok(M8195a {
-            io,
+            scpi,
             model: model.clone(),
             limits,
             identity,
-            name: name.to_string(),
             clock: None,
         })
     }
@@ -75,53 +77,16 @@ impl M8195a {
         &self.model
     }
 
-    fn err(&self) -> impl Fn(crate::session::SessionError) -> DriverError + '_ {
-        session(&self.name)
-    }
-
-    async fn send(&mut self, command: &str) -> Result<(), DriverError> {
-        self.io.write(command).await.map_err(session(&self.name))
-    }
-
-    async fn ask(&mut self, query: &str) -> Result<String, DriverError> {
-        self.io.query(query).await.map_err(session(&self.name))
-    }
-
-    async fn check(&mut self, batch: &str) -> Result<(), DriverError> {
-        check_batch(self.io.as_mut(), &self.name, batch).await
-    }
-
-    fn reply_error(&self, command: &str, expected: &'static str, reply: &str) -> DriverError {
-        DriverError::Reply {
-            instrument: self.name.clone(),
-            command: command.to_string(),
-            expected,
-            reply: reply.to_string(),
-        }
-    }
-
-    async fn ask_f64(&mut self, query: &str) -> Result<f64, DriverError> {
-        let text = self.ask(query).await?;
-        parse_f64(&text).ok_or_else(|| self.reply_error(query, "a number", &text))
-    }
-
-    async fn ask_bool(&mut self, query: &str) -> Result<bool, DriverError> {
-        let text = self.ask(query).await?;
-        match parse_i64(&text) {
-            Some(0) => Ok(false),
-            Some(1) => Ok(true),
-            _ if text.eq_ignore_ascii_case("ON") => Ok(true),
-            _ if text.eq_ignore_ascii_case("OFF") => Ok(false),
-            _ => Err(self.reply_error(query, "0 or 1", &text)),
-        }
+    /// The longest wait for `*OPC?` after a download: the catalog's operation-complete time.
+    fn operation_complete(&self) -> Duration {
+        Duration::from_millis(self.model.timeouts.operation_complete_ms)
     }
 
     /// Stale entries in the error queue belong to whoever used the instrument before: they are
     /// logged, not blamed on this configuration.
     async fn drain_stale_errors(&mut self) -> Result<(), DriverError> {
-        let stale = self.io.errors().await.map_err(self.err())?;
-        for e in stale {
-            tracing::warn!(instrument = %self.name, "error queue entry from before this configuration: {e}");
+        for e in self.scpi.drain_errors().await? {
+            tracing::warn!(instrument = %self.scpi.name(), "error queue entry from before this configuration: {e}");
         }
         Ok(())
     }
@@ -130,56 +95,46 @@ impl M8195a {
         let clock = plan::plan_clock(
             &self.limits,
             &self.model.instrument.key,
-            &self.name,
+            self.scpi.name(),
             settings,
         )?;
         self.drain_stale_errors().await?;
         self.clock = None;
-        self.send(commands::ABORT).await?;
+        self.scpi.send(commands::ABORT).await?;
         match settings.reference_clock {
-            ReferenceClock::Internal => self.send(commands::REFERENCE_INTERNAL).await?,
+            ReferenceClock::Internal => self.scpi.send(commands::REFERENCE_INTERNAL).await?,
             ReferenceClock::External { frequency_hz } => {
-                self.send(commands::REFERENCE_EXTERNAL).await?;
-                self.send(&commands::reference_frequency(frequency_hz))
+                self.scpi.send(commands::REFERENCE_EXTERNAL).await?;
+                self.scpi
+                    .send(&commands::reference_frequency(frequency_hz))
                     .await?;
             }
         }
-        self.send(&commands::dac_mode(&clock.dac_mode)).await?;
-        self.send(&commands::divider(&clock.divider.keyword))
+        self.scpi.send(&commands::dac_mode(&clock.dac_mode)).await?;
+        self.scpi
+            .send(&commands::divider(&clock.divider.keyword))
             .await?;
         for ch in [clock.i_channel, clock.q_channel] {
-            self.send(&commands::extended_memory(ch)).await?;
+            self.scpi.send(&commands::extended_memory(ch)).await?;
         }
-        self.send(&commands::raster(clock.dac_rate_hz)).await?;
-        self.send(commands::FUNCTION_ARB).await?;
-        self.send(commands::CONTINUOUS).await?;
-        self.send(commands::GATE_OFF).await?;
-        self.check("the DAC mode and sample clock").await?;
-        self.send(&commands::amplitude(
-            clock.i_channel,
-            settings.i_amplitude_vpp,
-        ))
-        .await?;
-        self.send(&commands::offset(clock.i_channel, settings.i_offset_v))
-            .await?;
-        self.send(&commands::amplitude(
-            clock.q_channel,
-            settings.q_amplitude_vpp,
-        ))
-        .await?;
-        self.send(&commands::offset(clock.q_channel, settings.q_offset_v))
-            .await?;
-        self.send(&commands::marker_amplitude(
-            clock.marker_channel,
-            settings.marker_amplitude_v,
-        ))
-        .await?;
-        self.send(&commands::offset(
-            clock.marker_channel,
-            settings.marker_offset_v,
-        ))
-        .await?;
-        self.check("the amplitudes and marker levels").await?;
+        self.scpi.send(&commands::raster(clock.dac_rate_hz)).await?;
+        self.scpi.send(commands::FUNCTION_ARB).await?;
+        self.scpi.send(commands::CONTINUOUS).await?;
+        self.scpi.send(commands::GATE_OFF).await?;
+        self.scpi.check("the DAC mode and sample clock").await?;
+        let (i, q, m) = (clock.i_channel, clock.q_channel, clock.marker_channel);
+        let levels = [
+            commands::amplitude(i, settings.i_amplitude_vpp),
+            commands::offset(i, settings.i_offset_v),
+            commands::amplitude(q, settings.q_amplitude_vpp),
+            commands::offset(q, settings.q_offset_v),
+            commands::marker_amplitude(m, settings.marker_amplitude_v),
+            commands::offset(m, settings.marker_offset_v),
+        ];
+        for command in &levels {
+            self.scpi.send(command).await?;
+        }
+        self.scpi.check("the amplitudes and marker levels").await?;
         self.clock = Some(clock.clone());
         let applied = self.applied_impl().await?;
         self.verify_clock(&clock, &applied)?;
@@ -188,7 +143,7 @@ impl M8195a {
 
     fn verify_clock(&self, clock: &ClockPlan, applied: &AwgApplied) -> Result<(), DriverError> {
         let mismatch = |setting, wanted: String, got: String| DriverError::NotApplied {
-            instrument: self.name.clone(),
+            instrument: self.scpi.name().to_string(),
             setting,
             wanted,
             applied: got,
@@ -219,28 +174,33 @@ impl M8195a {
 
     fn require_clock(&self) -> Result<ClockPlan, DriverError> {
         self.clock.clone().ok_or_else(|| DriverError::Sequence {
-            instrument: self.name.clone(),
+            instrument: self.scpi.name().to_string(),
             what: "configure the AWG (DAC mode, divider) before loading a waveform: the granularity depends on it".into(),
         })
     }
 
     async fn load_impl(&mut self, waveform: &IqWaveform) -> Result<LoadedSegment, DriverError> {
         let clock = self.require_clock()?;
-        let plan = plan::plan_download(&self.limits, &clock, &self.name, waveform)?;
-        self.send(commands::ABORT).await?;
-        self.send(&commands::delete_all(clock.i_channel)).await?;
-        self.send(&commands::define(clock.i_channel, SEGMENT_ID, plan.padded))
+        let plan = plan::plan_download(&self.limits, &clock, self.scpi.name(), waveform)?;
+        self.scpi.send(commands::ABORT).await?;
+        self.scpi
+            .send(&commands::delete_all(clock.i_channel))
+            .await?;
+        self.scpi
+            .send(&commands::define(clock.i_channel, SEGMENT_ID, plan.padded))
             .await?;
         let chunks = self.download(&clock, &plan, waveform).await?;
-        let opc = self.ask(commands::OPC).await?;
-        if parse_i64(&opc) != Some(1) {
-            return Err(self.reply_error(commands::OPC, "1", &opc));
-        }
-        self.send(&commands::select(clock.i_channel, SEGMENT_ID))
+        let waited = self.operation_complete();
+        self.scpi.complete_within(commands::OPC, waited).await?;
+        self.scpi
+            .send(&commands::select(clock.i_channel, SEGMENT_ID))
             .await?;
-        self.send(&commands::select(clock.q_channel, SEGMENT_ID))
+        self.scpi
+            .send(&commands::select(clock.q_channel, SEGMENT_ID))
             .await?;
-        self.check("the segment definition and download").await?;
+        self.scpi
+            .check("the segment definition and download")
+            .await?;
         let listed = self.segments(clock.i_channel).await?;
         let expected = SegmentEntry {
             id: SEGMENT_ID,
@@ -248,7 +208,7 @@ impl M8195a {
         };
         if !listed.contains(&expected) {
             return Err(DriverError::NotApplied {
-                instrument: self.name.clone(),
+                instrument: self.scpi.name().to_string(),
                 setting: "segment table",
                 wanted: format!("segment {} of {} samples", SEGMENT_ID, plan.padded),
                 applied: format!("{listed:?}"),
@@ -274,27 +234,23 @@ impl M8195a {
         for &(offset, len) in &chunks {
             let bytes = plan::interleaved_chunk(&waveform.i, plan.marker_high, offset, len);
             let header = commands::data_header(clock.i_channel, SEGMENT_ID, offset);
-            self.io
-                .write_block(&header, &bytes)
-                .await
-                .map_err(session(&self.name))?;
+            self.scpi.write_block(&header, &bytes).await?;
         }
         for &(offset, len) in &chunks {
             let bytes = plan::plain_chunk(&waveform.q, offset, len);
             let header = commands::data_header(clock.q_channel, SEGMENT_ID, offset);
-            self.io
-                .write_block(&header, &bytes)
-                .await
-                .map_err(session(&self.name))?;
+            self.scpi.write_block(&header, &bytes).await?;
         }
         Ok(chunks.len())
     }
 
     async fn segments(&mut self, channel: u8) -> Result<Vec<SegmentEntry>, DriverError> {
         let query = commands::catalog_query(channel);
-        let text = self.ask(&query).await?;
-        parse_catalog(&text)
-            .ok_or_else(|| self.reply_error(&query, "id,length[,id,length...]", &text))
+        let text = self.scpi.ask(&query).await?;
+        parse_catalog(&text).ok_or_else(|| {
+            self.scpi
+                .reply_error(&query, "id,length[,id,length...]", &text)
+        })
     }
 
     fn signal_channels(&self) -> (u8, u8, u8) {
@@ -307,39 +263,44 @@ impl M8195a {
     async fn enable_impl(&mut self) -> Result<(), DriverError> {
         let (i, q, m) = self.signal_channels();
         for ch in [i, q, m] {
-            self.send(&commands::output(ch, true)).await?;
+            self.scpi.send(&commands::output(ch, true)).await?;
         }
-        self.check("switching the outputs on").await
+        self.scpi.check("switching the outputs on").await
     }
 
     async fn outputs_off_impl(&mut self) -> Result<(), DriverError> {
         for ch in 1..=self.limits.channels {
-            self.send(&commands::output(ch, false)).await?;
+            self.scpi.send(&commands::output(ch, false)).await?;
         }
-        self.check("switching the outputs off").await
+        self.scpi.check("switching the outputs off").await
     }
 
     async fn applied_impl(&mut self) -> Result<AwgApplied, DriverError> {
         let (i, q, m) = self.signal_channels();
-        let dac_mode = self.ask(commands::DAC_MODE_QUERY).await?;
-        let divider_text = self.ask(commands::DIVIDER_QUERY).await?;
+        let dac_mode = self.scpi.ask(commands::DAC_MODE_QUERY).await?;
+        let divider_text = self.scpi.ask(commands::DIVIDER_QUERY).await?;
         let divider = parse_divider(&divider_text).ok_or_else(|| {
-            self.reply_error(commands::DIVIDER_QUERY, "DIV1, DIV2 or DIV4", &divider_text)
+            self.scpi
+                .reply_error(commands::DIVIDER_QUERY, "DIV1, DIV2 or DIV4", &divider_text)
         })?;
-        let dac_rate_hz = self.ask_f64(commands::RASTER_QUERY).await?;
+        let dac_rate_hz = self.scpi.ask_f64(commands::RASTER_QUERY).await?;
         let segments = self.segments(i).await?;
-        let i_amplitude_vpp = self.ask_f64(&commands::amplitude_query(i)).await?;
-        let q_amplitude_vpp = self.ask_f64(&commands::amplitude_query(q)).await?;
-        let marker_amplitude_v = self.ask_f64(&commands::marker_amplitude_query(m)).await?;
-        let marker_offset_v = self.ask_f64(&commands::offset_query(m)).await?;
+        let i_amplitude_vpp = self.scpi.ask_f64(&commands::amplitude_query(i)).await?;
+        let q_amplitude_vpp = self.scpi.ask_f64(&commands::amplitude_query(q)).await?;
+        let marker_amplitude_v = self
+            .scpi
+            .ask_f64(&commands::marker_amplitude_query(m))
+            .await?;
+        let marker_offset_v = self.scpi.ask_f64(&commands::offset_query(m)).await?;
         let reference_source = self
+            .scpi
             .ask(commands::REFERENCE_QUERY)
             .await?
             .trim()
             .to_string();
         let mut outputs = Vec::new();
         for ch in [i, q, m] {
-            let on = self.ask_bool(&commands::output_query(ch)).await?;
+            let on = self.scpi.ask_bool(&commands::output_query(ch)).await?;
             outputs.push(OutputState { channel: ch, on });
         }
         Ok(AwgApplied {
@@ -361,16 +322,16 @@ impl M8195a {
     async fn safe_state_impl(&mut self) -> Result<(), DriverError> {
         let mut first_error = None;
         for ch in 1..=self.limits.channels {
-            if let Err(e) = self.send(&commands::output(ch, false)).await {
-                tracing::error!(instrument = %self.name, "safe state: output {ch} off failed: {e}");
+            if let Err(e) = self.scpi.send(&commands::output(ch, false)).await {
+                tracing::error!(instrument = %self.scpi.name(), "safe state: output {ch} off failed: {e}");
                 first_error.get_or_insert(e);
             }
         }
-        if let Err(e) = self.send(commands::ABORT).await {
-            tracing::error!(instrument = %self.name, "safe state: {} failed: {e}", commands::ABORT);
+        if let Err(e) = self.scpi.send(commands::ABORT).await {
+            tracing::error!(instrument = %self.scpi.name(), "safe state: {} failed: {e}", commands::ABORT);
             first_error.get_or_insert(e);
         }
-        if let Err(e) = self.check("the safe-state sequence").await {
+        if let Err(e) = self.scpi.check("the safe-state sequence").await {
             first_error.get_or_insert(e);
         }
         first_error.map_or(Ok(()), Err)
@@ -443,15 +404,15 @@ impl Awg for M8195a {
 
     fn run(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(async move {
-            self.send(commands::RUN).await?;
-            self.check("starting the playback").await
+            self.scpi.send(commands::RUN).await?;
+            self.scpi.check("starting the playback").await
         })
     }
 
     fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(async move {
-            self.send(commands::ABORT).await?;
-            self.check("stopping the playback").await
+            self.scpi.send(commands::ABORT).await?;
+            self.scpi.check("stopping the playback").await
         })
     }
 

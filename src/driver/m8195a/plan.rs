@@ -4,8 +4,8 @@
 
 use crate::catalog::{AwgLimits, DacMode, DividerLimits};
 use crate::driver::capability::{AwgSettings, IqWaveform};
-use crate::driver::common::within;
 use crate::driver::error::DriverError;
+use crate::driver::limits::within;
 
 /// The DAC mode the driver uses: I and Q on two channels, channel 1's marker bits on a third.
 pub const DAC_MODE: &str = "DCM";
@@ -95,54 +95,53 @@ pub fn plan_clock(
             allowed,
         });
     };
-    within(
-        instrument,
-        "i_amplitude_vpp",
-        settings.i_amplitude_vpp,
-        limits.amplitude_vpp_min,
-        limits.amplitude_vpp_max,
-        "Vpp",
-    )?;
-    within(
-        instrument,
-        "q_amplitude_vpp",
-        settings.q_amplitude_vpp,
-        limits.amplitude_vpp_min,
-        limits.amplitude_vpp_max,
-        "Vpp",
-    )?;
-    within(
-        instrument,
-        "i_offset_v",
-        settings.i_offset_v,
-        limits.offset_v_min,
-        limits.offset_v_max,
-        "V",
-    )?;
-    within(
-        instrument,
-        "q_offset_v",
-        settings.q_offset_v,
-        limits.offset_v_min,
-        limits.offset_v_max,
-        "V",
-    )?;
-    within(
-        instrument,
-        "marker_amplitude_v",
-        settings.marker_amplitude_v,
-        limits.marker_amplitude_v_min,
-        limits.marker_amplitude_v_max,
-        "V",
-    )?;
-    within(
-        instrument,
-        "marker_offset_v",
-        settings.marker_offset_v,
-        limits.marker_offset_v_min,
-        limits.marker_offset_v_max,
-        "V",
-    )?;
+    let levels = [
+        (
+            "i_amplitude_vpp",
+            settings.i_amplitude_vpp,
+            limits.amplitude_vpp_min,
+            limits.amplitude_vpp_max,
+            "Vpp",
+        ),
+        (
+            "q_amplitude_vpp",
+            settings.q_amplitude_vpp,
+            limits.amplitude_vpp_min,
+            limits.amplitude_vpp_max,
+            "Vpp",
+        ),
+        (
+            "i_offset_v",
+            settings.i_offset_v,
+            limits.offset_v_min,
+            limits.offset_v_max,
+            "V",
+        ),
+        (
+            "q_offset_v",
+            settings.q_offset_v,
+            limits.offset_v_min,
+            limits.offset_v_max,
+            "V",
+        ),
+        (
+            "marker_amplitude_v",
+            settings.marker_amplitude_v,
+            limits.marker_amplitude_v_min,
+            limits.marker_amplitude_v_max,
+            "V",
+        ),
+        (
+            "marker_offset_v",
+            settings.marker_offset_v,
+            limits.marker_offset_v_min,
+            limits.marker_offset_v_max,
+            "V",
+        ),
+    ];
+    for (field, value, min, max, unit) in levels {
+        within(instrument, field, value, min, max, unit)?;
+    }
     if let crate::driver::capability::ReferenceClock::External { frequency_hz } =
         settings.reference_clock
     {

@@ -209,3 +209,104 @@ impl RangeDoppler {
         Ok(())
     }
 }
+
+/// Radial velocity of one target from the slow time of its own range: the profile value at the
+/// target's (fractional) range bin, symbol by symbol, through a zero-padded FFT across symbols,
+/// peak interpolated. Much cheaper than a whole [`RangeDopplerMap`] (one FFT per target); the
+/// velocity follows the map's convention (range rate, positive = receding).
+pub struct VelocityEstimator {
+    symbols: usize,
+    fft: Arc<dyn Fft<f64>>,
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+    period_s: f64,
+    carrier_hz: f64,
+}
+
+impl VelocityEstimator {
+    /// For `symbols` symbols of `period_s` each (CP included) at carrier `carrier_hz`; the
+    /// slow-time FFT is zero-padded to at least 8 points per symbol.
+    pub fn new(symbols: usize, period_s: f64, carrier_hz: f64) -> Result<Self, DspError> {
+        if symbols < 2 {
+            return Err(DspError::Param(format!(
+                "velocity: {symbols} symbols; allowed: at least 2 (velocity needs slow time)"
+            )));
+        }
+        if !(period_s.is_finite() && period_s > 0.0 && carrier_hz.is_finite() && carrier_hz > 0.0) {
+            return Err(DspError::Param(format!(
+                "velocity: symbol period {period_s} s, carrier {carrier_hz} Hz; allowed: positive"
+            )));
+        }
+        let q = (8 * symbols).next_power_of_two();
+        let fft = FftPlanner::new().plan_fft_forward(q);
+        let zero = Complex64::default();
+        Ok(Self {
+            symbols,
+            scratch: vec![zero; fft.get_inplace_scratch_len()],
+            fft,
+            buf: vec![zero; q],
+            period_s,
+            carrier_hz,
+        })
+    }
+
+    /// The Doppler resolution of the frame, m/s: `C0 / (2 f_c S T)`.
+    pub fn resolution_mps(&self) -> f64 {
+        C0 / (2.0 * self.carrier_hz * self.symbols as f64 * self.period_s)
+    }
+
+    /// The range rate of the target at fractional bin `x` of a `k_len`-point range IFFT of
+    /// `idiv` weighted by `weights` (one per subcarrier), m/s.
+    pub fn estimate(
+        &mut self,
+        idiv: &IDiv,
+        weights: &[f64],
+        x: f64,
+        k_len: usize,
+    ) -> Result<f64, DspError> {
+        let n = idiv.subcarriers();
+        if idiv.symbols() != self.symbols || weights.len() != n || k_len < n {
+            return Err(DspError::Param(format!(
+                "velocity: I_div has {} symbols of {n} subcarriers ({} weights, {k_len}-point \
+                 IFFT); this estimator was made for {} symbols",
+                idiv.symbols(),
+                weights.len(),
+                self.symbols
+            )));
+        }
+        // The range-IFFT kernel at x, once for all symbols.
+        let kernel: Vec<Complex64> = (0..n)
+            .map(|k| {
+                Complex64::from_polar(
+                    weights[k],
+                    2.0 * std::f64::consts::PI * k as f64 * x / k_len as f64,
+                )
+            })
+            .collect();
+        self.buf.fill(Complex64::default());
+        for s in 0..self.symbols {
+            self.buf[s] = idiv.symbol(s).iter().zip(&kernel).map(|(a, b)| a * b).sum();
+        }
+        self.fft
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
+        let q = self.buf.len();
+        let mag = |j: usize| self.buf[j % q].norm().max(1e-300).ln();
+        let (peak, _) = self
+            .buf
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.norm_sqr().total_cmp(&b.1.norm_sqr()))
+            .expect("at least one bin");
+        let (l, c, r) = (mag(peak + q - 1), mag(peak), mag(peak + 1));
+        let den = l - 2.0 * c + r;
+        let delta = if den < 0.0 { 0.5 * (l - r) / den } else { 0.0 };
+        let signed = if peak <= q / 2 {
+            peak as f64
+        } else {
+            peak as f64 - q as f64
+        } + delta;
+        let doppler_hz = signed / (q as f64 * self.period_s);
+        // A receding target's phase turns backwards: range rate = -f_D c0 / (2 f_c).
+        Ok(-doppler_hz * C0 / (2.0 * self.carrier_hz))
+    }
+}

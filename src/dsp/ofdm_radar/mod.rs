@@ -22,7 +22,7 @@
 
 mod doppler;
 
-pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap};
+pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap, VelocityEstimator};
 
 use super::metrics::Axis;
 use super::window::Window;

@@ -36,29 +36,46 @@ pub mod reason {
     pub const END: i32 = 4;
 }
 
+/// VXI-11 Device_ErrorCode values (VXI-11 specification B.5.2).
+pub mod error {
+    pub const NO_ERROR: i32 = 0;
+    pub const SYNTAX_ERROR: i32 = 1;
+    pub const DEVICE_NOT_ACCESSIBLE: i32 = 3;
+    pub const INVALID_LINK: i32 = 4;
+    pub const PARAMETER_ERROR: i32 = 5;
+    pub const CHANNEL_NOT_ESTABLISHED: i32 = 6;
+    pub const NOT_SUPPORTED: i32 = 8;
+    pub const OUT_OF_RESOURCES: i32 = 9;
+    pub const DEVICE_LOCKED: i32 = 11;
+    pub const NO_LOCK_HELD: i32 = 12;
+    pub const IO_TIMEOUT: i32 = 15;
+    pub const IO_ERROR: i32 = 17;
+    pub const INVALID_ADDRESS: i32 = 21;
+    pub const ABORT: i32 = 23;
+    pub const CHANNEL_ALREADY_ESTABLISHED: i32 = 29;
+}
+
 /// The meaning of a VXI-11 Device_ErrorCode.
 pub fn error_meaning(code: i32) -> &'static str {
     match code {
-        0 => "no error",
-        1 => "syntax error",
-        3 => "device not accessible",
-        4 => "invalid link identifier",
-        5 => "parameter error",
-        6 => "channel not established",
-        8 => "operation not supported",
-        9 => "out of resources",
-        11 => "device locked by another link",
-        12 => "no lock held by this link",
-        15 => "I/O timeout",
-        17 => "I/O error",
-        21 => "invalid address",
-        23 => "abort",
-        29 => "channel already established",
+        error::NO_ERROR => "no error",
+        error::SYNTAX_ERROR => "syntax error",
+        error::DEVICE_NOT_ACCESSIBLE => "device not accessible",
+        error::INVALID_LINK => "invalid link identifier",
+        error::PARAMETER_ERROR => "parameter error",
+        error::CHANNEL_NOT_ESTABLISHED => "channel not established",
+        error::NOT_SUPPORTED => "operation not supported",
+        error::OUT_OF_RESOURCES => "out of resources",
+        error::DEVICE_LOCKED => "device locked by another link",
+        error::NO_LOCK_HELD => "no lock held by this link",
+        error::IO_TIMEOUT => "I/O timeout",
+        error::IO_ERROR => "I/O error",
+        error::INVALID_ADDRESS => "invalid address",
+        error::ABORT => "abort",
+        error::CHANNEL_ALREADY_ESTABLISHED => "channel already established",
         _ => "unknown error code",
     }
 }
-
-pub const ERR_IO_TIMEOUT: i32 = 15;
 
 /// Portmapper GETPORT arguments.
 pub fn encode_getport(w: &mut XdrWriter, prog: u32, vers: u32) {

@@ -130,8 +130,8 @@ impl RpcChannel {
 
 fn device_error(op: &'static str, code: i32) -> Result<(), LinkError> {
     match code {
-        0 => Ok(()),
-        messages::ERR_IO_TIMEOUT => Err(LinkError::Timeout {
+        messages::error::NO_ERROR => Ok(()),
+        messages::error::IO_TIMEOUT => Err(LinkError::Timeout {
             op,
             after: Duration::ZERO,
         }),
@@ -314,7 +314,7 @@ impl Vxi11Link {
                 )
                 .await?;
             let resp = messages::decode_read_resp(&mut r).map_err(codec)?;
-            if resp.error == messages::ERR_IO_TIMEOUT {
+            if resp.error == messages::error::IO_TIMEOUT {
                 // The server gave up after the io_timeout it was given: the read timeout (and
                 // any allowance), without the grace kept for its reply.
                 return Err(LinkError::Timeout {

@@ -8,6 +8,30 @@ use bytes::{Buf, Bytes, BytesMut};
 const FORMAT: &str = "ONC-RPC record";
 const LAST_FRAGMENT: u32 = 0x8000_0000;
 
+/// The RPC protocol version spoken.
+pub const RPC_VERSION: u32 = 2;
+/// `msg_type` of a call and of a reply.
+pub const CALL: u32 = 0;
+pub const REPLY: u32 = 1;
+/// `reply_stat`: accepted (results or an accept status follow) or denied.
+pub const MSG_ACCEPTED: u32 = 0;
+pub const MSG_DENIED: u32 = 1;
+/// The authentication flavour sent in calls.
+pub const AUTH_NONE: u32 = 0;
+
+/// `accept_stat` of an accepted reply.
+pub mod accept {
+    pub const SUCCESS: u32 = 0;
+    pub const PROG_UNAVAIL: u32 = 1;
+    pub const PROG_MISMATCH: u32 = 2;
+    pub const PROC_UNAVAIL: u32 = 3;
+    pub const GARBAGE_ARGS: u32 = 4;
+    pub const SYSTEM_ERR: u32 = 5;
+}
+
+/// `reject_stat` of a denied reply.
+pub const RPC_MISMATCH: u32 = 0;
+
 /// The 4-byte record-marking header for a fragment of `len` bytes.
 pub fn record_mark(len: u32, last: bool) -> [u8; 4] {
     (len & !LAST_FRAGMENT | if last { LAST_FRAGMENT } else { 0 }).to_be_bytes()
@@ -149,8 +173,14 @@ impl XdrReader {
 
 /// The fixed words of a CALL header up to and including the procedure, then AUTH_NONE cred and verf.
 pub fn encode_call_header(w: &mut XdrWriter, xid: u32, prog: u32, vers: u32, proc_: u32) {
-    w.u32(xid).u32(0).u32(2).u32(prog).u32(vers).u32(proc_);
-    w.u32(0).u32(0).u32(0).u32(0);
+    w.u32(xid)
+        .u32(CALL)
+        .u32(RPC_VERSION)
+        .u32(prog)
+        .u32(vers)
+        .u32(proc_);
+    // Credentials and verifier: AUTH_NONE with an empty body.
+    w.u32(AUTH_NONE).u32(0).u32(AUTH_NONE).u32(0);
 }
 
 /// Why a reply did not carry results.
@@ -170,13 +200,13 @@ impl ReplyFault {
     }
     pub fn meaning(&self) -> &'static str {
         match self {
-            ReplyFault::Denied(0) => "RPC version mismatch",
+            ReplyFault::Denied(RPC_MISMATCH) => "RPC version mismatch",
             ReplyFault::Denied(_) => "authentication refused",
-            ReplyFault::NotAccepted(1) => "program unavailable",
-            ReplyFault::NotAccepted(2) => "program version mismatch",
-            ReplyFault::NotAccepted(3) => "procedure unavailable",
-            ReplyFault::NotAccepted(4) => "garbage arguments",
-            ReplyFault::NotAccepted(5) => "system error",
+            ReplyFault::NotAccepted(accept::PROG_UNAVAIL) => "program unavailable",
+            ReplyFault::NotAccepted(accept::PROG_MISMATCH) => "program version mismatch",
+            ReplyFault::NotAccepted(accept::PROC_UNAVAIL) => "procedure unavailable",
+            ReplyFault::NotAccepted(accept::GARBAGE_ARGS) => "garbage arguments",
+            ReplyFault::NotAccepted(accept::SYSTEM_ERR) => "system error",
             ReplyFault::NotAccepted(_) => "unknown accept status",
         }
     }
@@ -193,18 +223,18 @@ pub struct Reply {
 pub fn decode_reply(record: Bytes) -> Result<Reply, CodecError> {
     let mut r = XdrReader::new(record);
     let xid = r.u32("xid")?;
-    if r.u32("msg_type")? != 1 {
+    if r.u32("msg_type")? != REPLY {
         return Err(CodecError::BadHeader {
             format: FORMAT,
             detail: "message is not a REPLY",
         });
     }
     match r.u32("reply_stat")? {
-        0 => {
+        MSG_ACCEPTED => {
             let _flavor = r.u32("verf.flavor")?;
             let _body = r.opaque("verf.body")?;
             match r.u32("accept_stat")? {
-                0 => Ok(Reply {
+                accept::SUCCESS => Ok(Reply {
                     xid,
                     outcome: Ok(r),
                 }),
@@ -214,7 +244,7 @@ pub fn decode_reply(record: Bytes) -> Result<Reply, CodecError> {
                 }),
             }
         }
-        1 => {
+        MSG_DENIED => {
             let stat = r.u32("reject_stat")?;
             Ok(Reply {
                 xid,

@@ -247,6 +247,16 @@ impl ScopeState {
         }
     }
 
+    /// Changing the trigger mode arms (SINGLE, NORM, AUTO) or stops the acquisition system.
+    pub fn set_trigger_mode(&mut self, mode: TriggerMode) {
+        self.trigger_mode = mode;
+        if mode == TriggerMode::Stop {
+            self.armed = false;
+        } else {
+            self.arm();
+        }
+    }
+
     pub fn arm(&mut self) {
         if self.trigger_mode == TriggerMode::Stop {
             self.trigger_mode = TriggerMode::Single;

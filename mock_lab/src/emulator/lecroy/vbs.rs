@@ -4,7 +4,6 @@
 
 use std::time::{Duration, Instant};
 
-use super::commands::set_trigger_mode;
 use super::state::{ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::{Fault, Lecroy};
@@ -138,7 +137,7 @@ impl Lecroy {
         }
         let arm_id = {
             let mut st = self.lock();
-            set_trigger_mode(&mut st, TriggerMode::Single);
+            st.set_trigger_mode(TriggerMode::Single);
             st.arm_id
         };
         let limit = Duration::from_secs_f64(timeout.min(self.wait_cap().as_secs_f64()));
@@ -208,7 +207,7 @@ impl Lecroy {
                     "stopped" | "stop" => TriggerMode::Stop,
                     _ => return Err(bad_value(lhs, &v)),
                 };
-                set_trigger_mode(&mut st, mode);
+                st.set_trigger_mode(mode);
             }
             "app.acquisition.trigger.type" => {
                 let v = literal(rhs);

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::catalog::{AwgModel, DacMode};
-use crate::emulator::common::error_queue::ScpiError;
+use crate::emulator::scpi::error_queue::ScpiError;
 
 /// Largest segment the emulator stores (it keeps samples in RAM): 64 Mi samples per channel.
 pub const EMULATOR_MAX_SEGMENT_SAMPLES: u64 = 64 * 1024 * 1024;

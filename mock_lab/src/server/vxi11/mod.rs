@@ -41,14 +41,44 @@ pub const CORE_PROGRAM: u32 = 0x0607AF;
 pub const ABORT_PROGRAM: u32 = 0x0607B0;
 /// Portmapper program.
 pub const PORTMAP_PROGRAM: u32 = 100_000;
+/// Versions of the programs served: portmapper 2, VXI-11 core and abort 1.
+pub const PORTMAP_VERSION: u32 = 2;
+pub const VXI11_VERSION: u32 = 1;
+/// The portmapper's protocol number for TCP.
+pub const IPPROTO_TCP: u32 = 6;
+
+/// Procedure numbers (VXI-11 specification B.6, RFC 1833 for the portmapper).
+pub mod procedure {
+    /// Portmapper: ping.
+    pub const PMAP_NULL: u32 = 0;
+    /// Portmapper: the port of a program and version.
+    pub const PMAP_GETPORT: u32 = 3;
+    /// Abort channel.
+    pub const DEVICE_ABORT: u32 = 1;
+    pub const CREATE_LINK: u32 = 10;
+    pub const DEVICE_WRITE: u32 = 11;
+    pub const DEVICE_READ: u32 = 12;
+    pub const DEVICE_READSTB: u32 = 13;
+    pub const DEVICE_TRIGGER: u32 = 14;
+    pub const DEVICE_CLEAR: u32 = 15;
+    pub const DEVICE_REMOTE: u32 = 16;
+    pub const DEVICE_LOCAL: u32 = 17;
+    pub const DEVICE_LOCK: u32 = 18;
+    pub const DEVICE_UNLOCK: u32 = 19;
+    pub const DEVICE_ENABLE_SRQ: u32 = 20;
+    pub const DEVICE_DOCMD: u32 = 22;
+    pub const DESTROY_LINK: u32 = 23;
+    pub const CREATE_INTR_CHAN: u32 = 25;
+    pub const DESTROY_INTR_CHAN: u32 = 26;
+}
 /// Records beyond the data itself: RPC and VXI-11 headers.
 const RECORD_OVERHEAD: usize = 4096;
 /// Longest device name accepted by create_link.
 const MAX_DEVICE_NAME: usize = 256;
 const MAV: u8 = 0x10;
 
-/// VXI-11 error codes.
-mod code {
+/// VXI-11 error codes (Device_ErrorCode).
+pub mod code {
     pub const NO_ERROR: i32 = 0;
     pub const INVALID_LINK: i32 = 4;
     pub const PARAMETER_ERROR: i32 = 5;
@@ -61,7 +91,7 @@ mod code {
 }
 
 /// device_read reasons.
-mod reason {
+pub mod reason {
     pub const REQCNT: i32 = 1;
     pub const CHR: i32 = 2;
     pub const END: i32 = 4;
@@ -243,7 +273,7 @@ async fn check_call<W: AsyncWrite + Unpin>(
     version: u32,
 ) -> Result<Option<Call>, RpcError> {
     let call = rpc::decode_call(r)?;
-    if call.rpc_version != 2 {
+    if call.rpc_version != rpc::RPC_VERSION {
         write_plain(w, &rpc::rpc_mismatch_reply(call.xid)).await?;
         return Ok(None);
     }
@@ -268,18 +298,20 @@ async fn serve_portmapper(stream: TcpStream, core_port: u16) -> Result<(), RpcEr
     let mut reader = BufReader::new(reader);
     while let Some(record) = rpc::read_record(&mut reader, RECORD_OVERHEAD).await? {
         let mut r = XdrReader::new(&record);
-        let Some(call) = check_call(&mut writer, &mut r, PORTMAP_PROGRAM, 2).await? else {
+        let Some(call) = check_call(&mut writer, &mut r, PORTMAP_PROGRAM, PORTMAP_VERSION).await?
+        else {
             continue;
         };
         let reply = match call.procedure {
-            0 => rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0)),
-            3 => match (r.u32(), r.u32(), r.u32()) {
+            procedure::PMAP_NULL => rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0)),
+            procedure::PMAP_GETPORT => match (r.u32(), r.u32(), r.u32()) {
                 (Ok(prog), Ok(vers), Ok(prot)) => {
-                    let port = if prog == CORE_PROGRAM && vers == 1 && prot == 6 {
-                        u32::from(core_port)
-                    } else {
-                        0
-                    };
+                    let port =
+                        if prog == CORE_PROGRAM && vers == VXI11_VERSION && prot == IPPROTO_TCP {
+                            u32::from(core_port)
+                        } else {
+                            0
+                        };
                     let mut w = rpc::accepted_reply(call.xid, accept::SUCCESS, (0, 0));
                     w.u32(port);
                     w
@@ -298,11 +330,12 @@ async fn serve_abort(stream: TcpStream, shared: &Shared) -> Result<(), RpcError>
     let mut reader = BufReader::new(reader);
     while let Some(record) = rpc::read_record(&mut reader, RECORD_OVERHEAD).await? {
         let mut r = XdrReader::new(&record);
-        let Some(call) = check_call(&mut writer, &mut r, ABORT_PROGRAM, 1).await? else {
+        let Some(call) = check_call(&mut writer, &mut r, ABORT_PROGRAM, VXI11_VERSION).await?
+        else {
             continue;
         };
         let reply = match (call.procedure, r.i32()) {
-            (1, Ok(lid)) => {
+            (procedure::DEVICE_ABORT, Ok(lid)) => {
                 let link = lock(&shared.links).get(&lid).cloned();
                 let error = match link {
                     Some(link) => {
@@ -316,7 +349,9 @@ async fn serve_abort(stream: TcpStream, shared: &Shared) -> Result<(), RpcError>
                 w.i32(error);
                 w
             }
-            (1, Err(_)) => rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0)),
+            (procedure::DEVICE_ABORT, Err(_)) => {
+                rpc::accepted_reply(call.xid, accept::GARBAGE_ARGS, (0, 0))
+            }
             _ => rpc::accepted_reply(call.xid, accept::PROC_UNAVAIL, (0, 0)),
         };
         write_plain(&mut writer, &reply).await?;
@@ -332,10 +367,11 @@ async fn serve_core(stream: TcpStream, shared: &Arc<Shared>) -> Result<(), RpcEr
     let result = async {
         while let Some(record) = rpc::read_record(&mut reader, max_record).await? {
             let mut r = XdrReader::new(&record);
-            let Some(call) = check_call(&mut writer, &mut r, CORE_PROGRAM, 1).await? else {
+            let Some(call) = check_call(&mut writer, &mut r, CORE_PROGRAM, VXI11_VERSION).await?
+            else {
                 continue;
             };
-            if call.procedure == 11 {
+            if call.procedure == procedure::DEVICE_WRITE {
                 // device_write owns the record, so a large upload is not copied again.
                 let args_at = record.len() - r.remaining();
                 let parsed = parse_device_write(&record, args_at, shared.options.max_message_size);
@@ -396,7 +432,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
 ) -> Result<Delivery, RpcError> {
     let xid = call.xid;
     let reply = match call.procedure {
-        10 => {
+        procedure::CREATE_LINK => {
             let _client_id = r.i32()?;
             let lock_device = r.bool()?;
             let lock_timeout = r.u32()?;
@@ -420,7 +456,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
             w
         }
-        12 => {
+        procedure::DEVICE_READ => {
             let lid = r.i32()?;
             let request_size = r.u32()?;
             let io_timeout = r.u32()?;
@@ -433,7 +469,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             }
             return device_read(shared, xid, lid, request_size, io_timeout, term, w).await;
         }
-        13 => {
+        procedure::DEVICE_READSTB => {
             let lid = r.i32()?;
             match find_link(shared, lid) {
                 Some(link) => {
@@ -455,7 +491,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 }
             }
         }
-        14 => {
+        procedure::DEVICE_TRIGGER => {
             let lid = r.i32()?;
             let error = match find_link(shared, lid) {
                 Some(link) => {
@@ -467,7 +503,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             };
             error_only(xid, error)
         }
-        15 => {
+        procedure::DEVICE_CLEAR => {
             let lid = r.i32()?;
             let error = match find_link(shared, lid) {
                 Some(link) => {
@@ -485,7 +521,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             };
             error_only(xid, error)
         }
-        16 | 17 => {
+        procedure::DEVICE_REMOTE | procedure::DEVICE_LOCAL => {
             let lid = r.i32()?;
             error_only(
                 xid,
@@ -496,7 +532,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 },
             )
         }
-        18 => {
+        procedure::DEVICE_LOCK => {
             let lid = r.i32()?;
             let flags = r.i32()?;
             let lock_timeout = r.u32()?;
@@ -514,7 +550,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             };
             error_only(xid, error)
         }
-        19 => {
+        procedure::DEVICE_UNLOCK => {
             let lid = r.i32()?;
             let error = if find_link(shared, lid).is_none() {
                 code::INVALID_LINK
@@ -525,13 +561,15 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             };
             error_only(xid, error)
         }
-        20 | 25 | 26 => error_only(xid, code::NOT_SUPPORTED),
-        22 => {
+        procedure::DEVICE_ENABLE_SRQ
+        | procedure::CREATE_INTR_CHAN
+        | procedure::DESTROY_INTR_CHAN => error_only(xid, code::NOT_SUPPORTED),
+        procedure::DEVICE_DOCMD => {
             let mut w = success(xid);
             w.i32(code::NOT_SUPPORTED).opaque(&[]);
             w
         }
-        23 => {
+        procedure::DESTROY_LINK => {
             let lid = r.i32()?;
             let error = if own_links.contains(&lid) {
                 own_links.retain(|&l| l != lid);

@@ -12,6 +12,19 @@ pub const LAST_FRAGMENT: u32 = 0x8000_0000;
 /// Credentials and verifiers are at most this long (RFC 5531).
 const MAX_AUTH: usize = 400;
 
+/// The RPC protocol version this server speaks.
+pub const RPC_VERSION: u32 = 2;
+/// `msg_type` of a call and of a reply.
+pub const CALL: u32 = 0;
+pub const REPLY: u32 = 1;
+/// `reply_stat`: accepted (results or an accept status follow) or denied.
+pub const MSG_ACCEPTED: u32 = 0;
+pub const MSG_DENIED: u32 = 1;
+/// `reject_stat` of a denied reply: the RPC version is not supported.
+pub const RPC_MISMATCH: u32 = 0;
+/// The authentication flavour of the verifier this server sends.
+pub const AUTH_NONE: u32 = 0;
+
 /// Accept status of an accepted reply.
 pub mod accept {
     pub const SUCCESS: u32 = 0;
@@ -101,7 +114,7 @@ pub struct Call {
 pub fn decode_call(r: &mut XdrReader<'_>) -> Result<Call, RpcError> {
     let xid = r.u32()?;
     let msg_type = r.u32()?;
-    if msg_type != 0 {
+    if msg_type != CALL {
         return Err(RpcError::NotACall(msg_type));
     }
     let rpc_version = r.u32()?;
@@ -125,7 +138,12 @@ pub fn decode_call(r: &mut XdrReader<'_>) -> Result<Call, RpcError> {
 /// appends the results for SUCCESS. PROG_MISMATCH carries the supported version range.
 pub fn accepted_reply(xid: u32, status: u32, versions: (u32, u32)) -> XdrWriter {
     let mut w = XdrWriter::new();
-    w.u32(xid).u32(1).u32(0).u32(0).u32(0).u32(status);
+    w.u32(xid)
+        .u32(REPLY)
+        .u32(MSG_ACCEPTED)
+        .u32(AUTH_NONE)
+        .u32(0)
+        .u32(status);
     if status == accept::PROG_MISMATCH {
         w.u32(versions.0).u32(versions.1);
     }
@@ -135,7 +153,12 @@ pub fn accepted_reply(xid: u32, status: u32, versions: (u32, u32)) -> XdrWriter 
 /// A denied reply for an RPC version other than 2 (RPC_MISMATCH, supported 2..2).
 pub fn rpc_mismatch_reply(xid: u32) -> XdrWriter {
     let mut w = XdrWriter::new();
-    w.u32(xid).u32(1).u32(1).u32(0).u32(2).u32(2);
+    w.u32(xid)
+        .u32(REPLY)
+        .u32(MSG_DENIED)
+        .u32(RPC_MISMATCH)
+        .u32(RPC_VERSION)
+        .u32(RPC_VERSION);
     w
 }
 

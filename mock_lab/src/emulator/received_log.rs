@@ -81,7 +81,8 @@ pub fn summarise(data: &[u8]) -> String {
     let mut i = 0;
     while i < text_end && out.len() < MAX_TEXT {
         if data[i] == b'#' {
-            if let Some((header_len, payload_len)) = super::message::block_header(&data[i..]) {
+            if let Some((header_len, payload_len)) = super::scpi::message::block_header(&data[i..])
+            {
                 // An indefinite block (`#0`) runs to the terminator, a definite one may hold it.
                 let end = if data[i + 1] == b'0' {
                     text_end

@@ -1,0 +1,370 @@
+//! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
+//! options they were captured with or any others, in parallel on every core.
+
+use super::args::{
+    AlgorithmArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
+};
+use crate::exit::{Classified, ExitClass};
+use crate::measure::options::ProcessOverrides;
+use crate::measure::pipeline::Pipeline;
+use crate::measure::record::{self, SourceFile};
+use crate::measure::reprocess::{self, Source, WaveformChoice};
+use crate::measure::MeasureError;
+use crate::waveform::spec::WaveformKind;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Captures: capture folders, run folders (every step), .sigmf-meta files, or .trc pairs
+    /// (the I file then the Q file).
+    #[arg(value_name = "INPUT", required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Output folder (default runs/<UTC time>-process); one sub-folder per capture. Must not
+    /// exist yet or be empty.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object instead of the text report.
+    #[arg(long)]
+    pub json: bool,
+    /// Worker threads (default: every core).
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// The waveform of captures radbench did not make (overrides what a radbench capture recorded).
+    #[arg(long, value_enum)]
+    pub waveform: Option<WaveformArg>,
+    #[command(flatten)]
+    pub waveform_args: WaveformArgs,
+    /// Seed of the transmitted PRBS bits (captures radbench did not make).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// The transmitted payload text (captures radbench did not make).
+    #[arg(long, value_name = "TEXT")]
+    pub payload: Option<String>,
+    /// Time from the trigger to the first sample, seconds (default: what the file says, else 0).
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    pub trigger_offset: Option<f64>,
+    /// Subtract this capture (.sigmf-meta) instead of the one the capture recorded.
+    #[arg(long, value_name = "FILE", conflicts_with = "no_background")]
+    pub background: Option<PathBuf>,
+    /// Do not subtract the background the capture recorded.
+    #[arg(long)]
+    pub no_background: bool,
+    #[arg(long, value_enum)]
+    pub algorithm: Option<AlgorithmArg>,
+    /// MUSIC sub-vector (covariance) length M.
+    #[arg(long = "m", value_name = "M")]
+    pub music_m: Option<usize>,
+    /// Number of targets for MUSIC/root-MUSIC/ESPRIT.
+    #[arg(long = "p", value_name = "P")]
+    pub music_p: Option<usize>,
+    /// Forward smoothing only for MUSIC.
+    #[arg(long)]
+    pub forward_only: bool,
+    #[arg(long, value_name = "K")]
+    pub zero_pad: Option<usize>,
+    #[arg(long, value_enum, value_name = "NAME")]
+    pub window: Option<WindowArg>,
+    #[arg(long, value_enum, value_name = "P")]
+    pub fft_precision: Option<FftPrecisionArg>,
+    /// Report the on-grid peak (no sub-sample interpolation).
+    #[arg(long)]
+    pub no_interpolation: bool,
+    #[arg(long, value_enum, value_name = "NAME")]
+    pub detector: Option<DetectorArg>,
+    #[arg(long, value_name = "P", allow_hyphen_values = true)]
+    pub pfa: Option<f64>,
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub min_separation: Option<f64>,
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub min_range: Option<f64>,
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub max_range: Option<f64>,
+    /// The bench's fixed delay, seconds (default: what the capture was processed with).
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    pub system_delay: Option<f64>,
+}
+
+impl Args {
+    fn overrides(&self) -> ProcessOverrides {
+        ProcessOverrides {
+            algorithm: self.algorithm.map(Into::into),
+            music_m: self.music_m,
+            music_p: self.music_p.map(Some),
+            forward_backward: self.forward_only.then_some(false),
+            zero_pad: self.zero_pad,
+            window: self.window.map(Into::into),
+            fft_precision: self.fft_precision.map(Into::into),
+            interpolate: self.no_interpolation.then_some(false),
+            system_delay_s: self.system_delay,
+            min_range_m: self.min_range,
+            max_range_m: self.max_range,
+            detector: self.detector.map(Into::into),
+            pfa: self.pfa,
+            min_separation_m: self.min_separation.map(Some),
+            awg_amplitude_vpp: None,
+            keep_background: !self.no_background,
+        }
+    }
+
+    fn waveform(&self) -> anyhow::Result<WaveformChoice> {
+        let spec = match self.waveform {
+            Some(w) => Some(self.waveform_args.spec(WaveformKind::from(w))?),
+            None => {
+                let given = format!("{:?}", self.waveform_args);
+                if given != format!("{:?}", WaveformArgs::default()) {
+                    return Err(crate::exit::bad_input(
+                        "waveform parameters need --waveform msk-lfm|ofdm to say which waveform \
+                         they belong to",
+                    ));
+                }
+                None
+            }
+        };
+        Ok(WaveformChoice {
+            spec,
+            seed: self.seed,
+            payload: self.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+        })
+    }
+}
+
+/// What happened to one capture.
+struct Outcome {
+    source: String,
+    result: Result<(PathBuf, Value), anyhow::Error>,
+}
+
+thread_local! {
+    /// Pipelines built on this worker, by what they were built for: a batch of captures of one
+    /// waveform builds its filters, plans and tables once per thread.
+    static PIPELINES: RefCell<Vec<(String, Pipeline)>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Most pipelines a worker keeps (a batch rarely mixes more waveforms and options).
+const PIPELINES_PER_WORKER: usize = 4;
+
+fn process_one(
+    source: &Source,
+    out: &Path,
+    waveform: &WaveformChoice,
+    overrides: &ProcessOverrides,
+    background: Option<&Path>,
+    trigger_offset: Option<f64>,
+) -> Result<(PathBuf, Value), anyhow::Error> {
+    let loaded = reprocess::load(source, trigger_offset)?;
+    let rate = loaded.repetitions[0].sample_rate_hz;
+    let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
+    let key = serde_json::to_string(&json!({
+        "tx": resolved.tx.describe(),
+        "options": resolved.options,
+        "period": resolved.period,
+        "rate": rate,
+    }))?;
+    let hashes = reprocess::source_hashes(source)?;
+    let r = PIPELINES.with(|cell| -> Result<_, MeasureError> {
+        let mut cache = cell.borrow_mut();
+        let index = match cache.iter().position(|(k, _)| *k == key) {
+            Some(i) => i,
+            None => {
+                if cache.len() >= PIPELINES_PER_WORKER {
+                    cache.remove(0);
+                }
+                cache.push((key.clone(), reprocess::pipeline(&resolved, rate)?));
+                cache.len() - 1
+            }
+        };
+        reprocess::process(&mut cache[index].1, &loaded, resolved)
+    })?;
+    let sources: Vec<SourceFile> = hashes
+        .into_iter()
+        .map(|(path, sha256)| SourceFile { path, sha256 })
+        .collect();
+    let (files, summary) = record::write_reprocessed(out, &sources, &loaded, &r)?;
+    Ok((files.dir, summary))
+}
+
+/// Folder names for the sources: their labels, made unique.
+fn folder_names(sources: &[&Source]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for s in sources {
+        let base = s.label();
+        let mut name = base.clone();
+        let mut k = 2;
+        while names.contains(&name) {
+            name = format!("{base}-{k}");
+            k += 1;
+        }
+        names.push(name);
+    }
+    names
+}
+
+pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| super::capture::default_out("process"));
+    if out.exists() {
+        let empty = out.is_dir()
+            && std::fs::read_dir(&out)
+                .map(|mut d| d.next().is_none())
+                .unwrap_or(false);
+        if !empty {
+            return Err(crate::exit::bad_input(format!(
+                "--out {}: exists already; process writes a new folder and never over what is \
+                 there (give a new folder)",
+                out.display()
+            )));
+        }
+    }
+    let waveform = args.waveform()?;
+    let overrides = args.overrides();
+    let discovered = reprocess::discover(&args.inputs);
+    let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
+    let names = folder_names(&sources);
+    let jobs = args.jobs.unwrap_or(0);
+    if args.jobs == Some(0) || jobs > 256 {
+        return Err(crate::exit::bad_input(format!(
+            "--jobs {jobs}: give 1 to 256 worker threads"
+        )));
+    }
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build()?;
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) && !args.json {
+        ProgressBar::with_draw_target(Some(sources.len() as u64), ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} captures, {per_sec}, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = std::time::Instant::now();
+    let outcomes: Vec<Outcome> = pool.install(|| {
+        sources
+            .par_iter()
+            .zip(names.par_iter())
+            .with_max_len(1)
+            .map(|(source, name)| {
+                let result = process_one(
+                    source,
+                    &out.join(name),
+                    &waveform,
+                    &overrides,
+                    args.background.as_deref(),
+                    args.trigger_offset,
+                );
+                bar.inc(1);
+                Outcome {
+                    source: source.label(),
+                    result,
+                }
+            })
+            .collect()
+    });
+    bar.finish_and_clear();
+    let elapsed = started.elapsed().as_secs_f64();
+    let mut failures: Vec<(String, anyhow::Error)> = discovered
+        .into_iter()
+        .filter_map(Result::err)
+        .map(|e| {
+            (
+                e.path.display().to_string(),
+                crate::exit::bad_input(e.reason),
+            )
+        })
+        .collect();
+    let mut done = Vec::new();
+    for o in outcomes {
+        match o.result {
+            Ok((dir, summary)) => done.push((o.source, dir, summary)),
+            Err(e) => failures.push((o.source, e)),
+        }
+    }
+    report(&args, &out, &done, &failures, elapsed)?;
+    if failures.is_empty() {
+        return Ok(());
+    }
+    // The worst class among the failures decides the exit code: bad input before processing.
+    let class = failures
+        .iter()
+        .map(|(_, e)| super::classify(e))
+        .min_by_key(|c| c.code())
+        .unwrap_or(ExitClass::Processing);
+    Err(anyhow::Error::new(Classified {
+        class,
+        message: format!(
+            "{} of {} inputs failed (the others' results are in {}): {}",
+            failures.len(),
+            failures.len() + done.len(),
+            out.display(),
+            failures
+                .iter()
+                .map(|(s, e)| format!("{s}: {}", crate::exit::render(e)))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+    }))
+}
+
+fn report(
+    args: &Args,
+    out: &Path,
+    done: &[(String, PathBuf, Value)],
+    failures: &[(String, anyhow::Error)],
+    elapsed_s: f64,
+) -> anyhow::Result<()> {
+    if args.json {
+        let doc = json!({
+            "out": out,
+            "processed": done.iter().map(|(s, dir, summary)| json!({
+                "source": s,
+                "dir": dir,
+                "summary": summary,
+            })).collect::<Vec<_>>(),
+            "failed": failures.iter().map(|(s, e)| json!({
+                "source": s,
+                "error": crate::exit::render(e),
+                "exit_code": super::classify(e).code(),
+            })).collect::<Vec<_>>(),
+            "seconds": elapsed_s,
+        });
+        return super::terminal::out(&doc.to_string());
+    }
+    let mut text = String::new();
+    for (s, dir, summary) in done {
+        let targets: Vec<String> = summary["targets"]
+            .as_array()
+            .map(|t| {
+                t.iter()
+                    .filter_map(|x| x["range_m"].as_f64())
+                    .map(|r| format!("{r:.4} m"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        text.push_str(&format!(
+            "{s}: {} {}: targets {} -> {}\n",
+            summary["waveform"].as_str().unwrap_or("?"),
+            summary["algorithm"].as_str().unwrap_or("?"),
+            if targets.is_empty() {
+                "none".into()
+            } else {
+                targets.join(", ")
+            },
+            dir.display()
+        ));
+    }
+    for (s, e) in failures {
+        text.push_str(&format!("{s}: FAILED: {}\n", crate::exit::render(e)));
+    }
+    let n = done.len() + failures.len();
+    text.push_str(&format!(
+        "{} of {n} captures processed in {elapsed_s:.2} s ({:.1} per second)",
+        done.len(),
+        done.len() as f64 / elapsed_s.max(1e-9)
+    ));
+    super::terminal::out(&text)
+}

@@ -1,0 +1,280 @@
+//! `radbench process`: saved captures through the pipeline again, as a user would run it long
+//! after the bench is gone.
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::Stdio;
+use std::time::Duration;
+use tokio::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_radbench");
+
+/// Runs radbench with `args` in `dir`; (exit code, stdout, stderr), bounded by 120 s.
+async fn radbench(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    let child = Command::new(BIN)
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .expect("radbench runs");
+    let out = tokio::time::timeout(Duration::from_secs(120), child.wait_with_output())
+        .await
+        .expect("radbench finishes within 120 s")
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json_file(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+const SCENE: &str = "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n\
+                     [[targets]]\nrange_m = 1.3\namplitude = 0.3\n";
+
+/// The figures a summary reports, which re-processing with the original options must repeat.
+const FIGURES: [&str; 6] = [
+    "targets",
+    "width_3db_cm",
+    "sidelobe_db",
+    "snr_db",
+    "payload",
+    "spread",
+];
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_original_options_give_the_original_figures_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
+    for (name, extra) in [
+        ("msk", &["--repetitions", "2", "--payload", "hello"][..]),
+        ("ofdm", &["--waveform", "ofdm", "--window", "hann"][..]),
+    ] {
+        let mut args = vec![
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "scene.toml",
+            "--out",
+            name,
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = radbench(d, &args).await;
+        assert_eq!(code, 0, "{err}");
+        let out = format!("{name}-again");
+        let (code, _, err) = radbench(d, &["process", name, "--out", &out]).await;
+        assert_eq!(code, 0, "{err}");
+        let original = json_file(&d.join(name).join("summary.json"));
+        let again = json_file(&d.join(&out).join(name).join("summary.json"));
+        for key in FIGURES {
+            assert_eq!(original[key], again[key], "{name}: {key}");
+        }
+        assert_eq!(original["processing"], again["processing"]);
+        // The manifest names the sources with their SHA-256.
+        let manifest: toml::Value = toml::from_str(
+            &std::fs::read_to_string(d.join(&out).join(name).join("manifest.toml")).unwrap(),
+        )
+        .unwrap();
+        let sources = manifest["sources"].as_array().unwrap();
+        assert_eq!(sources.len(), 2);
+        for s in sources {
+            let path = Path::new(s["path"].as_str().unwrap());
+            let bytes = std::fs::read(d.join(path)).unwrap();
+            assert_eq!(
+                s["sha256"].as_str().unwrap(),
+                radbench::storage::hash::sha256(&bytes)
+            );
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn another_algorithm_gives_that_algorithms_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "scene.toml",
+            "--waveform",
+            "ofdm",
+            "--out",
+            "c",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    for alg in ["music", "esprit", "root-music", "correlation"] {
+        let out = format!("p-{alg}");
+        let (code, _, err) = radbench(
+            d,
+            &[
+                "process",
+                "c",
+                "--algorithm",
+                alg,
+                "--p",
+                "3",
+                "--out",
+                &out,
+            ],
+        )
+        .await;
+        assert_eq!(code, 0, "{alg}: {err}");
+        let s = json_file(&d.join(&out).join("c").join("summary.json"));
+        assert_eq!(s["algorithm"], alg);
+        let found: Vec<f64> = s["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| t["range_m"].as_f64().unwrap())
+            .collect();
+        for truth in [1.0, 1.3] {
+            assert!(
+                found.iter().any(|r| (r - truth).abs() < 0.01),
+                "{alg}: {truth} m not in {found:?}"
+            );
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bad_input_is_reported_and_the_others_go_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (code, _, err) = radbench(d, &["capture", "--allow-rf", "--out", "good"]).await;
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "process",
+            "good",
+            "missing",
+            "good/C1.trc",
+            "good/C2.trc",
+            "--out",
+            "p",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    let doc: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(doc["processed"].as_array().unwrap().len(), 1);
+    let failed = doc["failed"].as_array().unwrap();
+    assert_eq!(failed.len(), 2, "{failed:?}");
+    assert!(
+        err.contains("missing") && err.contains("--waveform"),
+        "{err}"
+    );
+    assert!(d.join("p/good/summary.json").is_file());
+    // Never over what is there.
+    let (code, _, err) = radbench(d, &["process", "good", "--out", "p"]).await;
+    assert_eq!(code, 2);
+    assert!(err.contains("exists already"), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_recorded_background_is_subtracted_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("empty.toml"), "snr_db = 30.0\ntargets = []\n").unwrap();
+    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "empty.toml",
+            "--out",
+            "bg",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "scene.toml",
+            "--background",
+            "bg/capture.sigmf-meta",
+            "--out",
+            "with",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = radbench(d, &["process", "with", "--out", "again"]).await;
+    assert_eq!(code, 0, "{err}");
+    let original = json_file(&d.join("with/summary.json"));
+    let again = json_file(&d.join("again/with/summary.json"));
+    for key in FIGURES {
+        assert_eq!(original[key], again[key], "{key}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_radbench_did_not_make_takes_the_waveform_from_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (code, _, err) = radbench(d, &["capture", "--allow-rf", "--out", "c"]).await;
+    assert_eq!(code, 0, "{err}");
+    // Another tool's recording of the same samples: cf32, big-endian, no radbench metadata.
+    let rec = radbench::storage::recording::read_sigmf(&d.join("c/capture.sigmf-meta")).unwrap();
+    let trigger = rec.radbench.as_ref().unwrap().trigger_offset_s.unwrap();
+    let mut data = Vec::new();
+    for z in &rec.samples {
+        data.extend_from_slice(&(z.re as f32).to_be_bytes());
+        data.extend_from_slice(&(z.im as f32).to_be_bytes());
+    }
+    std::fs::write(d.join("other.sigmf-data"), data).unwrap();
+    std::fs::write(
+        d.join("other.sigmf-meta"),
+        serde_json::json!({
+            "global": {"core:datatype": "cf32_be", "core:sample_rate": 80e9, "core:version": "1.0.0"},
+            "captures": [{"core:sample_start": 0}],
+            "annotations": [],
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let (code, _, err) = radbench(d, &["process", "other.sigmf-meta", "--out", "p1"]).await;
+    assert_eq!(code, 2);
+    assert!(err.contains("--waveform"), "{err}");
+    let trigger = trigger.to_string();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "process",
+            "other.sigmf-meta",
+            "--waveform",
+            "msk-lfm",
+            "--trigger-offset",
+            &trigger,
+            "--system-delay",
+            "2.5e-9",
+            "--out",
+            "p2",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let s = json_file(&d.join("p2/other/summary.json"));
+    let r = s["targets"][0]["range_m"].as_f64().unwrap();
+    assert!((r - 1.0).abs() < 1e-3, "{s}");
+}
