@@ -2,7 +2,7 @@
 //!
 //! # Layer map
 //!
-//! Imports only point down (`tests/layers.rs` checks it). Pure layers (`waveform`, `dsp`) do no
+//! Imports only point down (`tests/dsp/layers.rs` checks it). Pure layers (`waveform`, `dsp`) do no
 //! I/O and never touch tokio or the file system; everything that talks to an instrument goes
 //! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!

@@ -6,7 +6,7 @@
 //! is scaled to a largest coefficient of exactly 1). The profile code divides by the window's
 //! coherent gain (`sum w`), so a windowed profile keeps the target's amplitude at its peak.
 //!
-//! Measured on a 128-subcarrier OFDM profile zero-padded x10 (tests/dsp_window.rs):
+//! Measured on a 128-subcarrier OFDM profile zero-padded x10 (tests/dsp/dsp_ofdm_radar.rs):
 //!
 //! | window | peak side-lobe | -3 dB width |
 //! |---|---|---|

@@ -5,7 +5,7 @@
 //! unitary scaling), implicit QL with Wilkinson shifts for the eigenvalues, inverse iteration on the
 //! real tridiagonal for the wanted eigenvectors, and back-transformation. This is the LAPACK
 //! zhetrd/dsterf/dstein route; it does about a third of the work of a full decomposition
-//! (nalgebra's `SymmetricEigen`, which tests/dsp_music.rs uses as the reference), and works in
+//! (nalgebra's `SymmetricEigen`, which tests/dsp/dsp_music.rs uses as the reference), and works in
 //! preallocated storage.
 
 use crate::dsp::DspError;

@@ -192,7 +192,7 @@ impl Music {
     /// the number of *non-overlapping* sub-vectors. Overlapping sub-vectors share their noise
     /// samples; counting all L S of them (or 2 L S with forward-backward) overstates the evidence
     /// that the slightly unequal noise eigenvalues of a smoothed covariance differ, and AIC then
-    /// over-estimates the order by several (measured: 10 instead of 3 in tests/dsp_music.rs).
+    /// over-estimates the order by several (measured: 10 instead of 3 in tests/dsp/dsp_music.rs).
     pub fn order_snapshots(&self, symbols: usize) -> usize {
         (symbols * (self.config.subcarriers / self.config.subarray)).max(1)
     }

@@ -48,7 +48,7 @@ pub enum FftPrecision {
     /// Single precision, about twice as fast. Its rounding sits about 130 dB under the signal
     /// (relative error ~1e-7 per bin), far below the quantisation noise of the scope's 8-bit
     /// (about 50 dB) or 12-bit ADC, so profiles and ranges do not change measurably
-    /// (tests/dsp_ofdm_radar.rs compares both).
+    /// (tests/dsp/dsp_ofdm_radar.rs compares both).
     #[default]
     Single,
     /// Double precision, for synthetic noise-free studies that look below -130 dB.

@@ -1,7 +1,7 @@
 //! Metrics on real OFDM profiles: CA-CFAR on a noisy profile, and resolution of two targets with
 //! the rule of thesis-notes.md against separation.
 
-mod dsp_support;
+use crate::dsp_support;
 
 use dsp_support::*;
 use radbench::dsp::metrics::{resolve_targets, CaCfar, Interpolation};

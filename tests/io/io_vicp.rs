@@ -1,5 +1,5 @@
 //! VICP client against the mock_lab VICP server, over real loopback sockets.
 
-mod io_support;
+use crate::io_support;
 
 loopback_suite!(io_support::Proto::Vicp);

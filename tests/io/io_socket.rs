@@ -1,5 +1,5 @@
 //! Raw socket client against the mock_lab raw-socket server, over real loopback sockets.
 
-mod io_support;
+use crate::io_support;
 
 loopback_suite!(io_support::Proto::Socket);

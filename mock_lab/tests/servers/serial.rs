@@ -1,6 +1,6 @@
 //! Serial endpoint on a pseudo-terminal, opened like a real serial port.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::time::Duration;

@@ -1,6 +1,6 @@
 //! VXI-11 server over real loopback sockets, with a minimal hand-written RPC client.
 
-mod common;
+use crate::common;
 
 use std::net::SocketAddr;
 use std::time::Duration;

@@ -1,6 +1,6 @@
 //! HiSLIP server over real loopback sockets, with a minimal hand-written client.
 
-mod common;
+use crate::common;
 
 use std::net::SocketAddr;
 use std::time::Duration;

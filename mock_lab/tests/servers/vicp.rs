@@ -1,6 +1,6 @@
 //! VICP server over real loopback sockets, with a minimal hand-written client.
 
-mod common;
+use crate::common;
 
 use std::os::fd::AsRawFd;
 use std::time::Duration;

@@ -1,7 +1,7 @@
 //! The `mock-lab` binary: one JSON line naming every endpoint, and a clean stop on stdin EOF.
 
-mod common;
-mod process_support;
+use crate::common;
+use crate::process_support;
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Command, Stdio};

@@ -2,7 +2,7 @@
 //! on files in a temporary folder, and the golden `.trc` file written by
 //! `tests/data/make_golden_trc.py` (struct-packed from the template, not by radbench).
 
-mod process_support;
+use crate::process_support;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

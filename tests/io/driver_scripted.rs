@@ -2,7 +2,7 @@
 //! limits refused before anything is sent, refusals surfaced with code and text, and the safe
 //! state still sent after an error mid-configuration.
 
-mod driver_support;
+use crate::driver_support;
 
 use std::time::Duration;
 

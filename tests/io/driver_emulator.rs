@@ -3,7 +3,7 @@
 //! over a serial pseudo-terminal. Emulator rejections surface as device errors with code and text,
 //! and the safe state leaves the emulated bench off.
 
-mod driver_support;
+use crate::driver_support;
 
 use std::sync::Arc;
 

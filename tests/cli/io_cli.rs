@@ -1,7 +1,7 @@
 //! `radbench idn` and `radbench scpi` as a user runs them, against a mock_lab HiSLIP server.
 
-mod io_support;
-mod process_support;
+use crate::io_support;
+use crate::process_support;
 
 use io_support::{bounded, start, start_serving, Proto};
 use std::process::{Command, Output};

@@ -1,7 +1,7 @@
 //! VXI-11 client against the mock_lab VXI-11 server (core port given explicitly), over real
 //! loopback sockets.
 
-mod io_support;
+use crate::io_support;
 
 loopback_suite!(io_support::Proto::Vxi11);
 

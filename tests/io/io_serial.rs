@@ -1,8 +1,7 @@
 //! Serial client (`serialport` on its own thread) against the mock_lab serial endpoint on a
 //! pseudo-terminal.
-#![cfg(unix)]
 
-mod io_support;
+use crate::io_support;
 
 use io_support::bounded;
 use mock_lab::emulator::loopback::{Loopback, IDENTITY};

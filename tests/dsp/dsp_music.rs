@@ -1,6 +1,6 @@
 //! MUSIC, its Hermitian eigen-solver, model-order selection and ESPRIT, on signals built here.
 
-mod dsp_support;
+use crate::dsp_support;
 
 use dsp_support::*;
 use nalgebra::DMatrix;

@@ -1,7 +1,7 @@
 //! OFDM radar receiver: framing, CP, scaling, bin order, the thesis' one- and two-target figures,
 //! averaging, windows and the range-Doppler map.
 
-mod dsp_support;
+use crate::dsp_support;
 
 use dsp_support::*;
 use num_complex::Complex64;

@@ -2,7 +2,7 @@
 //! sequences, bad options, history and block saving, `mock-lab serve` stopped by signals, and
 //! Ctrl-C at the interactive `scpi` prompt (driven through a pseudo-terminal).
 
-mod process_support;
+use crate::process_support;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener};

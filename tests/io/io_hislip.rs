@@ -1,5 +1,5 @@
 //! HiSLIP client against the mock_lab HiSLIP server, over real loopback sockets.
 
-mod io_support;
+use crate::io_support;
 
 loopback_suite!(io_support::Proto::Hislip);

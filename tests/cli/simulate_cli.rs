@@ -1,6 +1,6 @@
 //! `radbench simulate` and `radbench bench` as a user runs them: JSON shape, exit codes, files.
 
-mod process_support;
+use crate::process_support;
 
 use std::process::{Command, Output};
 use std::time::Duration;

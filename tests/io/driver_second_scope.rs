@@ -4,7 +4,7 @@
 //! reading the same file), and its own limits hold: what the LabMaster allows and the WaveMaster
 //! does not is refused before anything is sent.
 
-mod driver_support;
+use crate::driver_support;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -3,7 +3,7 @@
 //! fractional delays, seeded noise at 37 dB per sample at 16 GSa/s (the bench's 30 dB at 80 GSa/s
 //! after a matched decimation) unless said otherwise.
 
-mod detect_support;
+use crate::detect_support;
 
 use detect_support::*;
 use radbench::dsp::detect::{

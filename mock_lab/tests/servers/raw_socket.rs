@@ -1,6 +1,6 @@
 //! Raw-socket server over real loopback sockets, with a minimal hand-written client.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

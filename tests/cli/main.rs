@@ -1,0 +1,19 @@
+//! The radbench binary end to end: capture, campaigns, process, readers, exit paths, against the built-in mock lab.
+//!
+//! One test binary for many suites: each file below was its own binary, linked separately.
+
+#[macro_use]
+#[path = "../io_support/mod.rs"]
+mod io_support;
+#[path = "../process_support/mod.rs"]
+mod process_support;
+
+mod campaign;
+mod capture_e2e;
+mod cli_safety;
+mod detect_capture;
+mod exit_paths;
+mod io_cli;
+mod process_cli;
+mod readers_cli;
+mod simulate_cli;
