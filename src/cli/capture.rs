@@ -195,7 +195,25 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.scope_transport,
     )?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
+    let created = !out.exists();
     prepare_out(&out, args.force)?;
+    let result = measure_into(args, global, kind, waveform, source, &out).await;
+    if result.is_err() && created {
+        // A refused or failed capture leaves no empty folder behind (one with files stays).
+        let _ = std::fs::remove_dir(&out);
+    }
+    result
+}
+
+async fn measure_into(
+    args: Args,
+    global: &super::Global,
+    kind: WaveformKind,
+    waveform: crate::waveform::spec::WaveformSpec,
+    source: crate::measure::bench::BenchSource,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let out = out.to_path_buf();
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);

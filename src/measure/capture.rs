@@ -215,12 +215,8 @@ pub fn read_background(
                 "background",
                 path.display(),
                 format!(
-                    "a capture of the same waveform; it holds {} ({:?}), this capture sends {} \
-                     ({:?})",
-                    theirs.name(),
-                    theirs,
-                    ours.name(),
-                    ours
+                    "a capture of the same waveform; {}",
+                    waveform_difference(&theirs, &ours)
                 ),
             ));
         }
@@ -300,13 +296,7 @@ impl Rig {
         permit: &RfPermit,
         interrupt: &Interrupt,
     ) -> Result<Measurement, MeasureError> {
-        if !(1..=MAX_REPETITIONS).contains(&repetitions) {
-            return Err(MeasureError::option(
-                "repetitions",
-                repetitions,
-                format!("1..={MAX_REPETITIONS}"),
-            ));
-        }
+        check_repetitions(repetitions)?;
         let loaded = self
             .loaded
             .as_ref()
@@ -449,9 +439,48 @@ pub async fn measure(
     journal: Option<Journal>,
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
+    check_repetitions(repetitions)?;
     let catalog = Catalog::embedded()?;
     let mut prepared = prepare(bench, &catalog, request).await?;
     let mut rig = Rig::connect(bench, &catalog, journal).await?;
     rig.measure(bench, &mut prepared, repetitions, permit, interrupt)
         .await
+}
+
+/// The number of repetitions one measurement may ask for (checked before anything is connected).
+pub fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
+    if (1..=MAX_REPETITIONS).contains(&repetitions) {
+        Ok(())
+    } else {
+        Err(MeasureError::option(
+            "repetitions",
+            repetitions,
+            format!("1..={MAX_REPETITIONS}"),
+        ))
+    }
+}
+
+/// How a background's waveform differs from this capture's, in the parameters' own names.
+fn waveform_difference(theirs: &WaveformSpec, ours: &WaveformSpec) -> String {
+    if theirs.name() != ours.name() {
+        return format!(
+            "it holds {}, this capture sends {}",
+            theirs.name(),
+            ours.name()
+        );
+    }
+    let fields = |spec: &WaveformSpec| match serde_json::to_value(spec) {
+        Ok(serde_json::Value::Object(map)) => map,
+        _ => serde_json::Map::new(),
+    };
+    let (a, b) = (fields(theirs), fields(ours));
+    let differing: Vec<String> = a
+        .iter()
+        .filter(|(k, v)| b.get(*k) != Some(*v))
+        .map(|(k, v)| {
+            let here = b.get(k).map_or("-".to_string(), ToString::to_string);
+            format!("{k} {v} there, {here} here")
+        })
+        .collect();
+    format!("its {} differs: {}", theirs.name(), differing.join("; "))
 }

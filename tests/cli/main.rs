@@ -8,6 +8,7 @@ mod io_support;
 #[path = "../process_support/mod.rs"]
 mod process_support;
 
+mod bad_input;
 mod campaign;
 mod capture_e2e;
 mod cli_safety;
