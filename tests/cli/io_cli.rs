@@ -262,7 +262,7 @@ async fn gotmic_modules_from_idn_and_scpi() {
     )
     .expect("pty endpoint starts");
     let address = format!("ASRL{}::INSTR", endpoint.device_path());
-    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    let out = radbench(args(&["idn", &address, "--timeout", "10"])).await;
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(
         stdout(&out).contains("GOTMIC-EBAND-RX-EMU"),
@@ -289,9 +289,9 @@ async fn gotmic_modules_from_idn_and_scpi() {
     );
 
     // The module kept CRC on: a new process finds out and frames its requests.
-    let out = radbench(args(&["idn", &address, "--timeout", "2"])).await;
+    let out = radbench(args(&["idn", &address, "--timeout", "10"])).await;
     assert!(out.status.success(), "{}", stderr(&out));
-    let out = radbench(args(&["scpi", &address, "R 03", "R 7F", "--timeout", "2"])).await;
+    let out = radbench(args(&["scpi", &address, "R 03", "R 7F", "--timeout", "10"])).await;
     assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
     assert_eq!(stdout(&out).trim(), "OK 0011");
     assert!(
