@@ -15,6 +15,7 @@ use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink};
 use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::options::{Algorithm, ProcessOptions};
+use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
 use mock_lab::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -23,9 +24,6 @@ use std::path::{Path, PathBuf};
 
 /// Most steps one campaign may hold.
 pub const MAX_STEPS: usize = 10_000;
-
-/// Largest waveform repetition accepted, samples (as `radbench capture`).
-const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
 
 /// The resolved campaign.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -523,112 +521,20 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
         WaveformKindName::MskLfm => WaveformKind::MskLfm,
         WaveformKindName::Ofdm => WaveformKind::Ofdm,
     };
-    let positive = |v: Option<f64>, field: &str, unit: &str| -> Result<(), SpecError> {
-        match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => Err(spec.error(
-                &format!("waveform.{field}"),
-                format!("{x}: a positive number of {unit}"),
-            )),
-            _ => Ok(()),
-        }
+    let overrides = WaveformOverrides {
+        bandwidth_hz: w.bandwidth_hz,
+        sample_rate_hz: w.sample_rate_hz,
+        pulse_s: w.pulse_s,
+        bits_per_pulse: w.bits_per_pulse,
+        subcarriers: w.subcarriers,
+        oversampling: w.oversampling,
+        cp_fraction: w.cp_fraction,
+        symbols: w.symbols,
+        preamble_symbols: w.preamble_symbols,
     };
-    positive(w.bandwidth_hz, "bandwidth_hz", "Hz")?;
-    positive(w.sample_rate_hz, "sample_rate_hz", "Sa/s")?;
-    positive(w.pulse_s, "pulse_s", "seconds")?;
-    let only = |given: bool, field: &str, applies: &str| -> Result<(), SpecError> {
-        if given {
-            return Err(spec.error(
-                &format!("waveform.{field}"),
-                format!(
-                    "applies to {applies} only; this waveform is {}",
-                    kind.name()
-                ),
-            ));
-        }
-        Ok(())
-    };
-    let mut spec_out = kind.thesis_default();
-    match &mut spec_out {
-        WaveformSpec::MskLfm {
-            sample_rate_hz,
-            bandwidth_hz,
-            pulse_s,
-            bits_per_pulse,
-        } => {
-            only(w.subcarriers.is_some(), "subcarriers", "OFDM")?;
-            only(w.oversampling.is_some(), "oversampling", "OFDM")?;
-            only(w.cp_fraction.is_some(), "cp_fraction", "OFDM")?;
-            only(w.symbols.is_some(), "symbols", "OFDM")?;
-            only(w.preamble_symbols.is_some(), "preamble_symbols", "OFDM")?;
-            if let Some(v) = w.sample_rate_hz {
-                *sample_rate_hz = v;
-            }
-            if let Some(v) = w.bandwidth_hz {
-                *bandwidth_hz = v;
-            }
-            if let Some(v) = w.pulse_s {
-                *pulse_s = v;
-            }
-            if let Some(v) = w.bits_per_pulse {
-                *bits_per_pulse = v;
-            }
-        }
-        WaveformSpec::Ofdm {
-            oversampling,
-            subcarriers,
-            cp_fraction,
-            symbols,
-            preamble_symbols,
-            ..
-        } => {
-            only(w.sample_rate_hz.is_some(), "sample_rate_hz", "MSK-LFM")?;
-            only(w.pulse_s.is_some(), "pulse_s", "MSK-LFM")?;
-            only(w.bits_per_pulse.is_some(), "bits_per_pulse", "MSK-LFM")?;
-            if let Some(v) = w.subcarriers {
-                *subcarriers = v;
-            }
-            if let Some(v) = w.cp_fraction {
-                *cp_fraction = v;
-            }
-            if let Some(v) = w.symbols {
-                *symbols = v;
-            }
-            if let Some(v) = w.preamble_symbols {
-                *preamble_symbols = v;
-            }
-            if let Some(v) = w.oversampling {
-                *oversampling = v;
-            }
-        }
-    }
-    if let Some(b) = w.bandwidth_hz {
-        if kind == WaveformKind::Ofdm {
-            spec_out = match w.oversampling {
-                // With the oversampling given, the bandwidth sets the rate.
-                Some(_) => match spec_out {
-                    WaveformSpec::Ofdm {
-                        subcarriers,
-                        oversampling,
-                        cp_fraction,
-                        symbols,
-                        preamble_symbols,
-                        ..
-                    } => WaveformSpec::Ofdm {
-                        bandwidth_hz: b,
-                        subcarriers,
-                        oversampling,
-                        cp_fraction,
-                        symbols,
-                        preamble_symbols,
-                    },
-                    other => other,
-                },
-                None => spec_out
-                    .with_bandwidth(b)
-                    .map_err(|e| spec.error("waveform.bandwidth_hz", e.to_string()))?,
-            };
-        }
-    }
+    let spec_out = overrides
+        .apply(kind)
+        .map_err(|e| spec.error(&format!("waveform.{}", e.field()), e.to_string()))?;
     // The generators check every parameter (named, with what is allowed); do it before anything
     // else so the message points at the waveform.
     match spec_out.samples_per_repetition() {

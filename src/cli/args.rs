@@ -8,6 +8,7 @@ use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
 use crate::simulate::scene::CarrierPhase;
+use crate::waveform::overrides::{OverrideError, WaveformOverrides};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
 
 /// `--waveform`.
@@ -211,123 +212,41 @@ pub struct WaveformArgs {
     pub symbols: Option<usize>,
 }
 
-/// Largest samples per repetition a command builds (AWG memory of the M8195A is 16 G samples,
-/// but one repetition beyond this does not fit the scope or the host usefully).
-const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
-
 impl WaveformArgs {
     /// The spec of `kind` with these parameters; an option that does not apply to `kind` is
     /// refused, so nothing the user typed is silently ignored.
     pub fn spec(&self, kind: WaveformKind) -> anyhow::Result<WaveformSpec> {
-        let only = |given: bool, option: &str, applies: &str| -> anyhow::Result<()> {
-            if given {
-                return Err(bad_input(format!(
-                    "--{option} applies to {applies} only; this is --waveform {}",
-                    kind.name()
-                )));
-            }
-            Ok(())
+        let overrides = WaveformOverrides {
+            bandwidth_hz: self.bandwidth,
+            sample_rate_hz: self.sample_rate,
+            pulse_s: self.pulse_us.map(|us| us * 1e-6),
+            bits_per_pulse: self.bits_per_pulse,
+            subcarriers: self.subcarriers,
+            oversampling: self.oversampling,
+            cp_fraction: self.cp_fraction,
+            symbols: self.symbols,
+            preamble_symbols: None,
         };
-        let positive = |v: Option<f64>, option: &str, unit: &str| -> anyhow::Result<()> {
-            if let Some(x) = v {
-                if !(x.is_finite() && x > 0.0) {
-                    return Err(bad_input(format!(
-                        "--{option} {x}: must be a positive number of {unit}"
-                    )));
+        overrides.apply(kind).map_err(|e| {
+            let option = match e.field() {
+                "bandwidth_hz" => "--bandwidth",
+                "sample_rate_hz" => "--sample-rate",
+                "pulse_s" => "--pulse-us",
+                "bits_per_pulse" => "--bits-per-pulse",
+                "subcarriers" => "--subcarriers",
+                "oversampling" => "--oversampling",
+                "cp_fraction" => "--cp-fraction",
+                _ => "--symbols",
+            };
+            let option = match &e {
+                OverrideError::TooLong { .. } if kind == WaveformKind::MskLfm => {
+                    "--pulse-us / --sample-rate"
                 }
-            }
-            Ok(())
-        };
-        positive(self.bandwidth, "bandwidth", "Hz")?;
-        positive(self.sample_rate, "sample-rate", "Sa/s")?;
-        positive(self.pulse_us, "pulse-us", "microseconds")?;
-        let mut spec = kind.thesis_default();
-        match &mut spec {
-            WaveformSpec::MskLfm {
-                sample_rate_hz,
-                bandwidth_hz,
-                pulse_s,
-                bits_per_pulse,
-            } => {
-                only(self.subcarriers.is_some(), "subcarriers", "OFDM")?;
-                only(self.oversampling.is_some(), "oversampling", "OFDM")?;
-                only(self.cp_fraction.is_some(), "cp-fraction", "OFDM")?;
-                only(self.symbols.is_some(), "symbols", "OFDM")?;
-                if let Some(v) = self.sample_rate {
-                    *sample_rate_hz = v;
-                }
-                if let Some(v) = self.bandwidth {
-                    *bandwidth_hz = v;
-                }
-                if let Some(v) = self.pulse_us {
-                    *pulse_s = v * 1e-6;
-                }
-                if let Some(v) = self.bits_per_pulse {
-                    *bits_per_pulse = v;
-                }
-                let samples = *pulse_s * *sample_rate_hz;
-                if samples > MAX_SAMPLES_PER_REPETITION {
-                    return Err(bad_input(format!(
-                        "--pulse-us / --sample-rate: one pulse of {samples:.3e} samples; allowed \
-                         at most {MAX_SAMPLES_PER_REPETITION:.0e} samples per repetition"
-                    )));
-                }
-            }
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                oversampling,
-                cp_fraction,
-                symbols,
-                ..
-            } => {
-                only(self.sample_rate.is_some(), "sample-rate", "MSK-LFM")?;
-                only(self.pulse_us.is_some(), "pulse-us", "MSK-LFM")?;
-                only(self.bits_per_pulse.is_some(), "bits-per-pulse", "MSK-LFM")?;
-                if let Some(v) = self.subcarriers {
-                    *subcarriers = v;
-                }
-                if let Some(v) = self.cp_fraction {
-                    *cp_fraction = v;
-                }
-                if let Some(v) = self.symbols {
-                    *symbols = v;
-                }
-                match (self.bandwidth, self.oversampling) {
-                    (Some(b), Some(os)) => {
-                        *bandwidth_hz = b;
-                        *oversampling = os;
-                    }
-                    (Some(b), None) => {
-                        let rate = *bandwidth_hz * *oversampling as f64;
-                        let ratio = rate / b;
-                        if ratio < 1.0 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
-                            return Err(bad_input(format!(
-                                "--bandwidth {b}: OFDM keeps its sample rate of {rate} Sa/s, \
-                                 which must be a whole multiple of the bandwidth (e.g. 1e9, 2e9, \
-                                 4e9); or give --oversampling too"
-                            )));
-                        }
-                        *bandwidth_hz = b;
-                        *oversampling = ratio.round() as usize;
-                    }
-                    (None, Some(os)) => *oversampling = os,
-                    (None, None) => {}
-                }
-                let samples = (*subcarriers as f64)
-                    * (*oversampling as f64)
-                    * (1.0 + cp_fraction.abs())
-                    * (*symbols as f64);
-                if samples > MAX_SAMPLES_PER_REPETITION {
-                    return Err(bad_input(format!(
-                        "--subcarriers x --oversampling x --symbols: a frame of {samples:.3e} \
-                         samples; allowed at most {MAX_SAMPLES_PER_REPETITION:.0e} samples per \
-                         repetition"
-                    )));
-                }
-            }
-        }
-        Ok(spec)
+                OverrideError::TooLong { .. } => "--subcarriers x --oversampling x --symbols",
+                _ => option,
+            };
+            bad_input(format!("{option}: {e}"))
+        })
     }
 }
 

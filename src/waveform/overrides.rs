@@ -1,0 +1,263 @@
+//! A waveform as users ask for it: the thesis' defaults with some parameters changed. The command
+//! line (`--bandwidth`, ...) and campaign specs (`[waveform] bandwidth_hz`, ...) both go through
+//! [`WaveformOverrides::apply`], so the two accept and refuse exactly the same things; each names
+//! the field in its own spelling ([`OverrideError::field`]).
+
+use super::spec::{WaveformKind, WaveformSpec};
+
+/// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
+/// but beyond this it fits neither the scope's record nor the host usefully.
+pub const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
+
+/// Parameters changed from the thesis' defaults; `None` keeps the default.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WaveformOverrides {
+    /// Both families. For OFDM without `oversampling` the sample rate stays and the
+    /// oversampling follows (the rate must then be a whole multiple of the bandwidth).
+    pub bandwidth_hz: Option<f64>,
+    /// MSK-LFM only.
+    pub sample_rate_hz: Option<f64>,
+    /// MSK-LFM only.
+    pub pulse_s: Option<f64>,
+    /// MSK-LFM only.
+    pub bits_per_pulse: Option<usize>,
+    /// OFDM only.
+    pub subcarriers: Option<usize>,
+    /// OFDM only.
+    pub oversampling: Option<usize>,
+    /// OFDM only.
+    pub cp_fraction: Option<f64>,
+    /// OFDM only.
+    pub symbols: Option<usize>,
+    /// OFDM only.
+    pub preamble_symbols: Option<usize>,
+}
+
+/// A parameter that cannot be applied; [`field`](Self::field) is the parameter's name as in
+/// [`WaveformOverrides`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OverrideError {
+    #[error("{value}: must be a positive number of {unit}")]
+    NotPositive {
+        field: &'static str,
+        value: f64,
+        unit: &'static str,
+    },
+    #[error("applies to {applies_to} only; this waveform is {kind}")]
+    Misapplied {
+        field: &'static str,
+        applies_to: &'static str,
+        kind: &'static str,
+    },
+    #[error(
+        "{bandwidth_hz}: OFDM keeps its sample rate of {rate_hz} Sa/s, which must be a whole \
+         multiple of the bandwidth (e.g. 1e9, 2e9, 4e9); or give the oversampling too"
+    )]
+    BandwidthNotDivisor { bandwidth_hz: f64, rate_hz: f64 },
+    #[error(
+        "one repetition of {samples:.3e} samples; allowed at most {MAX_SAMPLES_PER_REPETITION:.0e} \
+         samples per repetition"
+    )]
+    TooLong {
+        /// The parameters whose product it is.
+        field: &'static str,
+        samples: f64,
+    },
+}
+
+impl OverrideError {
+    /// The parameter (or, for a repetition too long, the parameters) to blame.
+    pub fn field(&self) -> &'static str {
+        match self {
+            OverrideError::NotPositive { field, .. }
+            | OverrideError::Misapplied { field, .. }
+            | OverrideError::TooLong { field, .. } => field,
+            OverrideError::BandwidthNotDivisor { .. } => "bandwidth_hz",
+        }
+    }
+}
+
+impl WaveformOverrides {
+    /// The thesis' `kind` with these parameters. A parameter of the other family is refused, so
+    /// nothing given is silently ignored; sizes are checked before anything is allocated. The
+    /// generators check the rest (even bit counts, CP range, ...) when the waveform is built.
+    pub fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
+        for (value, field, unit) in [
+            (self.bandwidth_hz, "bandwidth_hz", "Hz"),
+            (self.sample_rate_hz, "sample_rate_hz", "Sa/s"),
+            (self.pulse_s, "pulse_s", "seconds"),
+        ] {
+            if let Some(x) = value {
+                if !(x.is_finite() && x > 0.0) {
+                    return Err(OverrideError::NotPositive {
+                        field,
+                        value: x,
+                        unit,
+                    });
+                }
+            }
+        }
+        let only = |given: bool, field: &'static str, applies_to: &'static str| {
+            if given {
+                Err(OverrideError::Misapplied {
+                    field,
+                    applies_to,
+                    kind: kind.name(),
+                })
+            } else {
+                Ok(())
+            }
+        };
+        let mut spec = kind.thesis_default();
+        match &mut spec {
+            WaveformSpec::MskLfm {
+                sample_rate_hz,
+                bandwidth_hz,
+                pulse_s,
+                bits_per_pulse,
+            } => {
+                only(self.subcarriers.is_some(), "subcarriers", "OFDM")?;
+                only(self.oversampling.is_some(), "oversampling", "OFDM")?;
+                only(self.cp_fraction.is_some(), "cp_fraction", "OFDM")?;
+                only(self.symbols.is_some(), "symbols", "OFDM")?;
+                only(self.preamble_symbols.is_some(), "preamble_symbols", "OFDM")?;
+                set(sample_rate_hz, self.sample_rate_hz);
+                set(bandwidth_hz, self.bandwidth_hz);
+                set(pulse_s, self.pulse_s);
+                set(bits_per_pulse, self.bits_per_pulse);
+                let samples = *pulse_s * *sample_rate_hz;
+                if samples > MAX_SAMPLES_PER_REPETITION {
+                    return Err(OverrideError::TooLong {
+                        field: "pulse_s",
+                        samples,
+                    });
+                }
+            }
+            WaveformSpec::Ofdm {
+                bandwidth_hz,
+                subcarriers,
+                oversampling,
+                cp_fraction,
+                symbols,
+                preamble_symbols,
+            } => {
+                only(self.sample_rate_hz.is_some(), "sample_rate_hz", "MSK-LFM")?;
+                only(self.pulse_s.is_some(), "pulse_s", "MSK-LFM")?;
+                only(self.bits_per_pulse.is_some(), "bits_per_pulse", "MSK-LFM")?;
+                set(subcarriers, self.subcarriers);
+                set(cp_fraction, self.cp_fraction);
+                set(symbols, self.symbols);
+                set(preamble_symbols, self.preamble_symbols);
+                match (self.bandwidth_hz, self.oversampling) {
+                    (Some(b), Some(os)) => {
+                        *bandwidth_hz = b;
+                        *oversampling = os;
+                    }
+                    (Some(b), None) => {
+                        let rate_hz = *bandwidth_hz * *oversampling as f64;
+                        let ratio = rate_hz / b;
+                        if ratio < 1.0 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
+                            return Err(OverrideError::BandwidthNotDivisor {
+                                bandwidth_hz: b,
+                                rate_hz,
+                            });
+                        }
+                        *bandwidth_hz = b;
+                        *oversampling = ratio.round() as usize;
+                    }
+                    (None, Some(os)) => *oversampling = os,
+                    (None, None) => {}
+                }
+                let samples = (*subcarriers as f64)
+                    * (*oversampling as f64)
+                    * (1.0 + cp_fraction.abs())
+                    * (*symbols as f64);
+                if samples > MAX_SAMPLES_PER_REPETITION {
+                    return Err(OverrideError::TooLong {
+                        field: "symbols",
+                        samples,
+                    });
+                }
+            }
+        }
+        Ok(spec)
+    }
+}
+
+fn set<T: Copy>(slot: &mut T, value: Option<T>) {
+    if let Some(v) = value {
+        *slot = v;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nothing_given_is_the_thesis_waveform() {
+        for kind in [WaveformKind::MskLfm, WaveformKind::Ofdm] {
+            assert_eq!(
+                WaveformOverrides::default().apply(kind),
+                Ok(kind.thesis_default())
+            );
+        }
+    }
+
+    #[test]
+    fn ofdm_bandwidth_keeps_the_rate_unless_the_oversampling_is_given() {
+        let two = WaveformOverrides {
+            bandwidth_hz: Some(2e9),
+            ..Default::default()
+        };
+        let spec = two.apply(WaveformKind::Ofdm).unwrap();
+        assert_eq!(spec.sample_rate_hz(), 16e9);
+        let odd = WaveformOverrides {
+            bandwidth_hz: Some(3e9),
+            ..Default::default()
+        };
+        assert_eq!(
+            odd.apply(WaveformKind::Ofdm).unwrap_err().field(),
+            "bandwidth_hz"
+        );
+        let with_os = WaveformOverrides {
+            oversampling: Some(4),
+            ..odd
+        };
+        assert_eq!(
+            with_os.apply(WaveformKind::Ofdm).unwrap().sample_rate_hz(),
+            12e9
+        );
+    }
+
+    #[test]
+    fn a_parameter_of_the_other_family_or_too_large_is_named() {
+        let cp = WaveformOverrides {
+            cp_fraction: Some(0.5),
+            ..Default::default()
+        };
+        assert_eq!(
+            cp.apply(WaveformKind::MskLfm).unwrap_err().field(),
+            "cp_fraction"
+        );
+        let long = WaveformOverrides {
+            pulse_s: Some(1.0),
+            ..Default::default()
+        };
+        assert!(matches!(
+            long.apply(WaveformKind::MskLfm),
+            Err(OverrideError::TooLong {
+                field: "pulse_s",
+                ..
+            })
+        ));
+        let negative = WaveformOverrides {
+            bandwidth_hz: Some(-1.0),
+            ..Default::default()
+        };
+        assert_eq!(
+            negative.apply(WaveformKind::Ofdm).unwrap_err().field(),
+            "bandwidth_hz"
+        );
+    }
+}
