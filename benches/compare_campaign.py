@@ -40,6 +40,9 @@ Figures:
     from its I/O journal (`elapsed_us` of those exchanges), the script's from timing the same calls.
   * host = step - instrument time: everything else (serial exchanges, AWG state, processing,
     bookkeeping, the scheduler of a shared machine).
+  * CPU per step = the client's user + system CPU time over its whole run (every thread: for
+    radbench also the writer of the step files), divided by the steps: less sensitive than wall
+    times to what else runs on a shared machine.
 
 pyserial is not among the interop packages: the pseudo-terminals are opened with os/termios in
 raw mode, as pyserial does. Everything stays on 127.0.0.1. This is a benchmark, not a test.
@@ -153,14 +156,17 @@ def radbench_round(binary: str, spec: Path, bench: Path, out: Path):
         elif event.get("event") == "done":
             done = event
     err = proc.stderr.read()
-    if proc.wait() != 0 or done is None:
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0 or done is None:
         sys.exit(f"radbench campaign failed ({proc.returncode}): {err}")
     journal = [json.loads(x) for x in (out / "io-journal.jsonl").read_text().splitlines()]
     with open(out / "manifest.toml", "rb") as f:
         sessions = tomllib.load(f)["sessions"]
     timing = sessions[-1]["timing"]
     return {"start": t0, "ends": ends, "instrument_s": journal_instrument_s(journal),
-            "serial": journal_serial_per_step(journal), "ranges": ranges, "timing": timing}
+            "serial": journal_serial_per_step(journal), "ranges": ranges, "timing": timing,
+            "cpu_s": usage.ru_utime + usage.ru_stime}
 
 
 def journal_instrument_s(journal):
@@ -489,6 +495,7 @@ class PythonStack:
 
 def python_round(lab, rm, count, seed):
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     stack = PythonStack(lab, rm, seed)
     ends, instrument, ranges, errors, serial = [], [], [], [], []
     try:
@@ -503,7 +510,7 @@ def python_round(lab, rm, count, seed):
     finally:
         stack.close()
     return {"start": t0, "ends": ends, "instrument_s": instrument, "ranges": ranges,
-            "bit_errors": errors, "serial": serial}
+            "bit_errors": errors, "serial": serial, "cpu_s": time.process_time() - cpu0}
 
 
 # ---------------------------------------------------------------------------- report
@@ -578,6 +585,10 @@ def main():
     rb_serial = [s["tx"] + s["rx"] for r in rb_rounds for s in r["serial"][1:]]
     py_serial = [s for r in py_rounds for s in r["serial"][1:]]
     print(f"{'serial exchanges per step':<28} {med(rb_serial):8.0f} {med(py_serial):8.0f}")
+    rb_cpu = med([r["cpu_s"] / args.count for r in rb_rounds])
+    py_cpu = med([r["cpu_s"] / args.count for r in py_rounds])
+    print(f"{'CPU per step (whole run/N)':<28} {ms(rb_cpu)} {ms(py_cpu)} {py_cpu / rb_cpu:6.2f}x"
+          "  (user + system, every thread; not the lab's)")
     t = rb_rounds[-1]["timing"]
     captures = t["bench_s"] + t["processing_s"]
     own = t["overhead_s"] + t["wait_s"]
