@@ -641,6 +641,8 @@ pub struct PeriodicDecimator {
     decimator: Decimator,
     /// Extension on each side, input samples (a multiple of the factor).
     guard: usize,
+    /// The extended record, kept between captures (no fresh allocation per capture).
+    extended: Vec<Complex64>,
 }
 
 impl PeriodicDecimator {
@@ -655,6 +657,7 @@ impl PeriodicDecimator {
         Ok(Self {
             guard: half.div_ceil(factor) * factor,
             decimator,
+            extended: Vec::new(),
         })
     }
 
@@ -676,14 +679,25 @@ impl PeriodicDecimator {
     }
 
     pub fn decimate(&mut self, x: &[Complex64]) -> Vec<Complex64> {
-        let n = x.len();
+        self.decimate_map(x.len(), |k| x[k])
+    }
+
+    /// [`decimate`](Self::decimate) of the `n` samples `sample(0..n)`, read straight into the
+    /// extended record (e.g. from the scope's words, without a record in volts first).
+    pub fn decimate_map(
+        &mut self,
+        n: usize,
+        sample: impl Fn(usize) -> Complex64,
+    ) -> Vec<Complex64> {
         let g = self.guard.min(n);
-        let mut extended = Vec::with_capacity(n + 2 * g);
-        extended.extend_from_slice(&x[n - g..]);
-        extended.extend_from_slice(x);
-        extended.extend_from_slice(&x[..g]);
+        let mut extended = std::mem::take(&mut self.extended);
+        extended.clear();
+        extended.extend((n - g..n).map(&sample));
+        extended.extend((0..n).map(&sample));
+        extended.extend((0..g).map(&sample));
         self.decimator.reset();
         let y = self.decimator.decimate(&extended);
+        self.extended = extended;
         let factor = self.decimator.factor();
         let skip = g / factor;
         y[skip..skip + n / factor].to_vec()

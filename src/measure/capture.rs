@@ -9,7 +9,7 @@
 use super::bench::Bench;
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
-use super::pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
+use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{self, RepetitionResult, Spread};
 use super::station::{self, CapturePlan, Captured, Identities, Station, Uploaded};
 use super::transmit::{Dac, Transmission};
@@ -377,8 +377,8 @@ pub async fn process_with(
         prepared.pipeline = Some(pipeline);
         return Err(e);
     }
-    let raws: Vec<RawIq> = (0..captured.repetitions())
-        .map(|k| captured.raw(k))
+    let raws: Vec<RawWords> = (0..captured.repetitions())
+        .map(|k| captured.raw_words(k))
         .collect();
     // The pipeline goes to the worker thread and comes back.
     let background = prepared.background.clone();
@@ -405,15 +405,15 @@ pub const MAX_REPETITIONS: usize = 1000;
 
 /// Aligns every repetition (raw captures at the capture rate), processes each alone (when there are several) and their coherent
 /// average.
-pub fn process_repetitions(
+pub fn process_repetitions<R: Alignable>(
     pipeline: &mut Pipeline,
-    raws: &[RawIq],
+    raws: &[R],
     background: Option<&Aligned>,
     bandwidth_hz: f64,
 ) -> Result<(Processed, Vec<RepetitionResult>, Option<Spread>), MeasureError> {
     let aligned = raws
         .iter()
-        .map(|r| pipeline.align(r))
+        .map(|r| r.align_in(pipeline))
         .collect::<Result<Vec<_>, _>>()?;
     if aligned.len() == 1 {
         let one = aligned.into_iter().next().expect("one repetition");

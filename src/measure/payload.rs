@@ -158,13 +158,23 @@ fn fractional_shift(
     let n = x.len();
     forward.process_with_scratch(x, scratch);
     let step = -2.0 * std::f64::consts::PI * shift / n as f64;
+    // The phase ramp by recurrence (one complex product per bin), restarted from an exact
+    // phasor every EXACT_EVERY bins so rounding cannot accumulate: no sin/cos per bin.
+    const EXACT_EVERY: usize = 1024;
+    let rotate = Complex64::from_polar(1.0, step);
+    let mut phasor = Complex64::new(0.0, 0.0);
+    let scale = 1.0 / n as f64;
     for (k, v) in x.iter_mut().enumerate() {
-        let signed = if k <= n / 2 {
-            k as f64
-        } else {
-            k as f64 - n as f64
-        };
-        *v *= Complex64::from_polar(1.0 / n as f64, step * signed);
+        if k % EXACT_EVERY == 0 || k == n / 2 + 1 {
+            let signed = if k <= n / 2 {
+                k as f64
+            } else {
+                k as f64 - n as f64
+            };
+            phasor = Complex64::from_polar(scale, step * signed);
+        }
+        *v *= phasor;
+        phasor *= rotate;
     }
     inverse.process_with_scratch(x, scratch);
 }

@@ -52,6 +52,36 @@ pub struct RawIq {
     pub first_point_s: f64,
 }
 
+/// The capture as the scope's words and their scaling (volts = gain * word - offset), I and Q:
+/// aligned without a record in volts first.
+#[derive(Debug, Clone)]
+pub struct RawWords {
+    pub i: Vec<i16>,
+    pub q: Vec<i16>,
+    pub gain: [f64; 2],
+    pub offset: [f64; 2],
+    pub sample_rate_hz: f64,
+    /// Time of the first sample after the trigger (marker edge), seconds.
+    pub first_point_s: f64,
+}
+
+/// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
+pub trait Alignable {
+    fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError>;
+}
+
+impl Alignable for RawIq {
+    fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError> {
+        pipeline.align(self)
+    }
+}
+
+impl Alignable for RawWords {
+    fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError> {
+        pipeline.align_words(self)
+    }
+}
+
 /// One repetition at the waveform rate, aligned to the marker edge: sample `m` is at
 /// `m / fs + residual_s` after it.
 #[derive(Debug, Clone, PartialEq)]
@@ -521,25 +551,48 @@ impl Pipeline {
 
     /// Decimates one repetition of `raw` to the waveform rate and rotates it to the marker edge.
     pub fn align(&mut self, raw: &RawIq) -> Result<Aligned, MeasureError> {
-        let factor = self.factor(raw.sample_rate_hz)?;
+        let x = &raw.samples;
+        self.align_map(x.len(), raw.sample_rate_hz, raw.first_point_s, |k| x[k])
+    }
+
+    /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
+    /// same arithmetic as [`crate::measure::station::Captured::raw`], so the same result).
+    pub fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
+        let (i, q) = (&raw.i, &raw.q);
+        let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);
+        self.align_map(
+            i.len().min(q.len()),
+            raw.sample_rate_hz,
+            raw.first_point_s,
+            |k| Complex64::new(gi * f64::from(i[k]) - oi, gq * f64::from(q[k]) - oq),
+        )
+    }
+
+    fn align_map(
+        &mut self,
+        len: usize,
+        sample_rate_hz: f64,
+        first_point_s: f64,
+        sample: impl Fn(usize) -> Complex64,
+    ) -> Result<Aligned, MeasureError> {
+        let factor = self.factor(sample_rate_hz)?;
         let period = self.geometry.period;
         let needed = period * factor;
-        if raw.samples.len() < needed {
+        if len < needed {
             return Err(MeasureError::RecordTooShort {
-                points: raw.samples.len(),
+                points: len,
                 needed,
             });
         }
-        let one = &raw.samples[..needed];
-        self.prepare_capture_rate(raw.sample_rate_hz)?;
+        self.prepare_capture_rate(sample_rate_hz)?;
         let y = match self.decimator.as_mut() {
-            None => one.to_vec(),
-            Some((_, _, dec)) => dec.decimate(one),
+            None => (0..needed).map(sample).collect(),
+            Some((_, _, dec)) => dec.decimate_map(needed, sample),
         };
         // Rotate so sample m sits at m / fs after the marker edge, up to a sub-sample residual.
         let fs = self.tx.sample_rate_hz();
-        let shift = (raw.first_point_s * fs).round();
-        let residual_s = raw.first_point_s - shift / fs;
+        let shift = (first_point_s * fs).round();
+        let residual_s = first_point_s - shift / fs;
         let s = (shift as i64).rem_euclid(period as i64) as usize;
         let mut samples = vec![ZERO; period];
         let (head, tail) = y.split_at(period - s);

@@ -8,7 +8,7 @@
 use super::bench_file::{BenchFile, InstrumentEntry};
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
-use super::pipeline::RawIq;
+use super::pipeline::{RawIq, RawWords};
 use super::transmit::Transmission;
 use super::MeasureError;
 use crate::address::Resource;
@@ -250,6 +250,26 @@ impl Captured {
                 .map(|(&a, &b)| Complex64::new(gi * f64::from(a) - oi, gq * f64::from(b) - oq))
                 .collect(),
             // WAVEDESC stores the interval as f32: take the rate the scope reported applying.
+            sample_rate_hz: self.applied.scope.sample_rate_hz,
+            first_point_s: i.first_sample_s(),
+        }
+    }
+
+    /// Repetition `k` as the scope's words and their scaling: [`raw`](Self::raw) without the
+    /// record in volts (the pipeline converts as it decimates).
+    pub fn raw_words(&self, k: usize) -> RawWords {
+        let (i, q) = (&self.iq[k].i, &self.iq[k].q);
+        RawWords {
+            i: i.codes.clone(),
+            q: q.codes.clone(),
+            gain: [
+                f64::from(i.desc.vertical_gain),
+                f64::from(q.desc.vertical_gain),
+            ],
+            offset: [
+                f64::from(i.desc.vertical_offset),
+                f64::from(q.desc.vertical_offset),
+            ],
             sample_rate_hz: self.applied.scope.sample_rate_hz,
             first_point_s: i.first_sample_s(),
         }

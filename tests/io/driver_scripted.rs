@@ -517,18 +517,25 @@ fn status(fake: Scripted, status: &str, control: &str, att: &str, faults: &str) 
 
 const STATUS_READ: &[&str] = &["R 01", "R 02", "R 03", "R 06", "R 07"];
 
+/// What RF safety reads back after writing the enables: STATUS, CONTROL, FAULT_LATCH.
+const AFTER_ENABLE: &[&str] = &["R 01", "R 02", "R 07"];
+
 #[tokio::test]
 async fn gotmic_enable_goes_through_max_attenuation_checks_and_verifies() {
-    let mut fake = Scripted::new("tx")
-        .reply("W 03 003F", "OK")
-        .reply("R 03", "OK 003F")
-        .reply("W 05 3415", "OK")
-        .reply("R 05", "OK 3415");
-    fake = status(fake, "OK 0001", "OK 0000", "OK 003F", "OK 0000");
-    fake = fake.reply("W 02 000F", "OK").reply("R 02", "OK 000F");
-    fake = status(fake, "OK 0007", "OK 000F", "OK 003F", "OK 0000");
+    let mut fake = status(
+        Scripted::new("tx"),
+        "OK 0001",
+        "OK 0000",
+        "OK 003F",
+        "OK 0000",
+    );
+    fake = fake.reply("W 05 3415", "OK").reply("R 05", "OK 3415");
+    fake = fake
+        .reply("W 02 000F", "OK")
+        .reply("R 01", "OK 0007")
+        .reply("R 02", "OK 000F")
+        .reply("R 07", "OK 0000");
     fake = fake.reply("W 03 0014", "OK").reply("R 03", "OK 0014");
-    fake = status(fake, "OK 0007", "OK 000F", "OK 0014", "OK 0000");
     let (mut tx, log) = tx(fake).await;
     let settings = RfSettings {
         attenuation_db: 10.0,
@@ -539,28 +546,104 @@ async fn gotmic_enable_goes_through_max_attenuation_checks_and_verifies() {
     assert!(st.rf_enabled && st.lo_locked);
     assert_eq!(st.attenuation_db, 10.0);
     assert_eq!(st.temperature_c, 25.0);
+    assert_eq!(st.control, 0x000F);
+    // The attenuation was found at its maximum: not written again before the enable.
     assert_eq!(
         log.ops(),
         strings(&[
-            &["W 03 003F", "R 03", "W 05 3415", "R 05"],
             STATUS_READ,
-            &["W 02 000F", "R 02"],
-            STATUS_READ,
+            &["W 05 3415", "R 05"],
+            &["W 02 000F"],
+            AFTER_ENABLE,
             &["W 03 0014", "R 03"],
-            STATUS_READ,
         ])
     );
     log.assert_no_surprises();
 }
 
 #[tokio::test]
-async fn gotmic_lo_not_locked_switches_off_again() {
-    let mut fake = Scripted::new("tx")
+async fn gotmic_enable_maxes_the_attenuation_first_when_it_is_not() {
+    let mut fake = status(
+        Scripted::new("tx"),
+        "OK 0001",
+        "OK 0000",
+        "OK 0000",
+        "OK 0000",
+    );
+    fake = fake.reply("W 03 003F", "OK").reply("R 03", "OK 003F");
+    fake = fake
+        .reply("W 02 000F", "OK")
+        .reply("R 01", "OK 0007")
+        .reply("R 02", "OK 000F")
+        .reply("R 07", "OK 0000");
+    fake = fake.reply("W 03 0014", "OK").reply("R 03", "OK 0014");
+    let (mut tx, log) = tx(fake).await;
+    let settings = RfSettings {
+        attenuation_db: 10.0,
+        lo_frequency_hz: None,
+    };
+    let permit = RfPermit::granted_by_user();
+    bounded(tx.enable(&permit, &settings)).await.unwrap();
+    assert_eq!(
+        log.ops(),
+        strings(&[
+            STATUS_READ,
+            &["W 03 003F", "R 03"],
+            &["W 02 000F"],
+            AFTER_ENABLE,
+            &["W 03 0014", "R 03"],
+        ])
+    );
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn gotmic_enable_not_taken_switches_off_again() {
+    let mut fake = status(
+        Scripted::new("tx"),
+        "OK 0001",
+        "OK 0000",
+        "OK 003F",
+        "OK 0000",
+    );
+    fake = fake
+        .reply("W 02 000F", "OK")
+        .reply("R 01", "OK 0001")
+        .reply("R 02", "OK 0000")
+        .reply("R 07", "OK 0000");
+    fake = fake
+        .reply("W 02 0000", "OK")
+        .reply("R 02", "OK 0000")
         .reply("W 03 003F", "OK")
         .reply("R 03", "OK 003F");
-    fake = status(fake, "OK 0001", "OK 0000", "OK 003F", "OK 0000");
-    fake = fake.reply("W 02 000F", "OK").reply("R 02", "OK 000F");
-    fake = status(fake, "OK 0005", "OK 000F", "OK 003F", "OK 0000");
+    let (mut tx, log) = tx(fake).await;
+    let permit = RfPermit::granted_by_user();
+    let e = bounded(tx.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap_err();
+    assert!(matches!(e, DriverError::VerifyFailed { .. }), "{e}");
+    let ops = log.ops();
+    assert_eq!(
+        &ops[ops.len() - 4..],
+        ["W 02 0000", "R 02", "W 03 003F", "R 03"]
+    );
+    log.assert_no_surprises();
+}
+
+#[tokio::test]
+async fn gotmic_lo_not_locked_switches_off_again() {
+    let mut fake = status(
+        Scripted::new("tx"),
+        "OK 0001",
+        "OK 0000",
+        "OK 003F",
+        "OK 0000",
+    );
+    fake = fake
+        .reply("W 02 000F", "OK")
+        .reply("R 01", "OK 0005")
+        .reply("R 02", "OK 000F")
+        .reply("R 07", "OK 0000");
     fake = fake
         .reply("W 02 0000", "OK")
         .reply("R 02", "OK 0000")
@@ -582,10 +665,13 @@ async fn gotmic_lo_not_locked_switches_off_again() {
 
 #[tokio::test]
 async fn gotmic_latched_faults_or_open_interlock_refuse_before_enabling() {
-    let mut fake = Scripted::new("tx")
-        .reply("W 03 003F", "OK")
-        .reply("R 03", "OK 003F");
-    fake = status(fake, "OK 0011", "OK 0000", "OK 003F", "OK 0002");
+    let fake = status(
+        Scripted::new("tx"),
+        "OK 0011",
+        "OK 0000",
+        "OK 003F",
+        "OK 0002",
+    );
     let (mut tx, log) = tx(fake).await;
     let permit = RfPermit::granted_by_user();
     let e = bounded(tx.enable(&permit, &RfSettings::default()))

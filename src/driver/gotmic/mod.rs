@@ -98,6 +98,39 @@ impl Map {
     }
 }
 
+/// The status bits, CONTROL and the fault latch decoded, with the temperature and attenuation.
+fn decode_status(
+    map: &Map,
+    status: u16,
+    control: u16,
+    faults: u16,
+    temperature_c: f64,
+    attenuation_db: f64,
+) -> RfStatus {
+    let has = |field: &str| {
+        map.status
+            .bit(field)
+            .is_some_and(|b| status & (1 << b) != 0)
+    };
+    RfStatus {
+        powered: has("POWERED"),
+        lo_locked: has("LO_LOCKED"),
+        rf_enabled: has("RF_ENABLED"),
+        over_temperature: has("OVER_TEMPERATURE"),
+        interlock_open: has("INTERLOCK_OPEN"),
+        faults: map
+            .faults
+            .fields
+            .iter()
+            .filter(|f| f.bit < 16 && faults & (1 << f.bit) != 0)
+            .map(|f| f.name.clone())
+            .collect(),
+        control,
+        temperature_c,
+        attenuation_db,
+    }
+}
+
 /// How request and reply lines are framed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Framing {
@@ -334,33 +367,19 @@ impl Gotmic {
         let att = self.read(&map.attenuation).await?;
         let temp = self.read(&map.temperature).await?;
         let faults = self.read(&map.faults).await?;
-        let has = |field: &str| {
-            map.status
-                .bit(field)
-                .is_some_and(|b| status & (1 << b) != 0)
-        };
         let temperature = if map.temperature.signed {
             f64::from(temp as i16)
         } else {
             f64::from(temp)
         } / 10.0;
-        Ok(RfStatus {
-            powered: has("POWERED"),
-            lo_locked: has("LO_LOCKED"),
-            rf_enabled: has("RF_ENABLED"),
-            over_temperature: has("OVER_TEMPERATURE"),
-            interlock_open: has("INTERLOCK_OPEN"),
-            temperature_c: temperature,
-            attenuation_db: f64::from(att) * self.limits.attenuation_step_db,
-            faults: map
-                .faults
-                .fields
-                .iter()
-                .filter(|f| f.bit < 16 && faults & (1 << f.bit) != 0)
-                .map(|f| f.name.clone())
-                .collect(),
+        Ok(decode_status(
+            &map,
+            status,
             control,
-        })
+            faults,
+            temperature,
+            f64::from(att) * self.limits.attenuation_step_db,
+        ))
     }
 
     fn not_ready(&self, reason: String) -> DriverError {
@@ -387,12 +406,18 @@ impl Gotmic {
             None => None,
         };
         let map = self.map.clone();
-        self.write_verified(&map.attenuation, self.max_attenuation_code())
-            .await?;
+        // One look at the module (status, control, attenuation, temperature, faults) decides;
+        // the attenuation is at its maximum before the enable: read back here, written (and
+        // verified) only when it is not (the disable leaves it there).
+        let before = self.status_impl().await?;
+        let max = self.max_attenuation_code();
+        let att_code = (before.attenuation_db / self.limits.attenuation_step_db).round();
+        if att_code != f64::from(max) {
+            self.write_verified(&map.attenuation, max).await?;
+        }
         if let (Some(reg), Some(mhz)) = (&map.lo_frequency, lo_mhz) {
             self.write_verified(reg, mhz).await?;
         }
-        let before = self.status_impl().await?;
         if !before.faults.is_empty() {
             return Err(self.not_ready(format!(
                 "latched faults {:?}: fix their cause, then clear them explicitly (clear_faults) before enabling RF",
@@ -410,7 +435,7 @@ impl Gotmic {
                 "the interlock is open: close it (waveguide load or antenna connected, door closed) before enabling RF".into(),
             ));
         }
-        let result = self.switch_on(code).await;
+        let result = self.switch_on(code, before).await;
         if result.is_err() {
             if let Err(e) = self.disable_impl().await {
                 tracing::error!(instrument = %self.name, "switching off after a failed enable failed too: {e}");
@@ -419,10 +444,33 @@ impl Gotmic {
         result
     }
 
-    async fn switch_on(&mut self, code: u16) -> Result<RfStatus, DriverError> {
+    /// Writes the enables, then reads back what RF safety needs: CONTROL (the write took),
+    /// STATUS (RF on, LO locked) and the fault latch; then the operating attenuation, verified.
+    /// The returned status is that read-back with the verified attenuation (and the temperature
+    /// of `before`, read a moment earlier).
+    async fn switch_on(&mut self, code: u16, before: RfStatus) -> Result<RfStatus, DriverError> {
         let map = self.map.clone();
-        self.write_verified(&map.control, map.enable_mask).await?;
-        let after = self.status_impl().await?;
+        self.request(&commands::write(map.control.address, map.enable_mask))
+            .await?;
+        let status = self.read(&map.status).await?;
+        let control = self.read(&map.control).await?;
+        let faults = self.read(&map.faults).await?;
+        if control != map.enable_mask {
+            return Err(DriverError::VerifyFailed {
+                instrument: self.name.clone(),
+                register: map.control.name.clone(),
+                wrote: map.enable_mask,
+                read: control,
+            });
+        }
+        let after = decode_status(
+            &map,
+            status,
+            control,
+            faults,
+            before.temperature_c,
+            before.attenuation_db,
+        );
         if self.limits.enable_requires_lo && !after.lo_locked {
             return Err(self.not_ready(format!(
                 "the LO is not locked: check the LO input ({} ..= {} Hz, x{} multiplier)",
@@ -436,7 +484,10 @@ impl Gotmic {
             )));
         }
         self.write_verified(&map.attenuation, code).await?;
-        self.status_impl().await
+        Ok(RfStatus {
+            attenuation_db: f64::from(code) * self.limits.attenuation_step_db,
+            ..after
+        })
     }
 
     /// RF off first, then maximum attenuation; both tried, the first error returned.
