@@ -388,6 +388,7 @@ impl Link {
         let started = Instant::now();
         let result = match self.inner.take() {
             Some(Inner::Vxi11(mut l)) if self.dirty == Dirty::Clean => l.close(&self.options).await,
+            Some(Inner::Serial(l)) => l.close().await,
             _ => Ok(()),
         };
         if let Some(j) = &self.journal {

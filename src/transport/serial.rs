@@ -126,6 +126,9 @@ enum Request {
     Write(Vec<u8>, Duration, oneshot::Sender<Result<(), LinkError>>),
     Read(ReadBudget, oneshot::Sender<Result<Bytes, LinkError>>),
     Clear(oneshot::Sender<Result<(), LinkError>>),
+    /// Close the port, then answer: whoever opens the device next finds it free (the port is
+    /// opened exclusively).
+    Close(oneshot::Sender<Result<(), LinkError>>),
 }
 
 pub struct SerialLink {
@@ -173,6 +176,12 @@ impl SerialLink {
             device,
             requests: tx,
         })
+    }
+
+    /// Closes the port and returns once it is closed, so the device can be opened again at
+    /// once (by this process or another).
+    pub async fn close(self) -> Result<(), LinkError> {
+        self.ask(Request::Close).await
     }
 
     fn gone(&self) -> LinkError {
@@ -314,6 +323,11 @@ fn serve(
                     })
                     .and_then(|()| drain(port.as_mut(), &device));
                 let _ = reply.send(result);
+            }
+            Request::Close(reply) => {
+                drop(port);
+                let _ = reply.send(Ok(()));
+                return;
             }
         }
     }

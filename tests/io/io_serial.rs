@@ -186,3 +186,15 @@ async fn a_reply_left_unread_is_drained_not_taken_by_the_next_session() {
         .expect("the request arrived");
     assert_eq!(request, b"R 03\n");
 }
+
+/// A closed session has let go of the port when `close` returns: the device (opened
+/// exclusively) can be opened again at once, as `radbench scpi` does after probing a module.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_closed_port_can_be_opened_again_at_once() {
+    let (endpoint, _faults) = endpoint();
+    for _ in 0..20 {
+        let mut s = open(endpoint.device_path(), Duration::from_secs(5)).await;
+        assert_eq!(bounded(s.idn()).await.unwrap().to_string(), IDENTITY);
+        bounded(s.close()).await.unwrap();
+    }
+}
