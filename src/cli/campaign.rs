@@ -33,7 +33,7 @@ pub enum Command {
     Resume(ResumeArgs),
     /// Print a commented campaign spec to start from.
     New(NewArgs),
-    /// Write a run folder's report again from its manifest and results.json.
+    /// Write a run folder's report.md and report.html again from its manifest and results.json.
     Report(ReportArgs),
     /// Run the thesis' lab chapter (4.4.1-4.5.2) on the built-in mock lab and compare.
     #[command(name = "thesis-lab")]
