@@ -47,8 +47,8 @@ fn table(out: &mut String, t: &Table) {
     let _ = writeln!(out, "</table>");
 }
 
-/// The whole page; an error names the plot that could not be drawn.
-pub fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> Result<String, String> {
+/// The whole page.
+pub fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
     let plan = &manifest.plan;
     let mut out = String::new();
     let _ = writeln!(
@@ -64,18 +64,21 @@ pub fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> Resul
     let _ = writeln!(out, "<p>{}</p>", escape(&status_line(manifest)));
     let _ = writeln!(out, "<p>{}</p>", escape(UNCERTAINTY_NOTE));
     for f in figures {
-        let svg = plots::svg(&f.chart)?;
-        // Inline: drop an XML prolog if the backend wrote one.
-        let svg = match svg.find("<svg") {
-            Some(k) => &svg[k..],
-            None => &svg[..],
+        // A plot that cannot be drawn says why; the report (and the run) goes on.
+        let body = match plots::svg(&f.chart) {
+            Ok(svg) => {
+                // Inline: drop an XML prolog if the backend wrote one.
+                let k = svg.find("<svg").unwrap_or(0);
+                svg[k..].trim().to_string()
+            }
+            Err(e) => format!("<p>This plot could not be drawn: {}</p>", escape(&e)),
         };
         let _ = writeln!(
             out,
             "<figure id=\"{}\" class=\"plot\">\n<h2>{}</h2>\n{}\n<figcaption>{}</figcaption>\n</figure>",
             f.id,
             escape(&f.chart.title),
-            svg.trim(),
+            body,
             escape(&f.caption)
         );
     }
@@ -98,5 +101,5 @@ pub fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> Resul
          <code>results.json</code> (schema: docs/campaign.md), <code>report.md</code>, one folder \
          per step with its capture (SigMF, .trc) and profiles.</p>\n</body>\n</html>"
     );
-    Ok(out)
+    out
 }

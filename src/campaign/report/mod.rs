@@ -36,11 +36,7 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
         &md,
         markdown::markdown(manifest, results, &figures).as_bytes(),
     )?;
-    let page =
-        html::html(manifest, results, &figures).map_err(|message| CampaignError::Manifest {
-            path: dir.join(HTML_FILE),
-            message,
-        })?;
+    let page = html::html(manifest, results, &figures);
     write_atomic(&dir.join(HTML_FILE), page.as_bytes())?;
     Ok(md)
 }

@@ -307,3 +307,35 @@ fn render<DB: DrawingBackend>(
     root.present().map_err(e)?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_chart_is_one_svg_element_and_an_empty_one_is_refused() {
+        let mut c = Chart::new("t", "x", "y");
+        assert!(svg(&c).is_err());
+        c.series.push(Series {
+            label: "s".into(),
+            points: vec![
+                Point::new(1.0, 2.0).with_std(Some(0.5)),
+                Point::new(2.0, 3.0),
+            ],
+            style: Style::Line,
+        });
+        c.hlines.push(HLine {
+            y: 2.5,
+            label: "bound".into(),
+            dashed: true,
+        });
+        let s = svg(&c).unwrap();
+        assert!(s.trim_start().starts_with("<svg"), "{}", &s[..40]);
+        assert!(s.trim_end().ends_with("</svg>"));
+        assert!(s.contains("bound") && s.contains("<circle"));
+        // Log scale: non-positive values are left out, the rest drawn.
+        c.log_y = true;
+        c.series[0].points.push(Point::new(3.0, 0.0));
+        assert!(svg(&c).is_ok());
+    }
+}
