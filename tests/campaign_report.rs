@@ -228,10 +228,10 @@ async fn single_target_plots_width_and_psl_beside_the_thesis() {
     assert_eq!(lines(&figures[0]), [13.2, 12.73]);
     assert_eq!(lines(&figures[1]), [-13.24, -10.49]);
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
-    assert!(
-        md.contains(&format!("{:.2} ± {:.2} (n=4)", w.mean, w.std)),
-        "{md}"
-    );
+    // Mean ± std with the deviation's two significant digits (two decimals at least).
+    let d = ((1.0 - w.std.log10().floor()).max(0.0) as usize).clamp(2, 6);
+    let want = format!("{:.d$} ± {:.d$} (n=4)", w.mean, w.std);
+    assert!(md.contains(&want), "{want} not in {md}");
     assert!(
         md.contains("13.2 (Table 4.5)") && md.contains("-10.49 (4.4.1)"),
         "{md}"

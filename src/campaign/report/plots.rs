@@ -8,6 +8,8 @@ use plotters::prelude::*;
 
 /// Size of every chart, pixels.
 pub const SIZE: (u32, u32) = (800, 450);
+/// Reference lines (bounds, the thesis' values), apart from the data's palette.
+const REFERENCE: [RGBColor; 2] = [RGBColor(40, 40, 40), RGBColor(230, 140, 0)];
 /// Roughly the plotting area's height (the size less caption, margins and the x labels).
 const PLOT_HEIGHT_PX: f64 = 350.0;
 
@@ -234,11 +236,16 @@ fn render<DB: DrawingBackend>(
         mesh.y_labels(((y1 - y0) as usize + 1).max(2));
     }
     mesh.draw().map_err(e)?;
+    let mut reference = 0;
     for (i, h) in chart.hlines.iter().enumerate() {
         let Some(y) = ty(h.y) else { continue };
-        let color = RGBColor(110, 110, 110).mix(if i % 2 == 0 { 0.9 } else { 0.6 });
+        // An unlabelled line repeats the previous labelled one (the other side of a bound).
+        if !h.label.is_empty() || i == 0 {
+            reference += 1;
+        }
+        let color = REFERENCE[(reference - 1) % REFERENCE.len()];
         let line = vec![(x0, y), (x1, y)];
-        let style = color.stroke_width(1);
+        let style = color.stroke_width(2);
         let drawn = if h.dashed {
             c.draw_series(DashedLineSeries::new(line, 6, 4, style))
                 .map_err(e)?
