@@ -202,6 +202,10 @@ async fn resolution_plots_resolved_or_not_per_bandwidth() {
         );
         assert!(close(p.x, 8.0), "{}", p.x);
     }
+    // The resolution cells c0/(2B), cm.
+    let cells: Vec<f64> = f.chart.vlines.iter().map(|v| v.0).collect();
+    assert!(close(cells[0], 299_792_458.0 / 2e9 * 100.0), "{cells:?}");
+    assert!(close(cells[1], 299_792_458.0 / 4e9 * 100.0), "{cells:?}");
     // As the thesis (4.4.3): 8 cm not resolved at 1 GHz, resolved at 2 GHz.
     assert!(!f.chart.series[0].points[0].filled);
     assert!(f.chart.series[1].points[0].filled);

@@ -284,6 +284,21 @@ fn resolution(steps: &[&StepResult]) -> Option<Figure> {
             style: Style::Markers,
         });
     }
+    let bandwidths = rows
+        .iter()
+        .map(|(_, b)| *b)
+        .fold(Vec::<f64>::new(), |mut v, b| {
+            if !v.contains(&b) {
+                v.push(b);
+            }
+            v
+        });
+    for b in &bandwidths {
+        let cell = C0 / (2.0 * b) * 100.0;
+        chart
+            .vlines
+            .push((cell, format!("c0/(2B) = {cell:.1} cm at {} GHz", b / 1e9)));
+    }
     let cells: Vec<String> = rows
         .iter()
         .map(|(_, b)| *b)
@@ -301,7 +316,7 @@ fn resolution(steps: &[&StepResult]) -> Option<Figure> {
         caption: format!(
             "Each step's targets resolved or not, per algorithm and bandwidth: resolved when each \
              target has its own detection within ±s/2 (s: the separation), against the ground \
-             truth on a simulated bench. Resolution cell c0/(2B): {}.",
+             truth on a simulated bench. Dotted: the resolution cell c0/(2B): {}.",
             cells.join(", ")
         ),
         chart,

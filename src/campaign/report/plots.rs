@@ -10,6 +10,12 @@ use plotters::prelude::*;
 pub const SIZE: (u32, u32) = (800, 450);
 /// Reference lines (bounds, the thesis' values), apart from the data's palette.
 const REFERENCE: [RGBColor; 2] = [RGBColor(40, 40, 40), RGBColor(230, 140, 0)];
+/// Vertical reference lines (resolution cells).
+const VERTICAL: [RGBColor; 3] = [
+    RGBColor(120, 120, 120),
+    RGBColor(160, 60, 120),
+    RGBColor(40, 130, 130),
+];
 /// Roughly the plotting area's height (the size less caption, margins and the x labels).
 const PLOT_HEIGHT_PX: f64 = 350.0;
 
@@ -81,6 +87,8 @@ pub struct Chart {
     pub y_categories: Option<Vec<String>>,
     pub series: Vec<Series>,
     pub hlines: Vec<HLine>,
+    /// Vertical reference lines (x, label), dotted; their x widens the axis to show them.
+    pub vlines: Vec<(f64, String)>,
 }
 
 impl Chart {
@@ -94,6 +102,7 @@ impl Chart {
             y_categories: None,
             series: Vec::new(),
             hlines: Vec::new(),
+            vlines: Vec::new(),
         }
     }
 }
@@ -129,7 +138,8 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
     let xs = chart
         .series
         .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.x));
+        .flat_map(|s| s.points.iter().map(|p| p.x))
+        .chain(chart.vlines.iter().map(|v| v.0));
     let x = match &chart.x_categories {
         Some(c) => (-0.5, c.len() as f64 - 0.5),
         None => pad(span(xs).ok_or("nothing to plot: no points")?),
@@ -154,7 +164,9 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
         None => pad(span(ys.into_iter()).ok_or("nothing to plot: no points")?),
     };
     // Room above the data for the legend (upper right), so it hides no point.
-    let entries = chart.series.len() + chart.hlines.iter().filter(|h| !h.label.is_empty()).count();
+    let entries = chart.series.len()
+        + chart.vlines.len()
+        + chart.hlines.iter().filter(|h| !h.label.is_empty()).count();
     let legend = (entries as f64 * 18.0 + 20.0) / PLOT_HEIGHT_PX;
     let y = (y.0, y.1 + (y.1 - y.0) * legend / (1.0 - legend).max(0.2));
     register_font_once();
@@ -258,6 +270,14 @@ fn render<DB: DrawingBackend>(
                 .label(h.label.as_str())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
         }
+    }
+    for (k, (x, label)) in chart.vlines.iter().enumerate() {
+        let color = VERTICAL[k % VERTICAL.len()];
+        let style = color.stroke_width(2);
+        c.draw_series(DashedLineSeries::new(vec![(*x, y0), (*x, y1)], 2, 4, style))
+            .map_err(e)?
+            .label(label.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
     for (i, s) in chart.series.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
