@@ -12,7 +12,7 @@
 
 use super::plots::{Chart, HLine, Point, Series, Style};
 use crate::campaign::manifest::Manifest;
-use crate::campaign::results::{AlgorithmResult, Results, StepResult};
+use crate::campaign::results::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
 use crate::physics::C0;
 use crate::waveform::ber::{ber_msk_lfm_theory, ber_ofdm_theory};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
@@ -323,14 +323,12 @@ fn resolution(steps: &[&StepResult]) -> Option<Figure> {
     })
 }
 
-/// The value plotted for a figure: the repetitions' mean +- std when there are several, else the
+/// The value plotted for a figure: the repetitions' mean ± std when there are several, else the
 /// (only) measurement.
 fn mean_std(
     a: &AlgorithmResult,
     value: Option<f64>,
-    spread: impl Fn(
-        &crate::campaign::results::SpreadFigures,
-    ) -> Option<crate::campaign::results::MeanStd>,
+    spread: impl Fn(&SpreadFigures) -> Option<MeanStd>,
 ) -> Option<Point> {
     match a.spread.as_ref().and_then(spread) {
         Some(m) => Some(Point::new(0.0, m.mean).with_std(Some(m.std))),
