@@ -10,7 +10,7 @@
 //! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
 //! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth |
 //! | [`run`] | executing a plan into a run folder, and resuming one |
-//! | [`report`] | the run's `report.md` |
+//! | [`report`] | the run's `report.md` and `report.html` (plots inline) |
 //! | [`builtin`] | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 
 pub mod builtin;

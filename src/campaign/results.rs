@@ -6,7 +6,8 @@
 //! {"steps": [{"index": 1, "nominal": {...}, "repetitions": 1,
 //!   "algorithms": {"correlation": {"targets": [{"range_m", "range_std_m", "level_db", "on_grid_m"}],
 //!     "width_3db_cm", "sidelobe_db", "snr_db", "error_m", "error_on_grid_m", "truth_error_m",
-//!     "truth_error_on_grid_m", "missed", "resolved", "payload"}},
+//!     "truth_error_on_grid_m", "missed", "resolved", "payload",
+//!     "spread": {"width_3db_cm": {"mean", "std", "n"}, "sidelobe_db", "snr_db"}}},
 //!   "truth": {"targets": [{"range_m"}]}}]}
 //! ```
 //!
@@ -73,6 +74,36 @@ pub struct AlgorithmResult {
     /// Two or more targets: whether each has its own detection within +-s/2.
     pub resolved: Option<bool>,
     pub payload: Option<PayloadFigures>,
+    /// Mean and standard deviation of the repetitions processed alone (several repetitions
+    /// only; the figures above are the coherent average's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spread: Option<SpreadFigures>,
+}
+
+/// Mean, sample standard deviation (n - 1) and count of one figure over the repetitions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MeanStd {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+/// The strongest target's figures over the repetitions, each processed alone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SpreadFigures {
+    pub width_3db_cm: Option<MeanStd>,
+    pub sidelobe_db: Option<MeanStd>,
+    pub snr_db: Option<MeanStd>,
+}
+
+impl From<crate::measure::repeat::Stat> for MeanStd {
+    fn from(s: crate::measure::repeat::Stat) -> Self {
+        Self {
+            mean: s.mean,
+            std: s.std,
+            n: s.n,
+        }
+    }
 }
 
 /// One detected target.
@@ -157,6 +188,14 @@ pub fn step_result(
                 truth_error_on_grid_m,
                 missed: if nominal.is_empty() { 0 } else { missed },
                 payload: payload(o.processed.payload.as_ref(), o.spread),
+                spread: o
+                    .spread
+                    .filter(|s| s.repetitions > 1)
+                    .map(|s| SpreadFigures {
+                        width_3db_cm: s.width_3db_cm.map(MeanStd::from),
+                        sidelobe_db: s.sidelobe_db.map(MeanStd::from),
+                        snr_db: s.snr_db.map(MeanStd::from),
+                    }),
                 targets,
             };
             (o.name.to_string(), result)

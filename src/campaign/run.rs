@@ -999,6 +999,8 @@ impl Runner {
         let report = report::write(&self.dir, &self.manifest, &results)?;
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
         self.manifest.store(&self.dir)?;
         let max = |f: fn(&results::AlgorithmResult) -> Option<f64>| {
             results

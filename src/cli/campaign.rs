@@ -33,7 +33,7 @@ pub enum Command {
     Resume(ResumeArgs),
     /// Print a commented campaign spec to start from.
     New(NewArgs),
-    /// Write a run folder's report again from its manifest and results.json.
+    /// Write a run folder's report.md and report.html again from its manifest and results.json.
     Report(ReportArgs),
     /// Run the thesis' lab chapter (4.4.1-4.5.2) on the built-in mock lab and compare.
     #[command(name = "thesis-lab")]
@@ -117,6 +117,7 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         Command::Report(a) => {
             let path = report::rewrite(&a.run_dir)?;
             println!("report: {}", path.display());
+            println!("report: {}", a.run_dir.join(report::HTML_FILE).display());
             Ok(())
         }
         Command::Run(a) => super::runtime()?.block_on(run_spec(a, global)),
@@ -300,6 +301,7 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
         }
         println!("results: {}", s.results.display());
         println!("report: {}", s.report.display());
+        println!("report: {}", finished.dir.join(report::HTML_FILE).display());
         println!("run folder: {}", finished.dir.display());
     }
     match finished.stopped {

@@ -92,7 +92,7 @@ impl ProfilePlot {
 const MAX_AUTO_RANGE_DB: f64 = 120.0;
 
 const SIZE: (u32, u32) = (960, 540);
-const PALETTE: [RGBColor; 4] = [
+pub(crate) const PALETTE: [RGBColor; 4] = [
     RGBColor(0, 90, 181),
     RGBColor(220, 50, 32),
     RGBColor(0, 140, 70),
@@ -156,7 +156,7 @@ fn render_png(
     Ok(png.into_inner())
 }
 
-fn register_font_once() {
+pub(crate) fn register_font_once() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // The font is compiled in and known good; a failure would only mean PNGs without text.

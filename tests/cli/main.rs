@@ -10,6 +10,7 @@ mod process_support;
 
 mod bad_input;
 mod campaign;
+mod campaign_report;
 mod capture_e2e;
 mod cli_safety;
 mod detect_capture;

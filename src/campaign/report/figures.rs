@@ -1,0 +1,599 @@
+//! Which plots a run gets, from its plan and `results.json` alone:
+//!
+//! | steps | figure |
+//! |---|---|
+//! | swept `position` | range error per step against the nominal position, interpolated and on the grid, with the ±c0/(2 fs) and ±c0/(4 fs) bounds (thesis Fig. 4.13) |
+//! | two or more targets | resolved or not against the separation, per algorithm and bandwidth |
+//! | one target, not swept in position / attenuation / SNR | -3 dB width and peak side-lobe level per step, the thesis' simulation and lab values beside (Tables 4.5, 4.7) |
+//! | swept `tx-attenuation` or `snr` | BER (95 % interval) with the waveform's theory, -3 dB width, PSL and range error |
+//!
+//! Every plotted number is a number of `results.json` (or computed from one: BER intervals, the
+//! theory curve); nothing is invented.
+
+use super::plots::{Chart, HLine, Point, Series, Style};
+use crate::campaign::manifest::Manifest;
+use crate::campaign::results::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
+use crate::physics::C0;
+use crate::waveform::ber::{ber_msk_lfm_theory, ber_ofdm_theory};
+use crate::waveform::spec::{WaveformKind, WaveformSpec};
+
+/// One plot of the report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Figure {
+    /// Stable id (`accuracy-error`, `resolution`, `single-width`, `single-psl`, `link-ber`,
+    /// `link-width`, `link-psl`, `link-error`): the html element's id.
+    pub id: &'static str,
+    /// What the plot shows, one paragraph.
+    pub caption: String,
+    pub chart: Chart,
+}
+
+/// The thesis' single-target figures: (simulation width cm, PSL dB, where), (lab width, PSL, where).
+pub struct ThesisWidths {
+    pub simulation: (f64, f64, &'static str),
+    pub lab: (f64, f64, &'static str),
+}
+
+/// Tables 4.5 (MSK-LFM) and 4.7 (OFDM) and the lab sections 4.4.1 / 4.5.1, at 1 GHz.
+pub fn thesis_widths(kind: WaveformKind) -> ThesisWidths {
+    match kind {
+        WaveformKind::MskLfm => ThesisWidths {
+            simulation: (13.2, -13.24, "Table 4.5"),
+            lab: (12.73, -10.49, "4.4.1"),
+        },
+        WaveformKind::Ofdm => ThesisWidths {
+            simulation: (13.2, -13.24, "Table 4.7"),
+            lab: (13.42, -14.19, "4.5.1"),
+        },
+    }
+}
+
+/// The waveform a step used.
+pub fn waveform_of(manifest: &Manifest, step: &StepResult) -> Option<WaveformSpec> {
+    let plan = &manifest.plan;
+    let s = plan.steps.iter().find(|s| s.index == step.index)?;
+    plan.waveforms.get(s.waveform).copied()
+}
+
+/// The swept parameter of a step.
+fn parameter(step: &StepResult) -> &str {
+    step.nominal.parameter.as_deref().unwrap_or("")
+}
+
+pub fn is_accuracy(s: &StepResult) -> bool {
+    parameter(s) == "position"
+}
+
+pub fn is_resolution(s: &StepResult) -> bool {
+    s.nominal.targets.len() >= 2
+}
+
+pub fn is_link(s: &StepResult) -> bool {
+    matches!(parameter(s), "tx-attenuation" | "snr")
+}
+
+pub fn is_single(s: &StepResult) -> bool {
+    s.nominal.targets.len() == 1 && !is_accuracy(s) && !is_link(s)
+}
+
+/// The smallest separation of a step's nominal targets, metres.
+pub fn separation_m(s: &StepResult) -> Option<f64> {
+    let r = s.nominal.ranges();
+    r.windows(2).map(|w| (w[1] - w[0]).abs()).reduce(f64::min)
+}
+
+/// Wilson score interval (95 %) of a bit-error rate.
+pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
+    if bits == 0 {
+        return (0.0, 1.0);
+    }
+    let n = bits as f64;
+    let p = errors as f64 / n;
+    let z = 1.959_963_984_540_054_f64;
+    let d = 1.0 + z * z / n;
+    let centre = (p + z * z / (2.0 * n)) / d;
+    let half = z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt() / d;
+    ((centre - half).max(0.0), (centre + half).min(1.0))
+}
+
+/// The waveform's theoretical BER at `ebn0_db` (thesis-notes: MSK-LFM Q(sqrt(2 Eb/N0)), OFDM
+/// Q(sqrt(2 Eb/N0 / (1 + cp)))).
+pub fn theory(w: &WaveformSpec, ebn0_db: f64) -> f64 {
+    match w {
+        WaveformSpec::MskLfm { .. } => ber_msk_lfm_theory(ebn0_db),
+        WaveformSpec::Ofdm { cp_fraction, .. } => ber_ofdm_theory(ebn0_db, *cp_fraction),
+    }
+}
+
+/// The Eb/N0 (dB) at which the theory gives `ber` (bisection; 0 < ber < 0.5).
+pub fn theory_ebn0_db(w: &WaveformSpec, ber: f64) -> Option<f64> {
+    if !(ber > 0.0 && ber < 0.5) {
+        return None;
+    }
+    let (mut lo, mut hi) = (-40.0_f64, 40.0_f64);
+    for _ in 0..100 {
+        let mid = (lo + hi) / 2.0;
+        if theory(w, mid) > ber {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some((lo + hi) / 2.0)
+}
+
+/// The figures of a run, in the order the report shows them.
+pub fn figures(manifest: &Manifest, results: &Results) -> Vec<Figure> {
+    let mut out = Vec::new();
+    let steps = &results.steps;
+    let pick = |f: fn(&StepResult) -> bool| steps.iter().filter(|s| f(s)).collect::<Vec<_>>();
+    let acc = pick(is_accuracy);
+    if !acc.is_empty() {
+        out.extend(accuracy(manifest, &acc));
+    }
+    let res = pick(is_resolution);
+    if !res.is_empty() {
+        out.extend(resolution(&res));
+    }
+    let single = pick(is_single);
+    if !single.is_empty() {
+        out.extend(single_target(manifest, &single));
+    }
+    let link = pick(is_link);
+    if !link.is_empty() {
+        out.extend(link_figures(manifest, &link));
+    }
+    out
+}
+
+/// The algorithm names of these steps, in order of first use.
+fn algorithms(steps: &[&StepResult]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for s in steps {
+        for n in s.algorithms.keys() {
+            if !names.contains(n) {
+                names.push(n.clone());
+            }
+        }
+    }
+    names
+}
+
+fn accuracy(manifest: &Manifest, steps: &[&StepResult]) -> Option<Figure> {
+    let fs = waveform_of(manifest, steps[0])?.sample_rate_hz();
+    let half = C0 / (2.0 * fs) * 100.0;
+    let quarter = C0 / (4.0 * fs) * 100.0;
+    let mut chart = Chart::new(
+        "Range error against the nominal position",
+        "nominal position (m)",
+        "measured - nominal range (cm)",
+    );
+    for name in algorithms(steps) {
+        let of = |f: &dyn Fn(&AlgorithmResult) -> Option<Point>| -> Vec<Point> {
+            steps
+                .iter()
+                .filter_map(|s| {
+                    let x = *s.nominal.ranges().first()?;
+                    let a = s.algorithms.get(&name)?;
+                    f(a).map(|mut p| {
+                        p.x = x;
+                        p
+                    })
+                })
+                .collect()
+        };
+        chart.series.push(Series {
+            label: format!("{name}, sub-sample interpolation (±1 std)"),
+            points: of(&|a| {
+                let e = a.error_m?;
+                let std = strongest_range_std(a);
+                Some(Point::new(0.0, e * 100.0).with_std(std.map(|s| s * 100.0)))
+            }),
+            style: Style::Line,
+        });
+        chart.series.push(Series {
+            label: format!("{name}, on the grid (no interpolation)"),
+            points: of(&|a| Some(Point::new(0.0, a.error_on_grid_m? * 100.0))),
+            style: Style::Line,
+        });
+    }
+    chart.series.retain(|s| !s.points.is_empty());
+    if chart.series.is_empty() {
+        return None;
+    }
+    for (y, label) in [
+        (half, format!("±c0/(2 fs) = {half:.3} cm (thesis bound)")),
+        (
+            quarter,
+            format!("±c0/(4 fs) = {quarter:.3} cm (half a cell)"),
+        ),
+    ] {
+        chart.hlines.push(HLine {
+            y,
+            label,
+            dashed: y == quarter,
+        });
+        chart.hlines.push(HLine {
+            y: -y,
+            label: String::new(),
+            dashed: y == quarter,
+        });
+    }
+    Some(Figure {
+        id: "accuracy-error",
+        caption: format!(
+            "Measured minus nominal range at each step (thesis Fig. 4.13), with sub-sample \
+             interpolation (error bars: ±1 standard deviation of the repetitions' ranges, when \
+             there are several) and without it (the detection's nearest profile cell). Bounds for \
+             fs = {} GSa/s: ±c0/(2 fs) is the thesis' bound, ±c0/(4 fs) half a sample, the \
+             largest error rounding to the grid can make.",
+            fs / 1e9
+        ),
+        chart,
+    })
+}
+
+/// The repetitions' range spread of the target nearest the error (the strongest, in practice
+/// the only one of an accuracy step).
+fn strongest_range_std(a: &AlgorithmResult) -> Option<f64> {
+    a.targets
+        .iter()
+        .max_by(|x, y| x.level_db.total_cmp(&y.level_db))
+        .and_then(|t| t.range_std_m)
+}
+
+fn resolution(steps: &[&StepResult]) -> Option<Figure> {
+    let mut rows: Vec<(String, f64)> = Vec::new();
+    for s in steps {
+        for (name, a) in &s.algorithms {
+            if a.resolved.is_some() && !rows.contains(&(name.clone(), s.nominal.bandwidth_hz)) {
+                rows.push((name.clone(), s.nominal.bandwidth_hz));
+            }
+        }
+    }
+    if rows.is_empty() {
+        return None;
+    }
+    let labels: Vec<String> = rows
+        .iter()
+        .map(|(n, b)| format!("{n}, {} GHz", b / 1e9))
+        .collect();
+    let mut chart = Chart::new(
+        "Resolved (filled) or not (hollow) against the separation",
+        "separation of the targets (cm)",
+        "",
+    );
+    chart.y_categories = Some(labels.clone());
+    for (k, (name, bw)) in rows.iter().enumerate() {
+        let points = steps
+            .iter()
+            .filter(|s| s.nominal.bandwidth_hz == *bw)
+            .filter_map(|s| {
+                let r = s.algorithms.get(name)?.resolved?;
+                Some(Point {
+                    x: separation_m(s)? * 100.0,
+                    y: k as f64,
+                    bar: None,
+                    filled: r,
+                })
+            })
+            .collect();
+        chart.series.push(Series {
+            label: labels[k].clone(),
+            points,
+            style: Style::Markers,
+        });
+    }
+    let bandwidths = rows
+        .iter()
+        .map(|(_, b)| *b)
+        .fold(Vec::<f64>::new(), |mut v, b| {
+            if !v.contains(&b) {
+                v.push(b);
+            }
+            v
+        });
+    for b in &bandwidths {
+        let cell = C0 / (2.0 * b) * 100.0;
+        chart
+            .vlines
+            .push((cell, format!("c0/(2B) = {cell:.1} cm at {} GHz", b / 1e9)));
+    }
+    let cells: Vec<String> = rows
+        .iter()
+        .map(|(_, b)| *b)
+        .fold(Vec::<f64>::new(), |mut v, b| {
+            if !v.contains(&b) {
+                v.push(b);
+            }
+            v
+        })
+        .iter()
+        .map(|b| format!("{:.1} cm at {} GHz", C0 / (2.0 * b) * 100.0, b / 1e9))
+        .collect();
+    Some(Figure {
+        id: "resolution",
+        caption: format!(
+            "Each step's targets resolved or not, per algorithm and bandwidth: resolved when each \
+             target has its own detection within ±s/2 (s: the separation), against the ground \
+             truth on a simulated bench. Dotted: the resolution cell c0/(2B): {}.",
+            cells.join(", ")
+        ),
+        chart,
+    })
+}
+
+/// The value plotted for a figure: the repetitions' mean ± std when there are several, else the
+/// (only) measurement.
+fn mean_std(
+    a: &AlgorithmResult,
+    value: Option<f64>,
+    spread: impl Fn(&SpreadFigures) -> Option<MeanStd>,
+) -> Option<Point> {
+    match a.spread.as_ref().and_then(spread) {
+        Some(m) => Some(Point::new(0.0, m.mean).with_std(Some(m.std))),
+        None => value.map(|v| Point::new(0.0, v)),
+    }
+}
+
+fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
+    let mut cats = Vec::new();
+    let mut width = Vec::new();
+    let mut psl = Vec::new();
+    for s in steps {
+        for (name, a) in &s.algorithms {
+            if a.width_3db_cm.is_none() && a.sidelobe_db.is_none() {
+                continue;
+            }
+            let x = cats.len() as f64;
+            cats.push(format!("step {} {name}", s.index));
+            if let Some(mut p) = mean_std(a, a.width_3db_cm, |f| f.width_3db_cm) {
+                p.x = x;
+                width.push(p);
+            }
+            if let Some(mut p) = mean_std(a, a.sidelobe_db, |f| f.sidelobe_db) {
+                p.x = x;
+                psl.push(p);
+            }
+        }
+    }
+    if cats.is_empty() {
+        return Vec::new();
+    }
+    // The thesis' values hold at 1 GHz for its two waveforms.
+    let kind = waveform_of(manifest, steps[0]).map(|w| w.kind());
+    let at_1ghz = steps.iter().all(|s| s.nominal.bandwidth_hz == 1e9);
+    let thesis = kind.filter(|_| at_1ghz).map(thesis_widths);
+    let waveform = kind.map_or("", |k| k.name());
+    let mut out = Vec::new();
+    for (id, title, unit, points, pick) in [
+        (
+            "single-width",
+            "-3 dB main-lobe width",
+            "-3 dB width (cm)",
+            width,
+            (|t: (f64, f64, &'static str)| t.0) as fn((f64, f64, &'static str)) -> f64,
+        ),
+        (
+            "single-psl",
+            "Peak side-lobe level",
+            "peak side-lobe level (dB)",
+            psl,
+            |t: (f64, f64, &'static str)| t.1,
+        ),
+    ] {
+        if points.is_empty() {
+            continue;
+        }
+        let mut chart = Chart::new(format!("{title}, one target ({waveform})"), "", unit);
+        chart.x_categories = Some(cats.clone());
+        chart.series.push(Series {
+            label: "radbench (mean ±1 std over the repetitions)".into(),
+            points,
+            style: Style::Markers,
+        });
+        if let Some(t) = &thesis {
+            chart.hlines.push(HLine {
+                y: pick(t.simulation),
+                label: format!(
+                    "thesis simulation ({}): {}",
+                    t.simulation.2,
+                    pick(t.simulation)
+                ),
+                dashed: true,
+            });
+            chart.hlines.push(HLine {
+                y: pick(t.lab),
+                label: format!("thesis lab ({}): {}", t.lab.2, pick(t.lab)),
+                dashed: false,
+            });
+        }
+        out.push(Figure {
+            id,
+            caption: format!(
+                "{title} of the strongest target at each single-target step and algorithm: the \
+                 mean of the repetitions processed one by one, ±1 standard deviation (one \
+                 repetition: its value). {}",
+                if thesis.is_some() {
+                    "Beside it the thesis' simulation value (Table 4.5 for MSK-LFM, 4.7 for OFDM) \
+                     and its lab value (4.4.1 / 4.5.1), both at 1 GHz."
+                } else {
+                    "The thesis' values (1 GHz) do not apply to this bandwidth and are not drawn."
+                }
+            ),
+            chart,
+        });
+    }
+    out
+}
+
+fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
+    let param = parameter(steps[0]).to_string();
+    let x_label = match param.as_str() {
+        "snr" => "scene SNR (dB)",
+        _ => "Tx attenuation (dB)",
+    };
+    let x_of = |s: &StepResult| s.nominal.value;
+    let names = algorithms(steps);
+    let mut out = Vec::new();
+
+    // BER, measured, with the theory beside.
+    let mut ber = Chart::new("Bit-error rate", x_label, "bit-error rate");
+    ber.log_y = true;
+    let w = waveform_of(manifest, steps[0]);
+    let mut implied = Vec::new();
+    for name in &names {
+        let mut points = Vec::new();
+        for s in steps {
+            let (Some(x), Some(p)) = (
+                x_of(s),
+                s.algorithms.get(name).and_then(|a| a.payload.as_ref()),
+            ) else {
+                continue;
+            };
+            if p.bits == 0 {
+                continue;
+            }
+            let (lo, hi) = wilson95(p.bit_errors, p.bits);
+            if p.bit_errors == 0 {
+                // Nothing to draw on a log scale: the hollow marker sits at the upper bound.
+                points.push(Point {
+                    x,
+                    y: hi,
+                    bar: None,
+                    filled: false,
+                });
+            } else {
+                points.push(Point {
+                    x,
+                    y: p.ber,
+                    bar: Some((lo, hi)),
+                    filled: true,
+                });
+                if let Some(e) = w.as_ref().and_then(|w| theory_ebn0_db(w, p.ber)) {
+                    implied.push((x, e));
+                }
+            }
+        }
+        if !points.is_empty() {
+            ber.series.push(Series {
+                label: format!("{name} measured (95 % interval; hollow: no errors, upper bound)"),
+                points,
+                style: Style::Markers,
+            });
+        }
+    }
+    // Theory: Eb/N0 = K - attenuation (or K + SNR), K fitted to the points with errors.
+    let sign = if param == "snr" { 1.0 } else { -1.0 };
+    let mut theory_note = String::from(
+        "No step had bit errors, so no offset between the swept parameter and Eb/N0 can be \
+         fitted: the theory is not drawn.",
+    );
+    if let (Some(w), false) = (w.as_ref(), implied.is_empty()) {
+        let k = implied.iter().map(|(x, e)| e - sign * x).sum::<f64>() / implied.len() as f64;
+        let xs: Vec<f64> = steps.iter().filter_map(|s| x_of(s)).collect();
+        let (x0, x1) = xs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(*x), b.max(*x))
+            });
+        let points = (0..=60)
+            .map(|i| {
+                let x = x0 + (x1 - x0) * i as f64 / 60.0;
+                Point::new(x, theory(w, sign * x + k))
+            })
+            .filter(|p| p.y >= 1e-9)
+            .collect();
+        ber.series.push(Series {
+            label: format!(
+                "{} theory, Eb/N0 = {}x + {k:.1} dB (fitted)",
+                w.kind().name(),
+                if sign > 0.0 { "" } else { "-" }
+            ),
+            points,
+            style: Style::Dashed,
+        });
+        theory_note = format!(
+            "The dashed curve is the {} theory ({}) with Eb/N0 = {}{} + K; K = {k:.2} dB is fitted \
+             (mean over the {} step(s) with bit errors of the Eb/N0 the theory needs for the \
+             measured BER), since the bench's absolute Eb/N0 is not measured. The curve tests the \
+             shape (1 dB of Eb/N0 per dB of {}), not the absolute level.",
+            w.kind().name(),
+            match w.kind() {
+                WaveformKind::MskLfm => "Q(sqrt(2 Eb/N0))",
+                WaveformKind::Ofdm => "Q(sqrt(2 Eb/N0 / (1 + CP)))",
+            },
+            if sign > 0.0 { "" } else { "-" },
+            if param == "snr" { "SNR" } else { "attenuation" },
+            implied.len(),
+            if param == "snr" { "SNR" } else { "attenuation" },
+        );
+    }
+    if !ber.series.is_empty() {
+        out.push(Figure {
+            id: "link-ber",
+            caption: format!(
+                "Bit-error rate of the decoded payload at each step (every repetition's bits \
+                 counted), with its 95 % Wilson interval; a step without errors is a hollow marker \
+                 at the interval's upper bound. {theory_note}"
+            ),
+            chart: ber,
+        });
+    }
+
+    type Pick = fn(&AlgorithmResult) -> Option<Point>;
+    let radar: [(&'static str, &str, &str, Pick); 3] = [
+        (
+            "link-width",
+            "-3 dB main-lobe width",
+            "-3 dB width (cm)",
+            |a| mean_std(a, a.width_3db_cm, |f| f.width_3db_cm),
+        ),
+        ("link-psl", "Peak side-lobe level", "PSL (dB)", |a| {
+            mean_std(a, a.sidelobe_db, |f| f.sidelobe_db)
+        }),
+        (
+            "link-error",
+            "Range error (interpolated)",
+            "measured - nominal (mm)",
+            |a| {
+                let std = strongest_range_std(a).map(|s| s * 1e3);
+                a.error_m.map(|e| Point::new(0.0, e * 1e3).with_std(std))
+            },
+        ),
+    ];
+    for (id, title, unit, pick) in radar {
+        let mut chart = Chart::new(title, x_label, unit);
+        for name in &names {
+            let points: Vec<Point> = steps
+                .iter()
+                .filter_map(|s| {
+                    let mut p = pick(s.algorithms.get(name)?)?;
+                    p.x = x_of(s)?;
+                    Some(p)
+                })
+                .collect();
+            if !points.is_empty() {
+                chart.series.push(Series {
+                    label: format!("{name} (mean ±1 std over the repetitions)"),
+                    points,
+                    style: Style::Line,
+                });
+            }
+        }
+        if chart.series.is_empty() {
+            continue;
+        }
+        out.push(Figure {
+            id,
+            caption: format!(
+                "{title} of the strongest target against the {}: the mean of the repetitions \
+                 processed one by one, ±1 standard deviation (one repetition: its value; the \
+                 range error is the coherent average's, its bar the repetitions' range spread).",
+                x_label.split(" (").next().unwrap_or(x_label)
+            ),
+            chart,
+        });
+    }
+    out
+}

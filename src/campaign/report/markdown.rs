@@ -1,0 +1,294 @@
+//! `report.md`, and the tables both reports share.
+
+use super::figures::{is_accuracy, is_single, thesis_widths, waveform_of, wilson95, Figure};
+use super::pm;
+use crate::campaign::manifest::Manifest;
+use crate::campaign::results::{AlgorithmResult, Results};
+use crate::physics::C0;
+use std::fmt::Write as _;
+
+/// A table: header and rows of cells (plain text).
+pub struct Table {
+    pub title: String,
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+}
+
+/// The header's facts, one line.
+pub fn status_line(manifest: &Manifest) -> String {
+    let plan = &manifest.plan;
+    format!(
+        "Status: {}{}. Bench: {}. radbench {}{}.",
+        manifest.status.name(),
+        manifest
+            .reason
+            .as_ref()
+            .map(|r| format!(" ({r})"))
+            .unwrap_or_default(),
+        plan.bench.describe(),
+        manifest.radbench_version,
+        manifest
+            .git_commit
+            .as_ref()
+            .map(|c| format!(" ({c})"))
+            .unwrap_or_default()
+    )
+}
+
+/// One line on what the numbers mean.
+pub const UNCERTAINTY_NOTE: &str = "Ranges and errors are those of the coherent average of a \
+    step's repetitions, ± the standard deviation of the repetitions' own ranges; width, side-lobe \
+    level and SNR are the mean ± standard deviation of the repetitions processed one by one (one \
+    repetition: its value alone). BER counts every repetition's bits, with its 95 % Wilson \
+    interval.";
+
+fn mm(v: Option<f64>, std: Option<f64>) -> String {
+    match v {
+        Some(x) => match std {
+            Some(s) => format!("{:+.3} ± {:.3}", x * 1e3, s * 1e3),
+            None => format!("{:+.3}", x * 1e3),
+        },
+        None => "-".into(),
+    }
+}
+
+fn strongest_std(a: &AlgorithmResult) -> Option<f64> {
+    a.targets
+        .iter()
+        .max_by(|x, y| x.level_db.total_cmp(&y.level_db))
+        .and_then(|t| t.range_std_m)
+}
+
+fn figure(
+    value: Option<f64>,
+    spread: Option<crate::campaign::results::MeanStd>,
+    digits: usize,
+) -> String {
+    match (spread, value) {
+        (Some(m), _) => format!("{} (n={})", pm(m.mean, Some(m.std), digits), m.n),
+        (None, Some(v)) => pm(v, None, digits),
+        (None, None) => "-".into(),
+    }
+}
+
+fn ber(a: &AlgorithmResult) -> String {
+    match &a.payload {
+        Some(p) if p.bits > 0 => {
+            let (lo, hi) = wilson95(p.bit_errors, p.bits);
+            format!(
+                "{}/{} = {:.2e} [{:.1e}, {:.1e}]",
+                p.bit_errors, p.bits, p.ber, lo, hi
+            )
+        }
+        Some(p) => p.error.clone().unwrap_or_else(|| "no bits".into()),
+        None => "-".into(),
+    }
+}
+
+/// Every step and algorithm.
+pub fn steps_table(results: &Results) -> Table {
+    let header = [
+        "step",
+        "nominal",
+        "algorithm",
+        "targets (m)",
+        "error (mm)",
+        "on grid (mm)",
+        "vs truth (mm)",
+        "resolved",
+        "-3 dB width (cm)",
+        "PSL (dB)",
+        "SNR (dB)",
+        "BER [95 %]",
+    ];
+    let mut rows = Vec::new();
+    for s in &results.steps {
+        for (name, a) in &s.algorithms {
+            let targets: Vec<String> = a
+                .targets
+                .iter()
+                .map(|t| match t.range_std_m {
+                    Some(sd) => format!("{:.4} ± {:.4}", t.range_m, sd),
+                    None => format!("{:.4}", t.range_m),
+                })
+                .collect();
+            let sp = a.spread.as_ref();
+            rows.push(vec![
+                s.index.to_string(),
+                s.nominal.describe(),
+                name.clone(),
+                if targets.is_empty() {
+                    "none".into()
+                } else {
+                    targets.join(", ")
+                },
+                mm(a.error_m, strongest_std(a)),
+                mm(a.error_on_grid_m, None),
+                mm(a.truth_error_m, None),
+                a.resolved
+                    .map_or("-", |r| if r { "yes" } else { "no" })
+                    .into(),
+                figure(a.width_3db_cm, sp.and_then(|f| f.width_3db_cm), 2),
+                figure(a.sidelobe_db, sp.and_then(|f| f.sidelobe_db), 2),
+                figure(a.snr_db, sp.and_then(|f| f.snr_db), 1),
+                ber(a),
+            ]);
+        }
+    }
+    Table {
+        title: "Steps".into(),
+        header: header.iter().map(|h| h.to_string()).collect(),
+        rows,
+    }
+}
+
+/// The summary tables of the run's kinds (accuracy bounds, the thesis' widths beside).
+pub fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Table> {
+    let mut out = Vec::new();
+    let acc: Vec<_> = results.steps.iter().filter(|s| is_accuracy(s)).collect();
+    if let Some(fs) = acc
+        .first()
+        .and_then(|s| waveform_of(manifest, s))
+        .map(|w| w.sample_rate_hz())
+    {
+        let mut names: Vec<&String> = acc.iter().flat_map(|s| s.algorithms.keys()).collect();
+        names.dedup();
+        let mut rows = Vec::new();
+        for name in names {
+            let worst = |f: fn(&AlgorithmResult) -> Option<f64>| {
+                acc.iter()
+                    .filter_map(|s| s.algorithms.get(name).and_then(f))
+                    .map(f64::abs)
+                    .reduce(f64::max)
+            };
+            let within = |w: Option<f64>, b: f64| match w {
+                Some(w) if w <= b => "yes",
+                Some(_) => "no",
+                None => "-",
+            };
+            let (i, g) = (worst(|a| a.error_m), worst(|a| a.error_on_grid_m));
+            let half = C0 / (2.0 * fs);
+            let quarter = C0 / (4.0 * fs);
+            rows.push(vec![
+                name.clone(),
+                i.map_or("-".into(), |v| format!("{:.3}", v * 1e3)),
+                g.map_or("-".into(), |v| format!("{:.3}", v * 1e3)),
+                format!("{:.3}", half * 1e3),
+                within(g, half).into(),
+                format!("{:.3}", quarter * 1e3),
+                within(g, quarter).into(),
+            ]);
+        }
+        out.push(Table {
+            title: "Accuracy: largest |error| over the steps (thesis 4.4.2, Fig. 4.13)".into(),
+            header: [
+                "algorithm",
+                "interpolated (mm)",
+                "on the grid (mm)",
+                "c0/(2 fs) (mm)",
+                "grid within",
+                "c0/(4 fs) (mm)",
+                "grid within",
+            ]
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+            rows,
+        });
+    }
+    let single: Vec<_> = results.steps.iter().filter(|s| is_single(s)).collect();
+    if !single.is_empty() {
+        let mut rows = Vec::new();
+        for s in &single {
+            let thesis = waveform_of(manifest, s)
+                .filter(|_| s.nominal.bandwidth_hz == 1e9)
+                .map(|w| thesis_widths(w.kind()));
+            for (name, a) in &s.algorithms {
+                if a.width_3db_cm.is_none() && a.sidelobe_db.is_none() {
+                    continue;
+                }
+                let sp = a.spread.as_ref();
+                let t = |f: fn(&super::figures::ThesisWidths) -> String| {
+                    thesis.as_ref().map_or("-".into(), f)
+                };
+                rows.push(vec![
+                    s.index.to_string(),
+                    name.clone(),
+                    figure(a.width_3db_cm, sp.and_then(|f| f.width_3db_cm), 2),
+                    t(|t| format!("{} ({})", t.simulation.0, t.simulation.2)),
+                    t(|t| format!("{} ({})", t.lab.0, t.lab.2)),
+                    figure(a.sidelobe_db, sp.and_then(|f| f.sidelobe_db), 2),
+                    t(|t| format!("{} ({})", t.simulation.1, t.simulation.2)),
+                    t(|t| format!("{} ({})", t.lab.1, t.lab.2)),
+                ]);
+            }
+        }
+        out.push(Table {
+            title: "One target: -3 dB width and peak side-lobe level beside the thesis".into(),
+            header: [
+                "step",
+                "algorithm",
+                "width (cm)",
+                "thesis simulation",
+                "thesis lab",
+                "PSL (dB)",
+                "thesis simulation",
+                "thesis lab",
+            ]
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+            rows,
+        });
+    }
+    out
+}
+
+fn md_table(out: &mut String, t: &Table) {
+    let _ = writeln!(out, "## {}\n", t.title);
+    let _ = writeln!(out, "| {} |", t.header.join(" | "));
+    let _ = writeln!(out, "|{}", "---|".repeat(t.header.len()));
+    for r in &t.rows {
+        let _ = writeln!(out, "| {} |", r.join(" | "));
+    }
+    let _ = writeln!(out);
+}
+
+/// The whole `report.md`.
+pub fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
+    let plan = &manifest.plan;
+    let mut out = String::new();
+    let _ = writeln!(out, "# Campaign {}\n", plan.name);
+    if let Some(d) = &plan.description {
+        let _ = writeln!(out, "{d}\n");
+    }
+    let _ = writeln!(out, "{}\n", status_line(manifest));
+    let _ = writeln!(out, "{UNCERTAINTY_NOTE}\n");
+    for t in summary_tables(manifest, results) {
+        md_table(&mut out, &t);
+    }
+    md_table(&mut out, &steps_table(results));
+    let done = results.steps.len();
+    if done < plan.steps.len() {
+        let _ = writeln!(
+            out,
+            "{} of {} steps measured; `radbench campaign resume` continues the run.\n",
+            done,
+            plan.steps.len()
+        );
+    }
+    if !figures.is_empty() {
+        let _ = writeln!(out, "## Plots (in `report.html`)\n");
+        for f in figures {
+            let _ = writeln!(out, "- **{}** (`{}`): {}", f.chart.title, f.id, f.caption);
+        }
+        let _ = writeln!(out);
+    }
+    let _ = writeln!(
+        out,
+        "Files: `manifest.toml` (inputs, plan, identities, hashes), `results.json`, \
+         `report.html` (this report with its plots), one folder per step with its capture \
+         (SigMF, .trc) and profiles."
+    );
+    out
+}
