@@ -5,7 +5,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
+//! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
 //! | [`markdown`] | `report.md` |
 //! | [`html`] | `report.html` |
