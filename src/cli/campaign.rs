@@ -444,6 +444,18 @@ async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {
     } else {
         print!("{}", builtin::lab_table(&rows));
         println!("run folders: {}", out.display());
+        // One run (and report) per section of the lab chapter.
+        let mut reports: Vec<_> = std::fs::read_dir(&out)
+            .into_iter()
+            .flatten()
+            .filter_map(Result::ok)
+            .map(|e| e.path().join("report.html"))
+            .filter(|p| p.is_file())
+            .collect();
+        reports.sort();
+        for report in reports {
+            println!("report: {}", report.display());
+        }
     }
     Ok(())
 }

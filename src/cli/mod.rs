@@ -8,8 +8,8 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 pub mod args;
-pub mod bench;
-pub mod bench_io;
+pub mod benchmarks;
+pub mod benchmarks_io;
 pub mod calibrate;
 pub mod campaign;
 pub mod capture;
@@ -45,7 +45,7 @@ pub enum Command {
     /// Simulate the signal chain: the thesis' scenarios, free-form runs and BER curves.
     Simulate(simulate::Args),
     /// Time the DSP kernels on thesis-sized inputs.
-    Bench(bench::Args),
+    Bench(benchmarks::Args),
     /// Ask an instrument who it is (`*IDN?`).
     Idn(idn::Args),
     /// One measurement: waveform out, marker-triggered capture, range profile, targets, payload.
@@ -80,7 +80,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     };
     match cli.command {
         Command::Simulate(args) => simulate::run(args, &global),
-        Command::Bench(args) => bench::run(args, &global),
+        Command::Bench(args) => benchmarks::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
         Command::Capture(args) => capture::run(*args, &global),
         Command::Campaign(args) => campaign::run(args, &global),

@@ -1,5 +1,5 @@
 //! `radbench bench`: times the DSP kernels on thesis-sized inputs, one thread.
-//! `radbench bench io ADDRESS...`: instrument I/O throughput instead (see [`super::bench_io`]).
+//! `radbench bench io ADDRESS...`: instrument I/O throughput instead (see [`super::benchmarks_io`]).
 //!
 //! `--write-inputs DIR` also writes the seeded inputs as `.npy` (plus `meta.json`) so
 //! `benches/compare_numpy.py` can time numpy/scipy on exactly the same data.
@@ -36,12 +36,12 @@ pub struct Args {
 #[derive(Debug, clap::Subcommand)]
 pub enum Target {
     /// Instrument I/O: a block to and from each address (DATA <block> / DATA?), in MB/s.
-    Io(super::bench_io::Args),
+    Io(super::benchmarks_io::Args),
 }
 
 pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if let Some(Target::Io(io)) = args.target {
-        return super::bench_io::run(io, global);
+        return super::benchmarks_io::run(io, global);
     }
     if !(args.min_time.is_finite() && args.min_time >= 0.0) {
         return Err(bad_input(format!(
