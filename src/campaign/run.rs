@@ -1068,6 +1068,22 @@ fn write_step_files(
     provenance: &Provenance,
     result_json: &str,
 ) -> Result<Vec<PathBuf>, CampaignError> {
+    // One folder sync per folder at the end instead of one per file: the manifest that names
+    // these files is written only after this returns.
+    crate::storage::atomic::with_folder_sync_deferred(|| {
+        write_step_files_now(dir, rel, m, others, names, provenance, result_json)
+    })
+}
+
+fn write_step_files_now(
+    dir: &Path,
+    rel: &Path,
+    m: &mut Measurement,
+    others: &mut [Processing],
+    names: &[&'static str],
+    provenance: &Provenance,
+    result_json: &str,
+) -> Result<Vec<PathBuf>, CampaignError> {
     let out = dir.join(rel);
     let raw = record::write_raw(&out, m, provenance)?;
     let (files, _) = record::write_processed(&out, m, &raw, provenance)?;

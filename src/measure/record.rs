@@ -70,8 +70,10 @@ pub fn write_capture(
     m: &Measurement,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    let raw = write_raw(out, m, provenance)?;
-    write_processed(out, m, &raw, provenance)
+    crate::storage::atomic::with_folder_sync_deferred(|| {
+        let raw = write_raw(out, m, provenance)?;
+        write_processed(out, m, &raw, provenance)
+    })
 }
 
 fn create_dir(out: &Path) -> Result<(), MeasureError> {

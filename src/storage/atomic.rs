@@ -44,6 +44,43 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
     Ok(())
 }
 
+thread_local! {
+    /// Folders whose sync is deferred to the end of [`with_folder_sync_deferred`] on this thread.
+    static DEFERRED: std::cell::RefCell<Option<Vec<PathBuf>>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `write` (a group of [`write_atomic`] calls on this thread, e.g. one capture's ten files)
+/// and syncs each folder they wrote into once at the end, on every way out, instead of once per
+/// file. Every file is still synced before its rename, so each is whole or absent; when this
+/// returns, every rename is durable too.
+pub fn with_folder_sync_deferred<R>(write: impl FnOnce() -> R) -> R {
+    struct Flush(bool);
+    impl Drop for Flush {
+        fn drop(&mut self) {
+            if !self.0 {
+                return;
+            }
+            let folders = DEFERRED.with(|d| d.borrow_mut().take()).unwrap_or_default();
+            for folder in folders {
+                if let Ok(dir) = std::fs::File::open(&folder) {
+                    let _ = dir.sync_all();
+                }
+            }
+        }
+    }
+    // Nested groups defer to the outermost one.
+    let outermost = DEFERRED.with(|d| {
+        let mut d = d.borrow_mut();
+        let fresh = d.is_none();
+        if fresh {
+            *d = Some(Vec::new());
+        }
+        fresh
+    });
+    let _flush = Flush(outermost);
+    write()
+}
+
 /// Removes the radbench temporary files in `dir` (not its subfolders) left by writes that never
 /// finished: those of processes no longer running, and this process's own. Returns what it
 /// removed. Other files, and temporaries of another radbench still running, are left alone.
@@ -161,6 +198,18 @@ fn sync_folder(path: &Path) {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
+    let deferred = DEFERRED.with(|d| match d.borrow_mut().as_mut() {
+        Some(folders) => {
+            if !folders.iter().any(|f| f == folder) {
+                folders.push(folder.to_path_buf());
+            }
+            true
+        }
+        None => false,
+    });
+    if deferred {
+        return;
+    }
     if let Ok(dir) = std::fs::File::open(folder) {
         let _ = dir.sync_all();
     }
@@ -181,6 +230,35 @@ impl Drop for TempGuard {
 mod tests {
     use super::*;
     use std::os::unix::fs::symlink;
+
+    #[test]
+    fn a_deferred_group_collects_each_folder_once_and_always_ends() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        let pending = || DEFERRED.with(|d| d.borrow().clone());
+        let n = with_folder_sync_deferred(|| {
+            write_atomic(&dir.path().join("a"), b"1").unwrap();
+            write_atomic(&dir.path().join("b"), b"2").unwrap();
+            // A nested group belongs to the outer one.
+            with_folder_sync_deferred(|| write_atomic(&sub.join("c"), b"3").unwrap());
+            assert_eq!(pending(), Some(vec![dir.path().to_path_buf(), sub.clone()]));
+            3
+        });
+        assert_eq!(n, 3);
+        assert_eq!(pending(), None);
+        assert_eq!(std::fs::read(sub.join("c")).unwrap(), b"3");
+        // A panic inside still ends the group.
+        let caught = std::panic::catch_unwind(|| {
+            with_folder_sync_deferred(|| {
+                write_atomic(&dir.path().join("d"), b"4").unwrap();
+                panic!("in the middle");
+            })
+        });
+        assert!(caught.is_err());
+        assert_eq!(pending(), None);
+        assert_eq!(names(dir.path()), ["a", "b", "d", "sub"]);
+    }
 
     fn names(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir)
