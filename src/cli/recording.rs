@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use super::trc::{finish, si};
+use super::trc::{report_files, si};
 use crate::storage::recording::{read_sigmf, Recording, SampleUnit};
 
 #[derive(Debug, clap::Args)]
@@ -196,36 +196,14 @@ fn print_text(r: &Recording, first: usize) {
 }
 
 pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
-    let mut out = Vec::new();
-    let mut errors = Vec::new();
-    for (k, path) in args.files.iter().enumerate() {
-        match read_sigmf(path) {
-            Ok(r) if args.json => out.push(recording_json(&r, args.first)),
-            Ok(r) => {
-                if k > 0 {
-                    println!();
-                }
-                print_text(&r, args.first);
-            }
-            Err(e) => {
-                if !args.json && args.files.len() > 1 {
-                    eprintln!("error: {e}");
-                }
-                errors.push(e);
-            }
-        }
-    }
-    if args.json {
-        let listed: Vec<Value> = errors
-            .iter()
-            .map(|e| json!({"file": e.path().display().to_string(), "error": e.to_string()}))
-            .collect();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&json!({"recordings": out, "errors": listed}))?
-        );
-    }
-    finish(errors, args.files.len())
+    report_files(
+        &args.files,
+        args.json,
+        "recordings",
+        read_sigmf,
+        |_, r| recording_json(r, args.first),
+        |_, r| print_text(r, args.first),
+    )
 }
 
 #[cfg(test)]

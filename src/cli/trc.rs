@@ -259,36 +259,57 @@ fn print_text(path: &Path, t: &Trace, max_segments: usize) {
 }
 
 pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
-    let mut traces = Vec::new();
+    report_files(
+        &args.files,
+        args.json,
+        "traces",
+        read_trc,
+        |path, t| trace_json(path, t, args.points),
+        |path, t| print_text(path, t, args.max_segments),
+    )
+}
+
+/// Reads each file, prints it (text, or one JSON object `{KEY: [...], "errors": [...]}`), goes
+/// on after a file that cannot be read, and ends with [`finish`]. Shared by `trc` and
+/// `recording`.
+pub(crate) fn report_files<T>(
+    files: &[PathBuf],
+    json: bool,
+    key: &str,
+    read: impl Fn(&Path) -> Result<T, RecordingError>,
+    to_json: impl Fn(&Path, &T) -> Value,
+    print: impl Fn(&Path, &T),
+) -> anyhow::Result<()> {
+    let mut out = Vec::new();
     let mut errors = Vec::new();
-    for (k, path) in args.files.iter().enumerate() {
-        match read_trc(path) {
-            Ok(t) if args.json => traces.push(trace_json(path, &t, args.points)),
-            Ok(t) => {
+    for (k, path) in files.iter().enumerate() {
+        match read(path) {
+            Ok(r) if json => out.push(to_json(path, &r)),
+            Ok(r) => {
                 if k > 0 {
                     println!();
                 }
-                print_text(path, &t, args.max_segments);
+                print(path, &r);
             }
             Err(e) => {
-                if !args.json && args.files.len() > 1 {
+                if !json && files.len() > 1 {
                     eprintln!("error: {e}");
                 }
                 errors.push(e);
             }
         }
     }
-    if args.json {
+    if json {
         let listed: Vec<Value> = errors
             .iter()
             .map(|e| json!({"file": e.path().display().to_string(), "error": e.to_string()}))
             .collect();
         println!(
             "{}",
-            serde_json::to_string_pretty(&json!({"traces": traces, "errors": listed}))?
+            serde_json::to_string_pretty(&json!({key: out, "errors": listed}))?
         );
     }
-    finish(errors, args.files.len())
+    finish(errors, files.len())
 }
 
 /// Ok when every file was read; the one error, or a count naming the files, otherwise.

@@ -6,32 +6,9 @@ use radbench::campaign::manifest::Manifest;
 use radbench::campaign::report::{self, figures::wilson95, Figure};
 use radbench::campaign::results::{AlgorithmResult, Results};
 use std::path::{Path, PathBuf};
-use std::process::Stdio;
-use std::time::Duration;
-use tokio::process::Command;
-
-const BIN: &str = env!("CARGO_BIN_EXE_radbench");
-/// Longest any one radbench invocation may take here.
-const LIMIT: Duration = Duration::from_secs(120);
 
 async fn radbench(args: &[&str]) -> (i32, String, String) {
-    let child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .expect("radbench runs");
-    let out = tokio::time::timeout(LIMIT, child.wait_with_output())
-        .await
-        .expect("radbench finishes in time")
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::support::radbench_in(None, args).await
 }
 
 /// Runs `examples/{name}.toml` into a fresh folder; (temp dir, run folder, manifest, results).

@@ -46,25 +46,8 @@ async fn start(scene: Scene, scope: Transport) -> Lab {
         .expect("lab starts")
 }
 
-/// Runs radbench with `args`; returns (exit code, stdout, stderr), bounded by 120 s.
 async fn radbench(args: &[&str]) -> (i32, String, String) {
-    let child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .expect("radbench runs");
-    let out = tokio::time::timeout(Duration::from_secs(120), child.wait_with_output())
-        .await
-        .expect("radbench finishes within 120 s")
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::support::radbench_in(None, args).await
 }
 
 async fn capture_json(args: &[&str]) -> Value {

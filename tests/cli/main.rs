@@ -19,3 +19,4 @@ mod io_cli;
 mod process_cli;
 mod readers_cli;
 mod simulate_cli;
+mod support;

@@ -3,32 +3,9 @@
 
 use serde_json::Value;
 use std::path::Path;
-use std::process::Stdio;
-use std::time::Duration;
-use tokio::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_radbench");
-
-/// Runs radbench with `args` in `dir`; (exit code, stdout, stderr), bounded by 120 s.
 async fn radbench(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let child = Command::new(BIN)
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .expect("radbench runs");
-    let out = tokio::time::timeout(Duration::from_secs(120), child.wait_with_output())
-        .await
-        .expect("radbench finishes within 120 s")
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::support::radbench_in(Some(dir), args).await
 }
 
 fn json_file(path: &Path) -> Value {

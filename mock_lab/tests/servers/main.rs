@@ -4,7 +4,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
-#[path = "../process_support/mod.rs"]
+// The same helpers as radbench's tests (test plumbing, not protocol code: independence is kept).
+#[path = "../../../tests/process_support/mod.rs"]
 mod process_support;
 
 mod cli;

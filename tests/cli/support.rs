@@ -1,0 +1,36 @@
+//! Running the radbench binary from an async test: exit code, stdout and stderr, with a time
+//! limit, and the child killed if the test gives up on it.
+
+use std::path::Path;
+use std::process::Stdio;
+use std::time::Duration;
+use tokio::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_radbench");
+
+/// Longest any one radbench invocation may take in these tests.
+pub const LIMIT: Duration = Duration::from_secs(120);
+
+/// Runs radbench with `args` (in `dir` when given); (exit code, stdout, stderr).
+pub async fn radbench_in(dir: Option<&Path>, args: &[&str]) -> (i32, String, String) {
+    let mut command = Command::new(BIN);
+    command
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true);
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    let child = command.spawn().expect("radbench runs");
+    let out = tokio::time::timeout(LIMIT, child.wait_with_output())
+        .await
+        .unwrap_or_else(|_| panic!("radbench {args:?} finishes within {LIMIT:?}"))
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
