@@ -51,13 +51,17 @@ async fn main() -> anyhow::Result<()> {
     let mut decoded = serde_json::Map::new();
     for channel in [1u8, 2] {
         let trace = driver.fetch(channel).await?;
-        std::fs::write(out.join(format!("rb_C{channel}.trc")), trace.trc_bytes())?;
+        let native = trace
+            .native
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("the LeCroy driver keeps the .trc bytes"))?;
+        std::fs::write(out.join(format!("rb_C{channel}.trc")), &native.bytes)?;
         decoded.insert(
             format!("C{channel}"),
             serde_json::json!({
-                "volts": trace.volts(),
-                "times": trace.times(),
-                "interval": f64::from(trace.desc.horiz_interval),
+                "volts": trace.segment_volts(0),
+                "times": trace.segment_times(0),
+                "interval": trace.sample_interval_s,
             }),
         );
     }

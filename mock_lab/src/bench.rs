@@ -163,9 +163,12 @@ impl BenchSource {
             }
             Err(e) => tracing::warn!(error = %e, "bench: no signal synthesised"),
         }
+        let rate = ch1.map_or(0.0, |c| c.sample_rate);
         Capture {
             channels,
             trigger_time: now_timestamp(),
+            // The marker repeats with the looped segment.
+            edge_period_s: (len > 0 && rate > 0.0).then(|| len as f64 / rate),
         }
     }
 }

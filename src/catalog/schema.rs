@@ -289,6 +289,10 @@ pub struct DigitizerLimits {
     pub ext_trigger_level_v_max: f64,
     pub wavedesc_template: String,
     pub wavedesc_bytes: u32,
+    /// Most segments one sequence-mode acquisition records (one trigger each); 0 when the model
+    /// has no sequence mode, and repetitions are then separate acquisitions.
+    #[serde(default)]
+    pub max_sequence_segments: u32,
 }
 
 /// Limits of an RF up- or down-converter module.

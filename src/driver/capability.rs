@@ -11,9 +11,9 @@ use serde::{Deserialize, Serialize};
 use super::error::DriverError;
 use super::io::BoxFuture;
 use super::permit::RfPermit;
+use super::trace::{ChannelTrace, IqCapture};
 use crate::catalog::RfDirection;
 use crate::session::Identity;
-use crate::trc::Trace;
 
 /// Where the AWG's sample clock reference comes from. Share a 10 MHz reference with the scope so
 /// the 80 -> 16 GSa/s relationship stays phase-stable over long records (instruments.md section 8).
@@ -182,6 +182,9 @@ pub struct DigitizerSettings {
     /// Lock the timebase to the external 10 MHz reference shared with the AWG (`RCLK EXTERNAL`);
     /// when false the scope's reference setting is left as it is.
     pub external_reference: bool,
+    /// Triggers recorded by one acquisition: 1 records one; more uses the scope's sequence mode
+    /// (one segment per trigger), which the catalog must say the model has.
+    pub segments: u32,
 }
 
 impl Default for DigitizerSettings {
@@ -198,6 +201,7 @@ impl Default for DigitizerSettings {
             trigger_level_v: 0.2,
             trigger_slope: Slope::Positive,
             external_reference: false,
+            segments: 1,
         }
     }
 }
@@ -223,13 +227,8 @@ pub struct DigitizerApplied {
     pub trigger_delay_s: f64,
     pub trigger_source: String,
     pub trigger_level_v: f64,
-}
-
-/// A pair of channels captured by one trigger.
-#[derive(Debug, Clone)]
-pub struct IqCapture {
-    pub i: Trace,
-    pub q: Trace,
+    /// Segments per acquisition (1 unless in sequence mode).
+    pub segments: u32,
 }
 
 /// A digitizer capturing I and Q on one external trigger.
@@ -241,11 +240,13 @@ pub trait Digitizer: Send {
         &'a mut self,
         settings: &'a DigitizerSettings,
     ) -> BoxFuture<'a, Result<DigitizerApplied, DriverError>>;
-    /// Arms a single acquisition and waits up to `wait_s` for the trigger.
+    /// Arms a single acquisition (of every configured segment) and waits up to `wait_s` for
+    /// its triggers.
     fn acquire(&mut self, wait_s: f64) -> BoxFuture<'_, Result<(), DriverError>>;
-    /// Reads one channel (1-based) of the last acquisition.
-    fn fetch(&mut self, channel: u8) -> BoxFuture<'_, Result<Trace, DriverError>>;
-    /// [`acquire`](Digitizer::acquire), then I (first channel) and Q (second channel).
+    /// Reads one channel (1-based) of the last acquisition, all its segments.
+    fn fetch(&mut self, channel: u8) -> BoxFuture<'_, Result<ChannelTrace, DriverError>>;
+    /// [`acquire`](Digitizer::acquire), then I (first channel) and Q (second channel), checked to
+    /// hold the configured number of segments.
     fn capture_iq(&mut self, wait_s: f64) -> BoxFuture<'_, Result<IqCapture, DriverError>>;
     /// Disarms (no acquisition left pending).
     fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;

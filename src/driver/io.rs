@@ -143,9 +143,11 @@ pub fn max_message_bytes(model: &InstrumentModel) -> usize {
         )
     } else {
         model.digitizer.as_ref().map(|d| {
+            // A sequence adds one TRIGTIME entry (two f64) per segment.
             d.max_points_per_channel
                 .saturating_mul(2)
                 .saturating_add(u64::from(d.wavedesc_bytes))
+                .saturating_add(u64::from(d.max_sequence_segments).saturating_mul(16))
         })
     };
     match data {
@@ -217,8 +219,9 @@ mod tests {
         // 512 000 samples a chunk, sample and marker byte each: 1 024 000 bytes, plus headroom.
         assert_eq!(max_message_bytes(awg), 1_024_000 + (1 << 20));
         let scope = catalog.get("lecroy-labmaster10zi-a").unwrap();
-        // 32 Mpoints in 16-bit words plus the 346-byte WAVEDESC, plus headroom.
-        assert_eq!(max_message_bytes(scope), 64_000_346 + (1 << 20));
+        // 32 Mpoints in 16-bit words, the 346-byte WAVEDESC and a TRIGTIME entry of 16 bytes for
+        // each of 15 000 sequence segments, plus headroom.
+        assert_eq!(max_message_bytes(scope), 64_000_346 + 240_000 + (1 << 20));
         let tx = catalog.get("gotmic-eband-tx").unwrap();
         assert_eq!(max_message_bytes(tx), 64 << 10);
         assert_eq!(

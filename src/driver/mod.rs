@@ -8,8 +8,9 @@
 //! | [`identity`] | `*IDN?` checked against the catalog model |
 //! | [`limits`] | settings checked against the catalog's limits before anything is sent |
 //! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
+//! | [`trace`] | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
 //! | [`m8195a`] | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
-//! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot, WAVEDESC, `.trc` |
+//! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
 //! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | [`permit`] | [`RfPermit`]: outputs and RF only with the user's explicit decision |
 //! | [`safe_state`] | the safe-state sequence on every exit path |
@@ -32,7 +33,7 @@
 //!     awg.enable_outputs(&permit).await?;
 //!     awg.run().await?;                              // :INIT:IMM last
 //!     tx.enable(&permit, &rf).await?; rx.enable(&permit, &rf).await?;
-//!     scope.capture_iq(wait_s).await                 // I = C1, Q = C2, .trc bytes kept
+//!     scope.capture_iq(wait_s).await                 // I = C1, Q = C2, N segments, .trc kept
 //! }, tokio::signal::ctrl_c()).await;                 // then Tx off, Rx off, outputs off, :ABOR
 //! ```
 //!
@@ -58,15 +59,15 @@ pub mod permit;
 pub mod safe_state;
 pub mod scpi;
 pub mod scripted;
+pub mod trace;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;
 pub use crate::transport::{ErrorKind, Journal};
-pub use crate::trc::{Trace, TrcError};
+pub use crate::trc::TrcError;
 pub use capability::{
-    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqCapture,
-    IqWaveform, LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry,
-    Slope,
+    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqWaveform,
+    LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry, Slope,
 };
 pub use error::DriverError;
 pub use gotmic::Gotmic;
@@ -80,3 +81,4 @@ pub use safe_state::{
 };
 pub use scpi::Scpi;
 pub use scripted::{ScriptLog, Scripted};
+pub use trace::{ChannelTrace, IqCapture, NativeFile, SegmentTiming};

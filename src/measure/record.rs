@@ -17,7 +17,10 @@ pub struct CaptureFiles {
     pub dir: PathBuf,
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
-    pub trc: [PathBuf; 2],
+    /// The scope's own files of the first acquisition (`C1.trc`, `C2.trc` from a LeCroy); the
+    /// JSON name stays `trc` for scripts written before other scopes.
+    #[serde(rename = "trc")]
+    pub native: Vec<PathBuf>,
     pub profile_csv: PathBuf,
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
@@ -31,21 +34,19 @@ pub struct CaptureFiles {
 impl CaptureFiles {
     /// Every file, for manifests and hashing.
     pub fn all(&self) -> Vec<&Path> {
-        [
-            &self.sigmf_meta,
-            &self.sigmf_data,
-            &self.trc[0],
-            &self.trc[1],
-            &self.profile_csv,
-            &self.profile_npy,
-            &self.plot_svg,
-            &self.plot_png,
-            &self.summary,
-        ]
-        .into_iter()
-        .map(PathBuf::as_path)
-        .chain(self.range_doppler_png.as_deref())
-        .collect()
+        [&self.sigmf_meta, &self.sigmf_data]
+            .into_iter()
+            .chain(&self.native)
+            .chain([
+                &self.profile_csv,
+                &self.profile_npy,
+                &self.plot_svg,
+                &self.plot_png,
+                &self.summary,
+            ])
+            .map(PathBuf::as_path)
+            .chain(self.range_doppler_png.as_deref())
+            .collect()
     }
 }
 
@@ -61,7 +62,8 @@ pub struct Provenance {
 pub struct RawFiles {
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
-    pub trc: [PathBuf; 2],
+    #[serde(rename = "trc")]
+    pub native: Vec<PathBuf>,
 }
 
 /// Writes every file of `m` into `out` (created when missing), `summary.json` last.
@@ -93,41 +95,42 @@ pub fn write_raw(
     provenance: &Provenance,
 ) -> Result<RawFiles, MeasureError> {
     create_dir(out)?;
-    let first = &m.captured.iq[0];
+    let captured = &m.captured;
+    let first = captured.first();
     let (i, q) = (&first.i, &first.q);
     let o = &m.options;
     let mut ns = serde_json::Map::new();
-    // The scope's f32 scaling, written as the f64 radbench computes with, so a reader gets the
-    // same volts bit for bit.
-    let f = |v: f32| f64::from(v);
     ns.insert(
         "vertical_gain".into(),
-        json!([f(i.desc.vertical_gain), f(q.desc.vertical_gain)]),
+        json!([i.volts_per_code, q.volts_per_code]),
     );
-    ns.insert(
-        "vertical_offset".into(),
-        json!([f(i.desc.vertical_offset), f(q.desc.vertical_offset)]),
-    );
+    ns.insert("vertical_offset".into(), json!([i.offset_v, q.offset_v]));
     ns.insert("trigger_offset_s".into(), json!(i.first_sample_s()));
-    // Several repetitions follow each other in the data; each keeps its own trigger offset.
+    // Several repetitions follow each other in the data; each keeps its own trigger offset, and
+    // in sequence mode the acquisition, segment and trigger time it came from.
     let mut start = 0u64;
     let mut reps = Vec::new();
     let mut annotations = Vec::new();
     let (mut i_words, mut q_words) = (Vec::new(), Vec::new());
-    for (k, iq) in m.captured.iq.iter().enumerate() {
-        let n = iq.i.codes.len().min(iq.q.codes.len()) as u64;
+    for k in 0..captured.repetitions() {
+        let words = captured.raw_words(k);
+        let at = captured.source(k);
+        let n = words.i.len() as u64;
         reps.push(json!({
             "sample_start": start,
             "sample_count": n,
-            "trigger_offset_s": iq.i.first_sample_s(),
-            "vertical_gain": [f(iq.i.desc.vertical_gain), f(iq.q.desc.vertical_gain)],
-            "vertical_offset": [f(iq.i.desc.vertical_offset), f(iq.q.desc.vertical_offset)],
+            "trigger_offset_s": at.timing.first_sample_s,
+            "trigger_time_s": at.timing.trigger_time_s,
+            "acquisition": at.acquisition,
+            "segment": at.segment,
+            "vertical_gain": words.gain,
+            "vertical_offset": words.offset,
         }));
-        if m.captured.iq.len() > 1 {
+        if captured.repetitions() > 1 {
             annotations.push((start, n, format!("repetition {}", k + 1)));
         }
-        i_words.extend_from_slice(&iq.i.codes[..n as usize]);
-        q_words.extend_from_slice(&iq.q.codes[..n as usize]);
+        i_words.extend_from_slice(&words.i);
+        q_words.extend_from_slice(&words.q);
         start += n;
     }
     ns.insert("repetitions".into(), json!(reps));
@@ -167,13 +170,18 @@ pub fn write_raw(
         annotations,
     };
     let sig = sigmf::write_ci16(&out.join("capture"), &i_words, &q_words, &meta)?;
-    let trc = [out.join("C1.trc"), out.join("C2.trc")];
-    write_atomic(&trc[0], &i.trc_bytes())?;
-    write_atomic(&trc[1], &q.trc_bytes())?;
+    let mut native = Vec::new();
+    for trace in [i, q] {
+        if let Some(file) = &trace.native {
+            let path = out.join(format!("C{}.{}", trace.channel, file.extension));
+            write_atomic(&path, &file.bytes)?;
+            native.push(path);
+        }
+    }
     Ok(RawFiles {
         sigmf_meta: sig.meta,
         sigmf_data: sig.data,
-        trc,
+        native,
     })
 }
 
@@ -192,7 +200,7 @@ pub fn write_processed(
         dir: out.to_path_buf(),
         sigmf_meta: raw.sigmf_meta.clone(),
         sigmf_data: raw.sigmf_data.clone(),
-        trc: raw.trc.clone(),
+        native: raw.native.clone(),
         profile_csv: out.join("profile.csv"),
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),

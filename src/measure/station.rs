@@ -16,9 +16,9 @@ use crate::catalog::{Catalog, InstrumentModel};
 use crate::driver::m8195a::plan::{plan_clock, plan_download};
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
-    Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, Gotmic, Identity,
-    IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd, RfPermit, RfSettings,
-    RfStatus, SafeState, SafeStateReport,
+    Awg, AwgApplied, AwgSettings, ChannelTrace, Digitizer, DigitizerApplied, DigitizerSettings,
+    Gotmic, Identity, IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd,
+    RfPermit, RfSettings, RfStatus, SafeState, SafeStateReport, SegmentTiming,
 };
 use crate::dsp::C0;
 use num_complex::Complex64;
@@ -74,12 +74,26 @@ pub struct CapturePlan {
     pub rf_seconds_per_repetition: f64,
     /// Enabling the front ends and starting the AWG, seconds allowed.
     pub rf_setup_s: f64,
+    /// Most repetitions one acquisition can record in the scope's sequence mode (the catalog's
+    /// `max_sequence_segments`, limited by the memory); 1 when the model has no sequence mode.
+    pub max_sequence_segments: u32,
 }
 
 impl CapturePlan {
     /// The RF-on deadline of `repetitions` repetitions, seconds.
     pub fn rf_deadline_s(&self, repetitions: usize) -> f64 {
         self.rf_setup_s + repetitions.max(1) as f64 * self.rf_seconds_per_repetition
+    }
+
+    /// Segments per acquisition for `repetitions`: 1 (one acquisition each) without sequence
+    /// mode, else as few acquisitions as the sequence allows, split evenly.
+    pub fn sequence_segments(&self, repetitions: usize) -> u32 {
+        let max = self.max_sequence_segments as usize;
+        if repetitions < 2 || max < 2 {
+            return 1;
+        }
+        let acquisitions = repetitions.div_ceil(max);
+        u32::try_from(repetitions.div_ceil(acquisitions)).unwrap_or(1)
     }
 }
 
@@ -187,6 +201,12 @@ pub fn plan(
     // Fetching one channel: the read timeout plus its bytes at the catalog's slowest rate.
     let t = &scope_model.timeouts;
     let channel_bytes = 2.0 * points + 1e6;
+    let max_sequence_segments = if scope_limits.max_sequence_segments > 1 {
+        let fit = (scope_limits.max_points_per_channel as f64 / points).floor();
+        fit.min(f64::from(scope_limits.max_sequence_segments)) as u32
+    } else {
+        1
+    };
     let fetch_s = t.read_ms as f64 / 1e3 + channel_bytes / 1e6 * t.per_megabyte_ms as f64 / 1e3;
     Ok(CapturePlan {
         awg,
@@ -199,6 +219,7 @@ pub fn plan(
         decimation: (rate / fs).round() as usize,
         rf_seconds_per_repetition: wait_s + 2.0 * fetch_s,
         rf_setup_s: RF_SETUP_S,
+        max_sequence_segments,
     })
 }
 
@@ -222,62 +243,116 @@ pub struct Applied {
     pub rx: Option<RfStatus>,
 }
 
-/// The raw captures of one measurement (one per repetition) and how they were made.
+/// The raw captures of one measurement and how they were made.
 pub struct Captured {
-    pub iq: Vec<IqCapture>,
+    /// The scope's acquisitions in order: one per repetition, or in sequence mode one per
+    /// `segments` repetitions (the last may hold more segments than are used).
+    pub acquisitions: Vec<IqCapture>,
+    /// Repetitions asked for (and held).
+    repetitions: usize,
     pub applied: Applied,
     /// What the AWG and scope held (kept to skip the next upload of the same waveform).
     pub uploaded: Uploaded,
 }
 
+/// Where one repetition sits in the scope's acquisitions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RepetitionSource {
+    /// 0-based acquisition.
+    pub acquisition: usize,
+    /// 0-based segment of that acquisition (0 unless in sequence mode).
+    pub segment: usize,
+    pub timing: SegmentTiming,
+}
+
 impl Captured {
+    /// `acquisitions` hold at least `repetitions` segments in all (checked by the caller).
+    pub fn new(
+        acquisitions: Vec<IqCapture>,
+        repetitions: usize,
+        applied: Applied,
+        uploaded: Uploaded,
+    ) -> Captured {
+        Captured {
+            acquisitions,
+            repetitions,
+            applied,
+            uploaded,
+        }
+    }
+
+    /// Where repetition `k` (0-based) was recorded.
+    pub fn source(&self, k: usize) -> RepetitionSource {
+        let mut rest = k;
+        for (a, iq) in self.acquisitions.iter().enumerate() {
+            if rest < iq.segments() {
+                return RepetitionSource {
+                    acquisition: a,
+                    segment: rest,
+                    timing: iq.i.timing(rest),
+                };
+            }
+            rest -= iq.segments();
+        }
+        RepetitionSource {
+            acquisition: 0,
+            segment: 0,
+            timing: self.acquisitions[0].i.timing(0),
+        }
+    }
+
+    /// Repetition `k`'s I and Q codes (equal lengths).
+    fn codes(&self, k: usize) -> (&ChannelTrace, &ChannelTrace, &[i16], &[i16]) {
+        let at = self.source(k);
+        let iq = &self.acquisitions[at.acquisition];
+        let (i, q) = (
+            iq.i.segment_codes(at.segment),
+            iq.q.segment_codes(at.segment),
+        );
+        let n = i.len().min(q.len());
+        (&iq.i, &iq.q, &i[..n], &q[..n])
+    }
+
     /// Repetition `k` as I + jQ in volts with the time of its first point after the trigger.
     pub fn raw(&self, k: usize) -> RawIq {
-        let (i, q) = (&self.iq[k].i, &self.iq[k].q);
-        let (gi, oi) = (
-            f64::from(i.desc.vertical_gain),
-            f64::from(i.desc.vertical_offset),
-        );
-        let (gq, oq) = (
-            f64::from(q.desc.vertical_gain),
-            f64::from(q.desc.vertical_offset),
-        );
+        let (i, q, ci, cq) = self.codes(k);
+        let (gi, oi) = (i.volts_per_code, i.offset_v);
+        let (gq, oq) = (q.volts_per_code, q.offset_v);
         RawIq {
-            samples: i
-                .codes
+            samples: ci
                 .iter()
-                .zip(&q.codes)
+                .zip(cq)
                 .map(|(&a, &b)| Complex64::new(gi * f64::from(a) - oi, gq * f64::from(b) - oq))
                 .collect(),
-            // WAVEDESC stores the interval as f32: take the rate the scope reported applying.
+            // The scope's own interval may be stored in single precision: take the rate the
+            // scope reported applying.
             sample_rate_hz: self.applied.scope.sample_rate_hz,
-            first_point_s: i.first_sample_s(),
+            first_point_s: self.source(k).timing.first_sample_s,
         }
     }
 
     /// Repetition `k` as the scope's words and their scaling: [`raw`](Self::raw) without the
     /// record in volts (the pipeline converts as it decimates).
     pub fn raw_words(&self, k: usize) -> RawWords {
-        let (i, q) = (&self.iq[k].i, &self.iq[k].q);
+        let (i, q, ci, cq) = self.codes(k);
         RawWords {
-            i: i.codes.clone(),
-            q: q.codes.clone(),
-            gain: [
-                f64::from(i.desc.vertical_gain),
-                f64::from(q.desc.vertical_gain),
-            ],
-            offset: [
-                f64::from(i.desc.vertical_offset),
-                f64::from(q.desc.vertical_offset),
-            ],
+            i: ci.to_vec(),
+            q: cq.to_vec(),
+            gain: [i.volts_per_code, q.volts_per_code],
+            offset: [i.offset_v, q.offset_v],
             sample_rate_hz: self.applied.scope.sample_rate_hz,
-            first_point_s: i.first_sample_s(),
+            first_point_s: self.source(k).timing.first_sample_s,
         }
     }
 
     /// Repetitions captured.
     pub fn repetitions(&self) -> usize {
-        self.iq.len()
+        self.repetitions
+    }
+
+    /// The first acquisition (its native files are the ones saved).
+    pub fn first(&self) -> &IqCapture {
+        &self.acquisitions[0]
     }
 }
 
@@ -370,6 +445,7 @@ impl Station {
         &mut self,
         tx: &Transmission,
         plan: &CapturePlan,
+        segments: u32,
     ) -> Result<Uploaded, MeasureError> {
         let (awg, segment) = {
             let mut awg = self.awg.lock().await;
@@ -377,14 +453,29 @@ impl Station {
             let segment = awg.load(&tx.iq).await?;
             (applied, segment)
         };
-        let mut scope_settings = plan.scope.clone();
-        scope_settings.repetition_s = segment.padded_samples as f64 / tx.sample_rate_hz();
-        let scope = self.scope.configure(&scope_settings).await?;
+        let scope = self.configure_scope(tx, plan, &segment, segments).await?;
         Ok(Uploaded {
             awg,
             segment,
             scope,
         })
+    }
+
+    /// The scope set for one repetition of the loaded segment, `segments` triggers per
+    /// acquisition.
+    async fn configure_scope(
+        &mut self,
+        tx: &Transmission,
+        plan: &CapturePlan,
+        loaded: &LoadedSegment,
+        segments: u32,
+    ) -> Result<DigitizerApplied, MeasureError> {
+        let settings = DigitizerSettings {
+            repetition_s: loaded.padded_samples as f64 / tx.sample_rate_hz(),
+            segments,
+            ..plan.scope.clone()
+        };
+        Ok(self.scope.configure(&settings).await?)
     }
 
     /// What the AWG reports now: clock, levels, outputs and its segment table (read before each
@@ -417,9 +508,13 @@ impl Station {
             awg.enable_outputs(permit).await?;
             awg.run().await?;
         }
-        let mut captures = Vec::with_capacity(repetitions);
-        for _ in 0..repetitions.max(1) {
-            captures.push(self.scope.capture_iq(plan.wait_s).await?);
+        // One acquisition per repetition, or in sequence mode one per `segments` of them.
+        let mut captures = Vec::new();
+        let mut held = 0;
+        while held < repetitions.max(1) {
+            let capture = self.scope.capture_iq(plan.wait_s).await?;
+            held += capture.segments().max(1);
+            captures.push(capture);
         }
         if tx_status.is_none() {
             if let Some(txm) = &self.tx {
@@ -446,8 +541,9 @@ impl Station {
         interrupt: &Interrupt,
     ) -> (Result<Captured, MeasureError>, SafeStateReport) {
         let safe = self.safe.clone();
+        let segments = plan.sequence_segments(repetitions);
         let work = async {
-            let up = match loaded {
+            let mut up = match loaded {
                 Some(up) => {
                     // The AWG may have been power-cycled or reset since: look before trusting it.
                     let now = self.awg_applied().await?;
@@ -462,11 +558,18 @@ impl Station {
                         }
                     } else {
                         tracing::warn!("the AWG no longer holds the waveform: uploading it again");
-                        self.upload(tx, plan).await?
+                        self.upload(tx, plan, segments).await?
                     }
                 }
-                None => self.upload(tx, plan).await?,
+                None => self.upload(tx, plan, segments).await?,
             };
+            if up.scope.segments != segments {
+                // Another number of repetitions than the last measurement: only the scope's
+                // sequence changes (still before any RF).
+                up.scope = self
+                    .configure_scope(tx, plan, &up.segment, segments)
+                    .await?;
+            }
             let deadline = plan.rf_deadline_s(repetitions);
             let acquired = tokio::time::timeout(
                 std::time::Duration::from_secs_f64(deadline),
@@ -474,17 +577,19 @@ impl Station {
             )
             .await
             .map_err(|_| MeasureError::RfDeadline { seconds: deadline })??;
-            Ok(Captured {
-                iq: acquired.captures,
-                applied: Applied {
-                    awg: up.awg.clone(),
-                    segment: up.segment.clone(),
-                    scope: up.scope.clone(),
-                    tx: acquired.tx,
-                    rx: acquired.rx,
-                },
-                uploaded: up,
-            })
+            let applied = Applied {
+                awg: up.awg.clone(),
+                segment: up.segment.clone(),
+                scope: up.scope.clone(),
+                tx: acquired.tx,
+                rx: acquired.rx,
+            };
+            Ok(Captured::new(
+                acquired.captures,
+                repetitions.max(1),
+                applied,
+                up,
+            ))
         };
         let (outcome, report) = crate::driver::run_guarded(&safe, work, interrupt.wait()).await;
         let result = match outcome {
@@ -509,7 +614,7 @@ impl Drop for Station {
 
 /// What one acquisition brought back.
 pub struct Acquired {
-    /// One I/Q pair per repetition.
+    /// The scope's acquisitions: one per repetition, or sequences holding several.
     pub captures: Vec<IqCapture>,
     pub tx: Option<RfStatus>,
     pub rx: Option<RfStatus>,

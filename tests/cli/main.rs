@@ -18,5 +18,6 @@ mod exit_paths;
 mod io_cli;
 mod process_cli;
 mod readers_cli;
+mod sequence_capture;
 mod simulate_cli;
 mod support;

@@ -238,10 +238,10 @@ async fn scope_captures_iq(net: Net) {
     assert_eq!(applied.sample_rate_hz, 80e9);
     assert!(applied.record_s >= settings.record_s() * (1.0 - 1e-9));
     let capture = bounded(scope.capture_iq(5.0)).await.unwrap();
-    let (i, q) = (capture.i.volts(), capture.q.volts());
+    let (i, q) = (capture.i.segment_volts(0), capture.q.segment_volts(0));
     assert_eq!(i.len() as u64, applied.points);
-    assert_eq!(capture.i.sample_interval_s() as f32, (1.0 / 80e9) as f32);
-    let t = capture.i.times();
+    assert_eq!(capture.i.sample_interval_s as f32, (1.0 / 80e9) as f32);
+    let t = capture.i.segment_times(0);
     assert!(
         (t[0] + settings.pre_trigger_s).abs() < 1e-12,
         "record starts {} s",
@@ -253,7 +253,10 @@ async fn scope_captures_iq(net: Net) {
         assert!((mag - 0.1).abs() < 0.01, "|IQ| = {mag} at {k}");
     }
     // The saved .trc is exactly what the scope itself would save.
-    assert_eq!(capture.i.trc_bytes(), emu.trc_bytes(1).unwrap());
+    assert_eq!(
+        capture.i.native.as_ref().unwrap().bytes.as_ref(),
+        emu.trc_bytes(1).unwrap()
+    );
 }
 
 #[tokio::test]

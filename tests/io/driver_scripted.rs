@@ -303,8 +303,8 @@ async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
         ..DigitizerSettings::default()
     };
     let fake = Scripted::new("scope")
-        .reply_times("CMR?", "0", 6)
-        .reply_times("EXR?", "0", 6)
+        .reply_times("CMR?", "0", 7)
+        .reply_times("EXR?", "0", 7)
         .reply(
             "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
             "80000000000",
@@ -332,6 +332,10 @@ async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
             "C2:TRA ON",
             "C2:VDIV 0.05",
             "C2:OFST 0",
+            "CMR?",
+            "EXR?",
+            // Set even for one segment: a scope left in sequence mode would record several.
+            "VBS 'app.Acquisition.Horizontal.SampleMode = \"RealTime\"'",
             "CMR?",
             "EXR?",
             "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'",
@@ -393,6 +397,161 @@ async fn lecroy_refuses_a_trigger_level_outside_the_catalog() {
     scope_refuses(settings, "trigger_level_v").await;
 }
 
+#[tokio::test]
+async fn lecroy_refuses_segments_beyond_the_catalog_or_its_memory() {
+    for segments in [0, 15_001] {
+        let settings = DigitizerSettings {
+            segments,
+            ..DigitizerSettings::default()
+        };
+        scope_refuses(settings, "segments").await;
+    }
+    // 10 us records (800 000 points) fit 40 times in 32 Mpoints, not 41 times.
+    let settings = DigitizerSettings {
+        segments: 41,
+        ..DigitizerSettings::default()
+    };
+    scope_refuses(settings, "segments").await;
+}
+
+#[tokio::test]
+async fn lecroy_without_sequence_mode_in_the_catalog_refuses_segments() {
+    let mut model = model("lecroy-labmaster10zi-a");
+    if let Some(d) = model.digitizer.as_mut() {
+        d.max_sequence_segments = 0;
+    }
+    let fake = Scripted::new("scope").reply("*IDN?", SCOPE_IDN);
+    let log = fake.log();
+    let mut scope = bounded(Lecroy::connect(Box::new(fake), &model, "scope"))
+        .await
+        .unwrap();
+    log.clear();
+    let settings = DigitizerSettings {
+        segments: 2,
+        ..DigitizerSettings::default()
+    };
+    let e = bounded(scope.configure(&settings)).await.unwrap_err();
+    assert!(e.to_string().contains("no sequence mode"), "{e}");
+    assert!(log.ops().is_empty());
+}
+
+#[tokio::test]
+async fn lecroy_sequence_sets_the_mode_reads_back_the_count_and_splits_the_segments() {
+    let settings = DigitizerSettings {
+        repetition_s: 1.0e-6,
+        longest_echo_s: 0.024e-6,
+        segments: 3,
+        ..DigitizerSettings::default()
+    };
+    let fake = Scripted::new("scope")
+        .reply_times("CMR?", "0", 7)
+        .reply_times("EXR?", "0", 7)
+        .reply(SEGMENTS_QUERY, "VBS 3")
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
+            "80000000000",
+        )
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
+            "VBS 1.024e-7",
+        );
+    let (mut scope, log) = scope(fake).await;
+    let applied = bounded(scope.configure(&settings)).await.unwrap();
+    assert_eq!(applied.segments, 3);
+    let ops = log.ops();
+    let at = ops
+        .iter()
+        .position(|c| c.contains("SampleMode = \"Sequence\""))
+        .expect("sequence mode set");
+    assert_eq!(
+        ops[at..at + 5],
+        [
+            "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'",
+            "VBS 'app.Acquisition.Horizontal.NumSegments = 3'",
+            "CMR?",
+            "EXR?",
+            SEGMENTS_QUERY,
+        ]
+    );
+    log.assert_no_surprises();
+
+    // One acquisition, one block per channel holding the three segments and their trigger times.
+    let codes: Vec<i16> = (0..3 * 81_920).map(|k| (k % 100) as i16).collect();
+    let times = vec![(0.0, -1e-9), (2e-6, -1e-9), (4e-6, -1e-9)];
+    let fake_reply = |source| sequence_reply(&codes, &times, source);
+    let fake = Scripted::new("scope")
+        .reply("INR?", "0")
+        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
+        .reply("INR?", "1")
+        .reply_block("C1:WF? ALL", fake_reply(0))
+        .reply_block("C2:WF? ALL", fake_reply(1));
+    let (mut scope, _) = sequenced(fake, &settings).await;
+    let capture = bounded(scope.capture_iq(2.0)).await.unwrap();
+    assert_eq!(capture.segments(), 3);
+    assert_eq!(capture.i.segment_len(), 81_920);
+    // Segment 2 starts at sample 163 840 of the record.
+    assert_eq!(capture.q.segment_codes(2)[..3], [40, 41, 42]);
+    assert_eq!(capture.i.timing(1).trigger_time_s, Some(2e-6));
+    assert_eq!(capture.i.timing(2).first_sample_s, -1e-9);
+}
+
+#[tokio::test]
+async fn lecroy_sequence_with_missing_segments_is_not_taken_for_a_full_one() {
+    let settings = DigitizerSettings {
+        repetition_s: 1.0e-6,
+        longest_echo_s: 0.024e-6,
+        segments: 3,
+        ..DigitizerSettings::default()
+    };
+    let codes: Vec<i16> = vec![7; 2 * 81_920];
+    let times = vec![(0.0, 0.0), (2e-6, 0.0)];
+    let fake = Scripted::new("scope")
+        .reply("INR?", "0")
+        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
+        .reply("INR?", "1")
+        .reply_block("C1:WF? ALL", sequence_reply(&codes, &times, 0))
+        .reply_block("C2:WF? ALL", sequence_reply(&codes, &times, 1));
+    let (mut scope, _) = sequenced(fake, &settings).await;
+    let e = bounded(scope.capture_iq(2.0)).await.unwrap_err();
+    assert!(matches!(e, DriverError::NotApplied { .. }), "{e}");
+    assert!(e.to_string().contains("2 segments"), "{e}");
+}
+
+/// A scope configured for `settings` (a sequence), then scripted with `fake`'s exchanges.
+async fn sequenced(fake: Scripted, settings: &DigitizerSettings) -> (Lecroy, ScriptLog) {
+    let fake = fake
+        .reply_times("CMR?", "0", 7)
+        .reply_times("EXR?", "0", 7)
+        .reply(SEGMENTS_QUERY, &settings.segments.to_string())
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
+            "80000000000",
+        )
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
+            "1.024e-7",
+        );
+    let (mut scope, log) = scope(fake).await;
+    bounded(scope.configure(settings)).await.unwrap();
+    log.clear();
+    (scope, log)
+}
+
+const SEGMENTS_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.NumSegments'";
+
+fn sequence_reply(codes: &[i16], times: &[(f64, f64)], source: i16) -> Vec<u8> {
+    let block = BlockBuilder {
+        source,
+        segments: times.to_vec(),
+        ..BlockBuilder::default()
+    }
+    .build(codes);
+    let mut reply = format!("ALL,#9{:09}", block.len()).into_bytes();
+    reply.extend_from_slice(&block);
+    reply.push(b'\n');
+    reply
+}
+
 fn wf_reply(codes: &[i16], source: i16) -> Vec<u8> {
     let block = BlockBuilder {
         gain: 0.002,
@@ -429,14 +588,21 @@ async fn lecroy_single_shot_then_both_channels_in_words() {
     );
     assert!(log.timeouts()[0].1 >= Duration::from_secs(2));
     assert_eq!(capture.i.codes, vec![100, -100, 0]);
-    let v = capture.i.volts();
+    let v = capture.i.segment_volts(0);
     assert!((v[0] - (0.2 - 0.1)).abs() < 1e-6);
     assert_eq!(capture.q.codes, vec![5, 6, 7]);
     assert!(
-        capture.i.times()[0] < 0.0,
+        capture.i.segment_times(0)[0] < 0.0,
         "HORIZ_OFFSET is in the time axis"
     );
-    assert!(capture.i.trc_bytes().starts_with(b"#9"));
+    assert!(capture
+        .i
+        .native
+        .as_ref()
+        .unwrap()
+        .bytes
+        .as_ref()
+        .starts_with(b"#9"));
 }
 
 #[tokio::test]

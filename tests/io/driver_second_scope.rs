@@ -148,9 +148,12 @@ async fn the_unchanged_driver_captures_at_the_wavemasters_rate_on_its_emulator()
     let applied = bounded(scope.configure(&settings)).await.unwrap();
     assert_eq!(applied.sample_rate_hz, 40e9);
     let capture = bounded(scope.capture_iq(5.0)).await.unwrap();
-    assert_eq!(capture.i.volts().len() as u64, applied.points);
-    assert_eq!(capture.i.sample_interval_s() as f32, 25e-12_f32);
-    assert_eq!(capture.i.trc_bytes(), emu.trc_bytes(1).unwrap());
+    assert_eq!(capture.i.segment_volts(0).len() as u64, applied.points);
+    assert_eq!(capture.i.sample_interval_s as f32, 25e-12_f32);
+    assert_eq!(
+        capture.i.native.as_ref().unwrap().bytes.as_ref(),
+        emu.trc_bytes(1).unwrap()
+    );
 }
 
 #[tokio::test]

@@ -2,7 +2,8 @@
 //! statements a driver uses), fixed 80 GSa/s, `Cn:WF? ALL` with a `LECROY_2_3` WAVEDESC.
 //!
 //! An acquisition completes only when the pluggable [`TriggerSource`] reports a marker edge (or the
-//! trigger is forced). The emulator never holds its lock while it waits for an edge, so a client can
+//! trigger is forced); in sequence mode (`SampleMode = "Sequence"`, `NumSegments`) it records one
+//! segment per edge and `WF? ALL` returns them all with a TRIGTIME array. The emulator never holds its lock while it waits for an edge, so a client can
 //! poll `INR?` on another connection while one connection is blocked in `WAIT`.
 //!
 //! Errors follow the legacy LeCroy registers \[I\]: command errors set `CMR?` (1 unknown header,
@@ -23,8 +24,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 pub use state::{
-    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, RemoteInterface, ScopeState,
-    TransferWindow, TriggerMode, EMULATOR_MAX_POINTS,
+    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, RemoteInterface, SampleMode,
+    ScopeState, TransferWindow, TriggerMode, EMULATOR_MAX_POINTS, SEQUENCE_REARM_S,
 };
 pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
 
@@ -164,32 +165,62 @@ impl Lecroy {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Completes a pending acquisition if the source delivers an edge before `deadline` (a past
-    /// deadline polls). The lock is released while waiting.
+    /// Completes a pending acquisition if the source delivers its edges (one per segment in
+    /// sequence mode) before `deadline` (a past deadline polls). The lock is released while
+    /// waiting.
     fn settle(&self, deadline: Instant) {
-        let (request, arm_id, mode) = {
+        let (request, arm_id, mode, segments) = {
             let st = self.lock();
             if !st.armed {
                 return;
             }
-            (st.request(&self.model), st.arm_id, st.trigger_mode)
+            (
+                st.request(&self.model),
+                st.arm_id,
+                st.trigger_mode,
+                st.segments_per_acquisition(),
+            )
         };
         let result = match mode {
             TriggerMode::Auto => Some(
-                self.source
-                    .acquire(&request, Instant::now())
+                self.segments(&request, segments, Instant::now())
                     .map(|c| (c, false))
-                    .unwrap_or_else(|| (self.source.force(&request), true)),
+                    .unwrap_or_else(|| (self.forced_segments(&request, segments), true)),
             ),
-            _ => self.source.acquire(&request, deadline).map(|c| (c, false)),
+            _ => self
+                .segments(&request, segments, deadline)
+                .map(|c| (c, false)),
         };
-        if let Some((capture, forced)) = result {
+        if let Some((captures, forced)) = result {
+            let times = segment_times(&request, &captures);
             let mut st = self.lock();
             if st.armed && st.arm_id == arm_id {
-                st.complete(&self.model, &request, capture, forced);
-                tracing::debug!(instrument = "lecroy", forced, "acquisition complete");
+                st.complete(&self.model, &request, captures, times, forced);
+                tracing::debug!(
+                    instrument = "lecroy",
+                    forced,
+                    segments,
+                    "acquisition complete"
+                );
             }
         }
+    }
+
+    /// One capture per segment, each at its own edge; None when an edge did not come by
+    /// `deadline` (the acquisition stays incomplete, as on the scope).
+    fn segments(
+        &self,
+        request: &AcquisitionRequest,
+        segments: u32,
+        deadline: Instant,
+    ) -> Option<Vec<Capture>> {
+        (0..segments)
+            .map(|_| self.source.acquire(request, deadline))
+            .collect()
+    }
+
+    fn forced_segments(&self, request: &AcquisitionRequest, segments: u32) -> Vec<Capture> {
+        (0..segments).map(|_| self.source.force(request)).collect()
     }
 
     /// Forces one acquisition now (FRTR): arms if needed and records without an edge.
@@ -199,8 +230,9 @@ impl Lecroy {
             st.arm();
         }
         let request = st.request(&self.model);
-        let capture = self.source.force(&request);
-        st.complete(&self.model, &request, capture, true);
+        let captures = self.forced_segments(&request, st.segments_per_acquisition());
+        let times = segment_times(&request, &captures);
+        st.complete(&self.model, &request, captures, times, true);
     }
 
     /// Runs one program message; returns the response bytes if it had queries.
@@ -262,6 +294,23 @@ impl Lecroy {
     fn wait_cap(&self) -> Duration {
         *self.wait_cap.lock().unwrap_or_else(|e| e.into_inner())
     }
+}
+
+/// Each segment's trigger time after the first's: the scope records a segment, re-arms, and
+/// takes the next edge that comes after that. With repeating edges (the AWG's marker every
+/// repetition) that is a whole number of periods; otherwise the next edge is taken as soon as
+/// the scope is ready.
+fn segment_times(request: &AcquisitionRequest, captures: &[Capture]) -> Vec<f64> {
+    let after_trigger = (request.first_point_s + request.points as f64 / request.sample_rate)
+        .max(0.0)
+        + state::SEQUENCE_REARM_S;
+    let spacing = match captures.first().and_then(|c| c.edge_period_s) {
+        Some(period) if period > 0.0 => (after_trigger / period).ceil().max(1.0) * period,
+        _ => after_trigger,
+    };
+    (0..captures.len().max(1))
+        .map(|k| k as f64 * spacing)
+        .collect()
 }
 
 impl Handler for Lecroy {

@@ -520,3 +520,148 @@ fn a_model_the_emulator_cannot_use_is_refused() {
     model.limits.sample_rates.clear();
     assert!(Lecroy::new(model, Arc::new(TestSignal::default())).is_err());
 }
+
+const SEQUENCE_OF_3: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"';\
+VBS 'app.Acquisition.Horizontal.NumSegments = 3'";
+
+/// Segments and TRIGTIME entries of a `WF? ALL` reply (the independent reader above).
+fn segments(reply: &[u8]) -> (Wave, Vec<(f64, f64)>) {
+    let wave = decode(reply);
+    let d = wave.d();
+    let count = d.i32(144) as usize;
+    let trig = d.i32(48) as usize;
+    assert_eq!(trig, 16 * count, "one TRIGTIME entry per segment");
+    assert_eq!(d.i16(174) as usize, count, "NOM_SUBARRAY_COUNT");
+    let hash = reply.windows(2).position(|w| w == b"#9").unwrap();
+    let arrays = &reply[hash + 11 + 346..];
+    let f = |b: &[u8]| {
+        let b: [u8; 8] = b.try_into().unwrap();
+        if wave.little {
+            f64::from_le_bytes(b)
+        } else {
+            f64::from_be_bytes(b)
+        }
+    };
+    let times = (0..count)
+        .map(|k| {
+            (
+                f(&arrays[16 * k..16 * k + 8]),
+                f(&arrays[16 * k + 8..16 * k + 16]),
+            )
+        })
+        .collect();
+    (wave, times)
+}
+
+#[test]
+fn sequence_mode_records_one_segment_per_edge_with_trigger_times() {
+    let scope = scope_with(Arc::new(TestSignal::new(true, 1e9, 0.1)));
+    send(&*scope, SETUP);
+    send(&*scope, TIMEBASE);
+    send(&*scope, SEQUENCE_OF_3);
+    assert_eq!(
+        q(
+            &*scope,
+            "VBS? 'return = app.Acquisition.Horizontal.SampleMode'"
+        ),
+        "Sequence"
+    );
+    assert_eq!(
+        q(
+            &*scope,
+            "VBS? 'return = app.Acquisition.Horizontal.NumSegments'"
+        ),
+        "3"
+    );
+    send(&*scope, TRIGGER);
+    assert_eq!(q(&*scope, "ARM;WAIT 5;*OPC?"), "1");
+    assert_eq!(q(&*scope, "INR?").parse::<u32>().unwrap() & 1, 1);
+
+    let (wave, times) = segments(&send(&*scope, "C1:WF? ALL"));
+    assert_eq!(wave.d().i32(144), 3, "SUBARRAY_COUNT");
+    assert_eq!(wave.codes.len(), 3 * 81_920, "every segment's points");
+    assert_eq!(wave.d().i32(120), 81_920, "PNTS_PER_SCREEN: one segment");
+    // Without a repeating edge the scope takes the next one when it is ready again: after the
+    // part of the record behind the trigger and the re-arm time.
+    let ready = 5.0 * 1.024e-7 + mock_lab::emulator::lecroy::SEQUENCE_REARM_S;
+    for (k, (time, offset)) in times.iter().enumerate() {
+        assert!(
+            (time - k as f64 * ready).abs() < 1e-15,
+            "segment {k}: {time}"
+        );
+        assert_eq!(*offset, -5.0 * 1.024e-7, "trigger offset mid-grid");
+    }
+
+    // SN picks one segment; DAT1 is the data array alone.
+    send(&*scope, "WFSU SP,0,NP,0,FP,0,SN,2");
+    let (one, times) = segments(&send(&*scope, "C1:WF? ALL"));
+    assert_eq!(one.codes[..], wave.codes[81_920..2 * 81_920]);
+    assert_eq!(times.len(), 1);
+    assert!((times[0].0 - ready).abs() < 1e-15);
+    send(&*scope, "WFSU SP,0,NP,0,FP,0,SN,0");
+    let dat = send(&*scope, "C1:WF? DAT1");
+    assert!(dat.starts_with(format!("DAT1,#9{:09}", 2 * 3 * 81_920).as_bytes()));
+}
+
+#[test]
+fn sequence_segments_share_the_memory_and_real_time_restores_one_record() {
+    let scope = scope_with(Arc::new(TestSignal::default()));
+    send(&*scope, SETUP);
+    // 32 Mpoints shared by 40 segments: 800 000 points each.
+    send(
+        &*scope,
+        "VBS 'app.Acquisition.Horizontal.HorScale = 1e-5';\
+VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"';\
+VBS 'app.Acquisition.Horizontal.NumSegments = 40'",
+    );
+    assert_eq!(
+        q(
+            &*scope,
+            "VBS? 'return = app.Acquisition.Horizontal.NumPoints'"
+        ),
+        "800000"
+    );
+    send(&*scope, "VBS 'app.Acquisition.Horizontal.NumSegments = 80'");
+    assert_eq!(
+        q(
+            &*scope,
+            "VBS? 'return = app.Acquisition.Horizontal.NumPoints'"
+        ),
+        "400000",
+        "the scope shortens the segments to fit"
+    );
+    send(
+        &*scope,
+        "VBS 'app.Acquisition.Horizontal.SampleMode = \"RealTime\"'",
+    );
+    send(
+        &*scope,
+        "VBS 'app.Acquisition.Horizontal.HorScale = 1.024e-7'",
+    );
+    send(&*scope, TRIGGER);
+    assert_eq!(q(&*scope, "ARM;WAIT 5;*OPC?"), "1");
+    let wave = decode(&send(&*scope, "C1:WF? ALL"));
+    assert_eq!(wave.d().i32(144), 1, "SUBARRAY_COUNT");
+    assert_eq!(wave.d().i32(48), 0, "no TRIGTIME array");
+    assert_eq!(wave.codes.len(), 81_920);
+}
+
+#[test]
+fn a_model_without_sequence_mode_refuses_it() {
+    let mut model = mock_lab::catalog::lecroy().unwrap();
+    model.limits.max_sequence_segments = 0;
+    let scope = Lecroy::new(model, Arc::new(TestSignal::default())).unwrap();
+    send(&scope, "CHDR OFF;EXR?");
+    send(
+        &scope,
+        "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'",
+    );
+    assert_eq!(q(&scope, "EXR?"), "26", "not implemented on this model");
+    assert_eq!(
+        q(
+            &scope,
+            "VBS? 'return = app.Acquisition.Horizontal.SampleMode'"
+        ),
+        "RealTime"
+    );
+}

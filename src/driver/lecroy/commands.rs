@@ -12,6 +12,11 @@ pub const WHOLE_RECORD: &str = "WFSU SP,0,NP,0,FP,0,SN,0";
 pub const FIXED_RATE: &str = "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'";
 pub const SAMPLING_RATE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'";
 pub const HOR_SCALE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.HorScale'";
+/// One record per trigger.
+pub const REAL_TIME: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"RealTime\"'";
+/// One segment per trigger, `NumSegments` of them per acquisition, read in one `WF? ALL`.
+pub const SEQUENCE: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'";
+pub const SEGMENTS_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.NumSegments'";
 /// The command error register; its codes' texts are the session's
 /// [`register_error_text`](crate::session::register_error_text).
 pub const COMMAND_ERRORS: &str = "CMR?";
@@ -35,6 +40,10 @@ pub fn hor_scale(seconds_per_div: f64) -> String {
         "VBS 'app.Acquisition.Horizontal.HorScale = {}'",
         number(seconds_per_div)
     )
+}
+
+pub fn segments(count: u32) -> String {
+    format!("VBS 'app.Acquisition.Horizontal.NumSegments = {count}'")
 }
 
 pub fn trace_on(channel: u8) -> String {

@@ -2,8 +2,11 @@
 //!
 //! I on C1, Q on C2, the AWG's marker on the external trigger input; a fixed sample rate set with
 //! automation (`VBS`) commands; the record long enough for one repetition plus the longest echo;
-//! single-shot arm, wait and `*OPC?`, then `INR?` tells whether a trigger came. Waveforms are
-//! read with `C<n>:WF? ALL` in 16-bit words and decoded by [`wavedesc`]. The scope has no SCPI
+//! single-shot arm, wait and `*OPC?`, then `INR?` tells whether a trigger came. With more than
+//! one segment the scope runs in sequence mode: one acquisition records one segment per trigger
+//! and `WF? ALL` returns them all, with their trigger times in the TRIGTIME array. Waveforms are
+//! read with `C<n>:WF? ALL` in 16-bit words, decoded by [`wavedesc`] and handed up as
+//! vendor-neutral [`ChannelTrace`]s (the `.trc` bytes kept beside). The scope has no SCPI
 //! error queue: its command and execution error registers (`CMR?`, `EXR?`) are read after each
 //! configuration batch instead.
 
@@ -16,11 +19,12 @@ use std::time::Duration;
 use bytes::Bytes;
 
 use self::wavedesc::Trace;
-use super::capability::{Digitizer, DigitizerApplied, DigitizerSettings, IqCapture};
+use super::capability::{Digitizer, DigitizerApplied, DigitizerSettings};
 use super::error::{session, DriverError};
 use super::io::{open_session, BoxFuture, InstrumentIo};
 use super::limits::{close, within};
 use super::scpi::Scpi;
+use super::trace::{ChannelTrace, IqCapture, NativeFile, SegmentTiming};
 use crate::address::Resource;
 use crate::catalog::{DigitizerLimits, InstrumentModel};
 use crate::session::{parse_f64, register_error_text, DeviceError, Identity, SessionError};
@@ -44,6 +48,9 @@ pub struct Lecroy {
     limits: DigitizerLimits,
     identity: Identity,
     vbs_prefix: Option<String>,
+    /// Segments per acquisition and points per segment as last configured.
+    segments: u32,
+    points: u64,
 }
 
 /// The names the scope's menu gives the two remote protocols.
@@ -123,6 +130,8 @@ impl Lecroy {
             model: model.clone(),
             limits,
             identity,
+            segments: 1,
+            points: 0,
         })
     }
 
@@ -201,6 +210,33 @@ impl Lecroy {
                 ),
             });
         }
+        if s.segments == 0 || (s.segments > 1 && s.segments > l.max_sequence_segments) {
+            let allowed = if l.max_sequence_segments > 1 {
+                format!(
+                    "1..={} (the catalog's max_sequence_segments)",
+                    l.max_sequence_segments
+                )
+            } else {
+                "1: the catalog gives this model no sequence mode (max_sequence_segments)".into()
+            };
+            return Err(DriverError::OutOfLimits {
+                instrument: n.to_string(),
+                field: "segments",
+                value: s.segments.to_string(),
+                allowed,
+            });
+        }
+        if points * f64::from(s.segments) > l.max_points_per_channel as f64 {
+            return Err(DriverError::OutOfLimits {
+                instrument: n.to_string(),
+                field: "segments",
+                value: format!("{} segments of {points} points", s.segments),
+                allowed: format!(
+                    "at most {} points per channel in all segments together",
+                    l.max_points_per_channel
+                ),
+            });
+        }
         for (field, v) in [
             ("i_volts_per_div", s.i_volts_per_div),
             ("q_volts_per_div", s.q_volts_per_div),
@@ -273,6 +309,27 @@ impl Lecroy {
             self.scpi.send(commands::EXTERNAL_REFERENCE).await?;
         }
         self.check("the channel settings").await?;
+        // Always set the sample mode: a scope left in sequence mode would otherwise record
+        // several triggers where one is expected.
+        if s.segments > 1 {
+            self.scpi.send(commands::SEQUENCE).await?;
+            self.scpi.send(&commands::segments(s.segments)).await?;
+        } else {
+            self.scpi.send(commands::REAL_TIME).await?;
+        }
+        self.check("the sample mode").await?;
+        if s.segments > 1 {
+            let applied = self.ask_vbs_number(commands::SEGMENTS_QUERY).await?;
+            if applied != f64::from(s.segments) {
+                return Err(DriverError::NotApplied {
+                    instrument: self.scpi.name().to_string(),
+                    setting: "sequence segments",
+                    wanted: s.segments.to_string(),
+                    applied: applied.to_string(),
+                });
+            }
+        }
+        self.segments = s.segments;
         self.scpi.send(commands::FIXED_RATE).await?;
         self.scpi
             .send(&commands::sample_rate(s.sample_rate_hz))
@@ -322,6 +379,7 @@ impl Lecroy {
             .send(&commands::trigger_delay(trigger_delay_s))
             .await?;
         self.check("the trigger settings").await?;
+        self.points = (record_s * rate).round() as u64;
         Ok(DigitizerApplied {
             sample_rate_hz: rate,
             hor_scale_s: hor_scale,
@@ -330,6 +388,7 @@ impl Lecroy {
             trigger_delay_s,
             trigger_source: commands::EXTERNAL.to_string(),
             trigger_level_v: s.trigger_level_v,
+            segments: s.segments,
         })
     }
 
@@ -354,7 +413,7 @@ impl Lecroy {
         Ok(())
     }
 
-    async fn fetch_impl(&mut self, channel: u8) -> Result<Trace, DriverError> {
+    async fn fetch_impl(&mut self, channel: u8) -> Result<ChannelTrace, DriverError> {
         if channel == 0 || channel > self.limits.channels {
             return Err(DriverError::BadSettings {
                 instrument: self.scpi.name().to_string(),
@@ -368,11 +427,63 @@ impl Lecroy {
         let query = commands::waveform(channel);
         let block = self.scpi.query_block(&query).await?;
         let payload: Bytes = block.into_payload();
-        Trace::decode(channel, payload).map_err(|source| DriverError::Waveform {
+        let trace = Trace::decode(channel, payload).map_err(|source| DriverError::Waveform {
             instrument: self.scpi.name().to_string(),
             channel,
             source,
+        })?;
+        Ok(neutral(trace))
+    }
+
+    /// Both channels of the last acquisition, each checked to hold the configured segments.
+    async fn fetch_iq(&mut self) -> Result<IqCapture, DriverError> {
+        let i = self.fetch_impl(I_CHANNEL).await?;
+        let q = self.fetch_impl(Q_CHANNEL).await?;
+        for t in [&i, &q] {
+            // A scope short of memory for the whole sequence shortens the segments instead.
+            let short = (t.segment_len() as u64).saturating_add(1) < self.points;
+            if short
+                || t.segment_count() != self.segments as usize
+                || t.codes.len() != i.codes.len()
+            {
+                return Err(DriverError::NotApplied {
+                    instrument: self.scpi.name().to_string(),
+                    setting: "segments of the record (C1 and C2)",
+                    wanted: format!("{} of {} points", self.segments, self.points),
+                    applied: format!(
+                        "C{}: {} segments, {} points",
+                        t.channel,
+                        t.segment_count(),
+                        t.codes.len()
+                    ),
+                });
+            }
+        }
+        Ok(IqCapture { i, q })
+    }
+}
+
+/// A decoded WAVEDESC block in vendor-neutral terms; the `.trc` file bytes are kept beside.
+fn neutral(trace: Trace) -> ChannelTrace {
+    let segments = trace
+        .segments()
+        .map(|s| SegmentTiming {
+            trigger_time_s: s.trigger_time_s,
+            first_sample_s: s.trigger_offset_s,
         })
+        .collect();
+    let native = NativeFile {
+        extension: "trc",
+        bytes: Bytes::from(trace.trc_bytes()),
+    };
+    ChannelTrace {
+        channel: trace.channel,
+        volts_per_code: f64::from(trace.desc.vertical_gain),
+        offset_v: f64::from(trace.desc.vertical_offset),
+        sample_interval_s: trace.sample_interval_s(),
+        segments,
+        native: Some(native),
+        codes: trace.codes,
     }
 }
 
@@ -392,16 +503,14 @@ impl Digitizer for Lecroy {
         Box::pin(self.acquire_impl(wait_s))
     }
 
-    fn fetch(&mut self, channel: u8) -> BoxFuture<'_, Result<Trace, DriverError>> {
+    fn fetch(&mut self, channel: u8) -> BoxFuture<'_, Result<ChannelTrace, DriverError>> {
         Box::pin(self.fetch_impl(channel))
     }
 
     fn capture_iq(&mut self, wait_s: f64) -> BoxFuture<'_, Result<IqCapture, DriverError>> {
         Box::pin(async move {
             self.acquire_impl(wait_s).await?;
-            let i = self.fetch_impl(I_CHANNEL).await?;
-            let q = self.fetch_impl(Q_CHANNEL).await?;
-            Ok(IqCapture { i, q })
+            self.fetch_iq().await
         })
     }
 

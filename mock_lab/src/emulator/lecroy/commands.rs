@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use super::params::{channel_index, cmd_err, exe_err, one, text, value};
 use super::settings;
 use super::state::{HeaderMode, ScopeState, TriggerMode};
-use super::wavedesc::WAVEDESC_LEN;
+use super::wavedesc::{ByteOrder, WAVEDESC_LEN};
 use super::{Fault, Lecroy, WAVEDESC_INSTRUMENT_NAME};
 use crate::catalog::DigitizerModel;
 use crate::emulator::scpi::message::{unquote, Param, Unit};
@@ -468,9 +468,15 @@ fn query_waveform(scope: &Lecroy, call: &Call) -> Result<Option<Vec<u8>>, Fault>
     };
     let full = st.waveform(&scope.model, index, WAVEDESC_INSTRUMENT_NAME);
     let content = &full[11..];
+    // DAT1 is the data array alone: past the descriptor and a sequence's TRIGTIME array.
+    let trigtime: [u8; 4] = content[48..52].try_into().unwrap_or_default();
+    let trigtime = match st.order {
+        ByteOrder::LoFirst => u32::from_le_bytes(trigtime),
+        ByteOrder::HiFirst => u32::from_be_bytes(trigtime),
+    } as usize;
     let payload: &[u8] = match part.as_str() {
         "DESC" => &content[..WAVEDESC_LEN],
-        "DAT1" => &content[WAVEDESC_LEN..],
+        "DAT1" => &content[(WAVEDESC_LEN + trigtime).min(content.len())..],
         _ => content,
     };
     let (long, short) = call.names;

@@ -45,6 +45,28 @@ impl TriggerMode {
     }
 }
 
+/// How one acquisition records (`app.Acquisition.Horizontal.SampleMode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleMode {
+    /// One record per trigger.
+    RealTime,
+    /// `segments` records, one per trigger, read together (`WF? ALL`, TRIGTIME array).
+    Sequence,
+}
+
+impl SampleMode {
+    pub fn automation(self) -> &'static str {
+        match self {
+            SampleMode::RealTime => "RealTime",
+            SampleMode::Sequence => "Sequence",
+        }
+    }
+}
+
+/// Time the scope needs after a segment before it can trigger again \[I\]: a marker edge that
+/// comes sooner is missed, and the segment waits for the next one.
+pub const SEQUENCE_REARM_S: f64 = 1e-6;
+
 /// The remote-control protocol enabled on the scope (Utilities > Remote): only one at a time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -87,7 +109,11 @@ pub struct Acquisition {
     pub first_point_s: f64,
     pub hor_scale: f64,
     pub trigger_time: TriggerTimestamp,
+    /// Every segment's values one after the other (one segment unless in sequence mode).
     pub channels: Vec<Option<RecordedChannel>>,
+    /// Each segment's trigger time after the first segment's, seconds (one entry, 0, unless in
+    /// sequence mode).
+    pub segment_times: Vec<f64>,
     /// The acquisition was forced (FRTR / AUTO without an edge).
     pub forced: bool,
 }
@@ -118,6 +144,9 @@ pub struct ScopeState {
     pub max_samples: u64,
     pub maximize: String,
     pub requested_rate: f64,
+    pub sample_mode: SampleMode,
+    /// Segments per acquisition in sequence mode (`NumSegments`).
+    pub segments: u32,
     pub channels: Vec<ChannelSettings>,
     /// Sticky header path (`C1:`, `EX:` ...).
     pub path: String,
@@ -159,6 +188,8 @@ impl ScopeState {
             max_samples: l.max_points_per_channel,
             maximize: "SetMaximumMemory".into(),
             requested_rate: l.sample_rates[0],
+            sample_mode: SampleMode::RealTime,
+            segments: 10,
             channels: (0..l.channels)
                 .map(|_| ChannelSettings {
                     volts_per_div: l.volts_per_div_default,
@@ -187,17 +218,26 @@ impl ScopeState {
         model.limits.sample_rates[0]
     }
 
-    /// Points per channel for the current timebase: `divisions x s/div x rate`, capped by the
-    /// memory setting, the catalog and the emulator.
+    /// Points per channel (per segment in sequence mode) for the current timebase:
+    /// `divisions x s/div x rate`, capped by the memory setting and the catalog (which sequence
+    /// mode shares among its segments) and by the emulator's own limit per record.
     pub fn record_points(&self, model: &DigitizerModel) -> u64 {
         let l = &model.limits;
         let wanted = (f64::from(l.horizontal_divisions) * self.hor_scale * Self::sample_rate(model))
             .round()
             .max(1.0) as u64;
+        let memory = self.max_samples.min(l.max_points_per_channel);
         wanted
-            .min(self.max_samples)
-            .min(l.max_points_per_channel)
+            .min(memory / u64::from(self.segments_per_acquisition()))
             .min(EMULATOR_MAX_POINTS)
+    }
+
+    /// Triggers one acquisition records.
+    pub fn segments_per_acquisition(&self) -> u32 {
+        match self.sample_mode {
+            SampleMode::RealTime => 1,
+            SampleMode::Sequence => self.segments.max(1),
+        }
     }
 
     /// Time of the first point relative to the trigger: the trigger sits mid-grid at zero delay,
@@ -265,12 +305,14 @@ impl ScopeState {
         self.arm_id += 1;
     }
 
-    /// Stores a completed acquisition (quantised to the ADC) and updates the trigger state.
+    /// Stores a completed acquisition of one or more segments (quantised to the ADC; each
+    /// capture one segment, triggered at `segment_times`) and updates the trigger state.
     pub fn complete(
         &mut self,
         model: &DigitizerModel,
         request: &AcquisitionRequest,
-        capture: Capture,
+        captures: Vec<Capture>,
+        segment_times: Vec<f64>,
         forced: bool,
     ) {
         let l = &model.limits;
@@ -284,15 +326,14 @@ impl ScopeState {
                     return None;
                 }
                 let gain_word = settings.volts_per_div / (f64::from(l.codes_per_division) * 256.0);
-                let volts = capture.channels.get(i).cloned().flatten();
-                let values = (0..request.points)
-                    .map(|k| {
-                        let v = volts
-                            .as_ref()
-                            .and_then(|v| v.get(k))
-                            .copied()
-                            .unwrap_or(0.0);
-                        quantise(f64::from(v), settings.offset_v, gain_word, adc_step)
+                let values = captures
+                    .iter()
+                    .flat_map(|capture| {
+                        let volts = capture.channels.get(i).and_then(Option::as_ref);
+                        (0..request.points).map(move |k| {
+                            let v = volts.and_then(|v| v.get(k)).copied().unwrap_or(0.0);
+                            quantise(f64::from(v), settings.offset_v, gain_word, adc_step)
+                        })
                     })
                     .collect();
                 Some(RecordedChannel {
@@ -303,12 +344,17 @@ impl ScopeState {
                 })
             })
             .collect();
+        let trigger_time = captures
+            .first()
+            .map(|c| c.trigger_time)
+            .unwrap_or(NO_TRIGGER_TIME);
         self.acquisition = Some(Acquisition {
             sample_rate: request.sample_rate,
             first_point_s: request.first_point_s,
             hor_scale: self.hor_scale,
-            trigger_time: capture.trigger_time,
+            trigger_time,
             channels,
+            segment_times,
             forced,
         });
         self.new_acquisition = true;
@@ -357,23 +403,43 @@ impl ScopeState {
             .as_ref()
             .and_then(|a| a.channels.get(ch).cloned().flatten().map(|c| (a, c)));
         let sparsing = self.window.sparsing.max(1);
-        let (values, desc_base) = match &recorded {
+        // WFSU SN: 0 reads every segment of a sequence, k only the k-th (1-based) \[I\].
+        let (values, desc_base, trigger_times) = match &recorded {
             Some((acq, c)) => {
+                let count = acq.segment_times.len().max(1);
+                let seg_len = c.values.len() / count;
+                let chosen: Vec<usize> = match self.window.segment as usize {
+                    0 => (0..count).collect(),
+                    k if k <= count => vec![k - 1],
+                    _ => Vec::new(),
+                };
                 let first = self.window.first as usize;
-                let mut picked: Vec<i16> = c
-                    .values
-                    .iter()
-                    .skip(first)
-                    .step_by(sparsing as usize)
-                    .copied()
-                    .collect();
-                if self.window.points > 0 {
-                    picked.truncate(self.window.points as usize);
+                let mut picked = Vec::new();
+                for &k in &chosen {
+                    let segment = &c.values[k * seg_len..(k + 1) * seg_len];
+                    let mut part: Vec<i16> = segment
+                        .iter()
+                        .skip(first)
+                        .step_by(sparsing as usize)
+                        .copied()
+                        .collect();
+                    if self.window.points > 0 {
+                        part.truncate(self.window.points as usize);
+                    }
+                    picked.extend(part);
                 }
-                let total = c.values.len() as u32;
-                (picked, Some((acq, c, total)))
+                let offset = acq.first_point_s + f64::from(self.window.first) / acq.sample_rate;
+                let times = if acq.segment_times.len() > 1 {
+                    chosen
+                        .iter()
+                        .map(|&k| (acq.segment_times[k], offset))
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                (picked, Some((acq, c, seg_len as u32)), times)
             }
-            None => (Vec::new(), None),
+            None => (Vec::new(), None, Vec::new()),
         };
         let byte = self.width == SampleWidth::Byte;
         let word_to_desc = if byte { 256.0 } else { 1.0 };
@@ -396,14 +462,7 @@ impl ScopeState {
                     s.volts_per_div,
                     self.first_point_s(model),
                     self.hor_scale,
-                    TriggerTimestamp {
-                        seconds: 0.0,
-                        minutes: 0,
-                        hours: 0,
-                        day: 1,
-                        month: 1,
-                        year: 2026,
-                    },
+                    NO_TRIGGER_TIME,
                     0,
                 )
             }
@@ -422,6 +481,8 @@ impl ScopeState {
             first_point: self.window.first,
             sparsing,
             segment_index: self.window.segment,
+            subarray_count: trigger_times.len().max(1) as u32,
+            trigger_times,
             vertical_gain: gain as f32,
             vertical_offset: offset as f32,
             max_value,
@@ -441,6 +502,16 @@ impl ScopeState {
         waveform_block(&desc, &values)
     }
 }
+
+/// The trigger time written before any acquisition.
+const NO_TRIGGER_TIME: TriggerTimestamp = TriggerTimestamp {
+    seconds: 0.0,
+    minutes: 0,
+    hours: 0,
+    day: 1,
+    month: 1,
+    year: 2026,
+};
 
 /// Volts to a 16-bit scope value: `volts = gain * value - offset`, rounded to the ADC resolution
 /// and clipped to the ADC range.

@@ -51,6 +51,9 @@ pub struct Capture {
     pub channels: Vec<Option<Vec<f32>>>,
     /// When the trigger happened (written to WAVEDESC TRIGGER_TIME).
     pub trigger_time: TriggerTimestamp,
+    /// Time between one trigger edge and the next (the AWG's repetition period), when edges
+    /// repeat; a sequence-mode acquisition records one segment per edge it can catch.
+    pub edge_period_s: Option<f64>,
 }
 
 /// The scope's view of the bench.
@@ -150,6 +153,7 @@ impl TestSignal {
                 month: 1,
                 year: 2026,
             },
+            edge_period_s: None,
         }
     }
 }

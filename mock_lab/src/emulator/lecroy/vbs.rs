@@ -1,10 +1,11 @@
 //! The VBS automation statements a driver uses (instruments.md section 2.4):
 //! `VBS 'app.X.Y = value'` sets, `VBS? 'return = app.X.Y'` reads, `return = app.Acquisition.acquire(t, force)`
 //! arms, waits and answers 1 (triggered) or 0 (timed out). Property names are case-insensitive.
+//! `SampleMode = "Sequence"` with `NumSegments = N` makes one acquisition record N triggers.
 
 use std::time::{Duration, Instant};
 
-use super::state::{ScopeState, TriggerMode};
+use super::state::{SampleMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::{Fault, Lecroy};
 
@@ -98,7 +99,8 @@ impl Lecroy {
             "app.acquisition.horizontal.acquisitionduration" => {
                 vb_number(st.record_points(&self.model) as f64 / rate)
             }
-            "app.acquisition.horizontal.samplemode" => "RealTime".into(),
+            "app.acquisition.horizontal.samplemode" => st.sample_mode.automation().into(),
+            "app.acquisition.horizontal.numsegments" => st.segments.to_string(),
             "app.acquisition.triggermode" => st.trigger_mode.automation().into(),
             "app.acquisition.trigger.type" => "Edge".into(),
             "app.acquisition.trigger.source" => automation_source(&st.trigger_source),
@@ -194,9 +196,25 @@ impl Lecroy {
             }
             "app.acquisition.horizontal.samplemode" => {
                 let v = literal(rhs);
-                if !v.eq_ignore_ascii_case("realtime") {
-                    return Err(not_implemented(&format!("SampleMode {v}")));
+                st.sample_mode = match v.to_ascii_lowercase().as_str() {
+                    "realtime" => SampleMode::RealTime,
+                    "sequence" if limits.max_sequence_segments > 1 => SampleMode::Sequence,
+                    "sequence" => return Err(not_implemented("SampleMode Sequence on this model")),
+                    _ => return Err(not_implemented(&format!("SampleMode {v}"))),
+                };
+            }
+            "app.acquisition.horizontal.numsegments" => {
+                let v = number(lhs, rhs)?;
+                if v.fract() != 0.0 {
+                    return Err(bad_value(lhs, rhs));
                 }
+                // The scope adapts a count out of range to the nearest it can do.
+                let max = f64::from(limits.max_sequence_segments.max(2));
+                let clamped = v.clamp(2.0, max);
+                if clamped != v {
+                    st.value_adapted = true;
+                }
+                st.segments = clamped as u32;
             }
             "app.acquisition.triggermode" => {
                 let v = literal(rhs);

@@ -44,6 +44,11 @@ pub struct WaveDesc {
     pub first_point: u32,
     pub sparsing: u32,
     pub segment_index: u32,
+    /// Segments in the data array (SUBARRAY_COUNT); 1 unless in sequence mode.
+    pub subarray_count: u32,
+    /// The TRIGTIME array: per segment, the trigger time after the first segment's and the time
+    /// from that trigger to the segment's first point, seconds (empty unless in sequence mode).
+    pub trigger_times: Vec<(f64, f64)>,
     pub vertical_gain: f32,
     pub vertical_offset: f32,
     pub max_value: f32,
@@ -63,6 +68,24 @@ pub struct WaveDesc {
 }
 
 impl WaveDesc {
+    /// Bytes of the TRIGTIME array: two f64 per entry.
+    pub fn trigtime_bytes(&self) -> u32 {
+        u32::try_from(self.trigger_times.len() * 16).unwrap_or(u32::MAX)
+    }
+
+    /// The TRIGTIME array in the descriptor's byte order.
+    fn trigtime_array(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.trigtime_bytes() as usize);
+        for &(time, offset) in &self.trigger_times {
+            for v in [time, offset] {
+                out.extend_from_slice(&match self.order {
+                    ByteOrder::HiFirst => v.to_be_bytes(),
+                    ByteOrder::LoFirst => v.to_le_bytes(),
+                });
+            }
+        }
+        out
+    }
     /// Bytes of data array 1.
     pub fn array_bytes(&self) -> u32 {
         match self.width {
@@ -132,7 +155,7 @@ pub fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
     w.i32(36, WAVEDESC_LEN as i32); // WAVE_DESCRIPTOR
     w.i32(40, 0); // USER_TEXT
     w.i32(44, 0); // RES_DESC1
-    w.i32(48, 0); // TRIGTIME_ARRAY
+    w.u32(48, d.trigtime_bytes()); // TRIGTIME_ARRAY
     w.i32(52, 0); // RIS_TIME_ARRAY
     w.i32(56, 0); // RES_ARRAY1
     w.u32(60, d.array_bytes()); // WAVE_ARRAY_1
@@ -149,7 +172,7 @@ pub fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
     w.u32(132, d.first_point);
     w.u32(136, d.sparsing);
     w.u32(140, d.segment_index);
-    w.i32(144, 1); // SUBARRAY_COUNT
+    w.u32(144, d.subarray_count.max(1)); // SUBARRAY_COUNT
     w.i32(148, 1); // SWEEPS_PER_ACQ
     w.i16(152, 0); // POINTS_PER_PAIR
     w.i16(154, 0); // PAIR_OFFSET
@@ -158,7 +181,10 @@ pub fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
     w.f32(164, d.max_value);
     w.f32(168, d.min_value);
     w.i16(172, d.nominal_bits);
-    w.i16(174, 1); // NOM_SUBARRAY_COUNT
+    w.i16(
+        174,
+        i16::try_from(d.subarray_count.max(1)).unwrap_or(i16::MAX),
+    ); // NOM_SUBARRAY_COUNT
     w.f32(176, d.horiz_interval);
     w.f64(180, d.horiz_offset);
     w.f64(188, d.pixel_offset);
@@ -206,10 +232,13 @@ pub fn encode_samples(values: &[i16], width: SampleWidth, order: ByteOrder) -> V
 /// `#9<9 digits>` + WAVEDESC + data array: the block of `WF? ALL` and the content of a `.trc` file.
 pub fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
     let data = encode_samples(values, desc.width, desc.order);
-    let len = WAVEDESC_LEN + data.len();
+    let trigtime = desc.trigtime_array();
+    let len = WAVEDESC_LEN + trigtime.len() + data.len();
     let mut out = Vec::with_capacity(11 + len);
     out.extend_from_slice(format!("#9{len:09}").as_bytes());
     out.extend_from_slice(&encode(desc));
+    // Array order after the descriptor: USER_TEXT (none), TRIGTIME, RIS_TIME (none), data.
+    out.extend_from_slice(&trigtime);
     out.extend_from_slice(&data);
     out
 }
