@@ -9,6 +9,7 @@
 //! | [`limits`] | settings checked against the catalog's limits before anything is sent |
 //! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
 //! | [`trace`] | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
+//! | [`fault`] | [`FaultyIo`]: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests |
 //! | [`m8195a`] | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
 //! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
@@ -49,6 +50,7 @@
 
 pub mod capability;
 pub mod error;
+pub mod fault;
 pub mod gotmic;
 pub mod identity;
 pub mod io;
@@ -70,6 +72,7 @@ pub use capability::{
     LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry, Slope,
 };
 pub use error::DriverError;
+pub use fault::{FaultCounts, FaultPlan, FaultSwitch, FaultyIo};
 pub use gotmic::Gotmic;
 pub use io::{BoxFuture, InstrumentIo};
 pub use lecroy::Lecroy;

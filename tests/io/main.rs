@@ -9,6 +9,7 @@ mod driver_support;
 mod io_support;
 
 mod driver_emulator;
+mod driver_faults;
 mod driver_io;
 mod driver_scripted;
 mod driver_second_scope;
