@@ -7,10 +7,8 @@ use super::results::{AlgorithmResult, Results, StepResult};
 use super::run::{self, Finished, NewRun, Observer};
 use super::spec::SpecFile;
 use super::CampaignError;
-use crate::catalog::Catalog;
 use crate::driver::RfPermit;
 use crate::measure::interrupt::Interrupt;
-use crate::measure::MeasureError;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -64,11 +62,10 @@ pub async fn thesis_lab(
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
 ) -> Result<Vec<LabRow>, CampaignError> {
-    let catalog = Catalog::embedded().map_err(MeasureError::from)?;
     let mut runs = Vec::new();
     for kind in ["single-target", "accuracy", "resolution", "music"] {
         let spec = spec(kind).expect("a built-in spec parses (tested)");
-        let bench = BenchInfo::load(&spec, None, &catalog)?;
+        let bench = BenchInfo::load(&spec, None)?;
         let plan = plan::plan(&spec, &bench)?;
         let dir = out.join(kind);
         observer.note(&format!(
@@ -320,10 +317,9 @@ mod tests {
 
     #[test]
     fn every_template_is_a_valid_spec_that_plans_on_the_built_in_lab() {
-        let catalog = Catalog::embedded().unwrap();
         for (kind, _) in TEMPLATES {
             let s = spec(kind).unwrap_or_else(|| panic!("{kind} parses"));
-            let bench = BenchInfo::load(&s, None, &catalog).unwrap();
+            let bench = BenchInfo::load(&s, None).unwrap();
             let p = plan::plan(&s, &bench).unwrap_or_else(|e| panic!("{kind}: {e}"));
             assert_eq!(p.name, kind);
             assert!(!p.steps.is_empty());

@@ -203,7 +203,6 @@ impl BenchInfo {
     pub fn load(
         spec: &SpecFile,
         bench_override: Option<&Path>,
-        catalog: &Catalog,
     ) -> Result<BenchInfo, CampaignError> {
         let section = &spec.spec.bench;
         let file = match bench_override {
@@ -225,7 +224,8 @@ impl BenchInfo {
         built_in_only("scene", section.scene.is_some())?;
         built_in_only("awg_transport", section.awg_transport.is_some())?;
         built_in_only("scope_transport", section.scope_transport.is_some())?;
-        let tx_range = |entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
+        // The Tx attenuation range the model's register allows, from the bench's catalog.
+        let tx_range = |catalog: &Catalog, entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
             let model = catalog.get(&entry.as_ref()?.model).ok()?;
             let step = model.rf.as_ref()?.attenuation_step_db;
             let reg = model.registers.iter().find(|r| r.name == "GAIN_ATT")?;
@@ -237,9 +237,12 @@ impl BenchInfo {
         match file {
             Some(path) => {
                 let bench = BenchFile::load(&path).map_err(crate::measure::MeasureError::from)?;
+                let catalog = bench
+                    .catalog()
+                    .map_err(crate::measure::MeasureError::from)?;
                 let path = std::path::absolute(&path).unwrap_or(path);
                 Ok(BenchInfo {
-                    tx_attenuation_db: tx_range(&bench.tx),
+                    tx_attenuation_db: tx_range(&catalog, &bench.tx),
                     simulated: bench.simulation.is_some(),
                     file: Some((path, bench)),
                     scene: None,
@@ -260,8 +263,9 @@ impl BenchInfo {
                     None => Scene::default(),
                 };
                 let file = built_in_bench_file(&scene);
+                let catalog = Catalog::embedded().map_err(crate::measure::MeasureError::from)?;
                 Ok(BenchInfo {
-                    tx_attenuation_db: tx_range(&file.tx),
+                    tx_attenuation_db: tx_range(&catalog, &file.tx),
                     file: None,
                     scene: Some(scene),
                     awg_transport: Some(section.awg_transport.unwrap_or(AwgTransportName::Hislip)),
@@ -271,6 +275,14 @@ impl BenchInfo {
                     simulated: true,
                 })
             }
+        }
+    }
+
+    /// The instrument catalog of this bench (the bench file's, or the built-in one).
+    pub fn catalog(&self) -> Result<Catalog, crate::catalog::CatalogError> {
+        match &self.file {
+            Some((_, f)) => f.catalog(),
+            None => Catalog::embedded(),
         }
     }
 
@@ -293,6 +305,7 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
         attenuation_db: None,
     };
     BenchFile {
+        catalog: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
         scope: entry(BUILT_IN_MODELS[1], "VICP::127.0.0.1"),
         tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
@@ -1084,8 +1097,7 @@ mod tests {
 
     fn plan_of(text: &str) -> Result<Plan, SpecError> {
         let spec = SpecFile::parse(text, Path::new("t.toml")).unwrap();
-        let catalog = Catalog::embedded().unwrap();
-        let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+        let bench = BenchInfo::load(&spec, None).unwrap();
         plan(&spec, &bench)
     }
 

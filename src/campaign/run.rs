@@ -137,7 +137,7 @@ pub struct NewRun {
 /// come back as `Err`; once it exists, every stop is recorded and returned in [`Finished`].
 pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished, CampaignError> {
     let t_prepare = Instant::now();
-    let catalog = Catalog::embedded().map_err(MeasureError::from)?;
+    let catalog = run.bench.catalog().map_err(MeasureError::from)?;
     let prepared = prepare_all(&run.plan, &run.bench, &catalog).await?;
     let prepare_s = t_prepare.elapsed().as_secs_f64();
     let t0 = Instant::now();
@@ -288,7 +288,7 @@ pub async fn resume(
         simulated: plan.bench.simulated,
         tx_attenuation_db: None,
     };
-    let catalog = Catalog::embedded().map_err(MeasureError::from)?;
+    let catalog = info.catalog().map_err(MeasureError::from)?;
     let t_prepare = Instant::now();
     let prepared = prepare_all(&plan, &info, &catalog).await?;
     let prepare_s = t_prepare.elapsed().as_secs_f64();
@@ -683,12 +683,12 @@ impl Runner {
             self.connection = None;
             let scene = self.step_scene(step).unwrap_or_default();
             let bench = Bench::open(BenchSource::BuiltIn(self.plan.bench.built_in(scene))).await?;
-            let rig = Rig::connect(&bench, &catalog()?, self.journal.clone()).await?;
+            let rig = Rig::connect(&bench, &catalog(&bench)?, self.journal.clone()).await?;
             self.connection = Some(Connection { bench, rig });
         } else if self.connection.is_none() {
             let path = self.plan.bench.file.clone().expect("a bench file");
             let bench = Bench::open(BenchSource::File(path)).await?;
-            let rig = Rig::connect(&bench, &catalog()?, self.journal.clone()).await?;
+            let rig = Rig::connect(&bench, &catalog(&bench)?, self.journal.clone()).await?;
             self.connection = Some(Connection { bench, rig });
         }
         if self.plan.bench.simulated && self.reseed.is_none() {
@@ -1052,8 +1052,9 @@ fn error_chain(e: &dyn std::error::Error) -> String {
     out
 }
 
-fn catalog() -> Result<Catalog, CampaignError> {
-    Ok(Catalog::embedded().map_err(MeasureError::from)?)
+/// The bench's instrument catalog (its file's `catalog` folder over the built-in models).
+fn catalog(bench: &Bench) -> Result<Catalog, CampaignError> {
+    Ok(bench.file.catalog().map_err(MeasureError::from)?)
 }
 
 /// Writes a step's files: the raw capture and the primary algorithm's profiles in the step's

@@ -7,7 +7,6 @@ use crate::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
 use crate::campaign::results::{AlgorithmResult, TargetResult, Truth};
 use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
 use crate::campaign::{report, CampaignError, SpecFile};
-use crate::catalog::Catalog;
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::measure::bench::Bench;
@@ -312,8 +311,8 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
 
 async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     let spec = SpecFile::load(&a.spec)?;
-    let catalog = Catalog::embedded()?;
-    let bench = BenchInfo::load(&spec, a.bench.as_deref(), &catalog)?;
+    let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
+    let catalog = bench.catalog()?;
     let plan = plan::plan(&spec, &bench)?;
     if a.dry_run {
         let prepared = run::prepare_all(&plan, &bench, &catalog).await?;

@@ -63,7 +63,7 @@ impl Bench {
         match source {
             BenchSource::File(path) => {
                 let file = BenchFile::load(&path)?;
-                file.check_models(&crate::catalog::Catalog::embedded()?)?;
+                file.check_models(&file.catalog()?)?;
                 Ok(Bench {
                     file,
                     path: Some(path),

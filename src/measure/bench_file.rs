@@ -1,6 +1,8 @@
 //! The bench file: which instrument is where, and the bench's calibration.
 //!
 //! ```toml
+//! catalog = "my-instruments"                      # optional: instrument files of your own
+//!
 //! [awg]
 //! model = "keysight-m8195a"                       # a key of the instrument catalog
 //! resource = "TCPIP::192.168.1.20::hislip0::INSTR"
@@ -74,6 +76,10 @@ pub struct Calibration {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BenchFile {
+    /// A folder of instrument files (`*.toml` as in `instruments/`, relative to the bench file)
+    /// that extends the built-in catalog, or overrides a built-in model of the same key.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub catalog: Option<PathBuf>,
     pub awg: InstrumentEntry,
     pub scope: InstrumentEntry,
     #[serde(default)]
@@ -204,6 +210,16 @@ impl BenchFile {
             }
         }
         Ok(bench)
+    }
+
+    /// The instrument catalog of this bench: the built-in models, extended and overridden by the
+    /// files of its `catalog` folder when it names one.
+    pub fn catalog(&self) -> Result<crate::catalog::Catalog, crate::catalog::CatalogError> {
+        let dir = self.catalog.as_ref().map(|dir| {
+            let base = self.path.parent().unwrap_or(Path::new("."));
+            base.join(dir)
+        });
+        crate::catalog::Catalog::load(dir.as_deref())
     }
 
     /// Checks that every model names an instrument of the catalog of the right kind; the error

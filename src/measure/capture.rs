@@ -440,7 +440,7 @@ pub async fn measure(
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
     check_repetitions(repetitions)?;
-    let catalog = Catalog::embedded()?;
+    let catalog = bench.file.catalog()?;
     let mut prepared = prepare(bench, &catalog, request).await?;
     let mut rig = Rig::connect(bench, &catalog, journal).await?;
     rig.measure(bench, &mut prepared, repetitions, permit, interrupt)

@@ -7,7 +7,6 @@ use radbench::campaign::manifest::{Manifest, Status};
 use radbench::campaign::plan::{self, BenchInfo, Step};
 use radbench::campaign::run::{self, NewRun, Observer, Quiet};
 use radbench::campaign::SpecFile;
-use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
 use radbench::exit::Classify;
 use radbench::measure::bench::Bench;
@@ -319,8 +318,7 @@ async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let spec = SpecFile::load(&example("accuracy.toml")).unwrap();
-    let catalog = Catalog::embedded().unwrap();
-    let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+    let bench = BenchInfo::load(&spec, None).unwrap();
     let plan = plan::plan(&spec, &bench).unwrap();
     let mut saboteur = DropAwgLink { at: 4, lab: None };
     let finished = tokio::time::timeout(
@@ -619,8 +617,7 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
          [sweep]\nparameter = \"position\"\nvalues = [1.0, 0.97, 0.94]\n",
     );
     let spec = SpecFile::load(&spec_path).unwrap();
-    let catalog = Catalog::embedded().unwrap();
-    let bench = BenchInfo::load(&spec, None, &catalog).unwrap();
+    let bench = BenchInfo::load(&spec, None).unwrap();
     let plan = plan::plan(&spec, &bench).unwrap();
     let out = dir.path().join("run");
     let finished = tokio::time::timeout(

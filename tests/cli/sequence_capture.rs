@@ -134,3 +134,67 @@ async fn more_repetitions_than_segments_split_into_even_sequences() {
     assert_eq!(m.repetitions.len(), 5);
     pillar_at_1_m(&m);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bench_files_own_catalog_folder_is_what_the_capture_uses() {
+    use mock_lab::server::launch::Transport;
+    let lab = tokio::time::timeout(
+        Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("lab starts")
+    .expect("lab starts");
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("my-instruments");
+    std::fs::create_dir(&folder).unwrap();
+    // The folder overrides the built-in LabMaster: no sequence mode.
+    catalog(&folder, 0);
+    let bench = dir.path().join("bench.toml");
+    let text = format!(
+        "catalog = \"my-instruments\"\n{}",
+        lab.bench_toml(Transport::Hislip, Transport::Vicp)
+    );
+    std::fs::write(&bench, text).unwrap();
+    let journal = dir.path().join("io.jsonl");
+    let scope = lab.bench.scope.clone();
+    scope.log().clear();
+    let (code, _, err) = crate::support::radbench_in(
+        None,
+        &[
+            "--trace-io",
+            journal.to_str().unwrap(),
+            "capture",
+            "--allow-rf",
+            "--json",
+            "--repetitions",
+            "2",
+            "--bench",
+            bench.to_str().unwrap(),
+            "--out",
+            dir.path().join("out").to_str().unwrap(),
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let log = scope.log().texts();
+    assert_eq!(count(&log, "Sequence"), 0, "{log:?}");
+    assert_eq!(count(&log, "ARM"), 2, "two acquisitions: {log:?}");
+
+    // A folder that does not exist is named, with the bench file.
+    std::fs::write(
+        &bench,
+        format!(
+            "catalog = \"nowhere\"\n{}",
+            lab.bench_toml(Transport::Hislip, Transport::Vicp)
+        ),
+    )
+    .unwrap();
+    let (code, _, err) = crate::support::radbench_in(
+        None,
+        &["capture", "--allow-rf", "--bench", bench.to_str().unwrap()],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("nowhere"), "{err}");
+}
