@@ -134,6 +134,24 @@ enum Request {
 pub struct SerialLink {
     device: String,
     requests: mpsc::Sender<Request>,
+    /// Disconnects once the serial thread has let go of the port (in a mutex only so the link
+    /// is `Sync`; drop reaches it without locking).
+    released: std::sync::Mutex<mpsc::Receiver<()>>,
+}
+
+/// How long dropping a link waits for its thread to let go of the port (only a request still
+/// under way makes it wait at all).
+const RELEASE_WAIT: Duration = Duration::from_secs(1);
+
+impl Drop for SerialLink {
+    /// Lets the serial thread go and waits (bounded) until it has closed the port, so dropping
+    /// a session and opening the same device again does not meet the exclusive lock.
+    fn drop(&mut self) {
+        let (idle, _) = mpsc::channel();
+        drop(std::mem::replace(&mut self.requests, idle));
+        let released = self.released.get_mut().unwrap_or_else(|p| p.into_inner());
+        let _ = released.recv_timeout(RELEASE_WAIT);
+    }
 }
 
 impl SerialLink {
@@ -164,10 +182,15 @@ impl SerialLink {
     ) -> Result<Self, LinkError> {
         let limit = limit.min(MAX_MESSAGE);
         let (tx, rx) = mpsc::channel();
+        let (released_tx, released) = mpsc::channel::<()>();
         let name = device.clone();
         std::thread::Builder::new()
             .name(format!("serial {device}"))
-            .spawn(move || serve(port, rx, name, limit))
+            .spawn(move || {
+                serve(port, rx, name, limit);
+                // The port is closed once serve returns: the link's drop may go on.
+                drop(released_tx);
+            })
             .map_err(|e| LinkError::Serial {
                 device: device.clone(),
                 detail: format!("cannot start the serial thread: {e}"),
@@ -175,6 +198,7 @@ impl SerialLink {
         Ok(Self {
             device,
             requests: tx,
+            released: std::sync::Mutex::new(released),
         })
     }
 
