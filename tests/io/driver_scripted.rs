@@ -302,18 +302,7 @@ async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
         pre_trigger_s: 0.0,
         ..DigitizerSettings::default()
     };
-    let fake = Scripted::new("scope")
-        .reply_times("CMR?", "0", 7)
-        .reply_times("EXR?", "0", 7)
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
-            "80000000000",
-        )
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
-            "VBS 1.024e-7",
-        );
-    let (mut scope, log) = scope(fake).await;
+    let (mut scope, log) = scope(configure_replies(Scripted::new("scope"))).await;
     let applied = bounded(scope.configure(&settings)).await.unwrap();
     assert_eq!(
         log.ops(),
@@ -358,6 +347,21 @@ async fn lecroy_configure_sets_format_rate_record_and_external_trigger() {
     log.assert_no_surprises();
 }
 
+/// What a healthy scope answers while it is configured for a 1.024 us record at 80 GSa/s: clean
+/// error registers after each batch, and the rate and scale read back.
+fn configure_replies(fake: Scripted) -> Scripted {
+    fake.reply_times("CMR?", "0", 7)
+        .reply_times("EXR?", "0", 7)
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
+            "80000000000",
+        )
+        .reply(
+            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
+            "VBS 1.024e-7",
+        )
+}
+
 /// Configures `settings` on a scripted scope: refused as bad input, nothing sent.
 async fn scope_refuses(settings: DigitizerSettings, field: &str) {
     let (mut scope, log) = scope(Scripted::new("scope")).await;
@@ -399,19 +403,15 @@ async fn lecroy_refuses_a_trigger_level_outside_the_catalog() {
 
 #[tokio::test]
 async fn lecroy_refuses_segments_beyond_the_catalog_or_its_memory() {
-    for segments in [0, 15_001] {
+    // None; more than the catalog's 15 000; 41 records of 10 us (800 000 points) where 32
+    // Mpoints hold 40.
+    for segments in [0, 15_001, 41] {
         let settings = DigitizerSettings {
             segments,
             ..DigitizerSettings::default()
         };
         scope_refuses(settings, "segments").await;
     }
-    // 10 us records (800 000 points) fit 40 times in 32 Mpoints, not 41 times.
-    let settings = DigitizerSettings {
-        segments: 41,
-        ..DigitizerSettings::default()
-    };
-    scope_refuses(settings, "segments").await;
 }
 
 #[tokio::test]
@@ -437,24 +437,8 @@ async fn lecroy_without_sequence_mode_in_the_catalog_refuses_segments() {
 
 #[tokio::test]
 async fn lecroy_sequence_sets_the_mode_reads_back_the_count_and_splits_the_segments() {
-    let settings = DigitizerSettings {
-        repetition_s: 1.0e-6,
-        longest_echo_s: 0.024e-6,
-        segments: 3,
-        ..DigitizerSettings::default()
-    };
-    let fake = Scripted::new("scope")
-        .reply_times("CMR?", "0", 7)
-        .reply_times("EXR?", "0", 7)
-        .reply(SEGMENTS_QUERY, "VBS 3")
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
-            "80000000000",
-        )
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
-            "VBS 1.024e-7",
-        );
+    let settings = sequence_settings();
+    let fake = configure_replies(Scripted::new("scope")).reply(SEGMENTS_QUERY, "VBS 3");
     let (mut scope, log) = scope(fake).await;
     let applied = bounded(scope.configure(&settings)).await.unwrap();
     assert_eq!(applied.segments, 3);
@@ -477,15 +461,8 @@ async fn lecroy_sequence_sets_the_mode_reads_back_the_count_and_splits_the_segme
 
     // One acquisition, one block per channel holding the three segments and their trigger times.
     let codes: Vec<i16> = (0..3 * 81_920).map(|k| (k % 100) as i16).collect();
-    let times = vec![(0.0, -1e-9), (2e-6, -1e-9), (4e-6, -1e-9)];
-    let fake_reply = |source| sequence_reply(&codes, &times, source);
-    let fake = Scripted::new("scope")
-        .reply("INR?", "0")
-        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
-        .reply("INR?", "1")
-        .reply_block("C1:WF? ALL", fake_reply(0))
-        .reply_block("C2:WF? ALL", fake_reply(1));
-    let (mut scope, _) = sequenced(fake, &settings).await;
+    let times = [(0.0, -1e-9), (2e-6, -1e-9), (4e-6, -1e-9)];
+    let mut scope = sequence_capture(&codes, &times).await;
     let capture = bounded(scope.capture_iq(2.0)).await.unwrap();
     assert_eq!(capture.segments(), 3);
     assert_eq!(capture.i.segment_len(), 81_920);
@@ -497,21 +474,8 @@ async fn lecroy_sequence_sets_the_mode_reads_back_the_count_and_splits_the_segme
 
 #[tokio::test]
 async fn lecroy_sequence_with_missing_segments_is_not_taken_for_a_full_one() {
-    let settings = DigitizerSettings {
-        repetition_s: 1.0e-6,
-        longest_echo_s: 0.024e-6,
-        segments: 3,
-        ..DigitizerSettings::default()
-    };
     let codes: Vec<i16> = vec![7; 2 * 81_920];
-    let times = vec![(0.0, 0.0), (2e-6, 0.0)];
-    let fake = Scripted::new("scope")
-        .reply("INR?", "0")
-        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
-        .reply("INR?", "1")
-        .reply_block("C1:WF? ALL", sequence_reply(&codes, &times, 0))
-        .reply_block("C2:WF? ALL", sequence_reply(&codes, &times, 1));
-    let (mut scope, _) = sequenced(fake, &settings).await;
+    let mut scope = sequence_capture(&codes, &[(0.0, 0.0), (2e-6, 0.0)]).await;
     let e = bounded(scope.capture_iq(2.0)).await.unwrap_err();
     assert!(matches!(e, DriverError::NotApplied { .. }), "{e}");
     assert!(e.to_string().contains("2 segments"), "{e}");
@@ -519,18 +483,7 @@ async fn lecroy_sequence_with_missing_segments_is_not_taken_for_a_full_one() {
 
 /// A scope configured for `settings` (a sequence), then scripted with `fake`'s exchanges.
 async fn sequenced(fake: Scripted, settings: &DigitizerSettings) -> (Lecroy, ScriptLog) {
-    let fake = fake
-        .reply_times("CMR?", "0", 7)
-        .reply_times("EXR?", "0", 7)
-        .reply(SEGMENTS_QUERY, &settings.segments.to_string())
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'",
-            "80000000000",
-        )
-        .reply(
-            "VBS? 'return = app.Acquisition.Horizontal.HorScale'",
-            "1.024e-7",
-        );
+    let fake = configure_replies(fake).reply(SEGMENTS_QUERY, &settings.segments.to_string());
     let (mut scope, log) = scope(fake).await;
     bounded(scope.configure(settings)).await.unwrap();
     log.clear();
@@ -539,27 +492,51 @@ async fn sequenced(fake: Scripted, settings: &DigitizerSettings) -> (Lecroy, Scr
 
 const SEGMENTS_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.NumSegments'";
 
-fn sequence_reply(codes: &[i16], times: &[(f64, f64)], source: i16) -> Vec<u8> {
-    let block = BlockBuilder {
-        source,
-        segments: times.to_vec(),
-        ..BlockBuilder::default()
+/// A three-segment sequence of 1.024 us records.
+fn sequence_settings() -> DigitizerSettings {
+    DigitizerSettings {
+        repetition_s: 1.0e-6,
+        longest_echo_s: 0.024e-6,
+        segments: 3,
+        ..DigitizerSettings::default()
     }
-    .build(codes);
-    let mut reply = format!("ALL,#9{:09}", block.len()).into_bytes();
-    reply.extend_from_slice(&block);
-    reply.push(b'\n');
-    reply
+}
+
+/// A sequence-configured scope whose one acquisition returns `codes` in the segments `times`
+/// describe, on both channels.
+async fn sequence_capture(codes: &[i16], times: &[(f64, f64)]) -> Lecroy {
+    let reply = |source| {
+        block_reply(
+            BlockBuilder {
+                source,
+                segments: times.to_vec(),
+                ..BlockBuilder::default()
+            },
+            codes,
+        )
+    };
+    let fake = Scripted::new("scope")
+        .reply("INR?", "0")
+        .reply("TRMD SINGLE;ARM;WAIT 2;*OPC?", "1")
+        .reply("INR?", "1")
+        .reply_block("C1:WF? ALL", reply(0))
+        .reply_block("C2:WF? ALL", reply(1));
+    sequenced(fake, &sequence_settings()).await.0
 }
 
 fn wf_reply(codes: &[i16], source: i16) -> Vec<u8> {
-    let block = BlockBuilder {
+    let builder = BlockBuilder {
         gain: 0.002,
         offset: 0.1,
         source,
         ..BlockBuilder::default()
-    }
-    .build(codes);
+    };
+    block_reply(builder, codes)
+}
+
+/// The scope's `WF? ALL` reply carrying `builder`'s block of `codes`.
+fn block_reply(builder: BlockBuilder, codes: &[i16]) -> Vec<u8> {
+    let block = builder.build(codes);
     let mut reply = format!("ALL,#9{:09}", block.len()).into_bytes();
     reply.extend_from_slice(&block);
     reply.push(b'\n');
