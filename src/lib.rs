@@ -106,6 +106,8 @@
 //! # }
 //! ```
 
+#![warn(unreachable_pub)]
+
 pub mod address;
 pub mod campaign;
 pub mod catalog;

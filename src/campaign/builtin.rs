@@ -14,7 +14,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The kinds `radbench campaign new` knows, with their spec text.
-pub const TEMPLATES: [(&str, &str); 5] = [
+pub(crate) const TEMPLATES: [(&str, &str); 5] = [
     ("accuracy", include_str!("../../examples/accuracy.toml")),
     ("resolution", include_str!("../../examples/resolution.toml")),
     (
@@ -26,24 +26,24 @@ pub const TEMPLATES: [(&str, &str); 5] = [
 ];
 
 /// The commented spec of a kind.
-pub fn template(kind: &str) -> Option<&'static str> {
+pub(crate) fn template(kind: &str) -> Option<&'static str> {
     TEMPLATES.iter().find(|(k, _)| *k == kind).map(|(_, t)| *t)
 }
 
 /// The kinds, for messages.
-pub fn kinds() -> Vec<&'static str> {
+pub(crate) fn kinds() -> Vec<&'static str> {
     TEMPLATES.iter().map(|(k, _)| *k).collect()
 }
 
 /// A built-in spec, parsed (its path names it in messages; it refers to no other file).
-pub fn spec(kind: &str) -> Option<SpecFile> {
+pub(crate) fn spec(kind: &str) -> Option<SpecFile> {
     let text = template(kind)?;
     SpecFile::parse(text, Path::new(&format!("built-in:{kind}.toml"))).ok()
 }
 
 /// One row of the lab-chapter table.
 #[derive(Debug, Clone, Serialize)]
-pub struct LabRow {
+pub(crate) struct LabRow {
     pub section: &'static str,
     pub scenario: String,
     pub thesis: String,
@@ -57,7 +57,7 @@ pub struct LabRow {
 
 /// Runs the thesis' lab chapter (4.4.1, 4.4.2, 4.4.3 at 1 and 2 GHz, 4.5.1, 4.5.2) on the built-in
 /// mock lab, one run folder per campaign under `out`.
-pub async fn thesis_lab(
+pub(crate) async fn thesis_lab(
     out: &Path,
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
@@ -276,7 +276,7 @@ fn width_psl_row(
 }
 
 /// The table for the terminal.
-pub fn lab_table(rows: &[LabRow]) -> String {
+pub(crate) fn lab_table(rows: &[LabRow]) -> String {
     let width = |head: &str, f: &dyn Fn(&LabRow) -> usize| {
         rows.iter().map(f).max().unwrap_or(0).max(head.len())
     };

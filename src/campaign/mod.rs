@@ -4,23 +4,23 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`spec`] | the spec file: serde with unknown fields refused, errors at file:line:field |
+//! | `spec` | the spec file: serde with unknown fields refused, errors at file:line:field |
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
-//! | [`positioner`] | who places the targets: the mock lab, the operator (prompt), a program |
+//! | `positioner` | who places the targets: the mock lab, the operator (prompt), a program |
 //! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
 //! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth |
 //! | [`run`] | executing a plan into a run folder, and resuming one |
 //! | [`report`] | the run's `report.md` and `report.html` (plots inline) |
-//! | [`builtin`] | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
+//! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 
-pub mod builtin;
+pub(crate) mod builtin;
 pub mod manifest;
 pub mod plan;
-pub mod positioner;
+pub(crate) mod positioner;
 pub mod report;
 pub mod results;
 pub mod run;
-pub mod spec;
+pub(crate) mod spec;
 
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};

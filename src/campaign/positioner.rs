@@ -53,7 +53,7 @@ impl LineSource {
 }
 
 /// The campaign's positioner.
-pub struct Positioner {
+pub(crate) struct Positioner {
     plan: PositionerPlan,
     input: Option<LineSource>,
     /// Where prompts go (standard error in the CLI, so standard output keeps its JSON).
@@ -62,7 +62,7 @@ pub struct Positioner {
 
 impl Positioner {
     /// A positioner of `plan`; `input` feeds the prompt (standard input when `None`).
-    pub fn new(plan: PositionerPlan, input: Option<LineSource>) -> Positioner {
+    pub(crate) fn new(plan: PositionerPlan, input: Option<LineSource>) -> Positioner {
         Positioner {
             plan,
             input,
@@ -70,13 +70,13 @@ impl Positioner {
         }
     }
 
-    pub fn kind(&self) -> PositionerKind {
+    pub(crate) fn kind(&self) -> PositionerKind {
         self.plan.kind
     }
 
     /// Places the targets at `ranges` for step `step` of `of`. The mock lab's targets are set by
     /// the runner with the step's scene; this waits for the operator or runs the program.
-    pub async fn place(
+    pub(crate) async fn place(
         &mut self,
         ranges: &[f64],
         step: usize,

@@ -492,7 +492,7 @@ fn field_at(text: &str, offset: usize) -> Option<String> {
 }
 
 /// The line of `field` (`a.b`, `steps[2].targets`) in `text`, when it is written there.
-pub fn locate(text: &str, field: &str) -> Option<usize> {
+pub(crate) fn locate(text: &str, field: &str) -> Option<usize> {
     let doc = toml_edit::ImDocument::parse(text.to_string()).ok()?;
     let mut table: &toml_edit::Table = doc.as_table();
     let mut last_span = None;

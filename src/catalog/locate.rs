@@ -7,14 +7,14 @@ use toml_edit::{ImDocument, Item, Table, Value};
 
 /// Every key and array element of a TOML document with its path and byte span.
 #[derive(Debug, Default)]
-pub struct FieldIndex {
+pub(crate) struct FieldIndex {
     entries: Vec<(String, Range<usize>)>,
     line_starts: Vec<usize>,
 }
 
 impl FieldIndex {
     /// Indexes `text`. Text that does not parse yields an index without fields (line lookups still work).
-    pub fn new(text: &str) -> Self {
+    pub(crate) fn new(text: &str) -> Self {
         let mut index = FieldIndex {
             entries: Vec::new(),
             line_starts: std::iter::once(0)
@@ -28,12 +28,12 @@ impl FieldIndex {
     }
 
     /// The 1-based line of a byte offset.
-    pub fn line_of(&self, offset: usize) -> usize {
+    pub(crate) fn line_of(&self, offset: usize) -> usize {
         self.line_starts.partition_point(|&start| start <= offset)
     }
 
     /// The 1-based line where `path` is written, or where its nearest written parent is.
-    pub fn line_of_path(&self, path: &str) -> Option<usize> {
+    pub(crate) fn line_of_path(&self, path: &str) -> Option<usize> {
         let mut candidate = path;
         loop {
             if let Some((_, span)) = self.entries.iter().find(|(p, _)| p == candidate) {
@@ -45,7 +45,7 @@ impl FieldIndex {
     }
 
     /// The innermost field whose span contains `offset` (used to name the field of a serde error).
-    pub fn path_at(&self, offset: usize) -> Option<&str> {
+    pub(crate) fn path_at(&self, offset: usize) -> Option<&str> {
         self.entries
             .iter()
             .filter(|(_, span)| span.start <= offset && offset < span.end.max(span.start + 1))

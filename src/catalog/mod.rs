@@ -8,7 +8,7 @@
 
 mod error;
 mod identity;
-pub mod locate;
+pub(crate) mod locate;
 mod schema;
 mod validate;
 

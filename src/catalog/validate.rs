@@ -71,7 +71,7 @@ impl Checks {
 }
 
 /// Checks a parsed model; returns `(field, reason)` for every problem found.
-pub fn validate(model: &InstrumentModel) -> Vec<(String, String)> {
+pub(super) fn validate(model: &InstrumentModel) -> Vec<(String, String)> {
     let mut c = Checks::default();
     if model.schema != SCHEMA_VERSION {
         c.fail(

@@ -37,7 +37,7 @@ pub struct Args {
 
 /// Throughput of one address in one direction.
 #[derive(Debug, Clone, serde::Serialize)]
-pub struct Measurement {
+pub(crate) struct Measurement {
     pub address: String,
     pub protocol: &'static str,
     /// "read" (instrument to radbench) or "write" (radbench to instrument).
@@ -52,7 +52,7 @@ pub struct Measurement {
 }
 
 /// The payload: `len` bytes of SplitMix64 words, little-endian.
-pub fn payload(len: usize, seed: u64) -> Vec<u8> {
+pub(crate) fn payload(len: usize, seed: u64) -> Vec<u8> {
     let mut rng = crate::rng::SplitMix64::new(seed);
     let mut out = Vec::with_capacity(len + 8);
     while out.len() < len {
@@ -185,7 +185,7 @@ async fn measure(
     ))
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if args.runs == 0 {
         return Err(bad_input("--runs must be at least 1"));
     }

@@ -34,7 +34,7 @@ pub struct Args {
     pub json: bool,
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(args.reference_range, args.search)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());

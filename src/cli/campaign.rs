@@ -100,7 +100,7 @@ pub struct ThesisLabArgs {
     pub json: bool,
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     match args.command {
         Command::New(a) => {
             let text = builtin::template(&a.kind).ok_or_else(|| {

@@ -74,7 +74,7 @@ pub struct Args {
 }
 
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
-pub fn bench_source(
+pub(crate) fn bench_source(
     bench: Option<&Path>,
     scene: Option<&Path>,
     awg: AwgTransportArg,
@@ -101,7 +101,7 @@ pub fn bench_source(
 }
 
 /// Opens the bench and says which one it is (on stderr, unless `quiet`).
-pub async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Result<Bench> {
+pub(crate) async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Result<Bench> {
     let built_in = matches!(source, BenchSource::BuiltIn(_));
     let bench = Bench::open(source).await?;
     if !quiet && built_in {
@@ -111,7 +111,7 @@ pub async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Result<Benc
 }
 
 /// The I/O journal of `--trace-io`.
-pub fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport::Journal>> {
+pub(crate) fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport::Journal>> {
     Ok(match &global.trace_io {
         Some(p) => Some(crate::transport::Journal::create(p, false)?),
         None => None,
@@ -121,7 +121,7 @@ pub fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport
 /// Checks the output folder before anything radiates: a new or empty folder is created and
 /// written to; one that holds files needs `force` (the files it holds are listed in the message,
 /// or printed as replaced). A file, or a folder that cannot be written, is bad input.
-pub fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
+pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
     if out.exists() && !out.is_dir() {
         return Err(bad_input(format!(
             "--out {}: is a file; give a folder (it is created when missing)",
@@ -170,14 +170,14 @@ pub fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
 }
 
 /// The default output folder: `runs/<UTC time>-<name>`.
-pub fn default_out(name: &str) -> PathBuf {
+pub(crate) fn default_out(name: &str) -> PathBuf {
     let stamp = crate::storage::sigmf::utc_now_rfc3339()
         .replace([':', '-'], "")
         .replace('.', "_");
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     runtime.block_on(run_async(args, global))
 }

@@ -14,7 +14,7 @@ pub struct Args {
     pub json: bool,
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     let identity = runtime.block_on(async {
         let mut session = args.connect.open(global).await?;
@@ -31,7 +31,7 @@ pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 /// The identity as four aligned lines, safe for a terminal.
-pub fn describe(identity: &Identity) -> String {
+pub(crate) fn describe(identity: &Identity) -> String {
     format!(
         "manufacturer: {}\nmodel:        {}\nserial:       {}\nfirmware:     {}",
         printable(&identity.manufacturer),

@@ -58,13 +58,13 @@ pub enum ScopeRemote {
 }
 
 /// Reads and validates a scene file; errors name the file and the field (exit code 2).
-pub fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
+pub(crate) fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| bad_input(format!("cannot read scene file {}: {e}", path.display())))?;
     Scene::from_toml(&text, &path.display().to_string()).map_err(|e| bad_input(e.to_string()))
 }
 
-pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     let MockLabCommand::Serve(a) = args.command;
     let scene = match &a.scene {
         Some(path) => load_scene(path)?,

@@ -7,22 +7,22 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
-pub mod args;
-pub mod benchmarks;
-pub mod benchmarks_io;
-pub mod calibrate;
-pub mod campaign;
-pub mod capture;
-pub mod exit_code;
-pub mod idn;
-pub mod mock_lab;
-pub mod process;
-pub mod progress;
-pub mod recording;
-pub mod scpi;
-pub mod simulate;
+pub(crate) mod args;
+pub(crate) mod benchmarks;
+pub(crate) mod benchmarks_io;
+pub(crate) mod calibrate;
+pub(crate) mod campaign;
+pub(crate) mod capture;
+pub(crate) mod exit_code;
+pub(crate) mod idn;
+pub(crate) mod mock_lab;
+pub(crate) mod process;
+pub(crate) mod progress;
+pub(crate) mod recording;
+pub(crate) mod scpi;
+pub(crate) mod simulate;
 pub mod terminal;
-pub mod trc;
+pub(crate) mod trc;
 
 pub use exit_code::classify;
 

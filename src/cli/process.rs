@@ -203,7 +203,7 @@ fn folder_names(sources: &[&Source]) -> Vec<String> {
     names
 }
 
-pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     let out = args
         .out
         .clone()

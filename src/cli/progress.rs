@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 /// One bar per transfer: a report whose direction differs, or whose count went back, starts a
 /// new one. [`TransferBar::finish`] clears it when the command is over.
 #[derive(Clone, Default)]
-pub struct TransferBar {
+pub(crate) struct TransferBar {
     state: Arc<Mutex<State>>,
 }
 
@@ -20,12 +20,12 @@ struct State {
 }
 
 impl TransferBar {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
     /// The callback to put in the link options.
-    pub fn callback(&self) -> ProgressFn {
+    pub(crate) fn callback(&self) -> ProgressFn {
         let this = self.clone();
         Arc::new(move |p: Progress| this.report(p, ProgressDrawTarget::stderr()))
     }
@@ -51,7 +51,7 @@ impl TransferBar {
     }
 
     /// Removes the bar of the last transfer, if any.
-    pub fn finish(&self) {
+    pub(crate) fn finish(&self) {
         let mut state = self.lock();
         if let Some(bar) = state.bar.take() {
             bar.finish_and_clear();

@@ -24,7 +24,7 @@ pub struct Args {
 
 /// Mean, RMS, min and max of I and Q, and the RMS magnitude.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct IqStats {
+pub(crate) struct IqStats {
     pub mean_i: f64,
     pub mean_q: f64,
     pub rms_i: f64,
@@ -37,7 +37,7 @@ pub struct IqStats {
 }
 
 impl IqStats {
-    pub fn of(samples: &[Complex64]) -> Option<IqStats> {
+    pub(crate) fn of(samples: &[Complex64]) -> Option<IqStats> {
         if samples.is_empty() {
             return None;
         }
@@ -80,7 +80,7 @@ fn unit_name(u: SampleUnit) -> &'static str {
 }
 
 /// The JSON of one recording (one entry of `recordings`).
-pub fn recording_json(r: &Recording, first: usize) -> Value {
+pub(crate) fn recording_json(r: &Recording, first: usize) -> Value {
     let n = r.samples.len();
     let head: Vec<[f64; 2]> = r.samples[..first.min(n)]
         .iter()
@@ -195,7 +195,7 @@ fn print_text(r: &Recording, first: usize) {
     }
 }
 
-pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     report_files(
         &args.files,
         args.json,

@@ -155,7 +155,7 @@ pub struct Args {
     pub check_errors: bool,
 }
 
-pub fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     let mut session = runtime.block_on(args.connect.open(global))?;
     // Long blocks show a bar on stderr (only on a terminal).
@@ -233,7 +233,7 @@ impl BinarySaver {
 
 /// Whether a command reads a reply: one of its `;`-separated parts has a header ending in `?`
 /// (possibly followed by query parameters, as in `C1:WF? ALL` or `:TRAC1:DATA? 1,0,128`).
-pub fn expects_reply(command: &str) -> bool {
+pub(crate) fn expects_reply(command: &str) -> bool {
     command.split(';').any(|part| {
         part.split_whitespace()
             .next()
@@ -257,7 +257,7 @@ fn block_of(raw: &Bytes) -> Option<reply::Block> {
 
 /// Describes a reply for the terminal: the text, or a summary of a block or binary reply (with
 /// the bytes to save). Everything returned is safe to print: control characters are escaped.
-pub fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
+pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
     if let Some(block) = block_of(raw) {
         let form = match block.form {
             reply::BlockForm::Definite => "definite",

@@ -26,7 +26,7 @@ pub struct Args {
 
 /// Min, max, mean and RMS of some volts.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct Stats {
+pub(crate) struct Stats {
     pub min_v: f64,
     pub max_v: f64,
     pub mean_v: f64,
@@ -35,7 +35,7 @@ pub struct Stats {
 
 impl Stats {
     /// Statistics of `volts`; None when there are none.
-    pub fn of(volts: impl Iterator<Item = f64>) -> Option<Stats> {
+    pub(crate) fn of(volts: impl Iterator<Item = f64>) -> Option<Stats> {
         let (mut n, mut sum, mut sq) = (0usize, 0.0, 0.0);
         let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
         for v in volts {
@@ -99,7 +99,7 @@ fn ends<T: Copy>(all: &[T], n: usize) -> (Vec<T>, Vec<T>) {
 }
 
 /// The JSON of one trace (the `--json` schema, one entry of `traces`).
-pub fn trace_json(path: &Path, t: &Trace, points: usize) -> Value {
+pub(crate) fn trace_json(path: &Path, t: &Trace, points: usize) -> Value {
     let d = &t.desc;
     let per_segment = t.codes.len() / t.segment_count().max(1);
     let interval = t.sample_interval_s();
@@ -258,7 +258,7 @@ fn print_text(path: &Path, t: &Trace, max_segments: usize) {
     }
 }
 
-pub fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     report_files(
         &args.files,
         args.json,

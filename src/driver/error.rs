@@ -117,7 +117,7 @@ pub enum DriverError {
 }
 
 /// Wraps a session error with the instrument's name: `.map_err(session(name))`.
-pub fn session(instrument: &str) -> impl Fn(SessionError) -> DriverError + '_ {
+pub(crate) fn session(instrument: &str) -> impl Fn(SessionError) -> DriverError + '_ {
     move |source| DriverError::Session {
         instrument: instrument.to_string(),
         source: Box::new(source),

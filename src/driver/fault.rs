@@ -26,7 +26,7 @@ use crate::transport::LinkError;
 
 /// The time an injected timeout says it waited. Nothing waits that long (a test wants the error,
 /// not the wait); a [`query_with_timeout`](InstrumentIo::query_with_timeout) reports its own.
-pub const INJECTED_TIMEOUT: Duration = Duration::from_secs(2);
+pub(crate) const INJECTED_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// How often each fault strikes, per operation, in 1/1000. Plain data, so a test states its fault
 /// mix in one literal. The three failures are exclusive (one draw decides; their sum is capped at

@@ -6,7 +6,7 @@ use crate::catalog::InstrumentModel;
 use crate::session::{parse_idn, Identity};
 
 /// Whether an identity is the model (vendor patterns) or its mock_lab emulator.
-pub fn matches(model: &InstrumentModel, idn: &Identity) -> bool {
+pub(crate) fn matches(model: &InstrumentModel, idn: &Identity) -> bool {
     model
         .identity
         .matches(&idn.manufacturer, &idn.model)
@@ -15,7 +15,7 @@ pub fn matches(model: &InstrumentModel, idn: &Identity) -> bool {
 
 /// Parses an `*IDN?` reply (a `*IDN ` response header, LeCroy's default, is skipped) and checks
 /// it is `model`. `resource` names the address in the error; `command` the request that was sent.
-pub fn check(
+pub(crate) fn check(
     model: &InstrumentModel,
     instrument: &str,
     resource: &str,

@@ -3,7 +3,7 @@
 use super::error::DriverError;
 
 /// Checks `value` against `min..=max`; the error names the field and the allowed range.
-pub fn within(
+pub(crate) fn within(
     instrument: &str,
     field: &'static str,
     value: f64,
@@ -24,7 +24,7 @@ pub fn within(
 }
 
 /// Relative closeness used to compare a read-back with what was asked.
-pub fn close(a: f64, b: f64, relative: f64) -> bool {
+pub(crate) fn close(a: f64, b: f64, relative: f64) -> bool {
     (a - b).abs() <= relative * a.abs().max(b.abs()).max(f64::MIN_POSITIVE)
 }
 

@@ -2,20 +2,20 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`capability`] | the traits [`Awg`], [`Digitizer`], [`RfFrontEnd`] and their plain-data settings |
+//! | `capability` | the traits [`Awg`], [`Digitizer`], [`RfFrontEnd`] and their plain-data settings |
 //! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
-//! | [`scpi`] | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
-//! | [`identity`] | `*IDN?` checked against the catalog model |
-//! | [`limits`] | settings checked against the catalog's limits before anything is sent |
+//! | `scpi` | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
+//! | `identity` | `*IDN?` checked against the catalog model |
+//! | `limits` | settings checked against the catalog's limits before anything is sent |
 //! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
-//! | [`trace`] | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
-//! | [`fault`] | [`FaultyIo`]: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests |
-//! | [`m8195a`] | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
+//! | `trace` | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
+//! | `fault` | [`FaultyIo`]: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests |
+//! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
 //! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
-//! | [`permit`] | [`RfPermit`]: outputs and RF only with the user's explicit decision |
+//! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
 //! | [`safe_state`] | the safe-state sequence on every exit path |
-//! | [`error`] | [`DriverError`] with `kind()` and its exit class |
+//! | `error` | [`DriverError`] with `kind()` and its exit class |
 //!
 //! Rules every driver keeps: command spellings in one `commands.rs`; settings checked against the
 //! catalog before anything is sent; the error queue read after each configuration batch; what the
@@ -44,24 +44,24 @@
 //! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
 //! scope model with data only", walks through one (`tests/io/driver_second_scope.rs` does it). A new
 //! command set needs a driver module here: a `commands.rs` with every spelling, pure checks
-//! against the catalog before any I/O ([`limits`]), the session through [`Scpi`], an
+//! against the catalog before any I/O (`limits`), the session through [`Scpi`], an
 //! implementation of the capability trait, tests with [`Scripted`] that pin each operation's
 //! command sequence, and tests against its mock_lab emulator.
 
-pub mod capability;
-pub mod error;
-pub mod fault;
+pub(crate) mod capability;
+pub(crate) mod error;
+pub(crate) mod fault;
 pub mod gotmic;
-pub mod identity;
+pub(crate) mod identity;
 pub mod io;
 pub mod lecroy;
-pub mod limits;
-pub mod m8195a;
-pub mod permit;
+pub(crate) mod limits;
+pub(crate) mod m8195a;
+pub(crate) mod permit;
 pub mod safe_state;
-pub mod scpi;
+pub(crate) mod scpi;
 pub mod scripted;
-pub mod trace;
+pub(crate) mod trace;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;

@@ -162,7 +162,7 @@ impl Scpi {
 
 /// A number as SCPI text: a plain decimal rounded to 12 significant digits, so arithmetic noise
 /// (`1.0239999999999999e-7`) never reaches the instrument (`64000000000`, `0.5`, `0.0000001024`).
-pub fn number(value: f64) -> String {
+pub(crate) fn number(value: f64) -> String {
     let rounded: f64 = format!("{value:.11e}").parse().unwrap_or(value);
     if rounded == 0.0 {
         "0".to_string()

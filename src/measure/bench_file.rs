@@ -271,7 +271,10 @@ impl BenchFile {
 
 /// Writes `calibration` into the bench file at `path`, replacing any `[calibration]` section and
 /// keeping every other line (comments included) as it was. The write is atomic.
-pub fn store_calibration(path: &Path, calibration: &Calibration) -> Result<(), BenchFileError> {
+pub(crate) fn store_calibration(
+    path: &Path,
+    calibration: &Calibration,
+) -> Result<(), BenchFileError> {
     let text = std::fs::read_to_string(path).map_err(|source| BenchFileError::Read {
         path: path.to_path_buf(),
         source,

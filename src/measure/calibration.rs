@@ -8,7 +8,7 @@ use serde::Serialize;
 
 /// What a calibration capture gave.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct DelayEstimate {
+pub(crate) struct DelayEstimate {
     pub system_delay_s: f64,
     pub reference_range_m: f64,
     /// The reference echo's range before calibration.
@@ -16,7 +16,7 @@ pub struct DelayEstimate {
 }
 
 /// Checks the calibration inputs (before anything radiates).
-pub fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> {
+pub(crate) fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> {
     if !(reference_range_m.is_finite() && reference_range_m > 0.0 && reference_range_m < 100.0) {
         return Err(MeasureError::option(
             "reference-range",
@@ -37,7 +37,7 @@ pub fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> 
 
 /// Uncalibrated ranges are true range + c * delay / 2: the reference is the strongest echo at or
 /// beyond its true range, within `search_m` of it.
-pub fn estimate_delay(
+pub(crate) fn estimate_delay(
     processed: &Processed,
     reference_range_m: f64,
     search_m: f64,

@@ -74,7 +74,7 @@ pub struct DetectionReport {
 }
 
 /// The detector options of the processing options.
-pub fn detect_options(options: &ProcessOptions) -> DetectOptions {
+pub(crate) fn detect_options(options: &ProcessOptions) -> DetectOptions {
     DetectOptions {
         method: options.detector.to_dsp(),
         pfa: options.pfa,
@@ -104,7 +104,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
 
 /// Detects the targets of one record's range processing; `detector` serves the profile
 /// algorithms (those with a complex profile).
-pub fn detect(
+pub(crate) fn detect(
     range: &RangeResult,
     options: &ProcessOptions,
     detector: Option<&mut Detector>,
@@ -180,20 +180,8 @@ fn level_at(p: &Profile, range_m: f64) -> f64 {
         .log10()
 }
 
-/// A peak's height over the profile's median power, dB.
-pub fn peak_over_median_db(amplitude: &[f64], height: f64) -> f64 {
-    let mut sorted: Vec<f64> = amplitude.iter().map(|a| a * a).collect();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted
-        .get(sorted.len() / 2)
-        .copied()
-        .unwrap_or(0.0)
-        .max(1e-300);
-    10.0 * (height * height / median).log10()
-}
-
 /// Why a capture may show no target, from what it holds.
-pub fn no_target_hint(rx: &[Complex64], profile: &Profile) -> String {
+pub(crate) fn no_target_hint(rx: &[Complex64], profile: &Profile) -> String {
     let rms = (rx.iter().map(|v| v.norm_sqr()).sum::<f64>() / rx.len().max(1) as f64).sqrt();
     let max = profile.amplitude.iter().copied().fold(0.0, f64::max);
     let mut sorted = profile.amplitude.clone();

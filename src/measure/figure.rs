@@ -93,7 +93,7 @@ fn marker(d: &Detection) -> Marker {
 }
 
 /// The plot and the table of a processed measurement. `truth_m`: a simulated bench's true ranges.
-pub fn profile_figure(
+pub(crate) fn profile_figure(
     title: String,
     p: &Processed,
     options: &ProcessOptions,
@@ -182,7 +182,7 @@ pub fn profile_figure(
 
 /// The range-Doppler map of an OFDM frame as a heat map over the processed range, the detections
 /// marked at their velocity.
-pub fn range_doppler_figure(
+pub(crate) fn range_doppler_figure(
     title: String,
     map: &crate::dsp::ofdm_radar::RangeDopplerMap,
     targets: &[Detection],

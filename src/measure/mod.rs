@@ -3,37 +3,37 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`bench_file`] | the bench file: instruments, resources, calibration |
+//! | `bench_file` | the bench file: instruments, resources, calibration |
 //! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
-//! | [`transmit`] | the waveform as AWG codes plus what the receiver needs |
+//! | `transmit` | the waveform as AWG codes plus what the receiver needs |
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
-//! | [`detect`] | the detection stage of the pipeline |
-//! | [`payload`] | the communication receivers of the pipeline |
-//! | [`station`] | the connected instruments: plan, upload, RF on, capture, safe state |
+//! | `detect` | the detection stage of the pipeline |
+//! | `payload` | the communication receivers of the pipeline |
+//! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
-//! | [`reprocess`] | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
-//! | [`repeat`] | several repetitions: coherent average and spread |
-//! | [`figure`] | what a measurement's plot and profile table show |
-//! | [`record`] | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
-//! | [`calibration`] | the system delay from a reference target |
+//! | `reprocess` | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
+//! | `repeat` | several repetitions: coherent average and spread |
+//! | `figure` | what a measurement's plot and profile table show |
+//! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
+//! | `calibration` | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
 pub mod bench;
-pub mod bench_file;
-pub mod calibration;
+pub(crate) mod bench_file;
+pub(crate) mod calibration;
 pub mod capture;
-pub mod detect;
-pub mod figure;
+pub(crate) mod detect;
+pub(crate) mod figure;
 pub mod interrupt;
 pub mod options;
-pub mod payload;
+pub(crate) mod payload;
 pub mod pipeline;
-pub mod record;
-pub mod repeat;
-pub mod reprocess;
-pub mod station;
-pub mod transmit;
+pub(crate) mod record;
+pub(crate) mod repeat;
+pub(crate) mod reprocess;
+pub(crate) mod station;
+pub(crate) mod transmit;
 
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};

@@ -26,7 +26,7 @@ pub struct PayloadResult {
 }
 
 /// The receiver of one transmission.
-pub enum PayloadDecoder {
+pub(crate) enum PayloadDecoder {
     /// MSK-LFM: advance the capture by the strongest echo's (fractional) lag, remove its carrier
     /// phase, demodulate. The FFT plans of the shift are made once.
     MskLfm {
@@ -40,7 +40,7 @@ pub enum PayloadDecoder {
 }
 
 impl PayloadDecoder {
-    pub fn new(tx: &Transmission, period: usize) -> Result<Self, MeasureError> {
+    pub(crate) fn new(tx: &Transmission, period: usize) -> Result<Self, MeasureError> {
         Ok(match &tx.modulation {
             Modulation::MskLfm(_) => {
                 let mut planner = FftPlanner::<f64>::new();
@@ -65,7 +65,7 @@ impl PayloadDecoder {
     /// Decodes the data of one aligned repetition `rx` from the strongest echo, at fractional
     /// lag `lag` (samples; the correlation profile's cell); `None` when there is nothing to decode
     /// from (MSK-LFM without a target).
-    pub fn decode(
+    pub(crate) fn decode(
         &mut self,
         rx: &[Complex64],
         tx: &Transmission,

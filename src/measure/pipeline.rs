@@ -556,7 +556,7 @@ impl Pipeline {
     }
 
     /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
-    /// same arithmetic as [`crate::measure::station::Captured::raw`], so the same result).
+    /// same arithmetic as `measure::station::Captured::raw`, so the same result).
     pub fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
         let (i, q) = (&raw.i, &raw.q);
         let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 /// Where the files of one capture went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct CaptureFiles {
+pub(crate) struct CaptureFiles {
     pub dir: PathBuf,
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
@@ -33,7 +33,7 @@ pub struct CaptureFiles {
 
 impl CaptureFiles {
     /// Every file, for manifests and hashing.
-    pub fn all(&self) -> Vec<&Path> {
+    pub(crate) fn all(&self) -> Vec<&Path> {
         [&self.sigmf_meta, &self.sigmf_data]
             .into_iter()
             .chain(&self.native)
@@ -52,14 +52,14 @@ impl CaptureFiles {
 
 /// Where the bench came from, for the files.
 #[derive(Debug, Clone, Default)]
-pub struct Provenance {
+pub(crate) struct Provenance {
     pub bench_file: Option<PathBuf>,
     pub simulated: bool,
 }
 
 /// Where the raw capture of one measurement went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct RawFiles {
+pub(crate) struct RawFiles {
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
     #[serde(rename = "trc")]
@@ -67,7 +67,7 @@ pub struct RawFiles {
 }
 
 /// Writes every file of `m` into `out` (created when missing), `summary.json` last.
-pub fn write_capture(
+pub(crate) fn write_capture(
     out: &Path,
     m: &Measurement,
     provenance: &Provenance,
@@ -89,7 +89,7 @@ fn create_dir(out: &Path) -> Result<(), MeasureError> {
 }
 
 /// Writes the raw capture of `m` into `out`: SigMF (every repetition) and the scope's `.trc`.
-pub fn write_raw(
+pub(crate) fn write_raw(
     out: &Path,
     m: &Measurement,
     provenance: &Provenance,
@@ -188,7 +188,7 @@ pub fn write_raw(
 /// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
 /// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
 /// algorithm applied to the same capture.
-pub fn write_processed(
+pub(crate) fn write_processed(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
@@ -243,7 +243,11 @@ pub fn write_processed(
 }
 
 /// What `capture --json` prints and `summary.json` holds (README, "--json").
-pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenance) -> Value {
+pub(crate) fn summary_json(
+    m: &Measurement,
+    files: &CaptureFiles,
+    provenance: &Provenance,
+) -> Value {
     let p = &m.processed;
     let o = &m.options;
     json!({
@@ -274,7 +278,7 @@ pub fn summary_json(m: &Measurement, files: &CaptureFiles, provenance: &Provenan
 
 /// Where the files of one re-processed capture went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ReprocessFiles {
+pub(crate) struct ReprocessFiles {
     pub dir: PathBuf,
     pub manifest: PathBuf,
     pub profile_csv: PathBuf,
@@ -288,7 +292,7 @@ pub struct ReprocessFiles {
 
 /// A source file of a re-processing, with its SHA-256.
 #[derive(Debug, Clone, Serialize, serde::Deserialize, PartialEq)]
-pub struct SourceFile {
+pub(crate) struct SourceFile {
     pub path: PathBuf,
     pub sha256: String,
 }
@@ -304,7 +308,7 @@ struct ReprocessManifest<'a> {
 
 /// Writes a re-processed capture into `out` (a new folder): `manifest.toml` naming the sources
 /// with their SHA-256, the profiles, the plots and `summary.json` (same keys as a capture's).
-pub fn write_reprocessed(
+pub(crate) fn write_reprocessed(
     out: &Path,
     sources: &[SourceFile],
     loaded: &super::reprocess::Loaded,

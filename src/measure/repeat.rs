@@ -79,7 +79,7 @@ pub struct Spread {
 }
 
 /// The coherent average of aligned repetitions (their sub-sample residuals averaged too).
-pub fn average(records: &[Aligned]) -> Option<Aligned> {
+pub(crate) fn average(records: &[Aligned]) -> Option<Aligned> {
     let first = records.first()?;
     let n = records.len() as f64;
     let mut samples = vec![Complex64::new(0.0, 0.0); first.samples.len()];
@@ -99,7 +99,7 @@ pub fn average(records: &[Aligned]) -> Option<Aligned> {
 
 /// Matches each target of the averaged result with the nearest detection of every repetition
 /// within `tolerance_m` (half a resolution cell) and summarises.
-pub fn spread(average: &[Detection], each: &[RepetitionResult], tolerance_m: f64) -> Spread {
+pub(crate) fn spread(average: &[Detection], each: &[RepetitionResult], tolerance_m: f64) -> Spread {
     let targets = average
         .iter()
         .map(|t| {

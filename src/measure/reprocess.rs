@@ -24,7 +24,7 @@ use std::sync::Arc;
 /// Where one capture to re-process is.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Source {
+pub(crate) enum Source {
     /// A SigMF recording (its `.sigmf-meta` path).
     Sigmf { meta: PathBuf, data: PathBuf },
     /// LeCroy `.trc` files of I and Q.
@@ -33,7 +33,7 @@ pub enum Source {
 
 impl Source {
     /// The files read, for the manifest.
-    pub fn files(&self) -> Vec<&Path> {
+    pub(crate) fn files(&self) -> Vec<&Path> {
         match self {
             Source::Sigmf { meta, data } => vec![meta, data],
             Source::TrcPair { i, q } => vec![i, q],
@@ -41,7 +41,7 @@ impl Source {
     }
 
     /// A short name for folders and messages.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         let file = match self {
             Source::Sigmf { meta, .. } => meta,
             Source::TrcPair { i, .. } => i,
@@ -67,7 +67,7 @@ impl Source {
 /// An input the user named that is not a capture.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {reason}")]
-pub struct InputError {
+pub(crate) struct InputError {
     pub path: PathBuf,
     pub reason: String,
 }
@@ -75,7 +75,7 @@ pub struct InputError {
 /// The captures the inputs name, in order: a capture folder (its `capture.sigmf-meta`), a run
 /// folder of a campaign (every step's capture), a SigMF file, or two `.trc` files given one
 /// after the other (I then Q). Each entry is a capture or why an input is not one.
-pub fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
+pub(crate) fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
     let mut out = Vec::new();
     let mut k = 0;
     while k < inputs.len() {
@@ -153,7 +153,7 @@ fn sigmf(path: &Path) -> Result<Source, InputError> {
 
 /// A capture read back: its repetitions in volts and what radbench recorded about it.
 #[derive(Debug, Clone)]
-pub struct Loaded {
+pub(crate) struct Loaded {
     pub repetitions: Vec<RawIq>,
     /// The `radbench:` metadata (empty for a capture radbench did not make).
     pub radbench: Map<String, Value>,
@@ -165,27 +165,27 @@ impl Loaded {
     }
 
     /// The processing options the capture was processed with.
-    pub fn recorded_options(&self) -> Option<ProcessOptions> {
+    pub(crate) fn recorded_options(&self) -> Option<ProcessOptions> {
         serde_json::from_value(self.key("processing")?.clone()).ok()
     }
 
     /// The transmission the capture recorded (spec, bits, DAC model).
-    pub fn recorded_transmission(&self) -> Option<Result<Transmission, MeasureError>> {
+    pub(crate) fn recorded_transmission(&self) -> Option<Result<Transmission, MeasureError>> {
         transmit::from_description(self.key("waveform")?)
     }
 
     /// Samples of one repetition at the waveform rate (the AWG's padded segment).
-    pub fn recorded_period(&self) -> Option<usize> {
+    pub(crate) fn recorded_period(&self) -> Option<usize> {
         self.key("period_samples")?.as_u64().map(|n| n as usize)
     }
 
     /// The background the capture subtracted.
-    pub fn recorded_background(&self) -> Option<BackgroundFile> {
+    pub(crate) fn recorded_background(&self) -> Option<BackgroundFile> {
         serde_json::from_value(self.key("background")?.clone()).ok()
     }
 
     /// The simulated scene (ground truth) of a simulated bench's capture.
-    pub fn ground_truth(&self) -> Option<&Value> {
+    pub(crate) fn ground_truth(&self) -> Option<&Value> {
         self.key("scene")
     }
 }
@@ -196,7 +196,7 @@ fn input_error(path: &Path, reason: impl Into<String>) -> MeasureError {
 
 /// Reads a capture: a SigMF recording (repetitions from `radbench:repetitions`, else the whole
 /// recording as one) or a `.trc` pair (each sequence segment one repetition).
-pub fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
+pub(crate) fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
     match source {
         Source::Sigmf { meta, .. } => {
             let rec = read_sigmf(meta)?;
@@ -312,7 +312,7 @@ pub fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loaded, Me
 /// What the caller says about the waveform of a capture (required for captures radbench did not
 /// make; overrides what a radbench capture recorded).
 #[derive(Debug, Clone, Default)]
-pub struct WaveformChoice {
+pub(crate) struct WaveformChoice {
     pub spec: Option<WaveformSpec>,
     pub seed: Option<u64>,
     pub payload: Option<Vec<u8>>,
@@ -320,7 +320,7 @@ pub struct WaveformChoice {
 
 /// How one capture will be processed, resolved from what it recorded and the caller's choices.
 #[derive(Debug, Clone)]
-pub struct Resolved {
+pub(crate) struct Resolved {
     pub tx: Arc<Transmission>,
     pub options: ProcessOptions,
     pub period: usize,
@@ -328,7 +328,7 @@ pub struct Resolved {
 }
 
 /// Resolves the transmission, the options, the period and the background of `loaded`.
-pub fn resolve(
+pub(crate) fn resolve(
     loaded: &Loaded,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
@@ -378,7 +378,7 @@ pub fn resolve(
 
 /// One capture processed again.
 #[derive(Debug, Clone)]
-pub struct Reprocessed {
+pub(crate) struct Reprocessed {
     pub processed: Processed,
     pub repetitions: Vec<RepetitionResult>,
     pub spread: Option<Spread>,
@@ -387,7 +387,7 @@ pub struct Reprocessed {
 
 /// Builds the pipeline of `resolved` for captures at `rate` (reuse it for captures that resolve
 /// the same way).
-pub fn pipeline(resolved: &Resolved, rate: f64) -> Result<Pipeline, MeasureError> {
+pub(crate) fn pipeline(resolved: &Resolved, rate: f64) -> Result<Pipeline, MeasureError> {
     let geometry = RecordGeometry::for_capture(
         resolved.period,
         resolved.tx.sample_rate_hz(),
@@ -399,7 +399,7 @@ pub fn pipeline(resolved: &Resolved, rate: f64) -> Result<Pipeline, MeasureError
 }
 
 /// Processes `loaded` through `pipeline` (built by [`pipeline`] for `resolved`).
-pub fn process(
+pub(crate) fn process(
     pipeline: &mut Pipeline,
     loaded: &Loaded,
     resolved: Resolved,
@@ -428,7 +428,7 @@ pub fn process(
 }
 
 /// The SHA-256 of every file of `source`, for the manifest.
-pub fn source_hashes(source: &Source) -> Result<Vec<(PathBuf, String)>, MeasureError> {
+pub(crate) fn source_hashes(source: &Source) -> Result<Vec<(PathBuf, String)>, MeasureError> {
     source
         .files()
         .into_iter()

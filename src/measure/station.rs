@@ -99,7 +99,7 @@ impl CapturePlan {
 
 /// Derives every instrument setting of a capture and checks it against the catalog; touches no
 /// instrument.
-pub fn plan(
+pub(crate) fn plan(
     bench: &BenchFile,
     catalog: &Catalog,
     tx: &Transmission,
@@ -365,7 +365,7 @@ pub struct Uploaded {
 }
 
 /// The bench's drivers, shared with the safe state.
-pub struct Station {
+pub(crate) struct Station {
     awg: Shared<dyn Awg>,
     scope: Box<dyn Digitizer>,
     tx: Option<Shared<dyn RfFrontEnd>>,
@@ -376,7 +376,7 @@ pub struct Station {
 
 impl Station {
     /// Opens every instrument of the bench file (front ends optional) and builds the safe state.
-    pub async fn connect(
+    pub(crate) async fn connect(
         bench: &BenchFile,
         catalog: &Catalog,
         journal: Option<Journal>,
@@ -430,18 +430,18 @@ impl Station {
     }
 
     /// The safe-state sequence of this bench (for a panic hook or an explicit call).
-    pub fn safe_state(&self) -> &SafeState {
+    pub(crate) fn safe_state(&self) -> &SafeState {
         &self.safe
     }
 
     /// Makes a panic run this bench's safe state (it replaces the state of a bench connected
     /// earlier in the process).
-    pub fn install_panic_hook(&self) {
+    pub(crate) fn install_panic_hook(&self) {
         crate::driver::set_panic_safe_state(self.safe.clone());
     }
 
     /// Configures the AWG, downloads the waveform and configures the scope. Nothing radiates.
-    pub async fn upload(
+    pub(crate) async fn upload(
         &mut self,
         tx: &Transmission,
         plan: &CapturePlan,
@@ -480,14 +480,14 @@ impl Station {
 
     /// What the AWG reports now: clock, levels, outputs and its segment table (read before each
     /// measurement of a campaign, so a lost waveform is noticed and uploaded again).
-    pub async fn awg_applied(&mut self) -> Result<AwgApplied, MeasureError> {
+    pub(crate) async fn awg_applied(&mut self) -> Result<AwgApplied, MeasureError> {
         Ok(self.awg.lock().await.applied().await?)
     }
 
     /// Enables the receiver, the transmitter (unless `tx_off`) and the AWG outputs with the
     /// user's permit, starts playback and captures `repetitions` marker-triggered repetitions.
     /// The caller's guard puts the bench back in its safe state.
-    pub async fn acquire(
+    pub(crate) async fn acquire(
         &mut self,
         plan: &CapturePlan,
         permit: &RfPermit,
@@ -531,7 +531,7 @@ impl Station {
     /// Upload (unless `loaded` says the AWG still holds this waveform) and acquire under the
     /// safe-state guard: the bench ends in its safe state whatever happens, also when
     /// `interrupt` fires first.
-    pub async fn capture(
+    pub(crate) async fn capture(
         &mut self,
         tx: &Transmission,
         plan: &CapturePlan,
@@ -613,7 +613,7 @@ impl Drop for Station {
 }
 
 /// What one acquisition brought back.
-pub struct Acquired {
+pub(crate) struct Acquired {
     /// The scope's acquisitions: one per repetition, or sequences holding several.
     pub captures: Vec<IqCapture>,
     pub tx: Option<RfStatus>,

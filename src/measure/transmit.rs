@@ -13,14 +13,14 @@ use serde::Serialize;
 
 /// The marker is high on the first this-many samples of each repetition: 4 ns at 16 GSa/s, well
 /// above the M8195A's minimum marker pulse of 128 DAC samples (32 memory samples at DIV4).
-pub const MARKER_SAMPLES: usize = 64;
+pub(crate) const MARKER_SAMPLES: usize = 64;
 
 /// Back-off of the DAC codes below full scale, dB (peak reference): no clipping.
-pub const DEFAULT_BACKOFF_DB: f64 = 0.5;
+pub(crate) const DEFAULT_BACKOFF_DB: f64 = 0.5;
 
 /// Most samples one repetition (all pulses or frames of a payload) may hold: 64 M samples at
 /// 16 GSa/s is 4 ms, 1 GB as complex doubles.
-pub const MAX_SAMPLES: usize = 64_000_000;
+pub(crate) const MAX_SAMPLES: usize = 64_000_000;
 
 /// How the transmitted reference is modelled.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -267,7 +267,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// The bytes of a hex string (two digits a byte), `None` when it is not one.
-pub fn from_hex(text: &str) -> Option<Vec<u8>> {
+pub(crate) fn from_hex(text: &str) -> Option<Vec<u8>> {
     if text.len() % 2 != 0 {
         return None;
     }
@@ -279,7 +279,9 @@ pub fn from_hex(text: &str) -> Option<Vec<u8>> {
 
 /// The transmission a capture's `radbench:waveform` description (from [`Transmission::describe`])
 /// was made from: spec, bits (seed or payload) and DAC model. `None` when something is missing.
-pub fn from_description(v: &serde_json::Value) -> Option<Result<Transmission, MeasureError>> {
+pub(crate) fn from_description(
+    v: &serde_json::Value,
+) -> Option<Result<Transmission, MeasureError>> {
     let spec: WaveformSpec = serde_json::from_value(v.get("spec")?.clone()).ok()?;
     let seed = v.get("seed")?.as_u64()?;
     let payload = match v.get("payload_hex") {

@@ -16,7 +16,7 @@
 //! line; the session then reads every reply, adds the CRC when the device has it on, and reports
 //! an `ERR` line as the device's refusal.
 
-pub mod error;
+pub(crate) mod error;
 pub mod line;
 pub mod reply;
 

@@ -12,11 +12,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 /// Eb/N0 grid, dB.
-pub const EB_N0_DB: [f64; 11] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0];
+pub(crate) const EB_N0_DB: [f64; 11] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0];
 
 /// One point of a BER curve (one element of the `"ber"` array of `simulate ber --json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct BerCurvePoint {
+pub(crate) struct BerCurvePoint {
     pub waveform: &'static str,
     pub eb_n0_db: f64,
     pub bits: usize,
@@ -32,7 +32,7 @@ pub struct BerCurvePoint {
 }
 
 /// 95 % Wilson score interval for `errors` out of `bits` (well-behaved at zero errors).
-pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
+pub(crate) fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
     let n = bits as f64;
     let p = errors as f64 / n;
     let z = 1.959_963_984_540_054_f64;
@@ -43,7 +43,7 @@ pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
 }
 
 /// `(errors/bits - theory)` over the binomial standard deviation `sqrt(theory (1 - theory) / bits)`.
-pub fn deviation_sigma(errors: usize, bits: usize, theory: f64) -> f64 {
+pub(crate) fn deviation_sigma(errors: usize, bits: usize, theory: f64) -> f64 {
     let n = bits.max(1) as f64;
     let sd = (theory * (1.0 - theory) / n).sqrt().max(1e-300);
     (errors as f64 / n - theory) / sd
@@ -69,7 +69,7 @@ fn to_point(waveform: &'static str, p: BerPoint) -> BerCurvePoint {
 /// bits and goes on to 100 errors or 5 x `min_bits`, whichever comes first.
 ///
 /// `progress(done, total)` is called after each point (from the worker threads).
-pub fn run_curves(
+pub(crate) fn run_curves(
     min_bits: usize,
     seed: u64,
     progress: &(dyn Fn(usize, usize) + Sync),
@@ -112,7 +112,7 @@ pub fn run_curves(
 }
 
 /// The curves as plot series, one per waveform, ascending Eb/N0.
-pub fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
+pub(crate) fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
     ["msk-lfm", "ofdm"]
         .iter()
         .map(|w| {

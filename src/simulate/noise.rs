@@ -5,13 +5,13 @@ use crate::rng::SplitMix64;
 use num_complex::Complex64;
 
 /// Noise power per complex sample for a unit-amplitude target at `snr_db`.
-pub fn noise_variance(snr_db: f64) -> f64 {
+pub(crate) fn noise_variance(snr_db: f64) -> f64 {
     10f64.powf(-snr_db / 10.0)
 }
 
 /// Adds circular complex white noise so that a unit-amplitude echo has `snr_db` per sample.
 /// `None` leaves the signal noise-free.
-pub fn add_noise(signal: &mut [Complex64], snr_db: Option<f64>, rng: &mut SplitMix64) {
+pub(crate) fn add_noise(signal: &mut [Complex64], snr_db: Option<f64>, rng: &mut SplitMix64) {
     if let Some(snr) = snr_db {
         rng.add_noise(signal, noise_variance(snr));
     }

@@ -16,7 +16,7 @@ fn list_m(values: &[f64]) -> String {
 }
 
 /// A human-readable summary of one scenario.
-pub fn scenario_text(r: &ScenarioResult) -> String {
+pub(crate) fn scenario_text(r: &ScenarioResult) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -72,7 +72,7 @@ pub fn scenario_text(r: &ScenarioResult) -> String {
 }
 
 /// BER curves as a table: measured, theory, 95 % interval, verdict.
-pub fn ber_text(points: &[BerCurvePoint]) -> String {
+pub(crate) fn ber_text(points: &[BerCurvePoint]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,

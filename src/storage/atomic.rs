@@ -20,10 +20,10 @@ use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
 /// What every radbench temporary file name contains (after `.<name>`).
-pub const TEMP_MARKER: &str = ".radbench-tmp-";
+pub(crate) const TEMP_MARKER: &str = ".radbench-tmp-";
 
 /// Writes `bytes` to `path` atomically: readers see either the old file or the complete new one.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
     let io = |source| StorageError::Io {
         path: path.to_path_buf(),
         source,
@@ -53,7 +53,7 @@ thread_local! {
 /// and syncs each folder they wrote into once at the end, on every way out, instead of once per
 /// file. Every file is still synced before its rename, so each is whole or absent; when this
 /// returns, every rename is durable too.
-pub fn with_folder_sync_deferred<R>(write: impl FnOnce() -> R) -> R {
+pub(crate) fn with_folder_sync_deferred<R>(write: impl FnOnce() -> R) -> R {
     struct Flush(bool);
     impl Drop for Flush {
         fn drop(&mut self) {
@@ -84,7 +84,7 @@ pub fn with_folder_sync_deferred<R>(write: impl FnOnce() -> R) -> R {
 /// Removes the radbench temporary files in `dir` (not its subfolders) left by writes that never
 /// finished: those of processes no longer running, and this process's own. Returns what it
 /// removed. Other files, and temporaries of another radbench still running, are left alone.
-pub fn remove_stale_temporaries(dir: &Path) -> Result<Vec<PathBuf>, StorageError> {
+pub(crate) fn remove_stale_temporaries(dir: &Path) -> Result<Vec<PathBuf>, StorageError> {
     let io = |source| StorageError::Io {
         path: dir.to_path_buf(),
         source,

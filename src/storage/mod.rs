@@ -1,20 +1,20 @@
 //! Outputs: atomic file writes, SigMF recordings, npy and CSV range profiles, and range-profile
 //! plots (SVG/PNG); and the readers of recorded captures ([`recording`]: SigMF, `.trc`).
 //!
-//! Every writer goes through [`atomic::write_atomic`]: the bytes go to a temporary file in the
+//! Every writer goes through `atomic::write_atomic`: the bytes go to a temporary file in the
 //! destination's folder, which is then renamed over the destination, so a reader never sees half a
 //! file and an interrupted run keeps everything it had already written.
 
 use crate::exit::{Classify, ExitClass};
 use std::path::PathBuf;
 
-pub mod atomic;
+pub(crate) mod atomic;
 pub mod hash;
-pub mod npy;
-pub mod plot;
-pub mod profile;
+pub(crate) mod npy;
+pub(crate) mod plot;
+pub(crate) mod profile;
 pub mod recording;
-pub mod sigmf;
+pub(crate) mod sigmf;
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

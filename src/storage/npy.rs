@@ -8,7 +8,7 @@ use num_complex::Complex64;
 
 /// Encodes a float64 array of the given shape (row-major). Panics never: a shape whose product
 /// differs from `data.len()` is reported as `Err` with both numbers.
-pub fn encode_f64(shape: &[usize], data: &[f64]) -> Result<Vec<u8>, String> {
+pub(crate) fn encode_f64(shape: &[usize], data: &[f64]) -> Result<Vec<u8>, String> {
     check_shape(shape, data.len())?;
     let mut out = header("<f8", shape);
     out.reserve(data.len() * 8);
@@ -19,7 +19,7 @@ pub fn encode_f64(shape: &[usize], data: &[f64]) -> Result<Vec<u8>, String> {
 }
 
 /// Encodes a complex128 array of the given shape (row-major), real part first.
-pub fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
+pub(crate) fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
     check_shape(shape, data.len())?;
     let mut out = header("<c16", shape);
     out.reserve(data.len() * 16);

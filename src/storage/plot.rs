@@ -100,7 +100,7 @@ pub(crate) const PALETTE: [RGBColor; 4] = [
 ];
 
 /// Draws the plot to `path` (`.svg` or `.png`), atomically.
-pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
+pub(crate) fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
     if plot.curves.iter().all(|c| c.range_m.is_empty()) {
         return Err(StorageError::BadData {
             path: path.to_path_buf(),
@@ -406,7 +406,7 @@ mod tests {
 
 /// A map over range and another axis (velocity), in dB.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Heatmap {
+pub(crate) struct Heatmap {
     pub title: String,
     pub x_label: String,
     pub y_label: String,
@@ -448,7 +448,7 @@ fn heat_colour(f: f64) -> RGBColor {
 }
 
 /// Draws `map` as a PNG heat map (colour = dB under the maximum), atomically.
-pub fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
+pub(crate) fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
     let bad = |reason: &str| StorageError::BadData {
         path: path.to_path_buf(),
         reason: reason.to_string(),
@@ -542,7 +542,7 @@ pub fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
 
 /// One waveform's measured bit-error rates and its theory.
 #[derive(Debug, Clone, PartialEq)]
-pub struct BerSeries {
+pub(crate) struct BerSeries {
     pub label: String,
     pub eb_n0_db: Vec<f64>,
     pub ber: Vec<f64>,
@@ -552,7 +552,7 @@ pub struct BerSeries {
 }
 
 /// BER against Eb/N0 on a log scale, measured points with their 95 % intervals, theory dashed.
-pub fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
+pub(crate) fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
     let all = series.iter().flat_map(|s| s.ber.iter().chain(&s.theory));
     let lowest = all
         .copied()

@@ -16,11 +16,11 @@ use sha2::{Digest, Sha512};
 use std::path::{Path, PathBuf};
 
 /// Version of the `radbench:` SigMF namespace written here.
-pub const NAMESPACE_VERSION: &str = "1.0.0";
+pub(crate) const NAMESPACE_VERSION: &str = "1.0.0";
 
 /// What a SigMF recording describes, besides its samples.
 #[derive(Debug, Clone)]
-pub struct SigmfMeta {
+pub(crate) struct SigmfMeta {
     /// Sample rate of the data, Sa/s.
     pub sample_rate: f64,
     /// RF centre frequency the baseband samples belong to, Hz.
@@ -39,13 +39,13 @@ pub struct SigmfMeta {
 
 /// A recording as written: where its two files are.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SigmfFiles {
+pub(crate) struct SigmfFiles {
     pub meta: PathBuf,
     pub data: PathBuf,
 }
 
 /// Writes `base.sigmf-data` (I/Q words interleaved, little-endian) and `base.sigmf-meta`.
-pub fn write_ci16(
+pub(crate) fn write_ci16(
     base: &Path,
     i_words: &[i16],
     q_words: &[i16],
@@ -136,7 +136,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// UTC time as RFC 3339 with milliseconds, from the system clock.
-pub fn utc_now_rfc3339() -> String {
+pub(crate) fn utc_now_rfc3339() -> String {
     crate::time::rfc3339_millis(std::time::SystemTime::now())
 }
 

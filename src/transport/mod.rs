@@ -7,7 +7,7 @@
 //!
 //! | module | wire |
 //! |---|---|
-//! | [`socket`] | raw TCP, newline-terminated, block-aware ([`framing`]) |
+//! | `socket` | raw TCP, newline-terminated, block-aware ([`framing`]) |
 //! | [`vxi11`] | ONC-RPC record marking, portmapper, core and abort channels |
 //! | [`hislip`] | HiSLIP 1.0 sync + async channels |
 //! | [`vicp`] | LeCroy VICP headers with sequence numbers |
@@ -24,13 +24,13 @@
 //! the link dirty, and the next operation first clears the device (after an abandoned read) or
 //! reopens the connection (after an abandoned write, which may have left half a frame on the wire).
 
-pub mod error;
+pub(crate) mod error;
 pub mod framing;
 pub mod hislip;
 pub mod io;
 pub mod journal;
 pub mod serial;
-pub mod socket;
+pub(crate) mod socket;
 pub mod vicp;
 pub mod vxi11;
 

@@ -16,7 +16,7 @@ const PROTOCOL: &str = "socket";
 /// At most this much unread input is thrown away before one request.
 const DISCARD_LIMIT: usize = 1 << 20;
 
-pub struct SocketLink {
+pub(crate) struct SocketLink {
     host: String,
     port: u16,
     stream: TcpStream,
@@ -25,7 +25,11 @@ pub struct SocketLink {
 }
 
 impl SocketLink {
-    pub async fn connect(host: &str, port: u16, options: &LinkOptions) -> Result<Self, LinkError> {
+    pub(crate) async fn connect(
+        host: &str,
+        port: u16,
+        options: &LinkOptions,
+    ) -> Result<Self, LinkError> {
         let stream = connect_tcp(host, port, PROTOCOL, options).await?;
         Ok(Self {
             host: host.to_string(),
@@ -36,7 +40,7 @@ impl SocketLink {
         })
     }
 
-    pub async fn write_message(
+    pub(crate) async fn write_message(
         &mut self,
         parts: &[&[u8]],
         options: &LinkOptions,
@@ -64,14 +68,14 @@ impl SocketLink {
         }
     }
 
-    pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
+    pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("read", options);
         ctx.read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
             .await
     }
 
     /// Reopens the connection: the only clear a raw socket has.
-    pub async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         let fresh = Self::connect(&self.host, self.port, options).await?;
         *self = fresh;
         Ok(())

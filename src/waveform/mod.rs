@@ -57,6 +57,6 @@ pub mod ber;
 pub mod bits;
 pub mod msk_lfm;
 pub mod ofdm;
-pub mod overrides;
+pub(crate) mod overrides;
 pub mod quantise;
 pub mod spec;

@@ -7,11 +7,11 @@ use super::spec::{WaveformKind, WaveformSpec};
 
 /// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
 /// but beyond this it fits neither the scope's record nor the host usefully.
-pub const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
+pub(crate) const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
 
 /// Parameters changed from the thesis' defaults; `None` keeps the default.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct WaveformOverrides {
+pub(crate) struct WaveformOverrides {
     /// Both families. For OFDM without `oversampling` the sample rate stays and the
     /// oversampling follows (the rate must then be a whole multiple of the bandwidth).
     pub bandwidth_hz: Option<f64>,
@@ -36,7 +36,7 @@ pub struct WaveformOverrides {
 /// A parameter that cannot be applied; [`field`](Self::field) is the parameter's name as in
 /// [`WaveformOverrides`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum OverrideError {
+pub(crate) enum OverrideError {
     #[error("{value}: must be a positive number of {unit}")]
     NotPositive {
         field: &'static str,
@@ -67,7 +67,7 @@ pub enum OverrideError {
 
 impl OverrideError {
     /// The parameter (or, for a repetition too long, the parameters) to blame.
-    pub fn field(&self) -> &'static str {
+    pub(crate) fn field(&self) -> &'static str {
         match self {
             OverrideError::NotPositive { field, .. }
             | OverrideError::Misapplied { field, .. }
@@ -81,7 +81,7 @@ impl WaveformOverrides {
     /// The thesis' `kind` with these parameters. A parameter of the other family is refused, so
     /// nothing given is silently ignored; sizes are checked before anything is allocated. The
     /// generators check the rest (even bit counts, CP range, ...) when the waveform is built.
-    pub fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
+    pub(crate) fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
         for (value, field, unit) in [
             (self.bandwidth_hz, "bandwidth_hz", "Hz"),
             (self.sample_rate_hz, "sample_rate_hz", "Sa/s"),

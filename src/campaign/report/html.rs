@@ -15,7 +15,7 @@ figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #dd
 figcaption{font-size:14px;max-width:800px}";
 
 /// Text for HTML element content and attribute values.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -48,7 +48,7 @@ fn table(out: &mut String, t: &Table) {
 }
 
 /// The whole page.
-pub fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
+pub(crate) fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
     let plan = &manifest.plan;
     let mut out = String::new();
     let _ = writeln!(

@@ -8,14 +8,14 @@ use crate::physics::C0;
 use std::fmt::Write as _;
 
 /// A table: header and rows of cells (plain text).
-pub struct Table {
+pub(crate) struct Table {
     pub title: String,
     pub header: Vec<String>,
     pub rows: Vec<Vec<String>>,
 }
 
 /// The header's facts, one line.
-pub fn status_line(manifest: &Manifest) -> String {
+pub(crate) fn status_line(manifest: &Manifest) -> String {
     let plan = &manifest.plan;
     format!(
         "Status: {}{}. Bench: {}. radbench {}{}.",
@@ -36,7 +36,8 @@ pub fn status_line(manifest: &Manifest) -> String {
 }
 
 /// One line on what the numbers mean.
-pub const UNCERTAINTY_NOTE: &str = "Ranges and errors are those of the coherent average of a \
+pub(crate) const UNCERTAINTY_NOTE: &str =
+    "Ranges and errors are those of the coherent average of a \
     step's repetitions, ± the standard deviation of the repetitions' own ranges; width, side-lobe \
     level and SNR are the mean ± standard deviation of the repetitions processed one by one (one \
     repetition: its value alone). BER counts every repetition's bits, with its 95 % Wilson \
@@ -86,7 +87,7 @@ fn ber(a: &AlgorithmResult) -> String {
 }
 
 /// Every step and algorithm.
-pub fn steps_table(results: &Results) -> Table {
+pub(crate) fn steps_table(results: &Results) -> Table {
     let header = [
         "step",
         "nominal",
@@ -143,7 +144,7 @@ pub fn steps_table(results: &Results) -> Table {
 }
 
 /// The summary tables of the run's kinds (accuracy bounds, the thesis' widths beside).
-pub fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Table> {
+pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Table> {
     let mut out = Vec::new();
     let acc: Vec<_> = results.steps.iter().filter(|s| is_accuracy(s)).collect();
     if let Some(fs) = acc
@@ -255,7 +256,7 @@ fn md_table(out: &mut String, t: &Table) {
 }
 
 /// The whole `report.md`.
-pub fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
+pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
     let plan = &manifest.plan;
     let mut out = String::new();
     let _ = writeln!(out, "# Campaign {}\n", plan.name);

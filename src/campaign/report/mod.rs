@@ -7,12 +7,12 @@
 //! |---|---|
 //! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
-//! | [`markdown`] | `report.md` |
-//! | [`html`] | `report.html` |
+//! | `markdown` | `report.md` |
+//! | `html` | `report.html` |
 
 pub mod figures;
-pub mod html;
-pub mod markdown;
+pub(crate) mod html;
+pub(crate) mod markdown;
 pub mod plots;
 
 use super::manifest::Manifest;

@@ -1,6 +1,6 @@
 //! The report's charts as SVG text (inlined into `report.html`): points with error bars against a
 //! numeric or categorical axis, reference lines (bounds, the thesis' values), a log scale for
-//! bit-error rates. Drawn with plotters and the embedded font of [`crate::storage::plot`], like
+//! bit-error rates. Drawn with plotters and the embedded font of `storage::plot`, like
 //! every other plot of radbench.
 
 use crate::storage::plot::{register_font_once, PALETTE};

@@ -10,26 +10,26 @@
 //! | `W <reg hex2> <value hex4>` | `OK` |
 //! | anything refused | `ERR <code> <text>` |
 
-pub const IDN: &str = "*IDN?";
+pub(crate) const IDN: &str = "*IDN?";
 /// Switches CRC framing on. Sent unframed: a module with CRC off switches it on and answers `OK`;
 /// a module already in CRC mode refuses the unframed line with the CRC error and stays on. Either
 /// way CRC framing is on afterwards.
-pub const CRC_ON: &str = "CRC ON";
+pub(crate) const CRC_ON: &str = "CRC ON";
 
 // CRC framing (`*<hh>` suffixes) is the session's [`Crc8`](crate::session::Crc8): one CRC-8 for
 // the driver and the session's line protocol.
 
-pub fn read(address: u8) -> String {
+pub(crate) fn read(address: u8) -> String {
     format!("R {address:02X}")
 }
 
-pub fn write(address: u8, value: u16) -> String {
+pub(crate) fn write(address: u8, value: u16) -> String {
     format!("W {address:02X} {value:04X}")
 }
 
 /// A reply line, parsed.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Reply {
+pub(crate) enum Reply {
     /// `OK` with the value of a read, if any.
     Ok(Option<u16>),
     /// `ERR <code> <text>`.
@@ -37,7 +37,7 @@ pub enum Reply {
 }
 
 /// Parses one reply line; `None` when it is neither `OK [hhhh]` nor `ERR <code> <text>`.
-pub fn parse_reply(line: &str) -> Option<Reply> {
+pub(crate) fn parse_reply(line: &str) -> Option<Reply> {
     let line = line.trim();
     if let Some(rest) = line.strip_prefix("ERR") {
         let rest = rest.trim_start();

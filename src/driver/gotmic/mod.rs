@@ -1,5 +1,5 @@
 //! Gotmic E-band transmitter and receiver modules over serial, through the project-defined line
-//! protocol of [`commands`] (not the vendor's protocol, which is not public).
+//! protocol of `commands` (not the vendor's protocol, which is not public).
 //!
 //! The register map (addresses, bit positions, writable ranges, the expected module ID) comes
 //! from the catalog, so the real map can replace it as data. Safety: enabling needs an
@@ -7,7 +7,7 @@
 //! temperature and LO lock are checked; every write is read back; any failure after the enable
 //! switches the module off again before the error is returned.
 
-pub mod commands;
+pub(crate) mod commands;
 
 use self::commands::Reply;
 use super::capability::{RfFrontEnd, RfSettings, RfStatus};

@@ -5,8 +5,8 @@
 //! configuration batch ends with an error-queue check; the clock, DAC mode and segment table are
 //! read back and compared with what was asked. Spellings live in [`commands`].
 
-pub mod commands;
-pub mod plan;
+pub(crate) mod commands;
+pub(crate) mod plan;
 
 use std::time::Duration;
 
@@ -339,7 +339,7 @@ impl M8195a {
 }
 
 /// `:TRAC:CAT?` -> `id,len[,id,len...]`; `0,0` means no segment.
-pub fn parse_catalog(text: &str) -> Option<Vec<SegmentEntry>> {
+pub(crate) fn parse_catalog(text: &str) -> Option<Vec<SegmentEntry>> {
     let numbers: Vec<i64> = text
         .trim()
         .split(',')
@@ -363,7 +363,7 @@ pub fn parse_catalog(text: &str) -> Option<Vec<SegmentEntry>> {
 }
 
 /// `DIV4` (or `4`) -> 4.
-pub fn parse_divider(text: &str) -> Option<u32> {
+pub(crate) fn parse_divider(text: &str) -> Option<u32> {
     let t = text.trim().trim_matches('"');
     let digits = t
         .strip_prefix("DIV")

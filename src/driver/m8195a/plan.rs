@@ -8,19 +8,19 @@ use crate::driver::error::DriverError;
 use crate::driver::limits::within;
 
 /// The DAC mode the driver uses: I and Q on two channels, channel 1's marker bits on a third.
-pub const DAC_MODE: &str = "DCM";
+pub(crate) const DAC_MODE: &str = "DCM";
 /// The segment the driver defines (one continuously looped segment).
-pub const SEGMENT_ID: u32 = 1;
+pub(crate) const SEGMENT_ID: u32 = 1;
 /// Marker byte bit that drives the first marker channel (M1 = bit0 -> channel 3 in DCM).
-pub const MARKER_BIT: u8 = 0x01;
+pub(crate) const MARKER_BIT: u8 = 0x01;
 
 /// External reference input range of the M8195A, Hz [V-src: instruments.md section 1.4, "ext ref
 /// 10-300 MHz"]. Kept here until the catalog schema has a field for it.
-pub const EXTERNAL_REFERENCE_HZ: (f64, f64) = (10e6, 300e6);
+pub(crate) const EXTERNAL_REFERENCE_HZ: (f64, f64) = (10e6, 300e6);
 
 /// Channels and clock for a given sample rate.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ClockPlan {
+pub(crate) struct ClockPlan {
     pub dac_mode: String,
     pub divider: DividerLimits,
     pub dac_rate_hz: f64,
@@ -38,7 +38,10 @@ fn catalog_error(key: &str, reason: String) -> DriverError {
 }
 
 /// The DAC mode with I/Q and a marker, from the catalog.
-pub fn iq_marker_mode<'a>(limits: &'a AwgLimits, key: &str) -> Result<&'a DacMode, DriverError> {
+pub(crate) fn iq_marker_mode<'a>(
+    limits: &'a AwgLimits,
+    key: &str,
+) -> Result<&'a DacMode, DriverError> {
     let mode = limits.dac_mode(DAC_MODE).ok_or_else(|| {
         catalog_error(
             key,
@@ -57,7 +60,7 @@ pub fn iq_marker_mode<'a>(limits: &'a AwgLimits, key: &str) -> Result<&'a DacMod
 }
 
 /// Checks every level against the catalog and picks the divider and raster for the sample rate.
-pub fn plan_clock(
+pub(crate) fn plan_clock(
     limits: &AwgLimits,
     key: &str,
     instrument: &str,
@@ -167,7 +170,7 @@ pub fn plan_clock(
 
 /// How a waveform goes into memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct DownloadPlan {
+pub(crate) struct DownloadPlan {
     pub samples: u64,
     /// Length after zero padding to the granularity and the minimum segment length.
     pub padded: u64,
@@ -178,7 +181,7 @@ pub struct DownloadPlan {
 
 impl DownloadPlan {
     /// `(offset, length)` of each chunk, in samples, ascending.
-    pub fn chunks(&self) -> Vec<(u64, u64)> {
+    pub(crate) fn chunks(&self) -> Vec<(u64, u64)> {
         let mut out = Vec::new();
         let mut offset = 0;
         while offset < self.padded {
@@ -191,7 +194,7 @@ impl DownloadPlan {
 }
 
 /// Checks the waveform against the catalog and plans padding and chunks.
-pub fn plan_download(
+pub(crate) fn plan_download(
     limits: &AwgLimits,
     clock: &ClockPlan,
     instrument: &str,
@@ -274,7 +277,7 @@ pub fn plan_download(
 }
 
 /// Channel 1's bytes for `offset..offset+len`: `[sample, marker]` pairs, zero past the waveform.
-pub fn interleaved_chunk(i: &[i8], marker_high: u64, offset: u64, len: u64) -> Vec<u8> {
+pub(crate) fn interleaved_chunk(i: &[i8], marker_high: u64, offset: u64, len: u64) -> Vec<u8> {
     let mut out = Vec::with_capacity(2 * len as usize);
     for n in offset..offset + len {
         let sample = i.get(n as usize).copied().unwrap_or(0);
@@ -286,7 +289,7 @@ pub fn interleaved_chunk(i: &[i8], marker_high: u64, offset: u64, len: u64) -> V
 }
 
 /// A plain channel's bytes for `offset..offset+len`, zero past the waveform.
-pub fn plain_chunk(q: &[i8], offset: u64, len: u64) -> Vec<u8> {
+pub(crate) fn plain_chunk(q: &[i8], offset: u64, len: u64) -> Vec<u8> {
     (offset..offset + len)
         .map(|n| q.get(n as usize).copied().unwrap_or(0) as u8)
         .collect()

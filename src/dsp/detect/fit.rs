@@ -10,14 +10,14 @@ const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 
 /// One fitted point target: position in (fractional) cells and complex amplitude.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Component {
+pub(super) struct Component {
     pub x: f64,
     pub a: Complex64,
 }
 
 /// The fitted targets of one profile and the scratch to fit them.
 #[derive(Debug, Default)]
-pub struct Model {
+pub(super) struct Model {
     pub comps: Vec<Component>,
     /// `sum_i a_i g(c - x_i)` over the profile (valid after [`Model::rebuild`]).
     pub model: Vec<Complex64>,
@@ -29,7 +29,7 @@ pub struct Model {
 /// How a fit searches: cells each side of the target used, the bracket on the position, and the
 /// positions allowed.
 #[derive(Debug, Clone, Copy)]
-pub struct FitWindow {
+pub(super) struct FitWindow {
     pub half_width: usize,
     pub bracket: f64,
     pub lowest: f64,
@@ -37,7 +37,7 @@ pub struct FitWindow {
 }
 
 impl Model {
-    pub fn clear(&mut self) {
+    pub(super) fn clear(&mut self) {
         self.comps.clear();
     }
 
@@ -129,7 +129,7 @@ impl Model {
     }
 
     /// Fits a new target near `x_init` against the profile minus the current ones and adds it.
-    pub fn add(
+    pub(super) fn add(
         &mut self,
         psf: &dyn PointSpread,
         z: &[Complex64],
@@ -146,7 +146,7 @@ impl Model {
     /// RELAX: re-fits every target against the profile minus the others, sweep after sweep, until
     /// no position moves more than 1e-4 cells and no amplitude by more than 1e-5 relative (at most
     /// `max_sweeps`). Returns the sweeps made.
-    pub fn refine(
+    pub(super) fn refine(
         &mut self,
         psf: &dyn PointSpread,
         z: &[Complex64],
@@ -173,7 +173,7 @@ impl Model {
     }
 
     /// Recomputes `self.model` over `n` cells.
-    pub fn rebuild(&mut self, psf: &dyn PointSpread, n: usize) {
+    pub(super) fn rebuild(&mut self, psf: &dyn PointSpread, n: usize) {
         self.model.clear();
         self.model.resize(n, ZERO);
         self.full.resize(n, ZERO);
@@ -186,7 +186,7 @@ impl Model {
     }
 
     /// `out = z - model` (after [`Model::rebuild`]).
-    pub fn residual(&self, z: &[Complex64], out: &mut Vec<Complex64>) {
+    pub(super) fn residual(&self, z: &[Complex64], out: &mut Vec<Complex64>) {
         out.clear();
         out.extend(z.iter().zip(&self.model).map(|(a, b)| a - b));
     }

@@ -3,7 +3,7 @@
 //! # What it does
 //! A profile is `z[c] = sum_i a_i g(c - x_i) + noise`: point targets of complex amplitude `a_i` at
 //! fractional cells `x_i`, seen through the point spread `g` of the waveform and the processing
-//! ([`psf`]). [`Detector::detect`] finds the targets, fits each one's sub-cell position and
+//! (`psf`). [`Detector::detect`] finds the targets, fits each one's sub-cell position and
 //! complex amplitude, and measures each one's own response.
 //!
 //! **CLEAN** ([`Method::Clean`], the default): take the strongest local maximum of the residual
@@ -37,7 +37,7 @@
 //!   cells within a main lobe of a fitted target left out; `alpha` is the CA-CFAR factor for the
 //!   median's equivalent number of independent samples (0.48 per independent cell).
 //! * [`NoiseEstimate::Local`] and [`Method::Cfar`]: the CFAR's own factor for its training cells,
-//!   taken every `noise_cells` cells so they are independent ([`threshold`]).
+//!   taken every `noise_cells` cells so they are independent (`threshold`).
 //!
 //! On top of the noise, each fitted target `i` adds a **model floor** `rho |a_i|^2 E(|c - x_i|)`:
 //! `rho` = [`DetectOptions::model_floor_db`] (-30 dB), `E` the spread's own side-lobe envelope (1 in
@@ -56,8 +56,8 @@
 
 mod fit;
 mod music;
-pub mod psf;
-pub mod threshold;
+pub(crate) mod psf;
+pub(crate) mod threshold;
 
 pub use music::music_peaks;
 pub use psf::{PointSpread, PsfShape, SpectralLines, TabulatedPsf};

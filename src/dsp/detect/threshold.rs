@@ -55,7 +55,7 @@ fn solve(pfa: f64, pfa_of: impl Fn(f64) -> f64) -> f64 {
 }
 
 /// CA-CFAR: threshold `alpha * mean` over `n` independent cells.
-pub fn alpha_ca(pfa: f64, n: usize) -> f64 {
+pub(crate) fn alpha_ca(pfa: f64, n: usize) -> f64 {
     let n = n.max(1) as f64;
     n * (pfa.powf(-1.0 / n) - 1.0)
 }
@@ -76,7 +76,7 @@ fn go_so_sum(t: f64, n: usize) -> f64 {
 /// GO-CFAR with `n` cells per side: `t` such that `T = t * max(sum_left, sum_right)` has the
 /// false-alarm probability `pfa` (Hansen and Sawyers):
 /// `Pfa = 2 (1+t)^-n - 2 sum_{k<n} C(n-1+k, k) (2+t)^-(n+k)`.
-pub fn alpha_go(pfa: f64, n: usize) -> f64 {
+pub(crate) fn alpha_go(pfa: f64, n: usize) -> f64 {
     let n = n.max(1);
     solve(pfa, |t| {
         2.0 * (1.0 + t).powi(-(n as i32)) - 2.0 * go_so_sum(t, n)
@@ -85,14 +85,14 @@ pub fn alpha_go(pfa: f64, n: usize) -> f64 {
 
 /// SO-CFAR with `n` cells per side, `T = t * min(sum_left, sum_right)`:
 /// `Pfa = 2 sum_{k<n} C(n-1+k, k) (2+t)^-(n+k)`.
-pub fn alpha_so(pfa: f64, n: usize) -> f64 {
+pub(crate) fn alpha_so(pfa: f64, n: usize) -> f64 {
     let n = n.max(1);
     solve(pfa, |t| 2.0 * go_so_sum(t, n))
 }
 
 /// OS-CFAR, `T = t * X_(k)` with `X_(k)` the k-th smallest of `n` training cells:
 /// `Pfa = prod_{i<k} (n - i) / (n - i + t)`.
-pub fn alpha_os(pfa: f64, n: usize, k: usize) -> f64 {
+pub(crate) fn alpha_os(pfa: f64, n: usize, k: usize) -> f64 {
     let n = n.max(1);
     let k = k.clamp(1, n);
     solve(pfa, |t| {
@@ -106,7 +106,7 @@ pub fn alpha_os(pfa: f64, n: usize, k: usize) -> f64 {
 /// threshold factor that keeps the false-alarm probability per cell at `pfa` for an estimate from
 /// that many independent samples (the median has about 0.48 times the efficiency of the mean).
 /// Returns `(sigma^2, alpha)`, or `None` when fewer than 4 independent samples remain.
-pub fn global_noise(
+pub(crate) fn global_noise(
     power: &[f64],
     exclude: &[bool],
     noise_cells: f64,
@@ -135,7 +135,7 @@ pub fn global_noise(
 
 /// A sliding-window CFAR over a power profile whose training cells skip excluded cells.
 #[derive(Debug, Clone)]
-pub struct LocalCfar {
+pub(crate) struct LocalCfar {
     kind: CfarKind,
     /// Cells skipped on each side of the cell under test.
     guard: usize,
@@ -153,7 +153,7 @@ pub struct LocalCfar {
 
 impl LocalCfar {
     /// `train` independent samples per side, `stride` cells apart, after `guard` cells.
-    pub fn new(
+    pub(crate) fn new(
         kind: CfarKind,
         guard: usize,
         train: usize,
@@ -202,7 +202,7 @@ impl LocalCfar {
     /// Writes the threshold (power) of every cell into `out`. Training cells are taken every
     /// `stride` cells outward from `guard` cells off the cell under test, skipping excluded cells,
     /// looking at most twice the window's reach; a cell without any training cell gets +inf.
-    pub fn thresholds(&mut self, power: &[f64], exclude: &[bool], out: &mut [f64]) {
+    pub(crate) fn thresholds(&mut self, power: &[f64], exclude: &[bool], out: &mut [f64]) {
         let n = power.len() as isize;
         let reach = 2 * self.train;
         for (c, t) in out.iter_mut().enumerate() {

@@ -9,7 +9,7 @@
 //!    separate two targets); optional forward-backward averaging `(R + J R* J) / 2`, which also
 //!    decorrelates coherent echoes. Scaled by 1/(L S).
 //! 2. Hermitian eigen-decomposition ([`HermitianEigen`]): all eigenvalues, eigenvectors of the p
-//!    largest only. p is given or estimated from the eigenvalues with MDL or AIC ([`order`]).
+//!    largest only. p is given or estimated from the eigenvalues with MDL or AIC (`order`).
 //! 3. Pseudo-spectrum in the signal-subspace form on a grid of G points over the unambiguous range:
 //!    `P(tau) = 1 / (M - sum_{signal q} |a(tau)^H q|^2)` (the noise projection, since the
 //!    eigenvectors are orthonormal and `|a|^2 = M`); `a^H q` on the grid is one zero-padded inverse
@@ -24,7 +24,7 @@
 mod covariance;
 mod eigen;
 mod esprit;
-pub mod order;
+pub(crate) mod order;
 mod root;
 
 pub use eigen::HermitianEigen;
