@@ -20,6 +20,13 @@
 //! radbench -> mock_lab (the built-in bench); mock_lab -> nothing of radbench
 //! ```
 //!
+//! # What is public
+//!
+//! Each layer is a public module; inside it, a module nothing outside the crate needs is
+//! `pub(crate)`, and the layer re-exports the types it offers (`radbench::driver::ChannelTrace`,
+//! not `radbench::driver::trace::ChannelTrace`). `#![warn(unreachable_pub)]` keeps every `pub`
+//! item reachable, so a `pub` that is not part of the API shows as a warning (an error in CI).
+//!
 //! | module | layer | what it holds |
 //! |---|---|---|
 //! | [`exit`] | leaf | exit classes every error type maps to (0, 2, 3, 4, 129/130/143) |

@@ -7,11 +7,11 @@
 use serde::Deserialize;
 
 /// The catalog texts built into mock_lab.
-pub mod embedded {
-    pub const M8195A: &str = include_str!("../../instruments/keysight_m8195a.toml");
-    pub const LECROY: &str = include_str!("../../instruments/lecroy_labmaster10zi_a.toml");
-    pub const GOTMIC_TX: &str = include_str!("../../instruments/gotmic_eband_tx.toml");
-    pub const GOTMIC_RX: &str = include_str!("../../instruments/gotmic_eband_rx.toml");
+pub(crate) mod embedded {
+    pub(crate) const M8195A: &str = include_str!("../../instruments/keysight_m8195a.toml");
+    pub(crate) const LECROY: &str = include_str!("../../instruments/lecroy_labmaster10zi_a.toml");
+    pub(crate) const GOTMIC_TX: &str = include_str!("../../instruments/gotmic_eband_tx.toml");
+    pub(crate) const GOTMIC_RX: &str = include_str!("../../instruments/gotmic_eband_rx.toml");
 }
 
 /// A catalog file mock_lab could not use.
@@ -273,7 +273,7 @@ fn invalid(what: &'static str, field: &str, reason: impl Into<String>) -> Catalo
     }
 }
 
-/// Reads an AWG file (for example [`embedded::M8195A`]).
+/// Reads an AWG file (for example `embedded::M8195A`).
 pub fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
     let file: AwgFile = parse("AWG", text)?;
     let model = AwgModel {
@@ -330,7 +330,7 @@ pub fn check_awg(model: &AwgModel) -> Result<(), CatalogError> {
     Ok(())
 }
 
-/// Reads a digitizer file (for example [`embedded::LECROY`]).
+/// Reads a digitizer file (for example `embedded::LECROY`).
 pub fn digitizer_from_str(text: &str) -> Result<DigitizerModel, CatalogError> {
     let file: DigitizerFile = parse("digitizer", text)?;
     let model = DigitizerModel {
@@ -373,7 +373,7 @@ pub fn check_digitizer(model: &DigitizerModel) -> Result<(), CatalogError> {
     Ok(())
 }
 
-/// Reads a Gotmic module file (for example [`embedded::GOTMIC_TX`]).
+/// Reads a Gotmic module file (for example `embedded::GOTMIC_TX`).
 pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
     const WHAT: &str = "RF module";
     let file: RfFile = parse(WHAT, text)?;

@@ -161,10 +161,10 @@ fn reply(result: Result<Value, String>) -> Value {
 }
 
 /// A boxed future of a [`Panel`] action.
-pub type PanelFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
+pub(crate) type PanelFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
 /// What the control channel can do to the lab besides the scene: its "front panel".
-pub trait Panel: Send + Sync + 'static {
+pub(crate) trait Panel: Send + Sync + 'static {
     /// Switches the scope's remote interface; resolves once the endpoints follow.
     fn set_scope_remote(&self, remote: RemoteInterface) -> PanelFuture<'_, Result<Value, String>>;
     /// Every endpoint as it is now.
@@ -272,14 +272,14 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
 
 /// The running control channel; dropping it closes the listener and every connection.
 #[derive(Debug)]
-pub struct ControlServer {
+pub(crate) struct ControlServer {
     addr: SocketAddr,
     task: tokio::task::JoinHandle<()>,
 }
 
 impl ControlServer {
     /// Where clients connect.
-    pub fn local_addr(&self) -> SocketAddr {
+    pub(crate) fn local_addr(&self) -> SocketAddr {
         self.addr
     }
 }
@@ -293,7 +293,7 @@ impl Drop for ControlServer {
 /// Serves the control channel on `addr` (use port 0 for an OS-assigned port); returns once it
 /// listens, and serves until the returned server is dropped. Without a `panel` the lab's own
 /// requests (`scope_remote`, `endpoints`) are refused.
-pub async fn serve(
+pub(crate) async fn serve(
     shared: Arc<SharedScene>,
     panel: Option<Arc<dyn Panel>>,
     addr: SocketAddr,

@@ -8,15 +8,17 @@
 //! | [`bench`](mod@bench) | the emulators wired together: AWG marker -> scope trigger, AWG -> Tx -> scene -> Rx -> scope |
 //! | [`catalog`] | its own reader of the instrument files in `instruments/` (limits, identities, registers) |
 //! | [`server`] | protocol servers: raw socket, VXI-11 (+ portmapper), HiSLIP, VICP, serial pty |
-//! | [`control`] | the scene control channel (JSON lines): move, add, remove targets, change SNR |
+//! | `control` | the scene control channel (JSON lines): move, add, remove targets, change SNR |
 //! | [`emulator`] | instrument state machines: M8195A, LeCroy scope, Gotmic Tx/Rx |
 //! | [`faults`] | injected faults: delays, 1-byte segments, dropped connections, missing replies |
 //! | [`lab`] | the whole simulated lab on 127.0.0.1: every instrument on its transports, plus the control channel |
 //! | [`scene`] | the physics: what the scope sees given the AWG, the front ends and the targets |
 
+#![warn(unreachable_pub)]
+
 pub mod bench;
 pub mod catalog;
-pub mod control;
+pub(crate) mod control;
 pub mod emulator;
 pub mod faults;
 pub mod lab;

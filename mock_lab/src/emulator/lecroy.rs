@@ -16,9 +16,9 @@ mod commands;
 mod params;
 mod settings;
 mod state;
-pub mod trigger;
+pub(crate) mod trigger;
 mod vbs;
-pub mod wavedesc;
+pub(crate) mod wavedesc;
 
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};

@@ -2,7 +2,7 @@
 //! instrument's rules (raster range, granularity and minimum length per divider, amplitude ranges,
 //! no output or run without a waveform), real SCPI error codes, and the played waveform for the scene.
 //!
-//! Parsing: IEEE 488.2 messages are split by [`scpi::message`](super::scpi::message) (block-aware),
+//! Parsing: IEEE 488.2 messages are split by `scpi::message` (block-aware),
 //! headers matched against the manual-style table in `commands` (see there why not the `scpi` crate).
 //! Command errors (`-1xx`) abandon the rest of the program message, as IEEE 488.2 requires; execution
 //! errors (`-2xx`) are queued and the following units still run. Several queries in one message are
@@ -35,11 +35,11 @@ const ERROR_QUEUE_CAPACITY: usize = 30;
 
 /// IEEE 488.2 standard event status register bits.
 mod esr {
-    pub const OPC: u8 = 0x01;
-    pub const QUERY_ERROR: u8 = 0x04;
-    pub const DEVICE_ERROR: u8 = 0x08;
-    pub const EXECUTION_ERROR: u8 = 0x10;
-    pub const COMMAND_ERROR: u8 = 0x20;
+    pub(super) const OPC: u8 = 0x01;
+    pub(super) const QUERY_ERROR: u8 = 0x04;
+    pub(super) const DEVICE_ERROR: u8 = 0x08;
+    pub(super) const EXECUTION_ERROR: u8 = 0x10;
+    pub(super) const COMMAND_ERROR: u8 = 0x20;
 }
 
 struct Inner {

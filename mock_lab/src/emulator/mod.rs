@@ -4,5 +4,5 @@ pub mod gotmic;
 pub mod lecroy;
 pub mod loopback;
 pub mod m8195a;
-pub mod received_log;
-pub mod scpi;
+pub(crate) mod received_log;
+pub(crate) mod scpi;

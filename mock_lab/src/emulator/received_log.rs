@@ -74,7 +74,7 @@ impl ReceivedLog {
 
 /// Readable form of a message: printable ASCII kept, `#N` definite blocks replaced by their size,
 /// other bytes escaped, trailing CR/LF dropped, cut at `MAX_TEXT` characters.
-pub fn summarise(data: &[u8]) -> String {
+pub(crate) fn summarise(data: &[u8]) -> String {
     // The terminator is cut from the text only: a block may end in CR or LF bytes of its own.
     let text_end = trim_terminator(data).len();
     let mut out = String::new();

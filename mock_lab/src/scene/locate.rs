@@ -5,7 +5,7 @@ use toml_edit::ImDocument;
 
 /// The 1-based line where `field` is written, or where its nearest written parent is; `None`
 /// when nothing of the path is in the text (a default value).
-pub fn line_of_field(text: &str, field: &str) -> Option<usize> {
+pub(super) fn line_of_field(text: &str, field: &str) -> Option<usize> {
     let doc = ImDocument::parse(text).ok()?;
     let mut item = doc.as_item();
     let mut best = None;

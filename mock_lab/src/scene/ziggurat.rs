@@ -46,7 +46,7 @@ fn tables() -> &'static Tables {
 
 /// One standard normal deviate; `next_u32` supplies uniform 32-bit words and `uniform` uniform
 /// numbers in (0, 1].
-pub fn normal(mut next_u32: impl FnMut() -> u32, mut uniform: impl FnMut() -> f64) -> f64 {
+pub(super) fn normal(mut next_u32: impl FnMut() -> u32, mut uniform: impl FnMut() -> f64) -> f64 {
     let t = tables();
     let mut hz = next_u32() as i32;
     let mut iz = (hz & 127) as usize;

@@ -18,14 +18,14 @@ use crate::faults::{ReplyFate, ReplyPlan};
 
 /// Largest single read request; big blocks arrive in reads of this size, straight into the
 /// message buffer (no intermediate copy, no up-front allocation of the announced length).
-pub const READ_CHUNK: usize = 8 << 20;
+pub(crate) const READ_CHUNK: usize = 8 << 20;
 
 /// Replies up to this size are coalesced into one write (one TCP segment for small answers).
 const COALESCE_LIMIT: usize = 64 << 10;
 
 /// Accepts connections forever, running `serve` for each on its own task. Connection tasks live
 /// in a [`JoinSet`] owned by the loop, so aborting the loop's task drops every connection.
-pub async fn accept_loop<F, Fut>(listener: TcpListener, protocol: &'static str, serve: F)
+pub(crate) async fn accept_loop<F, Fut>(listener: TcpListener, protocol: &'static str, serve: F)
 where
     F: Fn(TcpStream, SocketAddr) -> Fut,
     Fut: Future<Output = ()> + Send + 'static,
@@ -54,7 +54,9 @@ where
 
 /// Runs a blocking closure on the blocking pool. `None` when it panicked (logged); the caller
 /// then closes its connection, and the server keeps running.
-pub async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Option<T> {
+pub(crate) async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> T + Send + 'static,
+) -> Option<T> {
     match tokio::task::spawn_blocking(f).await {
         Ok(value) => Some(value),
         Err(err) => {
@@ -66,14 +68,17 @@ pub async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static)
 
 /// Hands one message to the handler on the blocking pool and returns its responses, each with a
 /// 488.2 response terminator (LF outside any block) appended when missing.
-pub async fn call_handler(handler: &Arc<dyn Handler>, message: Bytes) -> Option<Vec<Response>> {
+pub(crate) async fn call_handler(
+    handler: &Arc<dyn Handler>,
+    message: Bytes,
+) -> Option<Vec<Response>> {
     let handler = Arc::clone(handler);
     let responses = blocking(move || handler.respond(message)).await?;
     Some(responses.into_iter().map(Response::terminated).collect())
 }
 
 /// Appends the LF response terminator unless the response already ends with one (serial port).
-pub fn terminated(mut response: Vec<u8>) -> Vec<u8> {
+pub(crate) fn terminated(mut response: Vec<u8>) -> Vec<u8> {
     if !has_terminator(&response) {
         response.push(b'\n');
     }
@@ -82,7 +87,7 @@ pub fn terminated(mut response: Vec<u8>) -> Vec<u8> {
 
 /// Reads exactly `n` bytes from `r`, appending them to `dst` in large reads. Memory grows with
 /// the bytes that actually arrive, never with what a length field merely announced.
-pub async fn read_exact_append<R: AsyncRead + Unpin>(
+pub(crate) async fn read_exact_append<R: AsyncRead + Unpin>(
     r: &mut R,
     dst: &mut Vec<u8>,
     n: u64,
@@ -104,7 +109,7 @@ pub async fn read_exact_append<R: AsyncRead + Unpin>(
 }
 
 /// Reads and discards exactly `n` bytes (payload of a message being refused).
-pub async fn skip_exact<R: AsyncRead + Unpin>(r: &mut R, n: u64) -> io::Result<()> {
+pub(crate) async fn skip_exact<R: AsyncRead + Unpin>(r: &mut R, n: u64) -> io::Result<()> {
     let copied = tokio::io::copy(&mut (&mut *r).take(n), &mut tokio::io::sink()).await?;
     if copied < n {
         return Err(io::ErrorKind::UnexpectedEof.into());
@@ -114,7 +119,7 @@ pub async fn skip_exact<R: AsyncRead + Unpin>(r: &mut R, n: u64) -> io::Result<(
 
 /// What became of a reply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Delivery {
+pub(crate) enum Delivery {
     /// Written completely.
     Sent,
     /// Not written (fault: a reply that never comes).
@@ -124,7 +129,7 @@ pub enum Delivery {
 }
 
 /// Writes an encoded reply made of `parts` (headers and payloads, in order) according to `plan`.
-pub async fn write_reply<W: AsyncWrite + Unpin>(
+pub(crate) async fn write_reply<W: AsyncWrite + Unpin>(
     w: &mut W,
     parts: &[&[u8]],
     plan: ReplyPlan,
@@ -171,7 +176,7 @@ fn truncate_parts<'a>(parts: &[&'a [u8]], limit: usize) -> Vec<&'a [u8]> {
 
 /// Lengths of the frames that carry `total` bytes, at most `chunk` each (one empty frame when
 /// `total` is 0: an empty response still needs its end marker).
-pub fn frame_lengths(total: usize, chunk: usize) -> Vec<usize> {
+pub(crate) fn frame_lengths(total: usize, chunk: usize) -> Vec<usize> {
     let chunk = chunk.max(1);
     let frames = total.div_ceil(chunk).max(1);
     (0..frames)
@@ -181,7 +186,7 @@ pub fn frame_lengths(total: usize, chunk: usize) -> Vec<usize> {
 
 /// Each frame header followed by the sub-slices of `parts` its frame carries (frame `i` carries
 /// `lens[i]` bytes, see [`frame_lengths`]): the payload is sliced, never copied.
-pub fn interleave<'a, H: AsRef<[u8]>>(
+pub(crate) fn interleave<'a, H: AsRef<[u8]>>(
     headers: &'a [H],
     lens: &[usize],
     parts: &'a [Bytes],
@@ -217,7 +222,10 @@ const WRITE_PIECE: usize = 8 << 20;
 /// Writes `parts` back to back: runs of small parts (frame and block headers) in one vectored
 /// write (one TCP segment, one wake-up of the peer), large payloads in `WRITE_PIECE` writes.
 /// Nothing is copied into a joined buffer.
-pub async fn write_parts<W: AsyncWrite + Unpin>(w: &mut W, parts: &[&[u8]]) -> io::Result<()> {
+pub(crate) async fn write_parts<W: AsyncWrite + Unpin>(
+    w: &mut W,
+    parts: &[&[u8]],
+) -> io::Result<()> {
     let mut rest = parts;
     while let Some(first) = rest.first() {
         if first.len() >= BIG_PART {
@@ -241,7 +249,7 @@ pub async fn write_parts<W: AsyncWrite + Unpin>(w: &mut W, parts: &[&[u8]]) -> i
 const MAX_IOVECS: usize = 64;
 
 /// Writes `parts` back to back with vectored writes (no copy into a joined buffer).
-pub async fn write_all_vectored<W: AsyncWrite + Unpin>(
+pub(crate) async fn write_all_vectored<W: AsyncWrite + Unpin>(
     w: &mut W,
     parts: &[&[u8]],
 ) -> io::Result<()> {
@@ -275,7 +283,7 @@ async fn write_bytewise<W: AsyncWrite + Unpin>(
 }
 
 /// True for errors that just mean the client went away.
-pub fn is_disconnect(err: &io::Error) -> bool {
+pub(crate) fn is_disconnect(err: &io::Error) -> bool {
     matches!(
         err.kind(),
         io::ErrorKind::UnexpectedEof
@@ -286,7 +294,7 @@ pub fn is_disconnect(err: &io::Error) -> bool {
 }
 
 /// Logs how a connection ended: disconnects at debug level, real errors as warnings.
-pub fn log_end<E: std::fmt::Display>(
+pub(crate) fn log_end<E: std::fmt::Display>(
     protocol: &'static str,
     peer: SocketAddr,
     result: Result<(), E>,

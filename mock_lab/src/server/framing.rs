@@ -35,7 +35,7 @@ pub enum FramingError {
 
 /// One complete message found at the start of the buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Frame {
+pub(crate) struct Frame {
     /// Length of the message without its terminator (LF or CR LF).
     pub message_len: usize,
     /// Bytes to remove from the buffer (message plus terminator).
@@ -59,7 +59,7 @@ enum Scan {
 
 /// Incremental, block-aware message splitter.
 #[derive(Debug, Clone)]
-pub struct Splitter {
+pub(crate) struct Splitter {
     max_message: usize,
     end_delimited: bool,
     scan: Scan,
@@ -70,7 +70,7 @@ pub struct Splitter {
 
 impl Splitter {
     /// A splitter for a raw socket: LF ends a message, also after a `#0` block.
-    pub fn new(max_message: usize) -> Splitter {
+    pub(crate) fn new(max_message: usize) -> Splitter {
         Splitter {
             max_message,
             end_delimited: false,
@@ -81,7 +81,7 @@ impl Splitter {
     }
 
     /// A splitter for a transport whose END marks the message end: a `#0` block runs to the END.
-    pub fn end_delimited(max_message: usize) -> Splitter {
+    pub(crate) fn end_delimited(max_message: usize) -> Splitter {
         Splitter {
             end_delimited: true,
             ..Splitter::new(max_message)
@@ -89,7 +89,7 @@ impl Splitter {
     }
 
     /// How many more bytes the current definite block still needs (a hint for read sizes).
-    pub fn block_bytes_pending(&self) -> u64 {
+    pub(crate) fn block_bytes_pending(&self) -> u64 {
         match self.scan {
             Scan::Block { left } => left,
             _ => 0,
@@ -99,7 +99,7 @@ impl Splitter {
     /// Scans `buf` (which must start with the current message and keep every byte passed
     /// before) and returns the first complete message, if any. After `Some`, the caller must drop
     /// `frame.consumed` bytes from the front of its buffer before the next call.
-    pub fn next_frame(&mut self, buf: &[u8]) -> Result<Option<Frame>, FramingError> {
+    pub(crate) fn next_frame(&mut self, buf: &[u8]) -> Result<Option<Frame>, FramingError> {
         let mut pos = self.scanned;
         while pos < buf.len() {
             match self.scan {
@@ -205,7 +205,7 @@ impl Splitter {
     /// For END-delimited transports: the message that ends at the END of `buf` (everything the
     /// splitter has not returned as a frame). A final LF (or CR LF) outside a block is the
     /// 488.2 terminator and is not part of the message. Resets the splitter.
-    pub fn finish_at_end(&mut self, buf: &[u8]) -> usize {
+    pub(crate) fn finish_at_end(&mut self, buf: &[u8]) -> usize {
         let mut len = buf.len();
         let in_block = matches!(self.scan, Scan::Block { .. } | Scan::LengthDigits { .. });
         if !in_block && len > 0 && buf[len - 1] == b'\n' && len > self.data_end {
@@ -248,7 +248,10 @@ fn is_special(byte: u8, quote: Option<u8>) -> bool {
 /// it separates messages (`*RST\n*IDN?\n` is two), the final terminator is dropped, and a
 /// trailing unterminated part is the last message. Empty messages are dropped. The messages are
 /// views of `data` (no copy).
-pub fn split_end_message(data: Bytes, max_message: usize) -> Result<Vec<Bytes>, FramingError> {
+pub(crate) fn split_end_message(
+    data: Bytes,
+    max_message: usize,
+) -> Result<Vec<Bytes>, FramingError> {
     let mut splitter = Splitter::end_delimited(max_message);
     let mut out = Vec::new();
     let mut start = 0;
@@ -268,7 +271,7 @@ pub fn split_end_message(data: Bytes, max_message: usize) -> Result<Vec<Bytes>, 
 /// For a message arriving in several chunks (HiSLIP Data, VXI-11 device_write, VICP blocks):
 /// when the first chunk holds a `#N` block header, reserve the rest of the block at once (the
 /// announced length was checked against `max` first) instead of growing chunk by chunk.
-pub fn reserve_for_block(input: &mut Vec<u8>, max: usize) {
+pub(crate) fn reserve_for_block(input: &mut Vec<u8>, max: usize) {
     let mut splitter = Splitter::end_delimited(max);
     if let Ok(None) = splitter.next_frame(input) {
         let pending = splitter.block_bytes_pending() as usize;
@@ -280,7 +283,7 @@ pub fn reserve_for_block(input: &mut Vec<u8>, max: usize) {
 
 /// True when `response` already ends with a LF that is not part of a block, i.e. it carries its
 /// own 488.2 response terminator.
-pub fn has_terminator(response: &[u8]) -> bool {
+pub(crate) fn has_terminator(response: &[u8]) -> bool {
     if response.last() != Some(&b'\n') {
         return false;
     }
@@ -300,11 +303,11 @@ pub fn has_terminator(response: &[u8]) -> bool {
 }
 
 /// The largest payload a definite-length block can carry: its length field has at most 9 digits.
-pub const MAX_DEFINITE_BLOCK: usize = 999_999_999;
+pub(crate) const MAX_DEFINITE_BLOCK: usize = 999_999_999;
 
 /// Encodes an IEEE 488.2 definite-length block header (`#<d><len>`) for a payload of `len`
 /// bytes; `None` over [`MAX_DEFINITE_BLOCK`], which no digit count can express.
-pub fn block_header(len: usize) -> Option<Vec<u8>> {
+pub(crate) fn block_header(len: usize) -> Option<Vec<u8>> {
     if len > MAX_DEFINITE_BLOCK {
         return None;
     }

@@ -10,22 +10,22 @@
 //! | [`serial`] | line-based serial endpoint on a pseudo-terminal |
 //!
 //! [`launch`] starts an instrument on any of them and describes the endpoint (address, VISA
-//! resource string); [`switch`] closes and reopens a network endpoint on the same ports (a
-//! scope's remote interface); [`framing`] holds the block-aware 488.2 message splitter they share.
+//! resource string); `switch` closes and reopens a network endpoint on the same ports (a
+//! scope's remote interface); `framing` holds the block-aware 488.2 message splitter they share.
 //!
 //! Every server takes [`ServerOptions`]: the largest message it accepts (length fields are
 //! checked against it before anything is allocated) and the [`Faults`] the tests can switch on.
 //! Handler calls run on tokio's blocking pool, so a handler that blocks (a scope's `WAIT`)
 //! stalls only its own client.
 
-pub mod conn;
-pub mod framing;
+pub(crate) mod conn;
+pub(crate) mod framing;
 pub mod hislip;
 pub mod launch;
-pub mod pool;
+pub(crate) mod pool;
 pub mod raw;
 pub mod serial;
-pub mod switch;
+pub(crate) mod switch;
 pub mod vicp;
 pub mod vxi11;
 

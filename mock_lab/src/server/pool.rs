@@ -11,12 +11,12 @@ use std::sync::Mutex;
 use bytes::Bytes;
 
 /// Smaller buffers are not worth keeping: the allocator reuses them on its own.
-pub const MIN_RECYCLED: usize = 1 << 20;
+pub(crate) const MIN_RECYCLED: usize = 1 << 20;
 /// Buffers kept at most (a stored block plus one upload in flight, per instrument in use).
 const MAX_KEPT: usize = 4;
 /// Largest reservation made from a length field alone; a message announced larger grows as its
 /// bytes actually arrive, so a peer's claim cannot make us reserve more than this up front.
-pub const PRESIZE_LIMIT: usize = 128 << 20;
+pub(crate) const PRESIZE_LIMIT: usize = 128 << 20;
 
 static POOL: Mutex<Vec<Vec<u8>>> = Mutex::new(Vec::new());
 
@@ -26,7 +26,7 @@ fn pool() -> std::sync::MutexGuard<'static, Vec<Vec<u8>>> {
 
 /// Gives the buffer behind `bytes` back when nothing else shares it and it is large; otherwise
 /// simply drops it (a reply still being sent keeps its own reference).
-pub fn recycle(bytes: Bytes) {
+pub(crate) fn recycle(bytes: Bytes) {
     let Ok(mut whole) = bytes.try_into_mut() else {
         return;
     };
@@ -44,7 +44,7 @@ pub fn recycle(bytes: Bytes) {
 
 /// An empty buffer with room for at least `capacity` bytes, if the pool has one (the smallest
 /// that fits).
-pub fn take(capacity: usize) -> Option<Vec<u8>> {
+pub(crate) fn take(capacity: usize) -> Option<Vec<u8>> {
     let mut kept = pool();
     let best = kept
         .iter()
@@ -59,7 +59,7 @@ pub fn take(capacity: usize) -> Option<Vec<u8>> {
 /// the maximum message size). At most [`PRESIZE_LIMIT`] is reserved; large reservations come
 /// from the pool when it has a buffer, the few bytes already in `buf` (a message header) moving
 /// over. A buffer already holding much grows in place instead (no copy of what it holds).
-pub fn reserve(buf: &mut Vec<u8>, additional: usize) {
+pub(crate) fn reserve(buf: &mut Vec<u8>, additional: usize) {
     let additional = additional.min(PRESIZE_LIMIT);
     if buf.capacity() - buf.len() >= additional {
         return;

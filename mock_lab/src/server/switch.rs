@@ -16,7 +16,7 @@ use super::launch::{self, describe, Endpoint, Ports, Transport};
 use super::{Handler, ServerError, ServerHandle, ServerOptions};
 
 /// One switchable network endpoint (not serial, not a portmapper).
-pub struct Switchable {
+pub(crate) struct Switchable {
     instrument: String,
     handler: Arc<dyn Handler>,
     transport: Transport,
@@ -36,7 +36,7 @@ enum State {
 impl Switchable {
     /// Starts the endpoint open, or closed with `closed_reason`. Port 0 lets the OS choose; the
     /// chosen ports are kept for every later reopening.
-    pub async fn start(
+    pub(crate) async fn start(
         instrument: &str,
         handler: Arc<dyn Handler>,
         transport: Transport,
@@ -75,18 +75,18 @@ impl Switchable {
     }
 
     /// Where clients find it, and whether it accepts them now.
-    pub fn endpoint(&self) -> &Endpoint {
+    pub(crate) fn endpoint(&self) -> &Endpoint {
         &self.endpoint
     }
 
     /// True while it accepts connections.
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         matches!(self.state, State::Open(_))
     }
 
     /// Starts serving on the endpoint's ports (nothing when already open). When the ports cannot
     /// be had (another program took one), the endpoint stays closed and says why.
-    pub async fn open(&mut self) -> Result<(), ServerError> {
+    pub(crate) async fn open(&mut self) -> Result<(), ServerError> {
         if self.is_open() {
             return Ok(());
         }
@@ -121,7 +121,7 @@ impl Switchable {
 
     /// Stops serving (clients are dropped) and holds the ports closed; returns once a new
     /// connection is refused. `reason` is reported in the endpoint's description.
-    pub async fn close(&mut self, reason: String) -> Result<(), ServerError> {
+    pub(crate) async fn close(&mut self, reason: String) -> Result<(), ServerError> {
         self.endpoint.active = false;
         self.endpoint.reason = Some(reason);
         let held = match std::mem::replace(&mut self.state, State::Closed(Vec::new())) {

@@ -2,7 +2,7 @@
 //! at the offsets of instruments.md section 2.6, in either byte order (COMM_ORDER).
 
 /// Size of the `LECROY_2_3` descriptor.
-pub const WAVEDESC_LEN: usize = 346;
+pub(crate) const WAVEDESC_LEN: usize = 346;
 
 /// Byte order of every multi-byte field and of WORD samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,7 +35,7 @@ pub struct TriggerTimestamp {
 
 /// The descriptor fields the emulator fills; the rest are fixed (see [`encode`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct WaveDesc {
+pub(crate) struct WaveDesc {
     pub width: SampleWidth,
     pub order: ByteOrder,
     pub instrument_name: String,
@@ -69,7 +69,7 @@ pub struct WaveDesc {
 
 impl WaveDesc {
     /// Bytes of the TRIGTIME array: two f64 per entry.
-    pub fn trigtime_bytes(&self) -> u32 {
+    pub(crate) fn trigtime_bytes(&self) -> u32 {
         u32::try_from(self.trigger_times.len() * 16).unwrap_or(u32::MAX)
     }
 
@@ -87,7 +87,7 @@ impl WaveDesc {
         out
     }
     /// Bytes of data array 1.
-    pub fn array_bytes(&self) -> u32 {
+    pub(crate) fn array_bytes(&self) -> u32 {
         match self.width {
             SampleWidth::Byte => self.points,
             SampleWidth::Word => self.points.saturating_mul(2),
@@ -143,7 +143,7 @@ impl Writer {
 }
 
 /// Encodes the 346-byte descriptor.
-pub fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
+pub(crate) fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
     let mut w = Writer {
         buf: [0; WAVEDESC_LEN],
         order: d.order,
@@ -213,7 +213,7 @@ pub fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
 }
 
 /// Encodes samples (16-bit scope values) in the requested width and order.
-pub fn encode_samples(values: &[i16], width: SampleWidth, order: ByteOrder) -> Vec<u8> {
+pub(crate) fn encode_samples(values: &[i16], width: SampleWidth, order: ByteOrder) -> Vec<u8> {
     match width {
         SampleWidth::Byte => values.iter().map(|v| (v >> 8) as i8 as u8).collect(),
         SampleWidth::Word => {
@@ -230,7 +230,7 @@ pub fn encode_samples(values: &[i16], width: SampleWidth, order: ByteOrder) -> V
 }
 
 /// `#9<9 digits>` + WAVEDESC + data array: the block of `WF? ALL` and the content of a `.trc` file.
-pub fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
+pub(crate) fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
     let data = encode_samples(values, desc.width, desc.order);
     let trigtime = desc.trigtime_array();
     let len = WAVEDESC_LEN + trigtime.len() + data.len();
@@ -244,7 +244,7 @@ pub fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
 }
 
 /// The 1-2-5 enum index used by TIMEBASE (from 1 ps/div) and FIXED_VERT_GAIN (from 1 uV/div).
-pub fn one_two_five_index(value: f64, unit: f64) -> i16 {
+pub(crate) fn one_two_five_index(value: f64, unit: f64) -> i16 {
     if value.is_nan() || value <= 0.0 {
         return 0;
     }

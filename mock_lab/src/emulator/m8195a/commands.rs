@@ -13,7 +13,7 @@ use crate::emulator::scpi::error_queue::ScpiError;
 use crate::emulator::scpi::header::Pattern;
 
 /// One node of the tree: its pattern and its forms (`None`: the form does not exist).
-pub struct Entry {
+pub(super) struct Entry {
     pub pattern: &'static str,
     pub set: Option<Set>,
     pub query: Option<Get>,
@@ -49,7 +49,7 @@ const fn query_only(pattern: &'static str, query: Get) -> Entry {
 }
 
 /// The whole tree, in match order.
-pub const TREE: &[Entry] = &[
+pub(super) const TREE: &[Entry] = &[
     both(":INSTrument:DACMode", h::set_dac_mode, h::get_dac_mode),
     both(
         ":INSTrument:MEMory:EXTended:RDIVider",
@@ -111,13 +111,13 @@ pub const TREE: &[Entry] = &[
 ];
 
 /// The tree with its patterns parsed once.
-pub fn compiled() -> Vec<(Pattern, &'static Entry)> {
+pub(super) fn compiled() -> Vec<(Pattern, &'static Entry)> {
     TREE.iter().map(|e| (Pattern::new(e.pattern), e)).collect()
 }
 
 /// One form of a node, ready to run.
 #[derive(Clone, Copy)]
-pub enum Form {
+pub(super) enum Form {
     Set(Set),
     /// A query and whether it takes parameters.
     Get(Get, bool),
@@ -125,7 +125,7 @@ pub enum Form {
 
 impl Entry {
     /// The form a header asks for, if the node has it.
-    pub fn form(&self, query: bool) -> Option<Form> {
+    pub(super) fn form(&self, query: bool) -> Option<Form> {
         if query {
             self.query.map(|get| Form::Get(get, self.query_params))
         } else {
@@ -136,7 +136,7 @@ impl Entry {
 
 impl Form {
     /// Runs the form; a parameter on a query that takes none is `-108`.
-    pub fn run(self, inner: &mut Inner, call: &Call) -> Result<Option<String>, ScpiError> {
+    pub(super) fn run(self, inner: &mut Inner, call: &Call) -> Result<Option<String>, ScpiError> {
         match self {
             Form::Set(set) => set(inner, call).map(|()| None),
             Form::Get(_, false) if !call.params.is_empty() => Err(ScpiError::new(

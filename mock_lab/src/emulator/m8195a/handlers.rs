@@ -10,7 +10,7 @@ use crate::emulator::scpi::message::{unquote, Param};
 use crate::emulator::scpi::numeric::{self, nr3, NumericSpec};
 
 /// What a command form runs with.
-pub struct Call<'a> {
+pub(super) struct Call<'a> {
     pub model: &'a AwgModel,
     /// The channel of a suffixed node (`TRAC2` -> 2), 1 otherwise.
     pub channel: u8,
@@ -20,9 +20,9 @@ pub struct Call<'a> {
 }
 
 /// A command form.
-pub type Set = fn(&mut Inner, &Call) -> Result<(), ScpiError>;
+pub(super) type Set = fn(&mut Inner, &Call) -> Result<(), ScpiError>;
 /// A query form: the reply without terminator.
-pub type Get = fn(&mut Inner, &Call) -> Result<String, ScpiError>;
+pub(super) type Get = fn(&mut Inner, &Call) -> Result<String, ScpiError>;
 
 impl Call<'_> {
     /// The one parameter, unquoted.
@@ -81,7 +81,7 @@ fn flag(on: bool) -> String {
 
 // ---------------------------------------------------------------- clock and modes
 
-pub fn set_dac_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_dac_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let choices: Vec<(&str, &str)> = call
         .model
         .limits
@@ -93,11 +93,11 @@ pub fn set_dac_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.set_dac_mode(call.model, keyword)
 }
 
-pub fn get_dac_mode(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_dac_mode(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.dac_mode.clone())
 }
 
-pub fn set_divider(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_divider(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let text = call.one()?;
     let dividers = &call.model.limits.dividers;
     let divider = dividers
@@ -113,11 +113,11 @@ pub fn set_divider(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.set_divider(divider.divider)
 }
 
-pub fn get_divider(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_divider(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(format!("DIV{}", inner.state.divider))
 }
 
-pub fn set_memory_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_memory_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let memory = match call.keyword(&[("INT", "INTERNAL"), ("EXT", "EXTENDED")])? {
         "EXT" => Memory::Extended,
         _ => Memory::Internal,
@@ -125,7 +125,7 @@ pub fn set_memory_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> 
     inner.state.set_memory(call.model, call.channel, memory)
 }
 
-pub fn get_memory_mode(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_memory_mode(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(inner
         .state
         .channel(call.channel)
@@ -134,7 +134,7 @@ pub fn get_memory_mode(inner: &mut Inner, call: &Call) -> Result<String, ScpiErr
         .to_string())
 }
 
-pub fn set_raster(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_raster(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let limits = &call.model.limits;
     let rate = call.numeric(NumericSpec {
         unit: numeric::Unit::Hertz,
@@ -146,11 +146,11 @@ pub fn set_raster(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     Ok(())
 }
 
-pub fn get_raster(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_raster(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(nr3(inner.state.raster))
 }
 
-pub fn set_function_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_function_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let keyword = call.keyword(&[
         ("ARB", "ARBITRARY"),
         ("STS", "STSEQUENCE"),
@@ -165,21 +165,21 @@ pub fn set_function_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError
     inner.state.refuse_running_change(keyword)
 }
 
-pub fn get_function_mode(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_function_mode(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.function_mode.to_string())
 }
 
-pub fn set_reference_source(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_reference_source(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.ref_source =
         call.keyword(&[("INT", "INTERNAL"), ("EXT", "EXTERNAL"), ("AXI", "AXI")])?;
     Ok(())
 }
 
-pub fn get_reference_source(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_reference_source(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.ref_source.to_string())
 }
 
-pub fn set_reference_frequency(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_reference_frequency(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.ref_frequency = call.numeric(NumericSpec {
         unit: numeric::Unit::Hertz,
         min: 10e6,
@@ -189,38 +189,38 @@ pub fn set_reference_frequency(inner: &mut Inner, call: &Call) -> Result<(), Scp
     Ok(())
 }
 
-pub fn get_reference_frequency(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_reference_frequency(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(nr3(inner.state.ref_frequency))
 }
 
 // ---------------------------------------------------------------- run control
 
-pub fn set_continuous(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_continuous(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.continuous = call.boolean()?;
     Ok(())
 }
 
-pub fn get_continuous(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_continuous(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(flag(inner.state.continuous))
 }
 
-pub fn set_gate(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_gate(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     inner.state.gate = call.boolean()?;
     Ok(())
 }
 
-pub fn get_gate(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_gate(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(flag(inner.state.gate))
 }
 
 /// `:INIT:IMM`: starts playback (refused without a waveform).
-pub fn start(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn start(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     call.none()?;
     inner.state.start(call.model)
 }
 
 /// `:ABOR`: stops playback.
-pub fn abort(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn abort(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     call.none()?;
     inner.state.stop();
     Ok(())
@@ -228,7 +228,7 @@ pub fn abort(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
 
 // ---------------------------------------------------------------- segments
 
-pub fn define_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn define_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let (id, length, fill) = match call.params {
         [id, len] => (id, len, None),
         [id, len, fill] => (id, len, Some(fill)),
@@ -257,7 +257,7 @@ pub fn define_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
 }
 
 /// `:TRAC:DATA id,offset,<block or values>`.
-pub fn write_data(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn write_data(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let [id, offset, data @ ..] = call.params else {
         return Err(ScpiError::new(
             -109,
@@ -282,7 +282,7 @@ pub fn write_data(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
 }
 
 /// `:TRAC:DATA? id,offset,length`.
-pub fn read_data(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn read_data(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     let [id, offset, count] = call.params else {
         return Err(ScpiError::new(
             -109,
@@ -299,30 +299,30 @@ pub fn read_data(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     )
 }
 
-pub fn get_catalog(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_catalog(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.catalog(call.channel))
 }
 
-pub fn delete_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn delete_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let id = call.unsigned()?;
     inner.state.delete(call.model, call.channel, Some(id))
 }
 
-pub fn delete_all_segments(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn delete_all_segments(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     call.none()?;
     inner.state.delete(call.model, call.channel, None)
 }
 
-pub fn select_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn select_segment(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let id = call.unsigned()?;
     inner.state.select(call.model, call.channel, id)
 }
 
-pub fn get_selected_segment(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_selected_segment(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.channel(call.channel).selected.to_string())
 }
 
-pub fn get_free(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_free(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(inner.state.free(call.model, call.channel))
 }
 
@@ -345,53 +345,53 @@ fn level_spec(st: &AwgState, call: &Call, amplitude: bool) -> NumericSpec {
     }
 }
 
-pub fn set_amplitude(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_amplitude(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let value = call.numeric(level_spec(&inner.state, call, true))?;
     inner.state.set_amplitude(call.channel, value);
     Ok(())
 }
 
-pub fn get_amplitude(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_amplitude(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(nr3(inner.state.channel(call.channel).amplitude_vpp))
 }
 
-pub fn set_offset(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_offset(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let value = call.numeric(level_spec(&inner.state, call, false))?;
     inner.state.set_offset(call.channel, value);
     Ok(())
 }
 
-pub fn get_offset(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_offset(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(nr3(inner.state.channel(call.channel).offset_v))
 }
 
-pub fn get_high(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_high(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     let c = inner.state.channel(call.channel);
     Ok(nr3(c.offset_v + c.amplitude_vpp / 2.0))
 }
 
-pub fn get_low(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_low(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     let c = inner.state.channel(call.channel);
     Ok(nr3(c.offset_v - c.amplitude_vpp / 2.0))
 }
 
-pub fn set_output(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
+pub(super) fn set_output(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
     let on = call.boolean()?;
     inner.state.set_output(call.model, call.channel, on)
 }
 
-pub fn get_output(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+pub(super) fn get_output(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
     Ok(flag(inner.state.channel(call.channel).output))
 }
 
 // ---------------------------------------------------------------- error queue
 
 /// `:SYST:ERR?`: the oldest entry, `0,"No error"` when empty.
-pub fn next_error(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn next_error(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(inner.errors.pop().reply())
 }
 
-pub fn error_count(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
+pub(super) fn error_count(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
     Ok(inner.errors.len().to_string())
 }
 

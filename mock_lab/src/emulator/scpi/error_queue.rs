@@ -34,7 +34,7 @@ impl ScpiError {
 }
 
 /// Standard SCPI-99 texts of the codes the emulators raise.
-pub fn standard_text(code: i32) -> &'static str {
+pub(crate) fn standard_text(code: i32) -> &'static str {
     match code {
         0 => "No error",
         -100 => "Command error",
@@ -64,13 +64,13 @@ pub fn standard_text(code: i32) -> &'static str {
 
 /// Bounded FIFO of errors.
 #[derive(Debug, Clone)]
-pub struct ErrorQueue {
+pub(crate) struct ErrorQueue {
     entries: VecDeque<ScpiError>,
     capacity: usize,
 }
 
 impl ErrorQueue {
-    pub fn new(capacity: usize) -> Self {
+    pub(crate) fn new(capacity: usize) -> Self {
         ErrorQueue {
             entries: VecDeque::new(),
             capacity: capacity.max(2),
@@ -78,7 +78,7 @@ impl ErrorQueue {
     }
 
     /// Adds an error; when full, the newest entry becomes `-350,"Queue overflow"` (SCPI-99 21.8.2).
-    pub fn push(&mut self, error: ScpiError) {
+    pub(crate) fn push(&mut self, error: ScpiError) {
         tracing::debug!(code = error.code, text = %error.text, "error queued");
         if self.entries.len() >= self.capacity {
             if let Some(last) = self.entries.back_mut() {
@@ -90,26 +90,26 @@ impl ErrorQueue {
     }
 
     /// The oldest error, or `0,"No error"`.
-    pub fn pop(&mut self) -> ScpiError {
+    pub(crate) fn pop(&mut self) -> ScpiError {
         self.entries
             .pop_front()
             .unwrap_or_else(|| ScpiError::new(0, ""))
     }
 
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.entries.len()
     }
 
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.entries.is_empty()
     }
 
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.entries.clear();
     }
 
     /// The queued errors without removing them.
-    pub fn peek_all(&self) -> Vec<ScpiError> {
+    pub(crate) fn peek_all(&self) -> Vec<ScpiError> {
         self.entries.iter().cloned().collect()
     }
 }

@@ -17,14 +17,14 @@ struct PatternNode {
 
 /// A parsed header pattern.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Pattern {
+pub(crate) struct Pattern {
     nodes: Vec<PatternNode>,
 }
 
 impl Pattern {
     /// Parses a manual-style pattern. Patterns are program constants: a malformed one is a bug that
     /// the emulator's unit tests catch, so it is reported by `debug_assert` and otherwise matches nothing.
-    pub fn new(pattern: &str) -> Pattern {
+    pub(crate) fn new(pattern: &str) -> Pattern {
         let mut nodes = Vec::new();
         let mut rest = pattern.trim();
         while !rest.is_empty() {
@@ -58,7 +58,7 @@ impl Pattern {
     }
 
     /// Matches parsed header nodes; returns the numeric suffix of every `#` node (1 when omitted).
-    pub fn matches(&self, input: &[HeaderNode]) -> Option<Vec<u32>> {
+    pub(crate) fn matches(&self, input: &[HeaderNode]) -> Option<Vec<u32>> {
         let mut suffixes = Vec::new();
         self.match_from(0, input, &mut suffixes).then_some(suffixes)
     }
@@ -97,14 +97,14 @@ impl Pattern {
 
 /// One node of a received header: mnemonic in capitals and its numeric suffix, if written.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct HeaderNode {
+pub(crate) struct HeaderNode {
     pub mnemonic: String,
     pub suffix: Option<u32>,
 }
 
 /// A received header split into nodes.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Header {
+pub(crate) struct Header {
     /// Written with a leading `:` (absolute path).
     pub absolute: bool,
     pub nodes: Vec<HeaderNode>,
@@ -113,7 +113,7 @@ pub struct Header {
 
 impl Header {
     /// Parses `:TRAC1:DATA?`-style headers (`-102` syntax error for malformed nodes).
-    pub fn parse(text: &str) -> Result<Header, ScpiError> {
+    pub(crate) fn parse(text: &str) -> Result<Header, ScpiError> {
         let query = text.ends_with('?');
         let body = text.trim_end_matches('?');
         let absolute = body.starts_with(':');
@@ -155,14 +155,14 @@ impl Header {
 
 /// Tracks the current header path within one program message (SCPI-99 6.2.4).
 #[derive(Debug, Default)]
-pub struct PathContext {
+pub(crate) struct PathContext {
     path: Vec<HeaderNode>,
 }
 
 impl PathContext {
     /// The node lists to try for `header`, most specific first: a relative header is tried under the
     /// previous path first and then from the root.
-    pub fn candidates(&self, header: &Header) -> Vec<Vec<HeaderNode>> {
+    pub(crate) fn candidates(&self, header: &Header) -> Vec<Vec<HeaderNode>> {
         let mut out = Vec::new();
         if !header.absolute && !self.path.is_empty() {
             let mut nodes = self.path.clone();
@@ -174,7 +174,7 @@ impl PathContext {
     }
 
     /// Records the nodes that matched, so the next relative header continues under them.
-    pub fn matched(&mut self, nodes: &[HeaderNode]) {
+    pub(crate) fn matched(&mut self, nodes: &[HeaderNode]) {
         self.path = nodes[..nodes.len().saturating_sub(1)].to_vec();
     }
 }

@@ -9,7 +9,7 @@ use super::error_queue::ScpiError;
 
 /// One parameter of a program message unit.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Param {
+pub(crate) enum Param {
     /// Character, numeric or quoted-string data as written (trimmed; quotes kept).
     Text(String),
     /// The payload of a definite (`#<d><len>`) or indefinite (`#0`) arbitrary block.
@@ -18,7 +18,7 @@ pub enum Param {
 
 impl Param {
     /// The text of a non-block parameter.
-    pub fn text(&self) -> Option<&str> {
+    pub(crate) fn text(&self) -> Option<&str> {
         match self {
             Param::Text(t) => Some(t),
             Param::Block(_) => None,
@@ -28,21 +28,15 @@ impl Param {
 
 /// One program message unit: `header[?] param,param,...`.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Unit {
+pub(crate) struct Unit {
     /// The header as written, including a leading `:` or `*` and a trailing `?`.
     pub header: String,
     pub params: Vec<Param>,
 }
 
-impl Unit {
-    pub fn is_query(&self) -> bool {
-        self.header.ends_with('?')
-    }
-}
-
 /// Parses the `#<d><digits>` header of a definite block at the start of `data`: returns the header
 /// length and the payload length it announces. `#0` (indefinite) announces everything after it.
-pub fn block_header(data: &[u8]) -> Option<(usize, usize)> {
+pub(crate) fn block_header(data: &[u8]) -> Option<(usize, usize)> {
     if data.first() != Some(&b'#') {
         return None;
     }
@@ -60,7 +54,7 @@ pub fn block_header(data: &[u8]) -> Option<(usize, usize)> {
 }
 
 /// Splits a program message into its units. Errors are SCPI command errors (`-160` block data).
-pub fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
+pub(crate) fn split_units(message: &[u8]) -> Result<Vec<&[u8]>, ScpiError> {
     let mut units = Vec::new();
     let mut start = 0;
     // End of the last block seen in the current unit: trimming stops there.
@@ -155,7 +149,7 @@ fn trim(data: &[u8]) -> &[u8] {
 
 /// Parses one unit into header and parameters. Trailing whitespace is left to the parameter
 /// parser, which knows where a block ends.
-pub fn parse_unit(unit: &[u8]) -> Result<Unit, ScpiError> {
+pub(crate) fn parse_unit(unit: &[u8]) -> Result<Unit, ScpiError> {
     let unit = trim_start(unit);
     let header_end = unit
         .iter()
@@ -234,7 +228,7 @@ fn parse_params(data: &[u8]) -> Result<Vec<Param>, ScpiError> {
 }
 
 /// Removes one pair of matching surrounding quotes (`"..."` or `'...'`), if present.
-pub fn unquote(text: &str) -> &str {
+pub(crate) fn unquote(text: &str) -> &str {
     let t = text.trim();
     for q in ['"', '\''] {
         if t.len() >= 2 && t.starts_with(q) && t.ends_with(q) {
@@ -267,7 +261,7 @@ mod tests {
             parse_unit(units[1]).unwrap().params,
             [Param::Text("'a;b'".into())]
         );
-        assert!(parse_unit(units[2]).unwrap().is_query());
+        assert!(parse_unit(units[2]).unwrap().header.ends_with('?'));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! units (block- and quote-aware), header matching (long and short forms, optional nodes, numeric
 //! suffixes), numeric and keyword parameters, and the error/event queue.
 
-pub mod error_queue;
-pub mod header;
-pub mod message;
-pub mod numeric;
+pub(crate) mod error_queue;
+pub(crate) mod header;
+pub(crate) mod message;
+pub(crate) mod numeric;

@@ -4,7 +4,7 @@ use super::error_queue::ScpiError;
 
 /// The unit a numeric parameter may carry as a suffix.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Unit {
+pub(crate) enum Unit {
     None,
     Hertz,
     Volt,
@@ -13,7 +13,7 @@ pub enum Unit {
 
 /// Range and keyword values of a numeric parameter.
 #[derive(Debug, Clone, Copy)]
-pub struct NumericSpec {
+pub(crate) struct NumericSpec {
     pub unit: Unit,
     pub min: f64,
     pub max: f64,
@@ -21,7 +21,7 @@ pub struct NumericSpec {
 }
 
 /// Parses a number such as `64E9`, `64 GHz`, `500mV`, `MAX`; checks it against the range (`-222`).
-pub fn numeric(text: &str, spec: NumericSpec) -> Result<f64, ScpiError> {
+pub(crate) fn numeric(text: &str, spec: NumericSpec) -> Result<f64, ScpiError> {
     let upper = text.trim().to_ascii_uppercase();
     let value = match upper.as_str() {
         "MIN" | "MINIMUM" => return Ok(spec.min),
@@ -39,7 +39,7 @@ pub fn numeric(text: &str, spec: NumericSpec) -> Result<f64, ScpiError> {
 }
 
 /// Parses a number with an optional unit suffix, without a range check.
-pub fn parse_with_unit(upper: &str, unit: Unit) -> Result<f64, ScpiError> {
+pub(crate) fn parse_with_unit(upper: &str, unit: Unit) -> Result<f64, ScpiError> {
     let split = upper
         .find(|c: char| c.is_ascii_alphabetic() && c != 'E')
         .unwrap_or(upper.len());
@@ -85,7 +85,7 @@ fn unit_multiplier(suffix: &str, unit: Unit) -> Option<f64> {
 }
 
 /// `ON|OFF|1|0` (any non-zero number is true, per SCPI).
-pub fn boolean(text: &str) -> Result<bool, ScpiError> {
+pub(crate) fn boolean(text: &str) -> Result<bool, ScpiError> {
     match text.trim().to_ascii_uppercase().as_str() {
         "ON" => Ok(true),
         "OFF" => Ok(false),
@@ -97,7 +97,7 @@ pub fn boolean(text: &str) -> Result<bool, ScpiError> {
 }
 
 /// A non-negative integer (`-104` if not a number, `-222` if negative or fractional).
-pub fn unsigned(text: &str) -> Result<u64, ScpiError> {
+pub(crate) fn unsigned(text: &str) -> Result<u64, ScpiError> {
     let value = parse_with_unit(&text.trim().to_ascii_uppercase(), Unit::None)?;
     if value < 0.0 || value.fract() != 0.0 || value > u64::MAX as f64 {
         return Err(ScpiError::new(
@@ -109,7 +109,10 @@ pub fn unsigned(text: &str) -> Result<u64, ScpiError> {
 }
 
 /// Matches character data against `(short, long)` keyword forms, case-insensitively (`-224` otherwise).
-pub fn keyword<'a>(text: &str, choices: &[(&'a str, &'a str)]) -> Result<&'a str, ScpiError> {
+pub(crate) fn keyword<'a>(
+    text: &str,
+    choices: &[(&'a str, &'a str)],
+) -> Result<&'a str, ScpiError> {
     let t = text.trim();
     choices
         .iter()
@@ -122,7 +125,7 @@ pub fn keyword<'a>(text: &str, choices: &[(&'a str, &'a str)]) -> Result<&'a str
 }
 
 /// The SCPI NR3 form of a float, e.g. `6.4000000000E+10`.
-pub fn nr3(value: f64) -> String {
+pub(crate) fn nr3(value: f64) -> String {
     let s = format!("{value:.10E}");
     match s.split_once('E') {
         Some((mantissa, exp)) => {

@@ -8,49 +8,52 @@ pub const HEADER_LEN: usize = 16;
 /// Every header starts with these two bytes.
 pub const PROLOGUE: [u8; 2] = *b"HS";
 
-/// Message type codes used by the server.
-pub mod kind {
-    pub const INITIALIZE: u8 = 0;
-    pub const INITIALIZE_RESPONSE: u8 = 1;
-    pub const FATAL_ERROR: u8 = 2;
-    pub const ERROR: u8 = 3;
-    pub const ASYNC_LOCK: u8 = 4;
-    pub const ASYNC_LOCK_RESPONSE: u8 = 5;
-    pub const DATA: u8 = 6;
-    pub const DATA_END: u8 = 7;
-    pub const DEVICE_CLEAR_COMPLETE: u8 = 8;
-    pub const DEVICE_CLEAR_ACKNOWLEDGE: u8 = 9;
-    pub const ASYNC_REMOTE_LOCAL_CONTROL: u8 = 10;
-    pub const ASYNC_REMOTE_LOCAL_RESPONSE: u8 = 11;
-    pub const TRIGGER: u8 = 12;
-    pub const INTERRUPTED: u8 = 13;
-    pub const ASYNC_INTERRUPTED: u8 = 14;
-    pub const ASYNC_MAX_MSG_SIZE: u8 = 15;
-    pub const ASYNC_MAX_MSG_SIZE_RESPONSE: u8 = 16;
-    pub const ASYNC_INITIALIZE: u8 = 17;
-    pub const ASYNC_INITIALIZE_RESPONSE: u8 = 18;
-    pub const ASYNC_DEVICE_CLEAR: u8 = 19;
-    pub const ASYNC_SERVICE_REQUEST: u8 = 20;
-    pub const ASYNC_STATUS_QUERY: u8 = 21;
-    pub const ASYNC_STATUS_RESPONSE: u8 = 22;
-    pub const ASYNC_DEVICE_CLEAR_ACKNOWLEDGE: u8 = 23;
-    pub const ASYNC_LOCK_INFO: u8 = 24;
-    pub const ASYNC_LOCK_INFO_RESPONSE: u8 = 25;
+/// Message type codes of the HiSLIP specification; kept whole (some only name what a client
+/// may send) so the table reads like the spec's.
+#[allow(dead_code)]
+pub(crate) mod kind {
+    pub(crate) const INITIALIZE: u8 = 0;
+    pub(crate) const INITIALIZE_RESPONSE: u8 = 1;
+    pub(crate) const FATAL_ERROR: u8 = 2;
+    pub(crate) const ERROR: u8 = 3;
+    pub(crate) const ASYNC_LOCK: u8 = 4;
+    pub(crate) const ASYNC_LOCK_RESPONSE: u8 = 5;
+    pub(crate) const DATA: u8 = 6;
+    pub(crate) const DATA_END: u8 = 7;
+    pub(crate) const DEVICE_CLEAR_COMPLETE: u8 = 8;
+    pub(crate) const DEVICE_CLEAR_ACKNOWLEDGE: u8 = 9;
+    pub(crate) const ASYNC_REMOTE_LOCAL_CONTROL: u8 = 10;
+    pub(crate) const ASYNC_REMOTE_LOCAL_RESPONSE: u8 = 11;
+    pub(crate) const TRIGGER: u8 = 12;
+    pub(crate) const INTERRUPTED: u8 = 13;
+    pub(crate) const ASYNC_INTERRUPTED: u8 = 14;
+    pub(crate) const ASYNC_MAX_MSG_SIZE: u8 = 15;
+    pub(crate) const ASYNC_MAX_MSG_SIZE_RESPONSE: u8 = 16;
+    pub(crate) const ASYNC_INITIALIZE: u8 = 17;
+    pub(crate) const ASYNC_INITIALIZE_RESPONSE: u8 = 18;
+    pub(crate) const ASYNC_DEVICE_CLEAR: u8 = 19;
+    pub(crate) const ASYNC_SERVICE_REQUEST: u8 = 20;
+    pub(crate) const ASYNC_STATUS_QUERY: u8 = 21;
+    pub(crate) const ASYNC_STATUS_RESPONSE: u8 = 22;
+    pub(crate) const ASYNC_DEVICE_CLEAR_ACKNOWLEDGE: u8 = 23;
+    pub(crate) const ASYNC_LOCK_INFO: u8 = 24;
+    pub(crate) const ASYNC_LOCK_INFO_RESPONSE: u8 = 25;
 }
 
-/// FatalError control codes.
-pub mod fatal {
-    pub const UNIDENTIFIED: u8 = 0;
-    pub const POORLY_FORMED_HEADER: u8 = 1;
-    pub const CHANNELS_NOT_ESTABLISHED: u8 = 2;
-    pub const INVALID_INIT_SEQUENCE: u8 = 3;
+/// FatalError control codes (the specification's whole table).
+#[allow(dead_code)]
+pub(crate) mod fatal {
+    pub(crate) const UNIDENTIFIED: u8 = 0;
+    pub(crate) const POORLY_FORMED_HEADER: u8 = 1;
+    pub(crate) const CHANNELS_NOT_ESTABLISHED: u8 = 2;
+    pub(crate) const INVALID_INIT_SEQUENCE: u8 = 3;
 }
 
 /// Error (non-fatal) control codes.
-pub mod nonfatal {
-    pub const UNRECOGNIZED_MESSAGE_TYPE: u8 = 1;
-    pub const UNRECOGNIZED_CONTROL_CODE: u8 = 2;
-    pub const MESSAGE_TOO_LARGE: u8 = 4;
+pub(crate) mod nonfatal {
+    pub(crate) const UNRECOGNIZED_MESSAGE_TYPE: u8 = 1;
+    pub(crate) const UNRECOGNIZED_CONTROL_CODE: u8 = 2;
+    pub(crate) const MESSAGE_TOO_LARGE: u8 = 4;
 }
 
 /// A HiSLIP protocol violation or a link failure.
@@ -86,7 +89,7 @@ pub enum HislipError {
 /// A decoded message header.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Header {
-    /// Message type (see [`kind`]).
+    /// Message type (see `kind`).
     pub kind: u8,
     /// Control code.
     pub control: u8,

@@ -8,15 +8,16 @@ pub const HEADER_LEN: usize = 8;
 /// The only header version in use.
 pub const VERSION: u8 = 1;
 
-/// Operation bits (byte 0).
-pub mod op {
-    pub const DATA: u8 = 0x80;
-    pub const REMOTE: u8 = 0x40;
-    pub const LOCKOUT: u8 = 0x20;
-    pub const CLEAR: u8 = 0x10;
-    pub const SRQ: u8 = 0x08;
-    pub const SERIAL_POLL: u8 = 0x04;
-    pub const EOI: u8 = 0x01;
+/// Operation bits (byte 0), every bit of the header's table.
+#[allow(dead_code)]
+pub(crate) mod op {
+    pub(crate) const DATA: u8 = 0x80;
+    pub(crate) const REMOTE: u8 = 0x40;
+    pub(crate) const LOCKOUT: u8 = 0x20;
+    pub(crate) const CLEAR: u8 = 0x10;
+    pub(crate) const SRQ: u8 = 0x08;
+    pub(crate) const SERIAL_POLL: u8 = 0x04;
+    pub(crate) const EOI: u8 = 0x01;
 }
 
 /// A VICP protocol violation or a link failure.
@@ -45,7 +46,7 @@ pub enum VicpError {
 /// A decoded block header.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Header {
-    /// Operation bits (see [`op`]).
+    /// Operation bits (see `op`).
     pub op: u8,
     /// Sequence number (1..=255 in VICP 1a, 0 from old clients).
     pub seq: u8,

@@ -14,7 +14,7 @@
 //! "operation not supported").
 
 pub mod rpc;
-pub mod xdr;
+pub(crate) mod xdr;
 
 use std::collections::{HashMap, VecDeque};
 use std::net::SocketAddr;
@@ -48,28 +48,28 @@ pub const VXI11_VERSION: u32 = 1;
 pub const IPPROTO_TCP: u32 = 6;
 
 /// Procedure numbers (VXI-11 specification B.6, RFC 1833 for the portmapper).
-pub mod procedure {
+pub(crate) mod procedure {
     /// Portmapper: ping.
-    pub const PMAP_NULL: u32 = 0;
+    pub(crate) const PMAP_NULL: u32 = 0;
     /// Portmapper: the port of a program and version.
-    pub const PMAP_GETPORT: u32 = 3;
+    pub(crate) const PMAP_GETPORT: u32 = 3;
     /// Abort channel.
-    pub const DEVICE_ABORT: u32 = 1;
-    pub const CREATE_LINK: u32 = 10;
-    pub const DEVICE_WRITE: u32 = 11;
-    pub const DEVICE_READ: u32 = 12;
-    pub const DEVICE_READSTB: u32 = 13;
-    pub const DEVICE_TRIGGER: u32 = 14;
-    pub const DEVICE_CLEAR: u32 = 15;
-    pub const DEVICE_REMOTE: u32 = 16;
-    pub const DEVICE_LOCAL: u32 = 17;
-    pub const DEVICE_LOCK: u32 = 18;
-    pub const DEVICE_UNLOCK: u32 = 19;
-    pub const DEVICE_ENABLE_SRQ: u32 = 20;
-    pub const DEVICE_DOCMD: u32 = 22;
-    pub const DESTROY_LINK: u32 = 23;
-    pub const CREATE_INTR_CHAN: u32 = 25;
-    pub const DESTROY_INTR_CHAN: u32 = 26;
+    pub(crate) const DEVICE_ABORT: u32 = 1;
+    pub(crate) const CREATE_LINK: u32 = 10;
+    pub(crate) const DEVICE_WRITE: u32 = 11;
+    pub(crate) const DEVICE_READ: u32 = 12;
+    pub(crate) const DEVICE_READSTB: u32 = 13;
+    pub(crate) const DEVICE_TRIGGER: u32 = 14;
+    pub(crate) const DEVICE_CLEAR: u32 = 15;
+    pub(crate) const DEVICE_REMOTE: u32 = 16;
+    pub(crate) const DEVICE_LOCAL: u32 = 17;
+    pub(crate) const DEVICE_LOCK: u32 = 18;
+    pub(crate) const DEVICE_UNLOCK: u32 = 19;
+    pub(crate) const DEVICE_ENABLE_SRQ: u32 = 20;
+    pub(crate) const DEVICE_DOCMD: u32 = 22;
+    pub(crate) const DESTROY_LINK: u32 = 23;
+    pub(crate) const CREATE_INTR_CHAN: u32 = 25;
+    pub(crate) const DESTROY_INTR_CHAN: u32 = 26;
 }
 /// Records beyond the data itself: RPC and VXI-11 headers.
 const RECORD_OVERHEAD: usize = 4096;
@@ -78,23 +78,23 @@ const MAX_DEVICE_NAME: usize = 256;
 const MAV: u8 = 0x10;
 
 /// VXI-11 error codes (Device_ErrorCode).
-pub mod code {
-    pub const NO_ERROR: i32 = 0;
-    pub const INVALID_LINK: i32 = 4;
-    pub const PARAMETER_ERROR: i32 = 5;
-    pub const NOT_SUPPORTED: i32 = 8;
-    pub const OUT_OF_RESOURCES: i32 = 9;
-    pub const DEVICE_LOCKED: i32 = 11;
-    pub const NO_LOCK_HELD: i32 = 12;
-    pub const IO_TIMEOUT: i32 = 15;
-    pub const ABORT: i32 = 23;
+pub(crate) mod code {
+    pub(crate) const NO_ERROR: i32 = 0;
+    pub(crate) const INVALID_LINK: i32 = 4;
+    pub(crate) const PARAMETER_ERROR: i32 = 5;
+    pub(crate) const NOT_SUPPORTED: i32 = 8;
+    pub(crate) const OUT_OF_RESOURCES: i32 = 9;
+    pub(crate) const DEVICE_LOCKED: i32 = 11;
+    pub(crate) const NO_LOCK_HELD: i32 = 12;
+    pub(crate) const IO_TIMEOUT: i32 = 15;
+    pub(crate) const ABORT: i32 = 23;
 }
 
 /// device_read reasons.
-pub mod reason {
-    pub const REQCNT: i32 = 1;
-    pub const CHR: i32 = 2;
-    pub const END: i32 = 4;
+pub(crate) mod reason {
+    pub(crate) const REQCNT: i32 = 1;
+    pub(crate) const CHR: i32 = 2;
+    pub(crate) const END: i32 = 4;
 }
 
 /// device_write flag: last chunk of the message.

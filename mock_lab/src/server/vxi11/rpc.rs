@@ -26,12 +26,12 @@ pub const RPC_MISMATCH: u32 = 0;
 pub const AUTH_NONE: u32 = 0;
 
 /// Accept status of an accepted reply.
-pub mod accept {
-    pub const SUCCESS: u32 = 0;
-    pub const PROG_UNAVAIL: u32 = 1;
-    pub const PROG_MISMATCH: u32 = 2;
-    pub const PROC_UNAVAIL: u32 = 3;
-    pub const GARBAGE_ARGS: u32 = 4;
+pub(crate) mod accept {
+    pub(crate) const SUCCESS: u32 = 0;
+    pub(crate) const PROG_UNAVAIL: u32 = 1;
+    pub(crate) const PROG_MISMATCH: u32 = 2;
+    pub(crate) const PROC_UNAVAIL: u32 = 3;
+    pub(crate) const GARBAGE_ARGS: u32 = 4;
 }
 
 /// A malformed RPC message or a link failure.
@@ -167,7 +167,7 @@ mod tests {
     use super::*;
 
     /// A GETPORT call to the portmapper for VXI-11 core, TCP (as pyvisa-py sends it).
-    pub const GOLDEN_GETPORT: &[u8] = &[
+    pub(crate) const GOLDEN_GETPORT: &[u8] = &[
         0x80, 0, 0, 56, // record mark: last fragment, 56 bytes
         0, 0, 0, 7, 0, 0, 0, 0, 0, 0, 0, 2, // xid 7, CALL, rpcvers 2
         0, 1, 0x86, 0xA0, 0, 0, 0, 2, 0, 0, 0, 3, // prog 100000, vers 2, proc 3

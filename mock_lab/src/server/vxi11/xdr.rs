@@ -86,7 +86,7 @@ impl<'a> XdrReader<'a> {
 }
 
 /// Padding after `len` bytes of opaque data.
-pub fn pad(len: usize) -> usize {
+pub(crate) fn pad(len: usize) -> usize {
     (4 - len % 4) % 4
 }
 
