@@ -55,7 +55,7 @@ async fn main() -> anyhow::Result<()> {
             .native
             .as_ref()
             .ok_or_else(|| anyhow::anyhow!("the LeCroy driver keeps the .trc bytes"))?;
-        std::fs::write(out.join(format!("rb_C{channel}.trc")), &native.bytes)?;
+        std::fs::write(out.join(format!("rb_C{channel}.trc")), native.to_vec())?;
         decoded.insert(
             format!("C{channel}"),
             serde_json::json!({

@@ -16,12 +16,23 @@ pub struct SegmentTiming {
     pub first_sample_s: f64,
 }
 
-/// The instrument's own file of a record (for LeCroy a `.trc`), kept to save beside ours.
+/// The instrument's own file of a record (for LeCroy a `.trc`), kept to save beside ours: a
+/// short header and the block as received, not joined (no copy of the record on the capture's
+/// path).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NativeFile {
     /// File name extension without the dot, e.g. `trc`.
     pub extension: &'static str,
-    pub bytes: Bytes,
+    /// What the file starts with before the block (for a `.trc`, `#9` and the length).
+    pub header: Vec<u8>,
+    pub body: Bytes,
+}
+
+impl NativeFile {
+    /// The whole file.
+    pub fn to_vec(&self) -> Vec<u8> {
+        [&self.header[..], &self.body[..]].concat()
+    }
 }
 
 /// One channel of one acquisition.

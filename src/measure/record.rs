@@ -3,7 +3,7 @@
 
 use super::capture::Measurement;
 use super::MeasureError;
-use crate::storage::atomic::write_atomic;
+use crate::storage::atomic::{write_atomic, write_atomic_parts};
 use crate::storage::plot;
 use crate::storage::sigmf::{self, SigmfMeta};
 use crate::storage::StorageError;
@@ -174,7 +174,7 @@ pub(crate) fn write_raw(
     for trace in [i, q] {
         if let Some(file) = &trace.native {
             let path = out.join(format!("C{}.{}", trace.channel, file.extension));
-            write_atomic(&path, &file.bytes)?;
+            write_atomic_parts(&path, &[&file.header, &file.body])?;
             native.push(path);
         }
     }

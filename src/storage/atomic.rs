@@ -24,6 +24,11 @@ pub(crate) const TEMP_MARKER: &str = ".radbench-tmp-";
 
 /// Writes `bytes` to `path` atomically: readers see either the old file or the complete new one.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
+    write_atomic_parts(path, &[bytes])
+}
+
+/// [`write_atomic`] of `parts` one after the other (a header and a body kept apart, unjoined).
+pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), StorageError> {
     let io = |source| StorageError::Io {
         path: path.to_path_buf(),
         source,
@@ -33,7 +38,9 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError
     // Removes the temporary file on every way out but success (errors and panics alike).
     let mut guard = TempGuard(Some(tmp.clone()));
     let written = (|| {
-        file.write_all(bytes)?;
+        for part in parts {
+            file.write_all(part)?;
+        }
         file.sync_all()?;
         drop(file);
         std::fs::rename(&tmp, path)

@@ -254,7 +254,7 @@ async fn scope_captures_iq(net: Net) {
     }
     // The saved .trc is exactly what the scope itself would save.
     assert_eq!(
-        capture.i.native.as_ref().unwrap().bytes.as_ref(),
+        capture.i.native.as_ref().unwrap().to_vec(),
         emu.trc_bytes(1).unwrap()
     );
 }

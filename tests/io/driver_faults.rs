@@ -257,12 +257,12 @@ async fn a_capture_under_link_faults_gives_the_right_data_or_a_link_error_and_en
                 assert_eq!(&play.channels[1].samples[..4096], &wf.q[..], "seed {seed}");
                 assert_eq!(iq.i.codes.len() as u64, points, "seed {seed}");
                 assert_eq!(
-                    iq.i.native.as_ref().map(|f| f.bytes.to_vec()),
+                    iq.i.native.as_ref().map(|f| f.to_vec()),
                     lab.bench.scope.trc_bytes(1),
                     "seed {seed}: I is the scope's last acquisition"
                 );
                 assert_eq!(
-                    iq.q.native.as_ref().map(|f| f.bytes.to_vec()),
+                    iq.q.native.as_ref().map(|f| f.to_vec()),
                     lab.bench.scope.trc_bytes(2),
                     "seed {seed}: Q is the scope's last acquisition"
                 );

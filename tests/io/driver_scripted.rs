@@ -572,14 +572,11 @@ async fn lecroy_single_shot_then_both_channels_in_words() {
         capture.i.segment_times(0)[0] < 0.0,
         "HORIZ_OFFSET is in the time axis"
     );
-    assert!(capture
-        .i
-        .native
-        .as_ref()
-        .unwrap()
-        .bytes
-        .as_ref()
-        .starts_with(b"#9"));
+    let trc = capture.i.native.as_ref().unwrap().to_vec();
+    assert!(
+        trc.starts_with(b"#9000000"),
+        "a .trc starts with the block's length"
+    );
 }
 
 #[tokio::test]

@@ -151,7 +151,7 @@ async fn the_unchanged_driver_captures_at_the_wavemasters_rate_on_its_emulator()
     assert_eq!(capture.i.segment_volts(0).len() as u64, applied.points);
     assert_eq!(capture.i.sample_interval_s as f32, 25e-12_f32);
     assert_eq!(
-        capture.i.native.as_ref().unwrap().bytes.as_ref(),
+        capture.i.native.as_ref().unwrap().to_vec(),
         emu.trc_bytes(1).unwrap()
     );
 }

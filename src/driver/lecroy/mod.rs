@@ -472,9 +472,11 @@ fn neutral(trace: Trace) -> ChannelTrace {
             first_sample_s: s.trigger_offset_s,
         })
         .collect();
+    // A `.trc` file is the block with its `#9` length header.
     let native = NativeFile {
         extension: "trc",
-        bytes: Bytes::from(trace.trc_bytes()),
+        header: format!("#9{:09}", trace.block().len()).into_bytes(),
+        body: trace.block().clone(),
     };
     ChannelTrace {
         channel: trace.channel,
