@@ -393,6 +393,44 @@ impl ScopeState {
         stb
     }
 
+    /// What `WAVEFORM_SETUP` picks of a recorded channel: the values (SN 0 every segment of a
+    /// sequence, k only the k-th, 1-based \[I\]; then first point, sparsing and count within
+    /// each), the points of one segment, and the TRIGTIME entries of the segments picked.
+    fn window_of(
+        &self,
+        acq: &Acquisition,
+        c: &RecordedChannel,
+    ) -> (Vec<i16>, u32, Vec<(f64, f64)>) {
+        let count = acq.segment_times.len().max(1);
+        let seg_len = c.values.len() / count;
+        let chosen: Vec<usize> = match self.window.segment as usize {
+            0 => (0..count).collect(),
+            k if k <= count => vec![k - 1],
+            _ => Vec::new(),
+        };
+        let first = self.window.first as usize;
+        let sparsing = self.window.sparsing.max(1) as usize;
+        let mut values = Vec::new();
+        for &k in &chosen {
+            let segment = &c.values[k * seg_len..(k + 1) * seg_len];
+            let part = segment.iter().skip(first).step_by(sparsing).copied();
+            match self.window.points {
+                0 => values.extend(part),
+                n => values.extend(part.take(n as usize)),
+            }
+        }
+        let offset = acq.first_point_s + f64::from(self.window.first) / acq.sample_rate;
+        let times = if acq.segment_times.len() > 1 {
+            chosen
+                .iter()
+                .map(|&k| (acq.segment_times[k], offset))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        (values, seg_len as u32, times)
+    }
+
     /// The `#9` block of `Cn:WF? ALL` for channel index `ch` (0 = C1), honouring COMM_FORMAT,
     /// COMM_ORDER and WAVEFORM_SETUP. Without an acquisition (or with the trace off) the block holds
     /// a descriptor with zero points \[I\].
@@ -403,41 +441,10 @@ impl ScopeState {
             .as_ref()
             .and_then(|a| a.channels.get(ch).cloned().flatten().map(|c| (a, c)));
         let sparsing = self.window.sparsing.max(1);
-        // WFSU SN: 0 reads every segment of a sequence, k only the k-th (1-based) \[I\].
         let (values, desc_base, trigger_times) = match &recorded {
             Some((acq, c)) => {
-                let count = acq.segment_times.len().max(1);
-                let seg_len = c.values.len() / count;
-                let chosen: Vec<usize> = match self.window.segment as usize {
-                    0 => (0..count).collect(),
-                    k if k <= count => vec![k - 1],
-                    _ => Vec::new(),
-                };
-                let first = self.window.first as usize;
-                let mut picked = Vec::new();
-                for &k in &chosen {
-                    let segment = &c.values[k * seg_len..(k + 1) * seg_len];
-                    let mut part: Vec<i16> = segment
-                        .iter()
-                        .skip(first)
-                        .step_by(sparsing as usize)
-                        .copied()
-                        .collect();
-                    if self.window.points > 0 {
-                        part.truncate(self.window.points as usize);
-                    }
-                    picked.extend(part);
-                }
-                let offset = acq.first_point_s + f64::from(self.window.first) / acq.sample_rate;
-                let times = if acq.segment_times.len() > 1 {
-                    chosen
-                        .iter()
-                        .map(|&k| (acq.segment_times[k], offset))
-                        .collect()
-                } else {
-                    Vec::new()
-                };
-                (picked, Some((acq, c, seg_len as u32)), times)
+                let (values, seg_len, times) = self.window_of(acq, c);
+                (values, Some((acq, c, seg_len)), times)
             }
             None => (Vec::new(), None, Vec::new()),
         };
