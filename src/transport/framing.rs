@@ -178,17 +178,8 @@ impl Decode for TerminatedDecoder {
 mod tests {
     use super::*;
 
-    fn decode_all(chunks: &[&[u8]], limit: usize) -> Result<Vec<Vec<u8>>, CodecError> {
-        let mut dec = TerminatedDecoder::new(b'\n', limit);
-        let mut buf = BytesMut::new();
-        let mut out = Vec::new();
-        for chunk in chunks {
-            buf.extend_from_slice(chunk);
-            while let Some(frame) = dec.decode(&mut buf)? {
-                out.push(frame.to_vec());
-            }
-        }
-        Ok(out)
+    fn decode_all(chunks: &[&[u8]], limit: usize) -> Result<Vec<Bytes>, CodecError> {
+        crate::transport::io::decode_chunks(TerminatedDecoder::new(b'\n', limit), chunks)
     }
 
     // Golden frames at every split, arbitrary bytes and round trips: the shared codec

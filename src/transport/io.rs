@@ -116,6 +116,24 @@ impl std::fmt::Debug for LinkOptions {
     }
 }
 
+/// Every item `decoder` gives for `chunks` arriving one after the other, or its first error (the
+/// codecs' unit tests; the conformance harness is tests/io_fuzz.rs).
+#[cfg(test)]
+pub(crate) fn decode_chunks<D: Decode>(
+    mut decoder: D,
+    chunks: &[&[u8]],
+) -> Result<Vec<D::Item>, CodecError> {
+    let mut buf = BytesMut::new();
+    let mut out = Vec::new();
+    for chunk in chunks {
+        buf.extend_from_slice(chunk);
+        while let Some(item) = decoder.decode(&mut buf)? {
+            out.push(item);
+        }
+    }
+    Ok(out)
+}
+
 /// An incremental decoder: consumes whole frames from the front of `src`, leaves partial ones.
 pub trait Decode {
     type Item;

@@ -140,16 +140,7 @@ mod tests {
     use super::*;
 
     fn blocks(chunks: &[&[u8]], limit: u64) -> Result<Vec<Block>, CodecError> {
-        let mut dec = BlockDecoder::new(limit);
-        let mut buf = BytesMut::new();
-        let mut out = Vec::new();
-        for c in chunks {
-            buf.extend_from_slice(c);
-            while let Some(f) = dec.decode(&mut buf)? {
-                out.push(f);
-            }
-        }
-        Ok(out)
+        crate::transport::io::decode_chunks(BlockDecoder::new(limit), chunks)
     }
 
     // Golden frames at every split, arbitrary bytes and round trips: the shared codec

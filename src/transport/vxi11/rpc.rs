@@ -263,16 +263,7 @@ mod tests {
     use super::*;
 
     fn records(chunks: &[&[u8]], limit: u64) -> Result<Vec<Bytes>, CodecError> {
-        let mut dec = RecordDecoder::new(limit);
-        let mut buf = BytesMut::new();
-        let mut out = Vec::new();
-        for c in chunks {
-            buf.extend_from_slice(c);
-            while let Some(r) = dec.decode(&mut buf)? {
-                out.push(r);
-            }
-        }
-        Ok(out)
+        crate::transport::io::decode_chunks(RecordDecoder::new(limit), chunks)
     }
 
     // Golden records at every split, arbitrary bytes (records and XDR) and round trips: the
