@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use super::state::{SampleMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::{Fault, Lecroy};
+use crate::catalog::DigitizerModel;
 
 fn not_implemented(what: &str) -> Fault {
     Fault::Execution(
@@ -153,131 +154,11 @@ impl Lecroy {
 
     fn vbs_write(&self, lhs: &str, rhs: &str) -> Result<(), Fault> {
         let key = lhs.to_ascii_lowercase().replace(' ', "");
-        let limits = &self.model.limits;
-        let mut st = self.lock();
-        match key.as_str() {
-            "app.acquisition.horizontal.samplerate" => {
-                let wanted = number(lhs, rhs)?;
-                if wanted != ScopeState::sample_rate(&self.model) {
-                    // The scope adapts to its fixed rate; SamplingRate reads back what it uses.
-                    st.value_adapted = true;
-                }
-                st.requested_rate = wanted;
-            }
-            "app.acquisition.horizontal.maximize" => {
-                let v = literal(rhs);
-                match v.to_ascii_lowercase().as_str() {
-                    "fixedsamplerate" => st.maximize = "FixedSampleRate".into(),
-                    "setmaximummemory" => st.maximize = "SetMaximumMemory".into(),
-                    _ => return Err(bad_value(lhs, &v)),
-                }
-            }
-            "app.acquisition.horizontal.horscale" => {
-                let v = number(lhs, rhs)?;
-                if v <= 0.0 {
-                    return Err(bad_value(lhs, rhs));
-                }
-                st.hor_scale = v;
-                let wanted = f64::from(limits.horizontal_divisions)
-                    * v
-                    * ScopeState::sample_rate(&self.model);
-                if wanted.round() as u64 > st.record_points(&self.model) {
-                    st.value_adapted = true;
-                }
-            }
-            "app.acquisition.horizontal.maxsamples" => {
-                let v = number(lhs, rhs)?;
-                let max = limits.max_points_per_channel as f64;
-                let clamped = v.clamp(1.0, max);
-                if clamped != v {
-                    st.value_adapted = true;
-                }
-                st.max_samples = clamped.round() as u64;
-            }
-            "app.acquisition.horizontal.samplemode" => {
-                let v = literal(rhs);
-                st.sample_mode = match v.to_ascii_lowercase().as_str() {
-                    "realtime" => SampleMode::RealTime,
-                    "sequence" if limits.max_sequence_segments > 1 => SampleMode::Sequence,
-                    "sequence" => return Err(not_implemented("SampleMode Sequence on this model")),
-                    _ => return Err(not_implemented(&format!("SampleMode {v}"))),
-                };
-            }
-            "app.acquisition.horizontal.numsegments" => {
-                let v = number(lhs, rhs)?;
-                if v.fract() != 0.0 {
-                    return Err(bad_value(lhs, rhs));
-                }
-                // The scope adapts a count out of range to the nearest it can do.
-                let max = f64::from(limits.max_sequence_segments.max(2));
-                let clamped = v.clamp(2.0, max);
-                if clamped != v {
-                    st.value_adapted = true;
-                }
-                st.segments = clamped as u32;
-            }
-            "app.acquisition.triggermode" => {
-                let v = literal(rhs);
-                let mode = match v.to_ascii_lowercase().as_str() {
-                    "single" => TriggerMode::Single,
-                    "normal" => TriggerMode::Normal,
-                    "auto" => TriggerMode::Auto,
-                    "stopped" | "stop" => TriggerMode::Stop,
-                    _ => return Err(bad_value(lhs, &v)),
-                };
-                st.set_trigger_mode(mode);
-            }
-            "app.acquisition.trigger.type" => {
-                let v = literal(rhs);
-                if !v.eq_ignore_ascii_case("edge") {
-                    return Err(not_implemented(&format!("trigger type {v}")));
-                }
-                st.trigger_type = "EDGE".into();
-            }
-            "app.acquisition.trigger.source" => {
-                let v = literal(rhs).to_ascii_uppercase();
-                let source = match v.as_str() {
-                    "EXT" => "EX".to_string(),
-                    "EXT10" => "EX10".to_string(),
-                    other => other.to_string(),
-                };
-                if !limits.trigger_sources.contains(&source) {
-                    return Err(bad_value(lhs, &v));
-                }
-                st.trigger_source = source;
-            }
-            "app.acquisition.trigger.edge.level" => {
-                let v = number(lhs, rhs)?;
-                let source = st.trigger_source.clone();
-                let (min, max) = if source.starts_with("EX") {
-                    let scale = if source == "EX10" { 10.0 } else { 1.0 };
-                    (
-                        limits.ext_trigger_level_v_min * scale,
-                        limits.ext_trigger_level_v_max * scale,
-                    )
-                } else {
-                    (f64::MIN, f64::MAX)
-                };
-                let clamped = v.clamp(min, max);
-                if clamped != v {
-                    st.value_adapted = true;
-                }
-                st.set_level(&source, clamped);
-            }
-            "app.acquisition.trigger.edge.slope" => {
-                let v = literal(rhs);
-                let slope = match v.to_ascii_lowercase().as_str() {
-                    "positive" => Slope::Positive,
-                    "negative" => Slope::Negative,
-                    "either" => Slope::Either,
-                    _ => return Err(bad_value(lhs, &v)),
-                };
-                let source = st.trigger_source.clone();
-                st.set_slope(&source, slope);
-            }
-            _ => return Err(not_implemented(lhs)),
-        }
-        Ok(())
+        let (_, set) = SETTERS
+            .iter()
+            .find(|(property, _)| *property == key)
+            .ok_or_else(|| not_implemented(lhs))?;
+        set(&self.model, &mut self.lock(), lhs, rhs)
     }
 }
 
@@ -288,4 +169,240 @@ fn automation_source(source: &str) -> String {
         "LINE" => "Line".into(),
         other => other.into(),
     }
+}
+
+/// Sets one automation property (`lhs` as the client wrote it, for messages; `rhs` its value).
+type Setter = fn(&DigitizerModel, &mut ScopeState, &str, &str) -> Result<(), Fault>;
+
+/// The automation properties a client may set, lower case without spaces.
+const SETTERS: &[(&str, Setter)] = &[
+    (
+        "app.acquisition.horizontal.samplerate",
+        set_horizontal_samplerate,
+    ),
+    (
+        "app.acquisition.horizontal.maximize",
+        set_horizontal_maximize,
+    ),
+    (
+        "app.acquisition.horizontal.horscale",
+        set_horizontal_horscale,
+    ),
+    (
+        "app.acquisition.horizontal.maxsamples",
+        set_horizontal_maxsamples,
+    ),
+    (
+        "app.acquisition.horizontal.samplemode",
+        set_horizontal_samplemode,
+    ),
+    (
+        "app.acquisition.horizontal.numsegments",
+        set_horizontal_numsegments,
+    ),
+    ("app.acquisition.triggermode", set_triggermode),
+    ("app.acquisition.trigger.type", set_trigger_type),
+    ("app.acquisition.trigger.source", set_trigger_source),
+    ("app.acquisition.trigger.edge.level", set_trigger_edge_level),
+    ("app.acquisition.trigger.edge.slope", set_trigger_edge_slope),
+];
+
+fn set_horizontal_samplerate(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let wanted = number(lhs, rhs)?;
+    if wanted != ScopeState::sample_rate(model) {
+        // The scope adapts to its fixed rate; SamplingRate reads back what it uses.
+        st.value_adapted = true;
+    }
+    st.requested_rate = wanted;
+    Ok(())
+}
+
+fn set_horizontal_maximize(
+    _: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let v = literal(rhs);
+    match v.to_ascii_lowercase().as_str() {
+        "fixedsamplerate" => st.maximize = "FixedSampleRate".into(),
+        "setmaximummemory" => st.maximize = "SetMaximumMemory".into(),
+        _ => return Err(bad_value(lhs, &v)),
+    }
+    Ok(())
+}
+
+fn set_horizontal_horscale(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = number(lhs, rhs)?;
+    if v <= 0.0 {
+        return Err(bad_value(lhs, rhs));
+    }
+    st.hor_scale = v;
+    let wanted = f64::from(limits.horizontal_divisions) * v * ScopeState::sample_rate(model);
+    if wanted.round() as u64 > st.record_points(model) {
+        st.value_adapted = true;
+    }
+    Ok(())
+}
+
+fn set_horizontal_maxsamples(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = number(lhs, rhs)?;
+    let max = limits.max_points_per_channel as f64;
+    let clamped = v.clamp(1.0, max);
+    if clamped != v {
+        st.value_adapted = true;
+    }
+    st.max_samples = clamped.round() as u64;
+    Ok(())
+}
+
+fn set_horizontal_samplemode(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    _: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = literal(rhs);
+    st.sample_mode = match v.to_ascii_lowercase().as_str() {
+        "realtime" => SampleMode::RealTime,
+        "sequence" if limits.max_sequence_segments > 1 => SampleMode::Sequence,
+        "sequence" => return Err(not_implemented("SampleMode Sequence on this model")),
+        _ => return Err(not_implemented(&format!("SampleMode {v}"))),
+    };
+    Ok(())
+}
+
+fn set_horizontal_numsegments(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = number(lhs, rhs)?;
+    if v.fract() != 0.0 {
+        return Err(bad_value(lhs, rhs));
+    }
+    // The scope adapts a count out of range to the nearest it can do.
+    let max = f64::from(limits.max_sequence_segments.max(2));
+    let clamped = v.clamp(2.0, max);
+    if clamped != v {
+        st.value_adapted = true;
+    }
+    st.segments = clamped as u32;
+    Ok(())
+}
+
+fn set_triggermode(
+    _: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let v = literal(rhs);
+    let mode = match v.to_ascii_lowercase().as_str() {
+        "single" => TriggerMode::Single,
+        "normal" => TriggerMode::Normal,
+        "auto" => TriggerMode::Auto,
+        "stopped" | "stop" => TriggerMode::Stop,
+        _ => return Err(bad_value(lhs, &v)),
+    };
+    st.set_trigger_mode(mode);
+    Ok(())
+}
+
+fn set_trigger_type(
+    _: &DigitizerModel,
+    st: &mut ScopeState,
+    _: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let v = literal(rhs);
+    if !v.eq_ignore_ascii_case("edge") {
+        return Err(not_implemented(&format!("trigger type {v}")));
+    }
+    st.trigger_type = "EDGE".into();
+    Ok(())
+}
+
+fn set_trigger_source(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = literal(rhs).to_ascii_uppercase();
+    let source = match v.as_str() {
+        "EXT" => "EX".to_string(),
+        "EXT10" => "EX10".to_string(),
+        other => other.to_string(),
+    };
+    if !limits.trigger_sources.contains(&source) {
+        return Err(bad_value(lhs, &v));
+    }
+    st.trigger_source = source;
+    Ok(())
+}
+
+fn set_trigger_edge_level(
+    model: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let limits = &model.limits;
+    let v = number(lhs, rhs)?;
+    let source = st.trigger_source.clone();
+    let (min, max) = if source.starts_with("EX") {
+        let scale = if source == "EX10" { 10.0 } else { 1.0 };
+        (
+            limits.ext_trigger_level_v_min * scale,
+            limits.ext_trigger_level_v_max * scale,
+        )
+    } else {
+        (f64::MIN, f64::MAX)
+    };
+    let clamped = v.clamp(min, max);
+    if clamped != v {
+        st.value_adapted = true;
+    }
+    st.set_level(&source, clamped);
+    Ok(())
+}
+
+fn set_trigger_edge_slope(
+    _: &DigitizerModel,
+    st: &mut ScopeState,
+    lhs: &str,
+    rhs: &str,
+) -> Result<(), Fault> {
+    let v = literal(rhs);
+    let slope = match v.to_ascii_lowercase().as_str() {
+        "positive" => Slope::Positive,
+        "negative" => Slope::Negative,
+        "either" => Slope::Either,
+        _ => return Err(bad_value(lhs, &v)),
+    };
+    let source = st.trigger_source.clone();
+    st.set_slope(&source, slope);
+    Ok(())
 }
