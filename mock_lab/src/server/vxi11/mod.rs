@@ -432,30 +432,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
 ) -> Result<Delivery, RpcError> {
     let xid = call.xid;
     let reply = match call.procedure {
-        procedure::CREATE_LINK => {
-            let _client_id = r.i32()?;
-            let lock_device = r.bool()?;
-            let lock_timeout = r.u32()?;
-            let _device = r.opaque(MAX_DEVICE_NAME)?;
-            let link = create_link(shared);
-            let mut error = code::NO_ERROR;
-            if lock_device && !acquire_lock(shared, link.id, lock_timeout).await {
-                error = code::DEVICE_LOCKED;
-            }
-            let lid = if error == code::NO_ERROR {
-                own_links.push(link.id);
-                link.id
-            } else {
-                destroy_link(shared, link.id);
-                0
-            };
-            let mut w = success(xid);
-            w.i32(error)
-                .i32(lid)
-                .u32(u32::from(shared.abort_port))
-                .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
-            w
-        }
+        procedure::CREATE_LINK => create_link_reply(shared, xid, r, own_links).await?,
         procedure::DEVICE_READ => {
             let lid = r.i32()?;
             let request_size = r.u32()?;
@@ -469,28 +446,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             }
             return device_read(shared, xid, lid, request_size, io_timeout, term, w).await;
         }
-        procedure::DEVICE_READSTB => {
-            let lid = r.i32()?;
-            match find_link(shared, lid) {
-                Some(link) => {
-                    let handler = Arc::clone(&shared.handler);
-                    let mut stb = conn::blocking(move || handler.status_byte())
-                        .await
-                        .unwrap_or(0);
-                    if !lock(&link.state).output.is_empty() {
-                        stb |= MAV;
-                    }
-                    let mut w = success(xid);
-                    w.i32(code::NO_ERROR).u32(u32::from(stb));
-                    w
-                }
-                None => {
-                    let mut w = success(xid);
-                    w.i32(code::INVALID_LINK).u32(0);
-                    w
-                }
-            }
-        }
+        procedure::DEVICE_READSTB => read_stb_reply(shared, xid, r.i32()?).await,
         procedure::DEVICE_TRIGGER => {
             let lid = r.i32()?;
             let error = match find_link(shared, lid) {
@@ -503,24 +459,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
             };
             error_only(xid, error)
         }
-        procedure::DEVICE_CLEAR => {
-            let lid = r.i32()?;
-            let error = match find_link(shared, lid) {
-                Some(link) => {
-                    link.generation.fetch_add(1, Ordering::SeqCst);
-                    {
-                        let mut st = lock(&link.state);
-                        st.input.clear();
-                        st.output.clear();
-                    }
-                    let handler = Arc::clone(&shared.handler);
-                    conn::blocking(move || handler.device_clear()).await;
-                    code::NO_ERROR
-                }
-                None => code::INVALID_LINK,
-            };
-            error_only(xid, error)
-        }
+        procedure::DEVICE_CLEAR => error_only(xid, device_clear(shared, r.i32()?).await),
         procedure::DEVICE_REMOTE | procedure::DEVICE_LOCAL => {
             let lid = r.i32()?;
             error_only(
@@ -532,24 +471,7 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
                 },
             )
         }
-        procedure::DEVICE_LOCK => {
-            let lid = r.i32()?;
-            let flags = r.i32()?;
-            let lock_timeout = r.u32()?;
-            let wait = if flags & FLAG_WAITLOCK != 0 {
-                lock_timeout
-            } else {
-                0
-            };
-            let error = if find_link(shared, lid).is_none() {
-                code::INVALID_LINK
-            } else if acquire_lock(shared, lid, wait).await {
-                code::NO_ERROR
-            } else {
-                code::DEVICE_LOCKED
-            };
-            error_only(xid, error)
-        }
+        procedure::DEVICE_LOCK => error_only(xid, device_lock(shared, r).await?),
         procedure::DEVICE_UNLOCK => {
             let lid = r.i32()?;
             let error = if find_link(shared, lid).is_none() {
@@ -583,6 +505,94 @@ async fn core_procedure<W: AsyncWrite + Unpin>(
         _ => rpc::accepted_reply(xid, accept::PROC_UNAVAIL, (0, 0)),
     };
     Ok(write_plain(w, &reply).await?)
+}
+
+/// create_link: a new link, locked at once when asked (waiting up to the lock timeout).
+async fn create_link_reply(
+    shared: &Arc<Shared>,
+    xid: u32,
+    r: &mut XdrReader<'_>,
+    own_links: &mut Vec<i32>,
+) -> Result<XdrWriter, RpcError> {
+    let _client_id = r.i32()?;
+    let lock_device = r.bool()?;
+    let lock_timeout = r.u32()?;
+    let _device = r.opaque(MAX_DEVICE_NAME)?;
+    let link = create_link(shared);
+    let mut error = code::NO_ERROR;
+    if lock_device && !acquire_lock(shared, link.id, lock_timeout).await {
+        error = code::DEVICE_LOCKED;
+    }
+    let lid = if error == code::NO_ERROR {
+        own_links.push(link.id);
+        link.id
+    } else {
+        destroy_link(shared, link.id);
+        0
+    };
+    let mut w = success(xid);
+    w.i32(error)
+        .i32(lid)
+        .u32(u32::from(shared.abort_port))
+        .u32(shared.options.max_message_size.min(u32::MAX as usize) as u32);
+    Ok(w)
+}
+
+/// device_readstb: the instrument's status byte, with MAV set while a reply waits.
+async fn read_stb_reply(shared: &Arc<Shared>, xid: u32, lid: i32) -> XdrWriter {
+    let mut w = success(xid);
+    match find_link(shared, lid) {
+        Some(link) => {
+            let handler = Arc::clone(&shared.handler);
+            let mut stb = conn::blocking(move || handler.status_byte())
+                .await
+                .unwrap_or(0);
+            if !lock(&link.state).output.is_empty() {
+                stb |= MAV;
+            }
+            w.i32(code::NO_ERROR).u32(u32::from(stb));
+        }
+        None => {
+            w.i32(code::INVALID_LINK).u32(0);
+        }
+    }
+    w
+}
+
+/// device_clear: pending input and output dropped, jobs of the old generation abandoned, the
+/// instrument told.
+async fn device_clear(shared: &Arc<Shared>, lid: i32) -> i32 {
+    let Some(link) = find_link(shared, lid) else {
+        return code::INVALID_LINK;
+    };
+    link.generation.fetch_add(1, Ordering::SeqCst);
+    {
+        let mut st = lock(&link.state);
+        st.input.clear();
+        st.output.clear();
+    }
+    let handler = Arc::clone(&shared.handler);
+    conn::blocking(move || handler.device_clear()).await;
+    code::NO_ERROR
+}
+
+/// device_lock: the lock, waiting for it only when the flags say so.
+async fn device_lock(shared: &Arc<Shared>, r: &mut XdrReader<'_>) -> Result<i32, RpcError> {
+    let lid = r.i32()?;
+    let flags = r.i32()?;
+    let lock_timeout = r.u32()?;
+    let wait = if flags & FLAG_WAITLOCK != 0 {
+        lock_timeout
+    } else {
+        0
+    };
+    Ok(if find_link(shared, lid).is_none() {
+        code::INVALID_LINK
+    } else if acquire_lock(shared, lid, wait).await {
+        code::NO_ERROR
+    } else {
+        code::DEVICE_LOCKED
+    })
 }
 
 fn find_link(shared: &Shared, lid: i32) -> Option<Arc<Link>> {
