@@ -326,16 +326,16 @@ impl ScopeState {
                     return None;
                 }
                 let gain_word = settings.volts_per_div / (f64::from(l.codes_per_division) * 256.0);
-                let values = captures
-                    .iter()
-                    .flat_map(|capture| {
-                        let volts = capture.channels.get(i).and_then(Option::as_ref);
-                        (0..request.points).map(move |k| {
-                            let v = volts.and_then(|v| v.get(k)).copied().unwrap_or(0.0);
-                            quantise(f64::from(v), settings.offset_v, gain_word, adc_step)
-                        })
-                    })
-                    .collect();
+                let adc = Adc::new(settings.offset_v, gain_word, adc_step);
+                let mut values = Vec::with_capacity(captures.len() * request.points);
+                for capture in &captures {
+                    let volts = capture.channels.get(i).and_then(Option::as_deref);
+                    let volts = volts.unwrap_or_default();
+                    let held = volts.len().min(request.points);
+                    values.extend(volts[..held].iter().map(|&v| adc.code(f64::from(v))));
+                    // A channel that saw nothing (or less than the record) reads 0 V.
+                    values.resize(values.len() + request.points - held, adc.code(0.0));
+                }
                 Some(RecordedChannel {
                     values,
                     gain_word,
@@ -522,11 +522,41 @@ const NO_TRIGGER_TIME: TriggerTimestamp = TriggerTimestamp {
 
 /// Volts to a 16-bit scope value: `volts = gain * value - offset`, rounded to the ADC resolution
 /// and clipped to the ADC range.
+/// The scope's ADC for one channel: volts to 16-bit words holding `16 - log2(adc_step)` bits.
+#[derive(Debug, Clone, Copy)]
+struct Adc {
+    offset_v: f64,
+    gain_word: f64,
+    adc_step: i32,
+    step_f: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Adc {
+    fn new(offset_v: f64, gain_word: f64, adc_step: i32) -> Adc {
+        Adc {
+            offset_v,
+            gain_word,
+            adc_step,
+            step_f: f64::from(adc_step),
+            min: f64::from(i32::from(i16::MIN) / adc_step),
+            max: f64::from((i32::from(i16::MAX) + 1) / adc_step - 1),
+        }
+    }
+
+    /// Rounds half away from zero, as `f64::round`, without its library call (a record is
+    /// millions of samples): add just under one half toward the sign, clip, truncate.
+    fn code(&self, volts: f64) -> i16 {
+        let value = (volts + self.offset_v) / self.gain_word / self.step_f;
+        let nudged = value + 0.499_999_999_999_999_94_f64.copysign(value);
+        (nudged.clamp(self.min, self.max) as i32 * self.adc_step) as i16
+    }
+}
+
+#[cfg(test)]
 fn quantise(volts: f64, offset_v: f64, gain_word: f64, adc_step: i32) -> i16 {
-    let value = ((volts + offset_v) / gain_word / f64::from(adc_step)).round();
-    let max = f64::from((i32::from(i16::MAX) + 1) / adc_step - 1);
-    let min = f64::from(i32::from(i16::MIN) / adc_step);
-    (value.clamp(min, max) as i32 * adc_step) as i16
+    Adc::new(offset_v, gain_word, adc_step).code(volts)
 }
 
 #[cfg(test)]
@@ -541,5 +571,18 @@ mod tests {
         assert_eq!(quantise(10.0, 0.0, gain, 256), 127 * 256);
         assert_eq!(quantise(-10.0, 0.0, gain, 256), -128 * 256);
         assert_eq!(quantise(-0.05, 0.05, gain, 256), 0);
+    }
+
+    #[test]
+    fn the_fast_rounding_matches_f64_round() {
+        let adc = Adc::new(0.0, 1.0, 1);
+        let mut x = -40_000.0_f64;
+        while x < 40_000.0 {
+            for v in [x, x + 0.5, x - 0.5, x + 0.499_999_999_999_9, x + 0.25] {
+                let want = v.round().clamp(adc.min, adc.max) as i16;
+                assert_eq!(adc.code(v), want, "{v}");
+            }
+            x += 0.75;
+        }
     }
 }
