@@ -296,6 +296,24 @@ impl Rig {
         permit: &RfPermit,
         interrupt: &Interrupt,
     ) -> Result<Measurement, MeasureError> {
+        let taken = self
+            .acquire(bench, prepared, repetitions, permit, interrupt)
+            .await?;
+        let processing = process_with(prepared, &taken.captured).await?;
+        Ok(taken.with(processing))
+    }
+
+    /// The bench part of [`Rig::measure`]: `repetitions` marker-triggered repetitions under the
+    /// safe-state guard, not processed. A campaign processes a step's capture on a thread of its
+    /// own while the next step is captured.
+    pub async fn acquire(
+        &mut self,
+        bench: &Bench,
+        prepared: &Prepared,
+        repetitions: usize,
+        permit: &RfPermit,
+        interrupt: &Interrupt,
+    ) -> Result<Taken, MeasureError> {
         check_repetitions(repetitions)?;
         let loaded = self
             .loaded
@@ -327,26 +345,49 @@ impl Rig {
             }
         };
         self.loaded = Some((prepared.tx.clone(), captured.uploaded.clone()));
-        let Processing {
-            processed,
-            repetitions: each,
-            spread,
-            options,
-        } = process_with(prepared, &captured).await?;
         let ground_truth = bench.ground_truth().await;
-        Ok(Measurement {
+        Ok(Taken {
             tx: prepared.tx.clone(),
             plan: prepared.plan.clone(),
             captured,
-            processed,
-            repetitions: each,
-            spread,
-            options,
             identities: self.station.identities.clone(),
             ground_truth,
             safe_state: report,
             background: prepared.background_file.clone(),
         })
+    }
+}
+
+/// A capture taken and the bench back in its safe state, not processed yet.
+pub struct Taken {
+    pub tx: Arc<Transmission>,
+    pub plan: CapturePlan,
+    /// Every repetition's raw capture.
+    pub captured: Captured,
+    pub identities: Identities,
+    /// The simulated scene of this capture (ground truth), on a simulated bench.
+    pub ground_truth: Option<Value>,
+    pub safe_state: SafeStateReport,
+    /// The background the preparation subtracts, if any.
+    pub background: Option<BackgroundFile>,
+}
+
+impl Taken {
+    /// The measurement, with what a pipeline made of this capture.
+    pub fn with(self, processing: Processing) -> Measurement {
+        Measurement {
+            tx: self.tx,
+            plan: self.plan,
+            captured: self.captured,
+            processed: processing.processed,
+            repetitions: processing.repetitions,
+            spread: processing.spread,
+            options: processing.options,
+            identities: self.identities,
+            ground_truth: self.ground_truth,
+            safe_state: self.safe_state,
+            background: self.background,
+        }
     }
 }
 
@@ -369,35 +410,78 @@ pub async fn process_with(
     prepared: &mut Prepared,
     captured: &Captured,
 ) -> Result<Processing, MeasureError> {
-    let mut pipeline = prepared
-        .pipeline
-        .take()
-        .ok_or_else(|| MeasureError::Worker("an earlier measurement lost the pipeline".into()))?;
-    if let Err(e) = pipeline.set_awg_amplitude(captured.applied.awg.i_amplitude_vpp) {
-        prepared.pipeline = Some(pipeline);
-        return Err(e);
-    }
-    let raws: Vec<RawWords> = (0..captured.repetitions())
-        .map(|k| captured.raw_words(k))
-        .collect();
+    let mut lent = prepared.lend()?;
+    let raws = captured_raws(captured);
+    let amplitude = captured.applied.awg.i_amplitude_vpp;
     // The pipeline goes to the worker thread and comes back.
-    let background = prepared.background.clone();
-    let bandwidth = prepared.tx.bandwidth_hz();
-    let (pipeline, outcome) = off_runtime(move || {
-        let mut pipeline = pipeline;
-        let outcome = process_repetitions(&mut pipeline, &raws, background.as_ref(), bandwidth);
-        (pipeline, outcome)
+    let (lent, outcome) = off_runtime(move || {
+        let outcome = lent.process_raws(amplitude, &raws);
+        (lent, outcome)
     })
     .await?;
-    let options = pipeline.options().clone();
-    prepared.pipeline = Some(pipeline);
-    let (processed, repetitions, spread) = outcome?;
-    Ok(Processing {
-        processed,
-        repetitions,
-        spread,
-        options,
-    })
+    prepared.give_back(lent);
+    outcome
+}
+
+/// A preparation's pipeline (and background), lent to a thread that processes with it.
+pub struct LentPipeline {
+    pipeline: Pipeline,
+    background: Option<Aligned>,
+    bandwidth_hz: f64,
+}
+
+impl LentPipeline {
+    /// Processes `captured` (see [`process_with`]) on the calling thread.
+    pub fn process(&mut self, captured: &Captured) -> Result<Processing, MeasureError> {
+        let raws = captured_raws(captured);
+        self.process_raws(captured.applied.awg.i_amplitude_vpp, &raws)
+    }
+
+    fn process_raws(
+        &mut self,
+        awg_amplitude_vpp: f64,
+        raws: &[RawWords],
+    ) -> Result<Processing, MeasureError> {
+        self.pipeline.set_awg_amplitude(awg_amplitude_vpp)?;
+        let (processed, repetitions, spread) = process_repetitions(
+            &mut self.pipeline,
+            raws,
+            self.background.as_ref(),
+            self.bandwidth_hz,
+        )?;
+        Ok(Processing {
+            processed,
+            repetitions,
+            spread,
+            options: self.pipeline.options().clone(),
+        })
+    }
+}
+
+impl Prepared {
+    /// Lends this preparation's pipeline to a worker; [`Prepared::give_back`] returns it.
+    pub fn lend(&mut self) -> Result<LentPipeline, MeasureError> {
+        let pipeline = self.pipeline.take().ok_or_else(|| {
+            MeasureError::Worker("an earlier measurement lost the pipeline".into())
+        })?;
+        Ok(LentPipeline {
+            pipeline,
+            background: self.background.take(),
+            bandwidth_hz: self.tx.bandwidth_hz(),
+        })
+    }
+
+    /// Takes back what [`Prepared::lend`] lent.
+    pub fn give_back(&mut self, lent: LentPipeline) {
+        self.pipeline = Some(lent.pipeline);
+        self.background = lent.background;
+    }
+}
+
+fn captured_raws(captured: &Captured) -> Vec<RawWords> {
+    (0..captured.repetitions())
+        .map(|k| captured.raw_words(k))
+        .collect()
 }
 
 /// Most repetitions one measurement takes.
