@@ -143,18 +143,19 @@ pub struct Timing {
     /// too).
     #[serde(default)]
     pub prepare_s: f64,
-    /// Connecting, positioning, uploading, capturing, and processing with the primary algorithm.
+    /// Connecting, positioning, uploading and capturing.
     pub bench_s: f64,
-    /// Processing with the further algorithms.
+    /// Processing with every algorithm, on the step's worker thread while the next step is
+    /// captured.
     pub processing_s: f64,
-    /// Writing the steps' capture and profile files (as `radbench capture` writes them), on a
-    /// thread of its own while the next step is measured.
+    /// Writing the steps' capture and profile files (as `radbench capture` writes them), on the
+    /// step's worker thread after the processing.
     pub files_s: f64,
     /// The campaign's own work: the run folder, hashing, manifest, results, report (the per-step
     /// part beside the files, while the next step is measured).
     pub overhead_s: f64,
-    /// How long the steps waited for the writer: the part of `files_s` and `overhead_s` the next
-    /// step's measurement did not hide.
+    /// How long the steps waited for the worker: the part of `processing_s`, `files_s` and
+    /// `overhead_s` the next step's capture did not hide.
     #[serde(default)]
     pub wait_s: f64,
     /// The session from start to end.

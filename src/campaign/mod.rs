@@ -12,6 +12,7 @@
 //! | [`run`] | executing a plan into a run folder, and resuming one |
 //! | [`report`] | the run's `report.md` and `report.html` (plots inline) |
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
+//! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 
 pub(crate) mod builtin;
 pub mod manifest;
@@ -21,6 +22,7 @@ pub mod report;
 pub mod results;
 pub mod run;
 pub(crate) mod spec;
+mod worker;
 
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};

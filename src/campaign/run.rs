@@ -4,10 +4,12 @@
 //! before anything is connected (so a campaign that was going to be refused never radiates), one
 //! connection to a bench of a bench file for the whole run, the pipelines reused step after step.
 //! Each step: connect (see below), place the targets (RF off), set the simulated scene, capture
-//! `repetitions` under the safe-state guard, process the capture with every algorithm; then a
-//! blocking thread writes the step's files, hashes them and stores the manifest that records the
-//! step (atomic, fsynced) while the next step is measured. One step is in flight at a time, so
-//! manifests reach the disk in step order; `results.json` and the report follow at the end.
+//! `repetitions` under the safe-state guard; then a worker thread, lent the step's pipelines,
+//! processes the capture with every algorithm, writes the step's files, hashes them and stores
+//! the manifest that records the step (atomic, fsynced) while the next step is captured. One step
+//! is in flight at a time, so manifests reach the disk in step order and a step's result is
+//! reported when the next step's capture is in; `results.json` and the report follow at the end.
+//! Nothing the next capture does depends on the step before's processing.
 //!
 //! Reproducibility on a simulated bench: every step sets the scene's noise seed from the campaign
 //! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. The runner
@@ -31,12 +33,13 @@ use super::plan::{BenchInfo, Plan, Step};
 use super::positioner::{LineSource, Positioner};
 use super::results::{self, AlgorithmOutput, Results, StepResult};
 use super::spec::{PositionerKind, SpecFile};
+use super::worker::StepWorker;
 use super::{io, report, CampaignError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
 use crate::exit::Classify;
 use crate::measure::bench::{Bench, BenchSource};
-use crate::measure::capture::{self, Measurement, Prepared, Processing, Rig};
+use crate::measure::capture::{self, LentPipeline, Measurement, Prepared, Processing, Rig, Taken};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;
@@ -442,13 +445,21 @@ fn lock(dir: &Path) -> Result<Lock, CampaignError> {
     Ok(Lock { _file: file })
 }
 
-/// A measured step whose files, hashes and manifest a blocking thread is writing while the next
-/// step is measured.
+/// A captured step that a worker thread processes (every algorithm), writes, hashes and records
+/// in the manifest while the next step is captured.
 struct PendingStep {
     k: usize,
     step: Step,
-    result: StepResult,
-    handle: tokio::task::JoinHandle<Result<Written, CampaignError>>,
+    /// Where the lent pipelines go back: (waveform, model order).
+    lent_from: (usize, Option<usize>),
+    outcome: tokio::sync::oneshot::Receiver<WorkerOutcome>,
+}
+
+/// What a step's worker hands back: the pipelines it borrowed, always, and the step.
+struct WorkerOutcome {
+    lent: Vec<LentPipeline>,
+    processing_s: f64,
+    done: Result<(StepResult, Written), CampaignError>,
 }
 
 /// What the writer did for a step.
@@ -490,7 +501,9 @@ struct Runner {
     warned_noise: bool,
     force: bool,
     results: Vec<Option<StepResult>>,
-    /// The step whose files are being written.
+    /// Processes and writes the steps beside the captures.
+    worker: StepWorker,
+    /// The step the worker is processing and writing.
     pending: Option<PendingStep>,
     /// When the session began (before its preparation).
     started: Instant,
@@ -523,6 +536,10 @@ impl Runner {
         })?;
         let positioner = plan.positioner.clone().map(|p| Positioner::new(p, input));
         let n = plan.steps.len();
+        let worker = StepWorker::start().map_err(|e| CampaignError::Io {
+            path: dir.clone(),
+            source: e,
+        })?;
         Ok(Runner {
             base_tx_attenuation: prepared
                 .base
@@ -545,6 +562,7 @@ impl Runner {
             warned_noise: false,
             force,
             results: vec![None; n],
+            worker,
             pending: None,
             started: Instant::now(),
             measured: 0,
@@ -799,9 +817,9 @@ impl Runner {
             .nominal
             .tx_attenuation_db
             .unwrap_or(self.base_tx_attenuation[w]);
-        let m = conn
+        let taken = conn
             .rig
-            .measure(
+            .acquire(
                 &conn.bench,
                 primary,
                 self.plan.repetitions,
@@ -820,128 +838,98 @@ impl Runner {
                 },
                 other => other.into(),
             })?;
-        let bench_s = t_bench.elapsed().as_secs_f64();
-        let t_proc = Instant::now();
-        let mut others = Vec::with_capacity(self.plan.processing.len() - 1);
-        for a in 1..self.plan.processing.len() {
-            let prepared = self.prepared.get_mut(w, a, step.music_p);
-            others.push(capture::process_with(prepared, &m.captured).await?);
-        }
-        let processing_s = t_proc.elapsed().as_secs_f64();
-        let names = self.plan.algorithm_names();
-        let result = {
-            let mut outputs = vec![AlgorithmOutput {
-                name: names[0],
-                processed: &m.processed,
-                spread: m.spread.as_ref(),
-            }];
-            for (o, name) in others.iter().zip(&names[1..]) {
-                outputs.push(AlgorithmOutput {
-                    name,
-                    processed: &o.processed,
-                    spread: o.spread.as_ref(),
-                });
+        self.timing.bench_s += t_bench.elapsed().as_secs_f64();
+        // The step before was processed and written while this one was captured: wait for it
+        // (its pipelines come back), then hand this step to a worker. One step in flight at a
+        // time, so manifests are stored in step order. A failure of the step before still hands
+        // this capture to the worker, so it is written before the run stops.
+        let before = self.settle(observer).await;
+        self.hand_over(k, step, taken)?;
+        before
+    }
+
+    /// Lends the step's pipelines to a worker thread that processes `taken` with every
+    /// algorithm, writes the step's files, hashes them and stores the manifest recording it.
+    fn hand_over(&mut self, k: usize, step: &Step, taken: Taken) -> Result<(), CampaignError> {
+        let w = step.waveform;
+        let mut lent = Vec::with_capacity(self.plan.processing.len());
+        for a in 0..self.plan.processing.len() {
+            match self.prepared.get_mut(w, a, step.music_p).lend() {
+                Ok(l) => lent.push(l),
+                Err(e) => {
+                    self.give_back((w, step.music_p), lent);
+                    return Err(e.into());
+                }
             }
-            results::step_result(
-                step,
-                self.plan.waveforms[w].bandwidth_hz(),
-                m.captured.repetitions(),
-                m.ground_truth.as_ref(),
-                &outputs,
-            )
-        };
-        let applied = serde_json::to_value(&m.captured.applied)
-            .ok()
-            .as_ref()
-            .and_then(manifest::json_to_toml);
-        self.timing.bench_s += bench_s;
-        self.timing.processing_s += processing_s;
-        // The step before's files were written while this step was captured: wait for them and
-        // its manifest, then hand this step's to the writer (one step in flight at a time, so the
-        // manifests are stored in step order).
-        self.settle(observer).await?;
+        }
         let mut snapshot = self.manifest.clone();
         snapshot.session_mut().timing = self.timing.clone();
-        let provenance = Provenance {
-            bench_file: self.plan.bench.file.clone(),
-            simulated: self.plan.bench.simulated,
+        let job = StepJob {
+            dir: self.dir.clone(),
+            step: step.clone(),
+            names: self.plan.algorithm_names(),
+            bandwidth_hz: self.plan.waveforms[w].bandwidth_hz(),
+            provenance: Provenance {
+                bench_file: self.plan.bench.file.clone(),
+                simulated: self.plan.bench.simulated,
+            },
         };
-        let dir = self.dir.clone();
-        let rel = PathBuf::from(step.dir_name());
-        let result_json = format!("{:#}\n", json!(result));
-        let index = step.index;
-        let handle = tokio::task::spawn_blocking(move || -> Result<Written, CampaignError> {
-            let (mut m, mut others) = (m, others);
-            let t_files = Instant::now();
-            let files = write_step_files(
-                &dir,
-                &rel,
-                &mut m,
-                &mut others,
-                &names,
-                &provenance,
-                &result_json,
-            )?;
-            let files_s = t_files.elapsed().as_secs_f64();
-            let t_over = Instant::now();
-            let records = files
-                .iter()
-                .map(|p| FileRecord::of(&dir, p))
-                .collect::<Result<Vec<_>, _>>()?;
-            let rec = snapshot.step_mut(index);
-            rec.status = StepStatus::Done;
-            rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
-            rec.applied = applied;
-            rec.files = records;
-            let record = rec.clone();
-            snapshot.store(&dir)?;
-            Ok(Written {
-                record,
-                files_s,
-                overhead_s: t_over.elapsed().as_secs_f64(),
-            })
-        });
+        let outcome = self.worker.submit(move || job.run(lent, taken, snapshot));
         self.pending = Some(PendingStep {
             k,
             step: step.clone(),
-            result,
-            handle,
+            lent_from: (w, step.music_p),
+            outcome,
         });
         Ok(())
     }
 
-    /// Waits for the step whose files are being written, records it done and tells the observer.
+    /// Returns lent pipelines to their preparations (algorithm order).
+    fn give_back(&mut self, (w, p): (usize, Option<usize>), lent: Vec<LentPipeline>) {
+        for (a, l) in lent.into_iter().enumerate() {
+            self.prepared.get_mut(w, a, p).give_back(l);
+        }
+    }
+
+    /// Waits for the step a worker is processing and writing, records it done and tells the
+    /// observer.
     async fn settle(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
         let Some(p) = self.pending.take() else {
             return Ok(());
         };
         let t = Instant::now();
-        let written = p
-            .handle
-            .await
-            .map_err(|e| CampaignError::Measure(MeasureError::Worker(e.to_string())))??;
+        let outcome = p.outcome.await.map_err(|_| {
+            CampaignError::Measure(MeasureError::Worker(format!(
+                "step {}'s processing stopped with a panic; its pipelines are lost",
+                p.step.index
+            )))
+        })?;
         let waited = t.elapsed().as_secs_f64();
+        self.give_back(p.lent_from, outcome.lent);
         self.timing.wait_s += waited;
+        self.timing.processing_s += outcome.processing_s;
+        let (result, written) = outcome.done?;
         self.timing.files_s += written.files_s;
         self.timing.overhead_s += written.overhead_s;
         tracing::debug!(
             step = p.step.index,
+            processing_s = outcome.processing_s,
             files_s = written.files_s,
             bookkeeping_s = written.overhead_s,
             waited_s = waited,
-            "step written"
+            "step processed and written"
         );
         *self.manifest.step_mut(p.step.index) = written.record;
         self.measured += 1;
         observer.step_done(&StepDone {
             step: &p.step,
             of: self.plan.steps.len(),
-            result: &p.result,
+            result: &result,
             primary: self.plan.algorithm_names()[0],
             dir: self.dir.join(p.step.dir_name()),
             skipped: false,
         });
-        self.results[p.k] = Some(p.result);
+        self.results[p.k] = Some(result);
         Ok(())
     }
 
@@ -1053,6 +1041,102 @@ fn error_chain(e: &dyn std::error::Error) -> String {
 }
 
 /// The bench's instrument catalog (its file's `catalog` folder over the built-in models).
+/// What a step's worker needs besides the capture and the pipelines.
+struct StepJob {
+    dir: PathBuf,
+    step: Step,
+    names: Vec<&'static str>,
+    bandwidth_hz: f64,
+    provenance: Provenance,
+}
+
+impl StepJob {
+    /// Processes the capture with every lent pipeline, writes the step's files and stores the
+    /// manifest `snapshot` with the step recorded done. The pipelines come back whatever happens.
+    fn run(self, mut lent: Vec<LentPipeline>, taken: Taken, snapshot: Manifest) -> WorkerOutcome {
+        let t = Instant::now();
+        let processed: Result<Vec<Processing>, MeasureError> = lent
+            .iter_mut()
+            .map(|l| l.process(&taken.captured))
+            .collect();
+        let processing_s = t.elapsed().as_secs_f64();
+        let done = processed
+            .map_err(CampaignError::from)
+            .and_then(|p| self.record(taken, p, snapshot));
+        WorkerOutcome {
+            lent,
+            processing_s,
+            done,
+        }
+    }
+
+    fn record(
+        self,
+        taken: Taken,
+        mut processings: Vec<Processing>,
+        mut snapshot: Manifest,
+    ) -> Result<(StepResult, Written), CampaignError> {
+        let mut others = processings.split_off(1);
+        let mut m = taken.with(processings.pop().expect("the primary algorithm"));
+        let result = {
+            let mut outputs = vec![AlgorithmOutput {
+                name: self.names[0],
+                processed: &m.processed,
+                spread: m.spread.as_ref(),
+            }];
+            for (o, name) in others.iter().zip(&self.names[1..]) {
+                outputs.push(AlgorithmOutput {
+                    name,
+                    processed: &o.processed,
+                    spread: o.spread.as_ref(),
+                });
+            }
+            results::step_result(
+                &self.step,
+                self.bandwidth_hz,
+                m.captured.repetitions(),
+                m.ground_truth.as_ref(),
+                &outputs,
+            )
+        };
+        let applied = serde_json::to_value(&m.captured.applied)
+            .ok()
+            .as_ref()
+            .and_then(manifest::json_to_toml);
+        let result_json = format!("{:#}\n", json!(result));
+        let rel = PathBuf::from(self.step.dir_name());
+        let t_files = Instant::now();
+        let files = write_step_files(
+            &self.dir,
+            &rel,
+            &mut m,
+            &mut others,
+            &self.names,
+            &self.provenance,
+            &result_json,
+        )?;
+        let files_s = t_files.elapsed().as_secs_f64();
+        let t_over = Instant::now();
+        let records = files
+            .iter()
+            .map(|p| FileRecord::of(&self.dir, p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let rec = snapshot.step_mut(self.step.index);
+        rec.status = StepStatus::Done;
+        rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
+        rec.applied = applied;
+        rec.files = records;
+        let record = rec.clone();
+        snapshot.store(&self.dir)?;
+        let written = Written {
+            record,
+            files_s,
+            overhead_s: t_over.elapsed().as_secs_f64(),
+        };
+        Ok((result, written))
+    }
+}
+
 fn catalog(bench: &Bench) -> Result<Catalog, CampaignError> {
     Ok(bench.file.catalog().map_err(MeasureError::from)?)
 }
