@@ -22,6 +22,12 @@ use std::path::{Path, PathBuf};
 /// What every radbench temporary file name contains (after `.<name>`).
 pub(crate) const TEMP_MARKER: &str = ".radbench-tmp-";
 
+/// Largest single `write` call. A kernel without preemption (PREEMPT_NONE, common on servers
+/// and VMs) runs a write of megabytes to the page cache to its end before any other thread may
+/// have that CPU; a campaign's step worker writing a capture would then hold an instrument
+/// reply of the next step for milliseconds. 256 KiB is a few tens of microseconds.
+const WRITE_CHUNK: usize = 256 * 1024;
+
 /// Writes `bytes` to `path` atomically: readers see either the old file or the complete new one.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
     write_atomic_parts(path, &[bytes])
@@ -39,7 +45,9 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     let mut guard = TempGuard(Some(tmp.clone()));
     let written = (|| {
         for part in parts {
-            file.write_all(part)?;
+            for chunk in part.chunks(WRITE_CHUNK) {
+                file.write_all(chunk)?;
+            }
         }
         file.sync_all()?;
         drop(file);
