@@ -140,19 +140,16 @@ impl BenchSource {
         if let Some(seed) = self.scene.take_reseed() {
             synth.reseed(seed);
         }
-        let volts = synth.volts(
+        let n = request.channels_on.len();
+        let mut channels: Vec<Option<Vec<f32>>> = vec![None; n];
+        match synth.volts(
             &scene,
             &awg,
             front,
             request.sample_rate,
             request.points,
             request.first_point_s,
-        );
-        drop(synth);
-        self.scene.record_capture(scene);
-        let n = request.channels_on.len();
-        let mut channels: Vec<Option<Vec<f32>>> = vec![None; n];
-        match volts {
+        ) {
             Ok((y, _)) => {
                 if n > 0 {
                     channels[0] = Some(y.iter().map(|v| v.re as f32).collect());
@@ -163,6 +160,8 @@ impl BenchSource {
             }
             Err(e) => tracing::warn!(error = %e, "bench: no signal synthesised"),
         }
+        drop(synth);
+        self.scene.record_capture(scene);
         let rate = ch1.map_or(0.0, |c| c.sample_rate);
         Capture {
             channels,

@@ -360,8 +360,14 @@ pub struct Synthesizer {
     planner: FftPlanner<f64>,
     plans: HashMap<(usize, bool), Arc<dyn Fft<f64>>>,
     /// Spectrum of the last segment, keyed by a hash of its codes, rate and amplitudes.
-    cached: Option<(u64, Vec<Complex64>, f64)>,
+    cached: Option<(u64, Arc<[Complex64]>, f64)>,
     rng: SplitMix64,
+    /// Buffers kept from one acquisition to the next: a record is megabytes, and fresh ones
+    /// cost page faults and zeroing that took more time than the synthesis itself.
+    record: Vec<Complex64>,
+    period: Vec<Complex64>,
+    transfer: Vec<Complex64>,
+    scratch: Vec<Complex64>,
 }
 
 impl Synthesizer {
@@ -371,6 +377,10 @@ impl Synthesizer {
             plans: HashMap::new(),
             cached: None,
             rng: SplitMix64::new(seed),
+            record: Vec::new(),
+            period: Vec::new(),
+            transfer: Vec::new(),
+            scratch: Vec::new(),
         }
     }
 
@@ -394,7 +404,7 @@ impl Synthesizer {
     }
 
     /// The spectrum of the segment in volts (unnormalised FFT) and its mean power, cached.
-    fn segment_spectrum(&mut self, awg: &AwgPlayback<'_>) -> (Vec<Complex64>, f64) {
+    fn segment_spectrum(&mut self, awg: &AwgPlayback<'_>) -> (Arc<[Complex64]>, f64) {
         let key = segment_key(awg);
         if let Some((k, spec, power)) = &self.cached {
             if *k == key {
@@ -411,6 +421,7 @@ impl Synthesizer {
         let power = x.iter().map(|v| v.norm_sqr()).sum::<f64>() / x.len().max(1) as f64;
         let fft = self.plan(x.len(), false);
         fft.process(&mut x);
+        let x: Arc<[Complex64]> = x.into();
         self.cached = Some((key, x.clone(), power));
         (x, power)
     }
@@ -432,7 +443,7 @@ impl Synthesizer {
             setup.points,
             setup.trigger_offset_s,
         )?;
-        Ok(quantise(&y, setup, horiz_offset, scene.clone()))
+        Ok(quantise(y, setup, horiz_offset, scene.clone()))
     }
 
     /// What the scope's inputs see (I + jQ in volts, before its ADC) for `points` samples at
@@ -446,7 +457,7 @@ impl Synthesizer {
         sample_rate: f64,
         points: usize,
         first_point_s: f64,
-    ) -> Result<(Vec<Complex64>, f64), SceneError> {
+    ) -> Result<(&[Complex64], f64), SceneError> {
         check_rates(awg, sample_rate, points)?;
         let l = awg.i.len();
         let up = (sample_rate / awg.sample_rate).round() as usize;
@@ -458,18 +469,20 @@ impl Synthesizer {
         let t0 = awg.marker_index as f64 / awg.sample_rate + horiz_offset;
 
         let (spectrum, power) = self.segment_spectrum(awg);
-        let mut y = vec![Complex64::new(0.0, 0.0); points];
+        let mut y = std::mem::take(&mut self.record);
+        y.clear();
+        y.resize(points, Complex64::new(0.0, 0.0));
         let gain = if awg.playing { front.path_gain() } else { 0.0 };
         if gain > 0.0 {
             let paths = paths(scene);
             let (still, moving): (Vec<_>, Vec<_>) = paths.iter().partition(|p| p.doppler_hz == 0.0);
             if !still.is_empty() {
-                let one = self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
-                add_window(&mut y, &one, 0.0, sample_rate, t0, period);
+                self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
+                add_window(&mut y, &self.period, 0.0, sample_rate, t0, period);
             }
             for path in moving {
-                let one = self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
-                add_window(&mut y, &one, path.doppler_hz, sample_rate, t0, period);
+                self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
+                add_window(&mut y, &self.period, path.doppler_hz, sample_rate, t0, period);
             }
         }
         self.impair(&mut y, scene, sample_rate);
@@ -479,11 +492,12 @@ impl Synthesizer {
         for v in y.iter_mut() {
             *v += Complex64::new(sigma * self.rng.gaussian(), sigma * self.rng.gaussian());
         }
-        Ok((y, horiz_offset))
+        self.record = y;
+        Ok((&self.record, horiz_offset))
     }
 
     /// One period of the sum of `paths` at `up` times the segment rate, starting at `t0` after the
-    /// segment's first sample.
+    /// segment's first sample, into `self.period`.
     fn render(
         &mut self,
         spectrum: &[Complex64],
@@ -492,10 +506,12 @@ impl Synthesizer {
         t0: f64,
         paths: &[&Path],
         gain: f64,
-    ) -> Vec<Complex64> {
+    ) {
         let l = spectrum.len();
         let n = l * up;
-        let mut out = vec![Complex64::new(0.0, 0.0); n];
+        let mut out = std::mem::take(&mut self.period);
+        out.clear();
+        out.resize(n, Complex64::new(0.0, 0.0));
         // Bins are placed by signed frequency so the band-limited waveform is interpolated exactly;
         // the inverse FFT of length n (unnormalised) needs 1/l to return volts.
         let scale = gain / l as f64;
@@ -512,7 +528,9 @@ impl Synthesizer {
         // every RESYNC bins to keep rounding from accumulating) instead of one sincos per bin.
         const RESYNC: usize = 1024;
         let df = fs / l as f64;
-        let mut h = vec![Complex64::new(0.0, 0.0); l];
+        let mut h = std::mem::take(&mut self.transfer);
+        h.clear();
+        h.resize(l, Complex64::new(0.0, 0.0));
         for p in paths {
             let phase_at = |signed: i64| {
                 -2.0 * PI * (p.carrier_hz * p.delay_s + signed as f64 * df * (p.delay_s - t0))
@@ -533,8 +551,13 @@ impl Synthesizer {
             out[idx] = x * hk * scale;
         }
         let ifft = self.plan(n, true);
-        ifft.process(&mut out);
-        out
+        let need = ifft.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, Complex64::new(0.0, 0.0));
+        }
+        ifft.process_with_scratch(&mut out, &mut self.scratch[..need]);
+        self.period = out;
+        self.transfer = h;
     }
 
     fn impair(&mut self, y: &mut [Complex64], scene: &Scene, fs: f64) {
