@@ -4,12 +4,13 @@
 //! before anything is connected (so a campaign that was going to be refused never radiates), one
 //! connection to a bench of a bench file for the whole run, the pipelines reused step after step.
 //! Each step: connect (see below), place the targets (RF off), set the simulated scene, capture
-//! `repetitions` under the safe-state guard; then a worker thread, lent the step's pipelines,
-//! processes the capture with every algorithm, writes the step's files, hashes them and stores
-//! the manifest that records the step (atomic, fsynced) while the next step is captured. One step
-//! is in flight at a time, so manifests reach the disk in step order and a step's result is
-//! reported when the next step's capture is in; `results.json` and the report follow at the end.
-//! Nothing the next capture does depends on the step before's processing.
+//! `repetitions` under the safe-state guard; then the step worker (one thread, which holds every
+//! pipeline from the start of the run) processes the capture with every algorithm, writes the
+//! step's files, hashes them and stores the manifest that records the step (atomic, fsynced)
+//! while the next steps are captured. At most two steps wait for the worker; it takes them in
+//! order, so manifests reach the disk in step order, and a step's result is reported once the
+//! worker is done with it; `results.json` and the report follow at the end. Nothing a capture
+//! does depends on an earlier step's processing.
 //!
 //! Reproducibility on a simulated bench: every step sets the scene's noise seed from the campaign
 //! seed and the step, so a resumed run gives the same numbers as an uninterrupted one. The runner
@@ -47,7 +48,9 @@ use crate::storage::atomic::write_atomic;
 use mock_lab::scene::{Scene, Target};
 use serde::Serialize;
 use serde_json::json;
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// `results.json` in a run folder.
@@ -445,21 +448,61 @@ fn lock(dir: &Path) -> Result<Lock, CampaignError> {
     Ok(Lock { _file: file })
 }
 
-/// A captured step that a worker thread processes (every algorithm), writes, hashes and records
-/// in the manifest while the next step is captured.
+/// A captured step that the worker processes (every algorithm), writes, hashes and records in
+/// the manifest while the next steps are captured.
 struct PendingStep {
     k: usize,
     step: Step,
-    /// Where the lent pipelines go back: (waveform, model order).
-    lent_from: (usize, Option<usize>),
     outcome: tokio::sync::oneshot::Receiver<WorkerOutcome>,
 }
 
-/// What a step's worker hands back: the pipelines it borrowed, always, and the step.
+/// Most captured steps waiting for (or with) the worker. Two lets a step whose processing and
+/// files took longer than one capture catch up during the next one, instead of holding it;
+/// more would only hide a worker that cannot keep up, and hold more captures in memory.
+const STEPS_IN_FLIGHT: usize = 2;
+
+/// What a step's job reports.
 struct WorkerOutcome {
-    lent: Vec<LentPipeline>,
     processing_s: f64,
     done: Result<(StepResult, Written), CampaignError>,
+}
+
+/// What only step jobs use, one job at a time in step order: every pipeline of the campaign
+/// (lent by the preparations when the run starts) and the records of the steps recorded so far.
+#[derive(Default)]
+struct WorkerSide {
+    pipelines: HashMap<PipelineKey, LentPipeline>,
+    /// Steps this session's jobs recorded: a job's manifest holds them all, also those the
+    /// runner has not collected yet.
+    recorded: BTreeMap<usize, StepRecord>,
+}
+
+/// (waveform, algorithm, model order of the steps that set their own).
+type PipelineKey = (usize, usize, Option<usize>);
+
+impl WorkerSide {
+    /// Takes every pipeline out of `prepared`.
+    fn lend_all(prepared: &mut PreparedSet) -> Result<WorkerSide, MeasureError> {
+        let mut side = WorkerSide::default();
+        for (w, all) in prepared.base.iter_mut().enumerate() {
+            for (a, p) in all.iter_mut().enumerate() {
+                side.pipelines.insert((w, a, None), p.lend()?);
+            }
+        }
+        for (&(w, a, p), prep) in prepared.ordered.iter_mut().map(|(k, v)| (&*k, v)) {
+            side.pipelines.insert((w, a, Some(p)), prep.lend()?);
+        }
+        Ok(side)
+    }
+
+    /// The key of the pipeline for waveform `w`, algorithm `a` at a step of model order `p`
+    /// (as [`PreparedSet`] chooses).
+    fn key(&self, w: usize, a: usize, p: Option<usize>) -> PipelineKey {
+        match p {
+            Some(p) if self.pipelines.contains_key(&(w, a, Some(p))) => (w, a, Some(p)),
+            _ => (w, a, None),
+        }
+    }
 }
 
 /// What the writer did for a step.
@@ -503,8 +546,9 @@ struct Runner {
     results: Vec<Option<StepResult>>,
     /// Processes and writes the steps beside the captures.
     worker: StepWorker,
-    /// The step the worker is processing and writing.
-    pending: Option<PendingStep>,
+    worker_side: Arc<Mutex<WorkerSide>>,
+    /// The steps handed to the worker and not collected yet, oldest first.
+    pending: VecDeque<PendingStep>,
     /// When the session began (before its preparation).
     started: Instant,
     measured: usize,
@@ -517,7 +561,7 @@ impl Runner {
     fn new(
         dir: PathBuf,
         manifest: Manifest,
-        prepared: PreparedSet,
+        mut prepared: PreparedSet,
         journal_path: PathBuf,
         permit: RfPermit,
         interrupt: Interrupt,
@@ -536,6 +580,7 @@ impl Runner {
         })?;
         let positioner = plan.positioner.clone().map(|p| Positioner::new(p, input));
         let n = plan.steps.len();
+        let worker_side = Arc::new(Mutex::new(WorkerSide::lend_all(&mut prepared)?));
         let worker = StepWorker::start().map_err(|e| CampaignError::Io {
             path: dir.clone(),
             source: e,
@@ -563,7 +608,8 @@ impl Runner {
             force,
             results: vec![None; n],
             worker,
-            pending: None,
+            worker_side,
+            pending: VecDeque::new(),
             started: Instant::now(),
             measured: 0,
             skipped: 0,
@@ -577,8 +623,8 @@ impl Runner {
         self.manifest.store(&self.dir)?;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
         let mut stopped = self.steps(observer).await.err();
-        // The last step's files (also when the run stopped: a capture taken is kept).
-        if let Err(e) = self.settle(observer).await {
+        // The last steps' files (also when the run stopped: a capture taken is kept).
+        if let Err(e) = self.settle_all(observer).await {
             match &stopped {
                 None => stopped = Some(e),
                 Some(_) => observer.note(&format!("the last step's files: {e}")),
@@ -608,7 +654,7 @@ impl Runner {
         for k in 0..n {
             let step = self.plan.steps[k].clone();
             if self.manifest.steps[k].status == StepStatus::Done {
-                self.settle(observer).await?;
+                self.settle_all(observer).await?;
                 let result = self.stored_result(&step)?;
                 self.skipped += 1;
                 self.manifest.session_mut().skipped.push(step.index);
@@ -839,73 +885,69 @@ impl Runner {
                 other => other.into(),
             })?;
         self.timing.bench_s += t_bench.elapsed().as_secs_f64();
-        // The step before was processed and written while this one was captured: wait for it
-        // (its pipelines come back), then hand this step to a worker. One step in flight at a
-        // time, so manifests are stored in step order. A failure of the step before still hands
-        // this capture to the worker, so it is written before the run stops.
-        let before = self.settle(observer).await;
-        self.hand_over(k, step, taken)?;
+        // The steps before were processed and written while this one was captured: wait for
+        // the oldest when the worker has its fill, then hand this step over. A failure of a step
+        // before still hands this capture to the worker, so it is written before the run stops.
+        let before = if self.pending.len() >= STEPS_IN_FLIGHT {
+            self.settle_oldest(observer).await
+        } else {
+            Ok(())
+        };
+        self.hand_over(k, step, taken);
         before
     }
 
-    /// Lends the step's pipelines to a worker thread that processes `taken` with every
-    /// algorithm, writes the step's files, hashes them and stores the manifest recording it.
-    fn hand_over(&mut self, k: usize, step: &Step, taken: Taken) -> Result<(), CampaignError> {
-        let w = step.waveform;
-        let mut lent = Vec::with_capacity(self.plan.processing.len());
-        for a in 0..self.plan.processing.len() {
-            match self.prepared.get_mut(w, a, step.music_p).lend() {
-                Ok(l) => lent.push(l),
-                Err(e) => {
-                    self.give_back((w, step.music_p), lent);
-                    return Err(e.into());
-                }
-            }
-        }
+    /// Gives `taken` to the worker, which processes it with every algorithm, writes the step's
+    /// files, hashes them and stores the manifest recording it.
+    fn hand_over(&mut self, k: usize, step: &Step, taken: Taken) {
         let mut snapshot = self.manifest.clone();
         snapshot.session_mut().timing = self.timing.clone();
         let job = StepJob {
             dir: self.dir.clone(),
             step: step.clone(),
             names: self.plan.algorithm_names(),
-            bandwidth_hz: self.plan.waveforms[w].bandwidth_hz(),
+            bandwidth_hz: self.plan.waveforms[step.waveform].bandwidth_hz(),
             provenance: Provenance {
                 bench_file: self.plan.bench.file.clone(),
                 simulated: self.plan.bench.simulated,
             },
         };
-        let outcome = self.worker.submit(move || job.run(lent, taken, snapshot));
-        self.pending = Some(PendingStep {
+        let side = self.worker_side.clone();
+        let outcome = self.worker.submit(move || job.run(&side, taken, snapshot));
+        self.pending.push_back(PendingStep {
             k,
             step: step.clone(),
-            lent_from: (w, step.music_p),
             outcome,
         });
-        Ok(())
     }
 
-    /// Returns lent pipelines to their preparations (algorithm order).
-    fn give_back(&mut self, (w, p): (usize, Option<usize>), lent: Vec<LentPipeline>) {
-        for (a, l) in lent.into_iter().enumerate() {
-            self.prepared.get_mut(w, a, p).give_back(l);
+    /// Collects every step handed to the worker.
+    async fn settle_all(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let mut first_error = None;
+        while !self.pending.is_empty() {
+            if let Err(e) = self.settle_oldest(observer).await {
+                match first_error {
+                    None => first_error = Some(e),
+                    Some(_) => observer.note(&format!("a later step: {e}")),
+                }
+            }
         }
+        first_error.map_or(Ok(()), Err)
     }
 
-    /// Waits for the step a worker is processing and writing, records it done and tells the
-    /// observer.
-    async fn settle(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
-        let Some(p) = self.pending.take() else {
+    /// Waits for the oldest step the worker has, records it done and tells the observer.
+    async fn settle_oldest(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let Some(p) = self.pending.pop_front() else {
             return Ok(());
         };
         let t = Instant::now();
         let outcome = p.outcome.await.map_err(|_| {
             CampaignError::Measure(MeasureError::Worker(format!(
-                "step {}'s processing stopped with a panic; its pipelines are lost",
+                "step {}'s processing stopped with a panic",
                 p.step.index
             )))
         })?;
         let waited = t.elapsed().as_secs_f64();
-        self.give_back(p.lent_from, outcome.lent);
         self.timing.wait_s += waited;
         self.timing.processing_s += outcome.processing_s;
         let (result, written) = outcome.done?;
@@ -1051,23 +1093,30 @@ struct StepJob {
 }
 
 impl StepJob {
-    /// Processes the capture with every lent pipeline, writes the step's files and stores the
-    /// manifest `snapshot` with the step recorded done. The pipelines come back whatever happens.
-    fn run(self, mut lent: Vec<LentPipeline>, taken: Taken, snapshot: Manifest) -> WorkerOutcome {
+    /// Processes the capture with every algorithm's pipeline, writes the step's files and
+    /// stores the manifest `snapshot` with this step and every step recorded before it done.
+    fn run(self, side: &Mutex<WorkerSide>, taken: Taken, snapshot: Manifest) -> WorkerOutcome {
+        let mut side = side.lock().unwrap_or_else(|p| p.into_inner());
         let t = Instant::now();
-        let processed: Result<Vec<Processing>, MeasureError> = lent
-            .iter_mut()
-            .map(|l| l.process(&taken.captured))
+        let w = self.step.waveform;
+        let processed: Result<Vec<Processing>, MeasureError> = (0..self.names.len())
+            .map(|a| {
+                let key = side.key(w, a, self.step.music_p);
+                let pipeline = side.pipelines.get_mut(&key).ok_or_else(|| {
+                    MeasureError::Worker("an earlier step lost the pipeline".into())
+                })?;
+                pipeline.process(&taken.captured)
+            })
             .collect();
         let processing_s = t.elapsed().as_secs_f64();
         let done = processed
             .map_err(CampaignError::from)
-            .and_then(|p| self.record(taken, p, snapshot));
-        WorkerOutcome {
-            lent,
-            processing_s,
-            done,
+            .and_then(|p| self.record(taken, p, snapshot, &side.recorded));
+        if let Ok((_, written)) = &done {
+            side.recorded
+                .insert(written.record.index, written.record.clone());
         }
+        WorkerOutcome { processing_s, done }
     }
 
     fn record(
@@ -1075,6 +1124,7 @@ impl StepJob {
         taken: Taken,
         mut processings: Vec<Processing>,
         mut snapshot: Manifest,
+        recorded: &BTreeMap<usize, StepRecord>,
     ) -> Result<(StepResult, Written), CampaignError> {
         let mut others = processings.split_off(1);
         let mut m = taken.with(processings.pop().expect("the primary algorithm"));
@@ -1121,6 +1171,9 @@ impl StepJob {
             .iter()
             .map(|p| FileRecord::of(&self.dir, p))
             .collect::<Result<Vec<_>, _>>()?;
+        for (&index, record) in recorded {
+            *snapshot.step_mut(index) = record.clone();
+        }
         let rec = snapshot.step_mut(self.step.index);
         rec.status = StepStatus::Done;
         rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
