@@ -482,7 +482,14 @@ impl Synthesizer {
             }
             for path in moving {
                 self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
-                add_window(&mut y, &self.period, path.doppler_hz, sample_rate, t0, period);
+                add_window(
+                    &mut y,
+                    &self.period,
+                    path.doppler_hz,
+                    sample_rate,
+                    t0,
+                    period,
+                );
             }
         }
         self.impair(&mut y, scene, sample_rate);
