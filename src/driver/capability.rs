@@ -287,6 +287,25 @@ pub struct RfStatus {
     pub control: u16,
 }
 
+/// What [`RfFrontEnd::check_before_enable`] found: the module may be switched on with
+/// [`RfFrontEnd::enable_checked`]. Only a driver makes one.
+#[derive(Debug, Clone)]
+pub struct ReadyToEnable {
+    /// The checked instrument, so the check of one module cannot switch on another.
+    pub(crate) instrument: String,
+    /// The attenuation to apply once enabled, in the module's register code.
+    pub(crate) attenuation_code: u16,
+    /// The module as read by the check.
+    pub(crate) before: RfStatus,
+}
+
+impl ReadyToEnable {
+    /// The module as the check read it (maximum attenuation, RF still off).
+    pub fn status(&self) -> &RfStatus {
+        &self.before
+    }
+}
+
 /// An RF front end (transmitter or receiver module).
 pub trait RfFrontEnd: Send {
     fn identity(&self) -> &Identity;
@@ -300,6 +319,20 @@ pub trait RfFrontEnd: Send {
         &'a mut self,
         permit: &'a RfPermit,
         settings: &'a RfSettings,
+    ) -> BoxFuture<'a, Result<RfStatus, DriverError>>;
+    /// The first half of [`enable`](Self::enable), radiating nothing: settings within limits,
+    /// no latched fault, temperature and interlock fine, attenuation at maximum. Lets a caller
+    /// check every module of the bench before it switches any of them on.
+    fn check_before_enable<'a>(
+        &'a mut self,
+        settings: &'a RfSettings,
+    ) -> BoxFuture<'a, Result<ReadyToEnable, DriverError>>;
+    /// The second half: enable, check lock and status, then the requested attenuation; on any
+    /// failure RF is switched off again.
+    fn enable_checked<'a>(
+        &'a mut self,
+        permit: &'a RfPermit,
+        ready: ReadyToEnable,
     ) -> BoxFuture<'a, Result<RfStatus, DriverError>>;
     /// RF off and maximum attenuation; tries both even when one fails.
     fn disable(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;

@@ -69,7 +69,8 @@ pub use crate::transport::{ErrorKind, Journal};
 pub use crate::trc::TrcError;
 pub use capability::{
     Awg, AwgApplied, AwgSettings, Digitizer, DigitizerApplied, DigitizerSettings, IqWaveform,
-    LoadedSegment, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry, Slope,
+    LoadedSegment, ReadyToEnable, ReferenceClock, RfFrontEnd, RfSettings, RfStatus, SegmentEntry,
+    Slope,
 };
 pub use error::DriverError;
 pub use fault::{FaultCounts, FaultPlan, FaultSwitch, FaultyIo};

@@ -17,8 +17,8 @@ use crate::driver::m8195a::plan::{plan_clock, plan_download};
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
     Awg, AwgApplied, AwgSettings, ChannelTrace, Digitizer, DigitizerApplied, DigitizerSettings,
-    Gotmic, Identity, IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, RfFrontEnd,
-    RfPermit, RfSettings, RfStatus, SafeState, SafeStateReport, SegmentTiming,
+    Gotmic, Identity, IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, ReadyToEnable,
+    RfFrontEnd, RfPermit, RfSettings, RfStatus, SafeState, SafeStateReport, SegmentTiming,
 };
 use crate::dsp::C0;
 use num_complex::Complex64;
@@ -364,6 +364,19 @@ pub struct Uploaded {
     pub scope: DigitizerApplied,
 }
 
+/// The pre-enable check of a front end, when the bench has it.
+async fn check_before_enable(
+    front: Option<&Shared<dyn RfFrontEnd>>,
+    settings: &RfSettings,
+) -> Result<Option<ReadyToEnable>, MeasureError> {
+    match front {
+        Some(front) => Ok(Some(
+            front.lock().await.check_before_enable(settings).await?,
+        )),
+        None => Ok(None),
+    }
+}
+
 /// The bench's drivers, shared with the safe state.
 pub(crate) struct Station {
     awg: Shared<dyn Awg>,
@@ -493,15 +506,22 @@ impl Station {
         permit: &RfPermit,
         repetitions: usize,
     ) -> Result<Acquired, MeasureError> {
+        // Both modules are checked (on their own serial lines, side by side) before either is
+        // switched on, so a transmitter that is not ready stops the measurement with nothing
+        // radiating; then the receiver, then the transmitter.
+        let tx = self.tx.as_ref().filter(|_| !plan.tx_off);
+        let (rx_ready, tx_ready) = tokio::join!(
+            check_before_enable(self.rx.as_ref(), &plan.rx),
+            check_before_enable(tx, &plan.tx),
+        );
+        let (rx_ready, tx_ready) = (rx_ready?, tx_ready?);
         let mut rx_status = None;
         let mut tx_status = None;
-        if let Some(rx) = &self.rx {
-            rx_status = Some(rx.lock().await.enable(permit, &plan.rx).await?);
+        if let (Some(rx), Some(ready)) = (&self.rx, rx_ready) {
+            rx_status = Some(rx.lock().await.enable_checked(permit, ready).await?);
         }
-        if let Some(txm) = &self.tx {
-            if !plan.tx_off {
-                tx_status = Some(txm.lock().await.enable(permit, &plan.tx).await?);
-            }
+        if let (Some(txm), Some(ready)) = (tx, tx_ready) {
+            tx_status = Some(txm.lock().await.enable_checked(permit, ready).await?);
         }
         {
             let mut awg = self.awg.lock().await;

@@ -198,3 +198,65 @@ async fn a_bench_files_own_catalog_folder_is_what_the_capture_uses() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("nowhere"), "{err}");
 }
+
+/// Both front ends are checked before either is switched on: a transmitter whose interlock is
+/// open refuses the measurement before the receiver's enable is written, and nothing radiates.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_transmitter_not_ready_stops_the_measurement_before_the_receiver_is_enabled() {
+    let bench = Bench::open(BenchSource::BuiltIn(BuiltIn::default()))
+        .await
+        .unwrap();
+    let catalog = Catalog::embedded().unwrap();
+    let kind = WaveformKind::MskLfm;
+    let request = CaptureRequest {
+        waveform: kind.thesis_default(),
+        payload: None,
+        seed: 1,
+        options: ProcessOptions::for_waveform(kind),
+        tx_off: false,
+        wait_s: 10.0,
+        background: None,
+    };
+    let mut prepared = prepare(&bench, &catalog, &request).await.unwrap();
+    let mut rig = Rig::connect(&bench, &catalog, None).await.unwrap();
+    let lab = &bench.lab.as_ref().unwrap().bench;
+    lab.tx.set_interlock_open(true);
+    lab.rx.log().clear();
+    lab.scope.log().clear();
+    let outcome = tokio::time::timeout(
+        Duration::from_secs(120),
+        rig.measure(
+            &bench,
+            &mut prepared,
+            1,
+            &RfPermit::granted_by_user(),
+            &Interrupt::never(),
+        ),
+    )
+    .await
+    .expect("an answer within 120 s");
+    let e = outcome
+        .err()
+        .expect("the open interlock refuses the measurement");
+    assert!(e.to_string().contains("interlock"), "{e}");
+    let rx_log = lab.rx.log().texts();
+    assert!(
+        rx_log.iter().any(|t| t.starts_with("R 01")),
+        "the receiver was checked: {rx_log:?}"
+    );
+    let rx_enables: Vec<&String> = rx_log
+        .iter()
+        .filter(|t| t.starts_with("W 02 ") && !t.starts_with("W 02 0000"))
+        .collect();
+    assert!(
+        rx_enables.is_empty(),
+        "the receiver was switched on: {rx_enables:?}"
+    );
+    assert!(!lab.rx.front_end().rf_enabled);
+    assert_eq!(
+        count(&lab.scope.log().texts(), "ARM"),
+        0,
+        "nothing was acquired"
+    );
+    assert!(lab.is_safe());
+}

@@ -10,7 +10,7 @@
 pub(crate) mod commands;
 
 use self::commands::Reply;
-use super::capability::{RfFrontEnd, RfSettings, RfStatus};
+use super::capability::{ReadyToEnable, RfFrontEnd, RfSettings, RfStatus};
 use super::error::{session, DriverError};
 use super::identity;
 use super::io::{session_options, BoxFuture, InstrumentIo};
@@ -390,6 +390,15 @@ impl Gotmic {
     }
 
     async fn enable_impl(&mut self, settings: &RfSettings) -> Result<RfStatus, DriverError> {
+        let ready = self.check_impl(settings).await?;
+        self.enable_checked_impl(ready).await
+    }
+
+    /// Everything checkable before the enable, nothing radiating: the requested attenuation and
+    /// LO within the catalog's limits, one look at the module (status, control, attenuation,
+    /// temperature, faults), the attenuation at its maximum (read back here, written and
+    /// verified only when it is not: the disable leaves it there), the LO register written.
+    async fn check_impl(&mut self, settings: &RfSettings) -> Result<ReadyToEnable, DriverError> {
         let code = self.attenuation_code(settings.attenuation_db)?;
         let lo_mhz = match settings.lo_frequency_hz {
             Some(f) => {
@@ -406,9 +415,6 @@ impl Gotmic {
             None => None,
         };
         let map = self.map.clone();
-        // One look at the module (status, control, attenuation, temperature, faults) decides;
-        // the attenuation is at its maximum before the enable: read back here, written (and
-        // verified) only when it is not (the disable leaves it there).
         let before = self.status_impl().await?;
         let max = self.max_attenuation_code();
         let att_code = (before.attenuation_db / self.limits.attenuation_step_db).round();
@@ -435,7 +441,22 @@ impl Gotmic {
                 "the interlock is open: close it (waveguide load or antenna connected, door closed) before enabling RF".into(),
             ));
         }
-        let result = self.switch_on(code, before).await;
+        Ok(ReadyToEnable {
+            instrument: self.name.clone(),
+            attenuation_code: code,
+            before,
+        })
+    }
+
+    /// Switches on after [`check_impl`](Self::check_impl); any failure switches off again.
+    async fn enable_checked_impl(&mut self, ready: ReadyToEnable) -> Result<RfStatus, DriverError> {
+        if ready.instrument != self.name {
+            return Err(DriverError::Sequence {
+                instrument: self.name.clone(),
+                what: format!("was given the enable check of `{}`", ready.instrument),
+            });
+        }
+        let result = self.switch_on(ready.attenuation_code, ready.before).await;
         if result.is_err() {
             if let Err(e) = self.disable_impl().await {
                 tracing::error!(instrument = %self.name, "switching off after a failed enable failed too: {e}");
@@ -551,6 +572,21 @@ impl RfFrontEnd for Gotmic {
         settings: &'a RfSettings,
     ) -> BoxFuture<'a, Result<RfStatus, DriverError>> {
         Box::pin(self.enable_impl(settings))
+    }
+
+    fn check_before_enable<'a>(
+        &'a mut self,
+        settings: &'a RfSettings,
+    ) -> BoxFuture<'a, Result<ReadyToEnable, DriverError>> {
+        Box::pin(self.check_impl(settings))
+    }
+
+    fn enable_checked<'a>(
+        &'a mut self,
+        _permit: &'a RfPermit,
+        ready: ReadyToEnable,
+    ) -> BoxFuture<'a, Result<RfStatus, DriverError>> {
+        Box::pin(self.enable_checked_impl(ready))
     }
 
     fn disable(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
