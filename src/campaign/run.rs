@@ -1020,7 +1020,9 @@ impl Runner {
             .map(|s| s.journal.clone())
             .filter(|p| p.is_relative())
             .collect();
-        self.journal = None;
+        if let Some(journal) = self.journal.take() {
+            journal.flush();
+        }
         for j in journals {
             if self.dir.join(&j).exists() {
                 self.manifest.set_file(FileRecord::of(&self.dir, &j)?);

@@ -278,8 +278,12 @@ impl Link {
             Inner::Serial(l) => l.read_message(options).await,
         };
         self.settle(&result, Dirty::Read);
-        let payload: &[u8] = result.as_ref().map(|b| &b[..]).unwrap_or(&[]);
-        self.journal_result("read", started, &result, &[payload]);
+        if let Some(j) = &self.journal {
+            match &result {
+                Ok(data) => j.received(&self.origin, data, micros(started)),
+                Err(e) => j.failure(&self.origin, "read", e, micros(started)),
+            }
+        }
         result
     }
 
