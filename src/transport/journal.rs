@@ -57,7 +57,7 @@ struct State {
 
 enum Queued {
     /// A received block, its line still to be completed with its hash (and kept bytes).
-    Block { entry: Entry, data: Bytes },
+    Block { entry: Box<Entry>, data: Bytes },
     /// A finished line that came after such a block.
     Line(String),
 }
@@ -254,7 +254,10 @@ impl Journal {
         };
         match fill(&mut entry, state.blobs.as_deref()) {
             Some(data) => {
-                state.queue.push_back(Queued::Block { entry, data });
+                state.queue.push_back(Queued::Block {
+                    entry: Box::new(entry),
+                    data,
+                });
                 shared.changed.notify_all();
             }
             None if state.queue.is_empty() => state.write(&entry),
