@@ -1,8 +1,10 @@
 //! The bench's safe state, on every exit path (architecture rule 9).
 //!
 //! [`SafeState`] holds shared handles to the bench's drivers and runs the sequence
-//! **Tx RF off, Rx off, AWG outputs off, `:ABOR`**. Every step is tried even when an earlier one
-//! fails, each within a bounded time, and the [`SafeStateReport`] says what happened.
+//! **Tx RF off, Rx off, AWG outputs off, `:ABOR`**, the three instruments at once (each on its
+//! own link, so a silent one does not keep the others on for its timeout). Every step is tried
+//! even when another fails, each within a bounded time, and the [`SafeStateReport`] says what
+//! happened, in that order.
 //!
 //! How each exit path reaches it:
 //! * normal end and errors: `guard.engage().await` (or `state.engage().await`);
@@ -121,23 +123,37 @@ impl SafeState {
         self.run(self.inner.step_timeout).await
     }
 
-    async fn run(&self, lock_wait: Duration) -> SafeStateReport {
+    async fn run<'a>(&'a self, lock_wait: Duration) -> SafeStateReport {
         let b = &self.inner.bench;
         let limit = self.inner.step_timeout;
-        let mut report = SafeStateReport::default();
-        for (step, rf) in [("Tx RF off", &b.tx), ("Rx off", &b.rx)] {
-            if let Some(rf) = rf {
-                let error = step_result(limit, lock_wait, rf, |d| d.disable()).await;
-                report.steps.push(SafeStep { step, error });
+        // Each instrument has its own link: all three start at once, so a slow or silent one
+        // does not keep the others on for its timeout. The report keeps the sequence's order.
+        let front_off = |step: &'static str, rf: &'a Option<Shared<dyn RfFrontEnd>>| async move {
+            match rf {
+                Some(rf) => Some(SafeStep {
+                    step,
+                    error: step_result(limit, lock_wait, rf, |d| d.disable()).await,
+                }),
+                None => None,
             }
-        }
-        if let Some(awg) = &b.awg {
-            let error = step_result(limit, lock_wait, awg, |d| d.safe_state()).await;
-            report.steps.push(SafeStep {
-                step: "AWG outputs off and :ABOR",
-                error,
-            });
-        }
+        };
+        let awg_off = async {
+            match &b.awg {
+                Some(awg) => Some(SafeStep {
+                    step: "AWG outputs off and :ABOR",
+                    error: step_result(limit, lock_wait, awg, |d| d.safe_state()).await,
+                }),
+                None => None,
+            }
+        };
+        let (tx, rx, awg) = tokio::join!(
+            front_off("Tx RF off", &b.tx),
+            front_off("Rx off", &b.rx),
+            awg_off
+        );
+        let report = SafeStateReport {
+            steps: [tx, rx, awg].into_iter().flatten().collect(),
+        };
         if report.is_safe() {
             tracing::info!("safe state: {report}");
         } else {

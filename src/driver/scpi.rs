@@ -77,11 +77,38 @@ impl Scpi {
             .map_err(session(&self.name))
     }
 
+    /// The replies to several queries sent as one message (IEEE 488.2 compound query: `A?;B?`
+    /// is answered `a;b`), one round trip instead of one each. Replies must not hold a `;`
+    /// themselves (numbers, enumerations, catalogs; not quoted strings).
+    pub async fn ask_each(&mut self, queries: &[&str]) -> Result<Vec<String>, DriverError> {
+        let message = queries.join(";");
+        let reply = self.ask(&message).await?;
+        let parts: Vec<String> = reply.split(';').map(|p| p.trim().to_string()).collect();
+        if parts.len() != queries.len() {
+            return Err(self.reply_error(
+                &message,
+                "one reply per query, separated by `;`",
+                &reply,
+            ));
+        }
+        Ok(parts)
+    }
+
     /// A number, with or without a response header (`6.4E+10`, `VBS 6.4E+10`).
     pub async fn ask_f64(&mut self, query: &str) -> Result<f64, DriverError> {
         let text = self.ask(query).await?;
+        self.number_in(query, &text)
+    }
+
+    /// `text`, the reply to `query`, as a number (with or without a response header).
+    pub fn number_in(&self, query: &str, text: &str) -> Result<f64, DriverError> {
         parse_f64(without_header(text.trim()))
-            .ok_or_else(|| self.reply_error(query, "a number", &text))
+            .ok_or_else(|| self.reply_error(query, "a number", text))
+    }
+
+    /// `text`, the reply to `query`, as `1`/`0`/`ON`/`OFF`.
+    pub fn bool_in(&self, query: &str, text: &str) -> Result<bool, DriverError> {
+        parse_bool(text).ok_or_else(|| self.reply_error(query, "0 or 1", text))
     }
 
     /// An integer, with or without a response header (`8193`, `INR 8193`).
@@ -94,7 +121,7 @@ impl Scpi {
     /// `1`/`0`/`ON`/`OFF`.
     pub async fn ask_bool(&mut self, query: &str) -> Result<bool, DriverError> {
         let text = self.ask(query).await?;
-        parse_bool(&text).ok_or_else(|| self.reply_error(query, "0 or 1", &text))
+        self.bool_in(query, &text)
     }
 
     /// A query answered with `1` once the instrument is done (`*OPC?`, or a message ending in
@@ -204,6 +231,27 @@ mod tests {
                 "{e}"
             );
         });
+    }
+
+    #[test]
+    fn compound_queries_take_one_round_trip_and_count_their_replies() {
+        let fake = Scripted::new("fake")
+            .reply(":A?;:B?", "1;+2.5E+00")
+            .reply(":A?;:C?", "1");
+        let log = fake.log();
+        let mut scpi = Scpi::new(Box::new(fake), "awg");
+        block_on(async {
+            let r = scpi.ask_each(&[":A?", ":B?"]).await.unwrap();
+            assert_eq!(r, ["1", "+2.5E+00"]);
+            assert_eq!(scpi.number_in(":B?", &r[1]).unwrap(), 2.5);
+            assert!(scpi.bool_in(":A?", &r[0]).unwrap());
+            let e = scpi.ask_each(&[":A?", ":C?"]).await.unwrap_err();
+            assert!(
+                e.to_string().contains(":A?;:C?") && e.to_string().contains("separated by `;`"),
+                "{e}"
+            );
+        });
+        assert_eq!(log.ops(), [":A?;:B?", ":A?;:C?"]);
     }
 
     #[test]

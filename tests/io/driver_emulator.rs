@@ -478,3 +478,46 @@ async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
     let play = awg_emu.playback();
     assert!(!play.running && play.channels.iter().all(|c| !c.output_on));
 }
+
+/// The safe state switches every instrument off at once: a transmitter whose driver stays busy
+/// (a hung operation holds it) does not keep the AWG playing while the Tx step waits it out.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_busy_transmitter_does_not_hold_the_awg_on() {
+    let m = model("keysight-m8195a");
+    let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
+    let (tx_emu, tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
+    let (safe, awg, tx) = guarded(Box::new(awg), Some(Box::new(tx)));
+    let tx = tx.expect("a transmitter");
+    let permit = RfPermit::granted_by_user();
+    {
+        let mut a = awg.lock().await;
+        bounded(a.configure(&AwgSettings::default())).await.unwrap();
+        bounded(a.load(&waveform(2048))).await.unwrap();
+        bounded(a.enable_outputs(&permit)).await.unwrap();
+        bounded(a.run()).await.unwrap();
+    }
+    let mut held = tx.lock().await;
+    bounded(held.enable(&permit, &RfSettings::default()))
+        .await
+        .unwrap();
+    assert!(awg_emu.playback().running && tx_emu.front_end().rf_enabled);
+    let mut engaged = tokio::spawn({
+        let safe = safe.clone();
+        async move { safe.engage().await }
+    });
+    // The Tx step waits up to its 5 s for the driver; 2 s in, the AWG is already off.
+    let early = tokio::time::timeout(std::time::Duration::from_secs(2), &mut engaged).await;
+    assert!(
+        early.is_err(),
+        "the Tx step cannot be done while its driver is held"
+    );
+    assert!(!awg_emu.playback().running, "the AWG waited for the Tx");
+    assert!(awg_emu.playback().channels.iter().all(|c| !c.output_on));
+    drop(held);
+    let report = bounded(engaged).await.unwrap();
+    assert!(report.is_safe(), "{report}");
+    assert!(!tx_emu.front_end().rf_enabled);
+    let steps: Vec<&str> = report.steps.iter().map(|s| s.step).collect();
+    assert_eq!(steps, ["Tx RF off", "AWG outputs off and :ABOR"]);
+}

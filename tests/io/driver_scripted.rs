@@ -19,19 +19,23 @@ use radbench::trc::BlockBuilder;
 
 const AWG_IDN: &str = "Keysight Technologies,M8195A,MY00000001,4.0.0.0";
 
+/// The AWG's state read back as one compound query ([`AWG_READBACK`]).
 fn awg_readback(fake: Scripted, segment: &str, outputs: &str) -> Scripted {
-    fake.reply(":INST:DACM?", "DCM")
-        .reply(":INST:MEM:EXT:RDIV?", "DIV4")
-        .reply(":FREQ:RAST?", "6.4000000000E+10")
-        .reply(":TRAC1:CAT?", segment)
-        .reply(":VOLT1?", "5.0000E-01")
-        .reply(":VOLT2?", "5.0000E-01")
-        .reply(":VOLT3:AMPL?", "5.0000E-01")
-        .reply(":VOLT3:OFFS?", "2.5000E-01")
-        .reply(":ROSC:SOUR?", "INT")
-        .reply(":OUTP1?", outputs)
-        .reply(":OUTP2?", outputs)
-        .reply(":OUTP3?", outputs)
+    let replies = [
+        "DCM",
+        "DIV4",
+        "6.4000000000E+10",
+        segment,
+        "5.0000E-01",
+        "5.0000E-01",
+        "5.0000E-01",
+        "2.5000E-01",
+        "INT",
+        outputs,
+        outputs,
+        outputs,
+    ];
+    fake.reply(AWG_READBACK[0], &replies.join(";"))
 }
 
 const AWG_CONFIGURE: &[&str] = &[
@@ -56,21 +60,8 @@ const AWG_CONFIGURE: &[&str] = &[
     ERROR_CHECK,
 ];
 
-const AWG_READBACK: &[&str] = &[
-    ":INST:DACM?",
-    ":INST:MEM:EXT:RDIV?",
-    ":FREQ:RAST?",
-    ":TRAC1:CAT?",
-    ":VOLT1?",
-    ":VOLT2?",
-    ":VOLT3:AMPL?",
-    ":VOLT3:OFFS?",
-    ":ROSC:SOUR?",
-    ":OUTP1?",
-    ":OUTP2?",
-    ":OUTP3?",
-];
-
+const AWG_READBACK: &[&str] = &[":INST:DACM?;:INST:MEM:EXT:RDIV?;:FREQ:RAST?;:TRAC1:CAT?;\
+    :VOLT1?;:VOLT2?;:VOLT3:AMPL?;:VOLT3:OFFS?;:ROSC:SOUR?;:OUTP1?;:OUTP2?;:OUTP3?"];
 async fn awg(fake: Scripted) -> (M8195a, ScriptLog) {
     let fake = fake.reply("*IDN?", AWG_IDN);
     let log = fake.log();

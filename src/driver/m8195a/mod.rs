@@ -275,46 +275,59 @@ impl M8195a {
         self.scpi.check("switching the outputs off").await
     }
 
+    /// Everything [`AwgApplied`] holds, read in one compound query (a campaign reads it before
+    /// every step: one round trip instead of twelve).
     async fn applied_impl(&mut self) -> Result<AwgApplied, DriverError> {
         let (i, q, m) = self.signal_channels();
-        let dac_mode = self.scpi.ask(commands::DAC_MODE_QUERY).await?;
-        let divider_text = self.scpi.ask(commands::DIVIDER_QUERY).await?;
-        let divider = parse_divider(&divider_text).ok_or_else(|| {
+        let catalog = commands::catalog_query(i);
+        let amplitudes = [commands::amplitude_query(i), commands::amplitude_query(q)];
+        let marker = [
+            commands::marker_amplitude_query(m),
+            commands::offset_query(m),
+        ];
+        let outputs = [i, q, m].map(commands::output_query);
+        let queries: Vec<&str> = [
+            commands::DAC_MODE_QUERY,
+            commands::DIVIDER_QUERY,
+            commands::RASTER_QUERY,
+            &catalog,
+            &amplitudes[0],
+            &amplitudes[1],
+            &marker[0],
+            &marker[1],
+            commands::REFERENCE_QUERY,
+        ]
+        .into_iter()
+        .chain(outputs.iter().map(String::as_str))
+        .collect();
+        let r = self.scpi.ask_each(&queries).await?;
+        let divider = parse_divider(&r[1]).ok_or_else(|| {
             self.scpi
-                .reply_error(commands::DIVIDER_QUERY, "DIV1, DIV2 or DIV4", &divider_text)
+                .reply_error(commands::DIVIDER_QUERY, "DIV1, DIV2 or DIV4", &r[1])
         })?;
-        let dac_rate_hz = self.scpi.ask_f64(commands::RASTER_QUERY).await?;
-        let segments = self.segments(i).await?;
-        let i_amplitude_vpp = self.scpi.ask_f64(&commands::amplitude_query(i)).await?;
-        let q_amplitude_vpp = self.scpi.ask_f64(&commands::amplitude_query(q)).await?;
-        let marker_amplitude_v = self
-            .scpi
-            .ask_f64(&commands::marker_amplitude_query(m))
-            .await?;
-        let marker_offset_v = self.scpi.ask_f64(&commands::offset_query(m)).await?;
-        let reference_source = self
-            .scpi
-            .ask(commands::REFERENCE_QUERY)
-            .await?
-            .trim()
-            .to_string();
-        let mut outputs = Vec::new();
-        for ch in [i, q, m] {
-            let on = self.scpi.ask_bool(&commands::output_query(ch)).await?;
-            outputs.push(OutputState { channel: ch, on });
+        let segments = parse_catalog(&r[3]).ok_or_else(|| {
+            self.scpi
+                .reply_error(&catalog, "id,length[,id,length...]", &r[3])
+        })?;
+        let number = |k: usize| self.scpi.number_in(queries[k], &r[k]);
+        let dac_rate_hz = number(2)?;
+        let mut states = Vec::new();
+        for (k, channel) in [i, q, m].into_iter().enumerate() {
+            let on = self.scpi.bool_in(queries[9 + k], &r[9 + k])?;
+            states.push(OutputState { channel, on });
         }
         Ok(AwgApplied {
-            dac_mode: dac_mode.trim().to_string(),
+            dac_mode: r[0].clone(),
             divider,
             dac_rate_hz,
             sample_rate_hz: dac_rate_hz / f64::from(divider),
             segments,
-            i_amplitude_vpp,
-            q_amplitude_vpp,
-            marker_amplitude_v,
-            marker_offset_v,
-            reference_source,
-            outputs,
+            i_amplitude_vpp: number(4)?,
+            q_amplitude_vpp: number(5)?,
+            marker_amplitude_v: number(6)?,
+            marker_offset_v: number(7)?,
+            reference_source: r[8].clone(),
+            outputs: states,
         })
     }
 
