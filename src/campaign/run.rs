@@ -44,7 +44,7 @@ use crate::measure::capture::{self, LentPipeline, Measurement, Prepared, Process
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;
-use crate::storage::atomic::write_atomic;
+use crate::storage::atomic::{write_atomic, write_group, GroupWritten};
 use mock_lab::scene::{Scene, Target};
 use serde::Serialize;
 use serde_json::json;
@@ -1167,12 +1167,23 @@ impl StepJob {
             &self.provenance,
             &result_json,
         )?;
-        let files_s = t_files.elapsed().as_secs_f64();
+        // The files were hashed as they were written: that share of their time is the
+        // campaign's bookkeeping (a lone `radbench capture` does not hash its files).
+        let files_s = t_files.elapsed().as_secs_f64() - files.hashing_s;
         let t_over = Instant::now();
-        let records = files
-            .iter()
-            .map(|p| FileRecord::of(&self.dir, p))
-            .collect::<Result<Vec<_>, _>>()?;
+        let records: Vec<FileRecord> = files
+            .files
+            .into_iter()
+            .map(|f| FileRecord {
+                path: f
+                    .path
+                    .strip_prefix(&self.dir)
+                    .map(Path::to_path_buf)
+                    .unwrap_or(f.path),
+                bytes: f.bytes,
+                sha256: f.sha256,
+            })
+            .collect();
         for (&index, record) in recorded {
             *snapshot.step_mut(index) = record.clone();
         }
@@ -1186,7 +1197,7 @@ impl StepJob {
         let written = Written {
             record,
             files_s,
-            overhead_s: t_over.elapsed().as_secs_f64(),
+            overhead_s: t_over.elapsed().as_secs_f64() + files.hashing_s,
         };
         Ok((result, written))
     }
@@ -1198,7 +1209,8 @@ fn catalog(bench: &Bench) -> Result<Catalog, CampaignError> {
 
 /// Writes a step's files: the raw capture and the primary algorithm's profiles in the step's
 /// folder, each further algorithm's profiles in a subfolder named after it, the step's result.
-/// Returns every file, relative to the run folder.
+/// They become durable together (one write group: hashed as written, synced and renamed at the
+/// end, each folder synced once); the manifest that names them is written only afterwards.
 fn write_step_files(
     dir: &Path,
     rel: &Path,
@@ -1207,47 +1219,21 @@ fn write_step_files(
     names: &[&'static str],
     provenance: &Provenance,
     result_json: &str,
-) -> Result<Vec<PathBuf>, CampaignError> {
-    // One folder sync per folder at the end instead of one per file: the manifest that names
-    // these files is written only after this returns.
-    crate::storage::atomic::with_folder_sync_deferred(|| {
-        write_step_files_now(dir, rel, m, others, names, provenance, result_json)
-    })
-}
-
-fn write_step_files_now(
-    dir: &Path,
-    rel: &Path,
-    m: &mut Measurement,
-    others: &mut [Processing],
-    names: &[&'static str],
-    provenance: &Provenance,
-    result_json: &str,
-) -> Result<Vec<PathBuf>, CampaignError> {
+) -> Result<GroupWritten, CampaignError> {
     let out = dir.join(rel);
-    let raw = record::write_raw(&out, m, provenance)?;
-    let (files, _) = record::write_processed(&out, m, &raw, provenance)?;
-    let mut all: Vec<PathBuf> = files.all().into_iter().map(Path::to_path_buf).collect();
-    for (p, name) in others.iter_mut().zip(&names[1..]) {
-        swap_processing(m, p);
-        let written = record::write_processed(&out.join(name), m, &raw, provenance);
-        swap_processing(m, p);
-        let (f, _) = written?;
-        all.extend([
-            f.profile_csv,
-            f.profile_npy,
-            f.plot_svg,
-            f.plot_png,
-            f.summary,
-        ]);
-    }
-    let result = out.join(STEP_RESULT);
-    write_atomic(&result, result_json.as_bytes())?;
-    all.push(result);
-    Ok(all
-        .into_iter()
-        .map(|p| p.strip_prefix(dir).map(Path::to_path_buf).unwrap_or(p))
-        .collect())
+    let ((), written) = write_group(|| {
+        let raw = record::write_raw(&out, m, provenance)?;
+        record::write_processed(&out, m, &raw, provenance)?;
+        for (p, name) in others.iter_mut().zip(&names[1..]) {
+            swap_processing(m, p);
+            let written = record::write_processed(&out.join(name), m, &raw, provenance);
+            swap_processing(m, p);
+            written?;
+        }
+        write_atomic(&out.join(STEP_RESULT), result_json.as_bytes())?;
+        Ok::<_, CampaignError>(())
+    })?;
+    Ok(written)
 }
 
 /// Exchanges a measurement's processing with another algorithm's (to write that one's files).

@@ -31,25 +31,6 @@ pub(crate) struct CaptureFiles {
     pub summary: PathBuf,
 }
 
-impl CaptureFiles {
-    /// Every file, for manifests and hashing.
-    pub(crate) fn all(&self) -> Vec<&Path> {
-        [&self.sigmf_meta, &self.sigmf_data]
-            .into_iter()
-            .chain(&self.native)
-            .chain([
-                &self.profile_csv,
-                &self.profile_npy,
-                &self.plot_svg,
-                &self.plot_png,
-                &self.summary,
-            ])
-            .map(PathBuf::as_path)
-            .chain(self.range_doppler_png.as_deref())
-            .collect()
-    }
-}
-
 /// Where the bench came from, for the files.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Provenance {
@@ -72,10 +53,11 @@ pub(crate) fn write_capture(
     m: &Measurement,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    crate::storage::atomic::with_folder_sync_deferred(|| {
+    let (written, _) = crate::storage::atomic::write_group(|| {
         let raw = write_raw(out, m, provenance)?;
         write_processed(out, m, &raw, provenance)
-    })
+    })?;
+    Ok(written)
 }
 
 fn create_dir(out: &Path) -> Result<(), MeasureError> {

@@ -15,9 +15,11 @@
 //! run, and on a signal once no write of this process is in flight).
 
 use super::StorageError;
+use sha2::{Digest, Sha256};
 use std::io::{Read, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// What every radbench temporary file name contains (after `.<name>`).
 pub(crate) const TEMP_MARKER: &str = ".radbench-tmp-";
@@ -34,6 +36,7 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError
 }
 
 /// [`write_atomic`] of `parts` one after the other (a header and a body kept apart, unjoined).
+/// Inside a [`write_group`] the file is complete on disk only when the group ends.
 pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), StorageError> {
     let io = |source| StorageError::Io {
         path: path.to_path_buf(),
@@ -43,11 +46,25 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     let (mut file, tmp) = create_temporary(path).map_err(io)?;
     // Removes the temporary file on every way out but success (errors and panics alike).
     let mut guard = TempGuard(Some(tmp.clone()));
+    let grouped = GROUP.with(|g| g.borrow().is_some());
+    let mut hasher = grouped.then(Sha256::new);
+    let mut bytes = 0u64;
+    let mut hashing = std::time::Duration::ZERO;
     let written = (|| {
         for part in parts {
             for chunk in part.chunks(WRITE_CHUNK) {
                 file.write_all(chunk)?;
+                if let Some(h) = hasher.as_mut() {
+                    let t = std::time::Instant::now();
+                    h.update(chunk);
+                    hashing += t.elapsed();
+                }
             }
+            bytes += part.len() as u64;
+        }
+        if grouped {
+            start_writeback(&file);
+            return Ok(());
         }
         file.sync_all()?;
         drop(file);
@@ -55,45 +72,169 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     })();
     written.map_err(io)?;
     guard.0 = None;
-    sync_folder(path);
+    match hasher {
+        Some(hasher) => {
+            in_flight().insert(tmp.clone());
+            GROUP.with(|g| {
+                if let Some(group) = g.borrow_mut().as_mut() {
+                    group.hashing += hashing;
+                    group.pending.push(Pending {
+                        tmp,
+                        path: path.to_path_buf(),
+                        bytes,
+                        sha256: super::hash::hex(&hasher.finalize()),
+                    });
+                }
+            });
+        }
+        None => sync_folder(path),
+    }
     Ok(())
 }
 
-thread_local! {
-    /// Folders whose sync is deferred to the end of [`with_folder_sync_deferred`] on this thread.
-    static DEFERRED: std::cell::RefCell<Option<Vec<PathBuf>>> = const { std::cell::RefCell::new(None) };
+/// A file written in a group: what it is to become and what it holds.
+struct Pending {
+    tmp: PathBuf,
+    path: PathBuf,
+    bytes: u64,
+    sha256: String,
 }
 
-/// Runs `write` (a group of [`write_atomic`] calls on this thread, e.g. one capture's ten files)
-/// and syncs each folder they wrote into once at the end, on every way out, instead of once per
-/// file. Every file is still synced before its rename, so each is whole or absent; when this
-/// returns, every rename is durable too.
-pub(crate) fn with_folder_sync_deferred<R>(write: impl FnOnce() -> R) -> R {
-    struct Flush(bool);
-    impl Drop for Flush {
+/// A file a [`write_group`] made durable: where, how long, its SHA-256 (hashed as written).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct WrittenFile {
+    pub path: PathBuf,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+#[derive(Default)]
+struct Group {
+    pending: Vec<Pending>,
+    hashing: std::time::Duration,
+}
+
+/// What a [`write_group`] wrote: every file in writing order, and the time spent hashing them.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct GroupWritten {
+    pub files: Vec<WrittenFile>,
+    pub hashing_s: f64,
+}
+
+thread_local! {
+    /// The files written so far in the [`write_group`] running on this thread.
+    static GROUP: std::cell::RefCell<Option<Group>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Temporary files of groups not yet ended, in any thread: never stale.
+fn in_flight() -> std::sync::MutexGuard<'static, std::collections::HashSet<PathBuf>> {
+    static IN_FLIGHT: std::sync::OnceLock<Mutex<std::collections::HashSet<PathBuf>>> =
+        std::sync::OnceLock::new();
+    IN_FLIGHT
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+}
+
+/// Runs `write`, a group of [`write_atomic`] calls on this thread (one capture's ten files), and
+/// makes them durable together at its end: each file is hashed while it is written and its
+/// writeback starts at once, so the data goes to the disk while the next files are computed;
+/// at the end every file is synced and renamed into place, then each folder synced once. Every
+/// file is whole or absent at any moment; when this returns, all are durable. Files written
+/// before an error or a panic inside `write` are still put in place (nothing written is lost).
+/// Returns `write`'s value and every file, in writing order. A nested group belongs to the
+/// outer one (it returns no files; the outer one ends them).
+pub(crate) fn write_group<R, E: From<StorageError>>(
+    write: impl FnOnce() -> Result<R, E>,
+) -> Result<(R, GroupWritten), E> {
+    struct End(bool);
+    impl Drop for End {
         fn drop(&mut self) {
-            if !self.0 {
-                return;
-            }
-            let folders = DEFERRED.with(|d| d.borrow_mut().take()).unwrap_or_default();
-            for folder in folders {
-                if let Ok(dir) = std::fs::File::open(&folder) {
-                    let _ = dir.sync_all();
-                }
+            if self.0 {
+                // Unwinding: put in place what can be, quietly.
+                let _ = end_group();
             }
         }
     }
-    // Nested groups defer to the outermost one.
-    let outermost = DEFERRED.with(|d| {
-        let mut d = d.borrow_mut();
-        let fresh = d.is_none();
+    let outermost = GROUP.with(|g| {
+        let mut g = g.borrow_mut();
+        let fresh = g.is_none();
         if fresh {
-            *d = Some(Vec::new());
+            *g = Some(Group::default());
         }
         fresh
     });
-    let _flush = Flush(outermost);
-    write()
+    if !outermost {
+        return write().map(|r| (r, GroupWritten::default()));
+    }
+    let mut end = End(true);
+    let result = write();
+    end.0 = false;
+    let ended = end_group();
+    let value = result?;
+    Ok((value, ended?))
+}
+
+/// Syncs and renames every pending file of this thread's group, then syncs their folders.
+/// Keeps going past a failure and returns the first.
+fn end_group() -> Result<GroupWritten, StorageError> {
+    let group = GROUP.with(|g| g.borrow_mut().take()).unwrap_or_default();
+    let hashing_s = group.hashing.as_secs_f64();
+    let mut first_error = None;
+    let mut written = Vec::new();
+    let mut folders: Vec<PathBuf> = Vec::new();
+    for p in group.pending {
+        let done = std::fs::File::open(&p.tmp)
+            .and_then(|f| f.sync_all())
+            .and_then(|()| std::fs::rename(&p.tmp, &p.path));
+        in_flight().remove(&p.tmp);
+        match done {
+            Ok(()) => {
+                let folder = folder_of(&p.path).to_path_buf();
+                if !folders.contains(&folder) {
+                    folders.push(folder);
+                }
+                written.push(WrittenFile {
+                    path: p.path,
+                    bytes: p.bytes,
+                    sha256: p.sha256,
+                });
+            }
+            Err(source) => {
+                let _ = std::fs::remove_file(&p.tmp);
+                first_error.get_or_insert(StorageError::Io {
+                    path: p.path,
+                    source,
+                });
+            }
+        }
+    }
+    for folder in folders {
+        if let Ok(dir) = std::fs::File::open(&folder) {
+            let _ = dir.sync_all();
+        }
+    }
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(GroupWritten {
+            files: written,
+            hashing_s,
+        }),
+    }
+}
+
+/// Asks the kernel to start writing the file's data back now, without waiting (Linux); the
+/// sync at the end of the group then has little left to wait for.
+fn start_writeback(file: &std::fs::File) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        // SAFETY: a plain syscall on an open descriptor; no memory is passed.
+        let _ =
+            unsafe { libc::sync_file_range(file.as_raw_fd(), 0, 0, libc::SYNC_FILE_RANGE_WRITE) };
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = file;
 }
 
 /// Removes the radbench temporary files in `dir` (not its subfolders) left by writes that never
@@ -112,6 +253,9 @@ pub(crate) fn remove_stale_temporaries(dir: &Path) -> Result<Vec<PathBuf>, Stora
             continue;
         };
         if pid != std::process::id() && process_alive(pid) {
+            continue;
+        }
+        if in_flight().contains(&entry.path()) {
             continue;
         }
         // A link or a file: either way the entry itself goes, never what a link points at.
@@ -209,24 +353,15 @@ fn random_u64() -> u64 {
 /// Makes the rename durable (a power cut after a run must not lose the file). Best effort: a
 /// folder that cannot be opened or synced does not make the write fail.
 fn sync_folder(path: &Path) {
-    let folder = match path.parent() {
+    if let Ok(dir) = std::fs::File::open(folder_of(path)) {
+        let _ = dir.sync_all();
+    }
+}
+
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
-    };
-    let deferred = DEFERRED.with(|d| match d.borrow_mut().as_mut() {
-        Some(folders) => {
-            if !folders.iter().any(|f| f == folder) {
-                folders.push(folder.to_path_buf());
-            }
-            true
-        }
-        None => false,
-    });
-    if deferred {
-        return;
-    }
-    if let Ok(dir) = std::fs::File::open(folder) {
-        let _ = dir.sync_all();
     }
 }
 
@@ -247,32 +382,62 @@ mod tests {
     use std::os::unix::fs::symlink;
 
     #[test]
-    fn a_deferred_group_collects_each_folder_once_and_always_ends() {
+    fn a_group_puts_its_files_in_place_at_its_end_with_their_hashes() {
         let dir = tempfile::tempdir().unwrap();
         let sub = dir.path().join("sub");
         std::fs::create_dir(&sub).unwrap();
-        let pending = || DEFERRED.with(|d| d.borrow().clone());
-        let n = with_folder_sync_deferred(|| {
-            write_atomic(&dir.path().join("a"), b"1").unwrap();
-            write_atomic(&dir.path().join("b"), b"2").unwrap();
+        let (n, files) = write_group(|| {
+            write_atomic(&dir.path().join("a"), b"1")?;
+            write_atomic_parts(&dir.path().join("b"), &[b"2", b"22"])?;
+            // Not in place yet; the folder's stale-temporary sweep leaves them alone.
+            assert!(!dir.path().join("a").exists());
+            assert!(remove_stale_temporaries(dir.path())?.is_empty());
             // A nested group belongs to the outer one.
-            with_folder_sync_deferred(|| write_atomic(&sub.join("c"), b"3").unwrap());
-            assert_eq!(pending(), Some(vec![dir.path().to_path_buf(), sub.clone()]));
-            3
-        });
+            let (_, inner) = write_group(|| write_atomic(&sub.join("c"), b"3"))?;
+            assert!(inner.files.is_empty());
+            Ok::<_, StorageError>(3)
+        })
+        .unwrap();
         assert_eq!(n, 3);
-        assert_eq!(pending(), None);
-        assert_eq!(std::fs::read(sub.join("c")).unwrap(), b"3");
-        // A panic inside still ends the group.
+        let got: Vec<(PathBuf, u64, String)> = files
+            .files
+            .into_iter()
+            .map(|f| (f.path, f.bytes, f.sha256))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                (dir.path().join("a"), 1, super::super::hash::sha256(b"1")),
+                (dir.path().join("b"), 3, super::super::hash::sha256(b"222")),
+                (sub.join("c"), 1, super::super::hash::sha256(b"3")),
+            ]
+        );
+        assert_eq!(std::fs::read(dir.path().join("b")).unwrap(), b"222");
+        assert_eq!(names(dir.path()), ["a", "b", "sub"]);
+        assert!(in_flight().is_empty());
+    }
+
+    #[test]
+    fn files_written_before_an_error_or_a_panic_are_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let failed = write_group(|| {
+            write_atomic(&dir.path().join("a"), b"1")?;
+            write_atomic(&dir.path().join("no/such/folder/b"), b"2")?;
+            Ok::<_, StorageError>(())
+        });
+        assert!(failed.unwrap_err().to_string().contains("no/such/folder"));
         let caught = std::panic::catch_unwind(|| {
-            with_folder_sync_deferred(|| {
-                write_atomic(&dir.path().join("d"), b"4").unwrap();
+            write_group(|| {
+                write_atomic(&dir.path().join("d"), b"4")?;
                 panic!("in the middle");
+                #[allow(unreachable_code)]
+                Ok::<_, StorageError>(())
             })
         });
         assert!(caught.is_err());
-        assert_eq!(pending(), None);
-        assert_eq!(names(dir.path()), ["a", "b", "d", "sub"]);
+        assert!(GROUP.with(|g| g.borrow().is_none()), "the group ended");
+        assert_eq!(names(dir.path()), ["a", "d"]);
+        assert_eq!(std::fs::read(dir.path().join("d")).unwrap(), b"4");
     }
 
     fn names(dir: &Path) -> Vec<String> {
