@@ -73,6 +73,9 @@ pub struct Manifest {
     pub base_scene: Option<mock_lab::scene::Scene>,
     pub plan: Plan,
     pub sessions: Vec<Session>,
+    /// Never empty in a stored manifest (a plan has steps); skipped when empty so that
+    /// [`store_cached`](Self::store_cached) can append the steps' tables itself.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub steps: Vec<StepRecord>,
     /// The run's own files (results, report, journals), hashed when last written.
     pub files: Vec<FileRecord>,
@@ -169,6 +172,10 @@ pub enum StepStatus {
     Pending,
     Done,
 }
+
+/// Step tables already serialised by [`Manifest::store_cached`], by step index.
+#[derive(Debug, Default)]
+pub struct StepTables(std::collections::HashMap<usize, (StepRecord, String)>);
 
 /// One step's state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -310,6 +317,44 @@ impl Manifest {
             message: format!("cannot be written: {e} (a radbench bug, please report it)"),
         })?;
         // write_atomic makes the file and its folder entry durable (fsync of both).
+        write_atomic(&dir.join(FILE), text.as_bytes())?;
+        Ok(())
+    }
+
+    /// [`store`](Self::store), serialising only the steps whose record changed since the last
+    /// call with the same `cache` (a finished step's table is kept as text): a run of N steps
+    /// writes its manifest N times, and each would otherwise serialise every step again.
+    pub fn store_cached(
+        &mut self,
+        dir: &Path,
+        cache: &mut StepTables,
+    ) -> Result<(), CampaignError> {
+        self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
+        let unwritable = |e: toml::ser::Error| CampaignError::Manifest {
+            path: dir.join(FILE),
+            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
+        };
+        let steps = std::mem::take(&mut self.steps);
+        let head = toml::to_string(self);
+        self.steps = steps;
+        let mut text = head.map_err(unwritable)?;
+        for step in &self.steps {
+            match cache.0.get(&step.index) {
+                Some((record, table)) if record == step => text.push_str(table),
+                _ => {
+                    #[derive(Serialize)]
+                    struct One<'a> {
+                        steps: [&'a StepRecord; 1],
+                    }
+                    let table = toml::to_string(&One { steps: [step] }).map_err(unwritable)?;
+                    text.push('\n');
+                    text.push_str(&table);
+                    cache
+                        .0
+                        .insert(step.index, (step.clone(), format!("\n{table}")));
+                }
+            }
+        }
         write_atomic(&dir.join(FILE), text.as_bytes())?;
         Ok(())
     }

@@ -28,7 +28,7 @@
 
 use super::manifest::{
     self, FileRecord, InputFile, Instruments, Manifest, Session, Status, StepRecord, StepStatus,
-    Timing,
+    StepTables, Timing,
 };
 use super::plan::{BenchInfo, Plan, Step};
 use super::positioner::{LineSource, Positioner};
@@ -475,6 +475,8 @@ struct WorkerSide {
     /// Steps this session's jobs recorded: a job's manifest holds them all, also those the
     /// runner has not collected yet.
     recorded: BTreeMap<usize, StepRecord>,
+    /// The manifest's step tables as last written, so each store serialises only what changed.
+    tables: StepTables,
 }
 
 /// (waveform, algorithm, model order of the steps that set their own).
@@ -1111,9 +1113,10 @@ impl StepJob {
             })
             .collect();
         let processing_s = t.elapsed().as_secs_f64();
-        let done = processed
-            .map_err(CampaignError::from)
-            .and_then(|p| self.record(taken, p, snapshot, &side.recorded));
+        let done = processed.map_err(CampaignError::from).and_then(|p| {
+            let side = &mut *side;
+            self.record(taken, p, snapshot, &side.recorded, &mut side.tables)
+        });
         if let Ok((_, written)) = &done {
             side.recorded
                 .insert(written.record.index, written.record.clone());
@@ -1127,6 +1130,7 @@ impl StepJob {
         mut processings: Vec<Processing>,
         mut snapshot: Manifest,
         recorded: &BTreeMap<usize, StepRecord>,
+        tables: &mut StepTables,
     ) -> Result<(StepResult, Written), CampaignError> {
         let mut others = processings.split_off(1);
         let mut m = taken.with(processings.pop().expect("the primary algorithm"));
@@ -1193,7 +1197,7 @@ impl StepJob {
         rec.applied = applied;
         rec.files = records;
         let record = rec.clone();
-        snapshot.store(&self.dir)?;
+        snapshot.store_cached(&self.dir, tables)?;
         let written = Written {
             record,
             files_s,

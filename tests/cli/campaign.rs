@@ -3,7 +3,7 @@
 //! uninterrupted run's), mock_lab dropping the AWG link mid-step, a tampered step file, dry run,
 //! spec errors, the prompt and command positioners, `campaign new`, the thesis' lab chapter.
 
-use radbench::campaign::manifest::{Manifest, Status};
+use radbench::campaign::manifest::{Manifest, Status, StepTables};
 use radbench::campaign::plan::{self, BenchInfo, Step};
 use radbench::campaign::run::{self, NewRun, Observer, Quiet};
 use radbench::campaign::SpecFile;
@@ -182,6 +182,24 @@ async fn the_accuracy_campaign_measures_within_a_millimetre() {
     assert_eq!(acquisitions(&run.join("io-journal.jsonl")), 6);
     let last = m.sessions[0].final_safe_state.as_deref().unwrap();
     assert!(!last.contains("failed"), "{last}");
+    stores_cached_like_whole(m);
+}
+
+/// The step worker's manifest store (step tables kept as text between stores) writes what a
+/// whole serialisation does, and a step whose record changed is written anew.
+fn stores_cached_like_whole(mut m: Manifest) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut tables = StepTables::default();
+    m.store_cached(dir.path(), &mut tables).unwrap();
+    assert_eq!(Manifest::load(dir.path()).unwrap(), m);
+    m.steps[2].measured_at = Some("changed".into());
+    m.steps[4].files.pop();
+    m.store_cached(dir.path(), &mut tables).unwrap();
+    assert_eq!(Manifest::load(dir.path()).unwrap(), m);
+    let whole = dir.path().join("whole");
+    std::fs::create_dir(&whole).unwrap();
+    m.store(&whole).unwrap();
+    assert_eq!(Manifest::load(&whole).unwrap(), m);
 }
 
 /// Starts the accuracy campaign, sends `signal` once step 4 starts, checks the stop, optionally
