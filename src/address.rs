@@ -19,14 +19,14 @@ use std::fmt;
 use std::str::FromStr;
 
 /// The IANA port of HiSLIP.
-pub const HISLIP_DEFAULT_PORT: u16 = 4880;
+pub(crate) const HISLIP_DEFAULT_PORT: u16 = 4880;
 /// LeCroy's VICP port.
-pub const VICP_DEFAULT_PORT: u16 = 1861;
+pub(crate) const VICP_DEFAULT_PORT: u16 = 1861;
 /// The ONC-RPC portmapper port, asked for the VXI-11 core channel when no port is given.
-pub const PORTMAPPER_PORT: u16 = 111;
+pub(crate) const PORTMAPPER_PORT: u16 = 111;
 
 /// The accepted forms, shown in every parse error.
-pub const ACCEPTED_FORMS: &str =
+pub(crate) const ACCEPTED_FORMS: &str =
     "TCPIP[n]::host::port::SOCKET, TCPIP[n]::host[,port][::inst0]::INSTR, TCPIP[n]::host[,port]::inst0, \
 TCPIP[n]::host::hislipN[,port][::INSTR], VICP::host[,port][::INSTR], ASRL<device>::INSTR";
 
@@ -100,7 +100,7 @@ impl Resource {
     }
 
     /// The HiSLIP sub-address sent in Initialize, e.g. `hislip0`.
-    pub fn hislip_sub_address(index: u32) -> String {
+    pub(crate) fn hislip_sub_address(index: u32) -> String {
         format!("hislip{index}")
     }
 
@@ -232,7 +232,7 @@ fn split_port(field: &str) -> Result<(String, Option<u16>), String> {
 }
 
 /// The VXI-11 device a `TCPIP::host::INSTR` string means.
-pub const VXI11_DEFAULT_DEVICE: &str = "inst0";
+pub(crate) const VXI11_DEFAULT_DEVICE: &str = "inst0";
 
 fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String> {
     let (host_field, middle, instr_suffix) = match parts {

@@ -4,7 +4,7 @@
 use std::time::SystemTime;
 
 /// `YYYY-MM-DDTHH:MM:SS.ffffffZ` (microseconds), e.g. `2026-11-21T19:43:30.123456Z`.
-pub fn rfc3339_micros(t: SystemTime) -> String {
+pub(crate) fn rfc3339_micros(t: SystemTime) -> String {
     let since = t.duration_since(SystemTime::UNIX_EPOCH).unwrap_or_default();
     format!(
         "{}.{:06}Z",
@@ -14,7 +14,7 @@ pub fn rfc3339_micros(t: SystemTime) -> String {
 }
 
 /// `YYYY-MM-DDTHH:MM:SS.mmmZ` (milliseconds), e.g. `2026-11-21T19:55:00.042Z`.
-pub fn rfc3339_millis(t: SystemTime) -> String {
+pub(crate) fn rfc3339_millis(t: SystemTime) -> String {
     let since = t.duration_since(SystemTime::UNIX_EPOCH).unwrap_or_default();
     format!(
         "{}.{:03}Z",

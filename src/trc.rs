@@ -369,7 +369,7 @@ impl WaveDesc {
     }
 
     /// Bytes per sample of the data arrays.
-    pub fn sample_width(&self) -> u64 {
+    pub(crate) fn sample_width(&self) -> u64 {
         if self.comm_type == 1 {
             2
         } else {
@@ -379,7 +379,7 @@ impl WaveDesc {
 
     /// The channel the trace came from, `C1`..`C4`, from WAVE_SOURCE (None for 9, "unknown", and
     /// anything else).
-    pub fn source_channel(&self) -> Option<u8> {
+    pub(crate) fn source_channel(&self) -> Option<u8> {
         match self.wave_source {
             0..=3 => Some(self.wave_source as u8 + 1),
             _ => None,
@@ -387,7 +387,7 @@ impl WaveDesc {
     }
 
     /// RECORD_TYPE by its template name (`single_sweep`, `sequence_obsolete`, `centered_RIS`, ...).
-    pub fn record_type_name(&self) -> &'static str {
+    pub(crate) fn record_type_name(&self) -> &'static str {
         const NAMES: [&str; 10] = [
             "single_sweep",
             "interleaved",
@@ -408,7 +408,7 @@ impl WaveDesc {
     }
 
     /// VERT_COUPLING by its template name.
-    pub fn coupling_name(&self) -> &'static str {
+    pub(crate) fn coupling_name(&self) -> &'static str {
         match self.vert_coupling {
             0 => "DC_50_Ohms",
             1 | 3 => "ground",

@@ -19,7 +19,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// Version of the manifest's layout.
-pub const FORMAT: u32 = 1;
+pub(crate) const FORMAT: u32 = 1;
 
 /// The manifest's file name in a run folder.
 pub const FILE: &str = "manifest.toml";
@@ -227,7 +227,7 @@ impl FileRecord {
 }
 
 /// Length and SHA-256 (lower-case hex) of a file.
-pub fn sha256_file(path: &Path) -> Result<(u64, String), CampaignError> {
+pub(crate) fn sha256_file(path: &Path) -> Result<(u64, String), CampaignError> {
     let mut f = std::fs::File::open(path).map_err(io(path))?;
     let mut hasher = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
@@ -244,7 +244,7 @@ pub fn sha256_file(path: &Path) -> Result<(u64, String), CampaignError> {
 }
 
 /// SHA-256 of bytes (lower-case hex).
-pub fn sha256_bytes(bytes: &[u8]) -> String {
+pub(crate) fn sha256_bytes(bytes: &[u8]) -> String {
     hex(&Sha256::digest(bytes))
 }
 
@@ -253,14 +253,14 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// The git commit radbench was built from, when the build knew it.
-pub fn git_commit() -> Option<String> {
+pub(crate) fn git_commit() -> Option<String> {
     option_env!("RADBENCH_GIT_COMMIT")
         .filter(|s| !s.is_empty())
         .map(String::from)
 }
 
 /// A JSON value as TOML (nulls dropped: TOML has none).
-pub fn json_to_toml(v: &serde_json::Value) -> Option<toml::Value> {
+pub(crate) fn json_to_toml(v: &serde_json::Value) -> Option<toml::Value> {
     use serde_json::Value as J;
     Some(match v {
         J::Null => return None,
@@ -360,29 +360,22 @@ impl Manifest {
     }
 
     /// The record of step `index` (1-based).
-    pub fn step_mut(&mut self, index: usize) -> &mut StepRecord {
+    pub(crate) fn step_mut(&mut self, index: usize) -> &mut StepRecord {
         &mut self.steps[index - 1]
     }
 
     /// The current session.
-    pub fn session_mut(&mut self) -> &mut Session {
+    pub(crate) fn session_mut(&mut self) -> &mut Session {
         self.sessions.last_mut().expect("a session is open")
     }
 
     /// Replaces or adds a run-level file record.
-    pub fn set_file(&mut self, record: FileRecord) {
+    pub(crate) fn set_file(&mut self, record: FileRecord) {
         match self.files.iter_mut().find(|f| f.path == record.path) {
             Some(f) => *f = record,
             None => self.files.push(record),
         }
     }
-}
-
-/// Makes a folder's entries (a rename into it) durable.
-pub fn sync_dir(dir: &Path) -> Result<(), CampaignError> {
-    std::fs::File::open(dir)
-        .and_then(|f| f.sync_all())
-        .map_err(io(dir))
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Most steps one campaign may hold.
-pub const MAX_STEPS: usize = 10_000;
+pub(crate) const MAX_STEPS: usize = 10_000;
 
 /// The resolved campaign.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -161,14 +161,14 @@ pub struct Step {
 
 impl Step {
     /// The step's folder name inside the run folder.
-    pub fn dir_name(&self) -> String {
+    pub(crate) fn dir_name(&self) -> String {
         format!("step-{:03}", self.index)
     }
 }
 
 /// The noise seed of step `index` (SplitMix64's finaliser over the campaign seed and the step),
 /// 63 bits so TOML (signed 64-bit integers) can hold it.
-pub fn noise_seed(seed: u64, index: usize) -> u64 {
+pub(crate) fn noise_seed(seed: u64, index: usize) -> u64 {
     let mut z = seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -323,7 +323,7 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
 
 impl BenchPlan {
     /// A bench for planning and preparing (no instrument, no lab started).
-    pub fn planning_bench(&self, info_file: Option<&BenchFile>) -> Bench {
+    pub(crate) fn planning_bench(&self, info_file: Option<&BenchFile>) -> Bench {
         let file = match info_file {
             Some(f) => f.clone(),
             None => built_in_bench_file(&self.scene.clone().unwrap_or_default()),
@@ -336,7 +336,7 @@ impl BenchPlan {
     }
 
     /// The built-in lab with `scene`.
-    pub fn built_in(&self, scene: Scene) -> BuiltIn {
+    pub(crate) fn built_in(&self, scene: Scene) -> BuiltIn {
         BuiltIn {
             scene,
             awg: match self.awg_transport {
@@ -378,13 +378,13 @@ impl Plan {
     }
 
     /// The algorithms' names, in order.
-    pub fn algorithm_names(&self) -> Vec<&'static str> {
+    pub(crate) fn algorithm_names(&self) -> Vec<&'static str> {
         self.processing.iter().map(|o| o.algorithm.name()).collect()
     }
 
     /// Whether step `k` (0-based) places targets (its targets differ from the step before, or it
     /// is the first step of a session).
-    pub fn moves_at(&self, k: usize, first_of_session: bool) -> bool {
+    pub(crate) fn moves_at(&self, k: usize, first_of_session: bool) -> bool {
         let here = &self.steps[k].nominal.targets;
         !here.is_empty()
             && (first_of_session || k == 0 || self.steps[k - 1].nominal.targets != *here)
@@ -895,7 +895,7 @@ const PROCESS_POINTS_PER_S: f64 = 3e7;
 
 impl Plan {
     /// The estimated duration of step `k` (0-based) without the operator's time, seconds.
-    pub fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
+    pub(crate) fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
         let step = &self.steps[k];
         let c = costs[step.waveform];
         let reps = self.repetitions as f64;
@@ -927,7 +927,7 @@ impl Plan {
 
     /// Whether step `k` uploads a waveform (the first step, and a waveform that differs from the
     /// step before's; also whenever the AWG lost it, which the plan cannot know).
-    pub fn uploads_at(&self, k: usize) -> bool {
+    pub(crate) fn uploads_at(&self, k: usize) -> bool {
         k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
     }
 
@@ -1055,7 +1055,7 @@ impl Plan {
 }
 
 /// One line on the positioner.
-pub fn describe_positioner(p: &PositionerPlan) -> String {
+pub(crate) fn describe_positioner(p: &PositionerPlan) -> String {
     match p.kind {
         PositionerKind::MockLab => "mock-lab (moves the simulated targets)".into(),
         PositionerKind::Prompt => {
@@ -1071,14 +1071,14 @@ pub fn describe_positioner(p: &PositionerPlan) -> String {
 }
 
 /// The positioner command of a step, placeholders replaced.
-pub fn command_line(p: &PositionerPlan, ranges: &[f64], step: usize, of: usize) -> String {
+pub(crate) fn command_line(p: &PositionerPlan, ranges: &[f64], step: usize, of: usize) -> String {
     let mut parts = vec![p.program.clone().unwrap_or_default()];
     parts.extend(substitute(&p.args, ranges, step, of));
     parts.join(" ")
 }
 
 /// The arguments with `{position_m}`, `{positions_m}`, `{step}` and `{of}` replaced.
-pub fn substitute(args: &[String], ranges: &[f64], step: usize, of: usize) -> Vec<String> {
+pub(crate) fn substitute(args: &[String], ranges: &[f64], step: usize, of: usize) -> Vec<String> {
     let first = ranges.first().map(|r| format!("{r}")).unwrap_or_default();
     let all: Vec<String> = ranges.iter().map(|r| format!("{r}")).collect();
     args.iter()

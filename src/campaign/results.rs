@@ -128,14 +128,14 @@ pub struct PayloadFigures {
 }
 
 /// What one algorithm gave, as the runner hands it over.
-pub struct AlgorithmOutput<'a> {
+pub(crate) struct AlgorithmOutput<'a> {
     pub name: &'static str,
     pub processed: &'a Processed,
     pub spread: Option<&'a Spread>,
 }
 
 /// The ranges of a simulated scene's targets (ascending), from its JSON.
-pub fn truth_of(scene: &Value) -> Truth {
+pub(crate) fn truth_of(scene: &Value) -> Truth {
     let mut ranges: Vec<f64> = scene["targets"]
         .as_array()
         .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
@@ -151,7 +151,7 @@ pub fn truth_of(scene: &Value) -> Truth {
 }
 
 /// The result of one step.
-pub fn step_result(
+pub(crate) fn step_result(
     step: &Step,
     bandwidth_hz: f64,
     repetitions: usize,

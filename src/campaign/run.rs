@@ -54,13 +54,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// `results.json` in a run folder.
-pub const RESULTS_FILE: &str = "results.json";
+pub(crate) const RESULTS_FILE: &str = "results.json";
 /// The spec's copy in a run folder.
-pub const SPEC_COPY: &str = "spec.toml";
+pub(crate) const SPEC_COPY: &str = "spec.toml";
 /// The bench file's copy in a run folder.
-pub const BENCH_COPY: &str = "bench.toml";
+pub(crate) const BENCH_COPY: &str = "bench.toml";
 /// Each step's own result (the entry of `results.json`), inside the step's folder.
-pub const STEP_RESULT: &str = "result.json";
+pub(crate) const STEP_RESULT: &str = "result.json";
 /// Held (flock) while a process works in the run folder.
 const LOCK_FILE: &str = ".radbench.lock";
 
@@ -389,7 +389,7 @@ impl PreparedSet {
 }
 
 /// Prepares everything a plan needs (see [`PreparedSet`]).
-pub async fn prepare_all(
+pub(crate) async fn prepare_all(
     plan: &Plan,
     bench: &BenchInfo,
     catalog: &Catalog,

@@ -27,7 +27,7 @@ impl Idn {
 }
 
 /// Case-insensitive match where `*` stands for any run of characters (including none).
-pub fn pattern_matches(pattern: &str, text: &str) -> bool {
+pub(crate) fn pattern_matches(pattern: &str, text: &str) -> bool {
     let pattern = pattern.to_ascii_uppercase();
     let text = text.to_ascii_uppercase();
     let parts: Vec<&str> = pattern.split('*').collect();

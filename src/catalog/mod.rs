@@ -15,9 +15,8 @@ mod validate;
 use std::path::{Path, PathBuf};
 
 pub use error::{CatalogError, Problem};
-pub use identity::{pattern_matches, Idn};
+pub use identity::Idn;
 pub use schema::*;
-pub use validate::{REQUIRED_PROTOCOL_ERRORS, REQUIRED_RF_FIELDS, REQUIRED_RF_REGISTERS};
 
 use locate::FieldIndex;
 
@@ -94,17 +93,6 @@ impl Catalog {
             for (model, origin) in read_dir(dir)? {
                 catalog.insert(model, origin, true)?;
             }
-        }
-        Ok(catalog)
-    }
-
-    /// Only the `*.toml` files of `dir` (no built-in models).
-    pub fn from_dir(dir: &Path) -> Result<Catalog, CatalogError> {
-        let mut catalog = Catalog {
-            entries: Vec::new(),
-        };
-        for (model, origin) in read_dir(dir)? {
-            catalog.insert(model, origin, false)?;
         }
         Ok(catalog)
     }

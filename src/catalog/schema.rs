@@ -259,12 +259,7 @@ pub struct DacMode {
     pub extended_only_channels: Vec<u8>,
 }
 
-impl DacMode {
-    /// Whether channel 1's data is interleaved sample/marker byte pairs in this mode.
-    pub fn interleaves_markers(&self) -> bool {
-        !self.marker_channels.is_empty()
-    }
-}
+impl DacMode {}
 
 /// Digitizer (oscilloscope) limits.
 #[derive(Debug, Clone, PartialEq, Deserialize)]

@@ -9,7 +9,7 @@ use super::identity::pattern_matches;
 use super::schema::*;
 
 /// Registers every RF front end must define (the driver and the emulator address them by name).
-pub const REQUIRED_RF_REGISTERS: [&str; 6] = [
+pub(crate) const REQUIRED_RF_REGISTERS: [&str; 6] = [
     "ID",
     "STATUS",
     "CONTROL",
@@ -19,7 +19,7 @@ pub const REQUIRED_RF_REGISTERS: [&str; 6] = [
 ];
 
 /// Named bits the RF driver relies on, per register.
-pub const REQUIRED_RF_FIELDS: [(&str, &str); 6] = [
+pub(crate) const REQUIRED_RF_FIELDS: [(&str, &str); 6] = [
     ("STATUS", "LO_LOCKED"),
     ("STATUS", "RF_ENABLED"),
     ("STATUS", "OVER_TEMPERATURE"),
@@ -29,7 +29,7 @@ pub const REQUIRED_RF_FIELDS: [(&str, &str); 6] = [
 ];
 
 /// Error names of the line protocol the RF driver maps to its own errors.
-pub const REQUIRED_PROTOCOL_ERRORS: [&str; 6] = [
+pub(crate) const REQUIRED_PROTOCOL_ERRORS: [&str; 6] = [
     "syntax",
     "unknown_register",
     "read_only",

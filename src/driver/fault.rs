@@ -120,7 +120,7 @@ impl FaultSwitch {
         self.0.enabled.store(on, Ordering::SeqCst);
     }
 
-    pub fn is_enabled(&self) -> bool {
+    pub(crate) fn is_enabled(&self) -> bool {
         self.0.enabled.load(Ordering::SeqCst)
     }
 
@@ -133,7 +133,8 @@ impl FaultSwitch {
     }
 
     /// Whether a drop left a link under this switch down.
-    pub fn is_down(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn is_down(&self) -> bool {
         self.links().iter().any(|down| down.load(Ordering::SeqCst))
     }
 

@@ -101,7 +101,7 @@ impl InstrumentIo for Session {
 
 /// Link timeouts from a catalog model's timeout policy: connect, read and write as given, and the
 /// per-megabyte allowance turned into the slowest healthy transfer rate.
-pub fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
+pub(crate) fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
     let min_rate = 1_000_000_000u64
         .checked_div(policy.per_megabyte_ms)
         .unwrap_or(u64::MAX);

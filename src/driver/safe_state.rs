@@ -327,7 +327,7 @@ pub fn set_panic_safe_state(state: SafeState) {
 
 /// Forgets `state` in the panic hook when it is the one the hook would engage (its bench is being
 /// closed: the hook must not keep its connections, e.g. a serial port, open).
-pub fn clear_panic_safe_state(state: &SafeState) {
+pub(crate) fn clear_panic_safe_state(state: &SafeState) {
     let mut slot = PANIC_SAFE_STATE.lock().unwrap_or_else(|p| p.into_inner());
     if slot
         .as_ref()

@@ -31,7 +31,7 @@ impl Scpi {
     }
 
     /// The resource, for messages.
-    pub fn resource_text(&self) -> String {
+    pub(crate) fn resource_text(&self) -> String {
         self.io.resource_text()
     }
 
@@ -46,7 +46,12 @@ impl Scpi {
     }
 
     /// An error for a reply the driver cannot read.
-    pub fn reply_error(&self, command: &str, expected: &'static str, reply: &str) -> DriverError {
+    pub(crate) fn reply_error(
+        &self,
+        command: &str,
+        expected: &'static str,
+        reply: &str,
+    ) -> DriverError {
         DriverError::Reply {
             instrument: self.name.clone(),
             command: command.to_string(),
@@ -66,7 +71,7 @@ impl Scpi {
 
     /// Like [`ask`](Self::ask), but the reply may take up to `timeout` to start. The timeout is
     /// this call's alone; the session's own is never changed.
-    pub async fn ask_within(
+    pub(crate) async fn ask_within(
         &mut self,
         query: &str,
         timeout: Duration,
@@ -80,7 +85,7 @@ impl Scpi {
     /// The replies to several queries sent as one message (IEEE 488.2 compound query: `A?;B?`
     /// is answered `a;b`), one round trip instead of one each. Replies must not hold a `;`
     /// themselves (numbers, enumerations, catalogs; not quoted strings).
-    pub async fn ask_each(&mut self, queries: &[&str]) -> Result<Vec<String>, DriverError> {
+    pub(crate) async fn ask_each(&mut self, queries: &[&str]) -> Result<Vec<String>, DriverError> {
         let message = queries.join(";");
         let reply = self.ask(&message).await?;
         let parts: Vec<String> = reply.split(';').map(|p| p.trim().to_string()).collect();
@@ -95,38 +100,40 @@ impl Scpi {
     }
 
     /// A number, with or without a response header (`6.4E+10`, `VBS 6.4E+10`).
-    pub async fn ask_f64(&mut self, query: &str) -> Result<f64, DriverError> {
+    #[cfg(test)]
+    pub(crate) async fn ask_f64(&mut self, query: &str) -> Result<f64, DriverError> {
         let text = self.ask(query).await?;
         self.number_in(query, &text)
     }
 
     /// `text`, the reply to `query`, as a number (with or without a response header).
-    pub fn number_in(&self, query: &str, text: &str) -> Result<f64, DriverError> {
+    pub(crate) fn number_in(&self, query: &str, text: &str) -> Result<f64, DriverError> {
         parse_f64(without_header(text.trim()))
             .ok_or_else(|| self.reply_error(query, "a number", text))
     }
 
     /// `text`, the reply to `query`, as `1`/`0`/`ON`/`OFF`.
-    pub fn bool_in(&self, query: &str, text: &str) -> Result<bool, DriverError> {
+    pub(crate) fn bool_in(&self, query: &str, text: &str) -> Result<bool, DriverError> {
         parse_bool(text).ok_or_else(|| self.reply_error(query, "0 or 1", text))
     }
 
     /// An integer, with or without a response header (`8193`, `INR 8193`).
-    pub async fn ask_i64(&mut self, query: &str) -> Result<i64, DriverError> {
+    pub(crate) async fn ask_i64(&mut self, query: &str) -> Result<i64, DriverError> {
         let text = self.ask(query).await?;
         parse_i64(without_header(text.trim()))
             .ok_or_else(|| self.reply_error(query, "an integer", &text))
     }
 
     /// `1`/`0`/`ON`/`OFF`.
-    pub async fn ask_bool(&mut self, query: &str) -> Result<bool, DriverError> {
+    #[cfg(test)]
+    pub(crate) async fn ask_bool(&mut self, query: &str) -> Result<bool, DriverError> {
         let text = self.ask(query).await?;
         self.bool_in(query, &text)
     }
 
     /// A query answered with `1` once the instrument is done (`*OPC?`, or a message ending in
     /// it), allowed `timeout` to answer.
-    pub async fn complete_within(
+    pub(crate) async fn complete_within(
         &mut self,
         query: &str,
         timeout: Duration,
@@ -155,7 +162,7 @@ impl Scpi {
     }
 
     /// Drains the error queue: whatever it held (empty when the instrument has nothing to say).
-    pub async fn drain_errors(&mut self) -> Result<Vec<DeviceError>, DriverError> {
+    pub(crate) async fn drain_errors(&mut self) -> Result<Vec<DeviceError>, DriverError> {
         self.io.errors().await.map_err(session(&self.name))
     }
 
@@ -167,7 +174,11 @@ impl Scpi {
     }
 
     /// [`DriverError::Refused`] for `errors`, or `Ok` when there are none.
-    pub fn refused_if_any(&self, batch: &str, errors: Vec<DeviceError>) -> Result<(), DriverError> {
+    pub(crate) fn refused_if_any(
+        &self,
+        batch: &str,
+        errors: Vec<DeviceError>,
+    ) -> Result<(), DriverError> {
         if errors.is_empty() {
             Ok(())
         } else {

@@ -24,7 +24,7 @@ pub const DEVICE_CLEAR: &str = "<device clear>";
 
 /// A canned answer to a query.
 #[derive(Debug, Clone)]
-pub enum Canned {
+pub(crate) enum Canned {
     /// A text reply (without terminator).
     Text(String),
     /// A whole reply message that carries a block (prefix, `#<d><len>`, payload).

@@ -133,7 +133,7 @@ impl CrossCorrelator {
     }
 
     /// As [`CrossCorrelator::new`] with a chosen strategy.
-    pub fn with_strategy(
+    pub(crate) fn with_strategy(
         tx: &[Complex64],
         rx_len: usize,
         lags: RangeInclusive<isize>,
@@ -256,10 +256,6 @@ impl CrossCorrelator {
         self.tx_spectra_conj.len() / self.fft_len
     }
 
-    pub fn tx_len(&self) -> usize {
-        self.tx_len
-    }
-
     /// Longest capture accepted.
     pub fn rx_len(&self) -> usize {
         self.rx_len
@@ -345,7 +341,8 @@ fn copy_circular(buf: &[Complex64], start: usize, out: &mut [Complex64]) {
 
 /// Direct `O(Nr * lags)` correlation with the same definition and lag order; the reference the FFT
 /// version is tested against. Lags outside the support give 0.
-pub fn correlate_direct(
+#[cfg(test)]
+pub(crate) fn correlate_direct(
     rx: &[Complex64],
     tx: &[Complex64],
     lags: RangeInclusive<isize>,

@@ -97,7 +97,7 @@ impl Default for DecimatorConfig {
 impl DecimatorConfig {
     /// Decimation of a capture at `input_rate_hz` by `factor`, keeping a signal band of
     /// `+-band_edge_hz` flat (0.1 dB) and attenuating from the output Nyquist frequency on (60 dB).
-    pub fn for_band(
+    pub(crate) fn for_band(
         input_rate_hz: f64,
         factor: usize,
         band_edge_hz: f64,
@@ -142,7 +142,7 @@ pub struct MeasuredResponse {
 }
 
 /// Magnitude of the response of real `taps` at `f` cycles/sample (DC gain of normalised taps: 1).
-pub fn magnitude_response(taps: &[f64], f: f64) -> f64 {
+pub(crate) fn magnitude_response(taps: &[f64], f: f64) -> f64 {
     // sum_n h[n] e^{-j w n} with the phasor advanced by one complex multiply per tap (error about
     // L * 1e-16, far below any attenuation measured here).
     let step = Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * f);
@@ -231,7 +231,7 @@ fn kaiser_sinc(len: usize, cutoff: f64, beta: f64) -> Vec<f64> {
 ///
 /// The Kaiser formulas give the first guess; the length then grows until the response measured by
 /// [`measure_response`] meets the spec.
-pub fn design_lowpass(spec: &LowPassSpec, multiple: usize) -> Result<Vec<f64>, DspError> {
+pub(crate) fn design_lowpass(spec: &LowPassSpec, multiple: usize) -> Result<Vec<f64>, DspError> {
     let LowPassSpec {
         pass_edge: fp,
         stop_edge: fst,
@@ -331,7 +331,7 @@ impl Decimator {
 
     /// A decimator with your own taps. [`Alignment::Compensated`] needs a group delay of a whole
     /// number of output samples: `len = 2 * factor * k + 1`.
-    pub fn with_taps(
+    pub(crate) fn with_taps(
         factor: usize,
         taps: Vec<f64>,
         alignment: Alignment,
@@ -392,7 +392,7 @@ impl Decimator {
     }
 
     /// Group delay of the filter in input samples, `(L - 1) / 2`.
-    pub fn group_delay_input_samples(&self) -> f64 {
+    pub(crate) fn group_delay_input_samples(&self) -> f64 {
         (self.taps.len() - 1) as f64 / 2.0
     }
 
@@ -684,7 +684,7 @@ impl PeriodicDecimator {
 
     /// [`decimate`](Self::decimate) of the `n` samples `sample(0..n)`, read straight into the
     /// extended record (e.g. from the scope's words, without a record in volts first).
-    pub fn decimate_map(
+    pub(crate) fn decimate_map(
         &mut self,
         n: usize,
         sample: impl Fn(usize) -> Complex64,

@@ -28,7 +28,7 @@ impl Profile {
     }
 
     /// 20 log10 of the amplitude relative to the maximum.
-    pub fn normalised_db(&self) -> Vec<f64> {
+    pub(crate) fn normalised_db(&self) -> Vec<f64> {
         let max = self
             .amplitude
             .iter()
@@ -133,7 +133,12 @@ impl CorrelationProfiler {
 }
 
 /// MUSIC pseudo-spectrum as a profile: amplitude sqrt(P), so its dB scale is 10 log10 P.
-pub fn music_profile(range_m: &[f64], pseudo_spectrum: &[f64], m: usize, p: usize) -> Profile {
+pub(crate) fn music_profile(
+    range_m: &[f64],
+    pseudo_spectrum: &[f64],
+    m: usize,
+    p: usize,
+) -> Profile {
     Profile {
         label: format!("MUSIC (M = {m}, p = {p})"),
         axis: Axis::from_samples(range_m),

@@ -112,7 +112,7 @@ impl Bench {
     }
 
     /// Whether the bench is simulated (built in, or a bench file with a `[simulation]` section).
-    pub fn is_simulated(&self) -> bool {
+    pub(crate) fn is_simulated(&self) -> bool {
         self.lab.is_some() || self.file.simulation.is_some()
     }
 
@@ -144,7 +144,7 @@ impl Bench {
     }
 
     /// The simulated scene of the last capture (ground truth), when the bench is simulated.
-    pub async fn ground_truth(&self) -> Option<Value> {
+    pub(crate) async fn ground_truth(&self) -> Option<Value> {
         if let Some(lab) = &self.lab {
             let (_, scene) = lab.bench.scene.last_capture();
             return scene.and_then(|s| serde_json::to_value(s).ok());
@@ -168,7 +168,7 @@ fn control_reply(reply: Value) -> Result<Value, String> {
 }
 
 /// One request on a mock lab's control channel at `address`, bounded by a timeout.
-pub async fn query_control(address: &str, request: &str) -> Result<Value, String> {
+pub(crate) async fn query_control(address: &str, request: &str) -> Result<Value, String> {
     use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
     let work = async {
         let stream = tokio::net::TcpStream::connect(address)

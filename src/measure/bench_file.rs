@@ -224,7 +224,10 @@ impl BenchFile {
 
     /// Checks that every model names an instrument of the catalog of the right kind; the error
     /// names the file, the line and the field, and lists the models there are.
-    pub fn check_models(&self, catalog: &crate::catalog::Catalog) -> Result<(), BenchFileError> {
+    pub(crate) fn check_models(
+        &self,
+        catalog: &crate::catalog::Catalog,
+    ) -> Result<(), BenchFileError> {
         use crate::catalog::InstrumentKind;
         for (section, entry, kind) in [
             ("awg", Some(&self.awg), InstrumentKind::Awg),

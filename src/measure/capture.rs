@@ -88,7 +88,10 @@ impl Prepared {
     /// (a campaign applies several algorithms to the same captures). Touches no instrument. The
     /// capture plan was checked against this preparation's options: `options` must keep its
     /// range window.
-    pub async fn with_options(&self, options: ProcessOptions) -> Result<Prepared, MeasureError> {
+    pub(crate) async fn with_options(
+        &self,
+        options: ProcessOptions,
+    ) -> Result<Prepared, MeasureError> {
         super::pipeline::validate(&self.tx, &options)?;
         let fs = self.tx.sample_rate_hz();
         let geometry = RecordGeometry::for_capture(self.plan.period, fs, &options);
@@ -173,7 +176,7 @@ pub async fn prepare(
 }
 
 /// Reads and aligns a background capture, checking that it fits this measurement.
-pub fn read_background(
+pub(crate) fn read_background(
     pipeline: &mut Pipeline,
     path: &std::path::Path,
     capture_rate_hz: f64,
@@ -278,11 +281,6 @@ impl Rig {
     /// The bench's safe-state sequence.
     pub fn safe_state(&self) -> &crate::driver::SafeState {
         self.station.safe_state()
-    }
-
-    /// What the AWG reports now (the manifest's "applied" between steps).
-    pub async fn awg_applied(&mut self) -> Result<crate::driver::AwgApplied, MeasureError> {
-        self.station.awg_applied().await
     }
 
     /// One measurement of `repetitions` marker-triggered repetitions under the safe-state guard,
@@ -485,11 +483,11 @@ fn captured_raws(captured: &Captured) -> Vec<RawWords> {
 }
 
 /// Most repetitions one measurement takes.
-pub const MAX_REPETITIONS: usize = 1000;
+pub(crate) const MAX_REPETITIONS: usize = 1000;
 
 /// Aligns every repetition (raw captures at the capture rate), processes each alone (when there are several) and their coherent
 /// average.
-pub fn process_repetitions<R: Alignable>(
+pub(crate) fn process_repetitions<R: Alignable>(
     pipeline: &mut Pipeline,
     raws: &[R],
     background: Option<&Aligned>,
@@ -532,7 +530,7 @@ pub async fn measure(
 }
 
 /// The number of repetitions one measurement may ask for (checked before anything is connected).
-pub fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
+pub(crate) fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
     if (1..=MAX_REPETITIONS).contains(&repetitions) {
         Ok(())
     } else {

@@ -235,7 +235,7 @@ impl Classify for MeasureError {
 }
 
 /// Runs heavy, synchronous work (DSP, file writing) off the async runtime's workers.
-pub async fn off_runtime<T, F>(work: F) -> Result<T, MeasureError>
+pub(crate) async fn off_runtime<T, F>(work: F) -> Result<T, MeasureError>
 where
     F: FnOnce() -> T + Send + 'static,
     T: Send + 'static,

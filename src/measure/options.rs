@@ -42,18 +42,13 @@ impl Algorithm {
         }
     }
 
-    /// The algorithm of a name as [`Algorithm::name`] writes it.
-    pub fn from_name(name: &str) -> Option<Algorithm> {
-        Self::ALL.into_iter().find(|a| a.name() == name)
-    }
-
     /// The algorithms that return ranges without a profile.
-    pub fn is_grid_free(self) -> bool {
+    pub(crate) fn is_grid_free(self) -> bool {
         matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
     }
 
     /// The subspace methods (they need M and p).
-    pub fn is_subspace(self) -> bool {
+    pub(crate) fn is_subspace(self) -> bool {
         matches!(
             self,
             Algorithm::Music | Algorithm::RootMusic | Algorithm::Esprit
@@ -67,7 +62,7 @@ impl Algorithm {
     }
 
     /// The default algorithm of a waveform: correlation for MSK-LFM, Fourier for OFDM.
-    pub fn default_for(waveform: WaveformKind) -> Algorithm {
+    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
         match waveform {
             WaveformKind::MskLfm => Algorithm::Correlation,
             WaveformKind::Ofdm => Algorithm::Fourier,
@@ -87,7 +82,7 @@ pub enum FftPrecisionName {
 }
 
 impl FftPrecisionName {
-    pub fn to_dsp(self) -> FftPrecision {
+    pub(crate) fn to_dsp(self) -> FftPrecision {
         match self {
             Self::Single => FftPrecision::Single,
             Self::Double => FftPrecision::Double,
@@ -120,7 +115,7 @@ impl WindowName {
     }
 
     /// The `dsp` window: Taylor nbar 4 at -35 dB, Chebyshev at -50 dB.
-    pub fn to_dsp(self) -> Window {
+    pub(crate) fn to_dsp(self) -> Window {
         match self {
             WindowName::Rect => Window::Rectangular,
             WindowName::Hann => Window::Hann,
@@ -165,7 +160,7 @@ impl DetectorName {
     }
 
     /// The `dsp` method.
-    pub fn to_dsp(self) -> crate::dsp::detect::Method {
+    pub(crate) fn to_dsp(self) -> crate::dsp::detect::Method {
         use crate::dsp::detect::{CfarKind, Method, NoiseEstimate};
         let os = CfarKind::Os { rank: 0.75 };
         match self {
@@ -184,12 +179,12 @@ impl DetectorName {
 }
 
 /// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
-pub const MAX_ZERO_PAD: usize = 1000;
+pub(crate) const MAX_ZERO_PAD: usize = 1000;
 
 /// MUSIC pseudo-spectrum grid = this factor x subcarriers (12 800 points, 1.17 mm for the thesis'
 /// OFDM): MUSIC peaks are far narrower than Fourier ones, and a 1280-point grid (1.17 cm) leaves
 /// sub-sample interpolation errors of several millimetres.
-pub const MUSIC_GRID_FACTOR: usize = 100;
+pub(crate) const MUSIC_GRID_FACTOR: usize = 100;
 
 /// How to process a capture.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -265,7 +260,7 @@ impl ProcessOptions {
 /// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
 /// defaults): `None` keeps the base's value.
 #[derive(Debug, Clone, Default)]
-pub struct ProcessOverrides {
+pub(crate) struct ProcessOverrides {
     pub algorithm: Option<Algorithm>,
     pub music_m: Option<usize>,
     pub music_p: Option<Option<usize>>,
@@ -287,7 +282,7 @@ pub struct ProcessOverrides {
 
 impl ProcessOverrides {
     /// `base` with every given value replaced.
-    pub fn apply(&self, base: ProcessOptions) -> ProcessOptions {
+    pub(crate) fn apply(&self, base: ProcessOptions) -> ProcessOptions {
         ProcessOptions {
             algorithm: self.algorithm.unwrap_or(base.algorithm),
             music_m: self.music_m.unwrap_or(base.music_m),

@@ -66,7 +66,7 @@ pub struct RawWords {
 }
 
 /// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
-pub trait Alignable {
+pub(crate) trait Alignable {
     fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError>;
 }
 
@@ -102,7 +102,11 @@ pub struct RecordGeometry {
 impl RecordGeometry {
     /// A bench capture: lags up to the farthest range of interest plus the system delay and a
     /// margin.
-    pub fn for_capture(period: usize, sample_rate_hz: f64, options: &ProcessOptions) -> Self {
+    pub(crate) fn for_capture(
+        period: usize,
+        sample_rate_hz: f64,
+        options: &ProcessOptions,
+    ) -> Self {
         let max_delay = 2.0 * options.max_range_m.max(0.0) / C0
             + options.system_delay_s.max(0.0)
             + CORRELATION_MARGIN_S;
@@ -508,7 +512,7 @@ impl Pipeline {
     }
 
     /// Sets the AWG amplitude the levels refer to (what the AWG reported applying).
-    pub fn set_awg_amplitude(&mut self, vpp: f64) -> Result<(), MeasureError> {
+    pub(crate) fn set_awg_amplitude(&mut self, vpp: f64) -> Result<(), MeasureError> {
         let mut options = self.options.clone();
         options.awg_amplitude_vpp = Some(vpp);
         validate(&self.tx, &options)?;
@@ -532,7 +536,10 @@ impl Pipeline {
     }
 
     /// Builds (or keeps) the decimator for captures at `capture_rate_hz`.
-    pub fn prepare_capture_rate(&mut self, capture_rate_hz: f64) -> Result<(), MeasureError> {
+    pub(crate) fn prepare_capture_rate(
+        &mut self,
+        capture_rate_hz: f64,
+    ) -> Result<(), MeasureError> {
         let factor = self.factor(capture_rate_hz)?;
         if factor == 1 {
             self.decimator = None;
@@ -605,7 +612,7 @@ impl Pipeline {
     }
 
     /// The range profiles of one aligned repetition; `offset_m` is added to every range.
-    pub fn range_profiles(
+    pub(crate) fn range_profiles(
         &mut self,
         rx: &[Complex64],
         offset_m: f64,
@@ -753,7 +760,7 @@ impl Pipeline {
 
     /// The range-Doppler map of the last record (OFDM frames of 2+ symbols), ranges from the
     /// antennas, amplitudes relative to a unit-gain path.
-    pub fn range_doppler_map(
+    pub(crate) fn range_doppler_map(
         &self,
         residual_s: f64,
     ) -> Option<Result<RangeDopplerMap, MeasureError>> {

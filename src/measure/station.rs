@@ -81,13 +81,13 @@ pub struct CapturePlan {
 
 impl CapturePlan {
     /// The RF-on deadline of `repetitions` repetitions, seconds.
-    pub fn rf_deadline_s(&self, repetitions: usize) -> f64 {
+    pub(crate) fn rf_deadline_s(&self, repetitions: usize) -> f64 {
         self.rf_setup_s + repetitions.max(1) as f64 * self.rf_seconds_per_repetition
     }
 
     /// Segments per acquisition for `repetitions`: 1 (one acquisition each) without sequence
     /// mode, else as few acquisitions as the sequence allows, split evenly.
-    pub fn sequence_segments(&self, repetitions: usize) -> u32 {
+    pub(crate) fn sequence_segments(&self, repetitions: usize) -> u32 {
         let max = self.max_sequence_segments as usize;
         if repetitions < 2 || max < 2 {
             return 1;
@@ -333,7 +333,7 @@ impl Captured {
 
     /// Repetition `k` as the scope's words and their scaling: [`raw`](Self::raw) without the
     /// record in volts (the pipeline converts as it decimates).
-    pub fn raw_words(&self, k: usize) -> RawWords {
+    pub(crate) fn raw_words(&self, k: usize) -> RawWords {
         let (i, q, ci, cq) = self.codes(k);
         RawWords {
             i: ci.to_vec(),

@@ -31,7 +31,7 @@ impl DeviceError {
 
 /// Error entries as one line, `-222,"Data out of range"; -221,"Settings conflict"`.
 #[derive(Debug, Clone, Copy)]
-pub struct ErrorList<'a>(pub &'a [DeviceError]);
+pub(crate) struct ErrorList<'a>(pub &'a [DeviceError]);
 
 impl fmt::Display for ErrorList<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

@@ -82,7 +82,7 @@ pub fn classify(line: &str) -> LineReply {
 }
 
 /// Whether `request` switches the device's CRC framing: `Some(true)` for `CRC ON`.
-pub fn crc_switch(request: &str) -> Option<bool> {
+pub(crate) fn crc_switch(request: &str) -> Option<bool> {
     let words: Vec<&str> = request.split_whitespace().collect();
     match words.as_slice() {
         [crc, mode] if crc.eq_ignore_ascii_case("CRC") => {

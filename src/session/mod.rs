@@ -20,12 +20,13 @@ pub(crate) mod error;
 pub mod line;
 pub mod reply;
 
-pub use error::{DeviceError, ErrorList, SessionError};
+pub(crate) use error::ErrorList;
+pub use error::{DeviceError, SessionError};
 pub use line::{Crc8, LineProtocol};
 pub use reply::{
-    parse_block, parse_bool, parse_f64, parse_i64, parse_idn, register_error_text, without_header,
-    Block, BlockForm, Identity,
+    parse_block, parse_f64, parse_i64, parse_idn, register_error_text, Block, BlockForm, Identity,
 };
+pub(crate) use reply::{parse_bool, without_header};
 
 use self::line::LineReply;
 use crate::address::Resource;
@@ -68,7 +69,7 @@ impl Default for SessionOptions {
 }
 
 /// The error query a session uses: the one given, else the transport's.
-pub fn error_query_for(resource: &Resource, configured: &str) -> String {
+pub(crate) fn error_query_for(resource: &Resource, configured: &str) -> String {
     match (configured.trim(), resource) {
         ("", Resource::Vicp { .. }) => VICP_ERROR_QUERY.to_string(),
         ("", _) => SCPI_ERROR_QUERY.to_string(),
@@ -347,7 +348,7 @@ impl Session {
     /// Like [`query`](Self::query), but the reply may take up to `read` to start (a scope's
     /// `WAIT`, a long `*OPC?`). The timeout is this call's alone: the session's own timeouts are
     /// never changed, so a dropped call leaves nothing behind.
-    pub async fn query_within(
+    pub(crate) async fn query_within(
         &mut self,
         query: &str,
         read: Duration,
@@ -373,11 +374,6 @@ impl Session {
     pub async fn query_i64(&mut self, query: &str) -> Result<i64, SessionError> {
         let text = self.query(query).await?;
         reply::parse_i64(&text).ok_or_else(|| self.bad_reply(query, "an integer", &text))
-    }
-
-    pub async fn query_bool(&mut self, query: &str) -> Result<bool, SessionError> {
-        let text = self.query(query).await?;
-        reply::parse_bool(&text).ok_or_else(|| self.bad_reply(query, "1/0/ON/OFF", &text))
     }
 
     /// A string reply with its quotes removed.
@@ -515,12 +511,6 @@ impl Session {
                 errors,
             })
         }
-    }
-
-    /// Sends a command, then checks the error queue.
-    pub async fn write_checked(&mut self, command: &str) -> Result<(), SessionError> {
-        self.write(command).await?;
-        self.check_errors(Some(command)).await
     }
 
     /// IEEE 488.2 device clear.

@@ -6,7 +6,7 @@ use bytes::Bytes;
 use std::ops::Range;
 
 /// Strips the message terminator (`\n`, `\r\n`) and surrounding blanks.
-pub fn trim_reply(text: &str) -> &str {
+pub(crate) fn trim_reply(text: &str) -> &str {
     text.trim_end_matches(['\n', '\r']).trim()
 }
 
@@ -28,7 +28,7 @@ pub fn parse_i64(text: &str) -> Option<i64> {
 }
 
 /// `1`/`0`/`ON`/`OFF` (any case, `+1` too).
-pub fn parse_bool(text: &str) -> Option<bool> {
+pub(crate) fn parse_bool(text: &str) -> Option<bool> {
     let t = trim_reply(text);
     if t.eq_ignore_ascii_case("ON") {
         return Some(true);
@@ -45,7 +45,7 @@ pub fn parse_bool(text: &str) -> Option<bool> {
 
 /// A string response: the quotes of `"text"` removed and doubled quotes undone; unquoted text is
 /// returned as is.
-pub fn parse_string(text: &str) -> String {
+pub(crate) fn parse_string(text: &str) -> String {
     let t = trim_reply(text);
     for q in ['"', '\''] {
         if t.len() >= 2 && t.starts_with(q) && t.ends_with(q) {
@@ -114,7 +114,7 @@ pub fn parse_error_entry(text: &str) -> Option<DeviceError> {
 
 /// A response with its header word removed (`CMR 1` -> `1`): instruments with response headers on
 /// repeat the query's header before the value.
-pub fn without_header(t: &str) -> &str {
+pub(crate) fn without_header(t: &str) -> &str {
     match t.split_once(char::is_whitespace) {
         Some((head, rest))
             if head.starts_with(|c: char| c.is_ascii_alphabetic() || c == ':' || c == '*') =>
@@ -203,7 +203,7 @@ impl Block {
     }
 
     /// The payload as shared bytes (no copy).
-    pub fn into_payload(self) -> Bytes {
+    pub(crate) fn into_payload(self) -> Bytes {
         self.message.slice(self.payload)
     }
 
@@ -288,7 +288,7 @@ pub fn parse_block(message: Bytes) -> Result<Block, BlockProblem> {
 }
 
 /// The `#<d><len>` header of a definite block, or `None` above 999 999 999 bytes.
-pub fn definite_header(len: u64) -> Option<String> {
+pub(crate) fn definite_header(len: u64) -> Option<String> {
     if len > 999_999_999 {
         return None;
     }

@@ -58,7 +58,7 @@ pub struct AccuracyStudy {
 
 impl AccuracyStudy {
     /// Largest absolute error, cm, with or without interpolation.
-    pub fn worst_error_cm(&self, interpolated: bool) -> f64 {
+    pub(crate) fn worst_error_cm(&self, interpolated: bool) -> f64 {
         self.steps
             .iter()
             .map(|s| {

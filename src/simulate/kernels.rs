@@ -26,7 +26,7 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// Kernel names, in report order.
-pub const KERNEL_NAMES: [&str; 5] = [
+pub(crate) const KERNEL_NAMES: [&str; 5] = [
     "decimate_800k",
     "decimate_1280k",
     "xcorr_160k",
@@ -35,7 +35,7 @@ pub const KERNEL_NAMES: [&str; 5] = [
 ];
 
 /// Lags computed by `xcorr_160k` (0 .. 4095: ranges up to 38 m at 16 GSa/s).
-pub const XCORR_LAGS: usize = 4096;
+pub(crate) const XCORR_LAGS: usize = 4096;
 
 /// The seeded inputs of every kernel.
 pub struct KernelInputs {
@@ -138,7 +138,7 @@ impl<'a> Kernels<'a> {
     }
 
     /// FFT length of the correlator (compare_numpy.py uses the same).
-    pub fn xcorr_fft_len(&self) -> usize {
+    pub(crate) fn xcorr_fft_len(&self) -> usize {
         self.correlator.fft_len()
     }
 
@@ -191,7 +191,7 @@ impl<'a> Kernels<'a> {
 
 /// One kernel's timing (an element of `radbench bench --json`'s `"kernels"`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct KernelTiming {
+pub(crate) struct KernelTiming {
     pub name: &'static str,
     pub median_ms: f64,
     pub min_ms: f64,
@@ -204,7 +204,7 @@ pub struct KernelTiming {
 
 /// Times every kernel on the calling thread: one warm-up run, then at least `min_runs` runs and
 /// until `min_total_s` seconds have passed (at most 200 runs); reports the median.
-pub fn time_all(
+pub(crate) fn time_all(
     inputs: &KernelInputs,
     min_runs: usize,
     min_total_s: f64,

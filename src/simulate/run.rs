@@ -25,9 +25,7 @@ use std::sync::Arc;
 const NOISE_SALT: u64 = 0x4E4F_4953_4531_3233;
 
 /// Minimum prominence of a peak, dB (the "resolved" rule of thesis-notes.md).
-pub const MIN_PROMINENCE_DB: f64 = 3.0;
-
-pub use crate::measure::options::MUSIC_GRID_FACTOR;
+pub(crate) const MIN_PROMINENCE_DB: f64 = 3.0;
 
 /// A simulation's result and the profiles of its first trial (for plots and files).
 #[derive(Debug, Clone)]

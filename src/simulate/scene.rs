@@ -22,7 +22,7 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// The bench's RF carrier (the Gotmic E-band front ends), Hz.
-pub const BENCH_CARRIER_HZ: f64 = 80e9;
+pub(crate) const BENCH_CARRIER_HZ: f64 = 80e9;
 
 /// One point target. Velocity is radial, positive when the target moves away.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -49,7 +49,7 @@ impl Target {
 
 /// Parses `R[:AMP[:V]][,R[:AMP[:V]]...]`: range in metres, linear amplitude (default 1), radial
 /// velocity in m/s (default 0, positive = receding). Example: `3,3.132:0.5` or `1.0:1:2.5`.
-pub fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
+pub(crate) fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
     let bad = |reason: String| SimError::Param {
         field: "--targets",
         reason,
@@ -147,7 +147,7 @@ impl std::fmt::Display for CarrierPhase {
 
 /// Echo synthesiser for one transmit signal: holds its spectrum and the FFT plans, so many scenes
 /// (targets, trials) reuse one forward FFT.
-pub struct EchoSynth {
+pub(crate) struct EchoSynth {
     /// Transmit spectrum over the synthesis window (length `window`).
     spectrum: Vec<Complex64>,
     inverse: Arc<dyn Fft<f64>>,
@@ -158,7 +158,7 @@ pub struct EchoSynth {
 impl EchoSynth {
     /// `tx` at `fs_hz`, zero-padded to `window` samples (>= tx.len()); echoes come out at
     /// `fs_hz * upsample` with `window * upsample` samples.
-    pub fn new(
+    pub(crate) fn new(
         tx: &[Complex64],
         fs_hz: f64,
         window: usize,
@@ -193,17 +193,17 @@ impl EchoSynth {
     }
 
     /// Output sample rate, Hz.
-    pub fn output_rate_hz(&self) -> f64 {
+    pub(crate) fn output_rate_hz(&self) -> f64 {
         self.fs_hz * self.upsample as f64
     }
 
     /// Output length in samples.
-    pub fn output_len(&self) -> usize {
+    pub(crate) fn output_len(&self) -> usize {
         self.spectrum.len() * self.upsample
     }
 
     /// The sum of every target's echo (noise-free), at the output rate.
-    pub fn render(&self, targets: &[Target], carrier_hz: f64) -> Vec<Complex64> {
+    pub(crate) fn render(&self, targets: &[Target], carrier_hz: f64) -> Vec<Complex64> {
         let mut out = vec![Complex64::new(0.0, 0.0); self.output_len()];
         let mut buf = vec![Complex64::new(0.0, 0.0); self.output_len()];
         // Static targets share one inverse FFT; each moving target needs its own (its Doppler

@@ -4,16 +4,16 @@
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
 /// The processing choices a run spec names (defined in [`crate::measure::options`]).
-pub use crate::measure::options::{Algorithm, FftPrecisionName, WindowName, MAX_ZERO_PAD};
+pub use crate::measure::options::{Algorithm, FftPrecisionName, WindowName};
 /// The waveform a run transmits (defined in [`crate::waveform::spec`]).
 pub use crate::waveform::spec::WaveformSpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
 /// Most Monte-Carlo trials of one run.
-pub const MAX_TRIALS: usize = 100_000;
+pub(crate) const MAX_TRIALS: usize = 100_000;
 /// Largest capture-to-waveform rate ratio simulated.
-pub const MAX_UPSAMPLE: usize = 16;
+pub(crate) const MAX_UPSAMPLE: usize = 16;
 
 /// One simulation: waveform, scene, processing, randomness.
 #[derive(Debug, Clone, PartialEq)]
@@ -160,13 +160,13 @@ impl RunSpec {
 
     /// Ranges this waveform can simulate: MSK-LFM, an echo delay below one pulse length; OFDM, the
     /// unambiguous range `c0 / (2 df)` (19.2 m by default).
-    pub fn max_range_m(&self) -> f64 {
+    pub(crate) fn max_range_m(&self) -> f64 {
         self.waveform.max_range_m()
     }
 
     /// OFDM: ranges beyond which the echo delay exceeds the cyclic prefix (inter-symbol
     /// interference); `None` for MSK-LFM.
-    pub fn cp_range_m(&self) -> Option<f64> {
+    pub(crate) fn cp_range_m(&self) -> Option<f64> {
         self.waveform.cp_range_m()
     }
 

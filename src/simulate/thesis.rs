@@ -17,7 +17,7 @@ use std::path::Path;
 
 /// One row of the comparison.
 #[derive(Debug, Clone)]
-pub struct ThesisRow {
+pub(crate) struct ThesisRow {
     pub section: &'static str,
     pub scenario: String,
     pub thesis_figure: String,
@@ -32,14 +32,14 @@ pub struct ThesisRow {
 
 /// The whole table.
 #[derive(Debug, Clone)]
-pub struct ThesisTable {
+pub(crate) struct ThesisTable {
     pub rows: Vec<ThesisRow>,
 }
 
 impl ThesisTable {
     /// `{"scenarios": [...]}`: every row's [`ScenarioResult`] plus `section`, `scenario`,
     /// `thesis_figure`, `radbench_figure`, `agrees`, `expected_to_agree` and `reason`.
-    pub fn to_json(&self) -> serde_json::Value {
+    pub(crate) fn to_json(&self) -> serde_json::Value {
         let scenarios: Vec<serde_json::Value> = self
             .rows
             .iter()
@@ -62,7 +62,7 @@ impl ThesisTable {
     }
 
     /// The table for the terminal (columns as wide as their longest entry).
-    pub fn to_text(&self) -> String {
+    pub(crate) fn to_text(&self) -> String {
         let width = |head: &str, cell: &dyn Fn(&ThesisRow) -> usize| {
             self.rows
                 .iter()
@@ -108,7 +108,7 @@ impl ThesisTable {
 }
 
 /// Runs every scenario; with `plot_dir`, draws each profile there as `<id>.svg`.
-pub fn run_all(plot_dir: Option<&Path>) -> Result<ThesisTable, SimError> {
+pub(crate) fn run_all(plot_dir: Option<&Path>) -> Result<ThesisTable, SimError> {
     let mut ctx = Ctx {
         rows: Vec::new(),
         plot_dir,
@@ -557,7 +557,7 @@ fn music_table_4_3(ctx: &mut Ctx) -> Result<(), SimError> {
 }
 
 /// Noise realisations per Table 4.3 row.
-pub const TABLE_4_3_TRIALS: usize = 10;
+pub(crate) const TABLE_4_3_TRIALS: usize = 10;
 
 /// RMS error over the trials that found one peak per target (sorted peaks against sorted targets).
 fn rms_error_cm(r: &ScenarioResult) -> Option<f64> {

@@ -16,7 +16,7 @@ pub fn sha256(bytes: &[u8]) -> String {
 }
 
 /// SHA-256 of a file's content, hex, read in pieces (large captures are not held twice).
-pub fn sha256_file(path: &Path) -> Result<String, StorageError> {
+pub(crate) fn sha256_file(path: &Path) -> Result<String, StorageError> {
     let io = |source| StorageError::Io {
         path: path.to_path_buf(),
         source,

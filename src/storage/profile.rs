@@ -34,7 +34,7 @@ impl ProfileTable {
     }
 
     /// CSV with a header line `range_m,<column>...`; numbers in Rust's shortest round-trip form.
-    pub fn to_csv(&self) -> String {
+    pub(crate) fn to_csv(&self) -> String {
         let mut out = String::from("range_m");
         for (name, _) in &self.columns {
             out.push(',');
@@ -52,7 +52,7 @@ impl ProfileTable {
     }
 
     /// A float64 npy array of shape (n, 1 + columns): range first, then the columns in order.
-    pub fn to_npy(&self) -> Result<Vec<u8>, String> {
+    pub(crate) fn to_npy(&self) -> Result<Vec<u8>, String> {
         let width = 1 + self.columns.len();
         let mut data = Vec::with_capacity(self.range_m.len() * width);
         for (i, r) in self.range_m.iter().enumerate() {

@@ -199,7 +199,7 @@ impl Recording {
 }
 
 /// `base.sigmf-meta` and `base.sigmf-data` for a path naming either file or their common base.
-pub fn sigmf_paths(path: &Path) -> Result<(PathBuf, PathBuf), RecordingError> {
+pub(crate) fn sigmf_paths(path: &Path) -> Result<(PathBuf, PathBuf), RecordingError> {
     let text = path.as_os_str().to_string_lossy();
     if text.ends_with(".sigmf") {
         return Err(RecordingError::Archive {

@@ -6,7 +6,7 @@ use std::time::Duration;
 /// Below a second, whole milliseconds; up to ten seconds, tenths (a trailing `.0` dropped);
 /// beyond, whole seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Rounded(pub Duration);
+pub(crate) struct Rounded(pub Duration);
 
 impl std::fmt::Display for Rounded {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -144,7 +144,7 @@ impl LinkError {
 
     /// Whether the stream may hold a partial frame or a pending reply after this error, so the
     /// link must be cleared (or reopened) before it is used again.
-    pub fn leaves_link_dirty(&self) -> bool {
+    pub(crate) fn leaves_link_dirty(&self) -> bool {
         !matches!(
             self,
             LinkError::Unsupported { .. }

@@ -64,7 +64,7 @@ impl Default for Timeouts {
 
 impl Timeouts {
     /// The extra time a transfer of `bytes` is allowed beyond the base timeout.
-    pub fn allowance_for(&self, bytes: u64) -> Duration {
+    pub(crate) fn allowance_for(&self, bytes: u64) -> Duration {
         let rate = self.min_rate_bytes_per_s.max(1);
         Duration::from_secs_f64(bytes as f64 / rate as f64)
     }
@@ -72,7 +72,7 @@ impl Timeouts {
 
 /// The default largest message, either way: 1 GiB (a 32 Mpoint scope trace is 64 MB; `bench io`
 /// raises it for bigger test blocks). It also caps the transfer allowance of a read.
-pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 1 << 30;
+pub(crate) const DEFAULT_MAX_MESSAGE_BYTES: usize = 1 << 30;
 
 /// Everything a transport needs besides its address.
 #[derive(Clone)]

@@ -452,7 +452,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// The first 32 bytes, printable ASCII kept and the rest as `\xNN`.
-pub fn escape_head(data: &[u8]) -> String {
+pub(crate) fn escape_head(data: &[u8]) -> String {
     data.iter()
         .take(32)
         .flat_map(|&b| std::ascii::escape_default(b))
@@ -461,7 +461,7 @@ pub fn escape_head(data: &[u8]) -> String {
 }
 
 /// RFC 3339 UTC time with microseconds, e.g. `2026-11-21T19:43:30.123456Z`.
-pub fn rfc3339_utc(t: SystemTime) -> String {
+pub(crate) fn rfc3339_utc(t: SystemTime) -> String {
     crate::time::rfc3339_micros(t)
 }
 

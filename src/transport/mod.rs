@@ -34,7 +34,8 @@ pub(crate) mod socket;
 pub mod vicp;
 pub mod vxi11;
 
-pub use error::{CodecError, ErrorKind, LinkError, Rounded};
+pub(crate) use error::Rounded;
+pub use error::{CodecError, ErrorKind, LinkError};
 pub use io::{Direction, LinkOptions, Progress, ProgressFn, Timeouts};
 pub use journal::{Journal, Origin};
 pub use serial::SerialSettings;
@@ -110,7 +111,7 @@ impl Link {
     }
 
     /// Opens with an I/O journal; `instrument` names the instrument in the journal (e.g. `awg`).
-    pub async fn open_journalled(
+    pub(crate) async fn open_journalled(
         resource: Resource,
         options: LinkOptions,
         journal: Option<Journal>,
@@ -162,19 +163,13 @@ impl Link {
     }
 
     /// Timeouts, size limit and progress can be changed between operations.
-    pub fn options_mut(&mut self) -> &mut LinkOptions {
+    pub(crate) fn options_mut(&mut self) -> &mut LinkOptions {
         &mut self.options
-    }
-
-    /// Attaches (or replaces) the journal.
-    pub fn set_journal(&mut self, journal: Option<Journal>, instrument: &str) {
-        self.journal = journal;
-        self.origin.instrument = instrument.to_string();
     }
 
     /// Whether the transport marks message ends itself (HiSLIP, VXI-11, VICP). Without it (raw
     /// socket, serial), a newline ends a message and `#0` blocks must not contain one.
-    pub fn has_message_end(&self) -> bool {
+    pub(crate) fn has_message_end(&self) -> bool {
         !matches!(
             self.resource,
             Resource::Socket { .. } | Resource::Serial { .. }
@@ -248,7 +243,7 @@ impl Link {
     /// Like [`read_message`](Self::read_message), but the reply may take up to `read` to start
     /// (a long `*OPC?`, a scope's `WAIT`). The link's own timeouts stay as they are, so a dropped
     /// read cannot leave them changed.
-    pub async fn read_message_within(&mut self, read: Duration) -> Result<Bytes, LinkError> {
+    pub(crate) async fn read_message_within(&mut self, read: Duration) -> Result<Bytes, LinkError> {
         self.read_message_waiting(Some(read)).await
     }
 

@@ -288,7 +288,7 @@ impl Trace {
     }
 
     /// Whether this is a sequence-mode record of more than one segment.
-    pub fn is_sequence(&self) -> bool {
+    pub(crate) fn is_sequence(&self) -> bool {
         self.segments > 1
     }
 

@@ -78,7 +78,7 @@ pub fn erfc(x: f64) -> f64 {
 }
 
 /// Gaussian tail `Q(x) = erfc(x / sqrt 2) / 2`.
-pub fn q_function(x: f64) -> f64 {
+pub(crate) fn q_function(x: f64) -> f64 {
     0.5 * erfc(x * std::f64::consts::FRAC_1_SQRT_2)
 }
 
@@ -136,11 +136,6 @@ impl BerPoint {
     /// `sqrt(theory (1 - theory) / bits)`.
     pub fn std_dev(&self) -> f64 {
         (self.theory * (1.0 - self.theory) / self.bits as f64).sqrt()
-    }
-
-    /// How many standard deviations the measurement is from theory.
-    pub fn sigmas_from_theory(&self) -> f64 {
-        (self.ber - self.theory).abs() / self.std_dev()
     }
 }
 

@@ -25,7 +25,7 @@ use crate::rng::SplitMix64;
 pub const PADDING_SEED: u64 = 0x5241_4442_454E_4348;
 
 /// Bits in the payload length header.
-pub const HEADER_BITS: usize = 32;
+pub(crate) const HEADER_BITS: usize = 32;
 
 /// Where a transmission's bits come from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -137,7 +137,7 @@ pub fn unframe_payload(bits: &[u8]) -> Result<Vec<u8>, DecodeError> {
 }
 
 /// Packs bits (LSB first) into bytes; a trailing partial byte is zero-filled in its high bits.
-pub fn bits_to_bytes(bits: &[u8]) -> Vec<u8> {
+pub(crate) fn bits_to_bytes(bits: &[u8]) -> Vec<u8> {
     bits.chunks(8)
         .map(|c| {
             c.iter()
@@ -148,7 +148,8 @@ pub fn bits_to_bytes(bits: &[u8]) -> Vec<u8> {
 }
 
 /// Unpacks bytes into bits, each byte LSB first.
-pub fn bytes_to_bits(bytes: &[u8]) -> Vec<u8> {
+#[cfg(test)]
+pub(crate) fn bytes_to_bits(bytes: &[u8]) -> Vec<u8> {
     let mut bits = Vec::with_capacity(bytes.len() * 8);
     for &b in bytes {
         push_byte(&mut bits, b);
@@ -157,7 +158,7 @@ pub fn bytes_to_bits(bytes: &[u8]) -> Vec<u8> {
 }
 
 /// Number of positions where `a` and `b` differ, over the shorter of the two.
-pub fn count_bit_errors(a: &[u8], b: &[u8]) -> usize {
+pub(crate) fn count_bit_errors(a: &[u8], b: &[u8]) -> usize {
     a.iter()
         .zip(b)
         .filter(|(x, y)| (*x & 1) != (*y & 1))

@@ -245,7 +245,7 @@ impl MskLfm {
 
     /// Writes one pulse carrying `bits` (exactly `bits_per_pulse` of them, values 0/1) into `out`
     /// (exactly `samples_per_pulse` long).
-    pub fn pulse_into(&self, bits: &[u8], out: &mut [Complex64]) -> Result<(), ParamError> {
+    pub(crate) fn pulse_into(&self, bits: &[u8], out: &mut [Complex64]) -> Result<(), ParamError> {
         if bits.len() != self.n_bits {
             return Err(ParamError::out_of_range(
                 "bits for one pulse",
@@ -305,7 +305,11 @@ impl MskLfm {
     /// a noise-free unit-amplitude pulse gives exactly `1 - 2 b` (more or less for other amplitudes).
     ///
     /// `pulse` must be `samples_per_pulse` long and `soft` `bits_per_pulse` long.
-    pub fn soft_bits_into(&self, pulse: &[Complex64], soft: &mut [f64]) -> Result<(), ParamError> {
+    pub(crate) fn soft_bits_into(
+        &self,
+        pulse: &[Complex64],
+        soft: &mut [f64],
+    ) -> Result<(), ParamError> {
         if pulse.len() != self.n_samples {
             return Err(ParamError::out_of_range(
                 "received pulse length",

@@ -67,13 +67,13 @@ impl Default for OfdmParams {
 }
 
 /// QPSK Gray mapping of one bit pair.
-pub fn qpsk_map(b0: u8, b1: u8) -> Complex64 {
+pub(crate) fn qpsk_map(b0: u8, b1: u8) -> Complex64 {
     Complex64::new(1.0 - 2.0 * f64::from(b0 & 1), 1.0 - 2.0 * f64::from(b1 & 1))
         * std::f64::consts::FRAC_1_SQRT_2
 }
 
 /// QPSK Gray hard decision: the bit pair of the nearest constellation point.
-pub fn qpsk_decide(z: Complex64) -> (u8, u8) {
+pub(crate) fn qpsk_decide(z: Complex64) -> (u8, u8) {
     (u8::from(z.re < 0.0), u8::from(z.im < 0.0))
 }
 
@@ -88,7 +88,7 @@ pub struct SymbolMatrix {
 
 impl SymbolMatrix {
     /// Wraps `data` (`symbols * subcarriers` values, symbol-major).
-    pub fn from_vec(
+    pub(crate) fn from_vec(
         symbols: usize,
         subcarriers: usize,
         data: Vec<Complex64>,
@@ -274,7 +274,7 @@ impl Ofdm {
     }
 
     /// Subcarrier spacing `df = B / N` in Hz.
-    pub fn subcarrier_spacing_hz(&self) -> f64 {
+    pub(crate) fn subcarrier_spacing_hz(&self) -> f64 {
         self.params.bandwidth_hz / self.params.subcarriers as f64
     }
 
@@ -294,17 +294,17 @@ impl Ofdm {
     }
 
     /// Samples in one frame.
-    pub fn frame_len(&self) -> usize {
+    pub(crate) fn frame_len(&self) -> usize {
         self.params.symbols_per_frame * self.symbol_len()
     }
 
     /// Data bits in one frame (`2 N` per data symbol).
-    pub fn bits_per_frame(&self) -> usize {
+    pub(crate) fn bits_per_frame(&self) -> usize {
         2 * self.params.subcarriers * (self.params.symbols_per_frame - self.params.preamble_symbols)
     }
 
     /// FFT bin of subcarrier `k`: `(k - N/2) mod L`.
-    pub fn bin_of_subcarrier(&self, k: usize) -> usize {
+    pub(crate) fn bin_of_subcarrier(&self, k: usize) -> usize {
         (k + self.fft_len - self.params.subcarriers / 2) % self.fft_len
     }
 
@@ -347,7 +347,7 @@ impl Ofdm {
     }
 
     /// As [`Ofdm::modulate`], into `out` (exactly `symbols() * symbol_len()` long).
-    pub fn modulate_into(
+    pub(crate) fn modulate_into(
         &self,
         symbols: &SymbolMatrix,
         out: &mut [Complex64],

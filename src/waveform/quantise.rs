@@ -19,7 +19,7 @@ use num_complex::Complex64;
 use super::ParamError;
 
 /// Code of full scale.
-pub const FULL_SCALE_CODE: f64 = 127.0;
+pub(crate) const FULL_SCALE_CODE: f64 = 127.0;
 
 /// What the back-off is measured from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -127,7 +127,7 @@ impl WaveformSpec {
 
     /// This spec with another bandwidth, keeping the sample rate: an OFDM frame changes its
     /// oversampling (which must stay whole), an MSK-LFM pulse its sweep.
-    pub fn with_bandwidth(&self, bandwidth_hz: f64) -> Result<Self, ParamError> {
+    pub(crate) fn with_bandwidth(&self, bandwidth_hz: f64) -> Result<Self, ParamError> {
         if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0) {
             return Err(ParamError::out_of_range(
                 "bandwidth",
@@ -180,7 +180,7 @@ impl WaveformSpec {
     }
 
     /// The MSK-LFM generator parameters (`None` for OFDM).
-    pub fn msk_lfm_params(&self) -> Option<MskLfmParams> {
+    pub(crate) fn msk_lfm_params(&self) -> Option<MskLfmParams> {
         match *self {
             WaveformSpec::MskLfm {
                 sample_rate_hz,
@@ -198,7 +198,7 @@ impl WaveformSpec {
     }
 
     /// The OFDM generator parameters (`None` for MSK-LFM).
-    pub fn ofdm_params(&self) -> Option<OfdmParams> {
+    pub(crate) fn ofdm_params(&self) -> Option<OfdmParams> {
         match *self {
             WaveformSpec::Ofdm {
                 bandwidth_hz,
@@ -221,7 +221,7 @@ impl WaveformSpec {
 
     /// Samples of one repetition (pulse or frame) at the waveform rate, without building the
     /// waveform; the generators check the parameters themselves.
-    pub fn samples_per_repetition(&self) -> Result<usize, ParamError> {
+    pub(crate) fn samples_per_repetition(&self) -> Result<usize, ParamError> {
         match *self {
             WaveformSpec::MskLfm { .. } => self
                 .msk_lfm_params()
@@ -251,7 +251,7 @@ impl WaveformSpec {
 
     /// Ranges this waveform can measure without ambiguity: MSK-LFM, an echo within one pulse;
     /// OFDM, `c0 / (2 df)` (19.2 m by default).
-    pub fn max_range_m(&self) -> f64 {
+    pub(crate) fn max_range_m(&self) -> f64 {
         use crate::physics::C0;
         match *self {
             WaveformSpec::MskLfm { pulse_s, .. } => C0 * pulse_s / 2.0,
@@ -268,7 +268,7 @@ impl WaveformSpec {
 
     /// OFDM: ranges beyond which the echo is longer than the cyclic prefix (inter-symbol
     /// interference); `None` for MSK-LFM.
-    pub fn cp_range_m(&self) -> Option<f64> {
+    pub(crate) fn cp_range_m(&self) -> Option<f64> {
         match *self {
             WaveformSpec::Ofdm {
                 bandwidth_hz,

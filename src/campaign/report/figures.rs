@@ -29,13 +29,13 @@ pub struct Figure {
 }
 
 /// The thesis' single-target figures: (simulation width cm, PSL dB, where), (lab width, PSL, where).
-pub struct ThesisWidths {
+pub(crate) struct ThesisWidths {
     pub simulation: (f64, f64, &'static str),
     pub lab: (f64, f64, &'static str),
 }
 
 /// Tables 4.5 (MSK-LFM) and 4.7 (OFDM) and the lab sections 4.4.1 / 4.5.1, at 1 GHz.
-pub fn thesis_widths(kind: WaveformKind) -> ThesisWidths {
+pub(crate) fn thesis_widths(kind: WaveformKind) -> ThesisWidths {
     match kind {
         WaveformKind::MskLfm => ThesisWidths {
             simulation: (13.2, -13.24, "Table 4.5"),
@@ -49,7 +49,7 @@ pub fn thesis_widths(kind: WaveformKind) -> ThesisWidths {
 }
 
 /// The waveform a step used.
-pub fn waveform_of(manifest: &Manifest, step: &StepResult) -> Option<WaveformSpec> {
+pub(crate) fn waveform_of(manifest: &Manifest, step: &StepResult) -> Option<WaveformSpec> {
     let plan = &manifest.plan;
     let s = plan.steps.iter().find(|s| s.index == step.index)?;
     plan.waveforms.get(s.waveform).copied()
@@ -60,24 +60,24 @@ fn parameter(step: &StepResult) -> &str {
     step.nominal.parameter.as_deref().unwrap_or("")
 }
 
-pub fn is_accuracy(s: &StepResult) -> bool {
+pub(crate) fn is_accuracy(s: &StepResult) -> bool {
     parameter(s) == "position"
 }
 
-pub fn is_resolution(s: &StepResult) -> bool {
+pub(crate) fn is_resolution(s: &StepResult) -> bool {
     s.nominal.targets.len() >= 2
 }
 
-pub fn is_link(s: &StepResult) -> bool {
+pub(crate) fn is_link(s: &StepResult) -> bool {
     matches!(parameter(s), "tx-attenuation" | "snr")
 }
 
-pub fn is_single(s: &StepResult) -> bool {
+pub(crate) fn is_single(s: &StepResult) -> bool {
     s.nominal.targets.len() == 1 && !is_accuracy(s) && !is_link(s)
 }
 
 /// The smallest separation of a step's nominal targets, metres.
-pub fn separation_m(s: &StepResult) -> Option<f64> {
+pub(crate) fn separation_m(s: &StepResult) -> Option<f64> {
     let r = s.nominal.ranges();
     r.windows(2).map(|w| (w[1] - w[0]).abs()).reduce(f64::min)
 }
@@ -106,7 +106,7 @@ pub fn theory(w: &WaveformSpec, ebn0_db: f64) -> f64 {
 }
 
 /// The Eb/N0 (dB) at which the theory gives `ber` (bisection; 0 < ber < 0.5).
-pub fn theory_ebn0_db(w: &WaveformSpec, ber: f64) -> Option<f64> {
+pub(crate) fn theory_ebn0_db(w: &WaveformSpec, ber: f64) -> Option<f64> {
     if !(ber > 0.0 && ber < 0.5) {
         return None;
     }

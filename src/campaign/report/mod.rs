@@ -26,7 +26,7 @@ pub use figures::{figures, Figure};
 /// The Markdown report's file name in a run folder.
 pub const FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
-pub const HTML_FILE: &str = "report.html";
+pub(crate) const HTML_FILE: &str = "report.html";
 
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
@@ -42,7 +42,7 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
 }
 
 /// Reads a run folder's manifest and results and writes its report again.
-pub fn rewrite(dir: &Path) -> Result<PathBuf, CampaignError> {
+pub(crate) fn rewrite(dir: &Path) -> Result<PathBuf, CampaignError> {
     let manifest = Manifest::load(dir)?;
     let results = load_results(dir)?;
     write(dir, &manifest, &results)

@@ -7,7 +7,7 @@ use crate::storage::plot::{register_font_once, PALETTE};
 use plotters::prelude::*;
 
 /// Size of every chart, pixels.
-pub const SIZE: (u32, u32) = (800, 450);
+pub(crate) const SIZE: (u32, u32) = (800, 450);
 /// Reference lines (bounds, the thesis' values), apart from the data's palette.
 const REFERENCE: [RGBColor; 2] = [RGBColor(40, 40, 40), RGBColor(230, 140, 0)];
 /// Vertical reference lines (resolution cells).
@@ -51,7 +51,7 @@ impl Point {
     }
 
     /// With a symmetric bar of +-`std` (none when zero or absent).
-    pub fn with_std(mut self, std: Option<f64>) -> Self {
+    pub(crate) fn with_std(mut self, std: Option<f64>) -> Self {
         if let Some(s) = std.filter(|s| *s > 0.0) {
             self.bar = Some((self.y - s, self.y + s));
         }

@@ -4,27 +4,29 @@
 use crate::driver::capability::Slope;
 use crate::driver::scpi::number;
 
-pub const HEADERS_OFF: &str = "CHDR OFF";
+pub(crate) const HEADERS_OFF: &str = "CHDR OFF";
 /// 16-bit words: BYTE would transfer only the upper 8 bits of the scope's internal values.
-pub const WORD_FORMAT: &str = "CFMT DEF9,WORD,BIN";
-pub const LSB_FIRST: &str = "CORD LO";
-pub const WHOLE_RECORD: &str = "WFSU SP,0,NP,0,FP,0,SN,0";
-pub const FIXED_RATE: &str = "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'";
-pub const SAMPLING_RATE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'";
-pub const HOR_SCALE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.HorScale'";
+pub(crate) const WORD_FORMAT: &str = "CFMT DEF9,WORD,BIN";
+pub(crate) const LSB_FIRST: &str = "CORD LO";
+pub(crate) const WHOLE_RECORD: &str = "WFSU SP,0,NP,0,FP,0,SN,0";
+pub(crate) const FIXED_RATE: &str =
+    "VBS 'app.Acquisition.Horizontal.Maximize = \"FixedSampleRate\"'";
+pub(crate) const SAMPLING_RATE_QUERY: &str =
+    "VBS? 'return = app.Acquisition.Horizontal.SamplingRate'";
+pub(crate) const HOR_SCALE_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.HorScale'";
 /// One record per trigger.
-pub const REAL_TIME: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"RealTime\"'";
+pub(crate) const REAL_TIME: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"RealTime\"'";
 /// One segment per trigger, `NumSegments` of them per acquisition, read in one `WF? ALL`.
-pub const SEQUENCE: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'";
+pub(crate) const SEQUENCE: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'";
 pub const SEGMENTS_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.NumSegments'";
 /// The command error register; its codes' texts are the session's
 /// [`register_error_text`](crate::session::register_error_text).
 pub const COMMAND_ERRORS: &str = "CMR?";
 /// The execution error register (texts as for [`COMMAND_ERRORS`]).
-pub const EXECUTION_ERRORS: &str = "EXR?";
+pub(crate) const EXECUTION_ERRORS: &str = "EXR?";
 pub const STATUS: &str = "INR?";
 pub const STOP: &str = "STOP";
-pub const EXTERNAL_REFERENCE: &str = "RCLK EXTERNAL";
+pub(crate) const EXTERNAL_REFERENCE: &str = "RCLK EXTERNAL";
 /// The external trigger input, where the AWG's marker arrives.
 pub const EXTERNAL: &str = "EX";
 
@@ -46,7 +48,7 @@ pub fn segments(count: u32) -> String {
     format!("VBS 'app.Acquisition.Horizontal.NumSegments = {count}'")
 }
 
-pub fn trace_on(channel: u8) -> String {
+pub(crate) fn trace_on(channel: u8) -> String {
     format!("C{channel}:TRA ON")
 }
 
@@ -58,15 +60,15 @@ pub fn offset(channel: u8, volts: f64) -> String {
     format!("C{channel}:OFST {}", number(volts))
 }
 
-pub fn edge_trigger(source: &str) -> String {
+pub(crate) fn edge_trigger(source: &str) -> String {
     format!("TRSE EDGE,SR,{source},HT,OFF")
 }
 
-pub fn trigger_level(source: &str, volts: f64) -> String {
+pub(crate) fn trigger_level(source: &str, volts: f64) -> String {
     format!("{source}:TRLV {}", number(volts))
 }
 
-pub fn trigger_slope(source: &str, slope: Slope) -> String {
+pub(crate) fn trigger_slope(source: &str, slope: Slope) -> String {
     let s = match slope {
         Slope::Positive => "POS",
         Slope::Negative => "NEG",
@@ -74,13 +76,13 @@ pub fn trigger_slope(source: &str, slope: Slope) -> String {
     format!("{source}:TRSL {s}")
 }
 
-pub fn trigger_delay(seconds: f64) -> String {
+pub(crate) fn trigger_delay(seconds: f64) -> String {
     format!("TRDL {}", number(seconds))
 }
 
 /// Single shot: arm, block the parser until the acquisition completes or `wait_s` passes, then
 /// answer `*OPC?` (so the reply comes when the scope is done either way).
-pub fn single_shot(wait_s: f64) -> String {
+pub(crate) fn single_shot(wait_s: f64) -> String {
     format!("TRMD SINGLE;ARM;WAIT {};*OPC?", number(wait_s))
 }
 

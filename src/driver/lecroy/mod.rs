@@ -31,9 +31,9 @@ use crate::session::{parse_f64, register_error_text, DeviceError, Identity, Sess
 use crate::transport::Journal;
 
 /// Channel that carries I.
-pub const I_CHANNEL: u8 = 1;
+pub(crate) const I_CHANNEL: u8 = 1;
 /// Channel that carries Q.
-pub const Q_CHANNEL: u8 = 2;
+pub(crate) const Q_CHANNEL: u8 = 2;
 /// INR bit 0: a new acquisition completed.
 const INR_NEW_ACQUISITION: i64 = 1;
 /// Relative tolerance on the read-back sample rate.

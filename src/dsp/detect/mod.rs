@@ -55,11 +55,9 @@
 //! within 10 dB of the noise, or the region runs off the profile.
 
 mod fit;
-mod music;
 pub(crate) mod psf;
 pub(crate) mod threshold;
 
-pub use music::music_peaks;
 pub use psf::{PointSpread, PsfShape, SpectralLines, TabulatedPsf};
 pub use threshold::CfarKind;
 

@@ -230,7 +230,10 @@ impl TabulatedPsf {
     /// `signed(k) / P` cycles per cell (`signed(k) = k - P` above P/2). The spread has period P; it
     /// is tabulated over `|x| <= span_cells` (the longest profile it will be used on) and taken as
     /// zero beyond. Cost: `U` inverse FFTs of P points, U the sub-cell sampling.
-    pub fn from_dft_spectrum(spectrum: &[Complex64], span_cells: usize) -> Result<Self, DspError> {
+    pub(crate) fn from_dft_spectrum(
+        spectrum: &[Complex64],
+        span_cells: usize,
+    ) -> Result<Self, DspError> {
         let p = spectrum.len();
         if p < 4 || span_cells == 0 || span_cells >= p / 2 {
             return Err(DspError::Param(format!(

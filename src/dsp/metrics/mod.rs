@@ -13,7 +13,8 @@ mod resolve;
 
 pub use cfar::{CaCfar, CfarDetection};
 pub use lobes::{sidelobe_levels, width_3db, SidelobeLevels};
-pub use peaks::{find_peaks, interpolate_peak, local_maxima, Interpolation, Peak};
+pub(crate) use peaks::local_maxima;
+pub use peaks::{find_peaks, interpolate_peak, Interpolation, Peak};
 pub use resolve::{resolve_targets, Resolution};
 
 /// 20 log10 of an amplitude, floored at -400 dB so a zero stays finite.
@@ -22,7 +23,7 @@ pub fn amplitude_db(amplitude: f64) -> f64 {
 }
 
 /// Fills `out` with [`amplitude_db`] of `amplitude`.
-pub fn to_db(amplitude: &[f64], out: &mut [f64]) {
+pub(crate) fn to_db(amplitude: &[f64], out: &mut [f64]) {
     for (o, &a) in out.iter_mut().zip(amplitude) {
         *o = amplitude_db(a);
     }

@@ -17,7 +17,7 @@ pub struct Peak {
 
 /// Indices of the local maxima of `values` (the middle sample of a flat top; never the first or
 /// last sample), ascending, without computing prominences: O(n).
-pub fn local_maxima(values: &[f64]) -> impl Iterator<Item = usize> + '_ {
+pub(crate) fn local_maxima(values: &[f64]) -> impl Iterator<Item = usize> + '_ {
     let n = values.len();
     let mut i = 1;
     std::iter::from_fn(move || {

@@ -116,7 +116,7 @@ impl HermitianEigen {
     /// Recomputes the eigenvectors of the `count` largest eigenvalues of the matrix of the last
     /// [`HermitianEigen::decompose`] without reducing it again (for when the order is only known
     /// after looking at the eigenvalues).
-    pub fn compute_vectors(&mut self, count: usize) {
+    pub(crate) fn compute_vectors(&mut self, count: usize) {
         let count = count.min(self.n);
         for v in &mut self.values {
             *v *= self.unit;
@@ -138,7 +138,7 @@ impl HermitianEigen {
     }
 
     /// Number of eigenvectors computed by the last [`HermitianEigen::decompose`].
-    pub fn vector_count(&self) -> usize {
+    pub(crate) fn vector_count(&self) -> usize {
         self.vectors.len() / self.n.max(1)
     }
 

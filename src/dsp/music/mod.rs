@@ -28,8 +28,9 @@ pub(crate) mod order;
 mod root;
 
 pub use eigen::HermitianEigen;
-pub use order::{estimate_order, OrderCriterion};
-pub use root::root_music_ranges;
+pub(crate) use order::estimate_order;
+pub use order::OrderCriterion;
+pub(crate) use root::root_music_ranges;
 
 use super::metrics::local_maxima;
 use super::{DspError, C0};
@@ -76,12 +77,12 @@ impl Default for MusicConfig {
 }
 
 impl MusicConfig {
-    pub fn subcarrier_spacing_hz(&self) -> f64 {
+    pub(crate) fn subcarrier_spacing_hz(&self) -> f64 {
         self.bandwidth_hz / self.subcarriers as f64
     }
 
     /// Grid step of the pseudo-spectrum, m.
-    pub fn grid_step_m(&self) -> f64 {
+    pub(crate) fn grid_step_m(&self) -> f64 {
         C0 / (2.0 * self.grid_points as f64 * self.subcarrier_spacing_hz())
     }
 
@@ -294,7 +295,7 @@ impl Music {
     }
 
     /// Exact pseudo-spectrum at one range (direct evaluation, no grid).
-    pub fn pseudo_spectrum_at(&self, range_m: f64) -> f64 {
+    pub(crate) fn pseudo_spectrum_at(&self, range_m: f64) -> f64 {
         let m = self.config.subarray;
         let p = self.eigen.vector_count();
         let tau = 2.0 * range_m / C0;

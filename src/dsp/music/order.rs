@@ -19,7 +19,7 @@ pub enum OrderCriterion {
 }
 
 /// The order minimising `criterion` for eigenvalues sorted in descending order; 0 to M-1.
-pub fn estimate_order(
+pub(crate) fn estimate_order(
     eigenvalues_desc: &[f64],
     snapshots: usize,
     criterion: OrderCriterion,

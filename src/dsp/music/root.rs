@@ -16,7 +16,7 @@ const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 /// diagonal of the noise projector. Its roots pair up as (z, 1/z*); the p roots inside the unit
 /// circle closest to it give the ranges, `R = -arg(z) / (2 pi df) * c0 / 2` modulo the unambiguous
 /// range. The roots are the eigenvalues of the companion matrix.
-pub fn root_music_ranges(music: &Music, p: usize, df_hz: f64) -> Result<Vec<f64>, DspError> {
+pub(crate) fn root_music_ranges(music: &Music, p: usize, df_hz: f64) -> Result<Vec<f64>, DspError> {
     let eigen = music.eigen();
     let m = music.config().subarray;
     if p == 0 || p > eigen.vector_count() {

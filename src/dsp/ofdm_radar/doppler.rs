@@ -12,7 +12,6 @@
 //! `a` at its cell.
 
 use super::{IDiv, OfdmRadarConfig};
-use crate::dsp::metrics::Axis;
 use crate::dsp::window::Window;
 use crate::dsp::{DspError, C0};
 use num_complex::Complex64;
@@ -66,10 +65,6 @@ impl RangeDopplerMap {
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(b.1))?;
         Some((i / q, i % q, *a))
-    }
-
-    pub fn velocity_axis(&self) -> Axis {
-        Axis::from_samples(&self.velocity_mps)
     }
 }
 
@@ -251,7 +246,7 @@ impl VelocityEstimator {
     }
 
     /// The Doppler resolution of the frame, m/s: `C0 / (2 f_c S T)`.
-    pub fn resolution_mps(&self) -> f64 {
+    pub(crate) fn resolution_mps(&self) -> f64 {
         C0 / (2.0 * self.carrier_hz * self.symbols as f64 * self.period_s)
     }
 

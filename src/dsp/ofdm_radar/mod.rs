@@ -108,7 +108,7 @@ impl OfdmRadarConfig {
     }
 
     /// Subcarrier spacing df = B / N, Hz.
-    pub fn subcarrier_spacing_hz(&self) -> f64 {
+    pub(crate) fn subcarrier_spacing_hz(&self) -> f64 {
         self.bandwidth_hz / self.subcarriers as f64
     }
 
@@ -130,11 +130,6 @@ impl OfdmRadarConfig {
     /// Range of profile bin 1, m: C0 / (2 K df).
     pub fn range_bin_m(&self) -> f64 {
         C0 / (2.0 * self.profile_len() as f64 * self.subcarrier_spacing_hz())
-    }
-
-    /// Unambiguous range C0 / (2 df), m.
-    pub fn unambiguous_range_m(&self) -> f64 {
-        C0 / (2.0 * self.subcarrier_spacing_hz())
     }
 
     /// Checks every field; the message names the field and what is allowed.
@@ -193,22 +188,6 @@ impl IDiv {
     /// An empty matrix; [`OfdmRadar::divide`] sizes it (and reuses its storage afterwards).
     pub fn new() -> Self {
         Self::default()
-    }
-
-    /// Wraps existing values (`symbols * subcarriers`, symbol-major, ascending frequency).
-    pub fn from_vec(subcarriers: usize, data: Vec<Complex64>) -> Result<Self, DspError> {
-        if subcarriers == 0 || data.is_empty() || data.len() % subcarriers != 0 {
-            return Err(DspError::Param(format!(
-                "I_div: {} values are not a whole, non-zero number of symbols of {subcarriers} \
-                 subcarriers",
-                data.len()
-            )));
-        }
-        Ok(Self {
-            symbols: data.len() / subcarriers,
-            subcarriers,
-            data,
-        })
     }
 
     pub fn symbols(&self) -> usize {

@@ -36,10 +36,6 @@ impl Component {
             Component::F64 => "f64",
         }
     }
-    /// Whether the values are integer codes (scaled to volts by radbench's gain and offset).
-    pub fn is_integer(self) -> bool {
-        !matches!(self, Component::F32 | Component::F64)
-    }
 }
 
 /// A SigMF complex datatype, e.g. `ci16_le`.
@@ -88,7 +84,7 @@ impl Datatype {
     }
 
     /// Bytes of one complex sample.
-    pub fn sample_bytes(self) -> usize {
+    pub(crate) fn sample_bytes(self) -> usize {
         2 * self.component.bytes()
     }
 

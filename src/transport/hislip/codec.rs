@@ -33,7 +33,7 @@ pub mod msg {
 }
 
 /// The meaning of a FatalError control code.
-pub fn fatal_error_meaning(code: u8) -> &'static str {
+pub(crate) fn fatal_error_meaning(code: u8) -> &'static str {
     match code {
         0 => "unidentified error",
         1 => "poorly formed message header",
@@ -46,7 +46,7 @@ pub fn fatal_error_meaning(code: u8) -> &'static str {
 }
 
 /// The meaning of an Error control code.
-pub fn error_meaning(code: u8) -> &'static str {
+pub(crate) fn error_meaning(code: u8) -> &'static str {
     match code {
         0 => "unidentified error",
         1 => "unrecognized message type",
@@ -173,9 +173,9 @@ impl Decode for FrameDecoder {
 }
 
 /// Initialize parameter: protocol version 1.0 and the vendor ID "RB" (radbench).
-pub const CLIENT_PROTOCOL_AND_VENDOR: u32 = (1 << 24) | ((b'R' as u32) << 8) | b'B' as u32;
+pub(crate) const CLIENT_PROTOCOL_AND_VENDOR: u32 = (1 << 24) | ((b'R' as u32) << 8) | b'B' as u32;
 /// The first MessageID a client uses, and again after a device clear.
-pub const FIRST_MESSAGE_ID: u32 = 0xFFFF_FF00;
+pub(crate) const FIRST_MESSAGE_ID: u32 = 0xFFFF_FF00;
 
 #[cfg(test)]
 mod tests {

@@ -53,7 +53,7 @@ fn wire_len(frame: &Frame) -> u64 {
     HEADER_LEN as u64 + frame.payload.len() as u64
 }
 
-pub struct HislipLink {
+pub(crate) struct HislipLink {
     sync: Channel,
     async_: Channel,
     /// The largest payload the server accepts in one Data frame.
@@ -62,7 +62,6 @@ pub struct HislipLink {
     last_sent_id: u32,
     /// Set once a whole response was delivered; reported with the next message (RMT-delivered).
     rmt_delivered: bool,
-    pub session_id: u16,
     pub overlapped: bool,
 }
 
@@ -92,7 +91,7 @@ fn unexpected(frame: &Frame, wanted: &str) -> LinkError {
 }
 
 impl HislipLink {
-    pub async fn connect(
+    pub(crate) async fn connect(
         host: &str,
         port: u16,
         sub_address: &str,
@@ -159,13 +158,12 @@ impl HislipLink {
             next_id: FIRST_MESSAGE_ID,
             last_sent_id: FIRST_MESSAGE_ID,
             rmt_delivered: false,
-            session_id,
             overlapped,
         })
     }
 
     /// Sends one message as Data frames of at most the server's size, the last one DataEnd.
-    pub async fn write_message(
+    pub(crate) async fn write_message(
         &mut self,
         parts: &[&[u8]],
         options: &LinkOptions,
@@ -211,7 +209,7 @@ impl HislipLink {
     }
 
     /// Reads Data frames up to DataEnd for the last message sent; older replies are dropped.
-    pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
+    pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("HiSLIP read", options);
         let limit = options.max_message_bytes;
         let mut first: Option<Bytes> = None;
@@ -258,7 +256,7 @@ impl HislipLink {
 
     /// The device-clear handshake: AsyncDeviceClear, then DeviceClearComplete on the sync channel,
     /// discarding everything there until DeviceClearAcknowledge.
-    pub async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         self.async_
             .send(
                 &codec::encode_frame(msg::ASYNC_DEVICE_CLEAR, 0, 0, &[]),
@@ -301,7 +299,7 @@ impl HislipLink {
     }
 
     /// AsyncStatusQuery: the status byte, without going through the message queue.
-    pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+    pub(crate) async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
         let rmt = u8::from(std::mem::take(&mut self.rmt_delivered));
         self.async_
             .send(
@@ -319,10 +317,5 @@ impl HislipLink {
                 _ => return Err(unexpected(&frame, "AsyncStatusResponse")),
             }
         }
-    }
-
-    /// The server's maximum Data payload, from AsyncMaxMsgSizeResponse.
-    pub fn server_max_message(&self) -> u64 {
-        self.server_max
     }
 }

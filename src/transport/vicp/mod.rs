@@ -15,7 +15,7 @@ use tokio::net::TcpStream;
 
 const PROTOCOL: &str = "VICP";
 
-pub struct VicpLink {
+pub(crate) struct VicpLink {
     stream: TcpStream,
     buf: BytesMut,
     decoder: BlockDecoder,
@@ -24,7 +24,11 @@ pub struct VicpLink {
 }
 
 impl VicpLink {
-    pub async fn connect(host: &str, port: u16, options: &LinkOptions) -> Result<Self, LinkError> {
+    pub(crate) async fn connect(
+        host: &str,
+        port: u16,
+        options: &LinkOptions,
+    ) -> Result<Self, LinkError> {
         let stream = connect_tcp(host, port, PROTOCOL, options).await?;
         Ok(Self {
             stream,
@@ -35,7 +39,7 @@ impl VicpLink {
         })
     }
 
-    pub async fn write_message(
+    pub(crate) async fn write_message(
         &mut self,
         parts: &[&[u8]],
         options: &LinkOptions,
@@ -57,7 +61,7 @@ impl VicpLink {
         Ok(())
     }
 
-    pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
+    pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("VICP read", options);
         let limit = options.max_message_bytes;
         let mut first: Option<Bytes> = None;
@@ -96,7 +100,7 @@ impl VicpLink {
     }
 
     /// Sends a CLEAR header; replies still in flight carry old sequence numbers and are dropped.
-    pub async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         let header = Header::new(op::DATA | op::CLEAR, self.seq, 0).encode();
         write_parts(&mut self.stream, &[&header], "VICP device clear", options).await?;
         // The next command gets a new number, so replies to earlier ones are recognised as stale
@@ -108,7 +112,7 @@ impl VicpLink {
     /// SERIAL_POLL flag, answered by a one-byte EOI block carrying the status byte. Portable and
     /// in order with the data stream. (VICP 1a devices also offer an out-of-band poll, the urgent
     /// TCP byte `S`; it is not used: urgent data proved unreliable under load on loopback.)
-    pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+    pub(crate) async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
         let header = Header::new(op::SERIAL_POLL, self.seq, 0).encode();
         write_parts(&mut self.stream, &[&header], "VICP serial poll", options).await?;
         self.last_sent_seq = self.seq;

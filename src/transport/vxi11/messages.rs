@@ -4,13 +4,13 @@ use super::rpc::{XdrReader, XdrWriter};
 use crate::transport::error::CodecError;
 use bytes::Bytes;
 
-pub const PORTMAP_PROG: u32 = 100_000;
-pub const PORTMAP_VERS: u32 = 2;
-pub const PORTMAP_GETPORT: u32 = 3;
+pub(crate) const PORTMAP_PROG: u32 = 100_000;
+pub(crate) const PORTMAP_VERS: u32 = 2;
+pub(crate) const PORTMAP_GETPORT: u32 = 3;
 pub const IPPROTO_TCP: u32 = 6;
 
-pub const CORE_PROG: u32 = 0x0607AF;
-pub const ABORT_PROG: u32 = 0x0607B0;
+pub(crate) const CORE_PROG: u32 = 0x0607AF;
+pub(crate) const ABORT_PROG: u32 = 0x0607B0;
 pub const VERSION: u32 = 1;
 
 pub mod proc_ {
@@ -25,9 +25,7 @@ pub mod proc_ {
 }
 
 pub mod flags {
-    pub const WAITLOCK: i32 = 0x01;
     pub const END: i32 = 0x08;
-    pub const TERMCHRSET: i32 = 0x80;
 }
 
 pub mod reason {
@@ -39,24 +37,24 @@ pub mod reason {
 /// VXI-11 Device_ErrorCode values (VXI-11 specification B.5.2).
 pub mod error {
     pub const NO_ERROR: i32 = 0;
-    pub const SYNTAX_ERROR: i32 = 1;
-    pub const DEVICE_NOT_ACCESSIBLE: i32 = 3;
+    pub(crate) const SYNTAX_ERROR: i32 = 1;
+    pub(crate) const DEVICE_NOT_ACCESSIBLE: i32 = 3;
     pub const INVALID_LINK: i32 = 4;
     pub const PARAMETER_ERROR: i32 = 5;
-    pub const CHANNEL_NOT_ESTABLISHED: i32 = 6;
+    pub(crate) const CHANNEL_NOT_ESTABLISHED: i32 = 6;
     pub const NOT_SUPPORTED: i32 = 8;
     pub const OUT_OF_RESOURCES: i32 = 9;
     pub const DEVICE_LOCKED: i32 = 11;
     pub const NO_LOCK_HELD: i32 = 12;
     pub const IO_TIMEOUT: i32 = 15;
-    pub const IO_ERROR: i32 = 17;
-    pub const INVALID_ADDRESS: i32 = 21;
+    pub(crate) const IO_ERROR: i32 = 17;
+    pub(crate) const INVALID_ADDRESS: i32 = 21;
     pub const ABORT: i32 = 23;
-    pub const CHANNEL_ALREADY_ESTABLISHED: i32 = 29;
+    pub(crate) const CHANNEL_ALREADY_ESTABLISHED: i32 = 29;
 }
 
 /// The meaning of a VXI-11 Device_ErrorCode.
-pub fn error_meaning(code: i32) -> &'static str {
+pub(crate) fn error_meaning(code: i32) -> &'static str {
     match code {
         error::NO_ERROR => "no error",
         error::SYNTAX_ERROR => "syntax error",
@@ -78,11 +76,16 @@ pub fn error_meaning(code: i32) -> &'static str {
 }
 
 /// Portmapper GETPORT arguments.
-pub fn encode_getport(w: &mut XdrWriter, prog: u32, vers: u32) {
+pub(crate) fn encode_getport(w: &mut XdrWriter, prog: u32, vers: u32) {
     w.u32(prog).u32(vers).u32(IPPROTO_TCP).u32(0);
 }
 
-pub fn encode_create_link(w: &mut XdrWriter, client_id: i32, lock_timeout_ms: u32, device: &str) {
+pub(crate) fn encode_create_link(
+    w: &mut XdrWriter,
+    client_id: i32,
+    lock_timeout_ms: u32,
+    device: &str,
+) {
     w.i32(client_id)
         .bool(false)
         .u32(lock_timeout_ms)
@@ -107,7 +110,13 @@ pub fn decode_create_link(r: &mut XdrReader) -> Result<CreateLinkResp, CodecErro
 }
 
 /// Device_WriteParms up to the opaque length word; the data and its padding follow on the wire.
-pub fn encode_write_head(w: &mut XdrWriter, lid: i32, io_timeout_ms: u32, flags: i32, len: u32) {
+pub(crate) fn encode_write_head(
+    w: &mut XdrWriter,
+    lid: i32,
+    io_timeout_ms: u32,
+    flags: i32,
+    len: u32,
+) {
     w.i32(lid).u32(io_timeout_ms).u32(0).i32(flags).u32(len);
 }
 
@@ -118,7 +127,7 @@ pub fn decode_write_resp(r: &mut XdrReader) -> Result<(i32, u32), CodecError> {
     ))
 }
 
-pub fn encode_read(w: &mut XdrWriter, lid: i32, request_size: u32, io_timeout_ms: u32) {
+pub(crate) fn encode_read(w: &mut XdrWriter, lid: i32, request_size: u32, io_timeout_ms: u32) {
     w.i32(lid)
         .u32(request_size)
         .u32(io_timeout_ms)
@@ -143,7 +152,7 @@ pub fn decode_read_resp(r: &mut XdrReader) -> Result<ReadResp, CodecError> {
 }
 
 /// Device_GenericParms (readstb, trigger, clear).
-pub fn encode_generic(w: &mut XdrWriter, lid: i32, io_timeout_ms: u32) {
+pub(crate) fn encode_generic(w: &mut XdrWriter, lid: i32, io_timeout_ms: u32) {
     w.i32(lid).i32(0).u32(0).u32(io_timeout_ms);
 }
 

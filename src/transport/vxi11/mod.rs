@@ -152,14 +152,14 @@ fn ms(d: Duration) -> u32 {
     d.as_millis().min(u128::from(u32::MAX)) as u32
 }
 
-pub struct Vxi11Link {
+pub(crate) struct Vxi11Link {
     host: String,
     core: RpcChannel,
     link: CreateLinkResp,
 }
 
 impl Vxi11Link {
-    pub async fn connect(
+    pub(crate) async fn connect(
         host: &str,
         port: Option<u16>,
         device: &str,
@@ -229,12 +229,7 @@ impl Vxi11Link {
         }
     }
 
-    /// The link's maximum write chunk, from create_link.
-    pub fn max_recv_size(&self) -> u32 {
-        self.link.max_recv_size
-    }
-
-    pub async fn write_message(
+    pub(crate) async fn write_message(
         &mut self,
         parts: &[&[u8]],
         options: &LinkOptions,
@@ -288,7 +283,7 @@ impl Vxi11Link {
         }
     }
 
-    pub async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
+    pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("VXI-11 device_read", options)
             .with_base(options.timeouts.read + REPLY_GRACE);
         let mut first: Option<Bytes> = None;
@@ -362,7 +357,7 @@ impl Vxi11Link {
     }
 
     /// device_clear, preceded by device_abort on the abort channel when a call is still pending.
-    pub async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn device_clear(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         if self.core.outstanding.is_some() {
             if let Err(e) = self.abort(options).await {
                 tracing::warn!("VXI-11 device_abort failed: {e}");
@@ -376,7 +371,7 @@ impl Vxi11Link {
     }
 
     /// device_abort on the abort channel: makes the server end a blocked device_read/write.
-    pub async fn abort(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn abort(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         let stream = connect_tcp(&self.host, self.link.abort_port, PROTOCOL, options).await?;
         let mut channel = RpcChannel::new(stream, 1024);
         let mut args = XdrWriter::default();
@@ -396,7 +391,7 @@ impl Vxi11Link {
         device_error("device_abort", error)
     }
 
-    pub async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
+    pub(crate) async fn read_stb(&mut self, options: &LinkOptions) -> Result<u8, LinkError> {
         let mut r = self
             .generic(proc_::DEVICE_READSTB, "device_readstb", options)
             .await?;
@@ -406,7 +401,7 @@ impl Vxi11Link {
     }
 
     /// destroy_link; the connection closes when the link is dropped.
-    pub async fn close(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
+    pub(crate) async fn close(&mut self, options: &LinkOptions) -> Result<(), LinkError> {
         let mut args = XdrWriter::default();
         args.i32(self.link.lid);
         let mut ctx = ReadContext::new("VXI-11 destroy_link", options);

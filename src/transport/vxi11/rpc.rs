@@ -26,7 +26,7 @@ pub mod accept {
     pub const PROG_MISMATCH: u32 = 2;
     pub const PROC_UNAVAIL: u32 = 3;
     pub const GARBAGE_ARGS: u32 = 4;
-    pub const SYSTEM_ERR: u32 = 5;
+    pub(crate) const SYSTEM_ERR: u32 = 5;
 }
 
 /// `reject_stat` of a denied reply.
@@ -172,7 +172,7 @@ impl XdrReader {
 }
 
 /// The fixed words of a CALL header up to and including the procedure, then AUTH_NONE cred and verf.
-pub fn encode_call_header(w: &mut XdrWriter, xid: u32, prog: u32, vers: u32, proc_: u32) {
+pub(crate) fn encode_call_header(w: &mut XdrWriter, xid: u32, prog: u32, vers: u32, proc_: u32) {
     w.u32(xid)
         .u32(CALL)
         .u32(RPC_VERSION)
