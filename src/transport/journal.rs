@@ -492,11 +492,7 @@ mod tests {
         j.message(&origin, "write", &[b"*IDN?", b"\n"], 5);
         j.message(&origin, "read", &[b"#13\x00\x01\x02\n"], 7);
         j.event(&origin, "status_byte", Some(16), 3);
-        let lines: Vec<serde_json::Value> = std::fs::read_to_string(&path)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+        let lines = lines(&path);
         assert_eq!(lines.len(), 3);
         assert_eq!(lines[0]["kind"], "text");
         assert_eq!(lines[0]["text"], "*IDN?\n");

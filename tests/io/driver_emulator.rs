@@ -440,14 +440,37 @@ async fn safe_state_leaves_the_emulated_bench_off() {
     assert!(report.is_safe(), "{report}");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
+/// An AWG over HiSLIP and a transmitter over serial, both emulated, under one safe state.
+struct GuardedPair {
+    awg_emu: Arc<AwgEmu>,
+    tx_emu: Arc<GotmicEmu>,
+    safe: radbench::driver::SafeState,
+    awg: radbench::driver::safe_state::Shared<dyn Awg>,
+    tx: radbench::driver::safe_state::Shared<dyn RfFrontEnd>,
+    _servers: (ServerHandle, server::serial::SerialHandle),
+}
+
+async fn guarded_awg_and_tx() -> GuardedPair {
     let m = model("keysight-m8195a");
-    let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
-    let (tx_emu, tx, _endpoint) =
+    let (awg_emu, awg, awg_server) = awg_over(Net::Hislip, &m).await;
+    let (tx_emu, tx, endpoint) =
         gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
     let (safe, awg, tx) = guarded(Box::new(awg), Some(Box::new(tx)));
-    let tx = tx.expect("a transmitter");
+    GuardedPair {
+        awg_emu,
+        tx_emu,
+        safe,
+        awg,
+        tx: tx.expect("a transmitter"),
+        _servers: (awg_server, endpoint),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
+    let bench = guarded_awg_and_tx().await;
+    let (awg_emu, tx_emu, safe, awg, tx) =
+        (bench.awg_emu, bench.tx_emu, bench.safe, bench.awg, bench.tx);
     let (radiating, interrupt) = tokio::sync::oneshot::channel::<()>();
     let work = async {
         let permit = RfPermit::granted_by_user();
@@ -483,12 +506,9 @@ async fn an_interrupted_measurement_still_ends_in_the_safe_state() {
 /// (a hung operation holds it) does not keep the AWG playing while the Tx step waits it out.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_busy_transmitter_does_not_hold_the_awg_on() {
-    let m = model("keysight-m8195a");
-    let (awg_emu, awg, _awg_server) = awg_over(Net::Hislip, &m).await;
-    let (tx_emu, tx, _endpoint) =
-        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
-    let (safe, awg, tx) = guarded(Box::new(awg), Some(Box::new(tx)));
-    let tx = tx.expect("a transmitter");
+    let bench = guarded_awg_and_tx().await;
+    let (awg_emu, tx_emu, safe, awg, tx) =
+        (bench.awg_emu, bench.tx_emu, bench.safe, bench.awg, bench.tx);
     let permit = RfPermit::granted_by_user();
     {
         let mut a = awg.lock().await;
