@@ -2,6 +2,9 @@
 //! npy), plots and `summary.json`, every one written atomically into one folder.
 
 use super::capture::Measurement;
+use super::options::ProcessOptions;
+use super::pipeline::Processed;
+use super::transmit::Transmission;
 use super::MeasureError;
 use crate::storage::atomic::{write_atomic, write_atomic_parts};
 use crate::storage::plot;
@@ -21,6 +24,14 @@ pub(crate) struct CaptureFiles {
     /// JSON name stays `trc` for scripts written before other scopes.
     #[serde(rename = "trc")]
     pub native: Vec<PathBuf>,
+    #[serde(flatten)]
+    pub profiles: ProfileFiles,
+    pub summary: PathBuf,
+}
+
+/// The files of one processing of a capture: the range profiles and their plots.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub(crate) struct ProfileFiles {
     pub profile_csv: PathBuf,
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
@@ -28,7 +39,83 @@ pub(crate) struct CaptureFiles {
     /// The range-Doppler map (OFDM frames of two symbols or more).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub range_doppler_png: Option<PathBuf>,
-    pub summary: PathBuf,
+}
+
+/// Writes the profiles of `processed` into `out` (CSV, npy, SVG and PNG plots, the
+/// range-Doppler map when there is one), titled `"{program}: {waveform} {algorithm}"`, the
+/// scene's targets drawn when `scene` (a simulated bench's ground truth) names them.
+fn write_profiles(
+    out: &Path,
+    program: &str,
+    tx: &Transmission,
+    processed: &Processed,
+    o: &ProcessOptions,
+    scene: Option<&Value>,
+) -> Result<ProfileFiles, MeasureError> {
+    let files = ProfileFiles {
+        profile_csv: out.join("profile.csv"),
+        profile_npy: out.join("profile.npy"),
+        plot_svg: out.join("profile.svg"),
+        plot_png: out.join("profile.png"),
+        range_doppler_png: processed
+            .range_doppler
+            .as_ref()
+            .map(|_| out.join("range_doppler.png")),
+    };
+    let truth: Vec<f64> = scene
+        .and_then(|s| s["targets"].as_array())
+        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
+        .unwrap_or_default();
+    let (plot, table) = super::figure::profile_figure(
+        format!("{program}: {} {}", tx.name(), o.algorithm.name()),
+        processed,
+        o,
+        truth,
+    );
+    table.write(&files.profile_csv)?;
+    table.write(&files.profile_npy)?;
+    plot::draw(&files.plot_svg, &plot)?;
+    plot::draw(&files.plot_png, &plot)?;
+    if let (Some(map), Some(path)) = (&processed.range_doppler, &files.range_doppler_png) {
+        let fig = super::figure::range_doppler_figure(
+            format!("{program}: {} range-Doppler", tx.name()),
+            map,
+            &processed.targets,
+            o,
+        );
+        plot::draw_heatmap(path, &fig)?;
+    }
+    Ok(files)
+}
+
+/// The summary keys a capture and a re-processing share: what was sent, how it was processed
+/// and what was found. Each adds its own after them.
+fn result_json(
+    tx: &Transmission,
+    p: &Processed,
+    o: &ProcessOptions,
+) -> serde_json::Map<String, Value> {
+    let Value::Object(map) = json!({
+        "waveform": tx.name(),
+        "algorithm": o.algorithm.name(),
+        "targets": p.targets,
+        "width_3db_cm": p.width_3db_cm,
+        "sidelobe_db": p.sidelobe_db,
+        "snr_db": p.snr_db,
+        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
+        "payload": p.payload,
+    }) else {
+        unreachable!("a JSON object literal")
+    };
+    map
+}
+
+/// `base` with `more`'s keys after its own.
+fn extended(mut base: serde_json::Map<String, Value>, more: Value) -> Value {
+    if let Value::Object(more) = more {
+        base.extend(more);
+    }
+    Value::Object(base)
 }
 
 /// Where the bench came from, for the files.
@@ -177,48 +264,22 @@ pub(crate) fn write_processed(
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
     create_dir(out)?;
-    let o = &m.options;
+    let profiles = write_profiles(
+        out,
+        "radbench capture",
+        &m.tx,
+        &m.processed,
+        &m.options,
+        m.ground_truth.as_ref(),
+    )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
         sigmf_meta: raw.sigmf_meta.clone(),
         sigmf_data: raw.sigmf_data.clone(),
         native: raw.native.clone(),
-        profile_csv: out.join("profile.csv"),
-        profile_npy: out.join("profile.npy"),
-        plot_svg: out.join("profile.svg"),
-        plot_png: out.join("profile.png"),
-        range_doppler_png: m
-            .processed
-            .range_doppler
-            .as_ref()
-            .map(|_| out.join("range_doppler.png")),
+        profiles,
         summary: out.join("summary.json"),
     };
-    let truth: Vec<f64> = m
-        .ground_truth
-        .as_ref()
-        .and_then(|s| s["targets"].as_array().cloned())
-        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
-        .unwrap_or_default();
-    let (plot, table) = super::figure::profile_figure(
-        format!("radbench capture: {} {}", m.tx.name(), o.algorithm.name()),
-        &m.processed,
-        o,
-        truth,
-    );
-    table.write(&files.profile_csv)?;
-    table.write(&files.profile_npy)?;
-    plot::draw(&files.plot_svg, &plot)?;
-    plot::draw(&files.plot_png, &plot)?;
-    if let (Some(map), Some(path)) = (&m.processed.range_doppler, &files.range_doppler_png) {
-        let fig = super::figure::range_doppler_figure(
-            format!("radbench capture: {} range-Doppler", m.tx.name()),
-            map,
-            &m.processed.targets,
-            o,
-        );
-        plot::draw_heatmap(path, &fig)?;
-    }
     let summary = summary_json(m, &files, provenance);
     write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
     Ok((files, summary))
@@ -232,30 +293,25 @@ pub(crate) fn summary_json(
 ) -> Value {
     let p = &m.processed;
     let o = &m.options;
-    json!({
-        "waveform": m.tx.name(),
-        "algorithm": o.algorithm.name(),
-        "targets": p.targets,
-        "width_3db_cm": p.width_3db_cm,
-        "sidelobe_db": p.sidelobe_db,
-        "snr_db": p.snr_db,
-        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
-        "payload": p.payload,
-        "repetitions": m.captured.repetitions(),
-        "background": m.background,
-        "spread": m.spread,
-        "each_repetition": m.repetitions,
-        "warnings": p.warnings,
-        "system_delay_s": o.system_delay_s,
-        "processing": o,
-        "radbench_version": env!("CARGO_PKG_VERSION"),
-        "simulated": provenance.simulated,
-        "scene": m.ground_truth,
-        "instruments": m.identities,
-        "applied": m.captured.applied,
-        "transmission": m.tx.describe(),
-        "files": files,
-    })
+    extended(
+        result_json(&m.tx, p, o),
+        json!({
+            "repetitions": m.captured.repetitions(),
+            "background": m.background,
+            "spread": m.spread,
+            "each_repetition": m.repetitions,
+            "warnings": p.warnings,
+            "system_delay_s": o.system_delay_s,
+            "processing": o,
+            "radbench_version": env!("CARGO_PKG_VERSION"),
+            "simulated": provenance.simulated,
+            "scene": m.ground_truth,
+            "instruments": m.identities,
+            "applied": m.captured.applied,
+            "transmission": m.tx.describe(),
+            "files": files,
+        }),
+    )
 }
 
 /// Where the files of one re-processed capture went.
@@ -263,12 +319,8 @@ pub(crate) fn summary_json(
 pub(crate) struct ReprocessFiles {
     pub dir: PathBuf,
     pub manifest: PathBuf,
-    pub profile_csv: PathBuf,
-    pub profile_npy: PathBuf,
-    pub plot_svg: PathBuf,
-    pub plot_png: PathBuf,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub range_doppler_png: Option<PathBuf>,
+    #[serde(flatten)]
+    pub profiles: ProfileFiles,
     pub summary: PathBuf,
 }
 
@@ -301,46 +353,21 @@ pub(crate) fn write_reprocessed(
         source,
     })?;
     crate::storage::atomic::remove_stale_temporaries(out)?;
+    let o = &r.resolved.options;
+    let tx = &r.resolved.tx;
     let files = ReprocessFiles {
         dir: out.to_path_buf(),
         manifest: out.join("manifest.toml"),
-        profile_csv: out.join("profile.csv"),
-        profile_npy: out.join("profile.npy"),
-        plot_svg: out.join("profile.svg"),
-        plot_png: out.join("profile.png"),
-        range_doppler_png: r
-            .processed
-            .range_doppler
-            .as_ref()
-            .map(|_| out.join("range_doppler.png")),
+        profiles: write_profiles(
+            out,
+            "radbench process",
+            tx,
+            &r.processed,
+            o,
+            loaded.ground_truth(),
+        )?,
         summary: out.join("summary.json"),
     };
-    let o = &r.resolved.options;
-    let tx = &r.resolved.tx;
-    let truth: Vec<f64> = loaded
-        .ground_truth()
-        .and_then(|s| s["targets"].as_array().cloned())
-        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
-        .unwrap_or_default();
-    let (plot, table) = super::figure::profile_figure(
-        format!("radbench process: {} {}", tx.name(), o.algorithm.name()),
-        &r.processed,
-        o,
-        truth,
-    );
-    table.write(&files.profile_csv)?;
-    table.write(&files.profile_npy)?;
-    plot::draw(&files.plot_svg, &plot)?;
-    plot::draw(&files.plot_png, &plot)?;
-    if let (Some(map), Some(path)) = (&r.processed.range_doppler, &files.range_doppler_png) {
-        let fig = super::figure::range_doppler_figure(
-            format!("radbench process: {} range-Doppler", tx.name()),
-            map,
-            &r.processed.targets,
-            o,
-        );
-        plot::draw_heatmap(path, &fig)?;
-    }
     let manifest = ReprocessManifest {
         radbench_version: env!("CARGO_PKG_VERSION"),
         written_at: crate::storage::sigmf::utc_now_rfc3339(),
@@ -353,29 +380,24 @@ pub(crate) fn write_reprocessed(
     })?;
     write_atomic(&files.manifest, text.as_bytes())?;
     let p = &r.processed;
-    let summary = json!({
-        "waveform": tx.name(),
-        "algorithm": o.algorithm.name(),
-        "targets": p.targets,
-        "width_3db_cm": p.width_3db_cm,
-        "sidelobe_db": p.sidelobe_db,
-        "snr_db": p.snr_db,
-        "velocity_resolution_mps": p.detection.velocity_resolution_mps,
-        "payload": p.payload,
-        "repetitions": loaded.repetitions.len(),
-        "background": r.resolved.background,
-        "spread": r.spread,
-        "each_repetition": r.repetitions,
-        "warnings": p.warnings,
-        "system_delay_s": o.system_delay_s,
-        "processing": o,
-        "radbench_version": env!("CARGO_PKG_VERSION"),
-        "simulated": loaded.ground_truth().is_some(),
-        "scene": loaded.ground_truth(),
-        "transmission": tx.describe(),
-        "sources": sources,
-        "files": files,
-    });
+    let summary = extended(
+        result_json(tx, p, o),
+        json!({
+            "repetitions": loaded.repetitions.len(),
+            "background": r.resolved.background,
+            "spread": r.spread,
+            "each_repetition": r.repetitions,
+            "warnings": p.warnings,
+            "system_delay_s": o.system_delay_s,
+            "processing": o,
+            "radbench_version": env!("CARGO_PKG_VERSION"),
+            "simulated": loaded.ground_truth().is_some(),
+            "scene": loaded.ground_truth(),
+            "transmission": tx.describe(),
+            "sources": sources,
+            "files": files,
+        }),
+    );
     write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
     Ok((files, summary))
 }
