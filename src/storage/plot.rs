@@ -107,6 +107,28 @@ pub(crate) fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> 
             reason: "nothing to plot: every curve is empty".into(),
         });
     }
+    write_figure(path, plot)
+}
+
+/// A figure that draws itself on any plotters backend (SVG text or a PNG bitmap).
+trait Render {
+    fn render<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>;
+}
+
+impl Render for ProfilePlot {
+    fn render<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        render(root, self)
+    }
+}
+
+/// Draws `figure` to `path`, `.svg` or `.png` by its extension, atomically.
+fn write_figure(path: &Path, figure: &impl Render) -> Result<(), StorageError> {
     // Both backends measure text with the registered font (the SVG one to lay out labels).
     register_font_once();
     match extension(path).as_deref() {
@@ -114,12 +136,12 @@ pub(crate) fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> 
             let mut svg = String::new();
             {
                 let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-                render(root, plot).map_err(|reason| plot_error(path, reason))?;
+                figure.render(root).map_err(|r| plot_error(path, r))?;
             }
             write_atomic(path, svg.as_bytes())
         }
         Some("png") => {
-            let png = render_png(|root| render(root, plot)).map_err(|r| plot_error(path, r))?;
+            let png = render_png(|root| figure.render(root)).map_err(|r| plot_error(path, r))?;
             write_atomic(path, &png)
         }
         _ => Err(StorageError::UnsupportedFormat {
@@ -572,25 +594,31 @@ pub(crate) fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result
             reason: "nothing to plot: give at least two Eb/N0 points".into(),
         });
     }
-    register_font_once();
-    match extension(path).as_deref() {
-        Some("svg") => {
-            let mut svg = String::new();
-            {
-                let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-                render_ber(root, title, series, (x0, x1), y0).map_err(|r| plot_error(path, r))?;
-            }
-            write_atomic(path, svg.as_bytes())
-        }
-        Some("png") => {
-            let png = render_png(|root| render_ber(root, title, series, (x0, x1), y0))
-                .map_err(|r| plot_error(path, r))?;
-            write_atomic(path, &png)
-        }
-        _ => Err(StorageError::UnsupportedFormat {
-            path: path.to_path_buf(),
-            allowed: "plots are written as .svg or .png",
-        }),
+    write_figure(
+        path,
+        &BerFigure {
+            title,
+            series,
+            x: (x0, x1),
+            y0,
+        },
+    )
+}
+
+/// The BER plot's inputs, ready to render.
+struct BerFigure<'a> {
+    title: &'a str,
+    series: &'a [BerSeries],
+    x: (f64, f64),
+    y0: f64,
+}
+
+impl Render for BerFigure<'_> {
+    fn render<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        render_ber(root, self.title, self.series, self.x, self.y0)
     }
 }
 
