@@ -31,6 +31,21 @@ fn example(name: &str) -> PathBuf {
 }
 
 /// Runs radbench with `args` and `stdin`; (exit code, stdout, stderr), bounded.
+/// `radbench campaign run SPEC [--out OUT] ARGS...` with `stdin`.
+async fn campaign_run(
+    spec: &Path,
+    out: Option<&Path>,
+    args: &[&str],
+    stdin: &str,
+) -> (i32, String, String) {
+    let mut all = vec!["campaign", "run", spec.to_str().unwrap()];
+    if let Some(out) = out {
+        all.extend(["--out", out.to_str().unwrap()]);
+    }
+    all.extend_from_slice(args);
+    radbench(&all, stdin).await
+}
+
 async fn radbench(args: &[&str], stdin: &str) -> (i32, String, String) {
     let mut child = Command::new(BIN)
         .args(args)
@@ -77,19 +92,8 @@ async fn reference() -> &'static (tempfile::TempDir, Value) {
             let dir = tempfile::tempdir().unwrap();
             let out = dir.path().join("run");
             let spec = example("accuracy.toml");
-            let (code, stdout, err) = radbench(
-                &[
-                    "campaign",
-                    "run",
-                    spec.to_str().unwrap(),
-                    "--allow-rf",
-                    "--json",
-                    "--out",
-                    out.to_str().unwrap(),
-                ],
-                "",
-            )
-            .await;
+            let (code, stdout, err) =
+                campaign_run(&spec, Some(&out), &["--allow-rf", "--json"], "").await;
             assert_eq!(code, 0, "{err}");
             let lines: Vec<Value> = stdout
                 .lines()
@@ -430,11 +434,7 @@ async fn a_spec_with_a_wrong_field_fails_with_file_line_field_and_exit_2() {
         "name = \"bad\"\n\n[sweep]\nparameter = \"position\"\nstart = 1.0\nstpe = -0.03\n",
     )
     .unwrap();
-    let (code, _, err) = radbench(
-        &["campaign", "run", spec.to_str().unwrap(), "--allow-rf"],
-        "",
-    )
-    .await;
+    let (code, _, err) = campaign_run(&spec, None, &["--allow-rf"], "").await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.toml:6: `sweep.stpe`"), "{err}");
     assert!(err.contains("expected one of"), "{err}");
@@ -443,11 +443,7 @@ async fn a_spec_with_a_wrong_field_fails_with_file_line_field_and_exit_2() {
         "[sweep]\nparameter = \"position\"\nstart = 1.0\nstep = -0.03\ncount = 0\n",
     )
     .unwrap();
-    let (code, _, err) = radbench(
-        &["campaign", "run", spec.to_str().unwrap(), "--dry-run"],
-        "",
-    )
-    .await;
+    let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.toml:5: `sweep.count`"), "{err}");
 }
@@ -467,18 +463,7 @@ async fn the_prompt_positioner_waits_for_the_operator_on_stdin() {
          [[steps]]\ntargets = [1.0]\n[[steps]]\ntargets = [1.0]\n[[steps]]\ntargets = [0.97]\n",
     );
     let out = dir.path().join("run");
-    let (code, _, err) = radbench(
-        &[
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "\n\n",
-    )
-    .await;
+    let (code, _, err) = campaign_run(&spec, Some(&out), &["--allow-rf"], "\n\n").await;
     assert_eq!(code, 0, "{err}");
     // Steps 1 and 3 move the pillar; step 2 keeps it where it is.
     assert_eq!(err.matches("RF is off. Place").count(), 2, "{err}");
@@ -486,18 +471,7 @@ async fn the_prompt_positioner_waits_for_the_operator_on_stdin() {
     assert!(err.contains("step 3/3: RF is off. Place target 1 at 0.9700 m"));
     // The end of the operator's input stops the campaign before its first capture.
     let out = dir.path().join("run2");
-    let (code, _, err) = radbench(
-        &[
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "",
-    )
-    .await;
+    let (code, _, err) = campaign_run(&spec, Some(&out), &["--allow-rf"], "").await;
     assert_eq!(code, 130, "{err}");
     let m = Manifest::load(&out).unwrap();
     assert_eq!(m.status, Status::Interrupted);
@@ -516,19 +490,7 @@ async fn a_failing_positioner_command_stops_the_campaign_in_the_safe_state() {
          timeout_s = 20\n[sweep]\nparameter = \"position\"\nvalues = [1.0, 0.97, 0.94]\n",
     );
     let out = dir.path().join("run");
-    let (code, stdout, err) = radbench(
-        &[
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--json",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "",
-    )
-    .await;
+    let (code, stdout, err) = campaign_run(&spec, Some(&out), &["--allow-rf", "--json"], "").await;
     assert_eq!(code, 3, "{err}");
     assert!(err.contains("stage jammed"), "{err}");
     let moves = std::fs::read_to_string(dir.path().join("moves.txt")).unwrap();
