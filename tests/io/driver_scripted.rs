@@ -648,6 +648,17 @@ fn status(fake: Scripted, status: &str, control: &str, att: &str, faults: &str) 
 
 const STATUS_READ: &[&str] = &["R 01", "R 02", "R 03", "R 06", "R 07"];
 
+/// Replies of a switch-on that takes: the enables written, RF on and LO locked with no fault
+/// read back, then 10 dB of attenuation written and verified.
+fn switched_on_at_10_db(fake: Scripted) -> Scripted {
+    fake.reply("W 02 000F", "OK")
+        .reply("R 01", "OK 0007")
+        .reply("R 02", "OK 000F")
+        .reply("R 07", "OK 0000")
+        .reply("W 03 0014", "OK")
+        .reply("R 03", "OK 0014")
+}
+
 /// What RF safety reads back after writing the enables: STATUS, CONTROL, FAULT_LATCH.
 const AFTER_ENABLE: &[&str] = &["R 01", "R 02", "R 07"];
 
@@ -661,12 +672,7 @@ async fn gotmic_enable_goes_through_max_attenuation_checks_and_verifies() {
         "OK 0000",
     );
     fake = fake.reply("W 05 3415", "OK").reply("R 05", "OK 3415");
-    fake = fake
-        .reply("W 02 000F", "OK")
-        .reply("R 01", "OK 0007")
-        .reply("R 02", "OK 000F")
-        .reply("R 07", "OK 0000");
-    fake = fake.reply("W 03 0014", "OK").reply("R 03", "OK 0014");
+    fake = switched_on_at_10_db(fake);
     let (mut tx, log) = tx(fake).await;
     let settings = RfSettings {
         attenuation_db: 10.0,
@@ -702,12 +708,7 @@ async fn gotmic_enable_maxes_the_attenuation_first_when_it_is_not() {
         "OK 0000",
     );
     fake = fake.reply("W 03 003F", "OK").reply("R 03", "OK 003F");
-    fake = fake
-        .reply("W 02 000F", "OK")
-        .reply("R 01", "OK 0007")
-        .reply("R 02", "OK 000F")
-        .reply("R 07", "OK 0000");
-    fake = fake.reply("W 03 0014", "OK").reply("R 03", "OK 0014");
+    fake = switched_on_at_10_db(fake);
     let (mut tx, log) = tx(fake).await;
     let settings = RfSettings {
         attenuation_db: 10.0,
