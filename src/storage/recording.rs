@@ -279,94 +279,36 @@ impl Fields<'_> {
 /// Reads a SigMF recording; `path` names the `.sigmf-meta`, the `.sigmf-data` or their base.
 pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
     let (meta_path, default_data) = sigmf_paths(path)?;
-    let meta_bytes = std::fs::read(&meta_path).map_err(|source| RecordingError::Io {
-        path: meta_path.clone(),
-        source,
-    })?;
-    let doc: Value =
-        serde_json::from_slice(&meta_bytes).map_err(|source| RecordingError::NotJson {
-            path: meta_path.clone(),
-            source,
-        })?;
+    let doc = read_meta(&meta_path)?;
     let f = Fields { path: &meta_path };
     let global = doc
         .get("global")
         .and_then(Value::as_object)
         .ok_or_else(|| f.err("global", "is missing or not an object"))?;
-    let datatype_text = f
-        .text(global, "core:datatype")?
-        .ok_or_else(|| f.err("core:datatype", "is missing (SigMF requires it)"))?;
-    let datatype = Datatype::parse(&datatype_text).map_err(|reason| RecordingError::Datatype {
-        path: meta_path.clone(),
-        value: datatype_text.clone(),
-        reason,
-    })?;
-    let sample_rate_hz = f.number(global, "core:sample_rate")?;
-    if let Some(rate) = sample_rate_hz {
-        if rate <= 0.0 {
-            return Err(f.err(
-                "core:sample_rate",
-                format!("must be positive, found {rate}"),
-            ));
-        }
-    }
-    let channels = f.count(global, "core:num_channels")?;
-    if channels > 1 {
-        return Err(f.err(
-            "core:num_channels",
-            format!("is {channels}: radbench reads one I/Q stream (num_channels 1)"),
-        ));
-    }
-    if global.get("core:metadata_only").and_then(Value::as_bool) == Some(true) {
-        return Err(f.err(
-            "core:metadata_only",
-            "is true: this recording holds no samples",
-        ));
-    }
+    let (datatype, sample_rate_hz) = stream_format(&f, global)?;
     let data_path = match f.text(global, "core:dataset")? {
         Some(name) => meta_path.with_file_name(name),
         None => default_data,
     };
     let extensions = read_extensions(&f, global)?;
     let captures = read_captures(&f, &doc)?;
-    let header_bytes = doc
-        .get("captures")
-        .and_then(Value::as_array)
-        .map(|c| {
-            c.iter()
-                .filter_map(Value::as_object)
-                .map(|o| f.count(o, "core:header_bytes"))
-                .collect::<Result<Vec<u64>, _>>()
-        })
-        .transpose()?
-        .unwrap_or_default();
+    let header_bytes = read_header_bytes(&f, &doc)?;
     let trailing = f.count(global, "core:trailing_bytes")?;
     let radbench = read_radbench(&f, global)?;
-    let version = f.text(global, "core:version")?;
-    let description = f.text(global, "core:description")?;
-    let hw = f.text(global, "core:hw")?;
-    let recorder = f.text(global, "core:recorder")?;
-    let sha512 = f.text(global, "core:sha512")?;
 
     let data = std::fs::read(&data_path).map_err(|source| RecordingError::MissingData {
         meta: meta_path.clone(),
         data: data_path.clone(),
         source,
     })?;
-    let sha512_checked = match sha512 {
-        Some(expected) => {
-            let actual: String = Sha512::digest(&data)
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect();
-            if !actual.eq_ignore_ascii_case(expected.trim()) {
-                return Err(RecordingError::Sha512 {
-                    path: data_path,
-                    meta: meta_path,
-                });
-            }
-            true
+    let sha512_checked = match f.text(global, "core:sha512")? {
+        Some(expected) if !sha512_matches(&data, &expected) => {
+            return Err(RecordingError::Sha512 {
+                path: data_path,
+                meta: meta_path,
+            })
         }
+        Some(_) => true,
         None => false,
     };
     let payload =
@@ -382,27 +324,16 @@ pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
         r.vertical_gain
             .map(|g| (g, r.vertical_offset.unwrap_or([0.0; 2])))
     });
-    let width = datatype.component.bytes();
-    let samples: Vec<Complex64> = payload
-        .iter()
-        .flat_map(|part| part.chunks_exact(2 * width))
-        .map(|s| {
-            let (i, q) = (datatype.value(&s[..width]), datatype.value(&s[width..]));
-            match scaling {
-                Some((g, o)) => Complex64::new(g[0] * i - o[0], g[1] * q - o[1]),
-                None => Complex64::new(i, q),
-            }
-        })
-        .collect();
     Ok(Recording {
+        version: f.text(global, "core:version")?,
+        description: f.text(global, "core:description")?,
+        hw: f.text(global, "core:hw")?,
+        recorder: f.text(global, "core:recorder")?,
+        samples: decode_samples(&payload, datatype, scaling),
         meta_path,
         data_path,
         datatype,
         sample_rate_hz,
-        version,
-        description,
-        hw,
-        recorder,
         extensions,
         captures,
         sha512_checked,
@@ -412,8 +343,99 @@ pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
             SampleUnit::Native
         },
         radbench,
-        samples,
     })
+}
+
+/// The `.sigmf-meta` file as JSON.
+fn read_meta(meta_path: &Path) -> Result<Value, RecordingError> {
+    let bytes = std::fs::read(meta_path).map_err(|source| RecordingError::Io {
+        path: meta_path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_slice(&bytes).map_err(|source| RecordingError::NotJson {
+        path: meta_path.to_path_buf(),
+        source,
+    })
+}
+
+/// The sample format and rate, checked: one I/Q stream that radbench can read, with samples.
+fn stream_format(
+    f: &Fields<'_>,
+    global: &serde_json::Map<String, Value>,
+) -> Result<(Datatype, Option<f64>), RecordingError> {
+    let text = f
+        .text(global, "core:datatype")?
+        .ok_or_else(|| f.err("core:datatype", "is missing (SigMF requires it)"))?;
+    let datatype = Datatype::parse(&text).map_err(|reason| RecordingError::Datatype {
+        path: f.path.to_path_buf(),
+        value: text.clone(),
+        reason,
+    })?;
+    let sample_rate_hz = f.number(global, "core:sample_rate")?;
+    if let Some(rate) = sample_rate_hz.filter(|&r| r <= 0.0) {
+        return Err(f.err(
+            "core:sample_rate",
+            format!("must be positive, found {rate}"),
+        ));
+    }
+    let channels = f.count(global, "core:num_channels")?;
+    if channels > 1 {
+        return Err(f.err(
+            "core:num_channels",
+            format!("is {channels}: radbench reads one I/Q stream (num_channels 1)"),
+        ));
+    }
+    if global.get("core:metadata_only").and_then(Value::as_bool) == Some(true) {
+        return Err(f.err(
+            "core:metadata_only",
+            "is true: this recording holds no samples",
+        ));
+    }
+    Ok((datatype, sample_rate_hz))
+}
+
+/// Each capture's `core:header_bytes` (0 where not given).
+fn read_header_bytes(f: &Fields<'_>, doc: &Value) -> Result<Vec<u64>, RecordingError> {
+    Ok(doc
+        .get("captures")
+        .and_then(Value::as_array)
+        .map(|c| {
+            c.iter()
+                .filter_map(Value::as_object)
+                .map(|o| f.count(o, "core:header_bytes"))
+                .collect::<Result<Vec<u64>, _>>()
+        })
+        .transpose()?
+        .unwrap_or_default())
+}
+
+fn sha512_matches(data: &[u8], expected: &str) -> bool {
+    let actual: String = Sha512::digest(data)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    actual.eq_ignore_ascii_case(expected.trim())
+}
+
+/// The I/Q samples of the payload parts, in volts when `scaling` (gain and offset per
+/// component) is given.
+fn decode_samples(
+    payload: &[&[u8]],
+    datatype: Datatype,
+    scaling: Option<([f64; 2], [f64; 2])>,
+) -> Vec<Complex64> {
+    let width = datatype.component.bytes();
+    payload
+        .iter()
+        .flat_map(|part| part.chunks_exact(2 * width))
+        .map(|s| {
+            let (i, q) = (datatype.value(&s[..width]), datatype.value(&s[width..]));
+            match scaling {
+                Some((g, o)) => Complex64::new(g[0] * i - o[0], g[1] * q - o[1]),
+                None => Complex64::new(i, q),
+            }
+        })
+        .collect()
 }
 
 fn read_extensions(
