@@ -428,25 +428,38 @@ fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
 }
 
 fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
-    let param = parameter(steps[0]).to_string();
-    let x_label = match param.as_str() {
-        "snr" => "scene SNR (dB)",
-        _ => "Tx attenuation (dB)",
+    let snr = parameter(steps[0]) == "snr";
+    let x_label = if snr {
+        "scene SNR (dB)"
+    } else {
+        "Tx attenuation (dB)"
     };
-    let x_of = |s: &StepResult| s.nominal.value;
     let names = algorithms(steps);
-    let mut out = Vec::new();
+    let mut out: Vec<Figure> = ber_figure(manifest, steps, &names, snr, x_label)
+        .into_iter()
+        .collect();
+    out.extend(link_radar_figures(steps, &names, x_label));
+    out
+}
 
-    // BER, measured, with the theory beside.
+/// The bit-error rate at each step, measured, with the theory beside when it can be fitted.
+fn ber_figure(
+    manifest: &Manifest,
+    steps: &[&StepResult],
+    names: &[String],
+    snr: bool,
+    x_label: &str,
+) -> Option<Figure> {
     let mut ber = Chart::new("Bit-error rate", x_label, "bit-error rate");
     ber.log_y = true;
     let w = waveform_of(manifest, steps[0]);
+    // (swept value, Eb/N0 the theory needs for the measured BER) of the steps with errors
     let mut implied = Vec::new();
-    for name in &names {
+    for name in names {
         let mut points = Vec::new();
         for s in steps {
             let (Some(x), Some(p)) = (
-                x_of(s),
+                s.nominal.value,
                 s.algorithms.get(name).and_then(|a| a.payload.as_ref()),
             ) else {
                 continue;
@@ -483,64 +496,78 @@ fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
             });
         }
     }
-    // Theory: Eb/N0 = K - attenuation (or K + SNR), K fitted to the points with errors.
-    let sign = if param == "snr" { 1.0 } else { -1.0 };
-    let mut theory_note = String::from(
-        "No step had bit errors, so no offset between the swept parameter and Eb/N0 can be \
-         fitted: the theory is not drawn.",
-    );
-    if let (Some(w), false) = (w.as_ref(), implied.is_empty()) {
-        let k = implied.iter().map(|(x, e)| e - sign * x).sum::<f64>() / implied.len() as f64;
-        let xs: Vec<f64> = steps.iter().filter_map(|s| x_of(s)).collect();
-        let (x0, x1) = xs
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                (a.min(*x), b.max(*x))
-            });
-        let points = (0..=60)
-            .map(|i| {
-                let x = x0 + (x1 - x0) * i as f64 / 60.0;
-                Point::new(x, theory(w, sign * x + k))
-            })
-            .filter(|p| p.y >= 1e-9)
-            .collect();
-        ber.series.push(Series {
-            label: format!(
-                "{} theory, Eb/N0 = {}x + {k:.1} dB (fitted)",
-                w.kind().name(),
-                if sign > 0.0 { "" } else { "-" }
-            ),
-            points,
-            style: Style::Dashed,
-        });
-        theory_note = format!(
-            "The dashed curve is the {} theory ({}) with Eb/N0 = {}{} + K; K = {k:.2} dB is fitted \
-             (mean over the {} step(s) with bit errors of the Eb/N0 the theory needs for the \
-             measured BER), since the bench's absolute Eb/N0 is not measured. The curve tests the \
-             shape (1 dB of Eb/N0 per dB of {}), not the absolute level.",
-            w.kind().name(),
-            match w.kind() {
-                WaveformKind::MskLfm => "Q(sqrt(2 Eb/N0))",
-                WaveformKind::Ofdm => "Q(sqrt(2 Eb/N0 / (1 + CP)))",
-            },
-            if sign > 0.0 { "" } else { "-" },
-            if param == "snr" { "SNR" } else { "attenuation" },
-            implied.len(),
-            if param == "snr" { "SNR" } else { "attenuation" },
-        );
-    }
-    if !ber.series.is_empty() {
-        out.push(Figure {
-            id: "link-ber",
-            caption: format!(
-                "Bit-error rate of the decoded payload at each step (every repetition's bits \
-                 counted), with its 95 % Wilson interval; a step without errors is a hollow marker \
-                 at the interval's upper bound. {theory_note}"
-            ),
-            chart: ber,
-        });
-    }
+    let theory_note = match (w.as_ref(), implied.is_empty()) {
+        (Some(w), false) => {
+            let (series, note) = ber_theory(w, steps, &implied, snr);
+            ber.series.push(series);
+            note
+        }
+        _ => "No step had bit errors, so no offset between the swept parameter and Eb/N0 can \
+              be fitted: the theory is not drawn."
+            .to_string(),
+    };
+    (!ber.series.is_empty()).then(|| Figure {
+        id: "link-ber",
+        caption: format!(
+            "Bit-error rate of the decoded payload at each step (every repetition's bits \
+             counted), with its 95 % Wilson interval; a step without errors is a hollow marker \
+             at the interval's upper bound. {theory_note}"
+        ),
+        chart: ber,
+    })
+}
 
+/// The theory's BER curve with Eb/N0 = K - attenuation (or K + SNR), K fitted to the `implied`
+/// points, and the caption's note on it.
+fn ber_theory(
+    w: &WaveformSpec,
+    steps: &[&StepResult],
+    implied: &[(f64, f64)],
+    snr: bool,
+) -> (Series, String) {
+    let sign = if snr { 1.0 } else { -1.0 };
+    let k = implied.iter().map(|(x, e)| e - sign * x).sum::<f64>() / implied.len() as f64;
+    let (x0, x1) = steps
+        .iter()
+        .filter_map(|s| s.nominal.value)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+    let points = (0..=60)
+        .map(|i| {
+            let x = x0 + (x1 - x0) * i as f64 / 60.0;
+            Point::new(x, theory(w, sign * x + k))
+        })
+        .filter(|p| p.y >= 1e-9)
+        .collect();
+    let minus = if snr { "" } else { "-" };
+    let swept = if snr { "SNR" } else { "attenuation" };
+    let series = Series {
+        label: format!(
+            "{} theory, Eb/N0 = {minus}x + {k:.1} dB (fitted)",
+            w.kind().name()
+        ),
+        points,
+        style: Style::Dashed,
+    };
+    let note = format!(
+        "The dashed curve is the {} theory ({}) with Eb/N0 = {minus}{swept} + K; K = {k:.2} dB \
+         is fitted (mean over the {} step(s) with bit errors of the Eb/N0 the theory needs for \
+         the measured BER), since the bench's absolute Eb/N0 is not measured. The curve tests \
+         the shape (1 dB of Eb/N0 per dB of {swept}), not the absolute level.",
+        w.kind().name(),
+        match w.kind() {
+            WaveformKind::MskLfm => "Q(sqrt(2 Eb/N0))",
+            WaveformKind::Ofdm => "Q(sqrt(2 Eb/N0 / (1 + CP)))",
+        },
+        implied.len(),
+    );
+    (series, note)
+}
+
+/// Width, peak side-lobe level and range error of the strongest target against the swept
+/// parameter, one series per algorithm.
+fn link_radar_figures(steps: &[&StepResult], names: &[String], x_label: &str) -> Vec<Figure> {
     type Pick = fn(&AlgorithmResult) -> Option<Point>;
     let radar: [(&'static str, &str, &str, Pick); 3] = [
         (
@@ -562,14 +589,15 @@ fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
             },
         ),
     ];
+    let mut out = Vec::new();
     for (id, title, unit, pick) in radar {
         let mut chart = Chart::new(title, x_label, unit);
-        for name in &names {
+        for name in names {
             let points: Vec<Point> = steps
                 .iter()
                 .filter_map(|s| {
                     let mut p = pick(s.algorithms.get(name)?)?;
-                    p.x = x_of(s)?;
+                    p.x = s.nominal.value?;
                     Some(p)
                 })
                 .collect();
