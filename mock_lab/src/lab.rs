@@ -230,11 +230,8 @@ impl Drop for AbortOnDrop {
     }
 }
 
-/// Starts the lab. Must run inside a tokio runtime; returns once every endpoint listens.
-pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
-    options.validate()?;
-    let bench = Arc::new(Bench::new(options.scene.clone())?);
-    bench.scope.set_remote_interface(options.scope_remote);
+/// What the lab serves: each instrument's handler and the transports it speaks.
+fn served(bench: &Arc<Bench>, with_loopback: bool) -> Vec<Served> {
     let mut served = vec![
         Served {
             name: "awg",
@@ -267,7 +264,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             remote: None,
         },
     ];
-    if options.with_loopback {
+    if with_loopback {
         served.push(Served {
             name: "loopback",
             handler: Arc::new(Loopback::new()),
@@ -281,6 +278,37 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             remote: None,
         });
     }
+    served
+}
+
+/// The ports of one endpoint: the slot's defaults, the fixed VICP ports asked for, and the
+/// VXI-11 portmapper for the first instrument that takes it.
+fn ports_of(
+    options: &LabOptions,
+    s: &Served,
+    transport: Transport,
+    slot: u16,
+    portmapper: &mut Option<u16>,
+) -> Result<Ports, LabError> {
+    let mut ports = ports_for(options.port_base, slot, transport)?;
+    if transport == Transport::Vicp && s.name == "scope" {
+        ports.main = options.vicp_port.unwrap_or(ports.main);
+    }
+    if transport == Transport::Vicp && s.name == "loopback" {
+        ports.main = options.loopback_vicp_port.unwrap_or(ports.main);
+    }
+    if transport == Transport::Vxi11 && s.remote.is_none() {
+        ports.portmapper = portmapper.take();
+    }
+    Ok(ports)
+}
+
+/// Starts the lab. Must run inside a tokio runtime; returns once every endpoint listens.
+pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
+    options.validate()?;
+    let bench = Arc::new(Bench::new(options.scene.clone())?);
+    bench.scope.set_remote_interface(options.scope_remote);
+    let served = served(&bench, options.with_loopback);
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));
     let scope_switch = Arc::new(ScopeSwitch {
         scope: bench.scope.clone(),
@@ -300,16 +328,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         }
         last_name = s.name;
         for &transport in s.transports {
-            let mut ports = ports_for(options.port_base, slot, transport)?;
-            if transport == Transport::Vicp && s.name == "scope" {
-                ports.main = options.vicp_port.unwrap_or(ports.main);
-            }
-            if transport == Transport::Vicp && s.name == "loopback" {
-                ports.main = options.loopback_vicp_port.unwrap_or(ports.main);
-            }
-            if transport == Transport::Vxi11 && s.remote.is_none() {
-                ports.portmapper = portmapper.take();
-            }
+            let ports = ports_of(&options, s, transport, slot, &mut portmapper)?;
             let server_options = ServerOptions {
                 max_message_size: options.max_message_size,
                 faults: if s.name == "scope" {
