@@ -7,7 +7,7 @@
 //! mark themselves dirty before writing and recover (clear or reconnect) before the next operation.
 
 use super::error::{CodecError, LinkError};
-use bytes::BytesMut;
+use bytes::{Buf, Bytes, BytesMut};
 use std::io::IoSlice;
 use std::sync::Arc;
 use std::time::Duration;
@@ -357,6 +357,80 @@ pub fn append_within(
     reserve_within(message, data.len(), limit);
     message.extend_from_slice(data);
     Ok(())
+}
+
+/// A fixed-size header that announces the length of the payload after it (HiSLIP, VICP).
+pub trait FrameHeader: Copy {
+    /// The header's size on the wire.
+    const LEN: usize;
+    /// The protocol's name, for errors.
+    const FORMAT: &'static str;
+    /// Reads a header from exactly [`LEN`](Self::LEN) bytes.
+    fn parse(bytes: &[u8]) -> Result<Self, CodecError>;
+    /// The payload length it announces.
+    fn payload_len(&self) -> u64;
+}
+
+/// A header and its payload.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Framed<H> {
+    pub header: H,
+    pub payload: Bytes,
+}
+
+/// Incremental decoder of header-plus-payload frames with a payload limit: a header is parsed
+/// (and its length checked) as soon as its bytes are there, the payload once it is complete.
+#[derive(Debug, Clone)]
+pub struct FramedDecoder<H> {
+    limit: u64,
+    pending: Option<H>,
+}
+
+impl<H> FramedDecoder<H> {
+    pub fn new(limit: u64) -> Self {
+        Self {
+            limit,
+            pending: None,
+        }
+    }
+}
+
+impl<H: FrameHeader> Decode for FramedDecoder<H> {
+    type Item = Framed<H>;
+
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Framed<H>>, CodecError> {
+        let header = match self.pending {
+            Some(h) => h,
+            None => {
+                if src.len() < H::LEN {
+                    return Ok(None);
+                }
+                let h = H::parse(&src[..H::LEN])?;
+                if h.payload_len() > self.limit {
+                    return Err(CodecError::TooLarge {
+                        format: H::FORMAT,
+                        announced: h.payload_len(),
+                        limit: self.limit,
+                    });
+                }
+                src.advance(H::LEN);
+                self.pending = Some(h);
+                h
+            }
+        };
+        let len = header.payload_len() as usize;
+        if src.len() < len {
+            reserve_announced(src, len - src.len(), self.limit);
+            return Ok(None);
+        }
+        self.pending = None;
+        let payload = src.split_to(len).freeze();
+        Ok(Some(Framed { header, payload }))
+    }
+
+    fn announced(&self) -> u64 {
+        self.pending.map_or(0, |h| h.payload_len() + H::LEN as u64)
+    }
 }
 
 /// Largest reservation made from a length field alone (after its check against the limit): a

@@ -2,8 +2,7 @@
 //! parameter u32, payload length u64`, then the payload.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::{reserve_announced, Decode};
-use bytes::{Buf, Bytes, BytesMut};
+use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
 
 pub const HEADER_LEN: usize = 16;
 const FORMAT: &str = "HiSLIP";
@@ -66,6 +65,29 @@ pub struct Header {
     pub len: u64,
 }
 
+/// A header and its payload.
+pub type Frame = Framed<Header>;
+
+/// Incremental HiSLIP frame decoder with a payload limit.
+pub type FrameDecoder = FramedDecoder<Header>;
+
+impl FrameHeader for Header {
+    const LEN: usize = HEADER_LEN;
+    const FORMAT: &'static str = FORMAT;
+
+    fn parse(bytes: &[u8]) -> Result<Self, CodecError> {
+        let bytes: &[u8; HEADER_LEN] = bytes.try_into().map_err(|_| CodecError::BadHeader {
+            format: FORMAT,
+            detail: "a header of the wrong length",
+        })?;
+        Header::parse(bytes)
+    }
+
+    fn payload_len(&self) -> u64 {
+        self.len
+    }
+}
+
 impl Header {
     pub fn new(msg_type: u8, control: u8, param: u32, len: u64) -> Self {
         Self {
@@ -103,73 +125,12 @@ impl Header {
     }
 }
 
-/// A header and its payload.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Frame {
-    pub header: Header,
-    pub payload: Bytes,
-}
-
 /// Encodes a whole message with a small payload (control messages).
 pub fn encode_frame(msg_type: u8, control: u8, param: u32, payload: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(&Header::new(msg_type, control, param, payload.len() as u64).encode());
     out.extend_from_slice(payload);
     out
-}
-
-/// Incremental HiSLIP frame decoder with a payload limit.
-#[derive(Debug, Clone)]
-pub struct FrameDecoder {
-    limit: u64,
-    pending: Option<Header>,
-}
-
-impl FrameDecoder {
-    pub fn new(limit: u64) -> Self {
-        Self {
-            limit,
-            pending: None,
-        }
-    }
-}
-
-impl Decode for FrameDecoder {
-    type Item = Frame;
-
-    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Frame>, CodecError> {
-        let header = match self.pending {
-            Some(h) => h,
-            None => {
-                if src.len() < HEADER_LEN {
-                    return Ok(None);
-                }
-                let h = Header::parse(src[..HEADER_LEN].try_into().expect("16 bytes"))?;
-                if h.len > self.limit {
-                    return Err(CodecError::TooLarge {
-                        format: FORMAT,
-                        announced: h.len,
-                        limit: self.limit,
-                    });
-                }
-                src.advance(HEADER_LEN);
-                self.pending = Some(h);
-                h
-            }
-        };
-        let len = header.len as usize;
-        if src.len() < len {
-            reserve_announced(src, len - src.len(), self.limit);
-            return Ok(None);
-        }
-        self.pending = None;
-        let payload = src.split_to(len).freeze();
-        Ok(Some(Frame { header, payload }))
-    }
-
-    fn announced(&self) -> u64 {
-        self.pending.map_or(0, |h| h.len + HEADER_LEN as u64)
-    }
 }
 
 /// Initialize parameter: protocol version 1.0 and the vendor ID "RB" (radbench).
@@ -180,6 +141,8 @@ pub(crate) const FIRST_MESSAGE_ID: u32 = 0xFFFF_FF00;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::transport::io::Decode;
+    use bytes::BytesMut;
 
     fn frames(chunks: &[&[u8]], limit: u64) -> Result<Vec<Frame>, CodecError> {
         crate::transport::io::decode_chunks(FrameDecoder::new(limit), chunks)

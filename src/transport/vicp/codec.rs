@@ -2,8 +2,7 @@
 //! reserved u8, length u32 BE`, then the block.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::{reserve_announced, Decode};
-use bytes::{Buf, Bytes, BytesMut};
+use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
 
 pub const HEADER_LEN: usize = 8;
 pub const VERSION: u8 = 1;
@@ -26,6 +25,29 @@ pub struct Header {
     pub version: u8,
     pub seq: u8,
     pub len: u32,
+}
+
+/// A header and its payload.
+pub type Block = Framed<Header>;
+
+/// Incremental VICP block decoder with a payload limit.
+pub type BlockDecoder = FramedDecoder<Header>;
+
+impl FrameHeader for Header {
+    const LEN: usize = HEADER_LEN;
+    const FORMAT: &'static str = FORMAT;
+
+    fn parse(bytes: &[u8]) -> Result<Self, CodecError> {
+        let bytes: &[u8; HEADER_LEN] = bytes.try_into().map_err(|_| CodecError::BadHeader {
+            format: FORMAT,
+            detail: "a header of the wrong length",
+        })?;
+        Header::parse(bytes)
+    }
+
+    fn payload_len(&self) -> u64 {
+        u64::from(self.len)
+    }
 }
 
 impl Header {
@@ -69,69 +91,6 @@ pub fn next_seq(seq: u8) -> u8 {
         1
     } else {
         seq + 1
-    }
-}
-
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Block {
-    pub header: Header,
-    pub payload: Bytes,
-}
-
-/// Incremental VICP block decoder with a payload limit.
-#[derive(Debug, Clone)]
-pub struct BlockDecoder {
-    limit: u64,
-    pending: Option<Header>,
-}
-
-impl BlockDecoder {
-    pub fn new(limit: u64) -> Self {
-        Self {
-            limit,
-            pending: None,
-        }
-    }
-}
-
-impl Decode for BlockDecoder {
-    type Item = Block;
-
-    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Block>, CodecError> {
-        let header = match self.pending {
-            Some(h) => h,
-            None => {
-                if src.len() < HEADER_LEN {
-                    return Ok(None);
-                }
-                let h = Header::parse(src[..HEADER_LEN].try_into().expect("8 bytes"))?;
-                if u64::from(h.len) > self.limit {
-                    return Err(CodecError::TooLarge {
-                        format: FORMAT,
-                        announced: h.len.into(),
-                        limit: self.limit,
-                    });
-                }
-                src.advance(HEADER_LEN);
-                self.pending = Some(h);
-                h
-            }
-        };
-        let len = header.len as usize;
-        if src.len() < len {
-            reserve_announced(src, len - src.len(), self.limit);
-            return Ok(None);
-        }
-        self.pending = None;
-        Ok(Some(Block {
-            header,
-            payload: src.split_to(len).freeze(),
-        }))
-    }
-
-    fn announced(&self) -> u64 {
-        self.pending
-            .map_or(0, |h| u64::from(h.len) + HEADER_LEN as u64)
     }
 }
 

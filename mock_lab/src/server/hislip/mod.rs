@@ -474,6 +474,10 @@ async fn send_response(
         .collect();
     let slices = conn::interleave(&headers, &lens, parts);
     let mut w = writer.lock().await;
+    // Checked under the writer lock: a clear that bumps the generation after this check finds
+    // the reply being written, and the DeviceClearAcknowledge it owes on this channel waits for
+    // the same lock, so a reply from before the clear can only precede the acknowledgement,
+    // where the client discards everything (HiSLIP 2.0, 6.12). Never after it.
     if generation != session.clear_generation.load(Ordering::SeqCst) {
         return Ok(Delivery::Swallowed);
     }

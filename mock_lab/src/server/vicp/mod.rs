@@ -232,6 +232,9 @@ async fn run_worker(mut queue: mpsc::Receiver<Job>, connection: Arc<Connection>)
                 let slices = conn::interleave(&headers, &lens, parts);
                 let plan = connection.options.faults.plan_reply();
                 let mut w = connection.writer.lock().await;
+                // A CLEAR that arrives while this reply is written does not stop it: VICP has
+                // no clear acknowledgement, and the reply carries the sequence number of the
+                // command before the clear, by which the client knows it as stale and drops it.
                 if job.generation != current() {
                     continue;
                 }
