@@ -52,24 +52,13 @@ impl RunSpec {
     /// OFDM frame is simulated as a radar frame: every symbol carries data known to the radar, no
     /// preamble (the communication receiver is not simulated here).
     pub fn new(id: impl Into<String>, waveform: WaveformSpec, targets: Vec<Target>) -> Self {
-        let waveform = match waveform {
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                oversampling,
-                cp_fraction,
-                symbols,
-                ..
-            } => WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                oversampling,
-                cp_fraction,
-                symbols,
-                preamble_symbols: 0,
-            },
-            other => other,
-        };
+        let mut waveform = waveform;
+        if let WaveformSpec::Ofdm {
+            preamble_symbols, ..
+        } = &mut waveform
+        {
+            *preamble_symbols = 0;
+        }
         let algorithm = match waveform {
             WaveformSpec::MskLfm { .. } => Algorithm::Correlation,
             WaveformSpec::Ofdm { .. } => Algorithm::Fourier,
