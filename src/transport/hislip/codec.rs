@@ -76,11 +76,20 @@ impl FrameHeader for Header {
     const FORMAT: &'static str = FORMAT;
 
     fn parse(bytes: &[u8]) -> Result<Self, CodecError> {
-        let bytes: &[u8; HEADER_LEN] = bytes.try_into().map_err(|_| CodecError::BadHeader {
-            format: FORMAT,
-            detail: "a header of the wrong length",
-        })?;
-        Header::parse(bytes)
+        if bytes.len() != HEADER_LEN || &bytes[0..2] != b"HS" {
+            return Err(CodecError::BadHeader {
+                format: FORMAT,
+                detail: "missing the \"HS\" prologue",
+            });
+        }
+        let be =
+            |r: std::ops::Range<usize>| bytes[r].iter().fold(0u64, |v, &b| v << 8 | u64::from(b));
+        Ok(Self {
+            msg_type: bytes[2],
+            control: bytes[3],
+            param: be(4..8) as u32,
+            len: be(8..16),
+        })
     }
 
     fn payload_len(&self) -> u64 {
@@ -110,18 +119,7 @@ impl Header {
     }
 
     pub fn parse(bytes: &[u8; HEADER_LEN]) -> Result<Self, CodecError> {
-        if &bytes[0..2] != b"HS" {
-            return Err(CodecError::BadHeader {
-                format: FORMAT,
-                detail: "missing the \"HS\" prologue",
-            });
-        }
-        Ok(Self {
-            msg_type: bytes[2],
-            control: bytes[3],
-            param: u32::from_be_bytes(bytes[4..8].try_into().expect("4 bytes")),
-            len: u64::from_be_bytes(bytes[8..16].try_into().expect("8 bytes")),
-        })
+        <Self as FrameHeader>::parse(bytes)
     }
 }
 

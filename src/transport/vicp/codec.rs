@@ -37,12 +37,19 @@ impl FrameHeader for Header {
     const LEN: usize = HEADER_LEN;
     const FORMAT: &'static str = FORMAT;
 
-    fn parse(bytes: &[u8]) -> Result<Self, CodecError> {
-        let bytes: &[u8; HEADER_LEN] = bytes.try_into().map_err(|_| CodecError::BadHeader {
-            format: FORMAT,
-            detail: "a header of the wrong length",
-        })?;
-        Header::parse(bytes)
+    fn parse(b: &[u8]) -> Result<Self, CodecError> {
+        if b.len() != HEADER_LEN || b[1] != VERSION {
+            return Err(CodecError::BadHeader {
+                format: FORMAT,
+                detail: "header version is not 1",
+            });
+        }
+        Ok(Self {
+            op: b[0],
+            version: b[1],
+            seq: b[2],
+            len: u32::from_be_bytes([b[4], b[5], b[6], b[7]]),
+        })
     }
 
     fn payload_len(&self) -> u64 {
@@ -66,18 +73,7 @@ impl Header {
     }
 
     pub fn parse(b: &[u8; HEADER_LEN]) -> Result<Self, CodecError> {
-        if b[1] != VERSION {
-            return Err(CodecError::BadHeader {
-                format: FORMAT,
-                detail: "header version is not 1",
-            });
-        }
-        Ok(Self {
-            op: b[0],
-            version: b[1],
-            seq: b[2],
-            len: u32::from_be_bytes([b[4], b[5], b[6], b[7]]),
-        })
+        <Self as FrameHeader>::parse(b)
     }
 
     pub fn eoi(&self) -> bool {
