@@ -234,6 +234,38 @@ fn y_range(plot: &ProfilePlot, x0: f64, x1: f64) -> (f64, f64) {
     (bottom.min(top - 1.0), top)
 }
 
+/// Dashed vertical lines at `xs` over `ys`, dashes and gaps `(dash, gap)` pixels long, the
+/// first one named `label` in the legend.
+fn vertical_lines<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    xs: impl Iterator<Item = f64>,
+    (y0, y1): (f64, f64),
+    (dash, gap): (u32, u32),
+    style: ShapeStyle,
+    label: &str,
+) -> Result<(), String> {
+    for (i, x) in xs.enumerate() {
+        let series = chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x, y0), (x, y1)],
+                dash,
+                gap,
+                style,
+            ))
+            .map_err(|err| err.to_string())?;
+        if i == 0 {
+            series
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+        }
+    }
+    Ok(())
+}
+
 fn render<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     plot: &ProfilePlot,
@@ -283,25 +315,20 @@ fn render<DB: DrawingBackend>(
             .label(curve.label.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
+    let in_view = plot
+        .estimates_m
+        .iter()
+        .copied()
+        .filter(|r| (x0..=x1).contains(r));
     let estimate_style = RGBColor(150, 80, 160).stroke_width(2);
-    for (i, &r) in plot.estimates_m.iter().enumerate() {
-        if !(x0..=x1).contains(&r) {
-            continue;
-        }
-        let series = chart
-            .draw_series(DashedLineSeries::new(
-                vec![(r, y0), (r, y1)],
-                2,
-                3,
-                estimate_style,
-            ))
-            .map_err(e)?;
-        if i == 0 {
-            series
-                .label("estimated range")
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], estimate_style));
-        }
-    }
+    vertical_lines(
+        &mut chart,
+        in_view,
+        (y0, y1),
+        (2, 3),
+        estimate_style,
+        "estimated range",
+    )?;
     let marker_color = RGBColor(200, 30, 30);
     let shown: Vec<&Marker> = plot
         .markers
@@ -344,21 +371,15 @@ fn render<DB: DrawingBackend>(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
     let target_style = BLACK.mix(0.6).stroke_width(1);
-    for (i, &r) in plot.targets_m.iter().enumerate() {
-        let series = chart
-            .draw_series(DashedLineSeries::new(
-                vec![(r, y0), (r, y1)],
-                4,
-                4,
-                target_style,
-            ))
-            .map_err(e)?;
-        if i == 0 {
-            series
-                .label("true range")
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], target_style));
-        }
-    }
+    let targets = plot.targets_m.iter().copied();
+    vertical_lines(
+        &mut chart,
+        targets,
+        (y0, y1),
+        (4, 4),
+        target_style,
+        "true range",
+    )?;
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
