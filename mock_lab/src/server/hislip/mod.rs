@@ -133,6 +133,19 @@ async fn read_control_payload<R: AsyncRead + Unpin>(
     Ok(payload)
 }
 
+/// A header without the "HS" prologue: the FatalError the spec asks for, then the error.
+async fn bad_prologue<T>(w: &mut OwnedWriteHalf, prologue: [u8; 2]) -> Result<T, HislipError> {
+    send(
+        w,
+        kind::FATAL_ERROR,
+        fatal::POORLY_FORMED_HEADER,
+        0,
+        b"header must start with HS",
+    )
+    .await?;
+    Err(HislipError::BadPrologue(prologue))
+}
+
 async fn send(
     w: &mut OwnedWriteHalf,
     kind: u8,
@@ -150,17 +163,7 @@ async fn serve_connection(stream: TcpStream, shared: Arc<Shared>) -> Result<(), 
     let mut reader = BufReader::with_capacity(64 << 10, reader);
     let first = match read_header(&mut reader).await {
         Ok(h) => h,
-        Err(HislipError::BadPrologue(p)) => {
-            send(
-                &mut writer,
-                kind::FATAL_ERROR,
-                fatal::POORLY_FORMED_HEADER,
-                0,
-                b"header must start with HS",
-            )
-            .await?;
-            return Err(HislipError::BadPrologue(p));
-        }
+        Err(HislipError::BadPrologue(p)) => return bad_prologue(&mut writer, p).await,
         Err(e) => return Err(e),
     };
     match first.kind {
@@ -285,16 +288,7 @@ async fn serve_sync<R: AsyncRead + Unpin>(
         let header = match header {
             Ok(h) => h,
             Err(HislipError::BadPrologue(p)) => {
-                let mut w = writer.lock().await;
-                send(
-                    &mut w,
-                    kind::FATAL_ERROR,
-                    fatal::POORLY_FORMED_HEADER,
-                    0,
-                    b"header must start with HS",
-                )
-                .await?;
-                return Err(HislipError::BadPrologue(p));
+                return bad_prologue(&mut *writer.lock().await, p).await
             }
             Err(e) => return Err(e),
         };
@@ -505,17 +499,7 @@ async fn serve_async<R: AsyncRead + Unpin>(
         };
         let header = match header {
             Ok(h) => h,
-            Err(HislipError::BadPrologue(p)) => {
-                send(
-                    &mut writer,
-                    kind::FATAL_ERROR,
-                    fatal::POORLY_FORMED_HEADER,
-                    0,
-                    b"header must start with HS",
-                )
-                .await?;
-                return Err(HislipError::BadPrologue(p));
-            }
+            Err(HislipError::BadPrologue(p)) => return bad_prologue(&mut writer, p).await,
             Err(e) => return Err(e),
         };
         match header.kind {
