@@ -23,6 +23,25 @@ pub(crate) const READ_CHUNK: usize = 8 << 20;
 /// Replies up to this size are coalesced into one write (one TCP segment for small answers).
 const COALESCE_LIMIT: usize = 64 << 10;
 
+/// Binds `addr` and serves every connection with `serve` (on its own task) until the returned
+/// handle is dropped: the raw-socket, HiSLIP and VICP servers' start.
+pub(crate) async fn listen<F, Fut>(
+    protocol: &'static str,
+    addr: SocketAddr,
+    serve: F,
+) -> Result<super::ServerHandle, super::ServerError>
+where
+    F: Fn(TcpStream, SocketAddr) -> Fut + Send + 'static,
+    Fut: Future<Output = ()> + Send + 'static,
+{
+    let listener = super::bind(protocol, addr).await?;
+    let local = listener
+        .local_addr()
+        .map_err(|source| super::ServerError::Start { protocol, source })?;
+    let task = tokio::spawn(accept_loop(listener, protocol, serve));
+    Ok(super::ServerHandle::new(protocol, local, task))
+}
+
 /// Accepts connections forever, running `serve` for each on its own task. Connection tasks live
 /// in a [`JoinSet`] owned by the loop, so aborting the loop's task drops every connection.
 pub(crate) async fn accept_loop<F, Fut>(listener: TcpListener, protocol: &'static str, serve: F)

@@ -34,27 +34,18 @@ pub async fn serve(
     handler: Arc<dyn Handler>,
     options: ServerOptions,
 ) -> Result<ServerHandle, ServerError> {
-    let listener = super::bind(PROTOCOL, addr).await?;
-    let local = listener.local_addr().map_err(|source| ServerError::Start {
-        protocol: PROTOCOL,
-        source,
-    })?;
-    let task = tokio::spawn(conn::accept_loop(
-        listener,
-        PROTOCOL,
-        move |stream, peer| {
-            let handler = Arc::clone(&handler);
-            let options = options.clone();
-            async move {
-                let result = serve_connection(stream, handler, options).await;
-                conn::log_end(PROTOCOL, peer, result, |e| match e {
-                    RawError::Io(io) => Some(io),
-                    RawError::Framing(_) => None,
-                });
-            }
-        },
-    ));
-    Ok(ServerHandle::new(PROTOCOL, local, task))
+    conn::listen(PROTOCOL, addr, move |stream, peer| {
+        let handler = Arc::clone(&handler);
+        let options = options.clone();
+        async move {
+            let result = serve_connection(stream, handler, options).await;
+            conn::log_end(PROTOCOL, peer, result, |e| match e {
+                RawError::Io(io) => Some(io),
+                RawError::Framing(_) => None,
+            });
+        }
+    })
+    .await
 }
 
 async fn serve_connection(

@@ -46,32 +46,23 @@ pub async fn serve(
     handler: Arc<dyn Handler>,
     options: ServerOptions,
 ) -> Result<ServerHandle, ServerError> {
-    let listener = super::bind(PROTOCOL, addr).await?;
-    let local = listener.local_addr().map_err(|source| ServerError::Start {
-        protocol: PROTOCOL,
-        source,
-    })?;
     let shared = Arc::new(Shared {
         handler,
         options,
         sessions: Mutex::new(Sessions::default()),
         lock: Mutex::new(LockTable::default()),
     });
-    let task = tokio::spawn(conn::accept_loop(
-        listener,
-        PROTOCOL,
-        move |stream, peer| {
-            let shared = Arc::clone(&shared);
-            async move {
-                let result = serve_connection(stream, shared).await;
-                conn::log_end(PROTOCOL, peer, result, |e| match e {
-                    HislipError::Io(io) => Some(io),
-                    _ => None,
-                });
-            }
-        },
-    ));
-    Ok(ServerHandle::new(PROTOCOL, local, task))
+    conn::listen(PROTOCOL, addr, move |stream, peer| {
+        let shared = Arc::clone(&shared);
+        async move {
+            let result = serve_connection(stream, shared).await;
+            conn::log_end(PROTOCOL, peer, result, |e| match e {
+                HislipError::Io(io) => Some(io),
+                _ => None,
+            });
+        }
+    })
+    .await
 }
 
 struct Shared {
