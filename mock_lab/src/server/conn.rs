@@ -23,6 +23,29 @@ pub(crate) const READ_CHUNK: usize = 8 << 20;
 /// Replies up to this size are coalesced into one write (one TCP segment for small answers).
 const COALESCE_LIMIT: usize = 64 << 10;
 
+/// [`listen`] for a protocol whose connections each need only the handler and the options:
+/// `serve` runs each one, and how it ended is logged (`io_err` picks out an I/O error, so a
+/// client that vanished is not a warning).
+pub(crate) async fn listen_with_handler<S, Fut, E>(
+    protocol: &'static str,
+    addr: SocketAddr,
+    handler: Arc<dyn super::Handler>,
+    options: super::ServerOptions,
+    serve: S,
+    io_err: fn(&E) -> Option<&io::Error>,
+) -> Result<super::ServerHandle, super::ServerError>
+where
+    S: Fn(TcpStream, Arc<dyn super::Handler>, super::ServerOptions) -> Fut + Send + Sync + 'static,
+    Fut: Future<Output = Result<(), E>> + Send + 'static,
+    E: std::fmt::Display + 'static,
+{
+    listen(protocol, addr, move |stream, peer| {
+        let connection = serve(stream, Arc::clone(&handler), options.clone());
+        async move { log_end(protocol, peer, connection.await, io_err) }
+    })
+    .await
+}
+
 /// Binds `addr` and serves every connection with `serve` (on its own task) until the returned
 /// handle is dropped: the raw-socket, HiSLIP and VICP servers' start.
 pub(crate) async fn listen<F, Fut>(

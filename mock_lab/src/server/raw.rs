@@ -34,17 +34,17 @@ pub async fn serve(
     handler: Arc<dyn Handler>,
     options: ServerOptions,
 ) -> Result<ServerHandle, ServerError> {
-    conn::listen(PROTOCOL, addr, move |stream, peer| {
-        let handler = Arc::clone(&handler);
-        let options = options.clone();
-        async move {
-            let result = serve_connection(stream, handler, options).await;
-            conn::log_end(PROTOCOL, peer, result, |e| match e {
-                RawError::Io(io) => Some(io),
-                RawError::Framing(_) => None,
-            });
-        }
-    })
+    conn::listen_with_handler(
+        PROTOCOL,
+        addr,
+        handler,
+        options,
+        serve_connection,
+        |e| match e {
+            RawError::Io(io) => Some(io),
+            _ => None,
+        },
+    )
     .await
 }
 
