@@ -237,6 +237,42 @@ fn text(raw: &[u8]) -> String {
     String::from_utf8_lossy(&raw[..end]).trim().to_string()
 }
 
+/// COMM_ORDER: the byte order of everything after it.
+fn byte_order(desc: &[u8]) -> Result<ByteOrder, TrcError> {
+    Ok(match (desc[34], desc[35]) {
+        (1, 0) => ByteOrder::LoFirst,
+        (0, 0) => ByteOrder::HiFirst,
+        (a, b) => {
+            return Err(TrcError::BadField {
+                field: "COMM_ORDER",
+                value: format!("bytes {a:#04x} {b:#04x}"),
+                reason: "must be 0 (HIFIRST) or 1 (LOFIRST)",
+            })
+        }
+    })
+}
+
+/// COMM_TYPE (bytes or words) and the descriptor's own length, checked.
+fn data_layout(r: &Reader<'_>) -> Result<(i16, u32), TrcError> {
+    let comm_type = r.i16(32);
+    if !(0..=1).contains(&comm_type) {
+        return Err(TrcError::BadField {
+            field: "COMM_TYPE",
+            value: comm_type.to_string(),
+            reason: "must be 0 (byte) or 1 (word)",
+        });
+    }
+    let wave_descriptor = r.length("WAVE_DESCRIPTOR", 36)?;
+    if (wave_descriptor as usize) < WAVEDESC_LEN {
+        return Err(TrcError::BadField {
+            field: "WAVE_DESCRIPTOR",
+            value: wave_descriptor.to_string(),
+            reason: "the descriptor of template LECROY_2_3 is 346 bytes",
+        });
+    }
+    Ok((comm_type, wave_descriptor))
+}
+
 impl WaveDesc {
     /// Decodes the descriptor at the start of `desc` (at least [`WAVEDESC_LEN`] bytes).
     pub fn decode(desc: &[u8]) -> Result<WaveDesc, TrcError> {
@@ -248,38 +284,15 @@ impl WaveDesc {
                 input: Input::Block,
             });
         }
-        let order = match (desc[34], desc[35]) {
-            (1, 0) => ByteOrder::LoFirst,
-            (0, 0) => ByteOrder::HiFirst,
-            (a, b) => {
-                return Err(TrcError::BadField {
-                    field: "COMM_ORDER",
-                    value: format!("bytes {a:#04x} {b:#04x}"),
-                    reason: "must be 0 (HIFIRST) or 1 (LOFIRST)",
-                })
-            }
+        let r = Reader {
+            desc,
+            order: byte_order(desc)?,
         };
-        let r = Reader { desc, order };
-        let comm_type = r.i16(32);
-        if !(0..=1).contains(&comm_type) {
-            return Err(TrcError::BadField {
-                field: "COMM_TYPE",
-                value: comm_type.to_string(),
-                reason: "must be 0 (byte) or 1 (word)",
-            });
-        }
-        let wave_descriptor = r.length("WAVE_DESCRIPTOR", 36)?;
-        if (wave_descriptor as usize) < WAVEDESC_LEN {
-            return Err(TrcError::BadField {
-                field: "WAVE_DESCRIPTOR",
-                value: wave_descriptor.to_string(),
-                reason: "the descriptor of template LECROY_2_3 is 346 bytes",
-            });
-        }
+        let (comm_type, wave_descriptor) = data_layout(&r)?;
         let d = WaveDesc {
             template_name: r.text(16, 16),
             comm_type,
-            order,
+            order: r.order,
             wave_descriptor,
             user_text: r.length("USER_TEXT", 40)?,
             res_desc1: r.length("RES_DESC1", 44)?,
@@ -337,6 +350,13 @@ impl WaveDesc {
             acq_vert_offset: r.f32(340),
             wave_source: r.i16(344),
         };
+        d.check_values()?;
+        Ok(d)
+    }
+
+    /// The values the data cannot be read without: finite gains and offsets, a positive sample
+    /// interval, a segment count that is not negative.
+    fn check_values(&self) -> Result<(), TrcError> {
         let finite = |field, v: f64| {
             if v.is_finite() {
                 Ok(())
@@ -348,24 +368,24 @@ impl WaveDesc {
                 })
             }
         };
-        finite("VERTICAL_GAIN", f64::from(d.vertical_gain))?;
-        finite("VERTICAL_OFFSET", f64::from(d.vertical_offset))?;
-        finite("HORIZ_OFFSET", d.horiz_offset)?;
-        if !(d.horiz_interval.is_finite() && d.horiz_interval > 0.0) {
+        finite("VERTICAL_GAIN", f64::from(self.vertical_gain))?;
+        finite("VERTICAL_OFFSET", f64::from(self.vertical_offset))?;
+        finite("HORIZ_OFFSET", self.horiz_offset)?;
+        if !(self.horiz_interval.is_finite() && self.horiz_interval > 0.0) {
             return Err(TrcError::BadField {
                 field: "HORIZ_INTERVAL",
-                value: d.horiz_interval.to_string(),
+                value: self.horiz_interval.to_string(),
                 reason: "the sample interval must be a positive number",
             });
         }
-        if d.subarray_count < 0 {
+        if self.subarray_count < 0 {
             return Err(TrcError::BadField {
                 field: "SUBARRAY_COUNT",
-                value: d.subarray_count.to_string(),
+                value: self.subarray_count.to_string(),
                 reason: "a segment count cannot be negative",
             });
         }
-        Ok(d)
+        Ok(())
     }
 
     /// Bytes per sample of the data arrays.
