@@ -67,7 +67,6 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
             return Ok(());
         }
         file.sync_all()?;
-        drop(file);
         std::fs::rename(&tmp, path)
     })();
     written.map_err(io)?;
@@ -79,6 +78,7 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
                 if let Some(group) = g.borrow_mut().as_mut() {
                     group.hashing += hashing;
                     group.pending.push(Pending {
+                        file,
                         tmp,
                         path: path.to_path_buf(),
                         bytes,
@@ -94,6 +94,8 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
 
 /// A file written in a group: what it is to become and what it holds.
 struct Pending {
+    /// Kept open: the data is synced through it, and the rename checks the name still is it.
+    file: std::fs::File,
     tmp: PathBuf,
     path: PathBuf,
     bytes: u64,
@@ -184,8 +186,10 @@ fn end_group() -> Result<GroupWritten, StorageError> {
     let mut written = Vec::new();
     let mut folders: Vec<PathBuf> = Vec::new();
     for p in group.pending {
-        let done = std::fs::File::open(&p.tmp)
-            .and_then(|f| f.sync_all())
+        let done = p
+            .file
+            .sync_all()
+            .and_then(|()| still_ours(&p.file, &p.tmp))
             .and_then(|()| std::fs::rename(&p.tmp, &p.path));
         in_flight().remove(&p.tmp);
         match done {
@@ -220,6 +224,20 @@ fn end_group() -> Result<GroupWritten, StorageError> {
             files: written,
             hashing_s,
         }),
+    }
+}
+
+/// Whether `tmp` still names the file written through `file` (nothing was put in its place, a
+/// symbolic link least of all, while the group went on): only then is it renamed into place.
+fn still_ours(file: &std::fs::File, tmp: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let (ours, named) = (file.metadata()?, std::fs::symlink_metadata(tmp)?);
+    if named.file_type().is_file() && named.dev() == ours.dev() && named.ino() == ours.ino() {
+        Ok(())
+    } else {
+        Err(std::io::Error::other(
+            "its temporary file was replaced while the step was written; nothing was renamed",
+        ))
     }
 }
 
@@ -415,6 +433,28 @@ mod tests {
         assert_eq!(std::fs::read(dir.path().join("b")).unwrap(), b"222");
         assert_eq!(names(dir.path()), ["a", "b", "sub"]);
         assert!(in_flight().is_empty());
+    }
+
+    #[test]
+    fn a_temporary_replaced_during_the_group_is_not_renamed_into_place() {
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("a.bin");
+        let ended = write_group(|| {
+            write_atomic(&dest, b"radbench output")?;
+            let tmp = GROUP.with(|g| g.borrow().as_ref().unwrap().pending[0].tmp.clone());
+            std::fs::remove_file(&tmp).unwrap();
+            symlink(&victim, &tmp).unwrap();
+            Ok::<_, StorageError>(())
+        });
+        assert!(ended.unwrap_err().to_string().contains("replaced"));
+        assert!(
+            !dest.exists(),
+            "the planted link was not renamed into place"
+        );
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
     }
 
     #[test]
