@@ -14,6 +14,7 @@ mod dsp_music;
 mod dsp_ofdm_radar;
 mod layers;
 mod pipeline_one;
+mod public_api;
 mod simulate_figures;
 mod waveform_ber;
 mod waveform_chain;
