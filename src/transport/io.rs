@@ -149,7 +149,7 @@ pub trait Decode {
 /// One message's worth of reading, with the deadline of [`Timeouts`]: it grows only with the bytes
 /// of this message that actually arrived, never with a length a header announces, and bytes the
 /// transport throws away ([`ReadContext::discard`]) give their time back.
-pub struct ReadContext<'a> {
+pub(crate) struct ReadContext<'a> {
     op: &'static str,
     started: Instant,
     timeouts: Timeouts,
@@ -169,7 +169,7 @@ pub struct ReadContext<'a> {
 }
 
 impl<'a> ReadContext<'a> {
-    pub fn new(op: &'static str, options: &'a LinkOptions) -> Self {
+    pub(crate) fn new(op: &'static str, options: &'a LinkOptions) -> Self {
         Self {
             op,
             started: Instant::now(),
@@ -188,57 +188,57 @@ impl<'a> ReadContext<'a> {
 
     /// Replaces the base time (the read timeout), e.g. with the write timeout for the replies to
     /// VXI-11 device_write.
-    pub fn with_base(mut self, base: Duration) -> Self {
+    pub(crate) fn with_base(mut self, base: Duration) -> Self {
         self.timeouts.read = base;
         self
     }
 
     /// The bytes that earn transfer time: those of this message received so far, at most the
     /// largest message.
-    pub fn counted(&self) -> u64 {
+    pub(crate) fn counted(&self) -> u64 {
         (self.received - self.discarded).min(self.max_counted)
     }
 
-    pub fn deadline(&self) -> Instant {
+    pub(crate) fn deadline(&self) -> Instant {
         self.started + self.allowed()
     }
 
-    pub fn elapsed(&self) -> Duration {
+    pub(crate) fn elapsed(&self) -> Duration {
         self.started.elapsed()
     }
 
     /// The time this read is allowed so far: the read timeout plus the allowance earned.
-    pub fn allowed(&self) -> Duration {
+    pub(crate) fn allowed(&self) -> Duration {
         self.timeouts.read + self.timeouts.allowance_for(self.counted())
     }
 
     /// The timeout, reported with the time that was allowed (what the user set, plus the
     /// allowance), or the time taken if the peer gave up first.
-    pub fn timeout_error(&self) -> LinkError {
+    pub(crate) fn timeout_error(&self) -> LinkError {
         LinkError::Timeout {
             op: self.op,
             after: self.elapsed().min(self.allowed()),
         }
     }
 
-    pub fn op(&self) -> &'static str {
+    pub(crate) fn op(&self) -> &'static str {
         self.op
     }
 
     /// Time left before the deadline (zero if passed).
-    pub fn remaining(&self) -> Duration {
+    pub(crate) fn remaining(&self) -> Duration {
         self.deadline().saturating_duration_since(Instant::now())
     }
 
     /// Declares the total message size once known, e.g. from a block header. Used for progress
     /// reports only: a claim earns no time.
-    pub fn expect_total(&mut self, total: u64) {
+    pub(crate) fn expect_total(&mut self, total: u64) {
         self.expected = self.expected.max(total);
     }
 
     /// Gives back the time earned by `bytes` the transport has thrown away (a stale reply, a
     /// frame that is not part of the message): they do not stretch the deadline.
-    pub fn discard(&mut self, bytes: u64) {
+    pub(crate) fn discard(&mut self, bytes: u64) {
         self.discarded = self.discarded.saturating_add(bytes).min(self.received);
     }
 
@@ -258,7 +258,7 @@ impl<'a> ReadContext<'a> {
 
     /// Reads until `decoder` yields a frame. Cancel safe (see the module docs). The buffer grows
     /// as bytes arrive, never beyond the largest message plus framing slack.
-    pub async fn read_frame<S, D>(
+    pub(crate) async fn read_frame<S, D>(
         &mut self,
         stream: &mut S,
         buf: &mut BytesMut,
@@ -298,7 +298,7 @@ impl<'a> ReadContext<'a> {
 
 /// Framing overhead allowed on top of the largest message in a receive buffer: headers, record
 /// marks, XDR fields, and the start of the next frame read along with this one.
-pub const FRAMING_SLACK: usize = 64 << 10;
+pub(crate) const FRAMING_SLACK: usize = 64 << 10;
 
 /// The most a receive buffer holds for messages of at most `max_message` bytes.
 pub fn buffer_ceiling(max_message: usize) -> usize {
@@ -331,7 +331,7 @@ pub fn reserve_within(buf: &mut BytesMut, additional: usize, ceiling: usize) {
 }
 
 /// A reply of `total` bytes (so far) over the `limit` of the largest message.
-pub fn reply_too_large(protocol: &'static str, total: u64, limit: usize) -> LinkError {
+pub(crate) fn reply_too_large(protocol: &'static str, total: u64, limit: usize) -> LinkError {
     LinkError::Codec {
         protocol,
         source: CodecError::TooLarge {
@@ -344,7 +344,7 @@ pub fn reply_too_large(protocol: &'static str, total: u64, limit: usize) -> Link
 
 /// Appends one frame's payload to a message assembled from several frames, refusing a message
 /// over `limit` bytes (a peer that never sends the last frame) before growing the buffer.
-pub fn append_within(
+pub(crate) fn append_within(
     message: &mut BytesMut,
     data: &[u8],
     limit: usize,
@@ -357,6 +357,68 @@ pub fn append_within(
     reserve_within(message, data.len(), limit);
     message.extend_from_slice(data);
     Ok(())
+}
+
+/// One message put together from the frames that carry it (HiSLIP Data, VICP blocks, VXI-11
+/// reads). A message of one frame is passed on as it came, a shared `Bytes` with no copy; only a
+/// message of several frames is copied into one buffer, and never past the limit.
+pub(crate) struct Reassembly {
+    first: Option<Bytes>,
+    rest: BytesMut,
+    limit: usize,
+    protocol: &'static str,
+}
+
+impl Reassembly {
+    pub(crate) fn new(limit: usize, protocol: &'static str) -> Self {
+        Reassembly {
+            first: None,
+            rest: BytesMut::new(),
+            limit,
+            protocol,
+        }
+    }
+
+    /// Adds the next frame's payload; a message past the limit is an error.
+    pub(crate) fn push(&mut self, payload: Bytes) -> Result<(), LinkError> {
+        match &self.first {
+            None if payload.len() > self.limit => Err(reply_too_large(
+                self.protocol,
+                payload.len() as u64,
+                self.limit,
+            )),
+            None => {
+                self.first = Some(payload);
+                Ok(())
+            }
+            Some(head) => {
+                if self.rest.is_empty() {
+                    append_within(&mut self.rest, head, self.limit, self.protocol)?;
+                }
+                append_within(&mut self.rest, &payload, self.limit, self.protocol)
+            }
+        }
+    }
+
+    /// Drops what came so far (it belonged to an abandoned message); returns how many bytes.
+    pub(crate) fn abandon(&mut self) -> usize {
+        let dropped = self
+            .first
+            .take()
+            .map_or(0, |f| f.len())
+            .max(self.rest.len());
+        self.rest.clear();
+        dropped
+    }
+
+    /// The whole message.
+    pub(crate) fn finish(self) -> Bytes {
+        if self.rest.is_empty() {
+            self.first.unwrap_or_default()
+        } else {
+            self.rest.freeze()
+        }
+    }
 }
 
 /// A fixed-size header that announces the length of the payload after it (HiSLIP, VICP).
@@ -436,10 +498,10 @@ impl<H: FrameHeader> Decode for FramedDecoder<H> {
 /// Largest reservation made from a length field alone (after its check against the limit): a
 /// frame announced larger grows as its bytes actually arrive, so a peer's claim cannot make us
 /// reserve more than this up front. Big enough for a 64 MB block in one piece.
-pub const PRESIZE_LIMIT: usize = 128 << 20;
+pub(crate) const PRESIZE_LIMIT: usize = 128 << 20;
 
 /// Makes room for `wanted` more bytes of a frame whose length a header announced (already
-/// checked against the limit), at most [`PRESIZE_LIMIT`]: the payload is then read straight
+/// checked against the limit), at most `PRESIZE_LIMIT`: the payload is then read straight
 /// into place, without regrowth copies.
 pub fn reserve_announced(src: &mut BytesMut, wanted: usize, limit: u64) {
     let ceiling = buffer_ceiling(usize::try_from(limit).unwrap_or(usize::MAX));
@@ -522,7 +584,7 @@ async fn write_all_vectored<S: AsyncWrite + Unpin>(
 }
 
 /// Maps an I/O error, recognising a peer that went away.
-pub fn io_error(op: &'static str, source: std::io::Error) -> LinkError {
+pub(crate) fn io_error(op: &'static str, source: std::io::Error) -> LinkError {
     use std::io::ErrorKind as K;
     match source.kind() {
         K::UnexpectedEof | K::ConnectionReset | K::ConnectionAborted | K::BrokenPipe => {
@@ -533,7 +595,7 @@ pub fn io_error(op: &'static str, source: std::io::Error) -> LinkError {
 }
 
 /// Writes `parts` back to back (no copy into one buffer) before a deadline that grows with size.
-pub async fn write_parts<S: AsyncWrite + Unpin>(
+pub(crate) async fn write_parts<S: AsyncWrite + Unpin>(
     stream: &mut S,
     parts: &[&[u8]],
     op: &'static str,
@@ -589,7 +651,7 @@ pub async fn write_parts<S: AsyncWrite + Unpin>(
 }
 
 /// Connects a TCP stream within the connect timeout, with Nagle off (small commands go out at once).
-pub async fn connect_tcp(
+pub(crate) async fn connect_tcp(
     host: &str,
     port: u16,
     protocol: &'static str,

@@ -8,7 +8,7 @@ pub mod codec;
 
 use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID, HEADER_LEN};
 use super::error::LinkError;
-use super::io::{append_within, connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -211,9 +211,7 @@ impl HislipLink {
     /// Reads Data frames up to DataEnd for the last message sent; older replies are dropped.
     pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("HiSLIP read", options);
-        let limit = options.max_message_bytes;
-        let mut first: Option<Bytes> = None;
-        let mut rest = BytesMut::new();
+        let mut message = Reassembly::new(options.max_message_bytes, PROTOCOL);
         loop {
             let frame = self.sync.next(&mut ctx).await?;
             match frame.header.msg_type {
@@ -224,29 +222,17 @@ impl HislipLink {
                         ctx.discard(wire_len(&frame));
                         continue;
                     }
-                    match &first {
-                        None => first = Some(frame.payload),
-                        Some(head) => {
-                            if rest.is_empty() {
-                                append_within(&mut rest, head, limit, PROTOCOL)?;
-                            }
-                            append_within(&mut rest, &frame.payload, limit, PROTOCOL)?;
-                        }
-                    }
-                    if frame.header.msg_type == msg::DATA_END {
+                    let end = frame.header.msg_type == msg::DATA_END;
+                    message.push(frame.payload)?;
+                    if end {
                         self.rmt_delivered = true;
-                        return Ok(if rest.is_empty() {
-                            first.unwrap_or_default()
-                        } else {
-                            rest.freeze()
-                        });
+                        return Ok(message.finish());
                     }
                 }
                 msg::INTERRUPTED => {
                     // What came so far belonged to an abandoned message.
-                    let dropped = first.take().map_or(0, |f| f.len()).max(rest.len());
+                    let dropped = message.abandon();
                     ctx.discard(dropped as u64 + wire_len(&frame));
-                    rest.clear();
                 }
                 msg::ERROR | msg::FATAL_ERROR => return Err(fatal(&frame, "read")),
                 _ => return Err(unexpected(&frame, "Data or DataEnd")),

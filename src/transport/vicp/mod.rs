@@ -9,7 +9,7 @@ pub mod codec;
 
 use self::codec::{next_seq, op, BlockDecoder, Header, HEADER_LEN};
 use super::error::LinkError;
-use super::io::{append_within, connect_tcp, write_parts, LinkOptions, ReadContext};
+use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};
 use tokio::net::TcpStream;
 
@@ -63,9 +63,7 @@ impl VicpLink {
 
     pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("VICP read", options);
-        let limit = options.max_message_bytes;
-        let mut first: Option<Bytes> = None;
-        let mut rest = BytesMut::new();
+        let mut message = Reassembly::new(options.max_message_bytes, PROTOCOL);
         loop {
             let block = ctx
                 .read_frame(&mut self.stream, &mut self.buf, &mut self.decoder, PROTOCOL)
@@ -80,21 +78,9 @@ impl VicpLink {
                 ctx.discard(HEADER_LEN as u64 + block.payload.len() as u64);
                 continue;
             }
-            match &first {
-                None => first = Some(block.payload),
-                Some(head) => {
-                    if rest.is_empty() {
-                        append_within(&mut rest, head, limit, PROTOCOL)?;
-                    }
-                    append_within(&mut rest, &block.payload, limit, PROTOCOL)?;
-                }
-            }
+            message.push(block.payload)?;
             if h.eoi() {
-                return Ok(if rest.is_empty() {
-                    first.unwrap_or_default()
-                } else {
-                    rest.freeze()
-                });
+                return Ok(message.finish());
             }
         }
     }

@@ -12,9 +12,7 @@ pub mod rpc;
 use self::messages::{flags, proc_, reason, CreateLinkResp};
 use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
 use super::error::LinkError;
-use super::io::{
-    append_within, connect_tcp, reply_too_large, write_parts, LinkOptions, ReadContext,
-};
+use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};
 use std::time::Duration;
 use tokio::net::TcpStream;
@@ -286,8 +284,7 @@ impl Vxi11Link {
     pub(crate) async fn read_message(&mut self, options: &LinkOptions) -> Result<Bytes, LinkError> {
         let mut ctx = ReadContext::new("VXI-11 device_read", options)
             .with_base(options.timeouts.read + REPLY_GRACE);
-        let mut first: Option<Bytes> = None;
-        let mut rest = BytesMut::new();
+        let mut message = Reassembly::new(options.max_message_bytes, PROTOCOL);
         let mut received = 0usize;
         loop {
             let budget = options.max_message_bytes.saturating_sub(received).max(1);
@@ -319,25 +316,9 @@ impl Vxi11Link {
             }
             device_error("device_read", resp.error)?;
             received += resp.data.len();
-            let limit = options.max_message_bytes;
-            match &first {
-                None if resp.data.len() > limit => {
-                    return Err(reply_too_large(PROTOCOL, received as u64, limit))
-                }
-                None => first = Some(resp.data),
-                Some(head) => {
-                    if rest.is_empty() {
-                        append_within(&mut rest, head, limit, PROTOCOL)?;
-                    }
-                    append_within(&mut rest, &resp.data, limit, PROTOCOL)?;
-                }
-            }
+            message.push(resp.data)?;
             if resp.reason & (reason::END | reason::CHR) != 0 {
-                return Ok(if rest.is_empty() {
-                    first.unwrap_or_default()
-                } else {
-                    rest.freeze()
-                });
+                return Ok(message.finish());
             }
         }
     }
