@@ -93,7 +93,7 @@ pub fn run_steps(a: &AccuracySpec) -> Result<AccuracyStudy, SimError> {
         spec.snr_db = a.snr_db;
         spec.seed = a.seed;
         let (measured_m, r) = peak_of(&spec)?;
-        spec.interpolate = false;
+        spec.processing.interpolate = false;
         let (measured_on_grid_m, _) = peak_of(&spec)?;
         if reference.is_none() {
             reference = Some(r);

@@ -15,7 +15,7 @@ use super::scene::{EchoSynth, Target, BENCH_CARRIER_HZ};
 use super::SimError;
 use crate::dsp::correlate::CrossCorrelator;
 use crate::dsp::decimate::{Decimator, DecimatorConfig};
-use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum};
+use crate::dsp::music::{Music, MusicConfig, MusicSpectrum};
 use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
 use crate::rng::SplitMix64;
 use crate::waveform::bits::BitSource;
@@ -125,14 +125,8 @@ impl<'a> Kernels<'a> {
             radar: OfdmRadar::new(OfdmRadarConfig::default())?,
             idiv: IDiv::new(),
             profile: RangeProfile::new(),
-            music: Music::new(MusicConfig {
-                subcarriers: 128,
-                subarray: 64,
-                order: ModelOrder::Fixed(2),
-                forward_backward: true,
-                grid_points: 1280,
-                bandwidth_hz: 1e9,
-            })?,
+            // The thesis' MUSIC (Table 4.2): 128 subcarriers, subarray 64, two targets.
+            music: Music::new(MusicConfig::default())?,
             spectrum: MusicSpectrum::default(),
         })
     }

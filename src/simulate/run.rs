@@ -70,7 +70,7 @@ impl SimOutcome {
                     "{}: {} {} (phase {}{})",
                     spec.id,
                     spec.waveform.name(),
-                    spec.algorithm.name(),
+                    spec.processing.algorithm.name(),
                     spec.carrier,
                     spec.snr_db
                         .map(|s| format!(", {s} dB/sample"))
@@ -135,12 +135,12 @@ struct TrialMetrics {
 
 fn measure(analysis: &RangeResult, spec: &RunSpec) -> TrialMetrics {
     let truth: Vec<f64> = spec.targets.iter().map(|t| t.range_m).collect();
-    let interp = if spec.interpolate {
+    let interp = if spec.processing.interpolate {
         Interpolation::ParabolicDb
     } else {
         Interpolation::None
     };
-    let grid_free = spec.algorithm.is_grid_free();
+    let grid_free = spec.processing.algorithm.is_grid_free();
     if let (true, Some(ranges)) = (grid_free, &analysis.estimates_m) {
         // Grid-free: each target takes the nearest estimate within +-s/2 (s = nearest neighbour).
         let per_target: Vec<Option<f64>> = truth
@@ -176,7 +176,7 @@ fn measure(analysis: &RangeResult, spec: &RunSpec) -> TrialMetrics {
         .map(|p| primary.axis.at(interpolate_peak(amp, p.index, interp).0))
         .collect();
     peaks_m.sort_by(f64::total_cmp);
-    let is_music = spec.algorithm == Algorithm::Music;
+    let is_music = spec.processing.algorithm == Algorithm::Music;
     let (width, psl) = match (truth.len(), peaks.first(), is_music) {
         (1, Some(top), false) => {
             let (_, height) = interpolate_peak(amp, top.index, Interpolation::ParabolicDb);
@@ -188,7 +188,7 @@ fn measure(analysis: &RangeResult, spec: &RunSpec) -> TrialMetrics {
     };
     // Where the estimator refined its peaks off the grid (MUSIC), report those positions.
     let snap = |x: f64| {
-        if !spec.interpolate {
+        if !spec.processing.interpolate {
             return x;
         }
         analysis
@@ -233,22 +233,12 @@ fn errors(found: &[Option<f64>], truth: &[f64]) -> Vec<Option<f64>> {
 /// The processing options of a run: its choices, no range window but the synthesis window.
 pub fn process_options(spec: &RunSpec) -> ProcessOptions {
     ProcessOptions {
-        algorithm: spec.algorithm,
-        music_m: spec.music_m,
-        music_p: spec.music_p,
-        forward_backward: spec.forward_backward,
-        zero_pad: spec.zero_pad,
-        window: spec.window,
-        fft_precision: spec.fft_precision,
-        interpolate: spec.interpolate,
         system_delay_s: 0.0,
         min_range_m: 0.0,
         max_range_m: spec.max_range_m().min(1e4),
-        detector: Default::default(),
-        pfa: spec.pfa,
-        min_separation_m: None,
         carrier_hz: crate::simulate::scene::BENCH_CARRIER_HZ,
         awg_amplitude_vpp: None,
+        ..spec.processing.clone()
     }
 }
 
@@ -368,14 +358,14 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
     let extra = match spec.waveform {
         WaveformSpec::Ofdm { .. } => BTreeMap::from([(
             "fft_precision".to_string(),
-            serde_json::json!(spec.fft_precision),
+            serde_json::json!(spec.processing.fft_precision),
         )]),
         WaveformSpec::MskLfm { .. } => BTreeMap::new(),
     };
     let result = ScenarioResult {
         id: spec.id.clone(),
         waveform: spec.waveform.name(),
-        algorithm: spec.algorithm.name(),
+        algorithm: spec.processing.algorithm.name(),
         carrier_phase: spec.carrier,
         snr_db: spec.snr_db,
         capture_rate_hz: fs * up as f64,

@@ -42,7 +42,7 @@ impl Target {
     }
 
     /// Round-trip delay in seconds.
-    pub fn delay_s(&self) -> f64 {
+    pub(crate) fn delay_s(&self) -> f64 {
         2.0 * self.range_m / C0
     }
 }

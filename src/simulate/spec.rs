@@ -4,7 +4,7 @@
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
 /// The processing choices a run spec names (defined in [`crate::measure::options`]).
-pub use crate::measure::options::{Algorithm, FftPrecisionName, WindowName};
+pub use crate::measure::options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 /// The waveform a run transmits (defined in [`crate::waveform::spec`]).
 pub use crate::waveform::spec::WaveformSpec;
 use serde::Serialize;
@@ -23,26 +23,14 @@ pub struct RunSpec {
     pub targets: Vec<Target>,
     /// Per-sample SNR at the capture rate for a unit-amplitude target; `None` = noise-free.
     pub snr_db: Option<f64>,
-    pub algorithm: Algorithm,
-    /// MUSIC sub-vector (covariance) size M.
-    pub music_m: usize,
-    /// Number of targets for MUSIC/root-MUSIC/ESPRIT; `None` = estimate (MDL).
-    pub music_p: Option<usize>,
-    /// Forward-backward averaging for MUSIC (on by default; off = forward smoothing only).
-    pub forward_backward: bool,
-    /// OFDM Fourier zero-padding factor (IFFT length = factor x subcarriers).
-    pub zero_pad: usize,
-    pub window: WindowName,
-    /// Precision of the OFDM receiver's per-symbol FFT.
-    pub fft_precision: FftPrecisionName,
+    /// How the echoes are processed: the same options a capture takes (`radbench process`). The
+    /// range window, the bench delay and the carrier are the simulation's own
+    /// ([`process_options`](super::run::process_options)).
+    pub processing: ProcessOptions,
     pub carrier: CarrierPhase,
     /// Capture rate; `None` = process at the waveform rate. A multiple of the waveform rate runs the
     /// lab chain: echoes at the capture rate, noise there, then decimation to the waveform rate.
     pub capture_rate_hz: Option<f64>,
-    /// Sub-sample peak interpolation (on by default).
-    pub interpolate: bool,
-    /// Probability of false alarm of the detector (the detections reported beside the figures).
-    pub pfa: f64,
     pub seed: u64,
     pub trials: usize,
 }
@@ -59,33 +47,21 @@ impl RunSpec {
         {
             *preamble_symbols = 0;
         }
-        let algorithm = match waveform {
-            WaveformSpec::MskLfm { .. } => Algorithm::Correlation,
-            WaveformSpec::Ofdm { .. } => Algorithm::Fourier,
-        };
         Self {
             id: id.into(),
+            processing: ProcessOptions::for_waveform(waveform.kind()),
             waveform,
             targets,
             snr_db: None,
-            algorithm,
-            music_m: 64,
-            music_p: None,
-            forward_backward: true,
-            zero_pad: 10,
-            window: WindowName::Rect,
-            fft_precision: FftPrecisionName::Single,
             carrier: CarrierPhase::Physical,
             capture_rate_hz: None,
-            interpolate: true,
-            pfa: 1e-6,
             seed: 1,
             trials: 1,
         }
     }
 
     /// Checks the combination of settings; the waveform and dsp layers check their own numbers.
-    pub fn validate(&self) -> Result<(), SimError> {
+    pub(crate) fn validate(&self) -> Result<(), SimError> {
         let bad = |field: &'static str, reason: String| Err(SimError::Param { field, reason });
         if self.targets.is_empty() {
             return bad(
@@ -213,7 +189,7 @@ mod tests {
     #[test]
     fn msk_lfm_refuses_ofdm_algorithms_naming_the_field() {
         let mut spec = RunSpec::new("x", WaveformSpec::msk_lfm_default(), vec![Target::at(3.0)]);
-        spec.algorithm = Algorithm::Music;
+        spec.processing.algorithm = Algorithm::Music;
         let err = crate::simulate::run::simulate(&spec)
             .err()
             .unwrap()

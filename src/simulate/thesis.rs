@@ -268,9 +268,9 @@ fn single_target_row(
 }
 
 /// Seeds over which the bit-count study is averaged (the side-lobes depend on the bits).
-pub const BIT_STUDY_SEEDS: [u64; 4] = [1, 2, 3, 4];
+pub(crate) const BIT_STUDY_SEEDS: [u64; 4] = [1, 2, 3, 4];
 
-/// Mean peak side-lobe and width over [`BIT_STUDY_SEEDS`] for `bits` bits per pulse.
+/// Mean peak side-lobe and width over `BIT_STUDY_SEEDS` for `bits` bits per pulse.
 pub fn mean_psl_and_width(bits: usize) -> Result<(f64, f64, ScenarioResult), SimError> {
     let mut psl = 0.0;
     let mut width = 0.0;
@@ -406,7 +406,7 @@ fn ofdm_ifft_size(ctx: &mut Ctx) -> Result<(), SimError> {
         WaveformSpec::ofdm_default(),
         targets(&[3.0, 3.15]),
     );
-    spec.zero_pad = 1;
+    spec.processing.zero_pad = 1;
     let r128 = ctx.run(&spec)?.result;
     ctx.push(
         "4.2.1",
@@ -420,7 +420,7 @@ fn ofdm_ifft_size(ctx: &mut Ctx) -> Result<(), SimError> {
     );
     let mut thesis_spec = spec.clone();
     thesis_spec.id = "4.2.1-ofdm-ifft-1280-thesis-phase".into();
-    thesis_spec.zero_pad = 10;
+    thesis_spec.processing.zero_pad = 10;
     thesis_spec.carrier = CarrierPhase::Thesis;
     let thesis_r = ctx.run(&thesis_spec)?.result;
     let mut phys_spec = thesis_spec.clone();
@@ -467,12 +467,12 @@ fn fourier_vs_music(ctx: &mut Ctx) -> Result<(), SimError> {
             WaveformSpec::ofdm_default(),
             targets(&[1.0, second]),
         );
-        spec.algorithm = Algorithm::Music;
-        spec.music_m = 64;
-        spec.music_p = Some(2);
+        spec.processing.algorithm = Algorithm::Music;
+        spec.processing.music_m = 64;
+        spec.processing.music_p = Some(2);
         let mut music = ctx.run(&spec)?.result;
         let mut fspec = spec.clone();
-        fspec.algorithm = Algorithm::Fourier;
+        fspec.processing.algorithm = Algorithm::Fourier;
         fspec.id = format!("4.2.3{label}-fourier-1.00-{second:.2}");
         let fourier = ctx.run(&fspec)?.result;
         let fourier_ok = fourier_expect.is_none_or(|want| fourier.resolved == want);
@@ -520,10 +520,10 @@ fn music_table_4_3(ctx: &mut Ctx) -> Result<(), SimError> {
             ofdm_symbols(1),
             targets(&[1.0, 1.06]),
         );
-        spec.algorithm = Algorithm::Music;
-        spec.music_m = m;
-        spec.music_p = Some(2);
-        spec.forward_backward = false;
+        spec.processing.algorithm = Algorithm::Music;
+        spec.processing.music_m = m;
+        spec.processing.music_p = Some(2);
+        spec.processing.forward_backward = false;
         spec.snr_db = Some(20.0);
         spec.trials = TABLE_4_3_TRIALS;
         let mut r = ctx.run(&spec)?.result;
@@ -582,9 +582,9 @@ fn music_snr(ctx: &mut Ctx) -> Result<(), SimError> {
             ofdm_symbols(1),
             targets(&[1.0, 1.15]),
         );
-        spec.algorithm = Algorithm::Music;
-        spec.music_m = 64;
-        spec.music_p = Some(2);
+        spec.processing.algorithm = Algorithm::Music;
+        spec.processing.music_m = 64;
+        spec.processing.music_p = Some(2);
         spec.snr_db = Some(snr);
         spec.trials = 20;
         let r = ctx.run(&spec)?.result;

@@ -19,7 +19,7 @@ fn spec(waveform: WaveformSpec, algorithm: Algorithm) -> RunSpec {
             },
         ],
     );
-    spec.algorithm = algorithm;
+    spec.processing.algorithm = algorithm;
     spec.snr_db = Some(20.0);
     spec.capture_rate_hz = Some(80e9);
     spec.seed = 7;
@@ -54,7 +54,7 @@ fn check(spec: RunSpec) {
         outcome.profiles.len(),
         captured.profiles.len(),
         "{}",
-        spec.algorithm.name()
+        spec.processing.algorithm.name()
     );
     for (a, b) in outcome.profiles.iter().zip(&captured.profiles) {
         assert_eq!(a.label, b.label);
@@ -65,7 +65,7 @@ fn check(spec: RunSpec) {
                 .zip(&b.amplitude)
                 .all(|(x, y)| x.to_bits() == y.to_bits()),
             "{}: profile {} differs",
-            spec.algorithm.name(),
+            spec.processing.algorithm.name(),
             a.label
         );
     }
@@ -74,7 +74,7 @@ fn check(spec: RunSpec) {
         outcome.result.detected_m,
         detected,
         "{}",
-        spec.algorithm.name()
+        spec.processing.algorithm.name()
     );
 }
 
@@ -96,7 +96,7 @@ fn simulate_and_capture_agree_bit_for_bit_every_ofdm_algorithm() {
         Algorithm::Esprit,
     ] {
         let mut s = spec(WaveformSpec::ofdm_default(), alg);
-        s.music_p = Some(2);
+        s.processing.music_p = Some(2);
         check(s);
     }
 }

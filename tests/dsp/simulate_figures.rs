@@ -73,7 +73,7 @@ fn ofdm_3_00_and_3_15_m_with_a_128_point_ifft_are_not_resolved() {
             WaveformSpec::ofdm_default(),
             vec![Target::at(3.0), Target::at(3.15)],
         );
-        spec.zero_pad = 1;
+        spec.processing.zero_pad = 1;
         spec.carrier = carrier;
         assert!(!simulate(&spec).unwrap().result.resolved, "{carrier}");
     }
@@ -100,8 +100,8 @@ fn esprit_returns_noise_free_ranges_directly() {
         WaveformSpec::ofdm_default(),
         vec![Target::at(1.0), Target::at(1.06)],
     );
-    spec.algorithm = Algorithm::Esprit;
-    spec.music_p = Some(2);
+    spec.processing.algorithm = Algorithm::Esprit;
+    spec.processing.music_p = Some(2);
     let r = simulate(&spec).unwrap().result;
     assert!(r.resolved && r.range_bin_m.is_none());
     for e in r.errors_cm {
