@@ -83,8 +83,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! A LeCroy trace (here built in memory; `Trace::from_trc_bytes` reads a saved `.trc`) gives
-//! volts and times per segment:
+//! A LeCroy trace (a `WF?` reply's block, or a saved `.trc` file) gives volts and times per
+//! segment:
 //!
 //! ```
 //! use radbench::trc::BlockBuilder;
@@ -92,9 +92,15 @@
 //!
 //! let block = BlockBuilder { gain: 1.0 / 64.0, interval: 12.5e-12, ..BlockBuilder::default() }
 //!     .build(&[0, 64, -64]);
-//! let trace = Trace::decode(1, block.into())?;
+//! let trace = Trace::decode(1, block.clone().into())?;
 //! assert_eq!(trace.volts(), vec![0.0, 1.0, -1.0]);
 //! assert!((trace.sample_interval_s() - 12.5e-12).abs() < 1e-18);
+//!
+//! let path = std::env::temp_dir().join(format!("radbench-doc-{}.trc", std::process::id()));
+//! std::fs::write(&path, &block)?;
+//! let saved = Trace::from_trc_bytes(1, std::fs::read(&path)?.into())?;
+//! std::fs::remove_file(&path)?;
+//! assert_eq!(saved.volts(), trace.volts());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!

@@ -46,7 +46,7 @@ impl SplitMix64 {
     }
 
     /// Standard normal deviate (Box-Muller).
-    pub fn gaussian(&mut self) -> f64 {
+    pub(crate) fn gaussian(&mut self) -> f64 {
         if let Some(z) = self.spare.take() {
             return z;
         }

@@ -4,7 +4,7 @@
 //! - [`WaveDesc::decode`]: every field of the descriptor, in either byte order (COMM_ORDER).
 //! - [`Trace::decode`]: a `WF? ALL` block payload: descriptor, USER_TEXT, TRIGTIME and RIS_TIME
 //!   arrays, data array 1 (8-bit or 16-bit codes); the raw block kept so it can be saved as `.trc`.
-//! - [`Trace::from_file_bytes`]: a `.trc` file as scopes and other tools write it: `#9<len>` or no
+//! - `Trace::from_file_bytes`: a `.trc` file as scopes and other tools write it: `#9<len>` or no
 //!   file header, WAVEDESC after a short prefix (`C1:WF ALL,`), trailing bytes ignored.
 //! - [`Trace::segments`]: the segments of a sequence-mode record (SUBARRAY_COUNT > 1), each with
 //!   its trigger time and trigger offset from the TRIGTIME array.
@@ -27,7 +27,7 @@ pub use builder::BlockBuilder;
 pub use trace::{Segment, SegmentTime, Trace};
 
 /// Bytes of the descriptor in template `LECROY_2_3`.
-pub const WAVEDESC_LEN: usize = 346;
+pub(crate) const WAVEDESC_LEN: usize = 346;
 const NAME: &[u8] = b"WAVEDESC";
 /// How far into a block the descriptor name may start (some firmware puts a short prefix first).
 const NAME_SEARCH: usize = 64;
@@ -274,7 +274,7 @@ fn data_layout(r: &Reader<'_>) -> Result<(i16, u32), TrcError> {
 }
 
 impl WaveDesc {
-    /// Decodes the descriptor at the start of `desc` (at least [`WAVEDESC_LEN`] bytes).
+    /// Decodes the descriptor at the start of `desc` (at least `WAVEDESC_LEN` bytes).
     pub fn decode(desc: &[u8]) -> Result<WaveDesc, TrcError> {
         if desc.len() < WAVEDESC_LEN {
             return Err(TrcError::Truncated {

@@ -274,7 +274,7 @@ fn invalid(what: &'static str, field: &str, reason: impl Into<String>) -> Catalo
 }
 
 /// Reads an AWG file (for example `embedded::M8195A`).
-pub fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
+pub(crate) fn awg_from_str(text: &str) -> Result<AwgModel, CatalogError> {
     let file: AwgFile = parse("AWG", text)?;
     let model = AwgModel {
         identity: file.identity.emulator,
@@ -374,7 +374,7 @@ pub fn check_digitizer(model: &DigitizerModel) -> Result<(), CatalogError> {
 }
 
 /// Reads a Gotmic module file (for example `embedded::GOTMIC_TX`).
-pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
+pub(crate) fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
     const WHAT: &str = "RF module";
     let file: RfFile = parse(WHAT, text)?;
     let model = RfModel {
@@ -465,7 +465,7 @@ pub fn gotmic_tx() -> Result<RfModel, CatalogError> {
 }
 
 /// The built-in Gotmic E-band receiver model.
-pub fn gotmic_rx() -> Result<RfModel, CatalogError> {
+pub(crate) fn gotmic_rx() -> Result<RfModel, CatalogError> {
     rf_from_str(embedded::GOTMIC_RX)
 }
 

@@ -58,12 +58,12 @@ impl SharedScene {
     }
 
     /// The seed the noise generator must restart from, once (after `set` or `seed`).
-    pub fn take_reseed(&self) -> Option<u64> {
+    pub(crate) fn take_reseed(&self) -> Option<u64> {
         lock(&self.reseed).take()
     }
 
     /// Records that a capture was made with `scene`.
-    pub fn record_capture(&self, scene: Scene) {
+    pub(crate) fn record_capture(&self, scene: Scene) {
         let mut last = lock(&self.last);
         last.0 += 1;
         last.1 = Some(scene);

@@ -1,6 +1,6 @@
 //! Faults the tests can switch on at run time, one [`Faults`] per server.
 //!
-//! Every protocol server asks its `Faults` for a [`ReplyPlan`] each time the instrument produced a
+//! Every protocol server asks its `Faults` for a `ReplyPlan` each time the instrument produced a
 //! response, and delivers the response accordingly. This is what lets a client's tests provoke the
 //! failures real links show: a slow instrument, a reply trickling in one byte per TCP segment, a
 //! connection that dies in the middle of a binary block, a query whose answer never comes.
@@ -27,7 +27,7 @@ pub struct Faults {
 
 /// How one response is to be delivered.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ReplyPlan {
+pub(crate) struct ReplyPlan {
     /// Wait this long before sending anything.
     pub delay: Duration,
     /// Write the encoded response one byte at a time, flushing after each byte.
@@ -38,7 +38,7 @@ pub struct ReplyPlan {
 
 /// The fate of one response.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ReplyFate {
+pub(crate) enum ReplyFate {
     /// Send it whole.
     Deliver,
     /// Send the first half of the encoded bytes, then close the connection.
@@ -49,7 +49,7 @@ pub enum ReplyFate {
 
 impl ReplyPlan {
     /// A plan without any fault.
-    pub const CLEAN: ReplyPlan = ReplyPlan {
+    pub(crate) const CLEAN: ReplyPlan = ReplyPlan {
         delay: Duration::ZERO,
         byte_segments: false,
         fate: ReplyFate::Deliver,
@@ -64,7 +64,7 @@ impl Faults {
 
     /// Faults of one server that also obeys `shared` (the lab-wide switches): a test can stall one
     /// instrument while the others keep answering.
-    pub fn layered(shared: Arc<Faults>) -> Arc<Faults> {
+    pub(crate) fn layered(shared: Arc<Faults>) -> Arc<Faults> {
         Arc::new(Faults {
             shared: Some(shared),
             ..Faults::default()
@@ -101,7 +101,7 @@ impl Faults {
     }
 
     /// Decide how the next response is delivered, consuming a pending one-shot fault.
-    pub fn plan_reply(&self) -> ReplyPlan {
+    pub(crate) fn plan_reply(&self) -> ReplyPlan {
         let own = self.plan_own();
         match &self.shared {
             None => own,

@@ -26,7 +26,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 #[derive(Debug, Clone)]
 pub struct LabOptions {
     pub scene: Scene,
-    /// Consecutive ports from this one instead of OS-assigned ones (see [`PORTS_PER_INSTRUMENT`]).
+    /// Consecutive ports from this one instead of OS-assigned ones (five per instrument: raw,
+    /// VXI-11 core and abort, HiSLIP, VICP).
     pub port_base: Option<u16>,
     /// Port of the scope's VICP endpoint (pyvisa's VICP resource reaches only 1861).
     pub vicp_port: Option<u16>,
@@ -58,7 +59,7 @@ impl Default for LabOptions {
 }
 
 /// Ports used per instrument with a port base: raw, VXI-11 core, VXI-11 abort, HiSLIP, VICP.
-pub const PORTS_PER_INSTRUMENT: u16 = 5;
+pub(crate) const PORTS_PER_INSTRUMENT: u16 = 5;
 
 /// Why the lab did not start.
 #[derive(Debug, thiserror::Error)]
@@ -139,7 +140,6 @@ pub struct Lab {
     pub scope_faults: Arc<Faults>,
     /// Every endpoint as it is now, in serving order.
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
-    scope_switch: Arc<ScopeSwitch>,
     _running: Vec<Running>,
     _follower: AbortOnDrop,
     _control: control::ControlServer,
@@ -391,7 +391,6 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         faults,
         scope_faults,
         endpoints: endpoints_now,
-        scope_switch,
         _running: running,
         _follower: AbortOnDrop(follower),
     })
@@ -439,25 +438,8 @@ impl Lab {
             .cloned()
     }
 
-    /// Switches the scope's remote interface (Utilities > Remote) and returns once its endpoint
-    /// for that protocol accepts connections and the other refuses them.
-    pub async fn set_scope_remote(&self, remote: RemoteInterface) -> Result<(), LabError> {
-        self.bench.scope.set_remote_interface(remote);
-        self.scope_switch
-            .apply()
-            .await
-            .map_err(|source| LabError::Server {
-                instrument: "scope".into(),
-                transport: match remote {
-                    RemoteInterface::Vicp => "vicp",
-                    RemoteInterface::Vxi11 => "vxi11",
-                },
-                source,
-            })
-    }
-
     /// One JSON object naming every endpoint and the control channel.
-    pub fn describe_json(&self) -> serde_json::Value {
+    pub(crate) fn describe_json(&self) -> serde_json::Value {
         serde_json::json!({
             "endpoints": self.endpoints(),
             "control": self.control.to_string(),
@@ -734,7 +716,8 @@ mod tests {
         assert!(!connects(&vxi11.address).await, "closed port refuses");
         assert!(!connects(vxi11.abort_address.as_deref().unwrap()).await);
 
-        lab.set_scope_remote(RemoteInterface::Vxi11).await.unwrap();
+        let v = control(&lab, r#"{"cmd":"scope_remote","interface":"vxi11"}"#).await;
+        assert_eq!(v["ok"], true, "{v}");
         let now = lab.endpoint("scope", Transport::Vxi11).unwrap();
         assert_eq!(now.address, vxi11.address, "same port after the switch");
         assert!(now.active);

@@ -240,7 +240,7 @@ impl Scene {
 }
 
 /// Most targets, and most clutter reflectors, a scene may hold.
-pub const MAX_REFLECTORS: usize = 100;
+pub(crate) const MAX_REFLECTORS: usize = 100;
 
 fn finite_in(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     if v.is_finite() && v >= lo && v <= hi {

@@ -369,7 +369,7 @@ fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
 /// Every (waveform, algorithm) prepared, and for `music_p = "targets"` every (waveform,
 /// subspace algorithm, model order) the steps need: transmissions generated, options checked,
 /// instrument settings planned against the catalog, pipelines built. Touches no instrument.
-pub struct PreparedSet {
+pub(crate) struct PreparedSet {
     /// `[waveform][algorithm]`.
     pub base: Vec<Vec<Prepared>>,
     /// `(waveform, algorithm, p)` for the steps' own model orders.
@@ -1137,8 +1137,8 @@ impl StepJob {
         let result = {
             let mut outputs = vec![AlgorithmOutput {
                 name: self.names[0],
-                processed: &m.processed,
-                spread: m.spread.as_ref(),
+                processed: &m.processing.processed,
+                spread: m.processing.spread.as_ref(),
             }];
             for (o, name) in others.iter().zip(&self.names[1..]) {
                 outputs.push(AlgorithmOutput {
@@ -1150,12 +1150,12 @@ impl StepJob {
             results::step_result(
                 &self.step,
                 self.bandwidth_hz,
-                m.captured.repetitions(),
-                m.ground_truth.as_ref(),
+                m.taken.captured.repetitions(),
+                m.taken.ground_truth.as_ref(),
                 &outputs,
             )
         };
-        let applied = serde_json::to_value(&m.captured.applied)
+        let applied = serde_json::to_value(&m.taken.captured.applied)
             .ok()
             .as_ref()
             .and_then(manifest::json_to_toml);
@@ -1242,10 +1242,7 @@ fn write_step_files(
 
 /// Exchanges a measurement's processing with another algorithm's (to write that one's files).
 fn swap_processing(m: &mut Measurement, p: &mut Processing) {
-    std::mem::swap(&mut m.processed, &mut p.processed);
-    std::mem::swap(&mut m.repetitions, &mut p.repetitions);
-    std::mem::swap(&mut m.spread, &mut p.spread);
-    std::mem::swap(&mut m.options, &mut p.options);
+    std::mem::swap(&mut m.processing, p);
 }
 
 /// The error class of a finished run's stop, for the exit code.

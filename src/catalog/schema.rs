@@ -7,13 +7,13 @@
 use serde::Deserialize;
 
 /// The catalog format version this code reads.
-pub const SCHEMA_VERSION: u32 = 1;
+pub(crate) const SCHEMA_VERSION: u32 = 1;
 
 /// One instrument model: everything radbench needs to know about it as data.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentModel {
-    /// Catalog format version; must equal [`SCHEMA_VERSION`].
+    /// Catalog format version; must equal `SCHEMA_VERSION`.
     pub schema: u32,
     pub instrument: Info,
     pub identity: Identity,

@@ -72,7 +72,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             &interrupt,
         )
         .await?;
-        let estimate = estimate_delay(&m.processed, args.reference_range, args.search)?;
+        let estimate = estimate_delay(&m.processing.processed, args.reference_range, args.search)?;
         let calibration = Calibration {
             system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(args.reference_range),

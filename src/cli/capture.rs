@@ -257,7 +257,7 @@ async fn measure_into(
         );
         return Err(MeasureError::Interrupted {
             signal,
-            report: m.safe_state.to_string(),
+            report: m.taken.safe_state.to_string(),
         }
         .into());
     }
@@ -276,14 +276,14 @@ fn report(m: &Measurement, out: &Path) -> String {
     macro_rules! println {
         ($($arg:tt)*) => { writeln!(text, $($arg)*).unwrap_or(()) };
     }
-    let p = &m.processed;
-    let o = &m.options;
+    let p = &m.processing.processed;
+    let o = &m.processing.options;
     println!(
         "{} capture, {} processing, {} samples per repetition at {} GSa/s",
-        m.tx.name(),
+        m.taken.tx.name(),
         o.algorithm.name(),
         m.period(),
-        m.tx.sample_rate_hz() / 1e9
+        m.taken.tx.sample_rate_hz() / 1e9
     );
     if p.targets.is_empty() {
         println!("targets: none");
@@ -291,6 +291,7 @@ fn report(m: &Measurement, out: &Path) -> String {
         println!("targets:");
         for (k, t) in p.targets.iter().enumerate() {
             let spread = m
+                .processing
                 .spread
                 .as_ref()
                 .and_then(|s| s.targets.get(k))
@@ -300,7 +301,7 @@ fn report(m: &Measurement, out: &Path) -> String {
                         "   +- {:.2} mm over {} of {} repetitions",
                         r.std * 1e3,
                         r.n,
-                        m.captured.repetitions()
+                        m.taken.captured.repetitions()
                     )
                 })
                 .unwrap_or_default();
@@ -312,7 +313,7 @@ fn report(m: &Measurement, out: &Path) -> String {
         s.map(|s| format!(" (repetitions: {:.2} +- {:.2} {unit})", s.mean, s.std))
             .unwrap_or_default()
     };
-    let spread = m.spread.as_ref();
+    let spread = m.processing.spread.as_ref();
     println!(
         "-3 dB width: {}{}",
         opt(p.width_3db_cm, "cm"),
@@ -337,16 +338,8 @@ fn report(m: &Measurement, out: &Path) -> String {
             ),
         }
     }
-    if let Some(truth) = &m.ground_truth {
-        let ranges: Vec<String> = truth["targets"]
-            .as_array()
-            .map(|t| {
-                t.iter()
-                    .filter_map(|x| x["range_m"].as_f64())
-                    .map(|r| format!("{r:.4} m"))
-                    .collect()
-            })
-            .unwrap_or_default();
+    if let Some(truth) = &m.taken.ground_truth {
+        let ranges = super::process::target_ranges(&truth["targets"]);
         println!("simulated scene (ground truth): {}", ranges.join(", "));
     }
     for w in &p.warnings {

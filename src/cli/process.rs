@@ -336,15 +336,7 @@ fn report(
     }
     let mut text = String::new();
     for (s, dir, summary) in done {
-        let targets: Vec<String> = summary["targets"]
-            .as_array()
-            .map(|t| {
-                t.iter()
-                    .filter_map(|x| x["range_m"].as_f64())
-                    .map(|r| format!("{r:.4} m"))
-                    .collect()
-            })
-            .unwrap_or_default();
+        let targets = target_ranges(&summary["targets"]);
         text.push_str(&format!(
             "{s}: {} {}: targets {} -> {}\n",
             summary["waveform"].as_str().unwrap_or("?"),
@@ -367,4 +359,17 @@ fn report(
         done.len() as f64 / elapsed_s.max(1e-9)
     ));
     super::terminal::out(&text)
+}
+
+/// The `range_m` of each target in a summary's (or a ground truth's) `targets` list, as text.
+pub(super) fn target_ranges(targets: &serde_json::Value) -> Vec<String> {
+    targets
+        .as_array()
+        .map(|t| {
+            t.iter()
+                .filter_map(|x| x["range_m"].as_f64())
+                .map(|r| format!("{r:.4} m"))
+                .collect()
+        })
+        .unwrap_or_default()
 }

@@ -4,7 +4,7 @@
 //!   ([`printable`]): an escape sequence in an `*IDN?` reply must not recolour, retitle or clear
 //!   the user's terminal, nor a carriage return overwrite what was printed before it.
 //! - Standard output may be a pipe its reader closes early (`radbench ... | head`): [`out`]
-//!   reports that as [`StdoutClosed`] instead of panicking as `println!` does, and `main` ends
+//!   reports that as `StdoutClosed` instead of panicking as `println!` does, and `main` ends
 //!   such a run quietly (see [`is_closed_output_panic`] for the commands that still use
 //!   `println!` or `eprintln!`).
 
@@ -14,9 +14,9 @@ use std::io::Write;
 /// Standard output was closed by its reader; nothing more can be shown there.
 #[derive(Debug, Clone, Copy, thiserror::Error)]
 #[error("standard output was closed by its reader")]
-pub struct StdoutClosed;
+pub(crate) struct StdoutClosed;
 
-/// Writes `text` and a newline to standard output. A closed pipe is [`StdoutClosed`]; other
+/// Writes `text` and a newline to standard output. A closed pipe is `StdoutClosed`; other
 /// write errors (a full disk behind a redirection) are errors naming standard output.
 pub fn out(text: &str) -> anyhow::Result<()> {
     let mut stdout = std::io::stdout().lock();

@@ -39,7 +39,7 @@ pub struct FaultPlan {
     /// discarded) but the caller gets a timeout: the case where retrying blindly would repeat it.
     pub reply_lost_per_mille: u16,
     /// The connection drops before the operation is sent; it and every later operation on this
-    /// link fail with a closed-link error until [`FaultSwitch::heal`] (the reconnect).
+    /// link fail with a closed-link error until `FaultSwitch::heal` (the reconnect).
     pub drop_per_mille: u16,
     /// The operation is held back by up to [`max_delay`](Self::max_delay) first (a slow network
     /// or instrument): it must still give the right answer.
@@ -126,7 +126,7 @@ impl FaultSwitch {
 
     /// Every dropped link under this switch is back (what a reconnect does); faults stay as
     /// switched.
-    pub fn heal(&self) {
+    pub(crate) fn heal(&self) {
         for down in self.links().iter() {
             down.store(false, Ordering::SeqCst);
         }

@@ -114,16 +114,16 @@ pub(crate) fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
 }
 
 /// Headroom over a model's largest data message, for headers, prefixes and text replies.
-pub const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
+pub(crate) const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
 
 /// The longest line of a line-protocol module (`[protocol]`): its replies are tens of bytes.
-pub const LINE_MESSAGE_BYTES: usize = 64 << 10;
+pub(crate) const LINE_MESSAGE_BYTES: usize = 64 << 10;
 
 /// The largest message a driver exchanges with `model`, from its catalog limits, so a peer that
 /// never ends a message is stopped early (docs/io-timeouts.md): for an AWG, one download chunk
 /// (two bytes per sample when the marker is interleaved); for a digitizer, one channel's record
-/// in 16-bit words plus its WAVEDESC; each plus [`MESSAGE_HEADROOM_BYTES`]. A line-protocol
-/// module gets [`LINE_MESSAGE_BYTES`]; anything else the link's default.
+/// in 16-bit words plus its WAVEDESC; each plus `MESSAGE_HEADROOM_BYTES`. A line-protocol
+/// module gets `LINE_MESSAGE_BYTES`; anything else the link's default.
 pub fn max_message_bytes(model: &InstrumentModel) -> usize {
     let default = LinkOptions::default().max_message_bytes;
     if model.protocol.is_some() {

@@ -79,10 +79,9 @@ pub use io::{BoxFuture, InstrumentIo};
 pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;
-pub(crate) use safe_state::clear_panic_safe_state;
+pub(crate) use safe_state::{clear_panic_safe_state, set_panic_safe_state};
 pub use safe_state::{
-    install_panic_hook, run_guarded, set_panic_safe_state, Outcome, SafeState, SafeStateGuard,
-    SafeStateReport,
+    install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard, SafeStateReport,
 };
 pub use scpi::Scpi;
 pub use scripted::{ScriptLog, Scripted};

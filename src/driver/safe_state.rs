@@ -304,7 +304,7 @@ static PANIC_SAFE_STATE: std::sync::Mutex<Option<SafeState>> = std::sync::Mutex:
 /// retries during unwinding), then the previous hook. One hook per process: a program that
 /// connects again and again (a campaign starts a fresh simulated lab for each step) replaces the
 /// state the hook engages instead of piling up hooks that keep old connections alive.
-pub fn set_panic_safe_state(state: SafeState) {
+pub(crate) fn set_panic_safe_state(state: SafeState) {
     static INSTALL: std::sync::Once = std::sync::Once::new();
     *PANIC_SAFE_STATE.lock().unwrap_or_else(|p| p.into_inner()) = Some(state);
     INSTALL.call_once(|| {

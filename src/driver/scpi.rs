@@ -65,7 +65,7 @@ impl Scpi {
     }
 
     /// The reply to `query`, without its terminator.
-    pub async fn ask(&mut self, query: &str) -> Result<String, DriverError> {
+    pub(crate) async fn ask(&mut self, query: &str) -> Result<String, DriverError> {
         self.io.query(query).await.map_err(session(&self.name))
     }
 

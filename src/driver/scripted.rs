@@ -5,7 +5,7 @@
 //! link fail on it. Everything the driver does is recorded in order in a [`ScriptLog`]; the test
 //! compares that log with the sequence it expects. A query with no canned reply left fails loudly:
 //! the driver gets a protocol error naming the query, and the log lists it under
-//! [`ScriptLog::unexpected`].
+//! `ScriptLog::unexpected`.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
@@ -72,7 +72,7 @@ impl ScriptLog {
     }
 
     /// Queries that had no canned reply left.
-    pub fn unexpected(&self) -> Vec<String> {
+    pub(crate) fn unexpected(&self) -> Vec<String> {
         self.with(|r| r.unexpected.clone())
     }
 

@@ -16,7 +16,7 @@
 //! search over the Kaiser beta and the cut-off, and the first length whose response, measured on a
 //! dense grid, meets the spec wins: the attenuation is checked, not trusted to a formula.
 //!
-//! White noise loses `10 log10(1 / sum h^2)` dB in the filter ([`Decimator::noise_gain_db`]): at
+//! White noise loses `10 log10(1 / sum h^2)` dB in the filter: at
 //! least the 7 dB of an ideal output-Nyquist filter (`10 log10 5`), more here because the designed
 //! cut-off sits below the output Nyquist frequency. The signal band is untouched (0.1 dB), so the
 //! per-sample SNR of an in-band signal rises by that amount.
@@ -134,7 +134,7 @@ impl DecimatorConfig {
 
 /// The measured response of a set of taps against a spec.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MeasuredResponse {
+pub(crate) struct MeasuredResponse {
     /// Smallest attenuation over [stop_edge, 0.5], dB.
     pub stop_atten_db: f64,
     /// Peak-to-peak ripple over [0, pass_edge], dB.
@@ -156,7 +156,7 @@ pub(crate) fn magnitude_response(taps: &[f64], f: f64) -> f64 {
 }
 
 /// Measures `taps` on a dense grid (16 384 points over [0, 0.5], plus the band edges).
-pub fn measure_response(taps: &[f64], spec: &LowPassSpec) -> MeasuredResponse {
+pub(crate) fn measure_response(taps: &[f64], spec: &LowPassSpec) -> MeasuredResponse {
     measure_response_on(taps, spec, GRID)
 }
 
@@ -403,7 +403,8 @@ impl Decimator {
 
     /// How much the filter lowers white noise power, in dB: `-10 log10(sum h^2)` (DC gain is 1, so
     /// an in-band signal keeps its power and its per-sample SNR rises by this much).
-    pub fn noise_gain_db(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn noise_gain_db(&self) -> f64 {
         -10.0 * self.taps.iter().map(|h| h * h).sum::<f64>().log10()
     }
 

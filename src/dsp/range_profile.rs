@@ -66,7 +66,7 @@ impl CorrelationProfiler {
 
     /// Correlation against `filter` (a mismatched filter, e.g. [`weighted_filter`]) instead of `tx`
     /// itself; levels stay normalised so a unit echo of `tx` peaks at 1.
-    pub fn with_filter(
+    pub(crate) fn with_filter(
         tx: &[Complex64],
         filter: &[Complex64],
         rx_len: usize,
@@ -150,7 +150,7 @@ pub(crate) fn music_profile(
 /// `-bandwidth/2 ..= bandwidth/2` (zero outside it) the matched filter's spectrum is flattened and
 /// multiplied by `window`, so an echo's correlation has the window's side-lobes, for a wider main
 /// lobe and a small loss of SNR. `tx` is one period of a periodic signal.
-pub fn weighted_filter(
+pub(crate) fn weighted_filter(
     tx: &[Complex64],
     window: &super::window::Window,
     bandwidth_hz: f64,

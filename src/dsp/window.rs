@@ -34,7 +34,7 @@ pub enum Window {
 
 impl Window {
     /// Checks the window's parameters; the message names the field and what is allowed.
-    pub fn validate(&self) -> Result<(), DspError> {
+    pub(crate) fn validate(&self) -> Result<(), DspError> {
         match *self {
             Window::Rectangular | Window::Hann => Ok(()),
             Window::Taylor { nbar, sll_db } => {
@@ -75,7 +75,7 @@ impl Window {
     }
 
     /// The `n` coefficients of this window.
-    pub fn coefficients(&self, n: usize) -> Result<Vec<f64>, DspError> {
+    pub(crate) fn coefficients(&self, n: usize) -> Result<Vec<f64>, DspError> {
         let mut w = vec![0.0; n];
         self.fill(&mut w)?;
         Ok(w)

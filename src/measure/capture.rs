@@ -38,24 +38,10 @@ pub struct CaptureRequest {
 
 /// A finished capture, processed.
 pub struct Measurement {
-    pub tx: Arc<Transmission>,
-    pub plan: CapturePlan,
-    /// Every repetition's raw capture.
-    pub captured: Captured,
-    /// The result: the coherent average of the repetitions (or the one repetition), processed.
-    pub processed: Processed,
-    /// Each repetition processed alone (empty for a single repetition).
-    pub repetitions: Vec<RepetitionResult>,
-    /// The repetitions' spread around the result (several repetitions only).
-    pub spread: Option<Spread>,
-    /// The options as used (with the AWG amplitude the instrument applied).
-    pub options: ProcessOptions,
-    pub identities: Identities,
-    /// The simulated scene of this capture (ground truth), on a simulated bench.
-    pub ground_truth: Option<Value>,
-    pub safe_state: SafeStateReport,
-    /// The background subtracted, if any: its file and SHA-256.
-    pub background: Option<BackgroundFile>,
+    /// The capture as taken, and the bench's safe state after it.
+    pub taken: Taken,
+    /// What the pipeline made of it.
+    pub processing: Processing,
 }
 
 /// A background capture as used: where it is and what it held.
@@ -68,7 +54,7 @@ pub struct BackgroundFile {
 impl Measurement {
     /// Samples of one repetition at the waveform rate.
     pub fn period(&self) -> usize {
-        self.plan.period
+        self.taken.plan.period
     }
 }
 
@@ -366,7 +352,7 @@ pub struct Taken {
     /// The simulated scene of this capture (ground truth), on a simulated bench.
     pub ground_truth: Option<Value>,
     pub safe_state: SafeStateReport,
-    /// The background the preparation subtracts, if any.
+    /// The background subtracted, if any: its file and SHA-256.
     pub background: Option<BackgroundFile>,
 }
 
@@ -374,17 +360,8 @@ impl Taken {
     /// The measurement, with what a pipeline made of this capture.
     pub fn with(self, processing: Processing) -> Measurement {
         Measurement {
-            tx: self.tx,
-            plan: self.plan,
-            captured: self.captured,
-            processed: processing.processed,
-            repetitions: processing.repetitions,
-            spread: processing.spread,
-            options: processing.options,
-            identities: self.identities,
-            ground_truth: self.ground_truth,
-            safe_state: self.safe_state,
-            background: self.background,
+            taken: self,
+            processing,
         }
     }
 }
@@ -404,7 +381,7 @@ pub struct Processing {
 /// Processes a capture through `prepared`'s pipeline, off the runtime: each repetition alone and
 /// their coherent average. [`Rig::measure`] does this for its own capture; a campaign calls it
 /// again with the preparation of another algorithm, so the capture is taken once.
-pub async fn process_with(
+pub(crate) async fn process_with(
     prepared: &mut Prepared,
     captured: &Captured,
 ) -> Result<Processing, MeasureError> {
@@ -422,7 +399,7 @@ pub async fn process_with(
 }
 
 /// A preparation's pipeline (and background), lent to a thread that processes with it.
-pub struct LentPipeline {
+pub(crate) struct LentPipeline {
     pipeline: Pipeline,
     background: Option<Aligned>,
     bandwidth_hz: f64,
@@ -430,7 +407,7 @@ pub struct LentPipeline {
 
 impl LentPipeline {
     /// Processes `captured` (see [`process_with`]) on the calling thread.
-    pub fn process(&mut self, captured: &Captured) -> Result<Processing, MeasureError> {
+    pub(crate) fn process(&mut self, captured: &Captured) -> Result<Processing, MeasureError> {
         let raws = captured_raws(captured);
         self.process_raws(captured.applied.awg.i_amplitude_vpp, &raws)
     }
@@ -458,7 +435,7 @@ impl LentPipeline {
 
 impl Prepared {
     /// Lends this preparation's pipeline to a worker; [`Prepared::give_back`] returns it.
-    pub fn lend(&mut self) -> Result<LentPipeline, MeasureError> {
+    pub(crate) fn lend(&mut self) -> Result<LentPipeline, MeasureError> {
         let pipeline = self.pipeline.take().ok_or_else(|| {
             MeasureError::Worker("an earlier measurement lost the pipeline".into())
         })?;
@@ -470,7 +447,7 @@ impl Prepared {
     }
 
     /// Takes back what [`Prepared::lend`] lent.
-    pub fn give_back(&mut self, lent: LentPipeline) {
+    pub(crate) fn give_back(&mut self, lent: LentPipeline) {
         self.pipeline = Some(lent.pipeline);
         self.background = lent.background;
     }

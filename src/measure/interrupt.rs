@@ -1,6 +1,6 @@
 //! The signals that stop a measurement: SIGINT (Ctrl-C), SIGTERM and SIGHUP.
 //!
-//! [`Interrupt::listen`] replaces the default action of the three signals for the rest of the
+//! `Interrupt::listen` replaces the default action of the three signals for the rest of the
 //! process: a signal no longer kills radbench mid-capture but is recorded, the measurement's guard
 //! puts the bench in its safe state, files already captured are finished, and the command exits
 //! with the signal's code (130, 143, 129).
@@ -54,7 +54,7 @@ pub struct Interrupt {
 impl Interrupt {
     /// Starts listening (inside a tokio runtime). Fails only when the signal handlers cannot be
     /// installed.
-    pub fn listen() -> std::io::Result<Interrupt> {
+    pub(crate) fn listen() -> std::io::Result<Interrupt> {
         use tokio::signal::unix::{signal, SignalKind};
         let mut int = signal(SignalKind::interrupt())?;
         let mut term = signal(SignalKind::terminate())?;

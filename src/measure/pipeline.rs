@@ -8,7 +8,7 @@
 //! reused for every capture.
 //!
 //! Chain: [`Pipeline::align`] decimates the capture to the waveform rate and rotates it so sample
-//! `m` lies `m / fs` after the marker edge (up to a sub-sample residual); [`Pipeline::analyse`]
+//! `m` lies `m / fs` after the marker edge (up to a sub-sample residual); `Pipeline::analyse`
 //! computes the range profiles and the detections; [`Pipeline::process`] adds the metrics and the
 //! payload. The AWG loops its segment, so the received signal is periodic: one repetition holds
 //! every echo (wrapped) and correlation is circular over it. Ranges are measured from the antennas:
@@ -55,7 +55,7 @@ pub struct RawIq {
 /// The capture as the scope's words and their scaling (volts = gain * word - offset), I and Q:
 /// aligned without a record in volts first.
 #[derive(Debug, Clone)]
-pub struct RawWords {
+pub(crate) struct RawWords {
     pub i: Vec<i16>,
     pub q: Vec<i16>,
     pub gain: [f64; 2],
@@ -125,14 +125,12 @@ impl RecordGeometry {
 
 /// What the range processing gives for one record.
 #[derive(Debug, Clone)]
-pub struct RangeResult {
+pub(crate) struct RangeResult {
     /// Primary profile first (MUSIC over Fourier when both; Fourier for the grid-free
     /// estimators), ranges from the antennas, amplitudes relative to a unit-gain path.
     pub profiles: Vec<Profile>,
     /// Ranges estimated without a grid (root-MUSIC, ESPRIT) or refined off it (MUSIC's peaks).
     pub estimates_m: Option<Vec<f64>>,
-    /// The subspace model order used (MUSIC, root-MUSIC, ESPRIT).
-    pub model_order: Option<usize>,
     /// The primary profile's complex values, on its scale (correlation and Fourier): what the
     /// detector fits targets to.
     pub complex: Option<Vec<Complex64>>,
@@ -140,14 +138,14 @@ pub struct RangeResult {
 
 impl RangeResult {
     /// The primary profile.
-    pub fn primary(&self) -> &Profile {
+    pub(crate) fn primary(&self) -> &Profile {
         &self.profiles[0]
     }
 }
 
 /// Range processing and detection of one record.
 #[derive(Debug, Clone)]
-pub struct Analysis {
+pub(crate) struct Analysis {
     pub range: RangeResult,
     pub detection: DetectionReport,
 }
@@ -252,7 +250,7 @@ impl std::fmt::Debug for Pipeline {
 
 /// Checks the processing options against the transmission before anything is built (and, on the
 /// bench, before anything radiates).
-pub fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<(), MeasureError> {
+pub(crate) fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<(), MeasureError> {
     let alg = options.algorithm;
     if !alg.supports(tx.spec.kind()) {
         return Err(MeasureError::AlgorithmNeedsOfdm {
@@ -564,7 +562,7 @@ impl Pipeline {
 
     /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
     /// same arithmetic as `measure::station::Captured::raw`, so the same result).
-    pub fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
+    pub(crate) fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
         let (i, q) = (&raw.i, &raw.q);
         let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);
         self.align_map(
@@ -664,7 +662,6 @@ impl Pipeline {
                 Ok(RangeResult {
                     profiles: vec![p],
                     estimates_m: None,
-                    model_order: None,
                     complex: Some(z),
                 })
             }
@@ -687,7 +684,6 @@ impl Pipeline {
                     return Ok(RangeResult {
                         profiles: vec![fourier],
                         estimates_m: None,
-                        model_order: None,
                         complex: Some(z),
                     });
                 };
@@ -696,12 +692,10 @@ impl Pipeline {
                 match self.options.algorithm {
                     Algorithm::Esprit => {
                         let r = music.esprit(idiv)?;
-                        let order = r.len();
                         Ok(RangeResult {
                             profiles: vec![fourier],
                             estimates_m: Some(shift(r)),
                             complex: None,
-                            model_order: Some(order),
                         })
                     }
                     Algorithm::RootMusic => {
@@ -711,7 +705,6 @@ impl Pipeline {
                             profiles: vec![fourier],
                             estimates_m: Some(shift(r)),
                             complex: None,
-                            model_order: Some(o.spectrum.order),
                         })
                     }
                     _ => {
@@ -727,7 +720,6 @@ impl Pipeline {
                             profiles: vec![mp, fourier],
                             estimates_m: Some(shift(o.spectrum.peaks_m.clone())),
                             complex: None,
-                            model_order: Some(o.spectrum.order),
                         })
                     }
                 }
@@ -795,12 +787,12 @@ impl Pipeline {
     }
 
     /// Range offset of an aligned record: the residual after the trigger minus the system delay.
-    pub fn offset_m(&self, residual_s: f64) -> f64 {
+    pub(crate) fn offset_m(&self, residual_s: f64) -> f64 {
         (residual_s - self.options.system_delay_s) * C0 / 2.0
     }
 
     /// Range profiles and detections of one aligned record.
-    pub fn analyse(&mut self, aligned: &Aligned) -> Result<Analysis, MeasureError> {
+    pub(crate) fn analyse(&mut self, aligned: &Aligned) -> Result<Analysis, MeasureError> {
         let offset = self.offset_m(aligned.residual_s);
         let range = self.range_profiles(&aligned.samples, offset)?;
         let detector = match range.complex {

@@ -164,10 +164,10 @@ pub(crate) fn write_raw(
     provenance: &Provenance,
 ) -> Result<RawFiles, MeasureError> {
     create_dir(out)?;
-    let captured = &m.captured;
+    let captured = &m.taken.captured;
     let first = captured.first();
     let (i, q) = (&first.i, &first.q);
-    let o = &m.options;
+    let o = &m.processing.options;
     let mut ns = serde_json::Map::new();
     ns.insert(
         "vertical_gain".into(),
@@ -203,28 +203,29 @@ pub(crate) fn write_raw(
         start += n;
     }
     ns.insert("repetitions".into(), json!(reps));
-    ns.insert("waveform".into(), m.tx.describe());
-    ns.insert("instruments".into(), json!(m.identities));
+    ns.insert("waveform".into(), m.taken.tx.describe());
+    ns.insert("instruments".into(), json!(m.taken.identities));
     ns.insert(
         "sample_rates_hz".into(),
-        json!({"awg": m.tx.sample_rate_hz(), "scope": m.captured.applied.scope.sample_rate_hz, "processing": m.tx.sample_rate_hz()}),
+        json!({"awg": m.taken.tx.sample_rate_hz(), "scope": m.taken.captured.applied.scope.sample_rate_hz, "processing": m.taken.tx.sample_rate_hz()}),
     );
     ns.insert("system_delay_s".into(), json!(o.system_delay_s));
     // One repetition at the waveform rate after the AWG's padding: the record's period.
-    ns.insert("period_samples".into(), json!(m.plan.period));
-    if let Some(bg) = &m.background {
+    ns.insert("period_samples".into(), json!(m.taken.plan.period));
+    if let Some(bg) = &m.taken.background {
         ns.insert("background".into(), json!(bg));
     }
     ns.insert("processing".into(), json!(o));
-    if let Some(truth) = &m.ground_truth {
+    if let Some(truth) = &m.taken.ground_truth {
         ns.insert("scene".into(), truth.clone());
     }
     if let Some(path) = &provenance.bench_file {
         ns.insert("bench_file".into(), json!(path.display().to_string()));
     }
     let meta = SigmfMeta {
-        sample_rate: m.captured.applied.scope.sample_rate_hz,
+        sample_rate: m.taken.captured.applied.scope.sample_rate_hz,
         frequency_hz: m
+            .taken
             .ground_truth
             .as_ref()
             .and_then(|s| s["carrier_hz"].as_f64())
@@ -232,9 +233,9 @@ pub(crate) fn write_raw(
         datetime: sigmf::utc_now_rfc3339(),
         description: format!(
             "radbench capture: {} at the scope (I on C1, Q on C2), raw 16-bit words",
-            m.tx.name()
+            m.taken.tx.name()
         ),
-        hw: m.identities.scope.clone(),
+        hw: m.taken.identities.scope.clone(),
         radbench: ns,
         annotations,
     };
@@ -267,10 +268,10 @@ pub(crate) fn write_processed(
     let profiles = write_profiles(
         out,
         "radbench capture",
-        &m.tx,
-        &m.processed,
-        &m.options,
-        m.ground_truth.as_ref(),
+        &m.taken.tx,
+        &m.processing.processed,
+        &m.processing.options,
+        m.taken.ground_truth.as_ref(),
     )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
@@ -291,24 +292,24 @@ pub(crate) fn summary_json(
     files: &CaptureFiles,
     provenance: &Provenance,
 ) -> Value {
-    let p = &m.processed;
-    let o = &m.options;
+    let p = &m.processing.processed;
+    let o = &m.processing.options;
     extended(
-        result_json(&m.tx, p, o),
+        result_json(&m.taken.tx, p, o),
         json!({
-            "repetitions": m.captured.repetitions(),
-            "background": m.background,
-            "spread": m.spread,
-            "each_repetition": m.repetitions,
+            "repetitions": m.taken.captured.repetitions(),
+            "background": m.taken.background,
+            "spread": m.processing.spread,
+            "each_repetition": m.processing.repetitions,
             "warnings": p.warnings,
             "system_delay_s": o.system_delay_s,
             "processing": o,
             "radbench_version": env!("CARGO_PKG_VERSION"),
             "simulated": provenance.simulated,
-            "scene": m.ground_truth,
-            "instruments": m.identities,
-            "applied": m.captured.applied,
-            "transmission": m.tx.describe(),
+            "scene": m.taken.ground_truth,
+            "instruments": m.taken.identities,
+            "applied": m.taken.captured.applied,
+            "transmission": m.taken.tx.describe(),
             "files": files,
         }),
     )

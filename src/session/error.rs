@@ -118,7 +118,7 @@ impl SessionError {
 
     /// Whether the link failed because nobody answered (refused or dropped connection, no reply
     /// in time): see [`LinkError::is_no_answer`].
-    pub fn is_no_answer(&self) -> bool {
+    pub(crate) fn is_no_answer(&self) -> bool {
         self.link_error().is_some_and(LinkError::is_no_answer)
     }
 

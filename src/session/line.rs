@@ -18,7 +18,7 @@ pub struct Crc8 {
 }
 
 impl Crc8 {
-    pub fn checksum(&self, data: &[u8]) -> u8 {
+    pub(crate) fn checksum(&self, data: &[u8]) -> u8 {
         let mut crc = self.init;
         for byte in data {
             crc ^= byte;

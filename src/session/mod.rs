@@ -23,10 +23,8 @@ pub mod reply;
 pub(crate) use error::ErrorList;
 pub use error::{DeviceError, SessionError};
 pub use line::{Crc8, LineProtocol};
-pub use reply::{
-    parse_block, parse_f64, parse_i64, parse_idn, register_error_text, Block, BlockForm, Identity,
-};
-pub(crate) use reply::{parse_bool, without_header};
+pub use reply::{parse_block, parse_f64, parse_i64, parse_idn, Block, BlockForm, Identity};
+pub(crate) use reply::{parse_bool, register_error_text, without_header};
 
 use self::line::LineReply;
 use crate::address::Resource;
@@ -35,12 +33,12 @@ use bytes::Bytes;
 use std::time::Duration;
 
 /// The longest the error queue is read for, in all, after a query went unanswered.
-pub const ERROR_QUEUE_AFTER_TIMEOUT: Duration = Duration::from_secs(2);
+pub(crate) const ERROR_QUEUE_AFTER_TIMEOUT: Duration = Duration::from_secs(2);
 /// The SCPI error queue: each read pops one `<code>,"<text>"` entry.
 pub const SCPI_ERROR_QUERY: &str = "SYST:ERR?";
 /// LeCroy's command error register (legacy IEEE 488.2 command set; cleared when read): the scopes
 /// that speak VICP have no SCPI error queue.
-pub const VICP_ERROR_QUERY: &str = "CMR?";
+pub(crate) const VICP_ERROR_QUERY: &str = "CMR?";
 
 /// How a session talks to its instrument.
 #[derive(Debug, Clone)]
@@ -48,7 +46,7 @@ pub struct SessionOptions {
     pub link: LinkOptions,
     /// The query that pops one error-queue entry, or reads an error register that clears when
     /// read (each non-zero value is one error). Empty: chosen by the transport, [`SCPI_ERROR_QUERY`]
-    /// or, on VICP, [`VICP_ERROR_QUERY`].
+    /// or, on VICP, `VICP_ERROR_QUERY`.
     pub error_query: String,
     /// At most this many entries are drained at once (a queue that never empties is reported).
     pub max_error_entries: usize,
@@ -123,7 +121,7 @@ impl Session {
     }
 
     /// Whether every request gets a reply line ([`SessionOptions::line`]): then
-    /// [`query_raw`](Self::query_raw) is the way to send anything whose answer should be seen.
+    /// `query_raw` is the way to send anything whose answer should be seen.
     pub fn answers_every_request(&self) -> bool {
         self.options.line.is_some()
     }
@@ -210,7 +208,7 @@ impl Session {
     ///
     /// On a line-protocol device the reply line comes back without its CRC, and an `ERR` line is
     /// the device's refusal ([`SessionError::Device`]).
-    pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+    pub(crate) async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
         self.query_raw_waiting(query, None).await
     }
 
@@ -383,16 +381,10 @@ impl Session {
     }
 
     /// Sends a query and returns the block in its reply (payload not copied). A query left
-    /// unanswered is reported with the instrument's errors, as by [`query_raw`](Self::query_raw).
+    /// unanswered is reported with the instrument's errors, as by `query_raw`.
     pub async fn query_block(&mut self, query: &str) -> Result<Block, SessionError> {
         let raw = self.query_raw(query).await?;
         self.parse_block_reply(query, raw)
-    }
-
-    /// Reads a reply that carries a block; `command` is used in error messages.
-    pub async fn read_block(&mut self, command: &str) -> Result<Block, SessionError> {
-        let raw = self.read_raw().await?;
-        self.parse_block_reply(command, raw)
     }
 
     fn parse_block_reply(&self, command: &str, raw: Bytes) -> Result<Block, SessionError> {

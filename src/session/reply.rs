@@ -129,7 +129,7 @@ pub(crate) fn without_header(t: &str) -> &str {
 /// error register `CMR?` and execution error register `EXR?` (the X-Stream remote control
 /// manual's legacy command set \[V-src\]), else a plain description. Drivers reading these
 /// registers themselves use the same table.
-pub fn register_error_text(query: &str, code: i32) -> &'static str {
+pub(crate) fn register_error_text(query: &str, code: i32) -> &'static str {
     let register = query.trim();
     if register.eq_ignore_ascii_case("CMR?") {
         command_register_text(code)

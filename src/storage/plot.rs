@@ -32,7 +32,7 @@ pub struct Curve {
 
 impl Curve {
     /// A solid curve.
-    pub fn solid(label: impl Into<String>, range_m: Vec<f64>, db: Vec<f64>) -> Self {
+    pub(crate) fn solid(label: impl Into<String>, range_m: Vec<f64>, db: Vec<f64>) -> Self {
         Self {
             label: label.into(),
             range_m,

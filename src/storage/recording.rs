@@ -98,7 +98,7 @@ impl Classify for RecordingError {
     }
 }
 
-/// Reads a `.trc` file (see [`Trace::from_file_bytes`] for what is accepted).
+/// Reads a `.trc` file (see `Trace::from_file_bytes` for what is accepted).
 pub fn read_trc(path: &Path) -> Result<Trace, RecordingError> {
     let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
         path: path.to_path_buf(),

@@ -132,7 +132,7 @@ impl LinkError {
     /// Whether nobody answered: the connection was refused or dropped, the server refused the
     /// link, or no reply came in time. At connection time this usually means the instrument does
     /// not serve this protocol at this address (or is off), rather than a fault on a working link.
-    pub fn is_no_answer(&self) -> bool {
+    pub(crate) fn is_no_answer(&self) -> bool {
         matches!(
             self,
             LinkError::Timeout { .. }

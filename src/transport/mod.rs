@@ -176,10 +176,6 @@ impl Link {
         )
     }
 
-    pub fn is_open(&self) -> bool {
-        self.inner.is_some()
-    }
-
     fn journal_result<T>(
         &self,
         direction: &'static str,

@@ -99,14 +99,14 @@ pub fn device_path(device: &str) -> String {
 /// The largest message a serial link takes, whatever `max_message_bytes` says: 1 MiB is 91 s at
 /// 115200 baud. It bounds how long a device that streams without ever ending a line keeps a read
 /// alive (its bytes arrive at a healthy rate, so only their number can stop it).
-pub const MAX_MESSAGE: usize = 1 << 20;
+pub(crate) const MAX_MESSAGE: usize = 1 << 20;
 
 /// How long one blocking read waits before the thread checks its deadline again.
 const POLL: Duration = Duration::from_millis(20);
 /// A line silent this long has no reply left in flight: how a drain knows it is done.
-pub const SETTLE: Duration = Duration::from_millis(50);
+pub(crate) const SETTLE: Duration = Duration::from_millis(50);
 /// A drain gives up when the device keeps talking this long (it is then not a reply left over).
-pub const DRAIN_LIMIT: Duration = Duration::from_secs(1);
+pub(crate) const DRAIN_LIMIT: Duration = Duration::from_secs(1);
 
 /// The deadline rule of [`Timeouts`](super::Timeouts), carried to the serial thread.
 #[derive(Debug, Clone, Copy)]
@@ -174,7 +174,7 @@ impl SerialLink {
     }
 
     /// Runs a link over an already open port (tests use a pseudo-terminal pair). Messages are at
-    /// most `limit` bytes, and never more than [`MAX_MESSAGE`].
+    /// most `limit` bytes, and never more than `MAX_MESSAGE`.
     pub fn from_port(
         port: Box<dyn serialport::SerialPort>,
         device: String,
@@ -244,7 +244,7 @@ impl SerialLink {
     }
 
     /// Discards everything buffered in both directions, then drains: bytes are read and thrown
-    /// away until the line has been quiet for [`SETTLE`], so a late reply to an abandoned request
+    /// away until the line has been quiet for `SETTLE`, so a late reply to an abandoned request
     /// is not taken for the next answer.
     pub async fn device_clear(&mut self) -> Result<(), LinkError> {
         self.ask(Request::Clear).await

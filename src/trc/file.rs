@@ -54,7 +54,7 @@ fn in_file(e: TrcError, base: u64) -> TrcError {
 impl Trace {
     /// Reads a `.trc` file's bytes (see the module docs for what is accepted). The channel comes
     /// from WAVE_SOURCE (0 when it says "unknown").
-    pub fn from_file_bytes(file: Bytes) -> Result<Trace, TrcError> {
+    pub(crate) fn from_file_bytes(file: Bytes) -> Result<Trace, TrcError> {
         let start = file
             .windows(NAME.len())
             .take(NAME_SEARCH)

@@ -66,7 +66,7 @@ impl Segment<'_> {
     }
 
     /// One code in volts.
-    pub fn volt(&self, code: i16) -> f64 {
+    pub(crate) fn volt(&self, code: i16) -> f64 {
         self.gain * f64::from(code) - self.offset
     }
 
@@ -247,7 +247,7 @@ impl Trace {
     }
 
     /// Reads a `.trc` file's bytes: `#9<len>` (or no file header) + WAVEDESC + arrays. See
-    /// [`Trace::from_file_bytes`], which this calls; `channel` is kept as given.
+    /// `Trace::from_file_bytes`, which this calls; `channel` is kept as given.
     pub fn from_trc_bytes(channel: u8, file: Bytes) -> Result<Trace, TrcError> {
         let mut trace = Trace::from_file_bytes(file)?;
         trace.channel = channel;

@@ -30,7 +30,7 @@ use crate::rng::SplitMix64;
 ///
 /// A positive power series of `erf` for `|x| < 1` (no cancellation: `erfc(1)` = 0.157) and the
 /// continued fraction of `erfc` (modified Lentz) above; `erfc(-x) = 2 - erfc(x)`.
-pub fn erfc(x: f64) -> f64 {
+pub(crate) fn erfc(x: f64) -> f64 {
     const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;
     if x.is_nan() {
         return f64::NAN;

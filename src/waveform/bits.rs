@@ -11,7 +11,7 @@
 //! |---|---|---|
 //! | length header | 32 | `n` as an unsigned 32-bit integer, LSB first |
 //! | payload | 8 n | the bytes, each LSB first |
-//! | padding | to the end of the last pulse / frame | PRBS from [`SplitMix64`] seeded with [`PADDING_SEED`] |
+//! | padding | to the end of the last pulse / frame | PRBS from [`SplitMix64`] seeded with `PADDING_SEED` |
 //!
 //! The number of pulses (MSK-LFM) or frames (OFDM) is the smallest whole number that holds header and
 //! payload (and at least the number the caller asked for). Padding is pseudo-random rather than zeros
@@ -22,7 +22,7 @@ use super::{DecodeError, ParamError};
 use crate::rng::SplitMix64;
 
 /// Seed of the PRBS that pads a payload to whole pulses or frames ("RADBENCH" in ASCII).
-pub const PADDING_SEED: u64 = 0x5241_4442_454E_4348;
+pub(crate) const PADDING_SEED: u64 = 0x5241_4442_454E_4348;
 
 /// Bits in the payload length header.
 pub(crate) const HEADER_BITS: usize = 32;
@@ -45,7 +45,7 @@ impl BitSource {
 
 /// The bits of a transmission cut into whole units (pulses or frames).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct FramedBits {
+pub(crate) struct FramedBits {
     /// All transmitted bits, `units * bits_per_unit` of them.
     pub bits: Vec<u8>,
     /// How many pulses or frames the bits fill.
@@ -59,7 +59,7 @@ pub struct FramedBits {
 /// A PRBS fills exactly `max(min_units, 1)` units; a payload as many as it needs (at least
 /// `min_units`). Fails when `bits_per_unit` is zero or the payload is longer than the 32-bit header
 /// can describe.
-pub fn frame_bits(
+pub(crate) fn frame_bits(
     source: &BitSource,
     bits_per_unit: usize,
     min_units: usize,
@@ -107,7 +107,7 @@ pub fn frame_bits(
     }
 }
 
-/// Recovers a payload framed by [`frame_bits`] from received hard decisions.
+/// Recovers a payload framed by `frame_bits` from received hard decisions.
 ///
 /// Fails when the length header asks for more bits than were received (a corrupted header, or a
 /// transmission that was not a payload).

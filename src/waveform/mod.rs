@@ -24,7 +24,11 @@ pub struct ParamError {
 
 impl ParamError {
     /// `parameter` is `got`, but only `allowed` is accepted.
-    pub fn out_of_range(parameter: &str, got: impl std::fmt::Display, allowed: &str) -> Self {
+    pub(crate) fn out_of_range(
+        parameter: &str,
+        got: impl std::fmt::Display,
+        allowed: &str,
+    ) -> Self {
         Self {
             message: format!("{parameter} = {got} is not allowed: {allowed}"),
         }

@@ -10,7 +10,7 @@
 //! `cp_fraction * L` samples, prepended. The sample rate is `fs = os * B`.
 //!
 //! A frame is `symbols_per_frame` symbols: first `preamble_symbols` known QPSK symbols (seeded with
-//! [`PREAMBLE_SEED`], identical in every frame) for channel estimation, then data symbols. Data bits
+//! `PREAMBLE_SEED`, identical in every frame) for channel estimation, then data symbols. Data bits
 //! fill the data symbols subcarrier by subcarrier (ascending `k`), two bits per subcarrier, QPSK Gray:
 //! `(b0, b1) -> ((1 - 2 b0) + j (1 - 2 b1)) / sqrt(2)`. The radar uses the whole symbol matrix,
 //! preamble included: every transmitted symbol is known to it.
@@ -32,7 +32,7 @@ use super::ParamError;
 use crate::rng::SplitMix64;
 
 /// Seed of the known preamble symbols ("PREAMBLE" in ASCII).
-pub const PREAMBLE_SEED: u64 = 0x5052_4541_4D42_4C45;
+pub(crate) const PREAMBLE_SEED: u64 = 0x5052_4541_4D42_4C45;
 
 const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 

@@ -131,7 +131,12 @@ impl Lab {
         .await
         .expect("a capture within 60 s")
         .unwrap();
-        m.processed.targets.iter().map(|t| t.range_m).collect()
+        m.processing
+            .processed
+            .targets
+            .iter()
+            .map(|t| t.range_m)
+            .collect()
     }
 }
 
@@ -245,7 +250,7 @@ async fn a_moving_target_reports_its_radial_velocity_on_ofdm() {
         )
         .await
         .unwrap();
-    let p = &m.processed;
+    let p = &m.processing.processed;
     let resolution = p.detection.velocity_resolution_mps.unwrap();
     assert!((resolution - 117.1).abs() < 0.5, "{resolution}");
     let v: Vec<f64> = p.targets.iter().map(|t| t.velocity_mps.unwrap()).collect();

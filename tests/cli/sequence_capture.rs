@@ -71,12 +71,18 @@ fn count(log: &[String], what: &str) -> usize {
 
 /// Every repetition found the pillar at 1 m, and the result too.
 fn pillar_at_1_m(m: &Measurement) {
-    let found: Vec<f64> = m.processed.targets.iter().map(|t| t.range_m).collect();
+    let found: Vec<f64> = m
+        .processing
+        .processed
+        .targets
+        .iter()
+        .map(|t| t.range_m)
+        .collect();
     assert!(
         found.iter().any(|r| (r - 1.0).abs() < 1e-3),
         "result: {found:?}"
     );
-    for (k, r) in m.repetitions.iter().enumerate() {
+    for (k, r) in m.processing.repetitions.iter().enumerate() {
         let found: Vec<f64> = r.targets.iter().map(|t| t.range_m).collect();
         assert!(
             found.iter().any(|r| (r - 1.0).abs() < 1e-3),
@@ -92,14 +98,14 @@ async fn repetitions_come_from_one_sequence_acquisition() {
     assert_eq!(count(&log, "NumSegments = 4"), 1, "{log:?}");
     assert_eq!(count(&log, "ARM"), 1, "one acquisition: {log:?}");
     assert_eq!(count(&log, "WF? ALL"), 2, "one read per channel: {log:?}");
-    assert_eq!(m.captured.acquisitions.len(), 1);
-    assert_eq!(m.captured.repetitions(), 4);
-    assert_eq!(m.repetitions.len(), 4);
+    assert_eq!(m.taken.captured.acquisitions.len(), 1);
+    assert_eq!(m.taken.captured.repetitions(), 4);
+    assert_eq!(m.processing.repetitions.len(), 4);
     // The segments were triggered by successive marker edges, in order, a whole number of
     // waveform repetitions apart.
-    let period = m.plan.period as f64 / 16e9;
+    let period = m.taken.plan.period as f64 / 16e9;
     let times: Vec<f64> = (0..4)
-        .map(|k| m.captured.source(k).timing.trigger_time_s.unwrap())
+        .map(|k| m.taken.captured.source(k).timing.trigger_time_s.unwrap())
         .collect();
     for pair in times.windows(2) {
         let gap = (pair[1] - pair[0]) / period;
@@ -116,7 +122,7 @@ async fn without_sequence_mode_each_repetition_is_an_acquisition() {
     assert_eq!(count(&log, "SampleMode = \"RealTime\""), 1, "{log:?}");
     assert_eq!(count(&log, "ARM"), 3, "{log:?}");
     assert_eq!(count(&log, "WF? ALL"), 6, "{log:?}");
-    assert_eq!(m.captured.acquisitions.len(), 3);
+    assert_eq!(m.taken.captured.acquisitions.len(), 3);
     pillar_at_1_m(&m);
 }
 
@@ -127,11 +133,11 @@ async fn more_repetitions_than_segments_split_into_even_sequences() {
     let (m, log) = measure(&catalog(dir.path(), 2), 5).await;
     assert_eq!(count(&log, "NumSegments = 2"), 1, "{log:?}");
     assert_eq!(count(&log, "ARM"), 3, "{log:?}");
-    assert_eq!(m.captured.acquisitions.len(), 3);
-    assert_eq!(m.captured.repetitions(), 5);
-    let last = m.captured.source(4);
+    assert_eq!(m.taken.captured.acquisitions.len(), 3);
+    assert_eq!(m.taken.captured.repetitions(), 5);
+    let last = m.taken.captured.source(4);
     assert_eq!((last.acquisition, last.segment), (2, 0));
-    assert_eq!(m.repetitions.len(), 5);
+    assert_eq!(m.processing.repetitions.len(), 5);
     pillar_at_1_m(&m);
 }
 

@@ -37,7 +37,7 @@ use crate::server::Handler;
 const LOG_CAPACITY: usize = 1000;
 
 /// Name written into WAVEDESC INSTRUMENT_NAME (honest: this is an emulator).
-pub const WAVEDESC_INSTRUMENT_NAME: &str = "MOCK_LAB EMU";
+pub(crate) const WAVEDESC_INSTRUMENT_NAME: &str = "MOCK_LAB EMU";
 
 /// A failure while running one command, mapped to the CMR/EXR registers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -118,7 +118,7 @@ impl Lecroy {
 
     /// Follows the remote interface: the receiver sees every change made by
     /// [`Lecroy::set_remote_interface`].
-    pub fn watch_remote_interface(&self) -> tokio::sync::watch::Receiver<RemoteInterface> {
+    pub(crate) fn watch_remote_interface(&self) -> tokio::sync::watch::Receiver<RemoteInterface> {
         self.remote_changes.subscribe()
     }
 

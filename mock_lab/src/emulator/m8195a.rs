@@ -14,9 +14,7 @@ mod state;
 
 use std::sync::Mutex;
 
-pub use state::{
-    AwgState, Channel, ChannelPlayback, Memory, Playback, Segment, EMULATOR_MAX_SEGMENT_SAMPLES,
-};
+pub use state::{AwgState, Channel, ChannelPlayback, Memory, Playback, Segment};
 
 use self::commands::Entry;
 use self::handlers::Call;

@@ -16,7 +16,7 @@ use super::pool;
 
 /// Why a byte stream cannot be framed into messages.
 #[derive(Debug, Error, PartialEq, Eq)]
-pub enum FramingError {
+pub(crate) enum FramingError {
     /// A definite block announces more bytes than the server accepts in one message.
     #[error("a #-block announces {announced} bytes but this server accepts at most {max} bytes per message; send smaller blocks or raise the server's max message size")]
     BlockTooLarge {

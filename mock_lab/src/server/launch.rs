@@ -125,7 +125,7 @@ pub async fn start(
 }
 
 /// [`start`] for the network transports; `Serial` is refused.
-pub async fn start_network(
+pub(crate) async fn start_network(
     instrument: &str,
     handler: Arc<dyn Handler>,
     transport: Transport,

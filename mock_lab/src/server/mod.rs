@@ -82,7 +82,7 @@ pub struct Response {
 impl Response {
     /// A response made of `parts` in order (e.g. a block header and a shared payload), without
     /// a terminator of its own.
-    pub fn from_parts(parts: Vec<Bytes>) -> Response {
+    pub(crate) fn from_parts(parts: Vec<Bytes>) -> Response {
         Response {
             parts: parts.into_iter().filter(|p| !p.is_empty()).collect(),
         }

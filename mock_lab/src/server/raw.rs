@@ -19,7 +19,7 @@ const PROTOCOL: &str = "raw";
 
 /// Why a raw-socket connection ended abnormally.
 #[derive(Debug, Error)]
-pub enum RawError {
+pub(crate) enum RawError {
     /// Socket error.
     #[error("socket error: {0}")]
     Io(#[from] io::Error),

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 pub use figures::{figures, Figure};
 
 /// The Markdown report's file name in a run folder.
-pub const FILE: &str = "report.md";
+pub(crate) const FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
 pub(crate) const HTML_FILE: &str = "report.html";
 

@@ -20,7 +20,7 @@ pub(crate) const REAL_TIME: &str = "VBS 'app.Acquisition.Horizontal.SampleMode =
 pub(crate) const SEQUENCE: &str = "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"'";
 pub const SEGMENTS_QUERY: &str = "VBS? 'return = app.Acquisition.Horizontal.NumSegments'";
 /// The command error register; its codes' texts are the session's
-/// [`register_error_text`](crate::session::register_error_text).
+/// `register_error_text`.
 pub const COMMAND_ERRORS: &str = "CMR?";
 /// The execution error register (texts as for [`COMMAND_ERRORS`]).
 pub(crate) const EXECUTION_ERRORS: &str = "EXR?";
@@ -28,7 +28,7 @@ pub const STATUS: &str = "INR?";
 pub const STOP: &str = "STOP";
 pub(crate) const EXTERNAL_REFERENCE: &str = "RCLK EXTERNAL";
 /// The external trigger input, where the AWG's marker arrives.
-pub const EXTERNAL: &str = "EX";
+pub(crate) const EXTERNAL: &str = "EX";
 
 pub fn sample_rate(rate_hz: f64) -> String {
     format!(
@@ -37,7 +37,7 @@ pub fn sample_rate(rate_hz: f64) -> String {
     )
 }
 
-pub fn hor_scale(seconds_per_div: f64) -> String {
+pub(crate) fn hor_scale(seconds_per_div: f64) -> String {
     format!(
         "VBS 'app.Acquisition.Horizontal.HorScale = {}'",
         number(seconds_per_div)

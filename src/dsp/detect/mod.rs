@@ -144,7 +144,7 @@ impl Default for DetectOptions {
 
 impl DetectOptions {
     /// Checks every field; the message names it and what is allowed.
-    pub fn validate(&self) -> Result<(), DspError> {
+    pub(crate) fn validate(&self) -> Result<(), DspError> {
         let bad = |m: String| Err(DspError::Param(m));
         if !(self.pfa > 0.0 && self.pfa < 0.5) {
             return bad(format!(

@@ -18,7 +18,7 @@ pub use peaks::{find_peaks, interpolate_peak, Interpolation, Peak};
 pub use resolve::{resolve_targets, Resolution};
 
 /// 20 log10 of an amplitude, floored at -400 dB so a zero stays finite.
-pub fn amplitude_db(amplitude: f64) -> f64 {
+pub(crate) fn amplitude_db(amplitude: f64) -> f64 {
     20.0 * amplitude.max(1e-20).log10()
 }
 

@@ -87,7 +87,7 @@ impl MusicConfig {
     }
 
     /// Checks every field; the message names the field and what is allowed.
-    pub fn validate(&self) -> Result<(), DspError> {
+    pub(crate) fn validate(&self) -> Result<(), DspError> {
         let (n, m) = (self.subcarriers, self.subarray);
         let param = |s: String| Err(DspError::Param(s));
         if n < 2 {
@@ -185,7 +185,7 @@ impl Music {
     }
 
     /// Number of smoothing snapshots for `symbols` symbols: (N - M + 1) S.
-    pub fn snapshots(&self, symbols: usize) -> usize {
+    pub(crate) fn snapshots(&self, symbols: usize) -> usize {
         (self.config.subcarriers - self.config.subarray + 1) * symbols
     }
 
@@ -194,7 +194,7 @@ impl Music {
     /// samples; counting all L S of them (or 2 L S with forward-backward) overstates the evidence
     /// that the slightly unequal noise eigenvalues of a smoothed covariance differ, and AIC then
     /// over-estimates the order by several (measured: 10 instead of 3 in tests/dsp/dsp_music.rs).
-    pub fn order_snapshots(&self, symbols: usize) -> usize {
+    pub(crate) fn order_snapshots(&self, symbols: usize) -> usize {
         (symbols * (self.config.subcarriers / self.config.subarray)).max(1)
     }
 

@@ -209,7 +209,7 @@ impl RangeDoppler {
 /// target's (fractional) range bin, symbol by symbol, through a zero-padded FFT across symbols,
 /// peak interpolated. Much cheaper than a whole [`RangeDopplerMap`] (one FFT per target); the
 /// velocity follows the map's convention (range rate, positive = receding).
-pub struct VelocityEstimator {
+pub(crate) struct VelocityEstimator {
     symbols: usize,
     fft: Arc<dyn Fft<f64>>,
     buf: Vec<Complex64>,
@@ -221,7 +221,7 @@ pub struct VelocityEstimator {
 impl VelocityEstimator {
     /// For `symbols` symbols of `period_s` each (CP included) at carrier `carrier_hz`; the
     /// slow-time FFT is zero-padded to at least 8 points per symbol.
-    pub fn new(symbols: usize, period_s: f64, carrier_hz: f64) -> Result<Self, DspError> {
+    pub(crate) fn new(symbols: usize, period_s: f64, carrier_hz: f64) -> Result<Self, DspError> {
         if symbols < 2 {
             return Err(DspError::Param(format!(
                 "velocity: {symbols} symbols; allowed: at least 2 (velocity needs slow time)"
@@ -252,7 +252,7 @@ impl VelocityEstimator {
 
     /// The range rate of the target at fractional bin `x` of a `k_len`-point range IFFT of
     /// `idiv` weighted by `weights` (one per subcarrier), m/s.
-    pub fn estimate(
+    pub(crate) fn estimate(
         &mut self,
         idiv: &IDiv,
         weights: &[f64],

@@ -22,7 +22,8 @@
 
 mod doppler;
 
-pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap, VelocityEstimator};
+pub(crate) use doppler::VelocityEstimator;
+pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap};
 
 use super::metrics::Axis;
 use super::window::Window;
@@ -133,7 +134,7 @@ impl OfdmRadarConfig {
     }
 
     /// Checks every field; the message names the field and what is allowed.
-    pub fn validate(&self) -> Result<(), DspError> {
+    pub(crate) fn validate(&self) -> Result<(), DspError> {
         let param = |m: String| Err(DspError::Param(m));
         if self.subcarriers < 2 {
             return param(format!(

@@ -7,28 +7,30 @@ use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
 pub const HEADER_LEN: usize = 16;
 const FORMAT: &str = "HiSLIP";
 
-/// HiSLIP message types used by the client.
+/// HiSLIP message types; kept whole (some only name what a server may send) so the table
+/// reads like the spec's.
+#[allow(dead_code)]
 pub mod msg {
-    pub const INITIALIZE: u8 = 0;
+    pub(crate) const INITIALIZE: u8 = 0;
     pub const INITIALIZE_RESPONSE: u8 = 1;
-    pub const FATAL_ERROR: u8 = 2;
-    pub const ERROR: u8 = 3;
+    pub(crate) const FATAL_ERROR: u8 = 2;
+    pub(crate) const ERROR: u8 = 3;
     pub const DATA: u8 = 6;
     pub const DATA_END: u8 = 7;
-    pub const DEVICE_CLEAR_COMPLETE: u8 = 8;
-    pub const DEVICE_CLEAR_ACKNOWLEDGE: u8 = 9;
-    pub const TRIGGER: u8 = 12;
-    pub const INTERRUPTED: u8 = 13;
-    pub const ASYNC_INTERRUPTED: u8 = 14;
-    pub const ASYNC_MAX_MSG_SIZE: u8 = 15;
+    pub(crate) const DEVICE_CLEAR_COMPLETE: u8 = 8;
+    pub(crate) const DEVICE_CLEAR_ACKNOWLEDGE: u8 = 9;
+    pub(crate) const TRIGGER: u8 = 12;
+    pub(crate) const INTERRUPTED: u8 = 13;
+    pub(crate) const ASYNC_INTERRUPTED: u8 = 14;
+    pub(crate) const ASYNC_MAX_MSG_SIZE: u8 = 15;
     pub const ASYNC_MAX_MSG_SIZE_RESPONSE: u8 = 16;
-    pub const ASYNC_INITIALIZE: u8 = 17;
+    pub(crate) const ASYNC_INITIALIZE: u8 = 17;
     pub const ASYNC_INITIALIZE_RESPONSE: u8 = 18;
-    pub const ASYNC_DEVICE_CLEAR: u8 = 19;
-    pub const ASYNC_SERVICE_REQUEST: u8 = 20;
-    pub const ASYNC_STATUS_QUERY: u8 = 21;
-    pub const ASYNC_STATUS_RESPONSE: u8 = 22;
-    pub const ASYNC_DEVICE_CLEAR_ACKNOWLEDGE: u8 = 23;
+    pub(crate) const ASYNC_DEVICE_CLEAR: u8 = 19;
+    pub(crate) const ASYNC_SERVICE_REQUEST: u8 = 20;
+    pub(crate) const ASYNC_STATUS_QUERY: u8 = 21;
+    pub(crate) const ASYNC_STATUS_RESPONSE: u8 = 22;
+    pub(crate) const ASYNC_DEVICE_CLEAR_ACKNOWLEDGE: u8 = 23;
 }
 
 /// The meaning of a FatalError control code.

@@ -8,14 +8,15 @@ pub const HEADER_LEN: usize = 8;
 pub const VERSION: u8 = 1;
 const FORMAT: &str = "VICP";
 
-/// Operation flag bits.
+/// Operation flag bits; kept whole so the table reads like the protocol's.
+#[allow(dead_code)]
 pub mod op {
     pub const DATA: u8 = 0x80;
-    pub const REMOTE: u8 = 0x40;
-    pub const LOCKOUT: u8 = 0x20;
+    pub(crate) const REMOTE: u8 = 0x40;
+    pub(crate) const LOCKOUT: u8 = 0x20;
     pub const CLEAR: u8 = 0x10;
-    pub const SRQ: u8 = 0x08;
-    pub const SERIAL_POLL: u8 = 0x04;
+    pub(crate) const SRQ: u8 = 0x08;
+    pub(crate) const SERIAL_POLL: u8 = 0x04;
     pub const EOI: u8 = 0x01;
 }
 
@@ -76,13 +77,13 @@ impl Header {
         <Self as FrameHeader>::parse(b)
     }
 
-    pub fn eoi(&self) -> bool {
+    pub(crate) fn eoi(&self) -> bool {
         self.op & op::EOI != 0
     }
 }
 
 /// The next sequence number: 1..=255, never 0.
-pub fn next_seq(seq: u8) -> u8 {
+pub(crate) fn next_seq(seq: u8) -> u8 {
     if seq == 255 {
         1
     } else {

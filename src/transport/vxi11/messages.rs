@@ -7,46 +7,50 @@ use bytes::Bytes;
 pub(crate) const PORTMAP_PROG: u32 = 100_000;
 pub(crate) const PORTMAP_VERS: u32 = 2;
 pub(crate) const PORTMAP_GETPORT: u32 = 3;
-pub const IPPROTO_TCP: u32 = 6;
+pub(crate) const IPPROTO_TCP: u32 = 6;
 
 pub(crate) const CORE_PROG: u32 = 0x0607AF;
 pub(crate) const ABORT_PROG: u32 = 0x0607B0;
 pub const VERSION: u32 = 1;
 
+/// Procedure numbers of the core channel; kept whole so the table reads like the spec's.
+#[allow(dead_code)]
 pub mod proc_ {
-    pub const DEVICE_ABORT: u32 = 1;
-    pub const CREATE_LINK: u32 = 10;
-    pub const DEVICE_WRITE: u32 = 11;
-    pub const DEVICE_READ: u32 = 12;
-    pub const DEVICE_READSTB: u32 = 13;
-    pub const DEVICE_TRIGGER: u32 = 14;
+    pub(crate) const DEVICE_ABORT: u32 = 1;
+    pub(crate) const CREATE_LINK: u32 = 10;
+    pub(crate) const DEVICE_WRITE: u32 = 11;
+    pub(crate) const DEVICE_READ: u32 = 12;
+    pub(crate) const DEVICE_READSTB: u32 = 13;
+    pub(crate) const DEVICE_TRIGGER: u32 = 14;
     pub const DEVICE_CLEAR: u32 = 15;
-    pub const DESTROY_LINK: u32 = 23;
+    pub(crate) const DESTROY_LINK: u32 = 23;
 }
 
 pub mod flags {
     pub const END: i32 = 0x08;
 }
 
+/// Why a device_read ended; kept whole so the table reads like the spec's.
+#[allow(dead_code)]
 pub mod reason {
-    pub const REQCNT: i32 = 1;
-    pub const CHR: i32 = 2;
+    pub(crate) const REQCNT: i32 = 1;
+    pub(crate) const CHR: i32 = 2;
     pub const END: i32 = 4;
 }
 
 /// VXI-11 Device_ErrorCode values (VXI-11 specification B.5.2).
 pub mod error {
-    pub const NO_ERROR: i32 = 0;
+    pub(crate) const NO_ERROR: i32 = 0;
     pub(crate) const SYNTAX_ERROR: i32 = 1;
     pub(crate) const DEVICE_NOT_ACCESSIBLE: i32 = 3;
-    pub const INVALID_LINK: i32 = 4;
-    pub const PARAMETER_ERROR: i32 = 5;
+    pub(crate) const INVALID_LINK: i32 = 4;
+    pub(crate) const PARAMETER_ERROR: i32 = 5;
     pub(crate) const CHANNEL_NOT_ESTABLISHED: i32 = 6;
-    pub const NOT_SUPPORTED: i32 = 8;
-    pub const OUT_OF_RESOURCES: i32 = 9;
-    pub const DEVICE_LOCKED: i32 = 11;
-    pub const NO_LOCK_HELD: i32 = 12;
-    pub const IO_TIMEOUT: i32 = 15;
+    pub(crate) const NOT_SUPPORTED: i32 = 8;
+    pub(crate) const OUT_OF_RESOURCES: i32 = 9;
+    pub(crate) const DEVICE_LOCKED: i32 = 11;
+    pub(crate) const NO_LOCK_HELD: i32 = 12;
+    pub(crate) const IO_TIMEOUT: i32 = 15;
     pub(crate) const IO_ERROR: i32 = 17;
     pub(crate) const INVALID_ADDRESS: i32 = 21;
     pub const ABORT: i32 = 23;

@@ -9,28 +9,28 @@ const FORMAT: &str = "ONC-RPC record";
 const LAST_FRAGMENT: u32 = 0x8000_0000;
 
 /// The RPC protocol version spoken.
-pub const RPC_VERSION: u32 = 2;
+pub(crate) const RPC_VERSION: u32 = 2;
 /// `msg_type` of a call and of a reply.
-pub const CALL: u32 = 0;
-pub const REPLY: u32 = 1;
+pub(crate) const CALL: u32 = 0;
+pub(crate) const REPLY: u32 = 1;
 /// `reply_stat`: accepted (results or an accept status follow) or denied.
-pub const MSG_ACCEPTED: u32 = 0;
-pub const MSG_DENIED: u32 = 1;
+pub(crate) const MSG_ACCEPTED: u32 = 0;
+pub(crate) const MSG_DENIED: u32 = 1;
 /// The authentication flavour sent in calls.
-pub const AUTH_NONE: u32 = 0;
+pub(crate) const AUTH_NONE: u32 = 0;
 
 /// `accept_stat` of an accepted reply.
 pub mod accept {
-    pub const SUCCESS: u32 = 0;
-    pub const PROG_UNAVAIL: u32 = 1;
-    pub const PROG_MISMATCH: u32 = 2;
-    pub const PROC_UNAVAIL: u32 = 3;
-    pub const GARBAGE_ARGS: u32 = 4;
+    pub(crate) const SUCCESS: u32 = 0;
+    pub(crate) const PROG_UNAVAIL: u32 = 1;
+    pub(crate) const PROG_MISMATCH: u32 = 2;
+    pub(crate) const PROC_UNAVAIL: u32 = 3;
+    pub(crate) const GARBAGE_ARGS: u32 = 4;
     pub(crate) const SYSTEM_ERR: u32 = 5;
 }
 
 /// `reject_stat` of a denied reply.
-pub const RPC_MISMATCH: u32 = 0;
+pub(crate) const RPC_MISMATCH: u32 = 0;
 
 /// The 4-byte record-marking header for a fragment of `len` bytes.
 pub fn record_mark(len: u32, last: bool) -> [u8; 4] {

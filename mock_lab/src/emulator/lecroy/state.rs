@@ -221,7 +221,7 @@ impl ScopeState {
     /// Points per channel (per segment in sequence mode) for the current timebase:
     /// `divisions x s/div x rate`, capped by the memory setting and the catalog (which sequence
     /// mode shares among its segments) and by the emulator's own limit per record.
-    pub fn record_points(&self, model: &DigitizerModel) -> u64 {
+    pub(crate) fn record_points(&self, model: &DigitizerModel) -> u64 {
         let l = &model.limits;
         let wanted = (f64::from(l.horizontal_divisions) * self.hor_scale * Self::sample_rate(model))
             .round()
@@ -233,7 +233,7 @@ impl ScopeState {
     }
 
     /// Triggers one acquisition records.
-    pub fn segments_per_acquisition(&self) -> u32 {
+    pub(crate) fn segments_per_acquisition(&self) -> u32 {
         match self.sample_mode {
             SampleMode::RealTime => 1,
             SampleMode::Sequence => self.segments.max(1),
@@ -255,7 +255,7 @@ impl ScopeState {
             .unwrap_or(0.0)
     }
 
-    pub fn set_level(&mut self, source: &str, value: f64) {
+    pub(crate) fn set_level(&mut self, source: &str, value: f64) {
         self.trigger_levels.retain(|(s, _)| s != source);
         self.trigger_levels.push((source.to_string(), value));
     }
@@ -268,7 +268,7 @@ impl ScopeState {
             .unwrap_or(Slope::Positive)
     }
 
-    pub fn set_slope(&mut self, source: &str, slope: Slope) {
+    pub(crate) fn set_slope(&mut self, source: &str, slope: Slope) {
         self.trigger_slopes.retain(|(s, _)| s != source);
         self.trigger_slopes.push((source.to_string(), slope));
     }
@@ -288,7 +288,7 @@ impl ScopeState {
     }
 
     /// Changing the trigger mode arms (SINGLE, NORM, AUTO) or stops the acquisition system.
-    pub fn set_trigger_mode(&mut self, mode: TriggerMode) {
+    pub(crate) fn set_trigger_mode(&mut self, mode: TriggerMode) {
         self.trigger_mode = mode;
         if mode == TriggerMode::Stop {
             self.armed = false;
@@ -366,7 +366,7 @@ impl ScopeState {
     }
 
     /// `INR?` value: bit0 new acquisition (cleared by the read), bit13 trigger ready (armed).
-    pub fn read_inr(&mut self) -> u16 {
+    pub(crate) fn read_inr(&mut self) -> u16 {
         let mut inr = 0u16;
         if self.new_acquisition {
             inr |= 1;

@@ -39,7 +39,7 @@ pub struct AcquisitionRequest {
 
 impl AcquisitionRequest {
     /// Time of point `i` relative to the trigger edge.
-    pub fn time_of(&self, i: usize) -> f64 {
+    pub(crate) fn time_of(&self, i: usize) -> f64 {
         self.first_point_s + i as f64 / self.sample_rate
     }
 }
@@ -110,13 +110,6 @@ impl TestSignal {
     pub fn set_marker(&self, present: bool) {
         self.lock().marker = present;
         self.changed.notify_all();
-    }
-
-    pub fn set_tone(&self, tone_hz: f64, amplitude_v: f64, phase_rad: f64) {
-        let mut s = self.lock();
-        s.tone_hz = tone_hz;
-        s.amplitude_v = amplitude_v;
-        s.phase_rad = phase_rad;
     }
 
     pub fn settings(&self) -> TestSettings {

@@ -10,7 +10,7 @@ use crate::catalog::{AwgModel, DacMode};
 use crate::emulator::scpi::error_queue::ScpiError;
 
 /// Largest segment the emulator stores (it keeps samples in RAM): 64 Mi samples per channel.
-pub const EMULATOR_MAX_SEGMENT_SAMPLES: u64 = 64 * 1024 * 1024;
+pub(crate) const EMULATOR_MAX_SEGMENT_SAMPLES: u64 = 64 * 1024 * 1024;
 
 /// Where a channel plays from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -267,7 +267,11 @@ impl AwgState {
         }
     }
 
-    pub fn set_dac_mode(&mut self, model: &AwgModel, keyword: &str) -> Result<(), ScpiError> {
+    pub(crate) fn set_dac_mode(
+        &mut self,
+        model: &AwgModel,
+        keyword: &str,
+    ) -> Result<(), ScpiError> {
         self.refuse_while_running("changing the DAC mode")?;
         if keyword != self.dac_mode {
             // Channel roles and channel 1's data format change: the memory is cleared \[I\].
@@ -282,7 +286,7 @@ impl AwgState {
         Ok(())
     }
 
-    pub fn set_divider(&mut self, divider: u32) -> Result<(), ScpiError> {
+    pub(crate) fn set_divider(&mut self, divider: u32) -> Result<(), ScpiError> {
         self.refuse_while_running("changing the sample rate divider")?;
         if divider != self.divider {
             // Granularity changes with the divider: extended segments are cleared \[I\].
@@ -297,7 +301,7 @@ impl AwgState {
         Ok(())
     }
 
-    pub fn set_memory(
+    pub(crate) fn set_memory(
         &mut self,
         model: &AwgModel,
         ch: u8,
@@ -322,7 +326,7 @@ impl AwgState {
         Ok(())
     }
 
-    pub fn set_raster(&mut self, rate: f64) {
+    pub(crate) fn set_raster(&mut self, rate: f64) {
         if rate != self.raster {
             self.raster = rate;
             self.touch();
@@ -519,7 +523,12 @@ impl AwgState {
         format!("{free},{free}")
     }
 
-    pub fn delete(&mut self, model: &AwgModel, ch: u8, id: Option<u64>) -> Result<(), ScpiError> {
+    pub(crate) fn delete(
+        &mut self,
+        model: &AwgModel,
+        ch: u8,
+        id: Option<u64>,
+    ) -> Result<(), ScpiError> {
         self.refuse_while_running("deleting segments")?;
         let targets = self.segment_channels(model, ch);
         match id {
@@ -558,7 +567,7 @@ impl AwgState {
     }
 
     /// `(min, max)` of amplitude and offset for a channel in the current mode.
-    pub fn level_limits(&self, model: &AwgModel, ch: u8) -> ((f64, f64), (f64, f64)) {
+    pub(crate) fn level_limits(&self, model: &AwgModel, ch: u8) -> ((f64, f64), (f64, f64)) {
         let l = &model.limits;
         if self.is_marker(model, ch) {
             (
@@ -573,12 +582,12 @@ impl AwgState {
         }
     }
 
-    pub fn set_amplitude(&mut self, ch: u8, value: f64) {
+    pub(crate) fn set_amplitude(&mut self, ch: u8, value: f64) {
         self.channel_mut(ch).amplitude_vpp = value;
         self.touch();
     }
 
-    pub fn set_offset(&mut self, ch: u8, value: f64) {
+    pub(crate) fn set_offset(&mut self, ch: u8, value: f64) {
         self.channel_mut(ch).offset_v = value;
         self.touch();
     }
@@ -589,7 +598,12 @@ impl AwgState {
         c.segments.contains_key(&c.selected)
     }
 
-    pub fn set_output(&mut self, model: &AwgModel, ch: u8, on: bool) -> Result<(), ScpiError> {
+    pub(crate) fn set_output(
+        &mut self,
+        model: &AwgModel,
+        ch: u8,
+        on: bool,
+    ) -> Result<(), ScpiError> {
         if on {
             if self.is_marker(model, ch) {
                 if !self.has_waveform(1) {
@@ -653,7 +667,7 @@ impl AwgState {
     }
 
     /// The channel's memory sample rate.
-    pub fn channel_rate(&self, ch: u8) -> f64 {
+    pub(crate) fn channel_rate(&self, ch: u8) -> f64 {
         match self.channel(ch).memory {
             Memory::Extended => self.raster / f64::from(self.divider),
             Memory::Internal => self.raster,
@@ -704,7 +718,7 @@ impl AwgState {
     }
 
     /// Whether channel 1's data is interleaved `[sample, marker]` bytes in the current mode.
-    pub fn channel_interleaved(&self, model: &AwgModel, ch: u8) -> bool {
+    pub(crate) fn channel_interleaved(&self, model: &AwgModel, ch: u8) -> bool {
         self.interleaved(model, ch)
     }
 }

@@ -28,7 +28,7 @@ impl ScpiError {
     }
 
     /// Command errors (-100..-199) abort the rest of the program message.
-    pub fn is_command_error(&self) -> bool {
+    pub(crate) fn is_command_error(&self) -> bool {
         (-199..=-100).contains(&self.code)
     }
 }

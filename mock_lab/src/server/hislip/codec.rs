@@ -6,7 +6,7 @@ use thiserror::Error;
 /// Header length in bytes.
 pub const HEADER_LEN: usize = 16;
 /// Every header starts with these two bytes.
-pub const PROLOGUE: [u8; 2] = *b"HS";
+pub(crate) const PROLOGUE: [u8; 2] = *b"HS";
 
 /// Message type codes of the HiSLIP specification; kept whole (some only name what a client
 /// may send) so the table reads like the spec's.
@@ -153,7 +153,7 @@ impl Header {
 pub type Decoded<'a> = (Header, &'a [u8], usize);
 
 /// One whole message: header plus payload, encoded.
-pub fn encode_message(kind: u8, control: u8, param: u32, payload: &[u8]) -> Vec<u8> {
+pub(crate) fn encode_message(kind: u8, control: u8, param: u32, payload: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(&Header::new(kind, control, param, payload.len() as u64).encode());
     out.extend_from_slice(payload);
@@ -163,7 +163,11 @@ pub fn encode_message(kind: u8, control: u8, param: u32, payload: &[u8]) -> Vec<
 /// Decodes the first whole message in `buf`: `Ok(None)` until all of it has arrived. Returns the
 /// header, the payload and the bytes consumed. The length is checked against `max_payload`
 /// before the payload is looked at.
-pub fn decode_message(buf: &[u8], max_payload: u64) -> Result<Option<Decoded<'_>>, HislipError> {
+#[cfg(test)]
+pub(crate) fn decode_message(
+    buf: &[u8],
+    max_payload: u64,
+) -> Result<Option<Decoded<'_>>, HislipError> {
     let Some(head) = buf.first_chunk::<HEADER_LEN>() else {
         // Fail early on a wrong prologue even before the header is complete.
         if buf.iter().zip(PROLOGUE.iter()).any(|(a, b)| a != b) {

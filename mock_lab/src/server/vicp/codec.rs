@@ -79,7 +79,8 @@ pub type Decoded<'a> = (Header, &'a [u8], usize);
 
 /// Decodes the first whole block in `buf`: `Ok(None)` until all of it has arrived. The length
 /// is checked against `max` before the payload is looked at.
-pub fn decode_block(buf: &[u8], max: usize) -> Result<Option<Decoded<'_>>, VicpError> {
+#[cfg(test)]
+pub(crate) fn decode_block(buf: &[u8], max: usize) -> Result<Option<Decoded<'_>>, VicpError> {
     if buf.len() >= 2 && buf[1] != VERSION {
         return Err(VicpError::BadVersion(buf[1]));
     }
@@ -111,7 +112,7 @@ pub fn next_seq(seq: u8) -> u8 {
 }
 
 /// The sequence number before `seq` in the 1..=255 ring.
-pub fn previous_seq(seq: u8) -> u8 {
+pub(crate) fn previous_seq(seq: u8) -> u8 {
     if seq <= 1 {
         255
     } else {

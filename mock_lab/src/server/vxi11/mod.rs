@@ -36,14 +36,14 @@ use crate::faults::{ReplyFate, ReplyPlan};
 
 const PROTOCOL: &str = "vxi11";
 /// VXI-11 core program.
-pub const CORE_PROGRAM: u32 = 0x0607AF;
+pub(crate) const CORE_PROGRAM: u32 = 0x0607AF;
 /// VXI-11 abort program.
-pub const ABORT_PROGRAM: u32 = 0x0607B0;
+pub(crate) const ABORT_PROGRAM: u32 = 0x0607B0;
 /// Portmapper program.
-pub const PORTMAP_PROGRAM: u32 = 100_000;
+pub(crate) const PORTMAP_PROGRAM: u32 = 100_000;
 /// Versions of the programs served: portmapper 2, VXI-11 core and abort 1.
-pub const PORTMAP_VERSION: u32 = 2;
-pub const VXI11_VERSION: u32 = 1;
+pub(crate) const PORTMAP_VERSION: u32 = 2;
+pub(crate) const VXI11_VERSION: u32 = 1;
 /// The portmapper's protocol number for TCP.
 pub const IPPROTO_TCP: u32 = 6;
 

@@ -36,7 +36,7 @@ pub(crate) mod accept {
 
 /// A malformed RPC message or a link failure.
 #[derive(Debug, Error)]
-pub enum RpcError {
+pub(crate) enum RpcError {
     /// A record longer than the server accepts.
     #[error("RPC record of {len} bytes exceeds the maximum of {max} bytes; write smaller chunks (create_link reports maxRecvSize)")]
     RecordTooLarge {
@@ -57,19 +57,19 @@ pub enum RpcError {
 }
 
 /// Splits a record-marking header into (last fragment?, fragment length).
-pub fn decode_fragment_header(word: [u8; 4]) -> (bool, u32) {
+pub(crate) fn decode_fragment_header(word: [u8; 4]) -> (bool, u32) {
     let v = u32::from_be_bytes(word);
     (v & LAST_FRAGMENT != 0, v & !LAST_FRAGMENT)
 }
 
 /// The record-marking header for a one-fragment record of `len` bytes.
-pub fn fragment_header(len: usize) -> [u8; 4] {
+pub(crate) fn fragment_header(len: usize) -> [u8; 4] {
     (LAST_FRAGMENT | len as u32).to_be_bytes()
 }
 
 /// Reads one whole record (all fragments), refusing records longer than `max` before reading
 /// their bytes. `Ok(None)` on a clean end of stream between records.
-pub async fn read_record<R: AsyncRead + Unpin>(
+pub(crate) async fn read_record<R: AsyncRead + Unpin>(
     r: &mut R,
     max: usize,
 ) -> Result<Option<Vec<u8>>, RpcError> {
@@ -111,7 +111,7 @@ pub struct Call {
 }
 
 /// Decodes a call header; the reader is left at the procedure's arguments.
-pub fn decode_call(r: &mut XdrReader<'_>) -> Result<Call, RpcError> {
+pub(crate) fn decode_call(r: &mut XdrReader<'_>) -> Result<Call, RpcError> {
     let xid = r.u32()?;
     let msg_type = r.u32()?;
     if msg_type != CALL {
@@ -136,7 +136,7 @@ pub fn decode_call(r: &mut XdrReader<'_>) -> Result<Call, RpcError> {
 
 /// Starts an accepted reply (MSG_ACCEPTED, AUTH_NONE verifier) with `status`; the caller
 /// appends the results for SUCCESS. PROG_MISMATCH carries the supported version range.
-pub fn accepted_reply(xid: u32, status: u32, versions: (u32, u32)) -> XdrWriter {
+pub(crate) fn accepted_reply(xid: u32, status: u32, versions: (u32, u32)) -> XdrWriter {
     let mut w = XdrWriter::new();
     w.u32(xid)
         .u32(REPLY)
@@ -151,7 +151,7 @@ pub fn accepted_reply(xid: u32, status: u32, versions: (u32, u32)) -> XdrWriter 
 }
 
 /// A denied reply for an RPC version other than 2 (RPC_MISMATCH, supported 2..2).
-pub fn rpc_mismatch_reply(xid: u32) -> XdrWriter {
+pub(crate) fn rpc_mismatch_reply(xid: u32) -> XdrWriter {
     let mut w = XdrWriter::new();
     w.u32(xid)
         .u32(REPLY)

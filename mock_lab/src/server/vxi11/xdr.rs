@@ -5,7 +5,7 @@ use thiserror::Error;
 
 /// An XDR body that cannot be decoded.
 #[derive(Debug, Error, PartialEq, Eq)]
-pub enum XdrError {
+pub(crate) enum XdrError {
     /// The body ended before the item.
     #[error("XDR data ends early: needed {needed} more bytes at offset {offset}")]
     Truncated {
@@ -28,19 +28,19 @@ pub enum XdrError {
 
 /// Reads XDR items from a byte slice.
 #[derive(Debug)]
-pub struct XdrReader<'a> {
+pub(crate) struct XdrReader<'a> {
     buf: &'a [u8],
     pos: usize,
 }
 
 impl<'a> XdrReader<'a> {
     /// A reader at the start of `buf`.
-    pub fn new(buf: &'a [u8]) -> Self {
+    pub(crate) fn new(buf: &'a [u8]) -> Self {
         XdrReader { buf, pos: 0 }
     }
 
     /// Bytes not read yet.
-    pub fn remaining(&self) -> usize {
+    pub(crate) fn remaining(&self) -> usize {
         self.buf.len() - self.pos
     }
 
@@ -57,23 +57,23 @@ impl<'a> XdrReader<'a> {
     }
 
     /// An unsigned 32-bit integer.
-    pub fn u32(&mut self) -> Result<u32, XdrError> {
+    pub(crate) fn u32(&mut self) -> Result<u32, XdrError> {
         let b = self.take(4)?;
         Ok(u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
     }
 
     /// A signed 32-bit integer.
-    pub fn i32(&mut self) -> Result<i32, XdrError> {
+    pub(crate) fn i32(&mut self) -> Result<i32, XdrError> {
         Ok(self.u32()? as i32)
     }
 
     /// A boolean (any non-zero value is true).
-    pub fn bool(&mut self) -> Result<bool, XdrError> {
+    pub(crate) fn bool(&mut self) -> Result<bool, XdrError> {
         Ok(self.u32()? != 0)
     }
 
     /// Variable-length opaque data of at most `max` bytes (padding skipped).
-    pub fn opaque(&mut self, max: usize) -> Result<&'a [u8], XdrError> {
+    pub(crate) fn opaque(&mut self, max: usize) -> Result<&'a [u8], XdrError> {
         let offset = self.pos;
         let len = self.u32()?;
         if len as usize > max {
@@ -92,30 +92,30 @@ pub(crate) fn pad(len: usize) -> usize {
 
 /// Builds an XDR body.
 #[derive(Debug, Default)]
-pub struct XdrWriter {
+pub(crate) struct XdrWriter {
     /// The encoded bytes.
     pub buf: Vec<u8>,
 }
 
 impl XdrWriter {
     /// An empty body.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         XdrWriter::default()
     }
 
     /// Appends an unsigned 32-bit integer.
-    pub fn u32(&mut self, v: u32) -> &mut Self {
+    pub(crate) fn u32(&mut self, v: u32) -> &mut Self {
         self.buf.extend_from_slice(&v.to_be_bytes());
         self
     }
 
     /// Appends a signed 32-bit integer.
-    pub fn i32(&mut self, v: i32) -> &mut Self {
+    pub(crate) fn i32(&mut self, v: i32) -> &mut Self {
         self.u32(v as u32)
     }
 
     /// Appends opaque data with its length and padding.
-    pub fn opaque(&mut self, data: &[u8]) -> &mut Self {
+    pub(crate) fn opaque(&mut self, data: &[u8]) -> &mut Self {
         self.u32(data.len() as u32);
         self.buf.extend_from_slice(data);
         self.buf.extend(std::iter::repeat_n(0u8, pad(data.len())));
