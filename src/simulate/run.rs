@@ -377,6 +377,7 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
         sidelobe_db: m.sidelobe_db,
         resolved: m.resolved,
         range_bin_m: m.range_bin_m,
+        detector: spec.processing.detector.name(),
         detected_m,
         trials: spec.trials,
         resolved_rate: many.then(|| resolved_count as f64 / spec.trials as f64),

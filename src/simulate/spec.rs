@@ -168,6 +168,8 @@ pub struct ScenarioResult {
     /// Range-profile bin spacing in metres (`null` for grid-free estimators).
     pub range_bin_m: Option<f64>,
     pub trials: usize,
+    /// The detector behind `detected_m` (`--detector`).
+    pub detector: &'static str,
     /// What the pipeline's detector reported in the first trial, ascending range (m): the same
     /// detections `capture` would report on these samples.
     pub detected_m: Vec<f64>,

@@ -10,6 +10,7 @@ use super::run::{simulate, SimOutcome};
 use super::scene::{CarrierPhase, Target};
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
 use super::{accuracy, SimError};
+use crate::measure::options::DetectorName;
 use crate::storage::plot;
 use serde_json::json;
 use std::fmt::Write as _;
@@ -674,6 +675,7 @@ fn fft_counts(ctx: &mut Ctx) {
             seed: 0,
             targets_m: vec![],
             peaks_m: vec![],
+            detector: DetectorName::default().name(),
             detected_m: vec![],
             errors_cm: vec![],
             width_3db_cm: None,
