@@ -31,6 +31,7 @@ use crate::dsp::ofdm_radar::{
 };
 use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfiler, Profile};
 use crate::dsp::C0;
+use crate::waveform::ofdm::{Ofdm, SymbolMatrix};
 use num_complex::Complex64;
 use std::sync::Arc;
 
@@ -225,6 +226,225 @@ struct OfdmProcessor {
     velocity: Option<VelocityEstimator>,
 }
 
+impl RangeProcessor {
+    /// The correlation profiler over one period, with the window's filter.
+    fn correlation(
+        tx: &Transmission,
+        options: &ProcessOptions,
+        geometry: &RecordGeometry,
+    ) -> Result<RangeProcessor, MeasureError> {
+        let fs = tx.sample_rate_hz();
+        let period = geometry.period;
+        let lags = geometry.correlation_lags.clamp(2, period.max(2));
+        let mut reference = tx.reference.clone();
+        reference.resize(period, ZERO);
+        let window = options.window.to_dsp();
+        let filter = if window == crate::dsp::window::Window::Rectangular {
+            reference.clone()
+        } else {
+            weighted_filter(&reference, &window, tx.bandwidth_hz(), fs)?
+        };
+        let profiler =
+            CorrelationProfiler::with_filter(&reference, &filter, period + lags - 1, lags, fs)?;
+        let echo_spectrum = echo_spectrum(&reference, &filter);
+        Ok(RangeProcessor::Correlation {
+            profiler: Box::new(profiler),
+            lags,
+            extended: Vec::with_capacity(period + lags - 1),
+            echo_spectrum,
+        })
+    }
+}
+
+impl OfdmProcessor {
+    /// The OFDM radar receiver, its unit level, and the subspace estimator when `alg` is one.
+    fn new(
+        tx: &Transmission,
+        generator: &Ofdm,
+        symbols: &SymbolMatrix,
+        alg: Algorithm,
+        options: &ProcessOptions,
+    ) -> Result<OfdmProcessor, MeasureError> {
+        let params = *generator.params();
+        let mut radar = OfdmRadar::new(OfdmRadarConfig {
+            subcarriers: params.subcarriers,
+            oversampling: params.oversampling,
+            cp_fraction: params.cp_fraction,
+            bandwidth_hz: params.bandwidth_hz,
+            zero_pad: options.zero_pad,
+            window: options.window.to_dsp(),
+            fft_precision: options.fft_precision.to_dsp(),
+            ..OfdmRadarConfig::default()
+        })?;
+        let mut idiv = IDiv::new();
+        let mut profile = RangeProfile::new();
+        // Levels relative to a unit-gain path: the transmitted frame itself, processed
+        // alike, peaks at the normalising value.
+        radar.process(
+            &tx.reference,
+            0,
+            symbols.as_slice(),
+            &mut idiv,
+            &mut profile,
+        )?;
+        let unit = profile
+            .amplitude
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+            .max(1e-300);
+        let music = if alg.is_subspace() {
+            let n = params.subcarriers;
+            Some(Music::new(MusicConfig {
+                subcarriers: n,
+                subarray: options.music_m,
+                order: options
+                    .music_p
+                    .map(ModelOrder::Fixed)
+                    .unwrap_or(ModelOrder::Estimated(OrderCriterion::Mdl)),
+                forward_backward: options.forward_backward,
+                grid_points: MUSIC_GRID_FACTOR * n,
+                bandwidth_hz: params.bandwidth_hz,
+            })?)
+        } else {
+            None
+        };
+        let velocity = (symbols.symbols() >= 2)
+            .then(|| {
+                VelocityEstimator::new(
+                    symbols.symbols(),
+                    radar.config().symbol_period_s(),
+                    options.carrier_hz,
+                )
+            })
+            .transpose()?;
+        Ok(OfdmProcessor {
+            radar,
+            symbols: symbols.as_slice().to_vec(),
+            idiv,
+            profile,
+            unit,
+            music,
+            spectrum: MusicSpectrum::default(),
+            df_hz: generator.subcarrier_spacing_hz(),
+            velocity,
+        })
+    }
+}
+
+/// Where a profile goes: its amplitudes scaled to a unit-gain echo, its ranges shifted by the
+/// bench's offset.
+#[derive(Clone, Copy)]
+struct Placement {
+    scale: f64,
+    offset_m: f64,
+}
+
+impl Placement {
+    fn place(self, mut p: Profile) -> Profile {
+        p.axis.start += self.offset_m;
+        if self.scale != 1.0 {
+            for a in &mut p.amplitude {
+                *a *= self.scale;
+            }
+        }
+        p
+    }
+
+    fn shift(self, ranges: Vec<f64>) -> Vec<f64> {
+        ranges.into_iter().map(|r| r + self.offset_m).collect()
+    }
+}
+
+/// The correlation profile: circular over the period (the record extended by its own start).
+fn correlation_profile(
+    profiler: &mut CorrelationProfiler,
+    lags: usize,
+    extended: &mut Vec<Complex64>,
+    rx: &[Complex64],
+    place: Placement,
+) -> Result<RangeResult, MeasureError> {
+    extended.clear();
+    extended.extend_from_slice(rx);
+    extended.extend_from_slice(&rx[..lags - 1]);
+    let axis = profiler.axis();
+    let z: Vec<Complex64> = profiler
+        .complex_profile(extended)?
+        .iter()
+        .map(|v| v * place.scale)
+        .collect();
+    let p = Profile {
+        label: "correlation".into(),
+        axis: Axis {
+            start: axis.start + place.offset_m,
+            step: axis.step,
+        },
+        amplitude: z.iter().map(|v| v.norm()).collect(),
+    };
+    Ok(RangeResult {
+        profiles: vec![p],
+        estimates_m: None,
+        complex: Some(z),
+    })
+}
+
+impl OfdmProcessor {
+    /// The Fourier profile, and the subspace estimator's result when one is configured.
+    fn profiles(
+        &mut self,
+        rx: &[Complex64],
+        options: &ProcessOptions,
+        place: Placement,
+    ) -> Result<RangeResult, MeasureError> {
+        self.radar
+            .process(rx, 0, &self.symbols, &mut self.idiv, &mut self.profile)?;
+        let unit = self.unit;
+        let fourier = place.place(Profile {
+            label: format!("Fourier ({}-point IFFT)", self.profile.amplitude.len()),
+            axis: self.profile.axis(),
+            amplitude: self.profile.amplitude.iter().map(|a| a / unit).collect(),
+        });
+        let Some(music) = &mut self.music else {
+            let mut z = Vec::new();
+            self.radar.complex_profile(&self.idiv, &mut z)?;
+            let k = place.scale / unit;
+            for v in &mut z {
+                *v *= k;
+            }
+            return Ok(RangeResult {
+                profiles: vec![fourier],
+                estimates_m: None,
+                complex: Some(z),
+            });
+        };
+        let idiv = self.idiv.as_slice();
+        let (profiles, estimates) = match options.algorithm {
+            Algorithm::Esprit => (vec![fourier], music.esprit(idiv)?),
+            Algorithm::RootMusic => {
+                music.estimate(idiv, &mut self.spectrum)?;
+                let r = root_music_ranges(music, self.spectrum.order, self.df_hz)?;
+                (vec![fourier], r)
+            }
+            _ => {
+                music.estimate(idiv, &mut self.spectrum)?;
+                let mut mp = music_profile(
+                    &self.spectrum.range_m,
+                    &self.spectrum.pseudo_spectrum,
+                    options.music_m,
+                    self.spectrum.order,
+                );
+                mp.axis.start += place.offset_m;
+                (vec![mp, fourier], self.spectrum.peaks_m.clone())
+            }
+        };
+        Ok(RangeResult {
+            profiles,
+            estimates_m: Some(place.shift(estimates)),
+            complex: None,
+        })
+    }
+}
+
 /// The configured pipeline (see the module docs).
 pub struct Pipeline {
     tx: Arc<Transmission>,
@@ -342,100 +562,11 @@ impl Pipeline {
                 waveform: tx.len(),
             });
         }
-        let fs = tx.sample_rate_hz();
         let range = match (options.algorithm, &tx.modulation) {
-            (Algorithm::Correlation, _) => {
-                let period = geometry.period;
-                let lags = geometry.correlation_lags.clamp(2, period.max(2));
-                let mut reference = tx.reference.clone();
-                reference.resize(period, ZERO);
-                let window = options.window.to_dsp();
-                let filter = if window == crate::dsp::window::Window::Rectangular {
-                    reference.clone()
-                } else {
-                    weighted_filter(&reference, &window, tx.bandwidth_hz(), fs)?
-                };
-                let profiler = CorrelationProfiler::with_filter(
-                    &reference,
-                    &filter,
-                    period + lags - 1,
-                    lags,
-                    fs,
-                )?;
-                let echo_spectrum = echo_spectrum(&reference, &filter);
-                RangeProcessor::Correlation {
-                    profiler: Box::new(profiler),
-                    lags,
-                    extended: Vec::with_capacity(period + lags - 1),
-                    echo_spectrum,
-                }
-            }
-            (alg, Modulation::Ofdm { generator, symbols }) => {
-                let params = *generator.params();
-                let mut radar = OfdmRadar::new(OfdmRadarConfig {
-                    subcarriers: params.subcarriers,
-                    oversampling: params.oversampling,
-                    cp_fraction: params.cp_fraction,
-                    bandwidth_hz: params.bandwidth_hz,
-                    zero_pad: options.zero_pad,
-                    window: options.window.to_dsp(),
-                    fft_precision: options.fft_precision.to_dsp(),
-                    ..OfdmRadarConfig::default()
-                })?;
-                let mut idiv = IDiv::new();
-                let mut profile = RangeProfile::new();
-                // Levels relative to a unit-gain path: the transmitted frame itself, processed
-                // alike, peaks at the normalising value.
-                radar.process(
-                    &tx.reference,
-                    0,
-                    symbols.as_slice(),
-                    &mut idiv,
-                    &mut profile,
-                )?;
-                let unit = profile
-                    .amplitude
-                    .iter()
-                    .copied()
-                    .fold(0.0, f64::max)
-                    .max(1e-300);
-                let music = if alg.is_subspace() {
-                    let n = params.subcarriers;
-                    Some(Music::new(MusicConfig {
-                        subcarriers: n,
-                        subarray: options.music_m,
-                        order: options
-                            .music_p
-                            .map(ModelOrder::Fixed)
-                            .unwrap_or(ModelOrder::Estimated(OrderCriterion::Mdl)),
-                        forward_backward: options.forward_backward,
-                        grid_points: MUSIC_GRID_FACTOR * n,
-                        bandwidth_hz: params.bandwidth_hz,
-                    })?)
-                } else {
-                    None
-                };
-                let velocity = (symbols.symbols() >= 2)
-                    .then(|| {
-                        VelocityEstimator::new(
-                            symbols.symbols(),
-                            radar.config().symbol_period_s(),
-                            options.carrier_hz,
-                        )
-                    })
-                    .transpose()?;
-                RangeProcessor::Ofdm(Box::new(OfdmProcessor {
-                    radar,
-                    symbols: symbols.as_slice().to_vec(),
-                    idiv,
-                    profile,
-                    unit,
-                    music,
-                    spectrum: MusicSpectrum::default(),
-                    df_hz: generator.subcarrier_spacing_hz(),
-                    velocity,
-                }))
-            }
+            (Algorithm::Correlation, _) => RangeProcessor::correlation(&tx, &options, &geometry)?,
+            (alg, Modulation::Ofdm { generator, symbols }) => RangeProcessor::Ofdm(Box::new(
+                OfdmProcessor::new(&tx, generator, symbols, alg, &options)?,
+            )),
             (alg, Modulation::MskLfm(_)) => {
                 return Err(MeasureError::AlgorithmNeedsOfdm {
                     algorithm: alg.name(),
@@ -621,18 +752,9 @@ impl Pipeline {
                 needed: self.geometry.period,
             });
         }
-        let scale = self.level_scale;
-        let scaled = |mut p: Profile| {
-            p.axis = Axis {
-                start: p.axis.start + offset_m,
-                step: p.axis.step,
-            };
-            if scale != 1.0 {
-                for a in &mut p.amplitude {
-                    *a *= scale;
-                }
-            }
-            p
+        let place = Placement {
+            scale: self.level_scale,
+            offset_m,
         };
         match &mut self.range {
             RangeProcessor::Correlation {
@@ -640,90 +762,8 @@ impl Pipeline {
                 lags,
                 extended,
                 ..
-            } => {
-                // Circular correlation over the period: the record extended by its own start.
-                extended.clear();
-                extended.extend_from_slice(rx);
-                extended.extend_from_slice(&rx[..*lags - 1]);
-                let axis = profiler.axis();
-                let z: Vec<Complex64> = profiler
-                    .complex_profile(extended)?
-                    .iter()
-                    .map(|v| v * scale)
-                    .collect();
-                let p = Profile {
-                    label: "correlation".into(),
-                    axis: Axis {
-                        start: axis.start + offset_m,
-                        step: axis.step,
-                    },
-                    amplitude: z.iter().map(|v| v.norm()).collect(),
-                };
-                Ok(RangeResult {
-                    profiles: vec![p],
-                    estimates_m: None,
-                    complex: Some(z),
-                })
-            }
-            RangeProcessor::Ofdm(o) => {
-                o.radar
-                    .process(rx, 0, &o.symbols, &mut o.idiv, &mut o.profile)?;
-                let unit = o.unit;
-                let fourier = scaled(Profile {
-                    label: format!("Fourier ({}-point IFFT)", o.profile.amplitude.len()),
-                    axis: o.profile.axis(),
-                    amplitude: o.profile.amplitude.iter().map(|a| a / unit).collect(),
-                });
-                let Some(music) = &mut o.music else {
-                    let mut z = Vec::new();
-                    o.radar.complex_profile(&o.idiv, &mut z)?;
-                    let k = scale / unit;
-                    for v in &mut z {
-                        *v *= k;
-                    }
-                    return Ok(RangeResult {
-                        profiles: vec![fourier],
-                        estimates_m: None,
-                        complex: Some(z),
-                    });
-                };
-                let idiv = o.idiv.as_slice();
-                let shift = |r: Vec<f64>| r.into_iter().map(|x| x + offset_m).collect();
-                match self.options.algorithm {
-                    Algorithm::Esprit => {
-                        let r = music.esprit(idiv)?;
-                        Ok(RangeResult {
-                            profiles: vec![fourier],
-                            estimates_m: Some(shift(r)),
-                            complex: None,
-                        })
-                    }
-                    Algorithm::RootMusic => {
-                        music.estimate(idiv, &mut o.spectrum)?;
-                        let r = root_music_ranges(music, o.spectrum.order, o.df_hz)?;
-                        Ok(RangeResult {
-                            profiles: vec![fourier],
-                            estimates_m: Some(shift(r)),
-                            complex: None,
-                        })
-                    }
-                    _ => {
-                        music.estimate(idiv, &mut o.spectrum)?;
-                        let mut mp = music_profile(
-                            &o.spectrum.range_m,
-                            &o.spectrum.pseudo_spectrum,
-                            self.options.music_m,
-                            o.spectrum.order,
-                        );
-                        mp.axis.start += offset_m;
-                        Ok(RangeResult {
-                            profiles: vec![mp, fourier],
-                            estimates_m: Some(shift(o.spectrum.peaks_m.clone())),
-                            complex: None,
-                        })
-                    }
-                }
-            }
+            } => correlation_profile(profiler, *lags, extended, rx, place),
+            RangeProcessor::Ofdm(o) => o.profiles(rx, &self.options, place),
         }
     }
 

@@ -12,7 +12,7 @@ use super::pipeline::{RawIq, RawWords};
 use super::transmit::Transmission;
 use super::MeasureError;
 use crate::address::Resource;
-use crate::catalog::{Catalog, InstrumentModel};
+use crate::catalog::{Catalog, DigitizerLimits, InstrumentModel};
 use crate::driver::m8195a::plan::{plan_clock, plan_download};
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
@@ -137,23 +137,8 @@ pub(crate) fn plan(
     let clock = plan_clock(awg_limits, &awg_model.instrument.key, name, &awg).map_err(fit)?;
     let download = plan_download(awg_limits, &clock, name, &tx.iq).map_err(fit)?;
     let period = download.padded as usize;
-    // The fastest rate the catalog lists that is a whole multiple of the waveform's.
     let fs = tx.sample_rate_hz();
-    let rate = scope_limits
-        .sample_rates
-        .iter()
-        .copied()
-        .filter(|r| {
-            let k = r / fs;
-            k >= 1.0 && (k - k.round()).abs() < 1e-9 * k
-        })
-        .fold(None, |best: Option<f64>, r| {
-            Some(best.map_or(r, |b| b.max(r)))
-        })
-        .ok_or_else(|| MeasureError::RateNotMultiple {
-            capture_hz: scope_limits.sample_rates.first().copied().unwrap_or(0.0),
-            waveform_hz: fs,
-        })?;
+    let rate = capture_rate(scope_limits, fs)?;
     let vdiv = bench
         .scope
         .volts_per_div
@@ -182,18 +167,7 @@ pub(crate) fn plan(
             ),
         });
     }
-    // A target beyond one repetition would alias onto a nearer range.
-    let unambiguous_m = C0 * repetition_s / 2.0;
-    if options.max_range_m > unambiguous_m {
-        return Err(MeasureError::option(
-            "max-range",
-            options.max_range_m,
-            format!(
-                "at most {unambiguous_m:.1} m: farther echoes wrap into the next repetition of \
-                 this waveform"
-            ),
-        ));
-    }
+    check_unambiguous(options, repetition_s)?;
     let front = |e: &Option<InstrumentEntry>| RfSettings {
         attenuation_db: e.as_ref().and_then(|t| t.attenuation_db).unwrap_or(0.0),
         lo_frequency_hz: None,
@@ -221,6 +195,42 @@ pub(crate) fn plan(
         rf_setup_s: RF_SETUP_S,
         max_sequence_segments,
     })
+}
+
+/// The fastest rate the catalog lists that is a whole multiple of the waveform's.
+fn capture_rate(scope: &DigitizerLimits, waveform_hz: f64) -> Result<f64, MeasureError> {
+    scope
+        .sample_rates
+        .iter()
+        .copied()
+        .filter(|r| {
+            let k = r / waveform_hz;
+            k >= 1.0 && (k - k.round()).abs() < 1e-9 * k
+        })
+        .fold(None, |best: Option<f64>, r| {
+            Some(best.map_or(r, |b| b.max(r)))
+        })
+        .ok_or_else(|| MeasureError::RateNotMultiple {
+            capture_hz: scope.sample_rates.first().copied().unwrap_or(0.0),
+            waveform_hz,
+        })
+}
+
+/// A target beyond one repetition would alias onto a nearer range: the range window must end
+/// within it.
+fn check_unambiguous(options: &ProcessOptions, repetition_s: f64) -> Result<(), MeasureError> {
+    let unambiguous_m = C0 * repetition_s / 2.0;
+    if options.max_range_m > unambiguous_m {
+        return Err(MeasureError::option(
+            "max-range",
+            options.max_range_m,
+            format!(
+                "at most {unambiguous_m:.1} m: farther echoes wrap into the next repetition of \
+                 this waveform"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn not_kind(entry: &InstrumentEntry, section: &'static str, what: &str) -> MeasureError {

@@ -234,14 +234,33 @@ fn y_range(plot: &ProfilePlot, x0: f64, x1: f64) -> (f64, f64) {
     (bottom.min(top - 1.0), top)
 }
 
+/// A chart on two linear axes (a log axis is plotted as its exponent).
+pub(crate) type Axes<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// The legend: a framed, lightly opaque box at `position`.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    font_px: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font_px))
+        .draw()
+        .map_err(|e| e.to_string())
+}
+
 /// Dashed vertical lines at `xs` over `ys`, dashes and gaps `(dash, gap)` pixels long, the
 /// first one named `label` in the legend.
 fn vertical_lines<DB: DrawingBackend>(
-    chart: &mut ChartContext<
-        '_,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
+    chart: &mut Axes<'_, DB>,
     xs: impl Iterator<Item = f64>,
     (y0, y1): (f64, f64),
     (dash, gap): (u32, u32),
@@ -261,6 +280,44 @@ fn vertical_lines<DB: DrawingBackend>(
             series
                 .label(label)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+        }
+    }
+    Ok(())
+}
+
+/// The detections in view: a cross at each, labelled.
+fn draw_detections<DB: DrawingBackend>(
+    chart: &mut Axes<'_, DB>,
+    markers: &[Marker],
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+) -> Result<(), String> {
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    let marker_color = RGBColor(200, 30, 30);
+    let shown: Vec<&Marker> = markers
+        .iter()
+        .filter(|m| (x0..=x1).contains(&m.range_m))
+        .collect();
+    if !shown.is_empty() {
+        chart
+            .draw_series(shown.iter().map(|m| {
+                Cross::new(
+                    (m.range_m, m.db.clamp(y0, y1)),
+                    6,
+                    marker_color.stroke_width(2),
+                )
+            }))
+            .map_err(e)?
+            .label("detection")
+            .legend(move |(x, y)| Cross::new((x + 10, y), 5, marker_color.stroke_width(2)));
+        for m in shown {
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    m.label.clone(),
+                    (m.range_m, (m.db + 0.04 * (y1 - y0)).min(y1)),
+                    ("sans-serif", 13).into_font().color(&marker_color),
+                )))
+                .map_err(e)?;
         }
     }
     Ok(())
@@ -329,34 +386,7 @@ fn render<DB: DrawingBackend>(
         estimate_style,
         "estimated range",
     )?;
-    let marker_color = RGBColor(200, 30, 30);
-    let shown: Vec<&Marker> = plot
-        .markers
-        .iter()
-        .filter(|m| (x0..=x1).contains(&m.range_m))
-        .collect();
-    if !shown.is_empty() {
-        chart
-            .draw_series(shown.iter().map(|m| {
-                Cross::new(
-                    (m.range_m, m.db.clamp(y0, y1)),
-                    6,
-                    marker_color.stroke_width(2),
-                )
-            }))
-            .map_err(e)?
-            .label("detection")
-            .legend(move |(x, y)| Cross::new((x + 10, y), 5, marker_color.stroke_width(2)));
-        for m in shown {
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    m.label.clone(),
-                    (m.range_m, (m.db + 0.04 * (y1 - y0)).min(y1)),
-                    ("sans-serif", 13).into_font().color(&marker_color),
-                )))
-                .map_err(e)?;
-        }
-    }
+    draw_detections(&mut chart, &plot.markers, (x0, x1), (y0, y1))?;
     if let Some(level) = plot.reference_db {
         let style = RED.stroke_width(1);
         chart
@@ -380,14 +410,7 @@ fn render<DB: DrawingBackend>(
         target_style,
         "true range",
     )?;
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(e)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
     root.present().map_err(e)?;
     Ok(())
 }
@@ -703,14 +726,7 @@ fn render_ber<DB: DrawingBackend>(
             ))
             .map_err(e)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(e)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerLeft, 14)?;
     root.present().map_err(e)?;
     Ok(())
 }

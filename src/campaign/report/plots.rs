@@ -3,7 +3,7 @@
 //! bit-error rates. Drawn with plotters and the embedded font of `storage::plot`, like
 //! every other plot of radbench.
 
-use crate::storage::plot::{register_font_once, PALETTE};
+use crate::storage::plot::{draw_legend, register_font_once, Axes, PALETTE};
 use plotters::prelude::*;
 
 /// Size of every chart, pixels.
@@ -248,6 +248,26 @@ fn render<DB: DrawingBackend>(
         mesh.y_labels(((y1 - y0) as usize + 1).max(2));
     }
     mesh.draw().map_err(e)?;
+    draw_reference_lines(&mut c, chart, (x0, x1), (y0, y1), ty)?;
+    draw_series(&mut c, chart, y0, ty)?;
+    draw_legend(&mut c, SeriesLabelPosition::UpperRight, 13)?;
+    root.present().map_err(e)?;
+    Ok(())
+}
+
+fn drawing_error<E: std::error::Error + Send + Sync>(err: DrawingAreaErrorKind<E>) -> String {
+    format!("{err}")
+}
+
+/// Horizontal bounds (solid or dashed, one legend entry per bound) and vertical markers.
+fn draw_reference_lines<DB: DrawingBackend>(
+    c: &mut Axes<'_, DB>,
+    chart: &Chart,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    ty: &dyn Fn(f64) -> Option<f64>,
+) -> Result<(), String> {
+    let e = drawing_error;
     let mut reference = 0;
     for (i, h) in chart.hlines.iter().enumerate() {
         let Some(y) = ty(h.y) else { continue };
@@ -279,6 +299,17 @@ fn render<DB: DrawingBackend>(
             .label(label.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
+    Ok(())
+}
+
+/// Each series: markers (filled or open) with error bars, a line or a dashed line.
+fn draw_series<DB: DrawingBackend>(
+    c: &mut Axes<'_, DB>,
+    chart: &Chart,
+    y0: f64,
+    ty: &dyn Fn(f64) -> Option<f64>,
+) -> Result<(), String> {
+    let e = drawing_error;
     for (i, s) in chart.series.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         let pts: Vec<(f64, f64, Point)> = s
@@ -324,14 +355,6 @@ fn render<DB: DrawingBackend>(
         }))
         .map_err(e)?;
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .draw()
-        .map_err(e)?;
-    root.present().map_err(e)?;
     Ok(())
 }
 
