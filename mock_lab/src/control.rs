@@ -380,6 +380,28 @@ mod tests {
         assert_eq!(shared.snapshot().targets[0].range_m, 2.0);
     }
 
+    /// A control server on loopback for `shared`, and a connection to it.
+    async fn connected(
+        shared: &Arc<SharedScene>,
+    ) -> (
+        ControlServer,
+        BufReader<tokio::net::tcp::OwnedReadHalf>,
+        tokio::net::tcp::OwnedWriteHalf,
+    ) {
+        let server = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
+            .await
+            .unwrap();
+        let stream = tokio::time::timeout(
+            Duration::from_secs(5),
+            TcpStream::connect(server.local_addr()),
+        )
+        .await
+        .unwrap()
+        .unwrap();
+        let (rd, wr) = stream.into_split();
+        (server, BufReader::new(rd), wr)
+    }
+
     async fn ask(
         wr: &mut tokio::net::tcp::OwnedWriteHalf,
         rd: &mut BufReader<tokio::net::tcp::OwnedReadHalf>,
@@ -397,16 +419,7 @@ mod tests {
     #[tokio::test]
     async fn control_channel_over_loopback() {
         let shared = SharedScene::new(Scene::default());
-        let server = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
-            .await
-            .unwrap();
-        let addr = server.local_addr();
-        let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
-            .await
-            .unwrap()
-            .unwrap();
-        let (rd, mut wr) = stream.into_split();
-        let mut rd = BufReader::new(rd);
+        let (_server, mut rd, mut wr) = connected(&shared).await;
         let v = ask(
             &mut wr,
             &mut rd,
@@ -473,16 +486,7 @@ mod tests {
     #[tokio::test]
     async fn over_long_line_over_loopback_changes_nothing_and_the_session_goes_on() {
         let shared = SharedScene::new(Scene::default());
-        let server = serve(shared.clone(), None, "127.0.0.1:0".parse().unwrap())
-            .await
-            .unwrap();
-        let addr = server.local_addr();
-        let stream = tokio::time::timeout(Duration::from_secs(5), TcpStream::connect(addr))
-            .await
-            .unwrap()
-            .unwrap();
-        let (rd, mut wr) = stream.into_split();
-        let mut rd = BufReader::new(rd);
+        let (_server, mut rd, mut wr) = connected(&shared).await;
         let mut long = vec![b' '; 3 * MAX_LINE];
         long.extend_from_slice(b"{\"cmd\":\"snr\",\"snr_db\":3.0}\n");
         let writer = tokio::spawn(async move {

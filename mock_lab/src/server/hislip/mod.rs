@@ -137,6 +137,31 @@ async fn bad_prologue<T>(w: &mut OwnedWriteHalf, prologue: [u8; 2]) -> Result<T,
     Err(HislipError::BadPrologue(prologue))
 }
 
+/// An Error message from the client (either channel): logged, the session goes on.
+async fn log_client_error<R: AsyncRead + Unpin>(reader: &mut R, header: &Header) {
+    let text = read_control_payload(reader, header)
+        .await
+        .unwrap_or_default();
+    tracing::warn!(
+        code = header.control,
+        "HiSLIP client reported an error: {}",
+        String::from_utf8_lossy(&text)
+    );
+}
+
+/// A message type this channel does not take (its payload already skipped): a non-fatal Error.
+async fn refuse_message_type(w: &mut OwnedWriteHalf, channel: &str) -> Result<(), HislipError> {
+    let text = format!("message type not valid on the {channel} channel");
+    send(
+        w,
+        kind::ERROR,
+        nonfatal::UNRECOGNIZED_MESSAGE_TYPE,
+        0,
+        text.as_bytes(),
+    )
+    .await
+}
+
 async fn send(
     w: &mut OwnedWriteHalf,
     kind: u8,
@@ -344,27 +369,11 @@ async fn serve_sync<R: AsyncRead + Unpin>(
                 send(&mut w, kind::DEVICE_CLEAR_ACKNOWLEDGE, 0, 0, &[]).await?;
             }
             kind::FATAL_ERROR => return Err(HislipError::ClientFatal(header.control)),
-            kind::ERROR => {
-                let text = read_control_payload(&mut reader, &header)
-                    .await
-                    .unwrap_or_default();
-                tracing::warn!(
-                    code = header.control,
-                    "HiSLIP client reported an error: {}",
-                    String::from_utf8_lossy(&text)
-                );
-            }
+            kind::ERROR => log_client_error(&mut reader, &header).await,
             _ => {
                 conn::skip_exact(&mut reader, header.payload_len).await?;
                 let mut w = writer.lock().await;
-                send(
-                    &mut w,
-                    kind::ERROR,
-                    nonfatal::UNRECOGNIZED_MESSAGE_TYPE,
-                    0,
-                    b"message type not valid on the synchronous channel",
-                )
-                .await?;
+                refuse_message_type(&mut w, "synchronous").await?;
             }
         }
     }
@@ -570,26 +579,10 @@ async fn serve_async<R: AsyncRead + Unpin>(
                 send(&mut writer, kind::ASYNC_REMOTE_LOCAL_RESPONSE, 0, 0, &[]).await?;
             }
             kind::FATAL_ERROR => return Err(HislipError::ClientFatal(header.control)),
-            kind::ERROR => {
-                let text = read_control_payload(&mut reader, &header)
-                    .await
-                    .unwrap_or_default();
-                tracing::warn!(
-                    code = header.control,
-                    "HiSLIP client reported an error: {}",
-                    String::from_utf8_lossy(&text)
-                );
-            }
+            kind::ERROR => log_client_error(&mut reader, &header).await,
             _ => {
                 conn::skip_exact(&mut reader, header.payload_len).await?;
-                send(
-                    &mut writer,
-                    kind::ERROR,
-                    nonfatal::UNRECOGNIZED_MESSAGE_TYPE,
-                    0,
-                    b"message type not valid on the asynchronous channel",
-                )
-                .await?;
+                refuse_message_type(&mut writer, "asynchronous").await?;
             }
         }
     }
