@@ -334,34 +334,35 @@ impl Observer for DropAwgLink {
     }
 }
 
+/// Plans the campaign of `spec_path` and runs it into `out` (RF permitted, no journal, no
+/// signal), within the test's time limit.
+async fn start_run(spec_path: &Path, out: &Path, observer: &mut dyn Observer) -> run::Finished {
+    let spec = SpecFile::load(spec_path).unwrap();
+    let bench = BenchInfo::load(&spec, None).unwrap();
+    let plan = plan::plan(&spec, &bench).unwrap();
+    let new = NewRun {
+        spec,
+        bench,
+        plan,
+        out: out.to_path_buf(),
+        journal: None,
+        permit: RfPermit::granted_by_user(),
+        interrupt: Interrupt::never(),
+        input: None,
+    };
+    tokio::time::timeout(LIMIT, run::start(new, observer))
+        .await
+        .expect("the run ends within the time limit")
+        .unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
     let (_, expected) = reference().await;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
-    let spec = SpecFile::load(&example("accuracy.toml")).unwrap();
-    let bench = BenchInfo::load(&spec, None).unwrap();
-    let plan = plan::plan(&spec, &bench).unwrap();
     let mut saboteur = DropAwgLink { at: 4, lab: None };
-    let finished = tokio::time::timeout(
-        LIMIT,
-        run::start(
-            NewRun {
-                spec,
-                bench,
-                plan,
-                out: out.clone(),
-                journal: None,
-                permit: RfPermit::granted_by_user(),
-                interrupt: Interrupt::never(),
-                input: None,
-            },
-            &mut saboteur,
-        ),
-    )
-    .await
-    .expect("the run ends")
-    .unwrap();
+    let finished = start_run(&example("accuracy.toml"), &out, &mut saboteur).await;
     let err = finished.stopped.expect("the lost link stops the run");
     assert_eq!(err.exit_class().code(), 3, "{err}");
     assert_eq!(finished.status, Status::Interrupted);
@@ -596,29 +597,8 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
          args = [\"-c\", \"test -e go || test {step} -lt 2\"]\n\
          [sweep]\nparameter = \"position\"\nvalues = [1.0, 0.97, 0.94]\n",
     );
-    let spec = SpecFile::load(&spec_path).unwrap();
-    let bench = BenchInfo::load(&spec, None).unwrap();
-    let plan = plan::plan(&spec, &bench).unwrap();
     let out = dir.path().join("run");
-    let finished = tokio::time::timeout(
-        LIMIT,
-        run::start(
-            NewRun {
-                spec,
-                bench,
-                plan,
-                out: out.clone(),
-                journal: None,
-                permit: RfPermit::granted_by_user(),
-                interrupt: Interrupt::never(),
-                input: None,
-            },
-            &mut Quiet,
-        ),
-    )
-    .await
-    .unwrap()
-    .unwrap();
+    let finished = start_run(&spec_path, &out, &mut Quiet).await;
     assert_eq!(finished.stopped.unwrap().exit_class().code(), 3);
     assert!(lab.bench.is_safe());
     let m = Manifest::load(&out).unwrap();
