@@ -5,7 +5,7 @@
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
 use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, CaptureRequest, Prepared, Rig};
+use radbench::measure::capture::{prepare, Prepared, Rig};
 use radbench::measure::interrupt::Interrupt;
 use radbench::measure::options::ProcessOptions;
 use radbench::rng::SplitMix64;
@@ -84,15 +84,7 @@ impl Lab {
         for kind in [WaveformKind::MskLfm, WaveformKind::Ofdm] {
             let mut options = ProcessOptions::for_waveform(kind);
             options.system_delay_s = bench.file.system_delay_s();
-            let request = CaptureRequest {
-                waveform: kind.thesis_default(),
-                payload: None,
-                seed: 1,
-                options,
-                tx_off,
-                wait_s: 10.0,
-                background: None,
-            };
+            let request = crate::support::thesis_request(kind, options, tx_off);
             prepared.push((kind, prepare(&bench, &catalog, &request).await.unwrap()));
         }
         let rig = Rig::connect(&bench, &catalog, None).await.unwrap();

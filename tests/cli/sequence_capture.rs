@@ -6,7 +6,7 @@
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
 use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, CaptureRequest, Measurement, Rig};
+use radbench::measure::capture::{prepare, Measurement, Rig};
 use radbench::measure::interrupt::Interrupt;
 use radbench::measure::options::ProcessOptions;
 use radbench::waveform::spec::WaveformKind;
@@ -35,15 +35,7 @@ async fn measure(catalog: &Catalog, repetitions: usize) -> (Measurement, Vec<Str
     let kind = WaveformKind::MskLfm;
     let mut options = ProcessOptions::for_waveform(kind);
     options.system_delay_s = bench.file.system_delay_s();
-    let request = CaptureRequest {
-        waveform: kind.thesis_default(),
-        payload: None,
-        seed: 1,
-        options,
-        tx_off: false,
-        wait_s: 10.0,
-        background: None,
-    };
+    let request = crate::support::thesis_request(kind, options, false);
     let mut prepared = prepare(&bench, catalog, &request).await.unwrap();
     let mut rig = Rig::connect(&bench, catalog, None).await.unwrap();
     let scope = bench.lab.as_ref().unwrap().bench.scope.clone();
@@ -214,15 +206,7 @@ async fn a_transmitter_not_ready_stops_the_measurement_before_the_receiver_is_en
         .unwrap();
     let catalog = Catalog::embedded().unwrap();
     let kind = WaveformKind::MskLfm;
-    let request = CaptureRequest {
-        waveform: kind.thesis_default(),
-        payload: None,
-        seed: 1,
-        options: ProcessOptions::for_waveform(kind),
-        tx_off: false,
-        wait_s: 10.0,
-        background: None,
-    };
+    let request = crate::support::thesis_request(kind, ProcessOptions::for_waveform(kind), false);
     let mut prepared = prepare(&bench, &catalog, &request).await.unwrap();
     let mut rig = Rig::connect(&bench, &catalog, None).await.unwrap();
     let lab = &bench.lab.as_ref().unwrap().bench;

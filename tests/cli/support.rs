@@ -34,3 +34,21 @@ pub async fn radbench_in(dir: Option<&Path>, args: &[&str]) -> (i32, String, Str
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// The thesis' waveform of `kind` as a capture request: seed 1, no payload, no background,
+/// a 10 s wait for the trigger.
+pub fn thesis_request(
+    kind: radbench::waveform::spec::WaveformKind,
+    options: radbench::measure::options::ProcessOptions,
+    tx_off: bool,
+) -> radbench::measure::capture::CaptureRequest {
+    radbench::measure::capture::CaptureRequest {
+        waveform: kind.thesis_default(),
+        payload: None,
+        seed: 1,
+        options,
+        tx_off,
+        wait_s: 10.0,
+        background: None,
+    }
+}
