@@ -47,12 +47,16 @@ struct Rig {
     _server: ServerHandle,
 }
 
-fn rig(proto: Proto) -> Rig {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
-        .expect("runtime");
+        .expect("runtime")
+}
+
+fn rig(proto: Proto) -> Rig {
+    let runtime = runtime();
     let (server, session) = runtime.block_on(async {
         let handler: Arc<dyn Handler> = Arc::new(Loopback::new());
         let options = ServerOptions::default();
@@ -173,19 +177,18 @@ async fn bare_socket_peer() -> (u16, tokio::task::JoinHandle<()>) {
     (port, task)
 }
 
-/// radbench's raw-socket client alone (no mock instrument behind the socket).
-#[divan::bench(sample_count = 10, sample_size = 1)]
-fn client_only_socket_read_64_mib(bencher: Bencher) {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let (port, _task) = runtime.block_on(bare_socket_peer());
+/// A runtime, the bare peer and a raw-socket session to it.
+fn bare_socket_session() -> (
+    tokio::runtime::Runtime,
+    Session,
+    tokio::task::JoinHandle<()>,
+) {
+    let runtime = runtime();
+    let (port, task) = runtime.block_on(bare_socket_peer());
     let resource: Resource = format!("TCPIP::127.0.0.1::{port}::SOCKET")
         .parse()
         .expect("resource");
-    let mut session = runtime
+    let session = runtime
         .block_on(Session::open(
             resource,
             SessionOptions::default(),
@@ -193,6 +196,13 @@ fn client_only_socket_read_64_mib(bencher: Bencher) {
             "bench",
         ))
         .expect("open");
+    (runtime, session, task)
+}
+
+/// radbench's raw-socket client alone (no mock instrument behind the socket).
+#[divan::bench(sample_count = 10, sample_size = 1)]
+fn client_only_socket_read_64_mib(bencher: Bencher) {
+    let (runtime, mut session, _task) = bare_socket_session();
     bencher.counter(BytesCount::new(LEN)).bench_local(|| {
         let block = runtime
             .block_on(session.query_block("GET?"))
@@ -205,23 +215,7 @@ fn client_only_socket_read_64_mib(bencher: Bencher) {
 /// it has every byte.
 #[divan::bench(sample_count = 10, sample_size = 1)]
 fn client_only_socket_write_64_mib(bencher: Bencher) {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let (port, _task) = runtime.block_on(bare_socket_peer());
-    let resource: Resource = format!("TCPIP::127.0.0.1::{port}::SOCKET")
-        .parse()
-        .expect("resource");
-    let mut session = runtime
-        .block_on(Session::open(
-            resource,
-            SessionOptions::default(),
-            None,
-            "bench",
-        ))
-        .expect("open");
+    let (runtime, mut session, _task) = bare_socket_session();
     let data = payload();
     bencher.counter(BytesCount::new(LEN)).bench_local(|| {
         runtime

@@ -68,18 +68,23 @@ fn volts(c: &Capture, m: usize) -> Complex64 {
     )
 }
 
-#[test]
-fn echo_matches_the_analytic_model_sample_by_sample() {
-    let (i, q) = chirp_codes(256);
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
+/// The AWG playing `i` and `q` at 16 GSa/s, 0.5 Vpp, the marker at the segment start.
+fn playing<'a>(i: &'a [i8], q: &'a [i8]) -> AwgPlayback<'a> {
+    AwgPlayback {
+        i,
+        q,
         sample_rate: 16e9,
         amplitude_vpp: [0.5, 0.5],
         marker_index: 0,
         playing: true,
         marker_out: true,
-    };
+    }
+}
+
+#[test]
+fn echo_matches_the_analytic_model_sample_by_sample() {
+    let (i, q) = chirp_codes(256);
+    let awg = playing(&i, &q);
     let scene = quiet_scene(vec![Target {
         range_m: 1.2345,
         amplitude: 0.5,
@@ -107,15 +112,7 @@ fn echo_matches_the_analytic_model_sample_by_sample() {
 #[test]
 fn transmitter_off_or_awg_stopped_gives_noise_only() {
     let (i, q) = chirp_codes(512);
-    let mut awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
-        amplitude_vpp: [0.5, 0.5],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
-    };
+    let mut awg = playing(&i, &q);
     let scene = Scene {
         snr_db: 20.0,
         ..quiet_scene(vec![Target {
@@ -157,15 +154,7 @@ fn transmitter_off_or_awg_stopped_gives_noise_only() {
 #[test]
 fn moving_target_rotates_at_its_doppler() {
     let (i, q) = chirp_codes(256);
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
-        amplitude_vpp: [0.5, 0.5],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
-    };
+    let awg = playing(&i, &q);
     let v = 30.0;
     let still = quiet_scene(vec![Target {
         range_m: 1.0,
@@ -200,13 +189,8 @@ fn moving_target_rotates_at_its_doppler() {
 fn clipping_is_counted_and_codes_stay_in_range() {
     let (i, q) = chirp_codes(256);
     let awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
         amplitude_vpp: [1.0, 1.0],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
+        ..playing(&i, &q)
     };
     let scene = quiet_scene(vec![Target {
         range_m: 1.0,
@@ -225,15 +209,7 @@ fn clipping_is_counted_and_codes_stay_in_range() {
 #[test]
 fn jitter_moves_the_trigger_offset() {
     let (i, q) = chirp_codes(256);
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
-        amplitude_vpp: [0.5, 0.5],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
-    };
+    let awg = playing(&i, &q);
     let scene = Scene {
         trigger_jitter_s: 1e-12,
         ..quiet_scene(vec![])
@@ -299,15 +275,7 @@ fn bad_scene_files_name_the_field() {
 #[test]
 fn mismatched_rates_and_empty_segments_are_refused() {
     let (i, q) = chirp_codes(256);
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
-        amplitude_vpp: [0.5, 0.5],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
-    };
+    let awg = playing(&i, &q);
     let mut s = setup(64);
     s.sample_rate = 70e9;
     let err = Synthesizer::new(1)
