@@ -296,7 +296,15 @@ fn serve(
                     }
                 }
                 if result.is_ok() {
-                    result = port.flush().map_err(|e| io("serial write", e));
+                    // Every byte is with the driver; waiting for the line to send them fails only
+                    // when it hung up (an unplugged adapter, a closed pty: `serialport` keeps no
+                    // errno here), so that is reported as the instrument going away.
+                    result = port.flush().map_err(|e| {
+                        tracing::debug!(%device, "serial drain failed: {e}");
+                        LinkError::Closed {
+                            op: "serial write (drain)",
+                        }
+                    });
                 }
                 let _ = reply.send(result);
             }

@@ -196,24 +196,20 @@ fn ofdm_3_00_and_3_15_m_with_a_128_point_ifft_are_not_resolved() {
 #[test]
 fn thesis_phase_convention_gives_two_peaks_at_1280_points() {
     let targets = [target(3.0), target(3.15)];
-    let p = profile_of(OfdmRadarConfig::default(), 4, FC_THESIS, &targets);
-    let r = resolve_targets(
-        p.axis(),
-        &p.amplitude,
-        &[3.0, 3.15],
-        3.0,
-        Interpolation::ParabolicDb,
-    );
+    let resolved_with = |carrier_hz: f64| {
+        let p = profile_of(OfdmRadarConfig::default(), 4, carrier_hz, &targets);
+        resolve_targets(
+            p.axis(),
+            &p.amplitude,
+            &[3.0, 3.15],
+            3.0,
+            Interpolation::ParabolicDb,
+        )
+    };
+    let r = resolved_with(FC_THESIS);
     assert!(r.resolved, "thesis convention: {r:?}");
     // The physical 80 GHz carrier puts the two echoes nearly in phase: one merged peak.
-    let p = profile_of(OfdmRadarConfig::default(), 4, FC_PHYSICAL, &targets);
-    let r = resolve_targets(
-        p.axis(),
-        &p.amplitude,
-        &[3.0, 3.15],
-        3.0,
-        Interpolation::ParabolicDb,
-    );
+    let r = resolved_with(FC_PHYSICAL);
     assert!(!r.resolved, "physical convention: {r:?}");
 }
 

@@ -395,15 +395,19 @@ fn pty_write(master: &mut serialport::TTYPort, mut data: &[u8], stop: &AtomicBoo
         }
         match master.write(data) {
             Ok(n) => data = &data[n..],
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) => {}
+            Err(e) if nothing_yet(&e) => {}
             Err(_) => return false,
         }
     }
     true
+}
+
+/// A read that found no byte yet (the pty's timeout, or a non-blocking descriptor).
+fn nothing_yet(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+    )
 }
 
 /// Reads and drops bytes until `stop` is set.
@@ -412,11 +416,7 @@ fn pty_hold(master: &mut serialport::TTYPort, stop: &AtomicBool) {
     while !stop.load(Ordering::SeqCst) {
         match master.read(&mut sink) {
             Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) => {}
+            Err(e) if nothing_yet(&e) => {}
             Err(_) => return,
         }
     }
@@ -443,11 +443,7 @@ pub fn serial(mut master: serialport::TTYPort, fault: Fault, stop: Arc<AtomicBoo
         match master.read(&mut byte) {
             Ok(1) if byte[0] == b'\n' => break,
             Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) => {}
+            Err(e) if nothing_yet(&e) => {}
             Err(_) => return,
         }
     }
