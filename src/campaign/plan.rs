@@ -7,7 +7,7 @@
 
 use super::spec::{
     AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
-    SweepParameter, WaveformKindName,
+    SweepParameter, SweepSection, WaveformKindName,
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -743,135 +743,153 @@ fn raw_steps(
     base: &WaveformSpec,
     bench: &BenchInfo,
 ) -> Result<Vec<Step>, SpecError> {
-    let s = &spec.spec;
     let bandwidth = base.bandwidth_hz();
-    let sorted = |mut t: Vec<f64>| -> Vec<Range> {
-        t.sort_by(f64::total_cmp);
-        t.into_iter().map(|range_m| Range { range_m }).collect()
-    };
-    let step = |index: usize, nominal: Nominal| Step {
-        index,
-        nominal,
-        waveform: 0,
-        noise_seed: None,
-        music_p: None,
-    };
-    match (&s.sweep, s.steps.is_empty()) {
+    match (&spec.spec.sweep, spec.spec.steps.is_empty()) {
         (Some(_), false) => Err(spec.error("steps", "give either [sweep] or [[steps]], not both")),
         (None, true) => Err(spec.error(
             "steps",
             "the campaign has no steps: add [sweep] or one [[steps]] table per step",
         )),
-        (Some(sw), true) => {
-            let values = sweep_values(spec)?;
-            let targets = sw.targets.clone();
-            let p = sw.parameter;
-            if sw.target.is_some() && p != SweepParameter::Position {
-                return Err(spec.error("sweep.target", "applies to parameter = \"position\" only"));
-            }
-            if p == SweepParameter::Snr && !bench.simulated {
-                return Err(spec.error(
-                    "sweep.parameter",
-                    "snr is set only on a simulated bench (the built-in mock lab, or a bench file \
-                     with [simulation]); on a real bench sweep tx-attenuation instead",
-                ));
-            }
-            let mut out = Vec::new();
-            for (k, &v) in values.iter().enumerate() {
-                let mut n = Nominal {
-                    label: None,
-                    parameter: Some(p.name().to_string()),
-                    value: Some(v),
-                    targets: targets.clone().map(sorted).unwrap_or_default(),
-                    bandwidth_hz: bandwidth,
-                    tx_attenuation_db: None,
-                    snr_db: None,
-                };
-                match p {
-                    SweepParameter::Position => {
-                        let mut t = targets.clone().unwrap_or_else(|| vec![v]);
-                        let which = sw.target.unwrap_or(0);
-                        if which >= t.len() {
-                            return Err(spec.error(
-                                "sweep.target",
-                                format!(
-                                    "{which}: sweep.targets holds {} targets (0-based index)",
-                                    t.len()
-                                ),
-                            ));
-                        }
-                        t[which] = v;
-                        n.targets = sorted(t);
-                    }
-                    SweepParameter::Separation => {
-                        let base =
-                            match targets.as_deref() {
-                                Some([first]) => *first,
-                                _ => return Err(spec.error(
-                                    "sweep.targets",
-                                    "a separation sweep needs targets = [R]: the first target's \
-                                     range, metres (the second stands R + separation)",
-                                )),
-                            };
-                        if v <= 0.0 {
-                            return Err(spec.error(
-                                &format!("sweep.values[{k}]"),
-                                format!("{v}: a separation above 0 m"),
-                            ));
-                        }
-                        n.targets = sorted(vec![base, base + v]);
-                    }
-                    SweepParameter::Bandwidth => n.bandwidth_hz = v,
-                    SweepParameter::TxAttenuation => n.tx_attenuation_db = Some(v),
-                    SweepParameter::Snr => n.snr_db = Some(v),
-                }
-                out.push(step(k + 1, n));
-            }
-            Ok(out)
-        }
-        (None, false) => {
-            let mut out = Vec::new();
-            let mut targets: Vec<Range> = Vec::new();
-            let mut bw = bandwidth;
-            let mut att = None;
-            let mut snr = None;
-            for (k, st) in s.steps.iter().enumerate() {
-                if let Some(t) = &st.targets {
-                    targets = sorted(t.clone());
-                }
-                if let Some(b) = st.bandwidth_hz {
-                    bw = b;
-                }
-                if st.tx_attenuation_db.is_some() {
-                    att = st.tx_attenuation_db;
-                }
-                if st.snr_db.is_some() {
-                    snr = st.snr_db;
-                }
-                if let Some(v) = snr {
-                    if !(-60.0..=200.0).contains(&v) {
-                        return Err(spec.error(
-                            &format!("steps[{k}].snr_db"),
-                            format!("{v}: allowed -60 ..= 200 dB"),
-                        ));
-                    }
-                }
-                out.push(step(
-                    k + 1,
-                    Nominal {
-                        label: st.label.clone(),
-                        parameter: None,
-                        value: None,
-                        targets: targets.clone(),
-                        bandwidth_hz: bw,
-                        tx_attenuation_db: att,
-                        snr_db: snr,
-                    },
-                ));
-            }
-            Ok(out)
-        }
+        (Some(sw), true) => sweep_steps(spec, sw, bandwidth, bench),
+        (None, false) => listed_steps(spec, bandwidth),
     }
+}
+
+/// Ranges in ascending order, as a step's targets.
+fn sorted_ranges(mut t: Vec<f64>) -> Vec<Range> {
+    t.sort_by(f64::total_cmp);
+    t.into_iter().map(|range_m| Range { range_m }).collect()
+}
+
+/// Step `index` (1-based) at `nominal`, with the first waveform and no overrides yet.
+fn nominal_step(index: usize, nominal: Nominal) -> Step {
+    Step {
+        index,
+        nominal,
+        waveform: 0,
+        noise_seed: None,
+        music_p: None,
+    }
+}
+
+/// The steps of a `[sweep]`: one per value of its parameter.
+fn sweep_steps(
+    spec: &SpecFile,
+    sw: &SweepSection,
+    bandwidth: f64,
+    bench: &BenchInfo,
+) -> Result<Vec<Step>, SpecError> {
+    let values = sweep_values(spec)?;
+    let targets = sw.targets.clone();
+    let p = sw.parameter;
+    if sw.target.is_some() && p != SweepParameter::Position {
+        return Err(spec.error("sweep.target", "applies to parameter = \"position\" only"));
+    }
+    if p == SweepParameter::Snr && !bench.simulated {
+        return Err(spec.error(
+            "sweep.parameter",
+            "snr is set only on a simulated bench (the built-in mock lab, or a bench file \
+             with [simulation]); on a real bench sweep tx-attenuation instead",
+        ));
+    }
+    let mut out = Vec::new();
+    for (k, &v) in values.iter().enumerate() {
+        let mut n = Nominal {
+            label: None,
+            parameter: Some(p.name().to_string()),
+            value: Some(v),
+            targets: targets.clone().map(sorted_ranges).unwrap_or_default(),
+            bandwidth_hz: bandwidth,
+            tx_attenuation_db: None,
+            snr_db: None,
+        };
+        match p {
+            SweepParameter::Position => {
+                let mut t = targets.clone().unwrap_or_else(|| vec![v]);
+                let which = sw.target.unwrap_or(0);
+                if which >= t.len() {
+                    return Err(spec.error(
+                        "sweep.target",
+                        format!(
+                            "{which}: sweep.targets holds {} targets (0-based index)",
+                            t.len()
+                        ),
+                    ));
+                }
+                t[which] = v;
+                n.targets = sorted_ranges(t);
+            }
+            SweepParameter::Separation => {
+                let base = match targets.as_deref() {
+                    Some([first]) => *first,
+                    _ => {
+                        return Err(spec.error(
+                            "sweep.targets",
+                            "a separation sweep needs targets = [R]: the first target's \
+                             range, metres (the second stands R + separation)",
+                        ))
+                    }
+                };
+                if v <= 0.0 {
+                    return Err(spec.error(
+                        &format!("sweep.values[{k}]"),
+                        format!("{v}: a separation above 0 m"),
+                    ));
+                }
+                n.targets = sorted_ranges(vec![base, base + v]);
+            }
+            SweepParameter::Bandwidth => n.bandwidth_hz = v,
+            SweepParameter::TxAttenuation => n.tx_attenuation_db = Some(v),
+            SweepParameter::Snr => n.snr_db = Some(v),
+        }
+        out.push(nominal_step(k + 1, n));
+    }
+    Ok(out)
+}
+
+/// The steps of a list of `[[steps]]`: each keeps what the one before set unless it sets it again.
+fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError> {
+    let s = &spec.spec;
+    let mut out = Vec::new();
+    let mut targets: Vec<Range> = Vec::new();
+    let mut bw = bandwidth;
+    let mut att = None;
+    let mut snr = None;
+    for (k, st) in s.steps.iter().enumerate() {
+        if let Some(t) = &st.targets {
+            targets = sorted_ranges(t.clone());
+        }
+        if let Some(b) = st.bandwidth_hz {
+            bw = b;
+        }
+        if st.tx_attenuation_db.is_some() {
+            att = st.tx_attenuation_db;
+        }
+        if st.snr_db.is_some() {
+            snr = st.snr_db;
+        }
+        if let Some(v) = snr {
+            if !(-60.0..=200.0).contains(&v) {
+                return Err(spec.error(
+                    &format!("steps[{k}].snr_db"),
+                    format!("{v}: allowed -60 ..= 200 dB"),
+                ));
+            }
+        }
+        out.push(nominal_step(
+            k + 1,
+            Nominal {
+                label: st.label.clone(),
+                parameter: None,
+                value: None,
+                targets: targets.clone(),
+                bandwidth_hz: bw,
+                tx_attenuation_db: att,
+                snr_db: snr,
+            },
+        ));
+    }
+    Ok(out)
 }
 
 /// What the plan needs to know of a prepared waveform to describe a step.
