@@ -8,7 +8,6 @@ use super::error::LinkError;
 use super::framing::TerminatedDecoder;
 use super::io::{buffer_ceiling, reserve_within, Decode, LinkOptions};
 use bytes::{Bytes, BytesMut};
-use std::io::{Read, Write};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 use tokio::sync::oneshot;
@@ -257,10 +256,11 @@ fn serve(
     device: String,
     limit: usize,
 ) {
-    let mut decoder = TerminatedDecoder::new(b'\n', limit);
-    let ceiling = buffer_ceiling(limit);
-    let mut buf = BytesMut::with_capacity(4096);
-    let io = |op: &'static str, e: std::io::Error| serial_io_error(op, e);
+    let mut inbox = Inbox {
+        decoder: TerminatedDecoder::new(b'\n', limit),
+        ceiling: buffer_ceiling(limit),
+        buf: BytesMut::with_capacity(4096),
+    };
     // A reply a previous user of the port left unread is not the answer to our first request.
     let mut opened = Some(drain(port.as_mut(), &device));
     while let Ok(request) = requests.recv() {
@@ -272,81 +272,15 @@ fn serve(
             Request::Write(data, allowed, reply) => {
                 // Whatever arrived before this request cannot be its reply: a reply nobody read
                 // (a command that answers, an abandoned query) is dropped here.
-                decoder.reset();
-                buf.clear();
+                inbox.reset();
                 let _ = port.clear(serialport::ClearBuffer::Input);
-                let started = Instant::now();
-                let mut result = Ok(());
-                let mut rest = &data[..];
-                while !rest.is_empty() {
-                    if started.elapsed() > allowed {
-                        result = Err(LinkError::Timeout {
-                            op: "serial write",
-                            after: allowed,
-                        });
-                        break;
-                    }
-                    match port.write(rest) {
-                        Ok(n) => rest = &rest[n..],
-                        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
-                        Err(e) => {
-                            result = Err(io("serial write", e));
-                            break;
-                        }
-                    }
-                }
-                if result.is_ok() {
-                    // Every byte is with the driver; waiting for the line to send them fails only
-                    // when it hung up (an unplugged adapter, a closed pty: `serialport` keeps no
-                    // errno here), so that is reported as the instrument going away.
-                    result = port.flush().map_err(|e| {
-                        tracing::debug!(%device, "serial drain failed: {e}");
-                        LinkError::Closed {
-                            op: "serial write (drain)",
-                        }
-                    });
-                }
-                let _ = reply.send(result);
+                let _ = reply.send(write_all(port.as_mut(), &data, allowed, &device));
             }
             Request::Read(budget, reply) => {
-                let started = Instant::now();
-                let mut chunk = [0u8; 4096];
-                let mut counted = 0u64;
-                let result = loop {
-                    match decoder.decode(&mut buf) {
-                        Ok(Some(frame)) => break Ok(frame),
-                        Ok(None) => {}
-                        Err(e) => {
-                            decoder.reset();
-                            buf.clear();
-                            break Err(LinkError::codec("serial")(e));
-                        }
-                    }
-                    let allowed = budget.allowed(counted);
-                    if started.elapsed() > allowed {
-                        break Err(LinkError::Timeout {
-                            op: "serial read",
-                            after: allowed,
-                        });
-                    }
-                    match port.read(&mut chunk) {
-                        Ok(0) => {
-                            break Err(LinkError::Closed { op: "serial read" });
-                        }
-                        Ok(n) => {
-                            counted += n as u64;
-                            reserve_within(&mut buf, n, ceiling);
-                            buf.extend_from_slice(&chunk[..n]);
-                        }
-                        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                        Err(e) => break Err(io("serial read", e)),
-                    }
-                };
-                let _ = reply.send(result);
+                let _ = reply.send(inbox.read_message(port.as_mut(), budget));
             }
             Request::Clear(reply) => {
-                decoder.reset();
-                buf.clear();
+                inbox.reset();
                 let result = port
                     .clear(serialport::ClearBuffer::All)
                     .map_err(|e| LinkError::Serial {
@@ -360,6 +294,91 @@ fn serve(
                 drop(port);
                 let _ = reply.send(Ok(()));
                 return;
+            }
+        }
+    }
+}
+
+/// Writes every byte within `allowed`, then waits for the line to send them.
+fn write_all(
+    port: &mut dyn serialport::SerialPort,
+    data: &[u8],
+    allowed: Duration,
+    device: &str,
+) -> Result<(), LinkError> {
+    let started = Instant::now();
+    let mut rest = data;
+    while !rest.is_empty() {
+        if started.elapsed() > allowed {
+            return Err(LinkError::Timeout {
+                op: "serial write",
+                after: allowed,
+            });
+        }
+        match port.write(rest) {
+            Ok(n) => rest = &rest[n..],
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+            Err(e) => return Err(serial_io_error("serial write", e)),
+        }
+    }
+    // Every byte is with the driver; waiting for the line to send them fails only when it hung
+    // up (an unplugged adapter, a closed pty: `serialport` keeps no errno here), so that is
+    // reported as the instrument going away.
+    port.flush().map_err(|e| {
+        tracing::debug!(%device, "serial drain failed: {e}");
+        LinkError::Closed {
+            op: "serial write (drain)",
+        }
+    })
+}
+
+/// Bytes received and not yet taken as a message.
+struct Inbox {
+    decoder: TerminatedDecoder,
+    ceiling: usize,
+    buf: BytesMut,
+}
+
+impl Inbox {
+    fn reset(&mut self) {
+        self.decoder.reset();
+        self.buf.clear();
+    }
+
+    /// Reads until one whole message is buffered, within the budget of the bytes counted.
+    fn read_message(
+        &mut self,
+        port: &mut dyn serialport::SerialPort,
+        budget: ReadBudget,
+    ) -> Result<Bytes, LinkError> {
+        let started = Instant::now();
+        let mut chunk = [0u8; 4096];
+        let mut counted = 0u64;
+        loop {
+            match self.decoder.decode(&mut self.buf) {
+                Ok(Some(frame)) => return Ok(frame),
+                Ok(None) => {}
+                Err(e) => {
+                    self.reset();
+                    return Err(LinkError::codec("serial")(e));
+                }
+            }
+            let allowed = budget.allowed(counted);
+            if started.elapsed() > allowed {
+                return Err(LinkError::Timeout {
+                    op: "serial read",
+                    after: allowed,
+                });
+            }
+            match port.read(&mut chunk) {
+                Ok(0) => return Err(LinkError::Closed { op: "serial read" }),
+                Ok(n) => {
+                    counted += n as u64;
+                    reserve_within(&mut self.buf, n, self.ceiling);
+                    self.buf.extend_from_slice(&chunk[..n]);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(serial_io_error("serial read", e)),
             }
         }
     }
