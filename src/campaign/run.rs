@@ -251,41 +251,10 @@ pub async fn resume(
             dir: dir.to_path_buf(),
         });
     }
-    let spec_copy = dir.join(&manifest.spec.copy);
-    let (_, spec_hash) = manifest::sha256_file(&spec_copy)?;
-    if spec_hash != manifest.spec.sha256 {
-        return Err(CampaignError::Manifest {
-            path: spec_copy,
-            message:
-                "changed since the run started (its SHA-256 differs from the manifest's): the \
-                      run cannot be continued as planned"
-                    .into(),
-        });
-    }
+    check_spec_unchanged(dir, &manifest)?;
     let plan = manifest.plan.clone();
     let mut forced = Vec::new();
-    let bench_file = match &plan.bench.file {
-        Some(p) => {
-            let file =
-                crate::measure::bench_file::BenchFile::load(p).map_err(MeasureError::from)?;
-            let delay = file.system_delay_s();
-            if delay != plan.bench.system_delay_s {
-                let what = format!(
-                    "the bench file {} now calibrates a system delay of {:.4} ns; the run was \
-                     measured with {:.4} ns",
-                    p.display(),
-                    delay * 1e9,
-                    plan.bench.system_delay_s * 1e9
-                );
-                if !force {
-                    return Err(CampaignError::DifferentBench { what });
-                }
-                forced.push(what);
-            }
-            Some(file)
-        }
-        None => None,
-    };
+    let bench_file = reload_bench_file(&plan, force, &mut forced)?;
     let info = BenchInfo {
         file: plan.bench.file.clone().zip(bench_file.clone()),
         scene: plan.bench.scene.clone(),
@@ -298,26 +267,7 @@ pub async fn resume(
     let t_prepare = Instant::now();
     let prepared = prepare_all(&plan, &info, &catalog).await?;
     let prepare_s = t_prepare.elapsed().as_secs_f64();
-    // Completed steps are kept only when every file is as it was written.
-    let mut remeasured = Vec::new();
-    for rec in manifest.steps.iter_mut() {
-        if rec.status != StepStatus::Done {
-            continue;
-        }
-        let has_result = rec.files.iter().any(|f| f.path.ends_with(STEP_RESULT));
-        let broken = rec
-            .files
-            .iter()
-            .find_map(|f| f.check(dir))
-            .or_else(|| (!has_result).then(|| format!("{STEP_RESULT} is not recorded")));
-        if let Some(why) = broken {
-            remeasured.push(format!("step {}: {why}: measured again", rec.index));
-            rec.status = StepStatus::Pending;
-            rec.files.clear();
-            rec.applied = None;
-            rec.measured_at = None;
-        }
-    }
+    let remeasured = reopen_broken_steps(dir, &mut manifest);
     let n = manifest.sessions.len();
     let journal_path = PathBuf::from(format!("io-journal-resume-{n}.jsonl"));
     let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
@@ -350,6 +300,74 @@ pub async fn resume(
     let finished = runner.execute(observer).await;
     drop(lock);
     finished
+}
+
+/// The run's copy of its spec must be the one it started with.
+fn check_spec_unchanged(dir: &Path, manifest: &Manifest) -> Result<(), CampaignError> {
+    let spec_copy = dir.join(&manifest.spec.copy);
+    let (_, spec_hash) = manifest::sha256_file(&spec_copy)?;
+    if spec_hash != manifest.spec.sha256 {
+        return Err(CampaignError::Manifest {
+            path: spec_copy,
+            message: "changed since the run started (its SHA-256 differs from the manifest's): \
+                      the run cannot be continued as planned"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
+/// The run's bench file, loaded again; a different system delay refuses the resume unless
+/// `force`, and is then recorded in `forced`.
+fn reload_bench_file(
+    plan: &Plan,
+    force: bool,
+    forced: &mut Vec<String>,
+) -> Result<Option<crate::measure::bench_file::BenchFile>, CampaignError> {
+    let Some(path) = &plan.bench.file else {
+        return Ok(None);
+    };
+    let file = crate::measure::bench_file::BenchFile::load(path).map_err(MeasureError::from)?;
+    let delay = file.system_delay_s();
+    if delay != plan.bench.system_delay_s {
+        let what = format!(
+            "the bench file {} now calibrates a system delay of {:.4} ns; the run was measured \
+             with {:.4} ns",
+            path.display(),
+            delay * 1e9,
+            plan.bench.system_delay_s * 1e9
+        );
+        if !force {
+            return Err(CampaignError::DifferentBench { what });
+        }
+        forced.push(what);
+    }
+    Ok(Some(file))
+}
+
+/// Completed steps are kept only when every file is as it was written; the others are pending
+/// again. Returns a note per step reopened.
+fn reopen_broken_steps(dir: &Path, manifest: &mut Manifest) -> Vec<String> {
+    let mut remeasured = Vec::new();
+    for rec in manifest.steps.iter_mut() {
+        if rec.status != StepStatus::Done {
+            continue;
+        }
+        let has_result = rec.files.iter().any(|f| f.path.ends_with(STEP_RESULT));
+        let broken = rec
+            .files
+            .iter()
+            .find_map(|f| f.check(dir))
+            .or_else(|| (!has_result).then(|| format!("{STEP_RESULT} is not recorded")));
+        if let Some(why) = broken {
+            remeasured.push(format!("step {}: {why}: measured again", rec.index));
+            rec.status = StepStatus::Pending;
+            rec.files.clear();
+            rec.applied = None;
+            rec.measured_at = None;
+        }
+    }
+    remeasured
 }
 
 fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
