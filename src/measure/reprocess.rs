@@ -198,115 +198,125 @@ fn input_error(path: &Path, reason: impl Into<String>) -> MeasureError {
 /// recording as one) or a `.trc` pair (each sequence segment one repetition).
 pub(crate) fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
     match source {
-        Source::Sigmf { meta, .. } => {
-            let rec = read_sigmf(meta)?;
-            let radbench = rec
-                .radbench
-                .as_ref()
-                .map(|r| r.keys.clone())
-                .unwrap_or_default();
-            let rate = rec.sample_rate_hz.ok_or_else(|| {
-                input_error(
-                    meta,
-                    "core:sample_rate is missing: the sample rate must be known",
-                )
-            })?;
-            if rec.unit != SampleUnit::Volts {
-                tracing::info!(
-                    "{}: no radbench:vertical_gain/offset, samples in the datatype's own scale",
-                    meta.display()
-                );
-            }
-            let first = trigger_offset_s
-                .or_else(|| rec.radbench.as_ref().and_then(|r| r.trigger_offset_s))
-                .unwrap_or(0.0);
-            let reps: Vec<(u64, u64, f64)> = radbench
-                .get("repetitions")
-                .and_then(Value::as_array)
-                .map(|a| {
-                    a.iter()
-                        .filter_map(|r| {
-                            Some((
-                                r.get("sample_start")?.as_u64()?,
-                                r.get("sample_count")?.as_u64()?,
-                                trigger_offset_s
-                                    .or_else(|| r.get("trigger_offset_s")?.as_f64())
-                                    .unwrap_or(first),
-                            ))
-                        })
-                        .collect()
-                })
-                .unwrap_or_default();
-            let n = rec.samples.len() as u64;
-            let repetitions = if reps.is_empty() {
-                vec![RawIq {
-                    samples: rec.samples,
-                    sample_rate_hz: rate,
-                    first_point_s: first,
-                }]
-            } else {
-                reps.iter()
-                    .map(|&(start, count, offset)| {
-                        if start + count > n {
-                            return Err(input_error(
-                                meta,
-                                format!(
-                                    "radbench:repetitions names samples {start}..{} but the data \
-                                     holds {n}: the data file is truncated",
-                                    start + count
-                                ),
-                            ));
-                        }
-                        Ok(RawIq {
-                            samples: rec.samples[start as usize..(start + count) as usize].to_vec(),
-                            sample_rate_hz: rate,
-                            first_point_s: offset,
-                        })
-                    })
-                    .collect::<Result<_, _>>()?
-            };
-            Ok(Loaded {
-                repetitions,
-                radbench,
-            })
-        }
-        Source::TrcPair { i, q } => {
-            let ti = read_trc(i)?;
-            let tq = read_trc(q)?;
-            if ti.segment_count() != tq.segment_count() || ti.codes.len() != tq.codes.len() {
-                return Err(input_error(
-                    q,
-                    format!(
-                        "I holds {} points in {} segments, Q {} in {}: give the two channels of \
-                         one acquisition",
-                        ti.codes.len(),
-                        ti.segment_count(),
-                        tq.codes.len(),
-                        tq.segment_count()
-                    ),
-                ));
-            }
-            let rate = 1.0 / ti.sample_interval_s();
-            let repetitions = ti
-                .segments()
-                .zip(tq.segments())
-                .map(|(a, b)| RawIq {
-                    samples: a
-                        .volts()
-                        .iter()
-                        .zip(b.volts())
-                        .map(|(x, y)| num_complex::Complex64::new(*x, y))
-                        .collect(),
-                    sample_rate_hz: rate,
-                    first_point_s: trigger_offset_s.unwrap_or(a.trigger_offset_s),
-                })
-                .collect();
-            Ok(Loaded {
-                repetitions,
-                radbench: Map::new(),
-            })
-        }
+        Source::Sigmf { meta, .. } => load_sigmf(meta, trigger_offset_s),
+        Source::TrcPair { i, q } => load_trc_pair(i, q, trigger_offset_s),
     }
+}
+
+/// A SigMF recording: one repetition, or those its `radbench:repetitions` list names.
+fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
+    let rec = read_sigmf(meta)?;
+    let radbench = rec
+        .radbench
+        .as_ref()
+        .map(|r| r.keys.clone())
+        .unwrap_or_default();
+    let rate = rec.sample_rate_hz.ok_or_else(|| {
+        input_error(
+            meta,
+            "core:sample_rate is missing: the sample rate must be known",
+        )
+    })?;
+    if rec.unit != SampleUnit::Volts {
+        tracing::info!(
+            "{}: no radbench:vertical_gain/offset, samples in the datatype's own scale",
+            meta.display()
+        );
+    }
+    let first = trigger_offset_s
+        .or_else(|| rec.radbench.as_ref().and_then(|r| r.trigger_offset_s))
+        .unwrap_or(0.0);
+    let reps: Vec<(u64, u64, f64)> = radbench
+        .get("repetitions")
+        .and_then(Value::as_array)
+        .map(|a| {
+            a.iter()
+                .filter_map(|r| {
+                    Some((
+                        r.get("sample_start")?.as_u64()?,
+                        r.get("sample_count")?.as_u64()?,
+                        trigger_offset_s
+                            .or_else(|| r.get("trigger_offset_s")?.as_f64())
+                            .unwrap_or(first),
+                    ))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let n = rec.samples.len() as u64;
+    let repetitions = if reps.is_empty() {
+        vec![RawIq {
+            samples: rec.samples,
+            sample_rate_hz: rate,
+            first_point_s: first,
+        }]
+    } else {
+        reps.iter()
+            .map(|&(start, count, offset)| {
+                if start + count > n {
+                    return Err(input_error(
+                        meta,
+                        format!(
+                            "radbench:repetitions names samples {start}..{} but the data \
+                             holds {n}: the data file is truncated",
+                            start + count
+                        ),
+                    ));
+                }
+                Ok(RawIq {
+                    samples: rec.samples[start as usize..(start + count) as usize].to_vec(),
+                    sample_rate_hz: rate,
+                    first_point_s: offset,
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    Ok(Loaded {
+        repetitions,
+        radbench,
+    })
+}
+
+/// Two LeCroy traces, I and Q of one acquisition: a repetition per segment.
+fn load_trc_pair(
+    i: &Path,
+    q: &Path,
+    trigger_offset_s: Option<f64>,
+) -> Result<Loaded, MeasureError> {
+    let ti = read_trc(i)?;
+    let tq = read_trc(q)?;
+    if ti.segment_count() != tq.segment_count() || ti.codes.len() != tq.codes.len() {
+        return Err(input_error(
+            q,
+            format!(
+                "I holds {} points in {} segments, Q {} in {}: give the two channels of \
+                 one acquisition",
+                ti.codes.len(),
+                ti.segment_count(),
+                tq.codes.len(),
+                tq.segment_count()
+            ),
+        ));
+    }
+    let rate = 1.0 / ti.sample_interval_s();
+    let repetitions = ti
+        .segments()
+        .zip(tq.segments())
+        .map(|(a, b)| RawIq {
+            samples: a
+                .volts()
+                .iter()
+                .zip(b.volts())
+                .map(|(x, y)| num_complex::Complex64::new(*x, y))
+                .collect(),
+            sample_rate_hz: rate,
+            first_point_s: trigger_offset_s.unwrap_or(a.trigger_offset_s),
+        })
+        .collect();
+    Ok(Loaded {
+        repetitions,
+        radbench: Map::new(),
+    })
 }
 
 /// What the caller says about the waveform of a capture (required for captures radbench did not
