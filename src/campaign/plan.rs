@@ -416,39 +416,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     let max = processing[0].max_range_m;
     let mut waveforms: Vec<WaveformSpec> = Vec::new();
     for (k, step) in steps.iter_mut().enumerate() {
-        for (i, t) in step.nominal.targets.iter().enumerate() {
-            let r = t.range_m;
-            if !(r.is_finite() && r >= min && r <= max) {
-                return Err(spec.error(
-                    &step_field(spec, k, "targets", Some(i)),
-                    format!(
-                        "{r} m: a target must stand inside the processing window {min} .. {max} m \
-                         (processing.min_range_m / max_range_m)"
-                    ),
-                ));
-            }
-        }
-        if step.nominal.snr_db.is_some() && !bench.simulated {
-            return Err(spec.error(
-                &step_field(spec, k, "snr_db", None),
-                "the SNR is set only on a simulated bench (the built-in mock lab, or a bench file \
-                 with [simulation]); on a real bench sweep tx-attenuation instead",
-            ));
-        }
-        if let Some(att) = step.nominal.tx_attenuation_db {
-            let Some((lo, hi)) = bench.tx_attenuation_db else {
-                return Err(spec.error(
-                    &step_field(spec, k, "tx_attenuation_db", None),
-                    "the bench has no [tx] radbench controls: add the Tx to the bench file",
-                ));
-            };
-            if !(att.is_finite() && att >= lo && att <= hi) {
-                return Err(spec.error(
-                    &step_field(spec, k, "tx_attenuation_db", None),
-                    format!("{att} dB: the Tx sets {lo} .. {hi} dB"),
-                ));
-            }
-        }
+        check_nominal(spec, bench, k, &step.nominal, (min, max))?;
         let wf = base
             .with_bandwidth(step.nominal.bandwidth_hz)
             .map_err(|e| spec.error(&step_field(spec, k, "bandwidth_hz", None), e.to_string()))?;
@@ -508,6 +476,50 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         music_p_from_targets: from_targets,
         steps,
     })
+}
+
+/// Step `k`'s targets stand inside the processing window, and what it sets the bench can set.
+fn check_nominal(
+    spec: &SpecFile,
+    bench: &BenchInfo,
+    k: usize,
+    nominal: &Nominal,
+    (min, max): (f64, f64),
+) -> Result<(), SpecError> {
+    for (i, t) in nominal.targets.iter().enumerate() {
+        let r = t.range_m;
+        if !(r.is_finite() && r >= min && r <= max) {
+            return Err(spec.error(
+                &step_field(spec, k, "targets", Some(i)),
+                format!(
+                    "{r} m: a target must stand inside the processing window {min} .. {max} m \
+                     (processing.min_range_m / max_range_m)"
+                ),
+            ));
+        }
+    }
+    if nominal.snr_db.is_some() && !bench.simulated {
+        return Err(spec.error(
+            &step_field(spec, k, "snr_db", None),
+            "the SNR is set only on a simulated bench (the built-in mock lab, or a bench file \
+             with [simulation]); on a real bench sweep tx-attenuation instead",
+        ));
+    }
+    if let Some(att) = nominal.tx_attenuation_db {
+        let Some((lo, hi)) = bench.tx_attenuation_db else {
+            return Err(spec.error(
+                &step_field(spec, k, "tx_attenuation_db", None),
+                "the bench has no [tx] radbench controls: add the Tx to the bench file",
+            ));
+        };
+        if !(att.is_finite() && att >= lo && att <= hi) {
+            return Err(spec.error(
+                &step_field(spec, k, "tx_attenuation_db", None),
+                format!("{att} dB: the Tx sets {lo} .. {hi} dB"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The field of step `k`: `steps[k].name` for an explicit list, the sweep's field otherwise.
