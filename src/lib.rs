@@ -25,7 +25,9 @@
 //! Each layer is a public module; inside it, a module nothing outside the crate needs is
 //! `pub(crate)`, and the layer re-exports the types it offers (`radbench::driver::ChannelTrace`,
 //! not `radbench::driver::trace::ChannelTrace`). `#![warn(unreachable_pub)]` keeps every `pub`
-//! item reachable, so a `pub` that is not part of the API shows as a warning (an error in CI).
+//! item reachable, so a `pub` that is not part of the API shows as a warning (an error in CI);
+//! `tests/dsp/public_api.rs` fails on a `pub` item that nothing outside the crate names (the
+//! binary, tests, benchmarks, examples, doc examples) or reaches through a used signature.
 //!
 //! | module | layer | what it holds |
 //! |---|---|---|
