@@ -15,6 +15,16 @@ fn radbench(args: &[&str]) -> Output {
     )
 }
 
+/// `radbench simulate run ARGS --json`: its one scenario.
+fn run_scenario(args: &[&str]) -> serde_json::Value {
+    let args: Vec<&str> = ["simulate", "run"]
+        .into_iter()
+        .chain(args.iter().copied())
+        .chain(["--json"])
+        .collect();
+    json_of(&radbench(&args))["scenarios"][0].clone()
+}
+
 fn json_of(out: &Output) -> serde_json::Value {
     assert!(
         out.status.success(),
@@ -75,9 +85,7 @@ fn thesis_json_parses_and_every_expected_row_agrees() {
 
 #[test]
 fn run_json_has_the_documented_keys() {
-    let doc = json_of(&radbench(&[
-        "simulate",
-        "run",
+    let s = run_scenario(&[
         "--waveform",
         "ofdm",
         "--targets",
@@ -88,9 +96,7 @@ fn run_json_has_the_documented_keys() {
         "64",
         "--p",
         "2",
-        "--json",
-    ]));
-    let s = &doc["scenarios"][0];
+    ]);
     for key in SCENARIO_KEYS {
         assert!(s.get(key).is_some(), "missing {key}: {s}");
     }
@@ -118,9 +124,7 @@ fn run_uses_and_reports_the_detector_asked_for() {
     // Two echoes 30 cm apart: cell-averaging CFAR counts each in the other's noise window and
     // misses both, as the detector comparison in docs/detection.md describes; CLEAN finds both.
     let detected = |detector: &str| {
-        let doc = json_of(&radbench(&[
-            "simulate",
-            "run",
+        let s = run_scenario(&[
             "--waveform",
             "msk-lfm",
             "--targets",
@@ -129,9 +133,7 @@ fn run_uses_and_reports_the_detector_asked_for() {
             "0",
             "--detector",
             detector,
-            "--json",
-        ]));
-        let s = &doc["scenarios"][0];
+        ]);
         assert_eq!(s["detector"], detector);
         serde_json::from_value::<Vec<f64>>(s["detected_m"].clone()).unwrap()
     };
@@ -144,18 +146,14 @@ fn run_uses_and_reports_the_detector_asked_for() {
 #[test]
 fn fft_precision_double_is_reported_and_agrees_with_single() {
     let peaks = |precision: &str| {
-        let doc = json_of(&radbench(&[
-            "simulate",
-            "run",
+        let s = run_scenario(&[
             "--waveform",
             "ofdm",
             "--targets",
             "2.5,2.8",
             "--fft-precision",
             precision,
-            "--json",
-        ]));
-        let s = &doc["scenarios"][0];
+        ]);
         assert_eq!(s["fft_precision"], precision);
         serde_json::from_value::<Vec<f64>>(s["peaks_m"].clone()).unwrap()
     };
@@ -168,9 +166,7 @@ fn fft_precision_double_is_reported_and_agrees_with_single() {
 
 #[test]
 fn run_with_trials_reports_rate_and_per_trial_peaks() {
-    let doc = json_of(&radbench(&[
-        "simulate",
-        "run",
+    let s = run_scenario(&[
         "--waveform",
         "msk-lfm",
         "--targets",
@@ -179,9 +175,7 @@ fn run_with_trials_reports_rate_and_per_trial_peaks() {
         "-10",
         "--trials",
         "3",
-        "--json",
-    ]));
-    let s = &doc["scenarios"][0];
+    ]);
     assert!(s["resolved_rate"].is_number());
     assert_eq!(s["trial_peaks_m"].as_array().unwrap().len(), 3);
 }

@@ -52,7 +52,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
 ];
 
-fn sources(path: &Path, out: &mut Vec<PathBuf>) {
+/// Every `.rs` file under `path` (or `path` itself).
+pub(crate) fn sources(path: &Path, out: &mut Vec<PathBuf>) {
     if path.is_dir() {
         for entry in std::fs::read_dir(path).unwrap() {
             sources(&entry.unwrap().path(), out);

@@ -15,6 +15,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use super::layers::sources;
 use quote::ToTokens;
 use syn::{Attribute, Fields, ImplItem, Item, Visibility};
 
@@ -132,16 +133,6 @@ fn parse(file: &Path) -> syn::File {
     syn::parse_file(&text).unwrap_or_else(|e| panic!("{}: {e}", file.display()))
 }
 
-fn rust_files(path: &Path, out: &mut Vec<PathBuf>) {
-    if path.is_dir() {
-        for entry in std::fs::read_dir(path).unwrap() {
-            rust_files(&entry.unwrap().path(), out);
-        }
-    } else if path.extension().is_some_and(|e| e == "rs") {
-        out.push(path.to_path_buf());
-    }
-}
-
 /// The words of Rust code in doc comments (fenced blocks not marked `text`): doc examples are
 /// compiled outside the crate.
 fn doc_example_words(text: &str, into: &mut BTreeSet<String>) {
@@ -186,12 +177,12 @@ fn unused_public_items(lib: &Path, outside_dirs: &[PathBuf]) -> Vec<String> {
 
     let mut outside = Vec::new();
     for dir in outside_dirs {
-        rust_files(dir, &mut outside);
+        sources(dir, &mut outside);
     }
     let mut used = BTreeSet::new();
     words_of(&outside, &mut used);
     let mut inside = Vec::new();
-    rust_files(src, &mut inside);
+    sources(src, &mut inside);
     for file in &inside {
         doc_example_words(&std::fs::read_to_string(file).unwrap(), &mut used);
     }
