@@ -85,6 +85,32 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
+//! Your own samples through the same pipeline: the thesis' MSK-LFM, an echo 2 m away (its
+//! round trip delays it), processed as one aligned repetition:
+//!
+//! ```
+//! use num_complex::Complex64;
+//! use radbench::measure::{Dac, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission};
+//! use radbench::physics::C0;
+//! use radbench::waveform::spec::WaveformKind;
+//! use std::sync::Arc;
+//!
+//! let kind = WaveformKind::MskLfm;
+//! let tx = Arc::new(Transmission::new(&kind.thesis_default(), None, 1, Dac::Ideal)?);
+//! let (period, fs) = (tx.len(), tx.sample_rate_hz());
+//! let geometry = RecordGeometry { period, correlation_lags: period };
+//! let mut pipeline = Pipeline::new(tx.clone(), ProcessOptions::for_waveform(kind), geometry)?;
+//!
+//! let delay = (2.0 * 2.0 / C0 * fs).round() as usize;
+//! let samples: Vec<Complex64> =
+//!     (0..period).map(|n| 0.1 * tx.reference[(n + period - delay) % period]).collect();
+//! let aligned = pipeline.align(&RawIq { samples, sample_rate_hz: fs, first_point_s: 0.0 })?;
+//! let processed = pipeline.process(aligned, None)?;
+//! let range = processed.targets[0].range_m;
+//! assert!((range - 2.0).abs() < 0.01, "{range} m");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! A LeCroy trace (a `WF?` reply's block, or a saved `.trc` file) gives volts and times per
 //! segment:
 //!
