@@ -63,6 +63,15 @@ impl Checks {
         }
     }
 
+    /// A count or width in `1..=max`.
+    fn count(&mut self, field: &str, value: u8, max: u8) -> bool {
+        let ok = (1..=max).contains(&value);
+        if !ok {
+            self.fail(field, format!("must be 1..={max} (got {value})"));
+        }
+        ok
+    }
+
     fn within(&mut self, field: &str, value: f64, min: f64, max: f64) {
         if !(value >= min && value <= max) {
             self.fail(field, format!("must lie in {min} ..= {max} (got {value})"));
@@ -295,18 +304,8 @@ fn check_sections(c: &mut Checks, model: &InstrumentModel) {
 }
 
 fn check_awg(c: &mut Checks, a: &AwgLimits) {
-    if a.channels == 0 || a.channels > 8 {
-        c.fail(
-            "awg.channels",
-            format!("must be 1..=8 (got {})", a.channels),
-        );
-    }
-    if a.sample_bits == 0 || a.sample_bits > 16 {
-        c.fail(
-            "awg.sample_bits",
-            format!("must be 1..=16 (got {})", a.sample_bits),
-        );
-    } else {
+    c.count("awg.channels", a.channels, 8);
+    if c.count("awg.sample_bits", a.sample_bits, 16) {
         let lo = -(1i32 << (a.sample_bits - 1));
         let hi = (1i32 << (a.sample_bits - 1)) - 1;
         if a.sample_min < lo || a.sample_max > hi || a.sample_min >= a.sample_max {
@@ -511,18 +510,8 @@ fn check_dac_modes(c: &mut Checks, a: &AwgLimits) {
 }
 
 fn check_digitizer(c: &mut Checks, d: &DigitizerLimits) {
-    if d.channels == 0 || d.channels > 8 {
-        c.fail(
-            "digitizer.channels",
-            format!("must be 1..=8 (got {})", d.channels),
-        );
-    }
-    if d.adc_bits == 0 || d.adc_bits > 16 {
-        c.fail(
-            "digitizer.adc_bits",
-            format!("must be 1..=16 (got {})", d.adc_bits),
-        );
-    }
+    c.count("digitizer.channels", d.channels, 8);
+    c.count("digitizer.adc_bits", d.adc_bits, 16);
     if d.sample_rates.is_empty() {
         c.fail("digitizer.sample_rates", "needs at least one sample rate");
     }
