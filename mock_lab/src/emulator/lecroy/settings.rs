@@ -282,12 +282,7 @@ pub(super) fn get_time_div(st: &ScopeState, _: &Call) -> Result<Report, Fault> {
 pub(super) fn set_time_div(st: &mut ScopeState, call: &Call) -> Result<(), Fault> {
     let v = value(call.one()?, Unit::Second)?;
     let v = adapt(st, v, 1e-12, 1e3);
-    st.hor_scale = v;
-    let wanted =
-        f64::from(call.model.limits.horizontal_divisions) * v * ScopeState::sample_rate(call.model);
-    if wanted.round() as u64 > st.record_points(call.model) {
-        st.value_adapted = true;
-    }
+    st.set_hor_scale(call.model, v);
     Ok(())
 }
 

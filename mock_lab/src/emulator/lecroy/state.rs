@@ -232,6 +232,17 @@ impl ScopeState {
             .min(EMULATOR_MAX_POINTS)
     }
 
+    /// Sets the horizontal scale; a window longer than the record can hold is adapted (the
+    /// scope records fewer points and says so in VAB).
+    pub(crate) fn set_hor_scale(&mut self, model: &DigitizerModel, s_per_div: f64) {
+        self.hor_scale = s_per_div;
+        let l = &model.limits;
+        let wanted = f64::from(l.horizontal_divisions) * s_per_div * Self::sample_rate(model);
+        if wanted.round() as u64 > self.record_points(model) {
+            self.value_adapted = true;
+        }
+    }
+
     /// Triggers one acquisition records.
     pub(crate) fn segments_per_acquisition(&self) -> u32 {
         match self.sample_mode {

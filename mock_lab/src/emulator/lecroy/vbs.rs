@@ -5,6 +5,7 @@
 
 use std::time::{Duration, Instant};
 
+use super::params::adapt;
 use super::state::{SampleMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::{Fault, Lecroy};
@@ -243,16 +244,11 @@ fn set_horizontal_horscale(
     lhs: &str,
     rhs: &str,
 ) -> Result<(), Fault> {
-    let limits = &model.limits;
     let v = number(lhs, rhs)?;
     if v <= 0.0 {
         return Err(bad_value(lhs, rhs));
     }
-    st.hor_scale = v;
-    let wanted = f64::from(limits.horizontal_divisions) * v * ScopeState::sample_rate(model);
-    if wanted.round() as u64 > st.record_points(model) {
-        st.value_adapted = true;
-    }
+    st.set_hor_scale(model, v);
     Ok(())
 }
 
@@ -265,11 +261,7 @@ fn set_horizontal_maxsamples(
     let limits = &model.limits;
     let v = number(lhs, rhs)?;
     let max = limits.max_points_per_channel as f64;
-    let clamped = v.clamp(1.0, max);
-    if clamped != v {
-        st.value_adapted = true;
-    }
-    st.max_samples = clamped.round() as u64;
+    st.max_samples = adapt(st, v, 1.0, max).round() as u64;
     Ok(())
 }
 
@@ -303,11 +295,7 @@ fn set_horizontal_numsegments(
     }
     // The scope adapts a count out of range to the nearest it can do.
     let max = f64::from(limits.max_sequence_segments.max(2));
-    let clamped = v.clamp(2.0, max);
-    if clamped != v {
-        st.value_adapted = true;
-    }
-    st.segments = clamped as u32;
+    st.segments = adapt(st, v, 2.0, max) as u32;
     Ok(())
 }
 
@@ -381,11 +369,8 @@ fn set_trigger_edge_level(
     } else {
         (f64::MIN, f64::MAX)
     };
-    let clamped = v.clamp(min, max);
-    if clamped != v {
-        st.value_adapted = true;
-    }
-    st.set_level(&source, clamped);
+    let level = adapt(st, v, min, max);
+    st.set_level(&source, level);
     Ok(())
 }
 
