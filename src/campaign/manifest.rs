@@ -64,6 +64,9 @@ pub struct Manifest {
     pub spec: InputFile,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bench_file: Option<InputFile>,
+    /// The instrument files of the bench file's `catalog` folder, as the run read them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bench_catalog: Vec<InputFile>,
     /// `*IDN?` of each instrument at the first connection.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub instruments: Option<Instruments>,

@@ -59,6 +59,8 @@ pub(crate) const RESULTS_FILE: &str = "results.json";
 pub(crate) const SPEC_COPY: &str = "spec.toml";
 /// The bench file's copy in a run folder.
 pub(crate) const BENCH_COPY: &str = "bench.toml";
+/// Where the run keeps its copies of the bench file's own instrument files.
+pub(crate) const BENCH_CATALOG_COPY: &str = "bench-catalog";
 /// Each step's own result (the entry of `results.json`), inside the step's folder.
 pub(crate) const STEP_RESULT: &str = "result.json";
 /// Held (flock) while a process works in the run folder.
@@ -176,6 +178,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         }
         None => None,
     };
+    let bench_catalog = copy_bench_catalog(&out, &run.bench)?;
     let journal_path = run
         .journal
         .clone()
@@ -192,6 +195,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         updated: now.clone(),
         spec: spec_in,
         bench_file: bench_in,
+        bench_catalog,
         instruments: None,
         base_scene: None,
         plan: run.plan.clone(),
@@ -255,6 +259,7 @@ pub async fn resume(
     let plan = manifest.plan.clone();
     let mut forced = Vec::new();
     let bench_file = reload_bench_file(&plan, force, &mut forced)?;
+    check_bench_catalog(&manifest, bench_file.as_ref(), force, &mut forced)?;
     let info = BenchInfo {
         file: plan.bench.file.clone().zip(bench_file.clone()),
         scene: plan.bench.scene.clone(),
@@ -302,6 +307,29 @@ pub async fn resume(
     finished
 }
 
+/// Copies the instrument files of the bench file's `catalog` folder into the run folder
+/// (`bench-catalog/`), so the limits the run was planned with stay with its data.
+fn copy_bench_catalog(out: &Path, bench: &BenchInfo) -> Result<Vec<InputFile>, CampaignError> {
+    let Some(dir) = bench.file.as_ref().and_then(|(_, f)| f.catalog_dir()) else {
+        return Ok(Vec::new());
+    };
+    let files = crate::catalog::folder_files(&dir).map_err(MeasureError::from)?;
+    let folder = out.join(BENCH_CATALOG_COPY);
+    std::fs::create_dir_all(&folder).map_err(io(&folder))?;
+    let mut copied = Vec::with_capacity(files.len());
+    for path in files {
+        let bytes = std::fs::read(&path).map_err(io(&path))?;
+        let copy = Path::new(BENCH_CATALOG_COPY).join(path.file_name().unwrap_or_default());
+        write_atomic(&out.join(&copy), &bytes)?;
+        copied.push(InputFile {
+            path: std::path::absolute(&path).unwrap_or(path),
+            copy,
+            sha256: manifest::sha256_bytes(&bytes),
+        });
+    }
+    Ok(copied)
+}
+
 /// The run's copy of its spec must be the one it started with.
 fn check_spec_unchanged(dir: &Path, manifest: &Manifest) -> Result<(), CampaignError> {
     let spec_copy = dir.join(&manifest.spec.copy);
@@ -343,6 +371,45 @@ fn reload_bench_file(
         forced.push(what);
     }
     Ok(Some(file))
+}
+
+/// The bench file's instrument files must be those the run was planned with (the same names and
+/// contents); a change refuses the resume unless `force`, and is then recorded in `forced`.
+fn check_bench_catalog(
+    manifest: &Manifest,
+    bench_file: Option<&crate::measure::bench_file::BenchFile>,
+    force: bool,
+    forced: &mut Vec<String>,
+) -> Result<(), CampaignError> {
+    let name = |p: &Path| {
+        p.file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned()
+    };
+    let then: Vec<(String, String)> = manifest
+        .bench_catalog
+        .iter()
+        .map(|f| (name(&f.copy), f.sha256.clone()))
+        .collect();
+    let mut now = Vec::new();
+    if let Some(dir) = bench_file.and_then(|f| f.catalog_dir()) {
+        for path in crate::catalog::folder_files(&dir).map_err(MeasureError::from)? {
+            let bytes = std::fs::read(&path).map_err(io(&path))?;
+            now.push((name(&path), manifest::sha256_bytes(&bytes)));
+        }
+    }
+    if then == now {
+        return Ok(());
+    }
+    let what = "the instrument files of the bench file's catalog folder changed since the run \
+                started (the copies it was planned with are in bench-catalog/)"
+        .to_string();
+    if !force {
+        return Err(CampaignError::DifferentBench { what });
+    }
+    forced.push(what);
+    Ok(())
 }
 
 /// Completed steps are kept only when every file is as it was written; the others are pending

@@ -195,7 +195,8 @@ pub fn parse_model(file: &str, text: &str) -> Result<InstrumentModel, CatalogErr
 }
 
 /// Reads every `*.toml` file of a folder, sorted by name.
-fn read_dir(dir: &Path) -> Result<Vec<(InstrumentModel, Origin)>, CatalogError> {
+/// The instrument files of a catalog folder (`*.toml`, sorted): what [`Catalog::load`] reads.
+pub(crate) fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, CatalogError> {
     let listing = std::fs::read_dir(dir).map_err(|source| CatalogError::ReadDir {
         dir: dir.to_path_buf(),
         source,
@@ -217,6 +218,11 @@ fn read_dir(dir: &Path) -> Result<Vec<(InstrumentModel, Origin)>, CatalogError> 
         });
     }
     paths.sort();
+    Ok(paths)
+}
+
+fn read_dir(dir: &Path) -> Result<Vec<(InstrumentModel, Origin)>, CatalogError> {
+    let paths = folder_files(dir)?;
     let mut models = Vec::with_capacity(paths.len());
     for path in paths {
         let text = std::fs::read_to_string(&path).map_err(|source| CatalogError::Read {

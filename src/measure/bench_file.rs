@@ -215,11 +215,13 @@ impl BenchFile {
     /// The instrument catalog of this bench: the built-in models, extended and overridden by the
     /// files of its `catalog` folder when it names one.
     pub fn catalog(&self) -> Result<crate::catalog::Catalog, crate::catalog::CatalogError> {
-        let dir = self.catalog.as_ref().map(|dir| {
-            let base = self.path.parent().unwrap_or(Path::new("."));
-            base.join(dir)
-        });
-        crate::catalog::Catalog::load(dir.as_deref())
+        crate::catalog::Catalog::load(self.catalog_dir().as_deref())
+    }
+
+    /// The `catalog` folder it names, relative to the bench file's own folder.
+    pub(crate) fn catalog_dir(&self) -> Option<PathBuf> {
+        let base = self.path.parent().unwrap_or(Path::new("."));
+        self.catalog.as_ref().map(|dir| base.join(dir))
     }
 
     /// Checks that every model names an instrument of the catalog of the right kind; the error

@@ -582,10 +582,18 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
     .expect("the lab starts")
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
+    // The bench's own instrument folder (here the built-in scope's file, overriding it as is).
+    let folder = dir.path().join("my-instruments");
+    std::fs::create_dir(&folder).unwrap();
+    let scope_file = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments/lecroy_labmaster10zi_a.toml"),
+    )
+    .unwrap();
+    std::fs::write(folder.join("scope.toml"), &scope_file).unwrap();
     let bench_file = dir.path().join("bench.toml");
     let calibrated = |delay: &str| {
         format!(
-            "{}\n[calibration]\nsystem_delay_s = {delay}\n",
+            "catalog = \"my-instruments\"\n{}\n[calibration]\nsystem_delay_s = {delay}\n",
             lab.bench_toml(Transport::Hislip, Transport::Vicp)
         )
     };
@@ -608,6 +616,16 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
         "the lab's scene, read through its control channel"
     );
     assert!(m.bench_file.is_some());
+    // The instrument files the run was planned with are kept with it, hashed.
+    assert_eq!(m.bench_catalog.len(), 1, "{:?}", m.bench_catalog);
+    let kept = &m.bench_catalog[0];
+    assert_eq!(kept.copy, Path::new("bench-catalog/scope.toml"));
+    assert_eq!(std::fs::read(out.join(&kept.copy)).unwrap(), scope_file);
+    let digest: String = <sha2::Sha256 as sha2::Digest>::digest(&scope_file)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert_eq!(kept.sha256, digest);
     std::fs::write(&bench_file, calibrated("2.6e-9")).unwrap();
     let resume = |force: bool| {
         let out = out.clone();
@@ -627,6 +645,18 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
             .unwrap()
         }
     };
+    // An edited instrument file is another bench too.
+    let edited = [scope_file.as_slice(), b"\n# edited\n"].concat();
+    std::fs::write(folder.join("scope.toml"), &edited).unwrap();
+    std::fs::write(&bench_file, calibrated("2.5e-9")).unwrap();
+    let err = resume(false)
+        .await
+        .err()
+        .expect("an edited instrument file is refused");
+    assert_eq!(err.exit_class().code(), 2, "{err}");
+    assert!(err.to_string().contains("catalog folder changed"), "{err}");
+    std::fs::write(folder.join("scope.toml"), &scope_file).unwrap();
+    std::fs::write(&bench_file, calibrated("2.6e-9")).unwrap();
     let err = resume(false)
         .await
         .err()
