@@ -257,12 +257,12 @@ impl RangeProcessor {
 }
 
 impl OfdmProcessor {
-    /// The OFDM radar receiver, its unit level, and the subspace estimator when `alg` is one.
+    /// The OFDM radar receiver, its unit level, and the subspace estimator when the options'
+    /// algorithm is one.
     fn new(
         tx: &Transmission,
         generator: &Ofdm,
         symbols: &SymbolMatrix,
-        alg: Algorithm,
         options: &ProcessOptions,
     ) -> Result<OfdmProcessor, MeasureError> {
         let params = *generator.params();
@@ -293,7 +293,7 @@ impl OfdmProcessor {
             .copied()
             .fold(0.0, f64::max)
             .max(1e-300);
-        let music = if alg.is_subspace() {
+        let music = if options.algorithm.is_subspace() {
             let n = params.subcarriers;
             Some(Music::new(MusicConfig {
                 subcarriers: n,
@@ -328,6 +328,61 @@ impl OfdmProcessor {
             spectrum: MusicSpectrum::default(),
             df_hz: generator.subcarrier_spacing_hz(),
             velocity,
+        })
+    }
+
+    /// The Fourier profile, and the subspace estimator's result when one is configured.
+    fn profiles(
+        &mut self,
+        rx: &[Complex64],
+        options: &ProcessOptions,
+        place: Placement,
+    ) -> Result<RangeResult, MeasureError> {
+        self.radar
+            .process(rx, 0, &self.symbols, &mut self.idiv, &mut self.profile)?;
+        let unit = self.unit;
+        let fourier = place.place(Profile {
+            label: format!("Fourier ({}-point IFFT)", self.profile.amplitude.len()),
+            axis: self.profile.axis(),
+            amplitude: self.profile.amplitude.iter().map(|a| a / unit).collect(),
+        });
+        let Some(music) = &mut self.music else {
+            let mut z = Vec::new();
+            self.radar.complex_profile(&self.idiv, &mut z)?;
+            let k = place.scale / unit;
+            for v in &mut z {
+                *v *= k;
+            }
+            return Ok(RangeResult {
+                profiles: vec![fourier],
+                estimates_m: None,
+                complex: Some(z),
+            });
+        };
+        let idiv = self.idiv.as_slice();
+        let (profiles, estimates) = match options.algorithm {
+            Algorithm::Esprit => (vec![fourier], music.esprit(idiv)?),
+            Algorithm::RootMusic => {
+                music.estimate(idiv, &mut self.spectrum)?;
+                let r = root_music_ranges(music, self.spectrum.order, self.df_hz)?;
+                (vec![fourier], r)
+            }
+            _ => {
+                music.estimate(idiv, &mut self.spectrum)?;
+                let mut mp = music_profile(
+                    &self.spectrum.range_m,
+                    &self.spectrum.pseudo_spectrum,
+                    options.music_m,
+                    self.spectrum.order,
+                );
+                mp.axis.start += place.offset_m;
+                (vec![mp, fourier], self.spectrum.peaks_m.clone())
+            }
+        };
+        Ok(RangeResult {
+            profiles,
+            estimates_m: Some(place.shift(estimates)),
+            complex: None,
         })
     }
 }
@@ -386,63 +441,6 @@ fn correlation_profile(
         estimates_m: None,
         complex: Some(z),
     })
-}
-
-impl OfdmProcessor {
-    /// The Fourier profile, and the subspace estimator's result when one is configured.
-    fn profiles(
-        &mut self,
-        rx: &[Complex64],
-        options: &ProcessOptions,
-        place: Placement,
-    ) -> Result<RangeResult, MeasureError> {
-        self.radar
-            .process(rx, 0, &self.symbols, &mut self.idiv, &mut self.profile)?;
-        let unit = self.unit;
-        let fourier = place.place(Profile {
-            label: format!("Fourier ({}-point IFFT)", self.profile.amplitude.len()),
-            axis: self.profile.axis(),
-            amplitude: self.profile.amplitude.iter().map(|a| a / unit).collect(),
-        });
-        let Some(music) = &mut self.music else {
-            let mut z = Vec::new();
-            self.radar.complex_profile(&self.idiv, &mut z)?;
-            let k = place.scale / unit;
-            for v in &mut z {
-                *v *= k;
-            }
-            return Ok(RangeResult {
-                profiles: vec![fourier],
-                estimates_m: None,
-                complex: Some(z),
-            });
-        };
-        let idiv = self.idiv.as_slice();
-        let (profiles, estimates) = match options.algorithm {
-            Algorithm::Esprit => (vec![fourier], music.esprit(idiv)?),
-            Algorithm::RootMusic => {
-                music.estimate(idiv, &mut self.spectrum)?;
-                let r = root_music_ranges(music, self.spectrum.order, self.df_hz)?;
-                (vec![fourier], r)
-            }
-            _ => {
-                music.estimate(idiv, &mut self.spectrum)?;
-                let mut mp = music_profile(
-                    &self.spectrum.range_m,
-                    &self.spectrum.pseudo_spectrum,
-                    options.music_m,
-                    self.spectrum.order,
-                );
-                mp.axis.start += place.offset_m;
-                (vec![mp, fourier], self.spectrum.peaks_m.clone())
-            }
-        };
-        Ok(RangeResult {
-            profiles,
-            estimates_m: Some(place.shift(estimates)),
-            complex: None,
-        })
-    }
 }
 
 /// The configured pipeline (see the module docs).
@@ -564,8 +562,8 @@ impl Pipeline {
         }
         let range = match (options.algorithm, &tx.modulation) {
             (Algorithm::Correlation, _) => RangeProcessor::correlation(&tx, &options, &geometry)?,
-            (alg, Modulation::Ofdm { generator, symbols }) => RangeProcessor::Ofdm(Box::new(
-                OfdmProcessor::new(&tx, generator, symbols, alg, &options)?,
+            (_, Modulation::Ofdm { generator, symbols }) => RangeProcessor::Ofdm(Box::new(
+                OfdmProcessor::new(&tx, generator, symbols, &options)?,
             )),
             (alg, Modulation::MskLfm(_)) => {
                 return Err(MeasureError::AlgorithmNeedsOfdm {
