@@ -4,7 +4,9 @@
 use std::future::Future;
 use std::io::{self, IoSlice};
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
@@ -117,6 +119,37 @@ pub(crate) async fn call_handler(
     let handler = Arc::clone(handler);
     let responses = blocking(move || handler.respond(message)).await?;
     Some(responses.into_iter().map(Response::terminated).collect())
+}
+
+/// How often a device clear is passed on again to a handler still busy with a message the clear
+/// abandoned.
+const CLEAR_REPEAT: Duration = Duration::from_millis(50);
+
+/// Runs the handler on `message`, received in clear generation `of` of a link whose current
+/// generation is `generation`. A device clear can land between the worker's generation check and
+/// the handler starting the message; the handler then missed it (a `SLOW?` would run its full
+/// time). So while the message runs and the link has moved on, the clear is passed on again every
+/// [`CLEAR_REPEAT`]. Every protocol server with a device clear (VXI-11, HiSLIP, VICP) calls this.
+pub(crate) async fn call_clearable(
+    handler: &Arc<dyn Handler>,
+    message: Bytes,
+    generation: &AtomicU64,
+    of: u64,
+) -> Option<Vec<Response>> {
+    let call = call_handler(handler, message);
+    tokio::pin!(call);
+    let mut tick = tokio::time::interval(CLEAR_REPEAT);
+    loop {
+        tokio::select! {
+            responses = &mut call => return responses,
+            _ = tick.tick() => {
+                if generation.load(Ordering::SeqCst) != of {
+                    let handler = Arc::clone(handler);
+                    blocking(move || handler.device_clear()).await;
+                }
+            }
+        }
+    }
 }
 
 /// Appends the LF response terminator unless the response already ends with one (serial port).

@@ -26,6 +26,55 @@ pub fn instrument() -> (Arc<dyn Handler>, ServerOptions, Arc<Faults>) {
     (handler, ServerOptions::with_faults(faults.clone()), faults)
 }
 
+/// A loopback that starts each message `delay` late (an instrument still busy with what came
+/// before), and says when a message has reached it: a device clear sent then lands before the
+/// instrument has begun the message, the window a server must cover by passing the clear on again.
+pub struct LateStart {
+    inner: Loopback,
+    delay: Duration,
+    entered: std::sync::Mutex<std::sync::mpsc::Sender<()>>,
+}
+
+impl LateStart {
+    /// The handler, and the receiver of one `()` per message that reached it.
+    pub fn handler(delay: Duration) -> (Arc<dyn Handler>, std::sync::mpsc::Receiver<()>) {
+        let (entered, reached) = std::sync::mpsc::channel();
+        let handler = Arc::new(LateStart {
+            inner: Loopback::new(),
+            delay,
+            entered: std::sync::Mutex::new(entered),
+        });
+        (handler, reached)
+    }
+}
+
+impl Handler for LateStart {
+    fn message(&self, data: &[u8]) -> Vec<Vec<u8>> {
+        let _ = self.entered.lock().unwrap().send(());
+        std::thread::sleep(self.delay);
+        self.inner.message(data)
+    }
+
+    fn device_clear(&self) {
+        self.inner.device_clear();
+    }
+
+    fn status_byte(&self) -> u8 {
+        self.inner.status_byte()
+    }
+}
+
+/// Waits (blocking, bounded) until a message has reached a [`LateStart`] handler.
+pub async fn reached(rx: std::sync::mpsc::Receiver<()>) -> std::sync::mpsc::Receiver<()> {
+    tokio::task::spawn_blocking(move || {
+        rx.recv_timeout(LIMIT)
+            .expect("the message reaches the instrument");
+        rx
+    })
+    .await
+    .unwrap()
+}
+
 /// The loopback's `DATA:GEN` bytes, to check blocks end to end.
 pub fn expected_block(len: usize, seed: u64) -> Vec<u8> {
     mock_lab::emulator::loopback::pseudo_random_bytes(len, seed)

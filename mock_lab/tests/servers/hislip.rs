@@ -152,6 +152,28 @@ async fn identity_status_and_device_clear() {
 }
 
 #[tokio::test]
+async fn a_clear_that_lands_before_the_instrument_starts_a_slow_query_still_ends_it() {
+    // The clear is sent once SLOW? has reached the instrument, which begins it 300 ms later.
+    let (handler, entered) = common::LateStart::handler(Duration::from_millis(300));
+    let server = hislip::serve(
+        loopback_any(),
+        handler,
+        mock_lab::server::ServerOptions::default(),
+    )
+    .await
+    .unwrap();
+    let mut c = Client::open(server.local_addr()).await;
+    c.write(b"SLOW? 60000\n").await;
+    let _entered = common::reached(entered).await;
+    c.clear().await;
+    // Without the clear passed on again, SLOW? would hold the instrument for its full minute.
+    let reply = tokio::time::timeout(Duration::from_secs(10), c.query("ECHO after clear"))
+        .await
+        .expect("the slow query was cut short");
+    assert_eq!(reply, b"after clear\n");
+}
+
+#[tokio::test]
 async fn block_of_64_mb_each_way_in_1_mb_messages() {
     let (handler, options, _) = instrument();
     let server = hislip::serve(loopback_any(), handler, options)

@@ -117,6 +117,28 @@ async fn message_in_several_blocks_and_64_mb_each_way() {
 }
 
 #[tokio::test]
+async fn a_clear_that_lands_before_the_instrument_starts_a_slow_query_still_ends_it() {
+    // The clear is sent once SLOW? has reached the instrument, which begins it 300 ms later.
+    let (handler, entered) = common::LateStart::handler(Duration::from_millis(300));
+    let server = vicp::serve(
+        loopback_any(),
+        handler,
+        mock_lab::server::ServerOptions::default(),
+    )
+    .await
+    .unwrap();
+    let mut c = Client::connect(server.local_addr()).await;
+    c.send(b"SLOW? 60000").await;
+    let _entered = common::reached(entered).await;
+    c.send_block(0x90, b"").await;
+    // Without the clear passed on again, SLOW? would hold the instrument for its full minute.
+    let reply = tokio::time::timeout(Duration::from_secs(10), c.query("ECHO fresh"))
+        .await
+        .expect("the slow query was cut short");
+    assert_eq!(reply, b"fresh\n");
+}
+
+#[tokio::test]
 async fn device_clear_and_both_serial_polls() {
     let (server, _) = server().await;
     let mut c = Client::connect(server.local_addr()).await;

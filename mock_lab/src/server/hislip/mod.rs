@@ -413,7 +413,14 @@ async fn run_worker(
             }
         };
         for message in messages {
-            let Some(responses) = conn::call_handler(&shared.handler, message).await else {
+            let Some(responses) = conn::call_clearable(
+                &shared.handler,
+                message,
+                &session.clear_generation,
+                generation,
+            )
+            .await
+            else {
                 return;
             };
             for response in responses {

@@ -199,7 +199,14 @@ async fn run_worker(mut queue: mpsc::Receiver<Job>, connection: Arc<Connection>)
             }
         };
         for message in messages {
-            let Some(responses) = conn::call_handler(&connection.handler, message).await else {
+            let Some(responses) = conn::call_clearable(
+                &connection.handler,
+                message,
+                &connection.generation,
+                job.generation,
+            )
+            .await
+            else {
                 return;
             };
             for response in responses {

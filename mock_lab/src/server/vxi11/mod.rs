@@ -595,36 +595,6 @@ async fn device_lock(shared: &Arc<Shared>, r: &mut XdrReader<'_>) -> Result<i32,
     })
 }
 
-/// How often a device clear is passed on again to a handler still busy with a message the clear
-/// abandoned.
-const CLEAR_REPEAT: Duration = Duration::from_millis(50);
-
-/// Runs the handler on `message` (of link generation `generation`). A device clear can land
-/// between the worker's generation check and the handler starting the message; the handler then
-/// missed it (a `SLOW?` would run its full time). So while the message runs and the link has
-/// moved on, the clear is passed on again every [`CLEAR_REPEAT`].
-async fn call_clearable(
-    shared: &Arc<Shared>,
-    link: &Link,
-    generation: u64,
-    message: Bytes,
-) -> Option<Vec<super::Response>> {
-    let call = conn::call_handler(&shared.handler, message);
-    tokio::pin!(call);
-    let mut tick = tokio::time::interval(CLEAR_REPEAT);
-    loop {
-        tokio::select! {
-            responses = &mut call => return responses,
-            _ = tick.tick() => {
-                if link.generation.load(Ordering::SeqCst) != generation {
-                    let handler = Arc::clone(&shared.handler);
-                    conn::blocking(move || handler.device_clear()).await;
-                }
-            }
-        }
-    }
-}
-
 fn find_link(shared: &Shared, lid: i32) -> Option<Arc<Link>> {
     lock(&shared.links).get(&lid).cloned()
 }
@@ -896,7 +866,13 @@ async fn run_worker(
                     }
                 };
                 for message in messages {
-                    let Some(responses) = call_clearable(&shared, &link, generation, message).await
+                    let Some(responses) = conn::call_clearable(
+                        &shared.handler,
+                        message,
+                        &link.generation,
+                        generation,
+                    )
+                    .await
                     else {
                         return;
                     };
