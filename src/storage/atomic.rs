@@ -399,6 +399,14 @@ mod tests {
     use super::*;
     use std::os::unix::fs::symlink;
 
+    /// A file outside the folder written to, holding "precious": what a planted link aims at.
+    fn victim_outside() -> (tempfile::TempDir, std::path::PathBuf) {
+        let outside = tempfile::tempdir().unwrap();
+        let victim = outside.path().join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        (outside, victim)
+    }
+
     #[test]
     fn a_group_puts_its_files_in_place_at_its_end_with_their_hashes() {
         let dir = tempfile::tempdir().unwrap();
@@ -437,9 +445,7 @@ mod tests {
 
     #[test]
     fn a_temporary_replaced_during_the_group_is_not_renamed_into_place() {
-        let outside = tempfile::tempdir().unwrap();
-        let victim = outside.path().join("victim.txt");
-        std::fs::write(&victim, b"precious").unwrap();
+        let (_outside, victim) = victim_outside();
         let dir = tempfile::tempdir().unwrap();
         let dest = dir.path().join("a.bin");
         let ended = write_group(|| {
@@ -509,9 +515,7 @@ mod tests {
 
     #[test]
     fn a_planted_symlink_is_refused_and_its_target_untouched() {
-        let outside = tempfile::tempdir().unwrap();
-        let victim = outside.path().join("victim.txt");
-        std::fs::write(&victim, b"precious").unwrap();
+        let (outside, victim) = victim_outside();
         let run = tempfile::tempdir().unwrap();
         let planted = run.path().join("summary.json");
         symlink(&victim, &planted).unwrap();
@@ -533,9 +537,7 @@ mod tests {
 
     #[test]
     fn a_symlink_planted_at_a_guessable_temporary_name_is_not_followed() {
-        let outside = tempfile::tempdir().unwrap();
-        let victim = outside.path().join("victim.txt");
-        std::fs::write(&victim, b"precious").unwrap();
+        let (_outside, victim) = victim_outside();
         let run = tempfile::tempdir().unwrap();
         let dest = run.path().join("a.bin");
         // The names earlier versions used (`.a.bin.tmp-<pid>`), and this version's prefix.
@@ -553,9 +555,7 @@ mod tests {
 
     #[test]
     fn temporaries_are_created_exclusively_and_never_followed() {
-        let outside = tempfile::tempdir().unwrap();
-        let victim = outside.path().join("victim.txt");
-        std::fs::write(&victim, b"precious").unwrap();
+        let (_outside, victim) = victim_outside();
         let run = tempfile::tempdir().unwrap();
         let dest = run.path().join("a.bin");
         // Whatever name is planted, create_new + O_NOFOLLOW never opens it.
@@ -600,9 +600,7 @@ mod tests {
         for name in [&own, &dead, &alive] {
             std::fs::write(d.join(name), b"half").unwrap();
         }
-        let outside = tempfile::tempdir().unwrap();
-        let victim = outside.path().join("victim.txt");
-        std::fs::write(&victim, b"precious").unwrap();
+        let (_outside, victim) = victim_outside();
         let linked = format!(".x{TEMP_MARKER}4194305-1111111111111111");
         symlink(&victim, d.join(&linked)).unwrap();
         for keep in [
