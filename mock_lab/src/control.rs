@@ -95,7 +95,7 @@ impl SharedScene {
         match req {
             Request::Set { scene } => {
                 reseed = Some(scene.seed);
-                next = scene;
+                next = *scene;
             }
             Request::Seed { seed } => {
                 next.seed = seed;
@@ -180,7 +180,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 #[serde(tag = "cmd", rename_all = "snake_case", deny_unknown_fields)]
 enum Request {
     Get,
-    Set { scene: Scene },
+    // Boxed: a scene with its chain is far larger than the other requests.
+    Set { scene: Box<Scene> },
     Move { target: usize, range_m: f64 },
     Add { target: Target },
     Remove { target: usize },

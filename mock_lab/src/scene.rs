@@ -120,6 +120,8 @@ pub struct Scene {
     pub trigger_jitter_s: f64,
     /// Receiver impairments.
     pub impairments: Impairments,
+    /// The AWG -> Tx -> Rx -> scope chain (`[chain]`, preset `ideal` by default).
+    pub chain: Chain,
     /// Seed of the noise and jitter generator (each capture advances it).
     pub seed: u64,
 }
@@ -139,6 +141,7 @@ impl Default for Scene {
             system_delay_s: 2.5e-9,
             trigger_jitter_s: 0.0,
             impairments: Impairments::default(),
+            chain: Chain::default(),
             seed: 1,
         }
     }
@@ -235,7 +238,7 @@ impl Scene {
             0.0,
             1e9,
         )?;
-        Ok(())
+        self.chain.validate()
     }
 }
 
@@ -368,6 +371,12 @@ pub struct Synthesizer {
     period: Vec<Complex64>,
     transfer: Vec<Complex64>,
     scratch: Vec<Complex64>,
+    /// The grid a warped capture (timebase offset, Rx skew) is rendered on.
+    warped: Vec<Complex64>,
+    /// The LO phase and the transmitted signal on the grid (shared-LO phase noise).
+    lo_phase: Vec<f64>,
+    lo_tx: Vec<Complex64>,
+    lo_rx: Vec<Complex64>,
 }
 
 impl Synthesizer {
@@ -381,6 +390,10 @@ impl Synthesizer {
             period: Vec::new(),
             transfer: Vec::new(),
             scratch: Vec::new(),
+            warped: Vec::new(),
+            lo_phase: Vec::new(),
+            lo_tx: Vec::new(),
+            lo_rx: Vec::new(),
         }
     }
 
@@ -403,9 +416,14 @@ impl Synthesizer {
             .clone()
     }
 
-    /// The spectrum of the segment in volts (unnormalised FFT) and its mean power, cached.
-    fn segment_spectrum(&mut self, awg: &AwgPlayback<'_>) -> (Arc<[Complex64]>, f64) {
-        let key = segment_key(awg);
+    /// The spectrum of the segment in volts (unnormalised FFT) as it leaves the Tx, shaped by the
+    /// chain's Tx side and its response, and the mean power of the segment as loaded; cached.
+    fn segment_spectrum(
+        &mut self,
+        awg: &AwgPlayback<'_>,
+        chain: &ChainParams,
+    ) -> (Arc<[Complex64]>, f64) {
+        let key = segment_key(awg, chain);
         if let Some((k, spec, power)) = &self.cached {
             if *k == key {
                 return (spec.clone(), *power);
@@ -421,9 +439,45 @@ impl Synthesizer {
         let power = x.iter().map(|v| v.norm_sqr()).sum::<f64>() / x.len().max(1) as f64;
         let fft = self.plan(x.len(), false);
         fft.process(&mut x);
+        if !chain.is_ideal() {
+            self.shape_tx(&mut x, awg.sample_rate, chain);
+        }
         let x: Arc<[Complex64]> = x.into();
         self.cached = Some((key, x.clone(), power));
         (x, power)
+    }
+
+    /// The chain's Tx side and response on the segment's spectrum `x` (rate `fs`): the DAC and
+    /// analogue filters and the I/Q errors on I and Q apart, the Tx's compression in time, then
+    /// the RF response.
+    fn shape_tx(&mut self, x: &mut [Complex64], fs: f64, chain: &ChainParams) {
+        let l = x.len();
+        let freq = |k: usize| signed_bin(k, l) as f64 * fs / l as f64;
+        if chain.dac_sinc || chain.bandwidth_hz > 0.0 || chain.tx_widely_linear() {
+            let g = 10f64.powf(chain.tx_iq_gain_db / 20.0);
+            let (s, c) = chain.tx_iq_phase_deg.to_radians().sin_cos();
+            let skew = chain.tx_iq_skew_ps * 1e-12;
+            let orig = x.to_vec();
+            for (k, v) in x.iter_mut().enumerate() {
+                // I and Q are real: their spectra are the conjugate-symmetric parts of x.
+                let mirror = orig[(l - k) % l].conj();
+                let i = (orig[k] + mirror) * 0.5;
+                let q = (orig[k] - mirror) * Complex64::new(0.0, -0.5);
+                let f = freq(k);
+                let q = (q * c - i * s) * g * Complex64::from_polar(1.0, -2.0 * PI * f * skew);
+                *v = (i + Complex64::i() * q) * chain.channel_filter(f, fs);
+            }
+        }
+        if chain.tx_p1db_v.is_finite() {
+            self.plan(l, true).process(x);
+            for v in x.iter_mut() {
+                *v = chain.compress(*v / l as f64);
+            }
+            self.plan(l, false).process(x);
+        }
+        for (k, v) in x.iter_mut().enumerate() {
+            *v *= chain.response_at(freq(k));
+        }
     }
 
     /// One acquisition of the scene as the scope would make it (volts through its 8-bit ADC).
@@ -459,40 +513,66 @@ impl Synthesizer {
         first_point_s: f64,
     ) -> Result<(&[Complex64], f64), SceneError> {
         check_rates(awg, sample_rate, points)?;
+        let chain = scene.chain.resolve();
         let l = awg.i.len();
         let up = (sample_rate / awg.sample_rate).round() as usize;
         let period = l * up;
         let jitter = scene.trigger_jitter_s * self.rng.gaussian();
         let horiz_offset = first_point_s + jitter;
-        // The marker edge (the trigger) leaves with segment sample `marker_index`; the record starts
-        // `horiz_offset` after it.
-        let t0 = awg.marker_index as f64 / awg.sample_rate + horiz_offset;
+        // A timebase offset or an Rx skew samples between the grid's points: render a grid that
+        // covers those instants, then interpolate.
+        let warp = Warp::new(&chain, horiz_offset, sample_rate, points);
+        let (first, len) = warp
+            .as_ref()
+            .map_or((horiz_offset, points), |w| (w.start / sample_rate, w.len));
+        // The marker edge (the trigger) leaves with segment sample `marker_index`; the grid starts
+        // `first` after it.
+        let t0 = awg.marker_index as f64 / awg.sample_rate + first;
 
-        let (spectrum, power) = self.segment_spectrum(awg);
+        let (spectrum, power) = self.segment_spectrum(awg, &chain);
         let mut y = std::mem::take(&mut self.record);
         y.clear();
-        y.resize(points, Complex64::new(0.0, 0.0));
+        y.resize(len, Complex64::new(0.0, 0.0));
         let gain = if awg.playing { front.path_gain() } else { 0.0 };
         if gain > 0.0 {
-            let paths = paths(scene);
-            let (still, moving): (Vec<_>, Vec<_>) = paths.iter().partition(|p| p.doppler_hz == 0.0);
-            if !still.is_empty() {
-                self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
-                add_window(&mut y, &self.period, 0.0, sample_rate, t0, period);
-            }
-            for path in moving {
-                self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
-                add_window(
-                    &mut y,
-                    &self.period,
-                    path.doppler_hz,
-                    sample_rate,
+            let paths = paths(scene, &chain);
+            let linewidth = scene.impairments.phase_noise_linewidth_hz;
+            if chain.shared_lo && linewidth > 0.0 {
+                let tx = ToGrid {
+                    spectrum: &spectrum,
+                    fs_awg: awg.sample_rate,
+                    up,
                     t0,
-                    period,
-                );
+                    gain,
+                };
+                self.render_lo_noise(&mut y, &tx, sample_rate, &paths, linewidth);
+            } else {
+                let (still, moving): (Vec<_>, Vec<_>) =
+                    paths.iter().partition(|p| p.doppler_hz == 0.0);
+                if !still.is_empty() {
+                    self.render(&spectrum, awg.sample_rate, up, t0, &still, gain);
+                    add_window(&mut y, &self.period, 0.0, sample_rate, t0, period);
+                }
+                for path in moving {
+                    self.render(&spectrum, awg.sample_rate, up, t0, &[path], gain);
+                    add_window(
+                        &mut y,
+                        &self.period,
+                        path.doppler_hz,
+                        sample_rate,
+                        t0,
+                        period,
+                    );
+                }
             }
         }
-        self.impair(&mut y, scene, sample_rate);
+        if let Some(w) = &warp {
+            let mut out = std::mem::take(&mut self.warped);
+            w.apply(&y, &mut out);
+            self.warped = y;
+            y = out;
+        }
+        self.impair(&mut y, scene, &chain, sample_rate);
         let reference_power = if power > 0.0 { power } else { 0.25 * 0.25 };
         let noise_var = reference_power / 10f64.powf(scene.snr_db / 10.0);
         let sigma = (noise_var / 2.0).sqrt();
@@ -522,39 +602,13 @@ impl Synthesizer {
         // Bins are placed by signed frequency so the band-limited waveform is interpolated exactly;
         // the inverse FFT of length n (unnormalised) needs 1/l to return volts.
         let scale = gain / l as f64;
-        let half = l / 2;
-        let signed_of = |k: usize| {
-            if k < half || (k == half && l % 2 == 1) {
-                k as i64
-            } else {
-                k as i64 - l as i64
-            }
-        };
-        // The transfer function of the paths, bin by bin. Along a run of consecutive frequencies a
-        // path's phase grows linearly, so it is advanced by a rotating phasor (re-anchored exactly
-        // every RESYNC bins to keep rounding from accumulating) instead of one sincos per bin.
-        const RESYNC: usize = 1024;
         let df = fs / l as f64;
         let mut h = std::mem::take(&mut self.transfer);
         h.clear();
         h.resize(l, Complex64::new(0.0, 0.0));
-        for p in paths {
-            let phase_at = |signed: i64| {
-                -2.0 * PI * (p.carrier_hz * p.delay_s + signed as f64 * df * (p.delay_s - t0))
-            };
-            let step = Complex64::from_polar(1.0, -2.0 * PI * df * (p.delay_s - t0));
-            let mut rot = Complex64::new(0.0, 0.0);
-            for (k, hk) in h.iter_mut().enumerate() {
-                let signed = signed_of(k);
-                if k % RESYNC == 0 || (k > 0 && signed != signed_of(k - 1) + 1) {
-                    rot = Complex64::from_polar(p.amplitude, phase_at(signed));
-                }
-                *hk += rot;
-                rot *= step;
-            }
-        }
+        add_transfer(&mut h, df, paths, t0);
         for (k, (x, hk)) in spectrum.iter().zip(&h).enumerate() {
-            let idx = signed_of(k).rem_euclid(n as i64) as usize;
+            let idx = signed_bin(k, l).rem_euclid(n as i64) as usize;
             out[idx] = x * hk * scale;
         }
         let ifft = self.plan(n, true);
@@ -567,9 +621,10 @@ impl Synthesizer {
         self.transfer = h;
     }
 
-    fn impair(&mut self, y: &mut [Complex64], scene: &Scene, fs: f64) {
+    /// The Rx side after the scope's sampling: independent LOs' phase drift, I/Q imbalance, DC.
+    fn impair(&mut self, y: &mut [Complex64], scene: &Scene, chain: &ChainParams, fs: f64) {
         let imp = &scene.impairments;
-        if imp.phase_noise_linewidth_hz > 0.0 {
+        if imp.phase_noise_linewidth_hz > 0.0 && !chain.shared_lo {
             let step = (2.0 * PI * imp.phase_noise_linewidth_hz / fs).sqrt();
             let mut phi = 0.0;
             for v in y.iter_mut() {
@@ -602,17 +657,30 @@ struct Path {
     amplitude: f64,
     carrier_hz: f64,
     doppler_hz: f64,
+    /// Extra phase (a bounce's reflection), radians.
+    phase_rad: f64,
 }
 
-fn paths(scene: &Scene) -> Vec<Path> {
-    let mut out = Vec::with_capacity(scene.targets.len() + scene.clutter.len() + 1);
-    for t in scene.targets.iter().chain(&scene.clutter) {
-        out.push(Path {
+fn paths(scene: &Scene, chain: &ChainParams) -> Vec<Path> {
+    let mut out = Vec::with_capacity(2 * scene.targets.len() + scene.clutter.len() + 1);
+    let bounce = chain.multipath_ratio();
+    for (k, t) in scene.targets.iter().chain(&scene.clutter).enumerate() {
+        let direct = Path {
             delay_s: 2.0 * t.range_m / C0 + scene.system_delay_s,
             amplitude: t.amplitude,
             carrier_hz: scene.carrier_hz,
             doppler_hz: -2.0 * t.velocity_mps * scene.carrier_hz / C0,
-        });
+            phase_rad: 0.0,
+        };
+        out.push(direct);
+        if bounce > 0.0 && k < scene.targets.len() {
+            out.push(Path {
+                delay_s: direct.delay_s + chain.multipath_delay_s(),
+                amplitude: t.amplitude * bounce,
+                phase_rad: chain.multipath_phase_deg.to_radians(),
+                ..direct
+            });
+        }
     }
     if scene.leakage.amplitude > 0.0 {
         out.push(Path {
@@ -620,9 +688,44 @@ fn paths(scene: &Scene) -> Vec<Path> {
             amplitude: scene.leakage.amplitude,
             carrier_hz: scene.carrier_hz,
             doppler_hz: 0.0,
+            phase_rad: 0.0,
         });
     }
     out
+}
+
+/// The signed frequency index of FFT bin `k` of `l`.
+fn signed_bin(k: usize, l: usize) -> i64 {
+    if k < l / 2 || (k == l / 2 && l % 2 == 1) {
+        k as i64
+    } else {
+        k as i64 - l as i64
+    }
+}
+
+/// Adds the paths' transfer function at bins `signed_bin(k) * df` to `h`, each path delayed by
+/// its delay less `t_ref`. Along a run of consecutive frequencies a path's phase grows linearly,
+/// so it is advanced by a rotating phasor (re-anchored exactly every RESYNC bins to keep rounding
+/// from accumulating) instead of one sincos per bin.
+fn add_transfer(h: &mut [Complex64], df: f64, paths: &[&Path], t_ref: f64) {
+    const RESYNC: usize = 1024;
+    let l = h.len();
+    for p in paths {
+        let phase_at = |signed: i64| {
+            p.phase_rad
+                - 2.0 * PI * (p.carrier_hz * p.delay_s + signed as f64 * df * (p.delay_s - t_ref))
+        };
+        let step = Complex64::from_polar(1.0, -2.0 * PI * df * (p.delay_s - t_ref));
+        let mut rot = Complex64::new(0.0, 0.0);
+        for (k, hk) in h.iter_mut().enumerate() {
+            let signed = signed_bin(k, l);
+            if k % RESYNC == 0 || (k > 0 && signed != signed_bin(k - 1, l) + 1) {
+                rot = Complex64::from_polar(p.amplitude, phase_at(signed));
+            }
+            *hk += rot;
+            rot *= step;
+        }
+    }
 }
 
 /// Adds the record window of one rendered period to `y` (the segment loops, so the window wraps),
@@ -734,7 +837,7 @@ fn quantise(y: &[Complex64], setup: &CaptureSetup, horiz_offset: f64, scene: Sce
     }
 }
 
-fn segment_key(awg: &AwgPlayback<'_>) -> u64 {
+fn segment_key(awg: &AwgPlayback<'_>, chain: &ChainParams) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
     awg.i.hash(&mut h);
@@ -742,6 +845,7 @@ fn segment_key(awg: &AwgPlayback<'_>) -> u64 {
     awg.sample_rate.to_bits().hash(&mut h);
     awg.amplitude_vpp[0].to_bits().hash(&mut h);
     awg.amplitude_vpp[1].to_bits().hash(&mut h);
+    format!("{chain:?}").hash(&mut h);
     h.finish()
 }
 
@@ -794,8 +898,15 @@ impl SplitMix64 {
     }
 }
 
+mod chain;
+mod lo_noise;
 mod locate;
 mod ziggurat;
 
+pub use chain::{Chain, ChainParams, ChainPreset};
+use lo_noise::{ToGrid, Warp};
+
+#[cfg(test)]
+mod chain_tests;
 #[cfg(test)]
 mod tests;

@@ -833,7 +833,10 @@ impl Runner {
             // the previous lab's links before its servers go.
             self.connection = None;
             let scene = self.step_scene(step).unwrap_or_default();
-            let bench = Bench::open(BenchSource::BuiltIn(self.plan.bench.built_in(scene))).await?;
+            let bench = Bench::open(BenchSource::BuiltIn(Box::new(
+                self.plan.bench.built_in(scene),
+            )))
+            .await?;
             let rig = Rig::connect(&bench, &catalog(&bench)?, self.journal.clone()).await?;
             self.connection = Some(Connection { bench, rig });
         } else if self.connection.is_none() {

@@ -93,11 +93,11 @@ pub(crate) fn bench_source(
         Some(p) => super::mock_lab::load_scene(p)?,
         None => mock_lab::scene::Scene::default(),
     };
-    Ok(BenchSource::BuiltIn(BuiltIn {
+    Ok(BenchSource::BuiltIn(Box::new(BuiltIn {
         scene,
         awg: awg.into(),
         scope: scope.into(),
-    }))
+    })))
 }
 
 /// Opens the bench and says which one it is (on stderr, unless `quiet`).

@@ -44,8 +44,8 @@ pub struct BuiltIn {
 pub enum BenchSource {
     /// A bench file (real instruments, or a `mock-lab serve` started elsewhere).
     File(PathBuf),
-    /// The simulated bench, started in-process.
-    BuiltIn(BuiltIn),
+    /// The simulated bench, started in-process (boxed: its scene is large).
+    BuiltIn(Box<BuiltIn>),
 }
 
 /// The bench in use.

@@ -76,7 +76,7 @@ struct Lab {
 
 impl Lab {
     async fn start(tx_off: bool) -> Lab {
-        let bench = Bench::open(BenchSource::BuiltIn(BuiltIn::default()))
+        let bench = Bench::open(BenchSource::BuiltIn(Box::<BuiltIn>::default()))
             .await
             .unwrap();
         let catalog = Catalog::embedded().unwrap();

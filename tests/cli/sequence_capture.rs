@@ -29,7 +29,7 @@ fn catalog(dir: &std::path::Path, segments: u32) -> Catalog {
 /// One measurement of `repetitions` on the built-in mock lab (a pillar at 1 m) with `catalog`,
 /// and what the scope emulator received.
 async fn measure(catalog: &Catalog, repetitions: usize) -> (Measurement, Vec<String>) {
-    let bench = Bench::open(BenchSource::BuiltIn(BuiltIn::default()))
+    let bench = Bench::open(BenchSource::BuiltIn(Box::<BuiltIn>::default()))
         .await
         .unwrap();
     let kind = WaveformKind::MskLfm;
@@ -201,7 +201,7 @@ async fn a_bench_files_own_catalog_folder_is_what_the_capture_uses() {
 /// open refuses the measurement before the receiver's enable is written, and nothing radiates.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_transmitter_not_ready_stops_the_measurement_before_the_receiver_is_enabled() {
-    let bench = Bench::open(BenchSource::BuiltIn(BuiltIn::default()))
+    let bench = Bench::open(BenchSource::BuiltIn(Box::<BuiltIn>::default()))
         .await
         .unwrap();
     let catalog = Catalog::embedded().unwrap();
