@@ -47,6 +47,18 @@
 //! at its distance: at -30 dB, 30 dB under the first within its main lobe, 43 dB under at a -13 dB
 //! side-lobe. The threshold per cell, noise plus floors, is [`Detections::threshold`].
 //!
+//! **Chain floor.** A real bench's spread is not the model's: standing waves between the modules
+//! and the horns put an echo a few ns behind every path (-18.8 dB for 2 dB p-p of ripple), and
+//! tilt, dispersion and I/Q errors change the main lobe. Once the search has converged, each
+//! target's inner main lobe (half the -3 dB width each side) is checked: it **certifies** the model
+//! when the residual there is under -50 dB of the target's energy and the noise would have shown
+//! a misfit that size. Around a target that does not certify it, anything within
+//! [`DetectOptions::chain_extent_m`] (1.5 m) must exceed [`DetectOptions::chain_floor_db`]
+//! (-17 dB) relative to it to be a target of its own; weaker candidates there are pruned and stay
+//! part of its measured response (its side-lobes and width include them). On the ideal mock lab
+//! strong targets certify the model and keep the full reach above; a measured spread
+//! (calibration) is what lowers the floor on a real bench.
+//!
 //! # Per-target metrics
 //! Width and peak side-lobe level are measured on a target's **own response**: the profile minus
 //! every other fitted target, over the region of the spread's highest side-lobes
@@ -124,6 +136,14 @@ pub struct DetectOptions {
     /// [`Method::Cfar`]: a peak within this of a stronger target's side-lobe envelope is a
     /// side-lobe, dB (default 3).
     pub sidelobe_margin_db: f64,
+    /// CLEAN: where a target's main lobe shows that the bench's spread is not the model's, what
+    /// lies within [`DetectOptions::chain_extent_m`] of it must be stronger than this, relative
+    /// to it, to count as a target of its own, dB (default -17: the chain's own echoes, up to
+    /// -18.8 dB for a 2 dB p-p standing wave, are part of its response). See the module docs.
+    pub chain_floor_db: f64,
+    /// How far from a target the chain's echoes reach, m (default 1.5: standing waves over up to
+    /// 10 ns of line).
+    pub chain_extent_m: f64,
 }
 
 impl Default for DetectOptions {
@@ -138,6 +158,8 @@ impl Default for DetectOptions {
             model_floor_db: -30.0,
             cfar_training: 8,
             sidelobe_margin_db: 3.0,
+            chain_floor_db: -17.0,
+            chain_extent_m: 1.5,
         }
     }
 }
@@ -170,6 +192,19 @@ impl DetectOptions {
             return bad(format!(
                 "detection: model_floor_db = {}; allowed: a level below 0 dB (e.g. -30)",
                 self.model_floor_db
+            ));
+        }
+        if !(self.chain_floor_db.is_finite() && self.chain_floor_db <= 0.0) {
+            return bad(format!(
+                "detection: chain_floor_db = {}; allowed: a level <= 0 dB (e.g. -17; -200 turns \
+                 the chain floor off)",
+                self.chain_floor_db
+            ));
+        }
+        if !(self.chain_extent_m.is_finite() && self.chain_extent_m >= 0.0) {
+            return bad(format!(
+                "detection: chain_extent_m = {}; allowed: a distance >= 0 in metres",
+                self.chain_extent_m
             ));
         }
         if self.cfar_training == 0 || self.cfar_training > 256 {
@@ -298,6 +333,11 @@ pub struct Detector {
     rejected: Vec<f64>,
     own: Vec<f64>,
     g: Vec<Complex64>,
+    /// Targets whose main lobe does not fit the model (position, power): each raises the chain
+    /// floor around it. Empty during the CLEAN search; set once it has converged.
+    mismatched: Vec<(f64, f64)>,
+    /// The chain floor's reach, cells (set per profile from its axis).
+    chain_extent: f64,
 }
 
 impl std::fmt::Debug for Detector {
@@ -308,6 +348,12 @@ impl std::fmt::Debug for Detector {
             .finish_non_exhaustive()
     }
 }
+
+/// A main lobe that fits the model to this, relative to its energy, counts as exact, dB.
+const MISFIT_EXACT_DB: f64 = -50.0;
+/// The noise expected over a main lobe must be this many times under a misfit of
+/// [`MISFIT_EXACT_DB`] for the lobe to certify the model.
+const MISFIT_NOISE_FACTOR: f64 = 4.0;
 
 /// Longest envelope measured for the floors and masks, cells.
 const MAX_ENVELOPE_CELLS: usize = 8192;
@@ -350,6 +396,8 @@ impl Detector {
             rejected: Vec::new(),
             own: Vec::new(),
             g: Vec::new(),
+            mismatched: Vec::new(),
+            chain_extent: 0.0,
         })
     }
 
@@ -415,9 +463,12 @@ impl Detector {
             .unwrap_or(0.75 * self.shape.resolution);
         self.model.clear();
         self.rejected.clear();
+        self.mismatched.clear();
+        self.chain_extent = self.options.chain_extent_m / axis.step;
         let capped = match self.options.method {
             Method::Clean { .. } => {
                 let capped = self.clean(z, &fitw, min_sep);
+                self.find_mismatch(z);
                 self.prune(z, &fitw);
                 capped
             }
@@ -588,6 +639,65 @@ impl Detector {
         self.threshold.clear();
         self.threshold
             .extend(self.noise_thr.iter().zip(&self.floor).map(|(a, b)| a + b));
+        if !self.mismatched.is_empty() {
+            for c in 0..n {
+                self.threshold[c] += self.chain_floor(c as f64, None);
+            }
+        }
+    }
+
+    /// The highest chain floor at cell `x`, leaving out a target at `skip` (and any within a
+    /// cell of it: the target itself after a refit).
+    fn chain_floor(&self, x: f64, skip: Option<f64>) -> f64 {
+        let rho = 10f64.powf(self.options.chain_floor_db / 10.0);
+        self.mismatched
+            .iter()
+            .filter(|(at, _)| skip.is_none_or(|s| (at - s).abs() > 1.0))
+            .filter(|(at, _)| (x - at).abs() <= self.chain_extent)
+            .map(|(_, p)| rho * p)
+            .fold(0.0, f64::max)
+    }
+
+    /// After the CLEAN search, with every candidate fitted: the targets whose inner main lobe
+    /// (within half the -3 dB width) does not certify the model. A main lobe certifies it when
+    /// the residual there is under [`MISFIT_EXACT_DB`] of the target's energy and the noise
+    /// would have let a misfit of that size show ([`MISFIT_NOISE_FACTOR`] times the noise
+    /// expected there). Elsewhere the chain's echoes around the target cannot be told from
+    /// targets, and the chain floor stands around it.
+    fn find_mismatch(&mut self, z: &[Complex64]) {
+        let n = z.len();
+        self.model.rebuild(self.psf.as_ref(), n);
+        self.model.residual(z, &mut self.residual);
+        self.thresholds(n);
+        let noise = global_noise(
+            &self.power,
+            &self.exclude,
+            self.shape.noise_cells,
+            self.options.pfa,
+            &mut self.scratch,
+        )
+        .map_or(0.0, |(s2, _)| s2);
+        let w = 0.5 * self.shape.width_3db;
+        let exact = 10f64.powf(MISFIT_EXACT_DB / 10.0);
+        let mut found = Vec::new();
+        for c in &self.model.comps {
+            let lo = (c.x - w).ceil().max(0.0) as usize;
+            let hi = ((c.x + w).floor().max(0.0) as usize).min(n - 1);
+            if hi < lo {
+                continue;
+            }
+            self.g.resize(hi + 1 - lo, Complex64::default());
+            self.psf.response(c.x, lo as isize, &mut self.g);
+            let left: f64 = self.residual[lo..=hi].iter().map(|v| v.norm_sqr()).sum();
+            let own: f64 = self.g.iter().map(|v| (c.a * v).norm_sqr()).sum();
+            let cells = (hi + 1 - lo) as f64;
+            let certified =
+                left <= exact * own && MISFIT_NOISE_FACTOR * noise * cells <= exact * own;
+            if !certified {
+                found.push((c.x, c.a.norm_sqr()));
+            }
+        }
+        self.mismatched = found;
     }
 
     /// The strongest residual peak over its threshold, away from fitted and rejected targets.
@@ -615,8 +725,7 @@ impl Detector {
                 .filter(|&i| {
                     let c = self.model.comps[i];
                     let cell = (c.x.round().max(0.0) as usize).min(n - 1);
-                    let own = rho * c.a.norm_sqr();
-                    c.a.norm_sqr() <= self.threshold[cell] - own
+                    c.a.norm_sqr() <= self.others_threshold(i, cell, rho)
                 })
                 .min_by(|&a, &b| {
                     self.model.comps[a]
@@ -632,6 +741,17 @@ impl Detector {
                 None => return,
             }
         }
+    }
+
+    /// CLEAN's threshold at `cell` without target `i`'s own floors: what it has to pass.
+    fn others_threshold(&self, i: usize, cell: usize, rho: f64) -> f64 {
+        let c = self.model.comps[i];
+        let chain = if self.mismatched.is_empty() {
+            0.0
+        } else {
+            self.chain_floor(cell as f64, None) - self.chain_floor(cell as f64, Some(c.x))
+        };
+        self.threshold[cell] - rho * c.a.norm_sqr() - chain
     }
 
     /// The report for the final model (residual and thresholds are current).
@@ -658,9 +778,9 @@ impl Detector {
             let c = self.model.comps[i];
             let cell = (c.x.round().max(0.0) as usize).min(n - 1);
             let p = c.a.norm_sqr();
-            // What the target had to pass: CLEAN's threshold less its own floor; the CFAR's.
+            // What the target had to pass: CLEAN's threshold less its own floors; the CFAR's.
             let others = match self.options.method {
-                Method::Clean { .. } => self.threshold[cell] - rho * p,
+                Method::Clean { .. } => self.others_threshold(i, cell, rho),
                 Method::Cfar { .. } => self.noise_thr[cell],
             }
             .max(1e-300);
