@@ -53,8 +53,9 @@
 //! target's inner main lobe (half the -3 dB width each side) is checked: it **certifies** the model
 //! when the residual there is under -50 dB of the target's energy and the noise would have shown
 //! a misfit that size. Around a target that does not certify it, anything within
-//! [`DetectOptions::chain_extent_m`] (1.5 m) must exceed [`DetectOptions::chain_floor_db`]
-//! (-17 dB) relative to it to be a target of its own; weaker candidates there are pruned and stay
+//! [`DetectOptions::chain_extent_m`] (1.6 m) must exceed [`DetectOptions::chain_floor_db`]
+//! (-17 dB) relative to it to be a target of its own (out to twice as far, -34 dB: the echo's
+//! second round trip); weaker candidates there are pruned and stay
 //! part of its measured response (its side-lobes and width include them). On the ideal mock lab
 //! strong targets certify the model and keep the full reach above; a measured spread
 //! (calibration) is what lowers the floor on a real bench.
@@ -141,8 +142,9 @@ pub struct DetectOptions {
     /// to it, to count as a target of its own, dB (default -17: the chain's own echoes, up to
     /// -18.8 dB for a 2 dB p-p standing wave, are part of its response). See the module docs.
     pub chain_floor_db: f64,
-    /// How far from a target the chain's echoes reach, m (default 1.5: standing waves over up to
-    /// 10 ns of line).
+    /// How far from a target the chain's echoes reach, m (default 1.6: a standing wave over up
+    /// to 10 ns of line, and the main lobe); out to twice as far its second round trip is taken
+    /// at twice the floor in dB.
     pub chain_extent_m: f64,
 }
 
@@ -159,7 +161,7 @@ impl Default for DetectOptions {
             cfar_training: 8,
             sidelobe_margin_db: 3.0,
             chain_floor_db: -17.0,
-            chain_extent_m: 1.5,
+            chain_extent_m: 1.6,
         }
     }
 }
@@ -647,14 +649,24 @@ impl Detector {
     }
 
     /// The highest chain floor at cell `x`, leaving out a target at `skip` (and any within a
-    /// cell of it: the target itself after a refit).
+    /// cell of it: the target itself after a refit). Within the chain's extent the floor is
+    /// `chain_floor_db` under the target; out to twice the extent (the echo's own echo, a second
+    /// round trip of the standing wave) twice that many dB under it.
     fn chain_floor(&self, x: f64, skip: Option<f64>) -> f64 {
         let rho = 10f64.powf(self.options.chain_floor_db / 10.0);
         self.mismatched
             .iter()
             .filter(|(at, _)| skip.is_none_or(|s| (at - s).abs() > 1.0))
-            .filter(|(at, _)| (x - at).abs() <= self.chain_extent)
-            .map(|(_, p)| rho * p)
+            .map(|(at, p)| {
+                let d = (x - at).abs();
+                if d <= self.chain_extent {
+                    rho * p
+                } else if d <= 2.0 * self.chain_extent {
+                    rho * rho * p
+                } else {
+                    0.0
+                }
+            })
             .fold(0.0, f64::max)
     }
 
