@@ -95,6 +95,15 @@ pub struct ThesisLabArgs {
     /// Folder for the run folders (default runs/<UTC time>-thesis-lab).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// The mock lab's chain: ideal, thesis-lab (a realistic E-band bench, see
+    /// examples/scene.toml) or a scene file whose [chain] and [impairments] are used. Every row is
+    /// also run on the ideal chain, for comparison.
+    #[arg(
+        long,
+        value_name = "ideal|thesis-lab|SCENE",
+        default_value = "thesis-lab"
+    )]
+    pub chain: String,
     /// One JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -436,8 +445,9 @@ async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| super::capture::default_out("thesis-lab"));
+    let chain = builtin::LabChain::parse(&a.chain).map_err(bad_input)?;
     let mut quiet = Notes;
-    let rows = builtin::thesis_lab(&out, &interrupt, &mut quiet).await?;
+    let rows = builtin::thesis_lab(&out, &chain, &interrupt, &mut quiet).await?;
     if a.json {
         println!("{}", json!({"rows": rows, "dir": out}));
     } else {
@@ -447,6 +457,8 @@ async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {
         let mut reports: Vec<_> = std::fs::read_dir(&out)
             .into_iter()
             .flatten()
+            .filter_map(Result::ok)
+            .flat_map(|chain| std::fs::read_dir(chain.path()).into_iter().flatten())
             .filter_map(Result::ok)
             .map(|e| e.path().join("report.html"))
             .filter(|p| p.is_file())
