@@ -38,6 +38,30 @@ fn bench_detect(bencher: divan::Bencher, wave: Wave, count: usize, method: Metho
     bencher.bench_local(|| det.detect(&z, axis, WINDOW).unwrap());
 }
 
+/// The same on the mock lab's `thesis-lab` chain response (standing-wave echo, tilt, group-delay
+/// ripple, dispersion): the chain floor's mismatch check and the pruning of the echoes.
+fn bench_detect_thesis_lab(bencher: divan::Bencher, wave: Wave, count: usize) {
+    let mut bench = Bench::new(wave);
+    let axis = bench.axis;
+    let chain = mock_lab::scene::ChainParams::thesis_lab();
+    let rx = bench.capture_through(&scene(count), Some(SNR_DB), 1, &|f| chain.response_at(f));
+    let z: Vec<Complex64> = bench.process(&rx).to_vec();
+    let mut det = bench.detector(DetectOptions::default());
+    let found = det.detect(&z, axis, WINDOW).unwrap().targets.len();
+    assert_eq!(found, count, "{}", wave.name());
+    bencher.bench_local(|| det.detect(&z, axis, WINDOW).unwrap());
+}
+
+#[divan::bench(args = [1, 4], sample_count = 30)]
+fn clean_msk_lfm_thesis_lab(bencher: divan::Bencher, count: usize) {
+    bench_detect_thesis_lab(bencher, Wave::MskLfm, count);
+}
+
+#[divan::bench(args = [1, 4], sample_count = 30)]
+fn clean_ofdm_thesis_lab(bencher: divan::Bencher, count: usize) {
+    bench_detect_thesis_lab(bencher, Wave::Ofdm, count);
+}
+
 const CLEAN: Method = Method::Clean {
     noise: radbench::dsp::detect::NoiseEstimate::Global,
 };

@@ -373,8 +373,8 @@ pub struct Synthesizer {
     scratch: Vec<Complex64>,
     /// The grid a warped capture (timebase offset, Rx skew) is rendered on.
     warped: Vec<Complex64>,
-    /// The LO phase and the transmitted signal on the grid (shared-LO phase noise).
-    lo_phase: Vec<f64>,
+    /// The LO's phasor and the transmitted signal on the grid (shared-LO phase noise).
+    lo_phase: Vec<Complex64>,
     lo_tx: Vec<Complex64>,
     lo_rx: Vec<Complex64>,
 }

@@ -214,6 +214,18 @@ impl Bench {
     /// The received repetition: every pillar's echo (exact fractional, circular delay) plus
     /// complex noise of power `10^(-snr/10)` per sample (none for `None`).
     pub fn capture(&self, pillars: &[Pillar], snr_db: Option<f64>, seed: u64) -> Vec<Complex64> {
+        self.capture_through(pillars, snr_db, seed, &|_| Complex64::new(1.0, 0.0))
+    }
+
+    /// As [`Bench::capture`], through a chain of frequency response `response(f)` (f in Hz from
+    /// the carrier).
+    pub fn capture_through(
+        &self,
+        pillars: &[Pillar],
+        snr_db: Option<f64>,
+        seed: u64,
+        response: &dyn Fn(f64) -> Complex64,
+    ) -> Vec<Complex64> {
         let p = self.reference.len();
         let mut acc = vec![Complex64::default(); p];
         for t in pillars {
@@ -225,7 +237,8 @@ impl Bench {
                 } else {
                     k as f64 - p as f64
                 } / p as f64;
-                *o += s * a * Complex64::from_polar(1.0, -2.0 * PI * nu * d);
+                *o +=
+                    s * a * response(nu * self.fs) * Complex64::from_polar(1.0, -2.0 * PI * nu * d);
             }
         }
         self.inverse.process(&mut acc);

@@ -52,21 +52,28 @@ impl Synthesizer {
         };
         let start = tx.t0 - pre as f64 / fs;
         self.render(tx.spectrum, tx.fs_awg, tx.up, start, &[&unit], tx.gain);
+        // The LO's phasor, advanced by each Gaussian phase step (steps of ~1e-3 rad: the
+        // second-order expansion is exact to 1e-10, and renormalising every few thousand samples
+        // keeps its magnitude at 1) instead of one sincos per sample.
         let step = (2.0 * PI * linewidth / fs).sqrt();
-        let mut phi = std::mem::take(&mut self.lo_phase);
-        phi.clear();
-        let mut acc = 0.0;
-        for _ in 0..nfft {
-            acc += step * self.rng.gaussian();
-            phi.push(acc);
+        let mut lo = std::mem::take(&mut self.lo_phase);
+        lo.clear();
+        let mut at = Complex64::new(1.0, 0.0);
+        for m in 0..nfft {
+            let d = step * self.rng.gaussian();
+            at *= Complex64::new(1.0 - 0.5 * d * d, d);
+            if m % 4096 == 0 {
+                at /= at.norm();
+            }
+            lo.push(at);
         }
         let mut u = std::mem::take(&mut self.lo_tx);
         u.clear();
         let period = &self.period;
         u.extend(
-            phi.iter()
+            lo.iter()
                 .enumerate()
-                .map(|(m, &p)| period[m % period.len()] * Complex64::from_polar(1.0, -p)),
+                .map(|(m, p)| period[m % period.len()] * p.conj()),
         );
         self.fft_in_place(&mut u, false);
         let df = fs / nfft as f64;
@@ -91,17 +98,16 @@ impl Synthesizer {
             let turn = Complex64::from_polar(1.0, 2.0 * PI * doppler / fs);
             for (n, out) in y.iter_mut().enumerate() {
                 let m = pre + n;
-                let lo = Complex64::from_polar(1.0, phi[m]);
                 *out += if doppler == 0.0 {
-                    v[m] * lo
+                    v[m] * lo[m]
                 } else {
                     let r = rot;
                     rot *= turn;
-                    v[m] * lo * r
+                    v[m] * lo[m] * r
                 };
             }
         }
-        self.lo_phase = phi;
+        self.lo_phase = lo;
         self.lo_tx = u;
         self.lo_rx = v;
     }
@@ -179,11 +185,48 @@ impl Warp {
     /// The scope's samples from the grid.
     pub(super) fn apply(&self, grid: &[Complex64], out: &mut Vec<Complex64>) {
         out.clear();
+        if self.eps == 0.0 {
+            // A skew alone: every sample is a fixed fractional shift, with fixed weights.
+            let at = self.offset - self.start;
+            let i_at = cubic_weights(at);
+            let q_at = cubic_weights(at - self.skew);
+            let tap = |(base, t, w): (isize, f64, [f64; 4]),
+                       n: usize,
+                       part: fn(Complex64) -> f64| {
+                let k = base + n as isize;
+                if k >= 1 && k as usize + 2 < grid.len() {
+                    let g = &grid[k as usize - 1..k as usize + 3];
+                    w[0] * part(g[0]) + w[1] * part(g[1]) + w[2] * part(g[2]) + w[3] * part(g[3])
+                } else {
+                    part(cubic_at(grid, k as f64 + t))
+                }
+            };
+            out.extend(
+                (0..self.points)
+                    .map(|n| Complex64::new(tap(i_at, n, |v| v.re), tap(q_at, n, |v| v.im))),
+            );
+            return;
+        }
         out.extend((0..self.points).map(|n| {
             let at = (self.offset + n as f64) * (1.0 - self.eps) - self.start;
             Complex64::new(cubic_at(grid, at).re, cubic_at(grid, at - self.skew).im)
         }));
     }
+}
+
+/// The integer base, the fraction and the four Catmull-Rom weights (for samples base-1 ..=
+/// base+2) of the position `pos`, as [`cubic_at`] uses them.
+fn cubic_weights(pos: f64) -> (isize, f64, [f64; 4]) {
+    let base = pos.floor();
+    let t = pos - base;
+    let (t2, t3) = (t * t, t * t * t);
+    let w = [
+        0.5 * (-t + 2.0 * t2 - t3),
+        0.5 * (2.0 - 5.0 * t2 + 3.0 * t3),
+        0.5 * (t + 4.0 * t2 - 3.0 * t3),
+        0.5 * (-t2 + t3),
+    ];
+    (base as isize, t, w)
 }
 
 #[cfg(test)]

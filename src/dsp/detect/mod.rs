@@ -496,14 +496,84 @@ impl Detector {
             }
             let x_init = parabolic(&self.power, c);
             let psf = self.psf.as_ref();
-            self.model.add(psf, z, x_init, fitw);
+            let newest = self.model.add(psf, z, x_init, fitw);
             self.model.refine(psf, z, fitw, MAX_SWEEPS);
             if self.merge_close(min_sep) {
+                self.rejected.push(x_init);
+                self.model.refine(self.psf.as_ref(), z, fitw, MAX_SWEEPS);
+            } else if self.is_chain_echo(z, newest) {
+                self.model.comps.remove(newest);
                 self.rejected.push(x_init);
                 self.model.refine(self.psf.as_ref(), z, fitw, MAX_SWEEPS);
             }
         }
         false
+    }
+
+    /// Whether the newest component lies under the chain floor of a stronger one whose main lobe,
+    /// with the newest fitted, does not certify the model: that one then joins `mismatched` (its
+    /// floor keeps its further echoes from being searched at all).
+    fn is_chain_echo(&mut self, z: &[Complex64], newest: usize) -> bool {
+        let rho = 10f64.powf(self.options.chain_floor_db / 10.0);
+        let new = self.model.comps[newest];
+        let suspects: Vec<usize> = (0..self.model.comps.len())
+            .filter(|&i| {
+                let c = self.model.comps[i];
+                i != newest
+                    && (c.x - new.x).abs() <= 2.0 * self.chain_extent
+                    && new.a.norm_sqr() < rho * c.a.norm_sqr()
+                    && !self.mismatched.iter().any(|(x, _)| (x - c.x).abs() < 1.0)
+            })
+            .collect();
+        if suspects.is_empty() {
+            return false;
+        }
+        let n = z.len();
+        self.model.rebuild(self.psf.as_ref(), n);
+        self.model.residual(z, &mut self.residual);
+        self.thresholds(n);
+        let noise = self.noise_power();
+        let mut echo = false;
+        for i in suspects {
+            let c = self.model.comps[i];
+            if !self.certifies(c, noise) {
+                self.mismatched.push((c.x, c.a.norm_sqr()));
+                echo = true;
+            }
+        }
+        echo && self.chain_floor(new.x, Some(new.x)) > new.a.norm_sqr()
+    }
+
+    /// The noise power per cell of the current residual (0 when it cannot be estimated).
+    fn noise_power(&mut self) -> f64 {
+        global_noise(
+            &self.power,
+            &self.exclude,
+            self.shape.noise_cells,
+            self.options.pfa,
+            &mut self.scratch,
+        )
+        .map_or(0.0, |(s2, _)| s2)
+    }
+
+    /// Whether target `c`'s inner main lobe (within half the -3 dB width) certifies the model
+    /// against the current residual: the residual there is under [`MISFIT_EXACT_DB`] of the
+    /// target's energy, and the noise (per cell `noise`) would have let a misfit that size show.
+    fn certifies(&mut self, c: fit::Component, noise: f64) -> bool {
+        let n = self.residual.len();
+        let w = 0.5 * self.shape.width_3db;
+        let lo = (c.x - w).ceil().max(0.0) as usize;
+        let hi = ((c.x + w).floor().max(0.0) as usize).min(n - 1);
+        if hi < lo {
+            return true;
+        }
+        self.g.resize(hi + 1 - lo, Complex64::default());
+        self.psf.response(c.x, lo as isize, &mut self.g);
+        let left: f64 = self.residual[lo..=hi].iter().map(|v| v.norm_sqr()).sum();
+        let own: f64 = self.g.iter().map(|v| (c.a * v).norm_sqr()).sum();
+        let cells = (hi + 1 - lo) as f64;
+        let exact = 10f64.powf(MISFIT_EXACT_DB / 10.0);
+        left <= exact * own && MISFIT_NOISE_FACTOR * noise * cells <= exact * own
     }
 
     /// Drops the weaker of any two targets closer than `min_sep`; true when one was dropped.
@@ -670,46 +740,22 @@ impl Detector {
             .fold(0.0, f64::max)
     }
 
-    /// After the CLEAN search, with every candidate fitted: the targets whose inner main lobe
-    /// (within half the -3 dB width) does not certify the model. A main lobe certifies it when
-    /// the residual there is under [`MISFIT_EXACT_DB`] of the target's energy and the noise
-    /// would have let a misfit of that size show ([`MISFIT_NOISE_FACTOR`] times the noise
-    /// expected there). Elsewhere the chain's echoes around the target cannot be told from
-    /// targets, and the chain floor stands around it.
+    /// After the CLEAN search, with every candidate fitted: adds the targets whose main lobe does
+    /// not certify the model ([`Detector::certifies`]) to those the search found; around them the
+    /// chain's echoes cannot be told from targets, and the chain floor stands.
     fn find_mismatch(&mut self, z: &[Complex64]) {
         let n = z.len();
         self.model.rebuild(self.psf.as_ref(), n);
         self.model.residual(z, &mut self.residual);
         self.thresholds(n);
-        let noise = global_noise(
-            &self.power,
-            &self.exclude,
-            self.shape.noise_cells,
-            self.options.pfa,
-            &mut self.scratch,
-        )
-        .map_or(0.0, |(s2, _)| s2);
-        let w = 0.5 * self.shape.width_3db;
-        let exact = 10f64.powf(MISFIT_EXACT_DB / 10.0);
-        let mut found = Vec::new();
-        for c in &self.model.comps {
-            let lo = (c.x - w).ceil().max(0.0) as usize;
-            let hi = ((c.x + w).floor().max(0.0) as usize).min(n - 1);
-            if hi < lo {
-                continue;
-            }
-            self.g.resize(hi + 1 - lo, Complex64::default());
-            self.psf.response(c.x, lo as isize, &mut self.g);
-            let left: f64 = self.residual[lo..=hi].iter().map(|v| v.norm_sqr()).sum();
-            let own: f64 = self.g.iter().map(|v| (c.a * v).norm_sqr()).sum();
-            let cells = (hi + 1 - lo) as f64;
-            let certified =
-                left <= exact * own && MISFIT_NOISE_FACTOR * noise * cells <= exact * own;
-            if !certified {
-                found.push((c.x, c.a.norm_sqr()));
+        let noise = self.noise_power();
+        for i in 0..self.model.comps.len() {
+            let c = self.model.comps[i];
+            let known = self.mismatched.iter().any(|(x, _)| (x - c.x).abs() < 1.0);
+            if !known && !self.certifies(c, noise) {
+                self.mismatched.push((c.x, c.a.norm_sqr()));
             }
         }
-        self.mismatched = found;
     }
 
     /// The strongest residual peak over its threshold, away from fitted and rejected targets.
