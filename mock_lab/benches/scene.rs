@@ -34,28 +34,35 @@ fn scene(targets: usize, velocity: f64) -> Scene {
     }
 }
 
-#[divan::bench(args = [1, 4])]
-fn capture_1280k(bencher: divan::Bencher, targets: usize) {
-    let (i, q) = segment();
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
+/// The AWG playing `i` and `q` at 16 GSa/s.
+fn playing<'a>(i: &'a [i8], q: &'a [i8]) -> AwgPlayback<'a> {
+    AwgPlayback {
+        i,
+        q,
         sample_rate: 16e9,
         amplitude_vpp: [0.5, 0.5],
         marker_index: 0,
         playing: true,
         marker_out: true,
-    };
-    let setup = CaptureSetup {
-        sample_rate: 80e9,
-        points: 1_280_000,
-        trigger_offset_s: 0.0,
-        volts_per_div: [0.05, 0.05],
-        offset_v: [0.0, 0.0],
-    };
+    }
+}
+
+/// 1 280 000 points at 80 GSa/s.
+const SETUP: CaptureSetup = CaptureSetup {
+    sample_rate: 80e9,
+    points: 1_280_000,
+    trigger_offset_s: 0.0,
+    volts_per_div: [0.05, 0.05],
+    offset_v: [0.0, 0.0],
+};
+
+#[divan::bench(args = [1, 4])]
+fn capture_1280k(bencher: divan::Bencher, targets: usize) {
+    let (i, q) = segment();
+    let awg = playing(&i, &q);
     let sc = scene(targets, 0.0);
     let mut synth = Synthesizer::new(1);
-    bencher.bench_local(|| synth.capture(&sc, &awg, FrontEnds::ALL_ON, &setup).unwrap());
+    bencher.bench_local(|| synth.capture(&sc, &awg, FrontEnds::ALL_ON, &SETUP).unwrap());
 }
 
 /// The same capture through the `thesis-lab` chain (issue 21's target: within 1.5x of the ideal
@@ -72,25 +79,10 @@ fn capture_1280k_thesis_lab_phase_noise(bencher: divan::Bencher, targets: usize)
 
 fn chain_capture(bencher: divan::Bencher, targets: usize, linewidth: f64) {
     let (i, q) = segment();
-    let awg = AwgPlayback {
-        i: &i,
-        q: &q,
-        sample_rate: 16e9,
-        amplitude_vpp: [0.5, 0.5],
-        marker_index: 0,
-        playing: true,
-        marker_out: true,
-    };
-    let setup = CaptureSetup {
-        sample_rate: 80e9,
-        points: 1_280_000,
-        trigger_offset_s: 0.0,
-        volts_per_div: [0.05, 0.05],
-        offset_v: [0.0, 0.0],
-    };
+    let awg = playing(&i, &q);
     let mut sc = scene(targets, 0.0);
     sc.chain.preset = ChainPreset::ThesisLab;
     sc.impairments.phase_noise_linewidth_hz = linewidth;
     let mut synth = Synthesizer::new(1);
-    bencher.bench_local(|| synth.capture(&sc, &awg, FrontEnds::ALL_ON, &setup).unwrap());
+    bencher.bench_local(|| synth.capture(&sc, &awg, FrontEnds::ALL_ON, &SETUP).unwrap());
 }

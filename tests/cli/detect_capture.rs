@@ -34,16 +34,21 @@ fn scene(pillars: &[(f64, f64)], snr_db: f64, seed: u64) -> serde_json::Value {
 /// 1-4 pillars at least two resolution cells apart within 0.3..8 m, the weakest within 20 dB of
 /// the strongest (0.5), random sub-cell positions.
 fn random_pillars(rng: &mut SplitMix64) -> Vec<(f64, f64)> {
-    let n = 1 + (rng.next_u64() % 4) as usize;
+    random_pillars_within(rng, 4, 20.0)
+}
+
+/// 1 to `most` pillars at least two resolution cells apart within 0.3..8 m; the first is the
+/// strongest (0.5), the others lie 0..`within_db` dB under it.
+fn random_pillars_within(rng: &mut SplitMix64, most: u64, within_db: f64) -> Vec<(f64, f64)> {
+    let n = 1 + (rng.next_u64() % most) as usize;
     let mut out: Vec<(f64, f64)> = Vec::new();
     while out.len() < n {
         let r = 0.3 + 7.7 * rng.uniform();
         if out.iter().all(|(o, _)| (o - r).abs() >= 2.0 * CELL_M) {
-            // The first is the strongest; the others lie 0..20 dB under it.
             let a = if out.is_empty() {
                 0.5
             } else {
-                0.5 * 10f64.powf(-rng.uniform() * 20.0 / 20.0)
+                0.5 * 10f64.powf(-rng.uniform() * within_db / 20.0)
             };
             out.push((r, a));
         }
@@ -279,32 +284,13 @@ fn realistic_scene(pillars: &[(f64, f64)], rng: &mut SplitMix64, seed: u64) -> s
     s
 }
 
-/// 1-3 pillars at least two resolution cells apart within 0.3..8 m, within 15 dB of the
-/// strongest (0.5).
-fn random_pillars_15db(rng: &mut SplitMix64) -> Vec<(f64, f64)> {
-    let n = 1 + (rng.next_u64() % 3) as usize;
-    let mut out: Vec<(f64, f64)> = Vec::new();
-    while out.len() < n {
-        let r = 0.3 + 7.7 * rng.uniform();
-        if out.iter().all(|(o, _)| (o - r).abs() >= 2.0 * CELL_M) {
-            let a = if out.is_empty() {
-                0.5
-            } else {
-                0.5 * 10f64.powf(-rng.uniform() * 15.0 / 20.0)
-            };
-            out.push((r, a));
-        }
-    }
-    out
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn random_scenes_on_the_thesis_lab_chain_every_pillar_and_no_false_target() {
     let mut lab = Lab::start(false).await;
     let mut rng = SplitMix64::new(0x7E515);
     let mut failures = Vec::new();
     for k in 0..12 {
-        let pillars = random_pillars_15db(&mut rng);
+        let pillars = random_pillars_within(&mut rng, 3, 15.0);
         for kind in [WaveformKind::MskLfm, WaveformKind::Ofdm] {
             let s = realistic_scene(&pillars, &mut rng, 200 + k);
             let found = lab.ranges(kind, s).await;
