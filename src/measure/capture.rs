@@ -7,6 +7,7 @@
 //! instruments connected and RF switched on.
 
 use super::bench::Bench;
+use super::clipping::{RecordClipping, ScopeAdc};
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
@@ -403,6 +404,8 @@ pub(crate) struct LentPipeline {
     pipeline: Pipeline,
     background: Option<Aligned>,
     bandwidth_hz: f64,
+    /// The scope's ADC and vertical scale as planned.
+    adc: ScopeAdc,
 }
 
 impl LentPipeline {
@@ -412,17 +415,22 @@ impl LentPipeline {
         self.process_raws(captured.applied.awg.i_amplitude_vpp, &raws)
     }
 
+    /// Processes the scope's words of every repetition, their samples at the ADC's rails
+    /// counted.
     fn process_raws(
         &mut self,
         awg_amplitude_vpp: f64,
         raws: &[RawWords],
     ) -> Result<Processing, MeasureError> {
         self.pipeline.set_awg_amplitude(awg_amplitude_vpp)?;
+        let clipped: Vec<Option<RecordClipping>> =
+            raws.iter().map(|r| Some(r.clipping(&self.adc))).collect();
         let (processed, repetitions, spread) = process_repetitions(
             &mut self.pipeline,
             raws,
             self.background.as_ref(),
             self.bandwidth_hz,
+            &clipped,
         )?;
         Ok(Processing {
             processed,
@@ -443,6 +451,7 @@ impl Prepared {
             pipeline,
             background: self.background.take(),
             bandwidth_hz: self.tx.bandwidth_hz(),
+            adc: self.plan.scope_adc(),
         })
     }
 
@@ -462,28 +471,45 @@ fn captured_raws(captured: &Captured) -> Vec<RawWords> {
 /// Most repetitions one measurement takes.
 pub(crate) const MAX_REPETITIONS: usize = 1000;
 
-/// Aligns every repetition (raw captures at the capture rate), processes each alone (when there are several) and their coherent
-/// average.
+/// Aligns every repetition (raw captures at the capture rate), processes each alone (when there
+/// are several) and their coherent average. `clipped` holds each repetition's samples at the
+/// ADC's rails when they were counted (one entry per repetition, or none): each repetition is
+/// processed with its own, the average with the total (clipping distortion is the same in every
+/// repetition, so averaging does not lower it).
 pub(crate) fn process_repetitions<R: Alignable>(
     pipeline: &mut Pipeline,
     raws: &[R],
     background: Option<&Aligned>,
     bandwidth_hz: f64,
+    clipped: &[Option<RecordClipping>],
 ) -> Result<(Processed, Vec<RepetitionResult>, Option<Spread>), MeasureError> {
+    let clipped: Vec<Option<RecordClipping>> = (0..raws.len())
+        .map(|k| clipped.get(k).copied().flatten())
+        .collect();
     let aligned = raws
         .iter()
         .map(|r| r.align_in(pipeline))
         .collect::<Result<Vec<_>, _>>()?;
     if aligned.len() == 1 {
         let one = aligned.into_iter().next().expect("one repetition");
-        return Ok((pipeline.process(one, background)?, Vec::new(), None));
+        let processed = pipeline.process_clipped(one, background, clipped[0].as_ref())?;
+        return Ok((processed, Vec::new(), None));
     }
+    let total = clipped
+        .iter()
+        .copied()
+        .collect::<Option<Vec<_>>>()
+        .and_then(|all| RecordClipping::total(&all));
     let mean = repeat::average(&aligned).expect("at least one repetition");
     let mut each = Vec::with_capacity(aligned.len());
-    for a in aligned {
-        each.push(RepetitionResult::from(&pipeline.process(a, background)?));
+    for (a, c) in aligned.into_iter().zip(&clipped) {
+        each.push(RepetitionResult::from(&pipeline.process_clipped(
+            a,
+            background,
+            c.as_ref(),
+        )?));
     }
-    let processed = pipeline.process(mean, background)?;
+    let processed = pipeline.process_clipped(mean, background, total.as_ref())?;
     let tolerance = crate::physics::C0 / (4.0 * bandwidth_hz);
     let spread = repeat::spread(&processed.targets, &each, tolerance);
     Ok((processed, each, Some(spread)))

@@ -47,6 +47,11 @@ pub struct Detection {
     /// Fractional profile cell of the target (for the payload receiver and plots).
     #[serde(skip)]
     pub cell: Option<f64>,
+    /// The fit: sub-cell range (m, whatever `--no-interpolation` reports) and complex amplitude
+    /// on the profile's scale (absent for the subspace estimators). A clipped capture's
+    /// distortion is modelled from it.
+    #[serde(skip)]
+    pub(crate) fitted: Option<(f64, Complex64)>,
 }
 
 /// What detection decided for one record.
@@ -99,6 +104,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
         },
         velocity_mps: None,
         cell: Some(t.cell),
+        fitted: Some((t.range_m, t.amplitude)),
     }
 }
 
@@ -127,6 +133,7 @@ pub(crate) fn detect(
                     sidelobe_note: None,
                     velocity_mps: None,
                     cell: None,
+                    fitted: None,
                 })
                 .collect();
             DetectionReport {

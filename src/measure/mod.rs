@@ -9,6 +9,7 @@
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
+//! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
@@ -23,6 +24,7 @@ pub mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;
 pub mod capture;
+pub(crate) mod clipping;
 pub(crate) mod detect;
 pub(crate) mod figure;
 pub mod interrupt;
@@ -35,6 +37,7 @@ pub(crate) mod reprocess;
 pub(crate) mod station;
 pub(crate) mod transmit;
 
+pub use clipping::{ClipDetection, Clipping};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 pub use transmit::{Dac, Transmission};

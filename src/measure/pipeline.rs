@@ -15,6 +15,7 @@
 //! the time of the first sample after the trigger is added and the calibrated system delay
 //! subtracted.
 
+use super::clipping::{self, Clipping, RecordClipping, ScopeAdc};
 use super::detect;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
@@ -64,6 +65,26 @@ pub(crate) struct RawWords {
     pub sample_rate_hz: f64,
     /// Time of the first sample after the trigger (marker edge), seconds.
     pub first_point_s: f64,
+}
+
+impl RawWords {
+    /// The samples of I and Q at the ADC's rails, and the rails in volts: one pass over the
+    /// words, beside their conversion to volts in [`Pipeline::align_words`].
+    pub(crate) fn clipping(&self, adc: &ScopeAdc) -> RecordClipping {
+        let rails = adc.rails;
+        RecordClipping {
+            count: clipping::ClipCount {
+                i: rails.count(&self.i),
+                q: rails.count(&self.q),
+                samples: self.i.len().min(self.q.len()),
+            },
+            rails_v: [
+                rails.volts(self.gain[0], self.offset[0]),
+                rails.volts(self.gain[1], self.offset[1]),
+            ],
+            scope: Some(*adc),
+        }
+    }
 }
 
 /// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
@@ -171,6 +192,9 @@ pub struct Processed {
     pub range_doppler: Option<RangeDopplerMap>,
     /// Things a user should check (no target, clipping, ...).
     pub warnings: Vec<String>,
+    /// Samples at the scope's ADC rails and what detection did about them (captures of the
+    /// scope's words only).
+    pub clipping: Option<Clipping>,
     /// The capture decimated to the waveform rate and aligned to the marker (background
     /// subtracted).
     pub aligned: Vec<Complex64>,
@@ -638,6 +662,12 @@ impl Pipeline {
         self.geometry
     }
 
+    /// Profile amplitude per volt at the scope: 1 / (volts of a unit-gain echo per unit of the
+    /// reference).
+    pub(crate) fn level_scale(&self) -> f64 {
+        self.level_scale
+    }
+
     /// Sets the AWG amplitude the levels refer to (what the AWG reported applying).
     pub(crate) fn set_awg_amplitude(&mut self, vpp: f64) -> Result<(), MeasureError> {
         let mut options = self.options.clone();
@@ -854,6 +884,18 @@ impl Pipeline {
         aligned: Aligned,
         background: Option<&Aligned>,
     ) -> Result<Processed, MeasureError> {
+        self.process_clipped(aligned, background, None)
+    }
+
+    /// [`process`](Self::process) of a record whose samples at the ADC's rails were counted:
+    /// when some clipped, detection is made conservative (`measure::clipping`) and a warning
+    /// says what to change.
+    pub(crate) fn process_clipped(
+        &mut self,
+        aligned: Aligned,
+        background: Option<&Aligned>,
+        clipped: Option<&RecordClipping>,
+    ) -> Result<Processed, MeasureError> {
         let mut aligned = aligned;
         if let Some(bg) = background {
             if bg.samples.len() != aligned.samples.len() {
@@ -867,13 +909,33 @@ impl Pipeline {
             }
         }
         let analysis = self.analyse(&aligned)?;
-        let Analysis { range, detection } = analysis;
+        let Analysis {
+            range,
+            mut detection,
+        } = analysis;
+        // Before the clipping model runs through the range processing (it reuses its state).
+        let range_doppler = self.range_doppler_map(aligned.residual_s).transpose()?;
+        let mut warnings = Vec::new();
+        let clipping = match clipped {
+            Some(c) if c.count.any() => {
+                let (conservative, warning) = clipping::mitigate(
+                    self,
+                    &aligned.samples,
+                    aligned.residual_s,
+                    &mut detection,
+                    c,
+                )?;
+                warnings.push(warning);
+                Some(Clipping::of(&c.count, conservative))
+            }
+            Some(c) => Some(Clipping::of(&c.count, None)),
+            None => None,
+        };
         let primary = range.primary();
         let strongest = detection.strongest.map(|i| &detection.targets[i]);
         let width_3db_cm = strongest.and_then(|t| t.width_3db_cm);
         let sidelobe_db = strongest.and_then(|t| t.sidelobe_db);
         let snr_db = strongest.and_then(|t| t.snr_db);
-        let mut warnings = Vec::new();
         if detection.targets.is_empty() {
             warnings.push(detect::no_target_hint(&aligned.samples, primary));
         }
@@ -885,7 +947,6 @@ impl Pipeline {
         }
         let lag = strongest.and_then(|t| t.cell);
         let payload = self.payload.decode(&aligned.samples, &self.tx, lag);
-        let range_doppler = self.range_doppler_map(aligned.residual_s).transpose()?;
         Ok(Processed {
             profiles: range.profiles,
             targets: detection.targets.clone(),
@@ -896,6 +957,7 @@ impl Pipeline {
             detection,
             range_doppler,
             warnings,
+            clipping,
             aligned: aligned.samples,
         })
     }

@@ -104,6 +104,7 @@ fn result_json(
         "snr_db": p.snr_db,
         "velocity_resolution_mps": p.detection.velocity_resolution_mps,
         "payload": p.payload,
+        "clipped_samples": p.clipping,
     }) else {
         unreachable!("a JSON object literal")
     };
@@ -181,10 +182,12 @@ pub(crate) fn write_raw(
     let mut reps = Vec::new();
     let mut annotations = Vec::new();
     let (mut i_words, mut q_words) = (Vec::new(), Vec::new());
+    let adc = m.taken.plan.scope_adc();
     for k in 0..captured.repetitions() {
         let words = captured.raw_words(k);
         let at = captured.source(k);
         let n = words.i.len() as u64;
+        let clipped = words.clipping(&adc).count;
         reps.push(json!({
             "sample_start": start,
             "sample_count": n,
@@ -194,6 +197,7 @@ pub(crate) fn write_raw(
             "segment": at.segment,
             "vertical_gain": words.gain,
             "vertical_offset": words.offset,
+            "clipped_samples": {"i": clipped.i, "q": clipped.q},
         }));
         if captured.repetitions() > 1 {
             annotations.push((start, n, format!("repetition {}", k + 1)));
@@ -203,6 +207,16 @@ pub(crate) fn write_raw(
         start += n;
     }
     ns.insert("repetitions".into(), json!(reps));
+    // Where the ADC's rails are and the vertical scale, so `process` counts clipping as capture
+    // did and gives the same advice.
+    ns.insert(
+        "adc".into(),
+        json!({
+            "bits": adc.rails.bits(),
+            "volts_per_div": adc.volts_per_div,
+            "volts_per_div_max": adc.volts_per_div_max,
+        }),
+    );
     ns.insert("waveform".into(), m.taken.tx.describe());
     ns.insert("instruments".into(), json!(m.taken.identities));
     ns.insert(

@@ -1,6 +1,7 @@
 //! Several marker-triggered repetitions of one measurement: their coherent average (processed as
 //! the measurement's result) and the spread of what each repetition gives on its own.
 
+use super::clipping::Clipping;
 use super::detect::Detection;
 use super::payload::PayloadResult;
 use super::pipeline::{Aligned, Processed};
@@ -15,6 +16,9 @@ pub struct RepetitionResult {
     pub sidelobe_db: Option<f64>,
     pub snr_db: Option<f64>,
     pub payload: Option<PayloadResult>,
+    /// This repetition's samples at the ADC's rails (captures of the scope's words).
+    #[serde(rename = "clipped_samples", skip_serializing_if = "Option::is_none")]
+    pub clipping: Option<Clipping>,
 }
 
 impl From<&Processed> for RepetitionResult {
@@ -25,6 +29,7 @@ impl From<&Processed> for RepetitionResult {
             sidelobe_db: p.sidelobe_db,
             snr_db: p.snr_db,
             payload: p.payload.clone(),
+            clipping: p.clipping.clone(),
         }
     }
 }
@@ -152,6 +157,7 @@ mod tests {
             sidelobe_note: None,
             velocity_mps: None,
             cell: None,
+            fitted: None,
         }
     }
 
@@ -171,6 +177,7 @@ mod tests {
             sidelobe_db: None,
             snr_db: None,
             payload: None,
+            clipping: None,
         };
         let each = [rep(&[1.001, 1.3]), rep(&[0.999, 1.5]), rep(&[1.2])];
         let s = spread(&[det(1.0, -6.0), det(1.3, -10.0)], &each, 0.05);

@@ -8,6 +8,7 @@
 //! the waveform from the caller.
 
 use super::capture::{process_repetitions, BackgroundFile};
+use super::clipping::{ClipCount, Rails, RecordClipping, ScopeAdc};
 use super::options::{ProcessOptions, ProcessOverrides};
 use super::pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 use super::repeat::{RepetitionResult, Spread};
@@ -155,6 +156,9 @@ fn sigmf(path: &Path) -> Result<Source, InputError> {
 #[derive(Debug, Clone)]
 pub(crate) struct Loaded {
     pub repetitions: Vec<RawIq>,
+    /// Each repetition's samples at the ADC's rails, when the capture holds the scope's codes (a
+    /// radbench capture, a `.trc` pair); empty otherwise.
+    pub clipping: Vec<Option<RecordClipping>>,
     /// The `radbench:` metadata (empty for a capture radbench did not make).
     pub radbench: Map<String, Value>,
 }
@@ -244,6 +248,27 @@ fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, Meas
         })
         .unwrap_or_default();
     let n = rec.samples.len() as u64;
+    // The scope's words come back from the volts with the recorded scaling.
+    let scaling = (rec.unit == SampleUnit::Volts)
+        .then_some(rec.radbench.as_ref())
+        .flatten()
+        .and_then(|r| Some((r.vertical_gain?, r.vertical_offset?)));
+    let adc = recorded_adc(&radbench);
+    let repetition_scaling: Vec<Option<([f64; 2], [f64; 2])>> = radbench
+        .get("repetitions")
+        .and_then(Value::as_array)
+        .map(|a| {
+            a.iter()
+                .map(|r| {
+                    let pair = |k: &str| -> Option<[f64; 2]> {
+                        let v = r.get(k)?.as_array()?;
+                        Some([v.first()?.as_f64()?, v.get(1)?.as_f64()?])
+                    };
+                    Some((pair("vertical_gain")?, pair("vertical_offset")?))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     let repetitions = if reps.is_empty() {
         vec![RawIq {
             samples: rec.samples,
@@ -271,10 +296,77 @@ fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, Meas
             })
             .collect::<Result<_, _>>()?
     };
+    let clipping = match scaling {
+        Some(global) => repetitions
+            .iter()
+            .enumerate()
+            .map(|(k, r)| {
+                let (gain, offset) = repetition_scaling
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .unwrap_or(global);
+                Some(clipping_of_volts(&r.samples, gain, offset, &adc))
+            })
+            .collect(),
+        None => Vec::new(),
+    };
     Ok(Loaded {
         repetitions,
+        clipping,
         radbench,
     })
+}
+
+/// The scope's ADC a radbench capture recorded (`radbench:adc`; before it was recorded, an 8-bit
+/// code in the upper byte, the vertical scale unknown).
+fn recorded_adc(radbench: &Map<String, Value>) -> (Rails, Option<ScopeAdc>) {
+    let adc = radbench.get("adc");
+    let bits = adc
+        .and_then(|a| a.get("bits"))
+        .and_then(Value::as_u64)
+        .map_or(8, |b| b.clamp(1, 16) as u8);
+    let rails = Rails::word(bits);
+    let scope = adc.and_then(|a| {
+        let v = a.get("volts_per_div")?.as_array()?;
+        Some(ScopeAdc {
+            rails,
+            volts_per_div: [v.first()?.as_f64()?, v.get(1)?.as_f64()?],
+            volts_per_div_max: a.get("volts_per_div_max")?.as_f64()?,
+        })
+    });
+    (rails, scope)
+}
+
+/// The samples at the ADC's rails of a repetition held in volts that were the scope's words
+/// (`volts = gain * word - offset`).
+fn clipping_of_volts(
+    samples: &[num_complex::Complex64],
+    gain: [f64; 2],
+    offset: [f64; 2],
+    (rails, scope): &(Rails, Option<ScopeAdc>),
+) -> RecordClipping {
+    let word = |v: f64, ch: usize| {
+        let w = ((v + offset[ch]) / gain[ch]).round();
+        w.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
+    };
+    let (mut i, mut q) = (0, 0);
+    for v in samples {
+        i += usize::from(rails.at_rail(word(v.re, 0)));
+        q += usize::from(rails.at_rail(word(v.im, 1)));
+    }
+    RecordClipping {
+        count: ClipCount {
+            i,
+            q,
+            samples: samples.len(),
+        },
+        rails_v: [
+            rails.volts(gain[0], offset[0]),
+            rails.volts(gain[1], offset[1]),
+        ],
+        scope: *scope,
+    }
 }
 
 /// Two LeCroy traces, I and Q of one acquisition: a repetition per segment.
@@ -299,6 +391,38 @@ fn load_trc_pair(
         ));
     }
     let rate = 1.0 / ti.sample_interval_s();
+    // The codes as the scope sent them: an 8-bit code is the value (BYTE) or sits in the upper
+    // bits of a word (WORD, NOMINAL_BITS of them).
+    let rails = |t: &crate::trc::Trace| {
+        if t.desc.sample_width() == 2 {
+            let bits = u8::try_from(t.desc.nominal_bits).unwrap_or(8);
+            Rails::word(if (1..=16).contains(&bits) { bits } else { 8 })
+        } else {
+            Rails::byte()
+        }
+    };
+    let (ri, rq) = (rails(&ti), rails(&tq));
+    let scaling = |t: &crate::trc::Trace, r: &Rails| {
+        r.volts(
+            f64::from(t.desc.vertical_gain),
+            f64::from(t.desc.vertical_offset),
+        )
+    };
+    let clipping = ti
+        .segments()
+        .zip(tq.segments())
+        .map(|(a, b)| {
+            Some(RecordClipping {
+                count: ClipCount {
+                    i: ri.count(a.codes),
+                    q: rq.count(b.codes),
+                    samples: a.codes.len().min(b.codes.len()),
+                },
+                rails_v: [scaling(&ti, &ri), scaling(&tq, &rq)],
+                scope: None,
+            })
+        })
+        .collect();
     let repetitions = ti
         .segments()
         .zip(tq.segments())
@@ -315,6 +439,7 @@ fn load_trc_pair(
         .collect();
     Ok(Loaded {
         repetitions,
+        clipping,
         radbench: Map::new(),
     })
 }
@@ -428,6 +553,7 @@ pub(crate) fn process(
         &loaded.repetitions,
         background.as_ref(),
         bandwidth,
+        &loaded.clipping,
     )?;
     Ok(Reprocessed {
         processed,

@@ -6,6 +6,7 @@
 //! fails before any instrument is touched when something does not fit.
 
 use super::bench_file::{BenchFile, InstrumentEntry};
+use super::clipping::{Rails, ScopeAdc};
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{RawIq, RawWords};
@@ -77,12 +78,26 @@ pub struct CapturePlan {
     /// Most repetitions one acquisition can record in the scope's sequence mode (the catalog's
     /// `max_sequence_segments`, limited by the memory); 1 when the model has no sequence mode.
     pub max_sequence_segments: u32,
+    /// Bits of the scope's ADC code, in the upper bits of each word (the catalog's `adc_bits`):
+    /// where its rails are.
+    pub adc_bits: u8,
+    /// The largest vertical scale the catalog allows, V/div (for a clipped capture's advice).
+    pub volts_per_div_max: f64,
 }
 
 impl CapturePlan {
     /// The RF-on deadline of `repetitions` repetitions, seconds.
     pub(crate) fn rf_deadline_s(&self, repetitions: usize) -> f64 {
         self.rf_setup_s + repetitions.max(1) as f64 * self.rf_seconds_per_repetition
+    }
+
+    /// The scope's ADC and vertical scale as planned.
+    pub(crate) fn scope_adc(&self) -> ScopeAdc {
+        ScopeAdc {
+            rails: Rails::word(self.adc_bits),
+            volts_per_div: [self.scope.i_volts_per_div, self.scope.q_volts_per_div],
+            volts_per_div_max: self.volts_per_div_max,
+        }
     }
 
     /// Segments per acquisition for `repetitions`: 1 (one acquisition each) without sequence
@@ -194,6 +209,8 @@ pub(crate) fn plan(
         rf_seconds_per_repetition: wait_s + 2.0 * fetch_s,
         rf_setup_s: RF_SETUP_S,
         max_sequence_segments,
+        adc_bits: scope_limits.adc_bits,
+        volts_per_div_max: scope_limits.volts_per_div_max,
     })
 }
 

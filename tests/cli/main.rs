@@ -13,6 +13,7 @@ mod campaign;
 mod campaign_report;
 mod capture_e2e;
 mod cli_safety;
+mod clipping_capture;
 mod detect_capture;
 mod exit_paths;
 mod io_cli;
