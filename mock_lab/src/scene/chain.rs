@@ -162,7 +162,7 @@ impl ChainParams {
     }
 
     /// The scope's timebase error, relative (0 with a shared reference).
-    pub fn timebase_error(&self) -> f64 {
+    pub(crate) fn timebase_error(&self) -> f64 {
         if self.shared_reference {
             0.0
         } else {
