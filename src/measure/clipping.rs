@@ -830,12 +830,7 @@ pub(crate) fn mitigate(
     for (t, f) in detection.threshold.iter_mut().zip(&floor.power) {
         *t = (*t * *t + f).sqrt();
     }
-    detection.strongest = detection
-        .targets
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.level_db.total_cmp(&b.1.level_db))
-        .map(|(i, _)| i);
+    detection.strongest = super::detect::strongest(&detection.targets);
     text += &advice(clipping, floor.scale);
     text += &match floor.kind {
         "model" => format!(

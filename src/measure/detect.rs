@@ -166,13 +166,17 @@ pub(crate) fn detect(
     report
         .targets
         .sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
-    report.strongest = report
-        .targets
+    report.strongest = strongest(&report.targets);
+    Ok(report)
+}
+
+/// The index of the strongest target.
+pub(crate) fn strongest(targets: &[Detection]) -> Option<usize> {
+    targets
         .iter()
         .enumerate()
         .max_by(|a, b| a.1.level_db.total_cmp(&b.1.level_db))
-        .map(|(i, _)| i);
-    Ok(report)
+        .map(|(i, _)| i)
 }
 
 fn level_at(p: &Profile, range_m: f64) -> f64 {
