@@ -642,6 +642,9 @@ fn processing(
             _ => None,
         };
         o.min_separation_m = p.min_separation_m;
+        if let Some(db) = p.chain_floor_db {
+            o.chain_floor_db = db;
+        }
         o.system_delay_s = bench.bench_file().system_delay_s();
         out.push(o);
     }

@@ -181,6 +181,8 @@ pub struct ProcessingSection {
     #[serde(default)]
     pub min_separation_m: Option<f64>,
     #[serde(default)]
+    pub chain_floor_db: Option<f64>,
+    #[serde(default)]
     pub min_range_m: Option<f64>,
     #[serde(default)]
     pub max_range_m: Option<f64>,

@@ -293,6 +293,17 @@ pub struct ProcessingArgs {
     /// Targets closer than this are reported as one, metres (default: 0.75 resolution cells).
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub min_separation: Option<f64>,
+    /// Around a target whose main lobe does not fit the ideal point spread to 50 dB, a weaker
+    /// echo within 1.6 m is a target only within this many dB of it (the chain's own echoes are
+    /// part of its response; docs/detection.md). Lower it for a bench known to be cleaner;
+    /// -200 turns it off.
+    #[arg(
+        long,
+        value_name = "DB",
+        default_value_t = -17.0,
+        allow_hyphen_values = true
+    )]
+    pub chain_floor_db: f64,
 }
 
 impl ProcessingArgs {
@@ -313,6 +324,7 @@ impl ProcessingArgs {
             detector: self.detector.into(),
             pfa: self.pfa,
             min_separation_m: self.min_separation,
+            chain_floor_db: self.chain_floor_db,
             ..ProcessOptions::default()
         }
     }

@@ -79,6 +79,9 @@ pub struct Args {
     pub pfa: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub min_separation: Option<f64>,
+    /// The detector's chain floor, dB (see `capture --help`).
+    #[arg(long, value_name = "DB", allow_hyphen_values = true)]
+    pub chain_floor_db: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub min_range: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
@@ -105,6 +108,7 @@ impl Args {
             detector: self.detector.map(Into::into),
             pfa: self.pfa,
             min_separation_m: self.min_separation.map(Some),
+            chain_floor_db: self.chain_floor_db,
             awg_amplitude_vpp: None,
             keep_background: !self.no_background,
         }

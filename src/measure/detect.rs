@@ -84,6 +84,7 @@ pub(crate) fn detect_options(options: &ProcessOptions) -> DetectOptions {
         method: options.detector.to_dsp(),
         pfa: options.pfa,
         min_separation_m: options.min_separation_m,
+        chain_floor_db: options.chain_floor_db,
         ..DetectOptions::default()
     }
 }

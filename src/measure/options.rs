@@ -216,6 +216,9 @@ pub struct ProcessOptions {
     pub pfa: f64,
     /// Targets closer than this are not separated, metres (`None`: 0.75 resolution cells).
     pub min_separation_m: Option<f64>,
+    /// CLEAN's chain floor, dB under a target whose main lobe does not fit the ideal spread
+    /// (docs/detection.md): weaker echoes within 1.6 m of it are its chain's, not targets.
+    pub chain_floor_db: f64,
     /// RF carrier of the front ends, Hz: the velocity scale of the OFDM range-Doppler processing.
     pub carrier_hz: f64,
     /// The AWG's I/Q amplitude (peak to peak, volts): echo levels are given relative to a path
@@ -241,6 +244,7 @@ impl Default for ProcessOptions {
             detector: DetectorName::Clean,
             pfa: 1e-6,
             min_separation_m: None,
+            chain_floor_db: -17.0,
             carrier_hz: 80e9,
             awg_amplitude_vpp: None,
         }
@@ -275,6 +279,7 @@ pub(crate) struct ProcessOverrides {
     pub detector: Option<DetectorName>,
     pub pfa: Option<f64>,
     pub min_separation_m: Option<Option<f64>>,
+    pub chain_floor_db: Option<f64>,
     pub awg_amplitude_vpp: Option<Option<f64>>,
     /// Subtract the background the capture recorded (when it had one).
     pub keep_background: bool,
@@ -298,6 +303,7 @@ impl ProcessOverrides {
             detector: self.detector.unwrap_or(base.detector),
             pfa: self.pfa.unwrap_or(base.pfa),
             min_separation_m: self.min_separation_m.unwrap_or(base.min_separation_m),
+            chain_floor_db: self.chain_floor_db.unwrap_or(base.chain_floor_db),
             carrier_hz: base.carrier_hz,
             awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
         }

@@ -340,3 +340,40 @@ async fn background_subtraction_leaves_only_what_changed() {
     assert_eq!(found.len(), 1, "only the new target remains: {found:?}");
     assert!((found[0] - (2.2 + offset)).abs() < 0.01, "{found:?}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_chain_floor_keeps_a_thesis_lab_echo_in_its_pillar_and_can_be_turned_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_file = dir.path().join("scene.toml");
+    std::fs::write(
+        &scene_file,
+        "snr_db = 30.0\n[[targets]]\nrange_m = 2.0\n[chain]\npreset = \"thesis-lab\"\n",
+    )
+    .unwrap();
+    let s = scene_file.to_str().unwrap();
+    let out = dir.path().join("a");
+    let v = capture_json(&["--scene", s, "--out", out.to_str().unwrap()]).await;
+    assert_eq!(ranges(&v).len(), 1, "{}", v["targets"]);
+    assert_eq!(v["processing"]["chain_floor_db"], -17.0);
+    // Off: the chain's echo 1.43 ns behind the pillar (+0.21 m) is reported as a target.
+    let out = dir.path().join("b");
+    let v = capture_json(&[
+        "--scene",
+        s,
+        "--chain-floor-db",
+        "-200",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .await;
+    let found = ranges(&v);
+    assert!(
+        found.len() >= 2 && found.iter().any(|r| (r - 2.21).abs() < 0.02),
+        "{found:?}"
+    );
+    // `process` takes it too, and a floor above 0 dB is refused by name.
+    let (code, _, err) =
+        radbench(&["process", out.to_str().unwrap(), "--chain-floor-db", "3"]).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("chain_floor_db"), "{err}");
+}
