@@ -19,6 +19,12 @@
 //!    vertical divisions, clipping at the screen edges. Samples are delivered as 16-bit words with the
 //!    8-bit code in the upper byte, as the LeCroy scope does with `CFMT DEF9,WORD,BIN`.
 //!
+//! A scene's `[chain]` (module `chain`, preset `ideal` by default) makes the chain a real bench's:
+//! the Tx side (DAC sinc, roll-off, Tx I/Q errors, compression) and the RF response shape the
+//! segment's spectrum once per segment; a second path per target joins step 2; with shared-LO phase
+//! noise the paths are rendered over the record (module `lo_noise`); a timebase offset or an Rx
+//! skew moves the scope's sampling instants in step 4.
+//!
 //! SNR is defined as in radbench's thesis notes: per target of unit amplitude, per complex sample at
 //! the capture rate, relative to the mean power of the waveform loaded in the AWG.
 //!
