@@ -30,6 +30,7 @@ pub mod metrics;
 pub mod music;
 pub mod ofdm_radar;
 pub mod range_profile;
+pub(crate) mod response;
 pub mod window;
 
 /// Speed of light in vacuum, m/s (defined in [`crate::physics`]).

@@ -1,0 +1,595 @@
+//! The chain's complex response, measured on one reference reflector, and its inverse on receive.
+//!
+//! The AWG loops one known repetition `x`, so an aligned capture `y` of one reflector is, bin by
+//! bin of its DFT over the period, `Y = H X + H' X~ + N` with `X~(f) = conj(X(-f))` (the image an
+//! I/Q error leaves). [`ChainEstimator`] estimates `H` (and `H'`) from the cross-spectrum `Y
+//! conj(X)` by local least squares: the cross-correlation is gated around the reference's delay
+//! (so other echoes, leakage and clutter do not enter) and divided by the transmitted
+//! autocorrelation gated alike. Where `|X|^2` is flat that is `Y / X` smoothed over `1 / gate`;
+//! near the band edges the division by the equally gated `|X|^2` keeps it unbiased. The gate
+//! bounds what can be measured: a chain whose impulse response is longer than the gate is seen
+//! smoothed.
+//!
+//! [`RxEqualiser`] is the correction: `1 / H` per bin of a pipeline's period, interpolated from a
+//! measured table, held at the band edges outside it.
+
+use super::DspError;
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
+
+/// Bins whose gated transmitted power is within this of the peak are "in band" (-20 dB): the
+/// response is stored there.
+pub(crate) const BAND_FLOOR: f64 = 1e-2;
+
+/// Signed frequency index of bin `k` of `n`.
+fn signed(k: usize, n: usize) -> f64 {
+    if k <= n / 2 {
+        k as f64
+    } else {
+        k as f64 - n as f64
+    }
+}
+
+/// Estimates the response of the chain from captures of one reflector (see the module docs).
+pub(crate) struct ChainEstimator {
+    n: usize,
+    fs: f64,
+    /// DFT of the transmitted repetition and of its conjugate (the image's reference).
+    x: Vec<Complex64>,
+    x_image: Vec<Complex64>,
+    /// The gated moments `sum K conj(a) b u^j` (j = 0, 1, 2; u the signed bin) of the pairs
+    /// (X, X), (X~, X~) and (X, X~): the normal matrix of the local fit, per bin.
+    direct_moments: [Vec<f64>; 3],
+    image_moments: [Vec<f64>; 3],
+    cross_moments: [Vec<Complex64>; 3],
+    /// Lag-domain gate, by signed lag.
+    gate: Vec<f64>,
+    fft: Arc<dyn Fft<f64>>,
+    ifft: Arc<dyn Fft<f64>>,
+}
+
+impl std::fmt::Debug for ChainEstimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ChainEstimator")
+            .field("n", &self.n)
+            .field("fs", &self.fs)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ChainEstimator {
+    /// An estimator for repetitions of `reference` (zero-padded to `period` samples at `fs`),
+    /// gated to `+-gate_s` around the reflector (a cosine taper of half that beyond).
+    pub(crate) fn new(
+        reference: &[Complex64],
+        period: usize,
+        fs: f64,
+        gate_s: f64,
+    ) -> Result<Self, DspError> {
+        if period < reference.len() || period < 8 {
+            return Err(DspError::Param(format!(
+                "period {period}: at least the reference's {} samples (and 8)",
+                reference.len()
+            )));
+        }
+        let flat = gate_s * fs;
+        if !(flat.is_finite() && flat >= 2.0 && 1.5 * flat < period as f64 / 2.0) {
+            return Err(DspError::Param(format!(
+                "gate {:.3} ns: from 2 samples ({:.3} ns) to a third of the period ({:.1} ns)",
+                gate_s * 1e9,
+                2e9 / fs,
+                1e9 * period as f64 / (3.0 * fs)
+            )));
+        }
+        let mut planner = FftPlanner::new();
+        let fft = planner.plan_fft_forward(period);
+        let ifft = planner.plan_fft_inverse(period);
+        let mut x = reference.to_vec();
+        x.resize(period, ZERO);
+        let mut x_image: Vec<Complex64> = x.iter().map(|v| v.conj()).collect();
+        fft.process(&mut x);
+        fft.process(&mut x_image);
+        let taper = 0.5 * flat;
+        let gate: Vec<f64> = (0..period)
+            .map(|m| {
+                let t = signed(m, period).abs();
+                if t <= flat {
+                    1.0
+                } else if t < flat + taper {
+                    0.5 * (1.0 + (PI * (t - flat) / taper).cos())
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut est = ChainEstimator {
+            n: period,
+            fs,
+            x,
+            x_image,
+            direct_moments: Default::default(),
+            image_moments: Default::default(),
+            cross_moments: Default::default(),
+            gate,
+            fft,
+            ifft,
+        };
+        let real = |v: Vec<Complex64>| v.iter().map(|c| c.re).collect::<Vec<f64>>();
+        let pair = |a: &[Complex64], b: &[Complex64]| -> Vec<Complex64> {
+            a.iter().zip(b).map(|(a, b)| a.conj() * b).collect()
+        };
+        let (xx, ii, xi) = (
+            pair(&est.x, &est.x),
+            pair(&est.x_image, &est.x_image),
+            pair(&est.x, &est.x_image),
+        );
+        est.direct_moments = est.moments(&xx, 3).map(real);
+        est.image_moments = est.moments(&ii, 3).map(real);
+        est.cross_moments = est.moments(&xi, 3);
+        Ok(est)
+    }
+
+    /// `gate(z u^j)` for j = 0..count (the rest empty).
+    fn moments(&self, z: &[Complex64], count: usize) -> [Vec<Complex64>; 3] {
+        let n = self.n;
+        let mut out: [Vec<Complex64>; 3] = Default::default();
+        for (j, slot) in out.iter_mut().enumerate().take(count) {
+            let mut m: Vec<Complex64> = z
+                .iter()
+                .enumerate()
+                .map(|(k, v)| v * signed(k, n).powi(j as i32))
+                .collect();
+            self.gate_spectrum(&mut m);
+            *slot = m;
+        }
+        out
+    }
+
+    /// Applies the lag-domain gate to a spectrum (in place): a circular convolution with the
+    /// gate's transform, the local fit's weights.
+    fn gate_spectrum(&self, spec: &mut [Complex64]) {
+        let n = self.n as f64;
+        self.ifft.process(spec);
+        for (v, g) in spec.iter_mut().zip(&self.gate) {
+            *v *= g / n;
+        }
+        self.fft.process(spec);
+    }
+
+    pub(crate) fn period(&self) -> usize {
+        self.n
+    }
+
+    /// Frequency of bin `k`, Hz (signed, baseband).
+    pub(crate) fn frequency_hz(&self, k: usize) -> f64 {
+        signed(k, self.n) * self.fs / self.n as f64
+    }
+
+    /// The transmitted power's gated spectrum relative to its peak, per bin: what "in band"
+    /// means (>= [`BAND_FLOOR`]).
+    pub(crate) fn coverage(&self) -> Vec<f64> {
+        let w = &self.direct_moments[0];
+        let peak = w.iter().copied().fold(0.0, f64::max).max(1e-300);
+        w.iter().map(|w| w / peak).collect()
+    }
+
+    /// The DFT of one repetition.
+    pub(crate) fn spectrum(&self, y: &[Complex64]) -> Vec<Complex64> {
+        let mut s = y.to_vec();
+        s.resize(self.n, ZERO);
+        self.fft.process(&mut s);
+        s
+    }
+
+    /// The direct response `H` and the image response `H'` of one repetition's spectrum, both
+    /// relative to the reflector's delay (samples), `H(f) exp(+j 2 pi f delay)`: a joint local
+    /// least-squares fit of a level and a slope of each within the gate's resolution. Joint,
+    /// because a chirp and its conjugate are alike near their common stationary point; local
+    /// linear, because at the band edges the waveform's power falls off on one side and a local
+    /// mean would be pulled inwards. Zero outside the band.
+    pub(crate) fn estimate(
+        &self,
+        y_spec: &[Complex64],
+        delay: f64,
+    ) -> (Vec<Complex64>, Vec<Complex64>) {
+        let n = self.n;
+        let y: Vec<Complex64> = y_spec
+            .iter()
+            .enumerate()
+            .map(|(k, v)| {
+                v * Complex64::from_polar(1.0, 2.0 * PI * signed(k, n) * delay / n as f64)
+            })
+            .collect();
+        let with = |r: &[Complex64]| -> Vec<Complex64> {
+            r.iter().zip(&y).map(|(r, y)| r.conj() * y).collect()
+        };
+        let a = self.moments(&with(&self.x), 2);
+        let b = self.moments(&with(&self.x_image), 2);
+        let (p, q, c) = (
+            &self.direct_moments,
+            &self.image_moments,
+            &self.cross_moments,
+        );
+        let floor = 0.1 * BAND_FLOOR * p[0].iter().copied().fold(0.0, f64::max).max(1e-300);
+        let mut direct = vec![ZERO; n];
+        let mut image = vec![ZERO; n];
+        for k in (0..n).filter(|&k| p[0][k] > floor) {
+            let u = signed(k, n);
+            // Moments about u: sum K w (u' - u)^j.
+            let central = |m0: Complex64, m1: Complex64, m2: Complex64| {
+                [m0, m1 - m0 * u, m2 - m1 * (2.0 * u) + m0 * (u * u)]
+            };
+            let re = |v: f64| Complex64::new(v, 0.0);
+            let pp = central(re(p[0][k]), re(p[1][k]), re(p[2][k]));
+            let qq = central(re(q[0][k]), re(q[1][k]), re(q[2][k]));
+            let cc = central(c[0][k], c[1][k], c[2][k]);
+            // Basis: X, dX, X~, dX~ (d = u' - u); G_ij = sum K conj(phi_i) phi_j.
+            let g = nalgebra::Matrix4::new(
+                pp[0],
+                pp[1],
+                cc[0],
+                cc[1],
+                pp[1],
+                pp[2],
+                cc[1],
+                cc[2],
+                cc[0].conj(),
+                cc[1].conj(),
+                qq[0],
+                qq[1],
+                cc[1].conj(),
+                cc[2].conj(),
+                qq[1],
+                qq[2],
+            );
+            let rhs = nalgebra::Vector4::new(
+                a[0][k],
+                a[1][k] - a[0][k] * u,
+                b[0][k],
+                b[1][k] - b[0][k] * u,
+            );
+            if let Some(sol) = g.lu().solve(&rhs) {
+                if sol.iter().all(|v| v.re.is_finite() && v.im.is_finite()) {
+                    direct[k] = sol[0];
+                    image[k] = sol[2];
+                }
+            }
+        }
+        (direct, image)
+    }
+}
+
+/// A measured response table: frequencies (ascending, Hz) and the complex response there.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ResponseTable {
+    pub freq_hz: Vec<f64>,
+    pub response: Vec<Complex64>,
+}
+
+impl ResponseTable {
+    /// The response at `f`: linear interpolation of magnitude and unwrapped phase between the
+    /// table's points, held at its ends.
+    pub(crate) fn at(&self, f: f64) -> Complex64 {
+        let (fr, h) = (&self.freq_hz, &self.response);
+        match fr.len() {
+            0 => Complex64::new(1.0, 0.0),
+            _ if f <= fr[0] => h[0],
+            len if f >= fr[len - 1] => h[len - 1],
+            _ => {
+                let i = fr.partition_point(|&v| v <= f).clamp(1, fr.len() - 1);
+                let t = (f - fr[i - 1]) / (fr[i] - fr[i - 1]);
+                let (a, b) = (h[i - 1], h[i]);
+                let mag = a.norm() + t * (b.norm() - a.norm());
+                let mut dphi = b.arg() - a.arg();
+                if dphi > PI {
+                    dphi -= 2.0 * PI;
+                } else if dphi < -PI {
+                    dphi += 2.0 * PI;
+                }
+                Complex64::from_polar(mag, a.arg() + t * dphi)
+            }
+        }
+    }
+
+    /// The lowest and highest frequency covered, Hz.
+    pub(crate) fn band_hz(&self) -> Option<(f64, f64)> {
+        Some((*self.freq_hz.first()?, *self.freq_hz.last()?))
+    }
+}
+
+/// The receive-side correction of an aligned repetition: DC removed, the receiver's I/Q gain and
+/// phase imbalance undone, and the chain's response divided out, per bin of one period.
+#[derive(Clone)]
+pub(crate) struct RxEqualiser {
+    /// The DC offset of I and Q at the scope (volts, as `I + jQ`).
+    dc: Complex64,
+    /// Q's gain (linear) and phase error (radians) relative to I, as the receiver has them.
+    iq: Option<(f64, f64)>,
+    /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
+    inverse: Vec<Complex64>,
+    fft: Arc<dyn Fft<f64>>,
+    ifft: Arc<dyn Fft<f64>>,
+    scratch: Vec<Complex64>,
+}
+
+/// Below this `|H|^2` relative to its mean the inverse is regularised (-30 dB): a notch in the
+/// chain is not turned into a noise spike.
+const REGULARISE: f64 = 1e-3;
+
+impl std::fmt::Debug for RxEqualiser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RxEqualiser")
+            .field("period", &self.inverse.len())
+            .field("dc", &self.dc)
+            .field("iq", &self.iq)
+            .finish_non_exhaustive()
+    }
+}
+
+impl RxEqualiser {
+    /// The correction for repetitions of `period` samples at `fs`. `iq` is Q's gain (dB) and
+    /// phase (degrees) relative to I.
+    pub(crate) fn new(
+        table: &ResponseTable,
+        dc: Complex64,
+        iq: Option<(f64, f64)>,
+        period: usize,
+        fs: f64,
+    ) -> Result<Self, DspError> {
+        if table.freq_hz.len() < 2 || table.freq_hz.len() != table.response.len() {
+            return Err(DspError::Param(
+                "response table: at least 2 points, one response per frequency".into(),
+            ));
+        }
+        if table.freq_hz.windows(2).any(|w| !(w[1] > w[0])) {
+            return Err(DspError::Param(
+                "response table: frequencies strictly ascending".into(),
+            ));
+        }
+        let mean_power =
+            table.response.iter().map(|h| h.norm_sqr()).sum::<f64>() / table.response.len() as f64;
+        if !(mean_power.is_finite() && mean_power > 0.0) {
+            return Err(DspError::Param(
+                "response table: a finite response, not zero everywhere".into(),
+            ));
+        }
+        let lambda = REGULARISE * mean_power;
+        let n = period;
+        let inverse = (0..n)
+            .map(|k| {
+                let h = table.at(signed(k, n) * fs / n as f64);
+                h.conj() / ((h.norm_sqr() + lambda) * n as f64)
+            })
+            .collect();
+        let mut planner = FftPlanner::new();
+        Ok(RxEqualiser {
+            dc,
+            iq: iq.map(|(g_db, phi_deg)| (10f64.powf(g_db / 20.0), phi_deg.to_radians())),
+            inverse,
+            fft: planner.plan_fft_forward(n),
+            ifft: planner.plan_fft_inverse(n),
+            scratch: Vec::new(),
+        })
+    }
+
+    pub(crate) fn period(&self) -> usize {
+        self.inverse.len()
+    }
+
+    /// DC and I/Q imbalance off (sample by sample): `Q = g (Q0 cos phi - I sin phi)` undone.
+    pub(crate) fn correct_iq(&self, y: &mut [Complex64], remove_dc: bool) {
+        let dc = if remove_dc { self.dc } else { ZERO };
+        match self.iq {
+            Some((g, phi)) => {
+                let (s, c) = phi.sin_cos();
+                for v in y.iter_mut() {
+                    let (i, q) = (v.re - dc.re, v.im - dc.im);
+                    *v = Complex64::new(i, (q / g + i * s) / c);
+                }
+            }
+            None if remove_dc => {
+                for v in y.iter_mut() {
+                    *v -= dc;
+                }
+            }
+            None => {}
+        }
+    }
+
+    /// Corrects one aligned repetition in place (`remove_dc` false when a background was
+    /// subtracted: the background took the DC with it).
+    pub(crate) fn apply(&mut self, y: &mut [Complex64], remove_dc: bool) -> Result<(), DspError> {
+        if y.len() != self.inverse.len() {
+            return Err(DspError::Param(format!(
+                "a repetition of {} samples; the equaliser was made for {}",
+                y.len(),
+                self.inverse.len()
+            )));
+        }
+        self.correct_iq(y, remove_dc);
+        let need = self.fft.get_inplace_scratch_len();
+        if self.scratch.len() < need {
+            self.scratch.resize(need, ZERO);
+        }
+        self.fft.process_with_scratch(y, &mut self.scratch[..need]);
+        for (v, e) in y.iter_mut().zip(&self.inverse) {
+            *v *= e;
+        }
+        self.ifft.process_with_scratch(y, &mut self.scratch[..need]);
+        Ok(())
+    }
+}
+
+/// Receiver I/Q gain (dB) and phase (degrees) imbalance, Q relative to I, from a record of a
+/// circular signal (the receiver's own noise with the transmitter off): `E[Q^2] = g^2 E[I^2]`
+/// and `E[I Q] = -g sin(phi) E[I^2]` once the mean is removed.
+pub(crate) fn iq_imbalance_of_noise(y: &[Complex64]) -> Option<(f64, f64)> {
+    let n = y.len() as f64;
+    if y.len() < 16 {
+        return None;
+    }
+    let mean = y.iter().sum::<Complex64>() / n;
+    let (mut ii, mut qq, mut iq) = (0.0, 0.0, 0.0);
+    for v in y {
+        let (i, q) = (v.re - mean.re, v.im - mean.im);
+        ii += i * i;
+        qq += q * q;
+        iq += i * q;
+    }
+    if !(ii > 0.0 && qq > 0.0) {
+        return None;
+    }
+    let g = (qq / ii).sqrt();
+    let s = (-iq / (g * ii)).clamp(-1.0, 1.0);
+    Some((20.0 * g.log10(), s.asin().to_degrees()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chirp(n: usize) -> Vec<Complex64> {
+        // A 1 GHz chirp at 16 GSa/s over n samples.
+        let fs = 16e9;
+        let b = 1e9;
+        let t_len = n as f64 / fs;
+        (0..n)
+            .map(|k| {
+                let t = k as f64 / fs - t_len / 2.0;
+                Complex64::from_polar(1.0, PI * b / t_len * t * t)
+            })
+            .collect()
+    }
+
+    /// `x` through `h(f)` (per signed frequency), delayed by `delay` samples, circularly.
+    fn through(
+        x: &[Complex64],
+        delay: f64,
+        h: impl Fn(f64) -> Complex64,
+        fs: f64,
+    ) -> Vec<Complex64> {
+        let n = x.len();
+        let mut planner = FftPlanner::new();
+        let mut s = x.to_vec();
+        planner.plan_fft_forward(n).process(&mut s);
+        for (k, v) in s.iter_mut().enumerate() {
+            let f = signed(k, n) * fs / n as f64;
+            *v *= h(f)
+                * Complex64::from_polar(
+                    1.0 / n as f64,
+                    -2.0 * PI * signed(k, n) * delay / n as f64,
+                );
+        }
+        planner.plan_fft_inverse(n).process(&mut s);
+        s
+    }
+
+    #[test]
+    fn a_ripple_is_measured_where_the_waveform_has_power() {
+        let fs = 16e9;
+        let x = chirp(4096);
+        // An echo 1.5 ns behind at -20 dB: 1.7 dB peak-to-peak of ripple.
+        let h =
+            |f: f64| Complex64::new(1.0, 0.0) + Complex64::from_polar(0.1, -2.0 * PI * f * 1.5e-9);
+        let delay = 321.37;
+        let y = through(&x, delay, h, fs);
+        let est = ChainEstimator::new(&x, 4096, fs, 4e-9).unwrap();
+        let (direct, image) = est.estimate(&est.spectrum(&y), delay);
+        let cover = est.coverage();
+        let mut worst: f64 = 0.0;
+        for k in 0..4096 {
+            if cover[k] > 0.3 {
+                let want = h(est.frequency_hz(k));
+                let e = (direct[k] / want - 1.0).norm();
+                worst = worst.max(e);
+                assert!(image[k].norm() < 0.04, "image {} at bin {k}", image[k]);
+            }
+        }
+        // 0.015 is 0.13 dB and 0.9 degrees: the ripple's curvature within the gate's resolution
+        // (a local linear fit), largest near DC where the chirp and its image are alike.
+        assert!(worst < 0.015, "worst relative error {worst}");
+    }
+
+    #[test]
+    fn an_image_is_told_from_the_direct_response() {
+        let fs = 16e9;
+        let x = chirp(4096);
+        let delay = 100.0;
+        let direct_path = through(&x, delay, |_| Complex64::new(1.0, 0.0), fs);
+        let b = Complex64::new(0.03, 0.02);
+        let y: Vec<Complex64> = direct_path.iter().map(|v| v + b * v.conj()).collect();
+        let est = ChainEstimator::new(&x, 4096, fs, 4e-9).unwrap();
+        let (direct, image) = est.estimate(&est.spectrum(&y), delay);
+        let cover = est.coverage();
+        for k in (0..4096).filter(|&k| cover[k] > 0.3) {
+            assert!((direct[k] - 1.0).norm() < 3e-3, "{}", direct[k]);
+            // conj(x delayed) = conj(x) delayed: the image relative to the same delay.
+            assert!((image[k] - b).norm() < 5e-3, "{} vs {b}", image[k]);
+        }
+    }
+
+    #[test]
+    fn the_equaliser_undoes_the_response_dc_and_iq_imbalance() {
+        let fs = 16e9;
+        let n = 4096;
+        let x = chirp(n);
+        let h = |f: f64| Complex64::from_polar(1.0 + 0.1 * (f / 3e8).sin(), 0.3 * (f / 2e8).cos());
+        let clean = through(&x, 50.0, |_| Complex64::new(1.0, 0.0), fs);
+        let mut y = through(&x, 50.0, h, fs);
+        let (g, phi): (f64, f64) = (10f64.powf(0.5 / 20.0), 3f64.to_radians());
+        let dc = Complex64::new(0.01, -0.02);
+        for v in y.iter_mut() {
+            let q = g * (v.im * phi.cos() - v.re * phi.sin());
+            *v = Complex64::new(v.re, q) + dc;
+        }
+        let freq_hz: Vec<f64> = (0..400).map(|k| -1e9 + 5e6 * k as f64).collect();
+        let table = ResponseTable {
+            response: freq_hz.iter().map(|&f| h(f)).collect(),
+            freq_hz,
+        };
+        let mut eq = RxEqualiser::new(&table, dc, Some((0.5, 3.0)), n, fs).unwrap();
+        eq.apply(&mut y, true).unwrap();
+        let est = ChainEstimator::new(&x, n, fs, 4e-9).unwrap();
+        let cover = est.coverage();
+        let (ys, cs) = (est.spectrum(&y), est.spectrum(&clean));
+        for k in (0..n).filter(|&k| cover[k] > 0.1) {
+            assert!(
+                (ys[k] - cs[k]).norm() < 3e-3 * cs[k].norm().max(1.0),
+                "bin {k}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_receivers_imbalance_is_read_from_its_noise() {
+        let mut rng = crate::rng::SplitMix64::new(7);
+        let mut gaussian = || rng.complex_gaussian(2.0);
+        let (g, phi): (f64, f64) = (10f64.powf(0.6 / 20.0), 4f64.to_radians());
+        let y: Vec<Complex64> = (0..200_000)
+            .map(|_| {
+                let z = gaussian();
+                let (i, q) = (z.re, z.im);
+                Complex64::new(i + 0.1, g * (q * phi.cos() - i * phi.sin()))
+            })
+            .collect();
+        let (g_db, phi_deg) = iq_imbalance_of_noise(&y).unwrap();
+        assert!((g_db - 0.6).abs() < 0.05, "{g_db}");
+        assert!((phi_deg - 4.0).abs() < 0.3, "{phi_deg}");
+    }
+
+    #[test]
+    fn a_table_interpolates_and_holds_its_ends() {
+        let t = ResponseTable {
+            freq_hz: vec![-1.0, 1.0],
+            response: vec![Complex64::new(1.0, 0.0), Complex64::new(0.0, 3.0)],
+        };
+        assert_eq!(t.at(-5.0), Complex64::new(1.0, 0.0));
+        assert_eq!(t.at(5.0), Complex64::new(0.0, 3.0));
+        let mid = t.at(0.0);
+        assert!((mid.norm() - 2.0).abs() < 1e-12 && (mid.arg() - PI / 4.0).abs() < 1e-12);
+    }
+}
