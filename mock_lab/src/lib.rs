@@ -22,5 +22,6 @@ pub(crate) mod control;
 pub mod emulator;
 pub mod faults;
 pub mod lab;
+pub mod offline;
 pub mod scene;
 pub mod server;

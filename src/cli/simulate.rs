@@ -1,11 +1,16 @@
 //! `radbench simulate`: the thesis' chapter-4 scenarios, free-form runs and BER curves.
 //!
+//! `simulate run --scene FILE` simulates the built-in mock lab's capture of a scene file
+//! in-process (`crate::simulate::scene_bench`): the same synthesis, scope and pipeline as
+//! `capture --allow-rf --scene FILE`, so the same detections for the same scene and `--seed`.
+//!
 //! Target syntax for `--targets`: `R[:AMP[:V]]` separated by commas: range in metres, linear
 //! amplitude (default 1), radial velocity in m/s (default 0, positive = moving away). Example:
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
 use super::args::{CarrierPhaseArg, ProcessingArgs, WaveformArg, WaveformArgs};
 use crate::exit::bad_input;
+use crate::simulate::scene_bench::{simulate_scene, SceneSpec};
 use crate::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
 use crate::waveform::spec::WaveformKind;
 use std::path::PathBuf;
@@ -44,8 +49,31 @@ pub struct RunArgs {
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Targets: R[:AMP[:V]] separated by commas (metres, linear amplitude, m/s receding).
-    #[arg(long, value_name = "R[:AMP[:V]],...", allow_hyphen_values = true)]
-    pub targets: String,
+    #[arg(
+        long,
+        value_name = "R[:AMP[:V]],...",
+        allow_hyphen_values = true,
+        required_unless_present = "scene"
+    )]
+    pub targets: Option<String>,
+    /// A mock-lab scene file (examples/scene.toml): simulate the built-in mock lab's capture of
+    /// it in-process (targets, clutter, leakage, impairments, [chain], SNR and noise seed from
+    /// the file), with the same detections as `capture --allow-rf --scene FILE`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with_all = ["targets", "snr_db", "capture_rate", "carrier_phase"]
+    )]
+    pub scene: Option<PathBuf>,
+    /// With --scene: ignore detections closer than this, metres (as `capture`).
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub min_range: Option<f64>,
+    /// With --scene: ignore detections farther than this, metres (as `capture`).
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub max_range: Option<f64>,
+    /// With --scene: text to send in the waveform (default: PRBS bits from --seed).
+    #[arg(long, value_name = "TEXT")]
+    pub payload: Option<String>,
     /// Per-sample SNR in dB at the capture rate for a unit-amplitude target (default: noise-free).
     #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     pub snr_db: Option<f64>,
@@ -58,10 +86,11 @@ pub struct RunArgs {
     /// by 5 -> 16 GSa/s).
     #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
     pub capture_rate: Option<f64>,
-    /// Seed of the bits and the noise.
+    /// Seed of the bits and the noise (with --scene: of the bits, as `capture --seed`; the noise
+    /// comes from the scene's `seed`).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Monte-Carlo trials (new noise each trial).
+    /// Monte-Carlo trials (new noise each trial; with --scene, trial k is the lab's k-th capture).
     #[arg(long, default_value_t = 1)]
     pub trials: usize,
     /// Print one JSON object {"scenarios": [...]} (docs/simulate-json.md).
@@ -74,6 +103,10 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub profile_out: Option<PathBuf>,
 }
+
+/// `capture`'s default range window (`--min-range`, `--max-range`), metres.
+const CAPTURE_MIN_RANGE_M: f64 = 0.15;
+const CAPTURE_MAX_RANGE_M: f64 = 10.0;
 
 #[derive(Debug, clap::Args)]
 pub struct BerArgs {
@@ -123,15 +156,50 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
 fn run_free(a: RunArgs) -> anyhow::Result<()> {
     let kind = WaveformKind::from(a.waveform);
     let waveform = a.waveform_args.spec(kind)?;
-    let targets = parse_targets(&a.targets)?;
-    let mut spec = RunSpec::new("run", waveform, targets);
-    spec.processing = a.processing.options(kind);
-    spec.snr_db = a.snr_db;
-    spec.carrier = a.carrier_phase.into();
-    spec.capture_rate_hz = a.capture_rate;
-    spec.seed = a.seed;
-    spec.trials = a.trials;
-    let outcome = crate::simulate::run::simulate(&spec)?;
+    let (outcome, spec) = match &a.scene {
+        Some(path) => {
+            let mut options = a.processing.options(kind);
+            options.min_range_m = a.min_range.unwrap_or(CAPTURE_MIN_RANGE_M);
+            options.max_range_m = a.max_range.unwrap_or(CAPTURE_MAX_RANGE_M);
+            let scene = SceneSpec {
+                scene: super::mock_lab::load_scene(path)?,
+                waveform,
+                payload: a.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+                seed: a.seed,
+                options,
+                trials: a.trials,
+            };
+            let done = simulate_scene(&scene)?;
+            (done.outcome, done.spec)
+        }
+        None => {
+            for (given, option) in [
+                (a.min_range.is_some(), "--min-range"),
+                (a.max_range.is_some(), "--max-range"),
+                (a.payload.is_some(), "--payload"),
+            ] {
+                if given {
+                    return Err(bad_input(format!(
+                        "{option} applies to --scene runs only (the capture's range window and \
+                         payload); a --targets run simulates the whole range its waveform holds"
+                    )));
+                }
+            }
+            let Some(text) = &a.targets else {
+                return Err(bad_input(
+                    "--targets: give the targets (e.g. --targets 3,3.132:0.5) or --scene FILE",
+                ));
+            };
+            let mut spec = RunSpec::new("run", waveform, parse_targets(text)?);
+            spec.processing = a.processing.options(kind);
+            spec.snr_db = a.snr_db;
+            spec.carrier = a.carrier_phase.into();
+            spec.capture_rate_hz = a.capture_rate;
+            spec.seed = a.seed;
+            spec.trials = a.trials;
+            (crate::simulate::run::simulate(&spec)?, spec)
+        }
+    };
     if let Some(path) = &a.plot {
         crate::storage::plot::draw(path, &outcome.plot(&spec))?;
     }

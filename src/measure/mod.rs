@@ -34,6 +34,7 @@ pub mod pipeline;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;
+pub(crate) mod scene_capture;
 pub(crate) mod station;
 pub(crate) mod transmit;
 

@@ -3,6 +3,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
+//! | `scene_bench` | `simulate run --scene`: the built-in mock lab's capture of a scene file, in-process (same synthesis, scope and pipeline) |
 //! | `noise` | complex white noise at a per-sample SNR |
 //! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
 //! | [`run`] | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
@@ -21,6 +22,7 @@ pub(crate) mod noise;
 pub(crate) mod report;
 pub mod run;
 pub mod scene;
+pub(crate) mod scene_bench;
 pub mod spec;
 pub mod thesis;
 

@@ -62,13 +62,44 @@ pub(crate) fn scenario_text(r: &ScenarioResult) -> String {
         );
     }
     for (k, v) in &r.extra {
-        match v.as_str() {
-            Some(text) => writeln!(out, "  {k}: {text}"),
-            None => writeln!(out, "  {k}: {v}"),
+        match (k.as_str(), v) {
+            // A scene run (`--scene`): the capture's detections, its warnings and clipping; the
+            // scene itself is in the JSON.
+            ("scene", _) => Ok(()),
+            ("targets", serde_json::Value::Array(targets)) => scene_targets_text(&mut out, targets),
+            ("warnings", serde_json::Value::Array(warnings)) => warnings
+                .iter()
+                .try_for_each(|w| writeln!(out, "  warning: {}", w.as_str().unwrap_or_default())),
+            ("clipped_samples", c) if c.is_object() => writeln!(
+                out,
+                "  clipped samples: {} (I), {} (Q) of {}",
+                c["i"], c["q"], c["samples"]
+            ),
+            _ => match v.as_str() {
+                Some(text) => writeln!(out, "  {k}: {text}"),
+                None => writeln!(out, "  {k}: {v}"),
+            },
         }
         .ok();
     }
     out
+}
+
+/// The detections of a scene run, as `capture` prints them: range and level.
+fn scene_targets_text(out: &mut String, targets: &[serde_json::Value]) -> std::fmt::Result {
+    if targets.is_empty() {
+        return writeln!(out, "  detections:    none");
+    }
+    writeln!(out, "  detections:")?;
+    for t in targets {
+        writeln!(
+            out,
+            "    {:>9.4} m   {:>6.1} dB",
+            t["range_m"].as_f64().unwrap_or(f64::NAN),
+            t["level_db"].as_f64().unwrap_or(f64::NAN)
+        )?;
+    }
+    Ok(())
 }
 
 /// BER curves as a table: measured, theory, 95 % interval, verdict.

@@ -21,4 +21,5 @@ mod process_cli;
 mod readers_cli;
 mod sequence_capture;
 mod simulate_cli;
+mod simulate_scene;
 mod support;
