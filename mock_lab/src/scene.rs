@@ -578,13 +578,15 @@ impl Synthesizer {
             self.warped = y;
             y = out;
         }
-        self.impair(&mut y, scene, &chain, sample_rate);
+        // The receiver's noise enters ahead of its I/Q demodulator (the front end's noise figure
+        // sets it), so the demodulator's imbalance and DC act on it too.
         let reference_power = if power > 0.0 { power } else { 0.25 * 0.25 };
         let noise_var = reference_power / 10f64.powf(scene.snr_db / 10.0);
         let sigma = (noise_var / 2.0).sqrt();
         for v in y.iter_mut() {
             *v += Complex64::new(sigma * self.rng.gaussian(), sigma * self.rng.gaussian());
         }
+        self.impair(&mut y, scene, &chain, sample_rate);
         self.record = y;
         Ok((&self.record, horiz_offset))
     }

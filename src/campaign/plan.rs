@@ -315,6 +315,7 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
             system_delay_s: scene.system_delay_s,
             reference_range_m: None,
             measured_at: None,
+            response: None,
         }),
         lines: Default::default(),
         path: PathBuf::from("(built-in mock lab)"),

@@ -56,6 +56,15 @@ impl From<AlgorithmArg> for Algorithm {
     }
 }
 
+/// `--correction`: which of the chain's measured errors are corrected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CorrectionArg {
+    /// Nothing corrected.
+    None,
+    /// On receive: DC, I/Q imbalance, and the chain's response divided out.
+    Rx,
+}
+
 /// `--window`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum WindowArg {

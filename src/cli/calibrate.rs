@@ -1,5 +1,6 @@
 //! `radbench calibrate`: measure the bench's fixed system delay (cables, horns, marker latency) on a
-//! reference target at a known range, and store it in the bench file.
+//! reference target at a known range, and store it in the bench file; `radbench calibrate
+//! response`: measure the chain's response on the same reference (`calibrate_response.rs`).
 
 use super::args::{AwgTransportArg, ScopeTransportArg};
 use super::capture::{bench_source, journal, open_bench};
@@ -14,10 +15,31 @@ use crate::waveform::spec::WaveformSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct Args {
+    #[command(subcommand)]
+    pub command: Option<CalibrateCommand>,
+    #[command(flatten)]
+    pub delay: DelayArgs,
+}
+
+#[derive(Debug, clap::Subcommand)]
+pub enum CalibrateCommand {
+    /// Measure the chain's response (ripple, group delay, I/Q imbalance, DC) on the reference
+    /// pillar, check that correcting it helps, and store it beside the bench file.
+    Response(Box<super::calibrate_response::Args>),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct DelayArgs {
     /// True range of the reference target (antennas to target), metres.
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub reference_range: f64,
+    #[arg(
+        long,
+        value_name = "METRES",
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub reference_range: Option<f64>,
     /// Bench file to calibrate (the result is stored in its [calibration] section). Without one,
     /// the built-in mock lab is measured and the result only printed.
     #[arg(long, value_name = "FILE")]
@@ -35,7 +57,17 @@ pub struct Args {
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    check(args.reference_range, args.search)?;
+    match args.command {
+        Some(CalibrateCommand::Response(a)) => super::calibrate_response::run(*a, global),
+        None => run_delay(args.delay, global),
+    }
+}
+
+fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
+    let reference_range = args
+        .reference_range
+        .ok_or_else(|| crate::exit::bad_input("--reference-range METRES is needed"))?;
+    check(reference_range, args.search)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
     }
@@ -56,7 +88,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
                 algorithm: Algorithm::Correlation,
                 system_delay_s: 0.0,
                 min_range_m: 0.0,
-                max_range_m: args.reference_range + args.search + 150.0,
+                max_range_m: reference_range + args.search + 150.0,
                 ..ProcessOptions::default()
             },
             tx_off: false,
@@ -72,11 +104,18 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             &interrupt,
         )
         .await?;
-        let estimate = estimate_delay(&m.processing.processed, args.reference_range, args.search)?;
+        let estimate = estimate_delay(&m.processing.processed, reference_range, args.search)?;
         let calibration = Calibration {
             system_delay_s: estimate.system_delay_s,
-            reference_range_m: Some(args.reference_range),
+            reference_range_m: Some(reference_range),
             measured_at: Some(crate::storage::sigmf::utc_now_rfc3339()),
+            // A response measured before is kept (it is relative to the delay it was measured
+            // with: measure it again after a new delay).
+            response: bench
+                .file
+                .calibration
+                .as_ref()
+                .and_then(|c| c.response.clone()),
         };
         if let Some(path) = &bench.path {
             store_calibration(path, &calibration)?;

@@ -2,7 +2,7 @@
 //! options they were captured with or any others, in parallel on every core.
 
 use super::args::{
-    AlgorithmArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
+    AlgorithmArg, CorrectionArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
 };
 use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
@@ -89,6 +89,14 @@ pub struct Args {
     /// The bench's fixed delay, seconds (default: what the capture was processed with).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     pub system_delay: Option<f64>,
+    /// Receive correction: none, or rx (DC, I/Q imbalance and the chain's response, from a
+    /// calibration). Default: what the capture was processed with; rx with --calibration.
+    #[arg(long, value_enum)]
+    pub correction: Option<CorrectionArg>,
+    /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
+    /// captures made without one.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
 }
 
 impl Args {
@@ -110,8 +118,29 @@ impl Args {
             min_separation_m: self.min_separation.map(Some),
             chain_floor_db: self.chain_floor_db,
             awg_amplitude_vpp: None,
+            correction: None,
             keep_background: !self.no_background,
+            require_correction: false,
         }
+    }
+
+    /// The correction asked for: `None` keeps what each capture recorded.
+    fn correction(
+        &self,
+    ) -> anyhow::Result<Option<Option<crate::measure::response::CorrectionUsed>>> {
+        use crate::measure::response::Calibration;
+        Ok(match (self.correction, &self.calibration) {
+            (Some(CorrectionArg::None), Some(_)) => {
+                return Err(crate::exit::bad_input(
+                    "--correction none with --calibration: give one or the other",
+                ))
+            }
+            (Some(CorrectionArg::None), None) => Some(None),
+            (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
+            // rx without a file: what each capture recorded (checked per capture).
+            (Some(CorrectionArg::Rx), None) => None,
+            (None, None) => None,
+        })
     }
 
     fn waveform(&self) -> anyhow::Result<WaveformChoice> {
@@ -226,7 +255,10 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         }
     }
     let waveform = args.waveform()?;
-    let overrides = args.overrides();
+    let mut overrides = args.overrides();
+    overrides.correction = args.correction()?;
+    overrides.require_correction =
+        args.correction == Some(CorrectionArg::Rx) && args.calibration.is_none();
     let discovered = reprocess::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);

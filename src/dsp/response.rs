@@ -349,24 +349,9 @@ impl RxEqualiser {
         self.inverse.len()
     }
 
-    /// DC and I/Q imbalance off (sample by sample): `Q = g (Q0 cos phi - I sin phi)` undone.
+    /// DC and I/Q imbalance off (sample by sample).
     pub(crate) fn correct_iq(&self, y: &mut [Complex64], remove_dc: bool) {
-        let dc = if remove_dc { self.dc } else { ZERO };
-        match self.iq {
-            Some((g, phi)) => {
-                let (s, c) = phi.sin_cos();
-                for v in y.iter_mut() {
-                    let (i, q) = (v.re - dc.re, v.im - dc.im);
-                    *v = Complex64::new(i, (q / g + i * s) / c);
-                }
-            }
-            None if remove_dc => {
-                for v in y.iter_mut() {
-                    *v -= dc;
-                }
-            }
-            None => {}
-        }
+        undo_iq(y, if remove_dc { self.dc } else { ZERO }, self.iq);
     }
 
     /// Corrects one aligned repetition in place (`remove_dc` false when a background was
@@ -390,6 +375,25 @@ impl RxEqualiser {
         }
         self.ifft.process_with_scratch(y, &mut self.scratch[..need]);
         Ok(())
+    }
+}
+
+/// DC off and the receiver's I/Q imbalance undone, sample by sample: the receiver made
+/// `Q = g (Q0 cos phi - I sin phi)` (`iq` = (g linear, phi radians)).
+pub(crate) fn undo_iq(y: &mut [Complex64], dc: Complex64, iq: Option<(f64, f64)>) {
+    match iq {
+        Some((g, phi)) => {
+            let (s, c) = phi.sin_cos();
+            for v in y.iter_mut() {
+                let (i, q) = (v.re - dc.re, v.im - dc.im);
+                *v = Complex64::new(i, (q / g + i * s) / c);
+            }
+        }
+        None => {
+            for v in y.iter_mut() {
+                *v -= dc;
+            }
+        }
     }
 }
 

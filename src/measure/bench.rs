@@ -101,6 +101,7 @@ impl Bench {
                     system_delay_s: nominal_delay,
                     reference_range_m: None,
                     measured_at: None,
+                    response: None,
                 });
                 Ok(Bench {
                     file,

@@ -28,6 +28,7 @@
 //! system_delay_s = 2.5e-9
 //! reference_range_m = 1.0
 //! measured_at = "2026-11-21T20:00:00.000Z"
+//! response = "bench-response.toml"                # written by `radbench calibrate response`
 //! ```
 
 use crate::address::Resource;
@@ -70,6 +71,9 @@ pub struct Calibration {
     /// When it was measured (RFC 3339 UTC).
     #[serde(default)]
     pub measured_at: Option<String>,
+    /// The chain's response (`radbench calibrate response`), relative to this file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub response: Option<String>,
 }
 
 /// The whole bench file.
@@ -268,6 +272,12 @@ impl BenchFile {
         Ok(())
     }
 
+    /// The response calibration the bench file names, relative to `bench_path`'s folder.
+    pub(crate) fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
+        let name = self.calibration.as_ref()?.response.as_ref()?;
+        Some(bench_path.parent().unwrap_or(Path::new(".")).join(name))
+    }
+
     /// The stored system delay, or 0 when the bench was never calibrated.
     pub fn system_delay_s(&self) -> f64 {
         self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
@@ -361,6 +371,7 @@ system_delay_s = 1e-9
             system_delay_s: 2.5e-9,
             reference_range_m: Some(1.0),
             measured_at: Some("2026-11-21T20:00:00.000Z".into()),
+            response: None,
         };
         store_calibration(&path, &cal).unwrap();
         store_calibration(&path, &cal).unwrap();

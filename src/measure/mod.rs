@@ -34,6 +34,7 @@ pub mod pipeline;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;
+pub(crate) mod response;
 pub(crate) mod scene_capture;
 pub(crate) mod station;
 pub(crate) mod transmit;
@@ -151,6 +152,12 @@ pub enum MeasureError {
          at {from_m} m, check RF is on, or widen --search"
     )]
     NoReferenceEcho { from_m: f64, to_m: f64 },
+    /// A response calibration file is unusable (named, with what is wrong).
+    #[error("calibration {path}: {reason}")]
+    CalibrationFile { path: String, reason: String },
+    /// A response calibration was measured but would not help: not stored.
+    #[error("{0}")]
+    CorrectionRefused(String),
     /// Processing could not run to its end (a worker thread failed).
     #[error("the processing thread failed: {0}; this is a radbench bug, please report it")]
     Worker(String),
@@ -186,6 +193,8 @@ impl MeasureError {
             | MeasureError::Scene(_)
             | MeasureError::Resource { .. }
             | MeasureError::Recording(_)
+            | MeasureError::CalibrationFile { .. }
+            | MeasureError::CorrectionRefused(_)
             | MeasureError::NeedsWaveform => ErrorKind::FixInput,
             MeasureError::Driver(e) => e.kind(),
             MeasureError::RecordTooShort { .. } | MeasureError::RfDeadline { .. } => {
@@ -215,7 +224,9 @@ impl Classify for MeasureError {
             | MeasureError::Waveform(_)
             | MeasureError::Scene(_)
             | MeasureError::Resource { .. }
+            | MeasureError::CalibrationFile { .. }
             | MeasureError::NeedsWaveform => ExitClass::BadInput,
+            MeasureError::CorrectionRefused(_) => ExitClass::Processing,
             MeasureError::RecordTooShort { .. }
             | MeasureError::Lab(_)
             | MeasureError::RfDeadline { .. } => ExitClass::Instrument,

@@ -225,6 +225,8 @@ pub struct ProcessOptions {
     /// of unit voltage gain from the AWG output to the scope input. `None` (simulations): levels
     /// are relative to the transmitted waveform itself.
     pub awg_amplitude_vpp: Option<f64>,
+    /// The receive correction applied, and the calibration it came from (`None`: uncorrected).
+    pub correction: Option<super::response::CorrectionUsed>,
 }
 
 impl Default for ProcessOptions {
@@ -247,6 +249,7 @@ impl Default for ProcessOptions {
             chain_floor_db: -17.0,
             carrier_hz: 80e9,
             awg_amplitude_vpp: None,
+            correction: None,
         }
     }
 }
@@ -281,8 +284,11 @@ pub(crate) struct ProcessOverrides {
     pub min_separation_m: Option<Option<f64>>,
     pub chain_floor_db: Option<f64>,
     pub awg_amplitude_vpp: Option<Option<f64>>,
+    pub correction: Option<Option<super::response::CorrectionUsed>>,
     /// Subtract the background the capture recorded (when it had one).
     pub keep_background: bool,
+    /// `--correction rx` without a file: the capture must have recorded a calibration.
+    pub require_correction: bool,
 }
 
 impl ProcessOverrides {
@@ -306,6 +312,7 @@ impl ProcessOverrides {
             chain_floor_db: self.chain_floor_db.unwrap_or(base.chain_floor_db),
             carrier_hz: base.carrier_hz,
             awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
+            correction: self.correction.clone().unwrap_or(base.correction),
         }
     }
 }

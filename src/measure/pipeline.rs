@@ -31,6 +31,7 @@ use crate::dsp::ofdm_radar::{
     RangeProfile, VelocityEstimator,
 };
 use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfiler, Profile};
+use crate::dsp::response::RxEqualiser;
 use crate::dsp::C0;
 use crate::waveform::ofdm::{Ofdm, SymbolMatrix};
 use num_complex::Complex64;
@@ -478,6 +479,8 @@ pub struct Pipeline {
     detector: Option<(f64, Detector)>,
     payload: PayloadDecoder,
     level_scale: f64,
+    /// The receive correction (`options.correction`), made for this record's period.
+    equaliser: Option<RxEqualiser>,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -568,7 +571,40 @@ pub(crate) fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<()
     Ok(())
 }
 
+/// The equaliser of a recorded correction: the calibration read again and checked to be the one
+/// recorded (its SHA-256).
+fn equaliser_for(
+    used: &super::response::CorrectionUsed,
+    period: usize,
+    fs: f64,
+) -> Result<RxEqualiser, MeasureError> {
+    if used.mode != "rx" {
+        return Err(MeasureError::option(
+            "correction",
+            &used.mode,
+            "none or rx (tx and both pre-distort the AWG's waveform: not available yet)",
+        ));
+    }
+    let cal = super::response::Calibration::load(std::path::Path::new(&used.calibration))?;
+    if cal.sha256 != used.sha256 {
+        return Err(MeasureError::CalibrationFile {
+            path: used.calibration.clone(),
+            reason: format!(
+                "it has changed since it was used (SHA-256 {}, recorded {}): pass                  --calibration to use it as it is now",
+                cal.sha256, used.sha256
+            ),
+        });
+    }
+    cal.response.equaliser(period, fs)
+}
+
 impl Pipeline {
+    /// Sets the receive equaliser directly (a calibration checking its own correction before
+    /// it is stored); `options.correction` is left as it is.
+    pub(crate) fn set_equaliser(&mut self, equaliser: Option<RxEqualiser>) {
+        self.equaliser = equaliser;
+    }
+
     /// Builds every plan and workspace for `tx` processed with `options` on records of
     /// `geometry`. Fails on options that do not fit the transmission (named, with what is
     /// allowed).
@@ -596,7 +632,12 @@ impl Pipeline {
             }
         };
         let payload = PayloadDecoder::new(&tx, geometry.period)?;
+        let equaliser = match &options.correction {
+            Some(used) => Some(equaliser_for(used, geometry.period, tx.sample_rate_hz())?),
+            None => None,
+        };
         Ok(Pipeline {
+            equaliser,
             level_scale: level_scale(&options),
             tx,
             options,
@@ -907,6 +948,10 @@ impl Pipeline {
             for (a, b) in aligned.samples.iter_mut().zip(&bg.samples) {
                 *a -= b;
             }
+        }
+        if let Some(eq) = &mut self.equaliser {
+            // A subtracted background took the DC with it.
+            eq.apply(&mut aligned.samples, background.is_none())?;
         }
         let analysis = self.analyse(&aligned)?;
         let Analysis {

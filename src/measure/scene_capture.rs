@@ -84,6 +84,7 @@ impl SceneCapture {
             system_delay_s: scene.system_delay_s,
             reference_range_m: None,
             measured_at: None,
+            response: None,
         });
         let catalog = Catalog::embedded()?;
         let plan = station::plan(

@@ -100,3 +100,80 @@ mod tests {
         assert!(encode_f64(&[4], &[1.0]).is_err());
     }
 }
+
+/// Decodes a little-endian float64 `.npy` (version 1.0 or 2.0, C order): its shape and values.
+/// Anything else is refused with what was found.
+pub(crate) fn decode_f64(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("not a .npy file (no \\x93NUMPY magic)".into());
+    }
+    let (len, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => return Err(format!(".npy format version {v}: 1, 2 or 3 is read")),
+    };
+    let dict = bytes
+        .get(start..start + len)
+        .and_then(|h| std::str::from_utf8(h).ok())
+        .ok_or("a .npy header that is not ASCII or runs past the file")?;
+    let descr_ok = dict.contains("'descr': '<f8'") || dict.contains("\"descr\": \"<f8\"");
+    if !descr_ok {
+        return Err(format!(
+            "dtype in {:?}: little-endian float64 ('<f8')",
+            dict.trim()
+        ));
+    }
+    if dict.contains("'fortran_order': True") {
+        return Err("Fortran order: C (row-major) order is read".into());
+    }
+    let shape_text = dict
+        .split("'shape':")
+        .nth(1)
+        .and_then(|s| s.split('(').nth(1))
+        .and_then(|s| s.split(')').next())
+        .ok_or("a .npy header without a shape")?;
+    let shape = shape_text
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            s.parse::<usize>()
+                .map_err(|_| format!("shape ({shape_text})"))
+        })
+        .collect::<Result<Vec<usize>, String>>()?;
+    let count = shape.iter().product::<usize>();
+    let data = &bytes[start + len..];
+    if data.len() != count * 8 {
+        return Err(format!(
+            "shape {shape:?} needs {} bytes of data, the file holds {}",
+            count * 8,
+            data.len()
+        ));
+    }
+    let values = data
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect();
+    Ok((shape, values))
+}
+
+#[cfg(test)]
+mod decode_tests {
+    use super::*;
+
+    #[test]
+    fn what_is_encoded_decodes() {
+        let data: Vec<f64> = (0..12).map(f64::from).collect();
+        let bytes = encode_f64(&[4, 3], &data).unwrap();
+        assert_eq!(decode_f64(&bytes).unwrap(), (vec![4, 3], data));
+        assert!(decode_f64(b"hello").is_err());
+        let c = encode_c128(&[1], &[Complex64::new(1.0, 2.0)]).unwrap();
+        assert!(decode_f64(&c).unwrap_err().contains("<f8"));
+        assert!(decode_f64(&bytes[..bytes.len() - 1])
+            .unwrap_err()
+            .contains("needs"));
+    }
+}

@@ -69,6 +69,8 @@ pub struct ProfilePlot {
     pub reference_db: Option<f64>,
     /// The y axis' title.
     pub y_label: String,
+    /// The x axis' title.
+    pub x_label: String,
 }
 
 impl ProfilePlot {
@@ -84,6 +86,7 @@ impl ProfilePlot {
             floor_db: None,
             reference_db: None,
             y_label: "Normalised magnitude (dB)".into(),
+            x_label: "Range (m)".into(),
         }
     }
 }
@@ -345,7 +348,7 @@ fn render<DB: DrawingBackend>(
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("Range (m)")
+        .x_desc(plot.x_label.as_str())
         .y_desc(plot.y_label.as_str())
         .label_style(("sans-serif", 14))
         .draw()

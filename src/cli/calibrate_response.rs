@@ -1,0 +1,443 @@
+//! `radbench calibrate response`: the chain's response measured on one reference pillar, checked
+//! to help, and stored beside the bench file (`measure::response`).
+
+use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArg};
+use super::capture::{bench_source, journal, open_bench};
+use crate::driver::RfPermit;
+use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
+use crate::measure::capture::{prepare, CaptureRequest, Rig};
+use crate::measure::interrupt::Interrupt;
+use crate::measure::options::ProcessOptions;
+use crate::measure::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
+use crate::measure::response::{
+    measure, Calibration, InstrumentsSeen, ReferenceFigures, Response, ResponseHeader, FORMAT,
+};
+use crate::measure::MeasureError;
+use crate::waveform::spec::WaveformKind;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// True range of the reference pillar (antennas to pillar), metres. The bench's system delay
+    /// must be calibrated already (`radbench calibrate --reference-range R`).
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub reference_range: f64,
+    /// Bench file: the result is stored beside it and named in its [calibration] section.
+    /// Without one, the built-in mock lab is measured.
+    #[arg(long, value_name = "FILE")]
+    pub bench: Option<PathBuf>,
+    /// Scene of the built-in mock lab (examples/scene.toml; `[chain] preset = "thesis-lab"` for
+    /// a realistic chain).
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Explicit permit to switch on the AWG outputs and the Tx/Rx front ends.
+    #[arg(long)]
+    pub allow_rf: bool,
+    /// The waveform whose band is measured.
+    #[arg(long, value_enum, default_value = "msk-lfm")]
+    pub waveform: WaveformArg,
+    /// Repetitions averaged (and as many with the transmitter off, for DC and I/Q imbalance).
+    #[arg(long, default_value_t = 16, value_name = "N")]
+    pub repetitions: usize,
+    /// Half-width of the window around the reference's echo, ns: the longest chain impulse
+    /// response measured (and 1 / (2 gate) the finest ripple resolved). Other echoes must lie
+    /// outside it.
+    #[arg(
+        long,
+        default_value_t = 4.0,
+        value_name = "NS",
+        allow_hyphen_values = true
+    )]
+    pub gate_ns: f64,
+    /// Where to write the calibration (a .toml header; the table goes beside it as .npy).
+    /// Default: beside the bench file, <bench>-response.toml; with the built-in lab, nothing
+    /// is written without it.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Store the calibration even when correcting with it does not improve the reference's
+    /// side-lobes.
+    #[arg(long)]
+    pub force: bool,
+    /// Draw the measured gain and phase against frequency (FILE.svg or FILE.png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The side-lobe level must improve by at least this, dB, for a correction to be stored.
+const MIN_IMPROVEMENT_DB: f64 = 0.1;
+
+fn check(args: &Args) -> Result<(), MeasureError> {
+    crate::measure::calibration::check(args.reference_range, 2.0)?;
+    crate::measure::capture::check_repetitions(args.repetitions)?;
+    if !(args.gate_ns.is_finite() && (0.5..=50.0).contains(&args.gate_ns)) {
+        return Err(MeasureError::option(
+            "gate-ns",
+            args.gate_ns,
+            "a half-width in ns, 0.5 to 50 (about the chain's longest echo, a few ns)",
+        ));
+    }
+    if let Some(out) = &args.out {
+        if out.extension().and_then(|e| e.to_str()) != Some("toml") {
+            return Err(MeasureError::option(
+                "out",
+                out.display(),
+                "a file name ending in .toml (the table is written beside it as .npy)",
+            ));
+        }
+    }
+    if let Some(plot) = &args.plot {
+        let ext = plot.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if !matches!(ext, "svg" | "png") {
+            return Err(MeasureError::option(
+                "plot",
+                plot.display(),
+                "a file name ending in .svg or .png",
+            ));
+        }
+    }
+    if !args.allow_rf {
+        return Err(MeasureError::NoPermit);
+    }
+    Ok(())
+}
+
+/// The reference's figures in one processed record: the detection nearest its range.
+fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Option<f64>) {
+    let t = p
+        .targets
+        .iter()
+        .filter(|t| (t.range_m - range_m).abs() < 0.3)
+        .max_by(|a, b| a.level_db.total_cmp(&b.level_db));
+    (
+        t.and_then(|t| t.sidelobe_db),
+        t.and_then(|t| t.width_3db_cm),
+        t.map(|t| t.range_m),
+    )
+}
+
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+    check(&args)?;
+    let started = std::time::Instant::now();
+    super::runtime()?.block_on(async {
+        let source = bench_source(
+            args.bench.as_deref(),
+            args.scene.as_deref(),
+            AwgTransportArg::Hislip,
+            ScopeTransportArg::Vicp,
+        )?;
+        let out = match (&args.out, &bench_path(&args)) {
+            (Some(o), _) => Some(o.clone()),
+            (None, Some(b)) => Some(default_out(b)),
+            (None, None) => None,
+        };
+        let interrupt = Interrupt::listen()?;
+        let bench = open_bench(source, args.json).await?;
+        let catalog = bench.file.catalog()?;
+        let kind = WaveformKind::from(args.waveform);
+        let system_delay_s = bench.file.system_delay_s();
+        let options = ProcessOptions {
+            system_delay_s,
+            max_range_m: args.reference_range + 4.0,
+            ..ProcessOptions::for_waveform(kind)
+        };
+        let request = |tx_off| CaptureRequest {
+            waveform: kind.thesis_default(),
+            payload: None,
+            seed: 1,
+            options: options.clone(),
+            tx_off,
+            wait_s: 10.0,
+            background: None,
+        };
+        let on = prepare(&bench, &catalog, &request(false)).await?;
+        let off = prepare(&bench, &catalog, &request(true)).await?;
+        let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
+        let permit = RfPermit::granted_by_user();
+        let taken_on = rig
+            .acquire(&bench, &on, args.repetitions, &permit, &interrupt)
+            .await?;
+        let taken_off = rig
+            .acquire(&bench, &off, args.repetitions, &permit, &interrupt)
+            .await?;
+        let identities = rig.identities().clone();
+        drop(rig);
+        let tx = on.tx.clone();
+        let fs = tx.sample_rate_hz();
+        let geometry = RecordGeometry::for_capture(on.plan.period, fs, &options);
+        let reference_range = args.reference_range;
+        let gate_s = args.gate_ns * 1e-9;
+        let expected_delay_s = 2.0 * reference_range / crate::dsp::C0 + system_delay_s;
+        let (response, figures) = crate::measure::off_runtime(move || {
+            let mut pipeline = Pipeline::new(tx.clone(), options, geometry)?;
+            pipeline.set_awg_amplitude(taken_on.captured.applied.awg.i_amplitude_vpp)?;
+            let align = |pipeline: &mut Pipeline, c: &crate::measure::station::Captured| {
+                (0..c.repetitions())
+                    .map(|k| pipeline.align_words(&c.raw_words(k)))
+                    .collect::<Result<Vec<Aligned>, MeasureError>>()
+            };
+            let on_aligned = align(&mut pipeline, &taken_on.captured)?;
+            let off_aligned = align(&mut pipeline, &taken_off.captured)?;
+            let response = measure(
+                &tx.reference,
+                fs,
+                &on_aligned,
+                &off_aligned,
+                expected_delay_s,
+                gate_s,
+                system_delay_s,
+            )?;
+            let mean = crate::measure::repeat::average(&on_aligned).expect("repetitions");
+            let before = pipeline.process(mean.clone(), None)?;
+            pipeline.set_equaliser(Some(response.equaliser(geometry.period, fs)?));
+            let after = pipeline.process(mean, None)?;
+            let (sb, wb, rb) = reference_of(&before, reference_range);
+            let (sa, wa, ra) = reference_of(&after, reference_range);
+            let figures = ReferenceFigures {
+                sidelobe_db_before: sb,
+                sidelobe_db_after: sa,
+                width_cm_before: wb,
+                width_cm_after: wa,
+                range_m_before: rb,
+                range_m_after: ra,
+            };
+            Ok::<_, MeasureError>((response, figures))
+        })
+        .await??;
+        let verdict = verdict(&figures);
+        if let (Err(why), false) = (&verdict, args.force) {
+            print_report(&args, &response, &figures, None, Some(why));
+            return Err(MeasureError::CorrectionRefused(format!(
+                "not stored: {why} (--force stores it anyway)"
+            ))
+            .into());
+        }
+        if let Some(plot) = &args.plot {
+            draw(plot, &response)?;
+        }
+        let stored = match &out {
+            Some(path) => {
+                let header = ResponseHeader {
+                    format: FORMAT.into(),
+                    data: String::new(),
+                    data_sha256: String::new(),
+                    columns: Vec::new(),
+                    measured_at: crate::storage::sigmf::utc_now_rfc3339(),
+                    radbench_version: env!("CARGO_PKG_VERSION").into(),
+                    waveform: kind.name().into(),
+                    band_hz: response.band_hz,
+                    reference_range_m: reference_range,
+                    repetitions: args.repetitions,
+                    gate_ns: args.gate_ns,
+                    system_delay_s,
+                    figures: response.figures,
+                    reference: figures,
+                    instruments: InstrumentsSeen {
+                        awg: identities.awg.clone(),
+                        scope: identities.scope.clone(),
+                        tx: identities.tx.clone(),
+                        rx: identities.rx.clone(),
+                    },
+                };
+                let cal = Calibration::save(path, &response, header)?;
+                if let Some(bench_path) = &bench.path {
+                    name_in_bench(bench_path, &bench.file, path)?;
+                }
+                Some(cal)
+            }
+            None => None,
+        };
+        print_report(
+            &args,
+            &response,
+            &figures,
+            stored.as_ref(),
+            verdict.err().as_ref(),
+        );
+        if !args.json {
+            eprintln!("took {:.2} s", started.elapsed().as_secs_f64());
+        }
+        Ok(())
+    })
+}
+
+fn bench_path(args: &Args) -> Option<PathBuf> {
+    args.bench.clone()
+}
+
+/// `<bench stem>-response.toml` beside the bench file.
+fn default_out(bench: &Path) -> PathBuf {
+    let stem = bench
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("bench");
+    bench.with_file_name(format!("{stem}-response.toml"))
+}
+
+/// Names the calibration in the bench file's [calibration] section (relative to it when beside
+/// it), keeping the delay and every other line.
+fn name_in_bench(
+    bench_path: &Path,
+    file: &crate::measure::bench_file::BenchFile,
+    calibration: &Path,
+) -> Result<(), MeasureError> {
+    let dir = bench_path.parent().unwrap_or(Path::new("."));
+    let abs = std::fs::canonicalize(calibration).unwrap_or_else(|_| calibration.to_path_buf());
+    let dir_abs = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let name = abs
+        .strip_prefix(&dir_abs)
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|_| abs.display().to_string());
+    let mut cal = file.calibration.clone().unwrap_or(BenchCalibration {
+        system_delay_s: 0.0,
+        reference_range_m: None,
+        measured_at: None,
+        response: None,
+    });
+    cal.response = Some(name);
+    store_calibration(bench_path, &cal)?;
+    Ok(())
+}
+
+/// Whether the correction helped the reference's side-lobes.
+fn verdict(f: &ReferenceFigures) -> Result<f64, String> {
+    match (f.sidelobe_db_before, f.sidelobe_db_after) {
+        (Some(b), Some(a)) if a <= b - MIN_IMPROVEMENT_DB => Ok(b - a),
+        (Some(b), Some(a)) => Err(format!(
+            "correcting does not improve the reference's peak side-lobe ({b:.2} dB before, \
+             {a:.2} dB after, at least {MIN_IMPROVEMENT_DB} dB better needed): the chain is as \
+             flat as this measures, or the reference is not alone within the gate"
+        )),
+        _ => Err(
+            "the reference's side-lobes could not be measured (is the pillar alone, within 0.3 m \
+             of --reference-range?)"
+                .into(),
+        ),
+    }
+}
+
+fn print_report(
+    args: &Args,
+    r: &Response,
+    f: &ReferenceFigures,
+    stored: Option<&Calibration>,
+    refused: Option<&String>,
+) {
+    let g = &r.figures;
+    if args.json {
+        println!(
+            "{}",
+            json!({
+                "band_hz": r.band_hz,
+                "figures": g,
+                "reference": f,
+                "repetitions": args.repetitions,
+                "stored_in": stored.map(|c| c.path.display().to_string()),
+                "sha256": stored.map(|c| c.sha256.clone()),
+                "refused": refused,
+            })
+        );
+        return;
+    }
+    let opt = |v: Option<f64>, unit: &str| v.map_or("-".into(), |v| format!("{v:.2} {unit}"));
+    println!(
+        "chain response over {:.3} .. {:.3} GHz ({} repetitions, gate +-{} ns)",
+        r.band_hz[0] / 1e9,
+        r.band_hz[1] / 1e9,
+        args.repetitions,
+        args.gate_ns
+    );
+    println!("  gain ripple          {:.2} dB p-p", g.ripple_db_pp);
+    println!(
+        "  phase ripple         {:.2} deg p-p",
+        g.phase_ripple_deg_pp
+    );
+    println!(
+        "  group-delay ripple   {:.1} ps p-p",
+        g.group_delay_ripple_ps_pp
+    );
+    println!("  delay offset         {:+.1} ps", g.delay_offset_ps);
+    println!(
+        "  rx I/Q imbalance     {:+.2} dB, {:+.2} deg (from the receiver's noise, Tx off)",
+        g.rx_iq_gain_db, g.rx_iq_phase_deg
+    );
+    println!("  I/Q skew (image)     {:+.1} ps", g.iq_skew_ps);
+    println!("  image left           {:.1} dB", g.image_db);
+    println!(
+        "  DC offset            I {:+.4} V, Q {:+.4} V",
+        g.dc_v[0], g.dc_v[1]
+    );
+    println!(
+        "  spread over reps     {:.3} dB, {:.2} deg (largest across the band)",
+        g.spread_db_max, g.spread_deg_max
+    );
+    println!(
+        "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {} -> {}",
+        opt(f.sidelobe_db_before, "dB"),
+        opt(f.sidelobe_db_after, "dB"),
+        opt(f.width_cm_before, "cm"),
+        opt(f.width_cm_after, "cm"),
+        opt(f.range_m_before.map(|v| v * 1.0), "m"),
+        opt(f.range_m_after, "m"),
+    );
+    match (stored, refused) {
+        (_, Some(why)) if stored.is_none() => println!("NOT stored: {why}"),
+        (Some(c), Some(why)) => println!("stored in {} with --force: {why}", c.path.display()),
+        (Some(c), None) => println!("stored in {}", c.path.display()),
+        (None, _) => println!(
+            "built-in mock lab: not stored (pass --out FILE.toml, or --bench FILE to store it \
+             beside the bench file)"
+        ),
+    }
+}
+
+/// The measured gain (dB) and phase (degrees / 10) against frequency, with the spread.
+fn draw(path: &Path, r: &Response) -> Result<(), MeasureError> {
+    use crate::storage::plot::{Curve, LineStyle, ProfilePlot};
+    let f: Vec<f64> = r.table.freq_hz.iter().map(|f| f / 1e9).collect();
+    let gain: Vec<f64> = r
+        .table
+        .response
+        .iter()
+        .map(|h| 20.0 * h.norm().max(1e-300).log10())
+        .collect();
+    let phase: Vec<f64> = r
+        .table
+        .response
+        .iter()
+        .map(|h| h.arg().to_degrees() / 10.0)
+        .collect();
+    let band = |sign: f64| -> Vec<f64> {
+        gain.iter()
+            .zip(&r.spread_db)
+            .map(|(g, s)| g + sign * s)
+            .collect()
+    };
+    let mut plot = ProfilePlot::new(
+        "Chain response (radbench calibrate response)",
+        vec![
+            Curve::solid("gain (dB)", f.clone(), gain.clone()),
+            Curve::solid("phase (deg / 10)", f.clone(), phase),
+            Curve {
+                label: "gain +- spread".into(),
+                range_m: f.clone(),
+                db: band(1.0),
+                style: LineStyle::Dashed,
+            },
+            Curve {
+                label: String::new(),
+                range_m: f,
+                db: band(-1.0),
+                style: LineStyle::Dashed,
+            },
+        ],
+    );
+    plot.window_m = Some((r.band_hz[0] / 1e9, r.band_hz[1] / 1e9));
+    plot.y_label = "gain (dB), phase (deg / 10)".into();
+    plot.x_label = "frequency offset from the carrier (GHz)".into();
+    crate::storage::plot::draw(path, &plot)?;
+    Ok(())
+}

@@ -1,0 +1,549 @@
+//! The chain's response calibration: measured on one reference pillar (`radbench calibrate
+//! response`), stored as a TOML header beside a `.npy` table, and applied on receive
+//! (`--correction rx`).
+//!
+//! Measurement: with the transmitter off, the receiver's DC offset (the mean) and its I/Q gain
+//! and phase imbalance (from its own noise, which is circular before the I/Q demodulator); with
+//! it on, each repetition corrected for those, the chain's direct and image response around the
+//! reference's delay (`dsp::response::ChainEstimator`, the echo deconvolved by the known
+//! transmitted repetition: it works for any waveform, and uses every sample, not only OFDM's
+//! subcarriers). The repetitions are averaged; their spread is reported per frequency. The
+//! response is normalised to unit mean gain and zero mean phase over the band and keeps its
+//! linear phase relative to the expected delay `2 R / c + system delay`: corrected, the reference
+//! lands at its true range with the bench's system delay.
+
+use super::pipeline::Aligned;
+use super::MeasureError;
+use crate::dsp::response::{
+    iq_imbalance_of_noise, undo_iq, ChainEstimator, ResponseTable, RxEqualiser, BAND_FLOOR,
+};
+use crate::dsp::C0;
+use num_complex::Complex64;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+/// The header's format tag.
+pub(crate) const FORMAT: &str = "radbench-response/1";
+
+/// The `.npy` table's columns, in order.
+pub(crate) const COLUMNS: [&str; 7] = [
+    "frequency_hz (baseband offset from the carrier)",
+    "gain_db (relative to the band's mean)",
+    "phase_deg (after the mean phase; the linear phase of any delay error kept)",
+    "gain_std_db (spread over the repetitions)",
+    "phase_std_deg (spread over the repetitions)",
+    "image_re (the image response, relative to the direct one)",
+    "image_im",
+];
+
+/// Figures are taken where the waveform's power is within 3 dB of its peak.
+const FIGURE_COVERAGE: f64 = 0.5;
+
+/// Which correction a measurement used, as recorded in its processing options.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CorrectionUsed {
+    /// `rx`: DC, I/Q imbalance and the chain's response corrected on receive.
+    pub mode: String,
+    /// The calibration header's path (absolute when it could be resolved).
+    pub calibration: String,
+    /// SHA-256 of the header (which holds its table's SHA-256).
+    pub sha256: String,
+    /// When the calibration was measured.
+    pub measured_at: String,
+}
+
+/// The instruments a calibration was measured with (`*IDN?`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct InstrumentsSeen {
+    pub awg: String,
+    pub scope: String,
+    #[serde(default)]
+    pub tx: Option<String>,
+    #[serde(default)]
+    pub rx: Option<String>,
+}
+
+/// The reference pillar before and after the correction.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ReferenceFigures {
+    pub sidelobe_db_before: Option<f64>,
+    pub sidelobe_db_after: Option<f64>,
+    pub width_cm_before: Option<f64>,
+    pub width_cm_after: Option<f64>,
+    pub range_m_before: Option<f64>,
+    pub range_m_after: Option<f64>,
+}
+
+/// What was measured, in figures.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ResponseFigures {
+    /// Gain ripple over the band, dB peak to peak.
+    pub ripple_db_pp: f64,
+    /// Phase ripple after the best straight line, degrees peak to peak.
+    pub phase_ripple_deg_pp: f64,
+    /// Group-delay ripple, ps peak to peak (over 1 / (4 gate) steps).
+    pub group_delay_ripple_ps_pp: f64,
+    /// The best straight line's delay against the expected one, ps (a system-delay error).
+    pub delay_offset_ps: f64,
+    /// DC offset of I and Q at the scope, volts.
+    pub dc_v: [f64; 2],
+    /// Receiver Q gain and phase relative to I (from its noise, transmitter off).
+    pub rx_iq_gain_db: f64,
+    pub rx_iq_phase_deg: f64,
+    /// I/Q skew seen in the image's slope over the band (transmit and receive together), ps.
+    pub iq_skew_ps: f64,
+    /// The image's mean level against the direct response, dB (after the receive imbalance was
+    /// taken out: what is left is mostly the transmitter's).
+    pub image_db: f64,
+    /// Largest spread over the repetitions across the band.
+    pub spread_db_max: f64,
+    pub spread_deg_max: f64,
+}
+
+/// The calibration file's header.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ResponseHeader {
+    pub format: String,
+    /// The table, beside the header.
+    pub data: String,
+    pub data_sha256: String,
+    pub columns: Vec<String>,
+    pub measured_at: String,
+    pub radbench_version: String,
+    pub waveform: String,
+    /// The band the table covers (waveform power within 20 dB of its peak), Hz.
+    pub band_hz: [f64; 2],
+    pub reference_range_m: f64,
+    pub repetitions: usize,
+    pub gate_ns: f64,
+    /// The system delay the response is relative to, s.
+    pub system_delay_s: f64,
+    pub figures: ResponseFigures,
+    pub reference: ReferenceFigures,
+    pub instruments: InstrumentsSeen,
+}
+
+/// A measured response: the header's figures and the table.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Response {
+    pub table: ResponseTable,
+    pub spread_db: Vec<f64>,
+    pub spread_deg: Vec<f64>,
+    pub image: Vec<Complex64>,
+    pub figures: ResponseFigures,
+    pub band_hz: [f64; 2],
+    pub system_delay_s: f64,
+}
+
+impl Response {
+    /// The receive equaliser for repetitions of `period` samples at `fs`.
+    pub(crate) fn equaliser(&self, period: usize, fs: f64) -> Result<RxEqualiser, MeasureError> {
+        let [di, dq] = self.figures.dc_v;
+        Ok(RxEqualiser::new(
+            &self.table,
+            Complex64::new(di, dq),
+            Some((self.figures.rx_iq_gain_db, self.figures.rx_iq_phase_deg)),
+            period,
+            fs,
+        )?)
+    }
+}
+
+/// A calibration read from its file.
+#[derive(Debug, Clone)]
+pub(crate) struct Calibration {
+    pub header: ResponseHeader,
+    pub response: Response,
+    pub path: PathBuf,
+    pub sha256: String,
+}
+
+impl Calibration {
+    /// What a measurement records when it uses this calibration.
+    pub(crate) fn used(&self) -> CorrectionUsed {
+        CorrectionUsed {
+            mode: "rx".into(),
+            calibration: self.path.display().to_string(),
+            sha256: self.sha256.clone(),
+            measured_at: self.header.measured_at.clone(),
+        }
+    }
+
+    /// Reads the header at `path` and its table, checking the table's SHA-256.
+    pub(crate) fn load(path: &Path) -> Result<Calibration, MeasureError> {
+        let bad = |reason: String| MeasureError::CalibrationFile {
+            path: path.display().to_string(),
+            reason,
+        };
+        let text =
+            std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+        let header: ResponseHeader = toml::from_str(&text).map_err(|e| {
+            bad(format!(
+                "not a response calibration (`radbench calibrate response` writes one): {}",
+                e.message()
+            ))
+        })?;
+        if header.format != FORMAT {
+            return Err(bad(format!(
+                "format = {:?}: this radbench reads {FORMAT:?}",
+                header.format
+            )));
+        }
+        let data_path = path.parent().unwrap_or(Path::new(".")).join(&header.data);
+        let bytes = std::fs::read(&data_path).map_err(|e| {
+            bad(format!(
+                "its table {} cannot be read: {e} (keep the .npy beside the header)",
+                data_path.display()
+            ))
+        })?;
+        let sha = crate::storage::hash::sha256(&bytes);
+        if sha != header.data_sha256 {
+            return Err(bad(format!(
+                "its table {} has changed since it was measured (SHA-256 {sha}, the header \
+                 says {}): measure again",
+                data_path.display(),
+                header.data_sha256
+            )));
+        }
+        let (shape, values) = crate::storage::npy::decode_f64(&bytes)
+            .map_err(|e| bad(format!("its table {}: {e}", data_path.display())))?;
+        let response = table_from(&shape, &values, &header).map_err(bad)?;
+        let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        Ok(Calibration {
+            sha256: crate::storage::hash::sha256(text.as_bytes()),
+            header,
+            response,
+            path,
+        })
+    }
+
+    /// Writes the header to `path` and the table beside it (`<stem>.npy`), atomically each.
+    pub(crate) fn save(
+        path: &Path,
+        response: &Response,
+        mut header: ResponseHeader,
+    ) -> Result<Calibration, MeasureError> {
+        let bad = |reason: String| MeasureError::CalibrationFile {
+            path: path.display().to_string(),
+            reason,
+        };
+        let stem = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .ok_or_else(|| bad("a file name ending in .toml".into()))?;
+        let data_name = format!("{stem}.npy");
+        let data_path = path.parent().unwrap_or(Path::new(".")).join(&data_name);
+        let rows = response.table.freq_hz.len();
+        let mut data = Vec::with_capacity(rows * COLUMNS.len());
+        for k in 0..rows {
+            let h = response.table.response[k];
+            data.extend_from_slice(&[
+                response.table.freq_hz[k],
+                20.0 * h.norm().max(1e-300).log10(),
+                h.arg().to_degrees(),
+                response.spread_db[k],
+                response.spread_deg[k],
+                response.image[k].re,
+                response.image[k].im,
+            ]);
+        }
+        let bytes = crate::storage::npy::encode_f64(&[rows, COLUMNS.len()], &data).map_err(bad)?;
+        header.data = data_name;
+        header.data_sha256 = crate::storage::hash::sha256(&bytes);
+        header.columns = COLUMNS.iter().map(|c| c.to_string()).collect();
+        let text = format!(
+            "# The chain's response, measured by `radbench calibrate response`.\n# The table is \
+             {} (numpy.load; one row per frequency, columns below).\n{}",
+            header.data,
+            toml::to_string(&header).map_err(|e| bad(e.to_string()))?
+        );
+        crate::storage::atomic::write_atomic(&data_path, &bytes)?;
+        crate::storage::atomic::write_atomic(path, text.as_bytes())?;
+        Calibration::load(path)
+    }
+}
+
+/// The response of a table's rows (columns as [`COLUMNS`]).
+fn table_from(
+    shape: &[usize],
+    values: &[f64],
+    header: &ResponseHeader,
+) -> Result<Response, String> {
+    let [rows, cols] = shape else {
+        return Err(format!(
+            "table of shape {shape:?}: 2 dimensions, rows by 7 columns"
+        ));
+    };
+    if *cols != COLUMNS.len() || *rows < 2 {
+        return Err(format!(
+            "table of {rows} rows by {cols} columns: at least 2 rows by {} columns",
+            COLUMNS.len()
+        ));
+    }
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err("table holds a value that is not finite".into());
+    }
+    let row = |k: usize| &values[k * cols..(k + 1) * cols];
+    let freq_hz: Vec<f64> = (0..*rows).map(|k| row(k)[0]).collect();
+    if freq_hz.windows(2).any(|w| w[1] <= w[0]) {
+        return Err("table's frequencies are not strictly ascending".into());
+    }
+    let response = (0..*rows)
+        .map(|k| Complex64::from_polar(10f64.powf(row(k)[1] / 20.0), row(k)[2].to_radians()))
+        .collect();
+    Ok(Response {
+        table: ResponseTable { freq_hz, response },
+        spread_db: (0..*rows).map(|k| row(k)[3]).collect(),
+        spread_deg: (0..*rows).map(|k| row(k)[4]).collect(),
+        image: (0..*rows)
+            .map(|k| Complex64::new(row(k)[5], row(k)[6]))
+            .collect(),
+        figures: header.figures,
+        band_hz: header.band_hz,
+        system_delay_s: header.system_delay_s,
+    })
+}
+
+/// Measures the chain's response from aligned repetitions of one reference reflector (`on`) and
+/// of the receiver with the transmitter off (`off`). `reference` is the transmitted repetition;
+/// the reflector is expected at `expected_delay_s` after the marker (2 R / c + system delay).
+pub(crate) fn measure(
+    reference: &[Complex64],
+    fs: f64,
+    on: &[Aligned],
+    off: &[Aligned],
+    expected_delay_s: f64,
+    gate_s: f64,
+    system_delay_s: f64,
+) -> Result<Response, MeasureError> {
+    let period = on.first().map(|a| a.samples.len()).ok_or_else(|| {
+        MeasureError::option("repetitions", 0, "at least 1 repetition with RF on")
+    })?;
+    // The receiver alone: its DC and its I/Q imbalance (from its noise).
+    let noise: Vec<Complex64> = off.iter().flat_map(|a| a.samples.iter().copied()).collect();
+    let dc = if noise.is_empty() {
+        Complex64::new(0.0, 0.0)
+    } else {
+        noise.iter().sum::<Complex64>() / noise.len() as f64
+    };
+    let (gain_db, phase_deg) = iq_imbalance_of_noise(&noise).unwrap_or((0.0, 0.0));
+    let iq = Some((10f64.powf(gain_db / 20.0), phase_deg.to_radians()));
+
+    let est = ChainEstimator::new(reference, period, fs, gate_s)?;
+    let n = est.period();
+    let mut directs = Vec::with_capacity(on.len());
+    let mut images = Vec::with_capacity(on.len());
+    for a in on {
+        let mut y = a.samples.clone();
+        undo_iq(&mut y, dc, iq);
+        let spectrum = est.spectrum(&y);
+        let delay = (expected_delay_s - a.residual_s) * fs;
+        check_reference_near(&est, reference, &spectrum, delay, gate_s * fs)?;
+        let (d, i) = est.estimate(&spectrum, delay);
+        directs.push(d);
+        images.push(i);
+    }
+    let cover = est.coverage();
+    let reps = directs.len() as f64;
+    let mean =
+        |sets: &[Vec<Complex64>], k: usize| sets.iter().map(|s| s[k]).sum::<Complex64>() / reps;
+    // Normalise to the band's mean (power-weighted): unit gain, zero mean phase.
+    let (mut num, mut den) = (Complex64::new(0.0, 0.0), 0.0);
+    for k in (0..n).filter(|&k| cover[k] >= FIGURE_COVERAGE) {
+        num += mean(&directs, k) * cover[k];
+        den += cover[k];
+    }
+    if !(den > 0.0 && num.norm() > 0.0) {
+        return Err(MeasureError::NoReferenceEcho {
+            from_m: expected_delay_s * C0 / 2.0,
+            to_m: expected_delay_s * C0 / 2.0,
+        });
+    }
+    let scale = num / den;
+    let mut bins: Vec<usize> = (0..n).filter(|&k| cover[k] >= BAND_FLOOR).collect();
+    bins.sort_by(|&a, &b| est.frequency_hz(a).total_cmp(&est.frequency_hz(b)));
+    let mut table = ResponseTable {
+        freq_hz: Vec::with_capacity(bins.len()),
+        response: Vec::with_capacity(bins.len()),
+    };
+    let (mut spread_db, mut spread_deg, mut image) = (Vec::new(), Vec::new(), Vec::new());
+    for &k in &bins {
+        let h = mean(&directs, k) / scale;
+        table.freq_hz.push(est.frequency_hz(k));
+        table.response.push(h);
+        let (mut s_db, mut s_deg) = (0.0, 0.0);
+        for d in &directs {
+            let r = d[k] / scale / h;
+            s_db += (20.0 * r.norm().max(1e-300).log10()).powi(2);
+            s_deg += r.arg().to_degrees().powi(2);
+        }
+        let dof = (reps - 1.0).max(1.0);
+        spread_db.push((s_db / dof).sqrt());
+        spread_deg.push((s_deg / dof).sqrt());
+        image.push(mean(&images, k) / scale);
+    }
+    let in_figures: Vec<bool> = bins.iter().map(|&k| cover[k] >= FIGURE_COVERAGE).collect();
+    let figures = figures_of(
+        &table,
+        &image,
+        &in_figures,
+        &spread_db,
+        &spread_deg,
+        gate_s,
+        dc,
+        (gain_db, phase_deg),
+    );
+    let band_hz = [
+        *table.freq_hz.first().unwrap_or(&0.0),
+        *table.freq_hz.last().unwrap_or(&0.0),
+    ];
+    Ok(Response {
+        table,
+        spread_db,
+        spread_deg,
+        image,
+        figures,
+        band_hz,
+        system_delay_s,
+    })
+}
+
+/// The strongest echo within 2 m of where the reference should be must lie within the gate of
+/// it: otherwise the system delay is off (calibrate it first) or the pillar is elsewhere.
+fn check_reference_near(
+    est: &ChainEstimator,
+    reference: &[Complex64],
+    spectrum: &[Complex64],
+    delay: f64,
+    gate: f64,
+) -> Result<(), MeasureError> {
+    let n = est.period();
+    let x = est.spectrum(reference);
+    let mut c: Vec<Complex64> = spectrum.iter().zip(&x).map(|(y, x)| y * x.conj()).collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_inverse(n)
+        .process(&mut c);
+    let search = (2.0 * 2.0 / C0 * est.frequency_hz(1) * n as f64).ceil() as i64;
+    let centre = delay.round() as i64;
+    let peak = (centre - search..=centre + search)
+        .max_by(|a, b| {
+            let (a, b) = (
+                a.rem_euclid(n as i64) as usize,
+                b.rem_euclid(n as i64) as usize,
+            );
+            c[a].norm().total_cmp(&c[b].norm())
+        })
+        .unwrap_or(centre);
+    if ((peak - centre) as f64).abs() > gate {
+        let fs = est.frequency_hz(1) * n as f64;
+        let off_m = (peak - centre) as f64 / fs * C0 / 2.0;
+        return Err(MeasureError::CorrectionRefused(format!(
+            "the strongest echo near the reference lies {off_m:+.3} m from where it should be: \
+             the system delay is off or the pillar is not at --reference-range; run `radbench \
+             calibrate --reference-range R` first (the delay), or check the range"
+        )));
+    }
+    Ok(())
+}
+
+/// The figures of a normalised response over the bins within 3 dB of the band's peak power.
+#[allow(clippy::too_many_arguments)]
+fn figures_of(
+    table: &ResponseTable,
+    image: &[Complex64],
+    in_figures: &[bool],
+    spread_db: &[f64],
+    spread_deg: &[f64],
+    gate_s: f64,
+    dc: Complex64,
+    (gain_db, phase_deg): (f64, f64),
+) -> ResponseFigures {
+    let idx: Vec<usize> = (0..table.freq_hz.len())
+        .filter(|&k| in_figures[k])
+        .collect();
+    let f: Vec<f64> = idx.iter().map(|&k| table.freq_hz[k]).collect();
+    let db: Vec<f64> = idx
+        .iter()
+        .map(|&k| 20.0 * table.response[k].norm().max(1e-300).log10())
+        .collect();
+    // Unwrapped phase and its best straight line.
+    let mut phase = Vec::with_capacity(idx.len());
+    let mut last = 0.0;
+    for (j, &k) in idx.iter().enumerate() {
+        let mut p = table.response[k].arg();
+        if j > 0 {
+            while p - last > PI {
+                p -= 2.0 * PI;
+            }
+            while p - last < -PI {
+                p += 2.0 * PI;
+            }
+        }
+        phase.push(p);
+        last = p;
+    }
+    let (slope, icept) = line_fit(&f, &phase);
+    let residual: Vec<f64> = f
+        .iter()
+        .zip(&phase)
+        .map(|(f, p)| (p - (slope * f + icept)).to_degrees())
+        .collect();
+    // Group delay over steps of a quarter of the gate's resolution.
+    let df = f.get(1).zip(f.first()).map_or(1.0, |(b, a)| b - a).max(1.0);
+    let step = ((0.25 / (2.0 * gate_s)) / df).round().max(1.0) as usize;
+    let gd: Vec<f64> = (step..phase.len())
+        .map(|j| -(phase[j] - phase[j - step]) / (2.0 * PI * (f[j] - f[j - step])) * 1e12)
+        .collect();
+    let pp = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(*x), hi.max(*x))
+            });
+        if lo.is_finite() {
+            hi - lo
+        } else {
+            0.0
+        }
+    };
+    let w: Vec<Complex64> = idx.iter().map(|&k| image[k]).collect();
+    let (w_slope_im, _) = line_fit(&f, &w.iter().map(|v| v.im).collect::<Vec<_>>());
+    let image_power = w.iter().map(|v| v.norm_sqr()).sum::<f64>() / w.len().max(1) as f64;
+    let max = |v: &[f64]| idx.iter().map(|&k| v[k]).fold(0.0, f64::max);
+    ResponseFigures {
+        ripple_db_pp: pp(&db),
+        phase_ripple_deg_pp: pp(&residual),
+        group_delay_ripple_ps_pp: pp(&gd),
+        delay_offset_ps: -slope / (2.0 * PI) * 1e12,
+        dc_v: [dc.re, dc.im],
+        rx_iq_gain_db: gain_db,
+        rx_iq_phase_deg: phase_deg,
+        // Q late by s leaves an image of about j pi f s.
+        iq_skew_ps: w_slope_im / PI * 1e12,
+        image_db: 10.0 * image_power.max(1e-30).log10(),
+        spread_db_max: max(spread_db),
+        spread_deg_max: max(spread_deg),
+    }
+}
+
+/// Least-squares line `y = a x + b`.
+fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    if x.len() < 2 {
+        return (0.0, y.first().copied().unwrap_or(0.0));
+    }
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx) * (a - mx);
+    }
+    let a = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (a, my - a * mx)
+}
