@@ -71,6 +71,63 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_transport: ScopeTransportArg,
+    /// Correction of the chain's measured errors: none, or rx (DC, I/Q imbalance and the
+    /// chain's response on receive). Default: rx when the bench file names a response
+    /// calibration (or --calibration is given), none otherwise.
+    #[arg(long, value_enum)]
+    pub correction: Option<super::args::CorrectionArg>,
+    /// A response calibration (`radbench calibrate response`) instead of the bench file's.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+}
+
+/// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
+pub(crate) fn resolve_correction(
+    correction: Option<super::args::CorrectionArg>,
+    calibration: Option<&Path>,
+    bench: &crate::measure::bench::Bench,
+) -> anyhow::Result<Option<crate::measure::response::Calibration>> {
+    use super::args::CorrectionArg;
+    use crate::measure::response::Calibration;
+    let named = calibration.map(Path::to_path_buf).or_else(|| {
+        bench
+            .path
+            .as_ref()
+            .and_then(|p| bench.file.response_path(p))
+    });
+    match (correction, named) {
+        (Some(CorrectionArg::None), _) => Ok(None),
+        (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
+        (Some(CorrectionArg::Rx), None) => Err(crate::exit::bad_input(
+            "--correction rx needs a response calibration: the bench file names none; run              `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass              --calibration FILE",
+        )),
+        (None, None) => Ok(None),
+    }
+}
+
+/// Warnings about a calibration used on this bench: other instruments than it was measured with.
+pub(crate) fn calibration_warnings(
+    cal: &crate::measure::response::Calibration,
+    identities: &crate::measure::station::Identities,
+) -> Vec<String> {
+    let seen = &cal.header.instruments;
+    let mut out = Vec::new();
+    for (what, then, now) in [
+        ("AWG", Some(&seen.awg), Some(&identities.awg)),
+        ("scope", Some(&seen.scope), Some(&identities.scope)),
+        ("Tx", seen.tx.as_ref(), identities.tx.as_ref()),
+        ("Rx", seen.rx.as_ref(), identities.rx.as_ref()),
+    ] {
+        if then != now {
+            out.push(format!(
+                "the response calibration {} was measured with the {what} {:?}, this capture                  used {:?}: measure it again on this bench (`radbench calibrate response`)",
+                cal.path.display(),
+                then.map_or("none", |s| s.as_str()),
+                now.map_or("none", |s| s.as_str()),
+            ));
+        }
+    }
+    out
 }
 
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
@@ -226,6 +283,8 @@ async fn measure_into(
              run `radbench calibrate --reference-range METRES --bench FILE` first"
         );
     }
+    let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
+    options.correction = calibration.as_ref().map(|c| c.used());
     let request = CaptureRequest {
         waveform,
         payload: args.payload.as_ref().map(|p| p.as_bytes().to_vec()),
@@ -235,7 +294,7 @@ async fn measure_into(
         wait_s: args.wait,
         background: args.background.clone(),
     };
-    let m = capture::measure(
+    let mut m = capture::measure(
         &bench,
         &request,
         args.repetitions,
@@ -244,6 +303,10 @@ async fn measure_into(
         &interrupt,
     )
     .await?;
+    if let Some(cal) = &calibration {
+        let warnings = calibration_warnings(cal, &m.taken.identities);
+        m.processing.processed.warnings.extend(warnings);
+    }
     let provenance = Provenance {
         bench_file: bench.path.clone(),
         simulated: bench.is_simulated(),

@@ -479,8 +479,85 @@ pub struct Pipeline {
     detector: Option<(f64, Detector)>,
     payload: PayloadDecoder,
     level_scale: f64,
-    /// The receive correction (`options.correction`), made for this record's period.
+    /// The receive correction (`options.correction`), made for this record's period, and what
+    /// its calibration promised.
     equaliser: Option<RxEqualiser>,
+    correction_check: Option<CorrectionCheck>,
+}
+
+/// What a calibration reached on its reference, to warn when a capture corrected with it does
+/// much worse (the chain changed, or the calibration is another bench's).
+#[derive(Debug, Clone)]
+struct CorrectionCheck {
+    path: String,
+    band_hz: [f64; 2],
+    sidelobe_db: Option<f64>,
+    width_cm: Option<f64>,
+    /// The calibration's reference was processed with the waveform's default processing (no
+    /// window): its figures compare with a capture processed alike only.
+    comparable: bool,
+}
+
+/// A corrected target's peak side-lobe may exceed the calibration's by this before a warning, dB,
+/// and its -3 dB width by this, cm.
+const CORRECTION_WORSE_DB: f64 = 1.5;
+const CORRECTION_WIDER_CM: f64 = 0.2;
+
+impl CorrectionCheck {
+    fn warnings(
+        &self,
+        tx: &Transmission,
+        strongest_sidelobe_db: Option<f64>,
+        strongest_width_cm: Option<f64>,
+    ) -> Vec<String> {
+        let mut out = Vec::new();
+        let half = 0.5 * tx.bandwidth_hz();
+        // 2 % of slack: the band's edges are where the waveform's power is 20 dB down.
+        let slack = 0.02 * half;
+        if self.band_hz[0] > -half + slack || self.band_hz[1] < half - slack {
+            out.push(format!(
+                "the response calibration {} covers {:.3} .. {:.3} GHz, this waveform {:.3} .. \
+                 {:.3} GHz: outside it the correction is held at its edge value; calibrate with \
+                 this waveform",
+                self.path,
+                self.band_hz[0] / 1e9,
+                self.band_hz[1] / 1e9,
+                -half / 1e9,
+                half / 1e9
+            ));
+        }
+        if !self.comparable {
+            return out;
+        }
+        let worse = |what: &str, now: String, then: String| {
+            format!(
+                "corrected, the strongest target's {what} is {now} where the calibration {} \
+                 reached {then} on its reference: the chain may have changed or the calibration \
+                 is another bench's (or this target is not alone); compare with --correction \
+                 none and measure the response again",
+                self.path
+            )
+        };
+        if let (Some(cal), Some(now)) = (self.sidelobe_db, strongest_sidelobe_db) {
+            if now > cal + CORRECTION_WORSE_DB {
+                out.push(worse(
+                    "peak side-lobe",
+                    format!("{now:.1} dB"),
+                    format!("{cal:.1} dB"),
+                ));
+            }
+        }
+        if let (Some(cal), Some(now)) = (self.width_cm, strongest_width_cm) {
+            if now > cal + CORRECTION_WIDER_CM {
+                out.push(worse(
+                    "-3 dB width",
+                    format!("{now:.2} cm"),
+                    format!("{cal:.2} cm"),
+                ));
+            }
+        }
+        out
+    }
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -577,7 +654,7 @@ fn equaliser_for(
     used: &super::response::CorrectionUsed,
     period: usize,
     fs: f64,
-) -> Result<RxEqualiser, MeasureError> {
+) -> Result<(RxEqualiser, CorrectionCheck), MeasureError> {
     if used.mode != "rx" {
         return Err(MeasureError::option(
             "correction",
@@ -595,7 +672,14 @@ fn equaliser_for(
             ),
         });
     }
-    cal.response.equaliser(period, fs)
+    let check = CorrectionCheck {
+        path: used.calibration.clone(),
+        band_hz: cal.header.band_hz,
+        sidelobe_db: cal.header.reference.sidelobe_db_after,
+        width_cm: cal.header.reference.width_cm_after,
+        comparable: false,
+    };
+    Ok((cal.response.equaliser(period, fs)?, check))
 }
 
 impl Pipeline {
@@ -632,12 +716,20 @@ impl Pipeline {
             }
         };
         let payload = PayloadDecoder::new(&tx, geometry.period)?;
-        let equaliser = match &options.correction {
-            Some(used) => Some(equaliser_for(used, geometry.period, tx.sample_rate_hz())?),
-            None => None,
+        let (equaliser, correction_check) = match &options.correction {
+            Some(used) => {
+                let (eq, mut check) = equaliser_for(used, geometry.period, tx.sample_rate_hz())?;
+                let default = ProcessOptions::for_waveform(tx.spec.kind());
+                check.comparable = options.window == default.window
+                    && options.algorithm == default.algorithm
+                    && options.zero_pad == default.zero_pad;
+                (Some(eq), Some(check))
+            }
+            None => (None, None),
         };
         Ok(Pipeline {
             equaliser,
+            correction_check,
             level_scale: level_scale(&options),
             tx,
             options,
@@ -983,6 +1075,9 @@ impl Pipeline {
         let snr_db = strongest.and_then(|t| t.snr_db);
         if detection.targets.is_empty() {
             warnings.push(detect::no_target_hint(&aligned.samples, primary));
+        }
+        if let Some(check) = &self.correction_check {
+            warnings.extend(check.warnings(&self.tx, sidelobe_db, width_3db_cm));
         }
         if detection.capped {
             warnings.push(

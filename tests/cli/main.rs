@@ -9,6 +9,7 @@ mod io_support;
 mod process_support;
 
 mod bad_input;
+mod calibrate_response;
 mod campaign;
 mod campaign_report;
 mod capture_e2e;

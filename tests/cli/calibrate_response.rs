@@ -1,0 +1,335 @@
+//! `radbench calibrate response` on the mock lab's `thesis-lab` chain, as a user runs it: measure,
+//! store, capture and re-process with the correction, and the refusals and warnings when it
+//! would not help.
+
+use super::support::radbench_in;
+use serde_json::Value;
+use std::path::Path;
+
+async fn radbench(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    radbench_in(Some(dir), args).await
+}
+
+fn scene(dir: &Path, name: &str, range_m: f64, chain: &str) -> String {
+    let file = format!("{name}.toml");
+    std::fs::write(
+        dir.join(&file),
+        format!(
+            "snr_db = 25.0\n[[targets]]\nrange_m = {range_m}\namplitude = 0.5\n\
+             [chain]\npreset = \"{chain}\"\n"
+        ),
+    )
+    .unwrap();
+    file
+}
+
+fn json(text: &str) -> Value {
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+/// The capture's one target: (range, side-lobe, width), and the warnings.
+async fn capture(dir: &Path, args: &[&str]) -> ((f64, f64, f64), Vec<String>, usize) {
+    let mut all = vec!["capture", "--allow-rf", "--json", "--force"];
+    all.extend_from_slice(args);
+    let (code, out, err) = radbench(dir, &all).await;
+    assert_eq!(code, 0, "{all:?}: {err}");
+    let s = json(&out);
+    let t = &s["targets"][0];
+    let warnings = s["warnings"]
+        .as_array()
+        .map(|w| {
+            w.iter()
+                .map(|v| v.as_str().unwrap_or("").to_string())
+                .collect()
+        })
+        .unwrap_or_default();
+    (
+        (
+            t["range_m"].as_f64().unwrap(),
+            t["sidelobe_db"].as_f64().unwrap(),
+            t["width_3db_cm"].as_f64().unwrap(),
+        ),
+        warnings,
+        s["targets"].as_array().unwrap().len(),
+    )
+}
+
+/// The `.npy` table (float64, C order) as rows.
+fn npy_rows(path: &Path) -> Vec<Vec<f64>> {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..6], b"\x93NUMPY");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(header.contains("'<f8'"), "{header}");
+    let values: Vec<f64> = bytes[10 + len..]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    values.chunks(7).map(<[f64]>::to_vec).collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_the_ideal_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let reference = scene(d, "reference", 1.0, "thesis-lab");
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            &reference,
+            "--allow-rf",
+            "--out",
+            "response.toml",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let report = json(&out);
+    let before = report["reference"]["sidelobe_db_before"].as_f64().unwrap();
+    let after = report["reference"]["sidelobe_db_after"].as_f64().unwrap();
+    assert!((before + 10.4).abs() < 0.5, "uncorrected {before} dB");
+    assert!((after + 13.3).abs() < 0.5, "corrected {after} dB");
+    let spread = report["figures"]["spread_db_max"].as_f64().unwrap();
+    assert!(spread < 0.2, "{spread} dB over 16 repetitions");
+
+    // The table matches the chain the scene configured (the mock lab knows it), once both are
+    // normalised (mean gain, mean phase and the best line through the phase taken out).
+    let rows = npy_rows(&d.join("response.npy"));
+    let truth = mock_lab::scene::ChainParams::thesis_lab();
+    let band: Vec<&Vec<f64>> = rows.iter().filter(|r| r[0].abs() <= 0.45e9).collect();
+    assert!(band.len() > 100, "{} rows in band", band.len());
+    // (frequency, dB, unwrapped degrees) minus the mean dB, mean phase and best phase line.
+    let residual = |pts: Vec<(f64, f64, f64)>| -> Vec<(f64, f64, f64)> {
+        let mut last: Option<f64> = None;
+        let pts: Vec<(f64, f64, f64)> = pts
+            .into_iter()
+            .map(|(f, db, deg)| {
+                let mut d = deg;
+                if let Some(l) = last {
+                    while d - l > 180.0 {
+                        d -= 360.0;
+                    }
+                    while d - l < -180.0 {
+                        d += 360.0;
+                    }
+                }
+                last = Some(d);
+                (f, db, d)
+            })
+            .collect();
+        let n = pts.len() as f64;
+        let mean_db = pts.iter().map(|p| p.1).sum::<f64>() / n;
+        let (mf, mp) = (
+            pts.iter().map(|p| p.0).sum::<f64>() / n,
+            pts.iter().map(|p| p.2).sum::<f64>() / n,
+        );
+        let slope = pts.iter().map(|p| (p.0 - mf) * (p.2 - mp)).sum::<f64>()
+            / pts.iter().map(|p| (p.0 - mf).powi(2)).sum::<f64>();
+        pts.iter()
+            .map(|p| (p.0, p.1 - mean_db, p.2 - mp - slope * (p.0 - mf)))
+            .collect()
+    };
+    let measured = residual(band.iter().map(|r| (r[0], r[1], r[2])).collect());
+    let configured = residual(
+        band.iter()
+            .map(|r| {
+                let h = truth.response_at(r[0]);
+                (r[0], 20.0 * h.norm().log10(), h.arg().to_degrees())
+            })
+            .collect(),
+    );
+    for (m, c) in measured.iter().zip(&configured) {
+        assert!(
+            (m.1 - c.1).abs() < 0.3 && (m.2 - c.2).abs() < 3.0,
+            "at {:.3} GHz measured {:.2} dB {:.2} deg, configured {:.2} dB {:.2} deg",
+            m.0 / 1e9,
+            m.1,
+            m.2,
+            c.1,
+            c.2
+        );
+    }
+
+    // A pillar elsewhere: corrected within 0.5 dB and 0.3 cm of the ideal chain's figures,
+    // uncorrected as the realistic chain leaves it.
+    let ideal = scene(d, "ideal", 2.3, "ideal");
+    let lab = scene(d, "lab", 2.3, "thesis-lab");
+    let ((_, psl_ideal, width_ideal), _, _) =
+        capture(d, &["--scene", &ideal, "--out", "c-ideal"]).await;
+    let ((r, psl, width), warnings, count) = capture(
+        d,
+        &[
+            "--scene",
+            &lab,
+            "--calibration",
+            "response.toml",
+            "--out",
+            "c-rx",
+        ],
+    )
+    .await;
+    assert_eq!(count, 1, "one pillar, one target");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!((r - 2.3).abs() < 1e-3, "{r} m");
+    assert!(
+        (psl - psl_ideal).abs() < 0.5,
+        "{psl} vs ideal {psl_ideal} dB"
+    );
+    assert!(
+        (width - width_ideal).abs() < 0.3,
+        "{width} vs ideal {width_ideal} cm"
+    );
+    let ((_, psl_none, _), _, _) = capture(
+        d,
+        &[
+            "--scene",
+            &lab,
+            "--calibration",
+            "response.toml",
+            "--correction",
+            "none",
+            "--out",
+            "c-none",
+        ],
+    )
+    .await;
+    assert!((psl_none + 10.4).abs() < 0.6, "uncorrected {psl_none} dB");
+    let summary = json(&std::fs::read_to_string(d.join("c-rx/summary.json")).unwrap());
+    let used = &summary["processing"]["correction"];
+    assert_eq!(used["mode"], "rx", "{summary}");
+    assert_eq!(used["sha256"].as_str().unwrap().len(), 64);
+
+    // The uncorrected capture processed again: with rx it gives the corrected result, with its
+    // own options exactly what it gave.
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "process",
+            "c-none",
+            "--calibration",
+            "response.toml",
+            "--out",
+            "p-rx",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let _ = out;
+    let p = json(&std::fs::read_to_string(d.join("p-rx/c-none/summary.json")).unwrap());
+    let psl_p = p["targets"][0]["sidelobe_db"].as_f64().unwrap();
+    assert!(
+        (psl_p - psl).abs() < 0.2,
+        "re-processed {psl_p} vs captured {psl} dB"
+    );
+    let (code, _, err) = radbench(d, &["process", "c-none", "--out", "p-same"]).await;
+    assert_eq!(code, 0, "{err}");
+    let same = json(&std::fs::read_to_string(d.join("p-same/c-none/summary.json")).unwrap());
+    let orig = json(&std::fs::read_to_string(d.join("c-none/summary.json")).unwrap());
+    assert_eq!(same["targets"], orig["targets"]);
+    let (code, _, err) = radbench(
+        d,
+        &["process", "c-none", "--correction", "rx", "--out", "p-bad"],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--calibration"), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_correction_that_would_not_help_is_refused_and_another_chains_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let flat = scene(d, "flat", 1.0, "ideal");
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            &flat,
+            "--allow-rf",
+            "--out",
+            "flat-response.toml",
+        ],
+    )
+    .await;
+    assert_eq!(code, 4, "{err}");
+    assert!(
+        err.contains("not stored") && err.contains("--force"),
+        "{err}"
+    );
+    assert!(!d.join("flat-response.toml").exists() && !d.join("flat-response.npy").exists());
+
+    let lab = scene(d, "lab", 1.0, "thesis-lab");
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            &lab,
+            "--allow-rf",
+            "--out",
+            "lab-response.toml",
+            "--waveform",
+            "ofdm",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    // The thesis-lab correction on the ideal chain: warned, by name.
+    let elsewhere = scene(d, "elsewhere", 2.3, "ideal");
+    let (_, warnings, _) = capture(
+        d,
+        &[
+            "--scene",
+            &elsewhere,
+            "--waveform",
+            "ofdm",
+            "--calibration",
+            "lab-response.toml",
+            "--out",
+            "c",
+        ],
+    )
+    .await;
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("lab-response.toml") && w.contains("measure the response again")),
+        "{warnings:?}"
+    );
+    // A table changed after it was measured is refused, by name.
+    let npy = d.join("lab-response.npy");
+    let mut bytes = std::fs::read(&npy).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&npy, bytes).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            &elsewhere,
+            "--calibration",
+            "lab-response.toml",
+            "--out",
+            "c2",
+        ],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("has changed since it was measured"), "{err}");
+}
