@@ -263,11 +263,6 @@ impl ResponseTable {
             }
         }
     }
-
-    /// The lowest and highest frequency covered, Hz.
-    pub(crate) fn band_hz(&self) -> Option<(f64, f64)> {
-        Some((*self.freq_hz.first()?, *self.freq_hz.last()?))
-    }
 }
 
 /// The receive-side correction of an aligned repetition: DC removed, the receiver's I/Q gain and
@@ -314,7 +309,11 @@ impl RxEqualiser {
                 "response table: at least 2 points, one response per frequency".into(),
             ));
         }
-        if table.freq_hz.windows(2).any(|w| !(w[1] > w[0])) {
+        if table
+            .freq_hz
+            .windows(2)
+            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+        {
             return Err(DspError::Param(
                 "response table: frequencies strictly ascending".into(),
             ));
@@ -343,10 +342,6 @@ impl RxEqualiser {
             ifft: planner.plan_fft_inverse(n),
             scratch: Vec::new(),
         })
-    }
-
-    pub(crate) fn period(&self) -> usize {
-        self.inverse.len()
     }
 
     /// DC and I/Q imbalance off (sample by sample).
