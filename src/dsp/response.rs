@@ -115,27 +115,15 @@ impl ChainEstimator {
             fft,
             ifft,
         };
-        est.weight = est
-            .gated(
-                &est.x
-                    .iter()
-                    .map(|v| v.norm_sqr().into())
-                    .collect::<Vec<_>>(),
-            )
-            .iter()
-            .map(|v| v.re)
-            .collect();
-        est.weight_image = est
-            .gated(
-                &est.x_image
-                    .iter()
-                    .map(|v| v.norm_sqr().into())
-                    .collect::<Vec<_>>(),
-            )
-            .iter()
-            .map(|v| v.re)
-            .collect();
+        est.weight = est.gated_power(&est.x);
+        est.weight_image = est.gated_power(&est.x_image);
         Ok(est)
+    }
+
+    /// `|x|^2` gated: a local fit's denominator.
+    fn gated_power(&self, x: &[Complex64]) -> Vec<f64> {
+        let power: Vec<Complex64> = x.iter().map(|v| v.norm_sqr().into()).collect();
+        self.gated(&power).iter().map(|v| v.re).collect()
     }
 
     /// `z` gated (a copy).

@@ -2,6 +2,7 @@
 //! 8-bit scope, decimation) and simulations, checked against the scene's ground truth on scenes
 //! nobody picked by hand (seeded random scenes), plus the cases users hit first.
 
+use super::scenes::{random_pillars_within, realistic_scene, scene};
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
 use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
@@ -16,44 +17,10 @@ use radbench::waveform::spec::{WaveformKind, WaveformSpec};
 use serde_json::json;
 use std::time::Duration;
 
-/// Resolution cell c0 / 2B at 1 GHz, m.
-const CELL_M: f64 = 0.149_896_229;
-
-/// A scene of pillars (range, amplitude) on the mock lab's defaults (leakage present).
-fn scene(pillars: &[(f64, f64)], snr_db: f64, seed: u64) -> serde_json::Value {
-    let mut scene = serde_json::to_value(mock_lab::scene::Scene::default()).unwrap();
-    scene["targets"] = pillars
-        .iter()
-        .map(|&(r, a)| json!({"range_m": r, "amplitude": a}))
-        .collect();
-    scene["snr_db"] = json!(snr_db);
-    scene["seed"] = json!(seed);
-    scene
-}
-
 /// 1-4 pillars at least two resolution cells apart within 0.3..8 m, the weakest within 20 dB of
 /// the strongest (0.5), random sub-cell positions.
 fn random_pillars(rng: &mut SplitMix64) -> Vec<(f64, f64)> {
     random_pillars_within(rng, 4, 20.0)
-}
-
-/// 1 to `most` pillars at least two resolution cells apart within 0.3..8 m; the first is the
-/// strongest (0.5), the others lie 0..`within_db` dB under it.
-fn random_pillars_within(rng: &mut SplitMix64, most: u64, within_db: f64) -> Vec<(f64, f64)> {
-    let n = 1 + (rng.next_u64() % most) as usize;
-    let mut out: Vec<(f64, f64)> = Vec::new();
-    while out.len() < n {
-        let r = 0.3 + 7.7 * rng.uniform();
-        if out.iter().all(|(o, _)| (o - r).abs() >= 2.0 * CELL_M) {
-            let a = if out.is_empty() {
-                0.5
-            } else {
-                0.5 * 10f64.powf(-rng.uniform() * within_db / 20.0)
-            };
-            out.push((r, a));
-        }
-    }
-    out
 }
 
 /// Every pillar found within `tol_m` and nothing else.
@@ -260,28 +227,6 @@ async fn a_moving_target_reports_its_radial_velocity_on_ofdm() {
     assert!((v[0] - 600.0).abs() < resolution / 4.0, "{v:?}");
     assert!(v[1].abs() < resolution / 4.0, "{v:?}");
     assert!(p.range_doppler.is_some());
-}
-
-/// A realistic bench: the `thesis-lab` chain, leakage at -26 dB, clutter near the horns and
-/// beyond the window, I/Q imbalance up to 0.6 dB and 4 degrees, DC offset, residual phase noise up
-/// to 2 kHz and a few ps of trigger jitter, all drawn per scene.
-fn realistic_scene(pillars: &[(f64, f64)], rng: &mut SplitMix64, seed: u64) -> serde_json::Value {
-    let mut s = scene(pillars, 25.0, seed);
-    let mut draw = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
-    s["chain"] = json!({"preset": "thesis-lab"});
-    s["leakage"] = json!({"amplitude": 0.5 * 10f64.powf(-26.0 / 20.0), "delay_s": 0.2e-9});
-    s["clutter"] = json!([
-        {"range_m": draw(0.0, 0.05), "amplitude": draw(0.01, 0.05)},
-        {"range_m": draw(11.0, 14.0), "amplitude": draw(0.05, 0.2)},
-    ]);
-    s["impairments"] = json!({
-        "dc_offset_v": [draw(-0.005, 0.005), draw(-0.005, 0.005)],
-        "iq_gain_db": draw(-0.6, 0.6),
-        "iq_phase_deg": draw(-4.0, 4.0),
-        "phase_noise_linewidth_hz": draw(0.0, 2000.0),
-    });
-    s["trigger_jitter_s"] = json!(draw(0.0, 5e-12));
-    s
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

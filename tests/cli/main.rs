@@ -20,6 +20,7 @@ mod exit_paths;
 mod io_cli;
 mod process_cli;
 mod readers_cli;
+mod scenes;
 mod sequence_capture;
 mod simulate_cli;
 mod simulate_scene;
