@@ -3,15 +3,11 @@
 
 use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArg};
 use super::capture::{bench_source, journal, open_bench};
-use crate::driver::RfPermit;
 use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
-use crate::measure::capture::{prepare, CaptureRequest, Rig};
+use crate::measure::capture::Rig;
 use crate::measure::interrupt::Interrupt;
-use crate::measure::options::ProcessOptions;
-use crate::measure::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
-use crate::measure::response::{
-    measure, Calibration, InstrumentsSeen, ReferenceFigures, Response, ResponseHeader, FORMAT,
-};
+use crate::measure::response::{Calibration, ReferenceFigures, Response};
+use crate::measure::response_run::{calibrate_with, CalibrateRequest};
 use crate::measure::MeasureError;
 use crate::waveform::spec::WaveformKind;
 use serde_json::json;
@@ -67,9 +63,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The side-lobe level must improve by at least this, dB, for a correction to be stored.
-const MIN_IMPROVEMENT_DB: f64 = 0.1;
-
 fn check(args: &Args) -> Result<(), MeasureError> {
     crate::measure::calibration::check(args.reference_range, 2.0)?;
     crate::measure::capture::check_repetitions(args.repetitions)?;
@@ -105,20 +98,6 @@ fn check(args: &Args) -> Result<(), MeasureError> {
     Ok(())
 }
 
-/// The reference's figures in one processed record: the detection nearest its range.
-fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Option<f64>) {
-    let t = p
-        .targets
-        .iter()
-        .filter(|t| (t.range_m - range_m).abs() < 0.3)
-        .max_by(|a, b| a.level_db.total_cmp(&b.level_db));
-    (
-        t.and_then(|t| t.sidelobe_db),
-        t.and_then(|t| t.width_3db_cm),
-        t.map(|t| t.range_m),
-    )
-}
-
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(&args)?;
     let started = std::time::Instant::now();
@@ -137,112 +116,30 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         let catalog = bench.file.catalog()?;
-        let kind = WaveformKind::from(args.waveform);
-        let system_delay_s = bench.file.system_delay_s();
-        let options = ProcessOptions {
-            system_delay_s,
-            max_range_m: args.reference_range + 4.0,
-            ..ProcessOptions::for_waveform(kind)
+        let request = CalibrateRequest {
+            waveform: WaveformKind::from(args.waveform),
+            reference_range_m: args.reference_range,
+            repetitions: args.repetitions,
+            gate_s: args.gate_ns * 1e-9,
         };
-        let request = |tx_off| CaptureRequest {
-            waveform: kind.thesis_default(),
-            payload: None,
-            seed: 1,
-            options: options.clone(),
-            tx_off,
-            wait_s: 10.0,
-            background: None,
-        };
-        let on = prepare(&bench, &catalog, &request(false)).await?;
-        let off = prepare(&bench, &catalog, &request(true)).await?;
         let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
-        let permit = RfPermit::granted_by_user();
-        let taken_on = rig
-            .acquire(&bench, &on, args.repetitions, &permit, &interrupt)
-            .await?;
-        let taken_off = rig
-            .acquire(&bench, &off, args.repetitions, &permit, &interrupt)
-            .await?;
-        let identities = rig.identities().clone();
+        let calibrated = calibrate_with(&mut rig, &bench, &request, &interrupt).await?;
         drop(rig);
-        let tx = on.tx.clone();
-        let fs = tx.sample_rate_hz();
-        let geometry = RecordGeometry::for_capture(on.plan.period, fs, &options);
-        let reference_range = args.reference_range;
-        let gate_s = args.gate_ns * 1e-9;
-        let expected_delay_s = 2.0 * reference_range / crate::dsp::C0 + system_delay_s;
-        let (response, figures) = crate::measure::off_runtime(move || {
-            let mut pipeline = Pipeline::new(tx.clone(), options, geometry)?;
-            pipeline.set_awg_amplitude(taken_on.captured.applied.awg.i_amplitude_vpp)?;
-            let align = |pipeline: &mut Pipeline, c: &crate::measure::station::Captured| {
-                (0..c.repetitions())
-                    .map(|k| pipeline.align_words(&c.raw_words(k)))
-                    .collect::<Result<Vec<Aligned>, MeasureError>>()
-            };
-            let on_aligned = align(&mut pipeline, &taken_on.captured)?;
-            let off_aligned = align(&mut pipeline, &taken_off.captured)?;
-            let response = measure(
-                &tx.reference,
-                fs,
-                &on_aligned,
-                &off_aligned,
-                expected_delay_s,
-                gate_s,
-                system_delay_s,
-            )?;
-            let mean = crate::measure::repeat::average(&on_aligned).expect("repetitions");
-            let before = pipeline.process(mean.clone(), None)?;
-            pipeline.set_equaliser(Some(response.equaliser(geometry.period, fs)?));
-            let after = pipeline.process(mean, None)?;
-            let (sb, wb, rb) = reference_of(&before, reference_range);
-            let (sa, wa, ra) = reference_of(&after, reference_range);
-            let figures = ReferenceFigures {
-                sidelobe_db_before: sb,
-                sidelobe_db_after: sa,
-                width_cm_before: wb,
-                width_cm_after: wa,
-                range_m_before: rb,
-                range_m_after: ra,
-            };
-            Ok::<_, MeasureError>((response, figures))
-        })
-        .await??;
-        let verdict = verdict(&figures);
+        let (response, figures) = (&calibrated.response, &calibrated.reference);
+        let verdict = calibrated.verdict();
         if let (Err(why), false) = (&verdict, args.force) {
-            print_report(&args, &response, &figures, None, Some(why));
+            print_report(&args, response, figures, None, Some(why));
             return Err(MeasureError::CorrectionRefused(format!(
                 "not stored: {why} (--force stores it anyway)"
             ))
             .into());
         }
         if let Some(plot) = &args.plot {
-            draw(plot, &response)?;
+            draw(plot, response)?;
         }
         let stored = match &out {
             Some(path) => {
-                let header = ResponseHeader {
-                    format: FORMAT.into(),
-                    data: String::new(),
-                    data_sha256: String::new(),
-                    columns: Vec::new(),
-                    measured_at: crate::storage::sigmf::utc_now_rfc3339(),
-                    radbench_version: env!("CARGO_PKG_VERSION").into(),
-                    waveform: kind.name().into(),
-                    band_hz: response.band_hz,
-                    reference_range_m: reference_range,
-                    repetitions: args.repetitions,
-                    gate_ns: args.gate_ns,
-                    system_delay_s,
-                    figures: response.figures,
-                    reference: figures,
-                    instruments: InstrumentsSeen {
-                        awg: identities.awg.clone(),
-                        scope: identities.scope.clone(),
-                        tx: identities.tx.clone(),
-                        rx: identities.rx.clone(),
-                    },
-                };
-                let cal = Calibration::save(path, &response, header)?;
+                let cal = calibrated.save(path)?;
                 if let Some(bench_path) = &bench.path {
                     name_in_bench(bench_path, &bench.file, path)?;
                 }
@@ -252,8 +149,8 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         };
         print_report(
             &args,
-            &response,
-            &figures,
+            response,
+            figures,
             stored.as_ref(),
             verdict.err().as_ref(),
         );
@@ -300,23 +197,6 @@ fn name_in_bench(
     cal.response = Some(name);
     store_calibration(bench_path, &cal)?;
     Ok(())
-}
-
-/// Whether the correction helped the reference's side-lobes.
-fn verdict(f: &ReferenceFigures) -> Result<f64, String> {
-    match (f.sidelobe_db_before, f.sidelobe_db_after) {
-        (Some(b), Some(a)) if a <= b - MIN_IMPROVEMENT_DB => Ok(b - a),
-        (Some(b), Some(a)) => Err(format!(
-            "correcting does not improve the reference's peak side-lobe ({b:.2} dB before, \
-             {a:.2} dB after, at least {MIN_IMPROVEMENT_DB} dB better needed): the chain is as \
-             flat as this measures, or the reference is not alone within the gate"
-        )),
-        _ => Err(
-            "the reference's side-lobes could not be measured (is the pillar alone, within 0.3 m \
-             of --reference-range?)"
-                .into(),
-        ),
-    }
 }
 
 fn print_report(

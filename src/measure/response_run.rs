@@ -1,0 +1,201 @@
+//! Running a response calibration on a bench (`radbench calibrate response`, campaigns): the
+//! reference pillar captured with the transmitter on and off, the response measured
+//! (`response::measure`), and the correction tried on the same captures before it may be stored.
+
+use super::bench::Bench;
+use super::capture::{prepare, CaptureRequest, Rig};
+use super::interrupt::Interrupt;
+use super::options::ProcessOptions;
+use super::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
+use super::response::{
+    measure, Calibration, InstrumentsSeen, ReferenceFigures, Response, ResponseHeader, FORMAT,
+};
+use super::station::{Captured, Identities};
+use super::MeasureError;
+use crate::driver::RfPermit;
+use crate::waveform::spec::WaveformKind;
+use std::path::Path;
+
+/// The side-lobe level must improve by at least this, dB, for a correction to be stored.
+pub(crate) const MIN_IMPROVEMENT_DB: f64 = 0.1;
+
+/// What to calibrate.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CalibrateRequest {
+    pub waveform: WaveformKind,
+    pub reference_range_m: f64,
+    pub repetitions: usize,
+    /// Half-width of the window around the reference's echo, seconds.
+    pub gate_s: f64,
+}
+
+/// A response measured on a bench, with the reference's figures before and after correcting it.
+#[derive(Debug, Clone)]
+pub(crate) struct Calibrated {
+    pub request: CalibrateRequest,
+    pub response: Response,
+    pub reference: ReferenceFigures,
+    pub identities: Identities,
+    pub system_delay_s: f64,
+}
+
+impl Calibrated {
+    /// How much the correction improved the reference's peak side-lobe (dB), or why it does
+    /// not help.
+    pub(crate) fn verdict(&self) -> Result<f64, String> {
+        let f = &self.reference;
+        match (f.sidelobe_db_before, f.sidelobe_db_after) {
+            (Some(b), Some(a)) if a <= b - MIN_IMPROVEMENT_DB => Ok(b - a),
+            (Some(b), Some(a)) => Err(format!(
+                "correcting does not improve the reference's peak side-lobe ({b:.2} dB before, \
+                 {a:.2} dB after, at least {MIN_IMPROVEMENT_DB} dB better needed): the chain is \
+                 as flat as this measures, or the reference is not alone within the gate"
+            )),
+            _ => Err(
+                "the reference's side-lobes could not be measured (is the pillar alone, within \
+                 0.3 m of the reference range?)"
+                    .into(),
+            ),
+        }
+    }
+
+    /// Writes the calibration to `path` (the table beside it).
+    pub(crate) fn save(&self, path: &Path) -> Result<Calibration, MeasureError> {
+        let id = &self.identities;
+        let header = ResponseHeader {
+            format: FORMAT.into(),
+            data: String::new(),
+            data_sha256: String::new(),
+            columns: Vec::new(),
+            measured_at: crate::storage::sigmf::utc_now_rfc3339(),
+            radbench_version: env!("CARGO_PKG_VERSION").into(),
+            waveform: self.request.waveform.name().into(),
+            band_hz: self.response.band_hz,
+            reference_range_m: self.request.reference_range_m,
+            repetitions: self.request.repetitions,
+            gate_ns: self.request.gate_s * 1e9,
+            system_delay_s: self.system_delay_s,
+            figures: self.response.figures,
+            reference: self.reference,
+            instruments: InstrumentsSeen {
+                awg: id.awg.clone(),
+                scope: id.scope.clone(),
+                tx: id.tx.clone(),
+                rx: id.rx.clone(),
+            },
+        };
+        Calibration::save(path, &self.response, header)
+    }
+}
+
+/// The reference's figures in one processed record: the detection nearest its range.
+fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Option<f64>) {
+    let t = p
+        .targets
+        .iter()
+        .filter(|t| (t.range_m - range_m).abs() < 0.3)
+        .max_by(|a, b| a.level_db.total_cmp(&b.level_db));
+    (
+        t.and_then(|t| t.sidelobe_db),
+        t.and_then(|t| t.width_3db_cm),
+        t.map(|t| t.range_m),
+    )
+}
+
+/// Calibrates on `bench` through a connected `rig` (a campaign keeps its own).
+pub(crate) async fn calibrate_with(
+    rig: &mut Rig,
+    bench: &Bench,
+    request: &CalibrateRequest,
+    interrupt: &Interrupt,
+) -> Result<Calibrated, MeasureError> {
+    let catalog = bench.file.catalog()?;
+    let kind = request.waveform;
+    let system_delay_s = bench.file.system_delay_s();
+    let options = ProcessOptions {
+        system_delay_s,
+        max_range_m: request.reference_range_m + 4.0,
+        ..ProcessOptions::for_waveform(kind)
+    };
+    let capture = |tx_off| CaptureRequest {
+        waveform: kind.thesis_default(),
+        payload: None,
+        seed: 1,
+        options: options.clone(),
+        tx_off,
+        wait_s: 10.0,
+        background: None,
+    };
+    let on = prepare(bench, &catalog, &capture(false)).await?;
+    let off = prepare(bench, &catalog, &capture(true)).await?;
+    let permit = RfPermit::granted_by_user();
+    let reps = request.repetitions;
+    let taken_on = rig.acquire(bench, &on, reps, &permit, interrupt).await?;
+    let taken_off = rig.acquire(bench, &off, reps, &permit, interrupt).await?;
+    let identities = rig.identities().clone();
+    let tx = on.tx.clone();
+    let fs = tx.sample_rate_hz();
+    let geometry = RecordGeometry::for_capture(on.plan.period, fs, &options);
+    let request = *request;
+    let expected_delay_s = 2.0 * request.reference_range_m / crate::dsp::C0 + system_delay_s;
+    let (response, reference) = super::off_runtime(move || {
+        let mut pipeline = Pipeline::new(tx.clone(), options, geometry)?;
+        pipeline.set_awg_amplitude(taken_on.captured.applied.awg.i_amplitude_vpp)?;
+        let align = |pipeline: &mut Pipeline, c: &Captured| {
+            (0..c.repetitions())
+                .map(|k| pipeline.align_words(&c.raw_words(k)))
+                .collect::<Result<Vec<Aligned>, MeasureError>>()
+        };
+        let on_aligned = align(&mut pipeline, &taken_on.captured)?;
+        let off_aligned = align(&mut pipeline, &taken_off.captured)?;
+        let response = measure(
+            &tx.reference,
+            fs,
+            &on_aligned,
+            &off_aligned,
+            expected_delay_s,
+            request.gate_s,
+            system_delay_s,
+        )?;
+        let reference = try_correction(&mut pipeline, &response, &on_aligned, &request)?;
+        Ok::<_, MeasureError>((response, reference))
+    })
+    .await??;
+    Ok(Calibrated {
+        request,
+        response,
+        reference,
+        identities,
+        system_delay_s,
+    })
+}
+
+/// The reference's figures in the repetitions' average, uncorrected and corrected with
+/// `response`.
+fn try_correction(
+    pipeline: &mut Pipeline,
+    response: &Response,
+    aligned: &[Aligned],
+    request: &CalibrateRequest,
+) -> Result<ReferenceFigures, MeasureError> {
+    let mean = super::repeat::average(aligned).ok_or_else(|| {
+        MeasureError::option("repetitions", 0, "at least 1 repetition with RF on")
+    })?;
+    let period = mean.samples.len();
+    let fs = pipeline.transmission().sample_rate_hz();
+    let before = pipeline.process(mean.clone(), None)?;
+    pipeline.set_equaliser(Some(response.equaliser(period, fs)?));
+    let after = pipeline.process(mean, None)?;
+    pipeline.set_equaliser(None);
+    let range = request.reference_range_m;
+    let (sb, wb, rb) = reference_of(&before, range);
+    let (sa, wa, ra) = reference_of(&after, range);
+    Ok(ReferenceFigures {
+        sidelobe_db_before: sb,
+        sidelobe_db_after: sa,
+        width_cm_before: wb,
+        width_cm_after: wa,
+        range_m_before: rb,
+        range_m_after: ra,
+    })
+}
