@@ -63,6 +63,21 @@ pub enum CorrectionArg {
     None,
     /// On receive: DC, I/Q imbalance, and the chain's response divided out.
     Rx,
+    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
+    Tx,
+    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
+    Both,
+}
+
+impl CorrectionArg {
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            CorrectionArg::None => "none",
+            CorrectionArg::Rx => "rx",
+            CorrectionArg::Tx => "tx",
+            CorrectionArg::Both => "both",
+        }
+    }
 }
 
 /// `--window`.

@@ -71,8 +71,9 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_transport: ScopeTransportArg,
-    /// Correction of the chain's measured errors: none, or rx (DC, I/Q imbalance and the
-    /// chain's response on receive). Default: rx when the bench file names a response
+    /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
+    /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
+    /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
     /// calibration (or --calibration is given), none otherwise.
     #[arg(long, value_enum)]
     pub correction: Option<super::args::CorrectionArg>,
@@ -98,9 +99,12 @@ pub(crate) fn resolve_correction(
     match (correction, named) {
         (Some(CorrectionArg::None), _) => Ok(None),
         (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
-        (Some(CorrectionArg::Rx), None) => Err(crate::exit::bad_input(
-            "--correction rx needs a response calibration: the bench file names none; run              `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass              --calibration FILE",
-        )),
+        (Some(mode), None) => Err(crate::exit::bad_input(format!(
+            "--correction {} needs a response calibration: the bench file names none; run \
+             `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \
+             --calibration FILE",
+            mode.name()
+        ))),
         (None, None) => Ok(None),
     }
 }
@@ -120,7 +124,8 @@ pub(crate) fn calibration_warnings(
     ] {
         if then != now {
             out.push(format!(
-                "the response calibration {} was measured with the {what} {:?}, this capture                  used {:?}: measure it again on this bench (`radbench calibrate response`)",
+                "the response calibration {} was measured with the {what} {:?}, this capture \
+                 used {:?}: measure it again on this bench (`radbench calibrate response`)",
                 cal.path.display(),
                 then.map_or("none", |s| s.as_str()),
                 now.map_or("none", |s| s.as_str()),
@@ -284,7 +289,8 @@ async fn measure_into(
         );
     }
     let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
-    options.correction = calibration.as_ref().map(|c| c.used());
+    let mode = args.correction.unwrap_or(super::args::CorrectionArg::Rx);
+    options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,
         payload: args.payload.as_ref().map(|p| p.as_bytes().to_vec()),
@@ -348,6 +354,15 @@ fn report(m: &Measurement, out: &Path) -> String {
         m.period(),
         m.taken.tx.sample_rate_hz() / 1e9
     );
+    if let Some(c) = &o.correction {
+        println!("correction {} with {}", c.mode, c.calibration);
+    }
+    if let Some(p) = &m.taken.tx.predistortion {
+        println!(
+            "pre-distorted: {:+.2} dB more back-off, SQNR {:.1} -> {:.1} dB, largest boost {:.1} dB",
+            p.extra_backoff_db, p.sqnr_db_before, p.sqnr_db_after, p.peak_boost_db
+        );
+    }
     if p.targets.is_empty() {
         println!("targets: none");
     } else {

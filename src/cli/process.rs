@@ -129,6 +129,15 @@ impl Args {
         &self,
     ) -> anyhow::Result<Option<Option<crate::measure::response::CorrectionUsed>>> {
         use crate::measure::response::Calibration;
+        if matches!(
+            self.correction,
+            Some(CorrectionArg::Tx | CorrectionArg::Both)
+        ) {
+            return Err(crate::exit::bad_input(
+                "--correction: none or rx (a capture already made cannot be pre-distorted; one \
+                 captured with tx or both is processed as it was unless --correction is given)",
+            ));
+        }
         Ok(match (self.correction, &self.calibration) {
             (Some(CorrectionArg::None), Some(_)) => {
                 return Err(crate::exit::bad_input(
@@ -138,8 +147,7 @@ impl Args {
             (Some(CorrectionArg::None), None) => Some(None),
             (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
             // rx without a file: what each capture recorded (checked per capture).
-            (Some(CorrectionArg::Rx), None) => None,
-            (None, None) => None,
+            (_, None) => None,
         })
     }
 

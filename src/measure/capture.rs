@@ -117,10 +117,12 @@ pub async fn prepare(
     let spec = request.waveform;
     let payload = request.payload.clone();
     let seed = request.seed;
-    let tx = off_runtime(move || {
-        Transmission::new(&spec, payload.as_deref(), seed, Dac::default()).map(Arc::new)
-    })
-    .await??;
+    let tx =
+        off_runtime(move || Transmission::new(&spec, payload.as_deref(), seed, Dac::default()))
+            .await??;
+    // Pre-distorted for the chain's response when the correction asks (before the instruments
+    // are planned: the catalog's limits are checked on the codes that will play).
+    let tx = Arc::new(tx.with_correction(&request.options)?);
     super::pipeline::validate(&tx, &request.options)?;
     let plan = station::plan(
         &bench.file,

@@ -654,24 +654,15 @@ fn equaliser_for(
     used: &super::response::CorrectionUsed,
     period: usize,
     fs: f64,
-) -> Result<(RxEqualiser, CorrectionCheck), MeasureError> {
-    if used.mode != "rx" {
+) -> Result<(Option<RxEqualiser>, CorrectionCheck), MeasureError> {
+    if !matches!(used.mode.as_str(), "rx" | "tx" | "both") {
         return Err(MeasureError::option(
             "correction",
             &used.mode,
-            "none or rx (tx and both pre-distort the AWG's waveform: not available yet)",
+            "none, rx, tx or both",
         ));
     }
-    let cal = super::response::Calibration::load(std::path::Path::new(&used.calibration))?;
-    if cal.sha256 != used.sha256 {
-        return Err(MeasureError::CalibrationFile {
-            path: used.calibration.clone(),
-            reason: format!(
-                "it has changed since it was used (SHA-256 {}, recorded {}): pass                  --calibration to use it as it is now",
-                cal.sha256, used.sha256
-            ),
-        });
-    }
+    let cal = super::response::Calibration::load_used(used)?;
     let check = CorrectionCheck {
         path: used.calibration.clone(),
         band_hz: cal.header.band_hz,
@@ -679,7 +670,14 @@ fn equaliser_for(
         width_cm: cal.header.reference.width_cm_after,
         comparable: false,
     };
-    Ok((cal.response.equaliser(period, fs)?, check))
+    let equaliser = match used.mode.as_str() {
+        "rx" => Some(cal.response.equaliser(period, fs)?),
+        // The transmitter's codes carry the response's inverse: the receiver takes out only its
+        // own DC and I/Q imbalance.
+        "both" => Some(cal.response.receiver_only(period, fs)?),
+        _ => None,
+    };
+    Ok((equaliser, check))
 }
 
 impl Pipeline {
@@ -723,7 +721,7 @@ impl Pipeline {
                 check.comparable = options.window == default.window
                     && options.algorithm == default.algorithm
                     && options.zero_pad == default.zero_pad;
-                (Some(eq), Some(check))
+                (eq, Some(check))
             }
             None => (None, None),
         };

@@ -496,11 +496,13 @@ pub(crate) fn resolve(
         .filter(|o| o.algorithm.supports(tx.spec.kind()) || overrides.algorithm.is_some())
         .unwrap_or_else(|| ProcessOptions::for_waveform(tx.spec.kind()));
     let options = overrides.apply(base);
+    let tx = tx.with_correction(&options)?;
     if overrides.require_correction && options.correction.is_none() {
         return Err(MeasureError::option(
             "correction",
             "rx",
-            "rx needs a calibration: this capture was made without one; pass --calibration FILE              (`radbench calibrate response` writes one)",
+            "rx needs a calibration: this capture was made without one; pass --calibration FILE \
+             (`radbench calibrate response` writes one)",
         ));
     }
     let period = loaded.recorded_period().unwrap_or(tx.len()).max(tx.len());

@@ -155,6 +155,29 @@ impl Response {
     }
 }
 
+impl Response {
+    /// The receiver's part alone (DC and I/Q imbalance), the response left flat: for a
+    /// transmitter that pre-distorts the response.
+    pub(crate) fn receiver_only(
+        &self,
+        period: usize,
+        fs: f64,
+    ) -> Result<RxEqualiser, MeasureError> {
+        let flat = ResponseTable {
+            freq_hz: vec![-1.0, 1.0],
+            response: vec![Complex64::new(1.0, 0.0); 2],
+        };
+        let [di, dq] = self.figures.dc_v;
+        Ok(RxEqualiser::new(
+            &flat,
+            Complex64::new(di, dq),
+            Some((self.figures.rx_iq_gain_db, self.figures.rx_iq_phase_deg)),
+            period,
+            fs,
+        )?)
+    }
+}
+
 /// A calibration read from its file.
 #[derive(Debug, Clone)]
 pub(crate) struct Calibration {
@@ -173,6 +196,31 @@ impl Calibration {
             sha256: self.sha256.clone(),
             measured_at: self.header.measured_at.clone(),
         }
+    }
+
+    /// What a measurement records when it uses this calibration with `mode` (rx, tx or both).
+    pub(crate) fn used_as(&self, mode: &str) -> CorrectionUsed {
+        CorrectionUsed {
+            mode: mode.into(),
+            ..self.used()
+        }
+    }
+
+    /// The calibration a measurement recorded, read again and checked to be the same (its
+    /// SHA-256).
+    pub(crate) fn load_used(used: &CorrectionUsed) -> Result<Calibration, MeasureError> {
+        let cal = Calibration::load(Path::new(&used.calibration))?;
+        if cal.sha256 != used.sha256 {
+            return Err(MeasureError::CalibrationFile {
+                path: used.calibration.clone(),
+                reason: format!(
+                    "it has changed since it was used (SHA-256 {}, recorded {}): pass \
+                     --calibration to use it as it is now",
+                    cal.sha256, used.sha256
+                ),
+            });
+        }
+        Ok(cal)
     }
 
     /// Reads the header at `path` and its table, checking the table's SHA-256.

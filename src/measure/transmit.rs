@@ -83,6 +83,23 @@ pub struct Transmission {
     pub dac: Dac,
     /// What quantising to the DAC cost.
     pub quantised: QuantisationReport,
+    /// The chain's response pre-distorted out of the codes (`--correction tx|both`).
+    pub predistortion: Option<PredistortionReport>,
+}
+
+/// What pre-distorting the waveform for the chain's measured response cost.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PredistortionReport {
+    /// The calibration it came from.
+    pub calibration: String,
+    /// How much more back-off the pre-distorted waveform needs to keep its peak within the DAC's
+    /// range: its peak-to-average ratio against the original's, dB.
+    pub extra_backoff_db: f64,
+    /// Quantisation SQNR of the codes before and after, dB.
+    pub sqnr_db_before: f64,
+    pub sqnr_db_after: f64,
+    /// Largest boost of the inverse response over the band, dB.
+    pub peak_boost_db: f64,
 }
 
 impl Transmission {
@@ -152,6 +169,90 @@ impl Transmission {
             seed,
             dac,
             modulation,
+            predistortion: None,
+        })
+    }
+
+    /// This transmission as `options.correction` wants it: pre-distorted for the chain's
+    /// response with `tx` and `both`, unchanged otherwise.
+    pub(crate) fn with_correction(
+        self,
+        options: &super::options::ProcessOptions,
+    ) -> Result<Transmission, MeasureError> {
+        match &options.correction {
+            Some(used) if used.mode == "tx" || used.mode == "both" => {
+                let cal = super::response::Calibration::load_used(used)?;
+                self.predistorted(&cal)
+            }
+            _ => Ok(self),
+        }
+    }
+
+    /// The codes pre-distorted by the inverse of `cal`'s measured response (magnitude and phase
+    /// over the band): what leaves the chain is then the waveform as designed. The receiver's
+    /// reference becomes what the measured chain makes of the new codes, so the matched filter
+    /// and the OFDM division fit what arrives.
+    pub(crate) fn predistorted(
+        &self,
+        cal: &super::response::Calibration,
+    ) -> Result<Transmission, MeasureError> {
+        use crate::dsp::response::RxEqualiser;
+        if matches!(self.dac, Dac::Ideal) {
+            return Err(MeasureError::option(
+                "correction",
+                "tx",
+                "tx and both pre-distort the AWG's codes: a bench transmission (8-bit codes)",
+            ));
+        }
+        let n = self.len();
+        let fs = self.sample_rate_hz();
+        let table = &cal.response.table;
+        let mut x = self.reference.clone();
+        let zero = num_complex::Complex64::new(0.0, 0.0);
+        RxEqualiser::new(table, zero, None, n, fs)?.apply(&mut x, false)?;
+        let backoff_db = match self.dac {
+            Dac::Codes { backoff_db } => backoff_db,
+            Dac::Ideal => DEFAULT_BACKOFF_DB,
+        };
+        let q = quantise(&x, backoff_db, BackoffReference::Peak)?;
+        let codes: Vec<Complex64> =
+            q.i.iter()
+                .zip(&q.q)
+                .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
+                .collect();
+        let reference = through_table(&codes, table, fs);
+        let papr = |v: &[Complex64]| {
+            let peak = v.iter().map(|z| z.norm_sqr()).fold(0.0, f64::max);
+            let mean = v.iter().map(|z| z.norm_sqr()).sum::<f64>() / v.len().max(1) as f64;
+            10.0 * (peak / mean.max(1e-300)).max(1e-300).log10()
+        };
+        let peak_boost_db = table
+            .response
+            .iter()
+            .map(|h| -20.0 * h.norm().max(1e-300).log10())
+            .fold(f64::NEG_INFINITY, f64::max);
+        let report = PredistortionReport {
+            calibration: cal.path.display().to_string(),
+            extra_backoff_db: papr(&x) - papr(&self.reference),
+            sqnr_db_before: self.quantised.sqnr_db,
+            sqnr_db_after: q.sqnr_db,
+            peak_boost_db,
+        };
+        Ok(Transmission {
+            quantised: QuantisationReport {
+                backoff_db,
+                clipped_samples: q.clipped(),
+                peak_dbfs: q.peak_dbfs(),
+                sqnr_db: q.sqnr_db,
+            },
+            iq: IqWaveform {
+                i: q.i,
+                q: q.q,
+                marker_high_samples: self.iq.marker_high_samples,
+            },
+            reference,
+            predistortion: Some(report),
+            ..self.clone()
         })
     }
 
@@ -188,6 +289,7 @@ impl Transmission {
             "bits": self.bits.len(),
             "payload_bytes": self.payload.as_ref().map(Vec::len),
             "quantisation": self.quantised,
+            "predistortion": self.predistortion,
             "spec": self.spec,
             // Enough to make the same transmission again (re-processing).
             "seed": self.seed,
@@ -223,6 +325,28 @@ impl Transmission {
         }
         v
     }
+}
+
+/// `x` (one period) through the response `table` (per bin, held at its ends).
+fn through_table(
+    x: &[Complex64],
+    table: &crate::dsp::response::ResponseTable,
+    fs: f64,
+) -> Vec<Complex64> {
+    let n = x.len();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    let mut s = x.to_vec();
+    planner.plan_fft_forward(n).process(&mut s);
+    for (k, v) in s.iter_mut().enumerate() {
+        let signed = if k <= n / 2 {
+            k as f64
+        } else {
+            k as f64 - n as f64
+        };
+        *v *= table.at(signed * fs / n as f64) / n as f64;
+    }
+    planner.plan_fft_inverse(n).process(&mut s);
+    s
 }
 
 /// A payload too long for one repetition is refused before anything is generated, naming the

@@ -200,6 +200,51 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
     )
     .await;
     assert!((psl_none + 10.4).abs() < 0.6, "uncorrected {psl_none} dB");
+    // Pre-distorted on transmit (tx), and with the receiver's own errors corrected too (both).
+    for mode in ["tx", "both"] {
+        let out = format!("c-{mode}");
+        let ((r, psl, width), warnings, count) = capture(
+            d,
+            &[
+                "--scene",
+                &lab,
+                "--calibration",
+                "response.toml",
+                "--correction",
+                mode,
+                "--out",
+                &out,
+            ],
+        )
+        .await;
+        assert_eq!(count, 1, "{mode}: one pillar, one target");
+        assert!(warnings.is_empty(), "{mode}: {warnings:?}");
+        assert!((r - 2.3).abs() < 1e-3, "{mode}: {r} m");
+        assert!(
+            (psl - psl_ideal).abs() < 0.5,
+            "{mode}: {psl} vs ideal {psl_ideal} dB"
+        );
+        assert!(
+            (width - width_ideal).abs() < 0.3,
+            "{mode}: {width} vs {width_ideal} cm"
+        );
+        let s = json(&std::fs::read_to_string(d.join(&out).join("summary.json")).unwrap());
+        assert_eq!(s["processing"]["correction"]["mode"], mode);
+        let p = &s["transmission"]["predistortion"];
+        let (before, after) = (
+            p["sqnr_db_before"].as_f64().unwrap(),
+            p["sqnr_db_after"].as_f64().unwrap(),
+        );
+        assert!(after > before - 3.0 && after < before + 1.0, "{p}");
+        assert!(p["extra_backoff_db"].as_f64().unwrap().abs() < 3.0, "{p}");
+        // Processed again as it was recorded: the same codes, the same result.
+        let again = format!("p-{mode}");
+        let (code, _, err) = radbench(d, &["process", &out, "--out", &again]).await;
+        assert_eq!(code, 0, "{err}");
+        let p =
+            json(&std::fs::read_to_string(d.join(&again).join(&out).join("summary.json")).unwrap());
+        assert_eq!(p["targets"], s["targets"], "{mode}");
+    }
     let summary = json(&std::fs::read_to_string(d.join("c-rx/summary.json")).unwrap());
     let used = &summary["processing"]["correction"];
     assert_eq!(used["mode"], "rx", "{summary}");
