@@ -36,16 +36,12 @@ pub struct Args {
     /// Repetitions averaged (and as many with the transmitter off, for DC and I/Q imbalance).
     #[arg(long, default_value_t = 16, value_name = "N")]
     pub repetitions: usize,
-    /// Half-width of the window around the reference's echo, ns: the longest chain impulse
-    /// response measured (and 1 / (2 gate) the finest ripple resolved). Other echoes must lie
-    /// outside it.
-    #[arg(
-        long,
-        default_value_t = 4.0,
-        value_name = "NS",
-        allow_hyphen_values = true
-    )]
-    pub gate_ns: f64,
+    /// Half-width of the window around the reference's echo, ns: the longest chain echo
+    /// measured (and 1 / (2 gate) the finest ripple resolved). Other echoes must lie outside it
+    /// (and its taper, half as wide again). Default: up to 8 ns, less when the reference is so
+    /// close that the Tx -> Rx leakage would fall inside (a reference at 2 m or more gets 8 ns).
+    #[arg(long, value_name = "NS", allow_hyphen_values = true)]
+    pub gate_ns: Option<f64>,
     /// Where to write the calibration (a .toml header; the table goes beside it as .npy).
     /// Default: beside the bench file, <bench>-response.toml; with the built-in lab, nothing
     /// is written without it.
@@ -66,10 +62,11 @@ pub struct Args {
 fn check(args: &Args) -> Result<(), MeasureError> {
     crate::measure::calibration::check(args.reference_range, 2.0)?;
     crate::measure::capture::check_repetitions(args.repetitions)?;
-    if !(args.gate_ns.is_finite() && (0.5..=50.0).contains(&args.gate_ns)) {
+    let gate_ns = args.gate_ns.unwrap_or(0.0);
+    if args.gate_ns.is_some() && !(gate_ns.is_finite() && (0.5..=50.0).contains(&gate_ns)) {
         return Err(MeasureError::option(
             "gate-ns",
-            args.gate_ns,
+            gate_ns,
             "a half-width in ns, 0.5 to 50 (about the chain's longest echo, a few ns)",
         ));
     }
@@ -120,7 +117,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             waveform: WaveformKind::from(args.waveform),
             reference_range_m: args.reference_range,
             repetitions: args.repetitions,
-            gate_s: args.gate_ns * 1e-9,
+            gate_s: gate_s(&args),
         };
         let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
         let calibrated = calibrate_with(&mut rig, &bench, &request, &interrupt).await?;
@@ -163,6 +160,14 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 
 fn bench_path(args: &Args) -> Option<PathBuf> {
     args.bench.clone()
+}
+
+/// The gate asked for, or the default for the reference's range.
+fn gate_s(args: &Args) -> f64 {
+    args.gate_ns.map_or_else(
+        || crate::measure::calibration::default_gate_s(args.reference_range),
+        |ns| ns * 1e-9,
+    )
 }
 
 /// `<bench stem>-response.toml` beside the bench file.
@@ -224,11 +229,11 @@ fn print_report(
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".into(), |v| format!("{v:.2} {unit}"));
     println!(
-        "chain response over {:.3} .. {:.3} GHz ({} repetitions, gate +-{} ns)",
+        "chain response over {:.3} .. {:.3} GHz ({} repetitions, gate +-{:.1} ns)",
         r.band_hz[0] / 1e9,
         r.band_hz[1] / 1e9,
         args.repetitions,
-        args.gate_ns
+        gate_s(args) * 1e9
     );
     println!("  gain ripple          {:.2} dB p-p", g.ripple_db_pp);
     println!(

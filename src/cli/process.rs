@@ -94,9 +94,13 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub correction: Option<CorrectionArg>,
     /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
-    /// captures made without one.
+    /// captures made without one; with --reference-range, a capture of one reference pillar
+    /// from which the response is measured (written to OUT/reference-response.toml).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
+    /// The reference pillar's true range in the --calibration capture, metres.
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub reference_range: Option<f64>,
 }
 
 impl Args {
@@ -127,8 +131,39 @@ impl Args {
     /// The correction asked for: `None` keeps what each capture recorded.
     fn correction(
         &self,
+        out: &Path,
     ) -> anyhow::Result<Option<Option<crate::measure::response::CorrectionUsed>>> {
         use crate::measure::response::Calibration;
+        if let Some(r) = self.reference_range {
+            crate::measure::calibration::check(r, 2.0)?;
+            let Some(capture) = &self.calibration else {
+                return Err(crate::exit::bad_input(
+                    "--reference-range needs --calibration CAPTURE: the capture of one reference \
+                     pillar to measure the response from",
+                ));
+            };
+            if self.correction == Some(CorrectionArg::None) {
+                return Err(crate::exit::bad_input(
+                    "--correction none with --calibration: give one or the other",
+                ));
+            }
+            std::fs::create_dir_all(out)?;
+            let cal = crate::measure::response_from_capture::calibrate_from_capture(
+                capture,
+                r,
+                crate::measure::calibration::default_gate_s(r),
+                &out.join("reference-response.toml"),
+            )?;
+            eprintln!(
+                "response measured from {} (reference at {r} m): side-lobe {:.2} -> {:.2} dB; \
+                 stored in {}",
+                capture.display(),
+                cal.header.reference.sidelobe_db_before.unwrap_or(f64::NAN),
+                cal.header.reference.sidelobe_db_after.unwrap_or(f64::NAN),
+                cal.path.display()
+            );
+            return Ok(Some(Some(cal.used())));
+        }
         if matches!(
             self.correction,
             Some(CorrectionArg::Tx | CorrectionArg::Both)
@@ -264,7 +299,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     }
     let waveform = args.waveform()?;
     let mut overrides = args.overrides();
-    overrides.correction = args.correction()?;
+    overrides.correction = args.correction(&out)?;
     overrides.require_correction =
         args.correction == Some(CorrectionArg::Rx) && args.calibration.is_none();
     let discovered = reprocess::discover(&args.inputs);

@@ -61,3 +61,28 @@ pub(crate) fn estimate_delay(
         measured_range_m: reference.range_m,
     })
 }
+
+/// The widest window a response calibration opens around its reference by default, seconds.
+const MAX_DEFAULT_GATE_S: f64 = 8e-9;
+
+/// The response calibration's default half-window around a reference at `reference_range_m`:
+/// as wide as 8 ns (the chain's longer echoes), but with its taper (half as wide again) ending
+/// 1 ns short of the Tx -> Rx leakage at the horns, which must stay out.
+pub(crate) fn default_gate_s(reference_range_m: f64) -> f64 {
+    let to_leakage = 2.0 * reference_range_m / C0;
+    ((to_leakage - 1e-9) / 1.5).clamp(0.5e-9, MAX_DEFAULT_GATE_S)
+}
+
+#[cfg(test)]
+mod gate_tests {
+    use super::*;
+
+    #[test]
+    fn the_default_gate_keeps_the_leakage_out_and_opens_to_8_ns() {
+        // 1 m: the leakage is 6.67 ns before the reference.
+        let g = default_gate_s(1.0);
+        assert!(1.5 * g < 2.0 / C0 - 0.99e-9 && g > 3.5e-9, "{g}");
+        assert_eq!(default_gate_s(2.0), 8e-9);
+        assert_eq!(default_gate_s(0.05), 0.5e-9);
+    }
+}

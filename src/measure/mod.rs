@@ -35,6 +35,7 @@ pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;
 pub(crate) mod response;
+pub(crate) mod response_from_capture;
 pub(crate) mod response_run;
 pub(crate) mod scene_capture;
 pub(crate) mod station;

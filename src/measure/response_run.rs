@@ -172,7 +172,7 @@ pub(crate) async fn calibrate_with(
 
 /// The reference's figures in the repetitions' average, uncorrected and corrected with
 /// `response`.
-fn try_correction(
+pub(crate) fn try_correction(
     pipeline: &mut Pipeline,
     response: &Response,
     aligned: &[Aligned],

@@ -378,3 +378,55 @@ async fn a_correction_that_would_not_help_is_refused_and_another_chains_is_warne
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("has changed since it was measured"), "{err}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_archive_is_corrected_from_a_reference_capture_of_its_own_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Both captures made without any calibration, as an archive would hold them.
+    let reference = scene(d, "reference", 2.0, "thesis-lab");
+    let lab = scene(d, "lab", 2.3, "thesis-lab");
+    let ((_, psl_none, _), _, _) = capture(
+        d,
+        &["--scene", &reference, "--repetitions", "8", "--out", "ref"],
+    )
+    .await;
+    assert!((psl_none + 10.4).abs() < 0.6, "{psl_none}");
+    let _ = capture(d, &["--scene", &lab, "--out", "old"]).await;
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "process",
+            "old",
+            "--calibration",
+            "ref",
+            "--reference-range",
+            "2.0",
+            "--out",
+            "p",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("response measured from ref"), "{err}");
+    assert!(
+        d.join("p/reference-response.toml").exists() && d.join("p/reference-response.npy").exists()
+    );
+    let s = json(&std::fs::read_to_string(d.join("p/old/summary.json")).unwrap());
+    let t = &s["targets"][0];
+    assert_eq!(s["targets"].as_array().unwrap().len(), 1, "{s}");
+    let psl = t["sidelobe_db"].as_f64().unwrap();
+    assert!(
+        (psl + 13.3).abs() < 0.5,
+        "corrected from the reference capture: {psl} dB"
+    );
+    assert!((t["range_m"].as_f64().unwrap() - 2.3).abs() < 1e-3);
+    // --reference-range alone is refused by name.
+    let (code, _, err) = radbench(
+        d,
+        &["process", "old", "--reference-range", "2.0", "--out", "q"],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--calibration CAPTURE"), "{err}");
+}
