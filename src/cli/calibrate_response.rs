@@ -307,22 +307,45 @@ fn draw(path: &Path, r: &Response) -> Result<(), MeasureError> {
             Curve::solid("gain (dB)", f.clone(), gain.clone()),
             Curve::solid("phase (deg / 10)", f.clone(), phase),
             Curve {
-                label: "gain +- spread".into(),
+                label: "gain + spread".into(),
                 range_m: f.clone(),
                 db: band(1.0),
                 style: LineStyle::Dashed,
             },
             Curve {
-                label: String::new(),
+                label: "gain - spread".into(),
                 range_m: f,
                 db: band(-1.0),
                 style: LineStyle::Dashed,
             },
         ],
     );
-    plot.window_m = Some((r.band_hz[0] / 1e9, r.band_hz[1] / 1e9));
+    plot.window_m = Some(contiguous_around_zero(&r.table.freq_hz));
     plot.y_label = "gain (dB), phase (deg / 10)".into();
     plot.x_label = "frequency offset from the carrier (GHz)".into();
     crate::storage::plot::draw(path, &plot)?;
     Ok(())
+}
+
+/// The run of table frequencies around 0 Hz without a gap (a step over 3 times the usual), GHz:
+/// beyond it the waveform's power dips under the table's floor and the response is not shown.
+fn contiguous_around_zero(freq_hz: &[f64]) -> (f64, f64) {
+    let steps: Vec<f64> = freq_hz.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut sorted = steps.clone();
+    sorted.sort_by(f64::total_cmp);
+    let usual = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let centre = freq_hz
+        .partition_point(|&f| f < 0.0)
+        .min(freq_hz.len().saturating_sub(1));
+    let (mut lo, mut hi) = (centre, centre);
+    while lo > 0 && steps[lo - 1] <= 3.0 * usual {
+        lo -= 1;
+    }
+    while hi + 1 < freq_hz.len() && steps[hi] <= 3.0 * usual {
+        hi += 1;
+    }
+    match (freq_hz.get(lo), freq_hz.get(hi)) {
+        (Some(a), Some(b)) if b > a => (a / 1e9, b / 1e9),
+        _ => (-1.0, 1.0),
+    }
 }

@@ -85,6 +85,8 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
             "--allow-rf",
             "--out",
             "response.toml",
+            "--plot",
+            "response.svg",
             "--json",
         ],
     )
@@ -95,6 +97,11 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
     let after = report["reference"]["sidelobe_db_after"].as_f64().unwrap();
     assert!((before + 10.4).abs() < 0.5, "uncorrected {before} dB");
     assert!((after + 13.3).abs() < 0.5, "corrected {after} dB");
+    let svg = std::fs::read_to_string(d.join("response.svg")).unwrap();
+    assert!(
+        svg.contains("<svg") && svg.contains("frequency offset"),
+        "a plot of the response"
+    );
     let spread = report["figures"]["spread_db_max"].as_f64().unwrap();
     assert!(spread < 0.2, "{spread} dB over 16 repetitions");
 
