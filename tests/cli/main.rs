@@ -16,6 +16,7 @@ mod capture_e2e;
 mod cli_safety;
 mod clipping_capture;
 mod detect_capture;
+mod detect_corrected;
 mod exit_paths;
 mod io_cli;
 mod process_cli;
