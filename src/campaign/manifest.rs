@@ -67,6 +67,9 @@ pub struct Manifest {
     /// The instrument files of the bench file's `catalog` folder, as the run read them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub bench_catalog: Vec<InputFile>,
+    /// The response calibration every step corrects with (`processing.correction = "rx"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationRecord>,
     /// `*IDN?` of each instrument at the first connection.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub instruments: Option<Instruments>,
@@ -92,6 +95,25 @@ pub struct InputFile {
     /// The copy, relative to the run folder.
     pub copy: PathBuf,
     pub sha256: String,
+}
+
+/// The response calibration a run corrects with: where it came from, its copy in the run folder
+/// (header and table; a resume whose original changed goes on with the copy), its SHA-256 and
+/// when it was measured.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationRecord {
+    /// `rx`.
+    pub mode: String,
+    /// The calibration header as the plan named it (absolute).
+    pub path: PathBuf,
+    /// The header's copy, relative to the run folder.
+    pub copy: PathBuf,
+    /// The table's copy (`.npy`), relative to the run folder.
+    pub table_copy: PathBuf,
+    /// SHA-256 of the header (which holds its table's SHA-256), as every step records it.
+    pub sha256: String,
+    /// When the calibration was measured (RFC 3339).
+    pub measured_at: String,
 }
 
 /// `*IDN?` of every instrument.

@@ -6,8 +6,8 @@
 //! without touching an instrument.
 
 use super::spec::{
-    AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
-    SweepParameter, SweepSection, WaveformKindName,
+    AwgTransportName, CorrectionName, ModelOrder, PositionerKind, ScopeTransportName, SpecError,
+    SpecFile, SweepParameter, SweepSection, WaveformKindName,
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -378,6 +378,11 @@ impl Plan {
         }
     }
 
+    /// The receive correction every step applies (the same for every algorithm).
+    pub(crate) fn correction(&self) -> Option<&crate::measure::response::CorrectionUsed> {
+        self.processing.first().and_then(|o| o.correction.as_ref())
+    }
+
     /// The algorithms' names, in order.
     pub(crate) fn algorithm_names(&self) -> Vec<&'static str> {
         self.processing.iter().map(|o| o.algorithm.name()).collect()
@@ -392,7 +397,8 @@ impl Plan {
     }
 }
 
-/// Resolves a spec against the bench: every value checked, located in the spec on error.
+/// Resolves a spec against the bench: every value checked, located in the spec on error. Reads
+/// nothing but the response calibration the processing names (checked whole: header and table).
 pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     let s = &spec.spec;
     if !(1..=MAX_REPETITIONS).contains(&s.repetitions) {
@@ -408,7 +414,13 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         ));
     }
     let base = base_waveform(spec)?;
-    let processing = processing(spec, base.kind(), bench)?;
+    let mut processing = processing(spec, base.kind(), bench)?;
+    if let Some((mode, cal)) = correction(spec, bench)? {
+        // Resolved once: every step's pipelines apply (and record) the same calibration.
+        for o in &mut processing {
+            o.correction = Some(cal.used_as(mode.name()));
+        }
+    }
     let from_targets = matches!(s.processing.music_p, Some(ModelOrder::Named(_)))
         && processing.iter().any(|o| o.algorithm.is_subspace());
     let positioner = positioner(spec, bench)?;
@@ -650,6 +662,57 @@ fn processing(
         out.push(o);
     }
     Ok(out)
+}
+
+/// The response calibration the processing corrects with: `processing.correction` and
+/// `processing.calibration` (relative to the spec), else the one the bench file names; as
+/// `radbench capture` resolves `--correction` and `--calibration`.
+fn correction(
+    spec: &SpecFile,
+    bench: &BenchInfo,
+) -> Result<Option<(CorrectionName, crate::measure::response::Calibration)>, SpecError> {
+    let p = &spec.spec.processing;
+    let mode = p.correction.unwrap_or(CorrectionName::Rx);
+    let given = p.calibration.as_ref().map(|c| spec.resolve(c));
+    let named = bench
+        .file
+        .as_ref()
+        .and_then(|(path, f)| f.response_path(path));
+    let (field, path) = match (p.correction, given, named) {
+        (Some(CorrectionName::None), Some(_), _) => {
+            return Err(spec.error(
+                "processing.calibration",
+                "given with correction = \"none\": remove one of them (correction = \"rx\" \
+                 corrects with it)",
+            ))
+        }
+        (Some(CorrectionName::None), None, _) => return Ok(None),
+        (_, Some(path), _) => ("processing.calibration", path),
+        (_, None, Some(path)) => ("processing.correction", path),
+        (Some(m), None, None) => {
+            return Err(spec.error(
+                "processing.correction",
+                format!(
+                    "\"{}\" needs a response calibration: give processing.calibration = \"FILE\" \
+                 (relative to the spec), or name one in the bench file's [calibration] response \
+                 (`radbench calibrate response` does); allowed without one: \"none\"",
+                    m.name()
+                ),
+            ))
+        }
+        (None, None, None) => return Ok(None),
+    };
+    crate::measure::response::Calibration::load(&path)
+        .map(|c| Some((mode, c)))
+        .map_err(|e| {
+            let from = if field == "processing.correction" {
+                " (named by the bench file's [calibration] response; correction = \"none\" \
+                 runs without it)"
+            } else {
+                ""
+            };
+            spec.error(field, format!("{e}{from}"))
+        })
 }
 
 /// The positioner, with defaults; `None` when nothing places targets.
@@ -998,6 +1061,17 @@ impl Plan {
                 c.capture_rate_hz / 1e9
             );
         }
+        let _ = writeln!(
+            out,
+            "correction: {}",
+            match self.correction() {
+                Some(c) => format!(
+                    "{} with the response calibration {} (measured {}, SHA-256 {})",
+                    c.mode, c.calibration, c.measured_at, c.sha256
+                ),
+                None => "none".into(),
+            }
+        );
         let _ = writeln!(
             out,
             "processing: {} (each applied to the same captures); {} repetition(s) per step; seed {}",

@@ -27,8 +27,8 @@
 //! stop writes the manifest with status `interrupted`, the reason and the step to resume at.
 
 use super::manifest::{
-    self, FileRecord, InputFile, Instruments, Manifest, Session, Status, StepRecord, StepStatus,
-    StepTables, Timing,
+    self, CalibrationRecord, FileRecord, InputFile, Instruments, Manifest, Session, Status,
+    StepRecord, StepStatus, StepTables, Timing,
 };
 use super::plan::{BenchInfo, Plan, Step};
 use super::positioner::{LineSource, Positioner};
@@ -61,6 +61,8 @@ pub(crate) const SPEC_COPY: &str = "spec.toml";
 pub(crate) const BENCH_COPY: &str = "bench.toml";
 /// Where the run keeps its copies of the bench file's own instrument files.
 pub(crate) const BENCH_CATALOG_COPY: &str = "bench-catalog";
+/// Where the run keeps its copy of the response calibration it corrects with.
+pub(crate) const CALIBRATION_COPY: &str = "calibration";
 /// Each step's own result (the entry of `results.json`), inside the step's folder.
 pub(crate) const STEP_RESULT: &str = "result.json";
 /// Held (flock) while a process works in the run folder.
@@ -179,6 +181,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         None => None,
     };
     let bench_catalog = copy_bench_catalog(&out, &run.bench)?;
+    let calibration = copy_calibration(&out, &run.plan)?;
     let journal_path = run
         .journal
         .clone()
@@ -196,6 +199,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         spec: spec_in,
         bench_file: bench_in,
         bench_catalog,
+        calibration,
         instruments: None,
         base_scene: None,
         plan: run.plan.clone(),
@@ -256,10 +260,11 @@ pub async fn resume(
         });
     }
     check_spec_unchanged(dir, &manifest)?;
-    let plan = manifest.plan.clone();
+    let mut plan = manifest.plan.clone();
     let mut forced = Vec::new();
     let bench_file = reload_bench_file(&plan, force, &mut forced)?;
     check_bench_catalog(&manifest, bench_file.as_ref(), force, &mut forced)?;
+    check_calibration(dir, &manifest, &mut plan, force, &mut forced)?;
     let info = BenchInfo {
         file: plan.bench.file.clone().zip(bench_file.clone()),
         scene: plan.bench.scene.clone(),
@@ -328,6 +333,117 @@ fn copy_bench_catalog(out: &Path, bench: &BenchInfo) -> Result<Vec<InputFile>, C
         });
     }
     Ok(copied)
+}
+
+/// Copies the response calibration the plan corrects with (header and table) into the run
+/// folder (`calibration/`), checked against the SHA-256 the plan recorded, so the correction the
+/// run was measured with stays with its data.
+fn copy_calibration(out: &Path, plan: &Plan) -> Result<Option<CalibrationRecord>, CampaignError> {
+    use crate::measure::response::Calibration;
+    let Some(used) = plan.correction() else {
+        return Ok(None);
+    };
+    let path = PathBuf::from(&used.calibration);
+    let bad = |reason: String| {
+        CampaignError::Measure(MeasureError::CalibrationFile {
+            path: used.calibration.clone(),
+            reason,
+        })
+    };
+    let cal = Calibration::load(&path)?;
+    let header = std::fs::read(&path).map_err(io(&path))?;
+    if manifest::sha256_bytes(&header) != used.sha256 || cal.sha256 != used.sha256 {
+        return Err(bad(
+            "it changed since the campaign was planned (SHA-256 differs): run it again".into(),
+        ));
+    }
+    let data = Path::new(&cal.header.data);
+    let (Some(name), Some(data_name)) = (path.file_name(), data.file_name()) else {
+        return Err(bad("a header file name and a table name are needed".into()));
+    };
+    if data.components().count() != 1 {
+        return Err(bad(format!(
+            "its table {} must sit beside the header (data = \"<name>.npy\")",
+            cal.header.data
+        )));
+    }
+    let table_path = path.parent().unwrap_or(Path::new(".")).join(data);
+    let table = std::fs::read(&table_path).map_err(io(&table_path))?;
+    if manifest::sha256_bytes(&table) != cal.header.data_sha256 {
+        return Err(bad(format!(
+            "its table {} changed since the campaign was planned: run it again",
+            table_path.display()
+        )));
+    }
+    let folder = out.join(CALIBRATION_COPY);
+    std::fs::create_dir_all(&folder).map_err(io(&folder))?;
+    let copy = Path::new(CALIBRATION_COPY).join(name);
+    let table_copy = Path::new(CALIBRATION_COPY).join(data_name);
+    write_atomic(&out.join(&copy), &header)?;
+    write_atomic(&out.join(&table_copy), &table)?;
+    Ok(Some(CalibrationRecord {
+        mode: used.mode.clone(),
+        path,
+        copy,
+        table_copy,
+        sha256: used.sha256.clone(),
+        measured_at: used.measured_at.clone(),
+    }))
+}
+
+/// The run's response calibration must be the one it started with (the same SHA-256, its table
+/// intact); a changed, unusable or missing one refuses the resume unless `force`, which is then
+/// recorded in `forced`. The processing keeps the run's own calibration either way: forced, it
+/// goes on with the copy in the run folder.
+fn check_calibration(
+    dir: &Path,
+    manifest: &Manifest,
+    plan: &mut Plan,
+    force: bool,
+    forced: &mut Vec<String>,
+) -> Result<(), CampaignError> {
+    use crate::measure::response::Calibration;
+    let Some(rec) = &manifest.calibration else {
+        return Ok(());
+    };
+    let what = match Calibration::load(&rec.path) {
+        Ok(cal) if cal.sha256 == rec.sha256 => return Ok(()),
+        Ok(cal) => format!(
+            "the response calibration {} changed since the run started (SHA-256 {}, the run \
+             was measured with {}, measured {})",
+            rec.path.display(),
+            cal.sha256,
+            rec.sha256,
+            rec.measured_at
+        ),
+        Err(e) => {
+            let why = match e {
+                MeasureError::CalibrationFile { reason, .. } => reason,
+                other => other.to_string(),
+            };
+            format!(
+                "the response calibration {} the run was measured with (SHA-256 {}) is gone or \
+                 unusable: {why}",
+                rec.path.display(),
+                rec.sha256
+            )
+        }
+    };
+    if !force {
+        return Err(CampaignError::DifferentBench { what });
+    }
+    forced.push(format!(
+        "{what}; the run goes on with its own copy {}",
+        rec.copy.display()
+    ));
+    let copy = dir.join(&rec.copy);
+    let copy = std::path::absolute(&copy).unwrap_or(copy);
+    for o in &mut plan.processing {
+        if let Some(c) = &mut o.correction {
+            c.calibration = copy.display().to_string();
+        }
+    }
+    Ok(())
 }
 
 /// The run's copy of its spec must be the one it started with.

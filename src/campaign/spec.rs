@@ -186,6 +186,40 @@ pub struct ProcessingSection {
     pub min_range_m: Option<f64>,
     #[serde(default)]
     pub max_range_m: Option<f64>,
+    /// The correction: `none`, `rx`, `tx` or `both` (default: `rx` when `calibration` is given
+    /// or the bench file names a response calibration, `none` otherwise).
+    #[serde(default)]
+    pub correction: Option<CorrectionName>,
+    /// A response calibration (`radbench calibrate response`), relative to the spec's folder
+    /// (default: the one the bench file's `[calibration] response` names).
+    #[serde(default)]
+    pub calibration: Option<PathBuf>,
+}
+
+/// `processing.correction`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CorrectionName {
+    /// Nothing corrected.
+    None,
+    /// On receive: DC, I/Q imbalance and the chain's response divided out.
+    Rx,
+    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
+    Tx,
+    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
+    Both,
+}
+
+impl CorrectionName {
+    /// As `--correction` and the recorded `mode` spell it.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            CorrectionName::None => "none",
+            CorrectionName::Rx => "rx",
+            CorrectionName::Tx => "tx",
+            CorrectionName::Both => "both",
+        }
+    }
 }
 
 /// `processing.music_p`: a number of targets, or `"targets"`.
@@ -436,6 +470,9 @@ fn syntax_error(text: &str, path: &Path, e: &toml::de::Error) -> SpecError {
                    step's number of targets)"
             .into();
     }
+    if message.contains("expected `none` or `rx`") {
+        message.push_str(" (tx and both, the AWG's waveform pre-distorted, are not available yet)");
+    }
     let Some(span) = e.span() else {
         return SpecError::Field {
             path: path.to_path_buf(),
@@ -584,6 +621,22 @@ mod tests {
             .to_string();
         assert!(err.starts_with("c.toml:2: `processing.music_p`"), "{err}");
         assert!(err.contains("\"targets\""), "{err}");
+    }
+
+    #[test]
+    fn the_correction_is_none_rx_tx_or_both() {
+        let f = parse("[processing]\ncorrection = \"rx\"\ncalibration = \"c.toml\"\n").unwrap();
+        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Rx));
+        let f = parse("[processing]\ncorrection = \"both\"\n").unwrap();
+        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Both));
+        let err = parse("[processing]\ncorrection = \"rxtx\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("c.toml:2: `processing.correction`"),
+            "{err}"
+        );
+        assert!(err.contains("`rx`") && err.contains("`both`"), "{err}");
     }
 
     #[test]

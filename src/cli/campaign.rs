@@ -69,7 +69,9 @@ pub struct ResumeArgs {
     /// Explicit permit to switch on the AWG outputs and the Tx/Rx for each step's capture.
     #[arg(long)]
     pub allow_rf: bool,
-    /// Continue even when the instruments or the bench's calibration differ from the run's.
+    /// Continue even when the instruments, the bench's calibration or the response calibration
+    /// file differ from the run's (recorded in the manifest; the run keeps its own copy of the
+    /// response calibration).
     #[arg(long)]
     pub force: bool,
     /// JSON Lines on stdout, as for `campaign run`.
@@ -97,7 +99,8 @@ pub struct ThesisLabArgs {
     pub out: Option<PathBuf>,
     /// The mock lab's chain: ideal, thesis-lab (a realistic E-band bench, see
     /// examples/scene.toml) or a scene file whose [chain] and [impairments] are used. Every row is
-    /// also run on the ideal chain, for comparison.
+    /// also run on the ideal chain, for comparison, and (a chain that is not ideal) on this chain
+    /// with the receive correction, calibrated in-process on a pillar at 1 m.
     #[arg(
         long,
         value_name = "ideal|thesis-lab|SCENE",

@@ -11,6 +11,7 @@ mod process_support;
 mod bad_input;
 mod calibrate_response;
 mod campaign;
+mod campaign_correction;
 mod campaign_report;
 mod capture_e2e;
 mod cli_safety;

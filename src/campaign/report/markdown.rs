@@ -18,7 +18,7 @@ pub(crate) struct Table {
 pub(crate) fn status_line(manifest: &Manifest) -> String {
     let plan = &manifest.plan;
     format!(
-        "Status: {}{}. Bench: {}. radbench {}{}.",
+        "Status: {}{}. Bench: {}. Correction: {}. radbench {}{}.",
         manifest.status.name(),
         manifest
             .reason
@@ -26,6 +26,16 @@ pub(crate) fn status_line(manifest: &Manifest) -> String {
             .map(|r| format!(" ({r})"))
             .unwrap_or_default(),
         plan.bench.describe(),
+        match &manifest.calibration {
+            Some(c) => format!(
+                "{} with the response calibration {} (measured {}; copy in {})",
+                c.mode,
+                c.path.display(),
+                c.measured_at,
+                c.copy.display()
+            ),
+            None => "none".into(),
+        },
         manifest.radbench_version,
         manifest
             .git_commit
