@@ -142,22 +142,12 @@ impl Transmission {
         };
         let q = quantise(&samples, backoff_db, BackoffReference::Peak)?;
         let reference = match dac {
-            Dac::Codes { .. } => {
-                q.i.iter()
-                    .zip(&q.q)
-                    .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
-                    .collect()
-            }
+            Dac::Codes { .. } => as_reference(&q),
             Dac::Ideal => samples,
         };
         Ok(Transmission {
             spec: *spec,
-            quantised: QuantisationReport {
-                backoff_db,
-                clipped_samples: q.clipped(),
-                peak_dbfs: q.peak_dbfs(),
-                sqnr_db: q.sqnr_db,
-            },
+            quantised: QuantisationReport::of(&q, backoff_db),
             iq: IqWaveform {
                 i: q.i,
                 q: q.q,
@@ -215,12 +205,7 @@ impl Transmission {
             Dac::Ideal => DEFAULT_BACKOFF_DB,
         };
         let q = quantise(&x, backoff_db, BackoffReference::Peak)?;
-        let codes: Vec<Complex64> =
-            q.i.iter()
-                .zip(&q.q)
-                .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
-                .collect();
-        let reference = through_table(&codes, table, fs);
+        let reference = through_table(&as_reference(&q), table, fs);
         let papr = |v: &[Complex64]| {
             let peak = v.iter().map(|z| z.norm_sqr()).fold(0.0, f64::max);
             let mean = v.iter().map(|z| z.norm_sqr()).sum::<f64>() / v.len().max(1) as f64;
@@ -239,12 +224,7 @@ impl Transmission {
             peak_boost_db,
         };
         Ok(Transmission {
-            quantised: QuantisationReport {
-                backoff_db,
-                clipped_samples: q.clipped(),
-                peak_dbfs: q.peak_dbfs(),
-                sqnr_db: q.sqnr_db,
-            },
+            quantised: QuantisationReport::of(&q, backoff_db),
             iq: IqWaveform {
                 i: q.i,
                 q: q.q,
@@ -324,6 +304,25 @@ impl Transmission {
             }
         }
         v
+    }
+}
+
+/// What the codes represent, per unit full scale (code / 127).
+fn as_reference(q: &crate::waveform::quantise::Quantised) -> Vec<Complex64> {
+    q.i.iter()
+        .zip(&q.q)
+        .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
+        .collect()
+}
+
+impl QuantisationReport {
+    fn of(q: &crate::waveform::quantise::Quantised, backoff_db: f64) -> Self {
+        QuantisationReport {
+            backoff_db,
+            clipped_samples: q.clipped(),
+            peak_dbfs: q.peak_dbfs(),
+            sqnr_db: q.sqnr_db,
+        }
     }
 }
 
