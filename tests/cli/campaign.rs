@@ -588,6 +588,9 @@ async fn the_thesis_lab_chapter_resolves_8_cm_at_2_ghz_only() {
         2,
         &["fourier", "music"],
     );
+    super::campaign_correction::check_the_rx_and_both_columns_at_the_ideal_chain_s_figures(
+        &out, &v,
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
