@@ -122,26 +122,36 @@ impl ChainEstimator {
 
     /// `|x|^2` gated: a local fit's denominator.
     fn gated_power(&self, x: &[Complex64]) -> Vec<f64> {
-        let power: Vec<Complex64> = x.iter().map(|v| v.norm_sqr().into()).collect();
-        self.gated(&power).iter().map(|v| v.re).collect()
-    }
-
-    /// `z` gated (a copy).
-    fn gated(&self, z: &[Complex64]) -> Vec<Complex64> {
-        let mut m = z.to_vec();
-        self.gate_spectrum(&mut m);
-        m
+        let mut power: Vec<Complex64> = x.iter().map(|v| v.norm_sqr().into()).collect();
+        self.gate_spectrum(&mut power, &mut Vec::new());
+        power.iter().map(|v| v.re).collect()
     }
 
     /// Applies the lag-domain gate to a spectrum (in place): a circular convolution with the
-    /// gate's transform, the local fit's weights.
-    fn gate_spectrum(&self, spec: &mut [Complex64]) {
+    /// gate's transform, the local fit's weights. `scratch` is the FFTs' (grown as needed).
+    fn gate_spectrum(&self, spec: &mut [Complex64], scratch: &mut Vec<Complex64>) {
         let n = self.n as f64;
-        self.ifft.process(spec);
+        self.inverse(spec, scratch);
         for (v, g) in spec.iter_mut().zip(&self.gate) {
             *v *= g / n;
         }
-        self.fft.process(spec);
+        self.forward(spec, scratch);
+    }
+
+    fn forward(&self, v: &mut [Complex64], scratch: &mut Vec<Complex64>) {
+        let need = self.fft.get_inplace_scratch_len();
+        if scratch.len() < need {
+            scratch.resize(need, ZERO);
+        }
+        self.fft.process_with_scratch(v, &mut scratch[..need]);
+    }
+
+    fn inverse(&self, v: &mut [Complex64], scratch: &mut Vec<Complex64>) {
+        let need = self.ifft.get_inplace_scratch_len();
+        if scratch.len() < need {
+            scratch.resize(need, ZERO);
+        }
+        self.ifft.process_with_scratch(v, &mut scratch[..need]);
     }
 
     pub(crate) fn period(&self) -> usize {
@@ -162,11 +172,77 @@ impl ChainEstimator {
     }
 
     /// The DFT of one repetition.
+    #[cfg(test)]
     pub(crate) fn spectrum(&self, y: &[Complex64]) -> Vec<Complex64> {
+        self.spectrum_with(y, &mut Vec::new())
+    }
+
+    /// [`spectrum`](Self::spectrum) with the caller's FFT scratch.
+    pub(crate) fn spectrum_with(
+        &self,
+        y: &[Complex64],
+        scratch: &mut Vec<Complex64>,
+    ) -> Vec<Complex64> {
         let mut s = y.to_vec();
         s.resize(self.n, ZERO);
-        self.fft.process(&mut s);
+        self.forward(&mut s, scratch);
         s
+    }
+
+    /// The circular cross-correlation of a repetition's spectrum with the transmitted one, by
+    /// lag (unnormalised): where the echoes are.
+    pub(crate) fn correlation(
+        &self,
+        y_spec: &[Complex64],
+        scratch: &mut Vec<Complex64>,
+    ) -> Vec<Complex64> {
+        let mut c: Vec<Complex64> = y_spec
+            .iter()
+            .zip(&self.x)
+            .map(|(y, x)| y * x.conj())
+            .collect();
+        self.inverse(&mut c, scratch);
+        c
+    }
+
+    /// A repetition's spectrum made relative to the reflector's delay (samples), in place:
+    /// `Y(f) exp(+j 2 pi f delay)`.
+    pub(crate) fn relative_to(&self, y_spec: &mut [Complex64], delay: f64) {
+        let n = self.n;
+        for (k, v) in y_spec.iter_mut().enumerate() {
+            *v *= Complex64::from_polar(1.0, 2.0 * PI * signed(k, n) * delay / n as f64);
+        }
+    }
+
+    /// The local mean of `rest` against `reference` (weighted by `weight`, its gated power),
+    /// zero outside the band.
+    fn fit(
+        &self,
+        reference: &[Complex64],
+        weight: &[f64],
+        rest: &[Complex64],
+        scratch: &mut Vec<Complex64>,
+    ) -> Vec<Complex64> {
+        let p = &self.weight;
+        let floor = self.floor();
+        let mut num: Vec<Complex64> = reference
+            .iter()
+            .zip(rest)
+            .map(|(r, z)| r.conj() * z)
+            .collect();
+        self.gate_spectrum(&mut num, scratch);
+        for (k, v) in num.iter_mut().enumerate() {
+            *v = if p[k] > floor && weight[k] > floor {
+                *v / weight[k]
+            } else {
+                ZERO
+            };
+        }
+        num
+    }
+
+    fn floor(&self) -> f64 {
+        BAND_FLOOR * self.weight.iter().copied().fold(0.0, f64::max).max(1e-300)
     }
 
     /// The direct response `H` and the image response `H'` of one repetition's spectrum, both
@@ -176,48 +252,68 @@ impl ChainEstimator {
     /// it): near DC, where a chirp and its conjugate are alike, the two are told apart by the
     /// second round. At the band edges the waveform's power falls off on one side and the local
     /// mean leans inwards: figures are taken where the power is within 3 dB of its peak.
+    #[cfg(test)]
     pub(crate) fn estimate(
         &self,
         y_spec: &[Complex64],
         delay: f64,
     ) -> (Vec<Complex64>, Vec<Complex64>) {
+        let mut z = y_spec.to_vec();
+        self.relative_to(&mut z, delay);
+        let f = self.fit_relative(&z, &mut Vec::new());
+        (f.direct, f.image)
+    }
+
+    /// [`estimate`](Self::estimate) of a spectrum already relative to the reflector's delay
+    /// ([`relative_to`](Self::relative_to)). The fit is linear in `z`: the fit of the
+    /// repetitions' mean spectrum is the mean of their fits.
+    pub(crate) fn fit_relative(&self, z: &[Complex64], scratch: &mut Vec<Complex64>) -> Fitted {
         let n = self.n;
-        let y: Vec<Complex64> = y_spec
-            .iter()
-            .enumerate()
-            .map(|(k, v)| {
-                v * Complex64::from_polar(1.0, 2.0 * PI * signed(k, n) * delay / n as f64)
-            })
-            .collect();
         let (p, q) = (&self.weight, &self.weight_image);
-        let floor = BAND_FLOOR * p.iter().copied().fold(0.0, f64::max).max(1e-300);
-        let fit = |reference: &[Complex64], weight: &[f64], rest: &[Complex64]| {
-            let cross: Vec<Complex64> = reference
-                .iter()
-                .zip(rest)
-                .map(|(r, z)| r.conj() * z)
-                .collect();
-            let num = self.gated(&cross);
-            (0..n)
-                .map(|k| {
-                    if p[k] > floor && weight[k] > floor {
-                        num[k] / weight[k]
-                    } else {
-                        ZERO
-                    }
-                })
-                .collect::<Vec<Complex64>>()
-        };
         let mut image = vec![ZERO; n];
         let mut direct = vec![ZERO; n];
+        let mut image_for_direct = image.clone();
         for _ in 0..2 {
-            let rest: Vec<Complex64> = (0..n).map(|k| y[k] - image[k] * self.x_image[k]).collect();
-            direct = fit(&self.x, p, &rest);
-            let rest: Vec<Complex64> = (0..n).map(|k| y[k] - direct[k] * self.x[k]).collect();
-            image = fit(&self.x_image, q, &rest);
+            let rest: Vec<Complex64> = (0..n).map(|k| z[k] - image[k] * self.x_image[k]).collect();
+            direct = self.fit(&self.x, p, &rest, scratch);
+            image_for_direct = image;
+            let rest: Vec<Complex64> = (0..n).map(|k| z[k] - direct[k] * self.x[k]).collect();
+            image = self.fit(&self.x_image, q, &rest, scratch);
         }
-        (direct, image)
+        Fitted {
+            direct,
+            image,
+            image_for_direct,
+        }
     }
+
+    /// The direct response of one repetition's relative spectrum `z` once `image` (the image
+    /// response the repetitions' mean was fitted with, [`Fitted::image_for_direct`]) is taken
+    /// out: one local fit. The mean of these over the repetitions is the mean's direct
+    /// response; each differs from a full two-round fit of its repetition only by the
+    /// repetition's noise in the image, tens of dB under the noise it shows.
+    pub(crate) fn direct_given_image(
+        &self,
+        z: &[Complex64],
+        image: &[Complex64],
+        scratch: &mut Vec<Complex64>,
+    ) -> Vec<Complex64> {
+        let rest: Vec<Complex64> = z
+            .iter()
+            .zip(image.iter().zip(&self.x_image))
+            .map(|(z, (i, x))| z - i * x)
+            .collect();
+        self.fit(&self.x, &self.weight, &rest, scratch)
+    }
+}
+
+/// The direct and image responses fitted to one spectrum ([`ChainEstimator::fit_relative`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Fitted {
+    pub direct: Vec<Complex64>,
+    pub image: Vec<Complex64>,
+    /// The image the last direct fit was made against.
+    pub image_for_direct: Vec<Complex64>,
 }
 
 /// A measured response table: frequencies (ascending, Hz) and the complex response there.

@@ -19,6 +19,7 @@ use crate::dsp::response::{
 };
 use crate::dsp::C0;
 use num_complex::Complex64;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
@@ -385,26 +386,46 @@ pub(crate) fn measure(
 
     let est = ChainEstimator::new(reference, period, fs, gate_s)?;
     let n = est.period();
-    let mut directs = Vec::with_capacity(on.len());
-    let mut images = Vec::with_capacity(on.len());
-    for a in on {
-        let mut y = a.samples.clone();
-        undo_iq(&mut y, dc, iq);
-        let spectrum = est.spectrum(&y);
-        let delay = (expected_delay_s - a.residual_s) * fs;
-        check_reference_near(&est, reference, &spectrum, delay, gate_s * fs)?;
-        let (d, i) = est.estimate(&spectrum, delay);
-        directs.push(d);
-        images.push(i);
+    // Each repetition corrected, checked to hold the reference where expected, and made
+    // relative to its delay (on every core: the repetitions are independent).
+    let relative = on
+        .par_iter()
+        .map_init(Vec::new, |scratch, a| {
+            let mut y = a.samples.clone();
+            undo_iq(&mut y, dc, iq);
+            let mut spectrum = est.spectrum_with(&y, scratch);
+            let delay = (expected_delay_s - a.residual_s) * fs;
+            check_reference_near(&est, &spectrum, delay, gate_s * fs, scratch)?;
+            est.relative_to(&mut spectrum, delay);
+            Ok(spectrum)
+        })
+        .collect::<Result<Vec<Vec<Complex64>>, MeasureError>>()?;
+    let reps = relative.len() as f64;
+    // The fit is linear: the repetitions' mean response is the fit of their mean spectrum (two
+    // rounds, once). Each repetition's own direct response, for the spread, is one fit against
+    // the image the mean's was fitted with.
+    let mut mean_spectrum = vec![Complex64::new(0.0, 0.0); n];
+    for z in &relative {
+        for (m, v) in mean_spectrum.iter_mut().zip(z) {
+            *m += v;
+        }
     }
+    for m in mean_spectrum.iter_mut() {
+        *m /= reps;
+    }
+    let fitted = est.fit_relative(&mean_spectrum, &mut Vec::new());
+    let directs: Vec<Vec<Complex64>> = relative
+        .par_iter()
+        .map_init(Vec::new, |scratch, z| {
+            est.direct_given_image(z, &fitted.image_for_direct, scratch)
+        })
+        .collect();
+    drop(relative);
     let cover = est.coverage();
-    let reps = directs.len() as f64;
-    let mean =
-        |sets: &[Vec<Complex64>], k: usize| sets.iter().map(|s| s[k]).sum::<Complex64>() / reps;
     // Normalise to the band's mean (power-weighted): unit gain, zero mean phase.
     let (mut num, mut den) = (Complex64::new(0.0, 0.0), 0.0);
     for k in (0..n).filter(|&k| cover[k] >= FIGURE_COVERAGE) {
-        num += mean(&directs, k) * cover[k];
+        num += fitted.direct[k] * cover[k];
         den += cover[k];
     }
     if !(den > 0.0 && num.norm() > 0.0) {
@@ -422,7 +443,7 @@ pub(crate) fn measure(
     };
     let (mut spread_db, mut spread_deg, mut image) = (Vec::new(), Vec::new(), Vec::new());
     for &k in &bins {
-        let h = mean(&directs, k) / scale;
+        let h = fitted.direct[k] / scale;
         table.freq_hz.push(est.frequency_hz(k));
         table.response.push(h);
         let (mut s_db, mut s_deg) = (0.0, 0.0);
@@ -434,7 +455,7 @@ pub(crate) fn measure(
         let dof = (reps - 1.0).max(1.0);
         spread_db.push((s_db / dof).sqrt());
         spread_deg.push((s_deg / dof).sqrt());
-        image.push(mean(&images, k) / scale);
+        image.push(fitted.image[k] / scale);
     }
     let in_figures: Vec<bool> = bins.iter().map(|&k| cover[k] >= FIGURE_COVERAGE).collect();
     let figures = figures_of(
@@ -466,17 +487,13 @@ pub(crate) fn measure(
 /// it: otherwise the system delay is off (calibrate it first) or the pillar is elsewhere.
 fn check_reference_near(
     est: &ChainEstimator,
-    reference: &[Complex64],
     spectrum: &[Complex64],
     delay: f64,
     gate: f64,
+    scratch: &mut Vec<Complex64>,
 ) -> Result<(), MeasureError> {
     let n = est.period();
-    let x = est.spectrum(reference);
-    let mut c: Vec<Complex64> = spectrum.iter().zip(&x).map(|(y, x)| y * x.conj()).collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_inverse(n)
-        .process(&mut c);
+    let c = est.correlation(spectrum, scratch);
     let search = (2.0 * 2.0 / C0 * est.frequency_hz(1) * n as f64).ceil() as i64;
     let centre = delay.round() as i64;
     let peak = (centre - search..=centre + search)

@@ -9,6 +9,7 @@ mod io_support;
 mod process_support;
 
 mod bad_input;
+mod calibrate_repeat;
 mod calibrate_response;
 mod campaign;
 mod campaign_correction;
