@@ -596,6 +596,77 @@ mod tests {
     }
 
     #[test]
+    fn the_mean_spectrums_fit_is_the_mean_of_the_repetitions_fits() {
+        let fs = 16e9;
+        let n = 4096;
+        let x = chirp(n);
+        let h =
+            |f: f64| Complex64::new(1.0, 0.0) + Complex64::from_polar(0.1, -2.0 * PI * f * 1.5e-9);
+        let b = Complex64::new(0.03, 0.02);
+        let est = ChainEstimator::new(&x, n, fs, 4e-9).unwrap();
+        let mut rng = crate::rng::SplitMix64::new(3);
+        // Three repetitions at slightly different delays, each with its own noise.
+        let delays = [100.0, 100.3, 99.8];
+        let mut relative = Vec::new();
+        let (mut directs, mut images) = (Vec::new(), Vec::new());
+        for &delay in &delays {
+            let clean = through(&x, delay, h, fs);
+            let y: Vec<Complex64> = clean
+                .iter()
+                .map(|v| v + b * v.conj() + rng.complex_gaussian(0.01))
+                .collect();
+            let spectrum = est.spectrum(&y);
+            let (d, i) = est.estimate(&spectrum, delay);
+            directs.push(d);
+            images.push(i);
+            let mut z = spectrum;
+            est.relative_to(&mut z, delay);
+            relative.push(z);
+        }
+        let reps = delays.len() as f64;
+        let mean_z: Vec<Complex64> = (0..n)
+            .map(|k| relative.iter().map(|z| z[k]).sum::<Complex64>() / reps)
+            .collect();
+        let fitted = est.fit_relative(&mean_z, &mut Vec::new());
+        let per_rep: Vec<Vec<Complex64>> = relative
+            .iter()
+            .map(|z| est.direct_given_image(z, &fitted.image_for_direct, &mut Vec::new()))
+            .collect();
+        for k in 0..n {
+            let mean =
+                |sets: &[Vec<Complex64>]| sets.iter().map(|s| s[k]).sum::<Complex64>() / reps;
+            let scale = fitted.direct[k].norm().max(1.0);
+            assert!(
+                (fitted.direct[k] - mean(&directs)).norm() < 1e-12 * scale,
+                "bin {k}"
+            );
+            assert!(
+                (fitted.image[k] - mean(&images)).norm() < 1e-12 * scale,
+                "bin {k}"
+            );
+            assert!(
+                (fitted.direct[k] - mean(&per_rep)).norm() < 1e-12 * scale,
+                "bin {k}"
+            );
+        }
+        // Each repetition's one-fit direct response is its own two-round one but for the noise
+        // the image leaves: well under the noise it shows (the repetitions' spread).
+        let cover = est.coverage();
+        let (mut apart, mut spread) = (0.0, 0.0);
+        for k in (0..n).filter(|&k| cover[k] > 0.5) {
+            for (a, d) in per_rep.iter().zip(&directs) {
+                apart += (a[k] - d[k]).norm_sqr();
+                spread += (d[k] - fitted.direct[k]).norm_sqr();
+            }
+        }
+        let ratio = (apart / spread).sqrt();
+        assert!(
+            ratio < 0.3,
+            "{ratio}: one fit against two rounds, relative to the spread"
+        );
+    }
+
+    #[test]
     fn the_equaliser_undoes_the_response_dc_and_iq_imbalance() {
         let fs = 16e9;
         let n = 4096;
