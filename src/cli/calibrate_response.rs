@@ -33,7 +33,8 @@ pub struct Args {
     /// The waveform whose band is measured.
     #[arg(long, value_enum, default_value = "msk-lfm")]
     pub waveform: WaveformArg,
-    /// Repetitions averaged (and as many with the transmitter off, for DC and I/Q imbalance).
+    /// Repetitions averaged with the transmitter on. With it off, as many as give 2^20 noise
+    /// samples for DC and I/Q imbalance (at most this many).
     #[arg(long, default_value_t = 16, value_name = "N")]
     pub repetitions: usize,
     /// Half-width of the window around the reference's echo, ns: the longest chain echo
