@@ -80,6 +80,9 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         )?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
+        // With the response the bench file names corrected, the delay is the corrected chain's:
+        // the one its captures are processed with.
+        let correction = super::capture::resolve_correction(None, None, &bench)?;
         let request = CaptureRequest {
             waveform: WaveformSpec::msk_lfm_default(),
             payload: None,
@@ -89,6 +92,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
                 system_delay_s: 0.0,
                 min_range_m: 0.0,
                 max_range_m: reference_range + args.search + 150.0,
+                correction: correction.as_ref().map(|c| c.used()),
                 ..ProcessOptions::default()
             },
             tx_off: false,

@@ -187,7 +187,10 @@ fn name_in_bench(
     file: &crate::measure::bench_file::BenchFile,
     calibration: &Path,
 ) -> Result<(), MeasureError> {
-    let dir = bench_path.parent().unwrap_or(Path::new("."));
+    let dir = match bench_path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
     let abs = std::fs::canonicalize(calibration).unwrap_or_else(|_| calibration.to_path_buf());
     let dir_abs = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let name = abs

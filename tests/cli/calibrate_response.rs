@@ -437,3 +437,117 @@ async fn an_archive_is_corrected_from_a_reference_capture_of_its_own_time() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--calibration CAPTURE"), "{err}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_default() {
+    use mock_lab::server::launch::Transport;
+    let scene = mock_lab::scene::Scene::from_toml(
+        "snr_db = 25.0\n[[targets]]\nrange_m = 2.0\namplitude = 0.5\n[chain]\npreset = \"thesis-lab\"\n",
+        "test",
+    )
+    .unwrap();
+    let lab = tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions {
+            scene,
+            ..mock_lab::lab::LabOptions::default()
+        }),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bench = format!(
+        "# my bench\n{}\n[calibration]\nsystem_delay_s = 2.5e-9 # measured last week\n",
+        lab.bench_toml(Transport::Hislip, Transport::Vicp)
+    );
+    std::fs::write(d.join("bench.toml"), bench).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--bench",
+            "bench.toml",
+            "--reference-range",
+            "2.0",
+            "--allow-rf",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(d.join("bench-response.toml").exists() && d.join("bench-response.npy").exists());
+    let text = std::fs::read_to_string(d.join("bench.toml")).unwrap();
+    assert!(text.starts_with("# my bench"), "{text}");
+    assert!(
+        text.contains("response = \"bench-response.toml\""),
+        "{text}"
+    );
+    let parsed: toml::Value = toml::from_str(&text).unwrap();
+    assert_eq!(
+        parsed["calibration"]["system_delay_s"].as_float(),
+        Some(2.5e-9),
+        "the delay is kept: {text}"
+    );
+    // The delay calibrated again keeps the response named.
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "calibrate",
+            "--bench",
+            "bench.toml",
+            "--reference-range",
+            "2.0",
+            "--allow-rf",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(d.join("bench.toml")).unwrap();
+    assert!(
+        text.contains("response = \"bench-response.toml\""),
+        "{text}"
+    );
+    // A capture on this bench corrects by default, and says with what; none when asked.
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--bench",
+            "bench.toml",
+            "--allow-rf",
+            "--json",
+            "--out",
+            "c",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let s = json(&out);
+    assert_eq!(s["processing"]["correction"]["mode"], "rx", "{s}");
+    // The delay was measured again on the corrected chain: the pillar stays at its range.
+    let r = s["targets"][0]["range_m"].as_f64().unwrap();
+    assert!((r - 2.0).abs() < 2e-4, "{r} m");
+    let psl = s["targets"][0]["sidelobe_db"].as_f64().unwrap();
+    assert!((psl + 13.3).abs() < 0.5, "{psl}");
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--bench",
+            "bench.toml",
+            "--allow-rf",
+            "--json",
+            "--correction",
+            "none",
+            "--out",
+            "n",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(json(&out)["processing"]["correction"].is_null());
+    assert!(lab.bench.is_safe());
+}
