@@ -12,7 +12,6 @@
 //! linear phase relative to the expected delay `2 R / c + system delay`: corrected, the reference
 //! lands at its true range with the bench's system delay.
 
-use super::pipeline::Aligned;
 use super::MeasureError;
 use crate::dsp::response::{
     iq_imbalance_of_noise, undo_iq, ChainEstimator, ResponseTable, RxEqualiser, BAND_FLOOR,
@@ -359,14 +358,22 @@ fn table_from(
     })
 }
 
+/// One aligned repetition: its samples at the waveform rate, and when sample 0 lies after the
+/// marker edge (the pipeline's `Aligned`, borrowed).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Repetition<'a> {
+    pub samples: &'a [Complex64],
+    pub residual_s: f64,
+}
+
 /// Measures the chain's response from aligned repetitions of one reference reflector (`on`) and
 /// of the receiver with the transmitter off (`off`). `reference` is the transmitted repetition;
 /// the reflector is expected at `expected_delay_s` after the marker (2 R / c + system delay).
 pub(crate) fn measure(
     reference: &[Complex64],
     fs: f64,
-    on: &[Aligned],
-    off: &[Aligned],
+    on: &[Repetition<'_>],
+    off: &[&[Complex64]],
     expected_delay_s: f64,
     gate_s: f64,
     system_delay_s: f64,
@@ -375,7 +382,7 @@ pub(crate) fn measure(
         MeasureError::option("repetitions", 0, "at least 1 repetition with RF on")
     })?;
     // The receiver alone: its DC and its I/Q imbalance (from its noise).
-    let noise: Vec<Complex64> = off.iter().flat_map(|a| a.samples.iter().copied()).collect();
+    let noise: Vec<Complex64> = off.iter().flat_map(|a| a.iter().copied()).collect();
     let dc = if noise.is_empty() {
         Complex64::new(0.0, 0.0)
     } else {
@@ -391,7 +398,7 @@ pub(crate) fn measure(
     let relative = on
         .par_iter()
         .map_init(Vec::new, |scratch, a| {
-            let mut y = a.samples.clone();
+            let mut y = a.samples.to_vec();
             undo_iq(&mut y, dc, iq);
             let mut spectrum = est.spectrum_with(&y, scratch);
             let delay = (expected_delay_s - a.residual_s) * fs;

@@ -56,7 +56,7 @@ pub(crate) fn calibrate_from_capture(
     let response = measure(
         &tx.reference,
         tx.sample_rate_hz(),
-        &aligned,
+        &super::response_run::repetitions(&aligned),
         &[],
         expected_delay_s,
         gate_s,

@@ -103,6 +103,17 @@ impl Calibrated {
     }
 }
 
+/// The aligned repetitions as `response::measure` takes them.
+pub(crate) fn repetitions(aligned: &[Aligned]) -> Vec<super::response::Repetition<'_>> {
+    aligned
+        .iter()
+        .map(|a| super::response::Repetition {
+            samples: &a.samples,
+            residual_s: a.residual_s,
+        })
+        .collect()
+}
+
 /// The reference's figures in one processed record: the detection nearest its range.
 fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Option<f64>) {
     let t = p
@@ -211,8 +222,11 @@ pub(crate) async fn calibrate_with(
         let response = measure(
             &tx.reference,
             fs,
-            &on_aligned,
-            &off_aligned,
+            &repetitions(&on_aligned),
+            &off_aligned
+                .iter()
+                .map(|a| a.samples.as_slice())
+                .collect::<Vec<_>>(),
             expected_delay_s,
             request.gate_s,
             system_delay_s,
