@@ -284,8 +284,9 @@ impl BenchFile {
     }
 }
 
-/// Writes `calibration` into the bench file at `path`, replacing any `[calibration]` section and
-/// keeping every other line (comments included) as it was. The write is atomic.
+/// Writes `calibration` into the bench file at `path`: its `[calibration]` section's values are
+/// set in place (a key no longer given is removed), and every other line, comments included (also
+/// those inside the section and after a value), is kept as it was. The write is atomic.
 pub(crate) fn store_calibration(
     path: &Path,
     calibration: &Calibration,
@@ -294,27 +295,33 @@ pub(crate) fn store_calibration(
         path: path.to_path_buf(),
         source,
     })?;
-    let mut kept = Vec::new();
-    let mut in_calibration = false;
-    for line in text.lines() {
-        let trimmed = line.trim_start();
-        if trimmed.starts_with('[') {
-            in_calibration = trimmed.starts_with("[calibration]");
-        }
-        if !in_calibration {
-            kept.push(line);
-        }
-    }
-    while kept.last().is_some_and(|l| l.trim().is_empty()) {
-        kept.pop();
-    }
-    let mut out = kept.join("\n");
-    let section = toml::to_string(calibration).map_err(|e| BenchFileError::Invalid {
+    let invalid = |message: String| BenchFileError::Invalid {
         path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    out.push_str("\n\n# Written by `radbench calibrate`.\n[calibration]\n");
-    out.push_str(&section);
+        message,
+    };
+    let mut doc: toml_edit::DocumentMut = text.parse().map_err(|e| invalid(format!("{e}")))?;
+    let fresh = !doc.contains_key("calibration");
+    if fresh {
+        let mut table = toml_edit::Table::new();
+        table
+            .decor_mut()
+            .set_prefix("\n# Written by `radbench calibrate`.\n");
+        doc.insert("calibration", toml_edit::Item::Table(table));
+    }
+    let table = doc["calibration"]
+        .as_table_mut()
+        .ok_or_else(|| invalid("[calibration] must be a table".into()))?;
+    let float = |v: f64| Some(toml_edit::Value::from(v));
+    let text_value = |v: &Option<String>| v.as_deref().map(toml_edit::Value::from);
+    set_keeping_comments(table, "system_delay_s", float(calibration.system_delay_s));
+    set_keeping_comments(
+        table,
+        "reference_range_m",
+        calibration.reference_range_m.and_then(float),
+    );
+    set_keeping_comments(table, "measured_at", text_value(&calibration.measured_at));
+    set_keeping_comments(table, "response", text_value(&calibration.response));
+    let out = doc.to_string();
     // A bench file kept as a symlink (e.g. into a shared configuration folder) is updated where
     // it really lives; the atomic writer never writes through a link itself.
     let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
@@ -326,6 +333,25 @@ pub(crate) fn store_calibration(
     })?;
     // The result must still parse: never leave a broken bench file behind.
     BenchFile::load(path).map(|_| ())
+}
+
+/// Sets `key` to `value` in `table` keeping the line's comments (before the key and after the
+/// value); `None` removes the key.
+fn set_keeping_comments(table: &mut toml_edit::Table, key: &str, value: Option<toml_edit::Value>) {
+    match (value, table.get_mut(key)) {
+        (None, _) => {
+            table.remove(key);
+        }
+        (Some(mut value), Some(item)) => {
+            if let Some(old) = item.as_value() {
+                *value.decor_mut() = old.decor().clone();
+            }
+            *item = toml_edit::Item::Value(value);
+        }
+        (Some(value), None) => {
+            table.insert(key, toml_edit::Item::Value(value));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -363,7 +389,7 @@ system_delay_s = 1e-9
     }
 
     #[test]
-    fn calibration_replaces_the_section_and_keeps_comments() {
+    fn calibration_sets_the_section_s_values_and_keeps_every_comment() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bench.toml");
         std::fs::write(&path, GOOD).unwrap();
@@ -378,6 +404,36 @@ system_delay_s = 1e-9
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains("# my bench"));
         assert_eq!(text.matches("[calibration]").count(), 1, "{text}");
-        assert_eq!(BenchFile::load(&path).unwrap().calibration, Some(cal));
+        assert_eq!(
+            BenchFile::load(&path).unwrap().calibration,
+            Some(cal.clone())
+        );
+        // Comments inside the section and after a value survive a new value.
+        let commented = text.replace(
+            "[calibration]\n",
+            "[calibration]\n# the horns were moved on Monday\n",
+        );
+        std::fs::write(
+            &path,
+            commented.replace(
+                "reference_range_m = 1.0",
+                "reference_range_m = 1.0 # pillar B",
+            ),
+        )
+        .unwrap();
+        let again = Calibration {
+            system_delay_s: 2.6e-9,
+            reference_range_m: Some(1.5),
+            response: Some("bench-response.toml".into()),
+            ..cal
+        };
+        store_calibration(&path, &again).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("# the horns were moved on Monday"), "{text}");
+        assert!(
+            text.contains("reference_range_m = 1.5 # pillar B"),
+            "{text}"
+        );
+        assert_eq!(BenchFile::load(&path).unwrap().calibration, Some(again));
     }
 }

@@ -510,6 +510,10 @@ async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_d
         text.contains("response = \"bench-response.toml\""),
         "{text}"
     );
+    assert!(
+        text.contains("# measured last week"),
+        "comments are kept: {text}"
+    );
     // A capture on this bench corrects by default, and says with what; none when asked.
     let (code, out, err) = radbench(
         d,
