@@ -12,7 +12,6 @@
 
 use crate::catalog::{CatalogError, DigitizerModel};
 use crate::emulator::lecroy::trigger::Capture;
-use crate::emulator::lecroy::wavedesc::TriggerTimestamp;
 use crate::emulator::lecroy::{RemoteInterface, ScopeState};
 use crate::scene::{AwgPlayback, FrontEnds, Scene, SceneError, Synthesizer};
 
@@ -50,16 +49,6 @@ pub struct OfflineScope {
     model: DigitizerModel,
     synth: Synthesizer,
 }
-
-/// The time stamp written into an offline acquisition (no wall clock: reproducible).
-const OFFLINE_TRIGGER_TIME: TriggerTimestamp = TriggerTimestamp {
-    seconds: 0.0,
-    minutes: 0,
-    hours: 0,
-    day: 1,
-    month: 1,
-    year: 2026,
-};
 
 impl OfflineScope {
     /// The built-in LabMaster model, its noise generator started from `seed` (the scene's).
@@ -110,7 +99,7 @@ impl OfflineScope {
                 Some(y.iter().map(|v| v.re as f32).collect()),
                 Some(y.iter().map(|v| v.im as f32).collect()),
             ],
-            trigger_time: OFFLINE_TRIGGER_TIME,
+            trigger_time: crate::emulator::lecroy::NO_TRIGGER_TIME,
             edge_period_s: None,
         };
         state.complete(&self.model, &request, vec![capture], vec![0.0], false);

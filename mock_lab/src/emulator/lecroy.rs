@@ -16,6 +16,7 @@ mod commands;
 mod params;
 mod settings;
 mod state;
+pub(crate) use state::NO_TRIGGER_TIME;
 pub(crate) mod trigger;
 mod vbs;
 pub(crate) mod wavedesc;

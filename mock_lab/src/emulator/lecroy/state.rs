@@ -533,8 +533,9 @@ impl ScopeState {
     }
 }
 
-/// The trigger time written before any acquisition.
-const NO_TRIGGER_TIME: TriggerTimestamp = TriggerTimestamp {
+/// The trigger time written before any acquisition (and into offline ones: no wall clock, so
+/// reproducible).
+pub(crate) const NO_TRIGGER_TIME: TriggerTimestamp = TriggerTimestamp {
     seconds: 0.0,
     minutes: 0,
     hours: 0,
