@@ -1,7 +1,23 @@
 //! Build script: the git commit radbench is built from, for the run manifests of campaigns
 //! (`RADBENCH_GIT_COMMIT`; absent outside a git checkout). A value already in the environment
 //! (a packager's) wins.
+//!
+//! Cargo reruns this script (and so recompiles radbench) when a file named with
+//! `rerun-if-changed` is newer than the last run, **or missing**. So only paths that exist are
+//! named, and only those that change when HEAD moves:
+//!
+//! * `HEAD` itself (a checkout, or a commit on a detached HEAD);
+//! * the branch's loose ref file when there is one (a commit on the branch renames a new one
+//!   into place);
+//! * otherwise the branch lives in `packed-refs` (after `git pack-refs`, or in some clones):
+//!   that file, and the folder the loose ref would be created in, since the next commit on the
+//!   branch writes a loose ref beside the packed one and leaves `packed-refs` as it was;
+//! * with the reftable backend, its `tables.list`, which every ref update rewrites.
+//!
+//! Naming `packed-refs` unconditionally made every build in a checkout without it (a
+//! repository that never packed its refs) recompile radbench.
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn git(args: &[&str]) -> Option<String> {
@@ -12,23 +28,68 @@ fn git(args: &[&str]) -> Option<String> {
         .filter(|s| !s.is_empty())
 }
 
+/// The path git uses for `name` inside the repository (worktree-aware), relative to here.
+fn git_path(name: &str) -> Option<PathBuf> {
+    git(&["rev-parse", "--git-path", name]).map(PathBuf::from)
+}
+
+fn watch(path: &Path) {
+    println!("cargo:rerun-if-changed={}", path.display());
+}
+
+/// Names `path` when it exists; says whether it did.
+fn watch_if_exists(path: &Path) -> bool {
+    let exists = path.exists();
+    if exists {
+        watch(path);
+    }
+    exists
+}
+
 fn main() {
     println!("cargo:rerun-if-env-changed=RADBENCH_GIT_COMMIT");
     if std::env::var_os("RADBENCH_GIT_COMMIT").is_some() {
         return;
     }
-    // Rebuild when HEAD moves: HEAD itself, the branch it points to, the packed refs.
-    for path in ["HEAD", "packed-refs"] {
-        if let Some(p) = git(&["rev-parse", "--git-path", path]) {
-            println!("cargo:rerun-if-changed={p}");
+    let Some(commit) = git(&["rev-parse", "HEAD"]) else {
+        // Not a git checkout (a source archive), or no commit yet: nothing to record. When
+        // HEAD exists (an unborn branch), its first commit must still be noticed.
+        if let Some(head) = git_path("HEAD") {
+            watch_if_exists(&head);
         }
+        if let Some(parent) = git(&["symbolic-ref", "-q", "HEAD"])
+            .and_then(|branch| git_path(&branch))
+            .and_then(|loose| existing_ancestor(&loose))
+        {
+            watch(&parent);
+        }
+        return;
+    };
+    if let Some(head) = git_path("HEAD") {
+        watch_if_exists(&head);
+    }
+    if let Some(tables) = git_path("reftable/tables.list") {
+        watch_if_exists(&tables);
     }
     if let Some(branch) = git(&["symbolic-ref", "-q", "HEAD"]) {
-        if let Some(p) = git(&["rev-parse", "--git-path", &branch]) {
-            println!("cargo:rerun-if-changed={p}");
+        if let Some(loose) = git_path(&branch) {
+            if !watch_if_exists(&loose) {
+                if let Some(packed) = git_path("packed-refs") {
+                    watch_if_exists(&packed);
+                }
+                if let Some(parent) = existing_ancestor(&loose) {
+                    watch(&parent);
+                }
+            }
         }
     }
-    if let Some(commit) = git(&["rev-parse", "HEAD"]) {
-        println!("cargo:rustc-env=RADBENCH_GIT_COMMIT={commit}");
-    }
+    println!("cargo:rustc-env=RADBENCH_GIT_COMMIT={commit}");
+}
+
+/// The nearest folder above `path` that exists (where a loose ref for it would be created).
+fn existing_ancestor(path: &Path) -> Option<PathBuf> {
+    path.ancestors()
+        .skip(1)
+        .find(|p| !p.as_os_str().is_empty() && p.is_dir())
+        .map(Path::to_path_buf)
 }
