@@ -253,7 +253,23 @@ fn print_report(
         "  rx I/Q imbalance     {:+.2} dB, {:+.2} deg (from the receiver's noise, Tx off)",
         g.rx_iq_gain_db, g.rx_iq_phase_deg
     );
-    println!("  I/Q skew (image)     {:+.1} ps", g.iq_skew_ps);
+    println!(
+        "  tx I/Q imbalance     {:+.2} dB, {:+.2} deg (from the image, the receiver's told apart)",
+        g.tx_iq_gain_db, g.tx_iq_phase_deg
+    );
+    if g.iq_skews_separated {
+        println!(
+            "  I/Q skew             tx {:+.2} ps, rx {:+.2} ps (+-{:.2} ps)",
+            g.tx_iq_skew_ps, g.rx_iq_skew_ps, g.iq_skew_sd_ps
+        );
+    } else {
+        println!(
+            "  I/Q skew             {:+.1} ps in the image, tx and rx not told apart at this \
+             reference (its echo's carrier phase is near a multiple of 90 deg): neither is \
+             corrected; move the reference by about 0.25 mm and calibrate again to separate them",
+            g.iq_skew_ps
+        );
+    }
     println!("  image left           {:.1} dB", g.image_db);
     println!(
         "  DC offset            I {:+.4} V, Q {:+.4} V",

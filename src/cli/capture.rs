@@ -359,8 +359,15 @@ fn report(m: &Measurement, out: &Path) -> String {
     }
     if let Some(p) = &m.taken.tx.predistortion {
         println!(
-            "pre-distorted: {:+.2} dB more back-off, SQNR {:.1} -> {:.1} dB, largest boost {:.1} dB",
-            p.extra_backoff_db, p.sqnr_db_before, p.sqnr_db_after, p.peak_boost_db
+            "pre-distorted: {:+.2} dB more back-off, SQNR {:.1} -> {:.1} dB, largest boost {:.1} dB; \
+             tx I/Q {:+.2} dB, {:+.2} deg, {:+.2} ps undone",
+            p.extra_backoff_db,
+            p.sqnr_db_before,
+            p.sqnr_db_after,
+            p.peak_boost_db,
+            p.tx_iq_gain_db,
+            p.tx_iq_phase_deg,
+            p.tx_iq_skew_ps
         );
     }
     if p.targets.is_empty() {

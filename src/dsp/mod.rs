@@ -26,6 +26,7 @@ impl Classify for DspError {
 pub mod correlate;
 pub mod decimate;
 pub mod detect;
+pub(crate) mod iq_image;
 pub mod metrics;
 pub mod music;
 pub mod ofdm_radar;

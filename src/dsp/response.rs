@@ -357,8 +357,11 @@ pub(crate) struct RxEqualiser {
     dc: Complex64,
     /// Q's gain (linear) and phase error (radians) relative to I, as the receiver has them.
     iq: Option<(f64, f64)>,
+    /// The receiver samples Q this late (s): undone on the spectrum.
+    rx_skew_s: f64,
     /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
     inverse: Vec<Complex64>,
+    fs: f64,
     fft: Arc<dyn Fft<f64>>,
     ifft: Arc<dyn Fft<f64>>,
     scratch: Vec<Complex64>,
@@ -374,6 +377,7 @@ impl std::fmt::Debug for RxEqualiser {
             .field("period", &self.inverse.len())
             .field("dc", &self.dc)
             .field("iq", &self.iq)
+            .field("rx_skew_s", &self.rx_skew_s)
             .finish_non_exhaustive()
     }
 }
@@ -421,11 +425,19 @@ impl RxEqualiser {
         Ok(RxEqualiser {
             dc,
             iq: iq.map(|(g_db, phi_deg)| (10f64.powf(g_db / 20.0), phi_deg.to_radians())),
+            rx_skew_s: 0.0,
+            fs,
             inverse,
             fft: planner.plan_fft_forward(n),
             ifft: planner.plan_fft_inverse(n),
             scratch: Vec::new(),
         })
+    }
+
+    /// The same correction, with the receiver's Q skew (s) undone as well.
+    pub(crate) fn with_rx_skew(mut self, skew_s: f64) -> Self {
+        self.rx_skew_s = skew_s;
+        self
     }
 
     /// DC and I/Q imbalance off (sample by sample).
@@ -449,6 +461,7 @@ impl RxEqualiser {
             self.scratch.resize(need, ZERO);
         }
         self.fft.process_with_scratch(y, &mut self.scratch[..need]);
+        super::iq_image::undo_rx_skew(y, self.fs, self.rx_skew_s);
         for (v, e) in y.iter_mut().zip(&self.inverse) {
             *v *= e;
         }

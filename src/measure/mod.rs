@@ -31,6 +31,8 @@ pub mod interrupt;
 pub mod options;
 pub(crate) mod payload;
 pub mod pipeline;
+#[cfg(test)]
+mod predistortion_tests;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;

@@ -13,6 +13,7 @@
 //! lands at its true range with the bench's system delay.
 
 use super::MeasureError;
+use crate::dsp::iq_image::{rx_skew_direct, split_measured, TxIq};
 use crate::dsp::response::{
     iq_imbalance_of_noise, undo_iq, ChainEstimator, ResponseTable, RxEqualiser, BAND_FLOOR,
 };
@@ -97,6 +98,24 @@ pub(crate) struct ResponseFigures {
     pub rx_iq_phase_deg: f64,
     /// I/Q skew seen in the image's slope over the band (transmit and receive together), ps.
     pub iq_skew_ps: f64,
+    /// The transmitter's Q gain and phase relative to I, and its Q skew, from the image with the
+    /// receiver's part told apart (`dsp::iq_image`).
+    #[serde(default)]
+    pub tx_iq_gain_db: f64,
+    #[serde(default)]
+    pub tx_iq_phase_deg: f64,
+    #[serde(default)]
+    pub tx_iq_skew_ps: f64,
+    /// The receiver's Q skew (Q sampled late), ps.
+    #[serde(default)]
+    pub rx_iq_skew_ps: f64,
+    /// The larger of the two skews' standard errors, ps.
+    #[serde(default)]
+    pub iq_skew_sd_ps: f64,
+    /// Whether the two skews were told apart (the reference's carrier phase allowed it); when
+    /// not, neither is corrected and the output says how to measure again.
+    #[serde(default)]
+    pub iq_skews_separated: bool,
     /// The image's mean level against the direct response, dB (after the receive imbalance was
     /// taken out: what is left is mostly the transmitter's).
     pub image_db: f64,
@@ -142,21 +161,87 @@ pub(crate) struct Response {
 }
 
 impl Response {
-    /// The receive equaliser for repetitions of `period` samples at `fs`.
-    pub(crate) fn equaliser(&self, period: usize, fs: f64) -> Result<RxEqualiser, MeasureError> {
-        let [di, dq] = self.figures.dc_v;
-        Ok(RxEqualiser::new(
-            &self.table,
-            Complex64::new(di, dq),
-            Some((self.figures.rx_iq_gain_db, self.figures.rx_iq_phase_deg)),
-            period,
-            fs,
-        )?)
+    /// The transmitter's I/Q errors as measured (its skew only when told apart from the
+    /// receiver's).
+    pub(crate) fn tx_iq(&self) -> TxIq {
+        let f = &self.figures;
+        TxIq {
+            gain: 10f64.powf(f.tx_iq_gain_db / 20.0),
+            phase: f.tx_iq_phase_deg.to_radians(),
+            skew_s: if f.iq_skews_separated {
+                f.tx_iq_skew_ps * 1e-12
+            } else {
+                0.0
+            },
+        }
     }
-}
 
-impl Response {
-    /// The receiver's part alone (DC and I/Q imbalance), the response left flat: for a
+    /// The receiver's Q skew, s (0 unless told apart from the transmitter's).
+    pub(crate) fn rx_skew_s(&self) -> f64 {
+        if self.figures.iq_skews_separated {
+            self.figures.rx_iq_skew_ps * 1e-12
+        } else {
+            0.0
+        }
+    }
+
+    /// The table with `part(f)` divided out of every row.
+    fn table_without(&self, part: impl Fn(f64) -> Complex64) -> ResponseTable {
+        ResponseTable {
+            freq_hz: self.table.freq_hz.clone(),
+            response: self
+                .table
+                .freq_hz
+                .iter()
+                .zip(&self.table.response)
+                .map(|(&f, h)| h / part(f))
+                .collect(),
+        }
+    }
+
+    /// The response the receiver sees once its own skew is undone.
+    fn rx_table(&self) -> ResponseTable {
+        let skew = self.rx_skew_s();
+        self.table_without(|f| rx_skew_direct(f, skew))
+    }
+
+    /// The RF chain alone: the measured response without either end's I/Q errors (what the
+    /// transmitter's pre-distortion divides out before it undoes its own I/Q errors).
+    pub(crate) fn rf_table(&self) -> ResponseTable {
+        let (tx, skew) = (self.tx_iq(), self.rx_skew_s());
+        self.table_without(|f| tx.direct(f) * rx_skew_direct(f, skew))
+    }
+
+    /// The response from the transmitter's output to where the receiver's corrections leave
+    /// it: the RF chain, and the receiver's skew unless `rx_corrected` (the receiver undoes it).
+    pub(crate) fn after_transmitter(&self, rx_corrected: bool) -> ResponseTable {
+        if rx_corrected {
+            self.rf_table()
+        } else {
+            let tx = self.tx_iq();
+            self.table_without(|f| tx.direct(f))
+        }
+    }
+
+    fn dc(&self) -> Complex64 {
+        let [di, dq] = self.figures.dc_v;
+        Complex64::new(di, dq)
+    }
+
+    fn rx_iq(&self) -> Option<(f64, f64)> {
+        Some((self.figures.rx_iq_gain_db, self.figures.rx_iq_phase_deg))
+    }
+
+    /// The receive equaliser for repetitions of `period` samples at `fs`: DC, the receiver's I/Q
+    /// imbalance and skew, then the response.
+    pub(crate) fn equaliser(&self, period: usize, fs: f64) -> Result<RxEqualiser, MeasureError> {
+        Ok(
+            RxEqualiser::new(&self.rx_table(), self.dc(), self.rx_iq(), period, fs)?
+                .with_rx_skew(self.rx_skew_s()),
+        )
+    }
+
+    /// The receiver's part alone (DC, I/Q imbalance and skew), the response left flat: for a
     /// transmitter that pre-distorts the response.
     pub(crate) fn receiver_only(
         &self,
@@ -167,14 +252,10 @@ impl Response {
             freq_hz: vec![-1.0, 1.0],
             response: vec![Complex64::new(1.0, 0.0); 2],
         };
-        let [di, dq] = self.figures.dc_v;
-        Ok(RxEqualiser::new(
-            &flat,
-            Complex64::new(di, dq),
-            Some((self.figures.rx_iq_gain_db, self.figures.rx_iq_phase_deg)),
-            period,
-            fs,
-        )?)
+        Ok(
+            RxEqualiser::new(&flat, self.dc(), self.rx_iq(), period, fs)?
+                .with_rx_skew(self.rx_skew_s()),
+        )
     }
 }
 
@@ -475,6 +556,15 @@ pub(crate) fn measure(
         dc,
         (gain_db, phase_deg),
     );
+    let mut figures = figures;
+    if let Some(split) = split_iq(&est, &fitted.direct, &fitted.image, &cover, gate_s) {
+        figures.tx_iq_gain_db = 20.0 * split.tx.gain.log10();
+        figures.tx_iq_phase_deg = split.tx.phase.to_degrees();
+        figures.tx_iq_skew_ps = split.tx.skew_s * 1e12;
+        figures.rx_iq_skew_ps = split.rx_skew_s * 1e12;
+        figures.iq_skew_sd_ps = split.tx_skew_sd_s.max(split.rx_skew_sd_s) * 1e12;
+        figures.iq_skews_separated = split.skews_separated();
+    }
     let band_hz = [
         *table.freq_hz.first().unwrap_or(&0.0),
         *table.freq_hz.last().unwrap_or(&0.0),
@@ -488,6 +578,33 @@ pub(crate) fn measure(
         band_hz,
         system_delay_s,
     })
+}
+
+/// The two ends' I/Q errors from the image `image` against the direct response `direct` (both
+/// per bin of the period, unnormalised), over the bins where the waveform's power at `f` and at
+/// `-f` is within 3 dB of its peak.
+fn split_iq(
+    est: &ChainEstimator,
+    direct: &[Complex64],
+    image: &[Complex64],
+    cover: &[f64],
+    gate_s: f64,
+) -> Option<crate::dsp::iq_image::IqSplit> {
+    let n = est.period();
+    let w: Vec<f64> = (0..n)
+        .map(|k| {
+            let weight = cover[k].min(cover[(n - k) % n]);
+            if weight >= FIGURE_COVERAGE {
+                weight
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // The gate (flat +-gate, a taper half as long each side) spans 3 gate: its estimates are
+    // correlated over 1 / (3 gate).
+    let df = est.frequency_hz(1);
+    split_measured(direct, image, &w, df * n as f64, 1.0 / (3.0 * gate_s * df))
 }
 
 /// The strongest echo within 2 m of where the reference should be must lie within the gate of
@@ -601,6 +718,7 @@ fn figures_of(
         image_db: 10.0 * image_power.max(1e-30).log10(),
         spread_db_max: max(spread_db),
         spread_deg_max: max(spread_deg),
+        ..ResponseFigures::default()
     }
 }
 

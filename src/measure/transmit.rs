@@ -100,6 +100,11 @@ pub struct PredistortionReport {
     pub sqnr_db_after: f64,
     /// Largest boost of the inverse response over the band, dB.
     pub peak_boost_db: f64,
+    /// The transmitter's I/Q errors pre-distorted out: Q's gain and phase relative to I, and
+    /// its skew (0 when the calibration could not tell it from the receiver's).
+    pub tx_iq_gain_db: f64,
+    pub tx_iq_phase_deg: f64,
+    pub tx_iq_skew_ps: f64,
 }
 
 impl Transmission {
@@ -172,19 +177,22 @@ impl Transmission {
         match &options.correction {
             Some(used) if used.mode == "tx" || used.mode == "both" => {
                 let cal = super::response::Calibration::load_used(used)?;
-                self.predistorted(&cal)
+                self.predistorted(&cal, used.mode == "both")
             }
             _ => Ok(self),
         }
     }
 
     /// The codes pre-distorted by the inverse of `cal`'s measured response (magnitude and phase
-    /// over the band): what leaves the chain is then the waveform as designed. The receiver's
-    /// reference becomes what the measured chain makes of the new codes, so the matched filter
-    /// and the OFDM division fit what arrives.
+    /// over the band) and of the transmitter's I/Q errors (gain, phase, skew): what leaves the
+    /// transmitter and the chain is then the waveform as designed. The receiver's reference
+    /// becomes what the measured chain makes of the new codes (up to where the receiver's own
+    /// corrections leave it: `rx_corrected` when the receiver undoes its skew), so the matched
+    /// filter and the OFDM division fit what arrives.
     pub(crate) fn predistorted(
         &self,
         cal: &super::response::Calibration,
+        rx_corrected: bool,
     ) -> Result<Transmission, MeasureError> {
         use crate::dsp::response::RxEqualiser;
         if matches!(self.dac, Dac::Ideal) {
@@ -196,22 +204,27 @@ impl Transmission {
         }
         let n = self.len();
         let fs = self.sample_rate_hz();
-        let table = &cal.response.table;
+        let rf = cal.response.rf_table();
+        let tx_iq = cal.response.tx_iq();
         let mut x = self.reference.clone();
         let zero = num_complex::Complex64::new(0.0, 0.0);
-        RxEqualiser::new(table, zero, None, n, fs)?.apply(&mut x, false)?;
+        RxEqualiser::new(&rf, zero, None, n, fs)?.apply(&mut x, false)?;
+        in_spectrum(&mut x, |s| tx_iq.undo(s, fs));
         let backoff_db = match self.dac {
             Dac::Codes { backoff_db } => backoff_db,
             Dac::Ideal => DEFAULT_BACKOFF_DB,
         };
         let q = quantise(&x, backoff_db, BackoffReference::Peak)?;
-        let reference = through_table(&as_reference(&q), table, fs);
+        let after_tx = cal.response.after_transmitter(rx_corrected);
+        let mut reference = as_reference(&q);
+        in_spectrum(&mut reference, |s| tx_iq.apply(s, fs));
+        let reference = through_table(&reference, &after_tx, fs);
         let papr = |v: &[Complex64]| {
             let peak = v.iter().map(|z| z.norm_sqr()).fold(0.0, f64::max);
             let mean = v.iter().map(|z| z.norm_sqr()).sum::<f64>() / v.len().max(1) as f64;
             10.0 * (peak / mean.max(1e-300)).max(1e-300).log10()
         };
-        let peak_boost_db = table
+        let peak_boost_db = rf
             .response
             .iter()
             .map(|h| -20.0 * h.norm().max(1e-300).log10())
@@ -222,6 +235,9 @@ impl Transmission {
             sqnr_db_before: self.quantised.sqnr_db,
             sqnr_db_after: q.sqnr_db,
             peak_boost_db,
+            tx_iq_gain_db: 20.0 * tx_iq.gain.log10(),
+            tx_iq_phase_deg: tx_iq.phase.to_degrees(),
+            tx_iq_skew_ps: tx_iq.skew_s * 1e12,
         };
         Ok(Transmission {
             quantised: QuantisationReport::of(&q, backoff_db),
@@ -346,6 +362,18 @@ fn through_table(
     }
     planner.plan_fft_inverse(n).process(&mut s);
     s
+}
+
+/// `edit` applied to the spectrum of one period `x` (in place).
+fn in_spectrum(x: &mut [Complex64], edit: impl FnOnce(&mut [Complex64])) {
+    let n = x.len();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    planner.plan_fft_forward(n).process(x);
+    edit(x);
+    planner.plan_fft_inverse(n).process(x);
+    for v in x.iter_mut() {
+        *v /= n as f64;
+    }
 }
 
 /// A payload too long for one repetition is refused before anything is generated, naming the

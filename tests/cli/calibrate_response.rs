@@ -104,6 +104,23 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
     );
     let spread = report["figures"]["spread_db_max"].as_f64().unwrap();
     assert!(spread < 0.2, "{spread} dB over 16 repetitions");
+    // Both ends' I/Q errors, told apart in the image (the reference's carrier phase at 1.0 m
+    // separates the two skews).
+    let fig = |name: &str| report["figures"][name].as_f64().unwrap();
+    assert_eq!(report["figures"]["iq_skews_separated"], true, "{out}");
+    let chain = mock_lab::scene::ChainParams::thesis_lab();
+    for (name, truth, tol) in [
+        ("tx_iq_gain_db", chain.tx_iq_gain_db, 0.05),
+        ("tx_iq_phase_deg", chain.tx_iq_phase_deg, 0.3),
+        ("tx_iq_skew_ps", chain.tx_iq_skew_ps, 0.3),
+        ("rx_iq_skew_ps", chain.rx_iq_skew_ps, 0.3),
+    ] {
+        assert!(
+            (fig(name) - truth).abs() < tol,
+            "{name} {} (truth {truth})",
+            fig(name)
+        );
+    }
 
     // The table matches the chain the scene configured (the mock lab knows it), once both are
     // normalised (mean gain, mean phase and the best line through the phase taken out).
