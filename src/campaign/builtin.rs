@@ -420,10 +420,10 @@ fn music_rows(r: &Results, dir: PathBuf, ideal: bool) -> Vec<LabRow> {
              chain's amplitude taper over the band"
         } else {
             "the lab's OFDM side-lobes (-14.19 dB) are below the thesis' own simulation (-13.24), \
-             which needs a taper over the band that would lower MSK-LFM's too; its MSK-LFM lab \
-             figure (4.4.1, -10.49 dB) needs an echo that raises both: no one linear chain gives \
-             both, so the two were not measured through one chain state. This chain reproduces \
-             4.4.1, and OFDM shows the same echo"
+             its MSK-LFM ones (4.4.1, -10.49 dB) above: through one band no linear chain gives \
+             both. The thesis' chirp swept 0..B while its OFDM was centred, so the two saw \
+             sub-bands 0.5 GHz apart, where a ripple's echoes change sign; radbench centres both \
+             waveforms, so this chain reproduces 4.4.1 and OFDM shows the same echo"
         },
         dir.clone(),
     ));

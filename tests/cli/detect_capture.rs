@@ -271,7 +271,8 @@ async fn noise_only_on_the_thesis_lab_chain_reports_no_target_over_50_seeds() {
 /// One pillar at 1 m on the `thesis-lab` chain: its measured response is the lab's of the thesis
 /// for MSK-LFM (Table 4.5: -3 dB width 12.73 cm, peak side-lobe -10.48 dB), and one target.
 /// OFDM shows the same chain's echo (Table 4.7's lab figures, -14.19 dB and 13.42 cm, are better
-/// than the thesis' own simulation: no linear chain that gives Table 4.5 also gives those).
+/// than the thesis' own simulation: the thesis' OFDM sat 0.5 GHz below its chirp's band, which
+/// radbench's centred waveforms do not reproduce; docs/campaign.md).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn one_pillar_on_the_thesis_lab_chain_shows_the_thesis_lab_figures() {
     let mut lab = Lab::start(false).await;
