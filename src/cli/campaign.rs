@@ -254,6 +254,12 @@ fn step_line(done: &StepDone<'_>) -> String {
             }
             s += ")";
         }
+        if a.missed > 0 {
+            s += &format!(
+                " (MISSED {} of the nominal targets: nothing within a resolution cell)",
+                a.missed
+            );
+        }
         if let Some(res) = a.resolved {
             s += if res { " resolved" } else { " not resolved" };
         }

@@ -260,3 +260,41 @@ async fn link_plots_ber_with_theory_and_the_radar_figures() {
     }
     check_reports(&dir, &figures).await;
 }
+
+/// A pillar left where it was (the stage did not move): the step that misses its nominal target
+/// says MISSED on the console, and the report's error cells say "missed" rather than "-".
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_missed_target_is_said_on_the_console_and_in_the_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(
+        d.join("lab.toml"),
+        "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("spec.toml"),
+        "name = \"stuck stage\"\n[bench]\nscene = \"lab.toml\"\n\
+         [positioner]\nkind = \"command\"\nprogram = \"true\"\n\
+         [sweep]\nparameter = \"position\"\nvalues = [1.0, 1.3]\n",
+    )
+    .unwrap();
+    let (code, stdout, err) = crate::support::radbench_in(
+        Some(d),
+        &["campaign", "run", "spec.toml", "--allow-rf", "--out", "run"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = stdout
+        .lines()
+        .chain(err.lines())
+        .filter(|l| l.starts_with("step "))
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}{err}");
+    assert!(!lines[0].contains("MISSED"), "{}", lines[0]);
+    assert!(lines[1].contains("MISSED 1"), "{}", lines[1]);
+    let md = std::fs::read_to_string(d.join("run/report.md")).unwrap();
+    assert!(md.contains("| missed 1 |"), "{md}");
+    let html = std::fs::read_to_string(d.join("run/report.html")).unwrap();
+    assert!(html.contains("missed 1"), "the page says it too");
+}

@@ -63,6 +63,16 @@ fn mm(v: Option<f64>, std: Option<f64>) -> String {
     }
 }
 
+/// An error cell that says when nominal targets were missed (nothing found within a resolution
+/// cell of them): a missed target has no error, and "-" would hide it.
+fn with_missed(cell: String, missed: usize) -> String {
+    match (missed, cell.as_str()) {
+        (0, _) => cell,
+        (m, "-") => format!("missed {m}"),
+        (m, _) => format!("{cell}, missed {m}"),
+    }
+}
+
 fn strongest_std(a: &AlgorithmResult) -> Option<f64> {
     a.targets
         .iter()
@@ -133,8 +143,8 @@ pub(crate) fn steps_table(results: &Results) -> Table {
                 } else {
                     targets.join(", ")
                 },
-                mm(a.error_m, strongest_std(a)),
-                mm(a.error_on_grid_m, None),
+                with_missed(mm(a.error_m, strongest_std(a)), a.missed),
+                with_missed(mm(a.error_on_grid_m, None), a.missed),
                 mm(a.truth_error_m, None),
                 a.resolved
                     .map_or("-", |r| if r { "yes" } else { "no" })
@@ -180,14 +190,27 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
             let (i, g) = (worst(|a| a.error_m), worst(|a| a.error_on_grid_m));
             let half = C0 / (2.0 * fs);
             let quarter = C0 / (4.0 * fs);
+            // A step that missed its target is not within any bound.
+            let missed: usize = acc
+                .iter()
+                .filter_map(|s| s.algorithms.get(name))
+                .map(|a| a.missed)
+                .sum();
+            let within = |w: Option<f64>, b: f64| {
+                if missed > 0 {
+                    format!("no (missed {missed})")
+                } else {
+                    within(w, b).to_string()
+                }
+            };
             rows.push(vec![
                 name.clone(),
-                i.map_or("-".into(), |v| format!("{:.3}", v * 1e3)),
-                g.map_or("-".into(), |v| format!("{:.3}", v * 1e3)),
+                with_missed(i.map_or("-".into(), |v| format!("{:.3}", v * 1e3)), missed),
+                with_missed(g.map_or("-".into(), |v| format!("{:.3}", v * 1e3)), missed),
                 format!("{:.3}", half * 1e3),
-                within(g, half).into(),
+                within(g, half),
                 format!("{:.3}", quarter * 1e3),
-                within(g, quarter).into(),
+                within(g, quarter),
             ]);
         }
         out.push(Table {
