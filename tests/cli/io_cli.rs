@@ -300,3 +300,20 @@ async fn gotmic_modules_from_idn_and_scpi() {
         stderr(&out)
     );
 }
+
+/// `radbench -v capture 2>log`: the log is plain text (colour only on a terminal).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_log_written_to_a_file_has_no_colour_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, err) = crate::support::radbench_in(
+        Some(dir.path()),
+        &["-vv", "capture", "--allow-rf", "--out", "c", "--force"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("INFO") || err.contains("DEBUG"),
+        "a log: {err}"
+    );
+    assert!(!err.contains('\u{1b}'), "no ANSI escape codes: {err:?}");
+}
