@@ -150,9 +150,60 @@ pub struct Args {
     /// binary reply to this file; with several, the 2nd goes to FILE.2 and so on.
     #[arg(long, value_name = "FILE")]
     pub save_binary: Option<PathBuf>,
-    /// Drain SYST:ERR? after every command and fail if the instrument refused something.
-    #[arg(long)]
+    /// Read the error queue after every command and fail if the instrument refused something.
+    /// The default for instruments of the catalog (identified by `*IDN?`), whose queue is known;
+    /// this flag asks it of any instrument (SYST:ERR?, or CMR? over VICP).
+    #[arg(long, conflicts_with = "no_check_errors")]
     pub check_errors: bool,
+    /// Do not read the error queue (not before the first command, not after any).
+    #[arg(long)]
+    pub no_check_errors: bool,
+}
+
+/// How long the identity probe that decides the default error check may wait.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Whether to check errors when neither flag was given: the instrument is one of the catalog's,
+/// whose error queue is known. An instrument that does not answer `*IDN?` within
+/// [`PROBE_TIMEOUT`] (or the reply timeout, if shorter) is not checked.
+async fn known_to_keep_errors(session: &mut Session) -> bool {
+    if session.answers_every_request() {
+        // A line-protocol device refuses in its reply: nothing to read afterwards.
+        return false;
+    }
+    let Ok(catalog) = crate::catalog::Catalog::embedded() else {
+        return false;
+    };
+    let timeouts = &mut session.link_options_mut().timeouts;
+    let read = timeouts.read;
+    timeouts.read = read.min(PROBE_TIMEOUT);
+    let reply = session.query("*IDN?").await;
+    session.link_options_mut().timeouts.read = read;
+    match reply {
+        Ok(idn) => catalog.identify(&idn).is_some(),
+        Err(_) => {
+            // A late reply must not be taken for the first command's.
+            let _ = session.device_clear().await;
+            false
+        }
+    }
+}
+
+/// Empties the error queue before the first command, so an error an earlier session left is not
+/// blamed on this one; says what it held.
+async fn clear_earlier_errors(session: &mut Session) -> anyhow::Result<()> {
+    let earlier = session.errors().await?;
+    if !earlier.is_empty() {
+        let list: Vec<String> = earlier.iter().map(|e| e.to_string()).collect();
+        eprintln!(
+            "note: the error queue held {} entr{} from before these commands (cleared, not \
+             theirs): {}",
+            earlier.len(),
+            if earlier.len() == 1 { "y" } else { "ies" },
+            list.join("; ")
+        );
+    }
+    Ok(())
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
@@ -162,17 +213,27 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let bar = TransferBar::new();
     session.link_options_mut().progress = Some(bar.callback());
     let mut saver = BinarySaver::new(args.save_binary.clone());
-    let result = if args.commands.is_empty() {
-        interactive(&runtime, &mut session, &mut saver, args.check_errors, &bar)
-    } else {
-        runtime.block_on(one_shot(
-            &mut session,
-            &args.commands,
-            &mut saver,
-            args.check_errors,
-            &bar,
-        ))
+    let check_errors = match (args.check_errors, args.no_check_errors) {
+        (_, true) => false,
+        (true, _) => true,
+        _ => runtime.block_on(known_to_keep_errors(&mut session)),
     };
+    let result = (|| {
+        if check_errors {
+            runtime.block_on(clear_earlier_errors(&mut session))?;
+        }
+        if args.commands.is_empty() {
+            interactive(&runtime, &mut session, &mut saver, check_errors, &bar)
+        } else {
+            runtime.block_on(one_shot(
+                &mut session,
+                &args.commands,
+                &mut saver,
+                check_errors,
+                &bar,
+            ))
+        }
+    })();
     let _ = runtime.block_on(session.close());
     result
 }

@@ -90,7 +90,9 @@ async fn scpi_one_shot_saves_binary_and_journals() {
         .filter(|l| l["direction"] == "write")
         .map(|l| l["text"].as_str().unwrap())
         .collect();
-    assert_eq!(writes[0], "DATA:GEN 1000,5\n");
+    // With --check-errors the queue is emptied before the first command.
+    assert_eq!(writes[0], "SYST:ERR?\n");
+    assert_eq!(writes[1], "DATA:GEN 1000,5\n");
     assert!(writes.contains(&"DATA?\n"));
     let binary = lines
         .iter()
@@ -316,4 +318,50 @@ async fn a_log_written_to_a_file_has_no_colour_codes() {
         "a log: {err}"
     );
     assert!(!err.contains('\u{1b}'), "no ANSI escape codes: {err:?}");
+}
+
+/// `radbench scpi AWG ":FREQ:RASTX 16e9"` (a typo): the AWG is one of the catalog's, so its error
+/// queue is read by default, and the refusal fails the command (it used to exit 0 in silence).
+/// An error an earlier session left in the queue is cleared first and named as such, not blamed
+/// on the next command.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn scpi_reads_a_catalog_instruments_error_queue_by_default() {
+    use mock_lab::server::launch::Transport;
+    let lab = tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let awg = lab.endpoint("awg", Transport::Hislip).unwrap().resource;
+    let scpi = |args: &[&str]| {
+        let mut all = vec!["scpi", awg.as_str()];
+        all.extend_from_slice(args);
+        let all: Vec<String> = all.iter().map(|s| s.to_string()).collect();
+        async move {
+            let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+            crate::support::radbench_in(None, &refs).await
+        }
+    };
+    let (code, _, err) = scpi(&[":FREQ:RASTX 16e9"]).await;
+    assert_eq!(
+        code, 3,
+        "the instrument refused (the exit code table): {err}"
+    );
+    assert!(
+        err.contains(":FREQ:RASTX 16e9") && err.contains("-113"),
+        "{err}"
+    );
+
+    // Left in the queue on purpose, then a good command: it succeeds, the old error is named.
+    let (code, _, err) = scpi(&["--no-check-errors", ":FREQ:RASTX 16e9"]).await;
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = scpi(&[":FREQ:RAST 60e9", ":FREQ:RAST?"]).await;
+    assert_eq!(code, 0, "the good command is not blamed: {err}");
+    assert!(out.contains("6"), "{out}");
+    assert!(
+        err.contains("from before these commands") && err.contains("-113"),
+        "{err}"
+    );
 }
