@@ -78,7 +78,7 @@ impl std::fmt::Display for Identity {
 
 /// Parses `*IDN?`; a firmware field containing commas is kept whole.
 pub fn parse_idn(text: &str) -> Option<Identity> {
-    let t = trim_reply(text);
+    let t = without_idn_header(trim_reply(text));
     let mut it = t.splitn(4, ',');
     let manufacturer = it.next()?.trim();
     let model = it.next()?.trim();
@@ -93,6 +93,15 @@ pub fn parse_idn(text: &str) -> Option<Identity> {
         serial: serial.to_string(),
         firmware: firmware.to_string(),
     })
+}
+
+/// An `*IDN?` reply without the response header a LeCroy adds with headers on (its power-on
+/// `COMM_HEADER SHORT`: `*IDN LECROY,...`): the header is not the manufacturer.
+pub(crate) fn without_idn_header(reply: &str) -> &str {
+    match reply.split_once(char::is_whitespace) {
+        Some((head, rest)) if head.eq_ignore_ascii_case("*IDN") => rest.trim_start(),
+        _ => reply,
+    }
 }
 
 /// Parses a `SYST:ERR?` reply, `<code>,"<text>"`, or an error register's `<code>` (LeCroy

@@ -365,3 +365,26 @@ async fn scpi_reads_a_catalog_instruments_error_queue_by_default() {
         "{err}"
     );
 }
+
+/// `radbench idn` on a LeCroy at its power-on settings (`COMM_HEADER SHORT`, replies
+/// `*IDN MOCK_LAB,...`): the manufacturer is MOCK_LAB, not `*IDN MOCK_LAB`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idn_on_a_scope_with_response_headers_on() {
+    use mock_lab::server::launch::Transport;
+    let lab = tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let scope = lab.endpoint("scope", Transport::Vicp).unwrap().resource;
+    let (code, out, err) = crate::support::radbench_in(None, &["idn", &scope]).await;
+    assert_eq!(code, 0, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("manufacturer:"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(!line.contains("*IDN"), "{line}");
+    assert!(out.contains("model:"), "{out}");
+}
