@@ -458,6 +458,23 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
             step.music_p = Some(p);
         }
     }
+    // MUSIC's M against each planned waveform, named in the spec (not as the CLI's --m).
+    for wf in &waveforms {
+        if let WaveformSpec::Ofdm { subcarriers, .. } = wf {
+            for o in processing.iter().filter(|o| o.algorithm.is_subspace()) {
+                if o.music_m < 2 || o.music_m > *subcarriers {
+                    return Err(spec.error(
+                        "processing.music_m",
+                        format!(
+                            "music_m = {}: allowed 2..={subcarriers} (at most the waveform's \
+                             {subcarriers} subcarriers)",
+                            o.music_m
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     let places = steps.iter().any(|st| !st.nominal.targets.is_empty());
     if places && positioner.is_none() {
         return Err(spec.error(

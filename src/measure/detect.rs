@@ -213,8 +213,9 @@ pub(crate) fn no_target_hint(rx: &[Complex64], profile: &Profile) -> String {
         format!(
             "no target found: the range profile is flat (peak {contrast_db:.1} dB over its median, \
              capture RMS {:.2} mV), so the capture looks like noise only. Check that the \
-             transmitter and receiver are enabled (pass --allow-rf; a --tx-off capture measures \
-             the noise floor), that the AWG outputs I/Q, and that the antennas face the target",
+             transmitter and receiver were on (a capture made with --allow-rf, without --tx-off, \
+             which measures the noise floor), that the AWG outputs I/Q, and that the antennas \
+             face the target",
             rms * 1e3
         )
     } else {

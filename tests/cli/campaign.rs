@@ -447,6 +447,17 @@ async fn a_spec_with_a_wrong_field_fails_with_file_line_field_and_exit_2() {
     let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.toml:5: `sweep.count`"), "{err}");
+    // MUSIC's M beyond the OFDM waveform's subcarriers: named in the spec, not as `--m`.
+    std::fs::write(
+        &spec,
+        "[waveform]\nkind = \"ofdm\"\n[processing]\nalgorithms = [\"music\"]\n\
+         music_m = 640\n[sweep]\nparameter = \"position\"\nvalues = [1.0]\n",
+    )
+    .unwrap();
+    let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.toml:5: `processing.music_m`"), "{err}");
+    assert!(err.contains("2..=128") && !err.contains("--m"), "{err}");
 }
 
 fn write_spec(dir: &Path, text: &str) -> PathBuf {
