@@ -361,7 +361,27 @@ pub struct Taken {
 
 impl Taken {
     /// The measurement, with what a pipeline made of this capture.
-    pub fn with(self, processing: Processing) -> Measurement {
+    pub fn with(self, mut processing: Processing) -> Measurement {
+        if let Some(truth) = &self.ground_truth {
+            let o = &processing.options;
+            let outside: Vec<String> = truth["targets"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|t| t["range_m"].as_f64())
+                .filter(|r| *r < o.min_range_m || *r > o.max_range_m)
+                .map(|r| format!("{r:.3} m"))
+                .collect();
+            if !outside.is_empty() {
+                processing.processed.warnings.push(format!(
+                    "the simulated scene has a target at {} outside the range window \
+                     {:.2}..{:.2} m, which is not searched: widen --min-range/--max-range to see it",
+                    outside.join(", "),
+                    o.min_range_m,
+                    o.max_range_m
+                ));
+            }
+        }
         Measurement {
             taken: self,
             processing,

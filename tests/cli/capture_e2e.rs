@@ -377,3 +377,36 @@ async fn the_chain_floor_keeps_a_thesis_lab_echo_in_its_pillar_and_can_be_turned
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("chain_floor_db"), "{err}");
 }
+
+/// A simulated target beyond `--max-range` is not searched, and the capture says so.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scene_target_outside_the_range_window_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("far.toml"),
+        "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.3\n\
+         [[targets]]\nrange_m = 9.0\namplitude = 0.3\n",
+    )
+    .unwrap();
+    let (code, out, err) = crate::support::radbench_in(
+        Some(d),
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "far.toml",
+            "--max-range",
+            "5",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let s: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let warnings = s["warnings"].to_string();
+    assert!(
+        warnings.contains("9.000 m outside the range window"),
+        "{warnings}"
+    );
+}
