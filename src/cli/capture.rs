@@ -390,7 +390,14 @@ fn report(m: &Measurement, out: &Path) -> String {
                     )
                 })
                 .unwrap_or_default();
-            println!("  {:>9.4} m   {:>6.1} dB{spread}", t.range_m, t.level_db);
+            let moving = t
+                .velocity_mps
+                .map(|v| format!("   {v:+.1} m/s"))
+                .unwrap_or_default();
+            println!(
+                "  {:>9.4} m   {:>6.1} dB{moving}{spread}",
+                t.range_m, t.level_db
+            );
         }
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |x| format!("{x:.2} {unit}"));

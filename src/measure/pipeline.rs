@@ -40,6 +40,10 @@ use std::sync::Arc;
 pub use super::detect::{Detection, DetectionReport};
 pub use super::payload::PayloadResult;
 
+/// A bit error rate above this is reported as a failed decoding (a working link is orders of
+/// magnitude below it; 0.5 is a coin toss).
+const BER_WARNING: f64 = 0.1;
+
 const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 
 /// Lags the correlation keeps beyond the farthest range of interest, seconds: the side-lobes of a
@@ -1085,6 +1089,25 @@ impl Pipeline {
         }
         let lag = strongest.and_then(|t| t.cell);
         let payload = self.payload.decode(&aligned.samples, &self.tx, lag);
+        if let Some(p) = payload
+            .as_ref()
+            .filter(|p| p.bits > 0 && p.ber > BER_WARNING)
+        {
+            let moving = strongest
+                .and_then(|t| t.velocity_mps)
+                .filter(|v| v.abs() > 1.0)
+                .map(|v| {
+                    format!(
+                        "; the strongest target moves at {v:+.1} m/s, and its Doppler shift \
+                         spoils the decoding, which assumes a still reflector"
+                    )
+                })
+                .unwrap_or_default();
+            warnings.push(format!(
+                "the data did not decode: BER {:.1e} ({} of {} bits wrong){moving}",
+                p.ber, p.bit_errors, p.bits
+            ));
+        }
         Ok(Processed {
             profiles: range.profiles,
             targets: detection.targets.clone(),

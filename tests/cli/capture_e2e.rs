@@ -410,3 +410,34 @@ async fn a_scene_target_outside_the_range_window_is_named() {
         "{warnings}"
     );
 }
+
+/// An OFDM target at 300 m/s: its velocity is on the console, and the failed decoding is a
+/// warning that names it (was only a BER of 0.5 in the output).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fast_target_that_spoils_the_data_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("moving.toml"),
+        "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\nvelocity_mps = 300.0\n",
+    )
+    .unwrap();
+    let (code, out, err) = crate::support::radbench_in(
+        Some(d),
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "moving.toml",
+            "--waveform",
+            "ofdm",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("+300.0 m/s"), "{out}");
+    assert!(
+        out.contains("warning: the data did not decode") && out.contains("moves at +300.0 m/s"),
+        "{out}"
+    );
+}
