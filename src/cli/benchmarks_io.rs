@@ -126,7 +126,8 @@ fn check(address: &str, got: &[u8], want: &[u8]) -> anyhow::Result<()> {
 /// What `bench io` needs of the instrument, said when the instrument refuses it.
 const NEEDS_LOOPBACK: &str =
     "bench io needs an instrument that stores a block with `DATA <block>` \
-and returns it with `DATA?` (mock-lab's loopback instrument)";
+and returns it with `DATA?`: the mock lab's loopback instrument (`radbench mock-lab serve \
+--with-loopback` prints its addresses)";
 
 /// Adds [`NEEDS_LOOPBACK`] to a refusal by the instrument (e.g. an AWG's -113 for `DATA?`).
 fn explain_refusal(address: &str, result: anyhow::Result<()>) -> anyhow::Result<()> {
@@ -154,6 +155,19 @@ async fn measure(
     options.link.timeouts.read = timeout;
     options.link.max_message_bytes = options.link.max_message_bytes.max(data.len() + 4096);
     let mut session = Session::open(resource, options, None, "bench").await?;
+    // An instrument of the catalog (an AWG, a scope, a module) has no loopback commands: say so
+    // at once rather than after a block and a reply timeout.
+    if let Ok(idn) = session.query("*IDN?").await {
+        let catalog = crate::catalog::Catalog::embedded()?;
+        if let Some(found) = catalog.identify(&idn) {
+            let _ = session.close().await;
+            return Err(bad_input(format!(
+                "{address} is a {} ({}), not a loopback instrument: {NEEDS_LOOPBACK}",
+                found.model.instrument.key,
+                idn.trim()
+            )));
+        }
+    }
     // Warm-up: connections, buffers and the instrument's stored block exist before timing. An
     // instrument without the loopback commands refuses here (`DATA?` goes unanswered and its
     // error queue says why).

@@ -180,7 +180,7 @@ async fn known_to_keep_errors(session: &mut Session) -> bool {
     let reply = session.query("*IDN?").await;
     session.link_options_mut().timeouts.read = read;
     match reply {
-        Ok(idn) => catalog.identify(&idn).is_some(),
+        Ok(idn) => catalog.identify(reply::without_idn_header(&idn)).is_some(),
         Err(_) => {
             // A late reply must not be taken for the first command's.
             let _ = session.device_clear().await;

@@ -310,6 +310,14 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_lecroy_response_header_is_not_the_manufacturer() {
+        let idn = parse_idn("*IDN LECROY,LABMASTER10-36ZI-A,LCRY1,9.8.0\n").unwrap();
+        assert_eq!(idn.manufacturer, "LECROY");
+        assert_eq!(idn.model, "LABMASTER10-36ZI-A");
+        assert_eq!(without_idn_header("A,B,C,D"), "A,B,C,D");
+    }
+
+    #[test]
     fn numbers_and_booleans() {
         assert_eq!(parse_f64("+6.4000000000E+10\n"), Some(6.4e10));
         assert_eq!(parse_f64("abc"), None);
