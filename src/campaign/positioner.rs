@@ -178,12 +178,26 @@ impl Positioner {
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .kill_on_drop(true);
-        let child = cmd
+        own_session_and_no_other_descriptors(&mut cmd);
+        let mut child = cmd
             .spawn()
             .map_err(|source| CampaignError::PositionerStart {
                 program: program.clone(),
                 source,
             })?;
+        // Whatever way this step ends (done, failed, timed out, interrupted, an error above),
+        // the program and every process it started are killed with their group.
+        let group = child.id().map(ProcessGroup);
+        let reader = tokio::spawn(last_bytes(child.stderr.take(), STDERR_KEPT));
+        let finished = async {
+            let status = child.wait().await;
+            // The program is done: a child it left would hold the pipe open (and run on).
+            if let Some(g) = &group {
+                g.kill();
+            }
+            let tail = reader.await.unwrap_or_default();
+            status.map(|status| (status, tail))
+        };
         let timeout = Duration::from_secs_f64(self.plan.timeout_s);
         let shown = format!(
             "`{}`",
@@ -193,7 +207,7 @@ impl Positioner {
                 .join(" ")
         );
         tokio::select! {
-            out = tokio::time::timeout(timeout, child.wait_with_output()) => match out {
+            out = tokio::time::timeout(timeout, finished) => match out {
                 Err(_) => Err(CampaignError::PositionerFailed {
                     program: shown,
                     reason: format!("did not finish within {} s (positioner.timeout_s) and was killed", self.plan.timeout_s),
@@ -202,16 +216,22 @@ impl Positioner {
                     program: shown,
                     reason: format!("could not be waited for: {e}"),
                 }),
-                Ok(Ok(out)) if out.status.success() => Ok(()),
-                Ok(Ok(out)) => {
-                    let stderr = String::from_utf8_lossy(&out.stderr);
-                    let tail: Vec<&str> = stderr.lines().rev().take(3).collect();
-                    let tail: Vec<&str> = tail.into_iter().rev().collect();
+                Ok(Ok((status, _))) if status.success() => Ok(()),
+                Ok(Ok((status, tail))) => {
+                    let stderr = String::from_utf8_lossy(&tail);
+                    let tail: Vec<String> = stderr
+                        .lines()
+                        .rev()
+                        .filter(|l| !l.trim().is_empty())
+                        .take(3)
+                        .map(shown_line)
+                        .collect();
+                    let tail: Vec<String> = tail.into_iter().rev().collect();
                     Err(CampaignError::PositionerFailed {
                         program: shown,
                         reason: format!(
                             "failed ({}){}",
-                            out.status,
+                            status,
                             if tail.is_empty() { String::new() } else { format!(": {}", tail.join(" | ")) }
                         ),
                     })
@@ -226,6 +246,85 @@ impl Positioner {
 }
 
 use std::io::Write as _;
+
+/// The end of a positioner's standard error kept for the message; the rest is read and dropped,
+/// so a program that floods it neither blocks on a full pipe nor fills radbench's memory.
+const STDERR_KEPT: usize = 4096;
+
+/// Reads `from` to its end, keeping only its last `keep` bytes.
+async fn last_bytes(from: Option<tokio::process::ChildStderr>, keep: usize) -> Vec<u8> {
+    use tokio::io::AsyncReadExt;
+    let Some(mut from) = from else {
+        return Vec::new();
+    };
+    let mut tail: std::collections::VecDeque<u8> = std::collections::VecDeque::with_capacity(keep);
+    let mut buf = vec![0u8; 8192];
+    while let Ok(n @ 1..) = from.read(&mut buf).await {
+        tail.extend(&buf[..n]);
+        let extra = tail.len().saturating_sub(keep);
+        tail.drain(..extra);
+    }
+    tail.into()
+}
+
+/// One line of a positioner's standard error as a message shows it: control characters
+/// dropped, at most 200 characters (the end kept: it usually says what went wrong).
+fn shown_line(line: &str) -> String {
+    const MAX: usize = 200;
+    let clean: Vec<char> = line.chars().filter(|c| !c.is_control()).collect();
+    if clean.len() <= MAX {
+        clean.into_iter().collect()
+    } else {
+        std::iter::once('…')
+            .chain(clean[clean.len() - MAX..].iter().copied())
+            .collect()
+    }
+}
+
+/// A positioner's process group (its program leads it): killed whole when dropped, so a child
+/// the program started (a stage tool, a `sleep`) does not outlive the step.
+struct ProcessGroup(u32);
+
+impl ProcessGroup {
+    fn kill(&self) {
+        if let Ok(pgid) = libc::pid_t::try_from(self.0) {
+            // SAFETY: kill(2) with a negative pid signals that process group; no memory involved.
+            // ESRCH (the group is gone) is the normal case after a clean exit.
+            unsafe {
+                libc::kill(-pgid, libc::SIGKILL);
+            }
+        }
+    }
+}
+
+impl Drop for ProcessGroup {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// The program starts a session (and process group) of its own, and keeps no descriptor but
+/// 0-2: not radbench's sockets, nor the simulated bench's pseudo-terminals.
+fn own_session_and_no_other_descriptors(cmd: &mut tokio::process::Command) {
+    // Descriptors from 3 up are marked close-on-exec rather than closed: the pipe through which
+    // the spawn learns whether exec worked must stay open until exec.
+    const CLOSE_RANGE_CLOEXEC: u32 = 1 << 2;
+    // SAFETY: the closure runs in the child between fork and exec and calls only
+    // async-signal-safe functions (setsid, close_range, fcntl).
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::setsid() < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if libc::syscall(libc::SYS_close_range, 3u32, u32::MAX, CLOSE_RANGE_CLOEXEC) != 0 {
+                for fd in 3..4096 {
+                    libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC);
+                }
+            }
+            Ok(())
+        });
+    }
+}
 
 #[cfg(test)]
 mod tests {

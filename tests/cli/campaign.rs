@@ -707,3 +707,98 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
     assert!(m.sessions[1].forced.as_ref().unwrap().contains("2.6000 ns"));
     assert!(lab.bench.is_safe());
 }
+
+/// Whether process `pid` is gone (or a zombie nobody reaped yet), polled for at most 10 s.
+fn gone(pid: &str) -> bool {
+    let stat = format!("/proc/{pid}/stat");
+    for _ in 0..1000 {
+        match std::fs::read_to_string(&stat) {
+            Err(_) => return true,
+            Ok(s)
+                if s.rsplit(')')
+                    .next()
+                    .is_some_and(|rest| rest.trim_start().starts_with('Z')) =>
+            {
+                return true
+            }
+            Ok(_) => std::thread::sleep(Duration::from_millis(10)),
+        }
+    }
+    false
+}
+
+/// A positioner that leaves a child behind (a stage tool, a `sleep`), on success and at its
+/// timeout: the child dies with the step, killed with the program's process group. One that
+/// floods its standard error: radbench keeps only the end of it (its peak memory, read by the
+/// script itself from /proc, stays far below the flood).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_positioners_children_and_its_flood_do_not_outlive_or_swamp_the_campaign() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let spec = |name: &str, script: &str, timeout_s: f64| {
+        std::fs::write(
+            d.join(format!("{name}.toml")),
+            format!(
+                "name = \"{name}\"\n[positioner]\nkind = \"command\"\nprogram = \"sh\"\n\
+                 args = [\"-c\", {script:?}]\ntimeout_s = {timeout_s}\n\
+                 [sweep]\nparameter = \"position\"\nvalues = [1.0]\n"
+            ),
+        )
+        .unwrap();
+        d.join(format!("{name}.toml"))
+    };
+    // Done: the program exits at once, its child would sleep on. It holds no descriptor but
+    // 0-2 (not the simulated bench's pseudo-terminals or sockets).
+    let done = spec(
+        "done",
+        "ls -l /proc/$$/fd > fds.txt; sleep 300 & echo $! > done.pid; exit 0",
+        30.0,
+    );
+    let (code, _, err) = campaign_run(&done, Some(&d.join("run-done")), &["--allow-rf"], "").await;
+    assert_eq!(code, 0, "{err}");
+    // (The shell keeps copies of its own standard streams, e.g. 10 -> /dev/null.)
+    let fds = std::fs::read_to_string(d.join("fds.txt")).unwrap();
+    for target in fds.lines().filter_map(|l| l.split(" -> ").nth(1)) {
+        assert!(
+            !(target.starts_with("socket:")
+                || target.starts_with("/dev/pts")
+                || target.contains("ptmx")),
+            "the positioner inherited {target}: {fds}"
+        );
+    }
+    let pid = std::fs::read_to_string(d.join("done.pid")).unwrap();
+    assert!(gone(pid.trim()), "the positioner's child {pid} still runs");
+    // Timed out: the program and its child are killed together.
+    let stuck = spec("stuck", "sleep 300 & echo $! > stuck.pid; sleep 300", 1.0);
+    let (code, _, err) =
+        campaign_run(&stuck, Some(&d.join("run-stuck")), &["--allow-rf"], "").await;
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("did not finish within"), "{err}");
+    let pid = std::fs::read_to_string(d.join("stuck.pid")).unwrap();
+    assert!(
+        gone(pid.trim()),
+        "the timed-out positioner's child {pid} still runs"
+    );
+    // A flood of 300 MB on standard error, then a failure: the message ends with its last line.
+    let flood = spec(
+        "flood",
+        "head -c 300000000 /dev/zero >&2; grep VmHWM /proc/$PPID/status > hwm.txt; \
+         echo 'stage: limit switch hit' >&2; exit 1",
+        60.0,
+    );
+    let (code, _, err) =
+        campaign_run(&flood, Some(&d.join("run-flood")), &["--allow-rf"], "").await;
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("stage: limit switch hit"), "{err}");
+    assert!(err.len() < 10_000, "a short message: {} bytes", err.len());
+    let hwm = std::fs::read_to_string(d.join("hwm.txt")).unwrap();
+    let kib: u64 = hwm
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{hwm}"));
+    assert!(
+        kib < 200 * 1024,
+        "radbench's peak memory {kib} KiB during the flood"
+    );
+}
