@@ -90,6 +90,10 @@ pub struct NewArgs {
 pub struct ReportArgs {
     #[arg(value_name = "RUN_DIR")]
     pub run_dir: PathBuf,
+    /// Render a results.json edited since the run (its SHA-256 no longer the manifest's) and
+    /// record the new hashes in the manifest; without it such a file is refused.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -126,7 +130,10 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Report(a) => {
-            let path = report::rewrite(&a.run_dir)?;
+            let (path, note) = report::rewrite(&a.run_dir, a.force)?;
+            if let Some(note) = note {
+                eprintln!("note: {note}");
+            }
             println!("report: {}", path.display());
             println!("report: {}", a.run_dir.join(report::HTML_FILE).display());
             Ok(())

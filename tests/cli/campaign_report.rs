@@ -298,3 +298,64 @@ async fn a_missed_target_is_said_on_the_console_and_in_the_report() {
     let html = std::fs::read_to_string(d.join("run/report.html")).unwrap();
     assert!(html.contains("missed 1"), "the page says it too");
 }
+
+/// `campaign report` on a damaged run folder: a missing, binary or truncated `results.json` is
+/// bad input (exit 2) each; an edited one is refused (its hash is not the manifest's) unless
+/// `--force`, which renders it and records the new hashes, so the manifest stays true.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn report_on_a_damaged_or_edited_results_json() {
+    let (_tmp, dir, _, _) = run("accuracy").await;
+    let results = dir.join("results.json");
+    let original = std::fs::read(&results).unwrap();
+    let report = |force: bool| {
+        let dir = dir.to_str().unwrap().to_string();
+        async move {
+            let mut args = vec!["campaign", "report", dir.as_str()];
+            if force {
+                args.push("--force");
+            }
+            radbench(&args).await
+        }
+    };
+    std::fs::remove_file(&results).unwrap();
+    let (code, _, err) = report(false).await;
+    assert_eq!(code, 2, "missing: {err}");
+    assert!(err.contains("missing"), "{err}");
+    for (what, bytes) in [
+        ("binary", vec![0xff, 0xfe, 0x00, 0x80]),
+        ("truncated", original[..original.len() / 2].to_vec()),
+    ] {
+        std::fs::write(&results, &bytes).unwrap();
+        let (code, _, err) = report(true).await;
+        assert_eq!(code, 2, "{what}: {err}");
+        assert!(err.contains("results.json"), "{what}: {err}");
+    }
+    // Edited but valid: refused without --force, nothing rewritten.
+    let mut edited = original.clone();
+    edited.extend_from_slice(b"\n");
+    std::fs::write(&results, &edited).unwrap();
+    let html_before = std::fs::read(dir.join("report.html")).unwrap();
+    let (code, _, err) = report(false).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--force") && err.contains("changed"), "{err}");
+    assert_eq!(std::fs::read(dir.join("report.html")).unwrap(), html_before);
+    let (code, _, err) = report(true).await;
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("new SHA-256"), "{err}");
+    let manifest = Manifest::load(&dir).unwrap();
+    for file in ["results.json", "report.md", "report.html"] {
+        let record = manifest
+            .files
+            .iter()
+            .find(|f| f.path == Path::new(file))
+            .unwrap_or_else(|| panic!("{file} recorded"));
+        assert_eq!(
+            record.check(&dir),
+            None,
+            "{file}: the manifest's hash is true"
+        );
+    }
+    // And from then on a plain report agrees with the manifest.
+    let (code, _, err) = report(false).await;
+    assert_eq!(code, 0, "{err}");
+}

@@ -41,21 +41,69 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
     Ok(md)
 }
 
-/// Reads a run folder's manifest and results and writes its report again.
-pub(crate) fn rewrite(dir: &Path) -> Result<PathBuf, CampaignError> {
-    let manifest = Manifest::load(dir)?;
+/// Reads a run folder's manifest and results and writes its report again; returns the
+/// Markdown's path, and a note when `force` rendered a `results.json` that no longer matches the
+/// manifest's hash (the manifest then records the new hashes of it and of both reports).
+/// Without `force` such a `results.json` is refused: the report would not show what the run
+/// recorded, and the manifest's hashes would be false from then on.
+pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
+    use super::manifest::FileRecord;
+    use super::run::RESULTS_FILE;
+    let mut manifest = Manifest::load(dir)?;
+    let changed = manifest
+        .files
+        .iter()
+        .find(|f| f.path == Path::new(RESULTS_FILE))
+        .and_then(|f| f.check(dir));
+    if let (Some(why), false) = (&changed, force) {
+        return Err(CampaignError::Manifest {
+            path: dir.join(RESULTS_FILE),
+            message: format!(
+                "{why}: a report from it would not show what the run recorded; pass --force to \
+                 render it anyway and record its new hash (and the reports') in the manifest"
+            ),
+        });
+    }
     let results = load_results(dir)?;
-    write(dir, &manifest, &results)
+    let md = write(dir, &manifest, &results)?;
+    let Some(why) = changed else {
+        return Ok((md, None));
+    };
+    for file in [RESULTS_FILE, FILE, HTML_FILE] {
+        manifest.set_file(FileRecord::of(dir, Path::new(file))?);
+    }
+    manifest.store(dir)?;
+    Ok((
+        md,
+        Some(format!(
+            "{why}; rendered with --force, and the manifest now records the new SHA-256 of \
+             results.json, report.md and report.html"
+        )),
+    ))
 }
 
-/// A run folder's `results.json`.
+/// A run folder's `results.json`. Missing, not text or not a campaign's: bad input (the
+/// message says which).
 pub fn load_results(dir: &Path) -> Result<Results, CampaignError> {
     let path = dir.join(super::run::RESULTS_FILE);
-    let text = std::fs::read_to_string(&path).map_err(io(&path))?;
-    serde_json::from_str(&text).map_err(|e| CampaignError::Manifest {
+    let bad = |message: String| CampaignError::Manifest {
         path: path.clone(),
-        message: format!("not a campaign results.json: {e}"),
-    })
+        message,
+    };
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(bad(
+                "missing: a run folder holds results.json once its first step is done (is \
+                 this a campaign's run folder?)"
+                    .into(),
+            ))
+        }
+        Err(e) => return Err(io(&path)(e)),
+    };
+    let text = String::from_utf8(bytes)
+        .map_err(|e| bad(format!("not a campaign results.json: not UTF-8 text ({e})")))?;
+    serde_json::from_str(&text).map_err(|e| bad(format!("not a campaign results.json: {e}")))
 }
 
 /// `x ± s` with `digits` decimals at least, more (up to 6) so the deviation shows two significant
