@@ -808,6 +808,14 @@ fn sweep_values(spec: &SpecFile) -> Result<Vec<f64>, SpecError> {
             if !(1..=MAX_STEPS).contains(&count) {
                 return Err(spec.error("sweep.count", format!("{count}: allowed 1..={MAX_STEPS}")));
             }
+            for (field, v) in [("sweep.start", start), ("sweep.step", step)] {
+                if !v.is_finite() {
+                    return Err(spec.error(
+                        field,
+                        format!("{v:?}: a finite number in the parameter's unit"),
+                    ));
+                }
+            }
             (0..count).map(|k| start + step * k as f64).collect()
         }
         (None, Some(start), None, None) => vec![start],

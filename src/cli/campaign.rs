@@ -384,10 +384,12 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     }
     let interrupt = Interrupt::listen()?;
     let out = a.out.clone().unwrap_or_else(|| {
-        // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`.
+        // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`,
+        // and at most 64 of them (a file name holds 255 bytes).
         let name: String = plan
             .name
             .chars()
+            .take(64)
             .map(|c| {
                 if c.is_ascii_alphanumeric() || "._-".contains(c) {
                     c

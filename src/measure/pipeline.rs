@@ -610,11 +610,20 @@ pub(crate) fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<()
         }
     }
     let (lo, hi) = (options.min_range_m, options.max_range_m);
-    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi && hi <= 1e4) {
+    for (name, v) in [("min-range", lo), ("max-range", hi)] {
+        if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
+            return Err(MeasureError::option(
+                name,
+                format!("{v:?}"),
+                "a finite range in metres, 0 ..= 10000",
+            ));
+        }
+    }
+    if lo >= hi {
         return Err(MeasureError::option(
             "min-range/max-range",
             format!("{lo}/{hi}"),
-            "finite ranges in metres with 0 <= min < max <= 10000",
+            "min below max",
         ));
     }
     if !(options.pfa > 0.0 && options.pfa < 0.1) {

@@ -47,6 +47,12 @@ impl Target {
     }
 }
 
+/// The largest target range, amplitude and radial speed a simulation takes (as the mock lab's
+/// scenes, ranges up to the processing's own limit).
+const MAX_RANGE_M: f64 = 10_000.0;
+const MAX_AMPLITUDE: f64 = 10.0;
+const MAX_SPEED_MPS: f64 = 1000.0;
+
 /// Parses `R[:AMP[:V]][,R[:AMP[:V]]...]`: range in metres, linear amplitude (default 1), radial
 /// velocity in m/s (default 0, positive = receding). Example: `3,3.132:0.5` or `1.0:1:2.5`.
 pub(crate) fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
@@ -82,24 +88,31 @@ pub(crate) fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
                 })
         };
         let range_m = number(parts[0], "range")?;
-        if range_m < 0.0 {
+        if !(0.0..=MAX_RANGE_M).contains(&range_m) {
             return Err(bad(format!(
-                "range {range_m} m in target '{item}' must be >= 0"
+                "range {range_m:?} m in target '{item}': allowed 0 ..= {MAX_RANGE_M} m"
             )));
         }
         let amplitude = match parts.get(1) {
             Some(s) => number(s, "amplitude")?,
             None => 1.0,
         };
-        if amplitude <= 0.0 {
+        if !(amplitude > 0.0 && amplitude <= MAX_AMPLITUDE) {
             return Err(bad(format!(
-                "amplitude {amplitude} in target '{item}' must be > 0 (linear, 1 = reference)"
+                "amplitude {amplitude:?} in target '{item}': allowed above 0 up to {MAX_AMPLITUDE} \
+                 (linear, 1 = reference)"
             )));
         }
         let velocity_mps = match parts.get(2) {
             Some(s) => number(s, "velocity")?,
             None => 0.0,
         };
+        if velocity_mps.abs() > MAX_SPEED_MPS {
+            return Err(bad(format!(
+                "velocity {velocity_mps:?} m/s in target '{item}': allowed -{MAX_SPEED_MPS} ..= \
+                 {MAX_SPEED_MPS} m/s (radial, positive = receding)"
+            )));
+        }
         targets.push(Target {
             range_m,
             amplitude,

@@ -63,6 +63,12 @@ pub(crate) enum OverrideError {
         field: &'static str,
         samples: f64,
     },
+    #[error("{value:?}: {allowed}")]
+    OutOfRange {
+        field: &'static str,
+        value: f64,
+        allowed: &'static str,
+    },
 }
 
 impl OverrideError {
@@ -71,7 +77,8 @@ impl OverrideError {
         match self {
             OverrideError::NotPositive { field, .. }
             | OverrideError::Misapplied { field, .. }
-            | OverrideError::TooLong { field, .. } => field,
+            | OverrideError::TooLong { field, .. }
+            | OverrideError::OutOfRange { field, .. } => field,
             OverrideError::BandwidthNotDivisor { .. } => "bandwidth_hz",
         }
     }
@@ -95,6 +102,17 @@ impl WaveformOverrides {
                         unit,
                     });
                 }
+            }
+        }
+        // Checked here, before it multiplies into the repetition's length (and is blamed on
+        // the others).
+        if let Some(cp) = self.cp_fraction {
+            if !(cp.is_finite() && (0.0..1.0).contains(&cp)) {
+                return Err(OverrideError::OutOfRange {
+                    field: "cp_fraction",
+                    value: cp,
+                    allowed: "at least 0 and below 1 (the cyclic prefix shorter than the symbol)",
+                });
             }
         }
         let only = |given: bool, field: &'static str, applies_to: &'static str| {

@@ -128,11 +128,15 @@ impl WaveformSpec {
     /// This spec with another bandwidth, keeping the sample rate: an OFDM frame changes its
     /// oversampling (which must stay whole), an MSK-LFM pulse its sweep.
     pub(crate) fn with_bandwidth(&self, bandwidth_hz: f64) -> Result<Self, ParamError> {
-        if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0) {
+        let fs = self.sample_rate_hz();
+        if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0 && bandwidth_hz <= fs) {
             return Err(ParamError::out_of_range(
                 "bandwidth",
-                format!("{bandwidth_hz} Hz"),
-                "must be a positive frequency in Hz, e.g. 1e9 or 2e9",
+                format!("{bandwidth_hz:?} Hz"),
+                &format!(
+                    "must be a positive frequency in Hz up to the sample rate ({fs:e} Sa/s), \
+                     e.g. 1e9 or 2e9"
+                ),
             ));
         }
         Ok(match *self {

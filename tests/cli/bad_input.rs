@@ -306,6 +306,35 @@ fn every_bad_input_is_refused_by_name_before_anything_is_sent() {
             &["--baud 0"],
         ),
         case(&["idn", "FOO::bar"], &["FOO::bar", "accepted forms"]),
+        // Absurd magnitudes: the option's own name, the value as given, what is allowed.
+        case(
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "msk-lfm",
+                "--targets",
+                "1:1:1e300",
+            ],
+            &["--targets", "velocity 1e300", "allowed"],
+        ),
+        case(
+            &[
+                "simulate",
+                "run",
+                "--waveform",
+                "ofdm",
+                "--targets",
+                "1",
+                "--cp-fraction",
+                "1e300",
+            ],
+            &["--cp-fraction", "1e300", "below 1"],
+        ),
+        case(
+            &["capture", "--allow-rf", "--max-range", "inf"],
+            &["--max-range inf", "0 ..= 10000"],
+        ),
         // Bench files: the file, the line and the field.
         case(
             &["capture", "--allow-rf", "--bench", &unknown_model],

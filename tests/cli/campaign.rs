@@ -447,6 +447,27 @@ async fn a_spec_with_a_wrong_field_fails_with_file_line_field_and_exit_2() {
     let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.toml:5: `sweep.count`"), "{err}");
+    // NaN and absurd magnitudes: the field the spec has, its line, the value short.
+    std::fs::write(
+        &spec,
+        "[sweep]\nparameter = \"position\"\nstart = nan\nstep = 0.03\ncount = 3\n",
+    )
+    .unwrap();
+    let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.toml:3: `sweep.start`"), "{err}");
+    std::fs::write(
+        &spec,
+        "[sweep]\nparameter = \"bandwidth\"\nvalues = [1e300]\n",
+    )
+    .unwrap();
+    let (code, _, err) = campaign_run(&spec, None, &["--dry-run"], "").await;
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("bad.toml:3: `sweep.values`") && err.contains("1e300"),
+        "{err}"
+    );
+    assert!(err.len() < 400, "{err}");
     // MUSIC's M beyond the OFDM waveform's subcarriers: named in the spec, not as `--m`.
     std::fs::write(
         &spec,
@@ -877,4 +898,32 @@ async fn a_stop_signal_ends_a_campaign_promptly_beside_busy_processes() {
         );
     }
     drop(busy);
+}
+
+/// A 5000-character campaign name and no `--out`: the run folder's name takes its first 64
+/// characters (the whole name made a file name too long: exit 4 and a 5 KB message).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_very_long_campaign_name_makes_a_short_folder_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = "a".repeat(5000);
+    write_spec(
+        dir.path(),
+        &format!("name = \"{name}\"\n[sweep]\nparameter = \"position\"\nvalues = [1.0]\n"),
+    );
+    let (code, out, err) = crate::support::radbench_in(
+        Some(dir.path()),
+        &["campaign", "run", "spec.toml", "--allow-rf"],
+    )
+    .await;
+    assert_eq!(code, 0, "{}", &err[..err.len().min(500)]);
+    let runs: Vec<String> = std::fs::read_dir(dir.path().join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(runs.len(), 1, "{runs:?}");
+    assert!(
+        runs[0].ends_with(&"a".repeat(64)) && runs[0].len() < 100,
+        "{runs:?}"
+    );
+    assert!(out.contains("run folder"), "{out}");
 }
