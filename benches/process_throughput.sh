@@ -19,6 +19,9 @@ for i in $(seq 1 "$RUNS"); do
     "$BIN" campaign run examples/accuracy.toml --allow-rf --out "$work/run-$i" > /dev/null 2>&1
     inputs+=("$work/run-$i")
 done
+# The captures just written are still going to the disk: without this, the first timed runs'
+# fsyncs wait for that writeback (the archive is meant to be saved captures).
+sync
 captures=$(find "$work" -name 'capture.sigmf-meta' | wc -l)
 cores=$(nproc)
 rate() { # jobs -> captures per second (best of 3)

@@ -8,8 +8,10 @@ use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
-use crate::measure::reprocess::{self, Source, WaveformChoice};
+use crate::measure::reprocess::{self, Record, Source, WaveformChoice};
 use crate::measure::MeasureError;
+use crate::storage::atomic::{write_group_open, OpenGroup};
+use crate::storage::StorageError;
 use crate::waveform::spec::WaveformKind;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -230,9 +232,9 @@ fn process_one(
     overrides: &ProcessOverrides,
     background: Option<&Path>,
     trigger_offset: Option<f64>,
-) -> Result<(PathBuf, Value), anyhow::Error> {
-    let loaded = reprocess::load(source, trigger_offset)?;
-    let rate = loaded.repetitions[0].sample_rate_hz;
+) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
+    let loaded = reprocess::load_for_processing(source, trigger_offset)?;
+    let rate = loaded.repetitions[0].sample_rate_hz();
     let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
     let key = serde_json::to_string(&json!({
         "tx": resolved.tx.describe(),
@@ -240,7 +242,7 @@ fn process_one(
         "period": resolved.period,
         "rate": rate,
     }))?;
-    let hashes = reprocess::source_hashes(source)?;
+    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
     let r = PIPELINES.with(|cell| -> Result<_, MeasureError> {
         let mut cache = cell.borrow_mut();
         let index = match cache.iter().position(|(k, _)| *k == key) {
@@ -259,8 +261,75 @@ fn process_one(
         .into_iter()
         .map(|(path, sha256)| SourceFile { path, sha256 })
         .collect();
-    let (files, summary) = record::write_reprocessed(out, &sources, &loaded, &r)?;
-    Ok((files.dir, summary))
+    // One write group: each file's writeback starts as it is written; the files are synced,
+    // renamed into place and their folder synced once when the group is finished (by a
+    // finisher, while this thread goes on with the next capture).
+    let ((files, summary), open) =
+        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r))?;
+    Ok((files.dir, summary, open))
+}
+
+/// Threads that finish the captures' write groups (sync, rename, folder sync): they only wait
+/// for the disk, so the workers' cores go on computing. A few, so that syncs of several
+/// captures can be in flight together when the disk is slow.
+struct Finishers {
+    groups: Option<std::sync::mpsc::SyncSender<(usize, OpenGroup)>>,
+    threads: Vec<std::thread::JoinHandle<Vec<(usize, StorageError)>>>,
+}
+
+/// Finisher threads.
+const FINISHERS: usize = 4;
+
+/// Groups waiting for a finisher before a worker waits too (and its open files with them).
+const GROUPS_QUEUED: usize = 16;
+
+impl Finishers {
+    fn start() -> Finishers {
+        let (groups, queue) = std::sync::mpsc::sync_channel::<(usize, OpenGroup)>(GROUPS_QUEUED);
+        let queue = std::sync::Arc::new(std::sync::Mutex::new(queue));
+        let threads = (0..FINISHERS)
+            .map(|_| {
+                let queue = queue.clone();
+                std::thread::spawn(move || {
+                    let mut failed = Vec::new();
+                    loop {
+                        let next = queue.lock().unwrap_or_else(|p| p.into_inner()).recv();
+                        let Ok((index, group)) = next else {
+                            return failed;
+                        };
+                        if let Err(e) = group.finish() {
+                            failed.push((index, e));
+                        }
+                    }
+                })
+            })
+            .collect();
+        Finishers {
+            groups: Some(groups),
+            threads,
+        }
+    }
+
+    /// Hands capture `index`'s group to a finisher (finishes it here should none be left).
+    fn finish(&self, index: usize, group: OpenGroup) -> Result<(), StorageError> {
+        let rejected = match &self.groups {
+            Some(groups) => match groups.send((index, group)) {
+                Ok(()) => return Ok(()),
+                Err(std::sync::mpsc::SendError((_, group))) => group,
+            },
+            None => group,
+        };
+        rejected.finish().map(drop)
+    }
+
+    /// Waits until every group handed over is finished; the captures whose files failed.
+    fn join(mut self) -> Vec<(usize, StorageError)> {
+        self.groups.take();
+        self.threads
+            .drain(..)
+            .flat_map(|t| t.join().unwrap_or_default())
+            .collect()
+    }
 }
 
 /// Folder names for the sources: their labels, made unique.
@@ -322,12 +391,14 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let started = std::time::Instant::now();
-    let outcomes: Vec<Outcome> = pool.install(|| {
+    let finishers = Finishers::start();
+    let mut outcomes: Vec<Outcome> = pool.install(|| {
         sources
             .par_iter()
             .zip(names.par_iter())
+            .enumerate()
             .with_max_len(1)
-            .map(|(source, name)| {
+            .map(|(index, (source, name))| {
                 let result = process_one(
                     source,
                     &out.join(name),
@@ -335,7 +406,11 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
                     &overrides,
                     args.background.as_deref(),
                     args.trigger_offset,
-                );
+                )
+                .and_then(|(dir, summary, group)| {
+                    finishers.finish(index, group)?;
+                    Ok((dir, summary))
+                });
                 bar.inc(1);
                 Outcome {
                     source: source.label(),
@@ -344,6 +419,10 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             })
             .collect()
     });
+    // A capture is done when its files are durable and in place.
+    for (index, e) in finishers.join() {
+        outcomes[index].result = Err(e.into());
+    }
     bar.finish_and_clear();
     let elapsed = started.elapsed().as_secs_f64();
     let mut failures: Vec<(String, anyhow::Error)> = discovered

@@ -357,10 +357,10 @@ struct ReprocessManifest<'a> {
 
 /// Writes a re-processed capture into `out` (a new folder): `manifest.toml` naming the sources
 /// with their SHA-256, the profiles, the plots and `summary.json` (same keys as a capture's).
-pub(crate) fn write_reprocessed(
+pub(crate) fn write_reprocessed<R>(
     out: &Path,
     sources: &[SourceFile],
-    loaded: &super::reprocess::Loaded,
+    loaded: &super::reprocess::Loaded<R>,
     r: &super::reprocess::Reprocessed,
 ) -> Result<(ReprocessFiles, Value), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {

@@ -10,17 +10,19 @@
 use super::capture::{process_repetitions, BackgroundFile};
 use super::clipping::{ClipCount, Rails, RecordClipping, ScopeAdc};
 use super::options::{ProcessOptions, ProcessOverrides};
-use super::pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
+use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{RepetitionResult, Spread};
 use super::transmit::{self, Dac, Transmission};
 use super::MeasureError;
 use crate::storage::hash::sha256_file;
-use crate::storage::recording::{read_sigmf, read_trc, sigmf_paths, SampleUnit};
+use crate::storage::recording::{
+    read_sigmf, read_sigmf_stored, read_trc, sigmf_paths, Recording, SampleUnit,
+};
 use crate::waveform::spec::WaveformSpec;
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// Where one capture to re-process is.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -152,18 +154,88 @@ fn sigmf(path: &Path) -> Result<Source, InputError> {
         })
 }
 
-/// A capture read back: its repetitions in volts and what radbench recorded about it.
+/// A capture read back: its repetitions (in volts, or [`Repetition`]s for
+/// [`load_for_processing`]) and what radbench recorded about it.
 #[derive(Debug, Clone)]
-pub(crate) struct Loaded {
-    pub repetitions: Vec<RawIq>,
+pub(crate) struct Loaded<R = RawIq> {
+    pub repetitions: Vec<R>,
     /// Each repetition's samples at the ADC's rails, when the capture holds the scope's codes (a
     /// radbench capture, a `.trc` pair); empty otherwise.
     pub clipping: Vec<Option<RecordClipping>>,
     /// The `radbench:` metadata (empty for a capture radbench did not make).
     pub radbench: Map<String, Value>,
+    /// SHA-256 of source files, of the bytes read while loading (for the manifest; files not
+    /// here are hashed from disk).
+    pub sha256: Vec<(PathBuf, String)>,
 }
 
-impl Loaded {
+/// One repetition of a capture read for processing: the scope's 16-bit words when the file holds
+/// them (a `ci16` recording: the pipeline converts them to volts as it reads them, with the same
+/// arithmetic as reading the file in volts, so the same results without a record in volts), else
+/// the samples in volts.
+#[derive(Debug, Clone)]
+pub(crate) enum Repetition {
+    Volts(RawIq),
+    Words(RawWords),
+}
+
+/// A repetition the pipeline aligns, at its sample rate.
+pub(crate) trait Record: Alignable {
+    fn sample_rate_hz(&self) -> f64;
+}
+
+impl Record for RawIq {
+    fn sample_rate_hz(&self) -> f64 {
+        self.sample_rate_hz
+    }
+}
+
+impl Record for Repetition {
+    fn sample_rate_hz(&self) -> f64 {
+        match self {
+            Repetition::Volts(r) => r.sample_rate_hz,
+            Repetition::Words(w) => w.sample_rate_hz,
+        }
+    }
+}
+
+impl Alignable for Repetition {
+    fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError> {
+        match self {
+            Repetition::Volts(r) => pipeline.align(r),
+            Repetition::Words(w) => pipeline.align_words(w),
+        }
+    }
+}
+
+impl Repetition {
+    /// The samples in volts (as the pipeline converts words: `gain * word - offset`).
+    fn into_volts(self) -> RawIq {
+        match self {
+            Repetition::Volts(r) => r,
+            Repetition::Words(w) => {
+                let ([gi, gq], [oi, oq]) = (w.gain, w.offset);
+                RawIq {
+                    samples: w
+                        .i
+                        .iter()
+                        .zip(&w.q)
+                        .map(|(&i, &q)| {
+                            num_complex::Complex64::new(
+                                gi * f64::from(i) - oi,
+                                gq * f64::from(q) - oq,
+                            )
+                        })
+                        .collect(),
+                    sample_rate_hz: w.sample_rate_hz,
+                    first_point_s: w.first_point_s,
+                }
+            }
+        }
+    }
+}
+
+impl<R> Loaded<R> {
     fn key(&self, k: &str) -> Option<&Value> {
         self.radbench.get(k)
     }
@@ -171,11 +243,6 @@ impl Loaded {
     /// The processing options the capture was processed with.
     pub(crate) fn recorded_options(&self) -> Option<ProcessOptions> {
         serde_json::from_value(self.key("processing")?.clone()).ok()
-    }
-
-    /// The transmission the capture recorded (spec, bits, DAC model).
-    pub(crate) fn recorded_transmission(&self) -> Option<Result<Transmission, MeasureError>> {
-        transmit::from_description(self.key("waveform")?)
     }
 
     /// Samples of one repetition at the waveform rate (the AWG's padded segment).
@@ -201,15 +268,62 @@ fn input_error(path: &Path, reason: impl Into<String>) -> MeasureError {
 /// Reads a capture: a SigMF recording (repetitions from `radbench:repetitions`, else the whole
 /// recording as one) or a `.trc` pair (each sequence segment one repetition).
 pub(crate) fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
+    let loaded = match source {
+        Source::Sigmf { meta, .. } => {
+            let rec = read_sigmf(meta)?;
+            load_sigmf(meta, rec, None, trigger_offset_s)?
+        }
+        Source::TrcPair { i, q } => return load_trc_pair(i, q, trigger_offset_s),
+    };
+    Ok(Loaded {
+        repetitions: loaded
+            .repetitions
+            .into_iter()
+            .map(Repetition::into_volts)
+            .collect(),
+        clipping: loaded.clipping,
+        radbench: loaded.radbench,
+        sha256: loaded.sha256,
+    })
+}
+
+/// [`load`] for processing: a `ci16` recording's repetitions stay the scope's words (no record
+/// in volts, 4 bytes a sample instead of 16), and its files are hashed as they are read.
+pub(crate) fn load_for_processing(
+    source: &Source,
+    trigger_offset_s: Option<f64>,
+) -> Result<Loaded<Repetition>, MeasureError> {
     match source {
-        Source::Sigmf { meta, .. } => load_sigmf(meta, trigger_offset_s),
-        Source::TrcPair { i, q } => load_trc_pair(i, q, trigger_offset_s),
+        Source::Sigmf { meta, .. } => {
+            let stored = read_sigmf_stored(meta)?;
+            let mut loaded = load_sigmf(meta, stored.recording, stored.words, trigger_offset_s)?;
+            loaded.sha256 = stored.sha256.to_vec();
+            Ok(loaded)
+        }
+        Source::TrcPair { i, q } => {
+            let loaded = load_trc_pair(i, q, trigger_offset_s)?;
+            Ok(Loaded {
+                repetitions: loaded
+                    .repetitions
+                    .into_iter()
+                    .map(Repetition::Volts)
+                    .collect(),
+                clipping: loaded.clipping,
+                radbench: loaded.radbench,
+                sha256: loaded.sha256,
+            })
+        }
     }
 }
 
-/// A SigMF recording: one repetition, or those its `radbench:repetitions` list names.
-fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, MeasureError> {
-    let rec = read_sigmf(meta)?;
+/// A SigMF recording: one repetition, or those its `radbench:repetitions` list names; the
+/// recording's words (I, Q) when given, else its samples.
+fn load_sigmf(
+    meta: &Path,
+    rec: Recording,
+    words: Option<(Vec<i16>, Vec<i16>)>,
+    trigger_offset_s: Option<f64>,
+) -> Result<Loaded<Repetition>, MeasureError> {
     let radbench = rec
         .radbench
         .as_ref()
@@ -247,12 +361,16 @@ fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, Meas
                 .collect()
         })
         .unwrap_or_default();
-    let n = rec.samples.len() as u64;
     // The scope's words come back from the volts with the recorded scaling.
     let scaling = (rec.unit == SampleUnit::Volts)
         .then_some(rec.radbench.as_ref())
         .flatten()
         .and_then(|r| Some((r.vertical_gain?, r.vertical_offset?)));
+    // The recording's own scaling, as reading it in volts applies it (none: native scale).
+    let decoding = rec.radbench.as_ref().and_then(|r| {
+        r.vertical_gain
+            .map(|g| (g, r.vertical_offset.unwrap_or([0.0; 2])))
+    });
     let adc = recorded_adc(&radbench);
     let repetition_scaling: Vec<Option<([f64; 2], [f64; 2])>> = radbench
         .get("repetitions")
@@ -269,53 +387,209 @@ fn load_sigmf(meta: &Path, trigger_offset_s: Option<f64>) -> Result<Loaded, Meas
                 .collect()
         })
         .unwrap_or_default();
-    let repetitions = if reps.is_empty() {
-        vec![RawIq {
-            samples: rec.samples,
-            sample_rate_hz: rate,
-            first_point_s: first,
-        }]
-    } else {
-        reps.iter()
-            .map(|&(start, count, offset)| {
-                if start + count > n {
-                    return Err(input_error(
-                        meta,
-                        format!(
-                            "radbench:repetitions names samples {start}..{} but the data \
-                             holds {n}: the data file is truncated",
-                            start + count
-                        ),
-                    ));
-                }
-                Ok(RawIq {
-                    samples: rec.samples[start as usize..(start + count) as usize].to_vec(),
-                    sample_rate_hz: rate,
-                    first_point_s: offset,
-                })
-            })
-            .collect::<Result<_, _>>()?
+    let mut stored = match words {
+        Some((i, q)) => Stored::Words {
+            i,
+            q,
+            decoding: decoding.unwrap_or(([1.0; 2], [0.0; 2])),
+        },
+        None => Stored::Volts(rec.samples),
     };
+    let n = stored.len() as u64;
+    let spans: Vec<(u64, u64, f64)> = if reps.is_empty() {
+        vec![(0, n, first)]
+    } else {
+        reps
+    };
+    for &(start, count, _) in &spans {
+        if start + count > n {
+            return Err(input_error(
+                meta,
+                format!(
+                    "radbench:repetitions names samples {start}..{} but the data holds {n}: \
+                     the data file is truncated",
+                    start + count
+                ),
+            ));
+        }
+    }
     let clipping = match scaling {
-        Some(global) => repetitions
+        Some(global) => spans
             .iter()
             .enumerate()
-            .map(|(k, r)| {
+            .map(|(k, &(start, count, _))| {
                 let (gain, offset) = repetition_scaling
                     .get(k)
                     .copied()
                     .flatten()
                     .unwrap_or(global);
-                Some(clipping_of_volts(&r.samples, gain, offset, &adc))
+                let range = start as usize..(start + count) as usize;
+                Some(stored.clipping(range, gain, offset, &adc))
             })
             .collect(),
         None => Vec::new(),
     };
+    let whole = spans.len() == 1;
+    let repetitions = spans
+        .iter()
+        .map(|&(start, count, offset)| {
+            let range = start as usize..(start + count) as usize;
+            stored.repetition(range, whole, rate, offset)
+        })
+        .collect();
     Ok(Loaded {
         repetitions,
         clipping,
         radbench,
+        sha256: Vec::new(),
     })
+}
+
+/// A recording's samples: in volts, or the scope's words with the scaling that gives the volts.
+enum Stored {
+    Volts(Vec<num_complex::Complex64>),
+    Words {
+        i: Vec<i16>,
+        q: Vec<i16>,
+        /// (gain, offset) of I and Q: volts = gain * word - offset.
+        decoding: ([f64; 2], [f64; 2]),
+    },
+}
+
+impl Stored {
+    fn len(&self) -> usize {
+        match self {
+            Stored::Volts(v) => v.len(),
+            Stored::Words { i, q, .. } => i.len().min(q.len()),
+        }
+    }
+
+    /// The samples in `range` as one repetition; `whole`: the only one, taken without a copy.
+    fn repetition(
+        &mut self,
+        range: std::ops::Range<usize>,
+        whole: bool,
+        sample_rate_hz: f64,
+        first_point_s: f64,
+    ) -> Repetition {
+        fn take<T: Clone>(v: &mut Vec<T>, range: std::ops::Range<usize>, whole: bool) -> Vec<T> {
+            if whole {
+                let mut v = std::mem::take(v);
+                v.truncate(range.end);
+                v.drain(..range.start);
+                v
+            } else {
+                v[range].to_vec()
+            }
+        }
+        match self {
+            Stored::Volts(v) => Repetition::Volts(RawIq {
+                samples: take(v, range, whole),
+                sample_rate_hz,
+                first_point_s,
+            }),
+            Stored::Words { i, q, decoding } => Repetition::Words(RawWords {
+                i: take(i, range.clone(), whole),
+                q: take(q, range, whole),
+                gain: decoding.0,
+                offset: decoding.1,
+                sample_rate_hz,
+                first_point_s,
+            }),
+        }
+    }
+
+    /// The samples in `range` at the ADC's rails, their words taken back from the volts with
+    /// the repetition's scaling (`gain`, `offset`).
+    fn clipping(
+        &self,
+        range: std::ops::Range<usize>,
+        gain: [f64; 2],
+        offset: [f64; 2],
+        adc: &(Rails, Option<ScopeAdc>),
+    ) -> RecordClipping {
+        match self {
+            Stored::Volts(v) => clipping_of_volts(&v[range], gain, offset, adc),
+            Stored::Words { i, q, decoding } => {
+                let count = |words: &[i16], ch: usize| {
+                    rail_count(
+                        words,
+                        decoding.0[ch],
+                        decoding.1[ch],
+                        gain[ch],
+                        offset[ch],
+                        adc.0,
+                    )
+                };
+                let (i, q) = (&i[range.clone()], &q[range]);
+                RecordClipping {
+                    count: ClipCount {
+                        i: count(i, 0),
+                        q: count(q, 1),
+                        samples: i.len().min(q.len()),
+                    },
+                    rails_v: [
+                        adc.0.volts(gain[0], offset[0]),
+                        adc.0.volts(gain[1], offset[1]),
+                    ],
+                    scope: adc.1,
+                }
+            }
+        }
+    }
+}
+
+/// The word [`clipping_of_volts`] takes back from a sample in volts with a channel's scaling.
+fn word_of_volts(v: f64, gain: f64, offset: f64) -> i16 {
+    let w = ((v + offset) / gain).round();
+    w.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
+}
+
+/// Words at the rails as [`clipping_of_volts`] counts them on their volts (decoded with `gain_d`,
+/// `offset_d`, taken back with `gain`, `offset`): a word's answer depends on the word alone, so
+/// it is worked out once for each of the 65536 words; where that is plain [`Rails::at_rail`]
+/// (the usual case: the same scaling both ways) the words are counted directly.
+fn rail_count(
+    words: &[i16],
+    gain_d: f64,
+    offset_d: f64,
+    gain: f64,
+    offset: f64,
+    rails: Rails,
+) -> usize {
+    /// The last tables worked out, by scaling and rails (`None`: plain `at_rail`): a run's
+    /// captures share one scope setting.
+    type Tables = Vec<([u64; 4], Rails, Option<Arc<Vec<bool>>>)>;
+    static TABLES: Mutex<Tables> = Mutex::new(Vec::new());
+    let key = [gain_d, offset_d, gain, offset].map(f64::to_bits);
+    let index = |w: i16| (i32::from(w) - i32::from(i16::MIN)) as usize;
+    let known = {
+        let tables = TABLES.lock().unwrap_or_else(|p| p.into_inner());
+        tables
+            .iter()
+            .find(|(k, r, _)| *k == key && *r == rails)
+            .map(|(_, _, t)| t.clone())
+    };
+    let table = known.unwrap_or_else(|| {
+        let table: Vec<bool> = (i16::MIN..=i16::MAX)
+            .map(|w| {
+                let v = gain_d * f64::from(w) - offset_d;
+                rails.at_rail(word_of_volts(v, gain, offset))
+            })
+            .collect();
+        let plain = (i16::MIN..=i16::MAX).all(|w| table[index(w)] == rails.at_rail(w));
+        let table = (!plain).then(|| Arc::new(table));
+        let mut tables = TABLES.lock().unwrap_or_else(|p| p.into_inner());
+        if tables.len() >= 8 {
+            tables.remove(0);
+        }
+        tables.push((key, rails, table.clone()));
+        table
+    });
+    match table {
+        None => rails.count(words),
+        Some(table) => words.iter().map(|&w| usize::from(table[index(w)])).sum(),
+    }
 }
 
 /// The scope's ADC a radbench capture recorded (`radbench:adc`; before it was recorded, an 8-bit
@@ -346,10 +620,7 @@ fn clipping_of_volts(
     offset: [f64; 2],
     (rails, scope): &(Rails, Option<ScopeAdc>),
 ) -> RecordClipping {
-    let word = |v: f64, ch: usize| {
-        let w = ((v + offset[ch]) / gain[ch]).round();
-        w.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
-    };
+    let word = |v: f64, ch: usize| word_of_volts(v, gain[ch], offset[ch]);
     let (mut i, mut q) = (0, 0);
     for v in samples {
         i += usize::from(rails.at_rail(word(v.re, 0)));
@@ -441,6 +712,7 @@ fn load_trc_pair(
         repetitions,
         clipping,
         radbench: Map::new(),
+        sha256: Vec::new(),
     })
 }
 
@@ -463,13 +735,13 @@ pub(crate) struct Resolved {
 }
 
 /// Resolves the transmission, the options, the period and the background of `loaded`.
-pub(crate) fn resolve(
-    loaded: &Loaded,
+pub(crate) fn resolve<R>(
+    loaded: &Loaded<R>,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
     background: Option<&Path>,
 ) -> Result<Resolved, MeasureError> {
-    let recorded = loaded.recorded_transmission().transpose()?;
+    let recorded = recorded_transmission(loaded).transpose()?;
     let as_recorded =
         waveform.spec.is_none() && waveform.seed.is_none() && waveform.payload.is_none();
     let tx = match recorded {
@@ -488,7 +760,7 @@ pub(crate) fn resolve(
                 .clone()
                 .or_else(|| recorded.as_ref().and_then(|t| t.payload.clone()));
             let dac = recorded.as_ref().map_or(Dac::default(), |t| t.dac);
-            Transmission::new(&spec, payload.as_deref(), seed, dac)?
+            Arc::new(Transmission::new(&spec, payload.as_deref(), seed, dac)?)
         }
     };
     let base = loaded
@@ -496,7 +768,12 @@ pub(crate) fn resolve(
         .filter(|o| o.algorithm.supports(tx.spec.kind()) || overrides.algorithm.is_some())
         .unwrap_or_else(|| ProcessOptions::for_waveform(tx.spec.kind()));
     let options = overrides.apply(base);
-    let tx = tx.with_correction(&options)?;
+    // `with_correction` changes only a transmission pre-distorted for the chain (tx, both).
+    let tx = if predistorts(&options) {
+        Arc::new(Arc::unwrap_or_clone(tx).with_correction(&options)?)
+    } else {
+        tx
+    };
     if overrides.require_correction && options.correction.is_none() {
         return Err(MeasureError::option(
             "correction",
@@ -513,11 +790,45 @@ pub(crate) fn resolve(
             .flatten()
     });
     Ok(Resolved {
-        tx: Arc::new(tx),
+        tx,
         options,
         period,
         background,
     })
+}
+
+/// Whether [`Transmission::with_correction`] pre-distorts for `options` (anything else leaves
+/// the transmission as it is).
+fn predistorts(options: &ProcessOptions) -> bool {
+    matches!(&options.correction, Some(used) if used.mode == "tx" || used.mode == "both")
+}
+
+/// Transmissions made again from captures' descriptions, by the description: the captures of a
+/// run or an archive share one, and making it (waveform, quantisation, reference) costs more than
+/// processing a capture. A few at most; the same description makes the same transmission.
+static TRANSMISSIONS: Mutex<Vec<(String, Arc<Transmission>)>> = Mutex::new(Vec::new());
+
+/// Most transmissions [`TRANSMISSIONS`] keeps.
+const TRANSMISSIONS_KEPT: usize = 4;
+
+/// The transmission the capture recorded (spec, bits, DAC model), made once per description.
+fn recorded_transmission<R>(loaded: &Loaded<R>) -> Option<Result<Arc<Transmission>, MeasureError>> {
+    let description = loaded.key("waveform")?;
+    let key = description.to_string();
+    // Held while a transmission is made: a second thread wanting it waits for it.
+    let mut cache = TRANSMISSIONS.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, tx)) = cache.iter().find(|(k, _)| *k == key) {
+        return Some(Ok(tx.clone()));
+    }
+    let tx = match transmit::from_description(description)? {
+        Ok(tx) => Arc::new(tx),
+        Err(e) => return Some(Err(e)),
+    };
+    if cache.len() >= TRANSMISSIONS_KEPT {
+        cache.remove(0);
+    }
+    cache.push((key, tx.clone()));
+    Some(Ok(tx))
 }
 
 /// One capture processed again.
@@ -543,16 +854,16 @@ pub(crate) fn pipeline(resolved: &Resolved, rate: f64) -> Result<Pipeline, Measu
 }
 
 /// Processes `loaded` through `pipeline` (built by [`pipeline`] for `resolved`).
-pub(crate) fn process(
+pub(crate) fn process<R: Record>(
     pipeline: &mut Pipeline,
-    loaded: &Loaded,
+    loaded: &Loaded<R>,
     resolved: Resolved,
 ) -> Result<Reprocessed, MeasureError> {
     let background: Option<Aligned> = match &resolved.background {
         Some(path) => Some(super::capture::read_background(
             pipeline,
             path,
-            loaded.repetitions[0].sample_rate_hz,
+            loaded.repetitions[0].sample_rate_hz(),
         )?),
         None => None,
     };
@@ -572,11 +883,141 @@ pub(crate) fn process(
     })
 }
 
-/// The SHA-256 of every file of `source`, for the manifest.
-pub(crate) fn source_hashes(source: &Source) -> Result<Vec<(PathBuf, String)>, MeasureError> {
+/// The SHA-256 of every file of `source`, for the manifest: those `known` (hashed as they were
+/// read) as they are, the others read again.
+pub(crate) fn source_hashes(
+    source: &Source,
+    known: &[(PathBuf, String)],
+) -> Result<Vec<(PathBuf, String)>, MeasureError> {
     source
         .files()
         .into_iter()
-        .map(|p| Ok((p.to_path_buf(), sha256_file(p)?)))
+        .map(|p| {
+            let sha256 = match known.iter().find(|(k, _)| k == p) {
+                Some((_, h)) => h.clone(),
+                None => sha256_file(p)?,
+            };
+            Ok((p.to_path_buf(), sha256))
+        })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `ci16_le` recording radbench could have written: `n` samples in two repetitions,
+    /// each with its own scaling beside the global one, words at both rails.
+    fn recording(dir: &Path, global: ([f64; 2], [f64; 2]), n: usize) -> Source {
+        let words: Vec<(i16, i16)> = (0..n)
+            .map(|k| match k % 7 {
+                0 => (i16::MAX, i16::MIN),
+                1 => (i16::MIN + 200, 0x7f00),
+                _ => ((k as i16).wrapping_mul(97), (k as i16).wrapping_mul(-31)),
+            })
+            .collect();
+        let data: Vec<u8> = words
+            .iter()
+            .flat_map(|(i, q)| [i.to_le_bytes(), q.to_le_bytes()].concat())
+            .collect();
+        let half = (n / 2) as u64;
+        let meta = serde_json::json!({
+            "global": {
+                "core:datatype": "ci16_le",
+                "core:sample_rate": 80e9,
+                "core:version": "1.0.0",
+                "radbench:vertical_gain": global.0,
+                "radbench:vertical_offset": global.1,
+                "radbench:trigger_offset_s": 1e-9,
+                "radbench:adc": {"bits": 8, "volts_per_div": [0.05, 0.05], "volts_per_div_max": 1.0},
+                "radbench:repetitions": [
+                    {"sample_start": 0, "sample_count": half, "trigger_offset_s": 1e-9,
+                     "vertical_gain": global.0, "vertical_offset": global.1},
+                    {"sample_start": half, "sample_count": half, "trigger_offset_s": 2e-9,
+                     "vertical_gain": [global.0[0] * 2.0, global.0[1]],
+                     "vertical_offset": [global.1[0], global.1[1] + 0.01]},
+                ],
+            },
+            "captures": [{"core:sample_start": 0}],
+            "annotations": [],
+        });
+        let meta_path = dir.join("capture.sigmf-meta");
+        std::fs::write(&meta_path, meta.to_string()).unwrap();
+        std::fs::write(dir.join("capture.sigmf-data"), data).unwrap();
+        Source::Sigmf {
+            meta: meta_path,
+            data: dir.join("capture.sigmf-data"),
+        }
+    }
+
+    /// Reading for processing keeps the words, and gives what reading in volts gives: the same
+    /// samples to the bit, the same clipping, the same source hashes.
+    fn same_as_in_volts(global: ([f64; 2], [f64; 2])) {
+        let dir = tempfile::tempdir().unwrap();
+        let source = recording(dir.path(), global, 1000);
+        let volts = load(&source, None).unwrap();
+        let words = load_for_processing(&source, None).unwrap();
+        assert!(words
+            .repetitions
+            .iter()
+            .all(|r| matches!(r, Repetition::Words(_))));
+        assert_eq!(words.clipping, volts.clipping);
+        // Words at the rails in the first repetition; the second's own scaling (I's gain
+        // doubled) takes them back elsewhere.
+        let first = volts.clipping[0].unwrap().count;
+        assert!(first.i > 0 && first.q > 0, "{first:?}");
+        assert_eq!(words.radbench, volts.radbench);
+        assert_eq!(words.repetitions.len(), 2);
+        for (w, v) in words.repetitions.into_iter().zip(&volts.repetitions) {
+            let w = w.into_volts();
+            assert_eq!(w.sample_rate_hz, v.sample_rate_hz);
+            assert_eq!(w.first_point_s, v.first_point_s);
+            let bits = |s: &[num_complex::Complex64]| -> Vec<(u64, u64)> {
+                s.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
+            };
+            assert_eq!(bits(&w.samples), bits(&v.samples));
+        }
+        assert_eq!(
+            source_hashes(&source, &words.sha256).unwrap(),
+            source_hashes(&source, &[]).unwrap()
+        );
+        assert_eq!(words.sha256.len(), 2);
+    }
+
+    #[test]
+    fn words_read_for_processing_are_the_volts_read_otherwise() {
+        same_as_in_volts(([1.5e-5, 1.6e-5], [0.002, -0.001]));
+    }
+
+    #[test]
+    fn words_whose_volts_do_not_round_trip_are_counted_as_the_volts_are() {
+        // An offset so large that a word taken back from its volts is not always itself: the
+        // clipping comes from the per-word table, and still matches the volts' count.
+        let (gain, offset) = ([1e-3, 1e-3], [1e14, -1e14]);
+        assert!((i16::MIN..=i16::MAX).any(|w| word_of_volts(
+            gain[0] * f64::from(w) - offset[0],
+            gain[0],
+            offset[0]
+        ) != w));
+        same_as_in_volts((gain, offset));
+    }
+
+    #[test]
+    fn a_transmission_is_made_once_per_description() {
+        let tx =
+            Transmission::new(&WaveformSpec::msk_lfm_default(), None, 7, Dac::default()).unwrap();
+        let loaded: Loaded = Loaded {
+            repetitions: Vec::new(),
+            clipping: Vec::new(),
+            radbench: [("waveform".to_string(), tx.describe())]
+                .into_iter()
+                .collect(),
+            sha256: Vec::new(),
+        };
+        let a = recorded_transmission(&loaded).unwrap().unwrap();
+        let b = recorded_transmission(&loaded).unwrap().unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert_eq!(a.describe(), tx.describe());
+        assert_eq!(a.reference, tx.reference);
+    }
 }

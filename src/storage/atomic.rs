@@ -177,10 +177,56 @@ pub(crate) fn write_group<R, E: From<StorageError>>(
     Ok((value, ended?))
 }
 
+/// A [`write_group`] whose end is left to the caller: its files are written and on their way
+/// to the disk, not yet synced nor in place. [`OpenGroup::finish`] ends it, on any thread (a
+/// thread that only waits for the disk), so the thread that wrote it can go on computing; dropped
+/// unfinished, it is finished quietly.
+pub(crate) struct OpenGroup(Option<Group>);
+
+impl OpenGroup {
+    /// What [`write_group`] does at its end: every file synced and renamed into place in writing
+    /// order, then each folder synced once; the first failure, after trying them all.
+    pub(crate) fn finish(mut self) -> Result<GroupWritten, StorageError> {
+        finish_group(self.0.take().unwrap_or_default())
+    }
+}
+
+impl Drop for OpenGroup {
+    fn drop(&mut self) {
+        if let Some(group) = self.0.take() {
+            let _ = finish_group(group);
+        }
+    }
+}
+
+/// [`write_group`] without its end: returns the group open (see [`OpenGroup`]). When `write`
+/// fails or panics, the group is ended at once, as [`write_group`] ends it. Inside another group
+/// it belongs to that one (the returned group is empty).
+pub(crate) fn write_group_open<R, E: From<StorageError>>(
+    write: impl FnOnce() -> Result<R, E>,
+) -> Result<(R, OpenGroup), E> {
+    let outermost = GROUP.with(|g| g.borrow().is_none());
+    if !outermost {
+        return write().map(|r| (r, OpenGroup(None)));
+    }
+    let (value, _) = write_group(|| -> Result<_, E> {
+        let value = write()?;
+        // Taken before write_group's end, which then has nothing left to do.
+        let group = GROUP.with(|g| g.borrow_mut().replace(Group::default()));
+        Ok((value, group))
+    })?;
+    let (value, group) = value;
+    Ok((value, OpenGroup(group)))
+}
+
 /// Syncs and renames every pending file of this thread's group, then syncs their folders.
 /// Keeps going past a failure and returns the first.
 fn end_group() -> Result<GroupWritten, StorageError> {
-    let group = GROUP.with(|g| g.borrow_mut().take()).unwrap_or_default();
+    finish_group(GROUP.with(|g| g.borrow_mut().take()).unwrap_or_default())
+}
+
+/// [`end_group`] of `group`.
+fn finish_group(group: Group) -> Result<GroupWritten, StorageError> {
     let hashing_s = group.hashing.as_secs_f64();
     let mut first_error = None;
     let mut written = Vec::new();
@@ -440,7 +486,46 @@ mod tests {
         );
         assert_eq!(std::fs::read(dir.path().join("b")).unwrap(), b"222");
         assert_eq!(names(dir.path()), ["a", "b", "sub"]);
-        assert!(in_flight().is_empty());
+        // (Other tests' groups may be in flight at the same time.)
+        assert!(in_flight().iter().all(|p| !p.starts_with(dir.path())));
+    }
+
+    #[test]
+    fn an_open_group_is_put_in_place_when_finished_on_another_thread_or_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let (n, open) = write_group_open(|| {
+            write_atomic(&dir.path().join("a"), b"1")?;
+            write_atomic(&dir.path().join("b"), b"22")?;
+            Ok::<_, StorageError>(2)
+        })
+        .unwrap();
+        assert_eq!(n, 2);
+        // Written, not in place, and no stale temporaries while open.
+        assert!(!dir.path().join("a").exists());
+        assert!(remove_stale_temporaries(dir.path()).unwrap().is_empty());
+        let written = std::thread::spawn(move || open.finish())
+            .join()
+            .unwrap()
+            .unwrap();
+        let got: Vec<(PathBuf, u64)> = written
+            .files
+            .into_iter()
+            .map(|f| (f.path, f.bytes))
+            .collect();
+        assert_eq!(got, [(dir.path().join("a"), 1), (dir.path().join("b"), 2)]);
+        assert_eq!(names(dir.path()), ["a", "b"]);
+        // Dropped unfinished: finished all the same.
+        let ((), open) = write_group_open(|| write_atomic(&dir.path().join("c"), b"3")).unwrap();
+        drop(open);
+        assert_eq!(std::fs::read(dir.path().join("c")).unwrap(), b"3");
+        // A failing write ends its group at once: what it wrote is in place, the error returned.
+        let failed = write_group_open(|| {
+            write_atomic(&dir.path().join("d"), b"4")?;
+            write_atomic(&dir.path().join("missing").join("e"), b"5")
+        });
+        assert!(failed.is_err());
+        assert_eq!(names(dir.path()), ["a", "b", "c", "d"]);
+        assert!(in_flight().iter().all(|p| !p.starts_with(dir.path())));
     }
 
     #[test]

@@ -278,8 +278,32 @@ impl Fields<'_> {
 
 /// Reads a SigMF recording; `path` names the `.sigmf-meta`, the `.sigmf-data` or their base.
 pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
+    read(path, false).map(|r| r.recording)
+}
+
+/// A SigMF recording read for processing again: as [`read_sigmf`] reads it, except that the
+/// 16-bit words of a `ci16` recording are kept as they are (`recording.samples` is then empty):
+/// converting them to volts is left to whoever reads them, with the same arithmetic (`gain *
+/// f64::from(word) - offset`, the recording's scaling).
+#[derive(Debug)]
+pub(crate) struct StoredRecording {
+    pub recording: Recording,
+    /// I and Q of a `ci16` recording (either byte order), in native scale.
+    pub words: Option<(Vec<i16>, Vec<i16>)>,
+    /// SHA-256 of the metadata file and of the data file, of the bytes read (each file is read
+    /// once).
+    pub sha256: [(PathBuf, String); 2],
+}
+
+/// [`StoredRecording`] of `path` (as [`read_sigmf`] names it).
+pub(crate) fn read_sigmf_stored(path: &Path) -> Result<StoredRecording, RecordingError> {
+    read(path, true)
+}
+
+/// [`read_sigmf`], keeping a `ci16` recording's words and hashing the files when `stored`.
+fn read(path: &Path, stored: bool) -> Result<StoredRecording, RecordingError> {
     let (meta_path, default_data) = sigmf_paths(path)?;
-    let doc = read_meta(&meta_path)?;
+    let (doc, meta_bytes) = read_meta(&meta_path)?;
     let f = Fields { path: &meta_path };
     let global = doc
         .get("global")
@@ -324,12 +348,26 @@ pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
         r.vertical_gain
             .map(|g| (g, r.vertical_offset.unwrap_or([0.0; 2])))
     });
-    Ok(Recording {
+    let words = (stored && datatype.component == Component::I16)
+        .then(|| decode_words(&payload, datatype.little_endian));
+    let samples = match words {
+        Some(_) => Vec::new(),
+        None => decode_samples(&payload, datatype, scaling),
+    };
+    let sha256 = if stored {
+        [
+            (meta_path.clone(), super::hash::sha256(&meta_bytes)),
+            (data_path.clone(), super::hash::sha256(&data)),
+        ]
+    } else {
+        Default::default()
+    };
+    let recording = Recording {
         version: f.text(global, "core:version")?,
         description: f.text(global, "core:description")?,
         hw: f.text(global, "core:hw")?,
         recorder: f.text(global, "core:recorder")?,
-        samples: decode_samples(&payload, datatype, scaling),
+        samples,
         meta_path,
         data_path,
         datatype,
@@ -343,19 +381,25 @@ pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
             SampleUnit::Native
         },
         radbench,
+    };
+    Ok(StoredRecording {
+        recording,
+        words,
+        sha256,
     })
 }
 
-/// The `.sigmf-meta` file as JSON.
-fn read_meta(meta_path: &Path) -> Result<Value, RecordingError> {
+/// The `.sigmf-meta` file as JSON, and its bytes.
+fn read_meta(meta_path: &Path) -> Result<(Value, Vec<u8>), RecordingError> {
     let bytes = std::fs::read(meta_path).map_err(|source| RecordingError::Io {
         path: meta_path.to_path_buf(),
         source,
     })?;
-    serde_json::from_slice(&bytes).map_err(|source| RecordingError::NotJson {
+    let doc = serde_json::from_slice(&bytes).map_err(|source| RecordingError::NotJson {
         path: meta_path.to_path_buf(),
         source,
-    })
+    })?;
+    Ok((doc, bytes))
 }
 
 /// The sample format and rate, checked: one I/Q stream that radbench can read, with samples.
@@ -436,6 +480,26 @@ fn decode_samples(
             }
         })
         .collect()
+}
+
+/// The I and Q words of `ci16` payload parts (whole samples only, as [`decode_samples`]).
+fn decode_words(payload: &[&[u8]], little_endian: bool) -> (Vec<i16>, Vec<i16>) {
+    let n = payload.iter().map(|p| p.len() / 4).sum();
+    let (mut i, mut q) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let word = |b: [u8; 2]| {
+        if little_endian {
+            i16::from_le_bytes(b)
+        } else {
+            i16::from_be_bytes(b)
+        }
+    };
+    for part in payload {
+        for s in part.chunks_exact(4) {
+            i.push(word([s[0], s[1]]));
+            q.push(word([s[2], s[3]]));
+        }
+    }
+    (i, q)
 }
 
 fn read_extensions(
@@ -714,6 +778,72 @@ mod tests {
             assert!(r.sha512_checked);
             assert_eq!(r.extensions[0].name, "radbench");
         }
+    }
+
+    #[test]
+    fn stored_ci16_keeps_its_words_and_hashes_what_it_read() {
+        let dir = tempfile::tempdir().unwrap();
+        // A header to skip, and a sample split over two captures.
+        let data = [
+            9u8, 0x01, 0x80, 0xff, 0x7f, 0x10, 0x00, 0xfe, 0xff, 0x34, 0x12, 0x00, 0x80,
+        ];
+        for (datatype, i, q) in [
+            ("ci16_le", [-32767i16, 16, 0x1234], [32767i16, -2, -32768]),
+            ("ci16_be", [0x0180, 0x1000, 0x3412], [-129, -257, 128]),
+        ] {
+            let mut m = meta(datatype);
+            m["captures"] = serde_json::json!([
+                {"core:sample_start": 0, "core:header_bytes": 1},
+                {"core:sample_start": 2}
+            ]);
+            let g = m["global"].as_object_mut().unwrap();
+            g.insert(
+                "radbench:vertical_gain".into(),
+                serde_json::json!([0.1, 3e-5]),
+            );
+            g.insert(
+                "radbench:vertical_offset".into(),
+                serde_json::json!([-0.3, 1e-3]),
+            );
+            let path = write(dir.path(), datatype, m, &data);
+            let stored = read_sigmf_stored(&path).unwrap();
+            let (wi, wq) = stored.words.clone().unwrap();
+            assert_eq!(
+                (wi.as_slice(), wq.as_slice()),
+                (&i[..], &q[..]),
+                "{datatype}"
+            );
+            assert!(stored.recording.samples.is_empty());
+            // The words in volts, as the pipeline converts them, are the samples read in volts.
+            let volts: Vec<Complex64> = wi
+                .iter()
+                .zip(&wq)
+                .map(|(&i, &q)| {
+                    Complex64::new(0.1 * f64::from(i) - -0.3, 3e-5 * f64::from(q) - 1e-3)
+                })
+                .collect();
+            let r = read_sigmf(&path).unwrap();
+            assert_eq!(r.samples, volts);
+            assert_eq!(stored.recording.radbench, r.radbench);
+            assert_eq!(
+                stored.sha256,
+                [
+                    (
+                        path.clone(),
+                        crate::storage::hash::sha256_file(&path).unwrap()
+                    ),
+                    (
+                        path.with_extension("sigmf-data"),
+                        crate::storage::hash::sha256(&data)
+                    ),
+                ]
+            );
+        }
+        // Other datatypes come back as samples, as read_sigmf reads them.
+        let path = write(dir.path(), "f", meta("cf32_le"), &[0u8; 16]);
+        let stored = read_sigmf_stored(&path).unwrap();
+        assert!(stored.words.is_none());
+        assert_eq!(stored.recording.samples, read_sigmf(&path).unwrap().samples);
     }
 
     #[test]
