@@ -15,6 +15,7 @@
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 
 pub(crate) mod builtin;
+mod folder;
 pub mod manifest;
 pub mod plan;
 pub(crate) mod positioner;
@@ -76,6 +77,13 @@ pub enum CampaignError {
     /// A storage writer failed.
     #[error(transparent)]
     Storage(#[from] crate::storage::StorageError),
+    /// The run folder was moved, deleted or replaced while the campaign ran.
+    #[error(
+        "the run folder {dir} was {what} while the campaign ran: the run stopped with the bench in \
+         its safe state and wrote nothing more (radbench does not re-create it). Resume it where \
+         it is now with `radbench campaign resume DIR`, or start a new run"
+    )]
+    FolderLost { dir: PathBuf, what: &'static str },
     /// The output folder already holds something.
     #[error(
         "{dir} already exists and is not empty: choose another --out, or continue that run with \
@@ -113,6 +121,7 @@ impl CampaignError {
             CampaignError::OperatorStopped { .. }
             | CampaignError::Interrupted { .. }
             | CampaignError::Io { .. }
+            | CampaignError::FolderLost { .. }
             | CampaignError::Storage(_) => ErrorKind::Abort,
         }
     }
@@ -142,7 +151,7 @@ impl Classify for CampaignError {
             CampaignError::PositionerFailed { .. } | CampaignError::Control(_) => {
                 ExitClass::Instrument
             }
-            CampaignError::Io { .. } => ExitClass::Processing,
+            CampaignError::Io { .. } | CampaignError::FolderLost { .. } => ExitClass::Processing,
             CampaignError::OperatorStopped { .. } => ExitClass::Interrupted,
             CampaignError::Interrupted { signal, .. } => match signal {
                 StopSignal::Interrupt => ExitClass::Interrupted,

@@ -26,6 +26,7 @@
 //! signal before each step; a capture that completed before the signal is kept and written. Every
 //! stop writes the manifest with status `interrupted`, the reason and the step to resume at.
 
+use super::folder::FolderIdentity;
 use super::manifest::{
     self, CalibrationRecord, FileRecord, InputFile, Instruments, Manifest, Session, Status,
     StepRecord, StepStatus, StepTables, Timing,
@@ -725,6 +726,8 @@ struct Connection {
 
 struct Runner {
     dir: PathBuf,
+    /// The run folder as it was when this session opened it: checked before every write.
+    folder: FolderIdentity,
     manifest: Manifest,
     plan: Plan,
     prepared: PreparedSet,
@@ -788,7 +791,9 @@ impl Runner {
             path: dir.clone(),
             source: e,
         })?;
+        let folder = FolderIdentity::of(&dir)?;
         Ok(Runner {
+            folder,
             base_tx_attenuation: prepared
                 .base
                 .iter()
@@ -823,6 +828,7 @@ impl Runner {
     /// Runs every step not done yet, then writes the results, the report and the manifest.
     async fn execute(mut self, observer: &mut dyn Observer) -> Result<Finished, CampaignError> {
         let t = Instant::now();
+        self.folder.check(&self.dir)?;
         self.manifest.store(&self.dir)?;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
         let mut stopped = self.steps(observer).await.err();
@@ -1110,6 +1116,7 @@ impl Runner {
         snapshot.session_mut().timing = self.timing.clone();
         let job = StepJob {
             dir: self.dir.clone(),
+            folder: self.folder,
             step: step.clone(),
             names: self.plan.algorithm_names(),
             bandwidth_hz: self.plan.waveforms[step.waveform].bandwidth_hz(),
@@ -1183,6 +1190,7 @@ impl Runner {
 
     /// `results.json` with every step that has a result, in step order.
     fn write_results(&mut self) -> Result<Results, CampaignError> {
+        self.folder.check(&self.dir)?;
         let results = Results {
             steps: self.results.iter().flatten().cloned().collect(),
         };
@@ -1239,6 +1247,7 @@ impl Runner {
             .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
+        self.folder.check(&self.dir)?;
         self.manifest.store(&self.dir)?;
         let max = |f: fn(&results::AlgorithmResult) -> Option<f64>| {
             results
@@ -1294,6 +1303,7 @@ fn error_chain(e: &dyn std::error::Error) -> String {
 /// What a step's worker needs besides the capture and the pipelines.
 struct StepJob {
     dir: PathBuf,
+    folder: FolderIdentity,
     step: Step,
     names: Vec<&'static str>,
     bandwidth_hz: f64,
@@ -1366,6 +1376,7 @@ impl StepJob {
         let result_json = format!("{:#}\n", json!(result));
         let rel = PathBuf::from(self.step.dir_name());
         let t_files = Instant::now();
+        self.folder.check(&self.dir)?;
         let files = write_step_files(
             &self.dir,
             &rel,
@@ -1374,7 +1385,8 @@ impl StepJob {
             &self.names,
             &self.provenance,
             &result_json,
-        )?;
+        )
+        .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
         // The files were hashed as they were written: that share of their time is the
         // campaign's bookkeeping (a lone `radbench capture` does not hash its files).
         let files_s = t_files.elapsed().as_secs_f64() - files.hashing_s;
@@ -1401,7 +1413,10 @@ impl StepJob {
         rec.applied = applied;
         rec.files = records;
         let record = rec.clone();
-        snapshot.store_cached(&self.dir, tables)?;
+        self.folder.check(&self.dir)?;
+        snapshot
+            .store_cached(&self.dir, tables)
+            .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
         let written = Written {
             record,
             files_s,
@@ -1429,6 +1444,13 @@ fn write_step_files(
     result_json: &str,
 ) -> Result<GroupWritten, CampaignError> {
     let out = dir.join(rel);
+    // The step's folder alone (not its parents): should the run folder vanish after the check,
+    // this fails rather than re-create it.
+    match std::fs::create_dir(&out) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(io(&out)(e)),
+    }
     let ((), written) = write_group(|| {
         let raw = record::write_raw(&out, m, provenance)?;
         record::write_processed(&out, m, &raw, provenance)?;

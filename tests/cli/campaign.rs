@@ -927,3 +927,120 @@ async fn a_very_long_campaign_name_makes_a_short_folder_name() {
     );
     assert!(out.contains("run folder"), "{out}");
 }
+
+/// Starts a campaign of `steps` positions into `out` and returns it once step 2 is reported.
+async fn campaign_at_step_2(
+    dir: &Path,
+    out: &Path,
+    steps: usize,
+) -> (
+    tokio::process::Child,
+    tokio::io::Lines<tokio::io::BufReader<tokio::process::ChildStdout>>,
+) {
+    use tokio::io::AsyncBufReadExt;
+    let values: Vec<String> = (0..steps)
+        .map(|k| format!("{:.2}", 1.0 + 0.03 * k as f64))
+        .collect();
+    let spec = dir.join("long.toml");
+    std::fs::write(
+        &spec,
+        format!(
+            "name = \"long\"\n[sweep]\nparameter = \"position\"\nvalues = [{}]\n",
+            values.join(", ")
+        ),
+    )
+    .unwrap();
+    let mut child = Command::new(BIN)
+        .args([
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--out",
+        ])
+        .arg(out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    let mut lines = tokio::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    tokio::time::timeout(LIMIT, async {
+        while let Some(line) = lines.next_line().await.unwrap() {
+            if line.starts_with("step 2/") {
+                break;
+            }
+        }
+    })
+    .await
+    .expect("the campaign reaches step 2");
+    (child, lines)
+}
+
+/// The run folder renamed or deleted while the campaign runs: the run stops (exit 4) saying
+/// so, never re-creates the folder at its old path, never calls itself complete; resumed where
+/// the folder now is, it finishes with every hash true.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_folder_moved_or_deleted_under_a_running_campaign_stops_it() {
+    use tokio::io::AsyncReadExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    for moved in [true, false] {
+        let out = d.join(if moved { "run-moved" } else { "run-deleted" });
+        let (mut child, _lines) = campaign_at_step_2(d, &out, 30).await;
+        let elsewhere = d.join("elsewhere");
+        if moved {
+            std::fs::rename(&out, &elsewhere).unwrap();
+        } else {
+            // The run writes while it is deleted: try again until nothing is left.
+            let mut tries = 0;
+            while let Err(e) = std::fs::remove_dir_all(&out) {
+                if e.kind() == std::io::ErrorKind::NotFound {
+                    break;
+                }
+                tries += 1;
+                assert!(tries < 100, "{e}");
+            }
+        }
+        let status = tokio::time::timeout(LIMIT, child.wait())
+            .await
+            .unwrap()
+            .unwrap();
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .await
+            .unwrap();
+        assert_eq!(status.code(), Some(4), "{err}");
+        assert!(err.contains("was moved or deleted"), "{err}");
+        assert!(!out.exists(), "the old path was re-created");
+        if moved {
+            let m = Manifest::load(&elsewhere).unwrap();
+            assert_ne!(m.status, Status::Complete);
+            let (code, _, err) = radbench(
+                &[
+                    "campaign",
+                    "resume",
+                    elsewhere.to_str().unwrap(),
+                    "--allow-rf",
+                ],
+                "",
+            )
+            .await;
+            assert_eq!(code, 0, "{err}");
+            let m = Manifest::load(&elsewhere).unwrap();
+            assert_eq!(m.status, Status::Complete);
+            for f in m
+                .files
+                .iter()
+                .chain(m.steps.iter().flat_map(|s| s.files.iter()))
+            {
+                assert_eq!(f.check(&elsewhere), None, "{}", f.path.display());
+            }
+        }
+    }
+}
