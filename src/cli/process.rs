@@ -455,10 +455,14 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     Err(anyhow::Error::new(Classified {
         class,
         message: format!(
-            "{} of {} inputs failed (the others' results are in {}): {}",
+            "{} of {} inputs failed ({}): {}",
             failures.len(),
             failures.len() + done.len(),
-            out.display(),
+            if done.is_empty() {
+                "nothing was written".to_string()
+            } else {
+                format!("the others' results are in {}", out.display())
+            },
             failures
                 .iter()
                 .map(|(s, e)| format!("{s}: {}", crate::exit::render(e)))
@@ -506,6 +510,11 @@ fn report(
             },
             dir.display()
         ));
+        for w in summary["warnings"].as_array().into_iter().flatten() {
+            if let Some(w) = w.as_str() {
+                text.push_str(&format!("{s}: warning: {w}\n"));
+            }
+        }
     }
     for (s, e) in failures {
         text.push_str(&format!("{s}: FAILED: {}\n", crate::exit::render(e)));

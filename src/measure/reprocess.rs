@@ -711,9 +711,47 @@ fn load_trc_pair(
     Ok(Loaded {
         repetitions,
         clipping,
-        radbench: Map::new(),
+        radbench: capture_metadata_beside(i, q).unwrap_or_default(),
         sha256: Vec::new(),
     })
+}
+
+/// The `radbench:` metadata of the radbench capture a `.trc` pair came from: the folder's
+/// `summary.json` names the pair (I then Q, by file name) among its files, and its SigMF
+/// metadata file. Without it a pair radbench wrote would be processed with no waveform and no
+/// system delay.
+fn capture_metadata_beside(i: &Path, q: &Path) -> Option<Map<String, Value>> {
+    let folder = |p: &Path| {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+        std::fs::canonicalize(dir.unwrap_or(Path::new("."))).ok()
+    };
+    let dir = folder(i)?;
+    if folder(q)? != dir {
+        return None;
+    }
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).ok()?).ok()?;
+    let files = summary.get("files")?;
+    let name = |v: &Value| Path::new(v.as_str()?).file_name().map(|n| n.to_owned());
+    let listed: Vec<_> = files
+        .get("trc")?
+        .as_array()?
+        .iter()
+        .filter_map(name)
+        .collect();
+    if listed != [i.file_name()?.to_owned(), q.file_name()?.to_owned()] {
+        return None;
+    }
+    let meta: Value =
+        serde_json::from_slice(&std::fs::read(dir.join(name(files.get("sigmf_meta")?)?)).ok()?)
+            .ok()?;
+    let keys: Map<String, Value> = meta
+        .get("global")?
+        .as_object()?
+        .iter()
+        .filter_map(|(k, v)| Some((k.strip_prefix("radbench:")?.to_string(), v.clone())))
+        .collect();
+    (!keys.is_empty()).then_some(keys)
 }
 
 /// What the caller says about the waveform of a capture (required for captures radbench did not
@@ -732,6 +770,8 @@ pub(crate) struct Resolved {
     pub options: ProcessOptions,
     pub period: usize,
     pub background: Option<PathBuf>,
+    /// What had to be assumed because neither the capture nor the caller said it (warnings).
+    pub assumed: Vec<String>,
 }
 
 /// Resolves the transmission, the options, the period and the background of `loaded`.
@@ -742,6 +782,22 @@ pub(crate) fn resolve<R>(
     background: Option<&Path>,
 ) -> Result<Resolved, MeasureError> {
     let recorded = recorded_transmission(loaded).transpose()?;
+    let mut assumed = Vec::new();
+    if recorded.is_none() && waveform.seed.is_none() && waveform.payload.is_none() {
+        assumed.push(
+            "the capture does not record its bits: PRBS seed 1 was assumed (give --seed or \
+             --payload); bit errors mean nothing if that is not what was sent"
+                .to_string(),
+        );
+    }
+    if loaded.recorded_options().is_none() && overrides.system_delay_s.is_none() {
+        assumed.push(
+            "the capture does not record the bench's system delay and --system-delay was not \
+             given: 0 s was assumed, so every range includes the fixed delay of cables and horns \
+             (give --system-delay S, e.g. from the bench file's [calibration])"
+                .to_string(),
+        );
+    }
     let as_recorded =
         waveform.spec.is_none() && waveform.seed.is_none() && waveform.payload.is_none();
     let tx = match recorded {
@@ -790,6 +846,7 @@ pub(crate) fn resolve<R>(
             .flatten()
     });
     Ok(Resolved {
+        assumed,
         tx,
         options,
         period,
@@ -868,13 +925,14 @@ pub(crate) fn process<R: Record>(
         None => None,
     };
     let bandwidth = resolved.tx.bandwidth_hz();
-    let (processed, repetitions, spread) = process_repetitions(
+    let (mut processed, repetitions, spread) = process_repetitions(
         pipeline,
         &loaded.repetitions,
         background.as_ref(),
         bandwidth,
         &loaded.clipping,
     )?;
+    processed.warnings.extend(resolved.assumed.iter().cloned());
     Ok(Reprocessed {
         processed,
         repetitions,

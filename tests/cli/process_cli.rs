@@ -132,14 +132,19 @@ async fn a_bad_input_is_reported_and_the_others_go_on() {
     let d = dir.path();
     let (code, _, err) = radbench(d, &["capture", "--allow-rf", "--out", "good"]).await;
     assert_eq!(code, 0, "{err}");
+    // A .trc pair away from its capture's metadata: nothing says which waveform it holds.
+    std::fs::create_dir(d.join("bare")).unwrap();
+    for c in ["C1.trc", "C2.trc"] {
+        std::fs::copy(d.join("good").join(c), d.join("bare").join(c)).unwrap();
+    }
     let (code, out, err) = radbench(
         d,
         &[
             "process",
             "good",
             "missing",
-            "good/C1.trc",
-            "good/C2.trc",
+            "bare/C1.trc",
+            "bare/C2.trc",
             "--out",
             "p",
             "--json",
@@ -254,4 +259,87 @@ async fn a_recording_radbench_did_not_make_takes_the_waveform_from_options() {
     let s = json_file(&d.join("p2/other/summary.json"));
     let r = s["targets"][0]["range_m"].as_f64().unwrap();
     assert!((r - 1.0).abs() < 1e-3, "{s}");
+}
+
+/// `radbench process C1.trc C2.trc` from a capture folder: the pair is radbench's own, and the
+/// capture's metadata beside it gives the waveform and the system delay (the pillar at 1.000 m,
+/// not 37.5 cm short with the delay silently taken as 0).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn radbenchs_own_trc_pair_is_processed_with_its_captures_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("scene.toml"),
+        "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n",
+    )
+    .unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "scene.toml",
+            "--out",
+            "cap",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = radbench(
+        &d.join("cap"),
+        &["process", "C1.trc", "C2.trc", "--out", "../again", "--json"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let summary = json_file(&d.join("again/C1/summary.json"));
+    let ranges: Vec<f64> = summary["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["range_m"].as_f64().unwrap())
+        .collect();
+    assert!(
+        ranges.iter().any(|r| (r - 1.0).abs() < 0.002),
+        "{ranges:?}: {out}"
+    );
+    let original = json_file(&d.join("cap/summary.json"));
+    assert_eq!(
+        original["processing"]["system_delay_s"],
+        summary["processing"]["system_delay_s"]
+    );
+    assert_eq!(
+        summary["warnings"],
+        serde_json::json!([]),
+        "nothing assumed"
+    );
+
+    // Away from its capture, with only --waveform: the delay and the bits it had to assume are
+    // said, in the summary and on the console.
+    std::fs::create_dir(d.join("bare")).unwrap();
+    for c in ["C1.trc", "C2.trc"] {
+        std::fs::copy(d.join("cap").join(c), d.join("bare").join(c)).unwrap();
+    }
+    let (code, out, err) = radbench(
+        &d.join("bare"),
+        &[
+            "process",
+            "C1.trc",
+            "C2.trc",
+            "--waveform",
+            "msk-lfm",
+            "--out",
+            "../bare-p",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("warning: the capture does not record the bench's system delay"),
+        "{out}"
+    );
+    assert!(out.contains("PRBS seed 1 was assumed"), "{out}");
+    let summary = json_file(&d.join("bare-p/C1/summary.json"));
+    let warnings = summary["warnings"].to_string();
+    assert!(warnings.contains("0 s was assumed"), "{warnings}");
 }
