@@ -830,18 +830,7 @@ async fn a_positioners_children_and_its_flood_do_not_outlive_or_swamp_the_campai
 /// catches a starved worker without timing a loaded CI machine to the second.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stop_signal_ends_a_campaign_promptly_beside_busy_processes() {
-    use tokio::io::AsyncBufReadExt;
     let dir = tempfile::tempdir().unwrap();
-    let values: Vec<String> = (0..80)
-        .map(|k| format!("{:.2}", 1.0 + 0.03 * k as f64))
-        .collect();
-    let spec = write_spec(
-        dir.path(),
-        &format!(
-            "name = \"long\"\n[sweep]\nparameter = \"position\"\nvalues = [{}]\n",
-            values.join(", ")
-        ),
-    );
     let busy: Vec<tokio::process::Child> = (0..2)
         .map(|_| {
             Command::new("sh")
@@ -857,31 +846,7 @@ async fn a_stop_signal_ends_a_campaign_promptly_beside_busy_processes() {
         (libc::SIGHUP, 129),
     ] {
         let out = dir.path().join(format!("run-{signal}"));
-        let mut child = Command::new(BIN)
-            .args([
-                "campaign",
-                "run",
-                spec.to_str().unwrap(),
-                "--allow-rf",
-                "--out",
-            ])
-            .arg(&out)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .kill_on_drop(true)
-            .spawn()
-            .unwrap();
-        let mut lines = tokio::io::BufReader::new(child.stdout.take().unwrap()).lines();
-        tokio::time::timeout(LIMIT, async {
-            while let Some(line) = lines.next_line().await.unwrap() {
-                if line.starts_with("step 2/") {
-                    break;
-                }
-            }
-        })
-        .await
-        .expect("the campaign reaches step 2");
+        let (mut child, _lines) = campaign_at_step_2(dir.path(), &out, 80).await;
         let pid = libc::pid_t::try_from(child.id().unwrap()).unwrap();
         let sent = std::time::Instant::now();
         // SAFETY: kill(2) on the child's pid; no memory involved.

@@ -329,15 +329,11 @@ async fn a_log_written_to_a_file_has_no_colour_codes() {
 /// on the next command.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn scpi_reads_a_catalog_instruments_error_queue_by_default() {
-    use mock_lab::server::launch::Transport;
-    let lab = tokio::time::timeout(
-        std::time::Duration::from_secs(10),
-        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
-    )
-    .await
-    .expect("the lab starts")
-    .unwrap();
-    let awg = lab.endpoint("awg", Transport::Hislip).unwrap().resource;
+    let lab = mock_lab_started().await;
+    let awg = lab
+        .endpoint("awg", mock_lab::server::launch::Transport::Hislip)
+        .unwrap()
+        .resource;
     let scpi = |args: &[&str]| {
         let mut all = vec!["scpi", awg.as_str()];
         all.extend_from_slice(args);
@@ -373,15 +369,11 @@ async fn scpi_reads_a_catalog_instruments_error_queue_by_default() {
 /// `*IDN MOCK_LAB,...`): the manufacturer is MOCK_LAB, not `*IDN MOCK_LAB`.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn idn_on_a_scope_with_response_headers_on() {
-    use mock_lab::server::launch::Transport;
-    let lab = tokio::time::timeout(
-        std::time::Duration::from_secs(10),
-        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
-    )
-    .await
-    .expect("the lab starts")
-    .unwrap();
-    let scope = lab.endpoint("scope", Transport::Vicp).unwrap().resource;
+    let lab = mock_lab_started().await;
+    let scope = lab
+        .endpoint("scope", mock_lab::server::launch::Transport::Vicp)
+        .unwrap()
+        .resource;
     let (code, out, err) = crate::support::radbench_in(None, &["idn", &scope]).await;
     assert_eq!(code, 0, "{err}");
     let line = out
@@ -390,4 +382,15 @@ async fn idn_on_a_scope_with_response_headers_on() {
         .unwrap_or_else(|| panic!("{out}"));
     assert!(!line.contains("*IDN"), "{line}");
     assert!(out.contains("model:"), "{out}");
+}
+
+/// The whole simulated bench on loopback (its AWG and scope with their catalog identities).
+async fn mock_lab_started() -> mock_lab::lab::Lab {
+    tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap()
 }
