@@ -93,6 +93,8 @@ pub enum ScopeTransportName {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct WaveformSection {
+    /// `msk-lfm` when not given, as the docs say.
+    #[serde(default = "msk_lfm")]
     pub kind: WaveformKindName,
     #[serde(default)]
     pub bandwidth_hz: Option<f64>,
@@ -123,6 +125,10 @@ pub struct WaveformSection {
     /// Text to send (default: PRBS bits from `seed`).
     #[serde(default)]
     pub payload: Option<String>,
+}
+
+fn msk_lfm() -> WaveformKindName {
+    WaveformKindName::MskLfm
 }
 
 impl Default for WaveformSection {
@@ -646,5 +652,9 @@ mod tests {
         assert_eq!(f.spec.repetitions, 1);
         assert_eq!(f.spec.waveform.kind, WaveformKindName::MskLfm);
         assert_eq!(f.name(), "c");
+        // A [waveform] table that changes a parameter but names no kind: the default kind.
+        let f = parse("[waveform]\nbandwidth_hz = 2e9\n").unwrap();
+        assert_eq!(f.spec.waveform.kind, WaveformKindName::MskLfm);
+        assert_eq!(f.spec.waveform.bandwidth_hz, Some(2e9));
     }
 }

@@ -450,6 +450,13 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
                 "{}: the run is already complete; nothing to do",
                 dir.display()
             );
+            if a.json {
+                // A script reading the events still gets its last one.
+                println!(
+                    "{}",
+                    json!({"event": "done", "dir": dir, "status": "complete", "nothing_to_do": true})
+                );
+            }
             return Ok(());
         }
         other => other?,

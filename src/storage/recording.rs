@@ -245,6 +245,23 @@ impl Fields<'_> {
             },
         }
     }
+    /// [`Fields::number`] within `-limit ..= limit` (a time a scope or a bench can have, not
+    /// 1e300 s).
+    fn within(
+        &self,
+        obj: &Map<String, Value>,
+        key: &str,
+        limit: f64,
+        unit: &str,
+    ) -> Result<Option<f64>, RecordingError> {
+        match self.number(obj, key)? {
+            Some(x) if x.abs() > limit => Err(self.err(
+                key,
+                format!("must lie within -{limit:e} ..= {limit:e} {unit}, found {x:e}"),
+            )),
+            other => Ok(other),
+        }
+    }
     fn count(&self, obj: &Map<String, Value>, key: &str) -> Result<u64, RecordingError> {
         match obj.get(key) {
             None | Some(Value::Null) => Ok(0),
@@ -587,8 +604,8 @@ fn read_radbench(
     Ok(Some(RadbenchMeta {
         vertical_gain,
         vertical_offset,
-        trigger_offset_s: f.number(global, "radbench:trigger_offset_s")?,
-        system_delay_s: f.number(global, "radbench:system_delay_s")?,
+        trigger_offset_s: f.within(global, "radbench:trigger_offset_s", 1.0, "seconds")?,
+        system_delay_s: f.within(global, "radbench:system_delay_s", 1e-3, "seconds")?,
         keys,
     }))
 }
@@ -951,5 +968,37 @@ mod tests {
         assert!((r.samples[1].re - (-0.2)).abs() < 1e-12);
         assert!((r.samples[1].im - (0.012 - 0.1)).abs() < 1e-12);
         assert_eq!(r.radbench.unwrap().trigger_offset_s, Some(1.5e-9));
+    }
+
+    /// A trigger offset of 1e300 s (a background file edited or damaged) is refused with its
+    /// key, not used.
+    #[test]
+    fn an_absurd_trigger_offset_is_refused_by_its_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut ns = Map::new();
+        ns.insert("vertical_gain".into(), serde_json::json!([0.001, 0.002]));
+        ns.insert("vertical_offset".into(), serde_json::json!([0.0, 0.1]));
+        ns.insert("trigger_offset_s".into(), serde_json::json!(1e300));
+        let meta = super::super::sigmf::SigmfMeta {
+            sample_rate: 80e9,
+            frequency_hz: 80e9,
+            datetime: "2026-11-21T19:55:00.123Z".into(),
+            description: "test".into(),
+            hw: "MOCK_LAB".into(),
+            radbench: ns,
+            annotations: vec![],
+        };
+        let files = super::super::sigmf::write_ci16(
+            &dir.path().join("capture"),
+            &[100, -200],
+            &[5, 6],
+            &meta,
+        )
+        .unwrap();
+        let e = read_sigmf(&files.meta).unwrap_err().to_string();
+        assert!(
+            e.contains("radbench:trigger_offset_s") && e.contains("1e300"),
+            "{e}"
+        );
     }
 }

@@ -1009,3 +1009,31 @@ async fn a_run_folder_moved_or_deleted_under_a_running_campaign_stops_it() {
         }
     }
 }
+
+/// `campaign resume --json` on a complete run: nothing to do, and still a `done` event.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resume_json_on_a_complete_run_ends_with_a_done_event() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(
+        dir.path(),
+        "name = \"one\"\n[sweep]\nparameter = \"position\"\nvalues = [1.0]\n",
+    );
+    let out = dir.path().join("run");
+    let (code, _, err) = campaign_run(&spec, Some(&out), &["--allow-rf"], "").await;
+    assert_eq!(code, 0, "{err}");
+    let (code, stdout, err) = radbench(
+        &[
+            "campaign",
+            "resume",
+            out.to_str().unwrap(),
+            "--allow-rf",
+            "--json",
+        ],
+        "",
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let last: Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).unwrap();
+    assert_eq!(last["event"], "done", "{stdout}");
+    assert_eq!(last["status"], "complete", "{stdout}");
+}
