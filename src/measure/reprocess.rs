@@ -361,6 +361,20 @@ fn load_sigmf(
                 .collect()
         })
         .unwrap_or_default();
+    // A first sample 1e300 s after the trigger is a damaged file, not a bench.
+    if let Some((k, (_, _, t))) = reps
+        .iter()
+        .enumerate()
+        .find(|(_, (_, _, t))| !(t.is_finite() && t.abs() <= 1.0))
+    {
+        return Err(input_error(
+            meta,
+            format!(
+                "radbench:repetitions[{k}].trigger_offset_s = {t:e}: a time from the trigger \
+                 within -1 ..= 1 s"
+            ),
+        ));
+    }
     // The scope's words come back from the volts with the recorded scaling.
     let scaling = (rec.unit == SampleUnit::Volts)
         .then_some(rec.radbench.as_ref())

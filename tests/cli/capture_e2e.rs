@@ -441,3 +441,43 @@ async fn a_fast_target_that_spoils_the_data_is_named() {
         "{out}"
     );
 }
+
+/// A background file whose trigger offset is 1e300 s (damaged or edited) is refused by its key
+/// (exit 2), before anything radiates; it used to be accepted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_background_with_an_absurd_trigger_offset_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (code, _, err) = crate::support::radbench_in(
+        Some(d),
+        &["capture", "--allow-rf", "--tx-off", "--out", "bg"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let meta_path = d.join("bg/capture.sigmf-meta");
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&meta_path).unwrap()).unwrap();
+    let global = &mut meta["global"];
+    if global["radbench:repetitions"].is_array() {
+        global["radbench:repetitions"][0]["trigger_offset_s"] = serde_json::json!(1e300);
+    }
+    global["radbench:trigger_offset_s"] = serde_json::json!(1e300);
+    std::fs::write(&meta_path, meta.to_string()).unwrap();
+    let (code, _, err) = crate::support::radbench_in(
+        Some(d),
+        &[
+            "capture",
+            "--allow-rf",
+            "--background",
+            "bg/capture.sigmf-meta",
+            "--out",
+            "c",
+        ],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("trigger_offset_s") && err.contains("1e300"),
+        "{err}"
+    );
+}
