@@ -937,13 +937,15 @@ mod tests {
         assert!(matches!(e, RecordingError::NotJson { .. }), "{e}");
     }
 
-    #[test]
-    fn reads_what_radbench_writes() {
-        let dir = tempfile::tempdir().unwrap();
+    /// A two-sample recording as radbench writes it, with `trigger_offset_s`; its meta path.
+    fn written(dir: &Path, trigger_offset_s: f64) -> PathBuf {
         let mut ns = Map::new();
         ns.insert("vertical_gain".into(), serde_json::json!([0.001, 0.002]));
         ns.insert("vertical_offset".into(), serde_json::json!([0.0, 0.1]));
-        ns.insert("trigger_offset_s".into(), serde_json::json!(1.5e-9));
+        ns.insert(
+            "trigger_offset_s".into(),
+            serde_json::json!(trigger_offset_s),
+        );
         let meta = super::super::sigmf::SigmfMeta {
             sample_rate: 80e9,
             frequency_hz: 80e9,
@@ -953,14 +955,15 @@ mod tests {
             radbench: ns,
             annotations: vec![],
         };
-        let files = super::super::sigmf::write_ci16(
-            &dir.path().join("capture"),
-            &[100, -200],
-            &[5, 6],
-            &meta,
-        )
-        .unwrap();
-        let r = read_sigmf(&files.meta).unwrap();
+        super::super::sigmf::write_ci16(&dir.join("capture"), &[100, -200], &[5, 6], &meta)
+            .unwrap()
+            .meta
+    }
+
+    #[test]
+    fn reads_what_radbench_writes() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = read_sigmf(&written(dir.path(), 1.5e-9)).unwrap();
         assert_eq!(r.sample_rate_hz, Some(80e9));
         assert_eq!(r.frequency_hz(), Some(80e9));
         assert!(r.sha512_checked);
@@ -975,27 +978,9 @@ mod tests {
     #[test]
     fn an_absurd_trigger_offset_is_refused_by_its_key() {
         let dir = tempfile::tempdir().unwrap();
-        let mut ns = Map::new();
-        ns.insert("vertical_gain".into(), serde_json::json!([0.001, 0.002]));
-        ns.insert("vertical_offset".into(), serde_json::json!([0.0, 0.1]));
-        ns.insert("trigger_offset_s".into(), serde_json::json!(1e300));
-        let meta = super::super::sigmf::SigmfMeta {
-            sample_rate: 80e9,
-            frequency_hz: 80e9,
-            datetime: "2026-11-21T19:55:00.123Z".into(),
-            description: "test".into(),
-            hw: "MOCK_LAB".into(),
-            radbench: ns,
-            annotations: vec![],
-        };
-        let files = super::super::sigmf::write_ci16(
-            &dir.path().join("capture"),
-            &[100, -200],
-            &[5, 6],
-            &meta,
-        )
-        .unwrap();
-        let e = read_sigmf(&files.meta).unwrap_err().to_string();
+        let e = read_sigmf(&written(dir.path(), 1e300))
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("radbench:trigger_offset_s") && e.contains("1e300"),
             "{e}"
