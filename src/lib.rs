@@ -42,10 +42,10 @@
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end), the drivers, permit, safe state |
 //! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
 //! | [`trc`] | pure | LeCroy waveform blocks and `.trc` files (WAVEDESC, segments): decode and build |
-//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR), the chain's response estimate and its receive equaliser |
+//! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR), the chain's response estimate and its receive equaliser, the two ends' I/Q errors told apart in the image and undone |
 //! | [`storage`] | out | atomic files, SigMF (write and read), npy (write and read)/CSV, plots |
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files |
-//! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report), resume, the thesis' lab chapter |
+//! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
 //! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
 //!
