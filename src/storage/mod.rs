@@ -19,8 +19,8 @@ pub(crate) mod sigmf;
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum StorageError {
-    /// The file system refused (missing folder, permissions, disk full).
-    #[error("cannot write {path}: {source} (check that the folder exists and is writable)")]
+    /// The file system refused (missing folder, permissions, read-only, disk full).
+    #[error("cannot write {path}: {source} ({})", remedy(source))]
     Io {
         path: PathBuf,
         #[source]
@@ -40,6 +40,23 @@ pub enum StorageError {
     Plot { path: PathBuf, reason: String },
 }
 
+/// What to do when a write failed with `e`. A read-only file system and a full disk need other
+/// remedies than a missing folder: "check that the folder exists and is writable" sent the user
+/// looking for a folder that was there.
+pub(crate) fn remedy(e: &std::io::Error) -> &'static str {
+    full_or_read_only(e).unwrap_or("check that the folder exists and is writable")
+}
+
+/// [`remedy`] for the two failures that say what to do by themselves: a read-only file system
+/// and a full disk (or quota).
+pub(crate) fn full_or_read_only(e: &std::io::Error) -> Option<&'static str> {
+    match e.raw_os_error()? {
+        libc::EROFS => Some("its file system is read-only: remount it read-write"),
+        libc::ENOSPC | libc::EDQUOT => Some("its disk is full: free space on it"),
+        _ => None,
+    }
+}
+
 impl Classify for StorageError {
     fn exit_class(&self) -> ExitClass {
         match self {
@@ -48,5 +65,29 @@ impl Classify for StorageError {
                 ExitClass::Processing
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_read_only_file_system_and_a_full_disk_say_what_to_do() {
+        let err = |code| std::io::Error::from_raw_os_error(code);
+        let write = |code| {
+            StorageError::Io {
+                path: "run/results.json".into(),
+                source: err(code),
+            }
+            .to_string()
+        };
+        assert!(
+            write(libc::EROFS).contains("(its file system is read-only: remount it read-write)")
+        );
+        assert!(write(libc::ENOSPC).contains("(its disk is full: free space on it)"));
+        assert!(write(libc::EDQUOT).contains("(its disk is full: free space on it)"));
+        assert!(write(libc::ENOENT).contains("(check that the folder exists and is writable)"));
+        assert_eq!(full_or_read_only(&err(libc::EACCES)), None);
     }
 }
