@@ -68,7 +68,7 @@ pub enum CampaignError {
     #[error("the simulated bench's scene control channel: {0}")]
     Control(String),
     /// A file of the run folder could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {source}{}", io_remedy(source))]
     Io {
         path: PathBuf,
         #[source]
@@ -84,6 +84,26 @@ pub enum CampaignError {
          it is now with `radbench campaign resume DIR`, or start a new run"
     )]
     FolderLost { dir: PathBuf, what: &'static str },
+    /// The session's end (`results.json`, the report, the manifest) could not be written in the
+    /// run folder: a read-only file system, a full disk. The run stopped (or had measured every
+    /// step); the manifest on disk records the steps written completely before.
+    #[error(
+        "{dir}: the run could not write its end there: {source}. {}{} The manifest in the folder \
+         records every step written completely before. Once the folder can be written again, \
+         continue with `radbench campaign resume {dir} --allow-rf`: it measures only what is \
+         missing",
+        stop_text(stopped),
+        bench_text(*safe)
+    )]
+    Unrecorded {
+        dir: PathBuf,
+        /// Why the run had stopped before its end was written (the manifest's reason), if it had.
+        stopped: Option<String>,
+        /// Whether the final safe state completed.
+        safe: bool,
+        #[source]
+        source: Box<CampaignError>,
+    },
     /// The output folder already holds something.
     #[error(
         "{dir} already exists and is not empty: choose another --out, or continue that run with \
@@ -122,6 +142,7 @@ impl CampaignError {
             | CampaignError::Interrupted { .. }
             | CampaignError::Io { .. }
             | CampaignError::FolderLost { .. }
+            | CampaignError::Unrecorded { .. }
             | CampaignError::Storage(_) => ErrorKind::Abort,
         }
     }
@@ -151,7 +172,9 @@ impl Classify for CampaignError {
             CampaignError::PositionerFailed { .. } | CampaignError::Control(_) => {
                 ExitClass::Instrument
             }
-            CampaignError::Io { .. } | CampaignError::FolderLost { .. } => ExitClass::Processing,
+            CampaignError::Io { .. }
+            | CampaignError::FolderLost { .. }
+            | CampaignError::Unrecorded { .. } => ExitClass::Processing,
             CampaignError::OperatorStopped { .. } => ExitClass::Interrupted,
             CampaignError::Interrupted { signal, .. } => match signal {
                 StopSignal::Interrupt => ExitClass::Interrupted,
@@ -160,6 +183,29 @@ impl Classify for CampaignError {
             },
         }
     }
+}
+
+/// How [`CampaignError::Unrecorded`] tells the stop it was to record.
+fn stop_text(stopped: &Option<String>) -> String {
+    match stopped {
+        Some(reason) => format!("The run had stopped: {reason}. "),
+        None => "Every step had been measured. ".into(),
+    }
+}
+
+/// How [`CampaignError::Unrecorded`] tells the bench's state.
+fn bench_text(safe: bool) -> &'static str {
+    if safe {
+        "The bench is in its safe state."
+    } else {
+        "The final safe state did not complete: switch the bench off by hand."
+    }
+}
+
+/// " (what to do)" after an I/O error that says it by itself (read-only, disk full); nothing
+/// after others (this error is also a read's).
+fn io_remedy(e: &std::io::Error) -> String {
+    crate::storage::full_or_read_only(e).map_or(String::new(), |r| format!(" ({r})"))
 }
 
 /// An I/O error on `path`.

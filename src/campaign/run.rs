@@ -842,9 +842,11 @@ impl Runner {
         // Nothing radiates between measurements and every measurement's guard ran the safe
         // state; run it once more on whatever is connected (a bench found in an unknown state
         // and left by an error before its first capture), then close the links.
+        let mut safe = true;
         if let Some(conn) = self.connection.take() {
             let report = conn.rig.safe_state().engage().await;
-            if !report.is_safe() {
+            safe = report.is_safe();
+            if !safe {
                 observer.note(&format!(
                     "WARNING: the final safe state did not complete: {report}; switch the bench \
                      off by hand"
@@ -855,7 +857,27 @@ impl Runner {
         let t = Instant::now();
         let outcome = self.finish(stopped).await;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
-        outcome
+        outcome.map_err(|e| self.unrecorded(e, safe))
+    }
+
+    /// A session's end that could not be written (`results.json`, the report, the manifest: a
+    /// read-only file system, a full disk) as the error the user sees: the write that failed,
+    /// why the run had stopped, the bench's state and how to go on. The bare write error ("cannot
+    /// write results.json") dropped the stop it was to record (the step whose files had failed)
+    /// and said nothing of resuming.
+    fn unrecorded(&self, e: CampaignError, safe: bool) -> CampaignError {
+        if matches!(e, CampaignError::FolderLost { .. }) {
+            return e;
+        }
+        if let Some(lost) = self.folder.lost(&self.dir) {
+            return lost;
+        }
+        CampaignError::Unrecorded {
+            dir: self.dir.clone(),
+            stopped: self.manifest.reason.clone(),
+            safe,
+            source: Box::new(e),
+        }
     }
 
     async fn steps(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
@@ -1202,7 +1224,6 @@ impl Runner {
     }
 
     async fn finish(&mut self, stopped: Option<CampaignError>) -> Result<Finished, CampaignError> {
-        let results = self.write_results()?;
         let status = if stopped.is_some() {
             Status::Interrupted
         } else {
@@ -1222,6 +1243,9 @@ impl Runner {
         });
         self.manifest.stopped_at_step = stopped.as_ref().and(first_pending);
         self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
+        // After the reason: should a write fail from here on, the error tells the stop it was
+        // to record (see `unrecorded`).
+        let results = self.write_results()?;
         let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
         self.manifest.session_mut().ended = Some(now);
         self.timing.total_s = self.started.elapsed().as_secs_f64();
