@@ -9,6 +9,7 @@ use super::spec::SpecFile;
 use super::CampaignError;
 use crate::driver::RfPermit;
 use crate::measure::interrupt::Interrupt;
+use crate::waveform::spec::{SweepBand, WaveformSpec};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -36,6 +37,7 @@ pub(crate) fn kinds() -> Vec<&'static str> {
 }
 
 /// A built-in spec, parsed (its path names it in messages; it refers to no other file).
+#[cfg(test)]
 pub(crate) fn spec(kind: &str) -> Option<SpecFile> {
     let text = template(kind)?;
     SpecFile::parse(text, Path::new(&format!("built-in:{kind}.toml"))).ok()
@@ -135,8 +137,9 @@ pub(crate) const LAB_REFERENCE_M: f64 = 1.0;
 /// Runs the thesis' lab chapter (4.4.1, 4.4.2, 4.4.3 at 1 and 2 GHz, 4.5.1, 4.5.2) on the built-in
 /// mock lab, on the ideal chain and on `chain`, one run folder per campaign and chain under `out`.
 /// On a chain that is not ideal it runs the chapter twice more, corrected: the chain's response
-/// calibrated first, in-process on the same lab with one pillar at 1 m
-/// (`out/<chain>-rx/calibration.toml`), then every campaign with `correction = "rx"`
+/// calibrated first, in-process on the same lab with one pillar at 1 m, once per waveform as the
+/// chapter transmits it (`out/<chain>-rx/calibration.toml` with the MSK-LFM chirp swept 0 .. 1 GHz,
+/// `calibration-ofdm.toml` with OFDM), then every campaign with `correction = "rx"`
 /// (`out/<chain>-rx/`) and with `correction = "both"` (`out/<chain>-both/`).
 pub(crate) async fn thesis_lab(
     out: &Path,
@@ -151,7 +154,19 @@ pub(crate) async fn thesis_lab(
     }
     let chosen = chapter(&out.join(chain.folder()), chain, None, interrupt, observer).await?;
     let rx_dir = out.join(format!("{}-rx", chain.folder()));
-    let calibration = calibrate_lab(&rx_dir, chain, interrupt, observer).await?;
+    let msk = WaveformSpec::msk_lfm_default().with_sweep_band(SweepBand::Upper);
+    let calibration = LabCalibrations {
+        msk: calibrate_lab(&rx_dir, "calibration.toml", msk, chain, interrupt, observer).await?,
+        ofdm: calibrate_lab(
+            &rx_dir,
+            "calibration-ofdm.toml",
+            WaveformSpec::ofdm_default(),
+            chain,
+            interrupt,
+            observer,
+        )
+        .await?,
+    };
     let corrected = chapter(
         &rx_dir,
         chain,
@@ -182,12 +197,19 @@ pub(crate) async fn thesis_lab(
         .collect())
 }
 
-/// The chain's response measured on the built-in lab with one pillar at [`LAB_REFERENCE_M`]
-/// (MSK-LFM, 16 repetitions, a 4 ns gate: `radbench calibrate response`'s defaults), stored as
-/// `dir/calibration.toml` and its table. Refused, as the command refuses it, when the correction
-/// does not improve the reference's side-lobes.
+/// One response calibration per waveform family, each covering the band the chapter transmits.
+struct LabCalibrations {
+    msk: PathBuf,
+    ofdm: PathBuf,
+}
+
+/// The chain's response measured with `waveform` on the built-in lab with one pillar at
+/// [`LAB_REFERENCE_M`] (16 repetitions, a 4 ns gate), stored as `dir/file` and its table. Refused,
+/// as the command refuses it, when the correction does not improve the reference's side-lobes.
 async fn calibrate_lab(
     dir: &Path,
+    file: &str,
+    waveform: WaveformSpec,
     chain: &LabChain,
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
@@ -214,7 +236,7 @@ async fn calibrate_lab(
     .await?;
     let catalog = bench.file.catalog().map_err(MeasureError::from)?;
     let request = CalibrateRequest {
-        waveform: crate::waveform::spec::WaveformKind::MskLfm,
+        waveform,
         reference_range_m: LAB_REFERENCE_M,
         repetitions: 16,
         gate_s: 4e-9,
@@ -230,28 +252,49 @@ async fn calibrate_lab(
         ))
     })?;
     std::fs::create_dir_all(dir).map_err(super::io(dir))?;
-    let path = dir.join("calibration.toml");
+    let path = dir.join(file);
     calibrated.save(&path)?;
     observer.note(&format!(
-        "calibration: the {} chain's response on a pillar at {LAB_REFERENCE_M} m, the \
-         reference's side-lobe {improvement:.2} dB lower corrected, into {}",
+        "calibration: the {} chain's response with {} on a pillar at {LAB_REFERENCE_M} m, the \
+         reference corrected ({improvement}), into {}",
         chain.name,
+        waveform.name(),
         path.display()
     ));
     Ok(path)
 }
 
-/// A built-in spec with `[processing] correction = mode` and the calibration (absolute), so the
-/// run folder's copy of the spec says what was run.
-fn with_correction(kind: &str, calibration: &Path, mode: &str) -> Result<SpecFile, CampaignError> {
+/// A built-in spec as the lab chapter runs it: an MSK-LFM chirp swept 0..B as the thesis'
+/// equation (2.4) has it (`[waveform] band = "upper"`; its OFDM stays centred, as the thesis'
+/// was), and with a correction, `[processing] correction = mode` and the calibration (absolute).
+/// The run folder's copy of the spec says what was run.
+fn lab_spec(
+    kind: &str,
+    correction: Option<(&LabCalibrations, &str)>,
+) -> Result<SpecFile, CampaignError> {
     let text = template(kind).expect("a built-in kind");
     let mut doc: toml_edit::DocumentMut = text.parse().expect("a built-in spec parses (tested)");
-    if doc.get("processing").is_none() {
-        doc["processing"] = toml_edit::table();
+    let msk = doc
+        .get("waveform")
+        .and_then(|w| w.get("kind"))
+        .and_then(|k| k.as_str())
+        .is_none_or(|k| k == "msk-lfm");
+    if msk {
+        doc["waveform"]["band"] = toml_edit::value("upper");
     }
-    doc["processing"]["correction"] = toml_edit::value(mode);
-    let abs = std::path::absolute(calibration).unwrap_or_else(|_| calibration.to_path_buf());
-    doc["processing"]["calibration"] = toml_edit::value(abs.display().to_string());
+    if let Some((calibrations, mode)) = correction {
+        let calibration = if msk {
+            &calibrations.msk
+        } else {
+            &calibrations.ofdm
+        };
+        if doc.get("processing").is_none() {
+            doc["processing"] = toml_edit::table();
+        }
+        doc["processing"]["correction"] = toml_edit::value(mode);
+        let abs = std::path::absolute(calibration).unwrap_or_else(|_| calibration.to_path_buf());
+        doc["processing"]["calibration"] = toml_edit::value(abs.display().to_string());
+    }
     Ok(SpecFile::parse(
         &doc.to_string(),
         Path::new(&format!("built-in:{kind}.toml")),
@@ -262,16 +305,13 @@ fn with_correction(kind: &str, calibration: &Path, mode: &str) -> Result<SpecFil
 async fn chapter(
     out: &Path,
     chain: &LabChain,
-    correction: Option<(&Path, &str)>,
+    correction: Option<(&LabCalibrations, &str)>,
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
 ) -> Result<Vec<LabRow>, CampaignError> {
     let mut runs = Vec::new();
     for kind in ["single-target", "accuracy", "resolution", "music"] {
-        let spec = match correction {
-            Some((c, mode)) => with_correction(kind, c, mode)?,
-            None => spec(kind).expect("a built-in spec parses (tested)"),
-        };
+        let spec = lab_spec(kind, correction)?;
         let mut bench = BenchInfo::load(&spec, None)?;
         let mut scene = bench.scene.take().unwrap_or_default();
         scene.chain = chain.chain.clone();
@@ -314,7 +354,7 @@ async fn chapter(
     let (dir, r) = get("single-target");
     rows.push(width_psl_row(
         "4.4.1",
-        "MSK-LFM, one pillar at 1 m: -3 dB width, peak side-lobe",
+        "MSK-LFM (swept 0 .. B), one pillar at 1 m: -3 dB width, peak side-lobe",
         (12.73, -10.49),
         alg(&r.steps[0], "correlation"),
         if chain.is_ideal() {
@@ -323,7 +363,8 @@ async fn chapter(
              -10.5 dB come from its Tx/Rx chain: `--chain thesis-lab` models it"
         } else {
             "this chain's standing-wave echo does not fall on the first side-lobe as the lab's did \
-             (thesis-lab puts a -20.7 dB echo 1.43 ns behind every path)"
+             (thesis-lab puts a -20 dB echo 1.25 ns behind every path, which raises the side-lobe \
+             behind the peak of a chirp swept 0 .. 1 GHz)"
         },
         dir,
     ));
@@ -419,11 +460,10 @@ fn music_rows(r: &Results, dir: PathBuf, ideal: bool) -> Vec<LabRow> {
              13.3 cm, -13.3 dB; the lab's wider lobe and lower side-lobes come from the real \
              chain's amplitude taper over the band"
         } else {
-            "the lab's OFDM side-lobes (-14.19 dB) are below the thesis' own simulation (-13.24), \
-             its MSK-LFM ones (4.4.1, -10.49 dB) above: through one band no linear chain gives \
-             both. The thesis' chirp swept 0..B while its OFDM was centred, so the two saw \
-             sub-bands 0.5 GHz apart, where a ripple's echoes change sign; radbench centres both \
-             waveforms, so this chain reproduces 4.4.1 and OFDM shows the same echo"
+            "the lab's OFDM side-lobes (-14.19 dB) lie below the thesis' own simulation \
+             (-13.24) on both sides of the peak; one standing wave's echo comes after the peak \
+             only, so this chain's OFDM stays about 0.8 dB above the lab's (a filter's pass-band \
+             ripple, whose echoes come in pairs, would lower both sides; it is not modelled)"
         },
         dir.clone(),
     ));
@@ -612,9 +652,11 @@ pub(crate) fn lab_table(rows: &[LabRow]) -> String {
             out,
             "agree judges the uncorrected {chain} column against the thesis' lab. The rx column is \
              the same chain with the receive correction, both with the AWG's codes pre-distorted \
-             and the receiver's DC and I/Q corrected; one calibration for both (radbench \
-             calibrate response, measured in-process on one pillar at {LAB_REFERENCE_M} m with \
-             MSK-LFM at 1 GHz; beyond that band, as at 2 GHz, it holds its edge values)."
+             and the receiver's DC and I/Q corrected; the same calibrations for both (radbench \
+             calibrate response, measured in-process on one pillar at {LAB_REFERENCE_M} m, once \
+             with the 1 GHz chirp for the MSK-LFM rows and once with OFDM for the OFDM rows; \
+             beyond the band it was measured on, as for the 2 GHz chirp's upper half, a table \
+             holds its edge values)."
         );
     }
     out
@@ -628,6 +670,9 @@ mod tests {
     fn every_template_is_a_valid_spec_that_plans_on_the_built_in_lab() {
         for (kind, _) in TEMPLATES {
             let s = spec(kind).unwrap_or_else(|| panic!("{kind} parses"));
+            let lab =
+                lab_spec(kind, None).unwrap_or_else(|e| panic!("{kind} as the lab runs it: {e}"));
+            BenchInfo::load(&lab, None).unwrap();
             let bench = BenchInfo::load(&s, None).unwrap();
             let p = plan::plan(&s, &bench).unwrap_or_else(|e| panic!("{kind}: {e}"));
             assert_eq!(p.name, kind);

@@ -581,6 +581,7 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
         sample_rate_hz: w.sample_rate_hz,
         pulse_s: w.pulse_s,
         bits_per_pulse: w.bits_per_pulse,
+        band: w.band,
         subcarriers: w.subcarriers,
         oversampling: w.oversampling,
         cp_fraction: w.cp_fraction,

@@ -107,6 +107,9 @@ pub struct WaveformSection {
     /// MSK-LFM only.
     #[serde(default)]
     pub bits_per_pulse: Option<usize>,
+    /// MSK-LFM only: `centred` (default), `upper` (0 .. B, the thesis' sweep) or `lower`.
+    #[serde(default)]
+    pub band: Option<crate::waveform::spec::SweepBand>,
     /// OFDM only.
     #[serde(default)]
     pub subcarriers: Option<usize>,
@@ -139,6 +142,7 @@ impl Default for WaveformSection {
             sample_rate_hz: None,
             pulse_s: None,
             bits_per_pulse: None,
+            band: None,
             subcarriers: None,
             oversampling: None,
             cp_fraction: None,

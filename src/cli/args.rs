@@ -9,7 +9,7 @@ use crate::measure::options::{
 };
 use crate::simulate::scene::CarrierPhase;
 use crate::waveform::overrides::{OverrideError, WaveformOverrides};
-use crate::waveform::spec::{WaveformKind, WaveformSpec};
+use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
 
 /// `--waveform`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -222,6 +222,10 @@ pub struct WaveformArgs {
     /// MSK-LFM bits per pulse (even). Default 128.
     #[arg(long, value_name = "N")]
     pub bits_per_pulse: Option<usize>,
+    /// MSK-LFM: where the chirp sweeps: centred (-B/2 .. B/2, default), upper (0 .. B, the
+    /// thesis' equation 2.4) or lower (-B .. 0).
+    #[arg(long, value_name = "BAND", value_parser = parse_band)]
+    pub band: Option<SweepBand>,
     /// OFDM subcarriers (even). Default 128.
     #[arg(long, value_name = "N")]
     pub subcarriers: Option<usize>,
@@ -236,6 +240,15 @@ pub struct WaveformArgs {
     pub symbols: Option<usize>,
 }
 
+fn parse_band(text: &str) -> Result<SweepBand, String> {
+    SweepBand::parse(text).ok_or_else(|| {
+        format!(
+            "'{text}' is not a sweep band; allowed: {}",
+            SweepBand::NAMES.join(", ")
+        )
+    })
+}
+
 impl WaveformArgs {
     /// The spec of `kind` with these parameters; an option that does not apply to `kind` is
     /// refused, so nothing the user typed is silently ignored.
@@ -245,6 +258,7 @@ impl WaveformArgs {
             sample_rate_hz: self.sample_rate,
             pulse_s: self.pulse_us.map(|us| us * 1e-6),
             bits_per_pulse: self.bits_per_pulse,
+            band: self.band,
             subcarriers: self.subcarriers,
             oversampling: self.oversampling,
             cp_fraction: self.cp_fraction,
@@ -257,6 +271,7 @@ impl WaveformArgs {
                 "sample_rate_hz" => "--sample-rate",
                 "pulse_s" => "--pulse-us",
                 "bits_per_pulse" => "--bits-per-pulse",
+                "band" => "--band",
                 "subcarriers" => "--subcarriers",
                 "oversampling" => "--oversampling",
                 "cp_fraction" => "--cp-fraction",

@@ -1,7 +1,7 @@
 //! `radbench calibrate response`: the chain's response measured on one reference pillar, checked
 //! to help, and stored beside the bench file (`measure::response`).
 
-use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArg};
+use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArg, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
 use crate::measure::capture::Rig;
@@ -30,9 +30,12 @@ pub struct Args {
     /// Explicit permit to switch on the AWG outputs and the Tx/Rx front ends.
     #[arg(long)]
     pub allow_rf: bool,
-    /// The waveform whose band is measured.
+    /// The waveform whose band is measured: calibrate with the waveform (and its parameters,
+    /// e.g. `--band upper`) the captures will use.
     #[arg(long, value_enum, default_value = "msk-lfm")]
     pub waveform: WaveformArg,
+    #[command(flatten)]
+    pub waveform_args: WaveformArgs,
     /// Repetitions averaged with the transmitter on. With it off, as many as give 2^20 noise
     /// samples for DC and I/Q imbalance (at most this many).
     #[arg(long, default_value_t = 16, value_name = "N")]
@@ -48,8 +51,8 @@ pub struct Args {
     /// is written without it.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
-    /// Store the calibration even when correcting with it does not improve the reference's
-    /// side-lobes.
+    /// Store the calibration even when correcting with it does not bring the reference's
+    /// side-lobe or width closer to a flat chain's.
     #[arg(long)]
     pub force: bool,
     /// Draw the measured gain and phase against frequency (FILE.svg or FILE.png).
@@ -98,6 +101,7 @@ fn check(args: &Args) -> Result<(), MeasureError> {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(&args)?;
+    let waveform = args.waveform_args.spec(WaveformKind::from(args.waveform))?;
     let started = std::time::Instant::now();
     super::runtime()?.block_on(async {
         let source = bench_source(
@@ -115,7 +119,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         let bench = open_bench(source, args.json).await?;
         let catalog = bench.file.catalog()?;
         let request = CalibrateRequest {
-            waveform: WaveformKind::from(args.waveform),
+            waveform,
             reference_range_m: args.reference_range,
             repetitions: args.repetitions,
             gate_s: gate_s(&args),

@@ -147,25 +147,31 @@ pub(crate) fn music_profile(
 }
 
 /// A weighted (mismatched) filter for [`CorrelationProfiler::with_filter`]: across the occupied band
-/// `-bandwidth/2 ..= bandwidth/2` (zero outside it) the matched filter's spectrum is flattened and
+/// `band_hz = [low, high]` (zero outside it) the matched filter's spectrum is flattened and
 /// multiplied by `window`, so an echo's correlation has the window's side-lobes, for a wider main
 /// lobe and a small loss of SNR. `tx` is one period of a periodic signal.
 pub(crate) fn weighted_filter(
     tx: &[Complex64],
     window: &super::window::Window,
-    bandwidth_hz: f64,
+    band_hz: [f64; 2],
     fs_hz: f64,
 ) -> Result<Vec<Complex64>, DspError> {
+    let bandwidth_hz = band_hz[1] - band_hz[0];
+    let centre_hz = 0.5 * (band_hz[0] + band_hz[1]);
     let n = tx.len();
     if n == 0 {
         return Err(DspError::Param(
             "weighted correlation: the transmit signal is empty".into(),
         ));
     }
-    if !(bandwidth_hz.is_finite() && bandwidth_hz > 0.0 && bandwidth_hz <= fs_hz) {
+    if !(bandwidth_hz.is_finite()
+        && bandwidth_hz > 0.0
+        && centre_hz.abs() + bandwidth_hz / 2.0 <= fs_hz / 2.0)
+    {
         return Err(DspError::Param(format!(
-            "weighted correlation: bandwidth {bandwidth_hz} Hz must be above 0 and at most the \
-             sample rate {fs_hz} Sa/s"
+            "weighted correlation: the band {} .. {} Hz must be above 0 wide and within the \
+             Nyquist band of the sample rate {fs_hz} Sa/s",
+            band_hz[0], band_hz[1]
         )));
     }
     let mut planner = rustfft::FftPlanner::<f64>::new();
@@ -175,6 +181,7 @@ pub(crate) fn weighted_filter(
     // spectrum's own ripple is divided out (regularised where it is weak) so the output spectrum
     // of an echo is the window itself and the side-lobes are the window's.
     let half = ((bandwidth_hz / 2.0) / fs_hz * n as f64).floor() as isize;
+    let centre = (centre_hz / fs_hz * n as f64).round() as isize;
     let width = (2 * half + 1) as usize;
     let coeffs = window.coefficients(width)?;
     let in_band = |k: usize| {
@@ -182,7 +189,7 @@ pub(crate) fn weighted_filter(
             k as isize
         } else {
             k as isize - n as isize
-        };
+        } - centre;
         (f.abs() <= half).then_some((f + half) as usize)
     };
     let mean_power = (0..n)

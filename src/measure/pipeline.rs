@@ -271,7 +271,7 @@ impl RangeProcessor {
         let filter = if window == crate::dsp::window::Window::Rectangular {
             reference.clone()
         } else {
-            weighted_filter(&reference, &window, tx.bandwidth_hz(), fs)?
+            weighted_filter(&reference, &window, tx.band_hz(), fs)?
         };
         let profiler =
             CorrelationProfiler::with_filter(&reference, &filter, period + lags - 1, lags, fs)?;
@@ -515,10 +515,10 @@ impl CorrectionCheck {
         strongest_width_cm: Option<f64>,
     ) -> Vec<String> {
         let mut out = Vec::new();
-        let half = 0.5 * tx.bandwidth_hz();
+        let [low, high] = tx.band_hz();
         // 2 % of slack: the band's edges are where the waveform's power is 20 dB down.
-        let slack = 0.02 * half;
-        if self.band_hz[0] > -half + slack || self.band_hz[1] < half - slack {
+        let slack = 0.01 * tx.bandwidth_hz();
+        if self.band_hz[0] > low + slack || self.band_hz[1] < high - slack {
             out.push(format!(
                 "the response calibration {} covers {:.3} .. {:.3} GHz, this waveform {:.3} .. \
                  {:.3} GHz: outside it the correction is held at its edge value; calibrate with \
@@ -526,8 +526,8 @@ impl CorrectionCheck {
                 self.path,
                 self.band_hz[0] / 1e9,
                 self.band_hz[1] / 1e9,
-                -half / 1e9,
-                half / 1e9
+                low / 1e9,
+                high / 1e9
             ));
         }
         if !self.comparable {
@@ -852,7 +852,8 @@ impl Pipeline {
             }
         }
         // The pass band is a little wider than the signal's: MSK-LFM's skirts pass unharmed.
-        let dec = PeriodicDecimator::new(capture_rate_hz, factor, 0.55 * self.tx.bandwidth_hz())?;
+        let edge = self.tx.spec.band_edge_hz() + 0.05 * self.tx.bandwidth_hz();
+        let dec = PeriodicDecimator::new(capture_rate_hz, factor, edge)?;
         self.decimator = Some((capture_rate_hz, factor, dec));
         self.prepare_detector(capture_rate_hz)
     }

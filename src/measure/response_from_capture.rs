@@ -47,7 +47,7 @@ pub(crate) fn calibrate_from_capture(
     let tx = resolved.tx.clone();
     let system_delay_s = resolved.options.system_delay_s;
     let request = CalibrateRequest {
-        waveform: tx.spec.kind(),
+        waveform: tx.spec,
         reference_range_m,
         repetitions: aligned.len(),
         gate_s,

@@ -13,11 +13,23 @@ use super::response::{
 use super::station::{Captured, Identities};
 use super::MeasureError;
 use crate::driver::RfPermit;
-use crate::waveform::spec::WaveformKind;
+use crate::waveform::spec::WaveformSpec;
 use std::path::Path;
 
-/// The side-lobe level must improve by at least this, dB, for a correction to be stored.
+/// The side-lobe level must come this much closer to a flat chain's, dB, for a correction to be
+/// stored (or the width by [`MIN_WIDTH_IMPROVEMENT_CM`]).
 pub(crate) const MIN_IMPROVEMENT_DB: f64 = 0.1;
+
+/// ... or the -3 dB width this much closer, cm (0.5 mm: a few times what correcting a flat chain
+/// moves it, 0.01-0.02 cm).
+pub(crate) const MIN_WIDTH_IMPROVEMENT_CM: f64 = 0.05;
+
+/// A flat band's -3 dB width in range cells `c / 2B` (a sinc's).
+const FLAT_CHAIN_WIDTH: f64 = 0.8859;
+
+/// The peak side-lobe of a flat band's point spread without a window (the first side-lobe of a
+/// sinc), which the calibration's processing uses, dB.
+pub(crate) const FLAT_CHAIN_SIDELOBE_DB: f64 = -13.26;
 
 /// Samples (at the waveform's rate, after alignment) of the receiver's own noise that the DC and
 /// I/Q imbalance are read from, at least: the transmitter-off capture takes as many repetitions
@@ -37,7 +49,8 @@ pub(crate) fn off_repetitions(on: usize, period: usize) -> usize {
 /// What to calibrate.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct CalibrateRequest {
-    pub waveform: WaveformKind,
+    /// What to transmit: the table covers this waveform's band.
+    pub waveform: WaveformSpec,
     pub reference_range_m: f64,
     pub repetitions: usize,
     /// Half-width of the window around the reference's echo, seconds.
@@ -55,22 +68,47 @@ pub(crate) struct Calibrated {
 }
 
 impl Calibrated {
-    /// How much the correction improved the reference's peak side-lobe (dB), or why it does
-    /// not help.
-    pub(crate) fn verdict(&self) -> Result<f64, String> {
+    /// What the correction did to the reference (its side-lobe and width before and after), or
+    /// why it does not help: it must bring the side-lobe (by [`MIN_IMPROVEMENT_DB`]) or the -3 dB
+    /// width (by [`MIN_WIDTH_IMPROVEMENT_CM`]) closer to a flat chain's and take neither further
+    /// away by more than that. Closer, not lower: a chain's echo can as well lower a side-lobe (as
+    /// the thesis' lab measured with OFDM, Table 4.7) as raise it.
+    pub(crate) fn verdict(&self) -> Result<String, String> {
         let f = &self.reference;
-        match (f.sidelobe_db_before, f.sidelobe_db_after) {
-            (Some(b), Some(a)) if a <= b - MIN_IMPROVEMENT_DB => Ok(b - a),
-            (Some(b), Some(a)) => Err(format!(
-                "correcting does not improve the reference's peak side-lobe ({b:.2} dB before, \
-                 {a:.2} dB after, at least {MIN_IMPROVEMENT_DB} dB better needed): the chain is \
-                 as flat as this measures, or the reference is not alone within the gate"
-            )),
-            _ => Err(
+        let flat_width_cm = FLAT_CHAIN_WIDTH * crate::physics::C0
+            / (2.0 * self.request.waveform.bandwidth_hz())
+            * 100.0;
+        let off_psl = |db: f64| (db - FLAT_CHAIN_SIDELOBE_DB).abs();
+        let off_width = |cm: f64| (cm - flat_width_cm).abs();
+        let (Some(b), Some(a), Some(wb), Some(wa)) = (
+            f.sidelobe_db_before,
+            f.sidelobe_db_after,
+            f.width_cm_before,
+            f.width_cm_after,
+        ) else {
+            return Err(
                 "the reference's side-lobes could not be measured (is the pillar alone, within \
                  0.3 m of the reference range?)"
                     .into(),
-            ),
+            );
+        };
+        let psl_gain = off_psl(b) - off_psl(a);
+        let width_gain = off_width(wb) - off_width(wa);
+        let closer = psl_gain >= MIN_IMPROVEMENT_DB || width_gain >= MIN_WIDTH_IMPROVEMENT_CM;
+        let worse = psl_gain < -MIN_IMPROVEMENT_DB || width_gain < -MIN_WIDTH_IMPROVEMENT_CM;
+        let what = format!(
+            "side-lobe {b:.2} -> {a:.2} dB, width {wb:.2} -> {wa:.2} cm; a flat chain's \
+             {FLAT_CHAIN_SIDELOBE_DB} dB, {flat_width_cm:.2} cm"
+        );
+        if closer && !worse {
+            Ok(what)
+        } else {
+            Err(format!(
+                "correcting does not bring the reference closer to a flat chain ({what}; at least \
+                 {MIN_IMPROVEMENT_DB} dB or {MIN_WIDTH_IMPROVEMENT_CM} cm closer needed, neither \
+                 further): the chain is as flat as this measures, or the reference is not alone \
+                 within the gate"
+            ))
         }
     }
 
@@ -136,7 +174,7 @@ pub(crate) async fn calibrate_with(
     interrupt: &Interrupt,
 ) -> Result<Calibrated, MeasureError> {
     let catalog = bench.file.catalog()?;
-    let kind = request.waveform;
+    let kind = request.waveform.kind();
     let system_delay_s = bench.file.system_delay_s();
     let options = ProcessOptions {
         system_delay_s,
@@ -144,7 +182,7 @@ pub(crate) async fn calibrate_with(
         ..ProcessOptions::for_waveform(kind)
     };
     let capture = |tx_off| CaptureRequest {
-        waveform: kind.thesis_default(),
+        waveform: request.waveform,
         payload: None,
         seed: 1,
         options: options.clone(),

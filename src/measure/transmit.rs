@@ -261,6 +261,12 @@ impl Transmission {
         self.spec.bandwidth_hz()
     }
 
+    /// The band the waveform occupies in baseband, `[low, high]` Hz (centred unless an MSK-LFM
+    /// sweep is `upper` or `lower`).
+    pub(crate) fn band_hz(&self) -> [f64; 2] {
+        self.spec.band_hz()
+    }
+
     pub fn name(&self) -> &'static str {
         self.spec.name()
     }

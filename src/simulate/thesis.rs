@@ -172,12 +172,14 @@ fn msk(bits: usize) -> WaveformSpec {
             sample_rate_hz,
             bandwidth_hz,
             pulse_s,
+            band,
             ..
         } => WaveformSpec::MskLfm {
             sample_rate_hz,
             bandwidth_hz,
             pulse_s,
             bits_per_pulse: bits,
+            band,
         },
         other => other,
     }

@@ -1,10 +1,12 @@
 //! MSK-LFM: generator and communication receiver (thesis 2.2, 3.1).
 //!
 //! One pulse of `Ns` samples at `fs` carries `n_bits` bits as MSK on top of a linear chirp centred
-//! on 0 Hz (complex baseband, unit amplitude):
+//! on `f0` (complex baseband, unit amplitude; `f0 = 0` by default, `B/2` for the thesis' sweep from
+//! its carrier upwards, eq. 2.4):
 //!
 //! ```text
-//! s(t) = m(t) exp(j pi (B/Tp) (t - Tp/2)^2),   m(t) = a_I(t) cos(pi t / 2T) - j a_Q(t) sin(pi t / 2T)
+//! s(t) = m(t) exp(j pi (B/Tp) (t - Tp/2)^2 + j 2 pi f0 (t - Tp/2)),
+//! m(t) = a_I(t) cos(pi t / 2T) - j a_Q(t) sin(pi t / 2T)
 //! ```
 //!
 //! with `T = Tp / n_bits`, `t = n / fs` for sample `n = 0..Ns`, `a_I` the even bits and `a_Q` the odd
@@ -44,8 +46,11 @@ pub enum PulseLength {
 pub struct MskLfmParams {
     /// Sample rate in Sa/s (default 16e9).
     pub sample_rate_hz: f64,
-    /// Chirp bandwidth in Hz, swept from -B/2 to +B/2 (default 1e9).
+    /// Chirp bandwidth in Hz, swept from `centre_hz - B/2` to `centre_hz + B/2` (default 1e9).
     pub bandwidth_hz: f64,
+    /// Centre of the sweep in complex baseband, Hz (default 0). The sweep must stay within the
+    /// sample rate's Nyquist band: `|centre_hz| + B/2 <= fs/2`.
+    pub centre_hz: f64,
     /// Pulse length (default 10 us = 160 000 samples at 16 GSa/s).
     pub pulse: PulseLength,
     /// Bits per pulse, even (default 128).
@@ -57,6 +62,7 @@ impl Default for MskLfmParams {
         Self {
             sample_rate_hz: 16e9,
             bandwidth_hz: 1e9,
+            centre_hz: 0.0,
             pulse: PulseLength::Seconds(10e-6),
             bits_per_pulse: 128,
         }
@@ -156,6 +162,19 @@ impl MskLfm {
                 &format!("must be above 0 and at most the sample rate ({fs} Sa/s) of the complex baseband"),
             ));
         }
+        let f0 = params.centre_hz;
+        if !(f0.is_finite() && f0.abs() + b / 2.0 <= fs / 2.0) {
+            return Err(ParamError::out_of_range(
+                "centre_hz",
+                f0,
+                &format!(
+                    "the sweep ({} .. {} Hz) must stay within the Nyquist band of +-{} Hz",
+                    f0 - b / 2.0,
+                    f0 + b / 2.0,
+                    fs / 2.0
+                ),
+            ));
+        }
         let n_bits = params.bits_per_pulse;
         if n_bits == 0 || n_bits % 2 != 0 {
             return Err(ParamError::out_of_range(
@@ -178,6 +197,7 @@ impl MskLfm {
         let half_symbols = (n_bits / 2) as u32;
         let centre = n_samples as f64 / 2.0;
         let chirp_rate = std::f64::consts::PI * (b / fs) / n_samples as f64;
+        let shift = 2.0 * std::f64::consts::PI * f0 / fs;
         let mut chirp = Vec::with_capacity(n_samples);
         let mut cos_weight = Vec::with_capacity(n_samples);
         let mut sin_weight = Vec::with_capacity(n_samples);
@@ -185,7 +205,7 @@ impl MskLfm {
         let mut q_index = Vec::with_capacity(n_samples);
         for n in 0..n_samples {
             let x = n as f64 - centre;
-            let (s, c) = (chirp_rate * x * x).sin_cos();
+            let (s, c) = (chirp_rate * x * x + shift * x).sin_cos();
             chirp.push(Complex64::new(c, s));
             let (sw, cw) = (std::f64::consts::FRAC_PI_2 * n as f64 / spb).sin_cos();
             cos_weight.push(cw);
@@ -238,7 +258,13 @@ impl MskLfm {
         self.n_samples as f64 / self.n_bits as f64
     }
 
-    /// The bare chirp `exp(j pi (B/Tp)(t - Tp/2)^2)` of one pulse (no modulation).
+    /// Centre of the sweep, Hz (0: centred on the carrier).
+    pub fn centre_hz(&self) -> f64 {
+        self.params.centre_hz
+    }
+
+    /// The bare chirp `exp(j pi (B/Tp)(t - Tp/2)^2 + j 2 pi f0 (t - Tp/2))` of one pulse (no
+    /// modulation).
     pub fn chirp(&self) -> &[Complex64] {
         &self.chirp
     }
@@ -364,6 +390,63 @@ impl MskLfm {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Energy of one pulse of `w` per band `[lo, hi)` Hz, as fractions of the total.
+    fn energy_in(w: &MskLfm, bands: &[(f64, f64)]) -> Vec<f64> {
+        let bits: Vec<u8> = (0..w.bits_per_pulse())
+            .map(|k| (k * 7 % 3 % 2) as u8)
+            .collect();
+        let mut x = w.pulse(&bits).unwrap();
+        let n = x.len();
+        rustfft::FftPlanner::new()
+            .plan_fft_forward(n)
+            .process(&mut x);
+        let fs = w.sample_rate_hz();
+        let total: f64 = x.iter().map(|v| v.norm_sqr()).sum();
+        bands
+            .iter()
+            .map(|&(lo, hi)| {
+                let e: f64 = (0..n)
+                    .filter(|&k| {
+                        let f = if k <= n / 2 {
+                            k as f64
+                        } else {
+                            k as f64 - n as f64
+                        } * fs
+                            / n as f64;
+                        (lo..hi).contains(&f)
+                    })
+                    .map(|k| x[k].norm_sqr())
+                    .sum();
+                e / total
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_sweep_lies_where_its_band_says() {
+        let with = |centre_hz| {
+            MskLfm::new(MskLfmParams {
+                centre_hz,
+                pulse: PulseLength::Samples(16_000),
+                bits_per_pulse: 32,
+                ..Default::default()
+            })
+            .unwrap()
+        };
+        // The MSK data widens the chirp's spectrum by a few bit rates (3.2 MHz here) at most.
+        let upper = energy_in(&with(0.5e9), &[(-0.01e9, 1.01e9), (-8e9, -0.01e9)]);
+        assert!(upper[0] > 0.99 && upper[1] < 0.005, "{upper:?}");
+        let centred = energy_in(&with(0.0), &[(-0.51e9, 0.51e9), (0.51e9, 8e9)]);
+        assert!(centred[0] > 0.99 && centred[1] < 0.005, "{centred:?}");
+        // Beyond the Nyquist band: refused by name.
+        let e = MskLfm::new(MskLfmParams {
+            centre_hz: 7.6e9,
+            ..Default::default()
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("centre_hz"), "{e}");
+    }
 
     fn small() -> MskLfm {
         MskLfm::new(MskLfmParams {

@@ -3,7 +3,7 @@
 //! [`WaveformOverrides::apply`], so the two accept and refuse exactly the same things; each names
 //! the field in its own spelling ([`OverrideError::field`]).
 
-use super::spec::{WaveformKind, WaveformSpec};
+use super::spec::{SweepBand, WaveformKind, WaveformSpec};
 
 /// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
 /// but beyond this it fits neither the scope's record nor the host usefully.
@@ -21,6 +21,8 @@ pub(crate) struct WaveformOverrides {
     pub pulse_s: Option<f64>,
     /// MSK-LFM only.
     pub bits_per_pulse: Option<usize>,
+    /// MSK-LFM only: where the sweep lies (`centred`, `upper`, `lower`).
+    pub band: Option<SweepBand>,
     /// OFDM only.
     pub subcarriers: Option<usize>,
     /// OFDM only.
@@ -133,6 +135,7 @@ impl WaveformOverrides {
                 bandwidth_hz,
                 pulse_s,
                 bits_per_pulse,
+                band,
             } => {
                 only(self.subcarriers.is_some(), "subcarriers", "OFDM")?;
                 only(self.oversampling.is_some(), "oversampling", "OFDM")?;
@@ -143,6 +146,7 @@ impl WaveformOverrides {
                 set(bandwidth_hz, self.bandwidth_hz);
                 set(pulse_s, self.pulse_s);
                 set(bits_per_pulse, self.bits_per_pulse);
+                set(band, self.band);
                 let samples = *pulse_s * *sample_rate_hz;
                 if samples > MAX_SAMPLES_PER_REPETITION {
                     return Err(OverrideError::TooLong {
@@ -162,6 +166,7 @@ impl WaveformOverrides {
                 only(self.sample_rate_hz.is_some(), "sample_rate_hz", "MSK-LFM")?;
                 only(self.pulse_s.is_some(), "pulse_s", "MSK-LFM")?;
                 only(self.bits_per_pulse.is_some(), "bits_per_pulse", "MSK-LFM")?;
+                only(self.band.is_some(), "band", "MSK-LFM")?;
                 set(subcarriers, self.subcarriers);
                 set(cp_fraction, self.cp_fraction);
                 set(symbols, self.symbols);

@@ -17,12 +17,16 @@ pub enum WaveformSpec {
     MskLfm {
         /// Samples per second (the AWG's playback rate).
         sample_rate_hz: f64,
-        /// Chirp sweep, -B/2 .. +B/2.
+        /// Chirp sweep width B.
         bandwidth_hz: f64,
         /// One pulse, seconds (a whole number of samples).
         pulse_s: f64,
         /// MSK bits per pulse (even).
         bits_per_pulse: usize,
+        /// Where the sweep lies in baseband: -B/2 .. +B/2 (default) or 0 .. B as the thesis'
+        /// equation (2.4) has it. Written only when not the default, so older files read the same.
+        #[serde(default, skip_serializing_if = "SweepBand::is_centred")]
+        band: SweepBand,
     },
     Ofdm {
         /// Occupied bandwidth B = N df.
@@ -44,6 +48,58 @@ pub enum WaveformSpec {
 
 fn default_preamble() -> usize {
     1
+}
+
+/// Where an MSK-LFM chirp sweeps, relative to the carrier.
+///
+/// The thesis' chirp (its equation 2.4) starts at the carrier and sweeps B above it, while its
+/// OFDM subcarriers are centred on the carrier: the two waveforms met different parts of the
+/// chain's response. `upper` reproduces the thesis' sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SweepBand {
+    /// -B/2 .. +B/2 around the carrier.
+    #[default]
+    Centred,
+    /// 0 .. B above the carrier (the thesis' equation 2.4).
+    Upper,
+    /// -B .. 0 below the carrier.
+    Lower,
+}
+
+impl SweepBand {
+    pub const NAMES: [&'static str; 3] = ["centred", "upper", "lower"];
+
+    pub fn is_centred(&self) -> bool {
+        *self == SweepBand::Centred
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SweepBand::Centred => "centred",
+            SweepBand::Upper => "upper",
+            SweepBand::Lower => "lower",
+        }
+    }
+
+    /// Parses a name of [`Self::NAMES`].
+    pub fn parse(name: &str) -> Option<SweepBand> {
+        match name {
+            "centred" => Some(SweepBand::Centred),
+            "upper" => Some(SweepBand::Upper),
+            "lower" => Some(SweepBand::Lower),
+            _ => None,
+        }
+    }
+
+    /// The sweep's centre for a bandwidth `b`, Hz.
+    pub fn centre_hz(self, b: f64) -> f64 {
+        match self {
+            SweepBand::Centred => 0.0,
+            SweepBand::Upper => b / 2.0,
+            SweepBand::Lower => -b / 2.0,
+        }
+    }
 }
 
 /// The waveform family, without parameters.
@@ -79,6 +135,7 @@ impl WaveformSpec {
             bandwidth_hz: 1e9,
             pulse_s: 10e-6,
             bits_per_pulse: 128,
+            band: SweepBand::Centred,
         }
     }
 
@@ -113,6 +170,40 @@ impl WaveformSpec {
         }
     }
 
+    /// The highest baseband frequency the waveform occupies, Hz (`|f0| + B/2`): what the
+    /// decimator's pass band must keep.
+    pub fn band_edge_hz(&self) -> f64 {
+        match *self {
+            WaveformSpec::MskLfm {
+                bandwidth_hz, band, ..
+            } => band.centre_hz(bandwidth_hz).abs() + bandwidth_hz / 2.0,
+            WaveformSpec::Ofdm { bandwidth_hz, .. } => bandwidth_hz / 2.0,
+        }
+    }
+
+    /// The band the waveform occupies in baseband, `[low, high]` Hz.
+    pub(crate) fn band_hz(&self) -> [f64; 2] {
+        let b = self.bandwidth_hz();
+        let f0 = self.sweep_band().map_or(0.0, |band| band.centre_hz(b));
+        [f0 - b / 2.0, f0 + b / 2.0]
+    }
+
+    /// This spec with an MSK-LFM sweep in `band` (OFDM is returned as it is: it is always centred).
+    pub fn with_sweep_band(mut self, band: SweepBand) -> Self {
+        if let WaveformSpec::MskLfm { band: b, .. } = &mut self {
+            *b = band;
+        }
+        self
+    }
+
+    /// The MSK-LFM sweep's band (`None` for OFDM).
+    pub fn sweep_band(&self) -> Option<SweepBand> {
+        match *self {
+            WaveformSpec::MskLfm { band, .. } => Some(band),
+            WaveformSpec::Ofdm { .. } => None,
+        }
+    }
+
     /// The waveform's own sample rate (the AWG rate), Hz.
     pub fn sample_rate_hz(&self) -> f64 {
         match *self {
@@ -144,12 +235,14 @@ impl WaveformSpec {
                 sample_rate_hz,
                 pulse_s,
                 bits_per_pulse,
+                band,
                 ..
             } => WaveformSpec::MskLfm {
                 sample_rate_hz,
                 bandwidth_hz,
                 pulse_s,
                 bits_per_pulse,
+                band,
             },
             WaveformSpec::Ofdm {
                 subcarriers,
@@ -191,9 +284,11 @@ impl WaveformSpec {
                 bandwidth_hz,
                 pulse_s,
                 bits_per_pulse,
+                band,
             } => Some(MskLfmParams {
                 sample_rate_hz,
                 bandwidth_hz,
+                centre_hz: band.centre_hz(bandwidth_hz),
                 pulse: PulseLength::Seconds(pulse_s),
                 bits_per_pulse,
             }),

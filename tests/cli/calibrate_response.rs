@@ -93,10 +93,17 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
     .await;
     assert_eq!(code, 0, "{err}");
     let report = json(&out);
-    let before = report["reference"]["sidelobe_db_before"].as_f64().unwrap();
-    let after = report["reference"]["sidelobe_db_after"].as_f64().unwrap();
-    assert!((before + 10.4).abs() < 0.5, "uncorrected {before} dB");
-    assert!((after + 13.3).abs() < 0.5, "corrected {after} dB");
+    // On a centred chirp the thesis-lab chain widens the main lobe (its side-lobe behind the
+    // peak it raises on the thesis' chirp swept 0 .. B: the archive test below).
+    let reference_figure = |name: &str| report["reference"][name].as_f64().unwrap();
+    let (before, after) = (
+        reference_figure("width_cm_before"),
+        reference_figure("width_cm_after"),
+    );
+    assert!(before > 13.36, "uncorrected {before} cm");
+    assert!((after - 13.27).abs() < 0.05, "corrected {after} cm");
+    let after = reference_figure("sidelobe_db_after");
+    assert!((after + 13.3).abs() < 0.15, "corrected {after} dB");
     let svg = std::fs::read_to_string(d.join("response.svg")).unwrap();
     assert!(
         svg.contains("<svg") && svg.contains("frequency offset"),
@@ -209,7 +216,7 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
         (width - width_ideal).abs() < 0.3,
         "{width} vs ideal {width_ideal} cm"
     );
-    let ((_, psl_none, _), _, _) = capture(
+    let ((_, _, width_none), _, _) = capture(
         d,
         &[
             "--scene",
@@ -223,7 +230,10 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
         ],
     )
     .await;
-    assert!((psl_none + 10.4).abs() < 0.6, "uncorrected {psl_none} dB");
+    assert!(
+        width_none - width_ideal > 0.08,
+        "uncorrected {width_none} cm, ideal {width_ideal} cm"
+    );
     // Pre-distorted on transmit (tx), and with the receiver's own errors corrected too (both).
     for mode in ["tx", "both"] {
         let out = format!("c-{mode}");
@@ -351,8 +361,8 @@ async fn a_correction_that_would_not_help_is_refused_and_another_chains_is_warne
             "--allow-rf",
             "--out",
             "lab-response.toml",
-            "--waveform",
-            "ofdm",
+            "--band",
+            "upper",
         ],
     )
     .await;
@@ -364,8 +374,8 @@ async fn a_correction_that_would_not_help_is_refused_and_another_chains_is_warne
         &[
             "--scene",
             &elsewhere,
-            "--waveform",
-            "ofdm",
+            "--band",
+            "upper",
             "--calibration",
             "lab-response.toml",
             "--out",
@@ -410,13 +420,23 @@ async fn an_archive_is_corrected_from_a_reference_capture_of_its_own_time() {
     // Both captures made without any calibration, as an archive would hold them.
     let reference = scene(d, "reference", 2.0, "thesis-lab");
     let lab = scene(d, "lab", 2.3, "thesis-lab");
+    // The thesis' chirp, swept 0 .. B: the chain raises its side-lobe to the thesis' lab's.
     let ((_, psl_none, _), _, _) = capture(
         d,
-        &["--scene", &reference, "--repetitions", "8", "--out", "ref"],
+        &[
+            "--scene",
+            &reference,
+            "--band",
+            "upper",
+            "--repetitions",
+            "8",
+            "--out",
+            "ref",
+        ],
     )
     .await;
     assert!((psl_none + 10.4).abs() < 0.6, "{psl_none}");
-    let _ = capture(d, &["--scene", &lab, "--out", "old"]).await;
+    let _ = capture(d, &["--scene", &lab, "--band", "upper", "--out", "old"]).await;
     let (code, _, err) = radbench(
         d,
         &[

@@ -260,14 +260,20 @@ pub(crate) fn check_the_rx_and_both_columns_at_the_ideal_chain_s_figures(out: &P
         "{}",
         rows[0]
     );
-    // Every corrected run records the calibration measured in-process.
-    let cal = out.join("thesis-lab-rx/calibration.toml");
-    let cal_sha = sha256(&std::fs::read(&cal).unwrap());
+    // Every corrected run records the calibration measured in-process with its waveform: the
+    // chirp's for the MSK-LFM campaigns, OFDM's for music.
+    let cal_sha =
+        |file: &str| sha256(&std::fs::read(out.join("thesis-lab-rx").join(file)).unwrap());
     for kind in ["single-target", "accuracy", "resolution", "music"] {
         let m = Manifest::load(&out.join("thesis-lab-rx").join(kind)).unwrap();
+        let file = if kind == "music" {
+            "calibration-ofdm.toml"
+        } else {
+            "calibration.toml"
+        };
         assert_eq!(
             m.calibration.map(|c| c.sha256),
-            Some(cal_sha.clone()),
+            Some(cal_sha(file)),
             "{kind}"
         );
         assert!(Manifest::load(&out.join("thesis-lab").join(kind))
