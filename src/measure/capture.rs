@@ -2,10 +2,12 @@
 //! safe-state guard, process through the [`Pipeline`] off the async runtime.
 //!
 //! Order, so that a measurement that was going to be refused never radiates: the transmission is
-//! generated, the processing options checked, the instrument settings planned against the catalog;
-//! then the background is read and checked and the pipeline built (decimator, plans) while the
-//! instruments are connected (connecting sends no RF command); only when both are done is the
-//! waveform uploaded and RF switched on. A preparation that fails stops the measurement there.
+//! generated, the processing options checked, the instrument settings planned against the catalog,
+//! then the pipeline is built (decimator, plans) while the instruments are connected (connecting
+//! sends no RF command); only when both are done is the waveform uploaded and RF switched on. A
+//! preparation that fails stops the measurement there. With a background (checked through the
+//! pipeline) the pipeline is built and the background read and checked before any instrument is
+//! connected: a file that does not fit is refused with nothing sent.
 
 use super::bench::Bench;
 use super::clipping::{RecordClipping, ScopeAdc};
@@ -594,10 +596,17 @@ pub async fn measure(
     check_repetitions(repetitions)?;
     let catalog = bench.file.catalog()?;
     let planned = plan_request(bench, &catalog, request).await?;
-    let (built, mut rig) = connect_while_building(build_pipeline(&planned, request), async {
-        Rig::connect(bench, &catalog, journal).await
-    })
-    .await?;
+    let (built, mut rig) = if request.background.is_some() {
+        // A background is read and checked against this measurement before any instrument is
+        // talked to: a file that does not fit is bad input, refused with nothing sent.
+        let built = build_pipeline(&planned, request).await?;
+        (built, Rig::connect(bench, &catalog, journal).await?)
+    } else {
+        connect_while_building(build_pipeline(&planned, request), async {
+            Rig::connect(bench, &catalog, journal).await
+        })
+        .await?
+    };
     let mut prepared = planned.with(built);
     rig.measure(bench, &mut prepared, repetitions, permit, interrupt)
         .await
