@@ -8,7 +8,8 @@
 //! time, the version and commit), so another input or another build looks for another file. A
 //! file is used only when its header holds the same key and its payload's SHA-256 checks;
 //! anything else (truncated, corrupt, another key) is rebuilt and written again. Writing is best
-//! effort: a folder that cannot be written only costs the time saved.
+//! effort: a folder that cannot be written only costs the time saved. Pieces over [`MAX_PIECE`]
+//! are not stored.
 //!
 //! Where: `$RADBENCH_CACHE_DIR` when set, else `$XDG_CACHE_HOME/radbench`, else
 //! `~/.cache/radbench`; `RADBENCH_CACHE=off` turns it off. Deleting the folder clears it. At most
@@ -22,6 +23,9 @@ use std::sync::OnceLock;
 const MAGIC: &[u8; 8] = b"RBCACHE1";
 /// Files kept per kind.
 pub(crate) const KEEP: usize = 16;
+/// Larger pieces are not stored (a long waveform's point spread over a wide range window can be
+/// over 100 MB; the bench's is about 1.3 MB): the folder stays within `KEEP` times this per kind.
+pub(crate) const MAX_PIECE: usize = 8 << 20;
 
 /// A key under construction: the SHA-256 of everything a piece depends on.
 pub(crate) struct Key(Sha256);
@@ -138,7 +142,11 @@ pub(crate) fn get_or_build_in<T, E>(
         return Ok(found);
     }
     let built = build()?;
-    if let Err(e) = write(&path, &key, &encode(&built)) {
+    let payload = encode(&built);
+    if payload.len() > MAX_PIECE {
+        return Ok(built);
+    }
+    if let Err(e) = write(&path, &key, &payload) {
         tracing::debug!("cache: cannot store {}: {e}", path.display());
     } else {
         prune(path.parent().unwrap_or(dir));
@@ -296,6 +304,16 @@ mod tests {
         write(&file, &other, &f64s_to_bytes(&[3.0; 3])).unwrap();
         assert_eq!(get(dir.path(), &built, 0.25), vec![0.25; 3]);
         assert_eq!(built.get(), 2);
+    }
+
+    #[test]
+    fn a_piece_over_the_size_limit_is_not_stored() {
+        let dir = tempfile::tempdir().unwrap();
+        let build = || Ok::<_, ()>(vec![1.0; MAX_PIECE / 8 + 1]);
+        let key = || Key::new("big-v1").u64(1);
+        let enc = |v: &Vec<f64>| f64s_to_bytes(v);
+        get_or_build_in(dir.path(), "big-v1", key(), enc, f64s_from_bytes, build).unwrap();
+        assert!(!dir.path().join("big-v1").exists());
     }
 
     #[test]
