@@ -51,6 +51,17 @@ Figures:
     radbench also the step worker), divided by the steps: less sensitive than wall times to what
     else runs on a shared machine.
 
+One-shot captures (`--one-shot N`, issue 23): after the campaign rounds, in the same lab, N
+turns of one `radbench capture --bench ... --allow-rf --json --trace-io` (a new process each
+time, as a user or a shell script runs it) and one step of the Python stack above (its sessions
+opened once before the first turn: the script's warm step). From radbench's journal and the
+process's own start and end: start -> first instrument byte (the first journal line's start,
+less the time just before the process was spawned), connect (the first connect's start to the
+last instrument's identification: `*IDN?` of the AWG and the scope, the ID register of Tx and
+Rx), after the last exchange (processing and files until the process ended), the whole capture
+(spawn to exit). Targets: first byte < 30 ms, connect < 20 ms, the one-shot at least 1.5x
+faster than the Python warm step (medians).
+
 pyserial is not among the interop packages: the pseudo-terminals are opened with os/termios in
 raw mode, as pyserial does. Everything stays on 127.0.0.1. This is a benchmark, not a test.
 """
@@ -61,6 +72,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 import argparse  # noqa: E402
+import datetime  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import re  # noqa: E402
@@ -520,6 +532,108 @@ def python_round(lab, rm, count, seed):
             "bit_errors": errors, "serial": serial, "cpu_s": time.process_time() - cpu0}
 
 
+# ---------------------------------------------------------------------------- one-shot
+
+ONE_SHOT_FIRST_BYTE_S = 0.030
+ONE_SHOT_CONNECT_S = 0.020
+
+
+def journal_times(line):
+    """(start, end) of one journal line, seconds since the epoch (`time` is when it was
+    written, at the end of the exchange)."""
+    end = datetime.datetime.fromisoformat(line["time"].replace("Z", "+00:00")).timestamp()
+    return end - line["elapsed_us"] * 1e-6, end
+
+
+def connect_span(journal):
+    """(first connect's start, last identification's end): `*IDN?` answered for the AWG and
+    the scope, the ID register (`R 00`) for Tx and Rx."""
+    starts, done = [], {}
+    asked = {}
+    for line in journal:
+        who, text = line["instrument"], line.get("text", "")
+        start, end = journal_times(line)
+        if line["direction"] == "event" and line.get("kind") == "connect":
+            starts.append(start)
+        elif line["direction"] == "write":
+            asked[who] = text
+        elif line["direction"] == "read" and who not in done:
+            q = asked.get(who, "")
+            if q.startswith("*IDN?") and who in ("awg", "scope") or q.startswith("R 00"):
+                done[who] = end
+    return min(starts), max(done.values())
+
+
+def radbench_one_shot(binary: str, bench: Path, out: Path):
+    """One `radbench capture` process against the lab: its phases from the journal."""
+    journal_path = out.with_suffix(".jsonl")
+    cmd = [binary, "--trace-io", str(journal_path), "capture", "--bench", str(bench),
+           "--allow-rf", "--out", str(out), "--json"]
+    spawned = time.time()
+    p0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = proc.communicate()
+    wall = time.perf_counter() - p0
+    ended = spawned + wall
+    if proc.returncode != 0:
+        sys.exit(f"radbench capture failed ({proc.returncode}): {stderr}")
+    journal = [json.loads(x) for x in journal_path.read_text().splitlines()]
+    spans = [journal_times(x) for x in journal]
+    first = min(s for s, _ in spans)
+    last = max(e for _, e in spans)
+    c0, c1 = connect_span(journal)
+    summary = json.loads(stdout)
+    ranges = [t["range_m"] for t in summary.get("targets", [])]
+    return {"wall": wall, "first_byte": first - spawned, "connect": c1 - c0,
+            "instruments": last - first, "after_last": ended - last, "ranges": ranges}
+
+
+def one_shot_turns(args, lab, rm, work):
+    """`--one-shot` turns: radbench capture (new process) and the Python warm step, taking
+    turns against the same lab."""
+    stack = PythonStack(lab, rm, seed=7)
+    rb, py = [], []
+    try:
+        stack.step(1.0, 7)  # the Python stack warm: the first step is not counted
+        for n in range(args.one_shot):
+            rb.append(radbench_one_shot(args.radbench, lab.bench_file, work / f"one-shot-{n + 1}"))
+            t = time.perf_counter()
+            stack.step(1.0, 8 + n)
+            py.append(time.perf_counter() - t)
+    finally:
+        stack.close()
+    return rb, py
+
+
+def report_one_shot(rb, py):
+    med = statistics.median
+    print()
+    print(f"one-shot `radbench capture` (a new process each) against the Python warm step, "
+          f"{len(rb)} turns; min / median")
+    rows = [("start -> first instrument byte", "first_byte", ONE_SHOT_FIRST_BYTE_S),
+            ("connect (4 instruments)", "connect", ONE_SHOT_CONNECT_S),
+            ("first byte -> last exchange", "instruments", None),
+            ("last exchange -> exit", "after_last", None),
+            ("whole capture (spawn -> exit)", "wall", None)]
+    met = True
+    for name, key, target in rows:
+        xs = [r[key] for r in rb]
+        verdict = ""
+        if target is not None:
+            ok = med(xs) < target
+            met &= ok
+            verdict = f"  target < {1e3 * target:.0f} ms: {'met' if ok else 'MISSED'}"
+        print(f"  {name:<32} {ms(min(xs))} / {ms(med(xs))} ms{verdict}")
+    speedup = med(py) / med([r["wall"] for r in rb])
+    ok = speedup >= STEP_SPEEDUP
+    met &= ok
+    print(f"  {'Python warm step':<32} {ms(min(py))} / {ms(med(py))} ms")
+    print(f"  {'Python step / one-shot':<32} {speedup:7.2f}x (medians)   target >= "
+          f"{STEP_SPEEDUP}x: {'met' if ok else 'MISSED'}")
+    print(f"  ranges of the last one-shot (m): {rb[-1]['ranges']}")
+    return met
+
+
 # ---------------------------------------------------------------------------- report
 
 def steady(rounds, key="ends"):
@@ -560,6 +674,8 @@ def main():
     ap.add_argument("--count", type=int, default=12, help="steps per campaign")
     ap.add_argument("--keep", help="keep radbench's run folders under this folder")
     ap.add_argument("--json", action="store_true", help="also print the raw timings as JSON")
+    ap.add_argument("--one-shot", type=int, default=0, metavar="N",
+                    help="then N turns of a one-shot `radbench capture` and a Python warm step")
     args = ap.parse_args()
     for binary in (args.radbench, args.mock_lab):
         if not Path(binary).exists():
@@ -572,15 +688,23 @@ def main():
     lab = MockLab(args.mock_lab, work)
     rm = pyvisa.ResourceManager("@py")
     rb_rounds, py_rounds = [], []
+    one_shot = None
     try:
         for n in range(args.rounds):
             rb_rounds.append(radbench_round(args.radbench, spec, lab.bench_file,
                                             work / f"radbench-{n + 1}"))
             py_rounds.append(python_round(lab, rm, args.count, seed=1 + n))
+        if args.one_shot:
+            one_shot = one_shot_turns(args, lab, rm, work)
     finally:
         rm.close()
         lab.stop()
     load_after = os.getloadavg()
+    if not rb_rounds:
+        print(f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
+              f"numpy {np.__version__}, pyvisa {pyvisa.__version__}; load average before "
+              f"{load_before[0]:.2f}, after {load_after[0]:.2f} (1 min)")
+        return 0 if one_shot and report_one_shot(*one_shot) else 1
 
     rb_step, rb_inst, rb_host = steady(rb_rounds)
     py_step, py_inst, py_host = steady(py_rounds)
@@ -653,6 +777,8 @@ def main():
                                      "serial": py_serial}}, indent=1))
     met = (speedup >= STEP_SPEEDUP and host_ratio >= HOST_RATIO
            and py_ws / rb_ws >= STEP_SPEEDUP and py_wh / rb_wh >= HOST_RATIO)
+    if one_shot:
+        met &= report_one_shot(*one_shot)
     return 0 if met else 1
 
 

@@ -649,14 +649,28 @@ pub struct PeriodicDecimator {
 impl PeriodicDecimator {
     /// Decimation of a capture at `capture_rate_hz` by `factor`, flat over +-`band_edge_hz`.
     pub fn new(capture_rate_hz: f64, factor: usize, band_edge_hz: f64) -> Result<Self, DspError> {
-        let decimator = Decimator::new(&DecimatorConfig::for_band(
-            capture_rate_hz,
-            factor,
-            band_edge_hz,
-        )?)?;
+        let config = DecimatorConfig::for_band(capture_rate_hz, factor, band_edge_hz)?;
+        let taps = Self::design(&config)?;
+        Self::from_design(&config, taps)
+    }
+
+    /// The anti-alias filter [`new`](Self::new) designs for `config` (the costly part: a cache
+    /// may keep the taps).
+    pub(crate) fn design(config: &DecimatorConfig) -> Result<Vec<f64>, DspError> {
+        if config.factor < 1 {
+            return Err(DspError::Param(
+                "decimation factor = 0: must be at least 1".into(),
+            ));
+        }
+        design_lowpass(&config.spec, config.factor)
+    }
+
+    /// [`new`](Self::new) with the taps [`design`](Self::design) gave for `config`.
+    pub(crate) fn from_design(config: &DecimatorConfig, taps: Vec<f64>) -> Result<Self, DspError> {
+        let decimator = Decimator::with_taps(config.factor, taps, config.alignment)?;
         let half = decimator.taps().len() / 2 + 1;
         Ok(Self {
-            guard: half.div_ceil(factor) * factor,
+            guard: half.div_ceil(config.factor) * config.factor,
             decimator,
             extended: Vec::new(),
         })

@@ -3,8 +3,11 @@
 //!
 //! Order, so that a measurement that was going to be refused never radiates: the transmission is
 //! generated, the processing options checked, the instrument settings planned against the catalog,
-//! the background read and checked, the pipeline built (decimator, plans); only then are the
-//! instruments connected and RF switched on.
+//! then the pipeline is built (decimator, plans) while the instruments are connected (connecting
+//! sends no RF command); only when both are done is the waveform uploaded and RF switched on. A
+//! preparation that fails stops the measurement there. With a background (checked through the
+//! pipeline) the pipeline is built and the background read and checked before any instrument is
+//! connected: a file that does not fit is refused with nothing sent.
 
 use super::bench::Bench;
 use super::clipping::{RecordClipping, ScopeAdc};
@@ -114,6 +117,45 @@ pub async fn prepare(
     catalog: &Catalog,
     request: &CaptureRequest,
 ) -> Result<Prepared, MeasureError> {
+    let planned = plan_request(bench, catalog, request).await?;
+    let built = build_pipeline(&planned, request).await?;
+    Ok(planned.with(built))
+}
+
+/// The part of [`prepare`] before the pipeline: the transmission generated (pre-distorted as the
+/// correction asks), the options checked against it, the instruments planned against the
+/// catalog. Touches no instrument.
+pub(crate) struct Planned {
+    tx: Arc<Transmission>,
+    plan: CapturePlan,
+}
+
+/// The part of [`prepare`] that takes the time: the pipeline (decimation filter, FFT plans,
+/// detector tables) and the background read, aligned and hashed.
+pub(crate) struct Built {
+    pipeline: Pipeline,
+    background: Option<Aligned>,
+    background_file: Option<BackgroundFile>,
+}
+
+impl Planned {
+    fn with(self, built: Built) -> Prepared {
+        Prepared {
+            tx: self.tx,
+            plan: self.plan,
+            pipeline: Some(built.pipeline),
+            background: built.background,
+            background_file: built.background_file,
+        }
+    }
+}
+
+/// [`prepare`] up to the pipeline (see [`Planned`]).
+pub(crate) async fn plan_request(
+    bench: &Bench,
+    catalog: &Catalog,
+    request: &CaptureRequest,
+) -> Result<Planned, MeasureError> {
     let spec = request.waveform;
     let payload = request.payload.clone();
     let seed = request.seed;
@@ -132,13 +174,21 @@ pub async fn prepare(
         request.tx_off,
         request.wait_s,
     )?;
+    Ok(Planned { tx, plan })
+}
+
+/// The rest of [`prepare`] (see [`Built`]), off the runtime. Touches no instrument.
+pub(crate) async fn build_pipeline(
+    planned: &Planned,
+    request: &CaptureRequest,
+) -> Result<Built, MeasureError> {
     let options = request.options.clone();
     let background = request.background.clone();
-    let fs = tx.sample_rate_hz();
-    let rate = plan.scope.sample_rate_hz;
-    let geometry = RecordGeometry::for_capture(plan.period, fs, &options);
-    let tx2 = tx.clone();
-    let (pipeline, background, background_file) = off_runtime(move || {
+    let fs = planned.tx.sample_rate_hz();
+    let rate = planned.plan.scope.sample_rate_hz;
+    let geometry = RecordGeometry::for_capture(planned.plan.period, fs, &options);
+    let tx2 = planned.tx.clone();
+    off_runtime(move || {
         let mut pipeline = Pipeline::new(tx2, options, geometry)?;
         pipeline.prepare_capture_rate(rate)?;
         let (background, file) = match background {
@@ -152,16 +202,13 @@ pub async fn prepare(
             }
             None => (None, None),
         };
-        Ok::<_, MeasureError>((pipeline, background, file))
+        Ok::<_, MeasureError>(Built {
+            pipeline,
+            background,
+            background_file: file,
+        })
     })
-    .await??;
-    Ok(Prepared {
-        tx,
-        plan,
-        pipeline: Some(pipeline),
-        background,
-        background_file,
-    })
+    .await?
 }
 
 /// Reads and aligns a background capture, checking that it fits this measurement.
@@ -548,10 +595,43 @@ pub async fn measure(
 ) -> Result<Measurement, MeasureError> {
     check_repetitions(repetitions)?;
     let catalog = bench.file.catalog()?;
-    let mut prepared = prepare(bench, &catalog, request).await?;
-    let mut rig = Rig::connect(bench, &catalog, journal).await?;
+    let planned = plan_request(bench, &catalog, request).await?;
+    let (built, mut rig) = if request.background.is_some() {
+        // A background is read and checked against this measurement before any instrument is
+        // talked to: a file that does not fit is bad input, refused with nothing sent.
+        let built = build_pipeline(&planned, request).await?;
+        (built, Rig::connect(bench, &catalog, journal).await?)
+    } else {
+        connect_while_building(build_pipeline(&planned, request), async {
+            Rig::connect(bench, &catalog, journal).await
+        })
+        .await?
+    };
+    let mut prepared = planned.with(built);
     rig.measure(bench, &mut prepared, repetitions, permit, interrupt)
         .await
+}
+
+/// Connects while the pipeline is built (the instruments' round trips and the pipeline's
+/// computing overlap; connecting sends no RF command, and RF goes on only after both are done).
+/// The preparation's error wins, as when it came first: a refused preparation is reported at
+/// once (the connection is dropped half-way), a failed connection waits for the preparation.
+async fn connect_while_building<B, C>(
+    building: impl std::future::Future<Output = Result<B, MeasureError>>,
+    connecting: impl std::future::Future<Output = Result<C, MeasureError>>,
+) -> Result<(B, C), MeasureError> {
+    tokio::pin!(building);
+    tokio::pin!(connecting);
+    tokio::select! {
+        built = &mut building => {
+            let built = built?;
+            Ok((built, connecting.await?))
+        }
+        connected = &mut connecting => {
+            let built = building.await?;
+            Ok((built, connected?))
+        }
+    }
 }
 
 /// The number of repetitions one measurement may ask for (checked before anything is connected).

@@ -21,7 +21,7 @@ use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR}
 use super::payload::PayloadDecoder;
 use super::transmit::{Modulation, Transmission};
 use super::MeasureError;
-use crate::dsp::decimate::PeriodicDecimator;
+use crate::dsp::decimate::{DecimatorConfig, PeriodicDecimator};
 use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
 use crate::dsp::metrics::Axis;
 use crate::dsp::music::root_music_ranges;
@@ -472,6 +472,79 @@ fn correlation_profile(
     })
 }
 
+/// [`PeriodicDecimator::new`], its filter's taps kept in the cache on disk (keyed by the
+/// design's specification).
+fn decimator(
+    capture_rate_hz: f64,
+    factor: usize,
+    band_edge_hz: f64,
+) -> Result<PeriodicDecimator, MeasureError> {
+    use crate::storage::cache;
+    const KIND: &str = "decimator-taps-v1";
+    let config = DecimatorConfig::for_band(capture_rate_hz, factor, band_edge_hz)?;
+    let s = &config.spec;
+    let key = cache::Key::new(KIND).u64(config.factor as u64).f64s(&[
+        s.pass_edge,
+        s.stop_edge,
+        s.stop_atten_db,
+        s.pass_ripple_db,
+    ]);
+    let taps = cache::get_or_build(
+        KIND,
+        key,
+        |taps: &Vec<f64>| cache::f64s_to_bytes(taps),
+        cache::f64s_from_bytes,
+        || PeriodicDecimator::design(&config),
+    )?;
+    Ok(PeriodicDecimator::from_design(&config, taps)?)
+}
+
+/// The point spread of a correlation profile: the echo spectrum weighted by the decimator's pass
+/// band, tabulated over `span` lags; kept in the cache on disk (keyed by the spectrum, the
+/// decimator's taps and the span).
+fn detector_psf(
+    echo_spectrum: &[Complex64],
+    decimator: Option<&PeriodicDecimator>,
+    span: usize,
+) -> Result<TabulatedPsf, MeasureError> {
+    use crate::storage::cache;
+    const KIND: &str = "correlation-psf-v1";
+    let mut key = cache::Key::new(KIND).u64(span as u64);
+    for chunk in echo_spectrum.chunks(4096) {
+        let bytes: Vec<u8> = chunk
+            .iter()
+            .flat_map(|z| [z.re.to_le_bytes(), z.im.to_le_bytes()])
+            .flatten()
+            .collect();
+        key = key.bytes(&bytes);
+    }
+    key = match decimator {
+        Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
+        None => key.u64(0),
+    };
+    cache::get_or_build(
+        KIND,
+        key,
+        TabulatedPsf::to_bytes,
+        TabulatedPsf::from_bytes,
+        || {
+            let mut spectrum = echo_spectrum.to_vec();
+            if let Some(dec) = decimator {
+                let p = spectrum.len();
+                for (k, v) in spectrum.iter_mut().enumerate() {
+                    let signed = if k <= p / 2 {
+                        k as f64
+                    } else {
+                        k as f64 - p as f64
+                    };
+                    *v *= dec.response_at_output(signed / p as f64);
+                }
+            }
+            Ok::<_, MeasureError>(TabulatedPsf::from_dft_spectrum(&spectrum, span)?)
+        },
+    )
+}
+
 /// The configured pipeline (see the module docs).
 pub struct Pipeline {
     tx: Arc<Transmission>,
@@ -765,20 +838,9 @@ impl Pipeline {
                 lags,
                 ..
             } => {
-                let mut spectrum = echo_spectrum.clone();
-                if let Some((_, _, dec)) = &self.decimator {
-                    let p = spectrum.len();
-                    for (k, v) in spectrum.iter_mut().enumerate() {
-                        let signed = if k <= p / 2 {
-                            k as f64
-                        } else {
-                            k as f64 - p as f64
-                        };
-                        *v *= dec.response_at_output(signed / p as f64);
-                    }
-                }
-                let span = (*lags + 16).min(spectrum.len() / 2 - 1);
-                Detector::new(TabulatedPsf::from_dft_spectrum(&spectrum, span)?, options)?
+                let decimator = self.decimator.as_ref().map(|(_, _, dec)| dec);
+                let span = (*lags + 16).min(echo_spectrum.len() / 2 - 1);
+                Detector::new(detector_psf(echo_spectrum, decimator, span)?, options)?
             }
             RangeProcessor::Ofdm(o) => {
                 if o.music.is_some() {
@@ -853,7 +915,7 @@ impl Pipeline {
         }
         // The pass band is a little wider than the signal's: MSK-LFM's skirts pass unharmed.
         let edge = self.tx.spec.band_edge_hz() + 0.05 * self.tx.bandwidth_hz();
-        let dec = PeriodicDecimator::new(capture_rate_hz, factor, edge)?;
+        let dec = decimator(capture_rate_hz, factor, edge)?;
         self.decimator = Some((capture_rate_hz, factor, dec));
         self.prepare_detector(capture_rate_hz)
     }

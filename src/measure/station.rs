@@ -416,34 +416,30 @@ pub(crate) struct Station {
 
 impl Station {
     /// Opens every instrument of the bench file (front ends optional) and builds the safe state.
+    /// The four are connected side by side (each on its own link; connecting sends no RF
+    /// command); when several fail, the error reported is the first in the order AWG, scope,
+    /// Tx, Rx, as when they were connected one after another.
     pub(crate) async fn connect(
         bench: &BenchFile,
         catalog: &Catalog,
         journal: Option<Journal>,
     ) -> Result<Station, MeasureError> {
         let awg_model = catalog.get(&bench.awg.model)?;
-        let awg = M8195a::open(
-            resource(&bench.awg.resource, "awg")?,
-            awg_model,
-            journal.clone(),
-            "awg",
-        )
-        .await?;
         let scope_model = catalog.get(&bench.scope.model)?;
-        let scope = Lecroy::open(
-            resource(&bench.scope.resource, "scope")?,
-            scope_model,
-            journal.clone(),
-            "scope",
-        )
-        .await?;
+        let awg_resource = resource(&bench.awg.resource, "awg")?;
+        let scope_resource = resource(&bench.scope.resource, "scope")?;
+        let (awg, scope, tx, rx) = tokio::join!(
+            M8195a::open(awg_resource, awg_model, journal.clone(), "awg"),
+            Lecroy::open(scope_resource, scope_model, journal.clone(), "scope"),
+            open_front(catalog, &bench.tx, "tx", journal.clone()),
+            open_front(catalog, &bench.rx, "rx", journal),
+        );
+        let (awg, scope, tx, rx) = (awg?, scope?, tx?, rx?);
         let mut identities = Identities {
             awg: idn(awg.identity()),
             scope: idn(scope.identity()),
             ..Identities::default()
         };
-        let tx = open_front(catalog, &bench.tx, "tx", journal.clone()).await?;
-        let rx = open_front(catalog, &bench.rx, "rx", journal).await?;
         identities.tx = tx.as_ref().map(|g| idn(g.identity()));
         identities.rx = rx.as_ref().map(|g| idn(g.identity()));
         let awg: Shared<dyn Awg> = safe_state::share(Box::new(awg) as Box<dyn Awg>);

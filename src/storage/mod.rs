@@ -9,6 +9,7 @@ use crate::exit::{Classify, ExitClass};
 use std::path::PathBuf;
 
 pub(crate) mod atomic;
+pub(crate) mod cache;
 pub mod hash;
 pub(crate) mod npy;
 pub(crate) mod plot;

@@ -86,6 +86,8 @@ pub struct LinkOptions {
     pub progress_step_bytes: u64,
     /// Serial settings for `ASRL` resources (from the bench file).
     pub serial: super::serial::SerialSettings,
+    /// What a serial link does with the line before its first request (drains it by default).
+    pub serial_on_open: super::serial::OnOpen,
     /// Where the ONC-RPC portmapper listens (VXI-11 without an explicit port); 111 on instruments.
     pub portmapper_port: u16,
 }
@@ -98,6 +100,7 @@ impl Default for LinkOptions {
             progress: None,
             progress_step_bytes: 4 << 20,
             serial: Default::default(),
+            serial_on_open: Default::default(),
             portmapper_port: crate::address::PORTMAPPER_PORT,
         }
     }
@@ -111,6 +114,7 @@ impl std::fmt::Debug for LinkOptions {
             .field("progress", &self.progress.is_some())
             .field("progress_step_bytes", &self.progress_step_bytes)
             .field("serial", &self.serial)
+            .field("serial_on_open", &self.serial_on_open)
             .field("portmapper_port", &self.portmapper_port)
             .finish()
     }

@@ -85,6 +85,22 @@ impl SerialSettings {
     }
 }
 
+/// What a serial link does with the line before its first request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnOpen {
+    /// Throws away what the line holds, then waits until it has been quiet for [`SETTLE`],
+    /// throwing away whatever arrives meanwhile: a reply the previous user of the port left in
+    /// flight is not taken for the answer to the first request. Costs `SETTLE` (50 ms) before
+    /// the first request.
+    #[default]
+    Drain,
+    /// Throws away what the line holds and sends the first request at once. For a driver whose
+    /// first exchanges detect a reply out of step (each request's input is flushed before it is
+    /// written, so a stale reply can only shift the replies of the first exchanges, and those
+    /// are checked), e.g. the Gotmic driver's `CRC ON`, `*IDN?`, ID register.
+    Flush,
+}
+
 /// The operating-system path of an `ASRL` device: `ASRL3` is the third port, otherwise the text
 /// after `ASRL` is the path itself (`ASRL/dev/ttyUSB0`).
 pub fn device_path(device: &str) -> String {
@@ -159,6 +175,7 @@ impl SerialLink {
         let builder = options.serial.builder(&path)?;
         let limit = options.max_message_bytes;
         let open_path = path.clone();
+        let on_open = options.serial_on_open;
         let port = tokio::task::spawn_blocking(move || builder.open())
             .await
             .map_err(|e| LinkError::Serial {
@@ -169,15 +186,27 @@ impl SerialLink {
                 device: open_path,
                 detail: format!("cannot open: {e}; check the device path and permissions"),
             })?;
-        Self::from_port(port, path, limit)
+        Self::from_port_with(port, path, limit, on_open)
     }
 
-    /// Runs a link over an already open port (tests use a pseudo-terminal pair). Messages are at
-    /// most `limit` bytes, and never more than `MAX_MESSAGE`.
+    /// Runs a link over an already open port (tests use a pseudo-terminal pair), drained before
+    /// its first request ([`OnOpen::Drain`]). Messages are at most `limit` bytes, and never more
+    /// than `MAX_MESSAGE`.
     pub fn from_port(
         port: Box<dyn serialport::SerialPort>,
         device: String,
         limit: usize,
+    ) -> Result<Self, LinkError> {
+        Self::from_port_with(port, device, limit, OnOpen::Drain)
+    }
+
+    /// [`from_port`](Self::from_port) with the line handled as `on_open` says before the first
+    /// request.
+    pub fn from_port_with(
+        port: Box<dyn serialport::SerialPort>,
+        device: String,
+        limit: usize,
+        on_open: OnOpen,
     ) -> Result<Self, LinkError> {
         let limit = limit.min(MAX_MESSAGE);
         let (tx, rx) = mpsc::channel();
@@ -186,7 +215,7 @@ impl SerialLink {
         std::thread::Builder::new()
             .name(format!("serial {device}"))
             .spawn(move || {
-                serve(port, rx, name, limit);
+                serve(port, rx, name, limit, on_open);
                 // The port is closed once serve returns: the link's drop may go on.
                 drop(released_tx);
             })
@@ -255,6 +284,7 @@ fn serve(
     requests: mpsc::Receiver<Request>,
     device: String,
     limit: usize,
+    on_open: OnOpen,
 ) {
     let mut inbox = Inbox {
         decoder: TerminatedDecoder::new(b'\n', limit),
@@ -262,7 +292,16 @@ fn serve(
         buf: BytesMut::with_capacity(4096),
     };
     // A reply a previous user of the port left unread is not the answer to our first request.
-    let mut opened = Some(drain(port.as_mut(), &device));
+    let mut opened = Some(match on_open {
+        OnOpen::Drain => drain(port.as_mut(), &device),
+        OnOpen::Flush => {
+            port.clear(serialport::ClearBuffer::Input)
+                .map_err(|e| LinkError::Serial {
+                    device: device.clone(),
+                    detail: format!("cannot clear the input buffer: {e}"),
+                })
+        }
+    });
     while let Ok(request) = requests.recv() {
         if let Some(Err(e)) = opened.take() {
             // Reported once, with the first request.
@@ -385,19 +424,29 @@ impl Inbox {
 }
 
 /// Reads and throws away bytes until the line has been quiet for [`SETTLE`]; an error when it
-/// never goes quiet within [`DRAIN_LIMIT`].
+/// never goes quiet within [`DRAIN_LIMIT`]. Each read waits at most until the quiet window would
+/// end, so the drain takes `SETTLE` on a quiet line, not the next multiple of [`POLL`].
 fn drain(port: &mut dyn serialport::SerialPort, device: &str) -> Result<(), LinkError> {
+    let result = drain_reads(port, device);
+    // The port's usual read timeout is back whatever happened.
+    let _ = port.set_timeout(POLL);
+    result
+}
+
+fn drain_reads(port: &mut dyn serialport::SerialPort, device: &str) -> Result<(), LinkError> {
     let started = Instant::now();
     let mut quiet_since = Instant::now();
     let mut chunk = [0u8; 4096];
     let mut thrown = 0usize;
     loop {
-        if quiet_since.elapsed() >= SETTLE {
+        let quiet = quiet_since.elapsed();
+        if quiet >= SETTLE {
             if thrown > 0 {
                 tracing::debug!(device, thrown, "serial: drained bytes nobody asked for");
             }
             return Ok(());
         }
+        let _ = port.set_timeout((SETTLE - quiet).clamp(Duration::from_millis(1), POLL));
         if started.elapsed() >= DRAIN_LIMIT {
             return Err(LinkError::Serial {
                 device: device.to_string(),

@@ -340,6 +340,100 @@ async fn gotmic_over_serial(
     (emu, rf, endpoint)
 }
 
+/// A Gotmic module on one end of a pseudo-terminal pair, answered by the emulator on a thread:
+/// `stale` is written before the driver opens its end; with `one_behind` every request is
+/// answered with the reply owed to the previous one (the first with `late`), as a module still
+/// answering an abandoned request of the port's previous user does. Returns the driver's
+/// connect (its link flushes the line at open and does not wait for it to go quiet, as
+/// `Gotmic::open` does).
+async fn gotmic_with_a_stale_reply(
+    stale: &'static [u8],
+    one_behind: Option<&'static [u8]>,
+) -> Result<Gotmic, DriverError> {
+    use mock_lab::server::Handler;
+    use radbench::transport::serial::{OnOpen, SerialLink};
+    use serialport::SerialPort;
+    use std::io::{Read, Write};
+    let (mut peer, client) = serialport::TTYPort::pair().expect("pty pair");
+    peer.write_all(stale).unwrap();
+    peer.flush().unwrap();
+    let emu = GotmicEmu::tx_embedded().unwrap();
+    std::thread::spawn(move || {
+        let _ = peer.set_timeout(std::time::Duration::from_secs(20));
+        let mut owed: Option<Vec<u8>> = one_behind.map(<[u8]>::to_vec);
+        let mut line = Vec::new();
+        let mut byte = [0u8; 1];
+        while matches!(peer.read(&mut byte), Ok(1)) {
+            line.push(byte[0]);
+            if byte[0] != b'\n' {
+                continue;
+            }
+            let mut reply = emu.message(&line).concat();
+            reply.push(b'\n');
+            line.clear();
+            let out = match owed.as_mut() {
+                Some(previous) => std::mem::replace(previous, reply),
+                None => reply,
+            };
+            if peer.write_all(&out).and_then(|()| peer.flush()).is_err() {
+                return;
+            }
+        }
+    });
+    let device = client.name().unwrap_or_default();
+    let link = SerialLink::from_port_with(Box::new(client), device.clone(), 1 << 20, OnOpen::Flush)
+        .unwrap();
+    let resource = serial_resource(&device);
+    let link = radbench::transport::Link::from_serial(
+        resource,
+        link,
+        radbench::transport::LinkOptions::default(),
+    );
+    let session = radbench::session::Session::from_link(link, Default::default());
+    let model = model("gotmic-eband-tx");
+    bounded(Gotmic::connect_with(
+        Box::new(session),
+        &model,
+        "tx",
+        radbench::driver::gotmic::Framing::from_catalog(&model),
+    ))
+    .await
+}
+
+/// A reply the port's previous user left unread on the line is flushed when the link opens (no
+/// quiet-line wait): the module is identified by its own answers.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_connect_flushes_a_reply_left_on_the_line() {
+    let rf = gotmic_with_a_stale_reply(b"OK 0003\n", None)
+        .await
+        .expect("the stale reply is thrown away");
+    assert_eq!(rf.identity().model, "GOTMIC-EBAND-TX-EMU");
+}
+
+/// A reply still in flight when the link opens (the module answers one request behind) is never
+/// taken for the module's state: the connect's own exchanges find the replies out of step and
+/// the connect fails.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_connect_fails_when_a_stale_reply_puts_the_replies_out_of_step() {
+    for late in [
+        &b"OK 0003\n"[..],
+        b"MOCK_LAB,GOTMIC-EBAND-TX-EMU,EMU0003,mock_lab-1\n",
+    ] {
+        let Err(e) = gotmic_with_a_stale_reply(b"", Some(late)).await else {
+            panic!("a connect with its replies out of step succeeded");
+        };
+        assert!(
+            matches!(
+                e,
+                DriverError::Reply { .. }
+                    | DriverError::WrongInstrument { .. }
+                    | DriverError::LineRefused { .. }
+            ),
+            "{e}"
+        );
+    }
+}
+
 async fn enable_read_back_and_disable(key: &str, emu: GotmicEmu) {
     let (emu, mut rf, _endpoint) = gotmic_over_serial(key, emu).await;
     let before = bounded(rf.status()).await.unwrap();

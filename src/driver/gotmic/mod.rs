@@ -192,6 +192,15 @@ impl Gotmic {
     ) -> Result<Gotmic, DriverError> {
         let mut options = session_options(model, "");
         options.link.serial = serial_settings(model);
+        // No quiet-line wait before the first request (it cost 50-60 ms per module): the input
+        // is flushed at open and before every request, the module answers in order, and the
+        // connect's first exchanges find a reply out of step. A reply the previous user of the
+        // port left in flight can only be taken for the answer to `CRC ON` (whose answer is not
+        // used); the real answer to `CRC ON` is then either flushed before `*IDN?` is sent or
+        // read as the identity, which it never is (the connect fails: no CRC, no identity).
+        // Once `*IDN?` and the ID register have answered as they must, every reply the module
+        // owed anyone before has been sent.
+        options.link.serial_on_open = crate::transport::serial::OnOpen::Flush;
         let session = Session::open(resource, options, journal, name)
             .await
             .map_err(session(name))?;

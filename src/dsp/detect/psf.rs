@@ -178,6 +178,62 @@ fn significant_nu(nu: &[f64], weight: &[Complex64]) -> f64 {
 }
 
 impl TabulatedPsf {
+    /// The table and its parameters as bytes (little endian), for a cache on disk.
+    pub(crate) fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(48 + 16 * self.table.len());
+        for v in [self.origin, self.wrap, self.support] {
+            out.extend(v.to_le_bytes());
+        }
+        out.extend((self.per_cell as u64).to_le_bytes());
+        out.extend(u64::from(self.periodic).to_le_bytes());
+        out.extend((self.table.len() as u64).to_le_bytes());
+        for z in &self.table {
+            out.extend(z.re.to_le_bytes());
+            out.extend(z.im.to_le_bytes());
+        }
+        out
+    }
+
+    /// The inverse of [`to_bytes`](Self::to_bytes); `None` for bytes it did not write (wrong
+    /// length, values a table cannot hold).
+    pub(crate) fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let word = |k: usize| -> Option<[u8; 8]> { bytes.get(8 * k..8 * k + 8)?.try_into().ok() };
+        let f = |k: usize| word(k).map(f64::from_le_bytes);
+        let u = |k: usize| word(k).map(u64::from_le_bytes);
+        let (origin, wrap, support) = (f(0)?, f(1)?, f(2)?);
+        let (per_cell, periodic, len) = (u(3)?, u(4)?, u(5)?);
+        let len = usize::try_from(len).ok()?;
+        if bytes.len() != 48 + 16 * len
+            || len == 0
+            || per_cell == 0
+            || periodic > 1
+            || ![origin, wrap, support].iter().all(|v| v.is_finite())
+        {
+            return None;
+        }
+        let table: Vec<Complex64> = bytes[48..]
+            .chunks_exact(16)
+            .map(|c| {
+                let (re, im) = c.split_at(8);
+                Complex64::new(
+                    f64::from_le_bytes(re.try_into().expect("8 bytes")),
+                    f64::from_le_bytes(im.try_into().expect("8 bytes")),
+                )
+            })
+            .collect();
+        if !table.iter().all(|z| z.re.is_finite() && z.im.is_finite()) {
+            return None;
+        }
+        Some(Self {
+            table,
+            origin,
+            per_cell: usize::try_from(per_cell).ok()?,
+            periodic: periodic == 1,
+            wrap,
+            support,
+        })
+    }
+
     /// Tabulates `lines` by direct sums: over one period of `period_cells` cells (a circular
     /// profile, e.g. the OFDM Fourier profile's K) when given, else over `|x| <= lines.support()`.
     pub fn from_lines(
@@ -529,6 +585,29 @@ fn envelope_sum(pos: &[f64], neg: &[f64], sub: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A table through its bytes (the cache on disk) is the same table, bit for bit; bytes it did
+    /// not write are refused.
+    #[test]
+    fn a_table_through_its_bytes_is_the_same_table() {
+        let spectrum: Vec<Complex64> = (0..64)
+            .map(|k| Complex64::from_polar(1.0 + 0.01 * k as f64, 0.3 * k as f64))
+            .collect();
+        let table = TabulatedPsf::from_dft_spectrum(&spectrum, 9).unwrap();
+        let bytes = table.to_bytes();
+        let back = TabulatedPsf::from_bytes(&bytes).unwrap();
+        assert_eq!(back.to_bytes(), bytes);
+        let (mut a, mut b) = (vec![ZERO; 40], vec![ZERO; 40]);
+        for x0 in [0.0, 0.37, -3.5] {
+            table.response(x0, -20, &mut a);
+            back.response(x0, -20, &mut b);
+            assert_eq!(a, b);
+        }
+        assert!(TabulatedPsf::from_bytes(&bytes[..bytes.len() - 1]).is_none());
+        let mut nan = bytes.clone();
+        nan[48..56].copy_from_slice(&f64::NAN.to_le_bytes());
+        assert!(TabulatedPsf::from_bytes(&nan).is_none());
+    }
 
     #[test]
     fn table_matches_direct_sum() {
