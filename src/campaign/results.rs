@@ -528,6 +528,124 @@ mod tests {
         assert_eq!(missed, 1);
     }
 
+    fn step(targets: &[f64], truth: Option<&[f64]>, found: Vec<TargetResult>) -> StepResult {
+        let range = |r: &f64| Range { range_m: *r };
+        let mut algorithms = BTreeMap::new();
+        algorithms.insert(
+            "correlation".to_string(),
+            AlgorithmResult {
+                targets: found,
+                width_3db_cm: Some(13.3),
+                sidelobe_db: Some(-13.3),
+                snr_db: None,
+                error_m: None,
+                error_on_grid_m: None,
+                truth_error_m: None,
+                truth_error_on_grid_m: None,
+                missed: 0,
+                resolved: Some(false),
+                payload: Some(PayloadFigures {
+                    bit_errors: 3,
+                    bits: 128,
+                    ber: 3.0 / 128.0,
+                    error: Some("no sync word, \"SFD\"".into()),
+                }),
+                spread: None,
+            },
+        );
+        StepResult {
+            index: 2,
+            nominal: Nominal {
+                label: Some("two pillars, 30 cm".into()),
+                parameter: None,
+                value: None,
+                targets: targets.iter().map(range).collect(),
+                bandwidth_hz: 1e9,
+                tx_attenuation_db: None,
+                snr_db: None,
+            },
+            repetitions: 1,
+            algorithms,
+            truth: truth.map(|t| Truth {
+                targets: t.iter().map(range).collect(),
+                snr_db: None,
+            }),
+        }
+    }
+
+    /// The rows of `to_csv` as column -> text (fields split as RFC 4180 reads them).
+    fn rows(csv: &str) -> Vec<BTreeMap<String, String>> {
+        fn fields(line: &str) -> Vec<String> {
+            let (mut out, mut cur, mut quoted, mut chars) =
+                (Vec::new(), String::new(), false, line.chars().peekable());
+            while let Some(c) = chars.next() {
+                match (c, quoted) {
+                    ('"', true) if chars.peek() == Some(&'"') => {
+                        cur.push('"');
+                        chars.next();
+                    }
+                    ('"', _) => quoted = !quoted,
+                    (',', false) => out.push(std::mem::take(&mut cur)),
+                    (c, _) => cur.push(c),
+                }
+            }
+            out.push(cur);
+            out
+        }
+        let mut lines = csv.lines();
+        let header = fields(lines.next().unwrap());
+        assert_eq!(header, CSV_COLUMNS);
+        lines
+            .map(|l| header.iter().cloned().zip(fields(l)).collect())
+            .collect()
+    }
+
+    #[test]
+    fn results_csv_has_a_row_per_target_missed_and_extra_ones_too() {
+        // Nominal 1.0 and 1.3 m; found near 1.0 m and a ghost at 2.0 m; 1.3 m missed.
+        let s = step(
+            &[1.0, 1.3],
+            Some(&[1.001, 1.302]),
+            vec![t(1.0004, 1.0), t(2.0, 2.0)],
+        );
+        let r = rows(&to_csv(&Results { steps: vec![s] }));
+        assert_eq!(r.len(), 3);
+        let (hit, missed, ghost) = (&r[0], &r[1], &r[2]);
+        assert_eq!(hit["nominal_m"], "1");
+        assert_eq!(hit["truth_m"], "1.001");
+        assert_eq!(hit["range_m"], "1.0004");
+        assert_eq!(hit["error_m"], (1.0004_f64 - 1.0).to_string());
+        assert_eq!(hit["truth_error_m"], (1.0004_f64 - 1.001).to_string());
+        assert_eq!(hit["missed"], "false");
+        assert_eq!(missed["nominal_m"], "1.3");
+        assert_eq!(missed["truth_m"], "1.302");
+        assert_eq!(missed["range_m"], "");
+        assert_eq!(missed["missed"], "true");
+        assert_eq!(ghost["nominal_m"], "");
+        assert_eq!(ghost["range_m"], "2");
+        assert_eq!(ghost["missed"], "");
+        for (k, row) in r.iter().enumerate() {
+            assert_eq!(row["target"], (k + 1).to_string());
+            assert_eq!(row["step"], "2");
+            assert_eq!(row["label"], "two pillars, 30 cm");
+            assert_eq!(row["payload_error"], "no sync word, \"SFD\"");
+            assert_eq!(row["resolved"], "false");
+            assert_eq!(row["snr_db"], "");
+            assert_eq!(row["bits"], "128");
+        }
+    }
+
+    #[test]
+    fn a_step_without_targets_or_detections_still_has_its_row() {
+        let r = rows(&to_csv(&Results {
+            steps: vec![step(&[], None, Vec::new())],
+        }));
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0]["range_m"], "");
+        assert_eq!(r[0]["missed"], "");
+        assert_eq!(r[0]["ber"], (3.0_f64 / 128.0).to_string());
+    }
+
     #[test]
     fn two_targets_are_resolved_only_with_a_detection_near_each() {
         assert_eq!(resolved(&[1.0], &[t(1.0, 1.0)]), None);

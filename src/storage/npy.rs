@@ -162,6 +162,58 @@ mod tests {
         assert_eq!((re, im), (1.5, -2.0));
     }
 
+    fn dict(bytes: &[u8]) -> (&str, &[u8]) {
+        let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + hlen) % 64, 0);
+        (
+            std::str::from_utf8(&bytes[10..10 + hlen]).unwrap(),
+            &bytes[10 + hlen..],
+        )
+    }
+
+    #[test]
+    fn text_bytes_and_records_have_numpys_headers() {
+        let bytes = encode_u8_ok(&[0, 1, 1]);
+        let (h, data) = dict(&bytes);
+        assert!(
+            h.contains("'descr': '|u1'") && h.contains("'shape': (3,)"),
+            "{h}"
+        );
+        assert_eq!(data, [0, 1, 1]);
+        let text = encode_text("µs");
+        let (h, data) = dict(&text);
+        assert!(
+            h.contains("'descr': '<U2'") && h.contains("'shape': ()"),
+            "{h}"
+        );
+        assert_eq!(data, [0xb5, 0, 0, 0, 0x73, 0, 0, 0]);
+        let empty = encode_text("");
+        let (h, data) = dict(&empty);
+        assert!(h.contains("'<U1'"));
+        assert_eq!(data, [0; 4]);
+        let r = encode_records(
+            2,
+            &[("range_m", vec![1.0, 2.0]), ("snr_db", vec![3.0, 4.0])],
+        )
+        .unwrap();
+        let (h, data) = dict(&r);
+        assert!(
+            h.contains("'descr': [('range_m', '<f8'), ('snr_db', '<f8')]"),
+            "{h}"
+        );
+        let values: Vec<f64> = data
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, [1.0, 3.0, 2.0, 4.0]);
+        assert!(encode_records(1, &[("bad name", vec![1.0])]).is_err());
+        assert!(encode_records(2, &[("x", vec![1.0])]).is_err());
+    }
+
+    fn encode_u8_ok(data: &[u8]) -> Vec<u8> {
+        encode_u8(&[data.len()], data).unwrap()
+    }
+
     #[test]
     fn wrong_shape_is_an_error() {
         assert!(encode_f64(&[4], &[1.0]).is_err());
