@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Interop checks: independent Python clients (pyvisa + pyvisa-py, pyvicp) against mock_lab, and
-# independent readers (sigmf, numpy, lecroyparser, lecroyscope) of radbench's files, and radbench's
+# independent readers (sigmf, numpy, h5py, lecroyparser, lecroyscope) of radbench's files, and radbench's
 # readers on files other tools and real LeCroy scopes wrote, and the campaign report.html in headless
 # Chromium (which .ci/run installs).
 # Creates .venv-interop (gitignored) on first use, builds mock-lab, runs pytest on interop/.

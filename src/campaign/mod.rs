@@ -8,13 +8,15 @@
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
 //! | `positioner` | who places the targets: the mock lab, the operator (prompt), a program |
 //! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
-//! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth |
+//! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
 //! | [`run`] | executing a plan into a run folder, and resuming one |
 //! | [`report`] | the run's `report.md` and `report.html` (plots inline) |
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
+//! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 
 pub(crate) mod builtin;
+pub(crate) mod export;
 mod folder;
 pub mod manifest;
 pub mod plan;

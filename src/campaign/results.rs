@@ -226,14 +226,34 @@ fn target_results(p: &Processed, spread: Option<&Spread>) -> Vec<TargetResult> {
         .collect()
 }
 
-/// Each reference takes the nearest free detection within `tolerance`; the largest error (sign
-/// kept), on the grid too, and how many references found none.
+/// Each reference, in order, takes the nearest detection within `tolerance` not taken by an
+/// earlier one: the index of each reference's detection.
+fn matches(reference: &[f64], targets: &[TargetResult], tolerance: f64) -> Vec<Option<usize>> {
+    let mut taken = vec![false; targets.len()];
+    reference
+        .iter()
+        .map(|&r| {
+            let best = targets
+                .iter()
+                .enumerate()
+                .filter(|(i, t)| !taken[*i] && (t.range_m - r).abs() <= tolerance)
+                .min_by(|a, b| (a.1.range_m - r).abs().total_cmp(&(b.1.range_m - r).abs()))
+                .map(|(i, _)| i);
+            if let Some(i) = best {
+                taken[i] = true;
+            }
+            best
+        })
+        .collect()
+}
+
+/// Each reference takes the nearest free detection within `tolerance` ([`matches`]); the
+/// largest error (sign kept), on the grid too, and how many references found none.
 fn errors(
     reference: &[f64],
     targets: &[TargetResult],
     tolerance: f64,
 ) -> (Option<f64>, Option<f64>, usize) {
-    let mut taken = vec![false; targets.len()];
     let mut worst: Option<f64> = None;
     let mut worst_grid: Option<f64> = None;
     let mut missed = 0;
@@ -241,15 +261,10 @@ fn errors(
         Some(x) if x.abs() >= b.abs() => Some(x),
         _ => Some(b),
     };
-    for &r in reference {
-        let best = targets
-            .iter()
-            .enumerate()
-            .filter(|(i, t)| !taken[*i] && (t.range_m - r).abs() <= tolerance)
-            .min_by(|a, b| (a.1.range_m - r).abs().total_cmp(&(b.1.range_m - r).abs()));
-        match best {
-            Some((i, t)) => {
-                taken[i] = true;
+    for (&r, found) in reference.iter().zip(matches(reference, targets, tolerance)) {
+        match found {
+            Some(i) => {
+                let t = &targets[i];
                 worst = larger(worst, t.range_m - r);
                 if let Some(g) = t.on_grid_m {
                     worst_grid = larger(worst_grid, g - r);
@@ -259,6 +274,180 @@ fn errors(
         }
     }
     (worst, worst_grid, missed)
+}
+
+/// `results.csv` in a run folder: `results.json` flat, for a spreadsheet or `pandas.read_csv`.
+pub(crate) const CSV_FILE: &str = "results.csv";
+
+/// The columns of `results.csv`, in order (docs/campaign.md says what each holds).
+pub(crate) const CSV_COLUMNS: [&str; 27] = [
+    "step",
+    "label",
+    "parameter",
+    "value",
+    "bandwidth_hz",
+    "algorithm",
+    "repetitions",
+    "target",
+    "nominal_m",
+    "truth_m",
+    "range_m",
+    "range_std_m",
+    "on_grid_m",
+    "level_db",
+    "error_m",
+    "error_on_grid_m",
+    "truth_error_m",
+    "truth_error_on_grid_m",
+    "missed",
+    "resolved",
+    "width_3db_cm",
+    "sidelobe_db",
+    "snr_db",
+    "bit_errors",
+    "bits",
+    "ber",
+    "payload_error",
+];
+
+/// One row of `results.csv` before it is written: a reference target (nominal, ground truth)
+/// and the detection matched to it, or a detection matched to none.
+struct CsvTarget {
+    nominal: Option<f64>,
+    truth: Option<f64>,
+    detection: Option<usize>,
+}
+
+/// The rows of one step and algorithm: every detection (with the nominal and true target
+/// matched to it as `error_m` matches them), then every nominal target left without one
+/// (missed), then every true target left without one; in ascending range. A step and
+/// algorithm with neither targets nor detections still gets a row.
+fn csv_targets(step: &StepResult, a: &AlgorithmResult) -> Vec<CsvTarget> {
+    let cell = C0 / (2.0 * step.nominal.bandwidth_hz);
+    let nominal = step.nominal.ranges();
+    let truth: Vec<f64> = step
+        .truth
+        .as_ref()
+        .map(|t| t.targets.iter().map(|r| r.range_m).collect())
+        .unwrap_or_default();
+    let by_nominal = matches(&nominal, &a.targets, cell);
+    let by_truth = matches(&truth, &a.targets, cell);
+    let find = |m: &[Option<usize>], refs: &[f64], i: usize| {
+        m.iter().position(|x| *x == Some(i)).map(|k| refs[k])
+    };
+    let mut rows: Vec<CsvTarget> = (0..a.targets.len())
+        .map(|i| CsvTarget {
+            nominal: find(&by_nominal, &nominal, i),
+            truth: find(&by_truth, &truth, i),
+            detection: Some(i),
+        })
+        .collect();
+    let mut truth_used: Vec<bool> = by_truth.iter().map(Option::is_some).collect();
+    for (k, r) in nominal.iter().enumerate() {
+        if by_nominal[k].is_some() {
+            continue;
+        }
+        // The true target of a missed nominal one: the same place in the list, when both
+        // lists are as long and it too found no detection.
+        let t = (truth.len() == nominal.len() && !truth_used[k]).then(|| {
+            truth_used[k] = true;
+            truth[k]
+        });
+        rows.push(CsvTarget {
+            nominal: Some(*r),
+            truth: t,
+            detection: None,
+        });
+    }
+    for (k, t) in truth.iter().enumerate() {
+        if !truth_used[k] {
+            rows.push(CsvTarget {
+                nominal: None,
+                truth: Some(*t),
+                detection: None,
+            });
+        }
+    }
+    let key = |r: &CsvTarget| {
+        r.nominal
+            .or(r.truth)
+            .or(r.detection.map(|i| a.targets[i].range_m))
+            .unwrap_or(0.0)
+    };
+    rows.sort_by(|x, y| key(x).total_cmp(&key(y)));
+    if rows.is_empty() {
+        rows.push(CsvTarget {
+            nominal: None,
+            truth: None,
+            detection: None,
+        });
+    }
+    rows
+}
+
+/// A CSV field: quoted (quotes doubled) when it holds a comma, a quote or a line break.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
+/// `results.csv`: one row per step, algorithm and target ([`csv_targets`]), the columns of
+/// [`CSV_COLUMNS`]; numbers as `results.json` holds them (the shortest text that reads back to
+/// the same float64), an empty field where there is no value, `true`/`false` for flags. The
+/// step's figures (width, side-lobe, SNR of its strongest target, resolved, data) repeat on
+/// each of its rows.
+pub(crate) fn to_csv(results: &Results) -> String {
+    let num = |v: Option<f64>| v.map(|x| x.to_string()).unwrap_or_default();
+    let flag = |v: Option<bool>| v.map(|b| b.to_string()).unwrap_or_default();
+    let mut out = CSV_COLUMNS.join(",");
+    out.push('\n');
+    for step in &results.steps {
+        let n = &step.nominal;
+        for (name, a) in &step.algorithms {
+            for (k, row) in csv_targets(step, a).iter().enumerate() {
+                let t = row.detection.map(|i| &a.targets[i]);
+                let range = t.map(|t| t.range_m);
+                let grid = t.and_then(|t| t.on_grid_m);
+                let minus = |x: Option<f64>, r: Option<f64>| Some(x? - r?);
+                let p = a.payload.as_ref();
+                let fields = [
+                    step.index.to_string(),
+                    csv_field(n.label.as_deref().unwrap_or("")),
+                    csv_field(n.parameter.as_deref().unwrap_or("")),
+                    num(n.value),
+                    num(Some(n.bandwidth_hz)),
+                    csv_field(name),
+                    step.repetitions.to_string(),
+                    (k + 1).to_string(),
+                    num(row.nominal),
+                    num(row.truth),
+                    num(range),
+                    num(t.and_then(|t| t.range_std_m)),
+                    num(grid),
+                    num(t.map(|t| t.level_db)),
+                    num(minus(range, row.nominal)),
+                    num(minus(grid, row.nominal)),
+                    num(minus(range, row.truth)),
+                    num(minus(grid, row.truth)),
+                    flag((row.nominal.is_some() || row.truth.is_some()).then_some(t.is_none())),
+                    flag(a.resolved),
+                    num(a.width_3db_cm),
+                    num(a.sidelobe_db),
+                    num(a.snr_db),
+                    p.map(|p| p.bit_errors.to_string()).unwrap_or_default(),
+                    p.map(|p| p.bits.to_string()).unwrap_or_default(),
+                    num(p.map(|p| p.ber)),
+                    csv_field(p.and_then(|p| p.error.as_deref()).unwrap_or("")),
+                ];
+                out.push_str(&fields.join(","));
+                out.push('\n');
+            }
+        }
+    }
+    out
 }
 
 /// The thesis' rule: with two or more targets, each has its own detection within +-s/2.
@@ -337,6 +526,124 @@ mod tests {
         assert!((e.unwrap() - 0.0009).abs() < 1e-12);
         assert!((g.unwrap() - (-0.005)).abs() < 1e-12);
         assert_eq!(missed, 1);
+    }
+
+    fn step(targets: &[f64], truth: Option<&[f64]>, found: Vec<TargetResult>) -> StepResult {
+        let range = |r: &f64| Range { range_m: *r };
+        let mut algorithms = BTreeMap::new();
+        algorithms.insert(
+            "correlation".to_string(),
+            AlgorithmResult {
+                targets: found,
+                width_3db_cm: Some(13.3),
+                sidelobe_db: Some(-13.3),
+                snr_db: None,
+                error_m: None,
+                error_on_grid_m: None,
+                truth_error_m: None,
+                truth_error_on_grid_m: None,
+                missed: 0,
+                resolved: Some(false),
+                payload: Some(PayloadFigures {
+                    bit_errors: 3,
+                    bits: 128,
+                    ber: 3.0 / 128.0,
+                    error: Some("no sync word, \"SFD\"".into()),
+                }),
+                spread: None,
+            },
+        );
+        StepResult {
+            index: 2,
+            nominal: Nominal {
+                label: Some("two pillars, 30 cm".into()),
+                parameter: None,
+                value: None,
+                targets: targets.iter().map(range).collect(),
+                bandwidth_hz: 1e9,
+                tx_attenuation_db: None,
+                snr_db: None,
+            },
+            repetitions: 1,
+            algorithms,
+            truth: truth.map(|t| Truth {
+                targets: t.iter().map(range).collect(),
+                snr_db: None,
+            }),
+        }
+    }
+
+    /// The rows of `to_csv` as column -> text (fields split as RFC 4180 reads them).
+    fn rows(csv: &str) -> Vec<BTreeMap<String, String>> {
+        fn fields(line: &str) -> Vec<String> {
+            let (mut out, mut cur, mut quoted, mut chars) =
+                (Vec::new(), String::new(), false, line.chars().peekable());
+            while let Some(c) = chars.next() {
+                match (c, quoted) {
+                    ('"', true) if chars.peek() == Some(&'"') => {
+                        cur.push('"');
+                        chars.next();
+                    }
+                    ('"', _) => quoted = !quoted,
+                    (',', false) => out.push(std::mem::take(&mut cur)),
+                    (c, _) => cur.push(c),
+                }
+            }
+            out.push(cur);
+            out
+        }
+        let mut lines = csv.lines();
+        let header = fields(lines.next().unwrap());
+        assert_eq!(header, CSV_COLUMNS);
+        lines
+            .map(|l| header.iter().cloned().zip(fields(l)).collect())
+            .collect()
+    }
+
+    #[test]
+    fn results_csv_has_a_row_per_target_missed_and_extra_ones_too() {
+        // Nominal 1.0 and 1.3 m; found near 1.0 m and a ghost at 2.0 m; 1.3 m missed.
+        let s = step(
+            &[1.0, 1.3],
+            Some(&[1.001, 1.302]),
+            vec![t(1.0004, 1.0), t(2.0, 2.0)],
+        );
+        let r = rows(&to_csv(&Results { steps: vec![s] }));
+        assert_eq!(r.len(), 3);
+        let (hit, missed, ghost) = (&r[0], &r[1], &r[2]);
+        assert_eq!(hit["nominal_m"], "1");
+        assert_eq!(hit["truth_m"], "1.001");
+        assert_eq!(hit["range_m"], "1.0004");
+        assert_eq!(hit["error_m"], (1.0004_f64 - 1.0).to_string());
+        assert_eq!(hit["truth_error_m"], (1.0004_f64 - 1.001).to_string());
+        assert_eq!(hit["missed"], "false");
+        assert_eq!(missed["nominal_m"], "1.3");
+        assert_eq!(missed["truth_m"], "1.302");
+        assert_eq!(missed["range_m"], "");
+        assert_eq!(missed["missed"], "true");
+        assert_eq!(ghost["nominal_m"], "");
+        assert_eq!(ghost["range_m"], "2");
+        assert_eq!(ghost["missed"], "");
+        for (k, row) in r.iter().enumerate() {
+            assert_eq!(row["target"], (k + 1).to_string());
+            assert_eq!(row["step"], "2");
+            assert_eq!(row["label"], "two pillars, 30 cm");
+            assert_eq!(row["payload_error"], "no sync word, \"SFD\"");
+            assert_eq!(row["resolved"], "false");
+            assert_eq!(row["snr_db"], "");
+            assert_eq!(row["bits"], "128");
+        }
+    }
+
+    #[test]
+    fn a_step_without_targets_or_detections_still_has_its_row() {
+        let r = rows(&to_csv(&Results {
+            steps: vec![step(&[], None, Vec::new())],
+        }));
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0]["range_m"], "");
+        assert_eq!(r[0]["missed"], "");
+        assert_eq!(r[0]["ber"], (3.0_f64 / 128.0).to_string());
     }
 
     #[test]

@@ -1210,7 +1210,8 @@ impl Runner {
         Ok(())
     }
 
-    /// `results.json` with every step that has a result, in step order.
+    /// `results.json` with every step that has a result, in step order, and `results.csv` from
+    /// it.
     fn write_results(&mut self) -> Result<Results, CampaignError> {
         self.folder.check(&self.dir)?;
         let results = Results {
@@ -1220,6 +1221,12 @@ impl Runner {
         write_atomic(&path, format!("{:#}\n", json!(results)).as_bytes())?;
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(RESULTS_FILE))?);
+        write_atomic(
+            &self.dir.join(results::CSV_FILE),
+            results::to_csv(&results).as_bytes(),
+        )?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(results::CSV_FILE))?);
         Ok(results)
     }
 

@@ -15,6 +15,7 @@ pub(crate) mod calibrate_response;
 pub(crate) mod campaign;
 pub(crate) mod capture;
 pub(crate) mod exit_code;
+pub(crate) mod export;
 pub(crate) mod idn;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
@@ -56,6 +57,10 @@ pub enum Command {
     /// Process saved captures again: capture folders, SigMF recordings or .trc pairs, with the
     /// options they were captured with or any others, in parallel.
     Process(Box<process::Args>),
+    /// Write a capture's or a run's arrays to one .npz or HDF5 file for a notebook: decimated
+    /// I/Q in volts, complex range profiles and range axis, detections, transmitted reference
+    /// and bits, options (docs/export.md).
+    Export(export::Args),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -87,6 +92,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Campaign(args) => campaign::run(args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
         Command::Process(args) => process::run(*args, &global),
+        Command::Export(args) => export::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
         Command::Trc(args) => trc::run(args, &global),

@@ -14,6 +14,7 @@
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
 //! | `reprocess` | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
+//! | `export` | a saved capture's arrays for a notebook (I/Q, profiles, detections, transmission), got through `reprocess` |
 //! | `repeat` | several repetitions: coherent average and spread |
 //! | `figure` | what a measurement's plot and profile table show |
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
@@ -26,6 +27,7 @@ pub(crate) mod calibration;
 pub mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
+pub(crate) mod export;
 pub(crate) mod figure;
 pub mod interrupt;
 pub mod options;

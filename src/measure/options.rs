@@ -292,6 +292,54 @@ pub(crate) struct ProcessOverrides {
 }
 
 impl ProcessOverrides {
+    /// Every option of `options` (its carrier aside, which comes with the capture): a capture
+    /// processed with these gives what `options` gave (a campaign's further algorithms). The
+    /// capture's background is kept.
+    pub(crate) fn replacing(options: &ProcessOptions) -> Self {
+        // Destructured, so that an option added later cannot be forgotten here.
+        let ProcessOptions {
+            algorithm,
+            music_m,
+            music_p,
+            forward_backward,
+            zero_pad,
+            window,
+            fft_precision,
+            interpolate,
+            system_delay_s,
+            min_range_m,
+            max_range_m,
+            detector,
+            pfa,
+            min_separation_m,
+            chain_floor_db,
+            carrier_hz: _,
+            awg_amplitude_vpp,
+            correction,
+        } = options.clone();
+        Self {
+            algorithm: Some(algorithm),
+            music_m: Some(music_m),
+            music_p: Some(music_p),
+            forward_backward: Some(forward_backward),
+            zero_pad: Some(zero_pad),
+            window: Some(window),
+            fft_precision: Some(fft_precision),
+            interpolate: Some(interpolate),
+            system_delay_s: Some(system_delay_s),
+            min_range_m: Some(min_range_m),
+            max_range_m: Some(max_range_m),
+            detector: Some(detector),
+            pfa: Some(pfa),
+            min_separation_m: Some(min_separation_m),
+            chain_floor_db: Some(chain_floor_db),
+            awg_amplitude_vpp: Some(awg_amplitude_vpp),
+            correction: Some(correction),
+            keep_background: true,
+            require_correction: false,
+        }
+    }
+
     /// `base` with every given value replaced.
     pub(crate) fn apply(&self, base: ProcessOptions) -> ProcessOptions {
         ProcessOptions {

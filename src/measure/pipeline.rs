@@ -182,6 +182,9 @@ pub(crate) struct Analysis {
 pub struct Processed {
     /// Primary profile first (MUSIC over Fourier when both), ranges from the antennas.
     pub profiles: Vec<Profile>,
+    /// The primary profile's complex values on its scale (`|z|` is its amplitude): correlation
+    /// and Fourier; `None` for the subspace estimators (MUSIC, root-MUSIC, ESPRIT).
+    pub complex_profile: Option<Vec<Complex64>>,
     pub targets: Vec<Detection>,
     /// Main-lobe width of the strongest target, cm.
     pub width_3db_cm: Option<f64>,
@@ -1182,6 +1185,7 @@ impl Pipeline {
         }
         Ok(Processed {
             profiles: range.profiles,
+            complex_profile: range.complex,
             targets: detection.targets.clone(),
             width_3db_cm,
             sidelobe_db,

@@ -90,7 +90,7 @@ fn write_profiles(
 
 /// The summary keys a capture and a re-processing share: what was sent, how it was processed
 /// and what was found. Each adds its own after them.
-fn result_json(
+pub(crate) fn result_json(
     tx: &Transmission,
     p: &Processed,
     o: &ProcessOptions,

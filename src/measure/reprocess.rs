@@ -145,7 +145,8 @@ pub(crate) fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
     out
 }
 
-fn sigmf(path: &Path) -> Result<Source, InputError> {
+/// The capture of a SigMF file or of a capture folder's `.sigmf-meta`.
+pub(crate) fn sigmf(path: &Path) -> Result<Source, InputError> {
     sigmf_paths(path)
         .map(|(meta, data)| Source::Sigmf { meta, data })
         .map_err(|e| InputError {

@@ -92,6 +92,67 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     Ok(())
 }
 
+/// A file written piece by piece (an export too large to hold in memory at once) and put in
+/// place atomically by [`commit`](Self::commit), like [`write_atomic`]. Dropped without a commit
+/// (an error, a panic), its temporary file is removed.
+pub(crate) struct AtomicFile {
+    file: std::io::BufWriter<std::fs::File>,
+    path: PathBuf,
+    guard: TempGuard,
+}
+
+impl AtomicFile {
+    /// Starts the temporary file beside `path` (a symbolic link at `path` is refused).
+    pub(crate) fn create(path: &Path) -> Result<AtomicFile, StorageError> {
+        let io = |source| StorageError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        refuse_symlink(path).map_err(io)?;
+        let (file, tmp) = create_temporary(path).map_err(io)?;
+        Ok(AtomicFile {
+            file: std::io::BufWriter::with_capacity(WRITE_CHUNK, file),
+            path: path.to_path_buf(),
+            guard: TempGuard(Some(tmp)),
+        })
+    }
+
+    fn io(&self, source: std::io::Error) -> StorageError {
+        StorageError::Io {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// Appends `bytes`.
+    pub(crate) fn write(&mut self, bytes: &[u8]) -> Result<(), StorageError> {
+        for chunk in bytes.chunks(WRITE_CHUNK) {
+            if let Err(e) = self.file.write_all(chunk) {
+                return Err(self.io(e));
+            }
+        }
+        Ok(())
+    }
+
+    /// Flushes and syncs the file, renames it into place and syncs its folder.
+    pub(crate) fn commit(mut self) -> Result<(), StorageError> {
+        let Some(tmp) = self.guard.0.clone() else {
+            return Ok(());
+        };
+        let done = self
+            .file
+            .flush()
+            .and_then(|()| self.file.get_ref().sync_all())
+            .and_then(|()| std::fs::rename(&tmp, &self.path));
+        if let Err(e) = done {
+            return Err(self.io(e));
+        }
+        self.guard.0 = None;
+        sync_folder(&self.path);
+        Ok(())
+    }
+}
+
 /// A file written in a group: what it is to become and what it holds.
 struct Pending {
     /// Kept open: the data is synced through it, and the rename checks the name still is it.

@@ -30,6 +30,68 @@ pub(crate) fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>
     Ok(out)
 }
 
+/// Encodes an unsigned byte array (`|u1`) of the given shape (row-major).
+pub(crate) fn encode_u8(shape: &[usize], data: &[u8]) -> Result<Vec<u8>, String> {
+    check_shape(shape, data.len())?;
+    let mut out = header("|u1", shape);
+    out.extend_from_slice(data);
+    Ok(out)
+}
+
+/// Encodes `text` as a 0-d unicode array (`<U{n}`, UTF-32LE): `numpy.load` gives it back with
+/// `str(array)`, without a pickle.
+pub(crate) fn encode_text(text: &str) -> Vec<u8> {
+    let n = text.chars().count().max(1);
+    let mut out = header(&format!("<U{n}"), &[]);
+    out.reserve(4 * n);
+    for c in text.chars() {
+        out.extend_from_slice(&u32::from(c).to_le_bytes());
+    }
+    // The empty string: one NUL code point (numpy strips trailing NULs).
+    if text.is_empty() {
+        out.extend_from_slice(&[0; 4]);
+    }
+    out
+}
+
+/// Encodes a one-dimensional structured array of float64 fields (`[('name', '<f8'), ...]`),
+/// `rows` long: each field's values, in the fields' order. Field names must be ASCII
+/// identifiers (they go into the header as Python literals).
+pub(crate) fn encode_records(rows: usize, fields: &[(&str, Vec<f64>)]) -> Result<Vec<u8>, String> {
+    if fields.is_empty() {
+        return Err("a structured array needs at least one field".into());
+    }
+    for (name, values) in fields {
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(format!(
+                "field name {name:?}: ASCII letters, digits and _ only"
+            ));
+        }
+        if values.len() != rows {
+            return Err(format!(
+                "field {name} holds {} values for {rows} rows",
+                values.len()
+            ));
+        }
+    }
+    let descr = format!(
+        "[{}]",
+        fields
+            .iter()
+            .map(|(name, _)| format!("('{name}', '<f8')"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let mut out = header_descr(&descr, &[rows]);
+    out.reserve(rows * fields.len() * 8);
+    for r in 0..rows {
+        for (_, values) in fields {
+            out.extend_from_slice(&values[r].to_le_bytes());
+        }
+    }
+    Ok(out)
+}
+
 fn check_shape(shape: &[usize], len: usize) -> Result<(), String> {
     let product: usize = shape.iter().product();
     if product != len {
@@ -41,6 +103,12 @@ fn check_shape(shape: &[usize], len: usize) -> Result<(), String> {
 }
 
 fn header(descr: &str, shape: &[usize]) -> Vec<u8> {
+    header_descr(&format!("'{descr}'"), shape)
+}
+
+/// The header of an array whose `descr` is given as its Python literal (a quoted dtype string,
+/// or a structured array's list of fields).
+fn header_descr(descr: &str, shape: &[usize]) -> Vec<u8> {
     let shape_text = match shape {
         [n] => format!("({n},)"),
         _ => format!(
@@ -52,8 +120,7 @@ fn header(descr: &str, shape: &[usize]) -> Vec<u8> {
                 .join(", ")
         ),
     };
-    let mut dict =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_text}, }}");
+    let mut dict = format!("{{'descr': {descr}, 'fortran_order': False, 'shape': {shape_text}, }}");
     // magic (6) + version (2) + header length (2) + dict + '\n' must be a multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let pad = (64 - unpadded % 64) % 64;
@@ -93,6 +160,58 @@ mod tests {
         let re = f64::from_le_bytes(bytes[10 + hlen..18 + hlen].try_into().unwrap());
         let im = f64::from_le_bytes(bytes[18 + hlen..26 + hlen].try_into().unwrap());
         assert_eq!((re, im), (1.5, -2.0));
+    }
+
+    fn dict(bytes: &[u8]) -> (&str, &[u8]) {
+        let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + hlen) % 64, 0);
+        (
+            std::str::from_utf8(&bytes[10..10 + hlen]).unwrap(),
+            &bytes[10 + hlen..],
+        )
+    }
+
+    #[test]
+    fn text_bytes_and_records_have_numpys_headers() {
+        let bytes = encode_u8_ok(&[0, 1, 1]);
+        let (h, data) = dict(&bytes);
+        assert!(
+            h.contains("'descr': '|u1'") && h.contains("'shape': (3,)"),
+            "{h}"
+        );
+        assert_eq!(data, [0, 1, 1]);
+        let text = encode_text("µs");
+        let (h, data) = dict(&text);
+        assert!(
+            h.contains("'descr': '<U2'") && h.contains("'shape': ()"),
+            "{h}"
+        );
+        assert_eq!(data, [0xb5, 0, 0, 0, 0x73, 0, 0, 0]);
+        let empty = encode_text("");
+        let (h, data) = dict(&empty);
+        assert!(h.contains("'<U1'"));
+        assert_eq!(data, [0; 4]);
+        let r = encode_records(
+            2,
+            &[("range_m", vec![1.0, 2.0]), ("snr_db", vec![3.0, 4.0])],
+        )
+        .unwrap();
+        let (h, data) = dict(&r);
+        assert!(
+            h.contains("'descr': [('range_m', '<f8'), ('snr_db', '<f8')]"),
+            "{h}"
+        );
+        let values: Vec<f64> = data
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, [1.0, 3.0, 2.0, 4.0]);
+        assert!(encode_records(1, &[("bad name", vec![1.0])]).is_err());
+        assert!(encode_records(2, &[("x", vec![1.0])]).is_err());
+    }
+
+    fn encode_u8_ok(data: &[u8]) -> Vec<u8> {
+        encode_u8(&[data.len()], data).unwrap()
     }
 
     #[test]

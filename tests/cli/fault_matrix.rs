@@ -11,7 +11,7 @@
 //! |---------|----------------------------------------|-------------------------|
 //! | `First` | step 1 (nothing of a step written yet) | step 1's files |
 //! | `Mid`   | step 2, once step 1 is recorded        | step 2's files; a full disk has room for them, not for the manifest recording them |
-//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their manifest, not for the report (`results.json` and `report.md` fit, `report.html` does not) |
+//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their manifest, not for the report (`results.json`, `results.csv` and `report.md` fit, `report.html` does not) |
 //!
 //! Every later write of the session is refused too (the next steps' files, `results.json`, the
 //! report, the manifest).
@@ -489,7 +489,7 @@ async fn case(fault: Fault, moment: Moment) {
         assert!(!last.contains("failed"), "{what}: {last}");
     }
     manifest_true(&m, &run, &what);
-    for name in ["results.json", "report.md", "report.html"] {
+    for name in ["results.json", "results.csv", "report.md", "report.html"] {
         assert!(
             m.files.iter().any(|f| f.path == Path::new(name)),
             "{what}: {name} is not in the manifest"

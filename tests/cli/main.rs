@@ -20,6 +20,7 @@ mod clipping_capture;
 mod detect_capture;
 mod detect_corrected;
 mod exit_paths;
+mod export;
 mod fault_matrix;
 mod io_cli;
 mod process_cli;

@@ -41,9 +41,11 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
     Ok(md)
 }
 
-/// Reads a run folder's manifest and results and writes its report again; returns the
-/// Markdown's path, and a note when `force` rendered a `results.json` that no longer matches the
-/// manifest's hash (the manifest then records the new hashes of it and of both reports).
+/// Reads a run folder's manifest and results and writes its report and `results.csv` again;
+/// returns the Markdown's path, and a note when `force` rendered a `results.json` that no longer
+/// matches the manifest's hash (the manifest then records the new hashes of it, of
+/// `results.csv` and of both reports). A `results.csv` the manifest does not list yet (a run
+/// folder from before it) is recorded too.
 /// Without `force` such a `results.json` is refused: the report would not show what the run
 /// recorded, and the manifest's hashes would be false from then on.
 pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
@@ -66,10 +68,20 @@ pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String
     }
     let results = load_results(dir)?;
     let md = write(dir, &manifest, &results)?;
+    // results.csv is results.json flat: written again with the report. A run folder from
+    // before results.csv gets one, and the manifest records it.
+    let csv = super::results::CSV_FILE;
+    write_atomic(&dir.join(csv), super::results::to_csv(&results).as_bytes())?;
+    let csv_record = FileRecord::of(dir, Path::new(csv))?;
+    let csv_new = !manifest.files.contains(&csv_record);
     let Some(why) = changed else {
+        if csv_new {
+            manifest.set_file(csv_record);
+            manifest.store(dir)?;
+        }
         return Ok((md, None));
     };
-    for file in [RESULTS_FILE, FILE, HTML_FILE] {
+    for file in [RESULTS_FILE, csv, FILE, HTML_FILE] {
         manifest.set_file(FileRecord::of(dir, Path::new(file))?);
     }
     manifest.store(dir)?;
@@ -77,7 +89,7 @@ pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String
         md,
         Some(format!(
             "{why}; rendered with --force, and the manifest now records the new SHA-256 of \
-             results.json, report.md and report.html"
+             results.json, results.csv, report.md and report.html"
         )),
     ))
 }
