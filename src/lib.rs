@@ -12,7 +12,7 @@
 //!  +---> simulate ----------------------+
 //!  |                                    v
 //!  +---> measure (bench, station, pipeline, record) -> dsp, waveform (pure)
-//!  |        |       |        +-> storage (atomic files, SigMF, npy/CSV, plots)
+//!  |        |       |        +-> storage (atomic files, SigMF, npy/npz/HDF5/CSV, plots, the prepared-piece cache)
 //!  |        |       +-> catalog
 //!  |        +-> driver -> session -> transport -> (tokio::net, serialport)
 //!  +---> storage
@@ -43,7 +43,7 @@
 //! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
 //! | [`trc`] | pure | LeCroy waveform blocks and `.trc` files (WAVEDESC, segments): decode and build |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR), the chain's response estimate and its receive equaliser, the two ends' I/Q errors told apart in the image and undone |
-//! | [`storage`] | out | atomic files, SigMF (write and read), npy (write and read)/CSV, plots |
+//! | [`storage`] | out | atomic files, SigMF (write and read), npy (write and read)/CSV, npz and HDF5 exports, plots, the cache of prepared pieces (filter taps, point spreads) keyed by their inputs and the build |
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
