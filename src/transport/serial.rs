@@ -88,7 +88,7 @@ impl SerialSettings {
 /// What a serial link does with the line before its first request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum OnOpen {
-    /// Throws away what the line holds, then waits until it has been quiet for [`SETTLE`],
+    /// Throws away what the line holds, then waits until it has been quiet for `SETTLE` (50 ms),
     /// throwing away whatever arrives meanwhile: a reply the previous user of the port left in
     /// flight is not taken for the answer to the first request. Costs `SETTLE` (50 ms) before
     /// the first request.
