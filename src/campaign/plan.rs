@@ -1177,7 +1177,8 @@ impl Plan {
         }
         let _ = writeln!(
             out,
-            "estimated duration: about {total:.1} s{}",
+            "estimated duration (connecting, uploads, captures, processing and files): about \
+             {total:.1} s{}",
             if operator {
                 ", plus the operator's time at each prompt"
             } else {

@@ -96,7 +96,8 @@ impl ThesisTable {
         let agree = self.rows.iter().filter(|r| r.agrees).count();
         let _ = writeln!(
             out,
-            "{agree} of {} rows agree; every row that thesis-notes.md expects to agree {}.",
+            "{agree} of {} rows agree; every row expected to agree (the README, 'Simulations and \
+             the thesis') {}.",
             self.rows.len(),
             if self.rows.iter().all(|r| r.agrees || !r.expected_to_agree) {
                 "does"
@@ -546,11 +547,14 @@ fn music_table_4_3(ctx: &mut Ctx) -> Result<(), SimError> {
                 "resolved {:.0} %, {}, rms err {}",
                 100.0 * rate,
                 peaks_text(&r),
-                rms_cm.map(|e| format!("{e:.2} cm")).unwrap_or_else(|| "-".into())
+                rms_cm
+                    .map(|e| format!("{e:.2} cm"))
+                    .unwrap_or_else(|| "-".into())
             ),
             ok,
             true,
-            "the covariance size decides resolution; see thesis-notes.md (SNR not stated in the thesis)",
+            "the covariance size decides resolution (the thesis does not state its SNR; 20 dB per \
+             sample assumed)",
             r,
         );
     }
