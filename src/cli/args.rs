@@ -224,7 +224,7 @@ pub struct WaveformArgs {
     pub bits_per_pulse: Option<usize>,
     /// MSK-LFM: where the chirp sweeps: centred (-B/2 .. B/2, default), upper (0 .. B, the
     /// thesis' equation 2.4) or lower (-B .. 0).
-    #[arg(long, value_name = "BAND", value_parser = parse_band)]
+    #[arg(long, value_name = "BAND", value_parser = str::parse::<SweepBand>)]
     pub band: Option<SweepBand>,
     /// OFDM subcarriers (even). Default 128.
     #[arg(long, value_name = "N")]
@@ -238,15 +238,6 @@ pub struct WaveformArgs {
     /// OFDM symbols per frame (a known preamble symbol included). Default 100.
     #[arg(long, value_name = "N")]
     pub symbols: Option<usize>,
-}
-
-fn parse_band(text: &str) -> Result<SweepBand, String> {
-    SweepBand::parse(text).ok_or_else(|| {
-        format!(
-            "'{text}' is not a sweep band; allowed: {}",
-            SweepBand::NAMES.join(", ")
-        )
-    })
 }
 
 impl WaveformArgs {

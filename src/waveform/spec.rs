@@ -50,6 +50,23 @@ fn default_preamble() -> usize {
     1
 }
 
+impl std::str::FromStr for SweepBand {
+    type Err = String;
+
+    /// One of [`SweepBand::NAMES`], as TOML spells it.
+    fn from_str(name: &str) -> Result<Self, String> {
+        match name {
+            "centred" => Ok(SweepBand::Centred),
+            "upper" => Ok(SweepBand::Upper),
+            "lower" => Ok(SweepBand::Lower),
+            _ => Err(format!(
+                "'{name}' is not a sweep band; allowed: {}",
+                SweepBand::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
 /// Where an MSK-LFM chirp sweeps, relative to the carrier.
 ///
 /// The thesis' chirp (its equation 2.4) starts at the carrier and sweeps B above it, while its
@@ -79,16 +96,6 @@ impl SweepBand {
             SweepBand::Centred => "centred",
             SweepBand::Upper => "upper",
             SweepBand::Lower => "lower",
-        }
-    }
-
-    /// Parses a name of [`Self::NAMES`].
-    pub fn parse(name: &str) -> Option<SweepBand> {
-        match name {
-            "centred" => Some(SweepBand::Centred),
-            "upper" => Some(SweepBand::Upper),
-            "lower" => Some(SweepBand::Lower),
-            _ => None,
         }
     }
 
