@@ -1483,7 +1483,7 @@ fn write_step_files(
         Err(e) => return Err(io(&out)(e)),
     }
     let ((), written) = write_group(|| {
-        let raw = record::write_raw(&out, m, provenance)?;
+        let raw = record::write_raw(&out, &m.taken, &m.processing.options, provenance)?;
         record::write_processed(&out, m, &raw, provenance)?;
         for (p, name) in others.iter_mut().zip(&names[1..]) {
             swap_processing(m, p);
