@@ -79,9 +79,9 @@ pub fn render(err: &anyhow::Error) -> String {
     render_chain(err.as_ref())
 }
 
-/// [`render`] of any error and its sources (the one renderer of error chains: the CLI's
+/// `render` of any error and its sources (the one renderer of error chains: the CLI's
 /// messages and the campaign's records say the same).
-pub fn render_chain(err: &(dyn std::error::Error + 'static)) -> String {
+pub(crate) fn render_chain(err: &(dyn std::error::Error + 'static)) -> String {
     let mut out = String::new();
     let mut cause = Some(err);
     while let Some(c) = cause {
