@@ -1313,8 +1313,6 @@ impl Runner {
     }
 }
 
-
-/// The bench's instrument catalog (its file's `catalog` folder over the built-in models).
 /// What a step's worker needs besides the capture and the pipelines.
 struct StepJob {
     dir: PathBuf,
