@@ -32,7 +32,8 @@ STEPS = 6
 
 @pytest.fixture
 def browser(tmp_path):
-    b = Browser(tmp_path / "profile")
+    # Every host name unresolvable but the loopback radbench serves on.
+    b = Browser(tmp_path / "profile", resolver_rules="MAP * ~NOTFOUND, EXCLUDE 127.0.0.1")
     yield b
     b.close()
 

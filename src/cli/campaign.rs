@@ -425,7 +425,10 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     if let Some(l) = &live {
         use crate::live::Event;
         l.send(Event::Set("kind", json!("campaign")));
-        l.send(Event::Set("title", json!(format!("campaign {}", plan.name))));
+        l.send(Event::Set(
+            "title",
+            json!(format!("campaign {}", plan.name)),
+        ));
         l.send(Event::Set("of", json!(plan.steps.len())));
         let parameter = plan.steps.first().and_then(|s| s.nominal.parameter.clone());
         l.send(Event::Set(

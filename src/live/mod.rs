@@ -221,17 +221,30 @@ impl Live {
         while Instant::now() < deadline {
             let frame = self.shared.frames.borrow().clone();
             if frame.json.contains("\"final\":true") {
-                let clients = self.shared.clients.lock().unwrap_or_else(|p| p.into_inner());
-                let waiting = clients.iter().filter_map(std::sync::Weak::upgrade).any(|c| {
-                    c.sent.load(Ordering::Relaxed) < frame.seq && !c.writing.load(Ordering::Relaxed)
-                });
+                let clients = self
+                    .shared
+                    .clients
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner());
+                let waiting = clients
+                    .iter()
+                    .filter_map(std::sync::Weak::upgrade)
+                    .any(|c| {
+                        c.sent.load(Ordering::Relaxed) < frame.seq
+                            && !c.writing.load(Ordering::Relaxed)
+                    });
                 if !waiting {
                     break;
                 }
             }
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
-        for task in self.tasks.lock().unwrap_or_else(|p| p.into_inner()).drain(..) {
+        for task in self
+            .tasks
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .drain(..)
+        {
             task.abort();
         }
     }
@@ -365,7 +378,11 @@ async fn apply(state: &mut Map<String, Value>, event: Event) {
             }
         }
         Event::Log(level, text) => {
-            if let Some(log) = state.entry("log").or_insert_with(|| json!([])).as_array_mut() {
+            if let Some(log) = state
+                .entry("log")
+                .or_insert_with(|| json!([]))
+                .as_array_mut()
+            {
                 log.push(json!({"level": level, "text": text}));
                 let n = log.len();
                 if n > LOG_LINES {
@@ -409,7 +426,10 @@ fn read_profile_csv(path: &Path) -> Result<(Vec<f64>, Columns), String> {
         .map(str::to_string)
         .collect();
     let mut range = Vec::new();
-    let mut columns: Columns = header[1..].iter().map(|h| (h.clone(), Vec::new())).collect();
+    let mut columns: Columns = header[1..]
+        .iter()
+        .map(|h| (h.clone(), Vec::new()))
+        .collect();
     for line in lines {
         let mut cells = line.split(',');
         let r: f64 = cells
@@ -437,7 +457,13 @@ pub(crate) fn profile_json(
 ) -> Value {
     let n = range_m.len();
     let bin = n.div_ceil(PROFILE_POINTS).max(1);
-    let finite = |v: f64| if v.is_finite() { json!(round(v)) } else { Value::Null };
+    let finite = |v: f64| {
+        if v.is_finite() {
+            json!(round(v))
+        } else {
+            Value::Null
+        }
+    };
     let pooled = |values: &[f64]| -> Vec<Value> {
         values
             .chunks(bin)

@@ -21,7 +21,8 @@ async fn start(stops: Arc<AtomicUsize>) -> Live {
 /// One request, the whole answer (the server closes the connection).
 async fn request(live: &Live, method: &str, target: &str) -> (u16, String) {
     let mut s = TcpStream::connect(live.addr()).await.unwrap();
-    let head = format!("{method} {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\n\r\n");
+    let head =
+        format!("{method} {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\n\r\n");
     s.write_all(head.as_bytes()).await.unwrap();
     let mut out = Vec::new();
     tokio::time::timeout(LIMIT, s.read_to_end(&mut out))
@@ -68,7 +69,11 @@ async fn a_wrong_or_missing_token_gets_403_and_changes_nothing() {
         let (code, _) = request(&live, "POST", &target).await;
         assert_eq!(code, 403, "POST {target}");
     }
-    assert_eq!(stops.load(Ordering::SeqCst), 0, "a refused Stop stopped nothing");
+    assert_eq!(
+        stops.load(Ordering::SeqCst),
+        0,
+        "a refused Stop stopped nothing"
+    );
     let s = live.stats();
     assert_eq!((s.stops, s.clients, s.refused), (0, 0, 7), "{s:?}");
     // With the token: the page, and a Stop that does what it says once.
@@ -119,7 +124,10 @@ async fn a_stalled_browser_holds_up_nothing_and_is_dropped() {
     let mut stalled = TcpStream::connect(live.addr()).await.unwrap();
     let head = format!("GET /events?token={} HTTP/1.1\r\n\r\n", live.token());
     stalled.write_all(head.as_bytes()).await.unwrap();
-    until("the stalled browser connected", || live.stats().clients == 1).await;
+    until("the stalled browser connected", || {
+        live.stats().clients == 1
+    })
+    .await;
     // A browser that keeps up, beside it.
     let mut good = TcpStream::connect(live.addr()).await.unwrap();
     good.write_all(head.as_bytes()).await.unwrap();
@@ -162,7 +170,10 @@ async fn a_stalled_browser_holds_up_nothing_and_is_dropped() {
     until("the stalled browser dropped", || live.stats().clients == 0).await;
     let s = live.stats();
     assert!(s.frames >= 100, "{s:?}");
-    assert!(s.skipped >= s.frames / 2, "the stalled browser skipped frames: {s:?}");
+    assert!(
+        s.skipped >= s.frames / 2,
+        "the stalled browser skipped frames: {s:?}"
+    );
     assert_eq!(s.forgotten, 2, "{s:?}");
     drop(stalled);
     live.finish("complete", Duration::ZERO).await;
@@ -197,14 +208,20 @@ fn the_page_profile_keeps_the_peaks_and_at_most_its_points() {
     let v = profile_json(
         "step 1",
         &range,
-        &[("correlation_db".into(), level), ("threshold_db".into(), threshold)],
+        &[
+            ("correlation_db".into(), level),
+            ("threshold_db".into(), threshold),
+        ],
         &[(2.501, -3.0)],
         &[2.5],
     );
     let levels = v["level_db"].as_array().unwrap();
     assert!(levels.len() <= PROFILE_POINTS);
     assert_eq!(levels.len(), v["range_m"].as_array().unwrap().len());
-    let peak = levels.iter().filter_map(Value::as_f64).fold(f64::MIN, f64::max);
+    let peak = levels
+        .iter()
+        .filter_map(Value::as_f64)
+        .fold(f64::MIN, f64::max);
     assert_eq!(peak, -3.0);
     assert_eq!(v["threshold_db"].as_array().unwrap().len(), levels.len());
     assert_eq!(v["truth_m"], json!([2.5]));

@@ -223,7 +223,10 @@ async fn the_live_pages_stop_is_ctrl_c_and_needs_the_token() {
     assert_eq!(http(&addr, "POST", "/stop?token=0").await, 403);
     assert!(child.try_wait().unwrap().is_none(), "still running");
     assert!(rf_on(&lab));
-    assert_eq!(http(&addr, "POST", &format!("/stop?token={token}")).await, 200);
+    assert_eq!(
+        http(&addr, "POST", &format!("/stop?token={token}")).await,
+        200
+    );
     let (code, _, err) = finished(child).await;
     assert_eq!(code, 130, "Stop is Ctrl-C: {err}");
     assert!(safe(&lab), "{err}");
@@ -323,7 +326,13 @@ async fn live_options_are_checked() {
     let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = held.local_addr().unwrap().port().to_string();
     let (code, _, err) = finished(spawn(&[
-        "align", "--allow-rf", "--live", "--port", &port, "--count", "1",
+        "align",
+        "--allow-rf",
+        "--live",
+        "--port",
+        &port,
+        "--count",
+        "1",
     ]))
     .await;
     assert_eq!(code, 2, "{err}");
