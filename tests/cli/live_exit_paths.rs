@@ -310,6 +310,39 @@ async fn a_stalled_browser_changes_nothing_of_a_campaign() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn capture_repeat_writes_each_capture_and_ends_safe() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab);
+    let out = dir.path().join("out");
+    let child = spawn(&[
+        "capture",
+        "--allow-rf",
+        "--bench",
+        &bench,
+        "--out",
+        out.to_str().unwrap(),
+        "--repeat",
+        "2",
+        "--json",
+    ]);
+    let (code, stdout, err) = finished(child).await;
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    for (k, v) in lines.iter().enumerate() {
+        assert_eq!(v["capture"], k as u64 + 1);
+        let folder = out.join(format!("capture-{:04}", k + 1));
+        assert!(folder.join("summary.json").is_file());
+        assert!(folder.join("profile.csv").is_file());
+    }
+    assert!(safe(&lab));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn live_options_are_checked() {
     let (code, _, err) = finished(spawn(&["capture", "--allow-rf", "--live"])).await;
     assert_eq!(code, 2, "{err}");
