@@ -72,7 +72,12 @@ impl LiveArgs {
             eprintln!(
                 "WARNING: --listen {ip}: the live view is served beyond this machine's loopback; \
                  whoever can reach {ip} and has the URL below (its token) can watch and press \
-                 Stop. The traffic is not encrypted."
+                 Stop. The traffic is not encrypted.{}",
+                if ip.is_unspecified() {
+                    " From another machine, put this machine's address in place of 127.0.0.1."
+                } else {
+                    ""
+                }
             );
         }
         eprintln!(

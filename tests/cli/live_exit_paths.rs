@@ -267,6 +267,52 @@ async fn a_live_campaign_signalled_while_rf_is_on_is_safe_and_resumable() {
     assert!(safe(&lab), "{err}");
     let manifest = std::fs::read_to_string(out.join("manifest.toml")).unwrap();
     assert!(manifest.contains("status = \"interrupted\""), "{manifest}");
+    // Resumed with its live view, the marker cable back: it finishes.
+    lab.bench.marker_cable.store(true, Ordering::Relaxed);
+    let mut child = spawn(&[
+        "campaign",
+        "resume",
+        out.to_str().unwrap(),
+        "--allow-rf",
+        "--json",
+        "--live",
+    ]);
+    let _ = live_url(&mut child).await;
+    let (code, _, err) = finished(child).await;
+    assert_eq!(code, 0, "{err}");
+    assert!(safe(&lab), "{err}");
+    let manifest = std::fs::read_to_string(out.join("manifest.toml")).unwrap();
+    assert!(manifest.contains("status = \"complete\""), "{manifest}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lost_scope_ends_a_live_repeat_safely() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab);
+    let out = dir.path().join("out");
+    let mut child = spawn(&[
+        "capture",
+        "--allow-rf",
+        "--bench",
+        &bench,
+        "--out",
+        out.to_str().unwrap(),
+        "--repeat",
+        "forever",
+        "--wait",
+        "1",
+        "--json",
+        "--live",
+    ]);
+    let _ = live_url(&mut child).await;
+    until("RF on", || rf_on(&lab)).await;
+    // The scope stops answering: every reply is swallowed from now on.
+    lab.scope_faults.set_reply_delay(Duration::from_secs(3600));
+    let (code, _, err) = finished(child).await;
+    lab.scope_faults.clear();
+    assert_eq!(code, 3, "{err}");
+    assert!(safe(&lab), "{err}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
