@@ -213,8 +213,6 @@ impl Observer for LiveObserver<'_> {
 
 /// The page's axes of a campaign's plot.
 pub(crate) fn campaign_axes(parameter: Option<&str>) -> Value {
-    json!({
-        "x": parameter.unwrap_or("step"),
-        "y": "error (mm), or the first target's range (m)",
-    })
+    // The page names the y axis: the error where every step has one, else the first target.
+    json!({ "x": parameter.unwrap_or("step") })
 }
