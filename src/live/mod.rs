@@ -329,7 +329,8 @@ async fn compose(
         );
         let status = state["status"].as_str().unwrap_or("running");
         state.insert("final".into(), json!(status != "running"));
-        let text = Value::Object(state.clone()).to_string();
+        // Serialised in place (no copy of the state): the profile alone is thousands of values.
+        let text = serde_json::to_string(&state).unwrap_or_else(|_| "{}".into());
         shared.counters.frames.fetch_add(1, Ordering::Relaxed);
         frames.send_replace(Frame {
             seq,
