@@ -227,3 +227,15 @@ fn the_page_profile_keeps_the_peaks_and_at_most_its_points() {
     assert_eq!(v["truth_m"], json!([2.5]));
     assert_eq!(v["label"], "step 1 correlation_db");
 }
+
+#[test]
+fn the_page_names_nothing_to_fetch() {
+    // Its one "http" is the SVG namespace (a name, never requested); no src=, no href= but the
+    // empty data: icon, no @import, no url(.
+    let without_ns = PAGE.replace("http://www.w3.org/2000/svg", "");
+    assert!(!without_ns.contains("http"), "an address in the page");
+    assert!(!PAGE.contains("src="), "a fetched script or image");
+    assert_eq!(PAGE.matches("href=").count(), 1);
+    assert!(PAGE.contains("href=\"data:,\""));
+    assert!(!PAGE.contains("@import") && !PAGE.contains("url("));
+}
