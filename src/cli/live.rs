@@ -165,6 +165,11 @@ impl Observer for LiveObserver<'_> {
     fn step_starting(&mut self, step: &Step, of: usize, bench: &Bench) {
         self.inner.step_starting(step, of, bench);
         self.send(Event::Set("of", json!(of)));
+        // The swept parameter names the plot's x axis (a resume learns it here).
+        self.send(Event::Set(
+            "plot_axes",
+            campaign_axes(step.nominal.parameter.as_deref()),
+        ));
         self.send(Event::Set(
             "current",
             json!(format!(
