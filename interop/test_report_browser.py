@@ -79,7 +79,7 @@ def high(fd: int) -> int:
 class Browser:
     """Headless Chromium over the DevTools pipe (fd 3: commands in, fd 4: replies out)."""
 
-    def __init__(self, profile: Path):
+    def __init__(self, profile: Path, resolver_rules: str = "MAP * ~NOTFOUND"):
         to_chrome_r, self.to_chrome = os.pipe()
         self.from_chrome, from_chrome_w = os.pipe()
         # Above 4, so the shell's redirections onto 3 and 4 cannot overwrite one another.
@@ -94,7 +94,7 @@ class Browser:
             "--hide-scrollbars",
             "--remote-debugging-pipe",
             f"--user-data-dir={profile}",
-            "--host-resolver-rules=MAP * ~NOTFOUND",
+            f"--host-resolver-rules={resolver_rules}",
             f"--window-size={WINDOW[0]},{WINDOW[1]}",
             "about:blank",
         ]

@@ -47,6 +47,7 @@
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
+//! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |
 //! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
 //!
 //! # Examples
@@ -156,6 +157,7 @@ pub mod cli;
 pub mod driver;
 pub mod dsp;
 pub mod exit;
+pub(crate) mod live;
 pub mod measure;
 pub mod physics;
 pub mod rng;

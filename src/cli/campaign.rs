@@ -59,6 +59,8 @@ pub struct RunArgs {
     /// JSON Lines on stdout: one "step" event per step and a last "done" event.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub live: super::live::LiveArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -77,6 +79,8 @@ pub struct ResumeArgs {
     /// JSON Lines on stdout, as for `campaign run`.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub live: super::live::LiveArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -339,6 +343,11 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
     let catalog = bench.catalog()?;
     let plan = plan::plan(&spec, &bench)?;
+    if a.dry_run && a.live.live {
+        return Err(bad_input(
+            "--live: a dry run measures nothing to show; drop --dry-run or --live",
+        ));
+    }
     if a.dry_run {
         let prepared = run::prepare_all(&plan, &bench, &catalog).await?;
         let costs: Vec<WaveformCost> = prepared
@@ -412,6 +421,26 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         );
     }
     let mut printer = Printer { json: a.json };
+    let live = a.live.start(&interrupt, a.json).await?;
+    if let Some(l) = &live {
+        use crate::live::Event;
+        l.send(Event::Set("kind", json!("campaign")));
+        l.send(Event::Set(
+            "title",
+            json!(format!("campaign {}", plan.name)),
+        ));
+        l.send(Event::Set("of", json!(plan.steps.len())));
+        let parameter = plan.steps.first().and_then(|s| s.nominal.parameter.clone());
+        l.send(Event::Set(
+            "plot_axes",
+            super::live::campaign_axes(parameter.as_deref()),
+        ));
+    }
+    let stop = interrupt.clone();
+    let mut observer = super::live::LiveObserver {
+        inner: &mut printer,
+        live: live.clone(),
+    };
     let finished = run::start(
         NewRun {
             spec,
@@ -423,10 +452,34 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
             interrupt,
             input: None,
         },
-        &mut printer,
+        &mut observer,
     )
-    .await?;
-    conclude(finished, a.json)
+    .await;
+    live_end(live, finished, &stop, a.json).await
+}
+
+/// Tells the live view how the run ended, then concludes as without it.
+async fn live_end(
+    live: Option<crate::live::Live>,
+    finished: Result<Finished, CampaignError>,
+    interrupt: &Interrupt,
+    json: bool,
+) -> anyhow::Result<()> {
+    let status = match &finished {
+        Ok(f) => f.status.name(),
+        Err(_) if interrupt.received().is_some() => "interrupted",
+        Err(_) => "failed",
+    };
+    let error = finished.as_ref().err().map(|e| anyhow::anyhow!("{e}"));
+    let error = error.or_else(|| {
+        finished
+            .as_ref()
+            .ok()
+            .and_then(|f| f.stopped.as_ref())
+            .map(|e| anyhow::anyhow!("{e}"))
+    });
+    super::live::finish(live, status, error.as_ref()).await;
+    conclude(finished?, json)
 }
 
 async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
@@ -435,13 +488,28 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
     }
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
+    let live = a.live.start(&interrupt, a.json).await?;
+    if let Some(l) = &live {
+        use crate::live::Event;
+        l.send(Event::Set("kind", json!("campaign")));
+        l.send(Event::Set(
+            "title",
+            json!(format!("campaign resume {}", a.run_dir.display())),
+        ));
+        l.send(Event::Set("plot_axes", super::live::campaign_axes(None)));
+    }
+    let stop = interrupt.clone();
+    let mut observer = super::live::LiveObserver {
+        inner: &mut printer,
+        live: live.clone(),
+    };
     let finished = match run::resume(
         &a.run_dir,
         RfPermit::granted_by_user(),
         a.force,
         interrupt,
         None,
-        &mut printer,
+        &mut observer,
     )
     .await
     {
@@ -457,11 +525,12 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
                     json!({"event": "done", "dir": dir, "status": "complete", "nothing_to_do": true})
                 );
             }
+            super::live::finish(live, "complete", None).await;
             return Ok(());
         }
-        other => other?,
+        other => other,
     };
-    conclude(finished, a.json)
+    live_end(live, finished, &stop, a.json).await
 }
 
 async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {

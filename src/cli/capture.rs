@@ -83,6 +83,13 @@ pub struct Args {
     /// A response calibration (`radbench calibrate response`) instead of the bench file's.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
+    /// Capture N times, or `forever` (until Ctrl-C or the live page's Stop): each capture's
+    /// files in a folder of its own in --out (capture-0001, ...); the bench is connected and the
+    /// waveform uploaded once, RF is on only while capturing.
+    #[arg(long, value_name = "N|forever", value_parser = super::repeat::parse_repeat)]
+    pub repeat: Option<super::repeat::Repeat>,
+    #[command(flatten)]
+    pub live: super::live::LiveArgs,
 }
 
 /// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
@@ -253,6 +260,11 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
     }
+    if args.live.live && args.repeat.is_none() {
+        return Err(bad_input(
+            "--live: needs --repeat N|forever (one capture is over before a page could show it)",
+        ));
+    }
     let source = bench_source(
         args.bench.as_deref(),
         args.scene.as_deref(),
@@ -303,6 +315,19 @@ async fn measure_into(
         wait_s: args.wait,
         background: args.background.clone(),
     };
+    if let Some(repeat) = args.repeat {
+        return super::repeat::captures(
+            &args,
+            global,
+            repeat,
+            &bench,
+            &request,
+            &interrupt,
+            &out,
+            calibration.as_ref(),
+        )
+        .await;
+    }
     let (taken, mut prepared) = capture::take(
         &bench,
         &request,
@@ -366,7 +391,7 @@ async fn measure_into(
 }
 
 /// The text report of a measurement.
-fn report(m: &Measurement, out: &Path) -> String {
+pub(crate) fn report(m: &Measurement, out: &Path) -> String {
     use std::fmt::Write as _;
     let mut text = String::new();
     // Writing to a String cannot fail.

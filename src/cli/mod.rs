@@ -7,6 +7,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+pub(crate) mod align;
 pub(crate) mod args;
 pub(crate) mod benchmarks;
 pub(crate) mod benchmarks_io;
@@ -17,10 +18,12 @@ pub(crate) mod capture;
 pub(crate) mod exit_code;
 pub(crate) mod export;
 pub(crate) mod idn;
+pub(crate) mod live;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
 pub(crate) mod progress;
 pub(crate) mod recording;
+pub(crate) mod repeat;
 pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;
@@ -54,6 +57,9 @@ pub enum Command {
     Capture(Box<capture::Args>),
     /// Measurement campaigns: run a spec into a run folder, resume, new, report, thesis-lab.
     Campaign(campaign::Args),
+    /// Place a target: capture again and again, print the strongest target's range, its level
+    /// and its distance to --target-range (RF on only while capturing).
+    Align(Box<align::Args>),
     /// Process saved captures again: capture folders, SigMF recordings or .trc pairs, with the
     /// options they were captured with or any others, in parallel.
     Process(Box<process::Args>),
@@ -90,6 +96,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Idn(args) => idn::run(args, &global),
         Command::Capture(args) => capture::run(*args, &global),
         Command::Campaign(args) => campaign::run(args, &global),
+        Command::Align(args) => align::run(*args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
         Command::Process(args) => process::run(*args, &global),
         Command::Export(args) => export::run(args, &global),

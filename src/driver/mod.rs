@@ -58,6 +58,7 @@ pub mod lecroy;
 pub(crate) mod limits;
 pub(crate) mod m8195a;
 pub(crate) mod permit;
+pub(crate) mod rf_state;
 pub mod safe_state;
 pub(crate) mod scpi;
 pub mod scripted;

@@ -49,6 +49,8 @@ impl StopSignal {
 pub struct Interrupt {
     received: Arc<AtomicU8>,
     changed: watch::Receiver<u8>,
+    /// Raises a stop from inside the process (the live view's Stop button).
+    raise: Arc<watch::Sender<u8>>,
 }
 
 impl Interrupt {
@@ -61,6 +63,8 @@ impl Interrupt {
         let mut hup = signal(SignalKind::hangup())?;
         let received = Arc::new(AtomicU8::new(0));
         let (tx, rx) = watch::channel(0u8);
+        let tx = Arc::new(tx);
+        let raise = tx.clone();
         let flag = received.clone();
         tokio::spawn(async move {
             loop {
@@ -78,18 +82,28 @@ impl Interrupt {
         Ok(Interrupt {
             received,
             changed: rx,
+            raise,
         })
     }
 
     /// An interrupt that never fires (library callers without signals, tests).
     pub fn never() -> Interrupt {
         let (tx, rx) = watch::channel(0u8);
-        // Keep the sender alive forever so `wait` pends instead of ending.
-        std::mem::forget(tx);
+        // The interrupt holds its sender, so `wait` pends instead of ending.
         Interrupt {
             received: Arc::new(AtomicU8::new(0)),
             changed: rx,
+            raise: Arc::new(tx),
         }
+    }
+
+    /// Stops the measurement exactly as the signal `s` would (the live view's Stop button raises
+    /// SIGINT's stop: safe state first, the files finished, a campaign left resumable, exit 130).
+    pub(crate) fn raise(&self, s: StopSignal) {
+        let _ = self
+            .received
+            .compare_exchange(0, s.code(), Ordering::SeqCst, Ordering::SeqCst);
+        let _ = self.raise.send(s.code());
     }
 
     /// The first stop signal received so far.

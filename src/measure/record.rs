@@ -135,6 +135,20 @@ pub(crate) struct RawFiles {
     pub native: Vec<PathBuf>,
 }
 
+/// Writes every file of `m` into `out` (created when missing), `summary.json` last, as one write
+/// group (`radbench capture --repeat`: each capture of the series after its processing).
+pub(crate) fn write_capture(
+    out: &Path,
+    m: &Measurement,
+    provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    let (written, _) = crate::storage::atomic::write_group(|| {
+        let raw = write_raw(out, &m.taken, &m.processing.options, provenance)?;
+        write_processed(out, m, &raw, provenance)
+    })?;
+    Ok(written)
+}
+
 fn create_dir(out: &Path) -> Result<(), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
         path: out.to_path_buf(),

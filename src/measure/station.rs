@@ -447,6 +447,12 @@ impl Station {
             tx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
         let rx: Option<Shared<dyn RfFrontEnd>> =
             rx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
+        crate::driver::rf_state::connected("awg");
+        for (name, front) in [("tx", &tx), ("rx", &rx)] {
+            if front.is_some() {
+                crate::driver::rf_state::connected(name);
+            }
+        }
         let safe = SafeState::new(
             safe_state::Bench {
                 tx: tx.clone(),

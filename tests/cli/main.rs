@@ -23,6 +23,7 @@ mod exit_paths;
 mod export;
 mod fault_matrix;
 mod io_cli;
+mod live_exit_paths;
 mod process_cli;
 mod readers_cli;
 mod scenes;

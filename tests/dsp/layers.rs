@@ -44,6 +44,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "dsp", "exit", "measure", "physics", "rng", "storage", "waveform",
         ],
     ),
+    // The live view's server: handed everything it shows and does by the CLI.
+    ("live", &[]),
     (
         "campaign",
         &[

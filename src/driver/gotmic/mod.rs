@@ -480,6 +480,8 @@ impl Gotmic {
     /// of `before`, read a moment earlier).
     async fn switch_on(&mut self, code: u16, before: RfStatus) -> Result<RfStatus, DriverError> {
         let map = self.map.clone();
+        // On (for the live view) from the moment the enable is sent, until a switch-off took.
+        crate::driver::rf_state::set(&self.name, true);
         self.request(&commands::write(map.control.address, map.enable_mask))
             .await?;
         let status = self.read(&map.status).await?;
@@ -524,8 +526,9 @@ impl Gotmic {
     async fn disable_impl(&mut self) -> Result<(), DriverError> {
         let map = self.map.clone();
         let off = self.write_verified(&map.control, 0).await;
-        if let Err(e) = &off {
-            tracing::error!(instrument = %self.name, "switching RF off failed: {e}");
+        match &off {
+            Err(e) => tracing::error!(instrument = %self.name, "switching RF off failed: {e}"),
+            Ok(()) => crate::driver::rf_state::set(&self.name, false),
         }
         let att = self
             .write_verified(&map.attenuation, self.max_attenuation_code())

@@ -262,6 +262,8 @@ impl M8195a {
 
     async fn enable_impl(&mut self) -> Result<(), DriverError> {
         let (i, q, m) = self.signal_channels();
+        // On (for the live view) from the first output sent on, until a switch-off took.
+        crate::driver::rf_state::set(self.scpi.name(), true);
         for ch in [i, q, m] {
             self.scpi.send(&commands::output(ch, true)).await?;
         }
@@ -272,7 +274,9 @@ impl M8195a {
         for ch in 1..=self.limits.channels {
             self.scpi.send(&commands::output(ch, false)).await?;
         }
-        self.scpi.check("switching the outputs off").await
+        self.scpi.check("switching the outputs off").await?;
+        crate::driver::rf_state::set(self.scpi.name(), false);
+        Ok(())
     }
 
     /// Everything [`AwgApplied`] holds, read in one compound query (a campaign reads it before
@@ -339,6 +343,9 @@ impl M8195a {
                 tracing::error!(instrument = %self.scpi.name(), "safe state: output {ch} off failed: {e}");
                 first_error.get_or_insert(e);
             }
+        }
+        if first_error.is_none() {
+            crate::driver::rf_state::set(self.scpi.name(), false);
         }
         if let Err(e) = self.scpi.send(commands::ABORT).await {
             tracing::error!(instrument = %self.scpi.name(), "safe state: {} failed: {e}", commands::ABORT);
