@@ -8,7 +8,7 @@ use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
-use crate::measure::reprocess::{self, Record, Source, WaveformChoice};
+use crate::measure::reprocess::{self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice};
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_group_open, OpenGroup};
 use crate::storage::StorageError;
@@ -106,6 +106,17 @@ pub struct Args {
 }
 
 impl Args {
+    /// The waveform and the processing options asked for (`out`: where a response measured with
+    /// `--reference-range` is stored).
+    pub(super) fn settings(&self, out: &Path) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
+        let waveform = self.waveform()?;
+        let mut overrides = self.overrides();
+        overrides.correction = self.correction(out)?;
+        overrides.require_correction =
+            self.correction == Some(CorrectionArg::Rx) && self.calibration.is_none();
+        Ok((waveform, overrides))
+    }
+
     fn overrides(&self) -> ProcessOverrides {
         ProcessOverrides {
             algorithm: self.algorithm.map(Into::into),
@@ -225,24 +236,38 @@ thread_local! {
 /// Most pipelines a worker keeps (a batch rarely mixes more waveforms and options).
 const PIPELINES_PER_WORKER: usize = 4;
 
-fn process_one(
+/// One capture through the pipeline (one of this thread's pipelines when it was built for the
+/// same transmission and options): the capture read, the result and its files' hashes.
+pub(super) fn compute(
     source: &Source,
-    out: &Path,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
     background: Option<&Path>,
     trigger_offset: Option<f64>,
-) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
+) -> Result<(Loaded<Repetition>, Reprocessed, Vec<SourceFile>), anyhow::Error> {
     let loaded = reprocess::load_for_processing(source, trigger_offset)?;
-    let rate = loaded.repetitions[0].sample_rate_hz();
     let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
+    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
+    let r = on_cached_pipeline(&loaded, resolved)?;
+    let sources: Vec<SourceFile> = hashes
+        .into_iter()
+        .map(|(path, sha256)| SourceFile { path, sha256 })
+        .collect();
+    Ok((loaded, r, sources))
+}
+
+/// `loaded` processed as `resolved` says, on this thread's pipeline for it (built when missing).
+pub(super) fn on_cached_pipeline<R: Record>(
+    loaded: &Loaded<R>,
+    resolved: reprocess::Resolved,
+) -> Result<Reprocessed, anyhow::Error> {
+    let rate = loaded.repetitions[0].sample_rate_hz();
     let key = serde_json::to_string(&json!({
         "tx": resolved.tx.describe(),
         "options": resolved.options,
         "period": resolved.period,
         "rate": rate,
     }))?;
-    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
     let r = PIPELINES.with(|cell| -> Result<_, MeasureError> {
         let mut cache = cell.borrow_mut();
         let index = match cache.iter().position(|(k, _)| *k == key) {
@@ -255,12 +280,20 @@ fn process_one(
                 cache.len() - 1
             }
         };
-        reprocess::process(&mut cache[index].1, &loaded, resolved)
+        reprocess::process(&mut cache[index].1, loaded, resolved)
     })?;
-    let sources: Vec<SourceFile> = hashes
-        .into_iter()
-        .map(|(path, sha256)| SourceFile { path, sha256 })
-        .collect();
+    Ok(r)
+}
+
+fn process_one(
+    source: &Source,
+    out: &Path,
+    waveform: &WaveformChoice,
+    overrides: &ProcessOverrides,
+    background: Option<&Path>,
+    trigger_offset: Option<f64>,
+) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
+    let (loaded, r, sources) = compute(source, waveform, overrides, background, trigger_offset)?;
     // One write group: each file's writeback starts as it is written; the files are synced,
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
@@ -333,7 +366,7 @@ impl Finishers {
 }
 
 /// Folder names for the sources: their labels, made unique.
-fn folder_names(sources: &[&Source]) -> Vec<String> {
+pub(super) fn folder_names(sources: &[&Source]) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for s in sources {
         let base = s.label();
@@ -366,11 +399,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             )));
         }
     }
-    let waveform = args.waveform()?;
-    let mut overrides = args.overrides();
-    overrides.correction = args.correction(&out)?;
-    overrides.require_correction =
-        args.correction == Some(CorrectionArg::Rx) && args.calibration.is_none();
+    let (waveform, overrides) = args.settings(&out)?;
     let discovered = reprocess::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);
