@@ -64,7 +64,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 def _files(capture: Any) -> List[str]:
     """The file list of a capture given as a path, a pair of ``.trc`` paths or a Capture."""
     if isinstance(capture, Capture):
-        return list(capture.files)
+        # A SigMF recording is named by its .sigmf-meta; a .trc pair by both files.
+        sigmf = [f for f in capture.files if f.endswith(".sigmf-meta")]
+        return sigmf or list(capture.files)
     if isinstance(capture, (str, os.PathLike)):
         return [os.fspath(capture)]
     if isinstance(capture, (list, tuple)) and all(isinstance(c, (str, os.PathLike)) for c in capture):

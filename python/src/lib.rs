@@ -253,7 +253,8 @@ impl Lab {
             let runtime = tokio::runtime::Builder::new_multi_thread()
                 .worker_threads(2)
                 .thread_name("radbench-mock-lab")
-                .enable_all()
+                .enable_io()
+                .enable_time()
                 .build()
                 .map_err(|e| format!("cannot start the mock lab's runtime: {e}"))?;
             let lab = runtime.block_on(async {
