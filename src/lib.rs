@@ -47,7 +47,7 @@
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
-//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
+//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains; [`cli::in_memory`]: the commands' results in memory (the Python package's entry) |
 //!
 //! # Examples
 //!

@@ -122,7 +122,9 @@ fn captures(py: Python<'_>, inputs: Vec<PathBuf>) -> PyResult<Vec<(String, Vec<P
 /// A saved capture: every repetition raw (volts, capture rate) and decimated, its metadata.
 #[pyfunction]
 fn read_capture<'py>(py: Python<'py>, files: Vec<PathBuf>) -> PyResult<Bound<'py, PyDict>> {
-    let c = py.detach(|| in_memory::read_capture(&files)).map_err(to_py)?;
+    let c = py
+        .detach(|| in_memory::read_capture(&files))
+        .map_err(to_py)?;
     let d = PyDict::new(py);
     d.set_item("files", c.files)?;
     let raw = PyList::empty(py);
@@ -235,8 +237,9 @@ impl Lab {
         let bad = |m: String| to_py(radbench::exit::bad_input(m));
         let scene = match (scene_toml, scene_json) {
             (Some(t), _) => Scene::from_toml(&t, origin).map_err(|e| bad(e.to_string()))?,
-            (None, Some(j)) => serde_json::from_str::<Scene>(&j)
-                .map_err(|e| bad(format!("scene: {e}")))?,
+            (None, Some(j)) => {
+                serde_json::from_str::<Scene>(&j).map_err(|e| bad(format!("scene: {e}")))?
+            }
             (None, None) => Scene::default(),
         };
         let remote = match scope_remote {

@@ -34,8 +34,8 @@ fn parse_error(e: &clap::Error) -> anyhow::Error {
     bad_input(line.to_string())
 }
 
-/// One capture of the inputs: its files (a `.sigmf-meta`, or the I and Q `.trc`) and the folder
-/// name `radbench process` gives its results.
+/// One capture of the inputs: what names it (its `.sigmf-meta`, or its I and Q `.trc`) and the
+/// folder name `radbench process` gives its results.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CaptureInput {
     pub name: String,
@@ -56,7 +56,10 @@ pub fn captures(inputs: &[PathBuf]) -> anyhow::Result<Vec<CaptureInput>> {
         .zip(names)
         .map(|(s, name)| CaptureInput {
             name,
-            files: s.files().into_iter().map(Path::to_path_buf).collect(),
+            files: match s {
+                Source::Sigmf { meta, .. } => vec![meta.clone()],
+                Source::TrcPair { i, q } => vec![i.clone(), q.clone()],
+            },
         })
         .collect())
 }
@@ -153,7 +156,9 @@ impl ProcessRequest {
     /// processed as a capture radbench did not make: the waveform must be given (`--waveform`).
     pub fn samples(&self, raw: RawIq) -> anyhow::Result<InMemory> {
         if raw.samples.is_empty() {
-            return Err(bad_input("samples: an empty record; give at least one repetition"));
+            return Err(bad_input(
+                "samples: an empty record; give at least one repetition",
+            ));
         }
         if !(raw.sample_rate_hz.is_finite() && raw.sample_rate_hz > 0.0) {
             return Err(bad_input(format!(

@@ -8,7 +8,9 @@ use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
-use crate::measure::reprocess::{self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice};
+use crate::measure::reprocess::{
+    self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
+};
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_group_open, OpenGroup};
 use crate::storage::StorageError;
@@ -108,7 +110,10 @@ pub struct Args {
 impl Args {
     /// The waveform and the processing options asked for (`out`: where a response measured with
     /// `--reference-range` is stored).
-    pub(super) fn settings(&self, out: &Path) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
+    pub(super) fn settings(
+        &self,
+        out: &Path,
+    ) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
         let waveform = self.waveform()?;
         let mut overrides = self.overrides();
         overrides.correction = self.correction(out)?;
