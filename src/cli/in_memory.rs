@@ -22,16 +22,20 @@ use clap::Parser;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
 
-/// The first line of a command-line parse error, with the option named as the command line
-/// names it.
+/// A command-line parse error on one line: what is wrong and what is allowed (clap's possible
+/// values and tips), without its usage and `--help` lines.
 fn parse_error(e: &clap::Error) -> anyhow::Error {
     let text = e.to_string();
-    let line = text
+    let parts: Vec<&str> = text
         .lines()
-        .find(|l| !l.trim().is_empty())
-        .unwrap_or("invalid options")
-        .trim_start_matches("error: ");
-    bad_input(line.to_string())
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
+        .map(|l| l.trim_start_matches("error: "))
+        .collect();
+    if parts.is_empty() {
+        return bad_input("invalid options");
+    }
+    bad_input(parts.join("; "))
 }
 
 /// One capture of the inputs: what names it (its `.sigmf-meta`, or its I and Q `.trc`) and the
