@@ -161,3 +161,24 @@ def test_mock_lab_leaves_no_thread_socket_or_pty_behind(tmp_path):
     assert _threads() == threads
     after = _fds()
     assert after == fds, {k: v for k, v in after.items() if fds.get(k) != v}
+
+
+def test_bench_file_of_mock_lab_serves_radbench_capture(tmp_path):
+    import json
+    import subprocess
+
+    from conftest import radbench_bin
+
+    with radbench.MockLab() as lab:
+        lab.move(0, 1.7)
+        bench = tmp_path / "bench.toml"
+        lab.bench_toml(bench)
+        done = subprocess.run([radbench_bin(), "capture", "--bench", str(bench), "--allow-rf", "--json",
+                               "--out", str(tmp_path / "cap")], capture_output=True, text=True,
+                              timeout=150, stdin=subprocess.DEVNULL)
+        assert done.returncode == 0, done.stderr
+        summary = json.loads(done.stdout)
+        assert summary["scene"]["targets"][0]["range_m"] == 1.7
+        # No [calibration] in the bench file: ranges include the scene's system delay.
+        expected = 1.7 + 299_792_458.0 * lab.scene["system_delay_s"] / 2
+        assert any(abs(t["range_m"] - expected) < 0.01 for t in summary["targets"]), summary["targets"]
