@@ -48,7 +48,7 @@
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
 //! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |
-//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains |
+//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains; [`cli::in_memory`]: the commands' results in memory (the Python package's entry) |
 //!
 //! # Examples
 //!

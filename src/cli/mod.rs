@@ -18,6 +18,7 @@ pub(crate) mod capture;
 pub(crate) mod exit_code;
 pub(crate) mod export;
 pub(crate) mod idn;
+pub mod in_memory;
 pub(crate) mod live;
 pub(crate) mod mock_lab;
 pub(crate) mod process;

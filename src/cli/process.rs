@@ -9,7 +9,9 @@ use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
-use crate::measure::reprocess::{self, Record, Source, WaveformChoice};
+use crate::measure::reprocess::{
+    self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
+};
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_group_open, OpenGroup};
 use crate::storage::StorageError;
@@ -108,6 +110,20 @@ pub struct Args {
 }
 
 impl Args {
+    /// The waveform and the processing options asked for (`out`: where a response measured with
+    /// `--reference-range` is stored).
+    pub(super) fn settings(
+        &self,
+        out: &Path,
+    ) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
+        let waveform = self.waveform()?;
+        let mut overrides = self.overrides();
+        overrides.correction = self.correction(out)?;
+        overrides.require_correction =
+            self.correction == Some(CorrectionArg::Rx) && self.calibration.is_none();
+        Ok((waveform, overrides))
+    }
+
     fn overrides(&self) -> ProcessOverrides {
         ProcessOverrides {
             algorithm: self.algorithm.map(Into::into),
@@ -231,7 +247,7 @@ const PIPELINES_PER_WORKER: usize = 4;
 /// folder of each capture's folder, where it has a manifest radbench reads. A capture whose data
 /// matches its recorded hash is not hashed a second time against the recording's own SHA-512
 /// (see `read_sigmf_stored`). A manifest that cannot be read only means no such shortcut.
-fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
+pub(super) fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
     let runs: BTreeSet<&Path> = sources
         .iter()
         .filter_map(|s| match s {
@@ -252,29 +268,50 @@ fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
     hashes
 }
 
-fn process_one(
+/// The recorded SHA-256 of `source`'s data, if its run recorded one.
+pub(super) fn recorded_for<'a>(
     source: &Source,
-    recorded: &HashMap<PathBuf, String>,
-    out: &Path,
+    recorded: &'a HashMap<PathBuf, String>,
+) -> Option<&'a str> {
+    match source {
+        Source::Sigmf { data, .. } => recorded.get(data).map(String::as_str),
+        Source::TrcPair { .. } => None,
+    }
+}
+
+/// One capture through the pipeline (one of this thread's pipelines when it was built for the
+/// same transmission and options): the capture read, the result and its files' hashes.
+pub(super) fn compute(
+    source: &Source,
+    recorded_sha256: Option<&str>,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
     background: Option<&Path>,
     trigger_offset: Option<f64>,
-) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
-    let recorded_sha256 = match source {
-        Source::Sigmf { data, .. } => recorded.get(data).map(String::as_str),
-        Source::TrcPair { .. } => None,
-    };
+) -> Result<(Loaded<Repetition>, Reprocessed, Vec<SourceFile>), anyhow::Error> {
     let loaded = reprocess::load_for_processing(source, trigger_offset, recorded_sha256)?;
-    let rate = loaded.repetitions[0].sample_rate_hz();
     let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
+    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
+    let r = on_cached_pipeline(&loaded, resolved)?;
+    let sources: Vec<SourceFile> = hashes
+        .into_iter()
+        .map(|(path, sha256)| SourceFile { path, sha256 })
+        .collect();
+    Ok((loaded, r, sources))
+}
+
+/// `loaded` processed as `resolved` says, on this thread's pipeline for it (built when missing).
+pub(super) fn on_cached_pipeline<R: Record>(
+    loaded: &Loaded<R>,
+    resolved: reprocess::Resolved,
+) -> Result<Reprocessed, anyhow::Error> {
+    let rate = loaded.repetitions[0].sample_rate_hz();
     let key = serde_json::to_string(&json!({
         "tx": resolved.tx.describe(),
         "options": resolved.options,
         "period": resolved.period,
         "rate": rate,
     }))?;
-    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
     let r = PIPELINES.with(|cell| -> Result<_, MeasureError> {
         let mut cache = cell.borrow_mut();
         let index = match cache.iter().position(|(k, _)| *k == key) {
@@ -287,12 +324,28 @@ fn process_one(
                 cache.len() - 1
             }
         };
-        reprocess::process(&mut cache[index].1, &loaded, resolved)
+        reprocess::process(&mut cache[index].1, loaded, resolved)
     })?;
-    let sources: Vec<SourceFile> = hashes
-        .into_iter()
-        .map(|(path, sha256)| SourceFile { path, sha256 })
-        .collect();
+    Ok(r)
+}
+
+fn process_one(
+    source: &Source,
+    recorded: &HashMap<PathBuf, String>,
+    out: &Path,
+    waveform: &WaveformChoice,
+    overrides: &ProcessOverrides,
+    background: Option<&Path>,
+    trigger_offset: Option<f64>,
+) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
+    let (loaded, r, sources) = compute(
+        source,
+        recorded_for(source, recorded),
+        waveform,
+        overrides,
+        background,
+        trigger_offset,
+    )?;
     // One write group: each file's writeback starts as it is written; the files are synced,
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
@@ -365,7 +418,7 @@ impl Finishers {
 }
 
 /// Folder names for the sources: their labels, made unique.
-fn folder_names(sources: &[&Source]) -> Vec<String> {
+pub(super) fn folder_names(sources: &[&Source]) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for s in sources {
         let base = s.label();
@@ -398,11 +451,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             )));
         }
     }
-    let waveform = args.waveform()?;
-    let mut overrides = args.overrides();
-    overrides.correction = args.correction(&out)?;
-    overrides.require_correction =
-        args.correction == Some(CorrectionArg::Rx) && args.calibration.is_none();
+    let (waveform, overrides) = args.settings(&out)?;
     let discovered = reprocess::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);

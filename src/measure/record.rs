@@ -396,8 +396,25 @@ pub(crate) fn write_reprocessed<R>(
         reason: e.to_string(),
     })?;
     write_atomic(&files.manifest, text.as_bytes())?;
+    let mut summary = reprocessed_summary(sources, loaded, r);
+    if let Value::Object(map) = &mut summary {
+        map.insert("files".into(), json!(files));
+    }
+    write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
+    Ok((files, summary))
+}
+
+/// The `summary.json` of a re-processed capture but its `files` (what `radbench process` writes
+/// and the Python package returns).
+pub(crate) fn reprocessed_summary<R>(
+    sources: &[SourceFile],
+    loaded: &super::reprocess::Loaded<R>,
+    r: &super::reprocess::Reprocessed,
+) -> Value {
+    let o = &r.resolved.options;
+    let tx = &r.resolved.tx;
     let p = &r.processed;
-    let summary = extended(
+    extended(
         result_json(tx, p, o),
         json!({
             "repetitions": loaded.repetitions.len(),
@@ -412,9 +429,6 @@ pub(crate) fn write_reprocessed<R>(
             "scene": loaded.ground_truth(),
             "transmission": tx.describe(),
             "sources": sources,
-            "files": files,
         }),
-    );
-    write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
-    Ok((files, summary))
+    )
 }

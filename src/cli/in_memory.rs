@@ -1,0 +1,307 @@
+//! radbench's commands with their results in memory instead of files: what radbench's Python
+//! package (`python/`) calls, so that Python gets the command line's own option parsing (names,
+//! defaults, checks and messages), readers and pipeline, not a second implementation.
+//!
+//! - [`ProcessRequest`]: `radbench process`'s options, then one capture (or samples) processed
+//!   as `radbench process` processes it, its `summary.json` returned with the arrays behind it;
+//! - [`captures`]: the captures `radbench process INPUT...` would process, with its folder names;
+//! - [`read_capture`]: a capture's repetitions in volts, decimated and aligned, its metadata;
+//! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes.
+//!
+//! Errors are the command line's (`crate::exit::render` gives its text, `super::classify` its
+//! exit class).
+
+use super::process::{self, Args};
+use super::{Cli, Command};
+use crate::exit::bad_input;
+use crate::measure::options::ProcessOverrides;
+use crate::measure::reprocess::{self, Loaded, Source, WaveformChoice};
+use crate::measure::{Aligned, Dac, MeasureError, ProcessOptions, Processed, RawIq, Transmission};
+use crate::waveform::spec::WaveformKind;
+use clap::Parser;
+use serde_json::{Map, Value};
+use std::path::{Path, PathBuf};
+
+/// A command-line parse error on one line: what is wrong and what is allowed (clap's possible
+/// values and tips), without its usage and `--help` lines.
+fn parse_error(e: &clap::Error) -> anyhow::Error {
+    let text = e.to_string();
+    let parts: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
+        .map(|l| l.trim_start_matches("error: "))
+        .collect();
+    if parts.is_empty() {
+        return bad_input("invalid options");
+    }
+    bad_input(parts.join("; "))
+}
+
+/// One capture of the inputs: what names it (its `.sigmf-meta`, or its I and Q `.trc`) and the
+/// folder name `radbench process` gives its results.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaptureInput {
+    pub name: String,
+    pub files: Vec<PathBuf>,
+}
+
+/// The captures `radbench process INPUT...` would process, in its order (a run folder gives
+/// every step's); an input that is not a capture is an error naming it (bad input).
+pub fn captures(inputs: &[PathBuf]) -> anyhow::Result<Vec<CaptureInput>> {
+    let mut sources = Vec::new();
+    for found in reprocess::discover(inputs) {
+        sources.push(found.map_err(|e| bad_input(e.to_string()))?);
+    }
+    let refs: Vec<&Source> = sources.iter().collect();
+    let names = process::folder_names(&refs);
+    Ok(sources
+        .iter()
+        .zip(names)
+        .map(|(s, name)| CaptureInput {
+            name,
+            files: match s {
+                Source::Sigmf { meta, .. } => vec![meta.clone()],
+                Source::TrcPair { i, q } => vec![i.clone(), q.clone()],
+            },
+        })
+        .collect())
+}
+
+/// The one capture `files` name (a capture folder, a `.sigmf-meta`, or an I and a Q `.trc`).
+fn one_capture(files: &[PathBuf]) -> anyhow::Result<Source> {
+    let mut found = reprocess::discover(files);
+    match found.len() {
+        1 => found.remove(0).map_err(|e| bad_input(e.to_string())),
+        0 => Err(bad_input("input: no capture given")),
+        n => Err(bad_input(format!(
+            "input: {} names {n} captures (a run folder?); give one capture (`captures` lists \
+             them, `read_run` reads a run)",
+            files
+                .iter()
+                .map(|f| f.display().to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
+        ))),
+    }
+}
+
+/// `radbench process`'s options, parsed and checked as its command line does.
+#[derive(Debug)]
+pub struct ProcessRequest {
+    args: Box<Args>,
+    waveform: WaveformChoice,
+    overrides: ProcessOverrides,
+}
+
+/// One capture (or record of samples) processed: `summary.json` as `radbench process` writes it
+/// (but `files`), the arrays behind it and every option used.
+#[derive(Debug, Clone)]
+pub struct InMemory {
+    pub summary: Value,
+    pub processed: Processed,
+    pub options: ProcessOptions,
+}
+
+impl ProcessRequest {
+    /// `options` as written after `radbench process INPUT` (e.g. `["--algorithm", "music",
+    /// "--m", "32"]`). What writes files or steers the command (`--out`, `--jobs`, `--json`,
+    /// `--reference-range`) is refused.
+    pub fn parse(options: &[String]) -> anyhow::Result<ProcessRequest> {
+        let argv = ["radbench", "process", "-"]
+            .into_iter()
+            .map(String::from)
+            .chain(options.iter().cloned());
+        let cli = Cli::try_parse_from(argv).map_err(|e| parse_error(&e))?;
+        let Command::Process(args) = cli.command else {
+            return Err(bad_input("options: not options of `radbench process`"));
+        };
+        let refused = [
+            ("--out", args.out.is_some()),
+            ("--jobs", args.jobs.is_some()),
+            ("--json", args.json),
+            ("--reference-range", args.reference_range.is_some()),
+        ];
+        if let Some((name, _)) = refused.iter().find(|(_, given)| *given) {
+            return Err(bad_input(format!(
+                "{name}: not an option of processing in memory (nothing is written; a response \
+                 is measured with `radbench process --calibration CAPTURE --reference-range M`, \
+                 whose file is then given as --calibration)"
+            )));
+        }
+        // Nothing is written: --reference-range, the one option that writes, is refused above.
+        let (waveform, overrides) = args.settings(Path::new("."))?;
+        Ok(ProcessRequest {
+            args,
+            waveform,
+            overrides,
+        })
+    }
+
+    /// The capture `files` name, processed as `radbench process` processes it.
+    pub fn capture(&self, files: &[PathBuf]) -> anyhow::Result<InMemory> {
+        let source = one_capture(files)?;
+        // A capture of a run folder is checked against the hash its run recorded, as
+        // `radbench process` checks it.
+        let recorded = process::recorded_data_hashes(&[&source]);
+        let (loaded, r, sources) = process::compute(
+            &source,
+            process::recorded_for(&source, &recorded),
+            &self.waveform,
+            &self.overrides,
+            self.args.background.as_deref(),
+            self.args.trigger_offset,
+        )?;
+        let summary = crate::measure::record::reprocessed_summary(&sources, &loaded, &r);
+        Ok(InMemory {
+            summary,
+            options: r.resolved.options,
+            processed: r.processed,
+        })
+    }
+
+    /// A record of samples (volts, one repetition starting `first_point_s` after the marker)
+    /// processed as a capture radbench did not make: the waveform must be given (`--waveform`).
+    pub fn samples(&self, raw: RawIq) -> anyhow::Result<InMemory> {
+        if raw.samples.is_empty() {
+            return Err(bad_input(
+                "samples: an empty record; give at least one repetition",
+            ));
+        }
+        if !(raw.sample_rate_hz.is_finite() && raw.sample_rate_hz > 0.0) {
+            return Err(bad_input(format!(
+                "capture_rate: {} Hz; give the samples' rate in Hz, a positive number",
+                raw.sample_rate_hz
+            )));
+        }
+        let loaded = Loaded {
+            repetitions: vec![RawIq {
+                first_point_s: self.args.trigger_offset.unwrap_or(raw.first_point_s),
+                ..raw
+            }],
+            clipping: Vec::new(),
+            radbench: Map::new(),
+            sha256: Vec::new(),
+        };
+        let resolved = reprocess::resolve(
+            &loaded,
+            &self.waveform,
+            &self.overrides,
+            self.args.background.as_deref(),
+        )?;
+        let r = process::on_cached_pipeline(&loaded, resolved)?;
+        let summary = crate::measure::record::reprocessed_summary(&[], &loaded, &r);
+        Ok(InMemory {
+            summary,
+            options: r.resolved.options,
+            processed: r.processed,
+        })
+    }
+}
+
+/// A saved capture read back.
+#[derive(Debug, Clone)]
+pub struct CaptureData {
+    /// The files read (a `.sigmf-meta` and its data, or the I and Q `.trc`).
+    pub files: Vec<PathBuf>,
+    /// Each repetition in volts at the capture rate, from the first sample after the marker.
+    pub raw: Vec<RawIq>,
+    /// Each repetition decimated to the processing rate and aligned to the marker as the pipeline
+    /// aligns it (volts, before background and correction); empty when the capture does not say
+    /// its waveform.
+    pub decimated: Vec<Aligned>,
+    /// The processing rate of `decimated` (`None` with it empty).
+    pub processing_rate_hz: Option<f64>,
+    /// Why `decimated` is empty, if it is.
+    pub not_decimated: Option<String>,
+    /// The `radbench:` metadata (empty for a capture radbench did not make).
+    pub radbench: Map<String, Value>,
+    /// The simulated scene of a simulated bench's capture (ground truth).
+    pub scene: Option<Value>,
+}
+
+/// The capture `files` name (a capture folder, a `.sigmf-meta`, or an I and a Q `.trc`).
+pub fn read_capture(files: &[PathBuf]) -> anyhow::Result<CaptureData> {
+    let source = one_capture(files)?;
+    let loaded = reprocess::load(&source, None)?;
+    let rate = loaded
+        .repetitions
+        .first()
+        .map(|r| r.sample_rate_hz)
+        .ok_or_else(|| bad_input("input: a capture without a repetition"))?;
+    let overrides = ProcessOverrides::default();
+    let (decimated, processing_rate_hz, not_decimated) =
+        match reprocess::resolve(&loaded, &WaveformChoice::default(), &overrides, None) {
+            Ok(resolved) => {
+                let fs = resolved.tx.sample_rate_hz();
+                let mut pipeline = reprocess::pipeline(&resolved, rate)?;
+                let aligned = loaded
+                    .repetitions
+                    .iter()
+                    .map(|rep| pipeline.align(rep))
+                    .collect::<Result<Vec<_>, _>>()?;
+                (aligned, Some(fs), None)
+            }
+            Err(e @ MeasureError::NeedsWaveform) => (Vec::new(), None, Some(e.to_string())),
+            Err(e) => return Err(e.into()),
+        };
+    Ok(CaptureData {
+        files: source.files().into_iter().map(Path::to_path_buf).collect(),
+        scene: loaded.ground_truth().cloned(),
+        raw: loaded.repetitions,
+        decimated,
+        processing_rate_hz,
+        not_decimated,
+        radbench: loaded.radbench,
+    })
+}
+
+/// Waveform options of `radbench capture` that [`transmission`] takes.
+const WAVEFORM_OPTIONS: [&str; 11] = [
+    "--bandwidth",
+    "--sample-rate",
+    "--pulse-us",
+    "--bits-per-pulse",
+    "--band",
+    "--subcarriers",
+    "--oversampling",
+    "--cp-fraction",
+    "--symbols",
+    "--payload",
+    "--seed",
+];
+
+/// The transmission `radbench capture --waveform KIND OPTIONS` makes (its parameters, defaults
+/// and checks): the complex baseband, the AWG's 8-bit codes and marker, the bits. `options` are
+/// the waveform's (`--bandwidth`, ..., `--payload`, `--seed`).
+pub fn transmission(kind: WaveformKind, options: &[String]) -> anyhow::Result<Transmission> {
+    for o in options.iter().filter(|o| o.starts_with("--")) {
+        let name = o.split('=').next().unwrap_or(o);
+        if !WAVEFORM_OPTIONS.contains(&name) {
+            return Err(bad_input(format!(
+                "{name}: not a waveform option; the options are {}",
+                WAVEFORM_OPTIONS.join(", ")
+            )));
+        }
+    }
+    let name = match kind {
+        WaveformKind::MskLfm => "msk-lfm",
+        WaveformKind::Ofdm => "ofdm",
+    };
+    let argv = ["radbench", "capture", "--waveform", name]
+        .into_iter()
+        .map(String::from)
+        .chain(options.iter().cloned());
+    let cli = Cli::try_parse_from(argv).map_err(|e| parse_error(&e))?;
+    let Command::Capture(args) = cli.command else {
+        return Err(bad_input("options: not options of `radbench capture`"));
+    };
+    let spec = args.waveform_args.spec(kind)?;
+    let payload = args.payload.as_ref().map(|p| p.as_bytes().to_vec());
+    Ok(Transmission::new(
+        &spec,
+        payload.as_deref(),
+        args.seed,
+        Dac::default(),
+    )?)
+}
