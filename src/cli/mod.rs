@@ -14,6 +14,7 @@ pub(crate) mod calibrate;
 pub(crate) mod calibrate_response;
 pub(crate) mod campaign;
 pub(crate) mod capture;
+pub(crate) mod doctor;
 pub(crate) mod exit_code;
 pub(crate) mod export;
 pub(crate) mod idn;
@@ -61,6 +62,10 @@ pub enum Command {
     /// I/Q in volts, complex range profiles and range axis, detections, transmitted reference
     /// and bits, options (docs/export.md).
     Export(export::Args),
+    /// Check a bench without radiating: every instrument reachable and identified, the scope's
+    /// remote interface, the Gotmic lines, the marker at the scope's trigger (Tx off), the
+    /// timebases and the calibrations; a checklist with what to fix. Exit 0 only when all hold.
+    Doctor(doctor::Args),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -91,6 +96,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Capture(args) => capture::run(*args, &global),
         Command::Campaign(args) => campaign::run(args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
+        Command::Doctor(args) => doctor::run(args, &global),
         Command::Process(args) => process::run(*args, &global),
         Command::Export(args) => export::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),

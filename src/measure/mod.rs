@@ -9,6 +9,7 @@
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
+//! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
@@ -27,6 +28,7 @@ pub(crate) mod calibration;
 pub mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
+pub(crate) mod doctor;
 pub(crate) mod export;
 pub(crate) mod figure;
 pub mod interrupt;
