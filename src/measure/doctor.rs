@@ -173,8 +173,7 @@ async fn bounded<T>(
 }
 
 fn wrong_instrument(err: &str) -> bool {
-    err.contains("`*IDN?`") && err.contains("which is not")
-        || err.contains("ID register")
+    err.contains("`*IDN?`") && err.contains("which is not") || err.contains("ID register")
 }
 
 /// Reachability and identity of a network instrument from the probe and the driver's open.
@@ -321,20 +320,18 @@ pub(crate) async fn run(
     };
     let awg_res = parse(&file.awg.resource, "awg")?;
     let scope_res = parse(&file.scope.resource, "scope")?;
-    let fronts: Vec<(&'static str, Resource, InstrumentModel)> = [
-        ("tx", &file.tx, "tx"),
-        ("rx", &file.rx, "rx"),
-    ]
-    .into_iter()
-    .filter_map(|(name, entry, section)| entry.as_ref().map(|e| (name, e, section)))
-    .map(|(name, e, section)| {
-        Ok((
-            name,
-            parse(&e.resource, section)?,
-            catalog.get(&e.model)?.clone(),
-        ))
-    })
-    .collect::<Result<_, MeasureError>>()?;
+    let fronts: Vec<(&'static str, Resource, InstrumentModel)> =
+        [("tx", &file.tx, "tx"), ("rx", &file.rx, "rx")]
+            .into_iter()
+            .filter_map(|(name, entry, section)| entry.as_ref().map(|e| (name, e, section)))
+            .map(|(name, e, section)| {
+                Ok((
+                    name,
+                    parse(&e.resource, section)?,
+                    catalog.get(&e.model)?.clone(),
+                ))
+            })
+            .collect::<Result<_, MeasureError>>()?;
 
     // The AWG and the scope: the listener first, then the driver's open (identity checked).
     let (awg_probe, scope_probe) = tokio::join!(tcp_probe(&awg_res), tcp_probe(&scope_res));
@@ -407,7 +404,10 @@ pub(crate) async fn run(
                 let that = interface_name(r.protocol());
                 list.pass(
                     "scope.reachable",
-                    format!("the scope answers at {r} ({idn}), not at {}", file.scope.resource),
+                    format!(
+                        "the scope answers at {r} ({idn}), not at {}",
+                        file.scope.resource
+                    ),
                 );
                 list.skip("scope.identity", "checked on the other interface only");
                 list.fail(
@@ -583,7 +583,9 @@ pub(crate) async fn run(
                         format!("check the LO input{range}"),
                     );
                 }
-                let limit = limits.as_ref().map_or(f64::INFINITY, |l| l.over_temperature_c);
+                let limit = limits
+                    .as_ref()
+                    .map_or(f64::INFINITY, |l| l.over_temperature_c);
                 let t = s.temperature_c;
                 if s.over_temperature || t > limit {
                     list.fail(
@@ -636,17 +638,17 @@ pub(crate) async fn run(
             let scope_ref = tokio::time::timeout(OPEN_TIMEOUT, s.reference_clock()).await;
             match (awg_ref, scope_ref) {
                 (Ok(Ok(applied)), Ok(Ok(sref))) => {
-                    let a_ext = applied.reference_source.to_ascii_uppercase().starts_with("EXT");
+                    let a_ext = applied
+                        .reference_source
+                        .to_ascii_uppercase()
+                        .starts_with("EXT");
                     let s_ext = sref.to_ascii_uppercase().starts_with("EXT");
                     let detail = format!(
                         "AWG reference {}, scope reference {sref}",
                         applied.reference_source
                     );
                     if a_ext && s_ext {
-                        list.pass(
-                            "timebases",
-                            format!("shared external reference ({detail})"),
-                        );
+                        list.pass("timebases", format!("shared external reference ({detail})"));
                     } else {
                         list.warn(
                             "timebases",
@@ -780,8 +782,7 @@ async fn marker_check(
                 })
             })
     };
-    let (outcome, report) =
-        crate::driver::run_guarded(&safe, bounded_work, interrupt.wait()).await;
+    let (outcome, report) = crate::driver::run_guarded(&safe, bounded_work, interrupt.wait()).await;
     let safe_ok = report.is_safe();
     match outcome {
         Outcome::Interrupted => {
@@ -889,7 +890,10 @@ fn calibration_checks(
     let Some(cal) = &bench.file.calibration else {
         list.fail(
             "calibration.delay",
-            format!("{} has no [calibration]: ranges would include the fixed system delay", path.display()),
+            format!(
+                "{} has no [calibration]: ranges would include the fixed system delay",
+                path.display()
+            ),
             format!(
                 "put a pillar at a known range and run `radbench calibrate --reference-range \
                  METRES --bench {} --allow-rf`",
@@ -968,9 +972,7 @@ fn calibration_checks(
                     "measure it again on this bench: `radbench calibrate response \
                      --reference-range R --bench FILE --allow-rf`",
                 );
-            } else if age_days(&c.header.measured_at)
-                .is_ok_and(|d| d > CALIBRATION_MAX_AGE_DAYS)
-            {
+            } else if age_days(&c.header.measured_at).is_ok_and(|d| d > CALIBRATION_MAX_AGE_DAYS) {
                 list.warn(
                     "calibration.response",
                     format!("{} ({age})", response.display()),

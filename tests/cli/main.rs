@@ -19,6 +19,7 @@ mod cli_safety;
 mod clipping_capture;
 mod detect_capture;
 mod detect_corrected;
+mod doctor;
 mod exit_paths;
 mod export;
 mod fault_matrix;
