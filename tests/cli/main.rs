@@ -24,6 +24,7 @@ mod exit_paths;
 mod export;
 mod fault_matrix;
 mod io_cli;
+mod link_quality;
 mod process_cli;
 mod readers_cli;
 mod scenes;
