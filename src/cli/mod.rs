@@ -26,6 +26,7 @@ pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;
 pub(crate) mod trc;
+pub(crate) mod waveform;
 
 pub use exit_code::classify;
 
@@ -75,6 +76,9 @@ pub enum Command {
     Scpi(scpi::Args),
     /// Show the header and a summary of LeCroy .trc files (every segment of a sequence).
     Trc(trc::Args),
+    /// Waveform analysis: the delay-Doppler ambiguity function as uploaded, a capture's
+    /// cross-ambiguity.
+    Waveform(waveform::Args),
     /// Show a SigMF recording: datatype, rate, samples, statistics, radbench's metadata.
     Recording(recording::Args),
 }
@@ -103,6 +107,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Scpi(args) => scpi::run(args, &global),
         Command::Trc(args) => trc::run(args, &global),
         Command::Recording(args) => recording::run(args, &global),
+        Command::Waveform(args) => waveform::run(args, &global),
     }
 }
 

@@ -23,6 +23,7 @@ impl Classify for DspError {
     }
 }
 
+pub(crate) mod ambiguity;
 pub mod correlate;
 pub mod decimate;
 pub mod detect;

@@ -3,6 +3,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | `ambiguity` | a waveform's ambiguity function as uploaded, a capture's cross-ambiguity |
 //! | `bench_file` | the bench file: instruments, resources, calibration |
 //! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
@@ -22,6 +23,7 @@
 //! | `calibration` | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
+pub(crate) mod ambiguity;
 pub mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;

@@ -8,6 +8,7 @@ mod io_support;
 #[path = "../process_support/mod.rs"]
 mod process_support;
 
+mod ambiguity;
 mod bad_input;
 mod calibrate_repeat;
 mod calibrate_response;

@@ -1,6 +1,6 @@
 //! Every step's range profile in one plot: a waterfall against the steps (one row per step,
 //! labelled with its swept value), each profile drawn from its peak down to 40 dB under it,
-//! the step's nominal target ranges marked on its row. It reads for any campaign: the pillar
+//! the step's nominal target ranges marked at the height of its peak. It reads for any campaign: the pillar
 //! walking toward the radar (accuracy), two peaks merging (resolution), the floor rising with
 //! the attenuation (link). Drawn from each step's own `profile.csv` (the first algorithm's
 //! column), so `campaign report` draws it again from the run folder.
@@ -102,7 +102,7 @@ pub fn step_profiles(dir: &Path, results: &Results) -> Option<Figure> {
         });
         nominal.extend(s.nominal.ranges().into_iter().map(|r| Point {
             x: r,
-            y: base,
+            y: base + 0.9,
             bar: None,
             filled: false,
         }));
@@ -129,7 +129,7 @@ pub fn step_profiles(dir: &Path, results: &Results) -> Option<Figure> {
             "Every step's range profile (the first algorithm's, from its step folder's \
              profile.csv), one row per step from its peak (top of the row) down to {DEPTH_DB} \
              dB under it (bottom), within {MARGIN_M} m of the nominal targets (hollow markers \
-             on each row's baseline)."
+             at the height of the row's peak: a peak under its marker is on target)."
         ),
         chart,
     })
