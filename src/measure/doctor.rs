@@ -242,16 +242,7 @@ async fn open_front(
     match bounded(Gotmic::open(res.clone(), model, journal.clone(), name)).await {
         Ok(g) => (Ok(g), None),
         Err(e) => {
-            let other = match Framing::from_catalog(model) {
-                Framing::Plain => {
-                    let (poly, init) = model
-                        .protocol
-                        .as_ref()
-                        .map_or((0x07, 0x00), |p| (p.crc_poly, p.crc_init));
-                    Framing::Crc8(crate::session::Crc8 { poly, init })
-                }
-                Framing::Crc8(_) => Framing::Plain,
-            };
+            let other = Framing::other_than_catalog(model);
             let answered = bounded(Gotmic::open_with(res.clone(), model, journal, name, other))
                 .await
                 .ok();

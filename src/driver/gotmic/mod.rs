@@ -142,6 +142,18 @@ pub enum Framing {
 }
 
 impl Framing {
+    /// The framing a module on the wrong CRC mode would answer in: plain lines when the
+    /// catalog's are CRC-8 framed, else CRC-8 (the catalog's polynomial, or CRC-8/SMBUS).
+    pub(crate) fn other_than_catalog(model: &InstrumentModel) -> Framing {
+        match Framing::from_catalog(model) {
+            Framing::Crc8(_) => Framing::Plain,
+            Framing::Plain => Framing::Crc8(Crc8 {
+                poly: model.protocol.as_ref().map_or(0x07, |p| p.crc_poly),
+                init: model.protocol.as_ref().map_or(0x00, |p| p.crc_init),
+            }),
+        }
+    }
+
     /// CRC-8 when the catalog's `[protocol]` defines one, else plain lines.
     pub fn from_catalog(model: &InstrumentModel) -> Framing {
         match &model.protocol {
