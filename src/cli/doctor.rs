@@ -80,10 +80,7 @@ fn text(report: &doctor::Report) -> String {
             report.checks.len()
         )
     } else {
-        format!(
-            "{failed} check(s) failed, {warned} warning(s); nothing was switched on (the bench \
-             is in its safe state)"
-        )
+        format!("{failed} check(s) failed, {warned} warning(s); nothing was switched on")
     };
     out
 }

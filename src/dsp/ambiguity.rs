@@ -50,7 +50,7 @@ impl Ambiguity {
     pub(crate) fn new(x: &[Complex64], s: &[Complex64], fs: f64, wrap: Wrap) -> Option<Ambiguity> {
         let n = s.len();
         let energy: f64 = s.iter().map(|v| v.norm_sqr()).sum();
-        if n == 0 || !(energy > 0.0 && energy.is_finite()) || !(fs > 0.0) {
+        if n == 0 || !(energy > 0.0 && energy.is_finite()) || fs.is_nan() || fs <= 0.0 {
             return None;
         }
         let len = match wrap {
@@ -194,7 +194,7 @@ pub(crate) fn cut_figures(cut: &[Complex64], delay: impl Fn(usize) -> f64) -> Op
     }
     let mag: Vec<f64> = cut.iter().map(|v| v.norm()).collect();
     let (k, &peak) = mag.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
-    if !(peak > 0.0) {
+    if peak.is_nan() || peak <= 0.0 {
         return None;
     }
     let at = |i: isize| mag[i.rem_euclid(len as isize) as usize];
