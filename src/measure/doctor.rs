@@ -719,6 +719,8 @@ async fn marker_check(
         },
         SAFE_STEP_TIMEOUT,
     );
+    // A panic while the AWG plays runs this bench's safe state too.
+    crate::driver::set_panic_safe_state(safe.clone());
     let settings = AwgSettings::default();
     let limits = scope_model.digitizer.clone();
     let work = async {
@@ -774,6 +776,7 @@ async fn marker_check(
             })
     };
     let (outcome, report) = crate::driver::run_guarded(&safe, bounded_work, interrupt.wait()).await;
+    crate::driver::clear_panic_safe_state(&safe);
     let safe_ok = report.is_safe();
     match outcome {
         Outcome::Interrupted => {
