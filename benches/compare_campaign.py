@@ -60,7 +60,10 @@ less the time just before the process was spawned), connect (the first connect's
 last instrument's identification: `*IDN?` of the AWG and the scope, the ID register of Tx and
 Rx), after the last exchange (processing and files until the process ended), the whole capture
 (spawn to exit). Targets: first byte < 30 ms, connect < 20 ms, the one-shot at least 1.5x
-faster than the Python warm step (medians).
+faster than the Python warm step (medians). Each turn also runs the Python stack as a new
+process (`--python-one-shot-child`: the interpreter, its imports, the sessions opened, the upload,
+one step and its processing, no files), the like-for-like comparison of a one-shot; reported, no
+target.
 
 pyserial is not among the interop packages: the pseudo-terminals are opened with os/termios in
 raw mode, as pyserial does. Everything stays on 127.0.0.1. This is a benchmark, not a test.
@@ -110,6 +113,20 @@ HOST_RATIO = 3.0
 
 
 # ---------------------------------------------------------------------------- the lab
+
+class LabResources:
+    """The resources of a running lab, read from its bench file (the one-shot Python child)."""
+
+    def __init__(self, bench_file: Path):
+        text = bench_file.read_text()
+        sections = dict(re.findall(r'\[(\w+)\]\s*\n(?:model = "[^"]*"\s*\n)?\w+ = "([^"]*)"', text))
+        self.bench_file = bench_file
+        self.awg = sections["awg"]
+        self.scope = sections["scope"]
+        self.tx = sections["tx"]
+        self.rx = sections["rx"]
+        self.control = sections["simulation"]
+
 
 class MockLab:
     """A running `mock-lab serve`: its bench file and resources."""
@@ -588,11 +605,36 @@ def radbench_one_shot(binary: str, bench: Path, out: Path):
             "instruments": last - first, "after_last": ended - last, "ranges": ranges}
 
 
+def python_one_shot(bench: Path):
+    """One capture by the Python stack as a new process (this script with
+    `--python-one-shot-child`): the interpreter's start, its imports, opening the sessions,
+    the upload, one step and its processing; seconds from spawn to exit."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--python-one-shot-child", str(bench)]
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if proc.returncode != 0:
+        sys.exit(f"the Python one-shot failed ({proc.returncode}): {proc.stderr}")
+    return wall
+
+
+def python_one_shot_child(bench: Path):
+    rm = pyvisa.ResourceManager("@py")
+    stack = PythonStack(LabResources(bench), rm, seed=7)
+    try:
+        ranges, _ = stack.step(1.0, 7)
+    finally:
+        stack.close()
+        rm.close()
+    print(json.dumps({"ranges": list(ranges)}))
+    return 0
+
+
 def one_shot_turns(args, lab, rm, work):
-    """`--one-shot` turns: radbench capture (new process) and the Python warm step, taking
-    turns against the same lab."""
+    """`--one-shot` turns: radbench capture (new process), the Python warm step, and the Python
+    stack as a new process, taking turns against the same lab."""
     stack = PythonStack(lab, rm, seed=7)
-    rb, py = [], []
+    rb, py, py_cold = [], [], []
     try:
         stack.step(1.0, 7)  # the Python stack warm: the first step is not counted
         for n in range(args.one_shot):
@@ -600,12 +642,13 @@ def one_shot_turns(args, lab, rm, work):
             t = time.perf_counter()
             stack.step(1.0, 8 + n)
             py.append(time.perf_counter() - t)
+            py_cold.append(python_one_shot(lab.bench_file))
     finally:
         stack.close()
-    return rb, py
+    return rb, py, py_cold
 
 
-def report_one_shot(rb, py):
+def report_one_shot(rb, py, py_cold):
     med = statistics.median
     print()
     print(f"one-shot `radbench capture` (a new process each) against the Python warm step, "
@@ -630,6 +673,9 @@ def report_one_shot(rb, py):
     print(f"  {'Python warm step':<32} {ms(min(py))} / {ms(med(py))} ms")
     print(f"  {'Python step / one-shot':<32} {speedup:7.2f}x (medians)   target >= "
           f"{STEP_SPEEDUP}x: {'met' if ok else 'MISSED'}")
+    cold = med(py_cold) / med([r["wall"] for r in rb])
+    print(f"  {'Python one-shot (new process)':<32} {ms(min(py_cold))} / {ms(med(py_cold))} ms")
+    print(f"  {'Python one-shot / one-shot':<32} {cold:7.2f}x (medians, like for like)")
     print(f"  ranges of the last one-shot (m): {rb[-1]['ranges']}")
     return met
 
@@ -675,8 +721,12 @@ def main():
     ap.add_argument("--keep", help="keep radbench's run folders under this folder")
     ap.add_argument("--json", action="store_true", help="also print the raw timings as JSON")
     ap.add_argument("--one-shot", type=int, default=0, metavar="N",
-                    help="then N turns of a one-shot `radbench capture` and a Python warm step")
+                    help="then N turns of a one-shot `radbench capture`, a Python warm step and "
+                         "the Python stack as a new process")
+    ap.add_argument("--python-one-shot-child", metavar="BENCH", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.python_one_shot_child:
+        return python_one_shot_child(Path(args.python_one_shot_child))
     for binary in (args.radbench, args.mock_lab):
         if not Path(binary).exists():
             sys.exit(f"{binary} not found; run `cargo build --release -p radbench --bin radbench "

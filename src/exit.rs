@@ -76,16 +76,23 @@ pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
 /// text the message before it already quotes (layer errors name their source in their own
 /// text, so `{:#}` would print it two or three times).
 pub fn render(err: &anyhow::Error) -> String {
+    render_chain(err.as_ref())
+}
+
+/// `render` of any error and its sources (the one renderer of error chains: the CLI's
+/// messages and the campaign's records say the same).
+pub(crate) fn render_chain(err: &(dyn std::error::Error + 'static)) -> String {
     let mut out = String::new();
-    for cause in err.chain() {
-        let text = cause.to_string();
-        if text.is_empty() || out.contains(&text) {
-            continue;
+    let mut cause = Some(err);
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !text.is_empty() && !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
         }
-        if !out.is_empty() {
-            out.push_str(": ");
-        }
-        out.push_str(&text);
+        cause = c.source();
     }
     out
 }

@@ -129,23 +129,30 @@ pub enum CampaignError {
 impl CampaignError {
     /// What to do about it.
     pub fn kind(&self) -> ErrorKind {
+        self.classes().0
+    }
+
+    /// What to do about it and the exit code it gives: one table for both.
+    fn classes(&self) -> (ErrorKind, ExitClass) {
+        use ErrorKind::{Abort, FixInput, Retry};
         match self {
-            CampaignError::Measure(e) => e.kind(),
-            CampaignError::Spec(_)
-            | CampaignError::PositionerStart { .. }
+            CampaignError::Measure(e) => (e.kind(), e.exit_class()),
+            CampaignError::Spec(e) => (FixInput, e.exit_class()),
+            CampaignError::Storage(e) => (Abort, e.exit_class()),
+            CampaignError::PositionerStart { .. }
             | CampaignError::OutExists { .. }
             | CampaignError::Manifest { .. }
             | CampaignError::DifferentBench { .. }
-            | CampaignError::Complete { .. } => ErrorKind::FixInput,
-            CampaignError::PositionerFailed { .. }
-            | CampaignError::Control(_)
-            | CampaignError::Locked { .. } => ErrorKind::Retry,
-            CampaignError::OperatorStopped { .. }
-            | CampaignError::Interrupted { .. }
-            | CampaignError::Io { .. }
+            | CampaignError::Complete { .. } => (FixInput, ExitClass::BadInput),
+            CampaignError::Locked { .. } => (Retry, ExitClass::BadInput),
+            CampaignError::PositionerFailed { .. } | CampaignError::Control(_) => {
+                (Retry, ExitClass::Instrument)
+            }
+            CampaignError::Io { .. }
             | CampaignError::FolderLost { .. }
-            | CampaignError::Unrecorded { .. }
-            | CampaignError::Storage(_) => ErrorKind::Abort,
+            | CampaignError::Unrecorded { .. } => (Abort, ExitClass::Processing),
+            CampaignError::OperatorStopped { .. } => (Abort, ExitClass::Interrupted),
+            CampaignError::Interrupted { signal, .. } => (Abort, signal.exit_class()),
         }
     }
 
@@ -161,29 +168,7 @@ impl CampaignError {
 
 impl Classify for CampaignError {
     fn exit_class(&self) -> ExitClass {
-        match self {
-            CampaignError::Spec(e) => e.exit_class(),
-            CampaignError::Measure(e) => e.exit_class(),
-            CampaignError::Storage(e) => e.exit_class(),
-            CampaignError::PositionerStart { .. }
-            | CampaignError::OutExists { .. }
-            | CampaignError::Manifest { .. }
-            | CampaignError::Locked { .. }
-            | CampaignError::DifferentBench { .. }
-            | CampaignError::Complete { .. } => ExitClass::BadInput,
-            CampaignError::PositionerFailed { .. } | CampaignError::Control(_) => {
-                ExitClass::Instrument
-            }
-            CampaignError::Io { .. }
-            | CampaignError::FolderLost { .. }
-            | CampaignError::Unrecorded { .. } => ExitClass::Processing,
-            CampaignError::OperatorStopped { .. } => ExitClass::Interrupted,
-            CampaignError::Interrupted { signal, .. } => match signal {
-                StopSignal::Interrupt => ExitClass::Interrupted,
-                StopSignal::Terminate => ExitClass::Terminated,
-                StopSignal::HangUp => ExitClass::HungUp,
-            },
-        }
+        self.classes().1
     }
 }
 

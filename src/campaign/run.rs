@@ -1245,8 +1245,8 @@ impl Runner {
         self.manifest.status = status;
         let n = self.plan.steps.len();
         self.manifest.reason = stopped.as_ref().map(|e| match (e, first_pending) {
-            (CampaignError::Interrupted { .. }, _) | (_, None) => error_chain(e),
-            (_, Some(k)) => format!("step {k} of {n}: {}", error_chain(e)),
+            (CampaignError::Interrupted { .. }, _) | (_, None) => crate::exit::render_chain(e),
+            (_, Some(k)) => format!("step {k} of {n}: {}", crate::exit::render_chain(e)),
         });
         self.manifest.stopped_at_step = stopped.as_ref().and(first_pending);
         self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
@@ -1313,24 +1313,6 @@ impl Runner {
     }
 }
 
-/// The error's message with its causes (each once), as the CLI prints it.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut out = String::new();
-    let mut cur: Option<&dyn std::error::Error> = Some(e);
-    while let Some(c) = cur {
-        let text = c.to_string();
-        if !text.is_empty() && !out.contains(&text) {
-            if !out.is_empty() {
-                out.push_str(": ");
-            }
-            out.push_str(&text);
-        }
-        cur = c.source();
-    }
-    out
-}
-
-/// The bench's instrument catalog (its file's `catalog` folder over the built-in models).
 /// What a step's worker needs besides the capture and the pipelines.
 struct StepJob {
     dir: PathBuf,
@@ -1483,7 +1465,7 @@ fn write_step_files(
         Err(e) => return Err(io(&out)(e)),
     }
     let ((), written) = write_group(|| {
-        let raw = record::write_raw(&out, m, provenance)?;
+        let raw = record::write_raw(&out, &m.taken, &m.processing.options, provenance)?;
         record::write_processed(&out, m, &raw, provenance)?;
         for (p, name) in others.iter_mut().zip(&names[1..]) {
             swap_processing(m, p);

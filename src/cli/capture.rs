@@ -9,8 +9,11 @@ use crate::measure::capture::{self, CaptureRequest, Measurement};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;
+use crate::storage::atomic::write_group;
 use crate::waveform::spec::WaveformKind;
+use anyhow::Context;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -300,7 +303,7 @@ async fn measure_into(
         wait_s: args.wait,
         background: args.background.clone(),
     };
-    let mut m = capture::measure(
+    let (taken, mut prepared) = capture::take(
         &bench,
         &request,
         args.repetitions,
@@ -309,15 +312,40 @@ async fn measure_into(
         &interrupt,
     )
     .await?;
-    if let Some(cal) = &calibration {
-        let warnings = calibration_warnings(cal, &m.taken.identities);
-        m.processing.processed.warnings.extend(warnings);
-    }
     let provenance = Provenance {
         bench_file: bench.path.clone(),
         simulated: bench.is_simulated(),
     };
-    let (_, summary) = record::write_capture(&out, &m, &provenance)?;
+    // The raw capture is written (and made durable) on its own thread while the capture is
+    // processed: on two cores the files cost no time, and a capture whose processing fails is
+    // kept, to be processed again.
+    let taken = Arc::new(taken);
+    let raw_writer = {
+        let (out, taken, provenance) = (out.clone(), taken.clone(), provenance.clone());
+        let options = prepared.options_for(&taken.captured);
+        tokio::task::spawn_blocking(move || {
+            write_group(|| record::write_raw(&out, &taken, &options, &provenance))
+        })
+    };
+    let processing = capture::process_with(&mut prepared, &taken.captured).await;
+    let (raw, _) = raw_writer
+        .await
+        .map_err(|e| MeasureError::Worker(format!("writing the raw capture: {e}")))??;
+    let processing = processing.with_context(|| {
+        format!(
+            "the raw capture is kept in {}: `radbench process {}` processes it again",
+            out.display(),
+            out.display()
+        )
+    })?;
+    let taken = Arc::try_unwrap(taken)
+        .map_err(|_| MeasureError::Worker("the raw capture is still being written".into()))?;
+    let mut m = taken.with(processing);
+    if let Some(cal) = &calibration {
+        let warnings = calibration_warnings(cal, &m.taken.identities);
+        m.processing.processed.warnings.extend(warnings);
+    }
+    let ((_, summary), _) = write_group(|| record::write_processed(&out, &m, &raw, &provenance))?;
     if let Some(signal) = interrupt.received() {
         eprintln!(
             "{} received after the capture: the bench is safe and the files are written to {}",

@@ -4,6 +4,7 @@
 use super::args::{
     AlgorithmArg, CorrectionArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
 };
+use crate::campaign::manifest::Manifest;
 use crate::exit::{Classified, ExitClass};
 use crate::measure::options::ProcessOverrides;
 use crate::measure::pipeline::Pipeline;
@@ -17,6 +18,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::cell::RefCell;
+use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -225,15 +227,45 @@ thread_local! {
 /// Most pipelines a worker keeps (a batch rarely mixes more waveforms and options).
 const PIPELINES_PER_WORKER: usize = 4;
 
+/// The SHA-256 that run manifests recorded for the captures' data files, by path: the run
+/// folder of each capture's folder, where it has a manifest radbench reads. A capture whose data
+/// matches its recorded hash is not hashed a second time against the recording's own SHA-512
+/// (see `read_sigmf_stored`). A manifest that cannot be read only means no such shortcut.
+fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
+    let runs: BTreeSet<&Path> = sources
+        .iter()
+        .filter_map(|s| match s {
+            Source::Sigmf { data, .. } => data.parent()?.parent(),
+            Source::TrcPair { .. } => None,
+        })
+        .filter(|run| run.join("manifest.toml").is_file())
+        .collect();
+    let mut hashes = HashMap::new();
+    for run in runs {
+        let Ok(manifest) = Manifest::load(run) else {
+            continue;
+        };
+        for file in manifest.steps.into_iter().flat_map(|step| step.files) {
+            hashes.insert(run.join(&file.path), file.sha256);
+        }
+    }
+    hashes
+}
+
 fn process_one(
     source: &Source,
+    recorded: &HashMap<PathBuf, String>,
     out: &Path,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
     background: Option<&Path>,
     trigger_offset: Option<f64>,
 ) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
-    let loaded = reprocess::load_for_processing(source, trigger_offset)?;
+    let recorded_sha256 = match source {
+        Source::Sigmf { data, .. } => recorded.get(data).map(String::as_str),
+        Source::TrcPair { .. } => None,
+    };
+    let loaded = reprocess::load_for_processing(source, trigger_offset, recorded_sha256)?;
     let rate = loaded.repetitions[0].sample_rate_hz();
     let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
     let key = serde_json::to_string(&json!({
@@ -374,6 +406,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     let discovered = reprocess::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);
+    let recorded = recorded_data_hashes(&sources);
     let jobs = args.jobs.unwrap_or(0);
     if args.jobs == Some(0) || jobs > 256 {
         return Err(crate::exit::bad_input(format!(
@@ -401,6 +434,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             .map(|(index, (source, name))| {
                 let result = process_one(
                     source,
+                    &recorded,
                     &out.join(name),
                     &waveform,
                     &overrides,

@@ -127,28 +127,34 @@ pub(crate) fn session(instrument: &str) -> impl Fn(SessionError) -> DriverError 
 impl DriverError {
     /// Retry, abort, or fix the input.
     pub fn kind(&self) -> ErrorKind {
+        self.classes().0
+    }
+
+    /// What to do about it and the exit code it gives: one table for both.
+    fn classes(&self) -> (ErrorKind, ExitClass) {
         match self {
             DriverError::OutOfLimits { .. }
             | DriverError::BadSettings { .. }
-            | DriverError::Catalog { .. }
-            | DriverError::WrongInstrument { .. }
-            | DriverError::Sequence { .. } => ErrorKind::FixInput,
+            | DriverError::Catalog { .. } => (ErrorKind::FixInput, ExitClass::BadInput),
+            DriverError::WrongInstrument { .. } => (ErrorKind::FixInput, ExitClass::Instrument),
+            DriverError::Sequence { .. } => (ErrorKind::FixInput, ExitClass::Internal),
             DriverError::Refused { errors, .. } => {
-                if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
+                let kind = if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
                     ErrorKind::FixInput
                 } else {
                     ErrorKind::Abort
-                }
+                };
+                (kind, ExitClass::Instrument)
             }
-            DriverError::Session { source, .. } => source.kind(),
-            DriverError::NoTrigger { .. } => ErrorKind::Retry,
+            DriverError::Session { source, .. } => (source.kind(), source.exit_class()),
+            DriverError::NoTrigger { .. } => (ErrorKind::Retry, ExitClass::Instrument),
             DriverError::LineRefused { .. }
             | DriverError::Reply { .. }
             | DriverError::NotApplied { .. }
             | DriverError::RemoteInterface { .. }
             | DriverError::Waveform { .. }
             | DriverError::RfNotReady { .. }
-            | DriverError::VerifyFailed { .. } => ErrorKind::Abort,
+            | DriverError::VerifyFailed { .. } => (ErrorKind::Abort, ExitClass::Instrument),
         }
     }
 
@@ -164,14 +170,7 @@ impl DriverError {
 
 impl Classify for DriverError {
     fn exit_class(&self) -> ExitClass {
-        match self {
-            DriverError::OutOfLimits { .. }
-            | DriverError::BadSettings { .. }
-            | DriverError::Catalog { .. } => ExitClass::BadInput,
-            DriverError::Session { source, .. } => source.exit_class(),
-            DriverError::Sequence { .. } => ExitClass::Internal,
-            _ => ExitClass::Instrument,
-        }
+        self.classes().1
     }
 }
 

@@ -102,6 +102,15 @@ impl Prepared {
         })
     }
 
+    /// The options a capture of `captured` is processed with (this preparation's, with the
+    /// AWG amplitude the instrument applied), known before it is processed: the raw files
+    /// record them while the capture is processed.
+    pub(crate) fn options_for(&self, captured: &Captured) -> ProcessOptions {
+        let mut options = self.pipeline().options().clone();
+        options.awg_amplitude_vpp = Some(captured.applied.awg.i_amplitude_vpp);
+        options
+    }
+
     /// The pipeline captures of this preparation go through.
     pub fn pipeline(&self) -> &Pipeline {
         self.pipeline
@@ -593,6 +602,23 @@ pub async fn measure(
     journal: Option<Journal>,
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
+    let (taken, mut prepared) =
+        take(bench, request, repetitions, permit, journal, interrupt).await?;
+    let processing = process_with(&mut prepared, &taken.captured).await?;
+    Ok(taken.with(processing))
+}
+
+/// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
+/// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
+/// capture while it is processed, so that a capture whose processing fails is still kept.
+pub(crate) async fn take(
+    bench: &Bench,
+    request: &CaptureRequest,
+    repetitions: usize,
+    permit: &RfPermit,
+    journal: Option<Journal>,
+    interrupt: &Interrupt,
+) -> Result<(Taken, Prepared), MeasureError> {
     check_repetitions(repetitions)?;
     let catalog = bench.file.catalog()?;
     let planned = plan_request(bench, &catalog, request).await?;
@@ -607,9 +633,11 @@ pub async fn measure(
         })
         .await?
     };
-    let mut prepared = planned.with(built);
-    rig.measure(bench, &mut prepared, repetitions, permit, interrupt)
-        .await
+    let prepared = planned.with(built);
+    let taken = rig
+        .acquire(bench, &prepared, repetitions, permit, interrupt)
+        .await?;
+    Ok((taken, prepared))
 }
 
 /// Connects while the pipeline is built (the instruments' round trips and the pipeline's

@@ -43,7 +43,7 @@ pub(crate) fn export_capture(
     source: &Source,
     others: &[ProcessOptions],
 ) -> Result<CaptureExport, MeasureError> {
-    let loaded = reprocess::load_for_processing(source, None)?;
+    let loaded = reprocess::load_for_processing(source, None, None)?;
     let Some(first) = loaded.repetitions.first() else {
         return Err(MeasureError::option(
             "input",

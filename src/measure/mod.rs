@@ -191,6 +191,12 @@ impl MeasureError {
 
     /// What to do about it.
     pub fn kind(&self) -> ErrorKind {
+        self.classes().0
+    }
+
+    /// What to do about it and the exit code it gives: one table for both.
+    fn classes(&self) -> (ErrorKind, ExitClass) {
+        use ErrorKind::{Abort, FixInput, Retry};
         match self {
             MeasureError::Option { .. }
             | MeasureError::AlgorithmNeedsOfdm { .. }
@@ -199,62 +205,43 @@ impl MeasureError {
             | MeasureError::RateNotMultiple { .. }
             | MeasureError::BackgroundShape { .. }
             | MeasureError::Waveform(_)
-            | MeasureError::BenchFile(_)
             | MeasureError::Scene(_)
             | MeasureError::Resource { .. }
-            | MeasureError::Recording(_)
             | MeasureError::CalibrationFile { .. }
-            | MeasureError::CorrectionRefused(_)
-            | MeasureError::NeedsWaveform => ErrorKind::FixInput,
-            MeasureError::Driver(e) => e.kind(),
+            | MeasureError::NeedsWaveform => (FixInput, ExitClass::BadInput),
+            MeasureError::BenchFile(e) => (FixInput, e.exit_class()),
+            MeasureError::Recording(e) => (FixInput, e.exit_class()),
+            MeasureError::CorrectionRefused(_) => (FixInput, ExitClass::Processing),
+            MeasureError::Driver(e) => (e.kind(), e.exit_class()),
             MeasureError::RecordTooShort { .. } | MeasureError::RfDeadline { .. } => {
-                ErrorKind::Retry
+                (Retry, ExitClass::Instrument)
             }
-            MeasureError::Catalog(_)
-            | MeasureError::Dsp(_)
-            | MeasureError::Storage(_)
-            | MeasureError::Lab(_)
-            | MeasureError::NoReferenceEcho { .. }
-            | MeasureError::RecordShorterThanWaveform { .. }
-            | MeasureError::Worker(_)
-            | MeasureError::Interrupted { .. } => ErrorKind::Abort,
+            MeasureError::Lab(_) => (Abort, ExitClass::Instrument),
+            MeasureError::Catalog(e) => (Abort, e.exit_class()),
+            MeasureError::Dsp(e) => (Abort, e.exit_class()),
+            MeasureError::Storage(e) => (Abort, e.exit_class()),
+            MeasureError::NoReferenceEcho { .. } => (Abort, ExitClass::Processing),
+            MeasureError::RecordShorterThanWaveform { .. } | MeasureError::Worker(_) => {
+                (Abort, ExitClass::Internal)
+            }
+            MeasureError::Interrupted { signal, .. } => (Abort, signal.exit_class()),
         }
     }
 }
 
 impl Classify for MeasureError {
     fn exit_class(&self) -> ExitClass {
+        self.classes().1
+    }
+}
+
+impl interrupt::StopSignal {
+    /// The exit code of a run this signal stopped.
+    pub(crate) fn exit_class(self) -> ExitClass {
         match self {
-            MeasureError::Option { .. }
-            | MeasureError::AlgorithmNeedsOfdm { .. }
-            | MeasureError::NoPermit
-            | MeasureError::DoesNotFit { .. }
-            | MeasureError::RateNotMultiple { .. }
-            | MeasureError::BackgroundShape { .. }
-            | MeasureError::Waveform(_)
-            | MeasureError::Scene(_)
-            | MeasureError::Resource { .. }
-            | MeasureError::CalibrationFile { .. }
-            | MeasureError::NeedsWaveform => ExitClass::BadInput,
-            MeasureError::CorrectionRefused(_) => ExitClass::Processing,
-            MeasureError::RecordTooShort { .. }
-            | MeasureError::Lab(_)
-            | MeasureError::RfDeadline { .. } => ExitClass::Instrument,
-            MeasureError::NoReferenceEcho { .. } => ExitClass::Processing,
-            MeasureError::RecordShorterThanWaveform { .. } | MeasureError::Worker(_) => {
-                ExitClass::Internal
-            }
-            MeasureError::Driver(e) => e.exit_class(),
-            MeasureError::BenchFile(e) => e.exit_class(),
-            MeasureError::Catalog(e) => e.exit_class(),
-            MeasureError::Dsp(e) => e.exit_class(),
-            MeasureError::Storage(e) => e.exit_class(),
-            MeasureError::Recording(e) => e.exit_class(),
-            MeasureError::Interrupted { signal, .. } => match signal {
-                interrupt::StopSignal::Interrupt => ExitClass::Interrupted,
-                interrupt::StopSignal::Terminate => ExitClass::Terminated,
-                interrupt::StopSignal::HangUp => ExitClass::HungUp,
-            },
+            interrupt::StopSignal::Interrupt => ExitClass::Interrupted,
+            interrupt::StopSignal::Terminate => ExitClass::Terminated,
+            interrupt::StopSignal::HangUp => ExitClass::HungUp,
         }
     }
 }

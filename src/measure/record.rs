@@ -1,7 +1,7 @@
 //! A measurement's files: the raw capture (SigMF and the scope's `.trc`), the range profiles (CSV,
 //! npy), plots and `summary.json`, every one written atomically into one folder.
 
-use super::capture::Measurement;
+use super::capture::{Measurement, Taken};
 use super::options::ProcessOptions;
 use super::pipeline::Processed;
 use super::transmit::Transmission;
@@ -157,19 +157,6 @@ pub(crate) struct RawFiles {
     pub native: Vec<PathBuf>,
 }
 
-/// Writes every file of `m` into `out` (created when missing), `summary.json` last.
-pub(crate) fn write_capture(
-    out: &Path,
-    m: &Measurement,
-    provenance: &Provenance,
-) -> Result<(CaptureFiles, Value), MeasureError> {
-    let (written, _) = crate::storage::atomic::write_group(|| {
-        let raw = write_raw(out, m, provenance)?;
-        write_processed(out, m, &raw, provenance)
-    })?;
-    Ok(written)
-}
-
 fn create_dir(out: &Path) -> Result<(), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
         path: out.to_path_buf(),
@@ -181,16 +168,18 @@ fn create_dir(out: &Path) -> Result<(), MeasureError> {
 }
 
 /// Writes the raw capture of `m` into `out`: SigMF (every repetition) and the scope's `.trc`.
+/// `options`: those the capture is processed with (`Prepared::options_for`).
 pub(crate) fn write_raw(
     out: &Path,
-    m: &Measurement,
+    taken: &Taken,
+    options: &ProcessOptions,
     provenance: &Provenance,
 ) -> Result<RawFiles, MeasureError> {
     create_dir(out)?;
-    let captured = &m.taken.captured;
+    let captured = &taken.captured;
     let first = captured.first();
     let (i, q) = (&first.i, &first.q);
-    let o = &m.processing.options;
+    let o = options;
     let mut ns = serde_json::Map::new();
     ns.insert(
         "vertical_gain".into(),
@@ -204,7 +193,7 @@ pub(crate) fn write_raw(
     let mut reps = Vec::new();
     let mut annotations = Vec::new();
     let (mut i_words, mut q_words) = (Vec::new(), Vec::new());
-    let adc = m.taken.plan.scope_adc();
+    let adc = taken.plan.scope_adc();
     for k in 0..captured.repetitions() {
         let words = captured.raw_words(k);
         let at = captured.source(k);
@@ -239,29 +228,28 @@ pub(crate) fn write_raw(
             "volts_per_div_max": adc.volts_per_div_max,
         }),
     );
-    ns.insert("waveform".into(), m.taken.tx.describe());
-    ns.insert("instruments".into(), json!(m.taken.identities));
+    ns.insert("waveform".into(), taken.tx.describe());
+    ns.insert("instruments".into(), json!(taken.identities));
     ns.insert(
         "sample_rates_hz".into(),
-        json!({"awg": m.taken.tx.sample_rate_hz(), "scope": m.taken.captured.applied.scope.sample_rate_hz, "processing": m.taken.tx.sample_rate_hz()}),
+        json!({"awg": taken.tx.sample_rate_hz(), "scope": taken.captured.applied.scope.sample_rate_hz, "processing": taken.tx.sample_rate_hz()}),
     );
     ns.insert("system_delay_s".into(), json!(o.system_delay_s));
     // One repetition at the waveform rate after the AWG's padding: the record's period.
-    ns.insert("period_samples".into(), json!(m.taken.plan.period));
-    if let Some(bg) = &m.taken.background {
+    ns.insert("period_samples".into(), json!(taken.plan.period));
+    if let Some(bg) = &taken.background {
         ns.insert("background".into(), json!(bg));
     }
     ns.insert("processing".into(), json!(o));
-    if let Some(truth) = &m.taken.ground_truth {
+    if let Some(truth) = &taken.ground_truth {
         ns.insert("scene".into(), truth.clone());
     }
     if let Some(path) = &provenance.bench_file {
         ns.insert("bench_file".into(), json!(path.display().to_string()));
     }
     let meta = SigmfMeta {
-        sample_rate: m.taken.captured.applied.scope.sample_rate_hz,
-        frequency_hz: m
-            .taken
+        sample_rate: taken.captured.applied.scope.sample_rate_hz,
+        frequency_hz: taken
             .ground_truth
             .as_ref()
             .and_then(|s| s["carrier_hz"].as_f64())
@@ -269,9 +257,9 @@ pub(crate) fn write_raw(
         datetime: sigmf::utc_now_rfc3339(),
         description: format!(
             "radbench capture: {} at the scope (I on C1, Q on C2), raw 16-bit words",
-            m.taken.tx.name()
+            taken.tx.name()
         ),
-        hw: m.taken.identities.scope.clone(),
+        hw: taken.identities.scope.clone(),
         radbench: ns,
         annotations,
     };

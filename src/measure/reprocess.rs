@@ -290,13 +290,16 @@ pub(crate) fn load(source: &Source, trigger_offset_s: Option<f64>) -> Result<Loa
 
 /// [`load`] for processing: a `ci16` recording's repetitions stay the scope's words (no record
 /// in volts, 4 bytes a sample instead of 16), and its files are hashed as they are read.
+/// `recorded_sha256`: the data file's SHA-256 as a run manifest recorded it, if known (it then
+/// stands for the recording's own SHA-512 check when the data matches it).
 pub(crate) fn load_for_processing(
     source: &Source,
     trigger_offset_s: Option<f64>,
+    recorded_sha256: Option<&str>,
 ) -> Result<Loaded<Repetition>, MeasureError> {
     match source {
         Source::Sigmf { meta, .. } => {
-            let stored = read_sigmf_stored(meta)?;
+            let stored = read_sigmf_stored(meta, recorded_sha256)?;
             let mut loaded = load_sigmf(meta, stored.recording, stored.words, trigger_offset_s)?;
             loaded.sha256 = stored.sha256.to_vec();
             Ok(loaded)
@@ -1029,7 +1032,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let source = recording(dir.path(), global, 1000);
         let volts = load(&source, None).unwrap();
-        let words = load_for_processing(&source, None).unwrap();
+        let words = load_for_processing(&source, None, None).unwrap();
         assert!(words
             .repetitions
             .iter()

@@ -2,6 +2,7 @@
 //! `SYST:ERR?` with code and text) is kept apart from "the link failed" ([`SessionError::Link`]);
 //! a query with no reply while the queue holds entries is [`SessionError::Unanswered`].
 
+use crate::exit::{Classify, ExitClass};
 use crate::transport::{ErrorKind, LinkError};
 use std::fmt;
 
@@ -87,21 +88,28 @@ pub enum SessionError {
 }
 
 impl SessionError {
+    /// Retry, abort, or fix the input.
     pub fn kind(&self) -> ErrorKind {
+        self.classes().0
+    }
+
+    /// What to do about it and the exit code it gives: one table for both.
+    fn classes(&self) -> (ErrorKind, ExitClass) {
         match self {
             SessionError::Device { errors, .. } | SessionError::Unanswered { errors, .. } => {
-                if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
+                let kind = if errors.iter().all(|e| e.kind() == ErrorKind::FixInput) {
                     ErrorKind::FixInput
                 } else {
                     ErrorKind::Abort
-                }
+                };
+                (kind, ExitClass::Instrument)
             }
-            SessionError::Link { source, .. } => source.kind(),
+            SessionError::Link { source, .. } => (source.kind(), source.exit_class()),
             SessionError::Reply { .. } | SessionError::ErrorQueueNotDraining { .. } => {
-                ErrorKind::Abort
+                (ErrorKind::Abort, ExitClass::Instrument)
             }
             SessionError::CommandHasNewline { .. } | SessionError::BlockTooLarge { .. } => {
-                ErrorKind::FixInput
+                (ErrorKind::FixInput, ExitClass::BadInput)
             }
         }
     }
@@ -131,19 +139,9 @@ impl SessionError {
     }
 }
 
-impl crate::exit::Classify for SessionError {
-    fn exit_class(&self) -> crate::exit::ExitClass {
-        use crate::exit::ExitClass;
-        match self {
-            SessionError::Link { source, .. } => source.exit_class(),
-            SessionError::CommandHasNewline { .. } | SessionError::BlockTooLarge { .. } => {
-                ExitClass::BadInput
-            }
-            SessionError::Device { .. }
-            | SessionError::Unanswered { .. }
-            | SessionError::Reply { .. }
-            | SessionError::ErrorQueueNotDraining { .. } => ExitClass::Instrument,
-        }
+impl Classify for SessionError {
+    fn exit_class(&self) -> ExitClass {
+        self.classes().1
     }
 }
 

@@ -295,7 +295,7 @@ impl Fields<'_> {
 
 /// Reads a SigMF recording; `path` names the `.sigmf-meta`, the `.sigmf-data` or their base.
 pub fn read_sigmf(path: &Path) -> Result<Recording, RecordingError> {
-    read(path, false).map(|r| r.recording)
+    read(path, None).map(|r| r.recording)
 }
 
 /// A SigMF recording read for processing again: as [`read_sigmf`] reads it, except that the
@@ -313,12 +313,22 @@ pub(crate) struct StoredRecording {
 }
 
 /// [`StoredRecording`] of `path` (as [`read_sigmf`] names it).
-pub(crate) fn read_sigmf_stored(path: &Path) -> Result<StoredRecording, RecordingError> {
-    read(path, true)
+///
+/// `recorded_sha256` is the data file's SHA-256 as recorded when it was written (a run
+/// manifest's), if known. The data is checked against it when given: when it matches, the data
+/// is the bytes that were written and `core:sha512` is not computed again (the data is hashed
+/// once instead of twice; `sha512_checked` is then false). Otherwise, as [`read_sigmf`],
+/// against `core:sha512`.
+pub(crate) fn read_sigmf_stored(
+    path: &Path,
+    recorded_sha256: Option<&str>,
+) -> Result<StoredRecording, RecordingError> {
+    read(path, Some(recorded_sha256))
 }
 
-/// [`read_sigmf`], keeping a `ci16` recording's words and hashing the files when `stored`.
-fn read(path: &Path, stored: bool) -> Result<StoredRecording, RecordingError> {
+/// [`read_sigmf`], keeping a `ci16` recording's words and hashing the files when `stored`
+/// (with the data's recorded SHA-256, if known).
+fn read(path: &Path, stored: Option<Option<&str>>) -> Result<StoredRecording, RecordingError> {
     let (meta_path, default_data) = sigmf_paths(path)?;
     let (doc, meta_bytes) = read_meta(&meta_path)?;
     let f = Fields { path: &meta_path };
@@ -342,7 +352,13 @@ fn read(path: &Path, stored: bool) -> Result<StoredRecording, RecordingError> {
         data: data_path.clone(),
         source,
     })?;
+    let data_sha256 = stored.map(|_| super::hash::sha256(&data));
+    let recorded_matches = match (stored.flatten(), &data_sha256) {
+        (Some(recorded), Some(actual)) => recorded.trim().eq_ignore_ascii_case(actual),
+        _ => false,
+    };
     let sha512_checked = match f.text(global, "core:sha512")? {
+        Some(_) if recorded_matches => false,
         Some(expected) if !sha512_matches(&data, &expected) => {
             return Err(RecordingError::Sha512 {
                 path: data_path,
@@ -365,19 +381,18 @@ fn read(path: &Path, stored: bool) -> Result<StoredRecording, RecordingError> {
         r.vertical_gain
             .map(|g| (g, r.vertical_offset.unwrap_or([0.0; 2])))
     });
-    let words = (stored && datatype.component == Component::I16)
+    let words = (stored.is_some() && datatype.component == Component::I16)
         .then(|| decode_words(&payload, datatype.little_endian));
     let samples = match words {
         Some(_) => Vec::new(),
         None => decode_samples(&payload, datatype, scaling),
     };
-    let sha256 = if stored {
-        [
+    let sha256 = match data_sha256 {
+        Some(data_sha256) => [
             (meta_path.clone(), super::hash::sha256(&meta_bytes)),
-            (data_path.clone(), super::hash::sha256(&data)),
-        ]
-    } else {
-        Default::default()
+            (data_path.clone(), data_sha256),
+        ],
+        None => Default::default(),
     };
     let recording = Recording {
         version: f.text(global, "core:version")?,
@@ -823,7 +838,7 @@ mod tests {
                 serde_json::json!([-0.3, 1e-3]),
             );
             let path = write(dir.path(), datatype, m, &data);
-            let stored = read_sigmf_stored(&path).unwrap();
+            let stored = read_sigmf_stored(&path, None).unwrap();
             let (wi, wq) = stored.words.clone().unwrap();
             assert_eq!(
                 (wi.as_slice(), wq.as_slice()),
@@ -858,7 +873,7 @@ mod tests {
         }
         // Other datatypes come back as samples, as read_sigmf reads them.
         let path = write(dir.path(), "f", meta("cf32_le"), &[0u8; 16]);
-        let stored = read_sigmf_stored(&path).unwrap();
+        let stored = read_sigmf_stored(&path, None).unwrap();
         assert!(stored.words.is_none());
         assert_eq!(stored.recording.samples, read_sigmf(&path).unwrap().samples);
     }
@@ -879,6 +894,29 @@ mod tests {
             .map(|(i, q)| Complex64::new(*i, *q))
             .collect();
         assert_eq!(r.samples, want);
+    }
+
+    #[test]
+    fn a_recorded_sha256_that_matches_stands_for_core_sha512_and_one_that_does_not_is_no_excuse() {
+        let dir = tempfile::tempdir().unwrap();
+        let data: Vec<u8> = (0..64u8).collect();
+        let mut m = meta("ci16_le");
+        // A wrong core:sha512: read_sigmf refuses the recording.
+        m["global"]["core:sha512"] = serde_json::json!("00");
+        let path = write(dir.path(), "ci16_le", m, &data);
+        assert!(read_sigmf(&path).is_err());
+        let actual = crate::storage::hash::sha256(&data);
+        // The data is the bytes recorded (its SHA-256 as written): core:sha512 is not computed.
+        let stored = read_sigmf_stored(&path, Some(&actual.to_uppercase())).unwrap();
+        assert!(!stored.recording.sha512_checked);
+        assert_eq!(stored.sha256[1].1, actual);
+        // A recorded hash the data does not match falls back to core:sha512, which refuses it.
+        let other = crate::storage::hash::sha256(b"other bytes");
+        let e = read_sigmf_stored(&path, Some(&other))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("core:sha512"), "{e}");
+        assert!(read_sigmf_stored(&path, None).is_err());
     }
 
     #[test]

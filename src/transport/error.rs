@@ -1,5 +1,6 @@
 //! The transport layer's errors: "the link failed", never "the instrument refused a command".
 
+use crate::exit::ExitClass;
 use std::time::Duration;
 
 /// A duration as people read it: `300 ms`, `2 s`, `2.5 s`, `107 s`; never `1.999385989s`.
@@ -111,21 +112,29 @@ pub enum LinkError {
 }
 
 impl LinkError {
+    /// Retry, abort, or fix the input.
     pub fn kind(&self) -> ErrorKind {
+        self.classes().0
+    }
+
+    /// What to do about it and the exit code it gives: one table for both.
+    fn classes(&self) -> (ErrorKind, ExitClass) {
         match self {
             LinkError::Connect { .. }
             | LinkError::Timeout { .. }
             | LinkError::Closed { .. }
             | LinkError::Io { .. }
             | LinkError::Serial { .. }
-            | LinkError::NotOpen => ErrorKind::Retry,
+            | LinkError::NotOpen => (ErrorKind::Retry, ExitClass::Instrument),
             LinkError::Protocol { .. } | LinkError::Codec { .. } | LinkError::Refused { .. } => {
-                ErrorKind::Abort
+                (ErrorKind::Abort, ExitClass::Instrument)
             }
-            LinkError::Resolve { .. }
-            | LinkError::Unsupported { .. }
+            LinkError::Resolve { .. } => (ErrorKind::FixInput, ExitClass::BadInput),
+            LinkError::Unsupported { .. }
             | LinkError::MessageTooLarge { .. }
-            | LinkError::IndefiniteBlockWithNewline { .. } => ErrorKind::FixInput,
+            | LinkError::IndefiniteBlockWithNewline { .. } => {
+                (ErrorKind::FixInput, ExitClass::Instrument)
+            }
         }
     }
 
@@ -160,11 +169,8 @@ impl LinkError {
 }
 
 impl crate::exit::Classify for LinkError {
-    fn exit_class(&self) -> crate::exit::ExitClass {
-        match self {
-            LinkError::Resolve { .. } => crate::exit::ExitClass::BadInput,
-            _ => crate::exit::ExitClass::Instrument,
-        }
+    fn exit_class(&self) -> ExitClass {
+        self.classes().1
     }
 }
 

@@ -440,3 +440,50 @@ async fn a_corrupt_or_stale_cached_piece_is_rebuilt_never_used() {
         assert_eq!(&std::fs::read(f).unwrap(), bytes);
     }
 }
+
+/// A run folder's manifest records each data file's SHA-256 as it was written: a capture whose
+/// data matches it is not checked a second time against its recording's SHA-512 (one hash
+/// instead of two), and one whose data does not match it is checked against that SHA-512 as
+/// before, and refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_manifests_recorded_hash_stands_for_the_recordings_own_and_never_excuses_changed_data(
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let spec = "name = \"two\"\nseed = 1\n[waveform]\nkind = \"msk-lfm\"\n[sweep]\n\
+                parameter = \"position\"\nstart = 1.0\nstep = -0.03\ncount = 2\n";
+    std::fs::write(d.join("two.toml"), spec).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &["campaign", "run", "two.toml", "--allow-rf", "--out", "run"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    // Step 1: the recording's own SHA-512 made wrong, its data as written.
+    let meta_path = d.join("run/step-001/capture.sigmf-meta");
+    let mut meta = json_file(&meta_path);
+    meta["global"]["core:sha512"] = Value::from("00".repeat(64));
+    std::fs::write(&meta_path, serde_json::to_string_pretty(&meta).unwrap()).unwrap();
+    // Step 2: one byte of the data changed after it was recorded.
+    let data_path = d.join("run/step-002/capture.sigmf-data");
+    let mut data = std::fs::read(&data_path).unwrap();
+    data[1000] ^= 0x01;
+    std::fs::write(&data_path, &data).unwrap();
+
+    let (code, out, err) = radbench(d, &["process", "run", "--out", "p", "--json"]).await;
+    assert_eq!(code, 2, "{err}");
+    let doc: Value = serde_json::from_str(&out).unwrap();
+    let processed = doc["processed"].as_array().unwrap();
+    assert_eq!(processed.len(), 1, "{doc}");
+    assert!(d.join("p/step-001/summary.json").is_file());
+    assert!(!d.join("p/step-002/summary.json").exists());
+    assert!(
+        err.contains("step-002") && err.contains("core:sha512"),
+        "{err}"
+    );
+    // Away from its run folder (no manifest), step 1's wrong SHA-512 is refused.
+    std::fs::rename(d.join("run/step-001"), d.join("alone")).unwrap();
+    let (code, _, err) = radbench(d, &["process", "alone", "--out", "q"]).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("core:sha512"), "{err}");
+}
