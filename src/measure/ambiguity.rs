@@ -111,7 +111,7 @@ pub(crate) fn ambiguity(
                 .next()
                 .ok_or_else(|| bad("a capture folder or .sigmf-meta".into()))?
                 .map_err(|e| bad(format!("a capture folder or .sigmf-meta ({})", e.reason)))?;
-            let loaded = reprocess::load_for_processing(&source, None)?;
+            let loaded = reprocess::load_for_processing(&source, None, None)?;
             let resolved = reprocess::resolve(
                 &loaded,
                 &reprocess::WaveformChoice::default(),
