@@ -15,6 +15,7 @@
 //! | `{"cmd":"last_capture"}` | `{"ok":true,"captures":N,"scene":{...}}`: the scene of the last capture |
 //! | `{"cmd":"scope_remote","interface":"vxi11"}` | switch the scope's remote interface (`vicp` or `vxi11`); replies once only that endpoint accepts connections |
 //! | `{"cmd":"endpoints"}` | `{"ok":true,"endpoints":[...]}`: every endpoint now, with `active` |
+//! | `{"cmd":"fault","marker_cable":false,"tx_crc":"off"}` | bench faults: the marker cable unplugged (`true` plugs it back), a Gotmic module's CRC mode fixed `on` or `off` by its configuration (`free`: as at power-on); fields left out are kept |
 //!
 //! Errors reply `{"ok":false,"error":"..."}` and change nothing. A line longer than 1 MiB is
 //! read to its end and refused whole.
@@ -124,7 +125,7 @@ impl SharedScene {
             }
             Request::Snr { snr_db } => next.snr_db = snr_db,
             Request::Get | Request::LastCapture => {}
-            Request::ScopeRemote { .. } | Request::Endpoints => {
+            Request::ScopeRemote { .. } | Request::Endpoints | Request::Fault { .. } => {
                 return Err("this request needs the lab's control channel".into())
             }
         }
@@ -169,6 +170,21 @@ pub(crate) trait Panel: Send + Sync + 'static {
     fn set_scope_remote(&self, remote: RemoteInterface) -> PanelFuture<'_, Result<Value, String>>;
     /// Every endpoint as it is now.
     fn endpoints(&self) -> Value;
+    /// Switches bench faults: the marker cable, a Gotmic module's fixed CRC mode.
+    fn fault(&self, fault: &BenchFault) -> Result<Value, String>;
+}
+
+/// A bench fault switched from the control channel (`{"cmd":"fault", ...}`); fields left out
+/// are not changed.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct BenchFault {
+    /// Whether the marker cable reaches the scope's external trigger input.
+    pub marker_cable: Option<bool>,
+    /// The Tx module's line CRC mode fixed by its configuration: `"on"`, `"off"`, or `"free"`
+    /// (`CRC ON|OFF` switch it, as at power-on).
+    pub tx_crc: Option<String>,
+    /// The same for the Rx module.
+    pub rx_crc: Option<String>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -181,15 +197,35 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 enum Request {
     Get,
     // Boxed: a scene with its chain is far larger than the other requests.
-    Set { scene: Box<Scene> },
-    Move { target: usize, range_m: f64 },
-    Add { target: Target },
-    Remove { target: usize },
-    Snr { snr_db: f64 },
-    Seed { seed: u64 },
+    Set {
+        scene: Box<Scene>,
+    },
+    Move {
+        target: usize,
+        range_m: f64,
+    },
+    Add {
+        target: Target,
+    },
+    Remove {
+        target: usize,
+    },
+    Snr {
+        snr_db: f64,
+    },
+    Seed {
+        seed: u64,
+    },
     LastCapture,
-    ScopeRemote { interface: RemoteInterface },
+    ScopeRemote {
+        interface: RemoteInterface,
+    },
     Endpoints,
+    Fault {
+        marker_cable: Option<bool>,
+        tx_crc: Option<String>,
+        rx_crc: Option<String>,
+    },
 }
 
 /// Longest request line accepted (a whole scene with many targets fits easily).
@@ -265,6 +301,18 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
             panel.set_scope_remote(interface).await
         }
         (Ok(Request::Endpoints), Some(panel)) => Ok(json!({ "endpoints": panel.endpoints() })),
+        (
+            Ok(Request::Fault {
+                marker_cable,
+                tx_crc,
+                rx_crc,
+            }),
+            Some(panel),
+        ) => panel.fault(&BenchFault {
+            marker_cable,
+            tx_crc,
+            rx_crc,
+        }),
         (Ok(req), _) => shared.try_apply(req),
         (Err(e), _) => Err(e),
     };

@@ -156,6 +156,8 @@ struct Served {
 /// The scope's VICP and VXI-11 endpoints, opened and closed with its remote interface.
 struct ScopeSwitch {
     scope: Arc<Lecroy>,
+    /// The bench, for its fault switches.
+    bench: Arc<Bench>,
     /// (protocol, index in the lab's endpoint list, server).
     servers: tokio::sync::Mutex<Vec<(RemoteInterface, usize, Switchable)>>,
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
@@ -213,6 +215,35 @@ impl control::Panel for ScopeSwitch {
 
     fn endpoints(&self) -> serde_json::Value {
         serde_json::json!(*lock(&self.endpoints))
+    }
+
+    fn fault(&self, fault: &control::BenchFault) -> Result<serde_json::Value, String> {
+        let mode = |text: &Option<String>, which: &str| -> Result<Option<Option<bool>>, String> {
+            match text.as_deref() {
+                None => Ok(None),
+                Some("on") => Ok(Some(Some(true))),
+                Some("off") => Ok(Some(Some(false))),
+                Some("free") => Ok(Some(None)),
+                Some(other) => Err(format!("{which}: {other:?}: allowed: on, off or free")),
+            }
+        };
+        // Everything checked before anything changes.
+        let tx = mode(&fault.tx_crc, "tx_crc")?;
+        let rx = mode(&fault.rx_crc, "rx_crc")?;
+        if let Some(on) = fault.marker_cable {
+            self.bench
+                .marker_cable
+                .store(on, std::sync::atomic::Ordering::SeqCst);
+        }
+        if let Some(m) = tx {
+            self.bench.tx.set_crc_fixed(m);
+        }
+        if let Some(m) = rx {
+            self.bench.rx.set_crc_fixed(m);
+        }
+        Ok(serde_json::json!({
+            "marker_cable": self.bench.marker_cable.load(std::sync::atomic::Ordering::SeqCst),
+        }))
     }
 }
 
@@ -312,6 +343,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));
     let scope_switch = Arc::new(ScopeSwitch {
         scope: bench.scope.clone(),
+        bench: bench.clone(),
         servers: tokio::sync::Mutex::new(Vec::new()),
         endpoints: endpoints_now.clone(),
     });
@@ -746,5 +778,41 @@ mod tests {
         assert_eq!(scope, [("vicp".into(), true), ("vxi11".into(), false)]);
         let v = control(&lab, r#"{"cmd":"scope_remote","interface":"gpib"}"#).await;
         assert_eq!(v["ok"], false, "{v}");
+    }
+
+    #[tokio::test]
+    async fn bench_faults_switch_from_the_control_channel_and_bad_ones_change_nothing() {
+        use std::sync::atomic::Ordering;
+        let lab = tokio::time::timeout(Duration::from_secs(10), start(LabOptions::default()))
+            .await
+            .unwrap()
+            .unwrap();
+        let v = control(
+            &lab,
+            r#"{"cmd":"fault","marker_cable":false,"tx_crc":"off"}"#,
+        )
+        .await;
+        assert_eq!(v["ok"], true, "{v}");
+        assert!(!lab.bench.marker_cable.load(Ordering::SeqCst));
+        // The Tx now refuses to switch its CRC mode.
+        assert!(lab.bench.tx.line("CRC ON").starts_with("ERR"));
+        let v = control(
+            &lab,
+            r#"{"cmd":"fault","marker_cable":true,"rx_crc":"sideways"}"#,
+        )
+        .await;
+        assert_eq!(v["ok"], false, "{v}");
+        assert!(
+            !lab.bench.marker_cable.load(Ordering::SeqCst),
+            "nothing changed"
+        );
+        let v = control(
+            &lab,
+            r#"{"cmd":"fault","marker_cable":true,"tx_crc":"free"}"#,
+        )
+        .await;
+        assert_eq!(v["ok"], true, "{v}");
+        assert!(lab.bench.marker_cable.load(Ordering::SeqCst));
+        assert_eq!(lab.bench.tx.line("CRC OFF"), "OK");
     }
 }

@@ -125,6 +125,15 @@ pub struct PayloadFigures {
     pub ber: f64,
     /// Why the data could not be decoded.
     pub error: Option<String>,
+    /// RMS error-vector magnitude of the data symbols, percent (the coherent average's).
+    #[serde(default)]
+    pub evm_rms_pct: Option<f64>,
+    /// The 95th percentile of the symbols' EVM, percent.
+    #[serde(default)]
+    pub evm_p95_pct: Option<f64>,
+    /// Modulation error ratio, dB.
+    #[serde(default)]
+    pub mer_db: Option<f64>,
 }
 
 /// What one algorithm gave, as the runner hands it over.
@@ -489,6 +498,9 @@ fn payload(p: Option<&PayloadResult>, spread: Option<&Spread>) -> Option<Payload
             0.0
         },
         error: p.error.clone(),
+        evm_rms_pct: p.evm_rms_pct,
+        evm_p95_pct: p.evm_p95_pct,
+        mer_db: p.mer_db,
     })
 }
 
@@ -549,6 +561,9 @@ mod tests {
                     bits: 128,
                     ber: 3.0 / 128.0,
                     error: Some("no sync word, \"SFD\"".into()),
+                    evm_rms_pct: None,
+                    evm_p95_pct: None,
+                    mer_db: None,
                 }),
                 spread: None,
             },

@@ -15,6 +15,7 @@ pub(crate) mod calibrate;
 pub(crate) mod calibrate_response;
 pub(crate) mod campaign;
 pub(crate) mod capture;
+pub(crate) mod doctor;
 pub(crate) mod exit_code;
 pub(crate) mod export;
 pub(crate) mod idn;
@@ -29,6 +30,7 @@ pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;
 pub(crate) mod trc;
+pub(crate) mod waveform;
 
 pub use exit_code::classify;
 
@@ -68,6 +70,10 @@ pub enum Command {
     /// I/Q in volts, complex range profiles and range axis, detections, transmitted reference
     /// and bits, options (docs/export.md).
     Export(export::Args),
+    /// Check a bench without radiating: every instrument reachable and identified, the scope's
+    /// remote interface, the Gotmic lines, the marker at the scope's trigger (Tx off), the
+    /// timebases and the calibrations; a checklist with what to fix. Exit 0 only when all hold.
+    Doctor(doctor::Args),
     /// Measure the bench's fixed system delay on a reference target and store it.
     Calibrate(calibrate::Args),
     /// The simulated bench (mock_lab) on 127.0.0.1.
@@ -77,6 +83,9 @@ pub enum Command {
     Scpi(scpi::Args),
     /// Show the header and a summary of LeCroy .trc files (every segment of a sequence).
     Trc(trc::Args),
+    /// Waveform analysis: the delay-Doppler ambiguity function as uploaded, a capture's
+    /// cross-ambiguity.
+    Waveform(waveform::Args),
     /// Show a SigMF recording: datatype, rate, samples, statistics, radbench's metadata.
     Recording(recording::Args),
 }
@@ -99,12 +108,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Campaign(args) => campaign::run(args, &global),
         Command::Align(args) => align::run(*args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),
+        Command::Doctor(args) => doctor::run(args, &global),
         Command::Process(args) => process::run(*args, &global),
         Command::Export(args) => export::run(args, &global),
         Command::MockLab(args) => mock_lab::run(args, &global),
         Command::Scpi(args) => scpi::run(args, &global),
         Command::Trc(args) => trc::run(args, &global),
         Command::Recording(args) => recording::run(args, &global),
+        Command::Waveform(args) => waveform::run(args, &global),
     }
 }
 

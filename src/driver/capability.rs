@@ -139,6 +139,10 @@ pub trait Awg: Send {
         &'a mut self,
         permit: &'a RfPermit,
     ) -> BoxFuture<'a, Result<(), DriverError>>;
+    /// Switches the marker output on and nothing else: the I and Q outputs stay off, so nothing
+    /// reaches the transmitter's input. Needs no permit (the marker only feeds the scope's
+    /// trigger); the bench doctor uses it to see the marker reach the scope.
+    fn enable_marker(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;
     /// Switches every output off.
     fn outputs_off(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;
     /// Starts playback (the last command of a setup).

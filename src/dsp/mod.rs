@@ -23,10 +23,12 @@ impl Classify for DspError {
     }
 }
 
+pub(crate) mod ambiguity;
 pub mod correlate;
 pub mod decimate;
 pub mod detect;
 pub(crate) mod iq_image;
+pub(crate) mod link_quality;
 pub mod metrics;
 pub mod music;
 pub mod ofdm_radar;

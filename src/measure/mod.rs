@@ -3,12 +3,14 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | `ambiguity` | a waveform's ambiguity function as uploaded, a capture's cross-ambiguity |
 //! | `bench_file` | the bench file: instruments, resources, calibration |
 //! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
+//! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
@@ -21,12 +23,14 @@
 //! | `calibration` | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
+pub(crate) mod ambiguity;
 pub mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;
 pub mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
+pub(crate) mod doctor;
 pub(crate) mod export;
 pub(crate) mod figure;
 pub mod interrupt;

@@ -39,6 +39,12 @@ pub(crate) struct ProfileFiles {
     /// The range-Doppler map (OFDM frames of two symbols or more).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub range_doppler_png: Option<PathBuf>,
+    /// The link's plot: constellation, and channel estimate (OFDM) or phase trajectory
+    /// (MSK-LFM), when data was decoded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_svg: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_png: Option<PathBuf>,
 }
 
 /// Writes the profiles of `processed` into `out` (CSV, npy, SVG and PNG plots, the
@@ -61,7 +67,23 @@ fn write_profiles(
             .range_doppler
             .as_ref()
             .map(|_| out.join("range_doppler.png")),
+        link_svg: None,
+        link_png: None,
     };
+    let mut files = files;
+    if let Some(trace) = processed.payload.as_ref().and_then(|p| p.trace.as_ref()) {
+        let p = processed.payload.as_ref();
+        let figures = match (p.and_then(|p| p.evm_rms_pct), p.and_then(|p| p.mer_db)) {
+            (Some(e), Some(m)) => format!(": EVM {e:.2} % rms, MER {m:.1} dB"),
+            _ => String::new(),
+        };
+        let fig = trace.figure(format!("{program}: {} link{figures}", tx.name()));
+        let (svg, png) = (out.join("link.svg"), out.join("link.png"));
+        plot::link::draw_link(&svg, &fig)?;
+        plot::link::draw_link(&png, &fig)?;
+        files.link_svg = Some(svg);
+        files.link_png = Some(png);
+    }
     let truth: Vec<f64> = scene
         .and_then(|s| s["targets"].as_array())
         .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())

@@ -215,7 +215,7 @@ pub(crate) fn plan(
 }
 
 /// The fastest rate the catalog lists that is a whole multiple of the waveform's.
-fn capture_rate(scope: &DigitizerLimits, waveform_hz: f64) -> Result<f64, MeasureError> {
+pub(super) fn capture_rate(scope: &DigitizerLimits, waveform_hz: f64) -> Result<f64, MeasureError> {
     scope
         .sample_rates
         .iter()

@@ -9,6 +9,8 @@ use super::{atomic::write_atomic, profile::extension, StorageError};
 use plotters::prelude::*;
 use std::path::Path;
 
+pub(crate) mod link;
+
 /// The font embedded for PNG text (licence in assets/README.md).
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 

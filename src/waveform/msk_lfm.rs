@@ -363,6 +363,40 @@ impl MskLfm {
         Ok(())
     }
 
+    /// The matched-filter outputs of every symbol of a capture of whole, aligned pulses, in bit
+    /// order (I symbol k at `2k`, Q symbol k at `2k + 1` of each pulse): `+-1` times the echo's
+    /// amplitude plus noise.
+    pub(crate) fn soft_symbols(&self, capture: &[Complex64]) -> Result<Vec<f64>, ParamError> {
+        if capture.is_empty() || capture.len() % self.n_samples != 0 {
+            return Err(ParamError::out_of_range(
+                "capture length",
+                capture.len(),
+                &format!(
+                    "must be a non-zero multiple of samples_per_pulse = {}",
+                    self.n_samples
+                ),
+            ));
+        }
+        let mut soft = vec![0.0; self.n_bits];
+        let mut all = Vec::with_capacity(capture.len() / self.n_samples * self.n_bits);
+        for pulse in capture.chunks_exact(self.n_samples) {
+            self.soft_bits_into(pulse, &mut soft)?;
+            all.extend_from_slice(&soft);
+        }
+        Ok(all)
+    }
+
+    /// The first `n` samples of an aligned pulse with the chirp taken off: the MSK signal alone,
+    /// whose phase moves by +-90 degrees per bit.
+    pub(crate) fn dechirped(&self, pulse: &[Complex64], n: usize) -> Vec<Complex64> {
+        pulse
+            .iter()
+            .zip(&self.chirp)
+            .take(n)
+            .map(|(z, c)| z * c.conj())
+            .collect()
+    }
+
     /// Hard decisions for a capture of whole, aligned pulses (`len` a multiple of
     /// `samples_per_pulse`): bit 1 where the matched-filter output is negative.
     pub fn demodulate(&self, capture: &[Complex64]) -> Result<Vec<u8>, ParamError> {

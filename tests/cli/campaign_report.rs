@@ -68,6 +68,22 @@ fn check_well_formed(html: &str) {
 /// well-formed; `campaign report` writes both reports again byte for byte (and the manifest's
 /// hashes still hold).
 async fn check_reports(dir: &Path, figures: &[Figure]) {
+    // Every report also shows every step's range profile, from the step folders.
+    let results = report::load_results(dir).unwrap();
+    let profiles = report::profiles::step_profiles(dir, &results).expect("the steps' profiles");
+    assert_eq!(profiles.id, "step-profiles");
+    let rows = profiles.chart.y_categories.as_ref().unwrap();
+    assert_eq!(rows.len(), results.steps.len());
+    let traces = profiles
+        .chart
+        .series
+        .iter()
+        .filter(|s| s.style == radbench::campaign::report::plots::Style::Trace)
+        .count();
+    assert_eq!(traces, results.steps.len(), "one profile per step");
+    let mut all = figures.to_vec();
+    all.push(profiles);
+    let figures = &all[..];
     let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     check_well_formed(&html);
@@ -226,7 +242,13 @@ async fn link_plots_ber_with_theory_and_the_radar_figures() {
     let figures = report::figures(&manifest, &results);
     assert_eq!(
         ids(&figures),
-        ["link-ber", "link-width", "link-psl", "link-error"]
+        [
+            "link-ber",
+            "link-evm",
+            "link-width",
+            "link-psl",
+            "link-error"
+        ]
     );
     let ber = series(&figures[0], "fourier measured");
     assert_eq!(ber.points.len(), results.steps.len());
@@ -248,7 +270,19 @@ async fn link_plots_ber_with_theory_and_the_radar_figures() {
     assert!(with_errors >= 1);
     let theory = series(&figures[0], "ofdm theory");
     assert!(theory.points.len() >= 5);
-    let width = &figures[1].chart.series[0];
+    // EVM and MER of every step in results.json, plotted against the attenuation, and the BER
+    // the measured MER implies beside the measured one.
+    let evm = series(&figures[1], "fourier EVM rms");
+    assert_eq!(evm.points.len(), results.steps.len());
+    for (k, s) in results.steps.iter().enumerate() {
+        let pay = s.algorithms["fourier"].payload.as_ref().unwrap();
+        assert!(close(evm.points[k].y, pay.evm_rms_pct.unwrap()));
+        assert!(pay.mer_db.unwrap().is_finite() && pay.evm_p95_pct.unwrap() > 0.0);
+    }
+    assert!(!series(&figures[0], "fourier: Q(sqrt(MER))")
+        .points
+        .is_empty());
+    let width = &figures[2].chart.series[0];
     for (k, s) in results.steps.iter().enumerate() {
         let m = s.algorithms["fourier"]
             .spread

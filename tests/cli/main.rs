@@ -8,6 +8,7 @@ mod io_support;
 #[path = "../process_support/mod.rs"]
 mod process_support;
 
+mod ambiguity;
 mod bad_input;
 mod calibrate_repeat;
 mod calibrate_response;
@@ -19,10 +20,12 @@ mod cli_safety;
 mod clipping_capture;
 mod detect_capture;
 mod detect_corrected;
+mod doctor;
 mod exit_paths;
 mod export;
 mod fault_matrix;
 mod io_cli;
+mod link_quality;
 mod live_exit_paths;
 mod process_cli;
 mod readers_cli;

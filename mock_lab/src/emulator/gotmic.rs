@@ -38,6 +38,8 @@ struct ModuleState {
     lo_present: bool,
     temperature_dc: i16,
     crc: bool,
+    /// The CRC mode fixed by the module's own configuration (`None`: `CRC ON|OFF` switch it).
+    crc_fixed: Option<bool>,
 }
 
 /// What the module does now, for the scene physics and tests.
@@ -112,6 +114,7 @@ impl Gotmic {
                 lo_present: true,
                 temperature_dc,
                 crc: false,
+                crc_fixed: None,
             }),
             log: ReceivedLog::new("gotmic", LOG_CAPACITY),
             model,
@@ -232,6 +235,18 @@ impl Gotmic {
         }
     }
 
+    /// Fixes the line's CRC mode as a module configured for one mode only does (`Some(false)`:
+    /// plain lines only, `Some(true)`: CRC-framed lines only); `CRC ON|OFF` is then refused.
+    /// `None` (power-on) lets `CRC ON|OFF` switch it. A fault for tests of the bench doctor: a
+    /// line whose CRC mode is not the one the catalog expects.
+    pub fn set_crc_fixed(&self, fixed: Option<bool>) {
+        let mut st = self.lock();
+        st.crc_fixed = fixed;
+        if let Some(mode) = fixed {
+            st.crc = mode;
+        }
+    }
+
     /// What the module does now.
     pub fn front_end(&self) -> FrontEndState {
         let st = self.lock();
@@ -321,6 +336,13 @@ impl Gotmic {
                 Ok("OK".into())
             }
             [crc, mode] if crc.eq_ignore_ascii_case("CRC") => {
+                if let Some(fixed) = st.crc_fixed {
+                    let now = if fixed { "ON" } else { "OFF" };
+                    return Err(refuse(
+                        "syntax",
+                        format!("CRC is fixed {now} by the module's configuration"),
+                    ));
+                }
                 st.crc = match mode.to_ascii_uppercase().as_str() {
                     "ON" => true,
                     "OFF" => false,

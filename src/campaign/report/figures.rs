@@ -5,7 +5,7 @@
 //! | swept `position` | range error per step against the nominal position, interpolated and on the grid, with the ±c0/(2 fs) and ±c0/(4 fs) bounds (thesis Fig. 4.13) |
 //! | two or more targets | resolved or not against the separation, per algorithm and bandwidth |
 //! | one target, not swept in position / attenuation / SNR | -3 dB width and peak side-lobe level per step, the thesis' simulation and lab values beside (Tables 4.5, 4.7) |
-//! | swept `tx-attenuation` or `snr` | BER (95 % interval) with the waveform's theory, -3 dB width, PSL and range error |
+//! | swept `tx-attenuation` or `snr` | BER (95 % interval) with the waveform's theory and the BER the measured MER implies, EVM (rms, 95th percentile) with the white-noise line, -3 dB width, PSL and range error |
 //!
 //! Every plotted number is a number of `results.json` (or computed from one: BER intervals, the
 //! theory curve); nothing is invented.
@@ -438,6 +438,7 @@ fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
     let mut out: Vec<Figure> = ber_figure(manifest, steps, &names, snr, x_label)
         .into_iter()
         .collect();
+    out.extend(evm_figure(steps, &names, snr, x_label));
     out.extend(link_radar_figures(steps, &names, x_label));
     out
 }
@@ -496,6 +497,26 @@ fn ber_figure(
             });
         }
     }
+    // The BER the measured MER implies for Gaussian noise on the data symbols: Q(sqrt(MER)) for
+    // QPSK (OFDM) and for MSK's (I, Q) symbol pairs alike.
+    for name in names {
+        let points: Vec<Point> = steps
+            .iter()
+            .filter_map(|s| {
+                let mer = s.algorithms.get(name)?.payload.as_ref()?.mer_db?;
+                let ber = crate::waveform::ber::q_function(10f64.powf(mer / 20.0));
+                let x = s.nominal.value?;
+                (ber >= 1e-9).then(|| Point::new(x, ber))
+            })
+            .collect();
+        if !points.is_empty() {
+            ber.series.push(Series {
+                label: format!("{name}: Q(sqrt(MER)), the BER the measured MER implies"),
+                points,
+                style: Style::Line,
+            });
+        }
+    }
     let theory_note = match (w.as_ref(), implied.is_empty()) {
         (Some(w), false) => {
             let (series, note) = ber_theory(w, steps, &implied, snr);
@@ -514,6 +535,82 @@ fn ber_figure(
              at the interval's upper bound. {theory_note}"
         ),
         chart: ber,
+    })
+}
+
+/// The data symbols' EVM (rms and 95th percentile) at each step, with the line a link limited by
+/// white noise follows (MER = +-x + K, K fitted to the measured MER).
+fn evm_figure(steps: &[&StepResult], names: &[String], snr: bool, x_label: &str) -> Option<Figure> {
+    let mut chart = Chart::new("Error-vector magnitude", x_label, "EVM (%)");
+    chart.log_y = true;
+    let sign = if snr { 1.0 } else { -1.0 };
+    let mut offsets = Vec::new();
+    for name in names {
+        let mut rms = Vec::new();
+        let mut p95 = Vec::new();
+        for s in steps {
+            let (Some(x), Some(p)) = (
+                s.nominal.value,
+                s.algorithms.get(name).and_then(|a| a.payload.as_ref()),
+            ) else {
+                continue;
+            };
+            if let Some(e) = p.evm_rms_pct.filter(|e| *e > 0.0) {
+                rms.push(Point::new(x, e));
+            }
+            if let Some(e) = p.evm_p95_pct.filter(|e| *e > 0.0) {
+                p95.push(Point::new(x, e));
+            }
+            if let Some(m) = p.mer_db {
+                offsets.push(m - sign * x);
+            }
+        }
+        for (label, points, style) in [
+            ("EVM rms", rms, Style::Line),
+            ("EVM 95th percentile", p95, Style::Markers),
+        ] {
+            if !points.is_empty() {
+                chart.series.push(Series {
+                    label: format!("{name} {label}"),
+                    points,
+                    style,
+                });
+            }
+        }
+    }
+    if chart.series.is_empty() {
+        return None;
+    }
+    let mut note = String::new();
+    if !offsets.is_empty() {
+        let k = offsets.iter().sum::<f64>() / offsets.len() as f64;
+        let (x0, x1) = steps
+            .iter()
+            .filter_map(|s| s.nominal.value)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x), b.max(x))
+            });
+        let minus = if snr { "" } else { "-" };
+        chart.series.push(Series {
+            label: format!("white noise: MER = {minus}x + {k:.1} dB (fitted)"),
+            points: (0..=40)
+                .map(|i| {
+                    let x = x0 + (x1 - x0) * i as f64 / 40.0;
+                    Point::new(x, 100.0 * 10f64.powf(-(sign * x + k) / 20.0))
+                })
+                .collect(),
+            style: Style::Dashed,
+        });
+        note = format!(
+            " The dashed line is what a link limited by white noise gives: EVM = 10^(-MER/20),              MER moving 1 dB per dB of the swept parameter, K = {k:.2} dB fitted to the measured              MER; where the points leave it, something else than noise limits the link (the              DAC's and ADC's quantisation, clipping, the chain)."
+        );
+    }
+    Some(Figure {
+        id: "link-evm",
+        caption: format!(
+            "Error-vector magnitude of the decoded data symbols against those sent (data-aided),              rms and 95th percentile, of each step's coherent average. MER = -20 log10(EVM              rms).{note}"
+        ),
+        chart,
     })
 }
 

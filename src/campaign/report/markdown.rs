@@ -106,6 +106,20 @@ fn ber(a: &AlgorithmResult) -> String {
     }
 }
 
+/// EVM rms and 95th percentile, and MER, of the step's data symbols.
+fn evm(a: &AlgorithmResult) -> (String, String) {
+    match &a.payload {
+        Some(p) => (
+            match (p.evm_rms_pct, p.evm_p95_pct) {
+                (Some(r), Some(q)) => format!("{r:.2} / {q:.2}"),
+                _ => "-".into(),
+            },
+            p.mer_db.map_or("-".into(), |m| format!("{m:.1}")),
+        ),
+        None => ("-".into(), "-".into()),
+    }
+}
+
 /// Every step and algorithm.
 pub(crate) fn steps_table(results: &Results) -> Table {
     let header = [
@@ -121,6 +135,8 @@ pub(crate) fn steps_table(results: &Results) -> Table {
         "PSL (dB)",
         "SNR (dB)",
         "BER [95 %]",
+        "EVM rms / 95 % (%)",
+        "MER (dB)",
     ];
     let mut rows = Vec::new();
     for s in &results.steps {
@@ -153,6 +169,8 @@ pub(crate) fn steps_table(results: &Results) -> Table {
                 figure(a.sidelobe_db, sp.and_then(|f| f.sidelobe_db), 2),
                 figure(a.snr_db, sp.and_then(|f| f.snr_db), 1),
                 ber(a),
+                evm(a).0,
+                evm(a).1,
             ]);
         }
     }

@@ -1,5 +1,6 @@
-//! The run's report, written from `manifest.toml` and `results.json` alone (so `radbench campaign
-//! report RUN_DIR` writes it again, byte for byte, at any time): `report.md` (tables, mean +- std
+//! The run's report, written from `manifest.toml`, `results.json` and each step's
+//! `profile.csv` (so `radbench campaign report RUN_DIR` writes it again, byte for byte, at any
+//! time): `report.md` (tables, mean +- std
 //! over the repetitions) and `report.html` (the same tables and every plot inline as SVG; no
 //! script, no external file, opens from disk).
 //!
@@ -7,6 +8,7 @@
 //! |---|---|
 //! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
+//! | [`profiles`] | every step's range profile, one waterfall row per step |
 //! | `markdown` | `report.md` |
 //! | `html` | `report.html` |
 
@@ -14,6 +16,7 @@ pub mod figures;
 pub(crate) mod html;
 pub(crate) mod markdown;
 pub mod plots;
+pub mod profiles;
 
 use super::manifest::Manifest;
 use super::results::Results;
@@ -30,7 +33,8 @@ pub(crate) const HTML_FILE: &str = "report.html";
 
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
-    let figures = figures(manifest, results);
+    let mut figures = figures(manifest, results);
+    figures.extend(profiles::step_profiles(dir, results));
     let md = dir.join(FILE);
     write_atomic(
         &md,

@@ -28,6 +28,9 @@ pub enum Style {
     Dashed,
     /// Markers only.
     Markers,
+    /// A thin solid line without markers (a range profile); an empty label adds no legend
+    /// entry.
+    Trace,
 }
 
 /// One point; `filled = false` draws a hollow marker (not resolved, no bit errors).
@@ -164,7 +167,7 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
         None => pad(span(ys.into_iter()).ok_or("nothing to plot: no points")?),
     };
     // Room above the data for the legend (upper right), so it hides no point.
-    let entries = chart.series.len()
+    let entries = chart.series.iter().filter(|s| !s.label.is_empty()).count()
         + chart.vlines.len()
         + chart.hlines.iter().filter(|h| !h.label.is_empty()).count();
     let legend = (entries as f64 * 18.0 + 20.0) / PLOT_HEIGHT_PX;
@@ -331,6 +334,17 @@ fn draw_series<DB: DrawingBackend>(
             Style::Line => {
                 c.draw_series(LineSeries::new(line, color.stroke_width(1)))
                     .map_err(e)?;
+            }
+            Style::Trace => {
+                let drawn = c
+                    .draw_series(LineSeries::new(line, color.stroke_width(1)))
+                    .map_err(e)?;
+                if !s.label.is_empty() {
+                    drawn.label(s.label.as_str()).legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
+                }
+                continue;
             }
             Style::Markers => {}
         }

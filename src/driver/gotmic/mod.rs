@@ -142,6 +142,18 @@ pub enum Framing {
 }
 
 impl Framing {
+    /// The framing a module on the wrong CRC mode would answer in: plain lines when the
+    /// catalog's are CRC-8 framed, else CRC-8 (the catalog's polynomial, or CRC-8/SMBUS).
+    pub(crate) fn other_than_catalog(model: &InstrumentModel) -> Framing {
+        match Framing::from_catalog(model) {
+            Framing::Crc8(_) => Framing::Plain,
+            Framing::Plain => Framing::Crc8(Crc8 {
+                poly: model.protocol.as_ref().map_or(0x07, |p| p.crc_poly),
+                init: model.protocol.as_ref().map_or(0x00, |p| p.crc_init),
+            }),
+        }
+    }
+
     /// CRC-8 when the catalog's `[protocol]` defines one, else plain lines.
     pub fn from_catalog(model: &InstrumentModel) -> Framing {
         match &model.protocol {
@@ -190,6 +202,18 @@ impl Gotmic {
         journal: Option<Journal>,
         name: &str,
     ) -> Result<Gotmic, DriverError> {
+        Gotmic::open_with(resource, model, journal, name, Framing::from_catalog(model)).await
+    }
+
+    /// [`open`](Gotmic::open) with the given framing instead of the catalog's (the bench doctor
+    /// tries the other one to tell a line in the wrong CRC mode from a dead one).
+    pub(crate) async fn open_with(
+        resource: Resource,
+        model: &InstrumentModel,
+        journal: Option<Journal>,
+        name: &str,
+        framing: Framing,
+    ) -> Result<Gotmic, DriverError> {
         let mut options = session_options(model, "");
         options.link.serial = serial_settings(model);
         // No quiet-line wait before the first request (it cost 50-60 ms per module): the input
@@ -204,7 +228,7 @@ impl Gotmic {
         let session = Session::open(resource, options, journal, name)
             .await
             .map_err(session(name))?;
-        Gotmic::connect_with(Box::new(session), model, name, Framing::from_catalog(model)).await
+        Gotmic::connect_with(Box::new(session), model, name, framing).await
     }
 
     /// Identifies the module (`*IDN?` and the ID register) on an open session or a fake, with

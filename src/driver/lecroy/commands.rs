@@ -27,6 +27,8 @@ pub(crate) const EXECUTION_ERRORS: &str = "EXR?";
 pub const STATUS: &str = "INR?";
 pub const STOP: &str = "STOP";
 pub(crate) const EXTERNAL_REFERENCE: &str = "RCLK EXTERNAL";
+/// The timebase's reference: `INTERNAL` or `EXTERNAL`.
+pub(crate) const REFERENCE_QUERY: &str = "RCLK?";
 /// The external trigger input, where the AWG's marker arrives.
 pub(crate) const EXTERNAL: &str = "EX";
 

@@ -139,6 +139,12 @@ impl Lecroy {
         &self.model
     }
 
+    /// The timebase's reference as the scope reports it (`RCLK?`: `INTERNAL` or `EXTERNAL`).
+    pub(crate) async fn reference_clock(&mut self) -> Result<String, DriverError> {
+        let text = self.scpi.ask(commands::REFERENCE_QUERY).await?;
+        Ok(text.trim().trim_start_matches("RCLK").trim().to_string())
+    }
+
     /// A `VBS?` number, with the catalog's `VBS ` reply prefix stripped when present.
     async fn ask_vbs_number(&mut self, query: &str) -> Result<f64, DriverError> {
         let text = self.scpi.ask(query).await?;

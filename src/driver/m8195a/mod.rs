@@ -418,6 +418,14 @@ impl Awg for M8195a {
         Box::pin(self.enable_impl())
     }
 
+    fn enable_marker(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
+        Box::pin(async move {
+            let (_, _, m) = self.signal_channels();
+            self.scpi.send(&commands::output(m, true)).await?;
+            self.scpi.check("switching the marker output on").await
+        })
+    }
+
     fn outputs_off(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(self.outputs_off_impl())
     }

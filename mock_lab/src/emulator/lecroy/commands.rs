@@ -175,6 +175,12 @@ const COMMANDS: &[Command] = &[
         settings::get_volts_per_div,
     ),
     setting("OFFSET", "OFST", settings::set_offset, settings::get_offset),
+    setting(
+        "REFERENCE_CLOCK",
+        "RCLK",
+        settings::set_reference_clock,
+        settings::get_reference_clock,
+    ),
     setting("TRACE", "TRA", settings::set_trace, settings::get_trace),
     Command {
         long: "WAVEFORM",

@@ -376,3 +376,22 @@ impl Call<'_> {
             .ok_or_else(|| exe_err(22, format!("{} needs a channel path (C1:..)", self.names.1)))
     }
 }
+
+/// `REFERENCE_CLOCK`: the timebase's reference, the scope's own or the 10 MHz on its rear input.
+pub(super) fn get_reference_clock(st: &ScopeState, _: &Call) -> Result<Report, Fault> {
+    Ok(Report::plain(st.reference_clock.clone()))
+}
+
+pub(super) fn set_reference_clock(st: &mut ScopeState, call: &Call) -> Result<(), Fault> {
+    st.reference_clock = match call.one()?.to_ascii_uppercase().as_str() {
+        "INT" | "INTERNAL" => "INTERNAL".into(),
+        "EXT" | "EXTERNAL" => "EXTERNAL".into(),
+        other => {
+            return Err(cmd_err(
+                5,
+                format!("RCLK takes INTERNAL or EXTERNAL, not {other}"),
+            ))
+        }
+    };
+    Ok(())
+}

@@ -166,6 +166,8 @@ pub struct ScopeState {
     /// A setting was adapted to what the scope can do (STB bit 2, VAB).
     pub value_adapted: bool,
     pub remote: RemoteInterface,
+    /// The timebase's reference (`REFERENCE_CLOCK`): `INTERNAL` or `EXTERNAL`.
+    pub reference_clock: String,
 }
 
 impl ScopeState {
@@ -210,6 +212,7 @@ impl ScopeState {
             exr: 0,
             value_adapted: false,
             remote,
+            reference_clock: "INTERNAL".into(),
         }
     }
 

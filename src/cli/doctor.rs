@@ -1,0 +1,86 @@
+//! `radbench doctor`: checks a bench without radiating and prints a checklist with what to fix
+//! for each failure (`measure::doctor` does the checks). Exit 0 only when no check fails.
+
+use super::capture::{bench_source, journal, open_bench};
+use crate::exit::{Classified, ExitClass};
+use crate::measure::doctor::{self, Status};
+use crate::measure::interrupt::Interrupt;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The bench file to check. Without one, the built-in mock lab is started and checked.
+    #[arg(long, value_name = "FILE")]
+    pub bench: Option<PathBuf>,
+    /// Print one JSON object: {"bench", "ok", "checks": [{"id", "status", "detail", "fix"}]}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+    let runtime = super::runtime()?;
+    runtime.block_on(async {
+        let interrupt = Interrupt::listen()?;
+        let source = bench_source(
+            args.bench.as_deref(),
+            None,
+            super::args::AwgTransportArg::Hislip,
+            super::args::ScopeTransportArg::Vicp,
+        )?;
+        let bench = open_bench(source, args.json).await?;
+        let report = doctor::run(&bench, journal(global)?, &interrupt).await?;
+        if args.json {
+            super::terminal::out(&serde_json::to_string(&report)?)?;
+        } else {
+            super::terminal::out(&text(&report))?;
+        }
+        if report.ok {
+            Ok(())
+        } else {
+            let failed: Vec<&str> = report
+                .checks
+                .iter()
+                .filter(|c| c.status == Status::Fail)
+                .map(|c| c.id.as_str())
+                .collect();
+            Err(anyhow::Error::new(Classified {
+                class: ExitClass::Instrument,
+                message: format!(
+                    "the bench doctor found {} problem(s): {}",
+                    failed.len(),
+                    failed.join(", ")
+                ),
+            }))
+        }
+    })
+}
+
+/// The checklist as text: one line per check, its fix indented under a failure or warning.
+fn text(report: &doctor::Report) -> String {
+    let mut out = format!("bench doctor: {}\n", report.bench);
+    for c in &report.checks {
+        out += &format!("[{:>4}] {:<24} {}\n", c.status.mark(), c.id, c.detail);
+        if let Some(fix) = &c.fix {
+            out += &format!("       {:<24} fix: {fix}\n", "");
+        }
+    }
+    let failed = report
+        .checks
+        .iter()
+        .filter(|c| c.status == Status::Fail)
+        .count();
+    let warned = report
+        .checks
+        .iter()
+        .filter(|c| c.status == Status::Warn)
+        .count();
+    out += &if failed == 0 {
+        format!(
+            "all checks hold ({} checks, {warned} warning(s)); nothing was switched on",
+            report.checks.len()
+        )
+    } else {
+        format!("{failed} check(s) failed, {warned} warning(s); nothing was switched on")
+    };
+    out
+}
