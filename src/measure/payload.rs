@@ -46,8 +46,8 @@ pub(crate) enum LinkTrace {
         subcarrier_hz: Vec<f64>,
     },
     /// MSK-LFM: each symbol pair (I, Q) scaled to the ideal +-1, and the phase of the
-    /// dechirped signal over the first bits with the ideal one, degrees, `samples_per_bit` apart
-    /// per bit.
+    /// dechirped signal over the first bits with that of the transmitted reference, degrees,
+    /// `samples_per_bit` points per bit.
     MskLfm {
         constellation: Vec<Complex64>,
         phase_deg: Vec<f64>,
@@ -157,6 +157,9 @@ impl LinkTrace {
 /// Bits of the MSK-LFM phase trajectory drawn.
 const TRAJECTORY_BITS: f64 = 32.0;
 
+/// Points of the MSK-LFM phase trajectory drawn (per line).
+const TRAJECTORY_POINTS: usize = 2000;
+
 /// Unwrapped phase in degrees.
 fn unwrapped_deg(z: &[Complex64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(z.len());
@@ -263,7 +266,7 @@ impl PayloadDecoder {
                     *v *= derot;
                 }
                 gen.soft_symbols(&buf[..used])
-                    .map(|soft| msk_decoded(gen, &soft, &buf[..used], &tx.bits))
+                    .map(|soft| msk_decoded(gen, &soft, &buf[..used], &tx.reference, &tx.bits))
                     .map_err(|e| e.to_string())
             }
             (PayloadDecoder::Ofdm(receiver), Modulation::Ofdm { .. }) => {
@@ -351,6 +354,7 @@ fn msk_decoded(
     gen: &crate::waveform::msk_lfm::MskLfm,
     soft: &[f64],
     pulses: &[Complex64],
+    reference: &[Complex64],
     sent: &[u8],
 ) -> Decoded {
     let bits: Vec<u8> = soft.iter().map(|&v| u8::from(v < 0.0)).collect();
@@ -375,13 +379,12 @@ fn msk_decoded(
     }
     let spb = gen.samples_per_bit();
     let shown = ((TRAJECTORY_BITS * spb).ceil() as usize).min(pulses.len());
-    let phase_deg = unwrapped_deg(&gen.dechirped(pulses, shown));
-    let ideal_pulse = gen
-        .pulse(&sent[..gen.bits_per_pulse().min(sent.len())])
-        .ok();
-    let ideal_phase_deg = ideal_pulse
-        .map(|p| unwrapped_deg(&gen.dechirped(&p, shown)))
-        .unwrap_or_default();
+    // The phase is taken at the points drawn, not at every sample: a bit turns it by 90 degrees
+    // over `spb` samples, so a step of a few degrees unwraps as at the full rate.
+    let stride = shown.div_ceil(TRAJECTORY_POINTS).max(1);
+    let phase_deg = unwrapped_deg(&gen.dechirped(pulses, shown, stride));
+    // What was sent: the transmitted reference (the first pulse, as the AWG's codes play it).
+    let ideal_phase_deg = unwrapped_deg(&gen.dechirped(reference, shown, stride));
     Decoded {
         bits,
         quality,
@@ -389,7 +392,7 @@ fn msk_decoded(
             constellation,
             phase_deg,
             ideal_phase_deg,
-            samples_per_bit: spb,
+            samples_per_bit: spb / stride as f64,
         }),
     }
 }

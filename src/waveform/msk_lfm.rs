@@ -386,13 +386,14 @@ impl MskLfm {
         Ok(all)
     }
 
-    /// The first `n` samples of an aligned pulse with the chirp taken off: the MSK signal alone,
-    /// whose phase moves by +-90 degrees per bit.
-    pub(crate) fn dechirped(&self, pulse: &[Complex64], n: usize) -> Vec<Complex64> {
+    /// The first `n` samples of an aligned pulse with the chirp taken off, every `stride`-th
+    /// one: the MSK signal alone, whose phase moves by +-90 degrees per bit.
+    pub(crate) fn dechirped(&self, pulse: &[Complex64], n: usize, stride: usize) -> Vec<Complex64> {
         pulse
             .iter()
             .zip(&self.chirp)
             .take(n)
+            .step_by(stride.max(1))
             .map(|(z, c)| z * c.conj())
             .collect()
     }
