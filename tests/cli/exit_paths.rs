@@ -47,27 +47,7 @@ fn capture(bench: &str, out: &Path, extra: &[&str]) -> Child {
         .unwrap()
 }
 
-/// Polls `cond` every 5 ms until it holds; fails the test after `limit`.
-async fn until(what: &str, limit: Duration, cond: impl Fn() -> bool) {
-    let poll = async {
-        while !cond() {
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
-    };
-    tokio::time::timeout(limit, poll)
-        .await
-        .unwrap_or_else(|_| panic!("{what} within {limit:?}"));
-}
-
-fn signal(child: &Child, name: &str) {
-    let pid = child.id().unwrap().to_string();
-    let ok = std::process::Command::new("kill")
-        .args([&format!("-{name}"), &pid])
-        .status()
-        .unwrap()
-        .success();
-    assert!(ok, "kill -{name}");
-}
+use crate::support::{signal, until};
 
 async fn exit_code(child: Child) -> (i32, String) {
     let out = tokio::time::timeout(Duration::from_secs(60), child.wait_with_output())

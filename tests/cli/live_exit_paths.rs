@@ -47,25 +47,11 @@ fn spawn(args: &[&str]) -> Child {
         .unwrap()
 }
 
-async fn until(what: &str, cond: impl Fn() -> bool) {
-    let poll = async {
-        while !cond() {
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
-    };
-    tokio::time::timeout(LIMIT, poll)
-        .await
-        .unwrap_or_else(|_| panic!("{what} within {LIMIT:?}"));
-}
+use crate::support::signal;
 
-fn signal(child: &Child, name: &str) {
-    let pid = child.id().unwrap().to_string();
-    let ok = std::process::Command::new("kill")
-        .args([&format!("-{name}"), &pid])
-        .status()
-        .unwrap()
-        .success();
-    assert!(ok, "kill -{name}");
+/// Polls `cond` until it holds, for at most [`LIMIT`].
+async fn until(what: &str, cond: impl Fn() -> bool) {
+    crate::support::until(what, LIMIT, cond).await
 }
 
 async fn finished(child: Child) -> (i32, String, String) {

@@ -52,3 +52,26 @@ pub fn thesis_request(
         background: None,
     }
 }
+
+/// Polls `cond` every 5 ms until it holds; fails the test after `limit`.
+pub async fn until(what: &str, limit: Duration, cond: impl Fn() -> bool) {
+    let poll = async {
+        while !cond() {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    };
+    tokio::time::timeout(limit, poll)
+        .await
+        .unwrap_or_else(|_| panic!("{what} within {limit:?}"));
+}
+
+/// Sends signal `name` (`INT`, `TERM`, `HUP`) to `child` with kill(1).
+pub fn signal(child: &tokio::process::Child, name: &str) {
+    let pid = child.id().unwrap().to_string();
+    let ok = std::process::Command::new("kill")
+        .args([&format!("-{name}"), &pid])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "kill -{name}");
+}
