@@ -3,9 +3,6 @@
 //! files are written, with the emulators' RF state read back afterwards; and a stalled scope
 //! switches RF off within the capture's deadline.
 
-use mock_lab::lab::{self, Lab, LabOptions};
-use mock_lab::scene::Scene;
-use mock_lab::server::launch::Transport;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::sync::atomic::Ordering;
@@ -14,24 +11,7 @@ use tokio::process::{Child, Command};
 
 const BIN: &str = env!("CARGO_BIN_EXE_radbench");
 
-async fn start() -> Lab {
-    tokio::time::timeout(
-        Duration::from_secs(10),
-        lab::start(LabOptions {
-            scene: Scene::default(),
-            ..LabOptions::default()
-        }),
-    )
-    .await
-    .expect("lab starts")
-    .expect("lab starts")
-}
-
-fn bench_file(dir: &Path, lab: &Lab) -> String {
-    let path = dir.join("bench.toml");
-    std::fs::write(&path, lab.bench_toml(Transport::Hislip, Transport::Vicp)).unwrap();
-    path.display().to_string()
-}
+use crate::support::{lab_bench_file as bench_file, start_lab as start};
 
 fn capture(bench: &str, out: &Path, extra: &[&str]) -> Child {
     Command::new(BIN)

@@ -3,9 +3,7 @@
 //! lost instrument; and a live view with a stalled browser connected changes nothing of a
 //! campaign's outcome. Loopback only, every wait bounded, nothing timed.
 
-use mock_lab::lab::{self, Lab, LabOptions};
-use mock_lab::scene::Scene;
-use mock_lab::server::launch::Transport;
+use mock_lab::lab::Lab;
 use std::path::Path;
 use std::process::Stdio;
 use std::sync::atomic::Ordering;
@@ -17,24 +15,7 @@ use tokio::process::{Child, Command};
 const BIN: &str = env!("CARGO_BIN_EXE_radbench");
 const LIMIT: Duration = Duration::from_secs(60);
 
-async fn start() -> Lab {
-    tokio::time::timeout(
-        Duration::from_secs(10),
-        lab::start(LabOptions {
-            scene: Scene::default(),
-            ..LabOptions::default()
-        }),
-    )
-    .await
-    .expect("lab starts")
-    .expect("lab starts")
-}
-
-fn bench_file(dir: &Path, lab: &Lab) -> String {
-    let path = dir.join("bench.toml");
-    std::fs::write(&path, lab.bench_toml(Transport::Hislip, Transport::Vicp)).unwrap();
-    path.display().to_string()
-}
+use crate::support::{lab_bench_file as bench_file, start_lab as start};
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(BIN)

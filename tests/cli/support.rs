@@ -75,3 +75,25 @@ pub fn signal(child: &tokio::process::Child, name: &str) {
         .success();
     assert!(ok, "kill -{name}");
 }
+
+/// A mock lab on loopback with an empty scene, for the exit-path tests (bounded start).
+pub async fn start_lab() -> mock_lab::lab::Lab {
+    tokio::time::timeout(
+        Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions {
+            scene: mock_lab::scene::Scene::default(),
+            ..mock_lab::lab::LabOptions::default()
+        }),
+    )
+    .await
+    .expect("lab starts")
+    .expect("lab starts")
+}
+
+/// `lab`'s bench file (AWG over HiSLIP, scope over VICP) written to `dir/bench.toml`.
+pub fn lab_bench_file(dir: &Path, lab: &mock_lab::lab::Lab) -> String {
+    use mock_lab::server::launch::Transport;
+    let path = dir.join("bench.toml");
+    std::fs::write(&path, lab.bench_toml(Transport::Hislip, Transport::Vicp)).unwrap();
+    path.display().to_string()
+}
