@@ -29,6 +29,12 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         )?;
         let bench = open_bench(source, args.json).await?;
         let report = doctor::run(&bench, journal(global)?, &interrupt).await?;
+        // A stop signal during a check that does not switch anything on: that check finished
+        // (each is bounded), no further one radiated (the marker check is skipped once a signal
+        // came), and the doctor ends with the signal's code.
+        if let Some(signal) = interrupt.received() {
+            return Err(doctor::stopped(signal).into());
+        }
         if args.json {
             super::terminal::out(&serde_json::to_string(&report)?)?;
         } else {

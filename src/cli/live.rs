@@ -114,6 +114,13 @@ pub(crate) async fn finish(live: Option<Live>, status: &str, error: Option<&anyh
             refused = s.refused,
             "live view closed"
         );
+        // The counters, always: what the page was sent and what a slow browser or a full queue
+        // cost it (never the measurement).
+        eprintln!(
+            "live view closed: {} frames published, {} skipped by slow browsers, {} events \
+             dropped (queue full), {} browsers gone, {} requests refused",
+            s.frames, s.skipped, s.dropped_events, s.forgotten, s.refused
+        );
     }
 }
 

@@ -121,7 +121,7 @@ struct Frame {
 /// [`Live::finish`] does.
 #[derive(Clone)]
 pub(crate) struct Live {
-    events: mpsc::Sender<Event>,
+    events: mpsc::Sender<(Event, f64)>,
     shared: Arc<Shared>,
     url: String,
     #[cfg_attr(not(test), allow(dead_code))]
@@ -188,9 +188,11 @@ impl Live {
         &self.shared.token
     }
 
-    /// Hands `event` to the composer without waiting: a full queue drops it (counted).
+    /// Hands `event` to the composer without waiting: a full queue drops it (counted). The
+    /// event carries the wall-clock time it was handed over, so the page can tell how long it
+    /// took to show it (`event_unix_ms` of the frame).
     pub(crate) fn send(&self, event: Event) {
-        if self.events.try_send(event).is_err() {
+        if self.events.try_send((event, unix_ms())).is_err() {
             self.shared
                 .counters
                 .dropped_events
@@ -250,6 +252,13 @@ impl Live {
     }
 }
 
+/// Milliseconds since the Unix epoch (the browser's `Date.now()` counts the same).
+fn unix_ms() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
+}
+
 /// 128 random bits as hex, from the kernel.
 fn random_token() -> String {
     use std::io::Read;
@@ -276,7 +285,7 @@ fn random_token() -> String {
 
 /// The composer: folds events into the state and publishes it.
 async fn compose(
-    mut events: mpsc::Receiver<Event>,
+    mut events: mpsc::Receiver<(Event, f64)>,
     frames: watch::Sender<Frame>,
     bench_state: Box<dyn Fn() -> Vec<(String, bool)> + Send + Sync>,
     shared: Arc<Shared>,
@@ -292,15 +301,22 @@ async fn compose(
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut dirty = true;
     loop {
+        // The oldest event folded into this frame: when it was handed over.
+        let mut oldest: Option<f64> = None;
         tokio::select! {
             e = events.recv() => match e {
-                Some(e) => { apply(&mut state, e).await; dirty = true; }
+                Some((e, at)) => {
+                    oldest = Some(at);
+                    apply(&mut state, e).await;
+                    dirty = true;
+                }
                 None => break,
             },
             _ = tick.tick() => {}
         }
         // Everything queued meanwhile goes into the same frame.
-        while let Ok(e) = events.try_recv() {
+        while let Ok((e, at)) = events.try_recv() {
+            oldest = Some(oldest.map_or(at, |o| o.min(at)));
             apply(&mut state, e).await;
             dirty = true;
         }
@@ -329,6 +345,13 @@ async fn compose(
         );
         let status = state["status"].as_str().unwrap_or("running");
         state.insert("final".into(), json!(status != "running"));
+        // For the page's latency record: when the oldest event of this frame was handed over
+        // (null for a frame of the bench state alone) and when the frame was published.
+        state.insert(
+            "event_unix_ms".into(),
+            oldest.map_or(Value::Null, |t| json!(t.round())),
+        );
+        state.insert("published_unix_ms".into(), json!(unix_ms().round()));
         // Serialised in place (no copy of the state): the profile alone is thousands of values.
         let text = serde_json::to_string(&state).unwrap_or_else(|_| "{}".into());
         shared.counters.frames.fetch_add(1, Ordering::Relaxed);

@@ -239,3 +239,39 @@ fn the_page_names_nothing_to_fetch() {
     assert!(PAGE.contains("href=\"data:,\""));
     assert!(!PAGE.contains("@import") && !PAGE.contains("url("));
 }
+
+/// The measurement's side never waits for the composer: on a runtime whose one thread the sender
+/// holds (the composer cannot run), `send` returns every time, the queue takes what it holds and
+/// every event past it is dropped and counted.
+#[tokio::test(flavor = "current_thread")]
+async fn send_never_waits_and_counts_what_a_full_queue_drops() {
+    let live = start(Arc::new(AtomicUsize::new(0))).await;
+    let n = 1000u64;
+    for k in 0..n {
+        live.send(Event::Set("k", json!(k)));
+    }
+    assert_eq!(live.stats().dropped_events, n - QUEUE as u64);
+    // Once the composer runs, the queued events are published (the newest state it holds is
+    // the last event the queue took).
+    until("the queue drained", || {
+        live.stats().frames > 0 && live.shared.frames.borrow().json.contains("\"k\":63")
+    })
+    .await;
+    live.finish("complete", Duration::ZERO).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_frame_says_when_its_oldest_event_was_handed_over() {
+    let live = start(Arc::new(AtomicUsize::new(0))).await;
+    let before = unix_ms();
+    live.send(Event::Set("title", json!("t")));
+    until("the frame", || {
+        live.shared.frames.borrow().json.contains("\"title\":\"t\"")
+    })
+    .await;
+    let frame: Value = serde_json::from_str(&live.shared.frames.borrow().json).unwrap();
+    let event = frame["event_unix_ms"].as_f64().unwrap();
+    let published = frame["published_unix_ms"].as_f64().unwrap();
+    assert!(event >= before.floor() - 1.0 && published >= event - 1.0, "{frame}");
+    live.finish("complete", Duration::ZERO).await;
+}

@@ -357,7 +357,11 @@ pub(crate) async fn run(
         }
         out
     };
-    let (awg, scope, fronts_opened) = tokio::join!(awg_open, scope_open, front_opens);
+    // Ctrl-C while the instruments are being opened ends the doctor at once: nothing is on yet.
+    let (awg, scope, fronts_opened) = tokio::select! {
+        opened = async { tokio::join!(awg_open, scope_open, front_opens) } => opened,
+        signal = interrupt.wait() => return Err(stopped(signal)),
+    };
 
     // AWG.
     let awg_idn: Result<String, String> = awg
@@ -672,6 +676,7 @@ pub(crate) async fn run(
 
     // The marker at the scope's trigger, transmitter off.
     match (awg, scope) {
+        _ if interrupt.received().is_some() => list.skip("marker", "interrupted: not tried"),
         (Some(a), Some(s)) if !tx_on => {
             marker_check(&mut list, a, s, modules, &scope_model, interrupt).await?;
         }
@@ -688,6 +693,15 @@ pub(crate) async fn run(
         checks: list.0,
         ok,
     })
+}
+
+/// The doctor stopped by `signal` outside the marker check (whose own guard reports its safe
+/// state): nothing is switched on.
+pub(crate) fn stopped(signal: super::interrupt::StopSignal) -> MeasureError {
+    MeasureError::Interrupted {
+        signal,
+        report: "nothing is switched on; the checks after the signal were not run".into(),
+    }
 }
 
 /// Plays zero codes with only the marker output on and arms the scope on its external trigger;

@@ -90,7 +90,14 @@ async fn doctor(lab: &Lab, bench: &str, dir: &Path) -> (i32, Value, String) {
     .await;
     let report: Value =
         serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}\n{err}"));
-    let text = std::fs::read_to_string(&journal).unwrap();
+    nothing_radiated(lab, &journal);
+    (code, report, err)
+}
+
+/// The journal shows nothing that radiates (no I or Q output on, no Gotmic CONTROL write but
+/// 0), and the bench is safe.
+fn nothing_radiated(lab: &Lab, journal: &Path) {
+    let text = std::fs::read_to_string(journal).unwrap();
     let mut writes = 0;
     for line in text.lines() {
         let entry: Value = serde_json::from_str(line).unwrap();
@@ -121,7 +128,6 @@ async fn doctor(lab: &Lab, bench: &str, dir: &Path) -> (i32, Value, String) {
     assert!(lab.bench.is_safe(), "the bench ends safe");
     assert!(!lab.bench.tx.front_end().rf_enabled);
     assert!(!lab.bench.rx.front_end().rf_enabled);
-    (code, report, err)
 }
 
 fn check<'a>(report: &'a Value, id: &str) -> &'a Value {
@@ -252,4 +258,82 @@ async fn doctor_passes_on_the_mock_lab_and_names_each_fault_with_its_fix() {
     // And healthy again.
     let (code, _, _) = doctor(&lab, &bench, dir.path()).await;
     assert_eq!(code, 0);
+}
+
+/// `radbench doctor` with the I/O journal, killable, its stderr piped.
+fn spawn_doctor(bench: &str, journal: &Path) -> tokio::process::Child {
+    tokio::process::Command::new(env!("CARGO_BIN_EXE_radbench"))
+        .args(["doctor", "--bench", bench, "--trace-io"])
+        .arg(journal)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap()
+}
+
+async fn ended(child: tokio::process::Child) -> (i32, String) {
+    let out = tokio::time::timeout(Duration::from_secs(60), child.wait_with_output())
+        .await
+        .expect("the doctor ends within 60 s of the signal")
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ctrl_c_while_an_instrument_is_opened_ends_the_doctor_with_130() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    // The scope's resource is a port that accepts and never answers: the doctor waits there.
+    let silent = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = silent.local_addr().unwrap().port();
+    let bench = write_bench(dir.path(), "bench.toml", &lab, None);
+    let text = std::fs::read_to_string(&bench).unwrap();
+    let scope = lab.endpoint("scope", Transport::Vicp).unwrap().resource;
+    std::fs::write(
+        &bench,
+        text.replace(&scope, &format!("VICP::127.0.0.1,{port}::INSTR")),
+    )
+    .unwrap();
+    let journal = dir.path().join("io.jsonl");
+    let child = spawn_doctor(&bench, &journal);
+    // Its first connection to the scope: the doctor is running (its signal handlers are in).
+    let (held, _) = tokio::time::timeout(Duration::from_secs(60), silent.accept())
+        .await
+        .expect("the doctor reaches the scope")
+        .unwrap();
+    crate::support::signal(&child, "INT");
+    let (code, err) = ended(child).await;
+    drop(held);
+    assert_eq!(code, 130, "{err}");
+    assert!(err.contains("SIGINT") && err.contains("nothing is switched on"), "{err}");
+    nothing_radiated(&lab, &journal);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ctrl_c_during_the_marker_check_leaves_the_bench_safe() {
+    let lab = start().await;
+    // No marker edge reaches the scope: the check waits on its trigger with the AWG running.
+    lab.bench.marker_cable.store(false, Ordering::SeqCst);
+    let dir = tempfile::tempdir().unwrap();
+    let bench = write_bench(dir.path(), "bench.toml", &lab, None);
+    let journal = dir.path().join("io.jsonl");
+    let child = spawn_doctor(&bench, &journal);
+    crate::support::until("the AWG playing", Duration::from_secs(60), || {
+        lab.bench.awg.playback().running
+    })
+    .await;
+    // From now on the scope answers nothing: the check cannot end before the signal.
+    lab.scope_faults.set_reply_delay(Duration::from_secs(3600));
+    crate::support::signal(&child, "INT");
+    let (code, err) = ended(child).await;
+    lab.scope_faults.clear();
+    assert_eq!(code, 130, "{err}");
+    assert!(err.contains("SIGINT"), "{err}");
+    assert!(!lab.bench.awg.playback().running, "AWG stopped");
+    nothing_radiated(&lab, &journal);
 }

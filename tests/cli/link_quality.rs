@@ -93,3 +93,85 @@ async fn ofdm_evm_matches_the_scenes_snr_and_msk_lfm_reports_its_own() {
     assert!(mer > 40.0, "{v}");
     assert!(p["evm_rms_pct"].as_f64().unwrap() < 1.0);
 }
+
+/// MSK-LFM's MER from the scene's SNR: each soft value is a matched filter over one bit's
+/// samples at the capture rate (80 GSa/s x 10 us / 128 bits = 6250), whose real part keeps half
+/// of the complex noise: 2 x 6250 times the SNR per complex sample. The lab's own floor (the
+/// AWG's 8-bit codes and the chain, about 51 dB, measured on a noiseless scene) adds its error
+/// power to it.
+fn predicted_msk_lfm_mer_db(snr_db: f64, floor_db: f64) -> f64 {
+    let noise_db = snr_db + 10.0 * (2.0 * 80e9 * 10e-6 / 128.0_f64).log10();
+    -10.0 * (10f64.powf(-noise_db / 10.0) + 10f64.powf(-floor_db / 10.0)).log10()
+}
+
+/// One MSK-LFM capture of a mock lab whose scene is `snr_db` (seeded), the scope at 0.5 V/div
+/// so that noise 10 dB above the echo does not clip its ADC (the default 50 mV/div clips below
+/// ~10 dB SNR); the capture's `payload`.
+async fn msk_lfm_on_lab(dir: &Path, snr_db: f64) -> Value {
+    let text = std::fs::read_to_string(scene(dir, snr_db)).unwrap();
+    let lab = tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions {
+            scene: mock_lab::scene::Scene::from_toml(&text, "scene").unwrap(),
+            ..mock_lab::lab::LabOptions::default()
+        }),
+    )
+    .await
+    .expect("lab starts")
+    .expect("lab starts");
+    use mock_lab::server::launch::Transport;
+    let bench = lab
+        .bench_toml(Transport::Hislip, Transport::Vicp)
+        .replacen("[scope]\n", "[scope]\nvolts_per_div = 0.5\n", 1);
+    let bench_path = dir.join(format!("bench-{snr_db}.toml"));
+    std::fs::write(&bench_path, bench).unwrap();
+    let out = dir.join(format!("msk-{snr_db}")).display().to_string();
+    let (code, stdout, err) = crate::support::radbench_in(
+        None,
+        &[
+            "capture",
+            "--allow-rf",
+            "--json",
+            "--waveform",
+            "msk-lfm",
+            "--bench",
+            bench_path.to_str().unwrap(),
+            "--out",
+            &out,
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(
+        v["clipped_samples"]["fraction"].as_f64(),
+        Some(0.0),
+        "SNR {snr_db} dB: the scope clipped: {}",
+        v["clipped_samples"]
+    );
+    v["payload"].clone()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn msk_lfm_evm_matches_the_scenes_snr() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The floor: the same lab and scope setting without noise to speak of.
+    let floor = msk_lfm_on_lab(tmp.path(), 60.0).await["mer_db"]
+        .as_f64()
+        .unwrap();
+    assert!((45.0..60.0).contains(&floor), "floor {floor:.2} dB");
+    for snr_db in [-5.0, 0.0, 5.0] {
+        let p = msk_lfm_on_lab(tmp.path(), snr_db).await;
+        assert_eq!(p["bit_errors"], 0, "SNR {snr_db} dB: {p}");
+        let mer = p["mer_db"].as_f64().unwrap();
+        let predicted = predicted_msk_lfm_mer_db(snr_db, floor);
+        assert!(
+            (mer - predicted).abs() < 0.5,
+            "SNR {snr_db} dB: MER {mer:.2} dB, predicted {predicted:.2} dB (floor {floor:.2})"
+        );
+        let evm = p["evm_rms_pct"].as_f64().unwrap();
+        assert!((evm - 100.0 * 10f64.powf(-mer / 20.0)).abs() < 1e-9 * evm.max(1.0));
+        let p95 = p["evm_p95_pct"].as_f64().unwrap();
+        assert!(p95 > evm, "{p95} / {evm}");
+    }
+}

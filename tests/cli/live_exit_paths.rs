@@ -302,15 +302,36 @@ async fn a_stalled_browser_changes_nothing_of_a_campaign() {
         let (addr, token) = live_url(&mut child).await;
         let mut browser = None;
         if stalled {
-            // Asks for the stream and never reads a byte of it.
-            let mut s = TcpStream::connect(&addr).await.unwrap();
+            // Asks for the stream and never reads a byte of it, with a small receive buffer
+            // (4 KiB asked; the kernel's minimum beside it) that fills after the first frame.
+            let socket = tokio::net::TcpSocket::new_v4().unwrap();
+            socket.set_recv_buffer_size(4096).unwrap();
+            let mut s = socket.connect(addr.parse().unwrap()).await.unwrap();
             let head = format!("GET /events?token={token} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
             s.write_all(head.as_bytes()).await.unwrap();
             browser = Some(s);
         }
+        // Bounded: the campaign ends within LIMIT whatever the browser does.
         let (code, _, err) = finished(child).await;
         assert_eq!(code, 0, "{err}");
         drop(browser);
+        // The live view's counters, on stderr at the end (how many frames a stalled browser
+        // skips depends on the kernel's socket buffers: src/live/tests.rs checks that part).
+        let counters = err
+            .lines()
+            .find(|l| l.starts_with("live view closed: "))
+            .unwrap_or_else(|| panic!("the counters: {err}"));
+        let number = |after: &str| -> u64 {
+            let k = counters.find(after).unwrap();
+            counters[..k]
+                .rsplit([' ', ','])
+                .find(|w| !w.is_empty())
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        assert!(number(" frames published") > 0, "{counters}");
+        assert!(number(" requests refused") == 0, "{counters}");
         let manifest = std::fs::read_to_string(out.join("manifest.toml")).unwrap();
         assert!(manifest.contains("status = \"complete\""), "{manifest}");
         let v: serde_json::Value =
@@ -383,4 +404,95 @@ async fn live_options_are_checked() {
     .await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains(&format!("--port {port}")), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn listen_beyond_loopback_warns_and_still_needs_the_token() {
+    let lab = start().await;
+    lab.bench.marker_cable.store(false, Ordering::Relaxed);
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab);
+    // Every interface; the test itself only ever connects over loopback.
+    let mut child = spawn(&[
+        "align",
+        "--allow-rf",
+        "--bench",
+        &bench,
+        "--wait",
+        "60",
+        "--json",
+        "--live",
+        "--listen",
+        "0.0.0.0",
+    ]);
+    let (addr, token) = live_url(&mut child).await;
+    assert!(addr.starts_with("127.0.0.1:"), "the URL names loopback: {addr}");
+    assert_eq!(token.len(), 32, "{token}");
+    until("RF on", || rf_on(&lab)).await;
+    assert_eq!(http(&addr, "GET", "/").await, 403);
+    assert_eq!(http(&addr, "GET", "/?token=").await, 403);
+    assert_eq!(http(&addr, "GET", "/events").await, 403);
+    assert_eq!(http(&addr, "POST", "/stop").await, 403);
+    assert!(child.try_wait().unwrap().is_none(), "a refused Stop stops nothing");
+    assert!(rf_on(&lab));
+    assert_eq!(http(&addr, "GET", &format!("/?token={token}")).await, 200);
+    assert_eq!(
+        http(&addr, "POST", &format!("/stop?token={token}")).await,
+        200
+    );
+    let (code, _, err) = finished(child).await;
+    assert_eq!(code, 130, "{err}");
+    assert!(safe(&lab), "{err}");
+    assert!(
+        err.contains("WARNING: --listen 0.0.0.0") && err.contains("not encrypted"),
+        "{err}"
+    );
+    assert!(err.contains("4 requests refused"), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn align_and_a_live_campaign_on_an_unreachable_awg_end_with_3_and_nothing_on() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab);
+    // The AWG's port closed: a listener bound, then dropped.
+    let closed = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = closed.local_addr().unwrap().port();
+    drop(closed);
+    let text = std::fs::read_to_string(&bench).unwrap();
+    let awg = lab
+        .endpoint("awg", mock_lab::server::launch::Transport::Hislip)
+        .unwrap()
+        .resource;
+    let broken = dir.path().join("broken.toml");
+    std::fs::write(
+        &broken,
+        text.replace(&awg, &format!("TCPIP::127.0.0.1::hislip0,{port}::INSTR")),
+    )
+    .unwrap();
+    let broken = broken.to_str().unwrap();
+    let (code, _, err) = finished(spawn(&[
+        "align", "--allow-rf", "--bench", broken, "--count", "1", "--live",
+    ]))
+    .await;
+    assert_eq!(code, 3, "{err}");
+    assert!(safe(&lab), "{err}");
+    // A live campaign on the same bench file.
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/accuracy.toml");
+    let out = dir.path().join("run");
+    let (code, _, err) = finished(spawn(&[
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--allow-rf",
+        "--bench",
+        broken,
+        "--out",
+        out.to_str().unwrap(),
+        "--live",
+    ]))
+    .await;
+    assert_eq!(code, 3, "{err}");
+    assert!(safe(&lab), "{err}");
+    assert!(!lab.bench.tx.front_end().rf_enabled);
 }
