@@ -7,7 +7,8 @@ asks for the event stream as soon as the URL is printed (its receive buffer 4 Ki
 a byte of it. SPEC is examples/accuracy.toml with --steps steps of 5 mm (120 by default: its frames, about 20 kB
 each, then overflow the kernel's socket buffers, so the stalled browser really holds its frames up). Prints the median and spread of the
 campaign's own duration (the manifest's session timing, `total_s`) and of the command's wall time,
-each way.
+each way, and of its CPU time (user + system, getrusage of the child), which the machine's load
+moves less than the durations.
 
     python3 benches/live_stalled.py [--radbench target/release/radbench] [--rounds 4] [--steps 120]
 """
@@ -16,6 +17,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import socket
 import statistics
 import subprocess
@@ -39,10 +41,11 @@ def spec_with_steps(tmp: Path, steps: int) -> Path:
 
 def one(radbench: str, spec: Path, out: Path, mode: str):
     """mode: "off" (no --live), "live" (no browser), "stalled"."""
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
     live = ["--live"] if mode != "off" else []
     proc = subprocess.Popen(
-        [radbench, "-v", "campaign", "run", str(spec), "--allow-rf", "--out", str(out), "--json", *live],
+        [radbench, "campaign", "run", str(spec), "--allow-rf", "--out", str(out), "--json", *live],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -59,14 +62,16 @@ def one(radbench: str, spec: Path, out: Path, mode: str):
     _, err = proc.communicate()
     code = proc.returncode
     wall = time.monotonic() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     if browser:
         browser.close()
     assert code == 0, f"radbench exited {code}"
     manifest = tomllib.loads((out / "manifest.toml").read_text())
-    # radbench -v logs the live view's counters when it closes.
-    m = re.search(r"live view closed frames=(\d+) skipped=(\d+)", err.decode())
+    # radbench prints the live view's counters on stderr when it closes.
+    m = re.search(r"live view closed: (\d+) frames published, (\d+) skipped", err.decode())
     frames, skipped = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-    return manifest["sessions"][0]["timing"]["total_s"], wall, frames, skipped
+    return manifest["sessions"][0]["timing"]["total_s"], wall, frames, skipped, cpu
 
 
 def main():
@@ -86,12 +91,14 @@ def main():
         for m, label in modes:
             camp = [x[0] for x in runs[m]]
             wall = [x[1] for x in runs[m]]
+            cpu = [x[4] for x in runs[m]]
             frames = statistics.median(x[2] for x in runs[m])
             skipped = statistics.median(x[3] for x in runs[m])
             print(
                 f"{label:24}: campaign {statistics.median(camp):.3f} s "
                 f"(min {min(camp):.3f}, max {max(camp):.3f}); command {statistics.median(wall):.3f} s "
-                f"(min {min(wall):.3f}, max {max(wall):.3f}); {a.steps} steps, {a.rounds} runs"
+                f"(min {min(wall):.3f}, max {max(wall):.3f}); CPU {statistics.median(cpu):.3f} s "
+                f"(min {min(cpu):.3f}, max {max(cpu):.3f}); {a.steps} steps, {a.rounds} runs"
                 + (f"; frames published {frames:.0f}, not sent to a browser {skipped:.0f}" if m != "off" else "")
             )
 

@@ -7,6 +7,8 @@ unresolvable, so an external resource could not load anyway) and checks:
 - no request other than the file itself (no http(s), no other file);
 - every plot an SVG element (parsed as SVG), laid out with a non-zero size, visible, with shapes
   drawn, as many as the file holds;
+- every step's link figure (constellation and channel estimate or phase trajectory) likewise, with
+  its points drawn and its EVM and MER in its caption;
 - a screenshot that is not blank (pixel variance, dark pixels).
 A control page with a console error and an external image proves the checks see such faults.
 
@@ -48,6 +50,26 @@ PROBE = """
     width: r.width, height: r.height,
     visible: !!s && s.display !== 'none' && s.visibility !== 'hidden' && s.opacity !== '0',
     shapes: svg ? svg.querySelectorAll('circle, polyline, path, line').length : 0,
+  };
+}))()
+"""
+
+
+# Every step's link figure (constellation, channel estimate or phase trajectory): its inline SVG,
+# laid out, visible, with its points drawn.
+LINK_PROBE = """
+(() => Array.from(document.querySelectorAll('figure.link')).map(f => {
+  const svg = f.querySelector('svg');
+  const r = svg ? svg.getBoundingClientRect() : {width: 0, height: 0};
+  const s = svg ? getComputedStyle(svg) : null;
+  const cap = f.querySelector('figcaption');
+  return {
+    id: f.id,
+    svg: !!svg && svg.namespaceURI === 'http://www.w3.org/2000/svg',
+    width: r.width, height: r.height,
+    visible: !!s && s.display !== 'none' && s.visibility !== 'hidden' && s.opacity !== '0',
+    points: svg ? svg.querySelectorAll('circle').length : 0,
+    caption: cap ? cap.textContent : '',
   };
 }))()
 """
@@ -252,6 +274,16 @@ def test_report_html_in_chromium(run_dir, browser):
         assert p["visible"], p
         assert p["width"] > 100 and p["height"] > 50, p
         assert p["shapes"] > 5, p
+    # Every step's link figure (each example sends data), as the file holds them.
+    links = re.findall(r'<figure id="(link-step-\d{3})" class="link">', html)
+    assert links, "the report shows no step's link"
+    shown = browser.evaluate(LINK_PROBE)
+    assert [p["id"] for p in shown] == links
+    for p in shown:
+        assert p["svg"] and p["visible"], p
+        assert p["width"] > 100 and p["height"] > 50, p
+        assert p["points"] > 20, p
+        assert "EVM" in p["caption"] and "MER" in p["caption"], p
     img = browser.screenshot()
     assert img.shape == (WINDOW[1], WINDOW[0])
     dark = (img < 128).mean()

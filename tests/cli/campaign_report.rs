@@ -111,7 +111,8 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
             f.id
         );
     }
-    assert_eq!(html.matches("<figure id=").count(), figures.len());
+    assert_eq!(html.matches("\" class=\"plot\">").count(), figures.len());
+    check_link_figures(dir, &results, &html);
     std::fs::remove_file(dir.join("report.html")).unwrap();
     std::fs::write(dir.join("report.md"), "stale").unwrap();
     let (code, stdout, err) = radbench(&["campaign", "report", dir.to_str().unwrap()]).await;
@@ -130,6 +131,47 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
             .find(|f| f.path == Path::new(name))
             .unwrap_or_else(|| panic!("the manifest records {name}"));
         assert_eq!(f.check(dir), None, "{name}");
+    }
+}
+
+/// Every step whose folder holds a `link.svg` (each example sends data) has its link figure
+/// inline in report.html, captioned with its EVM and MER from results.json.
+fn check_link_figures(dir: &Path, results: &Results, html: &str) {
+    let with: Vec<usize> = results
+        .steps
+        .iter()
+        .filter(|s| {
+            dir.join(format!("step-{:03}", s.index))
+                .join("link.svg")
+                .is_file()
+        })
+        .map(|s| s.index)
+        .collect();
+    assert!(!with.is_empty(), "the steps drew their link");
+    assert!(with.len() <= 12, "all shown");
+    assert!(html.contains("<section id=\"link-steps\">"));
+    assert_eq!(html.matches("class=\"link\">").count(), with.len());
+    for s in results.steps.iter().filter(|s| with.contains(&s.index)) {
+        let at = html
+            .find(&format!("<figure id=\"link-step-{:03}\" class=\"link\">", s.index))
+            .unwrap_or_else(|| panic!("no link figure for step {}", s.index));
+        let end = at + html[at..].find("</figure>").unwrap();
+        let fig = &html[at..end];
+        assert!(fig.contains("<svg") && fig.contains("</svg>"));
+        assert!(fig.matches("<circle").count() > 20, "a constellation");
+        let p = s
+            .algorithms
+            .values()
+            .find_map(|a| a.payload.as_ref())
+            .unwrap();
+        let caption = &fig[fig.find("<figcaption>").unwrap()..];
+        assert!(
+            caption.contains(&format!("EVM {:.2} % rms", p.evm_rms_pct.unwrap()))
+                && caption.contains(&format!("{:.2} % at the 95th", p.evm_p95_pct.unwrap()))
+                && caption.contains(&format!("MER {:.1} dB", p.mer_db.unwrap())),
+            "step {}: {caption}",
+            s.index
+        );
     }
 }
 

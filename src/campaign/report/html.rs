@@ -12,7 +12,9 @@ const STYLE: &str = "body{font-family:sans-serif;margin:2em;max-width:1100px;col
 table{border-collapse:collapse;margin:1em 0;font-size:13px}\
 th,td{border:1px solid #bbb;padding:3px 7px;text-align:left}th{background:#eee}\
 figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #ddd}\
-figcaption{font-size:14px;max-width:800px}";
+figcaption{font-size:14px;max-width:800px}\
+.links{display:grid;grid-template-columns:1fr 1fr;gap:0 12px}.links figure{margin:0.5em 0}\
+.links figcaption{font-size:12px}";
 
 /// Text for HTML element content and attribute values.
 pub(crate) fn escape(s: &str) -> String {
@@ -47,8 +49,13 @@ fn table(out: &mut String, t: &Table) {
     let _ = writeln!(out, "</table>");
 }
 
-/// The whole page.
-pub(crate) fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
+/// The whole page; `links` is the section of every step's link figure (`super::link`).
+pub(crate) fn html(
+    manifest: &Manifest,
+    results: &Results,
+    figures: &[Figure],
+    links: &str,
+) -> String {
     let plan = &manifest.plan;
     let mut out = String::new();
     let _ = writeln!(
@@ -82,6 +89,7 @@ pub(crate) fn html(manifest: &Manifest, results: &Results, figures: &[Figure]) -
             escape(&f.caption)
         );
     }
+    out.push_str(links);
     for t in summary_tables(manifest, results) {
         table(&mut out, &t);
     }

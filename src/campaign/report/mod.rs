@@ -1,5 +1,5 @@
 //! The run's report, written from `manifest.toml`, `results.json` and each step's
-//! `profile.csv` (so `radbench campaign report RUN_DIR` writes it again, byte for byte, at any
+//! `profile.csv` and `link.svg` (so `radbench campaign report RUN_DIR` writes it again, byte for byte, at any
 //! time): `report.md` (tables, mean +- std
 //! over the repetitions) and `report.html` (the same tables and every plot inline as SVG; no
 //! script, no external file, opens from disk).
@@ -9,11 +9,13 @@
 //! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
 //! | [`profiles`] | every step's range profile, one waterfall row per step |
+//! | `link` | every step's link figure (constellation, channel estimate or phase trajectory) with its EVM and MER, small multiples |
 //! | `markdown` | `report.md` |
 //! | `html` | `report.html` |
 
 pub mod figures;
 pub(crate) mod html;
+pub(crate) mod link;
 pub(crate) mod markdown;
 pub mod plots;
 pub mod profiles;
@@ -40,7 +42,7 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
         &md,
         markdown::markdown(manifest, results, &figures).as_bytes(),
     )?;
-    let page = html::html(manifest, results, &figures);
+    let page = html::html(manifest, results, &figures, &link::section(dir, results));
     write_atomic(&dir.join(HTML_FILE), page.as_bytes())?;
     Ok(md)
 }
