@@ -202,9 +202,21 @@ impl Live {
 
     pub(crate) fn stats(&self) -> Stats {
         let c = &self.shared.counters;
+        // A browser still connected but behind (a stalled one whose socket is full) will never
+        // get the frames between the one it was last given and the newest: skipped already.
+        let newest = self.shared.frames.borrow().seq;
+        let behind: u64 = self
+            .shared
+            .clients
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .filter_map(std::sync::Weak::upgrade)
+            .map(|c| newest.saturating_sub(c.accounted.load(Ordering::Relaxed) + 1))
+            .sum();
         Stats {
             frames: c.frames.load(Ordering::Relaxed),
-            skipped: c.skipped.load(Ordering::Relaxed),
+            skipped: c.skipped.load(Ordering::Relaxed) + behind,
             dropped_events: c.dropped_events.load(Ordering::Relaxed),
             clients: c.clients.load(Ordering::Relaxed),
             forgotten: c.forgotten.load(Ordering::Relaxed),
@@ -666,6 +678,9 @@ struct Client {
     sent: AtomicU64,
     /// A write to its socket is under way.
     writing: std::sync::atomic::AtomicBool,
+    /// The newest frame given to its socket (being written or written); the ones before it it
+    /// did not get are counted as skipped.
+    accounted: AtomicU64,
 }
 
 /// Counts a browser connected to the stream while it lives.
@@ -690,13 +705,15 @@ async fn stream_events(stream: TcpStream, shared: Arc<Shared>) -> std::io::Resul
         clients.push(Arc::downgrade(&me));
     }
     let outcome = send_frames(stream, &shared, &me).await;
-    let sent = me.sent.load(Ordering::Relaxed);
+    // Gone: every frame after the last one its socket was given is skipped for it.
+    let given = me.accounted.load(Ordering::Relaxed);
     let newest = shared.frames.borrow().seq;
-    if newest > sent {
+    me.accounted.store(newest, Ordering::Relaxed);
+    if newest > given {
         shared
             .counters
             .skipped
-            .fetch_add(newest - sent, Ordering::Relaxed);
+            .fetch_add(newest - given, Ordering::Relaxed);
     }
     outcome
 }
@@ -722,6 +739,7 @@ async fn send_frames(stream: TcpStream, shared: &Shared, me: &Client) -> std::io
             text.push_str("data: ");
             text.push_str(&frame.json);
             text.push_str("\n\n");
+            me.accounted.store(frame.seq, Ordering::Relaxed);
         }
         if !text.is_empty() {
             // A socket that takes nothing for WRITE_TIMEOUT drops the browser.
