@@ -167,7 +167,10 @@ async fn a_stalled_browser_holds_up_nothing_and_is_dropped() {
     // Connected or dropped by now, the stalled browser's missed frames are counted: its socket
     // buffers hold a few of the 256 kB frames, not 200.
     let s = live.stats();
-    assert!(s.skipped >= 100, "the stalled browser is counted behind: {s:?}");
+    assert!(
+        s.skipped >= 100,
+        "the stalled browser is counted behind: {s:?}"
+    );
     // The stalled one is dropped once its socket took nothing for WRITE_TIMEOUT, and every frame
     // it did not take is counted as skipped.
     // (The good one went when it had the final frame.)
@@ -276,6 +279,9 @@ async fn a_frame_says_when_its_oldest_event_was_handed_over() {
     let frame: Value = serde_json::from_str(&live.shared.frames.borrow().json).unwrap();
     let event = frame["event_unix_ms"].as_f64().unwrap();
     let published = frame["published_unix_ms"].as_f64().unwrap();
-    assert!(event >= before.floor() - 1.0 && published >= event - 1.0, "{frame}");
+    assert!(
+        event >= before.floor() - 1.0 && published >= event - 1.0,
+        "{frame}"
+    );
     live.finish("complete", Duration::ZERO).await;
 }

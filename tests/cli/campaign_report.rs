@@ -153,7 +153,10 @@ fn check_link_figures(dir: &Path, results: &Results, html: &str) {
     assert_eq!(html.matches("class=\"link\">").count(), with.len());
     for s in results.steps.iter().filter(|s| with.contains(&s.index)) {
         let at = html
-            .find(&format!("<figure id=\"link-step-{:03}\" class=\"link\">", s.index))
+            .find(&format!(
+                "<figure id=\"link-step-{:03}\" class=\"link\">",
+                s.index
+            ))
             .unwrap_or_else(|| panic!("no link figure for step {}", s.index));
         let end = at + html[at..].find("</figure>").unwrap();
         let fig = &html[at..end];

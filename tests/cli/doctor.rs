@@ -310,7 +310,10 @@ async fn ctrl_c_while_an_instrument_is_opened_ends_the_doctor_with_130() {
     let (code, err) = ended(child).await;
     drop(held);
     assert_eq!(code, 130, "{err}");
-    assert!(err.contains("SIGINT") && err.contains("nothing is switched on"), "{err}");
+    assert!(
+        err.contains("SIGINT") && err.contains("nothing is switched on"),
+        "{err}"
+    );
     nothing_radiated(&lab, &journal);
 }
 

@@ -120,9 +120,11 @@ async fn msk_lfm_on_lab(dir: &Path, snr_db: f64) -> Value {
     .expect("lab starts")
     .expect("lab starts");
     use mock_lab::server::launch::Transport;
-    let bench = lab
-        .bench_toml(Transport::Hislip, Transport::Vicp)
-        .replacen("[scope]\n", "[scope]\nvolts_per_div = 0.5\n", 1);
+    let bench = lab.bench_toml(Transport::Hislip, Transport::Vicp).replacen(
+        "[scope]\n",
+        "[scope]\nvolts_per_div = 0.5\n",
+        1,
+    );
     let bench_path = dir.join(format!("bench-{snr_db}.toml"));
     std::fs::write(&bench_path, bench).unwrap();
     let out = dir.join(format!("msk-{snr_db}")).display().to_string();

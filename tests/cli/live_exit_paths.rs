@@ -426,14 +426,20 @@ async fn listen_beyond_loopback_warns_and_still_needs_the_token() {
         "0.0.0.0",
     ]);
     let (addr, token) = live_url(&mut child).await;
-    assert!(addr.starts_with("127.0.0.1:"), "the URL names loopback: {addr}");
+    assert!(
+        addr.starts_with("127.0.0.1:"),
+        "the URL names loopback: {addr}"
+    );
     assert_eq!(token.len(), 32, "{token}");
     until("RF on", || rf_on(&lab)).await;
     assert_eq!(http(&addr, "GET", "/").await, 403);
     assert_eq!(http(&addr, "GET", "/?token=").await, 403);
     assert_eq!(http(&addr, "GET", "/events").await, 403);
     assert_eq!(http(&addr, "POST", "/stop").await, 403);
-    assert!(child.try_wait().unwrap().is_none(), "a refused Stop stops nothing");
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "a refused Stop stops nothing"
+    );
     assert!(rf_on(&lab));
     assert_eq!(http(&addr, "GET", &format!("/?token={token}")).await, 200);
     assert_eq!(
@@ -472,7 +478,13 @@ async fn align_and_a_live_campaign_on_an_unreachable_awg_end_with_3_and_nothing_
     .unwrap();
     let broken = broken.to_str().unwrap();
     let (code, _, err) = finished(spawn(&[
-        "align", "--allow-rf", "--bench", broken, "--count", "1", "--live",
+        "align",
+        "--allow-rf",
+        "--bench",
+        broken,
+        "--count",
+        "1",
+        "--live",
     ]))
     .await;
     assert_eq!(code, 3, "{err}");

@@ -37,7 +37,10 @@ fn caption(s: &StepResult) -> String {
         let _ = write!(text, "; {} bit errors in {}", p.bit_errors, p.bits);
         match (p.evm_rms_pct, p.evm_p95_pct) {
             (Some(rms), Some(p95)) => {
-                let _ = write!(text, "; EVM {rms:.2} % rms, {p95:.2} % at the 95th percentile");
+                let _ = write!(
+                    text,
+                    "; EVM {rms:.2} % rms, {p95:.2} % at the 95th percentile"
+                );
             }
             (Some(rms), None) => {
                 let _ = write!(text, "; EVM {rms:.2} % rms");
