@@ -54,7 +54,9 @@ async fn a_wrong_or_missing_token_gets_403_and_changes_nothing() {
     let stops = Arc::new(AtomicUsize::new(0));
     let live = start(stops.clone()).await;
     let token = live.token().to_string();
-    let wrong = format!("{}0", &token[..token.len() - 1]);
+    // The token with its last digit changed (to another digit: a random token may end in 0).
+    let last = if token.ends_with('0') { '1' } else { '0' };
+    let wrong = format!("{}{last}", &token[..token.len() - 1]);
     for target in [
         "/".to_string(),
         format!("/?token={wrong}"),
