@@ -2,6 +2,8 @@
 //! other remote interface, a closed port, a Gotmic line in the wrong CRC mode or the marker cable
 //! unplugged it names the fault and the fix; in every case the I/O journal shows that nothing
 //! that radiates was sent (no I or Q output on, no front end enabled) and the bench ends safe.
+//! Ctrl-C while an instrument is being opened and during the marker check ends it with 130, the
+//! journal showing the same.
 
 use mock_lab::lab::{self, Lab, LabOptions};
 use mock_lab::server::launch::Transport;

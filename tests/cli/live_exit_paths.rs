@@ -1,7 +1,9 @@
 //! `align`, `capture --repeat --live` and `campaign run --live` leave the bench as safe as
 //! `capture` does (tests/cli/exit_paths.rs): a signal while RF is on, the live page's Stop, a
-//! lost instrument; and a live view with a stalled browser connected changes nothing of a
-//! campaign's outcome. Loopback only, every wait bounded, nothing timed.
+//! lost instrument, an unreachable AWG; a live view with a stalled browser connected changes
+//! nothing of a campaign's outcome; `--listen 0.0.0.0` warns and still needs the token (the
+//! tests connect over loopback only). The panic path is tests/rig_panic_hook.rs. Loopback only,
+//! every wait bounded, nothing timed.
 
 use mock_lab::lab::Lab;
 use std::path::Path;
