@@ -8,7 +8,8 @@
 //! resource = "TCPIP::192.168.1.20::hislip0::INSTR"
 //!
 //! [scope]
-//! model = "lecroy-labmaster10zi-a"
+//! model = "lecroy-labmaster10zi-a"                # or "keysight-uxr0334a" (HiSLIP / VXI-11)
+//! driver = "lecroy-maui"                          # optional: checked against the catalog
 //! resource = "VICP::192.168.1.30"
 //! volts_per_div = 0.05                            # optional, both channels
 //!
@@ -43,6 +44,10 @@ pub struct InstrumentEntry {
     pub model: String,
     /// VISA-style resource string.
     pub resource: String,
+    /// Optional: the driver family the catalog entry must name (`lecroy-maui`,
+    /// `keysight-infiniium`, ...), checked on load; the catalog's `driver` decides either way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driver: Option<String>,
     /// Scope only: vertical scale of I and Q, volts per division.
     #[serde(default)]
     pub volts_per_div: Option<f64>,
@@ -267,6 +272,29 @@ impl BenchFile {
                         fits.join(", ")
                     ),
                 });
+            }
+            if let Some(model) = model {
+                let family = crate::driver::open::family(model);
+                if let Some(wanted) = &entry.driver {
+                    if wanted != family {
+                        let line = self
+                            .lines
+                            .get(&format!("{section}.driver"))
+                            .map(|l| format!("line {l}: "))
+                            .unwrap_or_default();
+                        return Err(BenchFileError::Invalid {
+                            path: self.path.clone(),
+                            message: format!(
+                                "{line}[{section}] driver = {wanted:?}: the catalog's {:?} is                                  driven by {family:?}; write driver = {family:?} or leave the                                  key out",
+                                entry.model
+                            ),
+                        });
+                    }
+                }
+                crate::driver::open::check(model).map_err(|e| BenchFileError::Invalid {
+                    path: self.path.clone(),
+                    message: format!("{line}[{section}] model = {:?}: {e}", entry.model),
+                })?;
             }
         }
         Ok(())
