@@ -75,7 +75,7 @@ pub enum ScopeModel {
 
 impl ScopeModel {
     /// The catalog key radbench's bench file names.
-    pub fn catalog_key(self) -> &'static str {
+    pub(crate) fn catalog_key(self) -> &'static str {
         match self {
             ScopeModel::Lecroy => "lecroy-labmaster10zi-a",
             ScopeModel::KeysightUxr => "keysight-uxr0334a",

@@ -20,8 +20,8 @@ pub use schema::*;
 
 use locate::FieldIndex;
 
-/// The catalog files built into radbench: `(file name, text)`, every `instruments/*.toml` sorted
-/// by name (the build script lists them: a new file is a new built-in model).
+/// The catalog files built into radbench: `(file name, text)`, every `instruments/*.toml` (the
+/// build script lists them: a new file is a new built-in model, after the first four).
 pub const EMBEDDED_FILES: &[(&str, &str)] =
     include!(concat!(env!("OUT_DIR"), "/embedded_catalog.rs"));
 
