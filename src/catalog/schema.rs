@@ -37,7 +37,7 @@ pub struct InstrumentModel {
     #[serde(default)]
     pub quirks: Quirks,
     /// `[vendor]`: fields only this model's driver family reads (the driver checks them when it
-    /// opens the instrument, and `driver::check_vendor_table` before); empty when it has none.
+    /// opens the instrument, and a bench file's check before); empty when it has none.
     #[serde(default)]
     pub vendor: toml::Table,
 }

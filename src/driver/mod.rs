@@ -13,7 +13,7 @@
 //! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
 //! | [`keysight_uxr`] | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
-//! | [`open`] | instruments opened from data: the catalog's `driver` family to a boxed capability, AWG planning |
+//! | `open` | instruments opened from data: the catalog's `driver` family to a boxed capability, AWG planning |
 //! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
 //! | [`safe_state`] | the safe-state sequence on every exit path |
