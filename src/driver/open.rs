@@ -231,3 +231,94 @@ pub(crate) fn plan_awg(
         _ => Err(wrong_kind(model, "an AWG")),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::catalog::{parse_model, Catalog, EMBEDDED_FILES};
+
+    fn file(name: &str) -> &'static str {
+        EMBEDDED_FILES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, t)| *t)
+            .unwrap()
+    }
+
+    #[test]
+    fn every_built_in_model_names_a_family_that_drives_its_kind() {
+        for (model, _) in Catalog::embedded().unwrap().models() {
+            check(model).unwrap_or_else(|e| panic!("{}: {e}", model.instrument.key));
+            assert!(
+                model.instrument.driver.is_some(),
+                "{}",
+                model.instrument.key
+            );
+        }
+    }
+
+    #[test]
+    fn a_file_without_the_key_gets_its_kind_s_first_family() {
+        let text = file("lecroy_labmaster10zi_a.toml").replace("driver = \"lecroy-maui\"\n", "");
+        let model = parse_model("old.toml", &text).unwrap();
+        assert_eq!(model.instrument.driver, None);
+        assert_eq!(family(&model), "lecroy-maui");
+        check(&model).unwrap();
+    }
+
+    #[test]
+    fn unknown_families_wrong_kinds_and_stray_vendor_tables_are_refused() {
+        let lecroy = file("lecroy_labmaster10zi_a.toml");
+        let unknown = parse_model(
+            "x.toml",
+            &lecroy.replace("driver = \"lecroy-maui\"", "driver = \"tek-dpo\""),
+        )
+        .unwrap();
+        let e = check(&unknown).unwrap_err().to_string();
+        assert!(
+            e.contains("\"tek-dpo\"") && e.contains("keysight-infiniium"),
+            "{e}"
+        );
+        let wrong = parse_model(
+            "x.toml",
+            &lecroy.replace("driver = \"lecroy-maui\"", "driver = \"gotmic-line\""),
+        )
+        .unwrap();
+        let e = check(&wrong).unwrap_err().to_string();
+        assert!(e.contains("does not drive kind \"digitizer\""), "{e}");
+        let stray = parse_model("x.toml", &format!("{lecroy}\n[vendor]\nx = 1\n")).unwrap();
+        let e = check(&stray).unwrap_err().to_string();
+        assert!(
+            e.contains("reads no [vendor] table") && e.contains('x'),
+            "{e}"
+        );
+        let uxr = file("keysight_uxr0334a.toml");
+        let bad = parse_model(
+            "x.toml",
+            &uxr.replace("acquisition_poll_ms = 2", "acquisition_poll_ms = \"fast\""),
+        )
+        .unwrap();
+        let e = check(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("[vendor]") && e.contains("acquisition_poll_ms"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn awg_planning_goes_through_the_family() {
+        let catalog = Catalog::embedded().unwrap();
+        let awg = catalog.get("keysight-m8195a").unwrap();
+        let waveform = IqWaveform {
+            i: vec![0; 1000],
+            q: vec![0; 1000],
+            marker_high_samples: 64,
+        };
+        let plan = plan_awg(awg, &AwgSettings::default(), &waveform).unwrap();
+        assert_eq!(plan.padded_samples % 64, 0);
+        assert!(plan.padded_samples >= 1000);
+        assert_eq!(plan.dac_rate_hz / f64::from(plan.divider), 16e9);
+        let scope = catalog.get("keysight-uxr0334a").unwrap();
+        assert!(plan_awg(scope, &AwgSettings::default(), &waveform).is_err());
+    }
+}

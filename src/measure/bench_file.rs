@@ -155,6 +155,7 @@ impl BenchFile {
         for section in ["awg", "scope", "tx", "rx", "calibration", "simulation"] {
             for key in [
                 "model",
+                "driver",
                 "resource",
                 "volts_per_div",
                 "attenuation_db",
@@ -285,7 +286,8 @@ impl BenchFile {
                         return Err(BenchFileError::Invalid {
                             path: self.path.clone(),
                             message: format!(
-                                "{line}[{section}] driver = {wanted:?}: the catalog's {:?} is                                  driven by {family:?}; write driver = {family:?} or leave the                                  key out",
+                                "{line}[{section}] driver = {wanted:?}: the catalog's {:?} is driven by \
+                                 {family:?}; write driver = {family:?} or leave the key out",
                                 entry.model
                             ),
                         });
@@ -412,6 +414,29 @@ system_delay_s = 1e-9
         let e = BenchFile::parse(&bad, Path::new("b.toml")).unwrap_err();
         assert!(
             e.to_string().contains("modle") && e.to_string().contains("b.toml"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_driver_key_is_checked_against_the_catalog() {
+        let catalog = crate::catalog::Catalog::embedded().unwrap();
+        let uxr = GOOD
+            .replace("lecroy-labmaster10zi-a", "keysight-uxr0334a")
+            .replace("VICP::127.0.0.1", "TCPIP::127.0.0.1::hislip0::INSTR");
+        let ok = uxr.replace("[scope]\n", "[scope]\ndriver = \"keysight-infiniium\"\n");
+        let b = BenchFile::parse(&ok, Path::new("b.toml")).unwrap();
+        b.check_models(&catalog).unwrap();
+        // Without the key the catalog decides, as for bench files written before it existed.
+        let b = BenchFile::parse(&uxr, Path::new("b.toml")).unwrap();
+        b.check_models(&catalog).unwrap();
+        let wrong = uxr.replace("[scope]\n", "[scope]\ndriver = \"lecroy-maui\"\n");
+        let b = BenchFile::parse(&wrong, Path::new("b.toml")).unwrap();
+        let e = b.check_models(&catalog).unwrap_err().to_string();
+        assert!(
+            e.contains("[scope] driver = \"lecroy-maui\"")
+                && e.contains("\"keysight-infiniium\"")
+                && e.contains("line 8"),
             "{e}"
         );
     }
