@@ -45,10 +45,11 @@
 //! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
 //! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
 //! scope model with data only", walks through one (`tests/io/driver_second_scope.rs` does it). A new
-//! command set needs a driver module here: a `commands.rs` with every spelling, pure checks
-//! against the catalog before any I/O (`limits`), the session through [`Scpi`], an
-//! implementation of the capability trait, tests with [`Scripted`] that pin each operation's
-//! command sequence, and tests against its mock_lab emulator.
+//! command set needs a driver module here (and its family in `open.rs`: one row, one `match`
+//! arm): a `commands.rs` with every spelling, pure checks against the catalog before any I/O
+//! (`limits`), the session through [`Scpi`], an implementation of the capability trait, tests
+//! with [`Scripted`] that pin each operation's command sequence, and tests against its mock_lab
+//! emulator (`keysight_uxr` is the worked example).
 
 pub(crate) mod capability;
 pub(crate) mod error;

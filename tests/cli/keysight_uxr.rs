@@ -116,6 +116,27 @@ async fn capture_process_and_doctor_on_the_built_in_lab_with_the_uxr() {
         .unwrap();
     assert_eq!(marker["status"], "pass", "{marker}");
 
+    // Repetitions go to the UXR's segmented memory: one acquisition, one segment per trigger.
+    let seq = dir.path().join("seq");
+    let (code, stdout, err) = radbench(&[
+        "capture",
+        "--allow-rf",
+        "--scope-model",
+        "keysight-uxr",
+        "--repetitions",
+        "3",
+        "--json",
+        "--out",
+        seq.to_str().unwrap(),
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["applied"]["scope"]["segments"], 3, "{}", v["applied"]);
+    let found = ranges(&v);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!((found[0] - truth).abs() < 1e-3, "{found:?} vs {truth}");
+
     // With --bench the scope comes from the bench file: the option is refused.
     let (code, _, err) = radbench(&[
         "capture",
