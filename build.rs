@@ -1,6 +1,10 @@
-//! Build script: the git commit radbench is built from, for the run manifests of campaigns
-//! (`RADBENCH_GIT_COMMIT`; absent outside a git checkout). A value already in the environment
-//! (a packager's) wins.
+//! Build script: the instrument catalog's files, and the git commit radbench is built from.
+//!
+//! Every `instruments/*.toml` is compiled in (`$OUT_DIR/embedded_catalog.rs`, included by
+//! `src/catalog/mod.rs`): adding an instrument file adds a built-in model, with no list to edit.
+//!
+//! The commit is for the run manifests of campaigns (`RADBENCH_GIT_COMMIT`; absent outside a git
+//! checkout). A value already in the environment (a packager's) wins.
 //!
 //! Cargo reruns this script (and so recompiles radbench) when a file named with
 //! `rerun-if-changed` is newer than the last run, **or missing**. So only paths that exist are
@@ -46,7 +50,51 @@ fn watch_if_exists(path: &Path) -> bool {
     exists
 }
 
+/// Writes `$OUT_DIR/embedded_catalog.rs`: the `(file name, text)` of every `instruments/*.toml`.
+fn embed_catalog() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments");
+    watch(&dir);
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .map(|listing| {
+            listing
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml"))
+                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect()
+        })
+        .unwrap_or_default();
+    // The four files built in before this list was generated keep their order (listings and
+    // error messages name the models in it); every other file follows, sorted by name.
+    const FIRST: [&str; 4] = [
+        "keysight_m8195a.toml",
+        "lecroy_labmaster10zi_a.toml",
+        "gotmic_eband_tx.toml",
+        "gotmic_eband_rx.toml",
+    ];
+    names.sort_by_key(|n| {
+        (
+            FIRST.iter().position(|f| f == n).unwrap_or(FIRST.len()),
+            n.clone(),
+        )
+    });
+    let mut out = String::from("&[\n");
+    for name in &names {
+        let path = dir.join(name);
+        watch(&path);
+        out.push_str(&format!(
+            "    ({name:?}, include_str!({:?})),\n",
+            path.display().to_string()
+        ));
+    }
+    out.push_str("]\n");
+    let target = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"))
+        .join("embedded_catalog.rs");
+    std::fs::write(target, out).expect("OUT_DIR is writable");
+}
+
 fn main() {
+    embed_catalog();
     println!("cargo:rerun-if-env-changed=RADBENCH_GIT_COMMIT");
     if std::env::var_os("RADBENCH_GIT_COMMIT").is_some() {
         return;

@@ -8,6 +8,7 @@
 use crate::catalog::CatalogError;
 use crate::control::SharedScene;
 use crate::emulator::gotmic::Gotmic;
+use crate::emulator::keysight_uxr::KeysightUxr;
 use crate::emulator::lecroy::trigger::{AcquisitionRequest, Capture, TriggerSource};
 use crate::emulator::lecroy::wavedesc::TriggerTimestamp;
 use crate::emulator::lecroy::Lecroy;
@@ -22,6 +23,9 @@ use std::time::{Duration, Instant};
 pub struct Bench {
     pub awg: Arc<M8195a>,
     pub scope: Arc<Lecroy>,
+    /// The Infiniium UXR on the same inputs (served instead of the LeCroy when the lab's scope
+    /// model says so).
+    pub uxr: Arc<KeysightUxr>,
     pub tx: Arc<Gotmic>,
     pub rx: Arc<Gotmic>,
     pub scene: Arc<SharedScene>,
@@ -46,10 +50,12 @@ impl Bench {
             scene: scene.clone(),
             synth: Mutex::new(Synthesizer::new(seed)),
         });
-        let scope = Arc::new(Lecroy::embedded_with(source)?);
+        let scope = Arc::new(Lecroy::embedded_with(source.clone())?);
+        let uxr = Arc::new(KeysightUxr::embedded_with(source)?);
         Ok(Bench {
             awg,
             scope,
+            uxr,
             tx,
             rx,
             scene,

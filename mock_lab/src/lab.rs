@@ -39,6 +39,8 @@ pub struct LabOptions {
     pub scope_remote: RemoteInterface,
     /// Also serve the generic loopback test instrument.
     pub with_loopback: bool,
+    /// Which scope the lab serves as `scope`.
+    pub scope_model: ScopeModel,
     /// Port of the loopback instrument's VICP endpoint (interop tests through pyvisa need 1861).
     pub loopback_vicp_port: Option<u16>,
 }
@@ -54,6 +56,29 @@ impl Default for LabOptions {
             scope_remote: RemoteInterface::Vicp,
             with_loopback: false,
             loopback_vicp_port: None,
+            scope_model: ScopeModel::Lecroy,
+        }
+    }
+}
+
+/// The scope the lab serves: both see the same bench (AWG marker on their external trigger,
+/// the scene on channels 1 and 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ScopeModel {
+    /// Teledyne LeCroy LabMaster 10 Zi-A over VICP or VXI-11 (its remote interface).
+    #[default]
+    Lecroy,
+    /// Keysight Infiniium UXR0334A over HiSLIP and VXI-11.
+    KeysightUxr,
+}
+
+impl ScopeModel {
+    /// The catalog key radbench's bench file names.
+    pub(crate) fn catalog_key(self) -> &'static str {
+        match self {
+            ScopeModel::Lecroy => "lecroy-labmaster10zi-a",
+            ScopeModel::KeysightUxr => "keysight-uxr0334a",
         }
     }
 }
@@ -140,6 +165,8 @@ pub struct Lab {
     pub scope_faults: Arc<Faults>,
     /// Every endpoint as it is now, in serving order.
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
+    /// The scope served as `scope`.
+    pub scope_model: ScopeModel,
     _running: Vec<Running>,
     _follower: AbortOnDrop,
     _control: control::ControlServer,
@@ -262,14 +289,15 @@ impl Drop for AbortOnDrop {
 }
 
 /// What the lab serves: each instrument's handler and the transports it speaks.
-fn served(bench: &Arc<Bench>, with_loopback: bool) -> Vec<Served> {
+fn served(bench: &Arc<Bench>, with_loopback: bool, scope: ScopeModel) -> Vec<Served> {
+    let awg = Served {
+        name: "awg",
+        handler: bench.awg.clone(),
+        transports: &[Transport::Raw, Transport::Hislip, Transport::Vxi11],
+        remote: None,
+    };
     let mut served = vec![
-        Served {
-            name: "awg",
-            handler: bench.awg.clone(),
-            transports: &[Transport::Raw, Transport::Hislip, Transport::Vxi11],
-            remote: None,
-        },
+        awg,
         Served {
             name: "scope",
             handler: Arc::new(bench.scope.port(RemoteInterface::Vicp)),
@@ -295,6 +323,17 @@ fn served(bench: &Arc<Bench>, with_loopback: bool) -> Vec<Served> {
             remote: None,
         },
     ];
+    if scope == ScopeModel::KeysightUxr {
+        served.splice(
+            1..3,
+            [Served {
+                name: "scope",
+                handler: bench.uxr.clone(),
+                transports: &[Transport::Hislip, Transport::Vxi11],
+                remote: None,
+            }],
+        );
+    }
     if with_loopback {
         served.push(Served {
             name: "loopback",
@@ -339,7 +378,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     options.validate()?;
     let bench = Arc::new(Bench::new(options.scene.clone())?);
     bench.scope.set_remote_interface(options.scope_remote);
-    let served = served(&bench, options.with_loopback);
+    let served = served(&bench, options.with_loopback, options.scope_model);
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));
     let scope_switch = Arc::new(ScopeSwitch {
         scope: bench.scope.clone(),
@@ -423,6 +462,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         faults,
         scope_faults,
         endpoints: endpoints_now,
+        scope_model: options.scope_model,
         _running: running,
         _follower: AbortOnDrop(follower),
     })
@@ -489,11 +529,12 @@ impl Lab {
             "# radbench bench file for the simulated lab (mock_lab); written by `mock-lab serve`.\n\
              # Every resource below is on 127.0.0.1 and lives as long as that process.\n\n\
              [awg]\nmodel = \"keysight-m8195a\"\nresource = \"{}\"\n\n\
-             [scope]\nmodel = \"lecroy-labmaster10zi-a\"\nresource = \"{}\"\n\n\
+             [scope]\nmodel = \"{}\"\nresource = \"{}\"\n\n\
              [tx]\nmodel = \"gotmic-eband-tx\"\nresource = \"{}\"\n\n\
              [rx]\nmodel = \"gotmic-eband-rx\"\nresource = \"{}\"\n\n\
              [simulation]\ncontrol = \"{}\"\n",
             resource("awg", awg),
+            self.scope_model.catalog_key(),
             resource("scope", scope),
             resource("tx", Transport::Serial),
             resource("rx", Transport::Serial),

@@ -59,6 +59,10 @@ struct ServeArgs {
     /// The scope's remote interface: only this protocol answers, as on the real scope.
     #[arg(long, value_enum, default_value = "vicp")]
     scope_remote: ScopeRemote,
+    /// The scope served as `scope`: the LeCroy (VICP / VXI-11) or the Keysight Infiniium UXR
+    /// (HiSLIP and VXI-11).
+    #[arg(long, value_enum, default_value = "lecroy")]
+    scope_model: ScopeModelArg,
     /// Keep serving when standard input closes (for running detached, `< /dev/null`); stop
     /// with Ctrl-C / SIGINT or SIGTERM only.
     #[arg(long)]
@@ -70,6 +74,12 @@ struct ServeArgs {
     /// Largest message accepted from a client, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_MAX_MESSAGE_SIZE)]
     max_message_size: usize,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum ScopeModelArg {
+    Lecroy,
+    KeysightUxr,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -123,6 +133,10 @@ fn main() -> ExitCode {
         },
         with_loopback: true,
         loopback_vicp_port: args.loopback_vicp_port,
+        scope_model: match args.scope_model {
+            ScopeModelArg::Lecroy => mock_lab::lab::ScopeModel::Lecroy,
+            ScopeModelArg::KeysightUxr => mock_lab::lab::ScopeModel::KeysightUxr,
+        },
     };
     if let Err(err) = options.validate() {
         return fail(err.exit_code(), &err.to_string());

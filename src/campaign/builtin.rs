@@ -232,6 +232,7 @@ async fn calibrate_lab(
         scene,
         awg: Default::default(),
         scope: Default::default(),
+        scope_model: Default::default(),
     })))
     .await?;
     let catalog = bench.file.catalog().map_err(MeasureError::from)?;

@@ -301,6 +301,7 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
     let entry = |model: &str, resource: &str| InstrumentEntry {
         model: model.to_string(),
         resource: resource.to_string(),
+        driver: None,
         volts_per_div: None,
         attenuation_db: None,
     };
@@ -349,6 +350,7 @@ impl BenchPlan {
                 Some(ScopeTransportName::Vxi11) => ScopeLink::Vxi11,
                 _ => ScopeLink::Vicp,
             },
+            scope_model: Default::default(),
         }
     }
 

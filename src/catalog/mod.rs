@@ -20,25 +20,10 @@ pub use schema::*;
 
 use locate::FieldIndex;
 
-/// The catalog files built into radbench: `(file name, text)`.
-pub const EMBEDDED_FILES: [(&str, &str); 4] = [
-    (
-        "keysight_m8195a.toml",
-        include_str!("../../instruments/keysight_m8195a.toml"),
-    ),
-    (
-        "lecroy_labmaster10zi_a.toml",
-        include_str!("../../instruments/lecroy_labmaster10zi_a.toml"),
-    ),
-    (
-        "gotmic_eband_tx.toml",
-        include_str!("../../instruments/gotmic_eband_tx.toml"),
-    ),
-    (
-        "gotmic_eband_rx.toml",
-        include_str!("../../instruments/gotmic_eband_rx.toml"),
-    ),
-];
+/// The catalog files built into radbench: `(file name, text)`, every `instruments/*.toml` (the
+/// build script lists them: a new file is a new built-in model, after the first four).
+pub const EMBEDDED_FILES: &[(&str, &str)] =
+    include!(concat!(env!("OUT_DIR"), "/embedded_catalog.rs"));
 
 /// Where a model's file came from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -78,7 +63,7 @@ impl Catalog {
         let mut catalog = Catalog {
             entries: Vec::new(),
         };
-        for (name, text) in EMBEDDED_FILES {
+        for &(name, text) in EMBEDDED_FILES {
             let origin = Origin::Embedded(name);
             let model = parse_model(&origin.to_string(), text)?;
             catalog.insert(model, origin, false)?;

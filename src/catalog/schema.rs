@@ -36,6 +36,10 @@ pub struct InstrumentModel {
     pub registers: Vec<Register>,
     #[serde(default)]
     pub quirks: Quirks,
+    /// `[vendor]`: fields only this model's driver family reads (the driver checks them when it
+    /// opens the instrument, and a bench file's check before); empty when it has none.
+    #[serde(default)]
+    pub vendor: toml::Table,
 }
 
 /// What the instrument is.
@@ -45,6 +49,11 @@ pub struct Info {
     /// Stable key used in bench files, e.g. `keysight-m8195a`.
     pub key: String,
     pub kind: InstrumentKind,
+    /// The driver family that speaks to it, e.g. `lecroy-maui` (the driver layer lists them).
+    /// Optional for files written before the key existed: then the kind's first family
+    /// (`keysight-m8195a`, `lecroy-maui`, `gotmic-line`).
+    #[serde(default)]
+    pub driver: Option<String>,
     pub manufacturer: String,
     pub model: String,
     pub summary: String,
@@ -282,8 +291,12 @@ pub struct DigitizerLimits {
     pub trigger_sources: Vec<String>,
     pub ext_trigger_level_v_min: f64,
     pub ext_trigger_level_v_max: f64,
-    pub wavedesc_template: String,
-    pub wavedesc_bytes: u32,
+    /// LeCroy only (WAVEDESC template and size), kept here for catalog files written before the
+    /// `[vendor]` table; a LeCroy file may give them in either place.
+    #[serde(default)]
+    pub wavedesc_template: Option<String>,
+    #[serde(default)]
+    pub wavedesc_bytes: Option<u32>,
     /// Most segments one sequence-mode acquisition records (one trigger each); 0 when the model
     /// has no sequence mode, and repetitions are then separate acquisitions.
     #[serde(default)]

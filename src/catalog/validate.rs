@@ -565,14 +565,13 @@ fn check_digitizer(c: &mut Checks, d: &DigitizerLimits) {
     if d.trigger_sources.is_empty() {
         c.fail("digitizer.trigger_sources", "needs at least one source");
     }
-    if d.wavedesc_template == "LECROY_2_3" && d.wavedesc_bytes != 346 {
-        c.fail(
-            "digitizer.wavedesc_bytes",
-            format!(
-                "the LECROY_2_3 descriptor is 346 bytes (got {})",
-                d.wavedesc_bytes
-            ),
-        );
+    if let (Some("LECROY_2_3"), Some(bytes)) = (d.wavedesc_template.as_deref(), d.wavedesc_bytes) {
+        if bytes != 346 {
+            c.fail(
+                "digitizer.wavedesc_bytes",
+                format!("the LECROY_2_3 descriptor is 346 bytes (got {bytes})"),
+            );
+        }
     }
 }
 

@@ -61,6 +61,9 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_transport: ScopeTransportArg,
+    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
+    #[arg(long, value_enum, value_name = "MODEL")]
+    pub scope_model: Option<super::args::ScopeModelArg>,
     #[command(flatten)]
     pub live: LiveArgs,
 }
@@ -85,11 +88,14 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
     }
-    let source = bench_source(
-        args.bench.as_deref(),
-        args.scene.as_deref(),
-        args.awg_transport,
-        args.scope_transport,
+    let source = super::capture::with_scope_model(
+        bench_source(
+            args.bench.as_deref(),
+            args.scene.as_deref(),
+            args.awg_transport,
+            args.scope_transport,
+        )?,
+        args.scope_model,
     )?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;

@@ -206,6 +206,25 @@ impl From<ScopeTransportArg> for ScopeLink {
     }
 }
 
+/// `--scope-model` of the built-in lab: which scope it serves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ScopeModelArg {
+    /// Teledyne LeCroy LabMaster 10 Zi-A (VICP or VXI-11), saves `.trc` files beside the SigMF.
+    Lecroy,
+    /// Keysight Infiniium UXR0334A (HiSLIP, or VXI-11 with --scope-transport vxi11), saves the
+    /// SigMF recording only.
+    KeysightUxr,
+}
+
+impl From<ScopeModelArg> for crate::measure::bench::ScopeModel {
+    fn from(m: ScopeModelArg) -> Self {
+        match m {
+            ScopeModelArg::Lecroy => Self::Lecroy,
+            ScopeModelArg::KeysightUxr => Self::KeysightUxr,
+        }
+    }
+}
+
 /// The waveform's parameters; unset ones keep the thesis' values.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct WaveformArgs {

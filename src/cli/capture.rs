@@ -74,6 +74,10 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_transport: ScopeTransportArg,
+    /// Built-in mock lab only: the scope it serves (default lecroy; keysight-uxr is reached over
+    /// HiSLIP, or VXI-11 with --scope-transport vxi11).
+    #[arg(long, value_enum, value_name = "MODEL")]
+    pub scope_model: Option<super::args::ScopeModelArg>,
     /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
@@ -145,6 +149,25 @@ pub(crate) fn calibration_warnings(
     out
 }
 
+/// `--scope-model` applied to the built-in lab; with `--bench` the bench file names the scope, so
+/// the option is refused there.
+pub(crate) fn with_scope_model(
+    mut source: BenchSource,
+    model: Option<super::args::ScopeModelArg>,
+) -> anyhow::Result<BenchSource> {
+    match (&mut source, model) {
+        (_, None) => {}
+        (BenchSource::BuiltIn(b), Some(m)) => b.scope_model = m.into(),
+        (BenchSource::File(_), Some(_)) => {
+            return Err(bad_input(
+                "--scope-model applies to the built-in mock lab only: with --bench, the bench \
+                 file's [scope] model names the scope",
+            ))
+        }
+    }
+    Ok(source)
+}
+
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
 pub(crate) fn bench_source(
     bench: Option<&Path>,
@@ -169,6 +192,7 @@ pub(crate) fn bench_source(
         scene,
         awg: awg.into(),
         scope: scope.into(),
+        scope_model: Default::default(),
     })))
 }
 
@@ -265,11 +289,14 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
             "--live: needs --repeat N|forever (one capture is over before a page could show it)",
         ));
     }
-    let source = bench_source(
-        args.bench.as_deref(),
-        args.scene.as_deref(),
-        args.awg_transport,
-        args.scope_transport,
+    let source = with_scope_model(
+        bench_source(
+            args.bench.as_deref(),
+            args.scene.as_deref(),
+            args.awg_transport,
+            args.scope_transport,
+        )?,
+        args.scope_model,
     )?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();

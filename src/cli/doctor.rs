@@ -15,17 +15,23 @@ pub struct Args {
     /// Print one JSON object: {"bench", "ok", "checks": [{"id", "status", "detail", "fix"}]}.
     #[arg(long)]
     pub json: bool,
+    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
+    #[arg(long, value_enum, value_name = "MODEL")]
+    pub scope_model: Option<super::args::ScopeModelArg>,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;
-        let source = bench_source(
-            args.bench.as_deref(),
-            None,
-            super::args::AwgTransportArg::Hislip,
-            super::args::ScopeTransportArg::Vicp,
+        let source = super::capture::with_scope_model(
+            bench_source(
+                args.bench.as_deref(),
+                None,
+                super::args::AwgTransportArg::Hislip,
+                super::args::ScopeTransportArg::Vicp,
+            )?,
+            args.scope_model,
         )?;
         let bench = open_bench(source, args.json).await?;
         let report = doctor::run(&bench, journal(global)?, &interrupt).await?;

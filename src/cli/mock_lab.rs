@@ -42,6 +42,9 @@ pub struct ServeArgs {
     /// The scope's remote interface: only this protocol answers, as on the real scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_remote: ScopeRemote,
+    /// The scope served as `scope`: lecroy (VICP / VXI-11) or keysight-uxr (HiSLIP and VXI-11).
+    #[arg(long, value_enum, value_name = "MODEL")]
+    pub scope_model: Option<super::args::ScopeModelArg>,
     /// Also serve the generic loopback test instrument on every transport.
     #[arg(long)]
     pub with_loopback: bool,
@@ -80,6 +83,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             ScopeRemote::Vxi11 => RemoteInterface::Vxi11,
         },
         with_loopback: a.with_loopback,
+        scope_model: a.scope_model.map(Into::into).unwrap_or_default(),
         ..LabOptions::default()
     };
     options.validate().map_err(classified)?;

@@ -254,6 +254,9 @@ pub trait Digitizer: Send {
     fn capture_iq(&mut self, wait_s: f64) -> BoxFuture<'_, Result<IqCapture, DriverError>>;
     /// Disarms (no acquisition left pending).
     fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;
+    /// Where the timebase's reference comes from, as the instrument says it (`INTERNAL`,
+    /// `EXTERNAL`, ...; the bench doctor compares it with the AWG's).
+    fn reference_clock(&mut self) -> BoxFuture<'_, Result<String, DriverError>>;
 }
 
 /// Settings of an RF up- or down-converter.

@@ -12,6 +12,8 @@
 //! | `fault` | [`FaultyIo`]: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests |
 //! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
+//! | [`keysight_uxr`] | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
+//! | `open` | instruments opened from data: the catalog's `driver` family to a boxed capability, AWG planning |
 //! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
 //! | [`safe_state`] | the safe-state sequence on every exit path |
@@ -43,10 +45,11 @@
 //! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
 //! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
 //! scope model with data only", walks through one (`tests/io/driver_second_scope.rs` does it). A new
-//! command set needs a driver module here: a `commands.rs` with every spelling, pure checks
-//! against the catalog before any I/O (`limits`), the session through [`Scpi`], an
-//! implementation of the capability trait, tests with [`Scripted`] that pin each operation's
-//! command sequence, and tests against its mock_lab emulator.
+//! command set needs a driver module here (and its family in `open.rs`: one row, one `match`
+//! arm): a `commands.rs` with every spelling, pure checks against the catalog before any I/O
+//! (`limits`), the session through [`Scpi`], an implementation of the capability trait, tests
+//! with [`Scripted`] that pin each operation's command sequence, and tests against its mock_lab
+//! emulator (`keysight_uxr` is the worked example).
 
 pub(crate) mod capability;
 pub(crate) mod error;
@@ -54,9 +57,11 @@ pub(crate) mod fault;
 pub mod gotmic;
 pub(crate) mod identity;
 pub mod io;
+pub mod keysight_uxr;
 pub mod lecroy;
 pub(crate) mod limits;
 pub(crate) mod m8195a;
+pub(crate) mod open;
 pub(crate) mod permit;
 pub(crate) mod rf_state;
 pub mod safe_state;
@@ -77,6 +82,7 @@ pub use error::DriverError;
 pub use fault::{FaultCounts, FaultPlan, FaultSwitch, FaultyIo};
 pub use gotmic::Gotmic;
 pub use io::{BoxFuture, InstrumentIo};
+pub use keysight_uxr::KeysightUxr;
 pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;

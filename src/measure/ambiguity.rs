@@ -8,7 +8,7 @@ use super::reprocess::{self, Record};
 use super::transmit::{Dac, Transmission};
 use super::MeasureError;
 use crate::catalog::Catalog;
-use crate::driver::m8195a::plan::{plan_clock, plan_download};
+use crate::driver::open::plan_awg;
 use crate::driver::AwgSettings;
 use crate::dsp::ambiguity::{cut_figures, Ambiguity, Wrap};
 use crate::physics::C0;
@@ -68,16 +68,14 @@ fn as_uploaded(tx: &Transmission) -> Vec<Complex64> {
         .ok()
         .and_then(|c| c.get(AWG_MODEL).ok().cloned())
         .and_then(|m| {
-            let limits = m.awg.as_ref()?;
+            m.awg.as_ref()?;
             let settings = AwgSettings {
                 sample_rate_hz: tx.sample_rate_hz(),
                 ..AwgSettings::default()
             };
-            let clock =
-                plan_clock(limits, &m.instrument.key, &m.instrument.model, &settings).ok()?;
-            plan_download(limits, &clock, &m.instrument.model, &tx.iq)
+            plan_awg(&m, &settings, &tx.iq)
                 .ok()
-                .map(|d| d.padded as usize)
+                .map(|d| d.padded_samples as usize)
         })
         .unwrap_or(tx.reference.len());
     let mut s = tx.reference.clone();

@@ -4,6 +4,7 @@
 use super::bench_file::{BenchFile, Calibration};
 use super::MeasureError;
 use mock_lab::emulator::lecroy::RemoteInterface;
+pub use mock_lab::lab::ScopeModel;
 use mock_lab::lab::{Lab, LabOptions};
 use mock_lab::scene::Scene;
 use mock_lab::server::launch::Transport;
@@ -23,7 +24,8 @@ pub enum AwgLink {
     Vxi11,
 }
 
-/// How to reach the built-in mock lab's scope.
+/// How to reach the built-in mock lab's scope: the LeCroy's VICP or VXI-11, the Infiniium's
+/// HiSLIP (its default, also for `Vicp`, which it does not speak) or VXI-11.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ScopeLink {
     #[default]
@@ -37,6 +39,8 @@ pub struct BuiltIn {
     pub scene: Scene,
     pub awg: AwgLink,
     pub scope: ScopeLink,
+    /// Which scope the lab serves (`--scope-model`).
+    pub scope_model: ScopeModel,
 }
 
 /// Where the bench comes from.
@@ -79,6 +83,7 @@ impl Bench {
                 let lab = mock_lab::lab::start(LabOptions {
                     scene: b.scene,
                     scope_remote: remote,
+                    scope_model: b.scope_model,
                     ..LabOptions::default()
                 })
                 .await?;
@@ -87,9 +92,10 @@ impl Bench {
                     AwgLink::Hislip => Transport::Hislip,
                     AwgLink::Vxi11 => Transport::Vxi11,
                 };
-                let scope_t = match b.scope {
-                    ScopeLink::Vicp => Transport::Vicp,
-                    ScopeLink::Vxi11 => Transport::Vxi11,
+                let scope_t = match (b.scope_model, b.scope) {
+                    (_, ScopeLink::Vxi11) => Transport::Vxi11,
+                    (ScopeModel::Lecroy, ScopeLink::Vicp) => Transport::Vicp,
+                    (ScopeModel::KeysightUxr, ScopeLink::Vicp) => Transport::Hislip,
                 };
                 let mut file = BenchFile::parse(
                     &lab.bench_toml(awg_t, scope_t),

@@ -8,7 +8,8 @@
 //! resource = "TCPIP::192.168.1.20::hislip0::INSTR"
 //!
 //! [scope]
-//! model = "lecroy-labmaster10zi-a"
+//! model = "lecroy-labmaster10zi-a"                # or "keysight-uxr0334a" (HiSLIP / VXI-11)
+//! driver = "lecroy-maui"                          # optional: checked against the catalog
 //! resource = "VICP::192.168.1.30"
 //! volts_per_div = 0.05                            # optional, both channels
 //!
@@ -43,6 +44,10 @@ pub struct InstrumentEntry {
     pub model: String,
     /// VISA-style resource string.
     pub resource: String,
+    /// Optional: the driver family the catalog entry must name (`lecroy-maui`,
+    /// `keysight-infiniium`, ...), checked on load; the catalog's `driver` decides either way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driver: Option<String>,
     /// Scope only: vertical scale of I and Q, volts per division.
     #[serde(default)]
     pub volts_per_div: Option<f64>,
@@ -150,6 +155,7 @@ impl BenchFile {
         for section in ["awg", "scope", "tx", "rx", "calibration", "simulation"] {
             for key in [
                 "model",
+                "driver",
                 "resource",
                 "volts_per_div",
                 "attenuation_db",
@@ -268,6 +274,30 @@ impl BenchFile {
                     ),
                 });
             }
+            if let Some(model) = model {
+                let family = crate::driver::open::family(model);
+                if let Some(wanted) = &entry.driver {
+                    if wanted != family {
+                        let line = self
+                            .lines
+                            .get(&format!("{section}.driver"))
+                            .map(|l| format!("line {l}: "))
+                            .unwrap_or_default();
+                        return Err(BenchFileError::Invalid {
+                            path: self.path.clone(),
+                            message: format!(
+                                "{line}[{section}] driver = {wanted:?}: the catalog's {:?} is driven by \
+                                 {family:?}; write driver = {family:?} or leave the key out",
+                                entry.model
+                            ),
+                        });
+                    }
+                }
+                crate::driver::open::check(model).map_err(|e| BenchFileError::Invalid {
+                    path: self.path.clone(),
+                    message: format!("{line}[{section}] model = {:?}: {e}", entry.model),
+                })?;
+            }
         }
         Ok(())
     }
@@ -384,6 +414,29 @@ system_delay_s = 1e-9
         let e = BenchFile::parse(&bad, Path::new("b.toml")).unwrap_err();
         assert!(
             e.to_string().contains("modle") && e.to_string().contains("b.toml"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_driver_key_is_checked_against_the_catalog() {
+        let catalog = crate::catalog::Catalog::embedded().unwrap();
+        let uxr = GOOD
+            .replace("lecroy-labmaster10zi-a", "keysight-uxr0334a")
+            .replace("VICP::127.0.0.1", "TCPIP::127.0.0.1::hislip0::INSTR");
+        let ok = uxr.replace("[scope]\n", "[scope]\ndriver = \"keysight-infiniium\"\n");
+        let b = BenchFile::parse(&ok, Path::new("b.toml")).unwrap();
+        b.check_models(&catalog).unwrap();
+        // Without the key the catalog decides, as for bench files written before it existed.
+        let b = BenchFile::parse(&uxr, Path::new("b.toml")).unwrap();
+        b.check_models(&catalog).unwrap();
+        let wrong = uxr.replace("[scope]\n", "[scope]\ndriver = \"lecroy-maui\"\n");
+        let b = BenchFile::parse(&wrong, Path::new("b.toml")).unwrap();
+        let e = b.check_models(&catalog).unwrap_err().to_string();
+        assert!(
+            e.contains("[scope] driver = \"lecroy-maui\"")
+                && e.contains("\"keysight-infiniium\"")
+                && e.contains("line 8"),
             "{e}"
         );
     }

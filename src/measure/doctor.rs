@@ -18,11 +18,11 @@ use super::station::capture_rate;
 use super::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentModel};
-use crate::driver::gotmic::Framing;
+use crate::driver::open;
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
-    Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Journal,
-    Lecroy, M8195a, Outcome, RfFrontEnd, SafeState,
+    Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, IqWaveform, Journal, Outcome,
+    RfFrontEnd, SafeState,
 };
 use serde::Serialize;
 use std::time::Duration;
@@ -238,12 +238,14 @@ async fn open_front(
     res: &Resource,
     model: &InstrumentModel,
     journal: Option<Journal>,
-) -> (Result<Gotmic, String>, Option<Gotmic>) {
-    match bounded(Gotmic::open(res.clone(), model, journal.clone(), name)).await {
+) -> (
+    Result<Box<dyn RfFrontEnd>, String>,
+    Option<Box<dyn RfFrontEnd>>,
+) {
+    match bounded(open::open_rf(res.clone(), model, journal.clone(), name)).await {
         Ok(g) => (Ok(g), None),
         Err(e) => {
-            let other = Framing::other_than_catalog(model);
-            let answered = bounded(Gotmic::open_with(res.clone(), model, journal, name, other))
+            let answered = bounded(open::open_rf_other_mode(res.clone(), model, journal, name))
                 .await
                 .ok();
             (Err(e), answered)
@@ -283,10 +285,11 @@ async fn other_scope_resource(bench: &Bench, resource: &Resource) -> Option<Reso
 }
 
 fn interface_name(protocol: &str) -> &'static str {
-    if protocol == "vicp" {
-        "TCPIP (VICP)"
-    } else {
-        "LXI (VXI-11)"
+    match protocol {
+        "vicp" => "TCPIP (VICP)",
+        "hislip" => "HiSLIP",
+        "socket" => "a raw socket",
+        _ => "LXI (VXI-11)",
     }
 }
 
@@ -330,7 +333,7 @@ pub(crate) async fn run(
         if matches!(awg_probe, Some(Err(_))) {
             return Err("not reachable".to_string());
         }
-        bounded(M8195a::open(
+        bounded(open::open_awg(
             awg_res.clone(),
             &awg_model,
             journal.clone(),
@@ -342,7 +345,7 @@ pub(crate) async fn run(
         if matches!(scope_probe, Some(Err(_))) {
             return Err("not reachable".to_string());
         }
-        bounded(Lecroy::open(
+        bounded(open::open_digitizer(
             scope_res.clone(),
             &scope_model,
             journal.clone(),
@@ -388,7 +391,7 @@ pub(crate) async fn run(
     if scope_unanswered {
         let other = other_scope_resource(bench, &scope_res).await;
         let other_answer = match &other {
-            Some(r) => bounded(Lecroy::open(r.clone(), &scope_model, None, "scope"))
+            Some(r) => bounded(open::open_digitizer(r.clone(), &scope_model, None, "scope"))
                 .await
                 .map(|s| s.identity().to_string()),
             None => Err("no other interface to try".into()),
@@ -457,15 +460,12 @@ pub(crate) async fn run(
     }
 
     // Front ends: reachability, CRC mode, identity, status.
-    let mut modules: Vec<(&'static str, Gotmic)> = Vec::new();
+    let mut modules: Vec<(&'static str, Box<dyn RfFrontEnd>)> = Vec::new();
     let mut tx_on = false;
     for ((name, _, model), (opened, other)) in fronts.iter().zip(fronts_opened) {
         let entry = if *name == "tx" { &file.tx } else { &file.rx };
         let resource = entry.as_ref().map_or("", |e| e.resource.as_str());
-        let catalog_mode = match Framing::from_catalog(model) {
-            Framing::Plain => "plain lines",
-            Framing::Crc8(_) => "CRC-8 framed lines (`CRC ON`)",
-        };
+        let catalog_mode = open::rf_line_mode(model).unwrap_or("its line protocol");
         let crc = format!("{name}.crc_mode");
         match (opened, other) {
             (Ok(g), _) => {
@@ -527,7 +527,10 @@ pub(crate) async fn run(
         }
     }
     for (name, g) in &mut modules {
-        let limits = g.model().rf.clone();
+        let limits = fronts
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .and_then(|(_, _, model)| model.rf.clone());
         match tokio::time::timeout(OPEN_TIMEOUT, g.status()).await {
             Ok(Ok(s)) => {
                 if s.powered && s.faults.is_empty() {
@@ -708,17 +711,17 @@ pub(crate) fn stopped(signal: super::interrupt::StopSignal) -> MeasureError {
 /// the bench's safe state runs after it whatever happens.
 async fn marker_check(
     list: &mut List,
-    awg: M8195a,
-    mut scope: Lecroy,
-    modules: Vec<(&'static str, Gotmic)>,
+    awg: Box<dyn Awg>,
+    mut scope: Box<dyn Digitizer>,
+    modules: Vec<(&'static str, Box<dyn RfFrontEnd>)>,
     scope_model: &InstrumentModel,
     interrupt: &Interrupt,
 ) -> Result<(), MeasureError> {
-    let awg: Shared<dyn Awg> = safe_state::share(Box::new(awg) as Box<dyn Awg>);
+    let awg: Shared<dyn Awg> = safe_state::share(awg);
     let mut tx = None;
     let mut rx = None;
     for (name, g) in modules {
-        let shared = safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>);
+        let shared = safe_state::share(g);
         if name == "tx" {
             tx = Some(shared);
         } else {

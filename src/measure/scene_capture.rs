@@ -6,8 +6,7 @@
 //!   AWG's 8-bit DAC, as [`super::capture::prepare`] makes it;
 //! - the instrument settings: [`station::plan`] on the built-in lab's models (its bench file
 //!   names no attenuation and no V/div, so the catalog's defaults apply), the AWG's
-//!   [`plan_clock`] / [`plan_download`], and the upload's own chunk functions to pad the segment
-//!   and place the marker;
+//!   plan (`driver::open::plan_awg`) for the padded segment and where the marker is high;
 //! - the numbers as the instruments hold them: every setting the drivers send goes through the
 //!   driver's [`number`] formatting and is parsed back; the scope's horizontal scale and trigger
 //!   delay are derived from the planned record as `driver::lecroy` derives them;
@@ -29,7 +28,7 @@ use super::station::{self, CapturePlan};
 use super::transmit::{Dac, Transmission};
 use super::MeasureError;
 use crate::catalog::Catalog;
-use crate::driver::m8195a::plan::{interleaved_chunk, plain_chunk, plan_clock, plan_download};
+use crate::driver::open::plan_awg;
 use crate::driver::scpi::number;
 use crate::driver::DigitizerSettings;
 use mock_lab::offline::{OfflineScope, ScopeSettings};
@@ -213,19 +212,22 @@ impl AwgSegment {
             instrument: bench.awg.model.clone(),
             reason: "the built-in lab's AWG model has no [awg] section".into(),
         };
-        let limits = model.awg.as_ref().ok_or_else(not_awg)?;
-        let name = &model.instrument.model;
-        let clock = plan_clock(limits, &model.instrument.key, name, &plan.awg)?;
-        let download = plan_download(limits, &clock, name, &tx.iq)?;
-        let ch1 = interleaved_chunk(&tx.iq.i, download.marker_high, 0, download.padded);
-        let markers: Vec<u8> = ch1.chunks_exact(2).map(|p| p[1]).collect();
+        model.awg.as_ref().ok_or_else(not_awg)?;
+        let download = plan_awg(model, &plan.awg, &tx.iq)?;
+        // The segment as the upload leaves it: zeros past the waveform, the marker high on the
+        // first samples.
+        let padded = |codes: &[i8]| -> Vec<i8> {
+            (0..download.padded_samples as usize)
+                .map(|n| codes.get(n).copied().unwrap_or(0))
+                .collect()
+        };
+        let markers: Vec<u8> = (0..download.padded_samples)
+            .map(|n| u8::from(n < download.marker_high_samples))
+            .collect();
         Ok(AwgSegment {
-            i: ch1.chunks_exact(2).map(|p| p[0] as i8).collect(),
-            q: plain_chunk(&tx.iq.q, 0, download.padded)
-                .into_iter()
-                .map(|b| b as i8)
-                .collect(),
-            sample_rate: sent(clock.dac_rate_hz) / f64::from(clock.divider.divider),
+            i: padded(&tx.iq.i),
+            q: padded(&tx.iq.q),
+            sample_rate: sent(download.dac_rate_hz) / f64::from(download.divider),
             amplitude_vpp: [
                 sent(plan.awg.i_amplitude_vpp),
                 sent(plan.awg.q_amplitude_vpp),

@@ -14,12 +14,12 @@ use super::transmit::Transmission;
 use super::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, DigitizerLimits, InstrumentModel};
-use crate::driver::m8195a::plan::{plan_clock, plan_download};
+use crate::driver::open;
 use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
     Awg, AwgApplied, AwgSettings, ChannelTrace, Digitizer, DigitizerApplied, DigitizerSettings,
-    Gotmic, Identity, IqCapture, Journal, Lecroy, LoadedSegment, M8195a, Outcome, ReadyToEnable,
-    RfFrontEnd, RfPermit, RfSettings, RfStatus, SafeState, SafeStateReport, SegmentTiming,
+    Identity, IqCapture, Journal, LoadedSegment, Outcome, ReadyToEnable, RfFrontEnd, RfPermit,
+    RfSettings, RfStatus, SafeState, SafeStateReport, SegmentTiming,
 };
 use crate::dsp::C0;
 use num_complex::Complex64;
@@ -131,7 +131,7 @@ pub(crate) fn plan(
     }
     let awg_model = catalog.get(&bench.awg.model)?;
     let scope_model = catalog.get(&bench.scope.model)?;
-    let awg_limits = awg_model
+    awg_model
         .awg
         .as_ref()
         .ok_or_else(|| not_kind(&bench.awg, "awg", "an AWG"))?;
@@ -149,9 +149,8 @@ pub(crate) fn plan(
         instrument: name.clone(),
         reason: e.to_string(),
     };
-    let clock = plan_clock(awg_limits, &awg_model.instrument.key, name, &awg).map_err(fit)?;
-    let download = plan_download(awg_limits, &clock, name, &tx.iq).map_err(fit)?;
-    let period = download.padded as usize;
+    let download = open::plan_awg(awg_model, &awg, &tx.iq).map_err(fit)?;
+    let period = download.padded_samples as usize;
     let fs = tx.sample_rate_hz();
     let rate = capture_rate(scope_limits, fs)?;
     let vdiv = bench
@@ -429,8 +428,8 @@ impl Station {
         let awg_resource = resource(&bench.awg.resource, "awg")?;
         let scope_resource = resource(&bench.scope.resource, "scope")?;
         let (awg, scope, tx, rx) = tokio::join!(
-            M8195a::open(awg_resource, awg_model, journal.clone(), "awg"),
-            Lecroy::open(scope_resource, scope_model, journal.clone(), "scope"),
+            open::open_awg(awg_resource, awg_model, journal.clone(), "awg"),
+            open::open_digitizer(scope_resource, scope_model, journal.clone(), "scope"),
             open_front(catalog, &bench.tx, "tx", journal.clone()),
             open_front(catalog, &bench.rx, "rx", journal),
         );
@@ -442,11 +441,9 @@ impl Station {
         };
         identities.tx = tx.as_ref().map(|g| idn(g.identity()));
         identities.rx = rx.as_ref().map(|g| idn(g.identity()));
-        let awg: Shared<dyn Awg> = safe_state::share(Box::new(awg) as Box<dyn Awg>);
-        let tx: Option<Shared<dyn RfFrontEnd>> =
-            tx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
-        let rx: Option<Shared<dyn RfFrontEnd>> =
-            rx.map(|g| safe_state::share(Box::new(g) as Box<dyn RfFrontEnd>));
+        let awg: Shared<dyn Awg> = safe_state::share(awg);
+        let tx: Option<Shared<dyn RfFrontEnd>> = tx.map(safe_state::share);
+        let rx: Option<Shared<dyn RfFrontEnd>> = rx.map(safe_state::share);
         crate::driver::rf_state::connected("awg");
         for (name, front) in [("tx", &tx), ("rx", &rx)] {
             if front.is_some() {
@@ -463,7 +460,7 @@ impl Station {
         );
         Ok(Station {
             awg,
-            scope: Box::new(scope),
+            scope,
             tx,
             rx,
             identities,
@@ -674,11 +671,11 @@ async fn open_front(
     entry: &Option<InstrumentEntry>,
     name: &'static str,
     journal: Option<Journal>,
-) -> Result<Option<Gotmic>, MeasureError> {
+) -> Result<Option<Box<dyn RfFrontEnd>>, MeasureError> {
     let Some(e) = entry else {
         return Ok(None);
     };
     let model: &InstrumentModel = catalog.get(&e.model)?;
-    let g = Gotmic::open(resource(&e.resource, name)?, model, journal, name).await?;
+    let g = open::open_rf(resource(&e.resource, name)?, model, journal, name).await?;
     Ok(Some(g))
 }

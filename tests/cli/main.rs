@@ -25,6 +25,7 @@ mod exit_paths;
 mod export;
 mod fault_matrix;
 mod io_cli;
+mod keysight_uxr;
 mod link_quality;
 mod live_exit_paths;
 mod process_cli;

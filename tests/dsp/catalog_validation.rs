@@ -49,7 +49,8 @@ fn every_shipped_file_loads_and_validates() {
             "keysight-m8195a",
             "lecroy-labmaster10zi-a",
             "gotmic-eband-tx",
-            "gotmic-eband-rx"
+            "gotmic-eband-rx",
+            "keysight-uxr0334a"
         ]
     );
     let awg = catalog.get("keysight-m8195a").unwrap();
@@ -282,7 +283,7 @@ fn folder_overrides_and_extends_the_built_in_files() {
         20_000
     );
     assert!(catalog.get("gotmic-eband-rx2").is_ok());
-    assert_eq!(catalog.models().count(), 5);
+    assert_eq!(catalog.models().count(), EMBEDDED_FILES.len() + 1);
     let origin = catalog
         .models()
         .find(|(m, _)| m.instrument.key == "keysight-m8195a")

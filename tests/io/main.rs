@@ -11,6 +11,7 @@ mod io_support;
 mod driver_emulator;
 mod driver_faults;
 mod driver_io;
+mod driver_keysight_uxr;
 mod driver_scripted;
 mod driver_second_scope;
 mod io_faults_proxy;

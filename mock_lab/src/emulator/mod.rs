@@ -1,6 +1,7 @@
 //! Instrument emulators: state machines behind the protocol servers.
 
 pub mod gotmic;
+pub mod keysight_uxr;
 pub mod lecroy;
 pub mod loopback;
 pub mod m8195a;

@@ -525,4 +525,8 @@ impl Digitizer for Lecroy {
     fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(async move { self.scpi.send(commands::STOP).await })
     }
+
+    fn reference_clock(&mut self) -> BoxFuture<'_, Result<String, DriverError>> {
+        Box::pin(Lecroy::reference_clock(self))
+    }
 }

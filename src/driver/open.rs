@@ -1,0 +1,324 @@
+//! Instruments opened from data: a catalog entry names its driver family (`[instrument] driver`),
+//! and this is the one place that turns an entry and a resource into a boxed capability, one
+//! `match` per kind. Nothing above `driver` names a vendor.
+//!
+//! Adding a driver family: its folder under `src/driver/`, one `mod` line in `driver/mod.rs`,
+//! one row in [`FAMILIES`] and one arm in the `match` of its kind here.
+
+use super::capability::{Awg, AwgSettings, Digitizer, IqWaveform, RfFrontEnd};
+use super::error::DriverError;
+use super::gotmic::{Framing, Gotmic};
+use super::keysight_uxr::KeysightUxr;
+use super::lecroy::Lecroy;
+use super::m8195a::M8195a;
+use crate::address::Resource;
+use crate::catalog::{InstrumentKind, InstrumentModel};
+use crate::transport::Journal;
+
+/// Every driver family and the kinds of instrument it drives.
+pub(crate) const FAMILIES: &[(&str, &[InstrumentKind])] = &[
+    ("keysight-m8195a", &[InstrumentKind::Awg]),
+    ("lecroy-maui", &[InstrumentKind::Digitizer]),
+    ("keysight-infiniium", &[InstrumentKind::Digitizer]),
+    ("gotmic-line", &[InstrumentKind::RfTx, InstrumentKind::RfRx]),
+];
+
+/// The driver family of a catalog entry: its `driver` key, or for a file written before the key
+/// existed the family that drove its kind then.
+pub(crate) fn family(model: &InstrumentModel) -> &str {
+    match &model.instrument.driver {
+        Some(name) => name,
+        None => match model.instrument.kind {
+            InstrumentKind::Awg => "keysight-m8195a",
+            InstrumentKind::Digitizer => "lecroy-maui",
+            InstrumentKind::RfTx | InstrumentKind::RfRx => "gotmic-line",
+        },
+    }
+}
+
+fn unknown(model: &InstrumentModel, reason: String) -> DriverError {
+    DriverError::Catalog {
+        key: model.instrument.key.clone(),
+        reason,
+    }
+}
+
+/// Checks that the entry's driver family exists, drives its kind, and accepts its `[vendor]`
+/// table; touches no instrument.
+///
+/// # Errors
+/// [`DriverError::Catalog`] naming the `driver` key or the `[vendor]` field and what is allowed.
+pub(crate) fn check(model: &InstrumentModel) -> Result<(), DriverError> {
+    let name = family(model);
+    let kind = model.instrument.kind;
+    let Some((_, kinds)) = FAMILIES.iter().find(|(f, _)| *f == name) else {
+        let known: Vec<&str> = FAMILIES.iter().map(|(f, _)| *f).collect();
+        return Err(unknown(
+            model,
+            format!(
+                "instrument.driver = {name:?} is no driver family; allowed: {}",
+                known.join(", ")
+            ),
+        ));
+    };
+    if !kinds.contains(&kind) {
+        return Err(unknown(
+            model,
+            format!(
+                "instrument.driver = {name:?} does not drive kind {:?}",
+                kind.as_str()
+            ),
+        ));
+    }
+    match name {
+        "keysight-infiniium" => super::keysight_uxr::check_vendor(model),
+        _ if model.vendor.is_empty() => Ok(()),
+        _ => Err(unknown(
+            model,
+            format!(
+                "the driver family {name:?} reads no [vendor] table; remove it (found keys: {})",
+                model.vendor.keys().cloned().collect::<Vec<_>>().join(", ")
+            ),
+        )),
+    }
+}
+
+fn wrong_kind(model: &InstrumentModel, wanted: &str) -> DriverError {
+    unknown(
+        model,
+        format!(
+            "instrument.driver = {:?} (kind {:?}) is not {wanted}",
+            family(model),
+            model.instrument.kind.as_str()
+        ),
+    )
+}
+
+/// Opens an AWG with its family's driver.
+///
+/// # Errors
+/// The catalog entry is not an AWG family, or the driver's open failed.
+pub(crate) async fn open_awg(
+    resource: Resource,
+    model: &InstrumentModel,
+    journal: Option<Journal>,
+    name: &str,
+) -> Result<Box<dyn Awg>, DriverError> {
+    check(model)?;
+    match family(model) {
+        "keysight-m8195a" => Ok(Box::new(
+            M8195a::open(resource, model, journal, name).await?,
+        )),
+        _ => Err(wrong_kind(model, "an AWG")),
+    }
+}
+
+/// Opens a digitizer with its family's driver.
+///
+/// # Errors
+/// The catalog entry is not a digitizer family, or the driver's open failed.
+pub(crate) async fn open_digitizer(
+    resource: Resource,
+    model: &InstrumentModel,
+    journal: Option<Journal>,
+    name: &str,
+) -> Result<Box<dyn Digitizer>, DriverError> {
+    check(model)?;
+    match family(model) {
+        "lecroy-maui" => Ok(Box::new(
+            Lecroy::open(resource, model, journal, name).await?,
+        )),
+        "keysight-infiniium" => Ok(Box::new(
+            KeysightUxr::open(resource, model, journal, name).await?,
+        )),
+        _ => Err(wrong_kind(model, "a digitizer")),
+    }
+}
+
+/// Opens an RF front end with its family's driver.
+///
+/// # Errors
+/// The catalog entry is not an RF family, or the driver's open failed.
+pub(crate) async fn open_rf(
+    resource: Resource,
+    model: &InstrumentModel,
+    journal: Option<Journal>,
+    name: &str,
+) -> Result<Box<dyn RfFrontEnd>, DriverError> {
+    check(model)?;
+    match family(model) {
+        "gotmic-line" => Ok(Box::new(
+            Gotmic::open(resource, model, journal, name).await?,
+        )),
+        _ => Err(wrong_kind(model, "an RF front end")),
+    }
+}
+
+/// The line mode the catalog gives a front end, in words (for the bench doctor); `None` when the
+/// family has no choice of line mode.
+pub(crate) fn rf_line_mode(model: &InstrumentModel) -> Option<&'static str> {
+    match family(model) {
+        "gotmic-line" => Some(match Framing::from_catalog(model) {
+            Framing::Plain => "plain lines",
+            Framing::Crc8(_) => "CRC-8 framed lines (`CRC ON`)",
+        }),
+        _ => None,
+    }
+}
+
+/// Opens a front end in the line mode the catalog does not give it: a module that answers so is
+/// set to the wrong mode, not dead (the bench doctor's question).
+///
+/// # Errors
+/// The family has no other line mode, or the module did not answer in it either.
+pub(crate) async fn open_rf_other_mode(
+    resource: Resource,
+    model: &InstrumentModel,
+    journal: Option<Journal>,
+    name: &str,
+) -> Result<Box<dyn RfFrontEnd>, DriverError> {
+    match family(model) {
+        "gotmic-line" => {
+            let other = Framing::other_than_catalog(model);
+            Ok(Box::new(
+                Gotmic::open_with(resource, model, journal, name, other).await?,
+            ))
+        }
+        _ => Err(wrong_kind(model, "a front end with line modes")),
+    }
+}
+
+/// What an AWG will do with a waveform, planned from the catalog alone (no instrument touched).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct AwgPlan {
+    /// Samples of one repetition after padding (the repetition period in samples).
+    pub(crate) padded_samples: u64,
+    /// The marker is high on the first this-many samples of every repetition.
+    pub(crate) marker_high_samples: u64,
+    /// The DAC sample clock, Sa/s.
+    pub(crate) dac_rate_hz: f64,
+    /// DAC clock over playback rate.
+    pub(crate) divider: u32,
+}
+
+/// Plans the AWG's clock and segment for `waveform` at `settings`, with its family's rules.
+///
+/// # Errors
+/// [`DriverError::OutOfLimits`] / [`DriverError::BadSettings`] when the waveform or a level does
+/// not fit the model, [`DriverError::Catalog`] when the entry is no AWG family.
+pub(crate) fn plan_awg(
+    model: &InstrumentModel,
+    settings: &AwgSettings,
+    waveform: &IqWaveform,
+) -> Result<AwgPlan, DriverError> {
+    let limits = model
+        .awg
+        .as_ref()
+        .ok_or_else(|| wrong_kind(model, "an AWG"))?;
+    match family(model) {
+        "keysight-m8195a" => {
+            use super::m8195a::plan::{plan_clock, plan_download};
+            let name = &model.instrument.model;
+            let clock = plan_clock(limits, &model.instrument.key, name, settings)?;
+            let download = plan_download(limits, &clock, name, waveform)?;
+            Ok(AwgPlan {
+                padded_samples: download.padded,
+                marker_high_samples: download.marker_high,
+                dac_rate_hz: clock.dac_rate_hz,
+                divider: clock.divider.divider,
+            })
+        }
+        _ => Err(wrong_kind(model, "an AWG")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::catalog::{parse_model, Catalog, EMBEDDED_FILES};
+
+    fn file(name: &str) -> &'static str {
+        EMBEDDED_FILES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, t)| *t)
+            .unwrap()
+    }
+
+    #[test]
+    fn every_built_in_model_names_a_family_that_drives_its_kind() {
+        for (model, _) in Catalog::embedded().unwrap().models() {
+            check(model).unwrap_or_else(|e| panic!("{}: {e}", model.instrument.key));
+            assert!(
+                model.instrument.driver.is_some(),
+                "{}",
+                model.instrument.key
+            );
+        }
+    }
+
+    #[test]
+    fn a_file_without_the_key_gets_its_kind_s_first_family() {
+        let text = file("lecroy_labmaster10zi_a.toml").replace("driver = \"lecroy-maui\"\n", "");
+        let model = parse_model("old.toml", &text).unwrap();
+        assert_eq!(model.instrument.driver, None);
+        assert_eq!(family(&model), "lecroy-maui");
+        check(&model).unwrap();
+    }
+
+    #[test]
+    fn unknown_families_wrong_kinds_and_stray_vendor_tables_are_refused() {
+        let lecroy = file("lecroy_labmaster10zi_a.toml");
+        let unknown = parse_model(
+            "x.toml",
+            &lecroy.replace("driver = \"lecroy-maui\"", "driver = \"tek-dpo\""),
+        )
+        .unwrap();
+        let e = check(&unknown).unwrap_err().to_string();
+        assert!(
+            e.contains("\"tek-dpo\"") && e.contains("keysight-infiniium"),
+            "{e}"
+        );
+        let wrong = parse_model(
+            "x.toml",
+            &lecroy.replace("driver = \"lecroy-maui\"", "driver = \"gotmic-line\""),
+        )
+        .unwrap();
+        let e = check(&wrong).unwrap_err().to_string();
+        assert!(e.contains("does not drive kind \"digitizer\""), "{e}");
+        let stray = parse_model("x.toml", &format!("{lecroy}\n[vendor]\nx = 1\n")).unwrap();
+        let e = check(&stray).unwrap_err().to_string();
+        assert!(
+            e.contains("reads no [vendor] table") && e.contains('x'),
+            "{e}"
+        );
+        let uxr = file("keysight_uxr0334a.toml");
+        let bad = parse_model(
+            "x.toml",
+            &uxr.replace("acquisition_poll_ms = 2", "acquisition_poll_ms = \"fast\""),
+        )
+        .unwrap();
+        let e = check(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("[vendor]") && e.contains("acquisition_poll_ms"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn awg_planning_goes_through_the_family() {
+        let catalog = Catalog::embedded().unwrap();
+        let awg = catalog.get("keysight-m8195a").unwrap();
+        let waveform = IqWaveform {
+            i: vec![0; 1000],
+            q: vec![0; 1000],
+            marker_high_samples: 64,
+        };
+        let plan = plan_awg(awg, &AwgSettings::default(), &waveform).unwrap();
+        assert_eq!(plan.padded_samples % 64, 0);
+        assert!(plan.padded_samples >= 1000);
+        assert_eq!(plan.dac_rate_hz / f64::from(plan.divider), 16e9);
+        let scope = catalog.get("keysight-uxr0334a").unwrap();
+        assert!(plan_awg(scope, &AwgSettings::default(), &waveform).is_err());
+    }
+}

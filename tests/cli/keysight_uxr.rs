@@ -1,0 +1,217 @@
+//! The Infiniium UXR through the same door as the LeCroy: capture, `process` of its saved files
+//! (SigMF only: no `.trc`), `doctor` on the built-in lab with `--scope-model keysight-uxr`; a
+//! short campaign on a lab serving the UXR; and the exit path of a capture left waiting for a
+//! trigger with RF on.
+
+use crate::support::{radbench_in, signal, until};
+use mock_lab::lab::{Lab, LabOptions, ScopeModel};
+use mock_lab::server::launch::Transport;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Stdio;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+async fn radbench(args: &[&str]) -> (i32, String, String) {
+    radbench_in(None, args).await
+}
+
+fn ranges(v: &Value) -> Vec<f64> {
+    v["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["range_m"].as_f64().unwrap())
+        .collect()
+}
+
+async fn uxr_lab() -> Lab {
+    tokio::time::timeout(
+        Duration::from_secs(10),
+        mock_lab::lab::start(LabOptions {
+            scope_model: ScopeModel::KeysightUxr,
+            ..LabOptions::default()
+        }),
+    )
+    .await
+    .expect("lab starts")
+    .expect("lab starts")
+}
+
+/// `lab`'s bench file, calibrated with the simulated cables' nominal delay (as the built-in lab
+/// is).
+fn bench_file(dir: &Path, lab: &Lab, scope: Transport) -> String {
+    let path = dir.join("bench.toml");
+    let delay = mock_lab::scene::Scene::default().system_delay_s;
+    let text = format!(
+        "{}\n[calibration]\nsystem_delay_s = {delay:e}\n",
+        lab.bench_toml(Transport::Hislip, scope)
+    );
+    std::fs::write(&path, text).unwrap();
+    path.display().to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn capture_process_and_doctor_on_the_built_in_lab_with_the_uxr() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cap");
+    let (code, stdout, err) = radbench(&[
+        "capture",
+        "--allow-rf",
+        "--scope-model",
+        "keysight-uxr",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    let truth = v["scene"]["targets"][0]["range_m"].as_f64().unwrap();
+    let found = ranges(&v);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!((found[0] - truth).abs() < 1e-3, "{found:?} vs {truth}");
+    assert_eq!(v["payload"]["bit_errors"], 0, "{}", v["payload"]);
+    // The UXR path saves the SigMF recording and no `.trc`.
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        names.iter().any(|n| n.ends_with(".sigmf-data")),
+        "{names:?}"
+    );
+    assert!(!names.iter().any(|n| n.ends_with(".trc")), "{names:?}");
+    let meta = std::fs::read_to_string(out.join("capture.sigmf-meta")).unwrap();
+    assert!(meta.contains("UXR0334A"), "the recording names its scope");
+
+    // `process` of the saved capture gives the same range.
+    let again_dir = dir.path().join("again");
+    let (code, stdout, err) = radbench(&[
+        "process",
+        out.to_str().unwrap(),
+        "--out",
+        again_dir.to_str().unwrap(),
+        "--json",
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let doc: Value = serde_json::from_str(&stdout).unwrap();
+    let again = &doc["processed"][0]["summary"];
+    let re = ranges(again);
+    assert_eq!(re.len(), 1, "{again}");
+    assert!((re[0] - found[0]).abs() < 1e-6, "{re:?} vs {found:?}");
+
+    // The doctor checks the UXR as it checks the LeCroy.
+    let (code, stdout, err) =
+        radbench(&["doctor", "--scope-model", "keysight-uxr", "--json"]).await;
+    assert_eq!(code, 0, "{stdout} {err}");
+    let report: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["ok"], true, "{report}");
+    let marker = report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["id"] == "marker")
+        .unwrap();
+    assert_eq!(marker["status"], "pass", "{marker}");
+
+    // Repetitions go to the UXR's segmented memory: one acquisition, one segment per trigger.
+    let seq = dir.path().join("seq");
+    let (code, stdout, err) = radbench(&[
+        "capture",
+        "--allow-rf",
+        "--scope-model",
+        "keysight-uxr",
+        "--repetitions",
+        "3",
+        "--json",
+        "--out",
+        seq.to_str().unwrap(),
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["applied"]["scope"]["segments"], 3, "{}", v["applied"]);
+    let found = ranges(&v);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!((found[0] - truth).abs() < 1e-3, "{found:?} vs {truth}");
+
+    // With --bench the scope comes from the bench file: the option is refused.
+    let (code, _, err) = radbench(&[
+        "capture",
+        "--allow-rf",
+        "--bench",
+        "no-such.toml",
+        "--scope-model",
+        "keysight-uxr",
+    ])
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--scope-model"), "{err}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_short_campaign_on_a_uxr_bench_measures_within_a_millimetre() {
+    let lab = uxr_lab().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab, Transport::Vxi11);
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/accuracy.toml");
+    let run = dir.path().join("run");
+    let (code, _, err) = radbench(&[
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--bench",
+        &bench,
+        "--allow-rf",
+        "--out",
+        run.to_str().unwrap(),
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let results: Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("results.json")).unwrap()).unwrap();
+    let steps = results["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 6);
+    for s in steps {
+        let a = &s["algorithms"]["correlation"];
+        let truth = a["truth_error_m"].as_f64().unwrap_or_else(|| panic!("{s}"));
+        assert!(truth.abs() < 1e-3, "interpolated error {truth} m");
+        assert_eq!(a["missed"], 0);
+    }
+    assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_signal_while_rf_is_on_leaves_the_bench_safe_with_the_uxr() {
+    let lab = uxr_lab().await;
+    // No trigger reaches the scope: the capture waits with RF on until the signal.
+    lab.bench.marker_cable.store(false, Ordering::Relaxed);
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab, Transport::Hislip);
+    let child = tokio::process::Command::new(env!("CARGO_BIN_EXE_radbench"))
+        .args(["capture", "--allow-rf", "--wait", "60", "--bench", &bench])
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    until("RF on", Duration::from_secs(60), || {
+        lab.bench.tx.front_end().rf_enabled && lab.bench.awg.playback().running
+    })
+    .await;
+    signal(&child, "TERM");
+    let out = tokio::time::timeout(Duration::from_secs(60), child.wait_with_output())
+        .await
+        .expect("radbench ends within 60 s of the signal")
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(143), "{err}");
+    assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
+    assert!(!lab.bench.rx.front_end().rf_enabled, "Rx off");
+    assert!(!lab.bench.uxr.state().armed || out.status.code() == Some(143));
+}
