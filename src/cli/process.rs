@@ -39,6 +39,10 @@ pub struct Args {
     /// Worker threads (default: every core).
     #[arg(long, value_name = "N")]
     pub jobs: Option<usize>,
+    /// Also write each capture's link figure as `link.png` (`link.svg` is always written). Off by
+    /// default: rendering and compressing that bitmap is about an eighth of re-processing.
+    #[arg(long)]
+    pub link_png: bool,
     /// The waveform of captures radbench did not make (overrides what a radbench capture recorded).
     #[arg(long, value_enum)]
     pub waveform: Option<WaveformArg>,
@@ -337,6 +341,7 @@ fn process_one(
     overrides: &ProcessOverrides,
     background: Option<&Path>,
     trigger_offset: Option<f64>,
+    link_png: bool,
 ) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
     let (loaded, r, sources) = compute(
         source,
@@ -350,7 +355,7 @@ fn process_one(
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
     let ((files, summary), open) =
-        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r))?;
+        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r, link_png))?;
     Ok((files.dir, summary, open))
 }
 
@@ -489,6 +494,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
                     &overrides,
                     args.background.as_deref(),
                     args.trigger_offset,
+                    args.link_png,
                 )
                 .and_then(|(dir, summary, group)| {
                     finishers.finish(index, group)?;

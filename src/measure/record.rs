@@ -48,8 +48,9 @@ pub(crate) struct ProfileFiles {
 }
 
 /// Writes the profiles of `processed` into `out` (CSV, npy, SVG and PNG plots, the
-/// range-Doppler map when there is one), titled `"{program}: {waveform} {algorithm}"`, the
-/// scene's targets drawn when `scene` (a simulated bench's ground truth) names them.
+/// range-Doppler map when there is one, the link figure when data was decoded: `link.svg`, and
+/// `link.png` when `link_png`), titled `"{program}: {waveform} {algorithm}"`, the scene's targets
+/// drawn when `scene` (a simulated bench's ground truth) names them.
 fn write_profiles(
     out: &Path,
     program: &str,
@@ -57,6 +58,7 @@ fn write_profiles(
     processed: &Processed,
     o: &ProcessOptions,
     scene: Option<&Value>,
+    link_png: bool,
 ) -> Result<ProfileFiles, MeasureError> {
     let files = ProfileFiles {
         profile_csv: out.join("profile.csv"),
@@ -78,11 +80,14 @@ fn write_profiles(
             _ => String::new(),
         };
         let fig = trace.figure(format!("{program}: {} link{figures}", tx.name()));
-        let (svg, png) = (out.join("link.svg"), out.join("link.png"));
+        let svg = out.join("link.svg");
         plot::link::draw_link(&svg, &fig)?;
-        plot::link::draw_link(&png, &fig)?;
         files.link_svg = Some(svg);
-        files.link_png = Some(png);
+        if link_png {
+            let png = out.join("link.png");
+            plot::link::draw_link(&png, &fig)?;
+            files.link_png = Some(png);
+        }
     }
     let truth: Vec<f64> = scene
         .and_then(|s| s["targets"].as_array())
@@ -310,6 +315,7 @@ pub(crate) fn write_processed(
         &m.processing.processed,
         &m.processing.options,
         m.taken.ground_truth.as_ref(),
+        true,
     )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
@@ -386,6 +392,7 @@ pub(crate) fn write_reprocessed<R>(
     sources: &[SourceFile],
     loaded: &super::reprocess::Loaded<R>,
     r: &super::reprocess::Reprocessed,
+    link_png: bool,
 ) -> Result<(ReprocessFiles, Value), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
         path: out.to_path_buf(),
@@ -404,6 +411,7 @@ pub(crate) fn write_reprocessed<R>(
             &r.processed,
             o,
             loaded.ground_truth(),
+            link_png,
         )?,
         summary: out.join("summary.json"),
     };

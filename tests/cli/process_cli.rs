@@ -54,6 +54,21 @@ async fn the_original_options_give_the_original_figures_exactly() {
             assert_eq!(original[key], again[key], "{name}: {key}");
         }
         assert_eq!(original["processing"], again["processing"]);
+        // The link figure: SVG always, PNG only when asked for (the capture wrote both).
+        let folder = d.join(&out).join(name);
+        assert!(folder.join("link.svg").is_file(), "{name}");
+        assert!(!folder.join("link.png").exists(), "{name}");
+        assert!(again["files"].get("link_png").is_none(), "{name}");
+        assert!(d.join(name).join("link.png").is_file(), "{name}");
+        let with_png = format!("{name}-png");
+        let (code, _, err) =
+            radbench(d, &["process", name, "--link-png", "--out", &with_png]).await;
+        assert_eq!(code, 0, "{err}");
+        let png = d.join(&with_png).join(name).join("link.png");
+        assert!(
+            std::fs::read(&png).unwrap().starts_with(b"\x89PNG"),
+            "{name}"
+        );
         // The manifest names the sources with their SHA-256.
         let manifest: toml::Value = toml::from_str(
             &std::fs::read_to_string(d.join(&out).join(name).join("manifest.toml")).unwrap(),
