@@ -202,7 +202,7 @@ fn reach_and_identity(
             list.pass(
                 ident,
                 format!(
-                    "`{idn}` is a {} ({})",
+                    "`{idn}` matches the catalog's {} ({})",
                     model.instrument.model, model.instrument.key
                 ),
             );
@@ -476,7 +476,11 @@ pub(crate) async fn run(
                 );
                 list.pass(
                     format!("{name}.identity"),
-                    format!("`{}` is a {}", g.identity(), model.instrument.model),
+                    format!(
+                        "`{}` matches the catalog's {}",
+                        g.identity(),
+                        model.instrument.model
+                    ),
                 );
                 modules.push((name, g));
             }
@@ -497,7 +501,11 @@ pub(crate) async fn run(
                 );
                 list.pass(
                     format!("{name}.identity"),
-                    format!("`{}` is a {}", g.identity(), model.instrument.model),
+                    format!(
+                        "`{}` matches the catalog's {}",
+                        g.identity(),
+                        model.instrument.model
+                    ),
                 );
                 modules.push((name, g));
             }
