@@ -275,8 +275,10 @@ pub(crate) fn write_raw(
             .unwrap_or(80e9),
         datetime: sigmf::utc_now_rfc3339(),
         description: format!(
-            "radbench capture: {} at the scope (I on C1, Q on C2), raw 16-bit words",
-            taken.tx.name()
+            "radbench capture: {} at the scope (I on channel {}, Q on channel {}), raw 16-bit words",
+            taken.tx.name(),
+            i.channel,
+            q.channel
         ),
         hw: taken.identities.scope.clone(),
         radbench: ns,
