@@ -339,23 +339,21 @@ fn process_one(
     out: &Path,
     waveform: &WaveformChoice,
     overrides: &ProcessOverrides,
-    background: Option<&Path>,
-    trigger_offset: Option<f64>,
-    link_png: bool,
+    args: &Args,
 ) -> Result<(PathBuf, Value, OpenGroup), anyhow::Error> {
     let (loaded, r, sources) = compute(
         source,
         recorded_for(source, recorded),
         waveform,
         overrides,
-        background,
-        trigger_offset,
+        args.background.as_deref(),
+        args.trigger_offset,
     )?;
     // One write group: each file's writeback starts as it is written; the files are synced,
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
     let ((files, summary), open) =
-        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r, link_png))?;
+        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r, args.link_png))?;
     Ok((files.dir, summary, open))
 }
 
@@ -492,9 +490,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
                     &out.join(name),
                     &waveform,
                     &overrides,
-                    args.background.as_deref(),
-                    args.trigger_offset,
-                    args.link_png,
+                    &args,
                 )
                 .and_then(|(dir, summary, group)| {
                     finishers.finish(index, group)?;

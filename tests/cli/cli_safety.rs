@@ -119,6 +119,7 @@ fn closed_pipe() -> Stdio {
     let mut fds = [0; 2];
     // SAFETY: pipe fills two new descriptors, which are owned exactly once below.
     assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+    // SAFETY: the two descriptors pipe just made, each owned once.
     let (read, write) = unsafe { (OwnedFd::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1])) };
     drop(read);
     Stdio::from(write)
@@ -381,6 +382,7 @@ impl Terminal {
         assert_eq!(rc, 0, "openpty");
         // SAFETY: both descriptors are new and owned once each.
         let master = unsafe { std::fs::File::from_raw_fd(master) };
+        // SAFETY: as above.
         let slave = unsafe { OwnedFd::from_raw_fd(slave) };
         let io = |fd: &OwnedFd| Stdio::from(fd.try_clone().unwrap());
         command

@@ -40,21 +40,24 @@ fn shrank(n: usize) {
 // on the memory handed out.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc(layout);
+        // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+        let p = unsafe { System.alloc(layout) };
         if !p.is_null() {
             grew(layout.size());
         }
         p
     }
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc_zeroed(layout);
+        // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+        let p = unsafe { System.alloc_zeroed(layout) };
         if !p.is_null() {
             grew(layout.size());
         }
         p
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        let p = System.realloc(ptr, layout, size);
+        // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+        let p = unsafe { System.realloc(ptr, layout, size) };
         if !p.is_null() {
             if size > layout.size() {
                 grew(size - layout.size());
@@ -65,7 +68,8 @@ unsafe impl GlobalAlloc for Counting {
         p
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout);
+        // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+        unsafe { System.dealloc(ptr, layout) };
         shrank(layout.size());
     }
 }

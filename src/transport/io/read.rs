@@ -256,18 +256,22 @@ mod tests {
     unsafe impl std::alloc::GlobalAlloc for CountingAllocator {
         unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
             count_if_large(layout.size());
-            std::alloc::System.alloc(layout)
+            // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+            unsafe { std::alloc::System.alloc(layout) }
         }
         unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
             count_if_large(layout.size());
-            std::alloc::System.alloc_zeroed(layout)
+            // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+            unsafe { std::alloc::System.alloc_zeroed(layout) }
         }
         unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, size: usize) -> *mut u8 {
             count_if_large(size);
-            std::alloc::System.realloc(ptr, layout, size)
+            // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+            unsafe { std::alloc::System.realloc(ptr, layout, size) }
         }
         unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
-            std::alloc::System.dealloc(ptr, layout)
+            // SAFETY: the caller's contract, passed on to the system allocator unchanged.
+            unsafe { std::alloc::System.dealloc(ptr, layout) }
         }
     }
 
