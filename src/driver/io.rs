@@ -1,7 +1,7 @@
 //! What a driver needs from a session, as an object-safe trait.
 //!
 //! Drivers hold a `Box<dyn InstrumentIo>`: a real [`Session`] on the bench, a
-//! [`Scripted`](super::scripted::Scripted) fake in tests that pin the exact command sequence of an
+//! `Scripted` fake (feature `testing`) in tests that pin the exact command sequence of an
 //! operation. Keeping the surface this small (write, query, blocks, error queue, device clear) is
 //! what makes the fake honest: a driver cannot reach around it.
 

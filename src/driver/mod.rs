@@ -7,9 +7,9 @@
 //! | `scpi` | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
 //! | `identity` | `*IDN?` checked against the catalog model |
 //! | `limits` | settings checked against the catalog's limits before anything is sent |
-//! | [`scripted`] | [`Scripted`]: a fake session for tests that pin exact command sequences |
+//! | `scripted` | `Scripted`: a fake session for tests that pin exact command sequences (feature `testing`) |
 //! | `trace` | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
-//! | `fault` | [`FaultyIo`]: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests |
+//! | `fault` | `FaultyIo`: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests (feature `testing`) |
 //! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
 //! | [`keysight_uxr`] | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
@@ -48,11 +48,12 @@
 //! command set needs a driver module here (and its family in `open.rs`: one row, one `match`
 //! arm): a `commands.rs` with every spelling, pure checks against the catalog before any I/O
 //! (`limits`), the session through [`Scpi`], an implementation of the capability trait, tests
-//! with [`Scripted`] that pin each operation's command sequence, and tests against its mock_lab
+//! with `Scripted` (feature `testing`) that pin each operation's command sequence, and tests against its mock_lab
 //! emulator (`keysight_uxr` is the worked example).
 
 pub(crate) mod capability;
 pub(crate) mod error;
+#[cfg(any(test, feature = "testing"))]
 pub(crate) mod fault;
 pub mod gotmic;
 pub(crate) mod identity;
@@ -66,6 +67,7 @@ pub(crate) mod permit;
 pub(crate) mod rf_state;
 pub mod safe_state;
 pub(crate) mod scpi;
+#[cfg(any(test, feature = "testing"))]
 pub mod scripted;
 pub(crate) mod trace;
 
@@ -79,6 +81,7 @@ pub use capability::{
     Slope,
 };
 pub use error::DriverError;
+#[cfg(any(test, feature = "testing"))]
 pub use fault::{FaultCounts, FaultPlan, FaultSwitch, FaultyIo};
 pub use gotmic::Gotmic;
 pub use io::{BoxFuture, InstrumentIo};
@@ -91,5 +94,6 @@ pub use safe_state::{
     install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard, SafeStateReport,
 };
 pub use scpi::Scpi;
+#[cfg(any(test, feature = "testing"))]
 pub use scripted::{ScriptLog, Scripted};
 pub use trace::{ChannelTrace, IqCapture, NativeFile, SegmentTiming};

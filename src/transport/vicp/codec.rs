@@ -14,7 +14,7 @@ pub mod op {
     pub const DATA: u8 = 0x80;
     pub(crate) const REMOTE: u8 = 0x40;
     pub(crate) const LOCKOUT: u8 = 0x20;
-    pub const CLEAR: u8 = 0x10;
+    pub(crate) const CLEAR: u8 = 0x10;
     pub(crate) const SRQ: u8 = 0x08;
     pub(crate) const SERIAL_POLL: u8 = 0x04;
     pub const EOI: u8 = 0x01;

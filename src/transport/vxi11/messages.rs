@@ -22,7 +22,7 @@ pub mod proc_ {
     pub(crate) const DEVICE_READ: u32 = 12;
     pub(crate) const DEVICE_READSTB: u32 = 13;
     pub(crate) const DEVICE_TRIGGER: u32 = 14;
-    pub const DEVICE_CLEAR: u32 = 15;
+    pub(crate) const DEVICE_CLEAR: u32 = 15;
     pub(crate) const DESTROY_LINK: u32 = 23;
 }
 
