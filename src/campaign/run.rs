@@ -44,9 +44,9 @@ use crate::measure::bench::{Bench, BenchSource};
 use crate::measure::capture::{self, LentPipeline, Measurement, Prepared, Processing, Rig, Taken};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
+use crate::measure::scene_control::{Scene, SceneControlError, Target};
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_atomic, write_group, GroupWritten};
-use mock_lab::scene::{Scene, Target};
 use serde::Serialize;
 use serde_json::json;
 use std::collections::{BTreeMap, HashMap, VecDeque};
@@ -994,11 +994,7 @@ impl Runner {
             // without it refuses and changes nothing.)
             let conn = self.connection.as_ref().expect("connected");
             let seed = step.noise_seed.unwrap_or(self.plan.seed);
-            let reply = conn
-                .bench
-                .control(&json!({"cmd": "seed", "seed": seed}))
-                .await;
-            self.reseed = Some(matches!(reply, Some(Ok(_))));
+            self.reseed = Some(conn.bench.reseed(seed).await.is_ok());
         }
         if !self.identified {
             self.identified = true;
@@ -1024,17 +1020,7 @@ impl Runner {
             }
             // A bench file's simulated lab: the scene every step starts from.
             if self.base_scene.is_none() && self.plan.bench.simulated {
-                let reply = conn.bench.control(&json!({"cmd": "get"})).await;
-                let scene = match reply {
-                    Some(Ok(v)) => serde_json::from_value::<Scene>(v["scene"].clone())
-                        .map_err(|e| CampaignError::Control(format!("`get` gave no scene: {e}")))?,
-                    Some(Err(e)) => return Err(CampaignError::Control(e)),
-                    None => {
-                        return Err(CampaignError::Control(
-                            "the bench file has no [simulation] control address".into(),
-                        ))
-                    }
-                };
+                let scene = conn.bench.scene().await.map_err(control)?;
                 self.manifest.base_scene = Some(scene.clone());
                 self.base_scene = Some(scene);
             }
@@ -1073,21 +1059,9 @@ impl Runner {
         }
         let conn = self.connection.as_mut().expect("connected");
         if let (Some(scene), false) = (scene, started_with_scene) {
-            let seed = scene.seed;
-            let mut requests = vec![json!({"cmd": "set", "scene": scene})];
+            conn.bench.set_scene(&scene).await.map_err(control)?;
             if reseeds {
-                requests.push(json!({"cmd": "seed", "seed": seed}));
-            }
-            for request in requests {
-                match conn.bench.control(&request).await {
-                    Some(Ok(_)) => {}
-                    Some(Err(e)) => return Err(CampaignError::Control(e)),
-                    None => {
-                        return Err(CampaignError::Control(
-                            "the bench file has no [simulation] control address".into(),
-                        ))
-                    }
-                }
+                conn.bench.reseed(scene.seed).await.map_err(control)?;
             }
         }
         observer.step_starting(step, n, &conn.bench);
@@ -1437,6 +1411,11 @@ impl StepJob {
         };
         Ok((result, written))
     }
+}
+
+/// A refusal of the simulated bench's scene control, as the campaign's error.
+fn control(e: SceneControlError) -> CampaignError {
+    CampaignError::Control(e.to_string())
 }
 
 fn catalog(bench: &Bench) -> Result<Catalog, CampaignError> {
