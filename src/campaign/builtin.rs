@@ -15,7 +15,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The kinds `radbench campaign new` knows, with their spec text.
-pub(crate) const TEMPLATES: [(&str, &str); 5] = [
+pub(crate) const TEMPLATES: [(&str, &str); 6] = [
     ("accuracy", include_str!("../../examples/accuracy.toml")),
     ("resolution", include_str!("../../examples/resolution.toml")),
     (
@@ -24,6 +24,7 @@ pub(crate) const TEMPLATES: [(&str, &str); 5] = [
     ),
     ("music", include_str!("../../examples/music.toml")),
     ("link", include_str!("../../examples/link.toml")),
+    ("velocity", include_str!("../../examples/velocity.toml")),
 ];
 
 /// The commented spec of a kind.

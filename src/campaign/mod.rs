@@ -6,6 +6,7 @@
 //! |---|---|
 //! | `spec` | the spec file: serde with unknown fields refused, errors at file:line:field |
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
+//! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
 //! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
 //! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
@@ -23,6 +24,7 @@
 pub(crate) mod builtin;
 pub(crate) mod export;
 mod folder;
+pub(crate) mod kind;
 pub mod manifest;
 pub mod plan;
 pub(crate) mod positioner;

@@ -121,7 +121,7 @@ impl Positioner {
             .map(|(i, t)| Target {
                 range_m: t.range_m,
                 amplitude: amplitude(i),
-                velocity_mps: 0.0,
+                velocity_mps: nominal.velocity_mps.unwrap_or(0.0),
             })
             .collect();
     }

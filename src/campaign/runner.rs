@@ -286,6 +286,11 @@ impl Runner {
         if let Some(p) = &self.positioner {
             p.place_in_scene(&step.nominal, &mut scene);
         }
+        if let Some(v) = step.nominal.velocity_mps {
+            for t in &mut scene.targets {
+                t.velocity_mps = v;
+            }
+        }
         Some(scene)
     }
 
