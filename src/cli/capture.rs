@@ -1,7 +1,7 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArg, WaveformArgs};
+use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArgs};
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::measure::bench::{Bench, BenchSource, BuiltIn};
@@ -21,8 +21,8 @@ pub struct Args {
     /// started in-process on 127.0.0.1.
     #[arg(long, value_name = "FILE")]
     pub bench: Option<PathBuf>,
-    #[arg(long, value_enum, default_value = "msk-lfm")]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     #[command(flatten)]
@@ -255,7 +255,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let kind = WaveformKind::from(args.waveform);
+    let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());

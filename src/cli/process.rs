@@ -1,12 +1,12 @@
 //! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
 //! options they were captured with or any others, in parallel on every core.
 
-use super::args::{
-    AlgorithmArg, CorrectionArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
-};
+use super::args::{CorrectionArg, WaveformArgs};
 use crate::campaign::manifest::Manifest;
 use crate::exit::{Classified, ExitClass};
-use crate::measure::options::ProcessOverrides;
+use crate::measure::options::{
+    Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName,
+};
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
 use crate::measure::reprocess::{
@@ -40,8 +40,8 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub jobs: Option<usize>,
     /// The waveform of captures radbench did not make (overrides what a radbench capture recorded).
-    #[arg(long, value_enum)]
-    pub waveform: Option<WaveformArg>,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>())]
+    pub waveform: Option<WaveformKind>,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Seed of the transmitted PRBS bits (captures radbench did not make).
@@ -59,8 +59,8 @@ pub struct Args {
     /// Do not subtract the background the capture recorded.
     #[arg(long)]
     pub no_background: bool,
-    #[arg(long, value_enum)]
-    pub algorithm: Option<AlgorithmArg>,
+    #[arg(long, value_parser = super::args::listed::<Algorithm>())]
+    pub algorithm: Option<Algorithm>,
     /// MUSIC sub-vector (covariance) length M.
     #[arg(long = "m", value_name = "M")]
     pub music_m: Option<usize>,
@@ -72,15 +72,15 @@ pub struct Args {
     pub forward_only: bool,
     #[arg(long, value_name = "K")]
     pub zero_pad: Option<usize>,
-    #[arg(long, value_enum, value_name = "NAME")]
-    pub window: Option<WindowArg>,
-    #[arg(long, value_enum, value_name = "P")]
-    pub fft_precision: Option<FftPrecisionArg>,
+    #[arg(long, value_parser = super::args::listed::<WindowName>(), value_name = "NAME")]
+    pub window: Option<WindowName>,
+    #[arg(long, value_parser = super::args::listed::<FftPrecisionName>(), value_name = "P")]
+    pub fft_precision: Option<FftPrecisionName>,
     /// Report the on-grid peak (no sub-sample interpolation).
     #[arg(long)]
     pub no_interpolation: bool,
-    #[arg(long, value_enum, value_name = "NAME")]
-    pub detector: Option<DetectorArg>,
+    #[arg(long, value_parser = super::args::listed::<DetectorName>(), value_name = "NAME")]
+    pub detector: Option<DetectorName>,
     #[arg(long, value_name = "P", allow_hyphen_values = true)]
     pub pfa: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
@@ -126,18 +126,18 @@ impl Args {
 
     fn overrides(&self) -> ProcessOverrides {
         ProcessOverrides {
-            algorithm: self.algorithm.map(Into::into),
+            algorithm: self.algorithm,
             music_m: self.music_m,
             music_p: self.music_p.map(Some),
             forward_backward: self.forward_only.then_some(false),
             zero_pad: self.zero_pad,
-            window: self.window.map(Into::into),
-            fft_precision: self.fft_precision.map(Into::into),
+            window: self.window,
+            fft_precision: self.fft_precision,
             interpolate: self.no_interpolation.then_some(false),
             system_delay_s: self.system_delay,
             min_range_m: self.min_range,
             max_range_m: self.max_range,
-            detector: self.detector.map(Into::into),
+            detector: self.detector,
             pfa: self.pfa,
             min_separation_m: self.min_separation.map(Some),
             chain_floor_db: self.chain_floor_db,
@@ -208,7 +208,7 @@ impl Args {
 
     fn waveform(&self) -> anyhow::Result<WaveformChoice> {
         let spec = match self.waveform {
-            Some(w) => Some(self.waveform_args.spec(WaveformKind::from(w))?),
+            Some(w) => Some(self.waveform_args.spec(w)?),
             None => {
                 let given = format!("{:?}", self.waveform_args);
                 if given != format!("{:?}", WaveformArgs::default()) {
