@@ -7,8 +7,8 @@
 
 use super::kind::{sorted_ranges, SweepAt, SweepParameter};
 use super::spec::{
-    AwgTransportName, CorrectionName, ModelOrder, PositionerKind, ScopeTransportName, SpecError,
-    SpecFile, SweepSection,
+    AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
+    SweepSection,
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -16,6 +16,7 @@ use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink};
 use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::options::{Algorithm, ProcessOptions};
+use crate::measure::response::CorrectionMode;
 use crate::measure::scene_control::Scene;
 use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
@@ -694,23 +695,23 @@ fn processing(
 fn correction(
     spec: &SpecFile,
     bench: &BenchInfo,
-) -> Result<Option<(CorrectionName, crate::measure::response::Calibration)>, SpecError> {
+) -> Result<Option<(CorrectionMode, crate::measure::response::Calibration)>, SpecError> {
     let p = &spec.spec.processing;
-    let mode = p.correction.unwrap_or(CorrectionName::Rx);
+    let mode = p.correction.unwrap_or(CorrectionMode::Rx);
     let given = p.calibration.as_ref().map(|c| spec.resolve(c));
     let named = bench
         .file
         .as_ref()
         .and_then(|(path, f)| f.response_path(path));
     let (field, path) = match (p.correction, given, named) {
-        (Some(CorrectionName::None), Some(_), _) => {
+        (Some(CorrectionMode::None), Some(_), _) => {
             return Err(spec.error(
                 "processing.calibration",
                 "given with correction = \"none\": remove one of them (correction = \"rx\" \
                  corrects with it)",
             ))
         }
-        (Some(CorrectionName::None), None, _) => return Ok(None),
+        (Some(CorrectionMode::None), None, _) => return Ok(None),
         (_, Some(path), _) => ("processing.calibration", path),
         (_, None, Some(path)) => ("processing.correction", path),
         (Some(m), None, None) => {

@@ -9,6 +9,7 @@
 
 use super::kind::SweepParameter;
 use crate::measure::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use crate::measure::response::CorrectionMode;
 use crate::waveform::spec::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -194,37 +195,11 @@ pub struct ProcessingSection {
     /// The correction: `none`, `rx`, `tx` or `both` (default: `rx` when `calibration` is given
     /// or the bench file names a response calibration, `none` otherwise).
     #[serde(default)]
-    pub correction: Option<CorrectionName>,
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response`), relative to the spec's folder
     /// (default: the one the bench file's `[calibration] response` names).
     #[serde(default)]
     pub calibration: Option<PathBuf>,
-}
-
-/// `processing.correction`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CorrectionName {
-    /// Nothing corrected.
-    None,
-    /// On receive: DC, I/Q imbalance and the chain's response divided out.
-    Rx,
-    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
-    Tx,
-    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
-    Both,
-}
-
-impl CorrectionName {
-    /// As `--correction` and the recorded `mode` spell it.
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            CorrectionName::None => "none",
-            CorrectionName::Rx => "rx",
-            CorrectionName::Tx => "tx",
-            CorrectionName::Both => "both",
-        }
-    }
 }
 
 /// `processing.music_p`: a number of targets, or `"targets"`.
@@ -599,9 +574,9 @@ mod tests {
     #[test]
     fn the_correction_is_none_rx_tx_or_both() {
         let f = parse("[processing]\ncorrection = \"rx\"\ncalibration = \"c.toml\"\n").unwrap();
-        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Rx));
+        assert_eq!(f.spec.processing.correction, Some(CorrectionMode::Rx));
         let f = parse("[processing]\ncorrection = \"both\"\n").unwrap();
-        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Both));
+        assert_eq!(f.spec.processing.correction, Some(CorrectionMode::Both));
         let err = parse("[processing]\ncorrection = \"rxtx\"\n")
             .unwrap_err()
             .to_string();

@@ -1,6 +1,6 @@
 //! Command-line arguments shared by several subcommands: the waveform and its parameters, the
 //! processing choices, the built-in lab's transports. The library's named enums (waveform,
-//! algorithm, window, FFT precision, detector, carrier phase) are parsed as they are, by their own
+//! algorithm, window, FFT precision, detector, carrier phase, correction) are parsed as they are, by their own
 //! `FromStr` over the values they list (`Listed`, `listed`); no clap derive lives outside `cli`.
 
 use crate::exit::bad_input;
@@ -8,6 +8,7 @@ use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
+use crate::measure::response::CorrectionMode;
 use crate::simulate::scene::CarrierPhase;
 use crate::waveform::overrides::{OverrideError, WaveformOverrides};
 use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
@@ -92,6 +93,18 @@ impl Listed for CarrierPhase {
     }
 }
 
+impl Listed for CorrectionMode {
+    fn all() -> &'static [Self] {
+        &CorrectionMode::ALL
+    }
+    fn name(self) -> &'static str {
+        CorrectionMode::name(self)
+    }
+    fn about(self) -> &'static str {
+        CorrectionMode::about(self)
+    }
+}
+
 /// clap's parser of a [`Listed`] enum: `--help` lists its values, a wrong one is refused naming
 /// the option and every allowed value (as for a clap `ValueEnum`).
 pub(crate) fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value = T> {
@@ -104,30 +117,6 @@ pub(crate) fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value 
         Ok(v) => v,
         Err(_) => unreachable!("clap passes only the listed values"),
     })
-}
-
-/// `--correction`: which of the chain's measured errors are corrected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum CorrectionArg {
-    /// Nothing corrected.
-    None,
-    /// On receive: DC, I/Q imbalance, and the chain's response divided out.
-    Rx,
-    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
-    Tx,
-    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
-    Both,
-}
-
-impl CorrectionArg {
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            CorrectionArg::None => "none",
-            CorrectionArg::Rx => "rx",
-            CorrectionArg::Tx => "tx",
-            CorrectionArg::Both => "both",
-        }
-    }
 }
 
 /// `--awg-transport` of the built-in lab.
@@ -318,19 +307,27 @@ impl ProcessingArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::builder::TypedValueParser;
 
-    /// Every value of `T` parses from its name and prints as it; clap refuses another one
-    /// naming the option and every allowed value.
+    /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
+    /// another one naming the option and every allowed value.
     fn round_trip<T: Listed + std::fmt::Display + PartialEq + std::fmt::Debug>() {
+        let cmd = || {
+            clap::Command::new("radbench").arg(
+                clap::Arg::new("opt")
+                    .long("opt")
+                    .value_parser(listed::<T>()),
+            )
+        };
         for &v in T::all() {
             assert_eq!(v.name().parse::<T>().ok(), Some(v));
             assert_eq!(v.to_string(), v.name());
+            let m = cmd()
+                .try_get_matches_from(["radbench", "--opt", v.name()])
+                .unwrap();
+            assert_eq!(m.get_one::<T>("opt"), Some(&v));
         }
-        let cmd = clap::Command::new("radbench").arg(clap::Arg::new("opt").long("opt"));
-        let arg = clap::Arg::new("opt").long("opt");
-        let err = listed::<T>()
-            .parse_ref(&cmd, Some(&arg), std::ffi::OsStr::new("nonsense"))
+        let err = cmd()
+            .try_get_matches_from(["radbench", "--opt", "nonsense"])
             .unwrap_err()
             .to_string();
         assert!(err.contains("--opt"), "{err}");
@@ -347,6 +344,7 @@ mod tests {
         round_trip::<FftPrecisionName>();
         round_trip::<DetectorName>();
         round_trip::<CarrierPhase>();
+        round_trip::<CorrectionMode>();
         let err = "pmcw".parse::<WaveformKind>().unwrap_err();
         assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }

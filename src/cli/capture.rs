@@ -8,6 +8,7 @@ use crate::measure::bench::{Bench, BenchSource, BuiltIn};
 use crate::measure::capture::{self, CaptureRequest, Measurement};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
+use crate::measure::response::CorrectionMode;
 use crate::measure::MeasureError;
 use crate::storage::atomic::write_group;
 use crate::waveform::spec::WaveformKind;
@@ -78,8 +79,8 @@ pub struct Args {
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
     /// calibration (or --calibration is given), none otherwise.
-    #[arg(long, value_enum)]
-    pub correction: Option<super::args::CorrectionArg>,
+    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response`) instead of the bench file's.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
@@ -94,11 +95,10 @@ pub struct Args {
 
 /// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
 pub(crate) fn resolve_correction(
-    correction: Option<super::args::CorrectionArg>,
+    correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
     bench: &crate::measure::bench::Bench,
 ) -> anyhow::Result<Option<crate::measure::response::Calibration>> {
-    use super::args::CorrectionArg;
     use crate::measure::response::Calibration;
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
@@ -107,7 +107,7 @@ pub(crate) fn resolve_correction(
             .and_then(|p| bench.file.response_path(p))
     });
     match (correction, named) {
-        (Some(CorrectionArg::None), _) => Ok(None),
+        (Some(CorrectionMode::None), _) => Ok(None),
         (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
         (Some(mode), None) => Err(crate::exit::bad_input(format!(
             "--correction {} needs a response calibration: the bench file names none; run \
@@ -304,7 +304,7 @@ async fn measure_into(
         );
     }
     let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
-    let mode = args.correction.unwrap_or(super::args::CorrectionArg::Rx);
+    let mode = args.correction.unwrap_or(CorrectionMode::Rx);
     options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,

@@ -1,7 +1,7 @@
 //! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
 //! options they were captured with or any others, in parallel on every core.
 
-use super::args::{CorrectionArg, WaveformArgs};
+use super::args::WaveformArgs;
 use crate::campaign::manifest::Manifest;
 use crate::exit::{Classified, ExitClass};
 use crate::measure::options::{
@@ -12,6 +12,7 @@ use crate::measure::record::{self, SourceFile};
 use crate::measure::reprocess::{
     self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
 };
+use crate::measure::response::CorrectionMode;
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_group_open, OpenGroup};
 use crate::storage::StorageError;
@@ -97,8 +98,8 @@ pub struct Args {
     pub system_delay: Option<f64>,
     /// Receive correction: none, or rx (DC, I/Q imbalance and the chain's response, from a
     /// calibration). Default: what the capture was processed with; rx with --calibration.
-    #[arg(long, value_enum)]
-    pub correction: Option<CorrectionArg>,
+    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
     /// captures made without one; with --reference-range, a capture of one reference pillar
     /// from which the response is measured (written to OUT/reference-response.toml).
@@ -120,7 +121,7 @@ impl Args {
         let mut overrides = self.overrides();
         overrides.correction = self.correction(out)?;
         overrides.require_correction =
-            self.correction == Some(CorrectionArg::Rx) && self.calibration.is_none();
+            self.correction == Some(CorrectionMode::Rx) && self.calibration.is_none();
         Ok((waveform, overrides))
     }
 
@@ -162,7 +163,7 @@ impl Args {
                      pillar to measure the response from",
                 ));
             };
-            if self.correction == Some(CorrectionArg::None) {
+            if self.correction == Some(CorrectionMode::None) {
                 return Err(crate::exit::bad_input(
                     "--correction none with --calibration: give one or the other",
                 ));
@@ -186,7 +187,7 @@ impl Args {
         }
         if matches!(
             self.correction,
-            Some(CorrectionArg::Tx | CorrectionArg::Both)
+            Some(CorrectionMode::Tx | CorrectionMode::Both)
         ) {
             return Err(crate::exit::bad_input(
                 "--correction: none or rx (a capture already made cannot be pre-distorted; one \
@@ -194,12 +195,12 @@ impl Args {
             ));
         }
         Ok(match (self.correction, &self.calibration) {
-            (Some(CorrectionArg::None), Some(_)) => {
+            (Some(CorrectionMode::None), Some(_)) => {
                 return Err(crate::exit::bad_input(
                     "--correction none with --calibration: give one or the other",
                 ))
             }
-            (Some(CorrectionArg::None), None) => Some(None),
+            (Some(CorrectionMode::None), None) => Some(None),
             (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
             // rx without a file: what each capture recorded (checked per capture).
             (_, None) => None,
