@@ -354,7 +354,7 @@ impl Runner {
         Ok(())
     }
 
-    /// Measures step `k` and hands its files to the writer (see [`Runner::settle`]).
+    /// Measures step `k` and hands its files to the writer (see [`Runner::settle_oldest`]).
     async fn measure_step(
         &mut self,
         k: usize,
