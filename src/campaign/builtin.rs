@@ -15,7 +15,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The kinds `radbench campaign new` knows, with their spec text.
-pub(crate) const TEMPLATES: [(&str, &str); 5] = [
+pub(crate) const TEMPLATES: [(&str, &str); 6] = [
     ("accuracy", include_str!("../../examples/accuracy.toml")),
     ("resolution", include_str!("../../examples/resolution.toml")),
     (
@@ -24,6 +24,7 @@ pub(crate) const TEMPLATES: [(&str, &str); 5] = [
     ),
     ("music", include_str!("../../examples/music.toml")),
     ("link", include_str!("../../examples/link.toml")),
+    ("velocity", include_str!("../../examples/velocity.toml")),
 ];
 
 /// The commented spec of a kind.
@@ -74,14 +75,14 @@ pub(crate) struct LabRow {
 pub(crate) struct LabChain {
     /// `ideal`, `thesis-lab` or the scene file's path.
     pub name: String,
-    pub chain: mock_lab::scene::Chain,
-    pub impairments: mock_lab::scene::Impairments,
+    pub chain: crate::measure::scene_control::Chain,
+    pub impairments: crate::measure::scene_control::Impairments,
 }
 
 impl LabChain {
     /// `ideal`, `thesis-lab`, or a scene file whose `[chain]` and `[impairments]` are used.
     pub(crate) fn parse(text: &str) -> Result<LabChain, String> {
-        use mock_lab::scene::{Chain, ChainPreset, Impairments, Scene};
+        use crate::measure::scene_control::{Chain, ChainPreset, Impairments, Scene};
         let preset = |preset| LabChain {
             name: text.to_string(),
             chain: Chain {
@@ -218,8 +219,8 @@ async fn calibrate_lab(
     use crate::measure::capture::Rig;
     use crate::measure::response_run::{calibrate_with, CalibrateRequest};
     use crate::measure::MeasureError;
-    let scene = mock_lab::scene::Scene {
-        targets: vec![mock_lab::scene::Target {
+    let scene = crate::measure::scene_control::Scene {
+        targets: vec![crate::measure::scene_control::Target {
             range_m: LAB_REFERENCE_M,
             amplitude: 0.5,
             velocity_mps: 0.0,

@@ -5,9 +5,10 @@
 //! [`plan`] is pure; [`BenchInfo::load`] reads the bench file (or describes the built-in lab)
 //! without touching an instrument.
 
+use super::kind::{sorted_ranges, SweepAt, SweepParameter};
 use super::spec::{
-    AwgTransportName, CorrectionName, ModelOrder, PositionerKind, ScopeTransportName, SpecError,
-    SpecFile, SweepParameter, SweepSection, WaveformKindName,
+    AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
+    SweepSection,
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -15,12 +16,16 @@ use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink};
 use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::options::{Algorithm, ProcessOptions};
+use crate::measure::response::CorrectionMode;
+use crate::measure::scene_control::Scene;
 use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
-use mock_lab::scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// Fastest radial velocity a step may give its targets, m/s (the simulated scene's own limit).
+pub(crate) const MAX_VELOCITY_MPS: f64 = 1000.0;
 
 /// Most steps one campaign may hold.
 pub(crate) const MAX_STEPS: usize = 10_000;
@@ -98,7 +103,7 @@ pub struct Nominal {
     pub label: Option<String>,
     /// The swept parameter (`position`, `separation`, `bandwidth`, `tx-attenuation`, `snr`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub parameter: Option<String>,
+    pub parameter: Option<SweepParameter>,
     /// Its value at this step, in its unit (m, Hz, dB).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub value: Option<f64>,
@@ -109,6 +114,10 @@ pub struct Nominal {
     pub tx_attenuation_db: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub snr_db: Option<f64>,
+    /// The targets' radial velocity, m/s, positive receding (simulated benches: the scene's
+    /// targets move at it; absent: they stand still, or keep the scene's own velocity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_mps: Option<f64>,
 }
 
 impl Nominal {
@@ -122,12 +131,8 @@ impl Nominal {
         if let Some(l) = &self.label {
             parts.push(l.clone());
         }
-        if let (Some(p), Some(v)) = (&self.parameter, self.value) {
-            parts.push(match p.as_str() {
-                "position" | "separation" => format!("{p} {v:.3} m"),
-                "bandwidth" => format!("{p} {} GHz", v / 1e9),
-                _ => format!("{p} {v} dB"),
-            });
+        if let (Some(p), Some(v)) = (self.parameter, self.value) {
+            parts.push(format!("{p} {}", (p.kind().show)(v)));
         }
         if !self.targets.is_empty() {
             let r: Vec<String> = self
@@ -530,6 +535,13 @@ fn check_nominal(
             ));
         }
     }
+    if nominal.velocity_mps.is_some() && !bench.simulated {
+        return Err(spec.error(
+            &step_field(spec, k, "velocity_mps", None),
+            "the targets' velocity is set only on a simulated bench (the built-in mock lab, or a \
+             bench file with [simulation])",
+        ));
+    }
     if nominal.snr_db.is_some() && !bench.simulated {
         return Err(spec.error(
             &step_field(spec, k, "snr_db", None),
@@ -560,9 +572,7 @@ fn step_field(spec: &SpecFile, k: usize, name: &str, item: Option<usize>) -> Str
     if spec.spec.sweep.is_some() {
         let p = spec.spec.sweep.as_ref().map(|s| s.parameter);
         match (name, p) {
-            ("targets", Some(SweepParameter::Position | SweepParameter::Separation)) => {
-                "sweep.values".into()
-            }
+            ("targets", Some(p)) if p.kind().places_targets => "sweep.values".into(),
             ("targets", _) => format!("sweep.targets{item}"),
             _ => "sweep.values".into(),
         }
@@ -574,10 +584,7 @@ fn step_field(spec: &SpecFile, k: usize, name: &str, item: Option<usize>) -> Str
 /// The spec's waveform: the thesis' defaults with the parameters given.
 fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
     let w = &spec.spec.waveform;
-    let kind = match w.kind {
-        WaveformKindName::MskLfm => WaveformKind::MskLfm,
-        WaveformKindName::Ofdm => WaveformKind::Ofdm,
-    };
+    let kind = w.kind;
     let overrides = WaveformOverrides {
         bandwidth_hz: w.bandwidth_hz,
         sample_rate_hz: w.sample_rate_hz,
@@ -690,23 +697,23 @@ fn processing(
 fn correction(
     spec: &SpecFile,
     bench: &BenchInfo,
-) -> Result<Option<(CorrectionName, crate::measure::response::Calibration)>, SpecError> {
+) -> Result<Option<(CorrectionMode, crate::measure::response::Calibration)>, SpecError> {
     let p = &spec.spec.processing;
-    let mode = p.correction.unwrap_or(CorrectionName::Rx);
+    let mode = p.correction.unwrap_or(CorrectionMode::Rx);
     let given = p.calibration.as_ref().map(|c| spec.resolve(c));
     let named = bench
         .file
         .as_ref()
         .and_then(|(path, f)| f.response_path(path));
     let (field, path) = match (p.correction, given, named) {
-        (Some(CorrectionName::None), Some(_), _) => {
+        (Some(CorrectionMode::None), Some(_), _) => {
             return Err(spec.error(
                 "processing.calibration",
                 "given with correction = \"none\": remove one of them (correction = \"rx\" \
                  corrects with it)",
             ))
         }
-        (Some(CorrectionName::None), None, _) => return Ok(None),
+        (Some(CorrectionMode::None), None, _) => return Ok(None),
         (_, Some(path), _) => ("processing.calibration", path),
         (_, None, Some(path)) => ("processing.correction", path),
         (Some(m), None, None) => {
@@ -862,12 +869,6 @@ fn raw_steps(
     }
 }
 
-/// Ranges in ascending order, as a step's targets.
-fn sorted_ranges(mut t: Vec<f64>) -> Vec<Range> {
-    t.sort_by(f64::total_cmp);
-    t.into_iter().map(|range_m| Range { range_m }).collect()
-}
-
 /// Step `index` (1-based) at `nominal`, with the first waveform and no overrides yet.
 fn nominal_step(index: usize, nominal: Nominal) -> Step {
     Step {
@@ -889,66 +890,33 @@ fn sweep_steps(
     let values = sweep_values(spec)?;
     let targets = sw.targets.clone();
     let p = sw.parameter;
+    let kind = p.kind();
     if sw.target.is_some() && p != SweepParameter::Position {
         return Err(spec.error("sweep.target", "applies to parameter = \"position\" only"));
     }
-    if p == SweepParameter::Snr && !bench.simulated {
+    if kind.simulated_only && !bench.simulated {
         return Err(spec.error(
             "sweep.parameter",
-            "snr is set only on a simulated bench (the built-in mock lab, or a bench file \
-             with [simulation]); on a real bench sweep tx-attenuation instead",
+            format!(
+                "{p} is set only on a simulated bench (the built-in mock lab, or a bench file \
+                 with [simulation]); on a real bench sweep tx-attenuation instead"
+            ),
         ));
     }
     let mut out = Vec::new();
     for (k, &v) in values.iter().enumerate() {
         let mut n = Nominal {
             label: None,
-            parameter: Some(p.name().to_string()),
+            parameter: Some(p),
             value: Some(v),
             targets: targets.clone().map(sorted_ranges).unwrap_or_default(),
             bandwidth_hz: bandwidth,
             tx_attenuation_db: None,
             snr_db: None,
+            velocity_mps: None,
         };
-        match p {
-            SweepParameter::Position => {
-                let mut t = targets.clone().unwrap_or_else(|| vec![v]);
-                let which = sw.target.unwrap_or(0);
-                if which >= t.len() {
-                    return Err(spec.error(
-                        "sweep.target",
-                        format!(
-                            "{which}: sweep.targets holds {} targets (0-based index)",
-                            t.len()
-                        ),
-                    ));
-                }
-                t[which] = v;
-                n.targets = sorted_ranges(t);
-            }
-            SweepParameter::Separation => {
-                let base = match targets.as_deref() {
-                    Some([first]) => *first,
-                    _ => {
-                        return Err(spec.error(
-                            "sweep.targets",
-                            "a separation sweep needs targets = [R]: the first target's \
-                             range, metres (the second stands R + separation)",
-                        ))
-                    }
-                };
-                if v <= 0.0 {
-                    return Err(spec.error(
-                        &format!("sweep.values[{k}]"),
-                        format!("{v}: a separation above 0 m"),
-                    ));
-                }
-                n.targets = sorted_ranges(vec![base, base + v]);
-            }
-            SweepParameter::Bandwidth => n.bandwidth_hz = v,
-            SweepParameter::TxAttenuation => n.tx_attenuation_db = Some(v),
-            SweepParameter::Snr => n.snr_db = Some(v),
-        }
+        let at = SweepAt { spec, sweep: sw, k };
+        (kind.set)(&mut n, v, &at)?;
         out.push(nominal_step(k + 1, n));
     }
     Ok(out)
@@ -962,6 +930,7 @@ fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError>
     let mut bw = bandwidth;
     let mut att = None;
     let mut snr = None;
+    let mut velocity = None;
     for (k, st) in s.steps.iter().enumerate() {
         if let Some(t) = &st.targets {
             targets = sorted_ranges(t.clone());
@@ -974,6 +943,17 @@ fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError>
         }
         if st.snr_db.is_some() {
             snr = st.snr_db;
+        }
+        if st.velocity_mps.is_some() {
+            velocity = st.velocity_mps;
+        }
+        if let Some(v) = velocity {
+            if !(v.is_finite() && v.abs() <= MAX_VELOCITY_MPS) {
+                return Err(spec.error(
+                    &format!("steps[{k}].velocity_mps"),
+                    format!("{v}: allowed -{MAX_VELOCITY_MPS} ..= {MAX_VELOCITY_MPS} m/s"),
+                ));
+            }
         }
         if let Some(v) = snr {
             if !(-60.0..=200.0).contains(&v) {
@@ -993,6 +973,7 @@ fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError>
                 bandwidth_hz: bw,
                 tx_attenuation_db: att,
                 snr_db: snr,
+                velocity_mps: velocity,
             },
         ));
     }
@@ -1150,7 +1131,11 @@ impl Plan {
                     .snr_db
                     .map(|s| format!(", SNR {s} dB"))
                     .unwrap_or_default();
-                sends.push(format!("scene: noise seed {seed:#018x}{snr}"));
+                let velocity = n
+                    .velocity_mps
+                    .map(|v| format!(", targets moving at {v} m/s"))
+                    .unwrap_or_default();
+                sends.push(format!("scene: noise seed {seed:#018x}{snr}{velocity}"));
             }
             let c = costs[step.waveform];
             if self.uploads_at(k) {
@@ -1290,6 +1275,47 @@ mod tests {
             err.contains("steps[0].tx_attenuation_db") && err.contains("31.5"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn velocity_is_a_plan_field_set_by_steps_or_a_sweep_on_simulated_benches_only() {
+        let p = plan_of("[[steps]]\ntargets = [1.0]\nvelocity_mps = 20\n\n[[steps]]\n").unwrap();
+        assert_eq!(p.steps[0].nominal.velocity_mps, Some(20.0));
+        // What a step does not give stays as the step before left it.
+        assert_eq!(p.steps[1].nominal.velocity_mps, Some(20.0));
+        let p = plan_of("[sweep]\nparameter = \"velocity\"\nvalues = [0, 50]\ntargets = [1.0]\n")
+            .unwrap();
+        assert_eq!(p.steps[1].nominal.parameter, Some(SweepParameter::Velocity));
+        assert_eq!(p.steps[1].nominal.velocity_mps, Some(50.0));
+        assert_eq!(
+            p.steps[1].nominal.describe(),
+            "velocity 50 m/s, targets 1.000 m"
+        );
+        let err = plan_of("[sweep]\nparameter = \"velocity\"\nvalues = [0, 5000]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("`sweep.values[1]`") && err.contains("1000"),
+            "{err}"
+        );
+        let err = plan_of("[[steps]]\nvelocity_mps = -2000\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("t.toml:2: `steps[0].velocity_mps`"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_swept_parameter_reads_and_writes_as_before() {
+        // A plan without velocities writes no velocity (manifests of today stay as they were).
+        let p = plan_of("[sweep]\nparameter = \"tx-attenuation\"\nvalues = [3]\n").unwrap();
+        let json = serde_json::to_value(&p.steps[0].nominal).unwrap();
+        assert_eq!(json["parameter"], "tx-attenuation");
+        assert!(json.get("velocity_mps").is_none(), "{json}");
+        let back: Nominal = serde_json::from_value(json).unwrap();
+        assert_eq!(back, p.steps[0].nominal);
     }
 
     #[test]

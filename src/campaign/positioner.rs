@@ -1,14 +1,15 @@
-//! Who places the targets before a step: the mock lab (the runner sets the simulated scene), the
-//! operator at a prompt, or a program (a linear stage's script).
+//! Who places the targets before a step: the mock lab (the targets stood in the step's simulated
+//! scene, which the runner sets), the operator at a prompt, or a program (a linear stage's script).
 //!
 //! A positioner runs only between measurements, when the bench is in its safe state: nothing
 //! radiates while the operator's hands are near the antennas or a stage moves. A stop signal
 //! ends the wait at once (the program is killed).
 
-use super::plan::{substitute, PositionerPlan};
+use super::plan::{substitute, Nominal, PositionerPlan};
 use super::spec::PositionerKind;
 use super::CampaignError;
 use crate::measure::interrupt::Interrupt;
+use crate::measure::scene_control::{Scene, Target};
 use std::io::BufRead;
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -70,12 +71,9 @@ impl Positioner {
         }
     }
 
-    pub(crate) fn kind(&self) -> PositionerKind {
-        self.plan.kind
-    }
-
-    /// Places the targets at `ranges` for step `step` of `of`. The mock lab's targets are set by
-    /// the runner with the step's scene; this waits for the operator or runs the program.
+    /// Places the targets at `ranges` for step `step` of `of`. The mock lab's targets stand in the
+    /// step's scene ([`Positioner::place_in_scene`]); this waits for the operator or runs the
+    /// program.
     pub(crate) async fn place(
         &mut self,
         ranges: &[f64],
@@ -99,6 +97,33 @@ impl Positioner {
             }
         }
         Ok(())
+    }
+
+    /// The simulated `scene` with the targets where this positioner puts them for a step at
+    /// `nominal`: the mock lab's positioner stands the step's targets in the scene (each keeps
+    /// the amplitude of the scene's target of its index, or of its last); the operator and a
+    /// program move real targets, and leave the scene as it is.
+    pub(crate) fn place_in_scene(&self, nominal: &Nominal, scene: &mut Scene) {
+        if self.plan.kind != PositionerKind::MockLab || nominal.targets.is_empty() {
+            return;
+        }
+        let amplitude = |i: usize| {
+            scene
+                .targets
+                .get(i)
+                .or(scene.targets.last())
+                .map_or(0.5, |t| t.amplitude)
+        };
+        scene.targets = nominal
+            .targets
+            .iter()
+            .enumerate()
+            .map(|(i, t)| Target {
+                range_m: t.range_m,
+                amplitude: amplitude(i),
+                velocity_mps: nominal.velocity_mps.unwrap_or(0.0),
+            })
+            .collect();
     }
 
     async fn prompt(

@@ -425,7 +425,7 @@ pub(crate) fn to_csv(results: &Results) -> String {
                 let fields = [
                     step.index.to_string(),
                     csv_field(n.label.as_deref().unwrap_or("")),
-                    csv_field(n.parameter.as_deref().unwrap_or("")),
+                    csv_field(n.parameter.map_or("", |p| p.name())),
                     num(n.value),
                     num(Some(n.bandwidth_hz)),
                     csv_field(name),
@@ -578,6 +578,7 @@ mod tests {
                 bandwidth_hz: 1e9,
                 tx_attenuation_db: None,
                 snr_db: None,
+                velocity_mps: None,
             },
             repetitions: 1,
             algorithms,

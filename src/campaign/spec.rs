@@ -7,7 +7,10 @@
 //! wrong types come from the TOML parser's span; values out of range are located again in the
 //! text (toml_edit keeps the spans) when the checks after parsing find them.
 
+use super::kind::SweepParameter;
 use crate::measure::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use crate::measure::response::CorrectionMode;
+use crate::waveform::spec::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -95,7 +98,7 @@ pub enum ScopeTransportName {
 pub struct WaveformSection {
     /// `msk-lfm` when not given, as the docs say.
     #[serde(default = "msk_lfm")]
-    pub kind: WaveformKindName,
+    pub kind: WaveformKind,
     #[serde(default)]
     pub bandwidth_hz: Option<f64>,
     /// MSK-LFM only.
@@ -130,14 +133,14 @@ pub struct WaveformSection {
     pub payload: Option<String>,
 }
 
-fn msk_lfm() -> WaveformKindName {
-    WaveformKindName::MskLfm
+fn msk_lfm() -> WaveformKind {
+    WaveformKind::MskLfm
 }
 
 impl Default for WaveformSection {
     fn default() -> Self {
         Self {
-            kind: WaveformKindName::MskLfm,
+            kind: WaveformKind::MskLfm,
             bandwidth_hz: None,
             sample_rate_hz: None,
             pulse_s: None,
@@ -151,13 +154,6 @@ impl Default for WaveformSection {
             payload: None,
         }
     }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum WaveformKindName {
-    MskLfm,
-    Ofdm,
 }
 
 /// `[processing]`: the algorithms (each applied to the same captures) and the options they share;
@@ -199,37 +195,11 @@ pub struct ProcessingSection {
     /// The correction: `none`, `rx`, `tx` or `both` (default: `rx` when `calibration` is given
     /// or the bench file names a response calibration, `none` otherwise).
     #[serde(default)]
-    pub correction: Option<CorrectionName>,
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response`), relative to the spec's folder
     /// (default: the one the bench file's `[calibration] response` names).
     #[serde(default)]
     pub calibration: Option<PathBuf>,
-}
-
-/// `processing.correction`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CorrectionName {
-    /// Nothing corrected.
-    None,
-    /// On receive: DC, I/Q imbalance and the chain's response divided out.
-    Rx,
-    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
-    Tx,
-    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
-    Both,
-}
-
-impl CorrectionName {
-    /// As `--correction` and the recorded `mode` spell it.
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            CorrectionName::None => "none",
-            CorrectionName::Rx => "rx",
-            CorrectionName::Tx => "tx",
-            CorrectionName::Both => "both",
-        }
-    }
 }
 
 /// `processing.music_p`: a number of targets, or `"targets"`.
@@ -311,41 +281,6 @@ pub struct SweepSection {
     pub target: Option<usize>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SweepParameter {
-    /// A target's range, metres.
-    Position,
-    /// The distance between two targets, metres.
-    Separation,
-    /// The waveform's bandwidth, Hz.
-    Bandwidth,
-    /// The Tx front end's attenuation, dB.
-    TxAttenuation,
-    /// The simulated scene's SNR, dB (mock lab only).
-    Snr,
-}
-
-impl SweepParameter {
-    pub fn name(self) -> &'static str {
-        match self {
-            SweepParameter::Position => "position",
-            SweepParameter::Separation => "separation",
-            SweepParameter::Bandwidth => "bandwidth",
-            SweepParameter::TxAttenuation => "tx-attenuation",
-            SweepParameter::Snr => "snr",
-        }
-    }
-
-    pub fn unit(self) -> &'static str {
-        match self {
-            SweepParameter::Position | SweepParameter::Separation => "m",
-            SweepParameter::Bandwidth => "Hz",
-            SweepParameter::TxAttenuation | SweepParameter::Snr => "dB",
-        }
-    }
-}
-
 /// `[[steps]]`: one explicit step; what it does not give stays as the step before left it (the
 /// first step starts from the spec's waveform and the bench's own settings).
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
@@ -363,6 +298,9 @@ pub struct StepSection {
     /// Mock lab only.
     #[serde(default)]
     pub snr_db: Option<f64>,
+    /// Simulated benches only: the targets' radial velocity, m/s (positive receding).
+    #[serde(default)]
+    pub velocity_mps: Option<f64>,
 }
 
 /// A spec that cannot be used: the file, the line, the field and what is allowed.
@@ -636,9 +574,9 @@ mod tests {
     #[test]
     fn the_correction_is_none_rx_tx_or_both() {
         let f = parse("[processing]\ncorrection = \"rx\"\ncalibration = \"c.toml\"\n").unwrap();
-        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Rx));
+        assert_eq!(f.spec.processing.correction, Some(CorrectionMode::Rx));
         let f = parse("[processing]\ncorrection = \"both\"\n").unwrap();
-        assert_eq!(f.spec.processing.correction, Some(CorrectionName::Both));
+        assert_eq!(f.spec.processing.correction, Some(CorrectionMode::Both));
         let err = parse("[processing]\ncorrection = \"rxtx\"\n")
             .unwrap_err()
             .to_string();
@@ -654,11 +592,11 @@ mod tests {
         let f = parse("").unwrap();
         assert_eq!(f.spec.seed, 1);
         assert_eq!(f.spec.repetitions, 1);
-        assert_eq!(f.spec.waveform.kind, WaveformKindName::MskLfm);
+        assert_eq!(f.spec.waveform.kind, WaveformKind::MskLfm);
         assert_eq!(f.name(), "c");
         // A [waveform] table that changes a parameter but names no kind: the default kind.
         let f = parse("[waveform]\nbandwidth_hz = 2e9\n").unwrap();
-        assert_eq!(f.spec.waveform.kind, WaveformKindName::MskLfm);
+        assert_eq!(f.spec.waveform.kind, WaveformKind::MskLfm);
         assert_eq!(f.spec.waveform.bandwidth_hz, Some(2e9));
     }
 }

@@ -2,7 +2,7 @@
 //! and its distance to `--target-range`, so a pillar can be placed to a millimetre. RF is on only
 //! while capturing; the safe state runs after each capture and on every exit.
 
-use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArg, WaveformArgs};
+use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use super::live::{self as live_cli, LiveArgs};
 use super::repeat::{stopped_between, truth_ranges};
@@ -25,8 +25,8 @@ pub struct Args {
     /// Where the target should stand, metres: each capture prints its distance from here.
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub target_range: Option<f64>,
-    #[arg(long, value_enum, default_value = "msk-lfm")]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     #[command(flatten)]
@@ -73,7 +73,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let kind = WaveformKind::from(args.waveform);
+    let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if let Some(r) = args.target_range {
         if !r.is_finite() || r < 0.0 {

@@ -1,175 +1,122 @@
 //! Command-line arguments shared by several subcommands: the waveform and its parameters, the
-//! processing choices, the built-in lab's transports. Each maps onto the library's own types
-//! (no clap derive lives outside `cli`).
+//! processing choices, the built-in lab's transports. The library's named enums (waveform,
+//! algorithm, window, FFT precision, detector, carrier phase, correction) are parsed as they are, by their own
+//! `FromStr` over the values they list (`Listed`, `listed`); no clap derive lives outside `cli`.
 
 use crate::exit::bad_input;
 use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
+use crate::measure::response::CorrectionMode;
 use crate::simulate::scene::CarrierPhase;
 use crate::waveform::overrides::{OverrideError, WaveformOverrides};
 use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
 
-/// `--waveform`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum WaveformArg {
-    /// MSK-LFM: a chirp carrying MSK bits (thesis Table 4.1: 1 GHz, 10 us, 128 bits).
-    MskLfm,
-    /// OFDM: QPSK subcarriers (thesis Table 4.2: 128 over 1 GHz, 100 symbols).
-    Ofdm,
+/// A library enum the command line takes by name: its values (with a line of help each) and its
+/// `FromStr`, so clap parses the library's own type (no mirror enum here).
+pub(crate) trait Listed: std::str::FromStr + Copy + Send + Sync + 'static {
+    fn all() -> &'static [Self];
+    fn name(self) -> &'static str;
+    fn about(self) -> &'static str;
 }
 
-impl From<WaveformArg> for WaveformKind {
-    fn from(w: WaveformArg) -> Self {
-        match w {
-            WaveformArg::MskLfm => WaveformKind::MskLfm,
-            WaveformArg::Ofdm => WaveformKind::Ofdm,
-        }
+impl Listed for WaveformKind {
+    fn all() -> &'static [Self] {
+        &WaveformKind::ALL
+    }
+    fn name(self) -> &'static str {
+        WaveformKind::name(self)
+    }
+    fn about(self) -> &'static str {
+        WaveformKind::about(self)
     }
 }
 
-/// `--algorithm`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum AlgorithmArg {
-    /// FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar).
-    Correlation,
-    /// OFDM: spectral division and zero-padded IFFT over the subcarriers.
-    Fourier,
-    /// OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward).
-    Music,
-    /// OFDM: root-MUSIC, ranges from polynomial roots (no grid).
-    RootMusic,
-    /// OFDM: ESPRIT, ranges from the shift invariance (no grid).
-    Esprit,
-}
-
-impl From<AlgorithmArg> for Algorithm {
-    fn from(a: AlgorithmArg) -> Self {
-        match a {
-            AlgorithmArg::Correlation => Algorithm::Correlation,
-            AlgorithmArg::Fourier => Algorithm::Fourier,
-            AlgorithmArg::Music => Algorithm::Music,
-            AlgorithmArg::RootMusic => Algorithm::RootMusic,
-            AlgorithmArg::Esprit => Algorithm::Esprit,
-        }
+impl Listed for Algorithm {
+    fn all() -> &'static [Self] {
+        &Algorithm::ALL
+    }
+    fn name(self) -> &'static str {
+        Algorithm::name(self)
+    }
+    fn about(self) -> &'static str {
+        Algorithm::about(self)
     }
 }
 
-/// `--correction`: which of the chain's measured errors are corrected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum CorrectionArg {
-    /// Nothing corrected.
-    None,
-    /// On receive: DC, I/Q imbalance, and the chain's response divided out.
-    Rx,
-    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
-    Tx,
-    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
-    Both,
-}
-
-impl CorrectionArg {
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            CorrectionArg::None => "none",
-            CorrectionArg::Rx => "rx",
-            CorrectionArg::Tx => "tx",
-            CorrectionArg::Both => "both",
-        }
+impl Listed for WindowName {
+    fn all() -> &'static [Self] {
+        &WindowName::ALL
+    }
+    fn name(self) -> &'static str {
+        WindowName::name(self)
+    }
+    fn about(self) -> &'static str {
+        WindowName::about(self)
     }
 }
 
-/// `--window`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum WindowArg {
-    /// No window: narrowest main lobe, -13.3 dB side-lobes.
-    Rect,
-    Hann,
-    /// Taylor, 4 nearly equal side-lobes at -35 dB.
-    Taylor,
-    /// Dolph-Chebyshev, equal side-lobes at -50 dB.
-    Chebyshev,
-}
-
-impl From<WindowArg> for WindowName {
-    fn from(w: WindowArg) -> Self {
-        match w {
-            WindowArg::Rect => WindowName::Rect,
-            WindowArg::Hann => WindowName::Hann,
-            WindowArg::Taylor => WindowName::Taylor,
-            WindowArg::Chebyshev => WindowName::Chebyshev,
-        }
+impl Listed for FftPrecisionName {
+    fn all() -> &'static [Self] {
+        &FftPrecisionName::ALL
+    }
+    fn name(self) -> &'static str {
+        FftPrecisionName::name(self)
+    }
+    fn about(self) -> &'static str {
+        FftPrecisionName::about(self)
     }
 }
 
-/// `--fft-precision`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum FftPrecisionArg {
-    /// Single precision (default): rounding ~130 dB under the signal, about twice as fast.
-    Single,
-    /// Double precision, for noise-free studies that look below -130 dB.
-    Double,
-}
-
-impl From<FftPrecisionArg> for FftPrecisionName {
-    fn from(p: FftPrecisionArg) -> Self {
-        match p {
-            FftPrecisionArg::Single => FftPrecisionName::Single,
-            FftPrecisionArg::Double => FftPrecisionName::Double,
-        }
+impl Listed for DetectorName {
+    fn all() -> &'static [Self] {
+        &DetectorName::ALL
+    }
+    fn name(self) -> &'static str {
+        DetectorName::name(self)
+    }
+    fn about(self) -> &'static str {
+        DetectorName::about(self)
     }
 }
 
-/// `--detector`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum DetectorArg {
-    /// CLEAN with the waveform's point spread: subtract each target, search again (default).
-    Clean,
-    /// CLEAN with a local ordered-statistic noise estimate.
-    CleanOs,
-    /// Ordered-statistic CFAR, side-lobes masked by the point spread's envelope.
-    OsCfar,
-    /// Cell-averaging CFAR.
-    CaCfar,
-    /// Greatest-of CFAR.
-    GoCfar,
-    /// Smallest-of CFAR.
-    SoCfar,
-}
-
-impl From<DetectorArg> for DetectorName {
-    fn from(d: DetectorArg) -> Self {
-        match d {
-            DetectorArg::Clean => DetectorName::Clean,
-            DetectorArg::CleanOs => DetectorName::CleanOs,
-            DetectorArg::OsCfar => DetectorName::OsCfar,
-            DetectorArg::CaCfar => DetectorName::CaCfar,
-            DetectorArg::GoCfar => DetectorName::GoCfar,
-            DetectorArg::SoCfar => DetectorName::SoCfar,
-        }
+impl Listed for CarrierPhase {
+    fn all() -> &'static [Self] {
+        &CarrierPhase::ALL
+    }
+    fn name(self) -> &'static str {
+        CarrierPhase::name(self)
+    }
+    fn about(self) -> &'static str {
+        CarrierPhase::about(self)
     }
 }
 
-/// `--carrier-phase`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum CarrierPhaseArg {
-    /// The bench's 80 GHz carrier: what a real measurement sees.
-    Physical,
-    /// f_c = 0: pure baseband, no carrier phase.
-    Centred,
-    /// f_c = B/2: the thesis' own model (its chirp sweeps 0..B).
-    Thesis,
+impl Listed for CorrectionMode {
+    fn all() -> &'static [Self] {
+        &CorrectionMode::ALL
+    }
+    fn name(self) -> &'static str {
+        CorrectionMode::name(self)
+    }
+    fn about(self) -> &'static str {
+        CorrectionMode::about(self)
+    }
 }
 
-impl From<CarrierPhaseArg> for CarrierPhase {
-    fn from(c: CarrierPhaseArg) -> Self {
-        match c {
-            CarrierPhaseArg::Physical => CarrierPhase::Physical,
-            CarrierPhaseArg::Centred => CarrierPhase::Centred,
-            CarrierPhaseArg::Thesis => CarrierPhase::Thesis,
-        }
-    }
+/// clap's parser of a [`Listed`] enum: `--help` lists its values, a wrong one is refused naming
+/// the option and every allowed value (as for a clap `ValueEnum`).
+pub(crate) fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(T::all().iter().map(|v| match v.about() {
+        "" => PossibleValue::new(v.name()),
+        about => PossibleValue::new(v.name()).help(about),
+    }))
+    .map(|s| match s.parse::<T>() {
+        Ok(v) => v,
+        Err(_) => unreachable!("clap passes only the listed values"),
+    })
 }
 
 /// `--awg-transport` of the built-in lab.
@@ -304,8 +251,8 @@ impl WaveformArgs {
 pub struct ProcessingArgs {
     /// Range processing: correlation (default for MSK-LFM), fourier (default for OFDM), music,
     /// root-music or esprit (OFDM).
-    #[arg(long, value_enum)]
-    pub algorithm: Option<AlgorithmArg>,
+    #[arg(long, value_parser = listed::<Algorithm>())]
+    pub algorithm: Option<Algorithm>,
     /// MUSIC sub-vector (covariance) length M.
     #[arg(long = "m", value_name = "M", default_value_t = 64)]
     pub music_m: usize,
@@ -320,17 +267,17 @@ pub struct ProcessingArgs {
     pub zero_pad: usize,
     /// Window on the range processing (OFDM: across the subcarriers; correlation: on the matched
     /// filter's spectrum).
-    #[arg(long, value_enum, value_name = "NAME", default_value = "rect")]
-    pub window: WindowArg,
+    #[arg(long, value_parser = listed::<WindowName>(), value_name = "NAME", default_value = "rect")]
+    pub window: WindowName,
     /// Precision of the OFDM receiver's per-symbol FFT (the rest is double precision).
-    #[arg(long, value_enum, value_name = "P", default_value = "single")]
-    pub fft_precision: FftPrecisionArg,
+    #[arg(long, value_parser = listed::<FftPrecisionName>(), value_name = "P", default_value = "single")]
+    pub fft_precision: FftPrecisionName,
     /// Report the on-grid peak (no sub-sample interpolation).
     #[arg(long)]
     pub no_interpolation: bool,
     /// Detector of the correlation and Fourier profiles (docs/detection.md compares them).
-    #[arg(long, value_enum, value_name = "NAME", default_value = "clean")]
-    pub detector: DetectorArg,
+    #[arg(long, value_parser = listed::<DetectorName>(), value_name = "NAME", default_value = "clean")]
+    pub detector: DetectorName,
     /// Probability of false alarm of the detector, per profile cell.
     #[arg(
         long,
@@ -359,22 +306,65 @@ impl ProcessingArgs {
     /// The library options for `waveform` (ranges and calibration left at their defaults).
     pub fn options(&self, waveform: WaveformKind) -> ProcessOptions {
         ProcessOptions {
-            algorithm: self
-                .algorithm
-                .map(Algorithm::from)
-                .unwrap_or(Algorithm::default_for(waveform)),
+            algorithm: self.algorithm.unwrap_or(Algorithm::default_for(waveform)),
             music_m: self.music_m,
             music_p: self.music_p,
             forward_backward: !self.forward_only,
             zero_pad: self.zero_pad,
-            window: self.window.into(),
-            fft_precision: self.fft_precision.into(),
+            window: self.window,
+            fft_precision: self.fft_precision,
             interpolate: !self.no_interpolation,
-            detector: self.detector.into(),
+            detector: self.detector,
             pfa: self.pfa,
             min_separation_m: self.min_separation,
             chain_floor_db: self.chain_floor_db,
             ..ProcessOptions::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
+    /// another one naming the option and every allowed value.
+    fn round_trip<T: Listed + std::fmt::Display + PartialEq + std::fmt::Debug>() {
+        let cmd = || {
+            clap::Command::new("radbench").arg(
+                clap::Arg::new("opt")
+                    .long("opt")
+                    .value_parser(listed::<T>()),
+            )
+        };
+        for &v in T::all() {
+            assert_eq!(v.name().parse::<T>().ok(), Some(v));
+            assert_eq!(v.to_string(), v.name());
+            let m = cmd()
+                .try_get_matches_from(["radbench", "--opt", v.name()])
+                .unwrap();
+            assert_eq!(m.get_one::<T>("opt"), Some(&v));
+        }
+        let err = cmd()
+            .try_get_matches_from(["radbench", "--opt", "nonsense"])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--opt"), "{err}");
+        for &v in T::all() {
+            assert!(err.contains(v.name()), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_library_enums_parse_by_their_own_names() {
+        round_trip::<WaveformKind>();
+        round_trip::<Algorithm>();
+        round_trip::<WindowName>();
+        round_trip::<FftPrecisionName>();
+        round_trip::<DetectorName>();
+        round_trip::<CarrierPhase>();
+        round_trip::<CorrectionMode>();
+        let err = "pmcw".parse::<WaveformKind>().unwrap_err();
+        assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }
 }

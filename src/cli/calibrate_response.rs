@@ -1,7 +1,7 @@
 //! `radbench calibrate response`: the chain's response measured on one reference pillar, checked
 //! to help, and stored beside the bench file (`measure::response`).
 
-use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArg, WaveformArgs};
+use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
 use crate::measure::capture::Rig;
@@ -32,8 +32,8 @@ pub struct Args {
     pub allow_rf: bool,
     /// The waveform whose band is measured: calibrate with the waveform (and its parameters,
     /// e.g. `--band upper`) the captures will use.
-    #[arg(long, value_enum, default_value = "msk-lfm")]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Repetitions averaged with the transmitter on. With it off, as many as give 2^20 noise
@@ -101,7 +101,7 @@ fn check(args: &Args) -> Result<(), MeasureError> {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(&args)?;
-    let waveform = args.waveform_args.spec(WaveformKind::from(args.waveform))?;
+    let waveform = args.waveform_args.spec(args.waveform)?;
     let started = std::time::Instant::now();
     super::runtime()?.block_on(async {
         let source = bench_source(

@@ -430,10 +430,10 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
             json!(format!("campaign {}", plan.name)),
         ));
         l.send(Event::Set("of", json!(plan.steps.len())));
-        let parameter = plan.steps.first().and_then(|s| s.nominal.parameter.clone());
+        let parameter = plan.steps.first().and_then(|s| s.nominal.parameter);
         l.send(Event::Set(
             "plot_axes",
-            super::live::campaign_axes(parameter.as_deref()),
+            super::live::campaign_axes(parameter.map(|p| p.name())),
         ));
     }
     let stop = interrupt.clone();

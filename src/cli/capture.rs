@@ -1,13 +1,14 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArg, WaveformArgs};
+use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArgs};
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::measure::bench::{Bench, BenchSource, BuiltIn};
 use crate::measure::capture::{self, CaptureRequest, Measurement};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::record::{self, Provenance};
+use crate::measure::response::CorrectionMode;
 use crate::measure::MeasureError;
 use crate::storage::atomic::write_group;
 use crate::waveform::spec::WaveformKind;
@@ -21,8 +22,8 @@ pub struct Args {
     /// started in-process on 127.0.0.1.
     #[arg(long, value_name = "FILE")]
     pub bench: Option<PathBuf>,
-    #[arg(long, value_enum, default_value = "msk-lfm")]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     #[command(flatten)]
@@ -82,8 +83,8 @@ pub struct Args {
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
     /// calibration (or --calibration is given), none otherwise.
-    #[arg(long, value_enum)]
-    pub correction: Option<super::args::CorrectionArg>,
+    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response`) instead of the bench file's.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
@@ -98,11 +99,10 @@ pub struct Args {
 
 /// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
 pub(crate) fn resolve_correction(
-    correction: Option<super::args::CorrectionArg>,
+    correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
     bench: &crate::measure::bench::Bench,
 ) -> anyhow::Result<Option<crate::measure::response::Calibration>> {
-    use super::args::CorrectionArg;
     use crate::measure::response::Calibration;
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
@@ -111,7 +111,7 @@ pub(crate) fn resolve_correction(
             .and_then(|p| bench.file.response_path(p))
     });
     match (correction, named) {
-        (Some(CorrectionArg::None), _) => Ok(None),
+        (Some(CorrectionMode::None), _) => Ok(None),
         (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
         (Some(mode), None) => Err(crate::exit::bad_input(format!(
             "--correction {} needs a response calibration: the bench file names none; run \
@@ -279,7 +279,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let kind = WaveformKind::from(args.waveform);
+    let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
@@ -331,7 +331,7 @@ async fn measure_into(
         );
     }
     let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
-    let mode = args.correction.unwrap_or(super::args::CorrectionArg::Rx);
+    let mode = args.correction.unwrap_or(CorrectionMode::Rx);
     options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,

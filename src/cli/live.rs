@@ -175,7 +175,7 @@ impl Observer for LiveObserver<'_> {
         // The swept parameter names the plot's x axis (a resume learns it here).
         self.send(Event::Set(
             "plot_axes",
-            campaign_axes(step.nominal.parameter.as_deref()),
+            campaign_axes(step.nominal.parameter.map(|p| p.name())),
         ));
         self.send(Event::Set(
             "current",

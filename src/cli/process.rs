@@ -1,17 +1,18 @@
 //! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
 //! options they were captured with or any others, in parallel on every core.
 
-use super::args::{
-    AlgorithmArg, CorrectionArg, DetectorArg, FftPrecisionArg, WaveformArg, WaveformArgs, WindowArg,
-};
+use super::args::WaveformArgs;
 use crate::campaign::manifest::Manifest;
 use crate::exit::{Classified, ExitClass};
-use crate::measure::options::ProcessOverrides;
+use crate::measure::options::{
+    Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName,
+};
 use crate::measure::pipeline::Pipeline;
 use crate::measure::record::{self, SourceFile};
 use crate::measure::reprocess::{
     self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
 };
+use crate::measure::response::CorrectionMode;
 use crate::measure::MeasureError;
 use crate::storage::atomic::{write_group_open, OpenGroup};
 use crate::storage::StorageError;
@@ -44,8 +45,8 @@ pub struct Args {
     #[arg(long)]
     pub link_png: bool,
     /// The waveform of captures radbench did not make (overrides what a radbench capture recorded).
-    #[arg(long, value_enum)]
-    pub waveform: Option<WaveformArg>,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>())]
+    pub waveform: Option<WaveformKind>,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Seed of the transmitted PRBS bits (captures radbench did not make).
@@ -63,8 +64,8 @@ pub struct Args {
     /// Do not subtract the background the capture recorded.
     #[arg(long)]
     pub no_background: bool,
-    #[arg(long, value_enum)]
-    pub algorithm: Option<AlgorithmArg>,
+    #[arg(long, value_parser = super::args::listed::<Algorithm>())]
+    pub algorithm: Option<Algorithm>,
     /// MUSIC sub-vector (covariance) length M.
     #[arg(long = "m", value_name = "M")]
     pub music_m: Option<usize>,
@@ -76,15 +77,15 @@ pub struct Args {
     pub forward_only: bool,
     #[arg(long, value_name = "K")]
     pub zero_pad: Option<usize>,
-    #[arg(long, value_enum, value_name = "NAME")]
-    pub window: Option<WindowArg>,
-    #[arg(long, value_enum, value_name = "P")]
-    pub fft_precision: Option<FftPrecisionArg>,
+    #[arg(long, value_parser = super::args::listed::<WindowName>(), value_name = "NAME")]
+    pub window: Option<WindowName>,
+    #[arg(long, value_parser = super::args::listed::<FftPrecisionName>(), value_name = "P")]
+    pub fft_precision: Option<FftPrecisionName>,
     /// Report the on-grid peak (no sub-sample interpolation).
     #[arg(long)]
     pub no_interpolation: bool,
-    #[arg(long, value_enum, value_name = "NAME")]
-    pub detector: Option<DetectorArg>,
+    #[arg(long, value_parser = super::args::listed::<DetectorName>(), value_name = "NAME")]
+    pub detector: Option<DetectorName>,
     #[arg(long, value_name = "P", allow_hyphen_values = true)]
     pub pfa: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
@@ -101,8 +102,8 @@ pub struct Args {
     pub system_delay: Option<f64>,
     /// Receive correction: none, or rx (DC, I/Q imbalance and the chain's response, from a
     /// calibration). Default: what the capture was processed with; rx with --calibration.
-    #[arg(long, value_enum)]
-    pub correction: Option<CorrectionArg>,
+    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
+    pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
     /// captures made without one; with --reference-range, a capture of one reference pillar
     /// from which the response is measured (written to OUT/reference-response.toml).
@@ -124,24 +125,24 @@ impl Args {
         let mut overrides = self.overrides();
         overrides.correction = self.correction(out)?;
         overrides.require_correction =
-            self.correction == Some(CorrectionArg::Rx) && self.calibration.is_none();
+            self.correction == Some(CorrectionMode::Rx) && self.calibration.is_none();
         Ok((waveform, overrides))
     }
 
     fn overrides(&self) -> ProcessOverrides {
         ProcessOverrides {
-            algorithm: self.algorithm.map(Into::into),
+            algorithm: self.algorithm,
             music_m: self.music_m,
             music_p: self.music_p.map(Some),
             forward_backward: self.forward_only.then_some(false),
             zero_pad: self.zero_pad,
-            window: self.window.map(Into::into),
-            fft_precision: self.fft_precision.map(Into::into),
+            window: self.window,
+            fft_precision: self.fft_precision,
             interpolate: self.no_interpolation.then_some(false),
             system_delay_s: self.system_delay,
             min_range_m: self.min_range,
             max_range_m: self.max_range,
-            detector: self.detector.map(Into::into),
+            detector: self.detector,
             pfa: self.pfa,
             min_separation_m: self.min_separation.map(Some),
             chain_floor_db: self.chain_floor_db,
@@ -166,7 +167,7 @@ impl Args {
                      pillar to measure the response from",
                 ));
             };
-            if self.correction == Some(CorrectionArg::None) {
+            if self.correction == Some(CorrectionMode::None) {
                 return Err(crate::exit::bad_input(
                     "--correction none with --calibration: give one or the other",
                 ));
@@ -190,7 +191,7 @@ impl Args {
         }
         if matches!(
             self.correction,
-            Some(CorrectionArg::Tx | CorrectionArg::Both)
+            Some(CorrectionMode::Tx | CorrectionMode::Both)
         ) {
             return Err(crate::exit::bad_input(
                 "--correction: none or rx (a capture already made cannot be pre-distorted; one \
@@ -198,12 +199,12 @@ impl Args {
             ));
         }
         Ok(match (self.correction, &self.calibration) {
-            (Some(CorrectionArg::None), Some(_)) => {
+            (Some(CorrectionMode::None), Some(_)) => {
                 return Err(crate::exit::bad_input(
                     "--correction none with --calibration: give one or the other",
                 ))
             }
-            (Some(CorrectionArg::None), None) => Some(None),
+            (Some(CorrectionMode::None), None) => Some(None),
             (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
             // rx without a file: what each capture recorded (checked per capture).
             (_, None) => None,
@@ -212,7 +213,7 @@ impl Args {
 
     fn waveform(&self) -> anyhow::Result<WaveformChoice> {
         let spec = match self.waveform {
-            Some(w) => Some(self.waveform_args.spec(WaveformKind::from(w))?),
+            Some(w) => Some(self.waveform_args.spec(w)?),
             None => {
                 let given = format!("{:?}", self.waveform_args);
                 if given != format!("{:?}", WaveformArgs::default()) {

@@ -8,8 +8,9 @@
 //! amplitude (default 1), radial velocity in m/s (default 0, positive = moving away). Example:
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
-use super::args::{CarrierPhaseArg, ProcessingArgs, WaveformArg, WaveformArgs};
+use super::args::{ProcessingArgs, WaveformArgs};
 use crate::exit::bad_input;
+use crate::simulate::scene::CarrierPhase;
 use crate::simulate::scene_bench::{simulate_scene, SceneSpec};
 use crate::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
 use crate::waveform::spec::WaveformKind;
@@ -44,8 +45,8 @@ pub struct ThesisArgs {
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
     /// Waveform.
-    #[arg(long, value_enum)]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>())]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Targets: R[:AMP[:V]] separated by commas (metres, linear amplitude, m/s receding).
@@ -80,8 +81,8 @@ pub struct RunArgs {
     #[command(flatten)]
     pub processing: ProcessingArgs,
     /// Echo carrier phase: physical (80 GHz), centred (0 Hz) or thesis (B/2, the thesis' model).
-    #[arg(long, value_enum, default_value = "physical")]
-    pub carrier_phase: CarrierPhaseArg,
+    #[arg(long, value_parser = super::args::listed::<CarrierPhase>(), default_value = "physical")]
+    pub carrier_phase: CarrierPhase,
     /// Capture rate in Sa/s: a multiple of the waveform rate runs the lab chain (80e9 -> decimate
     /// by 5 -> 16 GSa/s).
     #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
@@ -154,7 +155,7 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
 }
 
 fn run_free(a: RunArgs) -> anyhow::Result<()> {
-    let kind = WaveformKind::from(a.waveform);
+    let kind = a.waveform;
     let waveform = a.waveform_args.spec(kind)?;
     let (outcome, spec) = match &a.scene {
         Some(path) => {
@@ -193,7 +194,7 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
             let mut spec = RunSpec::new("run", waveform, parse_targets(text)?);
             spec.processing = a.processing.options(kind);
             spec.snr_db = a.snr_db;
-            spec.carrier = a.carrier_phase.into();
+            spec.carrier = a.carrier_phase;
             spec.capture_rate_hz = a.capture_rate;
             spec.seed = a.seed;
             spec.trials = a.trials;

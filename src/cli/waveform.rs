@@ -2,7 +2,7 @@
 //! plays it, or a capture's cross-ambiguity against its reference (`measure::ambiguity` does
 //! the work).
 
-use super::args::{WaveformArg, WaveformArgs};
+use super::args::WaveformArgs;
 use crate::measure::ambiguity::{ambiguity, AmbiguityReport};
 use crate::waveform::spec::WaveformKind;
 use std::path::PathBuf;
@@ -25,8 +25,8 @@ pub enum WaveformCommand {
 #[derive(Debug, clap::Args)]
 pub struct AmbiguityArgs {
     /// The waveform.
-    #[arg(long, value_enum, default_value = "msk-lfm")]
-    pub waveform: WaveformArg,
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    pub waveform: WaveformKind,
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     /// Data to carry (UTF-8 text) instead of PRBS bits.
@@ -76,7 +76,7 @@ fn run_ambiguity(args: AmbiguityArgs) -> anyhow::Result<()> {
             )));
         }
     }
-    let kind = WaveformKind::from(args.waveform);
+    let kind = args.waveform;
     let spec = args.waveform_args.spec(kind)?;
     let report = ambiguity(
         &spec,

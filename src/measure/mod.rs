@@ -13,6 +13,7 @@
 //! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
+//! | `scene_control` | the simulated bench's scene, typed: set it, reseed its noise, read it back |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
 //! | `reprocess` | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
@@ -46,6 +47,7 @@ pub(crate) mod response;
 pub(crate) mod response_from_capture;
 pub(crate) mod response_run;
 pub(crate) mod scene_capture;
+pub(crate) mod scene_control;
 pub(crate) mod station;
 pub(crate) mod transmit;
 

@@ -42,6 +42,21 @@ impl Algorithm {
         }
     }
 
+    /// One line on the algorithm (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            Algorithm::Correlation => {
+                "FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar)"
+            }
+            Algorithm::Fourier => {
+                "OFDM: spectral division and zero-padded IFFT over the subcarriers"
+            }
+            Algorithm::Music => "OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward)",
+            Algorithm::RootMusic => "OFDM: root-MUSIC, ranges from polynomial roots (no grid)",
+            Algorithm::Esprit => "OFDM: ESPRIT, ranges from the shift invariance (no grid)",
+        }
+    }
+
     /// The algorithms that return ranges without a profile.
     pub(crate) fn is_grid_free(self) -> bool {
         matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
@@ -70,6 +85,27 @@ impl Algorithm {
     }
 }
 
+impl std::fmt::Display for Algorithm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Algorithm {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|a| a.name()).collect();
+                format!("unknown algorithm `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
 /// Precision of the OFDM receiver's per-symbol FFT; the rest is double.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -82,11 +118,56 @@ pub enum FftPrecisionName {
 }
 
 impl FftPrecisionName {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Single => "single",
+            Self::Double => "double",
+        }
+    }
+
     pub(crate) fn to_dsp(self) -> FftPrecision {
         match self {
             Self::Single => FftPrecision::Single,
             Self::Double => FftPrecision::Double,
         }
+    }
+}
+
+impl FftPrecisionName {
+    /// Every value.
+    pub const ALL: [FftPrecisionName; 2] = [FftPrecisionName::Single, FftPrecisionName::Double];
+
+    /// One line on the value (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            FftPrecisionName::Single => {
+                "Single precision (default): rounding ~130 dB under the signal, about twice as fast"
+            }
+            FftPrecisionName::Double => {
+                "Double precision, for noise-free studies that look below -130 dB"
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for FftPrecisionName {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown FFT precision `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
+impl std::fmt::Display for FftPrecisionName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -125,6 +206,47 @@ impl WindowName {
             },
             WindowName::Chebyshev => Window::Chebyshev { sll_db: -50.0 },
         }
+    }
+}
+
+impl WindowName {
+    /// Every value.
+    pub const ALL: [WindowName; 4] = [
+        WindowName::Rect,
+        WindowName::Hann,
+        WindowName::Taylor,
+        WindowName::Chebyshev,
+    ];
+
+    /// One line on the value (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            WindowName::Rect => "No window: narrowest main lobe, -13.3 dB side-lobes",
+            WindowName::Hann => "",
+            WindowName::Taylor => "Taylor, 4 nearly equal side-lobes at -35 dB",
+            WindowName::Chebyshev => "Dolph-Chebyshev, equal side-lobes at -50 dB",
+        }
+    }
+}
+
+impl std::str::FromStr for WindowName {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown window `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
+impl std::fmt::Display for WindowName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -175,6 +297,51 @@ impl DetectorName {
             DetectorName::GoCfar => Method::Cfar { kind: CfarKind::Go },
             DetectorName::SoCfar => Method::Cfar { kind: CfarKind::So },
         }
+    }
+}
+
+impl DetectorName {
+    /// Every value.
+    pub const ALL: [DetectorName; 6] = [
+        DetectorName::Clean,
+        DetectorName::CleanOs,
+        DetectorName::OsCfar,
+        DetectorName::CaCfar,
+        DetectorName::GoCfar,
+        DetectorName::SoCfar,
+    ];
+
+    /// One line on the value (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            DetectorName::Clean => "CLEAN with the waveform's point spread: subtract each target, search again (default)",
+            DetectorName::CleanOs => "CLEAN with a local ordered-statistic noise estimate",
+            DetectorName::OsCfar => "Ordered-statistic CFAR, side-lobes masked by the point spread's envelope",
+            DetectorName::CaCfar => "Cell-averaging CFAR",
+            DetectorName::GoCfar => "Greatest-of CFAR",
+            DetectorName::SoCfar => "Smallest-of CFAR",
+        }
+    }
+}
+
+impl std::str::FromStr for DetectorName {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown detector `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
+impl std::fmt::Display for DetectorName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

@@ -41,6 +41,76 @@ pub(crate) const COLUMNS: [&str; 7] = [
 /// Figures are taken where the waveform's power is within 3 dB of its peak.
 const FIGURE_COVERAGE: f64 = 0.5;
 
+/// Which of the chain's measured errors a measurement corrects (`--correction`, a campaign's
+/// `processing.correction`; recorded as [`CorrectionUsed::mode`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CorrectionMode {
+    /// Nothing corrected.
+    None,
+    /// On receive: DC, I/Q imbalance and the chain's response divided out.
+    Rx,
+    /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
+    Tx,
+    /// Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected.
+    Both,
+}
+
+impl CorrectionMode {
+    /// Every mode.
+    pub const ALL: [CorrectionMode; 4] = [
+        CorrectionMode::None,
+        CorrectionMode::Rx,
+        CorrectionMode::Tx,
+        CorrectionMode::Both,
+    ];
+
+    /// As `--correction` and the recorded `mode` spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            CorrectionMode::None => "none",
+            CorrectionMode::Rx => "rx",
+            CorrectionMode::Tx => "tx",
+            CorrectionMode::Both => "both",
+        }
+    }
+
+    /// One line on the mode (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            CorrectionMode::None => "Nothing corrected",
+            CorrectionMode::Rx => "On receive: DC, I/Q imbalance, and the chain's response divided out",
+            CorrectionMode::Tx => {
+                "On transmit: the AWG's codes pre-distorted by the inverse of the chain's response"
+            }
+            CorrectionMode::Both => {
+                "Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected"
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for CorrectionMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CorrectionMode {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown correction `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
 /// Which correction a measurement used, as recorded in its processing options.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

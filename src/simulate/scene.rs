@@ -152,6 +152,39 @@ impl CarrierPhase {
     }
 }
 
+impl CarrierPhase {
+    /// Every value.
+    pub const ALL: [CarrierPhase; 3] = [
+        CarrierPhase::Physical,
+        CarrierPhase::Centred,
+        CarrierPhase::Thesis,
+    ];
+
+    /// One line on the value (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            CarrierPhase::Physical => "The bench's 80 GHz carrier: what a real measurement sees",
+            CarrierPhase::Centred => "f_c = 0: pure baseband, no carrier phase",
+            CarrierPhase::Thesis => "f_c = B/2: the thesis' own model (its chirp sweeps 0..B)",
+        }
+    }
+}
+
+impl std::str::FromStr for CarrierPhase {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown carrier phase `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
 impl std::fmt::Display for CarrierPhase {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())

@@ -118,6 +118,21 @@ pub enum WaveformKind {
 }
 
 impl WaveformKind {
+    /// Every family.
+    pub const ALL: [WaveformKind; 2] = [WaveformKind::MskLfm, WaveformKind::Ofdm];
+
+    /// One line on the family (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            WaveformKind::MskLfm => {
+                "MSK-LFM: a chirp carrying MSK bits (thesis Table 4.1: 1 GHz, 10 us, 128 bits)"
+            }
+            WaveformKind::Ofdm => {
+                "OFDM: QPSK subcarriers (thesis Table 4.2: 128 over 1 GHz, 100 symbols)"
+            }
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             WaveformKind::MskLfm => "msk-lfm",
@@ -131,6 +146,27 @@ impl WaveformKind {
             WaveformKind::MskLfm => WaveformSpec::msk_lfm_default(),
             WaveformKind::Ofdm => WaveformSpec::ofdm_default(),
         }
+    }
+}
+
+impl std::fmt::Display for WaveformKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for WaveformKind {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
+                format!("unknown waveform `{s}`: allowed: {}", names.join(", "))
+            })
     }
 }
 

@@ -539,8 +539,38 @@ async fn a_failing_positioner_command_stops_the_campaign_in_the_safe_state() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_velocity_sweep_moves_the_chirp_by_its_range_doppler_coupling() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let finished = start_run(&example("velocity.toml"), &out, &mut Quiet).await;
+    assert!(finished.stopped.is_none());
+    let results = read_json(&out.join("results.json"));
+    let manifest = Manifest::load(&out).unwrap();
+    // v fc T / B: the thesis' 10 us, 1 GHz chirp at the scene's carrier.
+    let fc = manifest.plan.bench.scene.as_ref().unwrap().carrier_hz;
+    let per_mps = fc * 10e-6 / 1e9;
+    for s in results["steps"].as_array().unwrap() {
+        assert_eq!(s["nominal"]["parameter"], "velocity");
+        let v = s["nominal"]["velocity_mps"].as_f64().unwrap();
+        let e = s["algorithms"]["correlation"]["truth_error_m"]
+            .as_f64()
+            .unwrap();
+        assert!((e - per_mps * v).abs() < 1e-3, "{v} m/s: {e} m");
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("velocity-error"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn campaign_new_prints_the_examples() {
-    for kind in ["accuracy", "resolution", "single-target", "music", "link"] {
+    for kind in [
+        "accuracy",
+        "resolution",
+        "single-target",
+        "music",
+        "link",
+        "velocity",
+    ] {
         let (code, stdout, err) = radbench(&["campaign", "new", kind], "").await;
         assert_eq!(code, 0, "{err}");
         let file = std::fs::read_to_string(example(&format!("{kind}.toml"))).unwrap();

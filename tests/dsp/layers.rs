@@ -163,3 +163,25 @@ fn mock_lab_depends_on_nothing_of_radbench() {
         "mock_lab must stay independent of radbench (two implementations check each other)"
     );
 }
+
+#[test]
+fn campaigns_name_no_mock_lab_path() {
+    // The simulated bench is reached through the bench's typed scene control
+    // (`measure::scene_control`): campaigns send no control JSON and name no mock_lab type.
+    let mut files = Vec::new();
+    sources(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("src/campaign"),
+        &mut files,
+    );
+    let mut found = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (i, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            if code.contains("mock_lab::") || code.contains("\"cmd\"") {
+                found.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(found.is_empty(), "{}", found.join("\n"));
+}

@@ -2,6 +2,9 @@
 //!
 //! | steps | figure |
 //! |---|---|
+//! The swept kinds' own figures are named in campaign/kind.rs (one table); the others follow from
+//! the steps' targets.
+//!
 //! | swept `position` | range error per step against the nominal position, interpolated and on the grid, with the ±c0/(2 fs) and ±c0/(4 fs) bounds (thesis Fig. 4.13) |
 //! | two or more targets | resolved or not against the separation, per algorithm and bandwidth |
 //! | one target, not swept in position / attenuation / SNR | -3 dB width and peak side-lobe level per step, the thesis' simulation and lab values beside (Tables 4.5, 4.7) |
@@ -11,6 +14,7 @@
 //! theory curve); nothing is invented.
 
 use super::plots::{Chart, HLine, Point, Series, Style};
+use crate::campaign::kind::{has_own_figures, kind_figures, SweepParameter};
 use crate::campaign::manifest::Manifest;
 use crate::campaign::results::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
 use crate::physics::C0;
@@ -55,25 +59,17 @@ pub(crate) fn waveform_of(manifest: &Manifest, step: &StepResult) -> Option<Wave
     plan.waveforms.get(s.waveform).copied()
 }
 
-/// The swept parameter of a step.
-fn parameter(step: &StepResult) -> &str {
-    step.nominal.parameter.as_deref().unwrap_or("")
-}
-
 pub(crate) fn is_accuracy(s: &StepResult) -> bool {
-    parameter(s) == "position"
+    s.nominal.parameter == Some(SweepParameter::Position)
 }
 
 pub(crate) fn is_resolution(s: &StepResult) -> bool {
     s.nominal.targets.len() >= 2
 }
 
-pub(crate) fn is_link(s: &StepResult) -> bool {
-    matches!(parameter(s), "tx-attenuation" | "snr")
-}
-
+/// One target, swept in a parameter without figures of its own (campaign/kind.rs).
 pub(crate) fn is_single(s: &StepResult) -> bool {
-    s.nominal.targets.len() == 1 && !is_accuracy(s) && !is_link(s)
+    s.nominal.targets.len() == 1 && !has_own_figures(s)
 }
 
 /// The smallest separation of a step's nominal targets, metres.
@@ -124,13 +120,10 @@ pub(crate) fn theory_ebn0_db(w: &WaveformSpec, ber: f64) -> Option<f64> {
 
 /// The figures of a run, in the order the report shows them.
 pub fn figures(manifest: &Manifest, results: &Results) -> Vec<Figure> {
-    let mut out = Vec::new();
     let steps = &results.steps;
+    // The swept kinds' own figures (campaign/kind.rs names them), around those every run gets.
+    let mut out = kind_figures(manifest, steps, true);
     let pick = |f: fn(&StepResult) -> bool| steps.iter().filter(|s| f(s)).collect::<Vec<_>>();
-    let acc = pick(is_accuracy);
-    if !acc.is_empty() {
-        out.extend(accuracy(manifest, &acc));
-    }
     let res = pick(is_resolution);
     if !res.is_empty() {
         out.extend(resolution(&res));
@@ -139,10 +132,7 @@ pub fn figures(manifest: &Manifest, results: &Results) -> Vec<Figure> {
     if !single.is_empty() {
         out.extend(single_target(manifest, &single));
     }
-    let link = pick(is_link);
-    if !link.is_empty() {
-        out.extend(link_figures(manifest, &link));
-    }
+    out.extend(kind_figures(manifest, steps, false));
     out
 }
 
@@ -159,7 +149,7 @@ fn algorithms(steps: &[&StepResult]) -> Vec<String> {
     names
 }
 
-fn accuracy(manifest: &Manifest, steps: &[&StepResult]) -> Option<Figure> {
+pub(crate) fn accuracy(manifest: &Manifest, steps: &[&StepResult]) -> Option<Figure> {
     let fs = waveform_of(manifest, steps[0])?.sample_rate_hz();
     let half = C0 / (2.0 * fs) * 100.0;
     let quarter = C0 / (4.0 * fs) * 100.0;
@@ -232,6 +222,99 @@ fn accuracy(manifest: &Manifest, steps: &[&StepResult]) -> Option<Figure> {
         chart,
     })
 }
+
+/// The range error against the targets' radial velocity (a `velocity` sweep): against the ground
+/// truth where it is known (simulated benches), else against the nominal range; for an MSK-LFM
+/// chirp, the range-Doppler coupling's prediction beside it.
+pub(crate) fn velocity(manifest: &Manifest, steps: &[&StepResult]) -> Option<Figure> {
+    let mut chart = Chart::new(
+        "Range error against the targets' velocity",
+        "radial velocity (m/s, + receding)",
+        "measured - true range (cm)",
+    );
+    for name in algorithms(steps) {
+        let points: Vec<Point> = steps
+            .iter()
+            .filter_map(|s| {
+                let v = s.nominal.velocity_mps?;
+                let a = s.algorithms.get(&name)?;
+                let e = a.truth_error_m.or(a.error_m)?;
+                Some(Point::new(v, e * 100.0))
+            })
+            .collect();
+        chart.series.push(Series {
+            label: name,
+            points,
+            style: Style::Line,
+        });
+    }
+    chart.series.retain(|s| !s.points.is_empty());
+    if chart.series.is_empty() {
+        return None;
+    }
+    // An LFM chirp of duration T over B maps a Doppler shift fd onto a delay fd T / B: a range
+    // shift of v fc T / B for a target at v (fd = -2 v fc / c0, the mock lab's convention).
+    let carrier = manifest
+        .plan
+        .bench
+        .scene
+        .as_ref()
+        .or(manifest.base_scene.as_ref())
+        .map(|s| s.carrier_hz);
+    let mut coupling = String::new();
+    if let (
+        Some(fc),
+        Some(WaveformSpec::MskLfm {
+            pulse_s,
+            bandwidth_hz,
+            ..
+        }),
+    ) = (carrier, waveform_of(manifest, steps[0]))
+    {
+        let k = fc * pulse_s / bandwidth_hz;
+        let vs: Vec<f64> = steps
+            .iter()
+            .filter_map(|s| s.nominal.velocity_mps)
+            .collect();
+        let (lo, hi) = vs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        chart.series.push(Series {
+            label: format!(
+                "range-Doppler coupling, fc T / B = {:.3} mm per m/s",
+                k * 1e3
+            ),
+            points: vec![
+                Point::new(lo, COUPLING_SIGN * k * lo * 100.0),
+                Point::new(hi, COUPLING_SIGN * k * hi * 100.0),
+            ],
+            style: Style::Dashed,
+        });
+        coupling = format!(
+            " The dashed line is the chirp's range-Doppler coupling: a Doppler shift fd moves the \
+             correlation peak by fd T / B, a range shift of v fc T / B ({:.3} mm per m/s at \
+             fc = {} GHz, T = {} us, B = {} GHz).",
+            k * 1e3,
+            fc / 1e9,
+            pulse_s * 1e6,
+            bandwidth_hz / 1e9
+        );
+    }
+    Some(Figure {
+        id: "velocity-error",
+        caption: format!(
+            "Measured minus true range (the simulated ground truth; the nominal range on a bench \
+             without one) at each step, against the targets' radial velocity.{coupling}"
+        ),
+        chart,
+    })
+}
+
+/// The sign of the chirp's range-Doppler coupling on the mock lab (a receding target, v > 0,
+/// fd < 0).
+const COUPLING_SIGN: f64 = 1.0;
 
 /// The repetitions' range spread of the target nearest the error (the strongest, in practice
 /// the only one of an accuracy step).
@@ -427,8 +510,8 @@ fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
     out
 }
 
-fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
-    let snr = parameter(steps[0]) == "snr";
+pub(crate) fn link_figures(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
+    let snr = steps[0].nominal.parameter == Some(SweepParameter::Snr);
     let x_label = if snr {
         "scene SNR (dB)"
     } else {

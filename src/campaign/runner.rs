@@ -1,0 +1,623 @@
+//! The runner: the steps (connect, place the targets, set the simulated scene, capture under the
+//! safe-state guard, hand the capture to the worker), settling the steps the worker finished, and
+//! the finish (`results.json`, the report, the manifest, the final safe state).
+
+use super::folder::FolderIdentity;
+use super::manifest::{
+    self, FileRecord, Instruments, Manifest, Session, Status, StepStatus, Timing,
+};
+use super::plan::{Plan, Step};
+use super::positioner::{LineSource, Positioner};
+use super::prepare::PreparedSet;
+use super::results::{self, Results, StepResult};
+use super::run::{Finished, Observer, StepDone, Summary, RESULTS_FILE, STEP_RESULT};
+use super::step_job::{StepJob, WorkerOutcome, WorkerSide};
+use super::worker::StepWorker;
+use super::{io, report, CampaignError};
+use crate::catalog::Catalog;
+use crate::driver::{Journal, RfPermit};
+use crate::exit::Classify;
+use crate::measure::bench::{Bench, BenchSource};
+use crate::measure::capture::{Rig, Taken};
+use crate::measure::interrupt::Interrupt;
+use crate::measure::record::Provenance;
+use crate::measure::scene_control::{Scene, SceneControlError};
+use crate::measure::MeasureError;
+use crate::storage::atomic::write_atomic;
+use serde_json::json;
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+pub(super) fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
+    Session {
+        kind: kind.into(),
+        started: now.into(),
+        ended: None,
+        journal: journal.to_path_buf(),
+        skipped: Vec::new(),
+        remeasured: Vec::new(),
+        forced: None,
+        final_safe_state: None,
+        timing: Timing::default(),
+    }
+}
+
+/// A captured step that the worker processes (every algorithm), writes, hashes and records in
+/// the manifest while the next steps are captured.
+struct PendingStep {
+    k: usize,
+    step: Step,
+    outcome: tokio::sync::oneshot::Receiver<WorkerOutcome>,
+}
+
+/// Most captured steps waiting for (or with) the worker. Two lets a step whose processing and
+/// files took longer than one capture catch up during the next one, instead of holding it;
+/// more would only hide a worker that cannot keep up, and hold more captures in memory.
+const STEPS_IN_FLIGHT: usize = 2;
+
+/// The connected bench.
+struct Connection {
+    bench: Bench,
+    rig: Rig,
+}
+
+pub(super) struct Runner {
+    dir: PathBuf,
+    /// The run folder as it was when this session opened it: checked before every write.
+    folder: FolderIdentity,
+    pub(super) manifest: Manifest,
+    plan: Plan,
+    prepared: PreparedSet,
+    /// The Tx attenuation each waveform's plan had before any step changed it.
+    base_tx_attenuation: Vec<f64>,
+    journal: Option<Journal>,
+    permit: RfPermit,
+    interrupt: Interrupt,
+    positioner: Option<Positioner>,
+    connection: Option<Connection>,
+    /// The scene every step starts from (simulated benches).
+    base_scene: Option<Scene>,
+    /// Whether the next placement is the first of this session (the targets' position unknown).
+    first_placement: bool,
+    /// Whether this session has checked the instruments' identities.
+    identified: bool,
+    /// Whether the simulated lab reseeds its noise on request (`None`: not asked yet).
+    reseed: Option<bool>,
+    /// Whether the user was told that the noise will not be reproducible.
+    warned_noise: bool,
+    force: bool,
+    results: Vec<Option<StepResult>>,
+    /// Processes and writes the steps beside the captures.
+    worker: StepWorker,
+    worker_side: Arc<Mutex<WorkerSide>>,
+    /// The steps handed to the worker and not collected yet, oldest first.
+    pending: VecDeque<PendingStep>,
+    /// When the session began (before its preparation).
+    pub(super) started: Instant,
+    measured: usize,
+    skipped: usize,
+    pub(super) timing: Timing,
+}
+
+impl Runner {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new(
+        dir: PathBuf,
+        manifest: Manifest,
+        mut prepared: PreparedSet,
+        journal_path: PathBuf,
+        permit: RfPermit,
+        interrupt: Interrupt,
+        input: Option<LineSource>,
+        force: bool,
+    ) -> Result<Runner, CampaignError> {
+        let plan = manifest.plan.clone();
+        let journal_file = if journal_path.is_absolute() {
+            journal_path
+        } else {
+            dir.join(journal_path)
+        };
+        let journal = Journal::create(&journal_file, false).map_err(|e| CampaignError::Io {
+            path: journal_file.clone(),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+        let positioner = plan.positioner.clone().map(|p| Positioner::new(p, input));
+        let n = plan.steps.len();
+        let worker_side = Arc::new(Mutex::new(WorkerSide::lend_all(&mut prepared)?));
+        let worker = StepWorker::start().map_err(|e| CampaignError::Io {
+            path: dir.clone(),
+            source: e,
+        })?;
+        let folder = FolderIdentity::of(&dir)?;
+        Ok(Runner {
+            folder,
+            base_tx_attenuation: prepared
+                .base
+                .iter()
+                .map(|p| p[0].plan.tx.attenuation_db)
+                .collect(),
+            base_scene: plan.bench.scene.clone().or(manifest.base_scene.clone()),
+            dir,
+            plan,
+            manifest,
+            prepared,
+            journal: Some(journal),
+            permit,
+            interrupt,
+            positioner,
+            connection: None,
+            first_placement: true,
+            identified: false,
+            reseed: None,
+            warned_noise: false,
+            force,
+            results: vec![None; n],
+            worker,
+            worker_side,
+            pending: VecDeque::new(),
+            started: Instant::now(),
+            measured: 0,
+            skipped: 0,
+            timing: Timing::default(),
+        })
+    }
+
+    /// Runs every step not done yet, then writes the results, the report and the manifest.
+    pub(super) async fn execute(
+        mut self,
+        observer: &mut dyn Observer,
+    ) -> Result<Finished, CampaignError> {
+        let t = Instant::now();
+        self.folder.check(&self.dir)?;
+        self.manifest.store(&self.dir)?;
+        self.timing.overhead_s += t.elapsed().as_secs_f64();
+        let mut stopped = self.steps(observer).await.err();
+        // The last steps' files (also when the run stopped: a capture taken is kept).
+        if let Err(e) = self.settle_all(observer).await {
+            match &stopped {
+                None => stopped = Some(e),
+                Some(_) => observer.note(&format!("the last step's files: {e}")),
+            }
+        }
+        // Nothing radiates between measurements and every measurement's guard ran the safe
+        // state; run it once more on whatever is connected (a bench found in an unknown state
+        // and left by an error before its first capture), then close the links.
+        let mut safe = true;
+        if let Some(conn) = self.connection.take() {
+            let report = conn.rig.safe_state().engage().await;
+            safe = report.is_safe();
+            if !safe {
+                observer.note(&format!(
+                    "WARNING: the final safe state did not complete: {report}; switch the bench \
+                     off by hand"
+                ));
+            }
+            self.manifest.session_mut().final_safe_state = Some(report.to_string());
+        }
+        let t = Instant::now();
+        let outcome = self.finish(stopped).await;
+        self.timing.overhead_s += t.elapsed().as_secs_f64();
+        outcome.map_err(|e| self.unrecorded(e, safe))
+    }
+
+    /// A session's end that could not be written (`results.json`, the report, the manifest: a
+    /// read-only file system, a full disk) as the error the user sees: the write that failed,
+    /// why the run had stopped, the bench's state and how to go on. The bare write error ("cannot
+    /// write results.json") dropped the stop it was to record (the step whose files had failed)
+    /// and said nothing of resuming.
+    fn unrecorded(&self, e: CampaignError, safe: bool) -> CampaignError {
+        if matches!(e, CampaignError::FolderLost { .. }) {
+            return e;
+        }
+        if let Some(lost) = self.folder.lost(&self.dir) {
+            return lost;
+        }
+        CampaignError::Unrecorded {
+            dir: self.dir.clone(),
+            stopped: self.manifest.reason.clone(),
+            safe,
+            source: Box::new(e),
+        }
+    }
+
+    async fn steps(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let n = self.plan.steps.len();
+        for k in 0..n {
+            let step = self.plan.steps[k].clone();
+            if self.manifest.steps[k].status == StepStatus::Done {
+                self.settle_all(observer).await?;
+                let result = self.stored_result(&step)?;
+                self.skipped += 1;
+                self.manifest.session_mut().skipped.push(step.index);
+                observer.step_done(&StepDone {
+                    step: &step,
+                    of: n,
+                    result: &result,
+                    primary: self.plan.algorithm_names()[0],
+                    dir: self.dir.join(step.dir_name()),
+                    skipped: true,
+                });
+                self.results[k] = Some(result);
+                // The targets may have been moved since: place them again at the next step.
+                self.first_placement = true;
+                continue;
+            }
+            if let Some(signal) = self.interrupt.received() {
+                return Err(CampaignError::Interrupted {
+                    signal,
+                    where_: format!("before step {} of {n}; nothing was radiating", step.index),
+                });
+            }
+            self.measure_step(k, &step, observer).await?;
+            if let Some(signal) = self.interrupt.received() {
+                if k + 1 < n {
+                    return Err(CampaignError::Interrupted {
+                        signal,
+                        where_: format!("after step {} of {n} (its capture is kept)", step.index),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A step measured by an earlier session: its stored result.
+    fn stored_result(&self, step: &Step) -> Result<StepResult, CampaignError> {
+        let path = self.dir.join(step.dir_name()).join(STEP_RESULT);
+        let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+        serde_json::from_str(&text).map_err(|e| CampaignError::Manifest {
+            path,
+            message: format!("not a step result: {e}"),
+        })
+    }
+
+    /// The simulated scene of a step: the base scene with the step's noise seed, SNR and the
+    /// targets where the positioner puts them.
+    fn step_scene(&self, step: &Step) -> Option<Scene> {
+        let mut scene = self.base_scene.clone()?;
+        if let Some(seed) = step.noise_seed {
+            scene.seed = seed;
+        }
+        if let Some(snr) = step.nominal.snr_db {
+            scene.snr_db = snr;
+        }
+        if let Some(p) = &self.positioner {
+            p.place_in_scene(&step.nominal, &mut scene);
+        }
+        if let Some(v) = step.nominal.velocity_mps {
+            for t in &mut scene.targets {
+                t.velocity_mps = v;
+            }
+        }
+        Some(scene)
+    }
+
+    /// Connects for `step`: a fresh built-in lab with the step's scene, or the bench file's
+    /// instruments once.
+    async fn connect(&mut self, step: &Step) -> Result<(), CampaignError> {
+        let built_in = self.plan.bench.file.is_none();
+        if built_in && (self.reseed == Some(false) || self.connection.is_none()) {
+            // A fresh lab per step when it cannot reseed its noise (see the module docs). Close
+            // the previous lab's links before its servers go.
+            self.connection = None;
+            let scene = self.step_scene(step).unwrap_or_default();
+            let bench = Bench::open(BenchSource::BuiltIn(Box::new(
+                self.plan.bench.built_in(scene),
+            )))
+            .await?;
+            let rig = Rig::connect(&bench, &catalog(&bench)?, self.journal.clone()).await?;
+            self.connection = Some(Connection { bench, rig });
+        } else if self.connection.is_none() {
+            let path = self.plan.bench.file.clone().expect("a bench file");
+            let bench = Bench::open(BenchSource::File(path)).await?;
+            let rig = Rig::connect(&bench, &catalog(&bench)?, self.journal.clone()).await?;
+            self.connection = Some(Connection { bench, rig });
+        }
+        if self.plan.bench.simulated && self.reseed.is_none() {
+            // Does the lab reseed its noise on request? (mock_lab's `seed` control request; a lab
+            // without it refuses and changes nothing.)
+            let conn = self.connection.as_ref().expect("connected");
+            let seed = step.noise_seed.unwrap_or(self.plan.seed);
+            self.reseed = Some(conn.bench.reseed(seed).await.is_ok());
+        }
+        if !self.identified {
+            self.identified = true;
+            let conn = self.connection.as_ref().expect("connected");
+            let now = Instruments::from(conn.rig.identities());
+            match &self.manifest.instruments {
+                None => self.manifest.instruments = Some(now),
+                Some(then) if *then == now => {}
+                Some(then) => {
+                    let what = format!(
+                        "the instruments answer differently than when the run was measured \
+                         (then: {then:?}; now: {now:?})"
+                    );
+                    if !self.force {
+                        return Err(CampaignError::DifferentBench { what });
+                    }
+                    let s = self.manifest.session_mut();
+                    s.forced = Some(match s.forced.take() {
+                        Some(f) => format!("{f}; {what}"),
+                        None => what,
+                    });
+                }
+            }
+            // A bench file's simulated lab: the scene every step starts from.
+            if self.base_scene.is_none() && self.plan.bench.simulated {
+                let scene = conn.bench.scene().await.map_err(control)?;
+                self.manifest.base_scene = Some(scene.clone());
+                self.base_scene = Some(scene);
+            }
+        }
+        Ok(())
+    }
+
+    /// Measures step `k` and hands its files to the writer (see [`Runner::settle_oldest`]).
+    async fn measure_step(
+        &mut self,
+        k: usize,
+        step: &Step,
+        observer: &mut dyn Observer,
+    ) -> Result<(), CampaignError> {
+        let n = self.plan.steps.len();
+        let t_bench = Instant::now();
+        self.connect(step).await?;
+        if self.plan.moves_at(k, self.first_placement) {
+            if let Some(p) = self.positioner.as_mut() {
+                p.place(&step.nominal.ranges(), step.index, n, &self.interrupt)
+                    .await?;
+            }
+            self.first_placement = false;
+        }
+        let scene = self.step_scene(step);
+        let reseeds = self.reseed == Some(true);
+        // A built-in lab started afresh for this step already has its scene.
+        let started_with_scene = self.plan.bench.file.is_none() && !reseeds;
+        if !reseeds && !started_with_scene && !self.warned_noise {
+            self.warned_noise = true;
+            observer.note(
+                "note: this simulated bench cannot reseed its noise per step (it refused \
+                 {\"cmd\":\"seed\"}): a resumed run will differ from an uninterrupted one in \
+                 the noise",
+            );
+        }
+        let conn = self.connection.as_mut().expect("connected");
+        if let (Some(scene), false) = (scene, started_with_scene) {
+            conn.bench.set_scene(&scene).await.map_err(control)?;
+            if reseeds {
+                conn.bench.reseed(scene.seed).await.map_err(control)?;
+            }
+        }
+        observer.step_starting(step, n, &conn.bench);
+        let w = step.waveform;
+        let primary = self.prepared.get_mut(w, 0, step.music_p);
+        primary.plan.tx.attenuation_db = step
+            .nominal
+            .tx_attenuation_db
+            .unwrap_or(self.base_tx_attenuation[w]);
+        let taken = conn
+            .rig
+            .acquire(
+                &conn.bench,
+                primary,
+                self.plan.repetitions,
+                &self.permit,
+                &self.interrupt,
+            )
+            .await
+            .map_err(|e| match e {
+                MeasureError::Interrupted { signal, report } => CampaignError::Interrupted {
+                    signal,
+                    where_: format!(
+                        "during step {} of {n}, which will be measured again (safe state: \
+                         {report})",
+                        step.index
+                    ),
+                },
+                other => other.into(),
+            })?;
+        self.timing.bench_s += t_bench.elapsed().as_secs_f64();
+        // The steps before were processed and written while this one was captured: wait for
+        // the oldest when the worker has its fill, then hand this step over. A failure of a step
+        // before still hands this capture to the worker, so it is written before the run stops.
+        let before = if self.pending.len() >= STEPS_IN_FLIGHT {
+            self.settle_oldest(observer).await
+        } else {
+            Ok(())
+        };
+        self.hand_over(k, step, taken);
+        before
+    }
+
+    /// Gives `taken` to the worker, which processes it with every algorithm, writes the step's
+    /// files, hashes them and stores the manifest recording it.
+    fn hand_over(&mut self, k: usize, step: &Step, taken: Taken) {
+        let mut snapshot = self.manifest.clone();
+        snapshot.session_mut().timing = self.timing.clone();
+        let job = StepJob {
+            dir: self.dir.clone(),
+            folder: self.folder,
+            step: step.clone(),
+            names: self.plan.algorithm_names(),
+            bandwidth_hz: self.plan.waveforms[step.waveform].bandwidth_hz(),
+            provenance: Provenance {
+                bench_file: self.plan.bench.file.clone(),
+                simulated: self.plan.bench.simulated,
+            },
+        };
+        let side = self.worker_side.clone();
+        let outcome = self.worker.submit(move || job.run(&side, taken, snapshot));
+        self.pending.push_back(PendingStep {
+            k,
+            step: step.clone(),
+            outcome,
+        });
+    }
+
+    /// Collects every step handed to the worker.
+    async fn settle_all(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let mut first_error = None;
+        while !self.pending.is_empty() {
+            if let Err(e) = self.settle_oldest(observer).await {
+                match first_error {
+                    None => first_error = Some(e),
+                    Some(_) => observer.note(&format!("a later step: {e}")),
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Waits for the oldest step the worker has, records it done and tells the observer.
+    async fn settle_oldest(&mut self, observer: &mut dyn Observer) -> Result<(), CampaignError> {
+        let Some(p) = self.pending.pop_front() else {
+            return Ok(());
+        };
+        let t = Instant::now();
+        let outcome = p.outcome.await.map_err(|_| {
+            CampaignError::Measure(MeasureError::Worker(format!(
+                "step {}'s processing stopped with a panic",
+                p.step.index
+            )))
+        })?;
+        let waited = t.elapsed().as_secs_f64();
+        self.timing.wait_s += waited;
+        self.timing.processing_s += outcome.processing_s;
+        let (result, written) = outcome.done?;
+        self.timing.files_s += written.files_s;
+        self.timing.overhead_s += written.overhead_s;
+        tracing::debug!(
+            step = p.step.index,
+            processing_s = outcome.processing_s,
+            files_s = written.files_s,
+            bookkeeping_s = written.overhead_s,
+            waited_s = waited,
+            "step processed and written"
+        );
+        *self.manifest.step_mut(p.step.index) = written.record;
+        self.measured += 1;
+        observer.step_done(&StepDone {
+            step: &p.step,
+            of: self.plan.steps.len(),
+            result: &result,
+            primary: self.plan.algorithm_names()[0],
+            dir: self.dir.join(p.step.dir_name()),
+            skipped: false,
+        });
+        self.results[p.k] = Some(result);
+        Ok(())
+    }
+
+    /// `results.json` with every step that has a result, in step order, and `results.csv` from
+    /// it.
+    fn write_results(&mut self) -> Result<Results, CampaignError> {
+        self.folder.check(&self.dir)?;
+        let results = Results {
+            steps: self.results.iter().flatten().cloned().collect(),
+        };
+        let path = self.dir.join(RESULTS_FILE);
+        write_atomic(&path, format!("{:#}\n", json!(results)).as_bytes())?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(RESULTS_FILE))?);
+        write_atomic(
+            &self.dir.join(results::CSV_FILE),
+            results::to_csv(&results).as_bytes(),
+        )?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(results::CSV_FILE))?);
+        Ok(results)
+    }
+
+    async fn finish(&mut self, stopped: Option<CampaignError>) -> Result<Finished, CampaignError> {
+        let status = if stopped.is_some() {
+            Status::Interrupted
+        } else {
+            Status::Complete
+        };
+        let first_pending = self
+            .manifest
+            .steps
+            .iter()
+            .find(|s| s.status != StepStatus::Done)
+            .map(|s| s.index);
+        self.manifest.status = status;
+        let n = self.plan.steps.len();
+        self.manifest.reason = stopped.as_ref().map(|e| match (e, first_pending) {
+            (CampaignError::Interrupted { .. }, _) | (_, None) => crate::exit::render_chain(e),
+            (_, Some(k)) => format!("step {k} of {n}: {}", crate::exit::render_chain(e)),
+        });
+        self.manifest.stopped_at_step = stopped.as_ref().and(first_pending);
+        self.manifest.exit_code = stopped.as_ref().map(|e| e.exit_class().code());
+        // After the reason: should a write fail from here on, the error tells the stop it was
+        // to record (see `unrecorded`).
+        let results = self.write_results()?;
+        let now = crate::time::rfc3339_millis(std::time::SystemTime::now());
+        self.manifest.session_mut().ended = Some(now);
+        self.timing.total_s = self.started.elapsed().as_secs_f64();
+        self.manifest.session_mut().timing = self.timing.clone();
+        // The journals are final now: hash them.
+        let journals: Vec<PathBuf> = self
+            .manifest
+            .sessions
+            .iter()
+            .map(|s| s.journal.clone())
+            .filter(|p| p.is_relative())
+            .collect();
+        if let Some(journal) = self.journal.take() {
+            journal.flush();
+        }
+        for j in journals {
+            if self.dir.join(&j).exists() {
+                self.manifest.set_file(FileRecord::of(&self.dir, &j)?);
+            }
+        }
+        let report = report::write(&self.dir, &self.manifest, &results)?;
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
+        self.manifest
+            .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
+        self.folder.check(&self.dir)?;
+        self.manifest.store(&self.dir)?;
+        let max = |f: fn(&results::AlgorithmResult) -> Option<f64>| {
+            results
+                .steps
+                .iter()
+                .flat_map(|s| s.algorithms.values())
+                .filter_map(f)
+                .map(f64::abs)
+                .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
+        };
+        let summary = Summary {
+            name: self.plan.name.clone(),
+            steps: self.plan.steps.len(),
+            done: results.steps.len(),
+            measured: self.measured,
+            skipped: self.skipped,
+            algorithms: self.plan.algorithm_names(),
+            max_abs_error_m: max(|a| a.error_m),
+            max_abs_truth_error_m: max(|a| a.truth_error_m),
+            reason: self.manifest.reason.clone(),
+            stopped_at_step: self.manifest.stopped_at_step,
+            manifest: self.dir.join(manifest::FILE),
+            results: self.dir.join(RESULTS_FILE),
+            report,
+        };
+        Ok(Finished {
+            dir: self.dir.clone(),
+            status,
+            summary,
+            stopped,
+        })
+    }
+}
+
+/// A refusal of the simulated bench's scene control, as the campaign's error.
+fn control(e: SceneControlError) -> CampaignError {
+    CampaignError::Control(e.to_string())
+}
+
+fn catalog(bench: &Bench) -> Result<Catalog, CampaignError> {
+    Ok(bench.file.catalog().map_err(MeasureError::from)?)
+}

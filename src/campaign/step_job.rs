@@ -1,0 +1,246 @@
+//! A step's job on the worker thread: process the capture with every algorithm's pipeline, write
+//! the step's files (one write group), hash them and store the manifest that records the step.
+
+use super::folder::FolderIdentity;
+use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus, StepTables};
+use super::plan::Step;
+use super::prepare::PreparedSet;
+use super::results::{self, AlgorithmOutput, StepResult};
+use super::run::STEP_RESULT;
+use super::{io, CampaignError};
+use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
+use crate::measure::record::{self, Provenance};
+use crate::measure::MeasureError;
+use crate::storage::atomic::{write_atomic, write_group, GroupWritten};
+use serde_json::json;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// What a step's job reports.
+pub(super) struct WorkerOutcome {
+    pub(super) processing_s: f64,
+    pub(super) done: Result<(StepResult, Written), CampaignError>,
+}
+
+/// What only step jobs use, one job at a time in step order: every pipeline of the campaign
+/// (lent by the preparations when the run starts) and the records of the steps recorded so far.
+#[derive(Default)]
+pub(super) struct WorkerSide {
+    pipelines: HashMap<PipelineKey, LentPipeline>,
+    /// Steps this session's jobs recorded: a job's manifest holds them all, also those the
+    /// runner has not collected yet.
+    recorded: BTreeMap<usize, StepRecord>,
+    /// The manifest's step tables as last written, so each store serialises only what changed.
+    tables: StepTables,
+}
+
+/// (waveform, algorithm, model order of the steps that set their own).
+type PipelineKey = (usize, usize, Option<usize>);
+
+impl WorkerSide {
+    /// Takes every pipeline out of `prepared`.
+    pub(super) fn lend_all(prepared: &mut PreparedSet) -> Result<WorkerSide, MeasureError> {
+        let mut side = WorkerSide::default();
+        for (w, all) in prepared.base.iter_mut().enumerate() {
+            for (a, p) in all.iter_mut().enumerate() {
+                side.pipelines.insert((w, a, None), p.lend()?);
+            }
+        }
+        for (&(w, a, p), prep) in prepared.ordered.iter_mut().map(|(k, v)| (&*k, v)) {
+            side.pipelines.insert((w, a, Some(p)), prep.lend()?);
+        }
+        Ok(side)
+    }
+
+    /// The key of the pipeline for waveform `w`, algorithm `a` at a step of model order `p`
+    /// (as [`PreparedSet`] chooses).
+    fn key(&self, w: usize, a: usize, p: Option<usize>) -> PipelineKey {
+        match p {
+            Some(p) if self.pipelines.contains_key(&(w, a, Some(p))) => (w, a, Some(p)),
+            _ => (w, a, None),
+        }
+    }
+}
+
+/// What the writer did for a step.
+pub(super) struct Written {
+    /// The step's manifest record, as stored.
+    pub(super) record: StepRecord,
+    pub(super) files_s: f64,
+    /// Hashing and storing the manifest.
+    pub(super) overhead_s: f64,
+}
+
+/// What a step's worker needs besides the capture and the pipelines.
+pub(super) struct StepJob {
+    pub(super) dir: PathBuf,
+    pub(super) folder: FolderIdentity,
+    pub(super) step: Step,
+    pub(super) names: Vec<&'static str>,
+    pub(super) bandwidth_hz: f64,
+    pub(super) provenance: Provenance,
+}
+
+impl StepJob {
+    /// Processes the capture with every algorithm's pipeline, writes the step's files and
+    /// stores the manifest `snapshot` with this step and every step recorded before it done.
+    pub(super) fn run(
+        self,
+        side: &Mutex<WorkerSide>,
+        taken: Taken,
+        snapshot: Manifest,
+    ) -> WorkerOutcome {
+        let mut side = side.lock().unwrap_or_else(|p| p.into_inner());
+        let t = Instant::now();
+        let w = self.step.waveform;
+        let processed: Result<Vec<Processing>, MeasureError> = (0..self.names.len())
+            .map(|a| {
+                let key = side.key(w, a, self.step.music_p);
+                let pipeline = side.pipelines.get_mut(&key).ok_or_else(|| {
+                    MeasureError::Worker("an earlier step lost the pipeline".into())
+                })?;
+                pipeline.process(&taken.captured)
+            })
+            .collect();
+        let processing_s = t.elapsed().as_secs_f64();
+        let done = processed.map_err(CampaignError::from).and_then(|p| {
+            let side = &mut *side;
+            self.record(taken, p, snapshot, &side.recorded, &mut side.tables)
+        });
+        if let Ok((_, written)) = &done {
+            side.recorded
+                .insert(written.record.index, written.record.clone());
+        }
+        WorkerOutcome { processing_s, done }
+    }
+
+    fn record(
+        self,
+        taken: Taken,
+        mut processings: Vec<Processing>,
+        mut snapshot: Manifest,
+        recorded: &BTreeMap<usize, StepRecord>,
+        tables: &mut StepTables,
+    ) -> Result<(StepResult, Written), CampaignError> {
+        let mut others = processings.split_off(1);
+        let mut m = taken.with(processings.pop().expect("the primary algorithm"));
+        let result = {
+            let mut outputs = vec![AlgorithmOutput {
+                name: self.names[0],
+                processed: &m.processing.processed,
+                spread: m.processing.spread.as_ref(),
+            }];
+            for (o, name) in others.iter().zip(&self.names[1..]) {
+                outputs.push(AlgorithmOutput {
+                    name,
+                    processed: &o.processed,
+                    spread: o.spread.as_ref(),
+                });
+            }
+            results::step_result(
+                &self.step,
+                self.bandwidth_hz,
+                m.taken.captured.repetitions(),
+                m.taken.ground_truth.as_ref(),
+                &outputs,
+            )
+        };
+        let applied = serde_json::to_value(&m.taken.captured.applied)
+            .ok()
+            .as_ref()
+            .and_then(manifest::json_to_toml);
+        let result_json = format!("{:#}\n", json!(result));
+        let rel = PathBuf::from(self.step.dir_name());
+        let t_files = Instant::now();
+        self.folder.check(&self.dir)?;
+        let files = write_step_files(
+            &self.dir,
+            &rel,
+            &mut m,
+            &mut others,
+            &self.names,
+            &self.provenance,
+            &result_json,
+        )
+        .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
+        // The files were hashed as they were written: that share of their time is the
+        // campaign's bookkeeping (a lone `radbench capture` does not hash its files).
+        let files_s = t_files.elapsed().as_secs_f64() - files.hashing_s;
+        let t_over = Instant::now();
+        let records: Vec<FileRecord> = files
+            .files
+            .into_iter()
+            .map(|f| FileRecord {
+                path: f
+                    .path
+                    .strip_prefix(&self.dir)
+                    .map(Path::to_path_buf)
+                    .unwrap_or(f.path),
+                bytes: f.bytes,
+                sha256: f.sha256,
+            })
+            .collect();
+        for (&index, record) in recorded {
+            *snapshot.step_mut(index) = record.clone();
+        }
+        let rec = snapshot.step_mut(self.step.index);
+        rec.status = StepStatus::Done;
+        rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
+        rec.applied = applied;
+        rec.files = records;
+        let record = rec.clone();
+        self.folder.check(&self.dir)?;
+        snapshot
+            .store_cached(&self.dir, tables)
+            .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
+        let written = Written {
+            record,
+            files_s,
+            overhead_s: t_over.elapsed().as_secs_f64() + files.hashing_s,
+        };
+        Ok((result, written))
+    }
+}
+
+/// Writes a step's files: the raw capture and the primary algorithm's profiles in the step's
+/// folder, each further algorithm's profiles in a subfolder named after it, the step's result.
+/// They become durable together (one write group: hashed as written, synced and renamed at the
+/// end, each folder synced once); the manifest that names them is written only afterwards.
+fn write_step_files(
+    dir: &Path,
+    rel: &Path,
+    m: &mut Measurement,
+    others: &mut [Processing],
+    names: &[&'static str],
+    provenance: &Provenance,
+    result_json: &str,
+) -> Result<GroupWritten, CampaignError> {
+    let out = dir.join(rel);
+    // The step's folder alone (not its parents): should the run folder vanish after the check,
+    // this fails rather than re-create it.
+    match std::fs::create_dir(&out) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(io(&out)(e)),
+    }
+    let ((), written) = write_group(|| {
+        let raw = record::write_raw(&out, &m.taken, &m.processing.options, provenance)?;
+        record::write_processed(&out, m, &raw, provenance)?;
+        for (p, name) in others.iter_mut().zip(&names[1..]) {
+            swap_processing(m, p);
+            let written = record::write_processed(&out.join(name), m, &raw, provenance);
+            swap_processing(m, p);
+            written?;
+        }
+        write_atomic(&out.join(STEP_RESULT), result_json.as_bytes())?;
+        Ok::<_, CampaignError>(())
+    })?;
+    Ok(written)
+}
+
+/// Exchanges a measurement's processing with another algorithm's (to write that one's files).
+fn swap_processing(m: &mut Measurement, p: &mut Processing) {
+    std::mem::swap(&mut m.processing, p);
+}
