@@ -63,7 +63,7 @@ impl Default for LabOptions {
 
 /// The scope the lab serves: both see the same bench (AWG marker on their external trigger,
 /// the scene on channels 1 and 2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ScopeModel {
     /// Teledyne LeCroy LabMaster 10 Zi-A over VICP or VXI-11 (its remote interface).
@@ -75,7 +75,7 @@ pub enum ScopeModel {
 
 impl ScopeModel {
     /// The catalog key radbench's bench file names.
-    pub(crate) fn catalog_key(self) -> &'static str {
+    pub fn catalog_key(self) -> &'static str {
         match self {
             ScopeModel::Lecroy => "lecroy-labmaster10zi-a",
             ScopeModel::KeysightUxr => "keysight-uxr0334a",

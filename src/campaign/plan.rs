@@ -12,7 +12,7 @@ use super::spec::{
 };
 use super::CampaignError;
 use crate::catalog::Catalog;
-use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink};
+use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
 use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::options::{Algorithm, ProcessOptions};
@@ -70,6 +70,9 @@ pub struct BenchPlan {
     pub awg_transport: Option<AwgTransportName>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scope_transport: Option<ScopeTransportName>,
+    /// Built-in mock lab: the scope it serves (absent: the LeCroy).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scope_model: Option<ScopeModel>,
     /// The calibrated system delay subtracted from every range, seconds.
     pub system_delay_s: f64,
     pub calibrated: bool,
@@ -190,6 +193,7 @@ pub struct BenchInfo {
     pub scene: Option<Scene>,
     pub awg_transport: Option<AwgTransportName>,
     pub scope_transport: Option<ScopeTransportName>,
+    pub scope_model: Option<ScopeModel>,
     pub simulated: bool,
     /// The Tx attenuation radbench can set, dB (`None`: the bench has no `[tx]`).
     pub tx_attenuation_db: Option<(f64, f64)>,
@@ -229,6 +233,7 @@ impl BenchInfo {
         built_in_only("scene", section.scene.is_some())?;
         built_in_only("awg_transport", section.awg_transport.is_some())?;
         built_in_only("scope_transport", section.scope_transport.is_some())?;
+        built_in_only("scope_model", section.scope_model.is_some())?;
         // The Tx attenuation range the model's register allows, from the bench's catalog.
         let tx_range = |catalog: &Catalog, entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
             let model = catalog.get(&entry.as_ref()?.model).ok()?;
@@ -253,6 +258,7 @@ impl BenchInfo {
                     scene: None,
                     awg_transport: None,
                     scope_transport: None,
+                    scope_model: None,
                 })
             }
             None => {
@@ -267,7 +273,7 @@ impl BenchInfo {
                     }
                     None => Scene::default(),
                 };
-                let file = built_in_bench_file(&scene);
+                let file = built_in_bench_file(&scene, section.scope_model.unwrap_or_default());
                 let catalog = Catalog::embedded().map_err(crate::measure::MeasureError::from)?;
                 Ok(BenchInfo {
                     tx_attenuation_db: tx_range(&catalog, &file.tx),
@@ -277,6 +283,7 @@ impl BenchInfo {
                     scope_transport: Some(
                         section.scope_transport.unwrap_or(ScopeTransportName::Vicp),
                     ),
+                    scope_model: section.scope_model,
                     simulated: true,
                 })
             }
@@ -295,14 +302,17 @@ impl BenchInfo {
     pub fn bench_file(&self) -> BenchFile {
         match (&self.file, &self.scene) {
             (Some((_, f)), _) => f.clone(),
-            (None, scene) => built_in_bench_file(&scene.clone().unwrap_or_default()),
+            (None, scene) => built_in_bench_file(
+                &scene.clone().unwrap_or_default(),
+                self.scope_model.unwrap_or_default(),
+            ),
         }
     }
 }
 
 /// The built-in lab as a bench file, for planning (the resources are placeholders: the lab's
 /// ports are known only once it runs).
-fn built_in_bench_file(scene: &Scene) -> BenchFile {
+fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
     let entry = |model: &str, resource: &str| InstrumentEntry {
         model: model.to_string(),
         resource: resource.to_string(),
@@ -313,7 +323,10 @@ fn built_in_bench_file(scene: &Scene) -> BenchFile {
     BenchFile {
         catalog: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
-        scope: entry(BUILT_IN_MODELS[1], "VICP::127.0.0.1"),
+        scope: match scope {
+            ScopeModel::Lecroy => entry(BUILT_IN_MODELS[1], "VICP::127.0.0.1"),
+            other => entry(other.catalog_key(), "TCPIP::127.0.0.1::hislip0::INSTR"),
+        },
         tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
         rx: Some(entry(BUILT_IN_MODELS[3], "ASRL/dev/null::INSTR")),
         simulation: None,
@@ -333,7 +346,10 @@ impl BenchPlan {
     pub(crate) fn planning_bench(&self, info_file: Option<&BenchFile>) -> Bench {
         let file = match info_file {
             Some(f) => f.clone(),
-            None => built_in_bench_file(&self.scene.clone().unwrap_or_default()),
+            None => built_in_bench_file(
+                &self.scene.clone().unwrap_or_default(),
+                self.scope_model.unwrap_or_default(),
+            ),
         };
         Bench {
             file,
@@ -355,7 +371,7 @@ impl BenchPlan {
                 Some(ScopeTransportName::Vxi11) => ScopeLink::Vxi11,
                 _ => ScopeLink::Vicp,
             },
-            scope_model: Default::default(),
+            scope_model: self.scope_model.unwrap_or_default(),
         }
     }
 
@@ -504,6 +520,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
             scene: bench.scene.clone(),
             awg_transport: bench.awg_transport,
             scope_transport: bench.scope_transport,
+            scope_model: bench.scope_model,
             system_delay_s: bench.bench_file().system_delay_s(),
             calibrated: bench.bench_file().calibration.is_some(),
         },

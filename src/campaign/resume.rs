@@ -49,6 +49,7 @@ pub async fn resume(
         scene: plan.bench.scene.clone(),
         awg_transport: plan.bench.awg_transport,
         scope_transport: plan.bench.scope_transport,
+        scope_model: plan.bench.scope_model,
         simulated: plan.bench.simulated,
         tx_attenuation_db: None,
     };

@@ -75,6 +75,9 @@ pub struct BenchSection {
     /// Built-in mock lab only: the scope's transport.
     #[serde(default)]
     pub scope_transport: Option<ScopeTransportName>,
+    /// Built-in mock lab only: the scope it serves (`lecroy`, the default, or `keysight-uxr`).
+    #[serde(default)]
+    pub scope_model: Option<crate::measure::bench::ScopeModel>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]

@@ -183,6 +183,58 @@ async fn a_short_campaign_on_a_uxr_bench_measures_within_a_millimetre() {
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
 }
 
+/// The built-in lab serves the UXR when the spec's `[bench]` says `scope_model`; the manifest
+/// names it, and its plan keeps it for a resume.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_campaign_on_the_built_in_lab_uses_the_uxr_its_spec_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/accuracy.toml");
+    let text = std::fs::read_to_string(original).unwrap();
+    let spec = dir.path().join("uxr.toml");
+    std::fs::write(
+        &spec,
+        text.replacen("[bench]\n", "[bench]\nscope_model = \"keysight-uxr\"\n", 1),
+    )
+    .unwrap();
+    let run = dir.path().join("run");
+    let (code, _, err) = radbench(&[
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--allow-rf",
+        "--out",
+        run.to_str().unwrap(),
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let results: Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("results.json")).unwrap()).unwrap();
+    let steps = results["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 6);
+    for s in steps {
+        let truth = s["algorithms"]["correlation"]["truth_error_m"].as_f64();
+        assert!(truth.unwrap_or_else(|| panic!("{s}")).abs() < 1e-3, "{s}");
+    }
+    let manifest = std::fs::read_to_string(run.join("manifest.toml")).unwrap();
+    assert!(
+        manifest.contains("scope_model = \"keysight-uxr\""),
+        "{manifest}"
+    );
+    assert!(manifest.contains("UXR"), "the scope's identity: {manifest}");
+    // A scope model is the built-in lab's: with a bench file it is refused by name.
+    let (code, _, err) = radbench(&[
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--bench",
+        spec.to_str().unwrap(),
+        "--dry-run",
+    ])
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bench.scope_model"), "{err}");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_signal_while_rf_is_on_leaves_the_bench_safe_with_the_uxr() {
     let lab = uxr_lab().await;
