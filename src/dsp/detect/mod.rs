@@ -69,20 +69,19 @@
 
 mod fit;
 pub(crate) mod psf;
-pub(crate) mod threshold;
 
+pub use super::metrics::threshold::CfarKind;
 pub use psf::{PointSpread, PsfShape, SpectralLines, TabulatedPsf};
-pub use threshold::CfarKind;
 
 use std::ops::RangeInclusive;
 
 use num_complex::Complex64;
 use serde::Serialize;
 
+use super::metrics::threshold::{global_noise, LocalCfar};
 use super::metrics::{sidelobe_levels, width_3db, Axis, Interpolation};
 use super::DspError;
 use fit::{FitWindow, Model};
-use threshold::{global_noise, LocalCfar};
 
 /// How the noise part of CLEAN's threshold is estimated.
 #[derive(Debug, Clone, Copy, PartialEq)]

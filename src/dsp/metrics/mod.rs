@@ -10,6 +10,7 @@ mod cfar;
 mod lobes;
 mod peaks;
 mod resolve;
+pub(crate) mod threshold;
 
 pub use cfar::{CaCfar, CfarDetection};
 pub use lobes::{sidelobe_levels, width_3db, SidelobeLevels};
