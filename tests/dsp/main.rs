@@ -8,6 +8,7 @@ mod detect_support;
 mod dsp_support;
 
 mod catalog_validation;
+mod circles;
 mod dsp_detect;
 mod dsp_metrics;
 mod dsp_music;

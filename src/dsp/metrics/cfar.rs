@@ -6,7 +6,11 @@
 //! `alpha * mean` with `alpha = n (pfa^(-1/n) - 1)` over `n` training cells gives the false-alarm
 //! probability `pfa` exactly. Near the ends of the profile the window is one-sided (fewer training
 //! cells) and `alpha` is recomputed for the cells actually used, so `pfa` holds everywhere.
+//!
+//! The thresholds come from the crate's one sliding-window CFAR (`super::threshold::LocalCfar`,
+//! also behind `dsp::detect`), run here with adjacent training cells and nothing excluded.
 
+use super::threshold::{CfarKind, LocalCfar};
 use crate::dsp::DspError;
 
 /// One detection: the strongest cell of a run of consecutive cells above threshold.
@@ -17,14 +21,11 @@ pub struct CfarDetection {
     pub threshold: f64,
 }
 
-/// A CA-CFAR detector; holds its prefix-sum scratch so repeated calls do not allocate.
+/// A CA-CFAR detector; holds its scratch so repeated calls do not allocate.
 #[derive(Debug, Clone)]
 pub struct CaCfar {
-    guard: usize,
-    training: usize,
-    pfa: f64,
-    oversampling: usize,
-    prefix: Vec<f64>,
+    cfar: LocalCfar,
+    exclude: Vec<bool>,
 }
 
 impl CaCfar {
@@ -43,11 +44,8 @@ impl CaCfar {
             )));
         }
         Ok(Self {
-            guard,
-            training,
-            pfa,
-            oversampling: 1,
-            prefix: Vec::new(),
+            cfar: LocalCfar::new(CfarKind::Ca, guard, training, 1, pfa)?,
+            exclude: Vec::new(),
         })
     }
 
@@ -60,15 +58,14 @@ impl CaCfar {
                     .into(),
             ));
         }
-        self.oversampling = factor;
+        self.cfar = self.cfar.with_cells_per_sample(factor);
         Ok(self)
     }
 
     /// The threshold multiplier for `n` training cells (counting `n / oversampling` independent
     /// samples, at least one).
     pub fn alpha(&self, n: usize) -> f64 {
-        let n = (n as f64 / self.oversampling as f64).max(1.0);
-        n * (self.pfa.powf(-1.0 / n) - 1.0)
+        self.cfar.alpha_ca(n)
     }
 
     /// Writes the threshold of every cell of the power profile `power` into `thresholds` (same
@@ -86,27 +83,9 @@ impl CaCfar {
                 thresholds.len()
             )));
         }
-        self.prefix.clear();
-        self.prefix.push(0.0);
-        let mut acc = 0.0;
-        for &p in power {
-            acc += p;
-            self.prefix.push(acc);
-        }
-        let sum = |a: usize, b: usize| self.prefix[b] - self.prefix[a];
-        for (i, t) in thresholds.iter_mut().enumerate() {
-            let left_end = i.saturating_sub(self.guard);
-            let left_start = i.saturating_sub(self.guard + self.training);
-            let right_start = (i + self.guard + 1).min(n);
-            let right_end = (i + self.guard + self.training + 1).min(n);
-            let cells = (left_end - left_start) + (right_end - right_start);
-            *t = if cells == 0 {
-                f64::INFINITY
-            } else {
-                let mean = (sum(left_start, left_end) + sum(right_start, right_end)) / cells as f64;
-                self.alpha(cells) * mean
-            };
-        }
+        self.exclude.clear();
+        self.exclude.resize(n, false);
+        self.cfar.thresholds(power, &self.exclude, thresholds);
         let mut detections = Vec::new();
         let mut i = 0;
         while i < n {
@@ -166,6 +145,41 @@ mod tests {
         let d = cfar.detect(&power, &mut t).unwrap();
         assert_eq!(d.len(), 1, "{d:?}");
         assert_eq!(d[0].index, 500);
+    }
+
+    /// The thresholds are those of the prefix-sum CA-CFAR this detector had before it called the
+    /// shared sliding window (to rounding).
+    #[test]
+    fn thresholds_match_the_direct_formula() {
+        let mut rng = SplitMix64::new(5);
+        let power: Vec<f64> = (0..3000)
+            .map(|_| rng.complex_gaussian(1.0).norm_sqr())
+            .collect();
+        for (guard, training, os) in [(2, 16, 1), (15, 40, 10), (0, 1, 1), (4000, 3, 1)] {
+            let mut cfar = CaCfar::new(guard, training, 1e-3)
+                .unwrap()
+                .with_oversampling(os)
+                .unwrap();
+            let mut t = vec![0.0; power.len()];
+            cfar.detect(&power, &mut t).unwrap();
+            let n = power.len();
+            for (i, &got) in t.iter().enumerate() {
+                let left = i.saturating_sub(guard + training)..i.saturating_sub(guard);
+                let right = (i + guard + 1).min(n)..(i + guard + training + 1).min(n);
+                let cells = left.len() + right.len();
+                let want = if cells == 0 {
+                    f64::INFINITY
+                } else {
+                    let sum: f64 = power[left].iter().chain(&power[right]).sum();
+                    let k = (cells as f64 / os as f64).max(1.0);
+                    k * (1e-3f64.powf(-1.0 / k) - 1.0) * sum / cells as f64
+                };
+                assert!(
+                    got == want || ((got - want) / want).abs() < 1e-12,
+                    "guard {guard} training {training} cell {i}: {got} vs {want}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Peak detection with prominence and sub-sample peak interpolation.
 
-use super::amplitude_db;
+use super::db::amplitude_db;
 
 /// A local maximum of a sampled profile.
 #[derive(Debug, Clone, Copy, PartialEq)]

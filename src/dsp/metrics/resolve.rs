@@ -1,8 +1,9 @@
 //! The "resolved" rule of thesis-notes.md: one peak with at least 3 dB prominence within +-s/2 of
 //! each true range.
 
+use super::axis::Axis;
+use super::db::to_db;
 use super::peaks::{find_peaks, interpolate_peak, Interpolation};
-use super::{to_db, Axis};
 
 /// Whether a profile resolves a set of targets, and which peak stands for each target.
 #[derive(Debug, Clone, PartialEq)]

@@ -30,7 +30,6 @@ mod root;
 pub use eigen::HermitianEigen;
 pub(crate) use order::estimate_order;
 pub use order::OrderCriterion;
-pub(crate) use root::root_music_ranges;
 
 use super::metrics::local_maxima;
 use super::{DspError, C0};
@@ -354,4 +353,9 @@ impl Music {
     pub fn eigen(&self) -> &HermitianEigen {
         &self.eigen
     }
+}
+
+/// Root-MUSIC ranges from the signal subspace of the last [`Music::estimate`] call (`p` vectors).
+pub(crate) fn root_music_ranges(music: &Music, p: usize, df_hz: f64) -> Result<Vec<f64>, DspError> {
+    root::ranges(music.eigen(), music.config().subarray, p, df_hz)
 }

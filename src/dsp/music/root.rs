@@ -1,7 +1,7 @@
 //! Root-MUSIC: ranges from the roots of the MUSIC polynomial (grid-free), using the signal
-//! subspace of the last [`Music::estimate`] call.
+//! subspace of the last `Music::estimate` call.
 
-use super::Music;
+use super::eigen::HermitianEigen;
 use crate::dsp::{DspError, C0};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
@@ -9,16 +9,21 @@ use std::f64::consts::PI;
 
 const ZERO: Complex64 = Complex64 { re: 0.0, im: 0.0 };
 
-/// Root-MUSIC ranges from the signal subspace of the last `music` call (`p` vectors).
+/// Root-MUSIC ranges from the signal subspace in `eigen` (`p` vectors) of a `subarray`-sized
+/// covariance.
 ///
 /// With `a(w)[i] = w^i`, `w = exp(-j 2 pi df tau)`, the inverse pseudo-spectrum
 /// `a^H (I - Es Es^H) a` is the Laurent polynomial `sum_d c_d w^d`, `c_d` the sum of the d-th
 /// diagonal of the noise projector. Its roots pair up as (z, 1/z*); the p roots inside the unit
 /// circle closest to it give the ranges, `R = -arg(z) / (2 pi df) * c0 / 2` modulo the unambiguous
 /// range. The roots are the eigenvalues of the companion matrix.
-pub(crate) fn root_music_ranges(music: &Music, p: usize, df_hz: f64) -> Result<Vec<f64>, DspError> {
-    let eigen = music.eigen();
-    let m = music.config().subarray;
+pub(super) fn ranges(
+    eigen: &HermitianEigen,
+    subarray: usize,
+    p: usize,
+    df_hz: f64,
+) -> Result<Vec<f64>, DspError> {
+    let m = subarray;
     if p == 0 || p > eigen.vector_count() {
         return Err(DspError::Param(format!(
             "root-MUSIC: p = {p}; allowed: 1..={} signal vectors",
@@ -81,7 +86,7 @@ pub(crate) fn root_music_ranges(music: &Music, p: usize, df_hz: f64) -> Result<V
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dsp::music::{ModelOrder, MusicConfig, MusicSpectrum};
+    use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum};
 
     /// I_div of point targets, one symbol: x[k] = sum exp(-j 2 pi (k - N/2) df tau).
     fn synthetic_idiv(n: usize, df: f64, ranges: &[f64]) -> Vec<Complex64> {
@@ -113,7 +118,7 @@ mod tests {
         .unwrap();
         let mut spectrum = MusicSpectrum::default();
         music.estimate(&idiv, &mut spectrum).unwrap();
-        let ranges = root_music_ranges(&music, 2, df).unwrap();
+        let ranges = ranges(music.eigen(), music.config().subarray, 2, df).unwrap();
         assert!(
             (ranges[0] - 1.0).abs() < 1e-5 && (ranges[1] - 1.06).abs() < 1e-5,
             "{ranges:?}"

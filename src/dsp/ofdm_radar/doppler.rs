@@ -11,7 +11,8 @@
 //! Scaling: both windows are divided by their sums, so a stationary target of amplitude `a` shows
 //! `a` at its cell.
 
-use super::{IDiv, OfdmRadarConfig};
+use super::config::OfdmRadarConfig;
+use super::idiv::IDiv;
 use crate::dsp::window::Window;
 use crate::dsp::{DspError, C0};
 use num_complex::Complex64;

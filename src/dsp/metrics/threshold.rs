@@ -2,9 +2,12 @@
 //!
 //! All thresholds here are for complex Gaussian noise: the power `|z|^2` of a noise cell is
 //! exponential with mean `sigma^2`, so `P(|z|^2 > alpha sigma^2) = exp(-alpha)`. Noise in a profile
-//! is correlated over [`super::PsfShape::noise_cells`] cells (the axis is oversampled); estimates
+//! is correlated over `PsfShape::noise_cells` cells (`dsp::detect`) (the axis is oversampled); estimates
 //! count independent samples, and the local (CFAR) windows take their training cells that far
 //! apart so the classical formulas, derived for independent cells, hold.
+//!
+//! The one sliding-window CFAR of the crate: `dsp::detect` runs it with exclusions and strided
+//! training cells, [`super::CaCfar`] with adjacent cells and an oversampling count.
 
 use crate::dsp::DspError;
 
@@ -54,9 +57,10 @@ fn solve(pfa: f64, pfa_of: impl Fn(f64) -> f64) -> f64 {
     hi
 }
 
-/// CA-CFAR: threshold `alpha * mean` over `n` independent cells.
-pub(crate) fn alpha_ca(pfa: f64, n: usize) -> f64 {
-    let n = n.max(1) as f64;
+/// CA-CFAR over a mean of `samples` independent noise samples (fractional when oversampled
+/// cells are counted, at least one): `alpha = n (pfa^(-1/n) - 1)`.
+pub(crate) fn alpha_ca_samples(pfa: f64, samples: f64) -> f64 {
+    let n = samples.max(1.0);
     n * (pfa.powf(-1.0 / n) - 1.0)
 }
 
@@ -144,6 +148,9 @@ pub(crate) struct LocalCfar {
     /// Distance between training cells (cells per independent noise sample).
     stride: usize,
     pfa: f64,
+    /// Neighbouring training cells that count as one independent sample in the CA factor (the
+    /// zero-padding factor when training cells are taken next to each other, `stride` 1).
+    cells_per_sample: usize,
     /// Threshold factors per number of training cells (CA, OS: total; GO, SO: per side).
     alphas: Vec<f64>,
     left: Vec<f64>,
@@ -174,25 +181,45 @@ impl LocalCfar {
                 )));
             }
         }
-        let alphas = match kind {
-            CfarKind::Ca => (0..=2 * train).map(|n| alpha_ca(pfa, n)).collect(),
+        let mut cfar = Self {
+            kind,
+            guard,
+            train,
+            stride: stride.max(1),
+            pfa,
+            cells_per_sample: 1,
+            alphas: Vec::new(),
+            left: Vec::with_capacity(train),
+            right: Vec::with_capacity(train),
+            sorted: Vec::with_capacity(2 * train),
+        };
+        cfar.tabulate();
+        Ok(cfar)
+    }
+
+    /// Counts `factor` (at least 1) neighbouring training cells as one independent noise sample
+    /// in the CA factor: for a zero-padded profile trained on adjacent cells (`stride` 1).
+    pub(crate) fn with_cells_per_sample(mut self, factor: usize) -> Self {
+        self.cells_per_sample = factor.max(1);
+        self.tabulate();
+        self
+    }
+
+    /// The CA factor for a mean over `n` training cells.
+    pub(crate) fn alpha_ca(&self, n: usize) -> f64 {
+        alpha_ca_samples(self.pfa, n as f64 / self.cells_per_sample as f64)
+    }
+
+    fn tabulate(&mut self) {
+        let (pfa, train) = (self.pfa, self.train);
+        self.alphas = match self.kind {
+            CfarKind::Ca => (0..=2 * train).map(|n| self.alpha_ca(n)).collect(),
             CfarKind::Go => (0..=train).map(|n| alpha_go(pfa, n)).collect(),
             CfarKind::So => (0..=train).map(|n| alpha_so(pfa, n)).collect(),
             CfarKind::Os { rank } => (0..=2 * train)
                 .map(|n| alpha_os(pfa, n, Self::os_rank(rank, n)))
                 .collect(),
         };
-        Ok(Self {
-            kind,
-            guard,
-            train,
-            stride: stride.max(1),
-            pfa,
-            alphas,
-            left: Vec::with_capacity(train),
-            right: Vec::with_capacity(train),
-            sorted: Vec::with_capacity(2 * train),
-        })
     }
 
     fn os_rank(rank: f64, n: usize) -> usize {
@@ -243,7 +270,7 @@ impl LocalCfar {
                 let all = self.left.iter().chain(&self.right).sum::<f64>() / (nl + nr) as f64;
                 let alpha = match self.kind {
                     CfarKind::Ca => self.alphas[nl + nr],
-                    _ => alpha_ca(self.pfa, nl + nr),
+                    _ => self.alpha_ca(nl + nr),
                 };
                 alpha * all
             }
@@ -323,7 +350,11 @@ mod tests {
         assert!(t[32] > 1e4);
         exclude[37] = true;
         cfar.thresholds(&power, &exclude, &mut t);
-        assert!((t[32] - alpha_ca(1e-3, 16)).abs() < 1e-9, "{}", t[32]);
+        assert!(
+            (t[32] - alpha_ca_samples(1e-3, 16.0)).abs() < 1e-9,
+            "{}",
+            t[32]
+        );
     }
 
     #[test]

@@ -1,0 +1,183 @@
+//! No two modules (files) of the dsp and waveform layers import each other (issue 25, "the four
+//! small import circles": a child that needed its parent's types now gets them from a sibling
+//! file, and the parent only re-exports). Paths in comments and in `#[cfg(test)] mod tests` do not
+//! count.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+use super::layers::sources;
+
+type Module = Vec<String>;
+
+fn module_of(src: &Path, file: &Path) -> Module {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let mut parts: Module = rel
+        .iter()
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    if parts.last().is_some_and(|p| p == "mod") {
+        parts.pop();
+    }
+    parts
+}
+
+/// The code of a file without comments and without its unit tests.
+fn code(text: &str) -> String {
+    let text = text
+        .find("#[cfg(test)]\nmod tests")
+        .map_or(text, |i| &text[..i]);
+    text.lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn is_word(c: char) -> bool {
+    c.is_alphanumeric() || c == '_'
+}
+
+/// Every path written in `text` (`a::b::c`, and `a::{b, c::d}` as `a::b` and `a::c::d`), as
+/// segments; single identifiers are left out.
+fn paths(text: &str) -> Vec<Vec<String>> {
+    let chars: Vec<char> = text.chars().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < chars.len() {
+        let starts = is_word(chars[i])
+            && !chars[i].is_ascii_digit()
+            && (i == 0 || !(is_word(chars[i - 1]) || chars[i - 1] == ':'));
+        if !starts {
+            i += 1;
+            continue;
+        }
+        let mut segs = Vec::new();
+        loop {
+            let s = i;
+            while i < chars.len() && is_word(chars[i]) {
+                i += 1;
+            }
+            segs.push(chars[s..i].iter().collect::<String>());
+            if i + 2 < chars.len() && chars[i] == ':' && chars[i + 1] == ':' {
+                i += 2;
+                if chars[i] == '{' {
+                    let mut depth = 0;
+                    let s = i + 1;
+                    while i < chars.len() {
+                        match chars[i] {
+                            '{' => depth += 1,
+                            '}' => {
+                                depth -= 1;
+                                if depth == 0 {
+                                    break;
+                                }
+                            }
+                            _ => {}
+                        }
+                        i += 1;
+                    }
+                    let group: String = chars[s..i.min(chars.len())].iter().collect();
+                    for item in group.split(',') {
+                        let item: Vec<String> = item
+                            .split("::")
+                            .map(|p| p.trim().chars().take_while(|&c| is_word(c)).collect())
+                            .take_while(|p: &String| !p.is_empty())
+                            .collect();
+                        let mut full = segs.clone();
+                        full.extend(item);
+                        out.push(full);
+                    }
+                    segs.clear();
+                    break;
+                }
+                if i < chars.len() && is_word(chars[i]) {
+                    continue;
+                }
+            }
+            break;
+        }
+        if segs.len() > 1 {
+            out.push(segs);
+        }
+    }
+    out
+}
+
+/// The modules of `modules` that module `me` names.
+fn imports(me: &Module, text: &str, modules: &BTreeSet<Module>) -> BTreeSet<Module> {
+    let mut found = BTreeSet::new();
+    for path in paths(&code(text)) {
+        let mut base: Module = match path[0].as_str() {
+            "crate" => Vec::new(),
+            "self" => me.clone(),
+            "super" => me.clone(),
+            first => {
+                let mut child = me.clone();
+                child.push(first.to_owned());
+                if !modules.contains(&child) {
+                    continue;
+                }
+                me.clone()
+            }
+        };
+        let mut rest = &path[..];
+        if rest[0] == "crate" || rest[0] == "self" {
+            rest = &rest[1..];
+        }
+        while rest.first().is_some_and(|s| s == "super") {
+            base.pop();
+            rest = &rest[1..];
+        }
+        base.extend(rest.iter().cloned());
+        while !base.is_empty() && !modules.contains(&base) {
+            base.pop();
+        }
+        if !base.is_empty() && base != *me {
+            found.insert(base);
+        }
+    }
+    found
+}
+
+#[test]
+fn no_two_modules_of_dsp_or_waveform_import_each_other() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    for layer in ["dsp", "waveform"] {
+        sources(&src.join(layer), &mut files);
+    }
+    let modules: BTreeSet<Module> = files.iter().map(|f| module_of(&src, f)).collect();
+    let edges: Vec<(Module, BTreeSet<Module>)> = files
+        .iter()
+        .map(|f| {
+            let me = module_of(&src, f);
+            let text = std::fs::read_to_string(f).unwrap();
+            let found = imports(&me, &text, &modules);
+            (me, found)
+        })
+        .collect();
+    let mut circles = Vec::new();
+    for (a, from_a) in &edges {
+        for (b, from_b) in &edges {
+            if a < b && from_a.contains(b) && from_b.contains(a) {
+                circles.push(format!("{} <-> {}", a.join("::"), b.join("::")));
+            }
+        }
+    }
+    assert!(circles.is_empty(), "import circles: {circles:?}");
+}
+
+#[test]
+fn the_circle_check_sees_parents_children_and_groups() {
+    let m = |s: &str| s.split("::").map(str::to_owned).collect::<Module>();
+    let modules: BTreeSet<Module> = ["dsp", "dsp::music", "dsp::music::root", "dsp::metrics"]
+        .into_iter()
+        .map(m)
+        .collect();
+    let text = "use super::{metrics::Axis, DspError};\nmod root;\nuse root::f; // crate::dsp::x\n";
+    let found = imports(&m("dsp::music"), text, &modules);
+    let found: Vec<String> = found.iter().map(|p| p.join("::")).collect();
+    assert_eq!(found, ["dsp", "dsp::metrics", "dsp::music::root"]);
+    let found = imports(&m("dsp::music::root"), "use super::Music;", &modules);
+    assert!(found.contains(&m("dsp::music")));
+}
