@@ -81,6 +81,49 @@ impl ScopeModel {
             ScopeModel::KeysightUxr => "keysight-uxr0334a",
         }
     }
+
+    pub const ALL: [ScopeModel; 2] = [ScopeModel::Lecroy, ScopeModel::KeysightUxr];
+
+    /// The name the command line and spec files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScopeModel::Lecroy => "lecroy",
+            ScopeModel::KeysightUxr => "keysight-uxr",
+        }
+    }
+
+    pub fn about(self) -> &'static str {
+        match self {
+            ScopeModel::Lecroy => {
+                "Teledyne LeCroy LabMaster 10 Zi-A (VICP or VXI-11), saves `.trc` files beside the SigMF"
+            }
+            ScopeModel::KeysightUxr => {
+                "Keysight Infiniium UXR0334A (HiSLIP, or VXI-11 with --scope-transport vxi11), saves \
+                 the SigMF recording only"
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for ScopeModel {
+    type Err = String;
+
+    /// As `name` spells it; the error lists what is allowed.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                format!("unknown scope model `{s}`: allowed: {}", names.join(", "))
+            })
+    }
+}
+
+impl std::fmt::Display for ScopeModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Ports used per instrument with a port base: raw, VXI-11 core, VXI-11 abort, HiSLIP, VICP.

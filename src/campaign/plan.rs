@@ -6,10 +6,7 @@
 //! without touching an instrument.
 
 use super::kind::{sorted_ranges, SweepAt, SweepParameter};
-use super::spec::{
-    AwgTransportName, ModelOrder, PositionerKind, ScopeTransportName, SpecError, SpecFile,
-    SweepSection,
-};
+use super::spec::{ModelOrder, PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
@@ -67,9 +64,9 @@ pub struct BenchPlan {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scene: Option<Scene>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub awg_transport: Option<AwgTransportName>,
+    pub awg_transport: Option<AwgLink>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub scope_transport: Option<ScopeTransportName>,
+    pub scope_transport: Option<ScopeLink>,
     /// Built-in mock lab: the scope it serves (absent: the LeCroy).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scope_model: Option<ScopeModel>,
@@ -191,8 +188,8 @@ pub struct BenchInfo {
     pub file: Option<(PathBuf, BenchFile)>,
     /// The built-in lab's scene.
     pub scene: Option<Scene>,
-    pub awg_transport: Option<AwgTransportName>,
-    pub scope_transport: Option<ScopeTransportName>,
+    pub awg_transport: Option<AwgLink>,
+    pub scope_transport: Option<ScopeLink>,
     pub scope_model: Option<ScopeModel>,
     pub simulated: bool,
     /// The Tx attenuation radbench can set, dB (`None`: the bench has no `[tx]`).
@@ -279,10 +276,8 @@ impl BenchInfo {
                     tx_attenuation_db: tx_range(&catalog, &file.tx),
                     file: None,
                     scene: Some(scene),
-                    awg_transport: Some(section.awg_transport.unwrap_or(AwgTransportName::Hislip)),
-                    scope_transport: Some(
-                        section.scope_transport.unwrap_or(ScopeTransportName::Vicp),
-                    ),
+                    awg_transport: Some(section.awg_transport.unwrap_or_default()),
+                    scope_transport: Some(section.scope_transport.unwrap_or_default()),
                     scope_model: section.scope_model,
                     simulated: true,
                 })
@@ -362,15 +357,8 @@ impl BenchPlan {
     pub(crate) fn built_in(&self, scene: Scene) -> BuiltIn {
         BuiltIn {
             scene,
-            awg: match self.awg_transport {
-                Some(AwgTransportName::Raw) => AwgLink::Raw,
-                Some(AwgTransportName::Vxi11) => AwgLink::Vxi11,
-                _ => AwgLink::Hislip,
-            },
-            scope: match self.scope_transport {
-                Some(ScopeTransportName::Vxi11) => ScopeLink::Vxi11,
-                _ => ScopeLink::Vicp,
-            },
+            awg: self.awg_transport.unwrap_or_default(),
+            scope: self.scope_transport.unwrap_or_default(),
             scope_model: self.scope_model.unwrap_or_default(),
         }
     }

@@ -71,28 +71,13 @@ pub struct BenchSection {
     pub scene: Option<PathBuf>,
     /// Built-in mock lab only: the AWG's transport.
     #[serde(default)]
-    pub awg_transport: Option<AwgTransportName>,
+    pub awg_transport: Option<crate::measure::bench::AwgLink>,
     /// Built-in mock lab only: the scope's transport.
     #[serde(default)]
-    pub scope_transport: Option<ScopeTransportName>,
+    pub scope_transport: Option<crate::measure::bench::ScopeLink>,
     /// Built-in mock lab only: the scope it serves (`lecroy`, the default, or `keysight-uxr`).
     #[serde(default)]
     pub scope_model: Option<crate::measure::bench::ScopeModel>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AwgTransportName {
-    Raw,
-    Hislip,
-    Vxi11,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ScopeTransportName {
-    Vicp,
-    Vxi11,
 }
 
 /// `[waveform]`: the family and any parameters that differ from the thesis' defaults.

@@ -2,7 +2,7 @@
 //! and its distance to `--target-range`, so a pillar can be placed to a millimetre. RF is on only
 //! while capturing; the safe state runs after each capture and on every exit.
 
-use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArgs};
+use super::args::{ProcessingArgs, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use super::live::{self as live_cli, LiveArgs};
 use super::repeat::{stopped_between, truth_ranges};
@@ -10,6 +10,7 @@ use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::live::{Event, Live};
 use crate::measure::bench::Bench;
+use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
 use crate::measure::capture::{self, CaptureRequest, Rig};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::MeasureError;
@@ -56,14 +57,14 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
     /// Built-in mock lab only: transport to the AWG.
-    #[arg(long, value_enum, default_value = "hislip")]
-    pub awg_transport: AwgTransportArg,
+    #[arg(long, value_parser = super::args::listed::<AwgLink>(), default_value = "hislip")]
+    pub awg_transport: AwgLink,
     /// Built-in mock lab only: transport to the scope.
-    #[arg(long, value_enum, default_value = "vicp")]
-    pub scope_transport: ScopeTransportArg,
+    #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
+    pub scope_transport: ScopeLink,
     /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_enum, value_name = "MODEL")]
-    pub scope_model: Option<super::args::ScopeModelArg>,
+    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    pub scope_model: Option<ScopeModel>,
     #[command(flatten)]
     pub live: LiveArgs,
 }

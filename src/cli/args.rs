@@ -1,10 +1,11 @@
 //! Command-line arguments shared by several subcommands: the waveform and its parameters, the
 //! processing choices, the built-in lab's transports. The library's named enums (waveform,
-//! algorithm, window, FFT precision, detector, carrier phase, correction) are parsed as they are, by their own
+//! algorithm, window, FFT precision, detector, carrier phase, correction, the built-in lab's
+//! transports and scope) are parsed as they are, by their own
 //! `FromStr` over the values they list (`Listed`, `listed`); no clap derive lives outside `cli`.
 
 use crate::exit::bad_input;
-use crate::measure::bench::{AwgLink, ScopeLink};
+use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
 use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
@@ -93,6 +94,42 @@ impl Listed for CarrierPhase {
     }
 }
 
+impl Listed for AwgLink {
+    fn all() -> &'static [Self] {
+        &AwgLink::ALL
+    }
+    fn name(self) -> &'static str {
+        AwgLink::name(self)
+    }
+    fn about(self) -> &'static str {
+        AwgLink::about(self)
+    }
+}
+
+impl Listed for ScopeLink {
+    fn all() -> &'static [Self] {
+        &ScopeLink::ALL
+    }
+    fn name(self) -> &'static str {
+        ScopeLink::name(self)
+    }
+    fn about(self) -> &'static str {
+        ScopeLink::about(self)
+    }
+}
+
+impl Listed for ScopeModel {
+    fn all() -> &'static [Self] {
+        &ScopeModel::ALL
+    }
+    fn name(self) -> &'static str {
+        ScopeModel::name(self)
+    }
+    fn about(self) -> &'static str {
+        ScopeModel::about(self)
+    }
+}
+
 impl Listed for CorrectionMode {
     fn all() -> &'static [Self] {
         &CorrectionMode::ALL
@@ -117,59 +154,6 @@ pub(crate) fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value 
         Ok(v) => v,
         Err(_) => unreachable!("clap passes only the listed values"),
     })
-}
-
-/// `--awg-transport` of the built-in lab.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum AwgTransportArg {
-    Raw,
-    Hislip,
-    Vxi11,
-}
-
-impl From<AwgTransportArg> for AwgLink {
-    fn from(t: AwgTransportArg) -> Self {
-        match t {
-            AwgTransportArg::Raw => AwgLink::Raw,
-            AwgTransportArg::Hislip => AwgLink::Hislip,
-            AwgTransportArg::Vxi11 => AwgLink::Vxi11,
-        }
-    }
-}
-
-/// `--scope-transport` of the built-in lab.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ScopeTransportArg {
-    Vicp,
-    Vxi11,
-}
-
-impl From<ScopeTransportArg> for ScopeLink {
-    fn from(t: ScopeTransportArg) -> Self {
-        match t {
-            ScopeTransportArg::Vicp => ScopeLink::Vicp,
-            ScopeTransportArg::Vxi11 => ScopeLink::Vxi11,
-        }
-    }
-}
-
-/// `--scope-model` of the built-in lab: which scope it serves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ScopeModelArg {
-    /// Teledyne LeCroy LabMaster 10 Zi-A (VICP or VXI-11), saves `.trc` files beside the SigMF.
-    Lecroy,
-    /// Keysight Infiniium UXR0334A (HiSLIP, or VXI-11 with --scope-transport vxi11), saves the
-    /// SigMF recording only.
-    KeysightUxr,
-}
-
-impl From<ScopeModelArg> for crate::measure::bench::ScopeModel {
-    fn from(m: ScopeModelArg) -> Self {
-        match m {
-            ScopeModelArg::Lecroy => Self::Lecroy,
-            ScopeModelArg::KeysightUxr => Self::KeysightUxr,
-        }
-    }
 }
 
 /// The waveform's parameters; unset ones keep the thesis' values.

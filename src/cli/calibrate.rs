@@ -2,9 +2,9 @@
 //! reference target at a known range, and store it in the bench file; `radbench calibrate
 //! response`: measure the chain's response on the same reference (`calibrate_response.rs`).
 
-use super::args::{AwgTransportArg, ScopeTransportArg};
 use super::capture::{bench_source, journal, open_bench};
 use crate::driver::RfPermit;
+use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::bench_file::{store_calibration, Calibration};
 use crate::measure::calibration::{check, estimate_delay};
 use crate::measure::capture::{self, CaptureRequest};
@@ -75,8 +75,8 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         let source = bench_source(
             args.bench.as_deref(),
             None,
-            AwgTransportArg::Hislip,
-            ScopeTransportArg::Vicp,
+            AwgLink::Hislip,
+            ScopeLink::Vicp,
         )?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;

@@ -1,8 +1,9 @@
 //! `radbench calibrate response`: the chain's response measured on one reference pillar, checked
 //! to help, and stored beside the bench file (`measure::response`).
 
-use super::args::{AwgTransportArg, ScopeTransportArg, WaveformArgs};
+use super::args::WaveformArgs;
 use super::capture::{bench_source, journal, open_bench};
+use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
 use crate::measure::capture::Rig;
 use crate::measure::interrupt::Interrupt;
@@ -107,8 +108,8 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         let source = bench_source(
             args.bench.as_deref(),
             args.scene.as_deref(),
-            AwgTransportArg::Hislip,
-            ScopeTransportArg::Vicp,
+            AwgLink::Hislip,
+            ScopeLink::Vicp,
         )?;
         let out = match (&args.out, &bench_path(&args)) {
             (Some(o), _) => Some(o.clone()),

@@ -1,9 +1,10 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{AwgTransportArg, ProcessingArgs, ScopeTransportArg, WaveformArgs};
+use super::args::{ProcessingArgs, WaveformArgs};
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
+use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
 use crate::measure::bench::{Bench, BenchSource, BuiltIn};
 use crate::measure::capture::{self, CaptureRequest, Measurement};
 use crate::measure::interrupt::Interrupt;
@@ -70,15 +71,15 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
     /// Built-in mock lab only: transport to the AWG.
-    #[arg(long, value_enum, default_value = "hislip")]
-    pub awg_transport: AwgTransportArg,
+    #[arg(long, value_parser = super::args::listed::<AwgLink>(), default_value = "hislip")]
+    pub awg_transport: AwgLink,
     /// Built-in mock lab only: transport to the scope.
-    #[arg(long, value_enum, default_value = "vicp")]
-    pub scope_transport: ScopeTransportArg,
+    #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
+    pub scope_transport: ScopeLink,
     /// Built-in mock lab only: the scope it serves (default lecroy; keysight-uxr is reached over
     /// HiSLIP, or VXI-11 with --scope-transport vxi11).
-    #[arg(long, value_enum, value_name = "MODEL")]
-    pub scope_model: Option<super::args::ScopeModelArg>,
+    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    pub scope_model: Option<ScopeModel>,
     /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
@@ -153,11 +154,11 @@ pub(crate) fn calibration_warnings(
 /// the option is refused there.
 pub(crate) fn with_scope_model(
     mut source: BenchSource,
-    model: Option<super::args::ScopeModelArg>,
+    model: Option<ScopeModel>,
 ) -> anyhow::Result<BenchSource> {
     match (&mut source, model) {
         (_, None) => {}
-        (BenchSource::BuiltIn(b), Some(m)) => b.scope_model = m.into(),
+        (BenchSource::BuiltIn(b), Some(m)) => b.scope_model = m,
         (BenchSource::File(_), Some(_)) => {
             return Err(bad_input(
                 "--scope-model applies to the built-in mock lab only: with --bench, the bench \
@@ -172,8 +173,8 @@ pub(crate) fn with_scope_model(
 pub(crate) fn bench_source(
     bench: Option<&Path>,
     scene: Option<&Path>,
-    awg: AwgTransportArg,
-    scope: ScopeTransportArg,
+    awg: AwgLink,
+    scope: ScopeLink,
 ) -> anyhow::Result<BenchSource> {
     if let Some(path) = bench {
         if scene.is_some() {
@@ -190,8 +191,8 @@ pub(crate) fn bench_source(
     };
     Ok(BenchSource::BuiltIn(Box::new(BuiltIn {
         scene,
-        awg: awg.into(),
-        scope: scope.into(),
+        awg,
+        scope,
         scope_model: Default::default(),
     })))
 }

@@ -3,6 +3,7 @@
 
 use super::capture::{bench_source, journal, open_bench};
 use crate::exit::{Classified, ExitClass};
+use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
 use crate::measure::doctor::{self, Status};
 use crate::measure::interrupt::Interrupt;
 use std::path::PathBuf;
@@ -16,8 +17,8 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_enum, value_name = "MODEL")]
-    pub scope_model: Option<super::args::ScopeModelArg>,
+    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    pub scope_model: Option<ScopeModel>,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
@@ -28,8 +29,8 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             bench_source(
                 args.bench.as_deref(),
                 None,
-                super::args::AwgTransportArg::Hislip,
-                super::args::ScopeTransportArg::Vicp,
+                AwgLink::Hislip,
+                ScopeLink::Vicp,
             )?,
             args.scope_model,
         )?;

@@ -4,7 +4,7 @@
 
 use crate::exit::{bad_input, Classified, ExitClass};
 use mock_lab::emulator::lecroy::RemoteInterface;
-use mock_lab::lab::{self, Announce, LabError, LabOptions};
+use mock_lab::lab::{self, Announce, LabError, LabOptions, ScopeModel};
 use mock_lab::scene::Scene;
 use std::path::PathBuf;
 
@@ -43,8 +43,8 @@ pub struct ServeArgs {
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_remote: ScopeRemote,
     /// The scope served as `scope`: lecroy (VICP / VXI-11) or keysight-uxr (HiSLIP and VXI-11).
-    #[arg(long, value_enum, value_name = "MODEL")]
-    pub scope_model: Option<super::args::ScopeModelArg>,
+    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    pub scope_model: Option<ScopeModel>,
     /// Also serve the generic loopback test instrument on every transport.
     #[arg(long)]
     pub with_loopback: bool,
@@ -83,7 +83,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             ScopeRemote::Vxi11 => RemoteInterface::Vxi11,
         },
         with_loopback: a.with_loopback,
-        scope_model: a.scope_model.map(Into::into).unwrap_or_default(),
+        scope_model: a.scope_model.unwrap_or_default(),
         ..LabOptions::default()
     };
     options.validate().map_err(classified)?;

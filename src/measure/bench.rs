@@ -15,8 +15,9 @@ use std::time::Duration;
 /// Longest wait for one request on a mock lab's scene control channel.
 const CONTROL_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// How to reach the built-in mock lab's AWG.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How to reach the built-in mock lab's AWG (`--awg-transport`, a spec's `awg_transport`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum AwgLink {
     Raw,
     #[default]
@@ -25,13 +26,86 @@ pub enum AwgLink {
 }
 
 /// How to reach the built-in mock lab's scope: the LeCroy's VICP or VXI-11, the Infiniium's
-/// HiSLIP (its default, also for `Vicp`, which it does not speak) or VXI-11.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// HiSLIP (its default, also for `Vicp`, which it does not speak) or VXI-11
+/// (`--scope-transport`, a spec's `scope_transport`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum ScopeLink {
     #[default]
     Vicp,
     Vxi11,
 }
+
+impl AwgLink {
+    pub const ALL: [AwgLink; 3] = [AwgLink::Raw, AwgLink::Hislip, AwgLink::Vxi11];
+
+    /// The name the command line and spec files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            AwgLink::Raw => "raw",
+            AwgLink::Hislip => "hislip",
+            AwgLink::Vxi11 => "vxi11",
+        }
+    }
+
+    pub fn about(self) -> &'static str {
+        match self {
+            AwgLink::Raw => "SCPI over a raw TCP socket",
+            AwgLink::Hislip => "HiSLIP",
+            AwgLink::Vxi11 => "VXI-11 (ONC RPC)",
+        }
+    }
+}
+
+impl ScopeLink {
+    pub const ALL: [ScopeLink; 2] = [ScopeLink::Vicp, ScopeLink::Vxi11];
+
+    /// The name the command line and spec files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScopeLink::Vicp => "vicp",
+            ScopeLink::Vxi11 => "vxi11",
+        }
+    }
+
+    pub fn about(self) -> &'static str {
+        match self {
+            ScopeLink::Vicp => "LeCroy's VICP (the Infiniium: HiSLIP)",
+            ScopeLink::Vxi11 => "VXI-11 (ONC RPC)",
+        }
+    }
+}
+
+/// `FromStr` (the error lists what is allowed) and `Display` over `name`.
+macro_rules! named {
+    ($t:ty, $what:literal) => {
+        impl std::str::FromStr for $t {
+            type Err = String;
+
+            fn from_str(s: &str) -> Result<Self, String> {
+                Self::ALL
+                    .into_iter()
+                    .find(|v| v.name() == s)
+                    .ok_or_else(|| {
+                        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                        format!(
+                            concat!("unknown ", $what, " `{}`: allowed: {}"),
+                            s,
+                            names.join(", ")
+                        )
+                    })
+            }
+        }
+
+        impl std::fmt::Display for $t {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+named!(AwgLink, "AWG transport");
+named!(ScopeLink, "scope transport");
 
 /// The built-in mock lab: its scene and the transports to use.
 #[derive(Debug, Clone, Default)]
