@@ -99,6 +99,15 @@ async fn doctor(lab: &Lab, bench: &str, dir: &Path) -> (i32, Value, String) {
 /// The journal shows nothing that radiates (no I or Q output on, no Gotmic CONTROL write but
 /// 0), and the bench is safe.
 fn nothing_radiated(lab: &Lab, journal: &Path) {
+    assert!(
+        radiated_nothing(lab, journal) > 0,
+        "the journal records the exchanges"
+    );
+}
+
+/// [`nothing_radiated`] without asking for any exchange (a doctor stopped as it connects may
+/// not have written yet); returns the writes seen.
+fn radiated_nothing(lab: &Lab, journal: &Path) -> usize {
     let text = std::fs::read_to_string(journal).unwrap();
     let mut writes = 0;
     for line in text.lines() {
@@ -126,10 +135,10 @@ fn nothing_radiated(lab: &Lab, journal: &Path) {
             }
         }
     }
-    assert!(writes > 0, "the journal records the exchanges");
     assert!(lab.bench.is_safe(), "the bench ends safe");
     assert!(!lab.bench.tx.front_end().rf_enabled);
     assert!(!lab.bench.rx.front_end().rf_enabled);
+    writes
 }
 
 fn check<'a>(report: &'a Value, id: &str) -> &'a Value {
@@ -316,7 +325,9 @@ async fn ctrl_c_while_an_instrument_is_opened_ends_the_doctor_with_130() {
         err.contains("SIGINT") && err.contains("nothing is switched on"),
         "{err}"
     );
-    nothing_radiated(&lab, &journal);
+    // The instruments open side by side: on a busy machine the signal can come before any of
+    // them has been written to.
+    radiated_nothing(&lab, &journal);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
