@@ -176,6 +176,10 @@ pub fn session_options(model: &InstrumentModel, error_query: &str) -> SessionOpt
 
 /// Opens a session to `resource` with the model's timeouts and message limit, journalled under
 /// `instrument`.
+///
+/// # Errors
+///
+/// [`SessionError`] when the link cannot be opened (refused, unreachable, or timed out).
 pub async fn open_session(
     resource: Resource,
     model: &InstrumentModel,

@@ -51,6 +51,8 @@
 //! with `Scripted` (feature `testing`) that pin each operation's command sequence, and tests against its mock_lab
 //! emulator (`keysight_uxr` is the worked example).
 
+#![warn(clippy::missing_errors_doc, clippy::missing_panics_doc)]
+
 pub(crate) mod capability;
 pub(crate) mod error;
 #[cfg(any(test, feature = "testing"))]

@@ -60,6 +60,11 @@ impl Scpi {
         }
     }
 
+    /// Sends `command`; no reply is read.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the command cannot be written.
     pub async fn send(&mut self, command: &str) -> Result<(), DriverError> {
         self.io.write(command).await.map_err(session(&self.name))
     }
@@ -146,6 +151,10 @@ impl Scpi {
     }
 
     /// Sends `header` followed by `payload` as a definite-length block.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the block cannot be written.
     pub async fn write_block(&mut self, header: &str, payload: &[u8]) -> Result<(), DriverError> {
         self.io
             .write_block(header, payload)
@@ -154,6 +163,10 @@ impl Scpi {
     }
 
     /// The block in the reply to `query`.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the query fails or the reply is not a well-formed block.
     pub async fn query_block(&mut self, query: &str) -> Result<Block, DriverError> {
         self.io
             .query_block(query)
@@ -168,6 +181,11 @@ impl Scpi {
 
     /// Drains the error queue after a batch and fails with [`DriverError::Refused`], naming the
     /// batch, if it held entries.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Refused`] when the queue held entries; [`DriverError::Session`] when reading it
+    /// fails.
     pub async fn check(&mut self, batch: &str) -> Result<(), DriverError> {
         let errors = self.drain_errors().await?;
         self.refused_if_any(batch, errors)
@@ -191,6 +209,11 @@ impl Scpi {
     }
 
     /// Asks `*IDN?` and checks the answer is the catalog model.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the query fails; [`DriverError::Reply`] when the answer is not
+    /// `manufacturer,model,serial,firmware`; [`DriverError::WrongInstrument`] when it names another model.
     pub async fn identify(&mut self, model: &InstrumentModel) -> Result<Identity, DriverError> {
         const IDN: &str = "*IDN?";
         let reply = self.ask(IDN).await?;

@@ -90,6 +90,10 @@ impl ScriptLog {
     }
 
     /// Panics with the list of unexpected queries, if any.
+    ///
+    /// # Panics
+    ///
+    /// When the driver sent a query the script did not expect: that is the assertion.
     pub fn assert_no_surprises(&self) {
         let unexpected = self.unexpected();
         assert!(

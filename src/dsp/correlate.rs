@@ -118,6 +118,11 @@ fn plan_cost(blocks: usize, fft_len: usize) -> f64 {
 impl CrossCorrelator {
     /// Prepares correlation of captures of up to `rx_len` samples against `tx`, returning the lags
     /// `lags` (inclusive, within `-(tx.len() - 1) ..= rx_len - 1`), with [`Strategy::Auto`].
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `tx` or `rx_len` is empty or above 2^30 samples, or `lags` is
+    /// descending or outside the range above.
     pub fn new(
         tx: &[Complex64],
         rx_len: usize,
@@ -127,6 +132,10 @@ impl CrossCorrelator {
     }
 
     /// All lags, `-(tx.len() - 1) ..= rx_len - 1`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `tx` or `rx_len` is empty or above 2^30 samples.
     pub fn full(tx: &[Complex64], rx_len: usize) -> Result<Self, DspError> {
         let lo = -(tx.len() as isize - 1);
         Self::new(tx, rx_len, lo..=rx_len as isize - 1)
@@ -263,6 +272,10 @@ impl CrossCorrelator {
 
     /// Correlates `rx` (at most `rx_len` samples; shorter is zero-padded) into `out`
     /// (`output_len()` values, ascending lags).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `rx` is longer than `rx_len` or `out` is not `output_len()` long.
     pub fn correlate_into(
         &mut self,
         rx: &[Complex64],
@@ -324,6 +337,10 @@ impl CrossCorrelator {
     }
 
     /// As [`CrossCorrelator::correlate_into`], allocating the output.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `rx` is longer than `rx_len`.
     pub fn correlate(&mut self, rx: &[Complex64]) -> Result<Vec<Complex64>, DspError> {
         let mut out = vec![ZERO; self.output_len()];
         self.correlate_into(rx, &mut out)?;

@@ -319,6 +319,12 @@ pub struct Decimator {
 
 impl Decimator {
     /// Designs the filter for `config` and sets up the buffers.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when the factor is 0, the filter specification cannot be met (edges out
+    /// of order, attenuation outside 20..=150 dB, ripple not positive), or a compensated alignment
+    /// needs a group delay that is not a whole number of output samples.
     pub fn new(config: &DecimatorConfig) -> Result<Self, DspError> {
         if config.factor < 1 {
             return Err(DspError::Param(
@@ -648,6 +654,11 @@ pub struct PeriodicDecimator {
 
 impl PeriodicDecimator {
     /// Decimation of a capture at `capture_rate_hz` by `factor`, flat over +-`band_edge_hz`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when the rate is not positive, the factor is below 2, the band edge is not
+    /// below the output Nyquist frequency, or the filter cannot be designed for them.
     pub fn new(capture_rate_hz: f64, factor: usize, band_edge_hz: f64) -> Result<Self, DspError> {
         let config = DecimatorConfig::for_band(capture_rate_hz, factor, band_edge_hz)?;
         let taps = Self::design(&config)?;

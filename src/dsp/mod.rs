@@ -1,6 +1,8 @@
 //! Pure signal processing: decimation, correlation, OFDM range processing, MUSIC, windows, metrics,
 //! target detection.
 
+#![warn(clippy::missing_errors_doc, clippy::missing_panics_doc)]
+
 use crate::exit::{Classify, ExitClass};
 
 /// A processing failure or an unusable processing parameter.

@@ -53,6 +53,12 @@ pub struct CorrelationProfiler {
 }
 
 impl CorrelationProfiler {
+    /// A correlation profiler of `tx` for captures of up to `rx_len` samples, over the lags
+    /// `0..lags` at `fs_hz`.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`CrossCorrelator::new`].
     pub fn new(tx: &[Complex64], rx_len: usize, lags: usize, fs_hz: f64) -> Result<Self, DspError> {
         let last = (lags.max(1) - 1).min(rx_len - 1) as isize;
         let correlator = CrossCorrelator::new(tx, rx_len, 0..=last)?;
@@ -102,6 +108,10 @@ impl CorrelationProfiler {
     /// The complex lags `r[l] / E` (E = transmit energy, so a unit echo peaks at magnitude 1), the
     /// input of [`crate::dsp::detect`]; valid until the next call. Same definition and lag order as
     /// [`CorrelationProfiler::profile`], whose amplitude is the magnitude of these values.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `rx` is longer than the `rx_len` given to `new`.
     pub fn complex_profile(&mut self, rx: &[Complex64]) -> Result<&[Complex64], DspError> {
         self.correlator.correlate_into(rx, &mut self.out)?;
         let scale = 1.0 / self.energy;
@@ -119,6 +129,11 @@ impl CorrelationProfiler {
         }
     }
 
+    /// The correlation magnitude profile of `rx`, normalised so a unit echo of `tx` peaks at 1.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `rx` is longer than the `rx_len` given to `new`.
     pub fn profile(&mut self, rx: &[Complex64]) -> Result<Profile, DspError> {
         self.correlator.correlate_into(rx, &mut self.out)?;
         Ok(Profile {

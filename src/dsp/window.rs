@@ -50,6 +50,10 @@ impl Window {
     }
 
     /// Writes the `out.len()` coefficients of this window into `out`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when a Taylor `nbar` is 0 or a side-lobe level is out of range.
     pub fn fill(&self, out: &mut [f64]) -> Result<(), DspError> {
         self.validate()?;
         let n = out.len();

@@ -175,6 +175,11 @@ fn run(
 
 /// Measures the MSK-LFM BER at `ebn0_db` over an AWGN channel with the coherent, aligned receiver
 /// of [`MskLfm::demodulate`]. Deterministic for a given `seed`.
+///
+/// # Errors
+///
+/// [`ParamError`] when `ebn0_db` is not finite, the budget has `min_bits` of 0 or `max_bits`
+/// below `min_bits`, or generating or demodulating a batch fails.
 pub fn measure_ber_msk_lfm(
     waveform: &MskLfm,
     ebn0_db: f64,
@@ -205,6 +210,11 @@ pub fn measure_ber_msk_lfm(
 /// Measures the OFDM BER at `ebn0_db` over an AWGN channel, equalising with the known (unit)
 /// channel so the result compares with [`ber_ofdm_theory`]; a preamble estimate would add its own
 /// estimation noise. Deterministic for a given `seed`.
+///
+/// # Errors
+///
+/// [`ParamError`] when `ebn0_db` is not finite, the budget has `min_bits` of 0 or `max_bits`
+/// below `min_bits`, or generating or receiving a frame fails.
 pub fn measure_ber_ofdm(
     waveform: &Ofdm,
     ebn0_db: f64,

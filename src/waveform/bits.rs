@@ -111,6 +111,11 @@ pub(crate) fn frame_bits(
 ///
 /// Fails when the length header asks for more bits than were received (a corrupted header, or a
 /// transmission that was not a payload).
+///
+/// # Errors
+///
+/// [`DecodeError`] when fewer bits than the 32-bit length header arrived, or the header asks for
+/// more bytes than follow it.
 pub fn unframe_payload(bits: &[u8]) -> Result<Vec<u8>, DecodeError> {
     if bits.len() < HEADER_BITS {
         return Err(DecodeError {

@@ -13,6 +13,8 @@
 //! baseband `Complex64`, unit mean power per sample, bits as `u8` values 0/1 taken least significant
 //! bit first. Nothing here does I/O or allocates behind the caller's back beyond the returned buffers.
 
+#![warn(clippy::missing_errors_doc, clippy::missing_panics_doc)]
+
 use crate::exit::{Classify, ExitClass};
 
 /// A waveform parameter that cannot be used; the message names the parameter and what is allowed.

@@ -71,6 +71,11 @@ impl Default for MskLfmParams {
 
 impl MskLfmParams {
     /// Pulse length in samples, checked to be a whole number of at least 2.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when the sample rate is not positive and finite, a duration is not positive and
+    /// finite or not a whole number of samples, or the pulse is shorter than 2 samples.
     pub fn samples_per_pulse(&self) -> Result<usize, ParamError> {
         let fs = self.sample_rate_hz;
         if !(fs.is_finite() && fs > 0.0) {
@@ -151,6 +156,10 @@ impl MskLfm {
     ///
     /// Errors name the parameter: sample rate not positive, bandwidth not in (0, fs], a pulse that is
     /// not a whole number of samples, a bit count that is zero, odd, or above half the pulse's samples.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] for each of the cases above, and when the sweep leaves the Nyquist band.
     pub fn new(params: MskLfmParams) -> Result<Self, ParamError> {
         let n_samples = params.samples_per_pulse()?;
         let fs = params.sample_rate_hz;
@@ -297,6 +306,10 @@ impl MskLfm {
     }
 
     /// One pulse carrying `bits` (exactly `bits_per_pulse` bits).
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when `bits` is not exactly `bits_per_pulse` long.
     pub fn pulse(&self, bits: &[u8]) -> Result<Vec<Complex64>, ParamError> {
         let mut out = vec![Complex64::new(0.0, 0.0); self.n_samples];
         self.pulse_into(bits, &mut out)?;
@@ -305,6 +318,10 @@ impl MskLfm {
 
     /// Generates at least `min_pulses` pulses from `source` (a payload takes as many as it needs;
     /// framing in [`super::bits`]).
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when a payload is longer than its 32-bit length header can describe.
     pub fn generate(
         &self,
         source: &BitSource,
@@ -400,6 +417,10 @@ impl MskLfm {
 
     /// Hard decisions for a capture of whole, aligned pulses (`len` a multiple of
     /// `samples_per_pulse`): bit 1 where the matched-filter output is negative.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when `capture` is empty or not a whole number of pulses.
     pub fn demodulate(&self, capture: &[Complex64]) -> Result<Vec<u8>, ParamError> {
         if capture.is_empty() || capture.len() % self.n_samples != 0 {
             return Err(ParamError::out_of_range(

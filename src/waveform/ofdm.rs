@@ -178,6 +178,11 @@ impl Ofdm {
     /// Errors name the parameter: subcarriers zero or odd, bandwidth not positive, oversampling zero,
     /// a CP fraction outside [0, 1) (the CP must be shorter than the symbol) or not a whole number of
     /// samples, a frame without data symbols.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] for each of the cases above, and when `subcarriers * oversampling` exceeds 2^28
+    /// samples per symbol.
     pub fn new(params: OfdmParams) -> Result<Self, ParamError> {
         let n = params.subcarriers;
         if n < 2 || n % 2 != 0 {
@@ -315,6 +320,10 @@ impl Ofdm {
 
     /// Generates at least `min_frames` frames from `source` (a payload takes as many frames as it
     /// needs; framing in [`super::bits`]).
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when a payload is longer than its 32-bit length header can describe.
     pub fn generate(
         &self,
         source: &BitSource,
@@ -340,6 +349,10 @@ impl Ofdm {
     }
 
     /// Time signal of any symbol matrix with `N` columns: `symbols() * symbol_len()` samples.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when `symbols` does not have the waveform's number of subcarriers.
     pub fn modulate(&self, symbols: &SymbolMatrix) -> Result<Vec<Complex64>, ParamError> {
         let mut out = vec![ZERO; symbols.symbols() * self.symbol_len()];
         self.modulate_into(symbols, &mut out)?;
@@ -432,6 +445,10 @@ impl OfdmReceiver {
 
     /// Subcarrier values of every symbol of a symbol-aligned capture (`len` a multiple of
     /// `symbol_len`), `[symbol][k]`, appended to `out`, the generator's scale undone.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when `capture` is not a whole number of symbols; nothing is appended then.
     pub fn subcarriers_into(
         &mut self,
         capture: &[Complex64],
@@ -459,6 +476,12 @@ impl OfdmReceiver {
     }
 
     /// Demodulates a frame-aligned capture of whole frames.
+    ///
+    /// # Errors
+    ///
+    /// [`ParamError`] when `capture` is empty or not a whole number of frames,
+    /// [`Equalisation::Preamble`] is asked of a frame without preamble symbols, or a known channel
+    /// does not hold one finite, non-zero gain per subcarrier.
     pub fn receive(
         &mut self,
         capture: &[Complex64],

@@ -75,6 +75,11 @@ impl Quantised {
 
 /// Quantises `signal` to 8-bit codes with `backoff_db` (finite, -40..=100 dB) below full scale
 /// measured from `reference`. Fails on an empty, all-zero or non-finite signal.
+///
+/// # Errors
+///
+/// [`ParamError`] when `backoff_db` is not finite or outside -40..=100 dB, a sample is not
+/// finite, or the reference level is zero (an empty or all-zero signal).
 pub fn quantise(
     signal: &[Complex64],
     backoff_db: f64,

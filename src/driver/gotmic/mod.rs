@@ -196,6 +196,11 @@ fn serial_settings(model: &InstrumentModel) -> SerialSettings {
 
 impl Gotmic {
     /// Opens the serial resource with the catalog's line settings and timeouts, then connects.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the serial line cannot be opened, and every error of
+    /// [`connect_with`](Gotmic::connect_with).
     pub async fn open(
         resource: Resource,
         model: &InstrumentModel,
@@ -233,6 +238,10 @@ impl Gotmic {
 
     /// Identifies the module (`*IDN?` and the ID register) on an open session or a fake, with
     /// plain lines.
+    ///
+    /// # Errors
+    ///
+    /// As [`connect_with`](Gotmic::connect_with).
     pub async fn connect(
         io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,
@@ -242,6 +251,13 @@ impl Gotmic {
     }
 
     /// Like [`connect`](Gotmic::connect) with the given framing (CRC is switched on first).
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Catalog`] when the model has no `[rf]` section or its register map does not
+    /// resolve; [`DriverError::Session`] when the line fails; [`DriverError::Reply`] or
+    /// [`DriverError::LineRefused`] when an answer is unreadable or refused;
+    /// [`DriverError::WrongInstrument`] when `*IDN?` or the ID register is not the catalog model.
     pub async fn connect_with(
         io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,

@@ -75,6 +75,12 @@ fn remote_interface(resource: String, protocol: &str, source: SessionError) -> D
 impl Lecroy {
     /// Opens the resource (VICP or VXI-11), identifies the scope and returns the driver. When the
     /// scope does not answer on this protocol the error says to check its remote setting.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::RemoteInterface`] when the scope does not answer on this protocol,
+    /// [`DriverError::Session`] when the link fails otherwise, and every error of
+    /// [`connect`](Lecroy::connect).
     pub async fn open(
         resource: Resource,
         model: &InstrumentModel,
@@ -96,6 +102,13 @@ impl Lecroy {
     }
 
     /// Identifies the scope on an open session (or a scripted fake).
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Catalog`] when the model has no `[digitizer]` section;
+    /// [`DriverError::RemoteInterface`] when the scope does not answer; [`DriverError::Session`] when
+    /// the link fails otherwise; [`DriverError::Reply`] or [`DriverError::WrongInstrument`] when
+    /// `*IDN?` is unreadable or not the catalog model.
     pub async fn connect(
         io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,

@@ -39,6 +39,11 @@ pub struct M8195a {
 
 impl M8195a {
     /// Opens the resource (raw socket, HiSLIP or VXI-11) with the model's timeouts and connects.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Session`] when the link cannot be opened, and every error of
+    /// [`connect`](M8195a::connect).
     pub async fn open(
         resource: Resource,
         model: &InstrumentModel,
@@ -52,6 +57,12 @@ impl M8195a {
     }
 
     /// Checks `*IDN?` against the catalog model and returns the driver.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::Catalog`] when the model has no `[awg]` section or no I/Q + marker mode;
+    /// [`DriverError::Session`] when the link fails; [`DriverError::Reply`] or
+    /// [`DriverError::WrongInstrument`] when `*IDN?` is unreadable or not the catalog model.
     pub async fn connect(
         io: Box<dyn InstrumentIo>,
         model: &InstrumentModel,

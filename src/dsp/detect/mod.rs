@@ -138,6 +138,11 @@ const MAX_SWEEPS: usize = 40;
 
 impl Detector {
     /// A detector for profiles with spread `psf`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when an option is out of range (the message names it) or `psf` has a zero
+    /// or non-finite response at the target.
     pub fn new(psf: impl PointSpread + 'static, options: DetectOptions) -> Result<Self, DspError> {
         options.validate()?;
         let shape = PsfShape::measure(&psf, MAX_ENVELOPE_CELLS)?;
@@ -192,6 +197,12 @@ impl Detector {
 
     /// Detects the targets of the complex profile `z` on `axis`, reporting those whose range lies
     /// in `window_m` (metres on the same axis).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `z` has fewer than 3 cells, the axis is not finite with a positive
+    /// step, or the window is not finite and ascending; [`DspError::Processing`] when a cell of `z`
+    /// is NaN or infinite.
     pub fn detect(
         &mut self,
         z: &[Complex64],

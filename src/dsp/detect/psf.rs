@@ -54,6 +54,11 @@ pub struct SpectralLines {
 impl SpectralLines {
     /// Lines at `nu` cycles per cell with complex weights `weight`, normalised so `g(0) = 1`.
     /// `support` is half the period for a circular profile, else how far the response matters.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `nu` and `weight` are empty or of different lengths, a value is not
+    /// finite, the weights sum to zero, or `support` is below 1.
     pub fn new(nu: Vec<f64>, weight: Vec<Complex64>, support: f64) -> Result<Self, DspError> {
         if nu.is_empty() || nu.len() != weight.len() {
             return Err(DspError::Param(format!(
@@ -85,6 +90,11 @@ impl SpectralLines {
 
     /// The Fourier profile of an OFDM receiver: `subcarriers` lines at `k / (zero_pad *
     /// subcarriers)` weighted by the window (`OfdmRadar::normalised_window`), period K cells.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `zero_pad` is 0, or `window` holds fewer than 2 subcarriers or
+    /// weights that sum to zero or are not finite.
     pub fn ofdm(zero_pad: usize, window: &[f64]) -> Result<Self, DspError> {
         if zero_pad == 0 || window.len() < 2 {
             return Err(DspError::Param(format!(
@@ -236,6 +246,10 @@ impl TabulatedPsf {
 
     /// Tabulates `lines` by direct sums: over one period of `period_cells` cells (a circular
     /// profile, e.g. the OFDM Fourier profile's K) when given, else over `|x| <= lines.support()`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `period_cells` is below 2.
     pub fn from_lines(
         lines: &SpectralLines,
         period_cells: Option<usize>,
@@ -354,6 +368,11 @@ impl TabulatedPsf {
     /// correlated against and `response(nu)` any extra complex response of the capture at `nu`
     /// cycles per sample in [-0.5, 0.5) (the decimator's pass band on the bench; `None`: flat).
     /// Tabulated over `|x| <= span_cells` lags (at least the profile's length).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when the reference is shorter than 4 samples, `span_cells` is not in
+    /// `1..P/2`, or the filtered spectrum sums to zero or is not finite.
     pub fn correlation(
         reference: &[Complex64],
         response: Option<&dyn Fn(f64) -> Complex64>,
@@ -478,6 +497,10 @@ pub struct PsfShape {
 
 impl PsfShape {
     /// Measures `psf` over `|x| <= min(support, max_cells)`, in steps of 1/8 cell.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when the response at the target is zero or not finite.
     pub fn measure(psf: &dyn PointSpread, max_cells: usize) -> Result<Self, DspError> {
         let d_max = (psf.support().floor() as usize).min(max_cells).max(2);
         const SUB: usize = 8;

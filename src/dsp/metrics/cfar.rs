@@ -30,6 +30,10 @@ pub struct CaCfar {
 
 impl CaCfar {
     /// `guard` and `training` cells on each side of the cell under test; `pfa` in (0, 1).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `training` is 0 or `pfa` is not strictly between 0 and 1.
     pub fn new(guard: usize, training: usize, pfa: f64) -> Result<Self, DspError> {
         if training == 0 {
             return Err(DspError::Param(
@@ -51,6 +55,10 @@ impl CaCfar {
 
     /// Declares the profile oversampled `factor` times (the zero-padding factor of an OFDM
     /// profile): `factor` neighbouring cells count as one independent noise sample.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `factor` is 0.
     pub fn with_oversampling(mut self, factor: usize) -> Result<Self, DspError> {
         if factor == 0 {
             return Err(DspError::Param(
@@ -71,6 +79,10 @@ impl CaCfar {
     /// Writes the threshold of every cell of the power profile `power` into `thresholds` (same
     /// length) and returns the detections. A cell with no training cell at all (a profile shorter
     /// than the guard band) gets an infinite threshold.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `thresholds` and `power` differ in length.
     pub fn detect(
         &mut self,
         power: &[f64],

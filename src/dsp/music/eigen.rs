@@ -72,6 +72,12 @@ impl HermitianEigen {
 
     /// Decomposes the Hermitian `matrix` (row-major n x n; both triangles are read, so it must be
     /// Hermitian to rounding) and computes the eigenvectors of the `vectors` largest eigenvalues.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `matrix` is not n x n or `vectors` is above n;
+    /// [`DspError::Processing`] when it holds NaN or infinite values or the QL iteration does not
+    /// converge (a matrix far from Hermitian).
     pub fn decompose(&mut self, matrix: &[Complex64], vectors: usize) -> Result<(), DspError> {
         let n = self.n;
         if matrix.len() != n * n || vectors > n {

@@ -155,6 +155,11 @@ pub struct Music {
 }
 
 impl Music {
+    /// A MUSIC estimator for `config`, with its buffers allocated once.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when a field of `config` is out of range; the message names it.
     pub fn new(config: MusicConfig) -> Result<Self, DspError> {
         config.validate()?;
         let m = config.subarray;
@@ -198,6 +203,10 @@ impl Music {
     }
 
     /// Builds the covariance of `idiv` (symbol-major, `S * N` values) into [`Music::covariance`].
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` is empty or not a whole number of symbols.
     pub fn build_covariance(&mut self, idiv: &[Complex64]) -> Result<usize, DspError> {
         let (n, m) = (self.config.subcarriers, self.config.subarray);
         if idiv.is_empty() || idiv.len() % n != 0 {
@@ -246,6 +255,12 @@ impl Music {
     }
 
     /// MUSIC pseudo-spectrum and peaks of `idiv` into `out`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` is empty or not a whole number of symbols;
+    /// [`DspError::Processing`] when the covariance holds NaN or infinite values or its
+    /// eigen-decomposition does not converge.
     pub fn estimate(
         &mut self,
         idiv: &[Complex64],
@@ -325,6 +340,11 @@ impl Music {
     }
 
     /// LS-ESPRIT ranges (ascending, metres) from the same covariance and order: grid-free.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`Music::estimate`], and [`DspError::Processing`] when the signal subspace is
+    /// rank-deficient or ESPRIT's eigenvalues do not converge.
     pub fn esprit(&mut self, idiv: &[Complex64]) -> Result<Vec<f64>, DspError> {
         self.subspace(idiv)?;
         self.esprit_of_last()
@@ -332,6 +352,11 @@ impl Music {
 
     /// LS-ESPRIT on the signal subspace of the last [`Music::estimate`] or [`Music::esprit`]
     /// call, without building and decomposing the covariance again.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Processing`] when no call has built a signal subspace yet, the subspace is
+    /// rank-deficient, or ESPRIT's eigenvalues do not converge.
     pub fn esprit_of_last(&self) -> Result<Vec<f64>, DspError> {
         let p = self.eigen.vector_count();
         if p == 0 {

@@ -89,6 +89,11 @@ pub struct RangeDoppler {
 impl RangeDoppler {
     /// A processor for `symbols` symbols of the receiver described by `radar` (its subcarriers,
     /// zero padding and subcarrier window are used).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `radar` or the Doppler window is invalid, `symbols` is below 2, the
+    /// carrier or symbol period is not positive and finite, or `doppler_bins` is below `symbols`.
     pub fn new(
         radar: &OfdmRadarConfig,
         symbols: usize,
@@ -155,6 +160,11 @@ impl RangeDoppler {
     }
 
     /// Computes the map of `idiv` (exactly the symbol count given to [`RangeDoppler::new`]).
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` does not have the symbol and subcarrier counts this processor
+    /// was made for.
     pub fn process(&mut self, idiv: &IDiv, out: &mut RangeDopplerMap) -> Result<(), DspError> {
         if idiv.symbols() != self.symbols || idiv.subcarriers() != self.subcarriers {
             return Err(DspError::Param(format!(

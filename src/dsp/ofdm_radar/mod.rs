@@ -69,6 +69,12 @@ pub struct OfdmRadar {
 }
 
 impl OfdmRadar {
+    /// A receiver for `config`, with its FFTs planned and buffers allocated once.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when a field of `config` or its window is out of range; the message names
+    /// it.
     pub fn new(config: OfdmRadarConfig) -> Result<Self, DspError> {
         config.validate()?;
         let mut planner = FftPlanner::new();
@@ -108,6 +114,11 @@ impl OfdmRadar {
     /// `rx` is the received signal at `N os` samples per useful symbol; symbol `s` starts (with its
     /// CP) at sample `start + s * symbol_len`. `tx_symbols` is the transmitted symbol matrix
     /// (symbol-major, ascending frequency), which also gives the number of symbols.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `tx_symbols` is empty or not a whole number of symbols, `rx` is too
+    /// short for them from `start`, or a transmitted subcarrier is zero or not finite.
     pub fn divide(
         &mut self,
         rx: &[Complex64],
@@ -164,6 +175,10 @@ impl OfdmRadar {
     }
 
     /// The averaged, windowed, zero-padded range profile of `idiv` into `out`.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` has no symbols or another number of subcarriers.
     pub fn profile(&mut self, idiv: &IDiv, out: &mut RangeProfile) -> Result<(), DspError> {
         let n = self.config.subcarriers;
         if idiv.subcarriers != n || idiv.symbols == 0 {
@@ -234,6 +249,10 @@ impl OfdmRadar {
     /// windowed, zero-padded IFFT of the symbol-averaged `I_div` as [`OfdmRadar::profile`] with
     /// [`Averaging::Coherent`], before taking the magnitude. The input of [`crate::dsp::detect`],
     /// whatever the configured averaging.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` has no symbols or another number of subcarriers.
     pub fn complex_profile(
         &mut self,
         idiv: &IDiv,
@@ -270,6 +289,10 @@ impl OfdmRadar {
     }
 
     /// [`OfdmRadar::divide`] then [`OfdmRadar::profile`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`OfdmRadar::divide`] and [`OfdmRadar::profile`].
     pub fn process(
         &mut self,
         rx: &[Complex64],
@@ -286,6 +309,10 @@ impl OfdmRadar {
     /// profile evaluated exactly (a direct sum over subcarriers, no grid), with its amplitude. Uses
     /// the same window and averaging as [`OfdmRadar::profile`]. Exact for a single noise-free target;
     /// with interference from a neighbour it finds the maximum of the true continuous profile.
+    ///
+    /// # Errors
+    ///
+    /// [`DspError::Param`] when `idiv` has no symbols or another number of subcarriers.
     pub fn refine_peak(&self, idiv: &IDiv, range_guess_m: f64) -> Result<(f64, f64), DspError> {
         let n = self.config.subcarriers;
         if idiv.subcarriers != n || idiv.symbols == 0 {
