@@ -60,7 +60,7 @@ impl CorrelationProfiler {
     ///
     /// Those of [`CrossCorrelator::new`].
     pub fn new(tx: &[Complex64], rx_len: usize, lags: usize, fs_hz: f64) -> Result<Self, DspError> {
-        let last = (lags.max(1) - 1).min(rx_len - 1) as isize;
+        let last = (lags.max(1) - 1).min(rx_len.saturating_sub(1)) as isize;
         let correlator = CrossCorrelator::new(tx, rx_len, 0..=last)?;
         Ok(Self {
             out: vec![ZERO; correlator.output_len()],
@@ -87,7 +87,7 @@ impl CorrelationProfiler {
                 tx.len()
             )));
         }
-        let last = (lags.max(1) - 1).min(rx_len - 1) as isize;
+        let last = (lags.max(1) - 1).min(rx_len.saturating_sub(1)) as isize;
         let correlator = CrossCorrelator::new(filter, rx_len, 0..=last)?;
         // A unit echo of tx peaks at |sum tx conj(filter)|.
         let gain = tx
@@ -220,4 +220,21 @@ pub(crate) fn weighted_filter(
     }
     planner.plan_fft_inverse(n).process(&mut spec);
     Ok(spec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_capture_is_a_parameter_error_not_an_overflow() {
+        let tx = vec![Complex64::new(1.0, 0.0); 8];
+        for lags in [0, 1, 5] {
+            assert!(matches!(
+                CorrelationProfiler::new(&tx, 0, lags, 16e9),
+                Err(DspError::Param(_))
+            ));
+        }
+        assert!(CorrelationProfiler::new(&tx, 16, 4, 16e9).is_ok());
+    }
 }
