@@ -150,6 +150,38 @@
 
 #![warn(unreachable_pub)]
 
+/// `FromStr` and `Display` of an enum named on the command line and in files, over its `ALL`
+/// values and its `name()`: parses exactly what `name` spells; the error names what was given
+/// and lists every allowed value (`unknown window `x`: allowed: rect, hann, ...`).
+macro_rules! named_enum {
+    ($t:ty, $what:literal) => {
+        impl std::str::FromStr for $t {
+            type Err = String;
+
+            /// As `name` spells it; the error lists what is allowed.
+            fn from_str(s: &str) -> Result<Self, String> {
+                Self::ALL
+                    .into_iter()
+                    .find(|v| v.name() == s)
+                    .ok_or_else(|| {
+                        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                        format!(
+                            concat!("unknown ", $what, " `{}`: allowed: {}"),
+                            s,
+                            names.join(", ")
+                        )
+                    })
+            }
+        }
+
+        impl std::fmt::Display for $t {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
 pub mod address;
 pub mod campaign;
 pub mod catalog;

@@ -76,36 +76,8 @@ impl ScopeLink {
     }
 }
 
-/// `FromStr` (the error lists what is allowed) and `Display` over `name`.
-macro_rules! named {
-    ($t:ty, $what:literal) => {
-        impl std::str::FromStr for $t {
-            type Err = String;
-
-            fn from_str(s: &str) -> Result<Self, String> {
-                Self::ALL
-                    .into_iter()
-                    .find(|v| v.name() == s)
-                    .ok_or_else(|| {
-                        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                        format!(
-                            concat!("unknown ", $what, " `{}`: allowed: {}"),
-                            s,
-                            names.join(", ")
-                        )
-                    })
-            }
-        }
-
-        impl std::fmt::Display for $t {
-            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-                f.write_str(self.name())
-            }
-        }
-    };
-}
-named!(AwgLink, "AWG transport");
-named!(ScopeLink, "scope transport");
+named_enum!(AwgLink, "AWG transport");
+named_enum!(ScopeLink, "scope transport");
 
 /// The built-in mock lab: its scene and the transports to use.
 #[derive(Debug, Clone, Default)]

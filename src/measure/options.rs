@@ -85,26 +85,7 @@ impl Algorithm {
     }
 }
 
-impl std::fmt::Display for Algorithm {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for Algorithm {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|a| a.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|a| a.name()).collect();
-                format!("unknown algorithm `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
+named_enum!(Algorithm, "algorithm");
 
 /// Precision of the OFDM receiver's per-symbol FFT; the rest is double.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -150,26 +131,7 @@ impl FftPrecisionName {
     }
 }
 
-impl std::str::FromStr for FftPrecisionName {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                format!("unknown FFT precision `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
-
-impl std::fmt::Display for FftPrecisionName {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+named_enum!(FftPrecisionName, "FFT precision");
 
 /// Window on the range processing, trading side-lobes for width.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -229,26 +191,7 @@ impl WindowName {
     }
 }
 
-impl std::str::FromStr for WindowName {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                format!("unknown window `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
-
-impl std::fmt::Display for WindowName {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+named_enum!(WindowName, "window");
 
 /// How targets are told from noise and side-lobes (docs/detection.md measures each).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -324,26 +267,7 @@ impl DetectorName {
     }
 }
 
-impl std::str::FromStr for DetectorName {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                format!("unknown detector `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
-
-impl std::fmt::Display for DetectorName {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+named_enum!(DetectorName, "detector");
 
 /// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
 pub(crate) const MAX_ZERO_PAD: usize = 1000;

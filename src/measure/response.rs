@@ -90,26 +90,7 @@ impl CorrectionMode {
     }
 }
 
-impl std::fmt::Display for CorrectionMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for CorrectionMode {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                format!("unknown correction `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
+named_enum!(CorrectionMode, "correction");
 
 /// Which correction a measurement used, as recorded in its processing options.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

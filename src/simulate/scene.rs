@@ -170,26 +170,7 @@ impl CarrierPhase {
     }
 }
 
-impl std::str::FromStr for CarrierPhase {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                format!("unknown carrier phase `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
-
-impl std::fmt::Display for CarrierPhase {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+named_enum!(CarrierPhase, "carrier phase");
 
 /// Echo synthesiser for one transmit signal: holds its spectrum and the FFT plans, so many scenes
 /// (targets, trials) reuse one forward FFT.

@@ -149,26 +149,7 @@ impl WaveformKind {
     }
 }
 
-impl std::fmt::Display for WaveformKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for WaveformKind {
-    type Err = String;
-
-    /// As `name` spells it; the error lists what is allowed.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
-                format!("unknown waveform `{s}`: allowed: {}", names.join(", "))
-            })
-    }
-}
+named_enum!(WaveformKind, "waveform");
 
 impl WaveformSpec {
     /// Thesis Table 4.1: 16 GSa/s, 1 GHz, 10 us, 128 bits.
