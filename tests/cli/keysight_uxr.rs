@@ -38,6 +38,20 @@ async fn uxr_lab() -> Lab {
     .expect("lab starts")
 }
 
+/// The accuracy campaign in `run`: six steps, each within 1 mm of the truth, none missed.
+fn every_step_within_a_millimetre(run: &Path) {
+    let results: Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("results.json")).unwrap()).unwrap();
+    let steps = results["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 6);
+    for s in steps {
+        let a = &s["algorithms"]["correlation"];
+        let truth = a["truth_error_m"].as_f64().unwrap_or_else(|| panic!("{s}"));
+        assert!(truth.abs() < 1e-3, "interpolated error {truth} m");
+        assert_eq!(a["missed"], 0);
+    }
+}
+
 /// `lab`'s bench file, calibrated with the simulated cables' nominal delay (as the built-in lab
 /// is).
 fn bench_file(dir: &Path, lab: &Lab, scope: Transport) -> String {
@@ -170,16 +184,7 @@ async fn a_short_campaign_on_a_uxr_bench_measures_within_a_millimetre() {
     ])
     .await;
     assert_eq!(code, 0, "{err}");
-    let results: Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("results.json")).unwrap()).unwrap();
-    let steps = results["steps"].as_array().unwrap();
-    assert_eq!(steps.len(), 6);
-    for s in steps {
-        let a = &s["algorithms"]["correlation"];
-        let truth = a["truth_error_m"].as_f64().unwrap_or_else(|| panic!("{s}"));
-        assert!(truth.abs() < 1e-3, "interpolated error {truth} m");
-        assert_eq!(a["missed"], 0);
-    }
+    every_step_within_a_millimetre(&run);
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
 }
 
@@ -207,14 +212,7 @@ async fn a_campaign_on_the_built_in_lab_uses_the_uxr_its_spec_names() {
     ])
     .await;
     assert_eq!(code, 0, "{err}");
-    let results: Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("results.json")).unwrap()).unwrap();
-    let steps = results["steps"].as_array().unwrap();
-    assert_eq!(steps.len(), 6);
-    for s in steps {
-        let truth = s["algorithms"]["correlation"]["truth_error_m"].as_f64();
-        assert!(truth.unwrap_or_else(|| panic!("{s}")).abs() < 1e-3, "{s}");
-    }
+    every_step_within_a_millimetre(&run);
     let manifest = std::fs::read_to_string(run.join("manifest.toml")).unwrap();
     assert!(
         manifest.contains("scope_model = \"keysight-uxr\""),
