@@ -68,17 +68,8 @@ impl LiveArgs {
                  --port, or none for a free one; --listen takes an address of this machine)"
             ))
         })?;
-        if !ip.is_loopback() {
-            eprintln!(
-                "WARNING: --listen {ip}: the live view is served beyond this machine's loopback; \
-                 whoever can reach {ip} and has the URL below (its token) can watch and press \
-                 Stop. The traffic is not encrypted.{}",
-                if ip.is_unspecified() {
-                    " From another machine, put this machine's address in place of 127.0.0.1."
-                } else {
-                    ""
-                }
-            );
+        if let Some(warning) = beyond_loopback_warning(ip) {
+            eprintln!("{warning}");
         }
         eprintln!(
             "live view: {} (Stop on the page does what Ctrl-C does)",
@@ -89,6 +80,24 @@ impl LiveArgs {
         }
         Ok(Some(live))
     }
+}
+
+/// The warning `--listen ip` prints when `ip` is not a loopback address: who can reach the page,
+/// and that the traffic is not encrypted.
+fn beyond_loopback_warning(ip: std::net::IpAddr) -> Option<String> {
+    if ip.is_loopback() {
+        return None;
+    }
+    Some(format!(
+        "WARNING: --listen {ip}: the live view is served beyond this machine's loopback; whoever \
+         can reach {ip} and has the URL below (its token) can watch and press Stop. The traffic \
+         is not encrypted.{}",
+        if ip.is_unspecified() {
+            " From another machine, put this machine's address in place of 127.0.0.1."
+        } else {
+            ""
+        }
+    ))
 }
 
 /// Publishes `event` when there is a live view.
@@ -227,4 +236,29 @@ impl Observer for LiveObserver<'_> {
 pub(crate) fn campaign_axes(parameter: Option<&str>) -> Value {
     // The page names the y axis: the error where every step has one, else the first target.
     json!({ "x": parameter.unwrap_or("step") })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::beyond_loopback_warning;
+
+    /// Tested without binding: a test serves on loopback only.
+    #[test]
+    fn only_an_address_beyond_loopback_is_warned_about() {
+        for quiet in ["127.0.0.1", "127.0.0.2", "::1"] {
+            assert_eq!(
+                beyond_loopback_warning(quiet.parse().unwrap()),
+                None,
+                "{quiet}"
+            );
+        }
+        let all = beyond_loopback_warning("0.0.0.0".parse().unwrap()).unwrap();
+        assert!(all.starts_with("WARNING: --listen 0.0.0.0"), "{all}");
+        assert!(all.contains("not encrypted") && all.contains("in place of 127.0.0.1"));
+        let lan = beyond_loopback_warning("192.0.2.7".parse().unwrap()).unwrap();
+        assert!(lan.contains("--listen 192.0.2.7") && lan.contains("not encrypted"));
+        assert!(!lan.contains("in place of"), "{lan}");
+        let v6 = beyond_loopback_warning("::".parse().unwrap()).unwrap();
+        assert!(v6.contains("in place of 127.0.0.1"), "{v6}");
+    }
 }
