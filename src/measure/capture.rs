@@ -561,6 +561,13 @@ pub(crate) fn process_repetitions<R: Alignable>(
     bandwidth_hz: f64,
     clipped: &[Option<RecordClipping>],
 ) -> Result<(Processed, Vec<RepetitionResult>, Option<Spread>), MeasureError> {
+    // A recording can name no repetition at all (an empty `.trc` sequence): refused, not averaged.
+    if raws.is_empty() {
+        return Err(MeasureError::RecordTooShort {
+            points: 0,
+            needed: pipeline.geometry().period,
+        });
+    }
     let clipped: Vec<Option<RecordClipping>> = (0..raws.len())
         .map(|k| clipped.get(k).copied().flatten())
         .collect();
@@ -698,4 +705,28 @@ fn waveform_difference(theirs: &WaveformSpec, ours: &WaveformSpec) -> String {
         })
         .collect();
     format!("its {} differs: {}", theirs.name(), differing.join("; "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::process_repetitions;
+    use crate::measure::{
+        Dac, MeasureError, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission,
+    };
+    use crate::waveform::spec::WaveformSpec;
+
+    #[test]
+    fn a_capture_without_repetitions_is_refused_not_averaged() {
+        let spec = WaveformSpec::msk_lfm_default();
+        let tx = std::sync::Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap());
+        let options = ProcessOptions::for_waveform(spec.kind());
+        let geometry = RecordGeometry::for_capture(tx.len(), tx.sample_rate_hz(), &options);
+        let mut p = Pipeline::new(tx.clone(), options, geometry).unwrap();
+        let none: [RawIq; 0] = [];
+        let err = process_repetitions(&mut p, &none, None, tx.bandwidth_hz(), &[]).unwrap_err();
+        assert!(
+            matches!(err, MeasureError::RecordTooShort { points: 0, needed } if needed == geometry.period),
+            "{err}"
+        );
+    }
 }

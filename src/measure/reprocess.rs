@@ -934,13 +934,14 @@ pub(crate) fn process<R: Record>(
     loaded: &Loaded<R>,
     resolved: Resolved,
 ) -> Result<Reprocessed, MeasureError> {
-    let background: Option<Aligned> = match &resolved.background {
-        Some(path) => Some(super::capture::read_background(
+    let background: Option<Aligned> = match (&resolved.background, loaded.repetitions.first()) {
+        (Some(path), Some(first)) => Some(super::capture::read_background(
             pipeline,
             path,
-            loaded.repetitions[0].sample_rate_hz(),
+            first.sample_rate_hz(),
         )?),
-        None => None,
+        // No repetition: process_repetitions refuses the capture.
+        _ => None,
     };
     let bandwidth = resolved.tx.bandwidth_hz();
     let (mut processed, repetitions, spread) = process_repetitions(
