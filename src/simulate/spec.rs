@@ -91,10 +91,7 @@ impl RunSpec {
                         "range {} m is beyond what this {} waveform can simulate (below {max_range:.2} m: {})",
                         t.range_m,
                         self.waveform.name(),
-                        match self.waveform {
-                            WaveformSpec::MskLfm { .. } => "the echo must start within one pulse length",
-                            WaveformSpec::Ofdm { .. } => "the unambiguous range c0 / (2 df)",
-                        }
+                        self.waveform.max_range_reason()
                     ),
                 );
             }
