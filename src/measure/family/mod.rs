@@ -166,3 +166,45 @@ fn families_taking(field: &str) -> String {
         .collect();
     labels.join(" and ")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_room_applies_nothing_as_the_thesis_and_defaults_to_an_algorithm_it_takes() {
+        for kind in WaveformKind::ALL {
+            let room = of_kind(kind);
+            assert_eq!(
+                room.apply(&WaveformOverrides::default()),
+                Ok(kind.thesis_default()),
+                "{kind}"
+            );
+            assert!(
+                room.algorithms().contains(&room.default_algorithm()),
+                "{kind}"
+            );
+            assert!(room.check().is_ok(), "{kind}");
+            // A parameter the room takes is one `WaveformOverrides` knows (else it would always
+            // be refused as another family's).
+            let known: Vec<&str> = WaveformOverrides::default()
+                .given()
+                .iter()
+                .map(|(field, _)| *field)
+                .collect();
+            for p in room.parameters() {
+                assert!(known.contains(p), "{kind}: {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_room_is_the_one_of_its_spec() {
+        assert_eq!(of_kind(WaveformKind::MskLfm).label(), "MSK-LFM");
+        assert_eq!(of_kind(WaveformKind::Ofdm).label(), "OFDM");
+        assert_eq!(families_taking("bandwidth_hz"), "MSK-LFM and OFDM");
+        assert_eq!(families_taking("pulse_s"), "MSK-LFM");
+        assert!(!of_kind(WaveformKind::MskLfm).is_periodic());
+        assert!(of_kind(WaveformKind::Ofdm).is_periodic());
+    }
+}

@@ -134,7 +134,7 @@ impl WaveformOverrides {
     }
 
     /// Every field by name (as [`OverrideError::field`] names it), and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 10] {
+    pub(super) fn given(&self) -> [(&'static str, bool); 10] {
         [
             ("bandwidth_hz", self.bandwidth_hz.is_some()),
             ("sample_rate_hz", self.sample_rate_hz.is_some()),
