@@ -471,9 +471,9 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     }
     // MUSIC's M against each planned waveform, named in the spec (not as the CLI's --m).
     for wf in &waveforms {
-        if let WaveformSpec::Ofdm { subcarriers, .. } = wf {
+        if let Some(subcarriers) = crate::measure::family::of(wf).subcarriers() {
             for o in processing.iter().filter(|o| o.algorithm.is_subspace()) {
-                if o.music_m < 2 || o.music_m > *subcarriers {
+                if o.music_m < 2 || o.music_m > subcarriers {
                     return Err(spec.error(
                         "processing.music_m",
                         format!(

@@ -115,6 +115,13 @@ pub(crate) trait Family {
     /// The thesis' single-target figures of this family at 1 GHz; `None` when the thesis did not
     /// measure it.
     fn thesis_widths(&self) -> Option<ThesisWidths>;
+
+    /// These parameters as a simulation transmits them: every symbol data known to the radar
+    /// (the communication receiver is not simulated).
+    fn as_simulated(&self) -> WaveformSpec;
+
+    /// The subcarriers that bound the subspace methods' M; `None` for a family without them.
+    fn subcarriers(&self) -> Option<usize>;
 }
 
 /// The thesis' single-target figures: (simulation width cm, PSL dB, where), (lab width, PSL,

@@ -35,6 +35,16 @@ pub(super) struct MskLfmRoom {
 }
 
 impl MskLfmRoom {
+    fn spec(&self) -> WaveformSpec {
+        WaveformSpec::MskLfm {
+            sample_rate_hz: self.sample_rate_hz,
+            bandwidth_hz: self.bandwidth_hz,
+            pulse_s: self.pulse_s,
+            bits_per_pulse: self.bits_per_pulse,
+            band: self.band,
+        }
+    }
+
     fn params(&self) -> MskLfmParams {
         MskLfmParams {
             sample_rate_hz: self.sample_rate_hz,
@@ -135,6 +145,14 @@ impl Family for MskLfmRoom {
             simulation: (13.2, -13.24, "Table 4.5"),
             lab: (12.73, -10.49, "4.4.1"),
         })
+    }
+
+    fn as_simulated(&self) -> WaveformSpec {
+        self.spec()
+    }
+
+    fn subcarriers(&self) -> Option<usize> {
+        None
     }
 }
 

@@ -167,6 +167,22 @@ impl Family for OfdmRoom {
             lab: (13.42, -14.19, "4.5.1"),
         })
     }
+
+    /// Without a preamble: the radar knows every symbol.
+    fn as_simulated(&self) -> WaveformSpec {
+        WaveformSpec::Ofdm {
+            bandwidth_hz: self.bandwidth_hz,
+            subcarriers: self.subcarriers,
+            oversampling: self.oversampling,
+            cp_fraction: self.cp_fraction,
+            symbols: self.symbols,
+            preamble_symbols: 0,
+        }
+    }
+
+    fn subcarriers(&self) -> Option<usize> {
+        Some(self.subcarriers)
+    }
 }
 
 /// OFDM frames with every transmitted symbol (symbol-major, ascending subcarrier frequency).
