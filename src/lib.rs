@@ -11,7 +11,7 @@
 //!  |
 //!  +---> simulate ----------------------+
 //!  |                                    v
-//!  +---> measure (bench, station, pipeline, record) -> dsp, waveform (pure)
+//!  +---> measure (bench, station, pipeline, record) -> waveform, dsp (pure; waveform -> dsp)
 //!  |        |       |        +-> storage (atomic files, SigMF, npy/npz/HDF5/CSV, plots, the prepared-piece cache)
 //!  |        |       +-> catalog
 //!  |        +-> driver -> session -> transport -> (tokio::net, serialport)
@@ -40,11 +40,11 @@
 //! | [`session`] | 2 | IEEE 488.2 / SCPI on a transport: queries, blocks, `*OPC?`, `SYST:ERR?` |
 //! | [`catalog`] | data | schema and loader for `instruments/*.toml` |
 //! | [`driver`] | 3 | capability traits (AWG, digitizer, RF front end), the drivers (M8195A, LeCroy MAUI, Keysight Infiniium, Gotmic), opened from a catalog entry's `driver` family (`driver::open`), permit, safe state; test doubles behind the `testing` feature |
-//! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers |
+//! | [`waveform`] | pure | waveform specs, MSK-LFM and OFDM generators, DAC quantisation, receivers; uses `dsp` for the OFDM numerology it shares with the radar (checked once there) |
 //! | [`trc`] | pure | LeCroy waveform blocks and `.trc` files (WAVEDESC, segments): decode and build |
 //! | [`dsp`] | pure | decimation, correlation, OFDM range processing, MUSIC, windows, metrics, detection (CLEAN, CFAR), the chain's response estimate and its receive equaliser, the two ends' I/Q errors told apart in the image and undone |
 //! | [`storage`] | out | atomic files, SigMF (write and read), npy (write and read)/CSV, npz and HDF5 exports, plots, the cache of prepared pieces (filter taps, point spreads) keyed by their inputs and the build |
-//! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files, the bench doctor, the simulated bench's scene behind a typed seam (`set_scene`, `reseed`, `scene`) |
+//! | [`measure`] | 4 | the bench in use, each waveform family's room (`family`: overrides, transmission, payload decoder, algorithms; one `match` in `family::of`), the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files, the bench doctor, the simulated bench's scene behind a typed seam (`set_scene`, `reseed`, `scene`) |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), the kinds (one table, `kind.rs`), the runner and its step jobs, positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
 //! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |

@@ -12,10 +12,10 @@ use crate::catalog::Catalog;
 use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
 use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
+use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::measure::options::{Algorithm, ProcessOptions};
 use crate::measure::response::CorrectionMode;
 use crate::measure::scene_control::Scene;
-use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -471,9 +471,9 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     }
     // MUSIC's M against each planned waveform, named in the spec (not as the CLI's --m).
     for wf in &waveforms {
-        if let WaveformSpec::Ofdm { subcarriers, .. } = wf {
+        if let Some(subcarriers) = crate::measure::family::of(wf).subcarriers() {
             for o in processing.iter().filter(|o| o.algorithm.is_subspace()) {
-                if o.music_m < 2 || o.music_m > *subcarriers {
+                if o.music_m < 2 || o.music_m > subcarriers {
                     return Err(spec.error(
                         "processing.music_m",
                         format!(
@@ -620,15 +620,7 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
         Ok(_) => {}
         Err(e) => return Err(spec.error("waveform", e.to_string())),
     }
-    let check = match spec_out.kind() {
-        WaveformKind::MskLfm => spec_out
-            .msk_lfm_params()
-            .map(|p| crate::waveform::msk_lfm::MskLfm::new(p).map(|_| ())),
-        WaveformKind::Ofdm => spec_out
-            .ofdm_params()
-            .map(|p| crate::waveform::ofdm::Ofdm::new(p).map(|_| ())),
-    };
-    if let Some(Err(e)) = check {
+    if let Err(e) = crate::measure::family::of(&spec_out).check() {
         return Err(spec.error("waveform", e.to_string()));
     }
     Ok(spec_out)

@@ -6,12 +6,12 @@
 
 use crate::exit::bad_input;
 use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
 use crate::measure::response::CorrectionMode;
 use crate::simulate::scene::CarrierPhase;
-use crate::waveform::overrides::{OverrideError, WaveformOverrides};
 use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
 
 /// A library enum the command line takes by name: its values (with a line of help each) and its

@@ -284,10 +284,7 @@ pub fn transmission(kind: WaveformKind, options: &[String]) -> anyhow::Result<Tr
             )));
         }
     }
-    let name = match kind {
-        WaveformKind::MskLfm => "msk-lfm",
-        WaveformKind::Ofdm => "ofdm",
-    };
+    let name = kind.name();
     let argv = ["radbench", "capture", "--waveform", name]
         .into_iter()
         .map(String::from)

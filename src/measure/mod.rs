@@ -6,6 +6,7 @@
 //! | `ambiguity` | a waveform's ambiguity function as uploaded, a capture's cross-ambiguity |
 //! | `bench_file` | the bench file: instruments, resources, calibration |
 //! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
+//! | `family` | each waveform family's behaviour in one room (`family/msk_lfm.rs`, `family/ofdm.rs`): overrides, transmission, payload decoder, algorithms; `family::of` is the one `match` over the families |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
 //! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
 //! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
@@ -33,6 +34,7 @@ pub(crate) mod clipping;
 pub(crate) mod detect;
 pub(crate) mod doctor;
 pub(crate) mod export;
+pub(crate) mod family;
 pub(crate) mod figure;
 pub mod interrupt;
 pub mod options;

@@ -73,15 +73,15 @@ impl Algorithm {
     /// Whether this algorithm can process this waveform (the subspace methods and Fourier need
     /// OFDM symbols; correlation works for both).
     pub fn supports(self, waveform: WaveformKind) -> bool {
-        self == Algorithm::Correlation || waveform == WaveformKind::Ofdm
+        super::family::of_kind(waveform)
+            .algorithms()
+            .contains(&self)
     }
 
-    /// The default algorithm of a waveform: correlation for MSK-LFM, Fourier for OFDM.
+    /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
+    /// Fourier for OFDM.
     pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
-        match waveform {
-            WaveformKind::MskLfm => Algorithm::Correlation,
-            WaveformKind::Ofdm => Algorithm::Fourier,
-        }
+        super::family::of_kind(waveform).default_algorithm()
     }
 }
 

@@ -1,13 +1,13 @@
 //! The communication half of the pipeline: the data carried by the waveform, decoded from the
-//! strongest echo. Receivers and FFT plans are built once per pipeline.
+//! strongest echo by its family's decoder (`family`), and counted. Receivers and FFT plans are
+//! built once per pipeline.
 
-use super::transmit::{Modulation, Transmission};
+use super::family::DecodePayload;
+use super::transmit::Transmission;
 use super::MeasureError;
-use crate::dsp::link_quality::{link_quality, LinkQuality};
+use crate::dsp::link_quality::LinkQuality;
 use crate::waveform::bits::{count_bit_errors, unframe_payload};
-use crate::waveform::ofdm::{qpsk_map, Equalisation, OfdmReceiver};
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
 use serde::Serialize;
 use std::sync::Arc;
 
@@ -154,14 +154,8 @@ impl LinkTrace {
     }
 }
 
-/// Bits of the MSK-LFM phase trajectory drawn.
-const TRAJECTORY_BITS: f64 = 32.0;
-
-/// Points of the MSK-LFM phase trajectory drawn (per line).
-const TRAJECTORY_POINTS: usize = 2000;
-
 /// Unwrapped phase in degrees.
-fn unwrapped_deg(z: &[Complex64]) -> Vec<f64> {
+pub(crate) fn unwrapped_deg(z: &[Complex64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(z.len());
     let mut last = 0.0;
     let mut offset = 0.0;
@@ -181,48 +175,20 @@ fn unwrapped_deg(z: &[Complex64]) -> Vec<f64> {
     out
 }
 
-/// What the decoder recovered before the bits are counted.
-struct Decoded {
-    bits: Vec<u8>,
-    quality: Option<LinkQuality>,
-    trace: Option<LinkTrace>,
+/// What a family's decoder recovered before the bits are counted.
+pub(crate) struct Decoded {
+    pub(crate) bits: Vec<u8>,
+    pub(crate) quality: Option<LinkQuality>,
+    pub(crate) trace: Option<LinkTrace>,
 }
 
-/// The receiver of one transmission.
-pub(crate) enum PayloadDecoder {
-    /// MSK-LFM: advance the capture by the strongest echo's (fractional) lag, remove its carrier
-    /// phase, demodulate. The FFT plans of the shift are made once.
-    MskLfm {
-        forward: Arc<dyn Fft<f64>>,
-        inverse: Arc<dyn Fft<f64>>,
-        buf: Vec<Complex64>,
-        scratch: Vec<Complex64>,
-    },
-    /// OFDM: the frame-aligned receiver, equalised from the preamble.
-    Ofdm(Box<OfdmReceiver>),
-}
+/// The receiver of one transmission: its family's decoder (`family::DecodePayload`, plans made
+/// once), then the bits counted against those sent and the payload unframed.
+pub(crate) struct PayloadDecoder(Box<dyn DecodePayload>);
 
 impl PayloadDecoder {
     pub(crate) fn new(tx: &Transmission, period: usize) -> Result<Self, MeasureError> {
-        Ok(match &tx.modulation {
-            Modulation::MskLfm(_) => {
-                let mut planner = FftPlanner::<f64>::new();
-                let forward = planner.plan_fft_forward(period);
-                let inverse = planner.plan_fft_inverse(period);
-                let scratch_len = forward
-                    .get_inplace_scratch_len()
-                    .max(inverse.get_inplace_scratch_len());
-                PayloadDecoder::MskLfm {
-                    forward,
-                    inverse,
-                    buf: Vec::with_capacity(period),
-                    scratch: vec![Complex64::new(0.0, 0.0); scratch_len],
-                }
-            }
-            Modulation::Ofdm { generator, .. } => {
-                PayloadDecoder::Ofdm(Box::new(generator.receiver()))
-            }
-        })
+        Ok(PayloadDecoder(tx.modulation.payload_decoder(period)))
     }
 
     /// Decodes the data of one aligned repetition `rx` from the strongest echo, at fractional
@@ -234,72 +200,7 @@ impl PayloadDecoder {
         tx: &Transmission,
         lag: Option<f64>,
     ) -> Option<PayloadResult> {
-        let result = match (self, &tx.modulation) {
-            (
-                PayloadDecoder::MskLfm {
-                    forward,
-                    inverse,
-                    buf,
-                    scratch,
-                },
-                Modulation::MskLfm(gen),
-            ) => {
-                // The correlation profile's cell is the echo's lag in samples of the aligned
-                // repetition: advance the capture by it so the echo starts at sample 0.
-                let lag = lag?;
-                buf.clear();
-                buf.extend_from_slice(rx);
-                fractional_shift(buf, -lag, forward.as_ref(), inverse.as_ref(), scratch);
-                // Remove the echo's carrier phase: correlate with the reference at lag 0.
-                let c: Complex64 = buf
-                    .iter()
-                    .zip(&tx.reference)
-                    .map(|(a, b)| a * b.conj())
-                    .sum();
-                let derot = if c.norm() > 0.0 {
-                    c.conj() / c.norm()
-                } else {
-                    Complex64::new(1.0, 0.0)
-                };
-                let used = tx.reference.len().min(buf.len());
-                for v in &mut buf[..used] {
-                    *v *= derot;
-                }
-                gen.soft_symbols(&buf[..used])
-                    .map(|soft| msk_decoded(gen, &soft, &buf[..used], &tx.reference, &tx.bits))
-                    .map_err(|e| e.to_string())
-            }
-            (PayloadDecoder::Ofdm(receiver), Modulation::Ofdm { .. }) => {
-                let used = tx.reference.len();
-                let n = receiver.waveform().subcarriers();
-                let spacing =
-                    receiver.waveform().sample_rate_hz() / receiver.waveform().fft_len() as f64;
-                receiver
-                    .receive(&rx[..used.min(rx.len())], &Equalisation::Preamble)
-                    .map(|r| {
-                        let ideal: Vec<Complex64> = tx
-                            .bits
-                            .chunks_exact(2)
-                            .map(|b| qpsk_map(b[0], b[1]))
-                            .collect();
-                        let quality = link_quality(&r.equalised, &ideal);
-                        let centre = (n as f64 - 1.0) / 2.0;
-                        Decoded {
-                            trace: Some(LinkTrace::Ofdm {
-                                channel: r.channel[..n.min(r.channel.len())].to_vec(),
-                                subcarrier_hz: (0..n)
-                                    .map(|k| (k as f64 - centre) * spacing)
-                                    .collect(),
-                                constellation: r.equalised,
-                            }),
-                            bits: r.bits,
-                            quality,
-                        }
-                    })
-                    .map_err(|e| e.to_string())
-            }
-            _ => return None,
-        };
+        let result = self.0.decode(rx, tx, lag)?;
         Some(match result {
             Ok(Decoded {
                 bits,
@@ -344,87 +245,4 @@ impl PayloadDecoder {
             },
         })
     }
-}
-
-/// The MSK-LFM decoder's figures from the matched-filter outputs `soft` (every symbol, bit
-/// order) of the aligned, derotated pulses `pulses` that carried `sent`: hard decisions, EVM and
-/// MER of the (I, Q) symbol pairs against the sent ones with the echo's amplitude taken out
-/// (data-aided), and the first pulse's phase trajectory.
-fn msk_decoded(
-    gen: &crate::waveform::msk_lfm::MskLfm,
-    soft: &[f64],
-    pulses: &[Complex64],
-    reference: &[Complex64],
-    sent: &[u8],
-) -> Decoded {
-    let bits: Vec<u8> = soft.iter().map(|&v| u8::from(v < 0.0)).collect();
-    let n = soft.len().min(sent.len()) / 2 * 2;
-    let sign = |b: u8| 1.0 - 2.0 * f64::from(b & 1);
-    let (num, den) = soft[..n]
-        .iter()
-        .zip(&sent[..n])
-        .fold((0.0, 0.0), |(a, b), (v, &s)| (a + v * sign(s), b + 1.0));
-    let gain = if den > 0.0 { num / den } else { 0.0 };
-    let (mut quality, mut constellation) = (None, Vec::new());
-    if gain.abs() > 0.0 && gain.is_finite() {
-        constellation = soft[..n]
-            .chunks_exact(2)
-            .map(|p| Complex64::new(p[0], p[1]) / gain)
-            .collect();
-        let ideal: Vec<Complex64> = sent[..n]
-            .chunks_exact(2)
-            .map(|b| Complex64::new(sign(b[0]), sign(b[1])))
-            .collect();
-        quality = link_quality(&constellation, &ideal);
-    }
-    let spb = gen.samples_per_bit();
-    let shown = ((TRAJECTORY_BITS * spb).ceil() as usize).min(pulses.len());
-    // The phase is taken at the points drawn, not at every sample: a bit turns it by 90 degrees
-    // over `spb` samples, so a step of a few degrees unwraps as at the full rate.
-    let stride = shown.div_ceil(TRAJECTORY_POINTS).max(1);
-    let phase_deg = unwrapped_deg(&gen.dechirped(pulses, shown, stride));
-    // What was sent: the transmitted reference (the first pulse, as the AWG's codes play it).
-    let ideal_phase_deg = unwrapped_deg(&gen.dechirped(reference, shown, stride));
-    Decoded {
-        bits,
-        quality,
-        trace: Some(LinkTrace::MskLfm {
-            constellation,
-            phase_deg,
-            ideal_phase_deg,
-            samples_per_bit: spb / stride as f64,
-        }),
-    }
-}
-
-/// `x` advanced by `shift` samples in place (circularly, band-limited): out[n] = x[n - shift].
-fn fractional_shift(
-    x: &mut [Complex64],
-    shift: f64,
-    forward: &dyn Fft<f64>,
-    inverse: &dyn Fft<f64>,
-    scratch: &mut [Complex64],
-) {
-    let n = x.len();
-    forward.process_with_scratch(x, scratch);
-    let step = -2.0 * std::f64::consts::PI * shift / n as f64;
-    // The phase ramp by recurrence (one complex product per bin), restarted from an exact
-    // phasor every EXACT_EVERY bins so rounding cannot accumulate: no sin/cos per bin.
-    const EXACT_EVERY: usize = 1024;
-    let rotate = Complex64::from_polar(1.0, step);
-    let mut phasor = Complex64::new(0.0, 0.0);
-    let scale = 1.0 / n as f64;
-    for (k, v) in x.iter_mut().enumerate() {
-        if k % EXACT_EVERY == 0 || k == n / 2 + 1 {
-            let signed = if k <= n / 2 {
-                k as f64
-            } else {
-                k as f64 - n as f64
-            };
-            phasor = Complex64::from_polar(scale, step * signed);
-        }
-        *v *= phasor;
-        phasor *= rotate;
-    }
-    inverse.process_with_scratch(x, scratch);
 }

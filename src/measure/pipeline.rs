@@ -19,7 +19,7 @@ use super::clipping::{self, Clipping, RecordClipping, ScopeAdc};
 use super::detect;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
-use super::transmit::{Modulation, Transmission};
+use super::transmit::Transmission;
 use super::MeasureError;
 use crate::dsp::decimate::{DecimatorConfig, PeriodicDecimator};
 use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
@@ -667,10 +667,10 @@ pub(crate) fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<()
         ));
     }
     if alg.is_subspace() {
-        let n = match &tx.modulation {
-            Modulation::Ofdm { generator, .. } => generator.subcarriers(),
-            Modulation::MskLfm(_) => 0,
-        };
+        let n = tx
+            .modulation
+            .ofdm_frame()
+            .map_or(0, |(generator, _)| generator.subcarriers());
         let m = options.music_m;
         if m < 2 || m > n {
             return Err(MeasureError::option(
@@ -791,12 +791,13 @@ impl Pipeline {
                 waveform: tx.len(),
             });
         }
-        let range = match (options.algorithm, &tx.modulation) {
+        // Correlation takes every family; the other algorithms divide by an OFDM frame's symbols.
+        let range = match (options.algorithm, tx.modulation.ofdm_frame()) {
             (Algorithm::Correlation, _) => RangeProcessor::correlation(&tx, &options, &geometry)?,
-            (_, Modulation::Ofdm { generator, symbols }) => RangeProcessor::Ofdm(Box::new(
-                OfdmProcessor::new(&tx, generator, symbols, &options)?,
-            )),
-            (alg, Modulation::MskLfm(_)) => {
+            (_, Some((generator, symbols))) => RangeProcessor::Ofdm(Box::new(OfdmProcessor::new(
+                &tx, generator, symbols, &options,
+            )?)),
+            (alg, None) => {
                 return Err(MeasureError::AlgorithmNeedsOfdm {
                     algorithm: alg.name(),
                 })

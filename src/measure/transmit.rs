@@ -1,15 +1,15 @@
-//! What the AWG plays: the waveform (MSK-LFM, or OFDM with its symbols), its 8-bit codes and marker,
-//! and what the receiver needs to know about it (the transmitted reference, the bits).
+//! What the AWG plays: the waveform (made by its family's room, `family`), its 8-bit codes and
+//! marker, and what the receiver needs to know about it (the transmitted reference, the bits).
 
+use super::family::{self, Modulated, Modulation};
 use super::MeasureError;
 use crate::driver::IqWaveform;
 use crate::waveform::bits::BitSource;
-use crate::waveform::msk_lfm::MskLfm;
-use crate::waveform::ofdm::{Ofdm, SymbolMatrix};
 use crate::waveform::quantise::{quantise, BackoffReference};
 use crate::waveform::spec::WaveformSpec;
 use num_complex::Complex64;
 use serde::Serialize;
+use std::sync::Arc;
 
 /// The marker is high on the first this-many samples of each repetition: 4 ns at 16 GSa/s, well
 /// above the M8195A's minimum marker pulse of 128 DAC samples (32 memory samples at DIV4).
@@ -41,18 +41,6 @@ impl Default for Dac {
     }
 }
 
-/// The modulated waveform and what its receivers need.
-#[derive(Debug, Clone)]
-pub enum Modulation {
-    /// One or more MSK-LFM pulses (tables built once).
-    MskLfm(MskLfm),
-    /// OFDM frames with every transmitted symbol (symbol-major, ascending subcarrier frequency).
-    Ofdm {
-        generator: Box<Ofdm>,
-        symbols: SymbolMatrix,
-    },
-}
-
 /// What quantising to the DAC cost.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QuantisationReport {
@@ -67,7 +55,8 @@ pub struct QuantisationReport {
 pub struct Transmission {
     /// The parameters it was made from.
     pub spec: WaveformSpec,
-    pub modulation: Modulation,
+    /// The generator, as the family's receivers use it.
+    pub(crate) modulation: Arc<dyn Modulation>,
     /// The codes and marker downloaded to the AWG.
     pub iq: IqWaveform,
     /// The transmitted signal per unit full scale (codes / 127 on the bench): the correlation
@@ -122,25 +111,11 @@ impl Transmission {
         if let Some(p) = payload {
             check_payload(spec, p.len())?;
         }
-        let (samples, bits, modulation) = match spec {
-            WaveformSpec::MskLfm { .. } => {
-                let gen = MskLfm::new(spec.msk_lfm_params().expect("an MSK-LFM spec"))?;
-                let sig = gen.generate(&source, 1)?;
-                (sig.samples, sig.bits, Modulation::MskLfm(gen))
-            }
-            WaveformSpec::Ofdm { .. } => {
-                let gen = Ofdm::new(spec.ofdm_params().expect("an OFDM spec"))?;
-                let sig = gen.generate(&source, 1)?;
-                (
-                    sig.samples,
-                    sig.bits,
-                    Modulation::Ofdm {
-                        generator: Box::new(gen),
-                        symbols: sig.symbols,
-                    },
-                )
-            }
-        };
+        let Modulated {
+            samples,
+            bits,
+            modulation,
+        } = family::of(spec).modulate(&source)?;
         let backoff_db = match dac {
             Dac::Codes { backoff_db } => backoff_db,
             Dac::Ideal => DEFAULT_BACKOFF_DB,
@@ -301,30 +276,7 @@ impl Transmission {
                 Dac::Ideal => serde_json::json!("ideal"),
             },
         });
-        match &self.spec {
-            WaveformSpec::MskLfm {
-                bits_per_pulse,
-                pulse_s,
-                ..
-            } => {
-                v["bits_per_pulse"] = (*bits_per_pulse).into();
-                v["pulse_s"] = (*pulse_s).into();
-            }
-            WaveformSpec::Ofdm {
-                subcarriers,
-                cp_fraction,
-                symbols,
-                oversampling,
-                preamble_symbols,
-                ..
-            } => {
-                v["subcarriers"] = (*subcarriers).into();
-                v["cp_fraction"] = (*cp_fraction).into();
-                v["symbols_per_frame"] = (*symbols).into();
-                v["oversampling"] = (*oversampling).into();
-                v["preamble_symbols"] = (*preamble_symbols).into();
-            }
-        }
+        family::of(&self.spec).describe(&mut v);
         v
     }
 }
@@ -386,19 +338,8 @@ fn in_spectrum(x: &mut [Complex64], edit: impl FnOnce(&mut [Complex64])) {
 /// longest that fits.
 fn check_payload(spec: &WaveformSpec, bytes: usize) -> Result<(), MeasureError> {
     use crate::waveform::bits::HEADER_BITS;
-    let per_unit_samples = match spec {
-        WaveformSpec::MskLfm { .. } => spec.samples_per_repetition()?,
-        WaveformSpec::Ofdm { .. } => spec.samples_per_repetition()?,
-    };
-    let bits_per_unit = match *spec {
-        WaveformSpec::MskLfm { bits_per_pulse, .. } => bits_per_pulse,
-        WaveformSpec::Ofdm {
-            subcarriers,
-            symbols,
-            preamble_symbols,
-            ..
-        } => 2 * subcarriers * symbols.saturating_sub(preamble_symbols),
-    };
+    let per_unit_samples = spec.samples_per_repetition()?;
+    let bits_per_unit = family::of(spec).bits_per_repetition();
     if bits_per_unit == 0 || per_unit_samples == 0 {
         return Ok(());
     }

@@ -10,15 +10,14 @@ use crate::dsp::metrics::{
 };
 use crate::dsp::range_profile::Profile;
 use crate::dsp::C0;
+use crate::measure::family;
 use crate::measure::options::ProcessOptions;
 use crate::measure::pipeline::{Pipeline, RangeResult, RawIq, RecordGeometry};
 use crate::measure::transmit::{Dac, Transmission};
 use crate::rng::SplitMix64;
 use crate::storage::plot::{Curve, Marker, ProfilePlot};
 use crate::storage::profile::ProfileTable;
-use crate::waveform::spec::WaveformSpec;
 use num_complex::Complex64;
-use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Salt that separates the noise stream from the bit stream of one seed.
@@ -113,14 +112,12 @@ fn column_name(label: &str) -> String {
 /// Synthesis window: an OFDM frame is periodic (circular delay = continuous transmission); a pulse
 /// gets room for the longest echo plus 2 m, rounded up to a multiple of 4096 (fast FFT sizes).
 fn window_len(spec: &RunSpec, tx_len: usize) -> usize {
-    match spec.waveform {
-        WaveformSpec::Ofdm { .. } => tx_len,
-        WaveformSpec::MskLfm { sample_rate_hz, .. } => {
-            let far = spec.targets.iter().map(|t| t.range_m).fold(0.0, f64::max) + 2.0;
-            let guard = (2.0 * far / C0 * sample_rate_hz).ceil() as usize;
-            (tx_len + guard).div_ceil(4096) * 4096
-        }
+    if family::of(&spec.waveform).is_periodic() {
+        return tx_len;
     }
+    let far = spec.targets.iter().map(|t| t.range_m).fold(0.0, f64::max) + 2.0;
+    let guard = (2.0 * far / C0 * spec.waveform.sample_rate_hz()).ceil() as usize;
+    (tx_len + guard).div_ceil(4096) * 4096
 }
 
 /// Metrics of one trial.
@@ -258,9 +255,10 @@ pub fn pipeline(
     tx: Arc<Transmission>,
     window: usize,
 ) -> Result<Pipeline, SimError> {
-    let lags = match spec.waveform {
-        WaveformSpec::MskLfm { .. } => window - tx.len() + 1,
-        WaveformSpec::Ofdm { .. } => window / 2,
+    let lags = if family::of(&spec.waveform).is_periodic() {
+        window / 2
+    } else {
+        window - tx.len() + 1
     };
     Ok(Pipeline::new(
         tx,
@@ -355,13 +353,7 @@ pub fn simulate(spec: &RunSpec) -> Result<SimOutcome, SimError> {
         reason: "must be at least 1".into(),
     })?;
     let many = spec.trials > 1;
-    let extra = match spec.waveform {
-        WaveformSpec::Ofdm { .. } => BTreeMap::from([(
-            "fft_precision".to_string(),
-            serde_json::json!(spec.processing.fft_precision),
-        )]),
-        WaveformSpec::MskLfm { .. } => BTreeMap::new(),
-    };
+    let extra = family::of(&spec.waveform).own_settings(&spec.processing);
     let result = ScenarioResult {
         id: spec.id.clone(),
         waveform: spec.waveform.name(),

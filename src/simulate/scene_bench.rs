@@ -13,12 +13,12 @@ use super::spec::{RunSpec, ScenarioResult};
 use super::SimError;
 use crate::dsp::C0;
 use crate::measure::capture::CaptureRequest;
+use crate::measure::family;
 use crate::measure::options::ProcessOptions;
 use crate::measure::pipeline::Processed;
 use crate::measure::scene_capture::SceneCapture;
 use crate::waveform::spec::WaveformSpec;
 use mock_lab::scene::Scene;
-use std::collections::BTreeMap;
 
 /// The capture's acquisition wait (`radbench capture --wait`, default 10 s): only checked.
 const WAIT_S: f64 = 10.0;
@@ -91,13 +91,7 @@ pub(crate) fn simulate_scene(spec: &SceneSpec) -> Result<SceneOutcome, SimError>
         });
     };
     let many = spec.trials > 1;
-    let mut extra = BTreeMap::new();
-    if let WaveformSpec::Ofdm { .. } = spec.waveform {
-        extra.insert(
-            "fft_precision".to_string(),
-            serde_json::json!(run_spec.processing.fft_precision),
-        );
-    }
+    let mut extra = family::of(&spec.waveform).own_settings(&run_spec.processing);
     extra.insert("targets".into(), serde_json::json!(processed.targets));
     extra.insert("snr_profile_db".into(), serde_json::json!(processed.snr_db));
     extra.insert("warnings".into(), serde_json::json!(processed.warnings));

@@ -36,17 +36,11 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
-    /// Defaults of `radbench simulate run`: physical phase, seed 1, one trial, noise-free. An
-    /// OFDM frame is simulated as a radar frame: every symbol carries data known to the radar, no
-    /// preamble (the communication receiver is not simulated here).
+    /// Defaults of `radbench simulate run`: physical phase, seed 1, one trial, noise-free. The
+    /// waveform is simulated as a radar frame: every symbol carries data known to the radar (an
+    /// OFDM frame without its preamble; the communication receiver is not simulated here).
     pub fn new(id: impl Into<String>, waveform: WaveformSpec, targets: Vec<Target>) -> Self {
-        let mut waveform = waveform;
-        if let WaveformSpec::Ofdm {
-            preamble_symbols, ..
-        } = &mut waveform
-        {
-            *preamble_symbols = 0;
-        }
+        let waveform = crate::measure::family::of(&waveform).as_simulated();
         Self {
             id: id.into(),
             processing: ProcessOptions::for_waveform(waveform.kind()),
@@ -91,10 +85,7 @@ impl RunSpec {
                         "range {} m is beyond what this {} waveform can simulate (below {max_range:.2} m: {})",
                         t.range_m,
                         self.waveform.name(),
-                        match self.waveform {
-                            WaveformSpec::MskLfm { .. } => "the echo must start within one pulse length",
-                            WaveformSpec::Ofdm { .. } => "the unambiguous range c0 / (2 df)",
-                        }
+                        self.waveform.max_range_reason()
                     ),
                 );
             }

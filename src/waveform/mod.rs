@@ -63,6 +63,5 @@ pub mod ber;
 pub mod bits;
 pub mod msk_lfm;
 pub mod ofdm;
-pub(crate) mod overrides;
 pub mod quantise;
 pub mod spec;

@@ -29,6 +29,7 @@ use rustfft::{Fft, FftPlanner};
 
 use super::bits::{frame_bits, BitSource};
 use super::ParamError;
+use crate::dsp::ofdm_radar::{Numerology, NumerologyFault, Sizes};
 use crate::rng::SplitMix64;
 
 /// Seed of the known preamble symbols ("PREAMBLE" in ASCII).
@@ -185,56 +186,55 @@ impl Ofdm {
     /// samples per symbol.
     pub fn new(params: OfdmParams) -> Result<Self, ParamError> {
         let n = params.subcarriers;
-        if n < 2 || n % 2 != 0 {
-            return Err(ParamError::out_of_range(
+        let subcarriers = || {
+            ParamError::out_of_range(
                 "subcarriers",
                 n,
                 "must be even and at least 2 (subcarrier k sits at (k - N/2) df)",
-            ));
+            )
+        };
+        // The generator's own rule; the numerology the radar shares is checked once, in dsp.
+        if n % 2 != 0 {
+            return Err(subcarriers());
         }
-        let b = params.bandwidth_hz;
-        if !(b.is_finite() && b > 0.0) {
-            return Err(ParamError::out_of_range(
+        let (b, os, cp) = (params.bandwidth_hz, params.oversampling, params.cp_fraction);
+        let numerology = Numerology {
+            subcarriers: n,
+            oversampling: os,
+            cp_fraction: cp,
+            bandwidth_hz: b,
+        };
+        let Sizes { fft_len, cp_len } = numerology.check().map_err(|fault| match fault {
+            NumerologyFault::Subcarriers => subcarriers(),
+            NumerologyFault::Bandwidth => ParamError::out_of_range(
                 "bandwidth_hz",
                 b,
                 "must be a positive, finite bandwidth in Hz",
-            ));
-        }
-        let os = params.oversampling;
-        if os == 0 {
-            return Err(ParamError::out_of_range(
+            ),
+            NumerologyFault::Oversampling => ParamError::out_of_range(
                 "oversampling",
                 os,
                 "must be at least 1 (the sample rate is oversampling * bandwidth)",
-            ));
-        }
-        let fft_len = n.checked_mul(os).filter(|&l| l <= 1 << 28).ok_or_else(|| {
-            ParamError::out_of_range(
+            ),
+            NumerologyFault::SymbolTooLong => ParamError::out_of_range(
                 "subcarriers * oversampling",
                 format!("{n} * {os}"),
                 "must be at most 2^28 samples per symbol",
-            )
-        })?;
-        let cp = params.cp_fraction;
-        if !(cp.is_finite() && (0.0..1.0).contains(&cp)) {
-            return Err(ParamError::out_of_range(
+            ),
+            NumerologyFault::CpFraction => ParamError::out_of_range(
                 "cp_fraction",
                 cp,
                 "must be at least 0 and below 1: the cyclic prefix must be shorter than the symbol",
-            ));
-        }
-        let cp_exact = cp * fft_len as f64;
-        let cp_len = cp_exact.round() as usize;
-        if (cp_exact - cp_len as f64).abs() > 1e-9 * fft_len as f64 {
-            return Err(ParamError::out_of_range(
+            ),
+            NumerologyFault::CpNotWhole { samples, fft_len } => ParamError::out_of_range(
                 "cp_fraction",
                 cp,
                 &format!(
                     "must give a whole number of samples: cp_fraction * subcarriers * oversampling = \
-                     {cp_exact}; use a multiple of 1/{fft_len}"
+                     {samples}; use a multiple of 1/{fft_len}"
                 ),
-            ));
-        }
+            ),
+        })?;
         if params.symbols_per_frame == 0 || params.preamble_symbols >= params.symbols_per_frame {
             return Err(ParamError::out_of_range(
                 "symbols_per_frame",

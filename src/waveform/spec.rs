@@ -6,7 +6,6 @@
 //! prefix 1/4, 100 symbols of which 1 is a known preamble.
 
 use super::msk_lfm::{MskLfmParams, PulseLength};
-use super::ofdm::OfdmParams;
 use super::ParamError;
 use serde::{Deserialize, Serialize};
 
@@ -320,28 +319,6 @@ impl WaveformSpec {
         }
     }
 
-    /// The OFDM generator parameters (`None` for MSK-LFM).
-    pub(crate) fn ofdm_params(&self) -> Option<OfdmParams> {
-        match *self {
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                oversampling,
-                cp_fraction,
-                symbols,
-                preamble_symbols,
-            } => Some(OfdmParams {
-                subcarriers,
-                bandwidth_hz,
-                oversampling,
-                cp_fraction,
-                symbols_per_frame: symbols,
-                preamble_symbols,
-            }),
-            WaveformSpec::MskLfm { .. } => None,
-        }
-    }
-
     /// Samples of one repetition (pulse or frame) at the waveform rate, without building the
     /// waveform; the generators check the parameters themselves.
     pub(crate) fn samples_per_repetition(&self) -> Result<usize, ParamError> {
@@ -386,6 +363,14 @@ impl WaveformSpec {
                 0 => f64::INFINITY,
                 n => C0 / (2.0 * bandwidth_hz / n as f64),
             },
+        }
+    }
+
+    /// What bounds [`max_range_m`](Self::max_range_m), for messages.
+    pub(crate) fn max_range_reason(&self) -> &'static str {
+        match self {
+            WaveformSpec::MskLfm { .. } => "the echo must start within one pulse length",
+            WaveformSpec::Ofdm { .. } => "the unambiguous range c0 / (2 df)",
         }
     }
 

@@ -18,7 +18,6 @@ use crate::campaign::kind::{has_own_figures, kind_figures, SweepParameter};
 use crate::campaign::manifest::Manifest;
 use crate::campaign::results::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
 use crate::physics::C0;
-use crate::waveform::ber::{ber_msk_lfm_theory, ber_ofdm_theory};
 use crate::waveform::spec::{WaveformKind, WaveformSpec};
 
 /// One plot of the report.
@@ -32,24 +31,13 @@ pub struct Figure {
     pub chart: Chart,
 }
 
-/// The thesis' single-target figures: (simulation width cm, PSL dB, where), (lab width, PSL, where).
-pub(crate) struct ThesisWidths {
-    pub simulation: (f64, f64, &'static str),
-    pub lab: (f64, f64, &'static str),
-}
+/// The thesis' single-target figures of a family (its room holds them).
+pub(crate) use crate::measure::family::ThesisWidths;
 
-/// Tables 4.5 (MSK-LFM) and 4.7 (OFDM) and the lab sections 4.4.1 / 4.5.1, at 1 GHz.
-pub(crate) fn thesis_widths(kind: WaveformKind) -> ThesisWidths {
-    match kind {
-        WaveformKind::MskLfm => ThesisWidths {
-            simulation: (13.2, -13.24, "Table 4.5"),
-            lab: (12.73, -10.49, "4.4.1"),
-        },
-        WaveformKind::Ofdm => ThesisWidths {
-            simulation: (13.2, -13.24, "Table 4.7"),
-            lab: (13.42, -14.19, "4.5.1"),
-        },
-    }
+/// Tables 4.5 (MSK-LFM) and 4.7 (OFDM) and the lab sections 4.4.1 / 4.5.1, at 1 GHz; `None` for
+/// a family the thesis did not measure.
+pub(crate) fn thesis_widths(kind: WaveformKind) -> Option<ThesisWidths> {
+    crate::measure::family::of_kind(kind).thesis_widths()
 }
 
 /// The waveform a step used.
@@ -95,10 +83,7 @@ pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
 /// The waveform's theoretical BER at `ebn0_db` (thesis-notes: MSK-LFM Q(sqrt(2 Eb/N0)), OFDM
 /// Q(sqrt(2 Eb/N0 / (1 + cp)))).
 pub fn theory(w: &WaveformSpec, ebn0_db: f64) -> f64 {
-    match w {
-        WaveformSpec::MskLfm { .. } => ber_msk_lfm_theory(ebn0_db),
-        WaveformSpec::Ofdm { cp_fraction, .. } => ber_ofdm_theory(ebn0_db, *cp_fraction),
-    }
+    crate::measure::family::of(w).ber_theory(ebn0_db)
 }
 
 /// The Eb/N0 (dB) at which the theory gives `ber` (bisection; 0 < ber < 0.5).
@@ -446,7 +431,7 @@ fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
     // The thesis' values hold at 1 GHz for its two waveforms.
     let kind = waveform_of(manifest, steps[0]).map(|w| w.kind());
     let at_1ghz = steps.iter().all(|s| s.nominal.bandwidth_hz == 1e9);
-    let thesis = kind.filter(|_| at_1ghz).map(thesis_widths);
+    let thesis = kind.filter(|_| at_1ghz).and_then(thesis_widths);
     let waveform = kind.map_or("", |k| k.name());
     let mut out = Vec::new();
     for (id, title, unit, points, pick) in [
@@ -736,10 +721,7 @@ fn ber_theory(
          the measured BER), since the bench's absolute Eb/N0 is not measured. The curve tests \
          the shape (1 dB of Eb/N0 per dB of {swept}), not the absolute level.",
         w.kind().name(),
-        match w.kind() {
-            WaveformKind::MskLfm => "Q(sqrt(2 Eb/N0))",
-            WaveformKind::Ofdm => "Q(sqrt(2 Eb/N0 / (1 + CP)))",
-        },
+        crate::measure::family::of(w).ber_theory_formula(),
         implied.len(),
     );
     (series, note)

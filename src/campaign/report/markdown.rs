@@ -254,7 +254,7 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
         for s in &single {
             let thesis = waveform_of(manifest, s)
                 .filter(|_| s.nominal.bandwidth_hz == 1e9)
-                .map(|w| thesis_widths(w.kind()));
+                .and_then(|w| thesis_widths(w.kind()));
             for (name, a) in &s.algorithms {
                 if a.width_3db_cm.is_none() && a.sidelobe_db.is_none() {
                     continue;

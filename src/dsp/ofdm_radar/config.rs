@@ -1,5 +1,7 @@
-//! The receiver's parameters, checked once in `OfdmRadarConfig::validate`.
+//! The receiver's parameters, checked once in `OfdmRadarConfig::validate` (the numerology it
+//! shares with the waveform's generator in `numerology.rs`).
 
+use super::numerology::{Fault, Numerology};
 use crate::dsp::window::Window;
 use crate::dsp::{DspError, C0};
 
@@ -104,40 +106,58 @@ impl OfdmRadarConfig {
         C0 / (2.0 * self.profile_len() as f64 * self.subcarrier_spacing_hz())
     }
 
-    /// Checks every field; the message names the field and what is allowed.
+    /// Checks every field; the message names the field and what is allowed. The numerology
+    /// (subcarriers, bandwidth, oversampling, cyclic prefix) is the one check the waveform's
+    /// generator also uses ([`Numerology::check`]); zero padding and window are the receiver's own.
     pub(crate) fn validate(&self) -> Result<(), DspError> {
         let param = |m: String| Err(DspError::Param(m));
-        if self.subcarriers < 2 {
-            return param(format!(
-                "OFDM radar: subcarriers = {}; allowed: at least 2 (128 in the thesis)",
-                self.subcarriers
-            ));
-        }
-        if self.oversampling < 1 {
-            return param(
-                "OFDM radar: oversampling = 0; allowed: 1 or more (16 in the thesis)".into(),
-            );
-        }
-        if !(0.0..1.0).contains(&self.cp_fraction) {
-            return param(format!(
-                "OFDM radar: cp_fraction = {}; allowed: 0 <= cp_fraction < 1 (0.25 in the thesis)",
-                self.cp_fraction
-            ));
-        }
-        let cp = self.cp_fraction * self.fft_len() as f64;
-        if (cp - cp.round()).abs() > 1e-9 {
-            return param(format!(
-                "OFDM radar: cp_fraction {} of {} samples is {cp} samples; allowed: a fraction \
-                 giving a whole number of samples",
-                self.cp_fraction,
-                self.fft_len()
-            ));
-        }
-        if !(self.bandwidth_hz.is_finite() && self.bandwidth_hz > 0.0) {
-            return param(format!(
-                "OFDM radar: bandwidth_hz = {}; allowed: a positive frequency (1e9 in the thesis)",
-                self.bandwidth_hz
-            ));
+        let numerology = Numerology {
+            subcarriers: self.subcarriers,
+            oversampling: self.oversampling,
+            cp_fraction: self.cp_fraction,
+            bandwidth_hz: self.bandwidth_hz,
+        };
+        match numerology.check() {
+            Ok(_) => {}
+            Err(Fault::Subcarriers) => {
+                return param(format!(
+                    "OFDM radar: subcarriers = {}; allowed: at least 2 (128 in the thesis)",
+                    self.subcarriers
+                ))
+            }
+            Err(Fault::Bandwidth) => {
+                return param(format!(
+                    "OFDM radar: bandwidth_hz = {}; allowed: a positive frequency (1e9 in the \
+                     thesis)",
+                    self.bandwidth_hz
+                ))
+            }
+            Err(Fault::Oversampling) => {
+                return param(
+                    "OFDM radar: oversampling = 0; allowed: 1 or more (16 in the thesis)".into(),
+                )
+            }
+            Err(Fault::SymbolTooLong) => {
+                return param(format!(
+                    "OFDM radar: subcarriers * oversampling = {} * {}; allowed: at most 2^28 \
+                     samples per symbol",
+                    self.subcarriers, self.oversampling
+                ))
+            }
+            Err(Fault::CpFraction) => {
+                return param(format!(
+                    "OFDM radar: cp_fraction = {}; allowed: 0 <= cp_fraction < 1 (0.25 in the \
+                     thesis)",
+                    self.cp_fraction
+                ))
+            }
+            Err(Fault::CpNotWhole { samples, fft_len }) => {
+                return param(format!(
+                    "OFDM radar: cp_fraction {} of {fft_len} samples is {samples} samples; \
+                     allowed: a fraction giving a whole number of samples",
+                    self.cp_fraction
+                ))
+            }
         }
         if self.zero_pad < 1 {
             return param(

@@ -23,11 +23,13 @@
 mod config;
 mod doppler;
 mod idiv;
+mod numerology;
 
 pub use config::{Averaging, FftPrecision, OfdmRadarConfig};
 pub(crate) use doppler::VelocityEstimator;
 pub use doppler::{RangeDoppler, RangeDopplerConfig, RangeDopplerMap};
 pub use idiv::IDiv;
+pub(crate) use numerology::{Fault as NumerologyFault, Numerology, Sizes};
 
 use super::metrics::Axis;
 use super::{DspError, C0};

@@ -1,15 +1,17 @@
 //! A waveform as users ask for it: the thesis' defaults with some parameters changed. The command
 //! line (`--bandwidth`, ...) and campaign specs (`[waveform] bandwidth_hz`, ...) both go through
 //! [`WaveformOverrides::apply`], so the two accept and refuse exactly the same things; each names
-//! the field in its own spelling ([`OverrideError::field`]).
+//! the field in its own spelling ([`OverrideError::field`]). What each family takes and how it
+//! applies them is its room's ([`Family::apply`](super::Family::apply)).
 
-use super::spec::{SweepBand, WaveformKind, WaveformSpec};
+use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
 
 /// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
 /// but beyond this it fits neither the scope's record nor the host usefully.
 pub(crate) const MAX_SAMPLES_PER_REPETITION: f64 = 64e6;
 
-/// Parameters changed from the thesis' defaults; `None` keeps the default.
+/// Parameters changed from the thesis' defaults; `None` keeps the default. A new family's
+/// parameters are added here (and to the command line's and the campaign spec's waveform options).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct WaveformOverrides {
     /// Both families. For OFDM without `oversampling` the sample rate stays and the
@@ -48,7 +50,8 @@ pub(crate) enum OverrideError {
     #[error("applies to {applies_to} only; this waveform is {kind}")]
     Misapplied {
         field: &'static str,
-        applies_to: &'static str,
+        /// The families that take it (`MSK-LFM`, `OFDM`).
+        applies_to: String,
         kind: &'static str,
     },
     #[error(
@@ -87,7 +90,7 @@ impl OverrideError {
 }
 
 impl WaveformOverrides {
-    /// The thesis' `kind` with these parameters. A parameter of the other family is refused, so
+    /// The thesis' `kind` with these parameters. A parameter of another family is refused, so
     /// nothing given is silently ignored; sizes are checked before anything is allocated. The
     /// generators check the rest (even bit counts, CP range, ...) when the waveform is built.
     pub(crate) fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
@@ -117,99 +120,33 @@ impl WaveformOverrides {
                 });
             }
         }
-        let only = |given: bool, field: &'static str, applies_to: &'static str| {
-            if given {
-                Err(OverrideError::Misapplied {
+        let family = super::of_kind(kind);
+        for (field, given) in self.given() {
+            if given && !family.parameters().contains(&field) {
+                return Err(OverrideError::Misapplied {
                     field,
-                    applies_to,
+                    applies_to: super::families_taking(field),
                     kind: kind.name(),
-                })
-            } else {
-                Ok(())
-            }
-        };
-        let mut spec = kind.thesis_default();
-        match &mut spec {
-            WaveformSpec::MskLfm {
-                sample_rate_hz,
-                bandwidth_hz,
-                pulse_s,
-                bits_per_pulse,
-                band,
-            } => {
-                only(self.subcarriers.is_some(), "subcarriers", "OFDM")?;
-                only(self.oversampling.is_some(), "oversampling", "OFDM")?;
-                only(self.cp_fraction.is_some(), "cp_fraction", "OFDM")?;
-                only(self.symbols.is_some(), "symbols", "OFDM")?;
-                only(self.preamble_symbols.is_some(), "preamble_symbols", "OFDM")?;
-                set(sample_rate_hz, self.sample_rate_hz);
-                set(bandwidth_hz, self.bandwidth_hz);
-                set(pulse_s, self.pulse_s);
-                set(bits_per_pulse, self.bits_per_pulse);
-                set(band, self.band);
-                let samples = *pulse_s * *sample_rate_hz;
-                if samples > MAX_SAMPLES_PER_REPETITION {
-                    return Err(OverrideError::TooLong {
-                        field: "pulse_s",
-                        samples,
-                    });
-                }
-            }
-            WaveformSpec::Ofdm {
-                bandwidth_hz,
-                subcarriers,
-                oversampling,
-                cp_fraction,
-                symbols,
-                preamble_symbols,
-            } => {
-                only(self.sample_rate_hz.is_some(), "sample_rate_hz", "MSK-LFM")?;
-                only(self.pulse_s.is_some(), "pulse_s", "MSK-LFM")?;
-                only(self.bits_per_pulse.is_some(), "bits_per_pulse", "MSK-LFM")?;
-                only(self.band.is_some(), "band", "MSK-LFM")?;
-                set(subcarriers, self.subcarriers);
-                set(cp_fraction, self.cp_fraction);
-                set(symbols, self.symbols);
-                set(preamble_symbols, self.preamble_symbols);
-                match (self.bandwidth_hz, self.oversampling) {
-                    (Some(b), Some(os)) => {
-                        *bandwidth_hz = b;
-                        *oversampling = os;
-                    }
-                    (Some(b), None) => {
-                        let rate_hz = *bandwidth_hz * *oversampling as f64;
-                        let ratio = rate_hz / b;
-                        if ratio < 1.0 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
-                            return Err(OverrideError::BandwidthNotDivisor {
-                                bandwidth_hz: b,
-                                rate_hz,
-                            });
-                        }
-                        *bandwidth_hz = b;
-                        *oversampling = ratio.round() as usize;
-                    }
-                    (None, Some(os)) => *oversampling = os,
-                    (None, None) => {}
-                }
-                let samples = (*subcarriers as f64)
-                    * (*oversampling as f64)
-                    * (1.0 + cp_fraction.abs())
-                    * (*symbols as f64);
-                if samples > MAX_SAMPLES_PER_REPETITION {
-                    return Err(OverrideError::TooLong {
-                        field: "symbols",
-                        samples,
-                    });
-                }
+                });
             }
         }
-        Ok(spec)
+        family.apply(self)
     }
-}
 
-fn set<T: Copy>(slot: &mut T, value: Option<T>) {
-    if let Some(v) = value {
-        *slot = v;
+    /// Every field by name (as [`OverrideError::field`] names it), and whether it is given.
+    pub(super) fn given(&self) -> [(&'static str, bool); 10] {
+        [
+            ("bandwidth_hz", self.bandwidth_hz.is_some()),
+            ("sample_rate_hz", self.sample_rate_hz.is_some()),
+            ("pulse_s", self.pulse_s.is_some()),
+            ("bits_per_pulse", self.bits_per_pulse.is_some()),
+            ("band", self.band.is_some()),
+            ("subcarriers", self.subcarriers.is_some()),
+            ("oversampling", self.oversampling.is_some()),
+            ("cp_fraction", self.cp_fraction.is_some()),
+            ("symbols", self.symbols.is_some()),
+            ("preamble_symbols", self.preamble_symbols.is_some()),
+        ]
     }
 }
 
@@ -259,9 +196,19 @@ mod tests {
             cp_fraction: Some(0.5),
             ..Default::default()
         };
+        let err = cp.apply(WaveformKind::MskLfm).unwrap_err();
+        assert_eq!(err.field(), "cp_fraction");
         assert_eq!(
-            cp.apply(WaveformKind::MskLfm).unwrap_err().field(),
-            "cp_fraction"
+            err.to_string(),
+            "applies to OFDM only; this waveform is msk-lfm"
+        );
+        let band = WaveformOverrides {
+            band: Some(SweepBand::Upper),
+            ..Default::default()
+        };
+        assert_eq!(
+            band.apply(WaveformKind::Ofdm).unwrap_err().to_string(),
+            "applies to MSK-LFM only; this waveform is ofdm"
         );
         let long = WaveformOverrides {
             pulse_s: Some(1.0),
