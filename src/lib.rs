@@ -48,7 +48,9 @@
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), the kinds (one table, `kind.rs`), the runner and its step jobs, positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
 //! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |
-//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains; [`cli::in_memory`]: the commands' results in memory (the Python package's entry) |
+//! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s options parsed by the command line's own clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]), captures processed and read back, the transmission |
+//! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
+//! | [`cli`] | app | one module per subcommand: parse, call, print |
 //!
 //! # Examples
 //!
@@ -185,10 +187,12 @@ macro_rules! named_enum {
 pub mod address;
 pub mod campaign;
 pub mod catalog;
+mod classify;
 pub mod cli;
 pub mod driver;
 pub mod dsp;
 pub mod exit;
+pub mod in_memory;
 pub(crate) mod live;
 pub mod measure;
 pub mod physics;
@@ -200,3 +204,5 @@ pub mod time;
 pub mod transport;
 pub mod trc;
 pub mod waveform;
+
+pub use classify::classify;

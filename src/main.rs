@@ -8,7 +8,8 @@
 //! an instrument sent.
 
 use clap::Parser;
-use radbench::cli::{classify, terminal};
+use radbench::classify;
+use radbench::cli::terminal;
 use radbench::exit::ExitClass;
 use std::io::Write;
 

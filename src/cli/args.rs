@@ -2,233 +2,14 @@
 //! processing choices, the built-in lab's transports. The library's named enums (waveform,
 //! algorithm, window, FFT precision, detector, carrier phase, correction, the built-in lab's
 //! transports and scope) are parsed as they are, by their own
-//! `FromStr` over the values they list (`Listed`, `listed`); no clap derive lives outside `cli`.
+//! `FromStr` over the values they list (`Listed`, `listed`). The waveform's and `process`'s
+//! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
-use crate::exit::bad_input;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+pub(crate) use crate::in_memory::{listed, PayloadArgs, WaveformArgs};
 use crate::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
-use crate::measure::response::CorrectionMode;
-use crate::simulate::scene::CarrierPhase;
-use crate::waveform::overrides::{OverrideError, WaveformOverrides};
-use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
-
-/// A library enum the command line takes by name: its values (with a line of help each) and its
-/// `FromStr`, so clap parses the library's own type (no mirror enum here).
-pub(crate) trait Listed: std::str::FromStr + Copy + Send + Sync + 'static {
-    fn all() -> &'static [Self];
-    fn name(self) -> &'static str;
-    fn about(self) -> &'static str;
-}
-
-impl Listed for WaveformKind {
-    fn all() -> &'static [Self] {
-        &WaveformKind::ALL
-    }
-    fn name(self) -> &'static str {
-        WaveformKind::name(self)
-    }
-    fn about(self) -> &'static str {
-        WaveformKind::about(self)
-    }
-}
-
-impl Listed for Algorithm {
-    fn all() -> &'static [Self] {
-        &Algorithm::ALL
-    }
-    fn name(self) -> &'static str {
-        Algorithm::name(self)
-    }
-    fn about(self) -> &'static str {
-        Algorithm::about(self)
-    }
-}
-
-impl Listed for WindowName {
-    fn all() -> &'static [Self] {
-        &WindowName::ALL
-    }
-    fn name(self) -> &'static str {
-        WindowName::name(self)
-    }
-    fn about(self) -> &'static str {
-        WindowName::about(self)
-    }
-}
-
-impl Listed for FftPrecisionName {
-    fn all() -> &'static [Self] {
-        &FftPrecisionName::ALL
-    }
-    fn name(self) -> &'static str {
-        FftPrecisionName::name(self)
-    }
-    fn about(self) -> &'static str {
-        FftPrecisionName::about(self)
-    }
-}
-
-impl Listed for DetectorName {
-    fn all() -> &'static [Self] {
-        &DetectorName::ALL
-    }
-    fn name(self) -> &'static str {
-        DetectorName::name(self)
-    }
-    fn about(self) -> &'static str {
-        DetectorName::about(self)
-    }
-}
-
-impl Listed for CarrierPhase {
-    fn all() -> &'static [Self] {
-        &CarrierPhase::ALL
-    }
-    fn name(self) -> &'static str {
-        CarrierPhase::name(self)
-    }
-    fn about(self) -> &'static str {
-        CarrierPhase::about(self)
-    }
-}
-
-impl Listed for AwgLink {
-    fn all() -> &'static [Self] {
-        &AwgLink::ALL
-    }
-    fn name(self) -> &'static str {
-        AwgLink::name(self)
-    }
-    fn about(self) -> &'static str {
-        AwgLink::about(self)
-    }
-}
-
-impl Listed for ScopeLink {
-    fn all() -> &'static [Self] {
-        &ScopeLink::ALL
-    }
-    fn name(self) -> &'static str {
-        ScopeLink::name(self)
-    }
-    fn about(self) -> &'static str {
-        ScopeLink::about(self)
-    }
-}
-
-impl Listed for ScopeModel {
-    fn all() -> &'static [Self] {
-        &ScopeModel::ALL
-    }
-    fn name(self) -> &'static str {
-        ScopeModel::name(self)
-    }
-    fn about(self) -> &'static str {
-        ScopeModel::about(self)
-    }
-}
-
-impl Listed for CorrectionMode {
-    fn all() -> &'static [Self] {
-        &CorrectionMode::ALL
-    }
-    fn name(self) -> &'static str {
-        CorrectionMode::name(self)
-    }
-    fn about(self) -> &'static str {
-        CorrectionMode::about(self)
-    }
-}
-
-/// clap's parser of a [`Listed`] enum: `--help` lists its values, a wrong one is refused naming
-/// the option and every allowed value (as for a clap `ValueEnum`).
-pub(crate) fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-    PossibleValuesParser::new(T::all().iter().map(|v| match v.about() {
-        "" => PossibleValue::new(v.name()),
-        about => PossibleValue::new(v.name()).help(about),
-    }))
-    .map(|s| match s.parse::<T>() {
-        Ok(v) => v,
-        Err(_) => unreachable!("clap passes only the listed values"),
-    })
-}
-
-/// The waveform's parameters; unset ones keep the thesis' values.
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct WaveformArgs {
-    /// Bandwidth in Hz (both waveforms; OFDM keeps its sample rate, so the rate must be a whole
-    /// multiple of it). Default 1e9.
-    #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
-    pub bandwidth: Option<f64>,
-    /// MSK-LFM sample rate in Sa/s (the AWG rate). Default 16e9.
-    #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
-    pub sample_rate: Option<f64>,
-    /// MSK-LFM pulse length in microseconds. Default 10.
-    #[arg(long, value_name = "US", allow_hyphen_values = true)]
-    pub pulse_us: Option<f64>,
-    /// MSK-LFM bits per pulse (even). Default 128.
-    #[arg(long, value_name = "N")]
-    pub bits_per_pulse: Option<usize>,
-    /// MSK-LFM: where the chirp sweeps: centred (-B/2 .. B/2, default), upper (0 .. B, the
-    /// thesis' equation 2.4) or lower (-B .. 0).
-    #[arg(long, value_name = "BAND", value_parser = str::parse::<SweepBand>)]
-    pub band: Option<SweepBand>,
-    /// OFDM subcarriers (even). Default 128.
-    #[arg(long, value_name = "N")]
-    pub subcarriers: Option<usize>,
-    /// OFDM oversampling factor (sample rate = bandwidth x factor). Default 16.
-    #[arg(long, value_name = "N")]
-    pub oversampling: Option<usize>,
-    /// OFDM cyclic prefix as a fraction of the useful symbol. Default 0.25.
-    #[arg(long, value_name = "F", allow_hyphen_values = true)]
-    pub cp_fraction: Option<f64>,
-    /// OFDM symbols per frame (a known preamble symbol included). Default 100.
-    #[arg(long, value_name = "N")]
-    pub symbols: Option<usize>,
-}
-
-impl WaveformArgs {
-    /// The spec of `kind` with these parameters; an option that does not apply to `kind` is
-    /// refused, so nothing the user typed is silently ignored.
-    pub fn spec(&self, kind: WaveformKind) -> anyhow::Result<WaveformSpec> {
-        let overrides = WaveformOverrides {
-            bandwidth_hz: self.bandwidth,
-            sample_rate_hz: self.sample_rate,
-            pulse_s: self.pulse_us.map(|us| us * 1e-6),
-            bits_per_pulse: self.bits_per_pulse,
-            band: self.band,
-            subcarriers: self.subcarriers,
-            oversampling: self.oversampling,
-            cp_fraction: self.cp_fraction,
-            symbols: self.symbols,
-            preamble_symbols: None,
-        };
-        overrides.apply(kind).map_err(|e| {
-            let option = match e.field() {
-                "bandwidth_hz" => "--bandwidth",
-                "sample_rate_hz" => "--sample-rate",
-                "pulse_s" => "--pulse-us",
-                "bits_per_pulse" => "--bits-per-pulse",
-                "band" => "--band",
-                "subcarriers" => "--subcarriers",
-                "oversampling" => "--oversampling",
-                "cp_fraction" => "--cp-fraction",
-                _ => "--symbols",
-            };
-            let option = match &e {
-                OverrideError::TooLong { .. } if kind == WaveformKind::MskLfm => {
-                    "--pulse-us / --sample-rate"
-                }
-                OverrideError::TooLong { .. } => "--subcarriers x --oversampling x --symbols",
-                _ => option,
-            };
-            bad_input(format!("{option}: {e}"))
-        })
-    }
-}
+use crate::waveform::spec::WaveformKind;
 
 /// Range processing choices shared by `capture`, `simulate run` and `process`.
 #[derive(Debug, Clone, clap::Args)]
@@ -310,6 +91,9 @@ impl ProcessingArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::in_memory::Listed;
+    use crate::measure::response::CorrectionMode;
+    use crate::simulate::scene::CarrierPhase;
 
     /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
     /// another one naming the option and every allowed value.

@@ -1,7 +1,7 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{ProcessingArgs, WaveformArgs};
+use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
@@ -48,12 +48,9 @@ pub struct Args {
     /// Print one JSON object instead of the text report.
     #[arg(long)]
     pub json: bool,
-    /// Text to send in the waveform (default: PRBS bits).
-    #[arg(long, value_name = "TEXT")]
-    pub payload: Option<String>,
-    /// Seed of the PRBS bits when no payload is given.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// The payload text or the PRBS seed (the library's: the Python package parses them too).
+    #[command(flatten)]
+    pub bits: PayloadArgs,
     /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
     #[arg(long, default_value_t = 0.15, allow_hyphen_values = true)]
     pub min_range: f64,
@@ -336,8 +333,8 @@ async fn measure_into(
     options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,
-        payload: args.payload.as_ref().map(|p| p.as_bytes().to_vec()),
-        seed: args.seed,
+        payload: args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+        seed: args.bits.seed,
         options,
         tx_off: args.tx_off,
         wait_s: args.wait,

@@ -698,7 +698,7 @@ mod tests {
         for baud in ["0", "12000001"] {
             let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", baud]);
             let err = cli.connect.session_options().unwrap_err();
-            assert_eq!(crate::cli::classify(&err), crate::exit::ExitClass::BadInput);
+            assert_eq!(crate::classify(&err), crate::exit::ExitClass::BadInput);
             assert!(err.to_string().contains("--baud"), "{err}");
         }
         let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", "9600"]);

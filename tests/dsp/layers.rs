@@ -52,6 +52,31 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "catalog", "driver", "dsp", "exit", "measure", "physics", "storage", "time", "waveform",
         ],
     ),
+    // The in-memory API (the Python package's entry) and the options `radbench process` shares.
+    (
+        "in_memory",
+        &[
+            "campaign", "exit", "measure", "simulate", "storage", "waveform",
+        ],
+    ),
+    // From an error chain to its exit class: names every layer's error type.
+    (
+        "classify",
+        &[
+            "address",
+            "campaign",
+            "catalog",
+            "driver",
+            "dsp",
+            "exit",
+            "measure",
+            "session",
+            "simulate",
+            "storage",
+            "transport",
+            "waveform",
+        ],
+    ),
 ];
 
 /// Every `.rs` file under `path` (or `path` itself).

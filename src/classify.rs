@@ -1,5 +1,6 @@
 //! From an error chain to the process exit code: each layer's error type knows its
-//! [`ExitClass`]; this walks the chain and asks the first one that does.
+//! [`ExitClass`]; this walks the chain and asks the first one that does. Above every layer (it
+//! names each layer's error type); the binary and the Python package call it.
 
 use crate::exit::{Classified, Classify, ExitClass};
 
