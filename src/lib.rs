@@ -7,7 +7,7 @@
 //! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!
 //! ```text
-//! cli -> campaign (spec, plan, run folder, resume) -> measure, storage
+//! cli (binary) -> campaign (spec, plan, run folder, resume) -> measure, storage
 //!  |
 //!  +---> simulate ----------------------+
 //!  |                                    v
@@ -47,10 +47,14 @@
 //! | [`measure`] | 4 | the bench in use, the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files, the bench doctor, the simulated bench's scene behind a typed seam (`set_scene`, `reseed`, `scene`) |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), the kinds (one table, `kind.rs`), the runner and its step jobs, positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
-//! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |
 //! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s options parsed by the command line's own clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]), captures processed and read back, the transmission |
 //! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
-//! | [`cli`] | app | one module per subcommand: parse, call, print |
+//!
+//! The binary (`src/main.rs`) holds what only the command line needs: `cli` (one module per
+//! subcommand: parse, call, print; in `src/cli/`) and `live` (the live view: a loopback HTTP
+//! server of one self-contained page and its event stream, fed through a bounded queue that drops
+//! frames, never waited for; in `src/live/`). They use the library as any user does, through
+//! `radbench::...`.
 //!
 //! # Examples
 //!
@@ -188,12 +192,10 @@ pub mod address;
 pub mod campaign;
 pub mod catalog;
 mod classify;
-pub mod cli;
 pub mod driver;
 pub mod dsp;
 pub mod exit;
 pub mod in_memory;
-pub(crate) mod live;
 pub mod measure;
 pub mod physics;
 pub mod rng;

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 pub(crate) const FORMAT: u32 = 1;
 
 /// The manifest's file name in a run folder.
-pub(crate) const FILE: &str = "manifest.toml";
+pub const FILE: &str = "manifest.toml";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

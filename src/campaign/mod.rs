@@ -21,8 +21,8 @@
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 
-pub(crate) mod builtin;
-pub(crate) mod export;
+pub mod builtin;
+pub mod export;
 mod folder;
 pub(crate) mod kind;
 pub mod manifest;

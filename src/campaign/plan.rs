@@ -1006,7 +1006,7 @@ const PROCESS_POINTS_PER_S: f64 = 3e7;
 
 impl Plan {
     /// The estimated duration of step `k` (0-based) without the operator's time, seconds.
-    pub(crate) fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
+    pub fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
         let step = &self.steps[k];
         let c = costs[step.waveform];
         let reps = self.repetitions as f64;
@@ -1038,7 +1038,7 @@ impl Plan {
 
     /// Whether step `k` uploads a waveform (the first step, and a waveform that differs from the
     /// step before's; also whenever the AWG lost it, which the plan cannot know).
-    pub(crate) fn uploads_at(&self, k: usize) -> bool {
+    pub fn uploads_at(&self, k: usize) -> bool {
         k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
     }
 

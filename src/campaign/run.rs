@@ -50,7 +50,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 
 pub use super::folder::start;
-pub(crate) use super::prepare::prepare_all;
+pub use super::prepare::prepare_all;
 pub use super::resume::resume;
 
 /// `results.json` in a run folder.

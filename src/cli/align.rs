@@ -6,15 +6,15 @@ use super::args::{ProcessingArgs, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use super::live::{self as live_cli, LiveArgs};
 use super::repeat::{stopped_between, truth_ranges};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
 use crate::live::{Event, Live};
-use crate::measure::bench::Bench;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::capture::{self, CaptureRequest, Rig};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::MeasureError;
-use crate::waveform::spec::WaveformKind;
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure::bench::Bench;
+use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::capture::{self, CaptureRequest, Rig};
+use radbench::measure::interrupt::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::waveform::spec::WaveformKind;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -170,7 +170,7 @@ async fn captures(
         let distance = range.zip(args.target_range).map(|(r, want)| r - want);
         let truth = truth_ranges(m.taken.ground_truth.as_ref());
         if let Some(l) = live {
-            let (_, table) = crate::measure::figure::profile_figure(
+            let (_, table) = radbench::measure::figure::profile_figure(
                 String::new(),
                 p,
                 &m.processing.options,

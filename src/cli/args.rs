@@ -5,11 +5,11 @@
 //! `FromStr` over the values they list (`Listed`, `listed`). The waveform's and `process`'s
 //! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
-pub(crate) use crate::in_memory::{listed, PayloadArgs, WaveformArgs};
-use crate::measure::options::{
+pub(crate) use radbench::in_memory::{listed, PayloadArgs, WaveformArgs};
+use radbench::measure::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
 };
-use crate::waveform::spec::WaveformKind;
+use radbench::waveform::spec::WaveformKind;
 
 /// Range processing choices shared by `capture`, `simulate run` and `process`.
 #[derive(Debug, Clone, clap::Args)]
@@ -91,9 +91,9 @@ impl ProcessingArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::in_memory::Listed;
-    use crate::measure::response::CorrectionMode;
-    use crate::simulate::scene::CarrierPhase;
+    use radbench::in_memory::Listed;
+    use radbench::measure::response::CorrectionMode;
+    use radbench::simulate::scene::CarrierPhase;
 
     /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
     /// another one naming the option and every allowed value.

@@ -4,10 +4,10 @@
 //! `--write-inputs DIR` also writes the seeded inputs as `.npy` (plus `meta.json`) so
 //! `benches/compare_numpy.py` can time numpy/scipy on exactly the same data.
 
-use crate::exit::bad_input;
-use crate::simulate::kernels::{time_all, KernelInputs, Kernels, XCORR_LAGS};
-use crate::storage::{atomic::write_atomic, npy};
 use num_complex::Complex64;
+use radbench::exit::bad_input;
+use radbench::simulate::kernels::{time_all, KernelInputs, Kernels, XCORR_LAGS};
+use radbench::storage::{atomic::write_atomic, npy};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]

@@ -3,15 +3,15 @@
 //! response`: measure the chain's response on the same reference (`calibrate_response.rs`).
 
 use super::capture::{bench_source, journal, open_bench};
-use crate::driver::RfPermit;
-use crate::measure::bench::{AwgLink, ScopeLink};
-use crate::measure::bench_file::{store_calibration, Calibration};
-use crate::measure::calibration::{check, estimate_delay};
-use crate::measure::capture::{self, CaptureRequest};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::options::{Algorithm, ProcessOptions};
-use crate::measure::MeasureError;
-use crate::waveform::spec::WaveformSpec;
+use radbench::driver::RfPermit;
+use radbench::measure::bench::{AwgLink, ScopeLink};
+use radbench::measure::bench_file::{store_calibration, Calibration};
+use radbench::measure::calibration::{check, estimate_delay};
+use radbench::measure::capture::{self, CaptureRequest};
+use radbench::measure::interrupt::Interrupt;
+use radbench::measure::options::{Algorithm, ProcessOptions};
+use radbench::measure::MeasureError;
+use radbench::waveform::spec::WaveformSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -66,7 +66,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
     let reference_range = args
         .reference_range
-        .ok_or_else(|| crate::exit::bad_input("--reference-range METRES is needed"))?;
+        .ok_or_else(|| radbench::exit::bad_input("--reference-range METRES is needed"))?;
     check(reference_range, args.search)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
@@ -112,7 +112,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         let calibration = Calibration {
             system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(reference_range),
-            measured_at: Some(crate::storage::sigmf::utc_now_rfc3339()),
+            measured_at: Some(radbench::storage::sigmf::utc_now_rfc3339()),
             // A response measured before is kept (it is relative to the delay it was measured
             // with: measure it again after a new delay).
             response: bench

@@ -1,17 +1,17 @@
 //! `radbench campaign`: run a campaign spec, resume an interrupted run, print a spec to start
 //! from, write a run's report again, run the thesis' lab chapter. Parses, calls `campaign`, prints.
 
-use crate::campaign::builtin;
-use crate::campaign::manifest::Status;
-use crate::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
-use crate::campaign::results::{AlgorithmResult, TargetResult, Truth};
-use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
-use crate::campaign::{report, CampaignError, SpecFile};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
-use crate::measure::bench::Bench;
-use crate::measure::interrupt::Interrupt;
-use crate::measure::MeasureError;
+use radbench::campaign::builtin;
+use radbench::campaign::manifest::Status;
+use radbench::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
+use radbench::campaign::results::{AlgorithmResult, TargetResult, Truth};
+use radbench::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
+use radbench::campaign::{report, CampaignError, SpecFile};
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure::bench::Bench;
+use radbench::measure::interrupt::Interrupt;
+use radbench::measure::MeasureError;
 use serde::Serialize;
 use serde_json::json;
 use std::collections::BTreeMap;

@@ -2,18 +2,18 @@
 //! mock lab. Parses, calls `measure`, prints.
 
 use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::bench::{Bench, BenchSource, BuiltIn};
-use crate::measure::capture::{self, CaptureRequest, Measurement};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::record::{self, Provenance};
-use crate::measure::response::CorrectionMode;
-use crate::measure::MeasureError;
-use crate::storage::atomic::write_group;
-use crate::waveform::spec::WaveformKind;
 use anyhow::Context;
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
+use radbench::measure::capture::{self, CaptureRequest, Measurement};
+use radbench::measure::interrupt::Interrupt;
+use radbench::measure::record::{self, Provenance};
+use radbench::measure::response::CorrectionMode;
+use radbench::measure::MeasureError;
+use radbench::storage::atomic::write_group;
+use radbench::waveform::spec::WaveformKind;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -99,9 +99,9 @@ pub struct Args {
 pub(crate) fn resolve_correction(
     correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
-    bench: &crate::measure::bench::Bench,
-) -> anyhow::Result<Option<crate::measure::response::Calibration>> {
-    use crate::measure::response::Calibration;
+    bench: &radbench::measure::bench::Bench,
+) -> anyhow::Result<Option<radbench::measure::response::Calibration>> {
+    use radbench::measure::response::Calibration;
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
             .path
@@ -111,7 +111,7 @@ pub(crate) fn resolve_correction(
     match (correction, named) {
         (Some(CorrectionMode::None), _) => Ok(None),
         (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
-        (Some(mode), None) => Err(crate::exit::bad_input(format!(
+        (Some(mode), None) => Err(radbench::exit::bad_input(format!(
             "--correction {} needs a response calibration: the bench file names none; run \
              `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \
              --calibration FILE",
@@ -123,8 +123,8 @@ pub(crate) fn resolve_correction(
 
 /// Warnings about a calibration used on this bench: other instruments than it was measured with.
 pub(crate) fn calibration_warnings(
-    cal: &crate::measure::response::Calibration,
-    identities: &crate::measure::station::Identities,
+    cal: &radbench::measure::response::Calibration,
+    identities: &radbench::measure::station::Identities,
 ) -> Vec<String> {
     let seen = &cal.header.instruments;
     let mut out = Vec::new();
@@ -205,9 +205,11 @@ pub(crate) async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Resu
 }
 
 /// The I/O journal of `--trace-io`.
-pub(crate) fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport::Journal>> {
+pub(crate) fn journal(
+    global: &super::Global,
+) -> anyhow::Result<Option<radbench::transport::Journal>> {
     Ok(match &global.trace_io {
-        Some(p) => Some(crate::transport::Journal::create(p, false)?),
+        Some(p) => Some(radbench::transport::Journal::create(p, false)?),
         None => None,
     })
 }
@@ -265,7 +267,7 @@ pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
 
 /// The default output folder: `runs/<UTC time>-<name>`.
 pub(crate) fn default_out(name: &str) -> PathBuf {
-    let stamp = crate::storage::sigmf::utc_now_rfc3339()
+    let stamp = radbench::storage::sigmf::utc_now_rfc3339()
         .replace([':', '-'], "")
         .replace('.', "_");
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
@@ -311,8 +313,8 @@ async fn measure_into(
     args: Args,
     global: &super::Global,
     kind: WaveformKind,
-    waveform: crate::waveform::spec::WaveformSpec,
-    source: crate::measure::bench::BenchSource,
+    waveform: radbench::waveform::spec::WaveformSpec,
+    source: radbench::measure::bench::BenchSource,
     out: &Path,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
@@ -479,7 +481,7 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
         }
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |x| format!("{x:.2} {unit}"));
-    let pm = |s: Option<crate::measure::repeat::Stat>, unit: &str| {
+    let pm = |s: Option<radbench::measure::repeat::Stat>, unit: &str| {
         s.map(|s| format!(" (repetitions: {:.2} +- {:.2} {unit})", s.mean, s.std))
             .unwrap_or_default()
     };

@@ -2,10 +2,10 @@
 //! for each failure (`measure::doctor` does the checks). Exit 0 only when no check fails.
 
 use super::capture::{bench_source, journal, open_bench};
-use crate::exit::{Classified, ExitClass};
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::doctor::{self, Status};
-use crate::measure::interrupt::Interrupt;
+use radbench::exit::{Classified, ExitClass};
+use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::doctor::{self, Status};
+use radbench::measure::interrupt::Interrupt;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]

@@ -3,12 +3,12 @@
 //! range profile and its range axis, the detections, the transmitted reference and bits, the
 //! options. The arrays are what `radbench process` computes from the same files.
 
-use crate::campaign::export::{export_run, put_all};
-use crate::campaign::manifest::Manifest;
-use crate::exit::bad_input;
-use crate::measure::export::export_capture;
-use crate::measure::reprocess;
-use crate::storage::export::{ExportFormat, ExportWriter};
+use radbench::campaign::export::{export_run, put_all};
+use radbench::campaign::manifest::Manifest;
+use radbench::exit::bad_input;
+use radbench::measure::export::export_capture;
+use radbench::measure::reprocess;
+use radbench::storage::export::{ExportFormat, ExportWriter};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -58,7 +58,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
         if input.join("capture.sigmf-meta").is_file() {
             return capture(&input.join("capture.sigmf-meta"));
         }
-        if input.join(crate::campaign::manifest::FILE).is_file() {
+        if input.join(radbench::campaign::manifest::FILE).is_file() {
             if Manifest::load(input).is_ok() {
                 return Ok(Input::Run);
             }
@@ -148,7 +148,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         }
     }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|source| crate::storage::StorageError::Io {
+        std::fs::create_dir_all(parent).map_err(|source| radbench::storage::StorageError::Io {
             path: parent.to_path_buf(),
             source,
         })?;

@@ -30,7 +30,7 @@ pub mod terminal;
 pub(crate) mod trc;
 pub(crate) mod waveform;
 
-pub use crate::classify;
+pub use radbench::classify;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
 #[derive(Debug, Parser)]

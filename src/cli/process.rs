@@ -1,14 +1,14 @@
 //! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
 //! options they were captured with or any others, in parallel on every core.
 
-use crate::exit::{Classified, ExitClass};
-use crate::in_memory::{compute, folder_names, recorded_data_hashes, recorded_for, ProcessArgs};
-use crate::measure::options::ProcessOverrides;
-use crate::measure::record;
-use crate::measure::reprocess::{self, Source, WaveformChoice};
-use crate::storage::atomic::{write_group_open, OpenGroup};
-use crate::storage::StorageError;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use radbench::exit::{Classified, ExitClass};
+use radbench::in_memory::{compute, folder_names, recorded_data_hashes, recorded_for, ProcessArgs};
+use radbench::measure::options::ProcessOverrides;
+use radbench::measure::record;
+use radbench::measure::reprocess::{self, Source, WaveformChoice};
+use radbench::storage::atomic::{write_group_open, OpenGroup};
+use radbench::storage::StorageError;
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -143,7 +143,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
                 .map(|mut d| d.next().is_none())
                 .unwrap_or(false);
         if !empty {
-            return Err(crate::exit::bad_input(format!(
+            return Err(radbench::exit::bad_input(format!(
                 "--out {}: exists already; process writes a new folder and never over what is \
                  there (give a new folder)",
                 out.display()
@@ -157,7 +157,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     let recorded = recorded_data_hashes(&sources);
     let jobs = args.jobs.unwrap_or(0);
     if args.jobs == Some(0) || jobs > 256 {
-        return Err(crate::exit::bad_input(format!(
+        return Err(radbench::exit::bad_input(format!(
             "--jobs {jobs}: give 1 to 256 worker threads"
         )));
     }
@@ -212,7 +212,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         .map(|e| {
             (
                 e.path.display().to_string(),
-                crate::exit::bad_input(e.reason),
+                radbench::exit::bad_input(e.reason),
             )
         })
         .collect();
@@ -246,7 +246,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             },
             failures
                 .iter()
-                .map(|(s, e)| format!("{s}: {}", crate::exit::render(e)))
+                .map(|(s, e)| format!("{s}: {}", radbench::exit::render(e)))
                 .collect::<Vec<_>>()
                 .join("; ")
         ),
@@ -270,7 +270,7 @@ fn report(
             })).collect::<Vec<_>>(),
             "failed": failures.iter().map(|(s, e)| json!({
                 "source": s,
-                "error": crate::exit::render(e),
+                "error": radbench::exit::render(e),
                 "exit_code": super::classify(e).code(),
             })).collect::<Vec<_>>(),
             "seconds": elapsed_s,
@@ -298,7 +298,7 @@ fn report(
         }
     }
     for (s, e) in failures {
-        text.push_str(&format!("{s}: FAILED: {}\n", crate::exit::render(e)));
+        text.push_str(&format!("{s}: FAILED: {}\n", radbench::exit::render(e)));
     }
     let n = done.len() + failures.len();
     text.push_str(&format!(

@@ -3,14 +3,14 @@
 
 use super::capture::{calibration_warnings, journal, report, Args};
 use super::live::{self as live_cli};
-use crate::driver::RfPermit;
 use crate::live::{Event, Live};
-use crate::measure::bench::Bench;
-use crate::measure::capture::{self, CaptureRequest, Rig};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::record::{self, Provenance};
-use crate::measure::response::Calibration;
-use crate::measure::MeasureError;
+use radbench::driver::RfPermit;
+use radbench::measure::bench::Bench;
+use radbench::measure::capture::{self, CaptureRequest, Rig};
+use radbench::measure::interrupt::Interrupt;
+use radbench::measure::record::{self, Provenance};
+use radbench::measure::response::Calibration;
+use radbench::measure::MeasureError;
 use serde_json::json;
 use std::path::Path;
 

@@ -1,7 +1,7 @@
 //! `radbench simulate`: the thesis' chapter-4 scenarios, free-form runs and BER curves.
 //!
 //! `simulate run --scene FILE` simulates the built-in mock lab's capture of a scene file
-//! in-process (`crate::simulate::scene_bench`): the same synthesis, scope and pipeline as
+//! in-process (`radbench::simulate::scene_bench`): the same synthesis, scope and pipeline as
 //! `capture --allow-rf --scene FILE`, so the same detections for the same scene and `--seed`.
 //!
 //! Target syntax for `--targets`: `R[:AMP[:V]]` separated by commas: range in metres, linear
@@ -9,11 +9,11 @@
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
 use super::args::{ProcessingArgs, WaveformArgs};
-use crate::exit::bad_input;
-use crate::simulate::scene::CarrierPhase;
-use crate::simulate::scene_bench::{simulate_scene, SceneSpec};
-use crate::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
-use crate::waveform::spec::WaveformKind;
+use radbench::exit::bad_input;
+use radbench::simulate::scene::CarrierPhase;
+use radbench::simulate::scene_bench::{simulate_scene, SceneSpec};
+use radbench::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
+use radbench::waveform::spec::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -198,11 +198,11 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
             spec.capture_rate_hz = a.capture_rate;
             spec.seed = a.seed;
             spec.trials = a.trials;
-            (crate::simulate::run::simulate(&spec)?, spec)
+            (radbench::simulate::run::simulate(&spec)?, spec)
         }
     };
     if let Some(path) = &a.plot {
-        crate::storage::plot::draw(path, &outcome.plot(&spec))?;
+        radbench::storage::plot::draw(path, &outcome.plot(&spec))?;
     }
     if let Some(path) = &a.profile_out {
         outcome.table().write(path)?;
@@ -239,7 +239,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
     if let Some(path) = &a.plot {
-        crate::storage::plot::draw_ber(
+        radbench::storage::plot::draw_ber(
             path,
             "Bit-error rate against Eb/N0 (AWGN), measured and theory",
             &ber::plot_series(&curves),

@@ -66,7 +66,7 @@ pub(crate) mod limits;
 pub(crate) mod m8195a;
 pub(crate) mod open;
 pub(crate) mod permit;
-pub(crate) mod rf_state;
+pub mod rf_state;
 pub mod safe_state;
 pub(crate) mod scpi;
 #[cfg(any(test, feature = "testing"))]

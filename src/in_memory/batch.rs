@@ -28,7 +28,7 @@ const PIPELINES_PER_WORKER: usize = 4;
 /// folder of each capture's folder, where it has a manifest radbench reads. A capture whose data
 /// matches its recorded hash is not hashed a second time against the recording's own SHA-512
 /// (see `read_sigmf_stored`). A manifest that cannot be read only means no such shortcut.
-pub(crate) fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
+pub fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
     let runs: BTreeSet<&Path> = sources
         .iter()
         .filter_map(|s| match s {
@@ -50,7 +50,7 @@ pub(crate) fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, Stri
 }
 
 /// The recorded SHA-256 of `source`'s data, if its run recorded one.
-pub(crate) fn recorded_for<'a>(
+pub fn recorded_for<'a>(
     source: &Source,
     recorded: &'a HashMap<PathBuf, String>,
 ) -> Option<&'a str> {
@@ -62,7 +62,7 @@ pub(crate) fn recorded_for<'a>(
 
 /// One capture through the pipeline (one of this thread's pipelines when it was built for the
 /// same transmission and options): the capture read, the result and its files' hashes.
-pub(crate) fn compute(
+pub fn compute(
     source: &Source,
     recorded_sha256: Option<&str>,
     waveform: &WaveformChoice,
@@ -82,7 +82,7 @@ pub(crate) fn compute(
 }
 
 /// `loaded` processed as `resolved` says, on this thread's pipeline for it (built when missing).
-pub(crate) fn on_cached_pipeline<R: Record>(
+pub fn on_cached_pipeline<R: Record>(
     loaded: &Loaded<R>,
     resolved: reprocess::Resolved,
 ) -> Result<Reprocessed, anyhow::Error> {
@@ -111,7 +111,7 @@ pub(crate) fn on_cached_pipeline<R: Record>(
 }
 
 /// Folder names for the sources: their labels, made unique.
-pub(crate) fn folder_names(sources: &[&Source]) -> Vec<String> {
+pub fn folder_names(sources: &[&Source]) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for s in sources {
         let base = s.label();

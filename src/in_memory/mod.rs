@@ -18,9 +18,7 @@
 mod batch;
 mod options;
 
-pub(crate) use batch::{
-    compute, folder_names, on_cached_pipeline, recorded_data_hashes, recorded_for,
-};
+pub use batch::{compute, folder_names, on_cached_pipeline, recorded_data_hashes, recorded_for};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 
 use crate::exit::bad_input;

@@ -323,10 +323,7 @@ pub struct ProcessArgs {
 impl ProcessArgs {
     /// The waveform and the processing options asked for (`out`: where a response measured with
     /// `--reference-range` is stored).
-    pub(crate) fn settings(
-        &self,
-        out: &Path,
-    ) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
+    pub fn settings(&self, out: &Path) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
         let waveform = self.waveform()?;
         let mut overrides = self.overrides();
         overrides.correction = self.correction(out)?;

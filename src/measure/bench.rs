@@ -165,7 +165,7 @@ impl Bench {
     }
 
     /// Whether the bench is simulated (built in, or a bench file with a `[simulation]` section).
-    pub(crate) fn is_simulated(&self) -> bool {
+    pub fn is_simulated(&self) -> bool {
         self.lab.is_some() || self.file.simulation.is_some()
     }
 

@@ -303,7 +303,7 @@ impl BenchFile {
     }
 
     /// The response calibration the bench file names, relative to `bench_path`'s folder.
-    pub(crate) fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
+    pub fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
         let name = self.calibration.as_ref()?.response.as_ref()?;
         Some(bench_path.parent().unwrap_or(Path::new(".")).join(name))
     }
@@ -317,10 +317,7 @@ impl BenchFile {
 /// Writes `calibration` into the bench file at `path`: its `[calibration]` section's values are
 /// set in place (a key no longer given is removed), and every other line, comments included (also
 /// those inside the section and after a value), is kept as it was. The write is atomic.
-pub(crate) fn store_calibration(
-    path: &Path,
-    calibration: &Calibration,
-) -> Result<(), BenchFileError> {
+pub fn store_calibration(path: &Path, calibration: &Calibration) -> Result<(), BenchFileError> {
     let text = std::fs::read_to_string(path).map_err(|source| BenchFileError::Read {
         path: path.to_path_buf(),
         source,

@@ -105,7 +105,7 @@ impl Prepared {
     /// The options a capture of `captured` is processed with (this preparation's, with the
     /// AWG amplitude the instrument applied), known before it is processed: the raw files
     /// record them while the capture is processed.
-    pub(crate) fn options_for(&self, captured: &Captured) -> ProcessOptions {
+    pub fn options_for(&self, captured: &Captured) -> ProcessOptions {
         let mut options = self.pipeline().options().clone();
         options.awg_amplitude_vpp = Some(captured.applied.awg.i_amplitude_vpp);
         options
@@ -460,7 +460,7 @@ pub struct Processing {
 /// Processes a capture through `prepared`'s pipeline, off the runtime: each repetition alone and
 /// their coherent average. [`Rig::measure`] does this for its own capture; a campaign calls it
 /// again with the preparation of another algorithm, so the capture is taken once.
-pub(crate) async fn process_with(
+pub async fn process_with(
     prepared: &mut Prepared,
     captured: &Captured,
 ) -> Result<Processing, MeasureError> {
@@ -611,7 +611,7 @@ pub async fn measure(
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
 /// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
 /// capture while it is processed, so that a capture whose processing fails is still kept.
-pub(crate) async fn take(
+pub async fn take(
     bench: &Bench,
     request: &CaptureRequest,
     repetitions: usize,
@@ -663,7 +663,7 @@ async fn connect_while_building<B, C>(
 }
 
 /// The number of repetitions one measurement may ask for (checked before anything is connected).
-pub(crate) fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
+pub fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
     if (1..=MAX_REPETITIONS).contains(&repetitions) {
         Ok(())
     } else {

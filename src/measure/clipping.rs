@@ -176,7 +176,7 @@ impl ClipCount {
 
 /// One record's clipping as processing sees it: the count and the rails in volts.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct RecordClipping {
+pub struct RecordClipping {
     pub(crate) count: ClipCount,
     /// `(bottom, top)` rail of I and of Q, volts.
     pub(crate) rails_v: [(f64, f64); 2],

@@ -93,7 +93,7 @@ fn marker(d: &Detection) -> Marker {
 }
 
 /// The plot and the table of a processed measurement. `truth_m`: a simulated bench's true ranges.
-pub(crate) fn profile_figure(
+pub fn profile_figure(
     title: String,
     p: &Processed,
     options: &ProcessOptions,

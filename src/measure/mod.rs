@@ -24,31 +24,31 @@
 //! | `calibration` | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
-pub(crate) mod ambiguity;
+pub mod ambiguity;
 pub mod bench;
-pub(crate) mod bench_file;
-pub(crate) mod calibration;
+pub mod bench_file;
+pub mod calibration;
 pub mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
-pub(crate) mod doctor;
-pub(crate) mod export;
-pub(crate) mod figure;
+pub mod doctor;
+pub mod export;
+pub mod figure;
 pub mod interrupt;
 pub mod options;
 pub(crate) mod payload;
 pub mod pipeline;
 #[cfg(test)]
 mod predistortion_tests;
-pub(crate) mod record;
-pub(crate) mod repeat;
-pub(crate) mod reprocess;
-pub(crate) mod response;
+pub mod record;
+pub mod repeat;
+pub mod reprocess;
+pub mod response;
 pub(crate) mod response_from_capture;
-pub(crate) mod response_run;
+pub mod response_run;
 pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
-pub(crate) mod station;
+pub mod station;
 pub(crate) mod transmit;
 
 pub use clipping::{ClipDetection, Clipping};

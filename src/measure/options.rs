@@ -77,7 +77,7 @@ impl Algorithm {
     }
 
     /// The default algorithm of a waveform: correlation for MSK-LFM, Fourier for OFDM.
-    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
+    pub fn default_for(waveform: WaveformKind) -> Algorithm {
         match waveform {
             WaveformKind::MskLfm => Algorithm::Correlation,
             WaveformKind::Ofdm => Algorithm::Fourier,
@@ -358,7 +358,7 @@ impl ProcessOptions {
 /// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
 /// defaults): `None` keeps the base's value.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct ProcessOverrides {
+pub struct ProcessOverrides {
     pub algorithm: Option<Algorithm>,
     pub music_m: Option<usize>,
     pub music_p: Option<Option<usize>>,

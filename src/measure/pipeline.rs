@@ -62,7 +62,7 @@ pub struct RawIq {
 /// The capture as the scope's words and their scaling (volts = gain * word - offset), I and Q:
 /// aligned without a record in volts first.
 #[derive(Debug, Clone)]
-pub(crate) struct RawWords {
+pub struct RawWords {
     pub i: Vec<i16>,
     pub q: Vec<i16>,
     pub gain: [f64; 2],
@@ -93,7 +93,7 @@ impl RawWords {
 }
 
 /// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
-pub(crate) trait Alignable {
+pub trait Alignable {
     fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError>;
 }
 

@@ -48,7 +48,7 @@ pub(crate) fn off_repetitions(on: usize, period: usize) -> usize {
 
 /// What to calibrate.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct CalibrateRequest {
+pub struct CalibrateRequest {
     /// What to transmit: the table covers this waveform's band.
     pub waveform: WaveformSpec,
     pub reference_range_m: f64,
@@ -59,7 +59,7 @@ pub(crate) struct CalibrateRequest {
 
 /// A response measured on a bench, with the reference's figures before and after correcting it.
 #[derive(Debug, Clone)]
-pub(crate) struct Calibrated {
+pub struct Calibrated {
     pub request: CalibrateRequest,
     pub response: Response,
     pub reference: ReferenceFigures,
@@ -73,7 +73,7 @@ impl Calibrated {
     /// width (by [`MIN_WIDTH_IMPROVEMENT_CM`]) closer to a flat chain's and take neither further
     /// away by more than that. Closer, not lower: a chain's echo can as well lower a side-lobe (as
     /// the thesis' lab measured with OFDM, Table 4.7) as raise it.
-    pub(crate) fn verdict(&self) -> Result<String, String> {
+    pub fn verdict(&self) -> Result<String, String> {
         let f = &self.reference;
         let flat_width_cm = FLAT_CHAIN_WIDTH * crate::physics::C0
             / (2.0 * self.request.waveform.bandwidth_hz())
@@ -113,7 +113,7 @@ impl Calibrated {
     }
 
     /// Writes the calibration to `path` (the table beside it).
-    pub(crate) fn save(&self, path: &Path) -> Result<Calibration, MeasureError> {
+    pub fn save(&self, path: &Path) -> Result<Calibration, MeasureError> {
         let id = &self.identities;
         let header = ResponseHeader {
             format: FORMAT.into(),
@@ -167,7 +167,7 @@ fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Optio
 }
 
 /// Calibrates on `bench` through a connected `rig` (a campaign keeps its own).
-pub(crate) async fn calibrate_with(
+pub async fn calibrate_with(
     rig: &mut Rig,
     bench: &Bench,
     request: &CalibrateRequest,

@@ -208,7 +208,7 @@ impl Session {
     ///
     /// On a line-protocol device the reply line comes back without its CRC, and an `ERR` line is
     /// the device's refusal ([`SessionError::Device`]).
-    pub(crate) async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+    pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
         self.query_raw_waiting(query, None).await
     }
 

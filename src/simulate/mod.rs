@@ -16,13 +16,13 @@
 use crate::exit::{Classify, ExitClass};
 
 pub mod accuracy;
-pub(crate) mod ber;
+pub mod ber;
 pub mod kernels;
 pub(crate) mod noise;
-pub(crate) mod report;
+pub mod report;
 pub mod run;
 pub mod scene;
-pub(crate) mod scene_bench;
+pub mod scene_bench;
 pub mod spec;
 pub mod thesis;
 

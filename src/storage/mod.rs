@@ -9,16 +9,16 @@
 use crate::exit::{Classify, ExitClass};
 use std::path::PathBuf;
 
-pub(crate) mod atomic;
+pub mod atomic;
 pub(crate) mod cache;
-pub(crate) mod export;
+pub mod export;
 pub mod hash;
-pub(crate) mod npy;
+pub mod npy;
 pub(crate) mod npz;
-pub(crate) mod plot;
+pub mod plot;
 pub(crate) mod profile;
 pub mod recording;
-pub(crate) mod sigmf;
+pub mod sigmf;
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

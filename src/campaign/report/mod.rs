@@ -31,7 +31,7 @@ pub use figures::{figures, Figure};
 /// The Markdown report's file name in a run folder.
 pub(crate) const FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
-pub(crate) const HTML_FILE: &str = "report.html";
+pub const HTML_FILE: &str = "report.html";
 
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
@@ -54,7 +54,7 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
 /// folder from before it) is recorded too.
 /// Without `force` such a `results.json` is refused: the report would not show what the run
 /// recorded, and the manifest's hashes would be false from then on.
-pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
+pub fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
     use super::manifest::FileRecord;
     use super::run::RESULTS_FILE;
     let mut manifest = Manifest::load(dir)?;
