@@ -74,9 +74,9 @@
 //! pipeline every command uses; both are found within a millimetre:
 //!
 //! ```
-//! use radbench::simulate::run::simulate;
-//! use radbench::simulate::scene::Target;
-//! use radbench::simulate::spec::{RunSpec, WaveformSpec};
+//! use radbench::simulate::simulate;
+//! use radbench::simulate::Target;
+//! use radbench::simulate::{RunSpec, WaveformSpec};
 //!
 //! let mut spec = RunSpec::new(
 //!     "two pillars",
@@ -99,7 +99,7 @@
 //! use num_complex::Complex64;
 //! use radbench::measure::{Dac, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission};
 //! use radbench::physics::C0;
-//! use radbench::waveform::spec::WaveformKind;
+//! use radbench::waveform::WaveformKind;
 //! use std::sync::Arc;
 //!
 //! let kind = WaveformKind::MskLfm;

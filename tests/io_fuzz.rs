@@ -11,12 +11,12 @@ mod io_alloc_count;
 use bytes::{Bytes, BytesMut};
 use proptest::collection::vec;
 use proptest::prelude::*;
-use radbench::transport::framing::TerminatedDecoder;
-use radbench::transport::hislip::codec::{self as hislip, FrameDecoder};
-use radbench::transport::io::Decode;
-use radbench::transport::vicp::codec::{self as vicp, BlockDecoder};
+use radbench::transport::hislip::{self as hislip, FrameDecoder};
+use radbench::transport::vicp::{self as vicp, BlockDecoder};
 use radbench::transport::vxi11::{messages, rpc};
 use radbench::transport::CodecError;
+use radbench::transport::Decode;
+use radbench::transport::TerminatedDecoder;
 use std::mem::Discriminant;
 
 #[global_allocator]
@@ -389,7 +389,7 @@ proptest! {
         let _ = reply::parse_idn(&text);
         let _ = reply::parse_f64(&text);
         let _ = reply::parse_i64(&text);
-        let _ = radbench::session::line::classify(&text);
+        let _ = radbench::session::classify(&text);
         let crc = radbench::session::Crc8 { poly: 0x07, init: 0 };
         let _ = crc.unframe(&text);
     }

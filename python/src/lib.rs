@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use radbench::in_memory::{self, InMemory, ProcessRequest};
 use radbench::measure::RawIq;
-use radbench::waveform::spec::WaveformKind;
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 use std::time::Duration;
 

@@ -8,8 +8,8 @@ use super::run::{self, Finished, NewRun, Observer};
 use super::spec::SpecFile;
 use super::CampaignError;
 use crate::driver::RfPermit;
-use crate::measure::interrupt::Interrupt;
-use crate::waveform::spec::{SweepBand, WaveformSpec};
+use crate::measure::Interrupt;
+use crate::waveform::{SweepBand, WaveformSpec};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -215,10 +215,10 @@ async fn calibrate_lab(
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
 ) -> Result<PathBuf, CampaignError> {
-    use crate::measure::bench::{Bench, BenchSource, BuiltIn};
-    use crate::measure::capture::Rig;
-    use crate::measure::response_run::{calibrate_with, CalibrateRequest};
     use crate::measure::MeasureError;
+    use crate::measure::Rig;
+    use crate::measure::{calibrate_with, CalibrateRequest};
+    use crate::measure::{Bench, BenchSource, BuiltIn};
     let scene = crate::measure::scene_control::Scene {
         targets: vec![crate::measure::scene_control::Target {
             range_m: LAB_REFERENCE_M,

@@ -7,9 +7,9 @@
 use super::manifest::{Manifest, StepStatus};
 use super::{io, CampaignError};
 use crate::measure::export::{export_capture, Entry, FORMAT_VERSION};
-use crate::measure::options::ProcessOptions;
 use crate::measure::reprocess;
-use crate::storage::export::{Array, ExportWriter};
+use crate::measure::ProcessOptions;
+use crate::storage::{Array, ExportWriter};
 use serde_json::{json, Value};
 use std::path::Path;
 

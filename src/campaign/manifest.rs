@@ -11,8 +11,8 @@
 
 use super::plan::Plan;
 use super::{io, CampaignError};
-use crate::measure::station::Identities;
-use crate::storage::atomic::write_atomic;
+use crate::measure::Identities;
+use crate::storage::write_atomic;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::io::Read;

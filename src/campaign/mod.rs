@@ -21,27 +21,35 @@
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 
-pub mod builtin;
-pub mod export;
+pub(crate) mod builtin;
+pub(crate) mod export;
 mod folder;
 pub(crate) mod kind;
-pub mod manifest;
-pub mod plan;
+pub(crate) mod manifest;
+pub(crate) mod plan;
 pub(crate) mod positioner;
 mod prepare;
-pub mod report;
-pub mod results;
+pub(crate) mod report;
+pub(crate) mod results;
 mod resume;
-pub mod run;
+pub(crate) mod run;
 mod runner;
 pub(crate) mod spec;
 mod step_job;
 mod worker;
 
+pub use builtin::*;
+pub use export::*;
+pub use manifest::*;
+pub use plan::*;
+pub use report::*;
+pub use results::*;
+pub use run::*;
+
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};
-use crate::measure::interrupt::StopSignal;
 use crate::measure::MeasureError;
+use crate::measure::StopSignal;
 use std::path::PathBuf;
 
 pub use plan::Plan;

@@ -9,14 +9,14 @@ use super::kind::{sorted_ranges, SweepAt, SweepParameter};
 use super::spec::{ModelOrder, PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
-use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
-use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
-use crate::measure::options::{Algorithm, ProcessOptions};
-use crate::measure::response::CorrectionMode;
 use crate::measure::scene_control::Scene;
+use crate::measure::CorrectionMode;
+use crate::measure::{Algorithm, ProcessOptions};
+use crate::measure::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
+use crate::measure::{BenchFile, Calibration, InstrumentEntry};
 use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
-use crate::waveform::spec::{WaveformKind, WaveformSpec};
+use crate::waveform::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -390,7 +390,7 @@ impl Plan {
     }
 
     /// The receive correction every step applies (the same for every algorithm).
-    pub(crate) fn correction(&self) -> Option<&crate::measure::response::CorrectionUsed> {
+    pub(crate) fn correction(&self) -> Option<&crate::measure::CorrectionUsed> {
         self.processing.first().and_then(|o| o.correction.as_ref())
     }
 
@@ -623,10 +623,10 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
     let check = match spec_out.kind() {
         WaveformKind::MskLfm => spec_out
             .msk_lfm_params()
-            .map(|p| crate::waveform::msk_lfm::MskLfm::new(p).map(|_| ())),
+            .map(|p| crate::waveform::MskLfm::new(p).map(|_| ())),
         WaveformKind::Ofdm => spec_out
             .ofdm_params()
-            .map(|p| crate::waveform::ofdm::Ofdm::new(p).map(|_| ())),
+            .map(|p| crate::waveform::Ofdm::new(p).map(|_| ())),
     };
     if let Some(Err(e)) = check {
         return Err(spec.error("waveform", e.to_string()));
@@ -702,7 +702,7 @@ fn processing(
 fn correction(
     spec: &SpecFile,
     bench: &BenchInfo,
-) -> Result<Option<(CorrectionMode, crate::measure::response::Calibration)>, SpecError> {
+) -> Result<Option<(CorrectionMode, crate::measure::Calibration)>, SpecError> {
     let p = &spec.spec.processing;
     let mode = p.correction.unwrap_or(CorrectionMode::Rx);
     let given = p.calibration.as_ref().map(|c| spec.resolve(c));
@@ -734,7 +734,7 @@ fn correction(
         }
         (None, None, None) => return Ok(None),
     };
-    crate::measure::response::Calibration::load(&path)
+    crate::measure::Calibration::load(&path)
         .map(|c| Some((mode, c)))
         .map_err(|e| {
             let from = if field == "processing.correction" {

@@ -9,12 +9,12 @@ use super::repeat::{stopped_between, truth_ranges};
 use crate::live::{Event, Live};
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
-use radbench::measure::bench::Bench;
-use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use radbench::measure::capture::{self, CaptureRequest, Rig};
-use radbench::measure::interrupt::Interrupt;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::{self, CaptureRequest, Rig};
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::waveform::WaveformKind;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -170,7 +170,7 @@ async fn captures(
         let distance = range.zip(args.target_range).map(|(r, want)| r - want);
         let truth = truth_ranges(m.taken.ground_truth.as_ref());
         if let Some(l) = live {
-            let (_, table) = radbench::measure::figure::profile_figure(
+            let (_, table) = radbench::measure::profile_figure(
                 String::new(),
                 p,
                 &m.processing.options,

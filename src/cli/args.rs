@@ -6,10 +6,8 @@
 //! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
 pub(crate) use radbench::in_memory::{listed, PayloadArgs, WaveformArgs};
-use radbench::measure::options::{
-    Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName,
-};
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName};
+use radbench::waveform::WaveformKind;
 
 /// Range processing choices shared by `capture`, `simulate run` and `process`.
 #[derive(Debug, Clone, clap::Args)]
@@ -92,8 +90,8 @@ impl ProcessingArgs {
 mod tests {
     use super::*;
     use radbench::in_memory::Listed;
-    use radbench::measure::response::CorrectionMode;
-    use radbench::simulate::scene::CarrierPhase;
+    use radbench::measure::CorrectionMode;
+    use radbench::simulate::CarrierPhase;
 
     /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
     /// another one naming the option and every allowed value.

@@ -6,7 +6,7 @@
 
 use num_complex::Complex64;
 use radbench::exit::bad_input;
-use radbench::simulate::kernels::{time_all, KernelInputs, Kernels, XCORR_LAGS};
+use radbench::simulate::{time_all, KernelInputs, Kernels, XCORR_LAGS};
 use radbench::storage::{atomic::write_atomic, npy};
 use std::path::{Path, PathBuf};
 

@@ -4,14 +4,14 @@
 
 use super::capture::{bench_source, journal, open_bench};
 use radbench::driver::RfPermit;
-use radbench::measure::bench::{AwgLink, ScopeLink};
-use radbench::measure::bench_file::{store_calibration, Calibration};
-use radbench::measure::calibration::{check, estimate_delay};
-use radbench::measure::capture::{self, CaptureRequest};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::options::{Algorithm, ProcessOptions};
+use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::waveform::spec::WaveformSpec;
+use radbench::measure::{self, CaptureRequest};
+use radbench::measure::{check, estimate_delay};
+use radbench::measure::{store_calibration, Calibration};
+use radbench::measure::{Algorithm, ProcessOptions};
+use radbench::measure::{AwgLink, ScopeLink};
+use radbench::waveform::WaveformSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -112,7 +112,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         let calibration = Calibration {
             system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(reference_range),
-            measured_at: Some(radbench::storage::sigmf::utc_now_rfc3339()),
+            measured_at: Some(radbench::storage::utc_now_rfc3339()),
             // A response measured before is kept (it is relative to the delay it was measured
             // with: measure it again after a new delay).
             response: bench

@@ -2,15 +2,15 @@
 //! from, write a run's report again, run the thesis' lab chapter. Parses, calls `campaign`, prints.
 
 use radbench::campaign::builtin;
-use radbench::campaign::manifest::Status;
-use radbench::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
-use radbench::campaign::results::{AlgorithmResult, TargetResult, Truth};
-use radbench::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
+use radbench::campaign::Status;
+use radbench::campaign::{self, BenchInfo, Nominal, Step, WaveformCost};
+use radbench::campaign::{self, Finished, NewRun, Observer, StepDone, Summary};
 use radbench::campaign::{report, CampaignError, SpecFile};
+use radbench::campaign::{AlgorithmResult, TargetResult, Truth};
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
-use radbench::measure::bench::Bench;
-use radbench::measure::interrupt::Interrupt;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use serde::Serialize;
 use serde_json::json;

@@ -5,15 +5,15 @@ use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
 use anyhow::Context;
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
-use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{self, CaptureRequest, Measurement};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::record::{self, Provenance};
-use radbench::measure::response::CorrectionMode;
+use radbench::measure::CorrectionMode;
+use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::storage::atomic::write_group;
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::{self, CaptureRequest, Measurement};
+use radbench::measure::{self, Provenance};
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
+use radbench::storage::write_group;
+use radbench::waveform::WaveformKind;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -99,9 +99,9 @@ pub struct Args {
 pub(crate) fn resolve_correction(
     correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
-    bench: &radbench::measure::bench::Bench,
-) -> anyhow::Result<Option<radbench::measure::response::Calibration>> {
-    use radbench::measure::response::Calibration;
+    bench: &radbench::measure::Bench,
+) -> anyhow::Result<Option<radbench::measure::Calibration>> {
+    use radbench::measure::Calibration;
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
             .path
@@ -123,8 +123,8 @@ pub(crate) fn resolve_correction(
 
 /// Warnings about a calibration used on this bench: other instruments than it was measured with.
 pub(crate) fn calibration_warnings(
-    cal: &radbench::measure::response::Calibration,
-    identities: &radbench::measure::station::Identities,
+    cal: &radbench::measure::Calibration,
+    identities: &radbench::measure::Identities,
 ) -> Vec<String> {
     let seen = &cal.header.instruments;
     let mut out = Vec::new();
@@ -267,7 +267,7 @@ pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
 
 /// The default output folder: `runs/<UTC time>-<name>`.
 pub(crate) fn default_out(name: &str) -> PathBuf {
-    let stamp = radbench::storage::sigmf::utc_now_rfc3339()
+    let stamp = radbench::storage::utc_now_rfc3339()
         .replace([':', '-'], "")
         .replace('.', "_");
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
@@ -313,8 +313,8 @@ async fn measure_into(
     args: Args,
     global: &super::Global,
     kind: WaveformKind,
-    waveform: radbench::waveform::spec::WaveformSpec,
-    source: radbench::measure::bench::BenchSource,
+    waveform: radbench::waveform::WaveformSpec,
+    source: radbench::measure::BenchSource,
     out: &Path,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
@@ -481,7 +481,7 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
         }
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |x| format!("{x:.2} {unit}"));
-    let pm = |s: Option<radbench::measure::repeat::Stat>, unit: &str| {
+    let pm = |s: Option<radbench::measure::Stat>, unit: &str| {
         s.map(|s| format!(" (repetitions: {:.2} +- {:.2} {unit})", s.mean, s.std))
             .unwrap_or_default()
     };

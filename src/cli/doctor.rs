@@ -3,9 +3,9 @@
 
 use super::capture::{bench_source, journal, open_bench};
 use radbench::exit::{Classified, ExitClass};
-use radbench::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use radbench::measure::doctor::{self, Status};
-use radbench::measure::interrupt::Interrupt;
+use radbench::measure::Interrupt;
+use radbench::measure::{self, Status};
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]

@@ -3,12 +3,12 @@
 //! range profile and its range axis, the detections, the transmitted reference and bits, the
 //! options. The arrays are what `radbench process` computes from the same files.
 
-use radbench::campaign::export::{export_run, put_all};
-use radbench::campaign::manifest::Manifest;
+use radbench::campaign::Manifest;
+use radbench::campaign::{export_run, put_all};
 use radbench::exit::bad_input;
-use radbench::measure::export::export_capture;
+use radbench::measure::export_capture;
 use radbench::measure::reprocess;
-use radbench::storage::export::{ExportFormat, ExportWriter};
+use radbench::storage::{ExportFormat, ExportWriter};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -58,7 +58,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
         if input.join("capture.sigmf-meta").is_file() {
             return capture(&input.join("capture.sigmf-meta"));
         }
-        if input.join(radbench::campaign::manifest::FILE).is_file() {
+        if input.join(radbench::campaign::FILE).is_file() {
             if Manifest::load(input).is_ok() {
                 return Ok(Input::Run);
             }

@@ -3,11 +3,11 @@
 //! and the campaign's observer).
 
 use crate::live::{Event, Live, Options};
-use radbench::campaign::plan::Step;
-use radbench::campaign::run::{Observer, StepDone};
+use radbench::campaign::Step;
+use radbench::campaign::{Observer, StepDone};
 use radbench::exit::bad_input;
-use radbench::measure::bench::Bench;
-use radbench::measure::interrupt::{Interrupt, StopSignal};
+use radbench::measure::Bench;
+use radbench::measure::{Interrupt, StopSignal};
 use serde_json::{json, Value};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
@@ -53,7 +53,7 @@ impl LiveArgs {
                 eprintln!("Stop pressed on the live page: stopping as on Ctrl-C");
                 stop.raise(StopSignal::Interrupt);
             }),
-            bench_state: Box::new(radbench::driver::rf_state::snapshot),
+            bench_state: Box::new(radbench::driver::snapshot),
         })
         .await
         .map_err(|e| {

@@ -4,11 +4,11 @@
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radbench::exit::{Classified, ExitClass};
 use radbench::in_memory::{compute, folder_names, recorded_data_hashes, recorded_for, ProcessArgs};
-use radbench::measure::options::ProcessOverrides;
 use radbench::measure::record;
-use radbench::measure::reprocess::{self, Source, WaveformChoice};
-use radbench::storage::atomic::{write_group_open, OpenGroup};
+use radbench::measure::ProcessOverrides;
+use radbench::measure::{self, Source, WaveformChoice};
 use radbench::storage::StorageError;
+use radbench::storage::{write_group_open, OpenGroup};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::collections::HashMap;

@@ -5,12 +5,12 @@ use super::capture::{calibration_warnings, journal, report, Args};
 use super::live::{self as live_cli};
 use crate::live::{Event, Live};
 use radbench::driver::RfPermit;
-use radbench::measure::bench::Bench;
-use radbench::measure::capture::{self, CaptureRequest, Rig};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::record::{self, Provenance};
-use radbench::measure::response::Calibration;
+use radbench::measure::Bench;
+use radbench::measure::Calibration;
+use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
+use radbench::measure::{self, CaptureRequest, Rig};
+use radbench::measure::{self, Provenance};
 use serde_json::json;
 use std::path::Path;
 

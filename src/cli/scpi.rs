@@ -286,7 +286,7 @@ impl BinarySaver {
             p.push(format!(".{}", self.count));
             PathBuf::from(p)
         };
-        radbench::storage::atomic::write_atomic(&path, payload)
+        radbench::storage::write_atomic(&path, payload)
             .with_context(|| format!("cannot save the binary reply to {}", path.display()))?;
         Ok(Some(path))
     }

@@ -10,10 +10,10 @@
 
 use super::args::{ProcessingArgs, WaveformArgs};
 use radbench::exit::bad_input;
-use radbench::simulate::scene::CarrierPhase;
-use radbench::simulate::scene_bench::{simulate_scene, SceneSpec};
+use radbench::simulate::CarrierPhase;
 use radbench::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
-use radbench::waveform::spec::WaveformKind;
+use radbench::simulate::{simulate_scene, SceneSpec};
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -198,11 +198,11 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
             spec.capture_rate_hz = a.capture_rate;
             spec.seed = a.seed;
             spec.trials = a.trials;
-            (radbench::simulate::run::simulate(&spec)?, spec)
+            (radbench::simulate::simulate(&spec)?, spec)
         }
     };
     if let Some(path) = &a.plot {
-        radbench::storage::plot::draw(path, &outcome.plot(&spec))?;
+        radbench::storage::draw(path, &outcome.plot(&spec))?;
     }
     if let Some(path) = &a.profile_out {
         outcome.table().write(path)?;
@@ -239,7 +239,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
     if let Some(path) = &a.plot {
-        radbench::storage::plot::draw_ber(
+        radbench::storage::draw_ber(
             path,
             "Bit-error rate against Eb/N0 (AWGN), measured and theory",
             &ber::plot_series(&curves),

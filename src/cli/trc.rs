@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
 
-use radbench::storage::recording::{read_trc, RecordingError};
+use radbench::storage::{read_trc, RecordingError};
 use radbench::trc::{Segment, Trace};
 
 #[derive(Debug, clap::Args)]

@@ -3,8 +3,8 @@
 //! the work).
 
 use super::args::WaveformArgs;
-use radbench::measure::ambiguity::{ambiguity, AmbiguityReport};
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::{ambiguity, AmbiguityReport};
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]

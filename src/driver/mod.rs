@@ -57,21 +57,30 @@ pub(crate) mod capability;
 pub(crate) mod error;
 #[cfg(any(test, feature = "testing"))]
 pub(crate) mod fault;
-pub mod gotmic;
+pub(crate) mod gotmic;
 pub(crate) mod identity;
-pub mod io;
-pub mod keysight_uxr;
-pub mod lecroy;
+pub(crate) mod io;
+pub(crate) mod keysight_uxr;
+pub(crate) mod lecroy;
 pub(crate) mod limits;
 pub(crate) mod m8195a;
 pub(crate) mod open;
 pub(crate) mod permit;
-pub mod rf_state;
-pub mod safe_state;
+pub(crate) mod rf_state;
+pub(crate) mod safe_state;
 pub(crate) mod scpi;
 #[cfg(any(test, feature = "testing"))]
-pub mod scripted;
+pub(crate) mod scripted;
 pub(crate) mod trace;
+
+pub use gotmic::*;
+pub use io::*;
+pub use keysight_uxr::*;
+pub use lecroy::*;
+pub use rf_state::*;
+pub use safe_state::*;
+#[cfg(any(test, feature = "testing"))]
+pub use scripted::*;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;

@@ -2,14 +2,14 @@
 //! folder names, the hashes their runs recorded, and one capture through this thread's pipeline
 //! (one cache of pipelines per worker thread).
 
-use crate::campaign::manifest::Manifest;
-use crate::measure::options::ProcessOverrides;
-use crate::measure::pipeline::Pipeline;
-use crate::measure::record::SourceFile;
+use crate::campaign::Manifest;
 use crate::measure::reprocess::{
     self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
 };
 use crate::measure::MeasureError;
+use crate::measure::Pipeline;
+use crate::measure::ProcessOverrides;
+use crate::measure::SourceFile;
 use serde_json::json;
 use std::cell::RefCell;
 use std::collections::{BTreeSet, HashMap};

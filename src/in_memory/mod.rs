@@ -22,10 +22,10 @@ pub use batch::{compute, folder_names, on_cached_pipeline, recorded_data_hashes,
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 
 use crate::exit::bad_input;
-use crate::measure::options::ProcessOverrides;
 use crate::measure::reprocess::{self, Loaded, Source, WaveformChoice};
+use crate::measure::ProcessOverrides;
 use crate::measure::{Aligned, Dac, MeasureError, ProcessOptions, Processed, RawIq, Transmission};
-use crate::waveform::spec::WaveformKind;
+use crate::waveform::WaveformKind;
 use clap::Parser;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};

@@ -8,15 +8,13 @@
 #![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
 use crate::exit::bad_input;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::options::{
-    Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName,
-};
-use crate::measure::reprocess::WaveformChoice;
-use crate::measure::response::CorrectionMode;
-use crate::simulate::scene::CarrierPhase;
+use crate::measure::CorrectionMode;
+use crate::measure::WaveformChoice;
+use crate::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName};
+use crate::measure::{AwgLink, ScopeLink, ScopeModel};
+use crate::simulate::CarrierPhase;
 use crate::waveform::overrides::{OverrideError, WaveformOverrides};
-use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
+use crate::waveform::{SweepBand, WaveformKind, WaveformSpec};
 use std::path::{Path, PathBuf};
 
 /// A library enum the command line takes by name: its values (with a line of help each) and its
@@ -360,10 +358,10 @@ impl ProcessArgs {
     fn correction(
         &self,
         out: &Path,
-    ) -> anyhow::Result<Option<Option<crate::measure::response::CorrectionUsed>>> {
-        use crate::measure::response::Calibration;
+    ) -> anyhow::Result<Option<Option<crate::measure::CorrectionUsed>>> {
+        use crate::measure::Calibration;
         if let Some(r) = self.reference_range {
-            crate::measure::calibration::check(r, 2.0)?;
+            crate::measure::check(r, 2.0)?;
             let Some(capture) = &self.calibration else {
                 return Err(bad_input(
                     "--reference-range needs --calibration CAPTURE: the capture of one reference \
@@ -379,7 +377,7 @@ impl ProcessArgs {
             let cal = crate::measure::response_from_capture::calibrate_from_capture(
                 capture,
                 r,
-                crate::measure::calibration::default_gate_s(r),
+                crate::measure::default_gate_s(r),
                 &out.join("reference-response.toml"),
             )?;
             eprintln!(

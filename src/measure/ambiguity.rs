@@ -13,7 +13,7 @@ use crate::driver::AwgSettings;
 use crate::dsp::ambiguity::{cut_figures, Ambiguity, Wrap};
 use crate::physics::C0;
 use crate::storage::plot::{draw_heatmap, Heatmap};
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use num_complex::Complex64;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

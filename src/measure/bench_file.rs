@@ -352,7 +352,7 @@ pub fn store_calibration(path: &Path, calibration: &Calibration) -> Result<(), B
     // A bench file kept as a symlink (e.g. into a shared configuration folder) is updated where
     // it really lives; the atomic writer never writes through a link itself.
     let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-    crate::storage::atomic::write_atomic(&target, out.as_bytes()).map_err(|source| {
+    crate::storage::write_atomic(&target, out.as_bytes()).map_err(|source| {
         BenchFileError::Write {
             path: path.to_path_buf(),
             source,

@@ -20,7 +20,7 @@ use super::transmit::{Dac, Transmission};
 use super::{off_runtime, MeasureError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit, SafeStateReport};
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -226,7 +226,7 @@ pub(crate) fn read_background(
     path: &std::path::Path,
     capture_rate_hz: f64,
 ) -> Result<Aligned, MeasureError> {
-    use crate::storage::recording::{read_sigmf, SampleUnit};
+    use crate::storage::{read_sigmf, SampleUnit};
     let rec = read_sigmf(path)?;
     let first_point_s = rec.radbench.as_ref().and_then(|r| r.trigger_offset_s);
     let (Some(rate), SampleUnit::Volts, Some(first_point_s)) =

@@ -7,7 +7,7 @@ use super::options::{ProcessOptions, ProcessOverrides};
 use super::pipeline::{Alignable, Processed};
 use super::reprocess::{self, Record, Source, WaveformChoice};
 use super::MeasureError;
-use crate::storage::export::Array;
+use crate::storage::Array;
 use serde_json::{json, Map, Value};
 
 /// Version of the export's layout (`metadata["format_version"]`).
@@ -246,9 +246,9 @@ fn processed_entries(p: &Processed) -> Vec<Entry> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::pipeline::{Pipeline, RawIq, RecordGeometry};
     use crate::measure::transmit::{Dac, Transmission};
-    use crate::waveform::spec::WaveformKind;
+    use crate::measure::{Pipeline, RawIq, RecordGeometry};
+    use crate::waveform::WaveformKind;
     use num_complex::Complex64;
     use std::sync::Arc;
 

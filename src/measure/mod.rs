@@ -24,32 +24,50 @@
 //! | `calibration` | the system delay from a reference target |
 //! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
-pub mod ambiguity;
-pub mod bench;
-pub mod bench_file;
-pub mod calibration;
-pub mod capture;
+pub(crate) mod ambiguity;
+pub(crate) mod bench;
+pub(crate) mod bench_file;
+pub(crate) mod calibration;
+pub(crate) mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
-pub mod doctor;
-pub mod export;
-pub mod figure;
-pub mod interrupt;
-pub mod options;
+pub(crate) mod doctor;
+pub(crate) mod export;
+pub(crate) mod figure;
+pub(crate) mod interrupt;
+pub(crate) mod options;
 pub(crate) mod payload;
-pub mod pipeline;
+pub(crate) mod pipeline;
 #[cfg(test)]
 mod predistortion_tests;
-pub mod record;
-pub mod repeat;
-pub mod reprocess;
-pub mod response;
+pub(crate) mod record;
+pub(crate) mod repeat;
+pub(crate) mod reprocess;
+pub(crate) mod response;
 pub(crate) mod response_from_capture;
-pub mod response_run;
+pub(crate) mod response_run;
 pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
-pub mod station;
+pub(crate) mod station;
 pub(crate) mod transmit;
+
+pub use ambiguity::*;
+pub use bench::*;
+pub use bench_file::*;
+pub use calibration::*;
+pub use capture::*;
+pub use doctor::*;
+pub use export::*;
+pub use figure::*;
+pub use interrupt::*;
+pub use options::*;
+pub use pipeline::*;
+pub use record::*;
+pub use repeat::*;
+pub use reprocess::*;
+pub use response::*;
+pub use response_run::*;
+pub use station::*;
 
 pub use clipping::{ClipDetection, Clipping};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
@@ -130,7 +148,7 @@ pub enum MeasureError {
     Storage(#[from] crate::storage::StorageError),
     /// A recording given as input cannot be read.
     #[error(transparent)]
-    Recording(#[from] crate::storage::recording::RecordingError),
+    Recording(#[from] crate::storage::RecordingError),
     /// The built-in mock lab did not start.
     #[error("cannot start the built-in mock lab: {0}")]
     Lab(#[from] mock_lab::lab::LabError),

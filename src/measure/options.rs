@@ -2,9 +2,9 @@
 //! `processing` in `summary.json` and the SigMF metadata so a capture can be re-processed
 //! identically. Library types only: the CLI maps its own argument enums onto these.
 
-use crate::dsp::ofdm_radar::FftPrecision;
-use crate::dsp::window::Window;
-use crate::waveform::spec::WaveformKind;
+use crate::dsp::FftPrecision;
+use crate::dsp::Window;
+use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 
 /// Range-processing algorithm.
@@ -225,8 +225,8 @@ impl DetectorName {
     }
 
     /// The `dsp` method.
-    pub(crate) fn to_dsp(self) -> crate::dsp::detect::Method {
-        use crate::dsp::detect::{CfarKind, Method, NoiseEstimate};
+    pub(crate) fn to_dsp(self) -> crate::dsp::Method {
+        use crate::dsp::{CfarKind, Method, NoiseEstimate};
         let os = CfarKind::Os { rank: 0.75 };
         match self {
             DetectorName::Clean => Method::Clean {

@@ -351,7 +351,7 @@ impl PayloadDecoder {
 /// MER of the (I, Q) symbol pairs against the sent ones with the echo's amplitude taken out
 /// (data-aided), and the first pulse's phase trajectory.
 fn msk_decoded(
-    gen: &crate::waveform::msk_lfm::MskLfm,
+    gen: &crate::waveform::MskLfm,
     soft: &[f64],
     pulses: &[Complex64],
     reference: &[Complex64],

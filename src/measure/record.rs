@@ -169,7 +169,7 @@ pub fn write_capture(
     m: &Measurement,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    let (written, _) = crate::storage::atomic::write_group(|| {
+    let (written, _) = crate::storage::write_group(|| {
         let raw = write_raw(out, &m.taken, &m.processing.options, provenance)?;
         write_processed(out, m, &raw, provenance)
     })?;
@@ -419,7 +419,7 @@ pub fn write_reprocessed<R>(
     };
     let manifest = ReprocessManifest {
         radbench_version: env!("CARGO_PKG_VERSION"),
-        written_at: crate::storage::sigmf::utc_now_rfc3339(),
+        written_at: crate::storage::utc_now_rfc3339(),
         sources,
         processing: o,
     };

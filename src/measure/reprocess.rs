@@ -18,7 +18,7 @@ use crate::storage::hash::sha256_file;
 use crate::storage::recording::{
     read_sigmf, read_sigmf_stored, read_trc, sigmf_paths, Recording, SampleUnit,
 };
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};

@@ -382,7 +382,7 @@ impl Calibration {
                 data_path.display()
             ))
         })?;
-        let sha = crate::storage::hash::sha256(&bytes);
+        let sha = crate::storage::sha256(&bytes);
         if sha != header.data_sha256 {
             return Err(bad(format!(
                 "its table {} has changed since it was measured (SHA-256 {sha}, the header \
@@ -396,7 +396,7 @@ impl Calibration {
         let response = table_from(&shape, &values, &header).map_err(bad)?;
         let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
         Ok(Calibration {
-            sha256: crate::storage::hash::sha256(text.as_bytes()),
+            sha256: crate::storage::sha256(text.as_bytes()),
             header,
             response,
             path,
@@ -435,7 +435,7 @@ impl Calibration {
         }
         let bytes = crate::storage::npy::encode_f64(&[rows, COLUMNS.len()], &data).map_err(bad)?;
         header.data = data_name;
-        header.data_sha256 = crate::storage::hash::sha256(&bytes);
+        header.data_sha256 = crate::storage::sha256(&bytes);
         header.columns = COLUMNS.iter().map(|c| c.to_string()).collect();
         let text = format!(
             "# The chain's response, measured by `radbench calibrate response`.\n# The table is \
@@ -443,8 +443,8 @@ impl Calibration {
             header.data,
             toml::to_string(&header).map_err(|e| bad(e.to_string()))?
         );
-        crate::storage::atomic::write_atomic(&data_path, &bytes)?;
-        crate::storage::atomic::write_atomic(path, text.as_bytes())?;
+        crate::storage::write_atomic(&data_path, &bytes)?;
+        crate::storage::write_atomic(path, text.as_bytes())?;
         Calibration::load(path)
     }
 }

@@ -13,7 +13,7 @@ use super::response::{
 use super::station::{Captured, Identities};
 use super::MeasureError;
 use crate::driver::RfPermit;
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use std::path::Path;
 
 /// The side-lobe level must come this much closer to a flat chain's, dB, for a correction to be
@@ -120,7 +120,7 @@ impl Calibrated {
             data: String::new(),
             data_sha256: String::new(),
             columns: Vec::new(),
-            measured_at: crate::storage::sigmf::utc_now_rfc3339(),
+            measured_at: crate::storage::utc_now_rfc3339(),
             radbench_version: env!("CARGO_PKG_VERSION").into(),
             waveform: self.request.waveform.name().into(),
             band_hz: self.response.band_hz,

@@ -17,8 +17,11 @@
 //! an `ERR` line as the device's refusal.
 
 pub(crate) mod error;
-pub mod line;
-pub mod reply;
+pub(crate) mod line;
+pub(crate) mod reply;
+
+pub use line::*;
+pub use reply::*;
 
 pub(crate) use error::ErrorList;
 pub use error::{DeviceError, SessionError};

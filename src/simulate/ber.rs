@@ -5,9 +5,9 @@
 //! this module chooses the budget, runs the grid and says how much each point can be trusted.
 
 use super::SimError;
-use crate::waveform::ber::{measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint};
-use crate::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use crate::waveform::ofdm::{Ofdm, OfdmParams};
+use crate::waveform::{measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint};
+use crate::waveform::{MskLfm, MskLfmParams};
+use crate::waveform::{Ofdm, OfdmParams};
 use rayon::prelude::*;
 use serde::Serialize;
 

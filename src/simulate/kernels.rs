@@ -13,14 +13,14 @@
 
 use super::scene::{EchoSynth, Target, BENCH_CARRIER_HZ};
 use super::SimError;
-use crate::dsp::correlate::CrossCorrelator;
-use crate::dsp::decimate::{Decimator, DecimatorConfig};
-use crate::dsp::music::{Music, MusicConfig, MusicSpectrum};
-use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::CrossCorrelator;
+use crate::dsp::{Decimator, DecimatorConfig};
+use crate::dsp::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::{Music, MusicConfig, MusicSpectrum};
 use crate::rng::SplitMix64;
-use crate::waveform::bits::BitSource;
-use crate::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use crate::waveform::ofdm::{Ofdm, OfdmParams};
+use crate::waveform::BitSource;
+use crate::waveform::{MskLfm, MskLfmParams};
+use crate::waveform::{Ofdm, OfdmParams};
 use num_complex::Complex64;
 use serde::Serialize;
 use std::time::Instant;

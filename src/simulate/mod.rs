@@ -15,16 +15,26 @@
 
 use crate::exit::{Classify, ExitClass};
 
-pub mod accuracy;
-pub mod ber;
-pub mod kernels;
+pub(crate) mod accuracy;
+pub(crate) mod ber;
+pub(crate) mod kernels;
 pub(crate) mod noise;
-pub mod report;
-pub mod run;
-pub mod scene;
-pub mod scene_bench;
-pub mod spec;
-pub mod thesis;
+pub(crate) mod report;
+pub(crate) mod run;
+pub(crate) mod scene;
+pub(crate) mod scene_bench;
+pub(crate) mod spec;
+pub(crate) mod thesis;
+
+pub use accuracy::*;
+pub use ber::*;
+pub use kernels::*;
+pub use report::*;
+pub use run::*;
+pub use scene::*;
+pub use scene_bench::*;
+pub use spec::*;
+pub use thesis::*;
 
 /// Why a simulation could not run.
 #[derive(Debug, thiserror::Error)]

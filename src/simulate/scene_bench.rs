@@ -12,11 +12,11 @@ use super::scene::Target;
 use super::spec::{RunSpec, ScenarioResult};
 use super::SimError;
 use crate::dsp::C0;
-use crate::measure::capture::CaptureRequest;
-use crate::measure::options::ProcessOptions;
-use crate::measure::pipeline::Processed;
 use crate::measure::scene_capture::SceneCapture;
-use crate::waveform::spec::WaveformSpec;
+use crate::measure::CaptureRequest;
+use crate::measure::ProcessOptions;
+use crate::measure::Processed;
+use crate::waveform::WaveformSpec;
 use mock_lab::scene::Scene;
 use std::collections::BTreeMap;
 

@@ -10,7 +10,7 @@ use super::run::{simulate, SimOutcome};
 use super::scene::{CarrierPhase, Target};
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
 use super::{accuracy, SimError};
-use crate::measure::options::DetectorName;
+use crate::measure::DetectorName;
 use crate::storage::plot;
 use serde_json::json;
 use std::fmt::Write as _;

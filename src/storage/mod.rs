@@ -9,16 +9,24 @@
 use crate::exit::{Classify, ExitClass};
 use std::path::PathBuf;
 
-pub mod atomic;
+pub(crate) mod atomic;
 pub(crate) mod cache;
-pub mod export;
-pub mod hash;
-pub mod npy;
+pub(crate) mod export;
+pub(crate) mod hash;
+pub(crate) mod npy;
 pub(crate) mod npz;
-pub mod plot;
+pub(crate) mod plot;
 pub(crate) mod profile;
-pub mod recording;
-pub mod sigmf;
+pub(crate) mod recording;
+pub(crate) mod sigmf;
+
+pub use atomic::*;
+pub use export::*;
+pub use hash::*;
+pub use npy::*;
+pub use plot::*;
+pub use recording::*;
+pub use sigmf::*;
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -25,14 +25,19 @@
 //! reopens the connection (after an abandoned write, which may have left half a frame on the wire).
 
 pub(crate) mod error;
-pub mod framing;
+pub(crate) mod framing;
 pub mod hislip;
-pub mod io;
-pub mod journal;
-pub mod serial;
+pub(crate) mod io;
+pub(crate) mod journal;
+pub(crate) mod serial;
 pub(crate) mod socket;
 pub mod vicp;
 pub mod vxi11;
+
+pub use framing::*;
+pub use io::*;
+pub use journal::*;
+pub use serial::*;
 
 pub(crate) use error::Rounded;
 pub use error::{CodecError, ErrorKind, LinkError};

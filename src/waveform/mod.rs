@@ -59,10 +59,17 @@ impl Classify for DecodeError {
     }
 }
 
-pub mod ber;
-pub mod bits;
-pub mod msk_lfm;
-pub mod ofdm;
+pub(crate) mod ber;
+pub(crate) mod bits;
+pub(crate) mod msk_lfm;
+pub(crate) mod ofdm;
 pub(crate) mod overrides;
-pub mod quantise;
-pub mod spec;
+pub(crate) mod quantise;
+pub(crate) mod spec;
+
+pub use ber::*;
+pub use bits::*;
+pub use msk_lfm::*;
+pub use ofdm::*;
+pub use quantise::*;
+pub use spec::*;

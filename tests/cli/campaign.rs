@@ -3,14 +3,14 @@
 //! uninterrupted run's), mock_lab dropping the AWG link mid-step, a tampered step file, dry run,
 //! spec errors, the prompt and command positioners, `campaign new`, the thesis' lab chapter.
 
-use radbench::campaign::manifest::{Manifest, Status, StepTables};
-use radbench::campaign::plan::{self, BenchInfo, Step};
-use radbench::campaign::run::{self, NewRun, Observer, Quiet};
 use radbench::campaign::SpecFile;
+use radbench::campaign::{self, BenchInfo, Step};
+use radbench::campaign::{self, NewRun, Observer, Quiet};
+use radbench::campaign::{Manifest, Status, StepTables};
 use radbench::driver::RfPermit;
 use radbench::exit::Classify;
-use radbench::measure::bench::Bench;
-use radbench::measure::interrupt::Interrupt;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;

@@ -2,9 +2,9 @@
 //! from the run's own numbers, and `radbench campaign report RUN_DIR` writing both again byte for
 //! byte. Each test runs one example campaign on the built-in mock lab (loopback only).
 
-use radbench::campaign::manifest::Manifest;
-use radbench::campaign::report::{self, figures::wilson95, Figure};
-use radbench::campaign::results::{AlgorithmResult, Results};
+use radbench::campaign::Manifest;
+use radbench::campaign::{self, figures::wilson95, Figure};
+use radbench::campaign::{AlgorithmResult, Results};
 use std::path::{Path, PathBuf};
 
 async fn radbench(args: &[&str]) -> (i32, String, String) {
@@ -78,7 +78,7 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
         .chart
         .series
         .iter()
-        .filter(|s| s.style == radbench::campaign::report::plots::Style::Trace)
+        .filter(|s| s.style == radbench::campaign::Style::Trace)
         .count();
     assert_eq!(traces, results.steps.len(), "one profile per step");
     let mut all = figures.to_vec();
@@ -182,7 +182,7 @@ fn ids(figures: &[Figure]) -> Vec<&'static str> {
     figures.iter().map(|f| f.id).collect()
 }
 
-fn series<'a>(f: &'a Figure, starts: &str) -> &'a radbench::campaign::report::plots::Series {
+fn series<'a>(f: &'a Figure, starts: &str) -> &'a radbench::campaign::Series {
     f.chart
         .series
         .iter()

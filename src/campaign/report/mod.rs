@@ -13,17 +13,21 @@
 //! | `markdown` | `report.md` |
 //! | `html` | `report.html` |
 
-pub mod figures;
+pub(crate) mod figures;
 pub(crate) mod html;
 pub(crate) mod link;
 pub(crate) mod markdown;
-pub mod plots;
-pub mod profiles;
+pub(crate) mod plots;
+pub(crate) mod profiles;
+
+pub use figures::*;
+pub use plots::*;
+pub use profiles::*;
 
 use super::manifest::Manifest;
 use super::results::Results;
 use super::{io, CampaignError};
-use crate::storage::atomic::write_atomic;
+use crate::storage::write_atomic;
 use std::path::{Path, PathBuf};
 
 pub use figures::{figures, Figure};

@@ -1,6 +1,6 @@
 //! The receiver's parameters, checked once in `OfdmRadarConfig::validate`.
 
-use crate::dsp::window::Window;
+use crate::dsp::Window;
 use crate::dsp::{DspError, C0};
 
 /// How the per-symbol profiles are combined.

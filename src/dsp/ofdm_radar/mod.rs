@@ -283,7 +283,7 @@ impl OfdmRadar {
     }
 
     /// The window coefficients across subcarriers divided by their sum (ascending frequency): the
-    /// spectral lines of this receiver's point spread (`crate::dsp::detect::SpectralLines::ofdm`).
+    /// spectral lines of this receiver's point spread (`crate::dsp::SpectralLines::ofdm`).
     pub fn normalised_window(&self) -> &[f64] {
         &self.weights
     }

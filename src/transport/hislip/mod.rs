@@ -4,7 +4,9 @@
 //! Replies are matched by MessageID: a Data/DataEnd frame carrying an older ID (a reply to a
 //! message abandoned after a timeout) is discarded, so a stale reply is never taken as the answer.
 
-pub mod codec;
+pub(crate) mod codec;
+
+pub use codec::*;
 
 use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID, HEADER_LEN};
 use super::error::LinkError;

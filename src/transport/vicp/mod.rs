@@ -5,7 +5,9 @@
 //! reply to a command abandoned after a timeout) is discarded. Device clear is a header with the
 //! CLEAR flag.
 
-pub mod codec;
+pub(crate) mod codec;
+
+pub use codec::*;
 
 use self::codec::{next_seq, op, BlockDecoder, Header, HEADER_LEN};
 use super::error::LinkError;

@@ -6,8 +6,11 @@
 //! call is still outstanding at the next device clear, the client first sends device_abort on the
 //! abort channel so the server gives up the blocked read.
 
-pub mod messages;
-pub mod rpc;
+pub(crate) mod messages;
+pub(crate) mod rpc;
+
+pub use messages::*;
+pub use rpc::*;
 
 use self::messages::{flags, proc_, reason, CreateLinkResp};
 use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
