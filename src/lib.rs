@@ -22,12 +22,22 @@
 //!
 //! # What is public
 //!
-//! Each layer is a public module; inside it, a module nothing outside the crate needs is
-//! `pub(crate)`, and the layer re-exports the types it offers (`radbench::driver::ChannelTrace`,
-//! not `radbench::driver::trace::ChannelTrace`). `#![warn(unreachable_pub)]` keeps every `pub`
-//! item reachable, so a `pub` that is not part of the API shows as a warning (an error in CI);
-//! `tests/dsp/public_api.rs` fails on a `pub` item that nothing outside the crate names (the
-//! binary, tests, benchmarks, examples, doc examples) or reaches through a used signature.
+//! Each layer is a public module and the only public path to what it offers: its submodules are
+//! `pub(crate)` and the layer re-exports their `pub` items (`pub use sub::*`), so a user writes
+//! `radbench::<layer>::<Item>` (`radbench::simulate::RunSpec`, `radbench::measure::ProcessOptions`,
+//! `radbench::waveform::WaveformKind`), never the file an item lives in. Where two submodules of
+//! a layer define the same name, the layer says which one it offers (`measure` re-exports the
+//! capture's `measure` and the re-processing's `Repetition` by name) or the name was made
+//! unique (`measure::BenchCalibration`, the bench file's `[calibration]`, beside the response's
+//! `measure::Calibration`; `campaign::MANIFEST_FILE`). One exception: the transport's protocols
+//! keep their namespaces, whose codecs share names (`transport::hislip::Header`,
+//! `transport::vicp::Header`, `transport::vxi11::VERSION`). A new submodule is
+//! `pub(crate) mod x;`, with `pub use x::*;` beside it when it holds public items.
+//!
+//! `#![warn(unreachable_pub)]` keeps every `pub` item reachable, so a `pub` that is not part of
+//! the API shows as a warning (an error in CI); `tests/dsp/public_api.rs` fails on a `pub` item
+//! that nothing outside the crate names (the binary with its `cli` and `live`, tests,
+//! benchmarks, examples, the Python package, doc examples) or reaches through a used signature.
 //!
 //! | module | layer | what it holds |
 //! |---|---|---|

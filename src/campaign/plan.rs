@@ -14,7 +14,7 @@ use crate::measure::scene_control::Scene;
 use crate::measure::CorrectionMode;
 use crate::measure::{Algorithm, ProcessOptions};
 use crate::measure::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
-use crate::measure::{BenchFile, Calibration, InstrumentEntry};
+use crate::measure::{BenchCalibration, BenchFile, InstrumentEntry};
 use crate::waveform::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::waveform::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
@@ -325,7 +325,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
         rx: Some(entry(BUILT_IN_MODELS[3], "ASRL/dev/null::INSTR")),
         simulation: None,
-        calibration: Some(Calibration {
+        calibration: Some(BenchCalibration {
             system_delay_s: scene.system_delay_s,
             reference_range_m: None,
             measured_at: None,

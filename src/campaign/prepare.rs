@@ -28,7 +28,7 @@ impl PreparedSet {
     }
 }
 
-/// Prepares everything a plan needs (see [`PreparedSet`]).
+/// Prepares everything a plan needs (see `PreparedSet`).
 pub async fn prepare_all(
     plan: &Plan,
     bench: &BenchInfo,

@@ -575,7 +575,7 @@ impl Runner {
         }
         let report = report::write(&self.dir, &self.manifest, &results)?;
         self.manifest
-            .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
+            .set_file(FileRecord::of(&self.dir, Path::new(report::REPORT_FILE))?);
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
         self.folder.check(&self.dir)?;
@@ -600,7 +600,7 @@ impl Runner {
             max_abs_truth_error_m: max(|a| a.truth_error_m),
             reason: self.manifest.reason.clone(),
             stopped_at_step: self.manifest.stopped_at_step,
-            manifest: self.dir.join(manifest::FILE),
+            manifest: self.dir.join(manifest::MANIFEST_FILE),
             results: self.dir.join(RESULTS_FILE),
             report,
         };

@@ -9,11 +9,12 @@ use super::repeat::{stopped_between, truth_ranges};
 use crate::live::{Event, Live};
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
+use radbench::measure;
 use radbench::measure::Bench;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::measure::{self, CaptureRequest, Rig};
 use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{CaptureRequest, Rig};
 use radbench::waveform::WaveformKind;
 use serde_json::json;
 use std::path::PathBuf;
@@ -143,7 +144,7 @@ async fn captures(
     live: Option<&Live>,
 ) -> anyhow::Result<()> {
     let catalog = bench.file.catalog()?;
-    let mut prepared = capture::prepare(bench, &catalog, request).await?;
+    let mut prepared = measure::prepare(bench, &catalog, request).await?;
     let mut rig = Rig::connect(bench, &catalog, journal(global)?).await?;
     let mut k = 0u64;
     while args.count.is_none_or(|n| k < n) {

@@ -4,11 +4,12 @@
 
 use super::capture::{bench_source, journal, open_bench};
 use radbench::driver::RfPermit;
+use radbench::measure;
+use radbench::measure::CaptureRequest;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::measure::{self, CaptureRequest};
 use radbench::measure::{check, estimate_delay};
-use radbench::measure::{store_calibration, Calibration};
+use radbench::measure::{store_calibration, BenchCalibration};
 use radbench::measure::{Algorithm, ProcessOptions};
 use radbench::measure::{AwgLink, ScopeLink};
 use radbench::waveform::WaveformSpec;
@@ -99,7 +100,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             wait_s: 10.0,
             background: None,
         };
-        let m = capture::measure(
+        let m = measure::measure(
             &bench,
             &request,
             1,
@@ -109,7 +110,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         )
         .await?;
         let estimate = estimate_delay(&m.processing.processed, reference_range, args.search)?;
-        let calibration = Calibration {
+        let calibration = BenchCalibration {
             system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(reference_range),
             measured_at: Some(radbench::storage::utc_now_rfc3339()),

@@ -7,7 +7,7 @@ use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::Rig;
 use radbench::measure::{calibrate_with, CalibrateRequest};
-use radbench::measure::{store_calibration, Calibration as BenchCalibration};
+use radbench::measure::{store_calibration, BenchCalibration};
 use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{Calibration, ReferenceFigures, Response};
 use radbench::waveform::WaveformKind;

@@ -5,13 +5,14 @@ use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
 use anyhow::Context;
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
+use radbench::measure;
 use radbench::measure::CorrectionMode;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::measure::{self, CaptureRequest, Measurement};
-use radbench::measure::{self, Provenance};
+use radbench::measure::Provenance;
 use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
 use radbench::measure::{Bench, BenchSource, BuiltIn};
+use radbench::measure::{CaptureRequest, Measurement};
 use radbench::storage::write_group;
 use radbench::waveform::WaveformKind;
 use std::path::{Path, PathBuf};
@@ -355,7 +356,7 @@ async fn measure_into(
         )
         .await;
     }
-    let (taken, mut prepared) = capture::take(
+    let (taken, mut prepared) = measure::take(
         &bench,
         &request,
         args.repetitions,
@@ -376,10 +377,10 @@ async fn measure_into(
         let (out, taken, provenance) = (out.clone(), taken.clone(), provenance.clone());
         let options = prepared.options_for(&taken.captured);
         tokio::task::spawn_blocking(move || {
-            write_group(|| record::write_raw(&out, &taken, &options, &provenance))
+            write_group(|| measure::write_raw(&out, &taken, &options, &provenance))
         })
     };
-    let processing = capture::process_with(&mut prepared, &taken.captured).await;
+    let processing = measure::process_with(&mut prepared, &taken.captured).await;
     let (raw, _) = raw_writer
         .await
         .map_err(|e| MeasureError::Worker(format!("writing the raw capture: {e}")))??;
@@ -397,7 +398,7 @@ async fn measure_into(
         let warnings = calibration_warnings(cal, &m.taken.identities);
         m.processing.processed.warnings.extend(warnings);
     }
-    let ((_, summary), _) = write_group(|| record::write_processed(&out, &m, &raw, &provenance))?;
+    let ((_, summary), _) = write_group(|| measure::write_processed(&out, &m, &raw, &provenance))?;
     if let Some(signal) = interrupt.received() {
         eprintln!(
             "{} received after the capture: the bench is safe and the files are written to {}",

@@ -6,8 +6,9 @@
 use radbench::campaign::Manifest;
 use radbench::campaign::{export_run, put_all};
 use radbench::exit::bad_input;
+use radbench::measure;
 use radbench::measure::export_capture;
-use radbench::measure::reprocess;
+
 use radbench::storage::{ExportFormat, ExportWriter};
 use std::path::{Path, PathBuf};
 
@@ -34,7 +35,7 @@ pub struct Args {
 
 /// What the input is.
 enum Input {
-    Capture(reprocess::Source),
+    Capture(measure::Source),
     Run,
 }
 
@@ -50,7 +51,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
     }
     let name = input.to_string_lossy().to_lowercase();
     let capture = |path: &Path| {
-        reprocess::sigmf(path)
+        measure::sigmf(path)
             .map(Input::Capture)
             .map_err(|e| bad_input(format!("{}: {}", e.path.display(), e.reason)))
     };
@@ -58,7 +59,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
         if input.join("capture.sigmf-meta").is_file() {
             return capture(&input.join("capture.sigmf-meta"));
         }
-        if input.join(radbench::campaign::FILE).is_file() {
+        if input.join(radbench::campaign::MANIFEST_FILE).is_file() {
             if Manifest::load(input).is_ok() {
                 return Ok(Input::Run);
             }

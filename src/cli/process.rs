@@ -4,9 +4,10 @@
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radbench::exit::{Classified, ExitClass};
 use radbench::in_memory::{compute, folder_names, recorded_data_hashes, recorded_for, ProcessArgs};
-use radbench::measure::record;
+use radbench::measure;
+
 use radbench::measure::ProcessOverrides;
-use radbench::measure::{self, Source, WaveformChoice};
+use radbench::measure::{Source, WaveformChoice};
 use radbench::storage::StorageError;
 use radbench::storage::{write_group_open, OpenGroup};
 use rayon::prelude::*;
@@ -65,7 +66,7 @@ fn process_one(
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
     let ((files, summary), open) =
-        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r, args.link_png))?;
+        write_group_open(|| measure::write_reprocessed(out, &sources, &loaded, &r, args.link_png))?;
     Ok((files.dir, summary, open))
 }
 
@@ -151,7 +152,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         }
     }
     let (waveform, overrides) = args.options.settings(&out)?;
-    let discovered = reprocess::discover(&args.inputs);
+    let discovered = measure::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);
     let recorded = recorded_data_hashes(&sources);

@@ -14,8 +14,10 @@ use super::terminal::{is_stdout_closed, out, printable, printable_bytes};
 use anyhow::Context;
 use bytes::Bytes;
 use radbench::address::Resource;
-use radbench::session::{reply, Session, SessionError, SessionOptions};
-use radbench::transport::{journal, Journal, Timeouts};
+use radbench::session;
+use radbench::session::{Session, SessionError, SessionOptions};
+use radbench::transport;
+use radbench::transport::{Journal, Timeouts};
 use std::future::Future;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -180,7 +182,9 @@ async fn known_to_keep_errors(session: &mut Session) -> bool {
     let reply = session.query("*IDN?").await;
     session.link_options_mut().timeouts.read = read;
     match reply {
-        Ok(idn) => catalog.identify(reply::without_idn_header(&idn)).is_some(),
+        Ok(idn) => catalog
+            .identify(session::without_idn_header(&idn))
+            .is_some(),
         Err(_) => {
             // A late reply must not be taken for the first command's.
             let _ = session.device_clear().await;
@@ -304,7 +308,7 @@ pub(crate) fn expects_reply(command: &str) -> bool {
 
 /// The block of a reply, when it holds one: a `#<digit>` outside quoted strings (488.2 response
 /// data has no other use for it), definite or indefinite, at any length.
-fn block_of(raw: &Bytes) -> Option<reply::Block> {
+fn block_of(raw: &Bytes) -> Option<session::Block> {
     let mut quoted = false;
     let start = raw.windows(2).position(|w| {
         if w[0] == b'"' {
@@ -312,7 +316,7 @@ fn block_of(raw: &Bytes) -> Option<reply::Block> {
         }
         !quoted && w[0] == b'#' && w[1].is_ascii_digit()
     })?;
-    let block = reply::parse_block(raw.clone()).ok()?;
+    let block = session::parse_block(raw.clone()).ok()?;
     (block.prefix().len() == start).then_some(block)
 }
 
@@ -321,8 +325,8 @@ fn block_of(raw: &Bytes) -> Option<reply::Block> {
 pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
     if let Some(block) = block_of(raw) {
         let form = match block.form {
-            reply::BlockForm::Definite => "definite",
-            reply::BlockForm::Indefinite => "indefinite",
+            session::BlockForm::Definite => "definite",
+            session::BlockForm::Indefinite => "indefinite",
         };
         let prefix = printable_bytes(block.prefix());
         let payload = block.into_payload();
@@ -339,7 +343,7 @@ pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
                 format!("{prefix} ")
             },
             payload.len(),
-            journal::sha256_hex(&payload),
+            transport::sha256_hex(&payload),
             head.join(" ")
         );
         if let Some(short) = short_text(&payload) {
@@ -348,14 +352,14 @@ pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
         return (text, Some(payload));
     }
     if let Some(text) = looks_like_text(raw) {
-        return (printable(reply::trim_reply(text)).into_owned(), None);
+        return (printable(session::trim_reply(text)).into_owned(), None);
     }
     let head: Vec<String> = raw.iter().take(16).map(|b| format!("{b:02x}")).collect();
     (
         format!(
             "binary reply: {} bytes, sha256 {}, first bytes: {}",
             raw.len(),
-            journal::sha256_hex(raw),
+            transport::sha256_hex(raw),
             head.join(" ")
         ),
         Some(raw.clone()),

@@ -10,8 +10,9 @@
 
 use super::args::{ProcessingArgs, WaveformArgs};
 use radbench::exit::bad_input;
+use radbench::simulate;
 use radbench::simulate::CarrierPhase;
-use radbench::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
+use radbench::simulate::{parse_targets, RunSpec};
 use radbench::simulate::{simulate_scene, SceneSpec};
 use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
@@ -145,7 +146,7 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
             ))
         })?;
     }
-    let table = thesis::run_all(args.plot.as_deref())?;
+    let table = simulate::run_all(args.plot.as_deref())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&table.to_json())?);
     } else {
@@ -211,7 +212,7 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
         let doc = serde_json::json!({ "scenarios": [outcome.result] });
         println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
-        print!("{}", report::scenario_text(&outcome.result));
+        print!("{}", simulate::scenario_text(&outcome.result));
     }
     Ok(())
 }
@@ -233,7 +234,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} Eb/N0 points, eta {eta}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let curves = ber::run_curves(a.bits, a.seed, &|done, total| {
+    let curves = simulate::run_curves(a.bits, a.seed, &|done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })?;
@@ -242,7 +243,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
         radbench::storage::draw_ber(
             path,
             "Bit-error rate against Eb/N0 (AWGN), measured and theory",
-            &ber::plot_series(&curves),
+            &simulate::plot_series(&curves),
         )?;
     }
     if a.json {
@@ -251,7 +252,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&serde_json::json!({ "ber": curves }))?
         );
     } else {
-        print!("{}", report::ber_text(&curves));
+        print!("{}", simulate::ber_text(&curves));
     }
     Ok(())
 }

@@ -92,7 +92,7 @@ impl RawWords {
     }
 }
 
-/// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
+/// A capture [`Pipeline::align`] or `Pipeline::align_words` take.
 pub trait Alignable {
     fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError>;
 }

@@ -156,7 +156,7 @@ pub fn sigmf(path: &Path) -> Result<Source, InputError> {
 }
 
 /// A capture read back: its repetitions (in volts, or [`Repetition`]s for
-/// [`load_for_processing`]) and what radbench recorded about it.
+/// `load_for_processing`) and what radbench recorded about it.
 #[derive(Debug, Clone)]
 pub struct Loaded<R = RawIq> {
     pub repetitions: Vec<R>,

@@ -493,9 +493,9 @@ fn table_from(
 /// One aligned repetition: its samples at the waveform rate, and when sample 0 lies after the
 /// marker edge (the pipeline's `Aligned`, borrowed).
 #[derive(Debug, Clone, Copy)]
-pub struct Repetition<'a> {
-    pub samples: &'a [Complex64],
-    pub residual_s: f64,
+pub(crate) struct Repetition<'a> {
+    pub(crate) samples: &'a [Complex64],
+    pub(crate) residual_s: f64,
 }
 
 /// Measures the chain's response from aligned repetitions of one reference reflector (`on`) and

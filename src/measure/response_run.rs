@@ -69,8 +69,8 @@ pub struct Calibrated {
 
 impl Calibrated {
     /// What the correction did to the reference (its side-lobe and width before and after), or
-    /// why it does not help: it must bring the side-lobe (by [`MIN_IMPROVEMENT_DB`]) or the -3 dB
-    /// width (by [`MIN_WIDTH_IMPROVEMENT_CM`]) closer to a flat chain's and take neither further
+    /// why it does not help: it must bring the side-lobe (by `MIN_IMPROVEMENT_DB`) or the -3 dB
+    /// width (by `MIN_WIDTH_IMPROVEMENT_CM`) closer to a flat chain's and take neither further
     /// away by more than that. Closer, not lower: a chain's echo can as well lower a side-lobe (as
     /// the thesis' lab measured with OFDM, Table 4.7) as raise it.
     pub fn verdict(&self) -> Result<String, String> {

@@ -29,7 +29,6 @@ pub use line::{Crc8, LineProtocol};
 pub use reply::{parse_block, parse_f64, parse_i64, parse_idn, Block, BlockForm, Identity};
 pub(crate) use reply::{parse_bool, register_error_text, without_header};
 
-use self::line::LineReply;
 use crate::address::Resource;
 use crate::transport::{Journal, Link, LinkError, LinkOptions};
 use bytes::Bytes;

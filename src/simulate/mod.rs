@@ -2,16 +2,16 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
+//! | `scene` | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
 //! | `scene_bench` | `simulate run --scene`: the built-in mock lab's capture of a scene file, in-process (same synthesis, scope and pipeline) |
 //! | `noise` | complex white noise at a per-sample SNR |
-//! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
-//! | [`run`] | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
-//! | [`accuracy`] | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
-//! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
+//! | `spec` | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
+//! | `run` | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
+//! | `accuracy` | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
+//! | `thesis` | every chapter-4 simulation, compared with the thesis |
 //! | `ber` | BER against Eb/N0 for both waveforms, next to theory |
 //! | `report` | plain-text reports |
-//! | [`kernels`] | the DSP kernels `radbench bench` times, and their seeded inputs |
+//! | `kernels` | the DSP kernels `radbench bench` times, and their seeded inputs |
 
 use crate::exit::{Classify, ExitClass};
 

@@ -3,9 +3,9 @@
 
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
-/// The processing choices a run spec names (defined in [`crate::measure::options`]).
+/// The processing choices a run spec names (defined in `crate::measure::options`).
 pub use crate::measure::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
-/// The waveform a run transmits (defined in [`crate::waveform::spec`]).
+/// The waveform a run transmits (defined in `crate::waveform::spec`).
 pub use crate::waveform::WaveformSpec;
 use serde::Serialize;
 use std::collections::BTreeMap;

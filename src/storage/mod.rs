@@ -1,6 +1,6 @@
 //! Outputs: atomic file writes, SigMF recordings, npy and CSV range profiles, range-profile
 //! plots (SVG/PNG), named arrays for notebooks (`export`: `.npz`, HDF5); and the readers of
-//! recorded captures ([`recording`]: SigMF, `.trc`).
+//! recorded captures (`recording`: SigMF, `.trc`).
 //!
 //! Every writer goes through `atomic::write_atomic`: the bytes go to a temporary file in the
 //! destination's folder, which is then renamed over the destination, so a reader never sees half a

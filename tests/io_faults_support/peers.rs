@@ -3,7 +3,7 @@
 
 use radbench::rng::SplitMix64;
 use radbench::transport::hislip::{self as hislip, msg};
-use radbench::transport::vicp::codec as vicp;
+use radbench::transport::vicp;
 use radbench::transport::vxi11::{record_mark, XdrWriter};
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};

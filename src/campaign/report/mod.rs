@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 pub use figures::{figures, Figure};
 
 /// The Markdown report's file name in a run folder.
-pub(crate) const FILE: &str = "report.md";
+pub(crate) const REPORT_FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
 pub const HTML_FILE: &str = "report.html";
 
@@ -41,7 +41,7 @@ pub const HTML_FILE: &str = "report.html";
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
     let mut figures = figures(manifest, results);
     figures.extend(profiles::step_profiles(dir, results));
-    let md = dir.join(FILE);
+    let md = dir.join(REPORT_FILE);
     write_atomic(
         &md,
         markdown::markdown(manifest, results, &figures).as_bytes(),
@@ -91,7 +91,7 @@ pub fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), Cam
         }
         return Ok((md, None));
     };
-    for file in [RESULTS_FILE, csv, FILE, HTML_FILE] {
+    for file in [RESULTS_FILE, csv, REPORT_FILE, HTML_FILE] {
         manifest.set_file(FileRecord::of(dir, Path::new(file))?);
     }
     manifest.store(dir)?;

@@ -247,7 +247,7 @@ impl OfdmRadar {
 
     /// The coherent (complex) range profile of `idiv` into `out` (resized to K values): the same
     /// windowed, zero-padded IFFT of the symbol-averaged `I_div` as [`OfdmRadar::profile`] with
-    /// [`Averaging::Coherent`], before taking the magnitude. The input of [`crate::dsp::detect`],
+    /// [`Averaging::Coherent`], before taking the magnitude. The input of `crate::dsp::detect`,
     /// whatever the configured averaging.
     ///
     /// # Errors

@@ -8,7 +8,6 @@ pub(crate) mod codec;
 
 pub use codec::*;
 
-use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID, HEADER_LEN};
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};

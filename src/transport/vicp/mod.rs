@@ -9,7 +9,6 @@ pub(crate) mod codec;
 
 pub use codec::*;
 
-use self::codec::{next_seq, op, BlockDecoder, Header, HEADER_LEN};
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};

@@ -12,8 +12,6 @@ pub(crate) mod rpc;
 pub use messages::*;
 pub use rpc::*;
 
-use self::messages::{flags, proc_, reason, CreateLinkResp};
-use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};
