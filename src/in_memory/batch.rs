@@ -82,7 +82,7 @@ pub fn compute(
 }
 
 /// `loaded` processed as `resolved` says, on this thread's pipeline for it (built when missing).
-pub fn on_cached_pipeline<R: Record>(
+pub(crate) fn on_cached_pipeline<R: Record>(
     loaded: &Loaded<R>,
     resolved: reprocess::Resolved,
 ) -> Result<Reprocessed, anyhow::Error> {

@@ -18,7 +18,8 @@
 mod batch;
 mod options;
 
-pub use batch::{compute, folder_names, on_cached_pipeline, recorded_data_hashes, recorded_for};
+use batch::on_cached_pipeline;
+pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 
 use crate::exit::bad_input;
