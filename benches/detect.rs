@@ -7,7 +7,7 @@ mod detect_support;
 
 use detect_support::*;
 use num_complex::Complex64;
-use radbench::dsp::detect::{CfarKind, DetectOptions, Method, TabulatedPsf};
+use radbench::dsp::{CfarKind, DetectOptions, Method, TabulatedPsf};
 
 fn main() {
     divan::main();
@@ -63,7 +63,7 @@ fn clean_ofdm_thesis_lab(bencher: divan::Bencher, count: usize) {
 }
 
 const CLEAN: Method = Method::Clean {
-    noise: radbench::dsp::detect::NoiseEstimate::Global,
+    noise: radbench::dsp::NoiseEstimate::Global,
 };
 
 #[divan::bench(args = [1, 4], sample_count = 30)]

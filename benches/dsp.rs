@@ -1,7 +1,7 @@
 //! DSP benchmarks (divan): the five kernels of `radbench bench`, on the same seeded inputs
 //! (`radbench::simulate::kernels`). Run: `cargo bench --bench dsp` (a few seconds per kernel).
 
-use radbench::simulate::kernels::{KernelInputs, Kernels};
+use radbench::simulate::{KernelInputs, Kernels};
 use std::sync::OnceLock;
 
 fn main() {

@@ -3,11 +3,11 @@
 
 use divan::Bencher;
 use num_complex::Complex64;
-use radbench::dsp::correlate::CrossCorrelator;
-use radbench::dsp::decimate::{Decimator, DecimatorConfig};
+use radbench::dsp::CrossCorrelator;
+use radbench::dsp::{Decimator, DecimatorConfig};
 use radbench::rng::SplitMix64;
-use radbench::waveform::bits::BitSource;
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams};
+use radbench::waveform::BitSource;
+use radbench::waveform::{MskLfm, MskLfmParams};
 
 fn main() {
     divan::main();

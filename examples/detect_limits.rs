@@ -16,9 +16,9 @@ mod detect_support;
 
 use detect_support::*;
 use num_complex::Complex64;
-use radbench::dsp::detect::{CfarKind, DetectOptions, Detector, Method, NoiseEstimate};
-use radbench::dsp::metrics::{find_peaks, interpolate_peak, Axis, CaCfar, Interpolation};
 use radbench::dsp::C0;
+use radbench::dsp::{find_peaks, interpolate_peak, Axis, CaCfar, Interpolation};
+use radbench::dsp::{CfarKind, DetectOptions, Detector, Method, NoiseEstimate};
 use radbench::rng::SplitMix64;
 use std::f64::consts::PI;
 

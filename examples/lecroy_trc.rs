@@ -12,7 +12,7 @@ use std::time::Duration;
 use mock_lab::emulator::lecroy::{Lecroy as Emulator, RemoteInterface, TestSignal};
 use mock_lab::server::{self, ServerOptions};
 use radbench::catalog::Catalog;
-use radbench::driver::lecroy::Lecroy;
+use radbench::driver::Lecroy;
 use radbench::driver::{Digitizer, DigitizerSettings};
 
 #[tokio::main]

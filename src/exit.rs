@@ -51,7 +51,7 @@ pub trait Classify {
 
 /// An error that carries its class explicitly; the CLI wraps layer errors in it.
 #[derive(Debug)]
-pub(crate) struct Classified {
+pub struct Classified {
     pub class: ExitClass,
     pub message: String,
 }

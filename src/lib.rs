@@ -7,7 +7,7 @@
 //! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!
 //! ```text
-//! cli -> campaign (spec, plan, run folder, resume) -> measure, storage
+//! cli (binary) -> campaign (spec, plan, run folder, resume) -> measure, storage
 //!  |
 //!  +---> simulate ----------------------+
 //!  |                                    v
@@ -22,12 +22,22 @@
 //!
 //! # What is public
 //!
-//! Each layer is a public module; inside it, a module nothing outside the crate needs is
-//! `pub(crate)`, and the layer re-exports the types it offers (`radbench::driver::ChannelTrace`,
-//! not `radbench::driver::trace::ChannelTrace`). `#![warn(unreachable_pub)]` keeps every `pub`
-//! item reachable, so a `pub` that is not part of the API shows as a warning (an error in CI);
-//! `tests/dsp/public_api.rs` fails on a `pub` item that nothing outside the crate names (the
-//! binary, tests, benchmarks, examples, doc examples) or reaches through a used signature.
+//! Each layer is a public module and the only public path to what it offers: its submodules are
+//! `pub(crate)` and the layer re-exports their `pub` items (`pub use sub::*`), so a user writes
+//! `radbench::<layer>::<Item>` (`radbench::simulate::RunSpec`, `radbench::measure::ProcessOptions`,
+//! `radbench::waveform::WaveformKind`), never the file an item lives in. Where two submodules of
+//! a layer define the same name, the layer says which one it offers (`measure` re-exports the
+//! capture's `measure` and the re-processing's `Repetition` by name) or the name was made
+//! unique (`measure::BenchCalibration`, the bench file's `[calibration]`, beside the response's
+//! `measure::Calibration`; `campaign::MANIFEST_FILE`). One exception: the transport's protocols
+//! keep their namespaces, whose codecs share names (`transport::hislip::Header`,
+//! `transport::vicp::Header`, `transport::vxi11::VERSION`). A new submodule is
+//! `pub(crate) mod x;`, with `pub use x::*;` beside it when it holds public items.
+//!
+//! `#![warn(unreachable_pub)]` keeps every `pub` item reachable, so a `pub` that is not part of
+//! the API shows as a warning (an error in CI); `tests/dsp/public_api.rs` fails on a `pub` item
+//! that nothing outside the crate names (the binary with its `cli` and `live`, tests,
+//! benchmarks, examples, the Python package, doc examples) or reaches through a used signature.
 //!
 //! | module | layer | what it holds |
 //! |---|---|---|
@@ -47,8 +57,14 @@
 //! | [`measure`] | 4 | the bench in use, each waveform family's room (`family`: overrides, transmission, payload decoder, algorithms; one `match` in `family::of`), the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files, the bench doctor, the simulated bench's scene behind a typed seam (`set_scene`, `reseed`, `scene`) |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), the kinds (one table, `kind.rs`), the runner and its step jobs, positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
-//! | `live` | app | the live view: a loopback HTTP server of one self-contained page and its event stream, fed through a bounded queue that drops frames, never waited for (crate-private; the CLI wires it) |
-//! | [`cli`] | app | one module per subcommand: parse, call, print; exit codes from error chains; [`cli::in_memory`]: the commands' results in memory (the Python package's entry) |
+//! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s options parsed by the command line's own clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]), captures processed and read back, the transmission |
+//! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
+//!
+//! The binary (`src/main.rs`) holds what only the command line needs: `cli` (one module per
+//! subcommand: parse, call, print; in `src/cli/`) and `live` (the live view: a loopback HTTP
+//! server of one self-contained page and its event stream, fed through a bounded queue that drops
+//! frames, never waited for; in `src/live/`). They use the library as any user does, through
+//! `radbench::...`.
 //!
 //! # Examples
 //!
@@ -68,9 +84,9 @@
 //! pipeline every command uses; both are found within a millimetre:
 //!
 //! ```
-//! use radbench::simulate::run::simulate;
-//! use radbench::simulate::scene::Target;
-//! use radbench::simulate::spec::{RunSpec, WaveformSpec};
+//! use radbench::simulate::simulate;
+//! use radbench::simulate::Target;
+//! use radbench::simulate::{RunSpec, WaveformSpec};
 //!
 //! let mut spec = RunSpec::new(
 //!     "two pillars",
@@ -93,7 +109,7 @@
 //! use num_complex::Complex64;
 //! use radbench::measure::{Dac, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission};
 //! use radbench::physics::C0;
-//! use radbench::waveform::spec::WaveformKind;
+//! use radbench::waveform::WaveformKind;
 //! use std::sync::Arc;
 //!
 //! let kind = WaveformKind::MskLfm;
@@ -185,11 +201,11 @@ macro_rules! named_enum {
 pub mod address;
 pub mod campaign;
 pub mod catalog;
-pub mod cli;
+mod classify;
 pub mod driver;
 pub mod dsp;
 pub mod exit;
-pub(crate) mod live;
+pub mod in_memory;
 pub mod measure;
 pub mod physics;
 pub mod rng;
@@ -200,3 +216,5 @@ pub mod time;
 pub mod transport;
 pub mod trc;
 pub mod waveform;
+
+pub use classify::classify;

@@ -2,19 +2,23 @@
 //!
 //! Standard output closed by its reader (`radbench ... | head`) ends the run quietly with exit
 //! code 0, as if the output had been read: the reader took what it wanted. Commands that print
-//! through [`radbench::cli::terminal::out`] see it as an error and stop (or, `scpi`, finish
+//! through [`cli::terminal::out`] see it as an error and stop (or, `scpi`, finish
 //! the commands without printing); a `println!` elsewhere panics on it, and that panic is caught
 //! here and silenced. Error text is printed with control characters escaped: it may quote what
 //! an instrument sent.
 
 use clap::Parser;
-use radbench::cli::{classify, terminal};
+use cli::terminal;
+use radbench::classify;
 use radbench::exit::ExitClass;
 use std::io::Write;
 
+mod cli;
+mod live;
+
 fn main() {
     keep_large_buffers();
-    let cli = match radbench::cli::Cli::try_parse() {
+    let cli = match cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
             let code = if e.use_stderr() {
@@ -29,8 +33,7 @@ fn main() {
     };
     init_tracing(cli.verbose);
     silence_closed_output_panics();
-    let outcome =
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| radbench::cli::run(cli)));
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cli::run(cli)));
     let code = match outcome {
         Ok(Ok(())) => 0,
         Ok(Err(err)) if terminal::is_stdout_closed(&err) => 0,

@@ -399,7 +399,7 @@ impl WaveDesc {
 
     /// The channel the trace came from, `C1`..`C4`, from WAVE_SOURCE (None for 9, "unknown", and
     /// anything else).
-    pub(crate) fn source_channel(&self) -> Option<u8> {
+    pub fn source_channel(&self) -> Option<u8> {
         match self.wave_source {
             0..=3 => Some(self.wave_source as u8 + 1),
             _ => None,
@@ -407,7 +407,7 @@ impl WaveDesc {
     }
 
     /// RECORD_TYPE by its template name (`single_sweep`, `sequence_obsolete`, `centered_RIS`, ...).
-    pub(crate) fn record_type_name(&self) -> &'static str {
+    pub fn record_type_name(&self) -> &'static str {
         const NAMES: [&str; 10] = [
             "single_sweep",
             "interleaved",
@@ -428,7 +428,7 @@ impl WaveDesc {
     }
 
     /// VERT_COUPLING by its template name.
-    pub(crate) fn coupling_name(&self) -> &'static str {
+    pub fn coupling_name(&self) -> &'static str {
         match self.vert_coupling {
             0 => "DC_50_Ohms",
             1 | 3 => "ground",

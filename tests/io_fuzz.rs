@@ -11,12 +11,13 @@ mod io_alloc_count;
 use bytes::{Bytes, BytesMut};
 use proptest::collection::vec;
 use proptest::prelude::*;
-use radbench::transport::framing::TerminatedDecoder;
-use radbench::transport::hislip::codec::{self as hislip, FrameDecoder};
-use radbench::transport::io::Decode;
-use radbench::transport::vicp::codec::{self as vicp, BlockDecoder};
-use radbench::transport::vxi11::{messages, rpc};
+use radbench::session;
+use radbench::transport::hislip::{self, FrameDecoder};
+use radbench::transport::vicp::{self as vicp, BlockDecoder};
+use radbench::transport::vxi11;
 use radbench::transport::CodecError;
+use radbench::transport::Decode;
+use radbench::transport::TerminatedDecoder;
 use std::mem::Discriminant;
 
 #[global_allocator]
@@ -122,8 +123,8 @@ const VICP: Codec<BlockDecoder> = Codec {
     },
 };
 
-const RPC_RECORDS: Codec<rpc::RecordDecoder> = Codec {
-    make: rpc::RecordDecoder::new,
+const RPC_RECORDS: Codec<vxi11::RecordDecoder> = Codec {
+    make: vxi11::RecordDecoder::new,
     show: |r: &Bytes| r.to_vec(),
 };
 
@@ -189,7 +190,7 @@ fn announced_lengths_over_the_limit_are_refused() {
     assert_eq!(HISLIP.decode(1 << 20, [&hislip[..]]).1, too_large);
     let vicp = vicp::Header::new(0x81, 1, u32::MAX).encode();
     assert_eq!(VICP.decode(1 << 20, [&vicp[..]]).1, too_large);
-    let rpc = rpc::record_mark(0x7FFF_FFFF, true);
+    let rpc = vxi11::record_mark(0x7FFF_FFFF, true);
     assert_eq!(RPC_RECORDS.decode(1 << 20, [&rpc[..]]).1, too_large);
     assert_eq!(
         TERMINATED.decode(1 << 20, [&b"#9999999999"[..]]).1,
@@ -243,7 +244,7 @@ prop_compose! {
             let mut at = 0;
             for (i, p) in points.iter().enumerate() {
                 let last = i + 1 == points.len();
-                wire.extend_from_slice(&rpc::record_mark((p - at) as u32, last));
+                wire.extend_from_slice(&vxi11::record_mark((p - at) as u32, last));
                 wire.extend_from_slice(&record[at..*p]);
                 at = *p;
             }
@@ -343,17 +344,17 @@ proptest! {
     fn xdr_arbitrary_records(data in vec(any::<u8>(), 0..256)) {
         let base = io_alloc_count::thread_start();
         let record = Bytes::from(data.clone());
-        if let Ok(reply) = rpc::decode_reply(record.clone()) {
+        if let Ok(reply) = vxi11::decode_reply(record.clone()) {
             if let Ok(r) = reply.outcome {
-                let _ = messages::decode_read_resp(&mut r.clone());
-                let _ = messages::decode_create_link(&mut r.clone());
-                let _ = messages::decode_write_resp(&mut r.clone());
-                let _ = messages::decode_readstb_resp(&mut r.clone());
-                let _ = messages::decode_error(&mut r.clone());
+                let _ = vxi11::decode_read_resp(&mut r.clone());
+                let _ = vxi11::decode_create_link(&mut r.clone());
+                let _ = vxi11::decode_write_resp(&mut r.clone());
+                let _ = vxi11::decode_readstb_resp(&mut r.clone());
+                let _ = vxi11::decode_error(&mut r.clone());
             }
         }
-        let _ = messages::decode_read_resp(&mut rpc::XdrReader::new(record.clone()));
-        let mut r = rpc::XdrReader::new(record);
+        let _ = vxi11::decode_read_resp(&mut vxi11::XdrReader::new(record.clone()));
+        let mut r = vxi11::XdrReader::new(record);
         while r.opaque("x").is_ok() {}
         prop_assert!(io_alloc_count::thread_peak_above(base) <= 4096);
     }
@@ -382,14 +383,14 @@ proptest! {
     /// numbers, Gotmic reply lines. Never a panic.
     #[test]
     fn reply_parsers_arbitrary_bytes(data in vec(any::<u8>(), 0..256)) {
-        use radbench::session::reply;
-        let _ = reply::parse_block(Bytes::from(data.clone()));
+
+        let _ = session::parse_block(Bytes::from(data.clone()));
         let text = String::from_utf8_lossy(&data);
-        let _ = reply::parse_error_entry(&text);
-        let _ = reply::parse_idn(&text);
-        let _ = reply::parse_f64(&text);
-        let _ = reply::parse_i64(&text);
-        let _ = radbench::session::line::classify(&text);
+        let _ = session::parse_error_entry(&text);
+        let _ = session::parse_idn(&text);
+        let _ = session::parse_f64(&text);
+        let _ = session::parse_i64(&text);
+        let _ = radbench::session::classify(&text);
         let crc = radbench::session::Crc8 { poly: 0x07, init: 0 };
         let _ = crc.unframe(&text);
     }

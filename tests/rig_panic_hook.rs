@@ -6,11 +6,11 @@
 
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
-use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, CaptureRequest, Rig};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::options::ProcessOptions;
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::Interrupt;
+use radbench::measure::ProcessOptions;
+use radbench::measure::{prepare, CaptureRequest, Rig};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
+use radbench::waveform::WaveformKind;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 

@@ -1,5 +1,5 @@
 //! `radbench._radbench`: the extension module behind radbench's Python package. Thin: every
-//! call goes to radbench's library (`radbench::cli::in_memory`, the same code as the command
+//! call goes to radbench's library (`radbench::in_memory`, the same code as the command
 //! line) or to mock_lab's in-process lab; the Python layer (`radbench/__init__.py`) gives it its
 //! documented API. Long calls release the GIL; arrays are handed over as numpy arrays that own
 //! radbench's vectors (no copy).
@@ -8,16 +8,16 @@ use numpy::{Complex64, IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use radbench::cli::in_memory::{self, InMemory, ProcessRequest};
+use radbench::in_memory::{self, InMemory, ProcessRequest};
 use radbench::measure::RawIq;
-use radbench::waveform::spec::WaveformKind;
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 use std::time::Duration;
 
 /// radbench's error as the Python exception of its exit class (`radbench.errors`), carrying
 /// radbench's message and its exit code.
 fn to_py(err: anyhow::Error) -> PyErr {
-    let code = radbench::cli::classify(&err).code();
+    let code = radbench::classify(&err).code();
     py_error(code, radbench::exit::render(&err))
 }
 

@@ -8,8 +8,8 @@ use super::run::{self, Finished, NewRun, Observer};
 use super::spec::SpecFile;
 use super::CampaignError;
 use crate::driver::RfPermit;
-use crate::measure::interrupt::Interrupt;
-use crate::waveform::spec::{SweepBand, WaveformSpec};
+use crate::measure::Interrupt;
+use crate::waveform::{SweepBand, WaveformSpec};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -28,12 +28,12 @@ pub(crate) const TEMPLATES: [(&str, &str); 6] = [
 ];
 
 /// The commented spec of a kind.
-pub(crate) fn template(kind: &str) -> Option<&'static str> {
+pub fn template(kind: &str) -> Option<&'static str> {
     TEMPLATES.iter().find(|(k, _)| *k == kind).map(|(_, t)| *t)
 }
 
 /// The kinds, for messages.
-pub(crate) fn kinds() -> Vec<&'static str> {
+pub fn kinds() -> Vec<&'static str> {
     TEMPLATES.iter().map(|(k, _)| *k).collect()
 }
 
@@ -46,7 +46,7 @@ pub(crate) fn spec(kind: &str) -> Option<SpecFile> {
 
 /// One row of the lab-chapter table.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct LabRow {
+pub struct LabRow {
     pub section: &'static str,
     pub scenario: String,
     pub thesis: String,
@@ -72,7 +72,7 @@ pub(crate) struct LabRow {
 
 /// The bench the lab chapter runs on: the mock lab's chain and its receiver impairments.
 #[derive(Debug, Clone)]
-pub(crate) struct LabChain {
+pub struct LabChain {
     /// `ideal`, `thesis-lab` or the scene file's path.
     pub name: String,
     pub chain: crate::measure::scene_control::Chain,
@@ -81,7 +81,7 @@ pub(crate) struct LabChain {
 
 impl LabChain {
     /// `ideal`, `thesis-lab`, or a scene file whose `[chain]` and `[impairments]` are used.
-    pub(crate) fn parse(text: &str) -> Result<LabChain, String> {
+    pub fn parse(text: &str) -> Result<LabChain, String> {
         use crate::measure::scene_control::{Chain, ChainPreset, Impairments, Scene};
         let preset = |preset| LabChain {
             name: text.to_string(),
@@ -142,7 +142,7 @@ pub(crate) const LAB_REFERENCE_M: f64 = 1.0;
 /// chapter transmits it (`out/<chain>-rx/calibration.toml` with the MSK-LFM chirp swept 0 .. 1 GHz,
 /// `calibration-ofdm.toml` with OFDM), then every campaign with `correction = "rx"`
 /// (`out/<chain>-rx/`) and with `correction = "both"` (`out/<chain>-both/`).
-pub(crate) async fn thesis_lab(
+pub async fn thesis_lab(
     out: &Path,
     chain: &LabChain,
     interrupt: &Interrupt,
@@ -215,10 +215,10 @@ async fn calibrate_lab(
     interrupt: &Interrupt,
     observer: &mut dyn Observer,
 ) -> Result<PathBuf, CampaignError> {
-    use crate::measure::bench::{Bench, BenchSource, BuiltIn};
-    use crate::measure::capture::Rig;
-    use crate::measure::response_run::{calibrate_with, CalibrateRequest};
     use crate::measure::MeasureError;
+    use crate::measure::Rig;
+    use crate::measure::{calibrate_with, CalibrateRequest};
+    use crate::measure::{Bench, BenchSource, BuiltIn};
     let scene = crate::measure::scene_control::Scene {
         targets: vec![crate::measure::scene_control::Target {
             range_m: LAB_REFERENCE_M,
@@ -589,7 +589,7 @@ impl LabRow {
 }
 
 /// The table for the terminal.
-pub(crate) fn lab_table(rows: &[LabRow]) -> String {
+pub fn lab_table(rows: &[LabRow]) -> String {
     let chain = rows.first().map_or("ideal", |r| r.chain.as_str());
     let chosen_head = format!("radbench ({chain})");
     let rx_head = format!("radbench ({chain}, rx)");

@@ -7,14 +7,14 @@
 use super::manifest::{Manifest, StepStatus};
 use super::{io, CampaignError};
 use crate::measure::export::{export_capture, Entry, FORMAT_VERSION};
-use crate::measure::options::ProcessOptions;
 use crate::measure::reprocess;
-use crate::storage::export::{Array, ExportWriter};
+use crate::measure::ProcessOptions;
+use crate::storage::{Array, ExportWriter};
 use serde_json::{json, Value};
 use std::path::Path;
 
 /// What a run's export held.
-pub(crate) struct RunExported {
+pub struct RunExported {
     /// The steps exported (their group names).
     pub steps: Vec<String>,
     /// Steps not measured yet (an interrupted run), left out.
@@ -37,7 +37,7 @@ fn algorithm_options(step_dir: &Path, name: &str) -> Result<ProcessOptions, Camp
 
 /// Exports every measured step of the run folder `dir` into `out`; `progress` hears each step's
 /// group name as it is done.
-pub(crate) fn export_run(
+pub fn export_run(
     dir: &Path,
     out: &mut ExportWriter,
     progress: &mut dyn FnMut(&str, usize, usize),
@@ -107,7 +107,7 @@ pub(crate) fn export_run(
 }
 
 /// Puts `entries` under `prefix/`.
-pub(crate) fn put_all(
+pub fn put_all(
     out: &mut ExportWriter,
     prefix: &str,
     entries: Vec<Entry>,

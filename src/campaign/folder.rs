@@ -18,7 +18,7 @@ use super::run::{
 use super::runner::{new_session, Runner};
 use super::{io, CampaignError};
 use crate::measure::MeasureError;
-use crate::storage::atomic::write_atomic;
+use crate::storage::write_atomic;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -191,7 +191,7 @@ fn copy_bench_catalog(out: &Path, bench: &BenchInfo) -> Result<Vec<InputFile>, C
 /// folder (`calibration/`), checked against the SHA-256 the plan recorded, so the correction the
 /// run was measured with stays with its data.
 fn copy_calibration(out: &Path, plan: &Plan) -> Result<Option<CalibrationRecord>, CampaignError> {
-    use crate::measure::response::Calibration;
+    use crate::measure::Calibration;
     let Some(used) = plan.correction() else {
         return Ok(None);
     };
@@ -254,7 +254,7 @@ pub(super) fn check_calibration(
     force: bool,
     forced: &mut Vec<String>,
 ) -> Result<(), CampaignError> {
-    use crate::measure::response::Calibration;
+    use crate::measure::Calibration;
     let Some(rec) = &manifest.calibration else {
         return Ok(());
     };
@@ -317,7 +317,7 @@ pub(super) fn check_spec_unchanged(dir: &Path, manifest: &Manifest) -> Result<()
 /// contents); a change refuses the resume unless `force`, and is then recorded in `forced`.
 pub(super) fn check_bench_catalog(
     manifest: &Manifest,
-    bench_file: Option<&crate::measure::bench_file::BenchFile>,
+    bench_file: Option<&crate::measure::BenchFile>,
     force: bool,
     forced: &mut Vec<String>,
 ) -> Result<(), CampaignError> {

@@ -292,7 +292,7 @@ mod tests {
 
     #[test]
     fn the_metrics_a_kind_names_are_results_json_fields() {
-        use crate::campaign::results::AlgorithmResult;
+        use crate::campaign::AlgorithmResult;
         let one = AlgorithmResult {
             targets: Vec::new(),
             width_3db_cm: None,

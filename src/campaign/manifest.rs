@@ -11,8 +11,8 @@
 
 use super::plan::Plan;
 use super::{io, CampaignError};
-use crate::measure::station::Identities;
-use crate::storage::atomic::write_atomic;
+use crate::measure::Identities;
+use crate::storage::write_atomic;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::io::Read;
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 pub(crate) const FORMAT: u32 = 1;
 
 /// The manifest's file name in a run folder.
-pub(crate) const FILE: &str = "manifest.toml";
+pub const MANIFEST_FILE: &str = "manifest.toml";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -307,7 +307,7 @@ pub(crate) fn json_to_toml(v: &serde_json::Value) -> Option<toml::Value> {
 impl Manifest {
     /// Reads `dir/manifest.toml`.
     pub fn load(dir: &Path) -> Result<Manifest, CampaignError> {
-        let path = dir.join(FILE);
+        let path = dir.join(MANIFEST_FILE);
         let text = std::fs::read_to_string(&path).map_err(|e| CampaignError::Manifest {
             path: path.clone(),
             message: format!(
@@ -338,11 +338,11 @@ impl Manifest {
     pub fn store(&mut self, dir: &Path) -> Result<(), CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
         let text = toml::to_string(self).map_err(|e| CampaignError::Manifest {
-            path: dir.join(FILE),
+            path: dir.join(MANIFEST_FILE),
             message: format!("cannot be written: {e} (a radbench bug, please report it)"),
         })?;
         // write_atomic makes the file and its folder entry durable (fsync of both).
-        write_atomic(&dir.join(FILE), text.as_bytes())?;
+        write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
         Ok(())
     }
 
@@ -356,7 +356,7 @@ impl Manifest {
     ) -> Result<(), CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
         let unwritable = |e: toml::ser::Error| CampaignError::Manifest {
-            path: dir.join(FILE),
+            path: dir.join(MANIFEST_FILE),
             message: format!("cannot be written: {e} (a radbench bug, please report it)"),
         };
         let steps = std::mem::take(&mut self.steps);
@@ -380,7 +380,7 @@ impl Manifest {
                 }
             }
         }
-        write_atomic(&dir.join(FILE), text.as_bytes())?;
+        write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
         Ok(())
     }
 

@@ -8,15 +8,15 @@
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
 //! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
-//! | [`manifest`] | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
-//! | [`results`] | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
-//! | [`run`] | executing a plan into a run folder, and resuming one: what callers use |
+//! | `manifest` | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
+//! | `results` | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
+//! | `run` | executing a plan into a run folder, and resuming one: what callers use |
 //! | `folder` | the run folder: its identity, start (created, locked, inputs copied), the copies' checks on resume |
 //! | `resume` | continuing an interrupted run: what changed since, the steps whose files broke |
 //! | `prepare` | every (waveform, algorithm) prepared before anything is connected |
 //! | `runner` | the steps (connect, place, set the simulated scene, capture), settling the worker's steps, the finish |
 //! | `step_job` | a step's job on the worker: process with every algorithm, write the files, record the step |
-//! | [`report`] | the run's `report.md` and `report.html` (plots inline) |
+//! | `report` | the run's `report.md` and `report.html` (plots inline) |
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
@@ -25,23 +25,31 @@ pub(crate) mod builtin;
 pub(crate) mod export;
 mod folder;
 pub(crate) mod kind;
-pub mod manifest;
-pub mod plan;
+pub(crate) mod manifest;
+pub(crate) mod plan;
 pub(crate) mod positioner;
 mod prepare;
-pub mod report;
-pub mod results;
+pub(crate) mod report;
+pub(crate) mod results;
 mod resume;
-pub mod run;
+pub(crate) mod run;
 mod runner;
 pub(crate) mod spec;
 mod step_job;
 mod worker;
 
+pub use builtin::*;
+pub use export::*;
+pub use manifest::*;
+pub use plan::*;
+pub use report::*;
+pub use results::*;
+pub use run::*;
+
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};
-use crate::measure::interrupt::StopSignal;
 use crate::measure::MeasureError;
+use crate::measure::StopSignal;
 use std::path::PathBuf;
 
 pub use plan::Plan;

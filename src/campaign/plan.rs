@@ -9,14 +9,14 @@ use super::kind::{sorted_ranges, SweepAt, SweepParameter};
 use super::spec::{ModelOrder, PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
-use crate::measure::bench::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
-use crate::measure::bench_file::{BenchFile, Calibration, InstrumentEntry};
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
-use crate::measure::options::{Algorithm, ProcessOptions};
-use crate::measure::response::CorrectionMode;
 use crate::measure::scene_control::Scene;
-use crate::waveform::spec::{WaveformKind, WaveformSpec};
+use crate::measure::CorrectionMode;
+use crate::measure::{Algorithm, ProcessOptions};
+use crate::measure::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
+use crate::measure::{BenchCalibration, BenchFile, InstrumentEntry};
+use crate::waveform::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -325,7 +325,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
         rx: Some(entry(BUILT_IN_MODELS[3], "ASRL/dev/null::INSTR")),
         simulation: None,
-        calibration: Some(Calibration {
+        calibration: Some(BenchCalibration {
             system_delay_s: scene.system_delay_s,
             reference_range_m: None,
             measured_at: None,
@@ -390,7 +390,7 @@ impl Plan {
     }
 
     /// The receive correction every step applies (the same for every algorithm).
-    pub(crate) fn correction(&self) -> Option<&crate::measure::response::CorrectionUsed> {
+    pub(crate) fn correction(&self) -> Option<&crate::measure::CorrectionUsed> {
         self.processing.first().and_then(|o| o.correction.as_ref())
     }
 
@@ -694,7 +694,7 @@ fn processing(
 fn correction(
     spec: &SpecFile,
     bench: &BenchInfo,
-) -> Result<Option<(CorrectionMode, crate::measure::response::Calibration)>, SpecError> {
+) -> Result<Option<(CorrectionMode, crate::measure::Calibration)>, SpecError> {
     let p = &spec.spec.processing;
     let mode = p.correction.unwrap_or(CorrectionMode::Rx);
     let given = p.calibration.as_ref().map(|c| spec.resolve(c));
@@ -726,7 +726,7 @@ fn correction(
         }
         (None, None, None) => return Ok(None),
     };
-    crate::measure::response::Calibration::load(&path)
+    crate::measure::Calibration::load(&path)
         .map(|c| Some((mode, c)))
         .map_err(|e| {
             let from = if field == "processing.correction" {
@@ -998,7 +998,7 @@ const PROCESS_POINTS_PER_S: f64 = 3e7;
 
 impl Plan {
     /// The estimated duration of step `k` (0-based) without the operator's time, seconds.
-    pub(crate) fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
+    pub fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
         let step = &self.steps[k];
         let c = costs[step.waveform];
         let reps = self.repetitions as f64;
@@ -1030,7 +1030,7 @@ impl Plan {
 
     /// Whether step `k` uploads a waveform (the first step, and a waveform that differs from the
     /// step before's; also whenever the AWG lost it, which the plan cannot know).
-    pub(crate) fn uploads_at(&self, k: usize) -> bool {
+    pub fn uploads_at(&self, k: usize) -> bool {
         k == 0 || self.steps[k - 1].waveform != self.steps[k].waveform
     }
 

@@ -8,8 +8,8 @@
 use super::plan::{substitute, Nominal, PositionerPlan};
 use super::spec::PositionerKind;
 use super::CampaignError;
-use crate::measure::interrupt::Interrupt;
 use crate::measure::scene_control::{Scene, Target};
+use crate::measure::Interrupt;
 use std::io::BufRead;
 use std::path::PathBuf;
 use std::process::Stdio;

@@ -9,7 +9,7 @@ use crate::measure::capture::{self, Prepared};
 /// Every (waveform, algorithm) prepared, and for `music_p = "targets"` every (waveform,
 /// subspace algorithm, model order) the steps need: transmissions generated, options checked,
 /// instrument settings planned against the catalog, pipelines built. Touches no instrument.
-pub(crate) struct PreparedSet {
+pub struct PreparedSet {
     /// `[waveform][algorithm]`.
     pub base: Vec<Vec<Prepared>>,
     /// `(waveform, algorithm, p)` for the steps' own model orders.
@@ -28,8 +28,8 @@ impl PreparedSet {
     }
 }
 
-/// Prepares everything a plan needs (see [`PreparedSet`]).
-pub(crate) async fn prepare_all(
+/// Prepares everything a plan needs (see `PreparedSet`).
+pub async fn prepare_all(
     plan: &Plan,
     bench: &BenchInfo,
     catalog: &Catalog,

@@ -19,8 +19,8 @@
 
 use super::plan::{Nominal, Range, Step};
 use crate::measure::payload::PayloadResult;
-use crate::measure::pipeline::Processed;
-use crate::measure::repeat::Spread;
+use crate::measure::Processed;
+use crate::measure::Spread;
 use crate::physics::C0;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -96,8 +96,8 @@ pub struct SpreadFigures {
     pub snr_db: Option<MeanStd>,
 }
 
-impl From<crate::measure::repeat::Stat> for MeanStd {
-    fn from(s: crate::measure::repeat::Stat) -> Self {
+impl From<crate::measure::Stat> for MeanStd {
+    fn from(s: crate::measure::Stat) -> Self {
         Self {
             mean: s.mean,
             std: s.std,

@@ -11,7 +11,7 @@ use super::run::{Finished, Observer, STEP_RESULT};
 use super::runner::{new_session, Runner};
 use super::CampaignError;
 use crate::driver::RfPermit;
-use crate::measure::interrupt::Interrupt;
+use crate::measure::Interrupt;
 use crate::measure::MeasureError;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -98,11 +98,11 @@ fn reload_bench_file(
     plan: &Plan,
     force: bool,
     forced: &mut Vec<String>,
-) -> Result<Option<crate::measure::bench_file::BenchFile>, CampaignError> {
+) -> Result<Option<crate::measure::BenchFile>, CampaignError> {
     let Some(path) = &plan.bench.file else {
         return Ok(None);
     };
-    let file = crate::measure::bench_file::BenchFile::load(path).map_err(MeasureError::from)?;
+    let file = crate::measure::BenchFile::load(path).map_err(MeasureError::from)?;
     let delay = file.system_delay_s();
     if delay != plan.bench.system_delay_s {
         let what = format!(

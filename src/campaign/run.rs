@@ -9,7 +9,7 @@
 //! | `runner` | the steps (connect, place, set the simulated scene, capture), settling the worker's steps, the finish |
 //! | `step_job` | a step's job on the worker: process with every algorithm, write the files, record the step |
 //!
-//! Everything that can be built once is built once: one [`Prepared`](crate::measure::capture::Prepared)
+//! Everything that can be built once is built once: one [`Prepared`](crate::measure::Prepared)
 //! per (waveform, algorithm) before anything is connected (so a campaign that was going to be
 //! refused never radiates), one connection to a bench of a bench file for the whole run, the
 //! pipelines reused step after step. Each step: connect (see below), place the targets (RF off),
@@ -44,13 +44,13 @@ use super::spec::SpecFile;
 use super::CampaignError;
 use crate::driver::RfPermit;
 use crate::exit::Classify;
-use crate::measure::bench::Bench;
-use crate::measure::interrupt::Interrupt;
+use crate::measure::Bench;
+use crate::measure::Interrupt;
 use serde::Serialize;
 use std::path::PathBuf;
 
 pub use super::folder::start;
-pub(crate) use super::prepare::prepare_all;
+pub use super::prepare::prepare_all;
 pub use super::resume::resume;
 
 /// `results.json` in a run folder.

@@ -17,13 +17,13 @@ use super::{io, report, CampaignError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
 use crate::exit::Classify;
-use crate::measure::bench::{Bench, BenchSource};
-use crate::measure::capture::{Rig, Taken};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::record::Provenance;
 use crate::measure::scene_control::{Scene, SceneControlError};
+use crate::measure::Interrupt;
 use crate::measure::MeasureError;
-use crate::storage::atomic::write_atomic;
+use crate::measure::Provenance;
+use crate::measure::{Bench, BenchSource};
+use crate::measure::{Rig, Taken};
+use crate::storage::write_atomic;
 use serde_json::json;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -575,7 +575,7 @@ impl Runner {
         }
         let report = report::write(&self.dir, &self.manifest, &results)?;
         self.manifest
-            .set_file(FileRecord::of(&self.dir, Path::new(report::FILE))?);
+            .set_file(FileRecord::of(&self.dir, Path::new(report::REPORT_FILE))?);
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
         self.folder.check(&self.dir)?;
@@ -600,7 +600,7 @@ impl Runner {
             max_abs_truth_error_m: max(|a| a.truth_error_m),
             reason: self.manifest.reason.clone(),
             stopped_at_step: self.manifest.stopped_at_step,
-            manifest: self.dir.join(manifest::FILE),
+            manifest: self.dir.join(manifest::MANIFEST_FILE),
             results: self.dir.join(RESULTS_FILE),
             report,
         };

@@ -8,9 +8,9 @@
 //! text (toml_edit keeps the spans) when the checks after parsing find them.
 
 use super::kind::SweepParameter;
-use crate::measure::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
-use crate::measure::response::CorrectionMode;
-use crate::waveform::spec::WaveformKind;
+use crate::measure::CorrectionMode;
+use crate::measure::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -71,13 +71,13 @@ pub struct BenchSection {
     pub scene: Option<PathBuf>,
     /// Built-in mock lab only: the AWG's transport.
     #[serde(default)]
-    pub awg_transport: Option<crate::measure::bench::AwgLink>,
+    pub awg_transport: Option<crate::measure::AwgLink>,
     /// Built-in mock lab only: the scope's transport.
     #[serde(default)]
-    pub scope_transport: Option<crate::measure::bench::ScopeLink>,
+    pub scope_transport: Option<crate::measure::ScopeLink>,
     /// Built-in mock lab only: the scope it serves (`lecroy`, the default, or `keysight-uxr`).
     #[serde(default)]
-    pub scope_model: Option<crate::measure::bench::ScopeModel>,
+    pub scope_model: Option<crate::measure::ScopeModel>,
 }
 
 /// `[waveform]`: the family and any parameters that differ from the thesis' defaults.
@@ -100,7 +100,7 @@ pub struct WaveformSection {
     pub bits_per_pulse: Option<usize>,
     /// MSK-LFM only: `centred` (default), `upper` (0 .. B, the thesis' sweep) or `lower`.
     #[serde(default)]
-    pub band: Option<crate::waveform::spec::SweepBand>,
+    pub band: Option<crate::waveform::SweepBand>,
     /// OFDM only.
     #[serde(default)]
     pub subcarriers: Option<usize>,

@@ -11,7 +11,7 @@ use super::{io, CampaignError};
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
 use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;
-use crate::storage::atomic::{write_atomic, write_group, GroupWritten};
+use crate::storage::{write_atomic, write_group, GroupWritten};
 use serde_json::json;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};

@@ -6,15 +6,16 @@ use super::args::{ProcessingArgs, WaveformArgs};
 use super::capture::{bench_source, journal, open_bench};
 use super::live::{self as live_cli, LiveArgs};
 use super::repeat::{stopped_between, truth_ranges};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
 use crate::live::{Event, Live};
-use crate::measure::bench::Bench;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::capture::{self, CaptureRequest, Rig};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::MeasureError;
-use crate::waveform::spec::WaveformKind;
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{CaptureRequest, Rig};
+use radbench::waveform::WaveformKind;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -143,7 +144,7 @@ async fn captures(
     live: Option<&Live>,
 ) -> anyhow::Result<()> {
     let catalog = bench.file.catalog()?;
-    let mut prepared = capture::prepare(bench, &catalog, request).await?;
+    let mut prepared = measure::prepare(bench, &catalog, request).await?;
     let mut rig = Rig::connect(bench, &catalog, journal(global)?).await?;
     let mut k = 0u64;
     while args.count.is_none_or(|n| k < n) {
@@ -170,7 +171,7 @@ async fn captures(
         let distance = range.zip(args.target_range).map(|(r, want)| r - want);
         let truth = truth_ranges(m.taken.ground_truth.as_ref());
         if let Some(l) = live {
-            let (_, table) = crate::measure::figure::profile_figure(
+            let (_, table) = radbench::measure::profile_figure(
                 String::new(),
                 p,
                 &m.processing.options,

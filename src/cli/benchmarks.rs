@@ -4,10 +4,11 @@
 //! `--write-inputs DIR` also writes the seeded inputs as `.npy` (plus `meta.json`) so
 //! `benches/compare_numpy.py` can time numpy/scipy on exactly the same data.
 
-use crate::exit::bad_input;
-use crate::simulate::kernels::{time_all, KernelInputs, Kernels, XCORR_LAGS};
-use crate::storage::{atomic::write_atomic, npy};
 use num_complex::Complex64;
+use radbench::exit::bad_input;
+use radbench::simulate::{time_all, KernelInputs, Kernels, XCORR_LAGS};
+use radbench::storage;
+use radbench::storage::write_atomic;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -82,7 +83,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 fn write_c128(dir: &Path, name: &str, data: &[Complex64]) -> anyhow::Result<()> {
-    let bytes = npy::encode_c128(&[data.len()], data).map_err(anyhow::Error::msg)?;
+    let bytes = storage::encode_c128(&[data.len()], data).map_err(anyhow::Error::msg)?;
     write_atomic(&dir.join(format!("{name}.npy")), &bytes)?;
     Ok(())
 }

@@ -7,9 +7,9 @@
 //! The payload is SplitMix64 (`--seed`) as little-endian words; its SHA-256 is reported, so
 //! another client (benches/compare_pyvisa.py) can check it moves exactly the same bytes.
 
-use crate::address::Resource;
-use crate::exit::bad_input;
-use crate::session::{BlockForm, Session, SessionError, SessionOptions};
+use radbench::address::Resource;
+use radbench::exit::bad_input;
+use radbench::session::{BlockForm, Session, SessionError, SessionOptions};
 use sha2::{Digest, Sha256};
 use std::time::{Duration, Instant};
 
@@ -53,7 +53,7 @@ pub(crate) struct Measurement {
 
 /// The payload: `len` bytes of SplitMix64 words, little-endian.
 pub(crate) fn payload(len: usize, seed: u64) -> Vec<u8> {
-    let mut rng = crate::rng::SplitMix64::new(seed);
+    let mut rng = radbench::rng::SplitMix64::new(seed);
     let mut out = Vec::with_capacity(len + 8);
     while out.len() < len {
         out.extend_from_slice(&rng.next_u64().to_le_bytes());
@@ -158,7 +158,7 @@ async fn measure(
     // An instrument of the catalog (an AWG, a scope, a module) has no loopback commands: say so
     // at once rather than after a block and a reply timeout.
     if let Ok(idn) = session.query("*IDN?").await {
-        let catalog = crate::catalog::Catalog::embedded()?;
+        let catalog = radbench::catalog::Catalog::embedded()?;
         if let Some(found) = catalog.identify(&idn) {
             let _ = session.close().await;
             return Err(bad_input(format!(

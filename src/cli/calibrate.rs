@@ -3,15 +3,16 @@
 //! response`: measure the chain's response on the same reference (`calibrate_response.rs`).
 
 use super::capture::{bench_source, journal, open_bench};
-use crate::driver::RfPermit;
-use crate::measure::bench::{AwgLink, ScopeLink};
-use crate::measure::bench_file::{store_calibration, Calibration};
-use crate::measure::calibration::{check, estimate_delay};
-use crate::measure::capture::{self, CaptureRequest};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::options::{Algorithm, ProcessOptions};
-use crate::measure::MeasureError;
-use crate::waveform::spec::WaveformSpec;
+use radbench::driver::RfPermit;
+use radbench::measure;
+use radbench::measure::CaptureRequest;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::measure::{check, estimate_delay};
+use radbench::measure::{store_calibration, BenchCalibration};
+use radbench::measure::{Algorithm, ProcessOptions};
+use radbench::measure::{AwgLink, ScopeLink};
+use radbench::waveform::WaveformSpec;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -66,7 +67,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
     let reference_range = args
         .reference_range
-        .ok_or_else(|| crate::exit::bad_input("--reference-range METRES is needed"))?;
+        .ok_or_else(|| radbench::exit::bad_input("--reference-range METRES is needed"))?;
     check(reference_range, args.search)?;
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
@@ -99,7 +100,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             wait_s: 10.0,
             background: None,
         };
-        let m = capture::measure(
+        let m = measure::measure(
             &bench,
             &request,
             1,
@@ -109,10 +110,10 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         )
         .await?;
         let estimate = estimate_delay(&m.processing.processed, reference_range, args.search)?;
-        let calibration = Calibration {
+        let calibration = BenchCalibration {
             system_delay_s: estimate.system_delay_s,
             reference_range_m: Some(reference_range),
-            measured_at: Some(crate::storage::sigmf::utc_now_rfc3339()),
+            measured_at: Some(radbench::storage::utc_now_rfc3339()),
             // A response measured before is kept (it is relative to the delay it was measured
             // with: measure it again after a new delay).
             response: bench

@@ -3,14 +3,14 @@
 
 use super::args::WaveformArgs;
 use super::capture::{bench_source, journal, open_bench};
-use crate::measure::bench::{AwgLink, ScopeLink};
-use crate::measure::bench_file::{store_calibration, Calibration as BenchCalibration};
-use crate::measure::capture::Rig;
-use crate::measure::interrupt::Interrupt;
-use crate::measure::response::{Calibration, ReferenceFigures, Response};
-use crate::measure::response_run::{calibrate_with, CalibrateRequest};
-use crate::measure::MeasureError;
-use crate::waveform::spec::WaveformKind;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::measure::Rig;
+use radbench::measure::{calibrate_with, CalibrateRequest};
+use radbench::measure::{store_calibration, BenchCalibration};
+use radbench::measure::{AwgLink, ScopeLink};
+use radbench::measure::{Calibration, ReferenceFigures, Response};
+use radbench::waveform::WaveformKind;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -65,8 +65,8 @@ pub struct Args {
 }
 
 fn check(args: &Args) -> Result<(), MeasureError> {
-    crate::measure::calibration::check(args.reference_range, 2.0)?;
-    crate::measure::capture::check_repetitions(args.repetitions)?;
+    radbench::measure::check(args.reference_range, 2.0)?;
+    radbench::measure::check_repetitions(args.repetitions)?;
     let gate_ns = args.gate_ns.unwrap_or(0.0);
     if args.gate_ns.is_some() && !(gate_ns.is_finite() && (0.5..=50.0).contains(&gate_ns)) {
         return Err(MeasureError::option(
@@ -171,7 +171,7 @@ fn bench_path(args: &Args) -> Option<PathBuf> {
 /// The gate asked for, or the default for the reference's range.
 fn gate_s(args: &Args) -> f64 {
     args.gate_ns.map_or_else(
-        || crate::measure::calibration::default_gate_s(args.reference_range),
+        || radbench::measure::default_gate_s(args.reference_range),
         |ns| ns * 1e-9,
     )
 }
@@ -189,7 +189,7 @@ fn default_out(bench: &Path) -> PathBuf {
 /// it), keeping the delay and every other line.
 fn name_in_bench(
     bench_path: &Path,
-    file: &crate::measure::bench_file::BenchFile,
+    file: &radbench::measure::BenchFile,
     calibration: &Path,
 ) -> Result<(), MeasureError> {
     let dir = match bench_path.parent() {
@@ -306,7 +306,7 @@ fn print_report(
 
 /// The measured gain (dB) and phase (degrees / 10) against frequency, with the spread.
 fn draw(path: &Path, r: &Response) -> Result<(), MeasureError> {
-    use crate::storage::plot::{Curve, LineStyle, ProfilePlot};
+    use radbench::storage::{Curve, LineStyle, ProfilePlot};
     let f: Vec<f64> = r.table.freq_hz.iter().map(|f| f / 1e9).collect();
     let gain: Vec<f64> = r
         .table
@@ -348,7 +348,7 @@ fn draw(path: &Path, r: &Response) -> Result<(), MeasureError> {
     plot.window_m = Some(contiguous_around_zero(&r.table.freq_hz));
     plot.y_label = "gain (dB), phase (deg / 10)".into();
     plot.x_label = "frequency offset from the carrier (GHz)".into();
-    crate::storage::plot::draw(path, &plot)?;
+    radbench::storage::draw(path, &plot)?;
     Ok(())
 }
 

@@ -1,17 +1,17 @@
 //! `radbench campaign`: run a campaign spec, resume an interrupted run, print a spec to start
 //! from, write a run's report again, run the thesis' lab chapter. Parses, calls `campaign`, prints.
 
-use crate::campaign::builtin;
-use crate::campaign::manifest::Status;
-use crate::campaign::plan::{self, BenchInfo, Nominal, Step, WaveformCost};
-use crate::campaign::results::{AlgorithmResult, TargetResult, Truth};
-use crate::campaign::run::{self, Finished, NewRun, Observer, StepDone, Summary};
-use crate::campaign::{report, CampaignError, SpecFile};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
-use crate::measure::bench::Bench;
-use crate::measure::interrupt::Interrupt;
-use crate::measure::MeasureError;
+use radbench::campaign;
+use radbench::campaign::Status;
+use radbench::campaign::{AlgorithmResult, TargetResult, Truth};
+use radbench::campaign::{BenchInfo, Nominal, Step, WaveformCost};
+use radbench::campaign::{CampaignError, SpecFile};
+use radbench::campaign::{Finished, NewRun, Observer, StepDone, Summary};
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
 use serde::Serialize;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -86,7 +86,7 @@ pub struct ResumeArgs {
 #[derive(Debug, clap::Args)]
 pub struct NewArgs {
     /// accuracy | resolution | single-target | music | link
-    #[arg(value_name = "KIND", value_parser = clap::builder::PossibleValuesParser::new(builtin::kinds()))]
+    #[arg(value_name = "KIND", value_parser = clap::builder::PossibleValuesParser::new(campaign::kinds()))]
     pub kind: String,
 }
 
@@ -123,23 +123,23 @@ pub struct ThesisLabArgs {
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     match args.command {
         Command::New(a) => {
-            let text = builtin::template(&a.kind).ok_or_else(|| {
+            let text = campaign::template(&a.kind).ok_or_else(|| {
                 bad_input(format!(
                     "campaign new {}: allowed: {}",
                     a.kind,
-                    builtin::kinds().join(", ")
+                    campaign::kinds().join(", ")
                 ))
             })?;
             print!("{text}");
             Ok(())
         }
         Command::Report(a) => {
-            let (path, note) = report::rewrite(&a.run_dir, a.force)?;
+            let (path, note) = campaign::rewrite(&a.run_dir, a.force)?;
             if let Some(note) = note {
                 eprintln!("note: {note}");
             }
             println!("report: {}", path.display());
-            println!("report: {}", a.run_dir.join(report::HTML_FILE).display());
+            println!("report: {}", a.run_dir.join(campaign::HTML_FILE).display());
             Ok(())
         }
         Command::Run(a) => super::runtime()?.block_on(run_spec(a, global)),
@@ -329,7 +329,10 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
         }
         println!("results: {}", s.results.display());
         println!("report: {}", s.report.display());
-        println!("report: {}", finished.dir.join(report::HTML_FILE).display());
+        println!(
+            "report: {}",
+            finished.dir.join(campaign::HTML_FILE).display()
+        );
         println!("run folder: {}", finished.dir.display());
     }
     match finished.stopped {
@@ -342,14 +345,14 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     let spec = SpecFile::load(&a.spec)?;
     let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
     let catalog = bench.catalog()?;
-    let plan = plan::plan(&spec, &bench)?;
+    let plan = campaign::plan(&spec, &bench)?;
     if a.dry_run && a.live.live {
         return Err(bad_input(
             "--live: a dry run measures nothing to show; drop --dry-run or --live",
         ));
     }
     if a.dry_run {
-        let prepared = run::prepare_all(&plan, &bench, &catalog).await?;
+        let prepared = campaign::prepare_all(&plan, &bench, &catalog).await?;
         let costs: Vec<WaveformCost> = prepared
             .base
             .iter()
@@ -441,7 +444,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         inner: &mut printer,
         live: live.clone(),
     };
-    let finished = run::start(
+    let finished = campaign::start(
         NewRun {
             spec,
             bench,
@@ -503,7 +506,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         inner: &mut printer,
         live: live.clone(),
     };
-    let finished = match run::resume(
+    let finished = match campaign::resume(
         &a.run_dir,
         RfPermit::granted_by_user(),
         a.force,
@@ -539,13 +542,13 @@ async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| super::capture::default_out("thesis-lab"));
-    let chain = builtin::LabChain::parse(&a.chain).map_err(bad_input)?;
+    let chain = campaign::LabChain::parse(&a.chain).map_err(bad_input)?;
     let mut quiet = Notes;
-    let rows = builtin::thesis_lab(&out, &chain, &interrupt, &mut quiet).await?;
+    let rows = campaign::thesis_lab(&out, &chain, &interrupt, &mut quiet).await?;
     if a.json {
         println!("{}", json!({"rows": rows, "dir": out}));
     } else {
-        print!("{}", builtin::lab_table(&rows));
+        print!("{}", campaign::lab_table(&rows));
         println!("run folders: {}", out.display());
         // One run (and report) per section of the lab chapter.
         let mut reports: Vec<_> = std::fs::read_dir(&out)

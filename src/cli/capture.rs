@@ -1,19 +1,20 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{ProcessingArgs, WaveformArgs};
-use crate::driver::RfPermit;
-use crate::exit::bad_input;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::bench::{Bench, BenchSource, BuiltIn};
-use crate::measure::capture::{self, CaptureRequest, Measurement};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::record::{self, Provenance};
-use crate::measure::response::CorrectionMode;
-use crate::measure::MeasureError;
-use crate::storage::atomic::write_group;
-use crate::waveform::spec::WaveformKind;
+use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
 use anyhow::Context;
+use radbench::driver::RfPermit;
+use radbench::exit::bad_input;
+use radbench::measure;
+use radbench::measure::CorrectionMode;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::measure::Provenance;
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
+use radbench::measure::{CaptureRequest, Measurement};
+use radbench::storage::write_group;
+use radbench::waveform::WaveformKind;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -48,12 +49,9 @@ pub struct Args {
     /// Print one JSON object instead of the text report.
     #[arg(long)]
     pub json: bool,
-    /// Text to send in the waveform (default: PRBS bits).
-    #[arg(long, value_name = "TEXT")]
-    pub payload: Option<String>,
-    /// Seed of the PRBS bits when no payload is given.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// The payload text or the PRBS seed (the library's: the Python package parses them too).
+    #[command(flatten)]
+    pub bits: PayloadArgs,
     /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
     #[arg(long, default_value_t = 0.15, allow_hyphen_values = true)]
     pub min_range: f64,
@@ -102,9 +100,9 @@ pub struct Args {
 pub(crate) fn resolve_correction(
     correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
-    bench: &crate::measure::bench::Bench,
-) -> anyhow::Result<Option<crate::measure::response::Calibration>> {
-    use crate::measure::response::Calibration;
+    bench: &radbench::measure::Bench,
+) -> anyhow::Result<Option<radbench::measure::Calibration>> {
+    use radbench::measure::Calibration;
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
             .path
@@ -114,7 +112,7 @@ pub(crate) fn resolve_correction(
     match (correction, named) {
         (Some(CorrectionMode::None), _) => Ok(None),
         (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
-        (Some(mode), None) => Err(crate::exit::bad_input(format!(
+        (Some(mode), None) => Err(radbench::exit::bad_input(format!(
             "--correction {} needs a response calibration: the bench file names none; run \
              `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \
              --calibration FILE",
@@ -126,8 +124,8 @@ pub(crate) fn resolve_correction(
 
 /// Warnings about a calibration used on this bench: other instruments than it was measured with.
 pub(crate) fn calibration_warnings(
-    cal: &crate::measure::response::Calibration,
-    identities: &crate::measure::station::Identities,
+    cal: &radbench::measure::Calibration,
+    identities: &radbench::measure::Identities,
 ) -> Vec<String> {
     let seen = &cal.header.instruments;
     let mut out = Vec::new();
@@ -208,9 +206,11 @@ pub(crate) async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Resu
 }
 
 /// The I/O journal of `--trace-io`.
-pub(crate) fn journal(global: &super::Global) -> anyhow::Result<Option<crate::transport::Journal>> {
+pub(crate) fn journal(
+    global: &super::Global,
+) -> anyhow::Result<Option<radbench::transport::Journal>> {
     Ok(match &global.trace_io {
-        Some(p) => Some(crate::transport::Journal::create(p, false)?),
+        Some(p) => Some(radbench::transport::Journal::create(p, false)?),
         None => None,
     })
 }
@@ -268,7 +268,7 @@ pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
 
 /// The default output folder: `runs/<UTC time>-<name>`.
 pub(crate) fn default_out(name: &str) -> PathBuf {
-    let stamp = crate::storage::sigmf::utc_now_rfc3339()
+    let stamp = radbench::storage::utc_now_rfc3339()
         .replace([':', '-'], "")
         .replace('.', "_");
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
@@ -314,8 +314,8 @@ async fn measure_into(
     args: Args,
     global: &super::Global,
     kind: WaveformKind,
-    waveform: crate::waveform::spec::WaveformSpec,
-    source: crate::measure::bench::BenchSource,
+    waveform: radbench::waveform::WaveformSpec,
+    source: radbench::measure::BenchSource,
     out: &Path,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
@@ -336,8 +336,8 @@ async fn measure_into(
     options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,
-        payload: args.payload.as_ref().map(|p| p.as_bytes().to_vec()),
-        seed: args.seed,
+        payload: args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+        seed: args.bits.seed,
         options,
         tx_off: args.tx_off,
         wait_s: args.wait,
@@ -356,7 +356,7 @@ async fn measure_into(
         )
         .await;
     }
-    let (taken, mut prepared) = capture::take(
+    let (taken, mut prepared) = measure::take(
         &bench,
         &request,
         args.repetitions,
@@ -377,10 +377,10 @@ async fn measure_into(
         let (out, taken, provenance) = (out.clone(), taken.clone(), provenance.clone());
         let options = prepared.options_for(&taken.captured);
         tokio::task::spawn_blocking(move || {
-            write_group(|| record::write_raw(&out, &taken, &options, &provenance))
+            write_group(|| measure::write_raw(&out, &taken, &options, &provenance))
         })
     };
-    let processing = capture::process_with(&mut prepared, &taken.captured).await;
+    let processing = measure::process_with(&mut prepared, &taken.captured).await;
     let (raw, _) = raw_writer
         .await
         .map_err(|e| MeasureError::Worker(format!("writing the raw capture: {e}")))??;
@@ -398,7 +398,7 @@ async fn measure_into(
         let warnings = calibration_warnings(cal, &m.taken.identities);
         m.processing.processed.warnings.extend(warnings);
     }
-    let ((_, summary), _) = write_group(|| record::write_processed(&out, &m, &raw, &provenance))?;
+    let ((_, summary), _) = write_group(|| measure::write_processed(&out, &m, &raw, &provenance))?;
     if let Some(signal) = interrupt.received() {
         eprintln!(
             "{} received after the capture: the bench is safe and the files are written to {}",
@@ -482,7 +482,7 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
         }
     }
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |x| format!("{x:.2} {unit}"));
-    let pm = |s: Option<crate::measure::repeat::Stat>, unit: &str| {
+    let pm = |s: Option<radbench::measure::Stat>, unit: &str| {
         s.map(|s| format!(" (repetitions: {:.2} +- {:.2} {unit})", s.mean, s.std))
             .unwrap_or_default()
     };

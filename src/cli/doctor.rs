@@ -2,10 +2,11 @@
 //! for each failure (`measure::doctor` does the checks). Exit 0 only when no check fails.
 
 use super::capture::{bench_source, journal, open_bench};
-use crate::exit::{Classified, ExitClass};
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
-use crate::measure::doctor::{self, Status};
-use crate::measure::interrupt::Interrupt;
+use radbench::exit::{Classified, ExitClass};
+use radbench::measure;
+use radbench::measure::Interrupt;
+use radbench::measure::Status;
+use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -35,12 +36,12 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             args.scope_model,
         )?;
         let bench = open_bench(source, args.json).await?;
-        let report = doctor::run(&bench, journal(global)?, &interrupt).await?;
+        let report = measure::run(&bench, journal(global)?, &interrupt).await?;
         // A stop signal during a check that does not switch anything on: that check finished
         // (each is bounded), no further one radiated (the marker check is skipped once a signal
         // came), and the doctor ends with the signal's code.
         if let Some(signal) = interrupt.received() {
-            return Err(doctor::stopped(signal).into());
+            return Err(measure::stopped(signal).into());
         }
         if args.json {
             super::terminal::out(&serde_json::to_string(&report)?)?;
@@ -69,7 +70,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 /// The checklist as text: one line per check, its fix indented under a failure or warning.
-fn text(report: &doctor::Report) -> String {
+fn text(report: &measure::Report) -> String {
     let mut out = format!("bench doctor: {}\n", report.bench);
     for c in &report.checks {
         out += &format!("[{:>4}] {:<24} {}\n", c.status.mark(), c.id, c.detail);

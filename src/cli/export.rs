@@ -3,12 +3,13 @@
 //! range profile and its range axis, the detections, the transmitted reference and bits, the
 //! options. The arrays are what `radbench process` computes from the same files.
 
-use crate::campaign::export::{export_run, put_all};
-use crate::campaign::manifest::Manifest;
-use crate::exit::bad_input;
-use crate::measure::export::export_capture;
-use crate::measure::reprocess;
-use crate::storage::export::{ExportFormat, ExportWriter};
+use radbench::campaign::Manifest;
+use radbench::campaign::{export_run, put_all};
+use radbench::exit::bad_input;
+use radbench::measure;
+use radbench::measure::export_capture;
+
+use radbench::storage::{ExportFormat, ExportWriter};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -34,7 +35,7 @@ pub struct Args {
 
 /// What the input is.
 enum Input {
-    Capture(reprocess::Source),
+    Capture(measure::Source),
     Run,
 }
 
@@ -50,7 +51,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
     }
     let name = input.to_string_lossy().to_lowercase();
     let capture = |path: &Path| {
-        reprocess::sigmf(path)
+        measure::sigmf(path)
             .map(Input::Capture)
             .map_err(|e| bad_input(format!("{}: {}", e.path.display(), e.reason)))
     };
@@ -58,7 +59,7 @@ fn classify(input: &Path) -> anyhow::Result<Input> {
         if input.join("capture.sigmf-meta").is_file() {
             return capture(&input.join("capture.sigmf-meta"));
         }
-        if input.join(crate::campaign::manifest::FILE).is_file() {
+        if input.join(radbench::campaign::MANIFEST_FILE).is_file() {
             if Manifest::load(input).is_ok() {
                 return Ok(Input::Run);
             }
@@ -148,7 +149,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         }
     }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|source| crate::storage::StorageError::Io {
+        std::fs::create_dir_all(parent).map_err(|source| radbench::storage::StorageError::Io {
             path: parent.to_path_buf(),
             source,
         })?;

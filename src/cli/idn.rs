@@ -3,7 +3,7 @@
 
 use super::scpi::ConnectArgs;
 use super::terminal::{out, printable};
-use crate::session::reply::Identity;
+use radbench::session::Identity;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {

@@ -2,12 +2,12 @@
 //! `align` (the server is `crate::live`; this wires it to the interrupt, the drivers' RF state
 //! and the campaign's observer).
 
-use crate::campaign::plan::Step;
-use crate::campaign::run::{Observer, StepDone};
-use crate::exit::bad_input;
 use crate::live::{Event, Live, Options};
-use crate::measure::bench::Bench;
-use crate::measure::interrupt::{Interrupt, StopSignal};
+use radbench::campaign::Step;
+use radbench::campaign::{Observer, StepDone};
+use radbench::exit::bad_input;
+use radbench::measure::Bench;
+use radbench::measure::{Interrupt, StopSignal};
 use serde_json::{json, Value};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
@@ -53,7 +53,7 @@ impl LiveArgs {
                 eprintln!("Stop pressed on the live page: stopping as on Ctrl-C");
                 stop.raise(StopSignal::Interrupt);
             }),
-            bench_state: Box::new(crate::driver::rf_state::snapshot),
+            bench_state: Box::new(radbench::driver::snapshot),
         })
         .await
         .map_err(|e| {

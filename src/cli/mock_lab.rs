@@ -2,10 +2,10 @@
 //! It serves until SIGINT (Ctrl-C), SIGTERM or SIGHUP, and with `--until-stdin-closes` also until
 //! standard input closes; a stop asked for that way is a success (exit code 0).
 
-use crate::exit::{bad_input, Classified, ExitClass};
 use mock_lab::emulator::lecroy::RemoteInterface;
 use mock_lab::lab::{self, Announce, LabError, LabOptions, ScopeModel};
 use mock_lab::scene::Scene;
+use radbench::exit::{bad_input, Classified, ExitClass};
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]

@@ -16,10 +16,8 @@ pub(crate) mod calibrate_response;
 pub(crate) mod campaign;
 pub(crate) mod capture;
 pub(crate) mod doctor;
-pub(crate) mod exit_code;
 pub(crate) mod export;
 pub(crate) mod idn;
-pub mod in_memory;
 pub(crate) mod live;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
@@ -32,7 +30,7 @@ pub mod terminal;
 pub(crate) mod trc;
 pub(crate) mod waveform;
 
-pub use exit_code::classify;
+pub use radbench::classify;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
 #[derive(Debug, Parser)]

@@ -1,27 +1,18 @@
 //! `radbench process INPUT...`: saved captures through the measurement pipeline again, with the
 //! options they were captured with or any others, in parallel on every core.
 
-use super::args::WaveformArgs;
-use crate::campaign::manifest::Manifest;
-use crate::exit::{Classified, ExitClass};
-use crate::measure::options::{
-    Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName,
-};
-use crate::measure::pipeline::Pipeline;
-use crate::measure::record::{self, SourceFile};
-use crate::measure::reprocess::{
-    self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
-};
-use crate::measure::response::CorrectionMode;
-use crate::measure::MeasureError;
-use crate::storage::atomic::{write_group_open, OpenGroup};
-use crate::storage::StorageError;
-use crate::waveform::spec::WaveformKind;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use radbench::exit::{Classified, ExitClass};
+use radbench::in_memory::{compute, folder_names, recorded_data_hashes, recorded_for, ProcessArgs};
+use radbench::measure;
+
+use radbench::measure::ProcessOverrides;
+use radbench::measure::{Source, WaveformChoice};
+use radbench::storage::StorageError;
+use radbench::storage::{write_group_open, OpenGroup};
 use rayon::prelude::*;
 use serde_json::{json, Value};
-use std::cell::RefCell;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -44,294 +35,15 @@ pub struct Args {
     /// default: rendering and compressing that bitmap is about an eighth of re-processing.
     #[arg(long)]
     pub link_png: bool,
-    /// The waveform of captures radbench did not make (overrides what a radbench capture recorded).
-    #[arg(long, value_parser = super::args::listed::<WaveformKind>())]
-    pub waveform: Option<WaveformKind>,
+    /// The processing options (the library's: the Python package parses them too).
     #[command(flatten)]
-    pub waveform_args: WaveformArgs,
-    /// Seed of the transmitted PRBS bits (captures radbench did not make).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// The transmitted payload text (captures radbench did not make).
-    #[arg(long, value_name = "TEXT")]
-    pub payload: Option<String>,
-    /// Time from the trigger to the first sample, seconds (default: what the file says, else 0).
-    #[arg(long, value_name = "S", allow_hyphen_values = true)]
-    pub trigger_offset: Option<f64>,
-    /// Subtract this capture (.sigmf-meta) instead of the one the capture recorded.
-    #[arg(long, value_name = "FILE", conflicts_with = "no_background")]
-    pub background: Option<PathBuf>,
-    /// Do not subtract the background the capture recorded.
-    #[arg(long)]
-    pub no_background: bool,
-    #[arg(long, value_parser = super::args::listed::<Algorithm>())]
-    pub algorithm: Option<Algorithm>,
-    /// MUSIC sub-vector (covariance) length M.
-    #[arg(long = "m", value_name = "M")]
-    pub music_m: Option<usize>,
-    /// Number of targets for MUSIC/root-MUSIC/ESPRIT.
-    #[arg(long = "p", value_name = "P")]
-    pub music_p: Option<usize>,
-    /// Forward smoothing only for MUSIC.
-    #[arg(long)]
-    pub forward_only: bool,
-    #[arg(long, value_name = "K")]
-    pub zero_pad: Option<usize>,
-    #[arg(long, value_parser = super::args::listed::<WindowName>(), value_name = "NAME")]
-    pub window: Option<WindowName>,
-    #[arg(long, value_parser = super::args::listed::<FftPrecisionName>(), value_name = "P")]
-    pub fft_precision: Option<FftPrecisionName>,
-    /// Report the on-grid peak (no sub-sample interpolation).
-    #[arg(long)]
-    pub no_interpolation: bool,
-    #[arg(long, value_parser = super::args::listed::<DetectorName>(), value_name = "NAME")]
-    pub detector: Option<DetectorName>,
-    #[arg(long, value_name = "P", allow_hyphen_values = true)]
-    pub pfa: Option<f64>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_separation: Option<f64>,
-    /// The detector's chain floor, dB (see `capture --help`).
-    #[arg(long, value_name = "DB", allow_hyphen_values = true)]
-    pub chain_floor_db: Option<f64>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_range: Option<f64>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub max_range: Option<f64>,
-    /// The bench's fixed delay, seconds (default: what the capture was processed with).
-    #[arg(long, value_name = "S", allow_hyphen_values = true)]
-    pub system_delay: Option<f64>,
-    /// Receive correction: none, or rx (DC, I/Q imbalance and the chain's response, from a
-    /// calibration). Default: what the capture was processed with; rx with --calibration.
-    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
-    pub correction: Option<CorrectionMode>,
-    /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
-    /// captures made without one; with --reference-range, a capture of one reference pillar
-    /// from which the response is measured (written to OUT/reference-response.toml).
-    #[arg(long, value_name = "FILE")]
-    pub calibration: Option<PathBuf>,
-    /// The reference pillar's true range in the --calibration capture, metres.
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub reference_range: Option<f64>,
-}
-
-impl Args {
-    /// The waveform and the processing options asked for (`out`: where a response measured with
-    /// `--reference-range` is stored).
-    pub(super) fn settings(
-        &self,
-        out: &Path,
-    ) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
-        let waveform = self.waveform()?;
-        let mut overrides = self.overrides();
-        overrides.correction = self.correction(out)?;
-        overrides.require_correction =
-            self.correction == Some(CorrectionMode::Rx) && self.calibration.is_none();
-        Ok((waveform, overrides))
-    }
-
-    fn overrides(&self) -> ProcessOverrides {
-        ProcessOverrides {
-            algorithm: self.algorithm,
-            music_m: self.music_m,
-            music_p: self.music_p.map(Some),
-            forward_backward: self.forward_only.then_some(false),
-            zero_pad: self.zero_pad,
-            window: self.window,
-            fft_precision: self.fft_precision,
-            interpolate: self.no_interpolation.then_some(false),
-            system_delay_s: self.system_delay,
-            min_range_m: self.min_range,
-            max_range_m: self.max_range,
-            detector: self.detector,
-            pfa: self.pfa,
-            min_separation_m: self.min_separation.map(Some),
-            chain_floor_db: self.chain_floor_db,
-            awg_amplitude_vpp: None,
-            correction: None,
-            keep_background: !self.no_background,
-            require_correction: false,
-        }
-    }
-
-    /// The correction asked for: `None` keeps what each capture recorded.
-    fn correction(
-        &self,
-        out: &Path,
-    ) -> anyhow::Result<Option<Option<crate::measure::response::CorrectionUsed>>> {
-        use crate::measure::response::Calibration;
-        if let Some(r) = self.reference_range {
-            crate::measure::calibration::check(r, 2.0)?;
-            let Some(capture) = &self.calibration else {
-                return Err(crate::exit::bad_input(
-                    "--reference-range needs --calibration CAPTURE: the capture of one reference \
-                     pillar to measure the response from",
-                ));
-            };
-            if self.correction == Some(CorrectionMode::None) {
-                return Err(crate::exit::bad_input(
-                    "--correction none with --calibration: give one or the other",
-                ));
-            }
-            std::fs::create_dir_all(out)?;
-            let cal = crate::measure::response_from_capture::calibrate_from_capture(
-                capture,
-                r,
-                crate::measure::calibration::default_gate_s(r),
-                &out.join("reference-response.toml"),
-            )?;
-            eprintln!(
-                "response measured from {} (reference at {r} m): side-lobe {:.2} -> {:.2} dB; \
-                 stored in {}",
-                capture.display(),
-                cal.header.reference.sidelobe_db_before.unwrap_or(f64::NAN),
-                cal.header.reference.sidelobe_db_after.unwrap_or(f64::NAN),
-                cal.path.display()
-            );
-            return Ok(Some(Some(cal.used())));
-        }
-        if matches!(
-            self.correction,
-            Some(CorrectionMode::Tx | CorrectionMode::Both)
-        ) {
-            return Err(crate::exit::bad_input(
-                "--correction: none or rx (a capture already made cannot be pre-distorted; one \
-                 captured with tx or both is processed as it was unless --correction is given)",
-            ));
-        }
-        Ok(match (self.correction, &self.calibration) {
-            (Some(CorrectionMode::None), Some(_)) => {
-                return Err(crate::exit::bad_input(
-                    "--correction none with --calibration: give one or the other",
-                ))
-            }
-            (Some(CorrectionMode::None), None) => Some(None),
-            (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
-            // rx without a file: what each capture recorded (checked per capture).
-            (_, None) => None,
-        })
-    }
-
-    fn waveform(&self) -> anyhow::Result<WaveformChoice> {
-        let spec = match self.waveform {
-            Some(w) => Some(self.waveform_args.spec(w)?),
-            None => {
-                let given = format!("{:?}", self.waveform_args);
-                if given != format!("{:?}", WaveformArgs::default()) {
-                    return Err(crate::exit::bad_input(
-                        "waveform parameters need --waveform msk-lfm|ofdm to say which waveform \
-                         they belong to",
-                    ));
-                }
-                None
-            }
-        };
-        Ok(WaveformChoice {
-            spec,
-            seed: self.seed,
-            payload: self.payload.as_ref().map(|p| p.as_bytes().to_vec()),
-        })
-    }
+    pub options: ProcessArgs,
 }
 
 /// What happened to one capture.
 struct Outcome {
     source: String,
     result: Result<(PathBuf, Value), anyhow::Error>,
-}
-
-thread_local! {
-    /// Pipelines built on this worker, by what they were built for: a batch of captures of one
-    /// waveform builds its filters, plans and tables once per thread.
-    static PIPELINES: RefCell<Vec<(String, Pipeline)>> = const { RefCell::new(Vec::new()) };
-}
-
-/// Most pipelines a worker keeps (a batch rarely mixes more waveforms and options).
-const PIPELINES_PER_WORKER: usize = 4;
-
-/// The SHA-256 that run manifests recorded for the captures' data files, by path: the run
-/// folder of each capture's folder, where it has a manifest radbench reads. A capture whose data
-/// matches its recorded hash is not hashed a second time against the recording's own SHA-512
-/// (see `read_sigmf_stored`). A manifest that cannot be read only means no such shortcut.
-pub(super) fn recorded_data_hashes(sources: &[&Source]) -> HashMap<PathBuf, String> {
-    let runs: BTreeSet<&Path> = sources
-        .iter()
-        .filter_map(|s| match s {
-            Source::Sigmf { data, .. } => data.parent()?.parent(),
-            Source::TrcPair { .. } => None,
-        })
-        .filter(|run| run.join("manifest.toml").is_file())
-        .collect();
-    let mut hashes = HashMap::new();
-    for run in runs {
-        let Ok(manifest) = Manifest::load(run) else {
-            continue;
-        };
-        for file in manifest.steps.into_iter().flat_map(|step| step.files) {
-            hashes.insert(run.join(&file.path), file.sha256);
-        }
-    }
-    hashes
-}
-
-/// The recorded SHA-256 of `source`'s data, if its run recorded one.
-pub(super) fn recorded_for<'a>(
-    source: &Source,
-    recorded: &'a HashMap<PathBuf, String>,
-) -> Option<&'a str> {
-    match source {
-        Source::Sigmf { data, .. } => recorded.get(data).map(String::as_str),
-        Source::TrcPair { .. } => None,
-    }
-}
-
-/// One capture through the pipeline (one of this thread's pipelines when it was built for the
-/// same transmission and options): the capture read, the result and its files' hashes.
-pub(super) fn compute(
-    source: &Source,
-    recorded_sha256: Option<&str>,
-    waveform: &WaveformChoice,
-    overrides: &ProcessOverrides,
-    background: Option<&Path>,
-    trigger_offset: Option<f64>,
-) -> Result<(Loaded<Repetition>, Reprocessed, Vec<SourceFile>), anyhow::Error> {
-    let loaded = reprocess::load_for_processing(source, trigger_offset, recorded_sha256)?;
-    let resolved = reprocess::resolve(&loaded, waveform, overrides, background)?;
-    let hashes = reprocess::source_hashes(source, &loaded.sha256)?;
-    let r = on_cached_pipeline(&loaded, resolved)?;
-    let sources: Vec<SourceFile> = hashes
-        .into_iter()
-        .map(|(path, sha256)| SourceFile { path, sha256 })
-        .collect();
-    Ok((loaded, r, sources))
-}
-
-/// `loaded` processed as `resolved` says, on this thread's pipeline for it (built when missing).
-pub(super) fn on_cached_pipeline<R: Record>(
-    loaded: &Loaded<R>,
-    resolved: reprocess::Resolved,
-) -> Result<Reprocessed, anyhow::Error> {
-    let rate = loaded.repetitions[0].sample_rate_hz();
-    let key = serde_json::to_string(&json!({
-        "tx": resolved.tx.describe(),
-        "options": resolved.options,
-        "period": resolved.period,
-        "rate": rate,
-    }))?;
-    let r = PIPELINES.with(|cell| -> Result<_, MeasureError> {
-        let mut cache = cell.borrow_mut();
-        let index = match cache.iter().position(|(k, _)| *k == key) {
-            Some(i) => i,
-            None => {
-                if cache.len() >= PIPELINES_PER_WORKER {
-                    cache.remove(0);
-                }
-                cache.push((key.clone(), reprocess::pipeline(&resolved, rate)?));
-                cache.len() - 1
-            }
-        };
-        reprocess::process(&mut cache[index].1, loaded, resolved)
-    })?;
-    Ok(r)
 }
 
 fn process_one(
@@ -347,14 +59,14 @@ fn process_one(
         recorded_for(source, recorded),
         waveform,
         overrides,
-        args.background.as_deref(),
-        args.trigger_offset,
+        args.options.background.as_deref(),
+        args.options.trigger_offset,
     )?;
     // One write group: each file's writeback starts as it is written; the files are synced,
     // renamed into place and their folder synced once when the group is finished (by a
     // finisher, while this thread goes on with the next capture).
     let ((files, summary), open) =
-        write_group_open(|| record::write_reprocessed(out, &sources, &loaded, &r, args.link_png))?;
+        write_group_open(|| measure::write_reprocessed(out, &sources, &loaded, &r, args.link_png))?;
     Ok((files.dir, summary, open))
 }
 
@@ -421,22 +133,6 @@ impl Finishers {
     }
 }
 
-/// Folder names for the sources: their labels, made unique.
-pub(super) fn folder_names(sources: &[&Source]) -> Vec<String> {
-    let mut names: Vec<String> = Vec::new();
-    for s in sources {
-        let base = s.label();
-        let mut name = base.clone();
-        let mut k = 2;
-        while names.contains(&name) {
-            name = format!("{base}-{k}");
-            k += 1;
-        }
-        names.push(name);
-    }
-    names
-}
-
 pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     let out = args
         .out
@@ -448,21 +144,21 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
                 .map(|mut d| d.next().is_none())
                 .unwrap_or(false);
         if !empty {
-            return Err(crate::exit::bad_input(format!(
+            return Err(radbench::exit::bad_input(format!(
                 "--out {}: exists already; process writes a new folder and never over what is \
                  there (give a new folder)",
                 out.display()
             )));
         }
     }
-    let (waveform, overrides) = args.settings(&out)?;
-    let discovered = reprocess::discover(&args.inputs);
+    let (waveform, overrides) = args.options.settings(&out)?;
+    let discovered = measure::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);
     let recorded = recorded_data_hashes(&sources);
     let jobs = args.jobs.unwrap_or(0);
     if args.jobs == Some(0) || jobs > 256 {
-        return Err(crate::exit::bad_input(format!(
+        return Err(radbench::exit::bad_input(format!(
             "--jobs {jobs}: give 1 to 256 worker threads"
         )));
     }
@@ -517,7 +213,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         .map(|e| {
             (
                 e.path.display().to_string(),
-                crate::exit::bad_input(e.reason),
+                radbench::exit::bad_input(e.reason),
             )
         })
         .collect();
@@ -551,7 +247,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             },
             failures
                 .iter()
-                .map(|(s, e)| format!("{s}: {}", crate::exit::render(e)))
+                .map(|(s, e)| format!("{s}: {}", radbench::exit::render(e)))
                 .collect::<Vec<_>>()
                 .join("; ")
         ),
@@ -575,7 +271,7 @@ fn report(
             })).collect::<Vec<_>>(),
             "failed": failures.iter().map(|(s, e)| json!({
                 "source": s,
-                "error": crate::exit::render(e),
+                "error": radbench::exit::render(e),
                 "exit_code": super::classify(e).code(),
             })).collect::<Vec<_>>(),
             "seconds": elapsed_s,
@@ -603,7 +299,7 @@ fn report(
         }
     }
     for (s, e) in failures {
-        text.push_str(&format!("{s}: FAILED: {}\n", crate::exit::render(e)));
+        text.push_str(&format!("{s}: FAILED: {}\n", radbench::exit::render(e)));
     }
     let n = done.len() + failures.len();
     text.push_str(&format!(

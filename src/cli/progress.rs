@@ -1,8 +1,8 @@
 //! A progress bar on stderr for long instrument transfers (`scpi`, `idn`), fed by the transport's
 //! progress reports. Hidden when stderr is not a terminal, so scripts and logs stay clean.
 
-use crate::transport::{Direction, Progress, ProgressFn};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use radbench::transport::{Direction, Progress, ProgressFn};
 use std::sync::{Arc, Mutex};
 
 /// One bar per transfer: a report whose direction differs, or whose count went back, starts a

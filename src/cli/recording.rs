@@ -7,7 +7,7 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use super::trc::{report_files, si};
-use crate::storage::recording::{read_sigmf, Recording, SampleUnit};
+use radbench::storage::{read_sigmf, Recording, SampleUnit};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {

@@ -3,14 +3,15 @@
 
 use super::capture::{calibration_warnings, journal, report, Args};
 use super::live::{self as live_cli};
-use crate::driver::RfPermit;
 use crate::live::{Event, Live};
-use crate::measure::bench::Bench;
-use crate::measure::capture::{self, CaptureRequest, Rig};
-use crate::measure::interrupt::Interrupt;
-use crate::measure::record::{self, Provenance};
-use crate::measure::response::Calibration;
-use crate::measure::MeasureError;
+use radbench::driver::RfPermit;
+use radbench::measure;
+use radbench::measure::Bench;
+use radbench::measure::Calibration;
+use radbench::measure::Interrupt;
+use radbench::measure::MeasureError;
+use radbench::measure::Provenance;
+use radbench::measure::{CaptureRequest, Rig};
 use serde_json::json;
 use std::path::Path;
 
@@ -113,7 +114,7 @@ async fn run(
     live: Option<&Live>,
 ) -> anyhow::Result<()> {
     let catalog = bench.file.catalog()?;
-    let mut prepared = capture::prepare(bench, &catalog, request).await?;
+    let mut prepared = measure::prepare(bench, &catalog, request).await?;
     let mut rig = Rig::connect(bench, &catalog, journal(global)?).await?;
     let provenance = Provenance {
         bench_file: bench.path.clone(),
@@ -144,7 +145,7 @@ async fn run(
             m.processing.processed.warnings.extend(warnings);
         }
         let dir = out.join(format!("capture-{k:04}"));
-        let (_, mut summary) = record::write_capture(&dir, &m, &provenance)?;
+        let (_, mut summary) = measure::write_capture(&dir, &m, &provenance)?;
         if let Some(l) = live {
             let p = &m.processing.processed;
             let ranges: Vec<f64> = p.targets.iter().map(|t| t.range_m).collect();

@@ -11,11 +11,13 @@
 
 use super::progress::TransferBar;
 use super::terminal::{is_stdout_closed, out, printable, printable_bytes};
-use crate::address::Resource;
-use crate::session::{reply, Session, SessionError, SessionOptions};
-use crate::transport::{journal, Journal, Timeouts};
 use anyhow::Context;
 use bytes::Bytes;
+use radbench::address::Resource;
+use radbench::session;
+use radbench::session::{Session, SessionError, SessionOptions};
+use radbench::transport;
+use radbench::transport::{Journal, Timeouts};
 use std::future::Future;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -55,7 +57,7 @@ fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
     if value.is_finite() && value > 0.0 && value <= 86_400.0 {
         Ok(Duration::from_secs_f64(value))
     } else {
-        Err(crate::exit::bad_input(format!(
+        Err(radbench::exit::bad_input(format!(
             "--{flag} {value}: give a number of seconds between 0 and 86400"
         )))
     }
@@ -64,7 +66,7 @@ fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
 impl ConnectArgs {
     pub fn session_options(&self) -> anyhow::Result<SessionOptions> {
         if !(self.min_rate.is_finite() && self.min_rate > 0.0) {
-            return Err(crate::exit::bad_input(format!(
+            return Err(radbench::exit::bad_input(format!(
                 "--min-rate {}: give a positive rate in MB/s",
                 self.min_rate
             )));
@@ -77,7 +79,7 @@ impl ConnectArgs {
             min_rate_bytes_per_s: (self.min_rate * 1e6) as u64,
         };
         if !(1..=MAX_BAUD).contains(&self.baud) {
-            return Err(crate::exit::bad_input(format!(
+            return Err(radbench::exit::bad_input(format!(
                 "--baud {}: give the serial line speed in baud, 1 ..= {MAX_BAUD} (e.g. 115200)",
                 self.baud
             )));
@@ -109,16 +111,16 @@ impl ConnectArgs {
 async fn serial_line_protocol(
     resource: &Resource,
     options: &SessionOptions,
-) -> anyhow::Result<Option<crate::session::LineProtocol>> {
-    let catalog = crate::catalog::Catalog::embedded()?;
+) -> anyhow::Result<Option<radbench::session::LineProtocol>> {
+    let catalog = radbench::catalog::Catalog::embedded()?;
     let line_models = || {
         catalog
             .models()
             .filter(|(m, _)| m.protocol.is_some())
             .filter_map(|(m, _)| m.protocol.as_ref())
     };
-    let as_protocol = |p: &crate::catalog::LineProtocol| crate::session::LineProtocol {
-        crc: Some(crate::session::Crc8 {
+    let as_protocol = |p: &radbench::catalog::LineProtocol| radbench::session::LineProtocol {
+        crc: Some(radbench::session::Crc8 {
             poly: p.crc_poly,
             init: p.crc_init,
         }),
@@ -171,7 +173,7 @@ async fn known_to_keep_errors(session: &mut Session) -> bool {
         // A line-protocol device refuses in its reply: nothing to read afterwards.
         return false;
     }
-    let Ok(catalog) = crate::catalog::Catalog::embedded() else {
+    let Ok(catalog) = radbench::catalog::Catalog::embedded() else {
         return false;
     };
     let timeouts = &mut session.link_options_mut().timeouts;
@@ -180,7 +182,9 @@ async fn known_to_keep_errors(session: &mut Session) -> bool {
     let reply = session.query("*IDN?").await;
     session.link_options_mut().timeouts.read = read;
     match reply {
-        Ok(idn) => catalog.identify(reply::without_idn_header(&idn)).is_some(),
+        Ok(idn) => catalog
+            .identify(session::without_idn_header(&idn))
+            .is_some(),
         Err(_) => {
             // A late reply must not be taken for the first command's.
             let _ = session.device_clear().await;
@@ -286,7 +290,7 @@ impl BinarySaver {
             p.push(format!(".{}", self.count));
             PathBuf::from(p)
         };
-        crate::storage::atomic::write_atomic(&path, payload)
+        radbench::storage::write_atomic(&path, payload)
             .with_context(|| format!("cannot save the binary reply to {}", path.display()))?;
         Ok(Some(path))
     }
@@ -304,7 +308,7 @@ pub(crate) fn expects_reply(command: &str) -> bool {
 
 /// The block of a reply, when it holds one: a `#<digit>` outside quoted strings (488.2 response
 /// data has no other use for it), definite or indefinite, at any length.
-fn block_of(raw: &Bytes) -> Option<reply::Block> {
+fn block_of(raw: &Bytes) -> Option<session::Block> {
     let mut quoted = false;
     let start = raw.windows(2).position(|w| {
         if w[0] == b'"' {
@@ -312,7 +316,7 @@ fn block_of(raw: &Bytes) -> Option<reply::Block> {
         }
         !quoted && w[0] == b'#' && w[1].is_ascii_digit()
     })?;
-    let block = reply::parse_block(raw.clone()).ok()?;
+    let block = session::parse_block(raw.clone()).ok()?;
     (block.prefix().len() == start).then_some(block)
 }
 
@@ -321,8 +325,8 @@ fn block_of(raw: &Bytes) -> Option<reply::Block> {
 pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
     if let Some(block) = block_of(raw) {
         let form = match block.form {
-            reply::BlockForm::Definite => "definite",
-            reply::BlockForm::Indefinite => "indefinite",
+            session::BlockForm::Definite => "definite",
+            session::BlockForm::Indefinite => "indefinite",
         };
         let prefix = printable_bytes(block.prefix());
         let payload = block.into_payload();
@@ -339,7 +343,7 @@ pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
                 format!("{prefix} ")
             },
             payload.len(),
-            journal::sha256_hex(&payload),
+            transport::sha256_hex(&payload),
             head.join(" ")
         );
         if let Some(short) = short_text(&payload) {
@@ -348,14 +352,14 @@ pub(crate) fn describe_reply(raw: &Bytes) -> (String, Option<Bytes>) {
         return (text, Some(payload));
     }
     if let Some(text) = looks_like_text(raw) {
-        return (printable(reply::trim_reply(text)).into_owned(), None);
+        return (printable(session::trim_reply(text)).into_owned(), None);
     }
     let head: Vec<String> = raw.iter().take(16).map(|b| format!("{b:02x}")).collect();
     (
         format!(
             "binary reply: {} bytes, sha256 {}, first bytes: {}",
             raw.len(),
-            journal::sha256_hex(raw),
+            transport::sha256_hex(raw),
             head.join(" ")
         ),
         Some(raw.clone()),
@@ -523,9 +527,9 @@ fn interrupted() -> impl Future<Output = ()> {
 }
 
 fn report(e: &anyhow::Error) {
-    eprintln!("error: {}", printable(&crate::exit::render(e)));
+    eprintln!("error: {}", printable(&radbench::exit::render(e)));
     if let Some(SessionError::Link { source, .. }) = e.downcast_ref::<SessionError>() {
-        if matches!(source, crate::transport::LinkError::Closed { .. }) {
+        if matches!(source, radbench::transport::LinkError::Closed { .. }) {
             eprintln!("(the connection is gone: \\reconnect to reopen it)");
         }
     }
@@ -610,7 +614,7 @@ async fn interactive_line(
         }
         ("timeout", Some(value)) => {
             let secs: f64 = value.parse().map_err(|_| {
-                crate::exit::bad_input(format!("\\timeout {value}: give seconds, e.g. 5"))
+                radbench::exit::bad_input(format!("\\timeout {value}: give seconds, e.g. 5"))
             })?;
             session.link_options_mut().timeouts.read = seconds(secs, "timeout")?;
             format!("reply timeout {secs} s")
@@ -698,7 +702,10 @@ mod tests {
         for baud in ["0", "12000001"] {
             let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", baud]);
             let err = cli.connect.session_options().unwrap_err();
-            assert_eq!(crate::cli::classify(&err), crate::exit::ExitClass::BadInput);
+            assert_eq!(
+                radbench::classify(&err),
+                radbench::exit::ExitClass::BadInput
+            );
             assert!(err.to_string().contains("--baud"), "{err}");
         }
         let cli = Cli::parse_from(["x", "ASRL/dev/ttyUSB0::INSTR", "--baud", "9600"]);

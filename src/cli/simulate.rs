@@ -1,7 +1,7 @@
 //! `radbench simulate`: the thesis' chapter-4 scenarios, free-form runs and BER curves.
 //!
 //! `simulate run --scene FILE` simulates the built-in mock lab's capture of a scene file
-//! in-process (`crate::simulate::scene_bench`): the same synthesis, scope and pipeline as
+//! in-process (`radbench::simulate::scene_bench`): the same synthesis, scope and pipeline as
 //! `capture --allow-rf --scene FILE`, so the same detections for the same scene and `--seed`.
 //!
 //! Target syntax for `--targets`: `R[:AMP[:V]]` separated by commas: range in metres, linear
@@ -9,11 +9,12 @@
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
 use super::args::{ProcessingArgs, WaveformArgs};
-use crate::exit::bad_input;
-use crate::simulate::scene::CarrierPhase;
-use crate::simulate::scene_bench::{simulate_scene, SceneSpec};
-use crate::simulate::{ber, report, scene::parse_targets, spec::RunSpec, thesis};
-use crate::waveform::spec::WaveformKind;
+use radbench::exit::bad_input;
+use radbench::simulate;
+use radbench::simulate::CarrierPhase;
+use radbench::simulate::{parse_targets, RunSpec};
+use radbench::simulate::{simulate_scene, SceneSpec};
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -145,7 +146,7 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
             ))
         })?;
     }
-    let table = thesis::run_all(args.plot.as_deref())?;
+    let table = simulate::run_all(args.plot.as_deref())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&table.to_json())?);
     } else {
@@ -198,11 +199,11 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
             spec.capture_rate_hz = a.capture_rate;
             spec.seed = a.seed;
             spec.trials = a.trials;
-            (crate::simulate::run::simulate(&spec)?, spec)
+            (radbench::simulate::simulate(&spec)?, spec)
         }
     };
     if let Some(path) = &a.plot {
-        crate::storage::plot::draw(path, &outcome.plot(&spec))?;
+        radbench::storage::draw(path, &outcome.plot(&spec))?;
     }
     if let Some(path) = &a.profile_out {
         outcome.table().write(path)?;
@@ -211,7 +212,7 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
         let doc = serde_json::json!({ "scenarios": [outcome.result] });
         println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
-        print!("{}", report::scenario_text(&outcome.result));
+        print!("{}", simulate::scenario_text(&outcome.result));
     }
     Ok(())
 }
@@ -233,16 +234,16 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} Eb/N0 points, eta {eta}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let curves = ber::run_curves(a.bits, a.seed, &|done, total| {
+    let curves = simulate::run_curves(a.bits, a.seed, &|done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
     if let Some(path) = &a.plot {
-        crate::storage::plot::draw_ber(
+        radbench::storage::draw_ber(
             path,
             "Bit-error rate against Eb/N0 (AWGN), measured and theory",
-            &ber::plot_series(&curves),
+            &simulate::plot_series(&curves),
         )?;
     }
     if a.json {
@@ -251,7 +252,7 @@ fn run_ber(a: BerArgs) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&serde_json::json!({ "ber": curves }))?
         );
     } else {
-        print!("{}", report::ber_text(&curves));
+        print!("{}", simulate::ber_text(&curves));
     }
     Ok(())
 }

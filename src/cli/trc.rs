@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
 
-use crate::storage::recording::{read_trc, RecordingError};
-use crate::trc::{Segment, Trace};
+use radbench::storage::{read_trc, RecordingError};
+use radbench::trc::{Segment, Trace};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -317,7 +317,7 @@ pub(crate) fn finish(mut errors: Vec<RecordingError>, files: usize) -> anyhow::R
     match errors.len() {
         0 => Ok(()),
         1 if files == 1 => Err(errors.remove(0).into()),
-        n => Err(crate::exit::bad_input(format!(
+        n => Err(radbench::exit::bad_input(format!(
             "{n} of {files} files could not be read: {}",
             errors
                 .iter()

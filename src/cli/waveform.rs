@@ -3,8 +3,8 @@
 //! the work).
 
 use super::args::WaveformArgs;
-use crate::measure::ambiguity::{ambiguity, AmbiguityReport};
-use crate::waveform::spec::WaveformKind;
+use radbench::measure::{ambiguity, AmbiguityReport};
+use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -62,7 +62,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
 
 fn run_ambiguity(args: AmbiguityArgs) -> anyhow::Result<()> {
     if !(args.carrier.is_finite() && args.carrier > 0.0) {
-        return Err(crate::exit::bad_input(format!(
+        return Err(radbench::exit::bad_input(format!(
             "--carrier {}: allowed: a positive frequency in Hz (80e9 for the bench)",
             args.carrier
         )));
@@ -70,7 +70,7 @@ fn run_ambiguity(args: AmbiguityArgs) -> anyhow::Result<()> {
     if let Some(p) = &args.plot {
         let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
         if !png {
-            return Err(crate::exit::bad_input(format!(
+            return Err(radbench::exit::bad_input(format!(
                 "--plot {}: allowed: a .png file (the delay-Doppler map is a heat map)",
                 p.display()
             )));

@@ -3,7 +3,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | `capability` | the traits [`Awg`], [`Digitizer`], [`RfFrontEnd`] and their plain-data settings |
-//! | [`io`] | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
+//! | `io` | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
 //! | `scpi` | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
 //! | `identity` | `*IDN?` checked against the catalog model |
 //! | `limits` | settings checked against the catalog's limits before anything is sent |
@@ -11,12 +11,12 @@
 //! | `trace` | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
 //! | `fault` | `FaultyIo`: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests (feature `testing`) |
 //! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
-//! | [`lecroy`] | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
-//! | [`keysight_uxr`] | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
+//! | `lecroy` | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
+//! | `keysight_uxr` | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
 //! | `open` | instruments opened from data: the catalog's `driver` family to a boxed capability, AWG planning |
-//! | [`gotmic`] | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
+//! | `gotmic` | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
-//! | [`safe_state`] | the safe-state sequence on every exit path |
+//! | `safe_state` | the safe-state sequence on every exit path |
 //! | `error` | [`DriverError`] with `kind()` and its exit class |
 //!
 //! Rules every driver keeps: command spellings in one `commands.rs`; settings checked against the
@@ -57,21 +57,29 @@ pub(crate) mod capability;
 pub(crate) mod error;
 #[cfg(any(test, feature = "testing"))]
 pub(crate) mod fault;
-pub mod gotmic;
+pub(crate) mod gotmic;
 pub(crate) mod identity;
-pub mod io;
-pub mod keysight_uxr;
-pub mod lecroy;
+pub(crate) mod io;
+pub(crate) mod keysight_uxr;
+pub(crate) mod lecroy;
 pub(crate) mod limits;
 pub(crate) mod m8195a;
 pub(crate) mod open;
 pub(crate) mod permit;
 pub(crate) mod rf_state;
-pub mod safe_state;
+pub(crate) mod safe_state;
 pub(crate) mod scpi;
 #[cfg(any(test, feature = "testing"))]
-pub mod scripted;
+pub(crate) mod scripted;
 pub(crate) mod trace;
+
+pub use gotmic::*;
+pub use io::*;
+pub use lecroy::*;
+pub use rf_state::*;
+pub use safe_state::*;
+#[cfg(any(test, feature = "testing"))]
+pub use scripted::*;
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;

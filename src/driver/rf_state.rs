@@ -20,7 +20,7 @@ pub(crate) fn connected(instrument: &str) {
 }
 
 /// Every instrument a driver connected or switched in this process, and whether it is on.
-pub(crate) fn snapshot() -> Vec<(String, bool)> {
+pub fn snapshot() -> Vec<(String, bool)> {
     let state = STATE.lock().unwrap_or_else(|p| p.into_inner());
     state.iter().map(|(k, v)| (k.clone(), *v)).collect()
 }

@@ -699,7 +699,7 @@ impl PeriodicDecimator {
 
     /// The filter's (real, delay-compensated) response at `nu` cycles per *output* sample: the
     /// extra spectral weight of a decimated capture's point spread
-    /// (`crate::dsp::detect::TabulatedPsf::correlation`).
+    /// (`crate::dsp::TabulatedPsf::correlation`).
     pub fn response_at_output(&self, nu: f64) -> f64 {
         magnitude_response(self.decimator.taps(), nu / self.decimator.factor() as f64)
     }

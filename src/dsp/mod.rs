@@ -26,17 +26,26 @@ impl Classify for DspError {
 }
 
 pub(crate) mod ambiguity;
-pub mod correlate;
-pub mod decimate;
-pub mod detect;
+pub(crate) mod correlate;
+pub(crate) mod decimate;
+pub(crate) mod detect;
 pub(crate) mod iq_image;
 pub(crate) mod link_quality;
-pub mod metrics;
-pub mod music;
-pub mod ofdm_radar;
-pub mod range_profile;
+pub(crate) mod metrics;
+pub(crate) mod music;
+pub(crate) mod ofdm_radar;
+pub(crate) mod range_profile;
 pub(crate) mod response;
-pub mod window;
+pub(crate) mod window;
+
+pub use correlate::*;
+pub use decimate::*;
+pub use detect::*;
+pub use metrics::*;
+pub use music::*;
+pub use ofdm_radar::*;
+pub use range_profile::*;
+pub use window::*;
 
 /// Speed of light in vacuum, m/s (defined in [`crate::physics`]).
 pub use crate::physics::C0;

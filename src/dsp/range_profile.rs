@@ -106,7 +106,7 @@ impl CorrelationProfiler {
     }
 
     /// The complex lags `r[l] / E` (E = transmit energy, so a unit echo peaks at magnitude 1), the
-    /// input of [`crate::dsp::detect`]; valid until the next call. Same definition and lag order as
+    /// input of `crate::dsp::detect`; valid until the next call. Same definition and lag order as
     /// [`CorrelationProfiler::profile`], whose amplitude is the magnitude of these values.
     ///
     /// # Errors

@@ -318,7 +318,7 @@ pub(crate) struct Fitted {
 
 /// A measured response table: frequencies (ascending, Hz) and the complex response there.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct ResponseTable {
+pub struct ResponseTable {
     pub freq_hz: Vec<f64>,
     pub response: Vec<Complex64>,
 }

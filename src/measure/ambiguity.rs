@@ -13,7 +13,7 @@ use crate::driver::AwgSettings;
 use crate::dsp::ambiguity::{cut_figures, Ambiguity, Wrap};
 use crate::physics::C0;
 use crate::storage::plot::{draw_heatmap, Heatmap};
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use num_complex::Complex64;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -27,7 +27,7 @@ const PLOT_RANGE_DB: f64 = 50.0;
 
 /// What `radbench waveform ambiguity` reports.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct AmbiguityReport {
+pub struct AmbiguityReport {
     /// `ambiguity` (the waveform against itself) or `cross-ambiguity` (a capture against it).
     pub kind: &'static str,
     pub waveform: String,
@@ -87,7 +87,7 @@ fn as_uploaded(tx: &Transmission) -> Vec<Complex64> {
 /// cross-ambiguity of that capture's first repetition (its own waveform, as recorded) against
 /// its reference; `plot` draws the delay-Doppler map (`.png`); `single` takes one
 /// repetition alone (zero-padded) instead of the looped segment.
-pub(crate) fn ambiguity(
+pub fn ambiguity(
     spec: &WaveformSpec,
     seed: u64,
     payload: Option<&[u8]>,

@@ -1,7 +1,7 @@
 //! The bench a measurement runs on: the instruments of a bench file, or the built-in mock lab
 //! started in-process on 127.0.0.1 (kept alive as long as the [`Bench`]).
 
-use super::bench_file::{BenchFile, Calibration};
+use super::bench_file::{BenchCalibration, BenchFile};
 use super::MeasureError;
 use mock_lab::emulator::lecroy::RemoteInterface;
 pub use mock_lab::lab::ScopeModel;
@@ -149,7 +149,7 @@ impl Bench {
                 )?;
                 // The simulated bench's cables are known exactly: its nominal delay is its
                 // calibration.
-                file.calibration = Some(Calibration {
+                file.calibration = Some(BenchCalibration {
                     system_delay_s: nominal_delay,
                     reference_range_m: None,
                     measured_at: None,
@@ -165,7 +165,7 @@ impl Bench {
     }
 
     /// Whether the bench is simulated (built in, or a bench file with a `[simulation]` section).
-    pub(crate) fn is_simulated(&self) -> bool {
+    pub fn is_simulated(&self) -> bool {
         self.lab.is_some() || self.file.simulation.is_some()
     }
 

@@ -67,7 +67,7 @@ pub struct Simulation {
 /// What `radbench calibrate` measured.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct Calibration {
+pub struct BenchCalibration {
     /// Fixed delay of cables, horns and marker latency, subtracted from every echo delay.
     pub system_delay_s: f64,
     /// The reference target's range used to measure it, metres.
@@ -98,7 +98,7 @@ pub struct BenchFile {
     #[serde(default)]
     pub simulation: Option<Simulation>,
     #[serde(default)]
-    pub calibration: Option<Calibration>,
+    pub calibration: Option<BenchCalibration>,
     /// Where each `section.key` is written (1-based lines), for errors found after parsing.
     #[serde(skip)]
     pub lines: std::collections::BTreeMap<String, usize>,
@@ -303,7 +303,7 @@ impl BenchFile {
     }
 
     /// The response calibration the bench file names, relative to `bench_path`'s folder.
-    pub(crate) fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
+    pub fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
         let name = self.calibration.as_ref()?.response.as_ref()?;
         Some(bench_path.parent().unwrap_or(Path::new(".")).join(name))
     }
@@ -317,9 +317,9 @@ impl BenchFile {
 /// Writes `calibration` into the bench file at `path`: its `[calibration]` section's values are
 /// set in place (a key no longer given is removed), and every other line, comments included (also
 /// those inside the section and after a value), is kept as it was. The write is atomic.
-pub(crate) fn store_calibration(
+pub fn store_calibration(
     path: &Path,
-    calibration: &Calibration,
+    calibration: &BenchCalibration,
 ) -> Result<(), BenchFileError> {
     let text = std::fs::read_to_string(path).map_err(|source| BenchFileError::Read {
         path: path.to_path_buf(),
@@ -355,7 +355,7 @@ pub(crate) fn store_calibration(
     // A bench file kept as a symlink (e.g. into a shared configuration folder) is updated where
     // it really lives; the atomic writer never writes through a link itself.
     let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-    crate::storage::atomic::write_atomic(&target, out.as_bytes()).map_err(|source| {
+    crate::storage::write_atomic(&target, out.as_bytes()).map_err(|source| {
         BenchFileError::Write {
             path: path.to_path_buf(),
             source,
@@ -446,7 +446,7 @@ system_delay_s = 1e-9
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bench.toml");
         std::fs::write(&path, GOOD).unwrap();
-        let cal = Calibration {
+        let cal = BenchCalibration {
             system_delay_s: 2.5e-9,
             reference_range_m: Some(1.0),
             measured_at: Some("2026-11-21T20:00:00.000Z".into()),
@@ -474,7 +474,7 @@ system_delay_s = 1e-9
             ),
         )
         .unwrap();
-        let again = Calibration {
+        let again = BenchCalibration {
             system_delay_s: 2.6e-9,
             reference_range_m: Some(1.5),
             response: Some("bench-response.toml".into()),

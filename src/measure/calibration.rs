@@ -8,7 +8,7 @@ use serde::Serialize;
 
 /// What a calibration capture gave.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub(crate) struct DelayEstimate {
+pub struct DelayEstimate {
     pub system_delay_s: f64,
     pub reference_range_m: f64,
     /// The reference echo's range before calibration.
@@ -16,7 +16,7 @@ pub(crate) struct DelayEstimate {
 }
 
 /// Checks the calibration inputs (before anything radiates).
-pub(crate) fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> {
+pub fn check(reference_range_m: f64, search_m: f64) -> Result<(), MeasureError> {
     if !(reference_range_m.is_finite() && reference_range_m > 0.0 && reference_range_m < 100.0) {
         return Err(MeasureError::option(
             "reference-range",
@@ -37,7 +37,7 @@ pub(crate) fn check(reference_range_m: f64, search_m: f64) -> Result<(), Measure
 
 /// Uncalibrated ranges are true range + c * delay / 2: the reference is the strongest echo at or
 /// beyond its true range, within `search_m` of it.
-pub(crate) fn estimate_delay(
+pub fn estimate_delay(
     processed: &Processed,
     reference_range_m: f64,
     search_m: f64,
@@ -68,7 +68,7 @@ const MAX_DEFAULT_GATE_S: f64 = 8e-9;
 /// The response calibration's default half-window around a reference at `reference_range_m`:
 /// as wide as 8 ns (the chain's longer echoes), but with its taper (half as wide again) ending
 /// 1 ns short of the Tx -> Rx leakage at the horns, which must stay out.
-pub(crate) fn default_gate_s(reference_range_m: f64) -> f64 {
+pub fn default_gate_s(reference_range_m: f64) -> f64 {
     let to_leakage = 2.0 * reference_range_m / C0;
     ((to_leakage - 1e-9) / 1.5).clamp(0.5e-9, MAX_DEFAULT_GATE_S)
 }

@@ -20,7 +20,7 @@ use super::transmit::{Dac, Transmission};
 use super::{off_runtime, MeasureError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit, SafeStateReport};
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -105,7 +105,7 @@ impl Prepared {
     /// The options a capture of `captured` is processed with (this preparation's, with the
     /// AWG amplitude the instrument applied), known before it is processed: the raw files
     /// record them while the capture is processed.
-    pub(crate) fn options_for(&self, captured: &Captured) -> ProcessOptions {
+    pub fn options_for(&self, captured: &Captured) -> ProcessOptions {
         let mut options = self.pipeline().options().clone();
         options.awg_amplitude_vpp = Some(captured.applied.awg.i_amplitude_vpp);
         options
@@ -226,7 +226,7 @@ pub(crate) fn read_background(
     path: &std::path::Path,
     capture_rate_hz: f64,
 ) -> Result<Aligned, MeasureError> {
-    use crate::storage::recording::{read_sigmf, SampleUnit};
+    use crate::storage::{read_sigmf, SampleUnit};
     let rec = read_sigmf(path)?;
     let first_point_s = rec.radbench.as_ref().and_then(|r| r.trigger_offset_s);
     let (Some(rate), SampleUnit::Volts, Some(first_point_s)) =
@@ -460,7 +460,7 @@ pub struct Processing {
 /// Processes a capture through `prepared`'s pipeline, off the runtime: each repetition alone and
 /// their coherent average. [`Rig::measure`] does this for its own capture; a campaign calls it
 /// again with the preparation of another algorithm, so the capture is taken once.
-pub(crate) async fn process_with(
+pub async fn process_with(
     prepared: &mut Prepared,
     captured: &Captured,
 ) -> Result<Processing, MeasureError> {
@@ -618,7 +618,7 @@ pub async fn measure(
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
 /// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
 /// capture while it is processed, so that a capture whose processing fails is still kept.
-pub(crate) async fn take(
+pub async fn take(
     bench: &Bench,
     request: &CaptureRequest,
     repetitions: usize,
@@ -670,7 +670,7 @@ async fn connect_while_building<B, C>(
 }
 
 /// The number of repetitions one measurement may ask for (checked before anything is connected).
-pub(crate) fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
+pub fn check_repetitions(repetitions: usize) -> Result<(), MeasureError> {
     if (1..=MAX_REPETITIONS).contains(&repetitions) {
         Ok(())
     } else {
@@ -713,7 +713,7 @@ mod tests {
     use crate::measure::{
         Dac, MeasureError, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission,
     };
-    use crate::waveform::spec::WaveformSpec;
+    use crate::waveform::WaveformSpec;
 
     #[test]
     fn a_capture_without_repetitions_is_refused_not_averaged() {

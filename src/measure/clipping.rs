@@ -176,7 +176,7 @@ impl ClipCount {
 
 /// One record's clipping as processing sees it: the count and the rails in volts.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct RecordClipping {
+pub struct RecordClipping {
     pub(crate) count: ClipCount,
     /// `(bottom, top)` rail of I and of Q, volts.
     pub(crate) rails_v: [(f64, f64); 2],
@@ -991,7 +991,7 @@ mod tests {
     #[test]
     fn a_clipped_record_is_counted_and_its_products_are_not_targets() {
         use crate::measure::{Dac, Pipeline, ProcessOptions, RecordGeometry, Transmission};
-        use crate::waveform::spec::WaveformSpec;
+        use crate::waveform::WaveformSpec;
         let spec = WaveformSpec::msk_lfm_default();
         let tx = std::sync::Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap());
         let options = ProcessOptions::for_waveform(spec.kind());
@@ -1062,7 +1062,7 @@ mod tests {
     #[test]
     fn clipping_the_echoes_do_not_explain_takes_the_bound() {
         use crate::measure::{Dac, Pipeline, ProcessOptions, RecordGeometry, Transmission};
-        use crate::waveform::spec::WaveformSpec;
+        use crate::waveform::WaveformSpec;
         let spec = WaveformSpec::msk_lfm_default();
         let tx = std::sync::Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap());
         let options = ProcessOptions::for_waveform(spec.kind());

@@ -9,8 +9,8 @@
 use super::options::ProcessOptions;
 use super::pipeline::RangeResult;
 use super::MeasureError;
-use crate::dsp::detect::{DetectOptions, DetectedTarget, Detector, Sidelobes};
-use crate::dsp::range_profile::Profile;
+use crate::dsp::Profile;
+use crate::dsp::{DetectOptions, DetectedTarget, Detector, Sidelobes};
 use num_complex::Complex64;
 use serde::Serialize;
 

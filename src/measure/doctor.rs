@@ -43,7 +43,7 @@ const TEMPERATURE_MARGIN_C: f64 = 5.0;
 /// How one check came out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub(crate) enum Status {
+pub enum Status {
     Pass,
     /// Holds, but worth a look (not a failure: the exit code stays 0).
     Warn,
@@ -53,7 +53,7 @@ pub(crate) enum Status {
 }
 
 impl Status {
-    pub(crate) fn mark(self) -> &'static str {
+    pub fn mark(self) -> &'static str {
         match self {
             Status::Pass => "ok",
             Status::Warn => "WARN",
@@ -65,7 +65,7 @@ impl Status {
 
 /// One line of the checklist.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Check {
+pub struct Check {
     /// A stable name, e.g. `scope.remote_interface`.
     pub id: String,
     pub status: Status,
@@ -77,7 +77,7 @@ pub(crate) struct Check {
 
 /// The whole checklist.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Report {
+pub struct Report {
     pub bench: String,
     pub checks: Vec<Check>,
     /// True when no check failed.
@@ -294,7 +294,7 @@ fn interface_name(protocol: &str) -> &'static str {
 }
 
 /// Runs every check. `journal` records every exchange (`--trace-io`).
-pub(crate) async fn run(
+pub async fn run(
     bench: &Bench,
     journal: Option<Journal>,
     interrupt: &Interrupt,
@@ -708,7 +708,7 @@ pub(crate) async fn run(
 
 /// The doctor stopped by `signal` outside the marker check (whose own guard reports its safe
 /// state): nothing is switched on.
-pub(crate) fn stopped(signal: super::interrupt::StopSignal) -> MeasureError {
+pub fn stopped(signal: super::interrupt::StopSignal) -> MeasureError {
     MeasureError::Interrupted {
         signal,
         report: "nothing is switched on; the checks after the signal were not run".into(),

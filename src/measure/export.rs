@@ -7,7 +7,7 @@ use super::options::{ProcessOptions, ProcessOverrides};
 use super::pipeline::{Alignable, Processed};
 use super::reprocess::{self, Record, Source, WaveformChoice};
 use super::MeasureError;
-use crate::storage::export::Array;
+use crate::storage::Array;
 use serde_json::{json, Map, Value};
 
 /// Version of the export's layout (`metadata["format_version"]`).
@@ -15,7 +15,7 @@ pub(crate) const FORMAT_VERSION: u32 = 1;
 
 /// One named array and its unit.
 #[derive(Debug, Clone)]
-pub(crate) struct Entry {
+pub struct Entry {
     pub name: String,
     pub array: Array,
     pub unit: Option<&'static str>,
@@ -31,7 +31,7 @@ fn entry(name: &str, array: Array, unit: Option<&'static str>) -> Entry {
 
 /// What a capture exports: for each processing asked for (the recorded one first), its arrays;
 /// the first also holds the capture's own (I/Q, transmission) and one `metadata` for both.
-pub(crate) struct CaptureExport {
+pub struct CaptureExport {
     pub processings: Vec<Vec<Entry>>,
     /// The algorithm of each processing, in order.
     pub algorithms: Vec<&'static str>,
@@ -39,7 +39,7 @@ pub(crate) struct CaptureExport {
 
 /// The arrays of the capture `source`, processed as it was recorded, and once more with each of
 /// `others` (a campaign step's further algorithms).
-pub(crate) fn export_capture(
+pub fn export_capture(
     source: &Source,
     others: &[ProcessOptions],
 ) -> Result<CaptureExport, MeasureError> {
@@ -246,9 +246,9 @@ fn processed_entries(p: &Processed) -> Vec<Entry> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::pipeline::{Pipeline, RawIq, RecordGeometry};
     use crate::measure::transmit::{Dac, Transmission};
-    use crate::waveform::spec::WaveformKind;
+    use crate::measure::{Pipeline, RawIq, RecordGeometry};
+    use crate::waveform::WaveformKind;
     use num_complex::Complex64;
     use std::sync::Arc;
 

@@ -6,9 +6,9 @@
 use super::detect::Detection;
 use super::options::ProcessOptions;
 use super::pipeline::Processed;
-use crate::dsp::range_profile::Profile;
-use crate::storage::plot::{Curve, LineStyle, Marker, ProfilePlot};
+use crate::dsp::Profile;
 use crate::storage::profile::ProfileTable;
+use crate::storage::{Curve, LineStyle, Marker, ProfilePlot};
 
 fn db(a: f64) -> f64 {
     20.0 * a.max(1e-300).log10()
@@ -93,7 +93,7 @@ fn marker(d: &Detection) -> Marker {
 }
 
 /// The plot and the table of a processed measurement. `truth_m`: a simulated bench's true ranges.
-pub(crate) fn profile_figure(
+pub fn profile_figure(
     title: String,
     p: &Processed,
     options: &ProcessOptions,
@@ -184,7 +184,7 @@ pub(crate) fn profile_figure(
 /// marked at their velocity.
 pub(crate) fn range_doppler_figure(
     title: String,
-    map: &crate::dsp::ofdm_radar::RangeDopplerMap,
+    map: &crate::dsp::RangeDopplerMap,
     targets: &[Detection],
     options: &ProcessOptions,
 ) -> crate::storage::plot::Heatmap {

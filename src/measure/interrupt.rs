@@ -56,7 +56,7 @@ pub struct Interrupt {
 impl Interrupt {
     /// Starts listening (inside a tokio runtime). Fails only when the signal handlers cannot be
     /// installed.
-    pub(crate) fn listen() -> std::io::Result<Interrupt> {
+    pub fn listen() -> std::io::Result<Interrupt> {
         use tokio::signal::unix::{signal, SignalKind};
         let mut int = signal(SignalKind::interrupt())?;
         let mut term = signal(SignalKind::terminate())?;
@@ -99,7 +99,7 @@ impl Interrupt {
 
     /// Stops the measurement exactly as the signal `s` would (the live view's Stop button raises
     /// SIGINT's stop: safe state first, the files finished, a campaign left resumable, exit 130).
-    pub(crate) fn raise(&self, s: StopSignal) {
+    pub fn raise(&self, s: StopSignal) {
         let _ = self
             .received
             .compare_exchange(0, s.code(), Ordering::SeqCst, Ordering::SeqCst);

@@ -5,41 +5,41 @@
 //! |---|---|
 //! | `ambiguity` | a waveform's ambiguity function as uploaded, a capture's cross-ambiguity |
 //! | `bench_file` | the bench file: instruments, resources, calibration |
-//! | [`bench`](mod@bench) | the bench in use: a bench file, or the built-in mock lab started in-process |
+//! | `bench` | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | `family` | each waveform family's behaviour in one room (`family/msk_lfm.rs`, `family/ofdm.rs`): overrides, transmission, payload decoder, algorithms; `family::of` is the one `match` over the families |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
-//! | [`options`] | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
-//! | [`pipeline`] | decimation, alignment, background, range profile, detection, metrics, payload |
+//! | `options` | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
+//! | `pipeline` | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
 //! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
 //! | `scene_control` | the simulated bench's scene, typed: set it, reseed its noise, read it back |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
-//! | [`capture`] | one complete measurement: prepare (everything checked), capture, process |
+//! | `capture` | one complete measurement: prepare (everything checked), capture, process |
 //! | `reprocess` | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
 //! | `export` | a saved capture's arrays for a notebook (I/Q, profiles, detections, transmission), got through `reprocess` |
 //! | `repeat` | several repetitions: coherent average and spread |
 //! | `figure` | what a measurement's plot and profile table show |
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
-//! | [`interrupt`] | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
+//! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 
 pub(crate) mod ambiguity;
-pub mod bench;
+pub(crate) mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;
-pub mod capture;
+pub(crate) mod capture;
 pub(crate) mod clipping;
 pub(crate) mod detect;
 pub(crate) mod doctor;
 pub(crate) mod export;
 pub(crate) mod family;
 pub(crate) mod figure;
-pub mod interrupt;
-pub mod options;
+pub(crate) mod interrupt;
+pub(crate) mod options;
 pub(crate) mod payload;
-pub mod pipeline;
+pub(crate) mod pipeline;
 #[cfg(test)]
 mod predistortion_tests;
 pub(crate) mod record;
@@ -53,9 +53,31 @@ pub(crate) mod scene_control;
 pub(crate) mod station;
 pub(crate) mod transmit;
 
+pub use ambiguity::*;
+pub use bench::*;
+pub use bench_file::*;
+pub use calibration::*;
+pub use capture::*;
+pub use doctor::*;
+pub use export::*;
+pub use figure::*;
+pub use interrupt::*;
+pub use options::*;
+pub use pipeline::*;
+pub use record::*;
+pub use repeat::*;
+pub use reprocess::*;
+pub use response::*;
+pub use response_run::*;
+pub use station::*;
+
+// Names two flattened submodules both define, chosen here: the capture's `measure` and the
+// re-processing's `Repetition` (`response`'s are the crate's own).
+pub use capture::measure;
 pub use clipping::{ClipDetection, Clipping};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
+pub use reprocess::Repetition;
 pub use transmit::{Dac, Transmission};
 
 use crate::driver::ErrorKind;
@@ -132,7 +154,7 @@ pub enum MeasureError {
     Storage(#[from] crate::storage::StorageError),
     /// A recording given as input cannot be read.
     #[error(transparent)]
-    Recording(#[from] crate::storage::recording::RecordingError),
+    Recording(#[from] crate::storage::RecordingError),
     /// The built-in mock lab did not start.
     #[error("cannot start the built-in mock lab: {0}")]
     Lab(#[from] mock_lab::lab::LabError),

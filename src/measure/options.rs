@@ -2,9 +2,9 @@
 //! `processing` in `summary.json` and the SigMF metadata so a capture can be re-processed
 //! identically. Library types only: the CLI maps its own argument enums onto these.
 
-use crate::dsp::ofdm_radar::FftPrecision;
-use crate::dsp::window::Window;
-use crate::waveform::spec::WaveformKind;
+use crate::dsp::FftPrecision;
+use crate::dsp::Window;
+use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 
 /// Range-processing algorithm.
@@ -80,7 +80,7 @@ impl Algorithm {
 
     /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
     /// Fourier for OFDM.
-    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
+    pub fn default_for(waveform: WaveformKind) -> Algorithm {
         super::family::of_kind(waveform).default_algorithm()
     }
 }
@@ -225,8 +225,8 @@ impl DetectorName {
     }
 
     /// The `dsp` method.
-    pub(crate) fn to_dsp(self) -> crate::dsp::detect::Method {
-        use crate::dsp::detect::{CfarKind, Method, NoiseEstimate};
+    pub(crate) fn to_dsp(self) -> crate::dsp::Method {
+        use crate::dsp::{CfarKind, Method, NoiseEstimate};
         let os = CfarKind::Os { rank: 0.75 };
         match self {
             DetectorName::Clean => Method::Clean {
@@ -358,7 +358,7 @@ impl ProcessOptions {
 /// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
 /// defaults): `None` keeps the base's value.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct ProcessOverrides {
+pub struct ProcessOverrides {
     pub algorithm: Option<Algorithm>,
     pub music_m: Option<usize>,
     pub music_p: Option<Option<usize>>,

@@ -21,19 +21,19 @@ use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR}
 use super::payload::PayloadDecoder;
 use super::transmit::Transmission;
 use super::MeasureError;
-use crate::dsp::decimate::{DecimatorConfig, PeriodicDecimator};
-use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
-use crate::dsp::metrics::Axis;
 use crate::dsp::music::root_music_ranges;
-use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
 use crate::dsp::ofdm_radar::{
     IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig, RangeDopplerMap,
     RangeProfile, VelocityEstimator,
 };
 use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfiler, Profile};
 use crate::dsp::response::RxEqualiser;
+use crate::dsp::Axis;
 use crate::dsp::C0;
-use crate::waveform::ofdm::{Ofdm, SymbolMatrix};
+use crate::dsp::{DecimatorConfig, PeriodicDecimator};
+use crate::dsp::{Detector, SpectralLines, TabulatedPsf};
+use crate::dsp::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
+use crate::waveform::{Ofdm, SymbolMatrix};
 use num_complex::Complex64;
 use std::sync::Arc;
 
@@ -62,7 +62,7 @@ pub struct RawIq {
 /// The capture as the scope's words and their scaling (volts = gain * word - offset), I and Q:
 /// aligned without a record in volts first.
 #[derive(Debug, Clone)]
-pub(crate) struct RawWords {
+pub struct RawWords {
     pub i: Vec<i16>,
     pub q: Vec<i16>,
     pub gain: [f64; 2],
@@ -92,8 +92,8 @@ impl RawWords {
     }
 }
 
-/// A capture [`Pipeline::align`] or [`Pipeline::align_words`] take.
-pub(crate) trait Alignable {
+/// A capture [`Pipeline::align`] or `Pipeline::align_words` take.
+pub trait Alignable {
     fn align_in(&self, pipeline: &mut Pipeline) -> Result<Aligned, MeasureError>;
 }
 
@@ -271,7 +271,7 @@ impl RangeProcessor {
         let mut reference = tx.reference.clone();
         reference.resize(period, ZERO);
         let window = options.window.to_dsp();
-        let filter = if window == crate::dsp::window::Window::Rectangular {
+        let filter = if window == crate::dsp::Window::Rectangular {
             reference.clone()
         } else {
             weighted_filter(&reference, &window, tx.band_hz(), fs)?
@@ -1204,9 +1204,9 @@ impl Pipeline {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::options::WindowName;
     use crate::measure::transmit::Dac;
-    use crate::waveform::spec::WaveformSpec;
+    use crate::measure::WindowName;
+    use crate::waveform::WaveformSpec;
 
     fn tx(spec: WaveformSpec) -> Arc<Transmission> {
         Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap())

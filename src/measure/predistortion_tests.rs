@@ -5,7 +5,7 @@
 
 use super::response::{measure, Calibration, Repetition, Response, ResponseFigures};
 use super::transmit::{Dac, Transmission};
-use crate::waveform::spec::WaveformKind;
+use crate::waveform::WaveformKind;
 use mock_lab::scene::{AwgPlayback, FrontEnds, Scene, Synthesizer};
 
 const RANGE_M: f64 = 1.0;

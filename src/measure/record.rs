@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 /// Where the files of one capture went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct CaptureFiles {
+pub struct CaptureFiles {
     pub dir: PathBuf,
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
@@ -31,7 +31,7 @@ pub(crate) struct CaptureFiles {
 
 /// The files of one processing of a capture: the range profiles and their plots.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct ProfileFiles {
+pub struct ProfileFiles {
     pub profile_csv: PathBuf,
     pub profile_npy: PathBuf,
     pub plot_svg: PathBuf,
@@ -148,14 +148,14 @@ fn extended(mut base: serde_json::Map<String, Value>, more: Value) -> Value {
 
 /// Where the bench came from, for the files.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct Provenance {
+pub struct Provenance {
     pub bench_file: Option<PathBuf>,
     pub simulated: bool,
 }
 
 /// Where the raw capture of one measurement went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct RawFiles {
+pub struct RawFiles {
     pub sigmf_meta: PathBuf,
     pub sigmf_data: PathBuf,
     #[serde(rename = "trc")]
@@ -164,12 +164,12 @@ pub(crate) struct RawFiles {
 
 /// Writes every file of `m` into `out` (created when missing), `summary.json` last, as one write
 /// group (`radbench capture --repeat`: each capture of the series after its processing).
-pub(crate) fn write_capture(
+pub fn write_capture(
     out: &Path,
     m: &Measurement,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    let (written, _) = crate::storage::atomic::write_group(|| {
+    let (written, _) = crate::storage::write_group(|| {
         let raw = write_raw(out, &m.taken, &m.processing.options, provenance)?;
         write_processed(out, m, &raw, provenance)
     })?;
@@ -188,7 +188,7 @@ fn create_dir(out: &Path) -> Result<(), MeasureError> {
 
 /// Writes the raw capture of `m` into `out`: SigMF (every repetition) and the scope's `.trc`.
 /// `options`: those the capture is processed with (`Prepared::options_for`).
-pub(crate) fn write_raw(
+pub fn write_raw(
     out: &Path,
     taken: &Taken,
     options: &ProcessOptions,
@@ -303,7 +303,7 @@ pub(crate) fn write_raw(
 /// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
 /// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
 /// algorithm applied to the same capture.
-pub(crate) fn write_processed(
+pub fn write_processed(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
@@ -363,7 +363,7 @@ pub(crate) fn summary_json(
 
 /// Where the files of one re-processed capture went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct ReprocessFiles {
+pub struct ReprocessFiles {
     pub dir: PathBuf,
     pub manifest: PathBuf,
     #[serde(flatten)]
@@ -373,7 +373,7 @@ pub(crate) struct ReprocessFiles {
 
 /// A source file of a re-processing, with its SHA-256.
 #[derive(Debug, Clone, Serialize, serde::Deserialize, PartialEq)]
-pub(crate) struct SourceFile {
+pub struct SourceFile {
     pub path: PathBuf,
     pub sha256: String,
 }
@@ -389,7 +389,7 @@ struct ReprocessManifest<'a> {
 
 /// Writes a re-processed capture into `out` (a new folder): `manifest.toml` naming the sources
 /// with their SHA-256, the profiles, the plots and `summary.json` (same keys as a capture's).
-pub(crate) fn write_reprocessed<R>(
+pub fn write_reprocessed<R>(
     out: &Path,
     sources: &[SourceFile],
     loaded: &super::reprocess::Loaded<R>,
@@ -419,7 +419,7 @@ pub(crate) fn write_reprocessed<R>(
     };
     let manifest = ReprocessManifest {
         radbench_version: env!("CARGO_PKG_VERSION"),
-        written_at: crate::storage::sigmf::utc_now_rfc3339(),
+        written_at: crate::storage::utc_now_rfc3339(),
         sources,
         processing: o,
     };

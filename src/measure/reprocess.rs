@@ -18,7 +18,7 @@ use crate::storage::hash::sha256_file;
 use crate::storage::recording::{
     read_sigmf, read_sigmf_stored, read_trc, sigmf_paths, Recording, SampleUnit,
 };
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -27,7 +27,7 @@ use std::sync::{Arc, Mutex};
 /// Where one capture to re-process is.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub(crate) enum Source {
+pub enum Source {
     /// A SigMF recording (its `.sigmf-meta` path).
     Sigmf { meta: PathBuf, data: PathBuf },
     /// LeCroy `.trc` files of I and Q.
@@ -36,7 +36,7 @@ pub(crate) enum Source {
 
 impl Source {
     /// The files read, for the manifest.
-    pub(crate) fn files(&self) -> Vec<&Path> {
+    pub fn files(&self) -> Vec<&Path> {
         match self {
             Source::Sigmf { meta, data } => vec![meta, data],
             Source::TrcPair { i, q } => vec![i, q],
@@ -44,7 +44,7 @@ impl Source {
     }
 
     /// A short name for folders and messages.
-    pub(crate) fn label(&self) -> String {
+    pub fn label(&self) -> String {
         let file = match self {
             Source::Sigmf { meta, .. } => meta,
             Source::TrcPair { i, .. } => i,
@@ -70,7 +70,7 @@ impl Source {
 /// An input the user named that is not a capture.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {reason}")]
-pub(crate) struct InputError {
+pub struct InputError {
     pub path: PathBuf,
     pub reason: String,
 }
@@ -78,7 +78,7 @@ pub(crate) struct InputError {
 /// The captures the inputs name, in order: a capture folder (its `capture.sigmf-meta`), a run
 /// folder of a campaign (every step's capture), a SigMF file, or two `.trc` files given one
 /// after the other (I then Q). Each entry is a capture or why an input is not one.
-pub(crate) fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
+pub fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
     let mut out = Vec::new();
     let mut k = 0;
     while k < inputs.len() {
@@ -146,7 +146,7 @@ pub(crate) fn discover(inputs: &[PathBuf]) -> Vec<Result<Source, InputError>> {
 }
 
 /// The capture of a SigMF file or of a capture folder's `.sigmf-meta`.
-pub(crate) fn sigmf(path: &Path) -> Result<Source, InputError> {
+pub fn sigmf(path: &Path) -> Result<Source, InputError> {
     sigmf_paths(path)
         .map(|(meta, data)| Source::Sigmf { meta, data })
         .map_err(|e| InputError {
@@ -156,9 +156,9 @@ pub(crate) fn sigmf(path: &Path) -> Result<Source, InputError> {
 }
 
 /// A capture read back: its repetitions (in volts, or [`Repetition`]s for
-/// [`load_for_processing`]) and what radbench recorded about it.
+/// `load_for_processing`) and what radbench recorded about it.
 #[derive(Debug, Clone)]
-pub(crate) struct Loaded<R = RawIq> {
+pub struct Loaded<R = RawIq> {
     pub repetitions: Vec<R>,
     /// Each repetition's samples at the ADC's rails, when the capture holds the scope's codes (a
     /// radbench capture, a `.trc` pair); empty otherwise.
@@ -175,13 +175,13 @@ pub(crate) struct Loaded<R = RawIq> {
 /// arithmetic as reading the file in volts, so the same results without a record in volts), else
 /// the samples in volts.
 #[derive(Debug, Clone)]
-pub(crate) enum Repetition {
+pub enum Repetition {
     Volts(RawIq),
     Words(RawWords),
 }
 
 /// A repetition the pipeline aligns, at its sample rate.
-pub(crate) trait Record: Alignable {
+pub trait Record: Alignable {
     fn sample_rate_hz(&self) -> f64;
 }
 
@@ -775,7 +775,7 @@ fn capture_metadata_beside(i: &Path, q: &Path) -> Option<Map<String, Value>> {
 /// What the caller says about the waveform of a capture (required for captures radbench did not
 /// make; overrides what a radbench capture recorded).
 #[derive(Debug, Clone, Default)]
-pub(crate) struct WaveformChoice {
+pub struct WaveformChoice {
     pub spec: Option<WaveformSpec>,
     pub seed: Option<u64>,
     pub payload: Option<Vec<u8>>,
@@ -783,7 +783,7 @@ pub(crate) struct WaveformChoice {
 
 /// How one capture will be processed, resolved from what it recorded and the caller's choices.
 #[derive(Debug, Clone)]
-pub(crate) struct Resolved {
+pub struct Resolved {
     pub tx: Arc<Transmission>,
     pub options: ProcessOptions,
     pub period: usize,
@@ -908,7 +908,7 @@ fn recorded_transmission<R>(loaded: &Loaded<R>) -> Option<Result<Arc<Transmissio
 
 /// One capture processed again.
 #[derive(Debug, Clone)]
-pub(crate) struct Reprocessed {
+pub struct Reprocessed {
     pub processed: Processed,
     pub repetitions: Vec<RepetitionResult>,
     pub spread: Option<Spread>,

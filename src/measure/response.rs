@@ -109,7 +109,7 @@ pub struct CorrectionUsed {
 /// The instruments a calibration was measured with (`*IDN?`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct InstrumentsSeen {
+pub struct InstrumentsSeen {
     pub awg: String,
     pub scope: String,
     #[serde(default)]
@@ -121,7 +121,7 @@ pub(crate) struct InstrumentsSeen {
 /// The reference pillar before and after the correction.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct ReferenceFigures {
+pub struct ReferenceFigures {
     pub sidelobe_db_before: Option<f64>,
     pub sidelobe_db_after: Option<f64>,
     pub width_cm_before: Option<f64>,
@@ -133,7 +133,7 @@ pub(crate) struct ReferenceFigures {
 /// What was measured, in figures.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct ResponseFigures {
+pub struct ResponseFigures {
     /// Gain ripple over the band, dB peak to peak.
     pub ripple_db_pp: f64,
     /// Phase ripple after the best straight line, degrees peak to peak.
@@ -178,7 +178,7 @@ pub(crate) struct ResponseFigures {
 /// The calibration file's header.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct ResponseHeader {
+pub struct ResponseHeader {
     pub format: String,
     /// The table, beside the header.
     pub data: String,
@@ -201,7 +201,7 @@ pub(crate) struct ResponseHeader {
 
 /// A measured response: the header's figures and the table.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Response {
+pub struct Response {
     pub table: ResponseTable,
     pub spread_db: Vec<f64>,
     pub spread_deg: Vec<f64>,
@@ -312,7 +312,7 @@ impl Response {
 
 /// A calibration read from its file.
 #[derive(Debug, Clone)]
-pub(crate) struct Calibration {
+pub struct Calibration {
     pub header: ResponseHeader,
     pub response: Response,
     pub path: PathBuf,
@@ -321,7 +321,7 @@ pub(crate) struct Calibration {
 
 impl Calibration {
     /// What a measurement records when it uses this calibration.
-    pub(crate) fn used(&self) -> CorrectionUsed {
+    pub fn used(&self) -> CorrectionUsed {
         CorrectionUsed {
             mode: "rx".into(),
             calibration: self.path.display().to_string(),
@@ -331,7 +331,7 @@ impl Calibration {
     }
 
     /// What a measurement records when it uses this calibration with `mode` (rx, tx or both).
-    pub(crate) fn used_as(&self, mode: &str) -> CorrectionUsed {
+    pub fn used_as(&self, mode: &str) -> CorrectionUsed {
         CorrectionUsed {
             mode: mode.into(),
             ..self.used()
@@ -356,7 +356,7 @@ impl Calibration {
     }
 
     /// Reads the header at `path` and its table, checking the table's SHA-256.
-    pub(crate) fn load(path: &Path) -> Result<Calibration, MeasureError> {
+    pub fn load(path: &Path) -> Result<Calibration, MeasureError> {
         let bad = |reason: String| MeasureError::CalibrationFile {
             path: path.display().to_string(),
             reason,
@@ -382,7 +382,7 @@ impl Calibration {
                 data_path.display()
             ))
         })?;
-        let sha = crate::storage::hash::sha256(&bytes);
+        let sha = crate::storage::sha256(&bytes);
         if sha != header.data_sha256 {
             return Err(bad(format!(
                 "its table {} has changed since it was measured (SHA-256 {sha}, the header \
@@ -396,7 +396,7 @@ impl Calibration {
         let response = table_from(&shape, &values, &header).map_err(bad)?;
         let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
         Ok(Calibration {
-            sha256: crate::storage::hash::sha256(text.as_bytes()),
+            sha256: crate::storage::sha256(text.as_bytes()),
             header,
             response,
             path,
@@ -435,7 +435,7 @@ impl Calibration {
         }
         let bytes = crate::storage::npy::encode_f64(&[rows, COLUMNS.len()], &data).map_err(bad)?;
         header.data = data_name;
-        header.data_sha256 = crate::storage::hash::sha256(&bytes);
+        header.data_sha256 = crate::storage::sha256(&bytes);
         header.columns = COLUMNS.iter().map(|c| c.to_string()).collect();
         let text = format!(
             "# The chain's response, measured by `radbench calibrate response`.\n# The table is \
@@ -443,8 +443,8 @@ impl Calibration {
             header.data,
             toml::to_string(&header).map_err(|e| bad(e.to_string()))?
         );
-        crate::storage::atomic::write_atomic(&data_path, &bytes)?;
-        crate::storage::atomic::write_atomic(path, text.as_bytes())?;
+        crate::storage::write_atomic(&data_path, &bytes)?;
+        crate::storage::write_atomic(path, text.as_bytes())?;
         Calibration::load(path)
     }
 }
@@ -494,8 +494,8 @@ fn table_from(
 /// marker edge (the pipeline's `Aligned`, borrowed).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Repetition<'a> {
-    pub samples: &'a [Complex64],
-    pub residual_s: f64,
+    pub(crate) samples: &'a [Complex64],
+    pub(crate) residual_s: f64,
 }
 
 /// Measures the chain's response from aligned repetitions of one reference reflector (`on`) and

@@ -13,7 +13,7 @@ use super::response::{
 use super::station::{Captured, Identities};
 use super::MeasureError;
 use crate::driver::RfPermit;
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::WaveformSpec;
 use std::path::Path;
 
 /// The side-lobe level must come this much closer to a flat chain's, dB, for a correction to be
@@ -48,7 +48,7 @@ pub(crate) fn off_repetitions(on: usize, period: usize) -> usize {
 
 /// What to calibrate.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct CalibrateRequest {
+pub struct CalibrateRequest {
     /// What to transmit: the table covers this waveform's band.
     pub waveform: WaveformSpec,
     pub reference_range_m: f64,
@@ -59,7 +59,7 @@ pub(crate) struct CalibrateRequest {
 
 /// A response measured on a bench, with the reference's figures before and after correcting it.
 #[derive(Debug, Clone)]
-pub(crate) struct Calibrated {
+pub struct Calibrated {
     pub request: CalibrateRequest,
     pub response: Response,
     pub reference: ReferenceFigures,
@@ -69,11 +69,11 @@ pub(crate) struct Calibrated {
 
 impl Calibrated {
     /// What the correction did to the reference (its side-lobe and width before and after), or
-    /// why it does not help: it must bring the side-lobe (by [`MIN_IMPROVEMENT_DB`]) or the -3 dB
-    /// width (by [`MIN_WIDTH_IMPROVEMENT_CM`]) closer to a flat chain's and take neither further
+    /// why it does not help: it must bring the side-lobe (by `MIN_IMPROVEMENT_DB`) or the -3 dB
+    /// width (by `MIN_WIDTH_IMPROVEMENT_CM`) closer to a flat chain's and take neither further
     /// away by more than that. Closer, not lower: a chain's echo can as well lower a side-lobe (as
     /// the thesis' lab measured with OFDM, Table 4.7) as raise it.
-    pub(crate) fn verdict(&self) -> Result<String, String> {
+    pub fn verdict(&self) -> Result<String, String> {
         let f = &self.reference;
         let flat_width_cm = FLAT_CHAIN_WIDTH * crate::physics::C0
             / (2.0 * self.request.waveform.bandwidth_hz())
@@ -113,14 +113,14 @@ impl Calibrated {
     }
 
     /// Writes the calibration to `path` (the table beside it).
-    pub(crate) fn save(&self, path: &Path) -> Result<Calibration, MeasureError> {
+    pub fn save(&self, path: &Path) -> Result<Calibration, MeasureError> {
         let id = &self.identities;
         let header = ResponseHeader {
             format: FORMAT.into(),
             data: String::new(),
             data_sha256: String::new(),
             columns: Vec::new(),
-            measured_at: crate::storage::sigmf::utc_now_rfc3339(),
+            measured_at: crate::storage::utc_now_rfc3339(),
             radbench_version: env!("CARGO_PKG_VERSION").into(),
             waveform: self.request.waveform.name().into(),
             band_hz: self.response.band_hz,
@@ -167,7 +167,7 @@ fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Optio
 }
 
 /// Calibrates on `bench` through a connected `rig` (a campaign keeps its own).
-pub(crate) async fn calibrate_with(
+pub async fn calibrate_with(
     rig: &mut Rig,
     bench: &Bench,
     request: &CalibrateRequest,

@@ -20,7 +20,7 @@
 //! (no WAVEDESC, no `.trc`), the wall-clock trigger time stamps, and a scene changed between
 //! captures through the control channel.
 
-use super::bench_file::{BenchFile, Calibration};
+use super::bench_file::{BenchCalibration, BenchFile};
 use super::capture::{process_repetitions, read_background, CaptureRequest};
 use super::clipping::ScopeAdc;
 use super::pipeline::{Aligned, Pipeline, Processed, RawWords, RecordGeometry};
@@ -79,7 +79,7 @@ impl SceneCapture {
         )?);
         super::pipeline::validate(&tx, &options)?;
         let mut bench = BenchFile::parse(BUILT_IN_BENCH, Path::new("<built-in mock lab>"))?;
-        bench.calibration = Some(Calibration {
+        bench.calibration = Some(BenchCalibration {
             system_delay_s: scene.system_delay_s,
             reference_range_m: None,
             measured_at: None,

@@ -54,7 +54,7 @@ fn resource(text: &str, section: &'static str) -> Result<Resource, MeasureError>
     })
 }
 
-/// How to drive the bench for one capture; plain data, derived by [`plan`].
+/// How to drive the bench for one capture; plain data, derived by `plan`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CapturePlan {
     pub awg: AwgSettings,

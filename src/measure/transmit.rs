@@ -4,9 +4,9 @@
 use super::family::{self, Modulated, Modulation};
 use super::MeasureError;
 use crate::driver::IqWaveform;
-use crate::waveform::bits::BitSource;
-use crate::waveform::quantise::{quantise, BackoffReference};
-use crate::waveform::spec::WaveformSpec;
+use crate::waveform::BitSource;
+use crate::waveform::WaveformSpec;
+use crate::waveform::{quantise, BackoffReference};
 use num_complex::Complex64;
 use serde::Serialize;
 use std::sync::Arc;
@@ -282,7 +282,7 @@ impl Transmission {
 }
 
 /// What the codes represent, per unit full scale (code / 127).
-fn as_reference(q: &crate::waveform::quantise::Quantised) -> Vec<Complex64> {
+fn as_reference(q: &crate::waveform::Quantised) -> Vec<Complex64> {
     q.i.iter()
         .zip(&q.q)
         .map(|(&i, &q)| Complex64::new(f64::from(i), f64::from(q)) / 127.0)
@@ -290,7 +290,7 @@ fn as_reference(q: &crate::waveform::quantise::Quantised) -> Vec<Complex64> {
 }
 
 impl QuantisationReport {
-    fn of(q: &crate::waveform::quantise::Quantised, backoff_db: f64) -> Self {
+    fn of(q: &crate::waveform::Quantised, backoff_db: f64) -> Self {
         QuantisationReport {
             backoff_db,
             clipped_samples: q.clipped(),

@@ -17,8 +17,11 @@
 //! an `ERR` line as the device's refusal.
 
 pub(crate) mod error;
-pub mod line;
-pub mod reply;
+pub(crate) mod line;
+pub(crate) mod reply;
+
+pub use line::*;
+pub use reply::*;
 
 pub(crate) use error::ErrorList;
 pub use error::{DeviceError, SessionError};
@@ -26,7 +29,6 @@ pub use line::{Crc8, LineProtocol};
 pub use reply::{parse_block, parse_f64, parse_i64, parse_idn, Block, BlockForm, Identity};
 pub(crate) use reply::{parse_bool, register_error_text, without_header};
 
-use self::line::LineReply;
 use crate::address::Resource;
 use crate::transport::{Journal, Link, LinkError, LinkOptions};
 use bytes::Bytes;
@@ -208,7 +210,7 @@ impl Session {
     ///
     /// On a line-protocol device the reply line comes back without its CRC, and an `ERR` line is
     /// the device's refusal ([`SessionError::Device`]).
-    pub(crate) async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
+    pub async fn query_raw(&mut self, query: &str) -> Result<Bytes, SessionError> {
         self.query_raw_waiting(query, None).await
     }
 

@@ -6,7 +6,7 @@ use bytes::Bytes;
 use std::ops::Range;
 
 /// Strips the message terminator (`\n`, `\r\n`) and surrounding blanks.
-pub(crate) fn trim_reply(text: &str) -> &str {
+pub fn trim_reply(text: &str) -> &str {
     text.trim_end_matches(['\n', '\r']).trim()
 }
 
@@ -97,7 +97,7 @@ pub fn parse_idn(text: &str) -> Option<Identity> {
 
 /// An `*IDN?` reply without the response header a LeCroy adds with headers on (its power-on
 /// `COMM_HEADER SHORT`: `*IDN LECROY,...`): the header is not the manufacturer.
-pub(crate) fn without_idn_header(reply: &str) -> &str {
+pub fn without_idn_header(reply: &str) -> &str {
     match reply.split_once(char::is_whitespace) {
         Some((head, rest)) if head.eq_ignore_ascii_case("*IDN") => rest.trim_start(),
         _ => reply,
@@ -212,7 +212,7 @@ impl Block {
     }
 
     /// The payload as shared bytes (no copy).
-    pub(crate) fn into_payload(self) -> Bytes {
+    pub fn into_payload(self) -> Bytes {
         self.message.slice(self.payload)
     }
 

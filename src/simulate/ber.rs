@@ -5,9 +5,9 @@
 //! this module chooses the budget, runs the grid and says how much each point can be trusted.
 
 use super::SimError;
-use crate::waveform::ber::{measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint};
-use crate::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use crate::waveform::ofdm::{Ofdm, OfdmParams};
+use crate::waveform::{measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint};
+use crate::waveform::{MskLfm, MskLfmParams};
+use crate::waveform::{Ofdm, OfdmParams};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -16,7 +16,7 @@ pub(crate) const EB_N0_DB: [f64; 11] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 
 
 /// One point of a BER curve (one element of the `"ber"` array of `simulate ber --json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub(crate) struct BerCurvePoint {
+pub struct BerCurvePoint {
     pub waveform: &'static str,
     pub eb_n0_db: f64,
     pub bits: usize,
@@ -69,7 +69,7 @@ fn to_point(waveform: &'static str, p: BerPoint) -> BerCurvePoint {
 /// bits and goes on to 100 errors or 5 x `min_bits`, whichever comes first.
 ///
 /// `progress(done, total)` is called after each point (from the worker threads).
-pub(crate) fn run_curves(
+pub fn run_curves(
     min_bits: usize,
     seed: u64,
     progress: &(dyn Fn(usize, usize) + Sync),
@@ -112,7 +112,7 @@ pub(crate) fn run_curves(
 }
 
 /// The curves as plot series, one per waveform, ascending Eb/N0.
-pub(crate) fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
+pub fn plot_series(points: &[BerCurvePoint]) -> Vec<crate::storage::plot::BerSeries> {
     ["msk-lfm", "ofdm"]
         .iter()
         .map(|w| {

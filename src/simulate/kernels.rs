@@ -13,14 +13,14 @@
 
 use super::scene::{EchoSynth, Target, BENCH_CARRIER_HZ};
 use super::SimError;
-use crate::dsp::correlate::CrossCorrelator;
-use crate::dsp::decimate::{Decimator, DecimatorConfig};
-use crate::dsp::music::{Music, MusicConfig, MusicSpectrum};
-use crate::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::CrossCorrelator;
+use crate::dsp::{Decimator, DecimatorConfig};
+use crate::dsp::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use crate::dsp::{Music, MusicConfig, MusicSpectrum};
 use crate::rng::SplitMix64;
-use crate::waveform::bits::BitSource;
-use crate::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use crate::waveform::ofdm::{Ofdm, OfdmParams};
+use crate::waveform::BitSource;
+use crate::waveform::{MskLfm, MskLfmParams};
+use crate::waveform::{Ofdm, OfdmParams};
 use num_complex::Complex64;
 use serde::Serialize;
 use std::time::Instant;
@@ -35,7 +35,7 @@ pub(crate) const KERNEL_NAMES: [&str; 5] = [
 ];
 
 /// Lags computed by `xcorr_160k` (0 .. 4095: ranges up to 38 m at 16 GSa/s).
-pub(crate) const XCORR_LAGS: usize = 4096;
+pub const XCORR_LAGS: usize = 4096;
 
 /// The seeded inputs of every kernel.
 pub struct KernelInputs {
@@ -132,7 +132,7 @@ impl<'a> Kernels<'a> {
     }
 
     /// FFT length of the correlator (compare_numpy.py uses the same).
-    pub(crate) fn xcorr_fft_len(&self) -> usize {
+    pub fn xcorr_fft_len(&self) -> usize {
         self.correlator.fft_len()
     }
 
@@ -185,7 +185,7 @@ impl<'a> Kernels<'a> {
 
 /// One kernel's timing (an element of `radbench bench --json`'s `"kernels"`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub(crate) struct KernelTiming {
+pub struct KernelTiming {
     pub name: &'static str,
     pub median_ms: f64,
     pub min_ms: f64,
@@ -198,7 +198,7 @@ pub(crate) struct KernelTiming {
 
 /// Times every kernel on the calling thread: one warm-up run, then at least `min_runs` runs and
 /// until `min_total_s` seconds have passed (at most 200 runs); reports the median.
-pub(crate) fn time_all(
+pub fn time_all(
     inputs: &KernelInputs,
     min_runs: usize,
     min_total_s: f64,

@@ -2,29 +2,39 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`scene`] | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
+//! | `scene` | targets, carrier-phase conventions, exact echo synthesis (fractional delay, upsampling) |
 //! | `scene_bench` | `simulate run --scene`: the built-in mock lab's capture of a scene file, in-process (same synthesis, scope and pipeline) |
 //! | `noise` | complex white noise at a per-sample SNR |
-//! | [`spec`] | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
-//! | [`run`] | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
-//! | [`accuracy`] | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
-//! | [`thesis`] | every chapter-4 simulation, compared with the thesis |
+//! | `spec` | what a run asks for ([`spec::RunSpec`]) and reports ([`spec::ScenarioResult`], the JSON) |
+//! | `run` | the engine: transmit, echoes, capture chain, noise, then the measurement pipeline ([`crate::measure::Pipeline`], the same as a bench capture), metrics, trials |
+//! | `accuracy` | the accuracy steps of thesis 4.4.2 through the 80 -> 16 GSa/s chain |
+//! | `thesis` | every chapter-4 simulation, compared with the thesis |
 //! | `ber` | BER against Eb/N0 for both waveforms, next to theory |
 //! | `report` | plain-text reports |
-//! | [`kernels`] | the DSP kernels `radbench bench` times, and their seeded inputs |
+//! | `kernels` | the DSP kernels `radbench bench` times, and their seeded inputs |
 
 use crate::exit::{Classify, ExitClass};
 
-pub mod accuracy;
+pub(crate) mod accuracy;
 pub(crate) mod ber;
-pub mod kernels;
+pub(crate) mod kernels;
 pub(crate) mod noise;
 pub(crate) mod report;
-pub mod run;
-pub mod scene;
+pub(crate) mod run;
+pub(crate) mod scene;
 pub(crate) mod scene_bench;
-pub mod spec;
-pub mod thesis;
+pub(crate) mod spec;
+pub(crate) mod thesis;
+
+pub use accuracy::*;
+pub use ber::*;
+pub use kernels::*;
+pub use report::*;
+pub use run::*;
+pub use scene::*;
+pub use scene_bench::*;
+pub use spec::*;
+pub use thesis::*;
 
 /// Why a simulation could not run.
 #[derive(Debug, thiserror::Error)]

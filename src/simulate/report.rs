@@ -16,7 +16,7 @@ fn list_m(values: &[f64]) -> String {
 }
 
 /// A human-readable summary of one scenario.
-pub(crate) fn scenario_text(r: &ScenarioResult) -> String {
+pub fn scenario_text(r: &ScenarioResult) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -103,7 +103,7 @@ fn scene_targets_text(out: &mut String, targets: &[serde_json::Value]) -> std::f
 }
 
 /// BER curves as a table: measured, theory, 95 % interval, verdict.
-pub(crate) fn ber_text(points: &[BerCurvePoint]) -> String {
+pub fn ber_text(points: &[BerCurvePoint]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,

@@ -5,18 +5,18 @@ use super::noise::add_noise;
 use super::scene::EchoSynth;
 use super::spec::{Algorithm, RunSpec, ScenarioResult};
 use super::SimError;
-use crate::dsp::metrics::{
+use crate::dsp::Profile;
+use crate::dsp::C0;
+use crate::dsp::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
-use crate::dsp::range_profile::Profile;
-use crate::dsp::C0;
 use crate::measure::family;
-use crate::measure::options::ProcessOptions;
 use crate::measure::pipeline::{Pipeline, RangeResult, RawIq, RecordGeometry};
 use crate::measure::transmit::{Dac, Transmission};
+use crate::measure::ProcessOptions;
 use crate::rng::SplitMix64;
-use crate::storage::plot::{Curve, Marker, ProfilePlot};
 use crate::storage::profile::ProfileTable;
+use crate::storage::{Curve, Marker, ProfilePlot};
 use num_complex::Complex64;
 use std::sync::Arc;
 

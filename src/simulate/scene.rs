@@ -55,7 +55,7 @@ const MAX_SPEED_MPS: f64 = 1000.0;
 
 /// Parses `R[:AMP[:V]][,R[:AMP[:V]]...]`: range in metres, linear amplitude (default 1), radial
 /// velocity in m/s (default 0, positive = receding). Example: `3,3.132:0.5` or `1.0:1:2.5`.
-pub(crate) fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
+pub fn parse_targets(text: &str) -> Result<Vec<Target>, SimError> {
     let bad = |reason: String| SimError::Param {
         field: "--targets",
         reason,

@@ -12,12 +12,12 @@ use super::scene::Target;
 use super::spec::{RunSpec, ScenarioResult};
 use super::SimError;
 use crate::dsp::C0;
-use crate::measure::capture::CaptureRequest;
 use crate::measure::family;
-use crate::measure::options::ProcessOptions;
-use crate::measure::pipeline::Processed;
 use crate::measure::scene_capture::SceneCapture;
-use crate::waveform::spec::WaveformSpec;
+use crate::measure::CaptureRequest;
+use crate::measure::ProcessOptions;
+use crate::measure::Processed;
+use crate::waveform::WaveformSpec;
 use mock_lab::scene::Scene;
 
 /// The capture's acquisition wait (`radbench capture --wait`, default 10 s): only checked.
@@ -25,7 +25,7 @@ const WAIT_S: f64 = 10.0;
 
 /// What a scene simulation takes: what `capture --scene` takes, less the transports.
 #[derive(Debug, Clone)]
-pub(crate) struct SceneSpec {
+pub struct SceneSpec {
     pub scene: Scene,
     /// The waveform as the capture sends it (OFDM keeps its preamble).
     pub waveform: WaveformSpec,
@@ -40,14 +40,14 @@ pub(crate) struct SceneSpec {
 }
 
 /// A scene simulation: its figures and first-trial profiles, and the run they refer to.
-pub(crate) struct SceneOutcome {
+pub struct SceneOutcome {
     pub outcome: SimOutcome,
     /// The `RunSpec` the figures refer to (the scene's targets; for plots and tables).
     pub spec: RunSpec,
 }
 
 /// Runs `spec`: prepares the lab's capture, then acquires and processes every trial.
-pub(crate) fn simulate_scene(spec: &SceneSpec) -> Result<SceneOutcome, SimError> {
+pub fn simulate_scene(spec: &SceneSpec) -> Result<SceneOutcome, SimError> {
     if spec.trials == 0 || spec.trials > super::spec::MAX_TRIALS {
         return Err(SimError::Param {
             field: "--trials",

@@ -3,10 +3,10 @@
 
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
-/// The processing choices a run spec names (defined in [`crate::measure::options`]).
-pub use crate::measure::options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
-/// The waveform a run transmits (defined in [`crate::waveform::spec`]).
-pub use crate::waveform::spec::WaveformSpec;
+/// The processing choices a run spec names (defined in `crate::measure::options`).
+pub use crate::measure::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
+/// The waveform a run transmits (defined in `crate::waveform::spec`).
+pub use crate::waveform::WaveformSpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -183,10 +183,7 @@ mod tests {
     fn msk_lfm_refuses_ofdm_algorithms_naming_the_field() {
         let mut spec = RunSpec::new("x", WaveformSpec::msk_lfm_default(), vec![Target::at(3.0)]);
         spec.processing.algorithm = Algorithm::Music;
-        let err = crate::simulate::run::simulate(&spec)
-            .err()
-            .unwrap()
-            .to_string();
+        let err = crate::simulate::simulate(&spec).err().unwrap().to_string();
         assert!(err.starts_with("--algorithm"), "{err}");
     }
 

@@ -10,7 +10,7 @@ use super::run::{simulate, SimOutcome};
 use super::scene::{CarrierPhase, Target};
 use super::spec::{Algorithm, RunSpec, ScenarioResult, WaveformSpec};
 use super::{accuracy, SimError};
-use crate::measure::options::DetectorName;
+use crate::measure::DetectorName;
 use crate::storage::plot;
 use serde_json::json;
 use std::fmt::Write as _;
@@ -18,7 +18,7 @@ use std::path::Path;
 
 /// One row of the comparison.
 #[derive(Debug, Clone)]
-pub(crate) struct ThesisRow {
+pub struct ThesisRow {
     pub section: &'static str,
     pub scenario: String,
     pub thesis_figure: String,
@@ -33,14 +33,14 @@ pub(crate) struct ThesisRow {
 
 /// The whole table.
 #[derive(Debug, Clone)]
-pub(crate) struct ThesisTable {
+pub struct ThesisTable {
     pub rows: Vec<ThesisRow>,
 }
 
 impl ThesisTable {
     /// `{"scenarios": [...]}`: every row's [`ScenarioResult`] plus `section`, `scenario`,
     /// `thesis_figure`, `radbench_figure`, `agrees`, `expected_to_agree` and `reason`.
-    pub(crate) fn to_json(&self) -> serde_json::Value {
+    pub fn to_json(&self) -> serde_json::Value {
         let scenarios: Vec<serde_json::Value> = self
             .rows
             .iter()
@@ -63,7 +63,7 @@ impl ThesisTable {
     }
 
     /// The table for the terminal (columns as wide as their longest entry).
-    pub(crate) fn to_text(&self) -> String {
+    pub fn to_text(&self) -> String {
         let width = |head: &str, cell: &dyn Fn(&ThesisRow) -> usize| {
             self.rows
                 .iter()
@@ -110,7 +110,7 @@ impl ThesisTable {
 }
 
 /// Runs every scenario; with `plot_dir`, draws each profile there as `<id>.svg`.
-pub(crate) fn run_all(plot_dir: Option<&Path>) -> Result<ThesisTable, SimError> {
+pub fn run_all(plot_dir: Option<&Path>) -> Result<ThesisTable, SimError> {
     let mut ctx = Ctx {
         rows: Vec::new(),
         plot_dir,

@@ -31,7 +31,7 @@ pub(crate) const TEMP_MARKER: &str = ".radbench-tmp-";
 const WRITE_CHUNK: usize = 256 * 1024;
 
 /// Writes `bytes` to `path` atomically: readers see either the old file or the complete new one.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StorageError> {
     write_atomic_parts(path, &[bytes])
 }
 
@@ -165,7 +165,7 @@ struct Pending {
 
 /// A file a [`write_group`] made durable: where, how long, its SHA-256 (hashed as written).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct WrittenFile {
+pub struct WrittenFile {
     pub path: PathBuf,
     pub bytes: u64,
     pub sha256: String,
@@ -179,7 +179,7 @@ struct Group {
 
 /// What a [`write_group`] wrote: every file in writing order, and the time spent hashing them.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct GroupWritten {
+pub struct GroupWritten {
     pub files: Vec<WrittenFile>,
     pub hashing_s: f64,
 }
@@ -207,7 +207,7 @@ fn in_flight() -> std::sync::MutexGuard<'static, std::collections::HashSet<PathB
 /// before an error or a panic inside `write` are still put in place (nothing written is lost).
 /// Returns `write`'s value and every file, in writing order. A nested group belongs to the
 /// outer one (it returns no files; the outer one ends them).
-pub(crate) fn write_group<R, E: From<StorageError>>(
+pub fn write_group<R, E: From<StorageError>>(
     write: impl FnOnce() -> Result<R, E>,
 ) -> Result<(R, GroupWritten), E> {
     struct End(bool);
@@ -242,12 +242,12 @@ pub(crate) fn write_group<R, E: From<StorageError>>(
 /// to the disk, not yet synced nor in place. [`OpenGroup::finish`] ends it, on any thread (a
 /// thread that only waits for the disk), so the thread that wrote it can go on computing; dropped
 /// unfinished, it is finished quietly.
-pub(crate) struct OpenGroup(Option<Group>);
+pub struct OpenGroup(Option<Group>);
 
 impl OpenGroup {
     /// What [`write_group`] does at its end: every file synced and renamed into place in writing
     /// order, then each folder synced once; the first failure, after trying them all.
-    pub(crate) fn finish(mut self) -> Result<GroupWritten, StorageError> {
+    pub fn finish(mut self) -> Result<GroupWritten, StorageError> {
         finish_group(self.0.take().unwrap_or_default())
     }
 }
@@ -263,7 +263,7 @@ impl Drop for OpenGroup {
 /// [`write_group`] without its end: returns the group open (see [`OpenGroup`]). When `write`
 /// fails or panics, the group is ended at once, as [`write_group`] ends it. Inside another group
 /// it belongs to that one (the returned group is empty).
-pub(crate) fn write_group_open<R, E: From<StorageError>>(
+pub fn write_group_open<R, E: From<StorageError>>(
     write: impl FnOnce() -> Result<R, E>,
 ) -> Result<(R, OpenGroup), E> {
     let outermost = GROUP.with(|g| g.borrow().is_none());

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 /// One array.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Array {
+pub enum Array {
     /// float64 (`<f8`), row-major.
     F64 { shape: Vec<usize>, data: Vec<f64> },
     /// complex128 (`<c16`), row-major.
@@ -174,14 +174,14 @@ impl Array {
 
 /// The file formats `radbench export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum ExportFormat {
+pub enum ExportFormat {
     Npz,
     Hdf5,
 }
 
 impl ExportFormat {
     /// The file extension, without the dot.
-    pub(crate) fn extension(self) -> &'static str {
+    pub fn extension(self) -> &'static str {
         match self {
             ExportFormat::Npz => "npz",
             ExportFormat::Hdf5 => "h5",
@@ -196,7 +196,7 @@ enum Target {
 
 /// An export file being written: arrays are put one after the other, the file appears (whole,
 /// atomically) at [`finish`](Self::finish).
-pub(crate) struct ExportWriter {
+pub struct ExportWriter {
     path: PathBuf,
     target: Target,
     names: std::collections::HashSet<String>,
@@ -204,7 +204,7 @@ pub(crate) struct ExportWriter {
 
 impl ExportWriter {
     /// Starts the file `path` (a temporary file beside it until finished).
-    pub(crate) fn create(path: &Path, format: ExportFormat) -> Result<Self, StorageError> {
+    pub fn create(path: &Path, format: ExportFormat) -> Result<Self, StorageError> {
         let target = match format {
             ExportFormat::Npz => Target::Npz(NpzWriter::new(AtomicFile::create(path)?)),
             ExportFormat::Hdf5 => {
@@ -261,7 +261,7 @@ impl ExportWriter {
     }
 
     /// Writes what is left and puts the file in place.
-    pub(crate) fn finish(self) -> Result<PathBuf, StorageError> {
+    pub fn finish(self) -> Result<PathBuf, StorageError> {
         match self.target {
             Target::Npz(w) => w.finish()?.commit()?,
             Target::Hdf5(datasets) => {

@@ -1,6 +1,6 @@
 //! Outputs: atomic file writes, SigMF recordings, npy and CSV range profiles, range-profile
 //! plots (SVG/PNG), named arrays for notebooks (`export`: `.npz`, HDF5); and the readers of
-//! recorded captures ([`recording`]: SigMF, `.trc`).
+//! recorded captures (`recording`: SigMF, `.trc`).
 //!
 //! Every writer goes through `atomic::write_atomic`: the bytes go to a temporary file in the
 //! destination's folder, which is then renamed over the destination, so a reader never sees half a
@@ -12,13 +12,21 @@ use std::path::PathBuf;
 pub(crate) mod atomic;
 pub(crate) mod cache;
 pub(crate) mod export;
-pub mod hash;
+pub(crate) mod hash;
 pub(crate) mod npy;
 pub(crate) mod npz;
 pub(crate) mod plot;
 pub(crate) mod profile;
-pub mod recording;
+pub(crate) mod recording;
 pub(crate) mod sigmf;
+
+pub use atomic::*;
+pub use export::*;
+pub use hash::*;
+pub use npy::*;
+pub use plot::*;
+pub use recording::*;
+pub use sigmf::*;
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -19,7 +19,7 @@ pub(crate) fn encode_f64(shape: &[usize], data: &[f64]) -> Result<Vec<u8>, Strin
 }
 
 /// Encodes a complex128 array of the given shape (row-major), real part first.
-pub(crate) fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
+pub fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
     check_shape(shape, data.len())?;
     let mut out = header("<c16", shape);
     out.reserve(data.len() * 16);

@@ -34,7 +34,7 @@ pub struct Curve {
 
 impl Curve {
     /// A solid curve.
-    pub(crate) fn solid(label: impl Into<String>, range_m: Vec<f64>, db: Vec<f64>) -> Self {
+    pub fn solid(label: impl Into<String>, range_m: Vec<f64>, db: Vec<f64>) -> Self {
         Self {
             label: label.into(),
             range_m,
@@ -105,7 +105,7 @@ pub(crate) const PALETTE: [RGBColor; 4] = [
 ];
 
 /// Draws the plot to `path` (`.svg` or `.png`), atomically.
-pub(crate) fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
+pub fn draw(path: &Path, plot: &ProfilePlot) -> Result<(), StorageError> {
     if plot.curves.iter().all(|c| c.range_m.is_empty()) {
         return Err(StorageError::BadData {
             path: path.to_path_buf(),
@@ -613,7 +613,7 @@ pub(crate) fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageErro
 
 /// One waveform's measured bit-error rates and its theory.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct BerSeries {
+pub struct BerSeries {
     pub label: String,
     pub eb_n0_db: Vec<f64>,
     pub ber: Vec<f64>,
@@ -623,7 +623,7 @@ pub(crate) struct BerSeries {
 }
 
 /// BER against Eb/N0 on a log scale, measured points with their 95 % intervals, theory dashed.
-pub(crate) fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
+pub fn draw_ber(path: &Path, title: &str, series: &[BerSeries]) -> Result<(), StorageError> {
     let all = series.iter().flat_map(|s| s.ber.iter().chain(&s.theory));
     let lowest = all
         .copied()

@@ -866,7 +866,7 @@ mod tests {
                     ),
                     (
                         path.with_extension("sigmf-data"),
-                        crate::storage::hash::sha256(&data)
+                        crate::storage::sha256(&data)
                     ),
                 ]
             );
@@ -905,13 +905,13 @@ mod tests {
         m["global"]["core:sha512"] = serde_json::json!("00");
         let path = write(dir.path(), "ci16_le", m, &data);
         assert!(read_sigmf(&path).is_err());
-        let actual = crate::storage::hash::sha256(&data);
+        let actual = crate::storage::sha256(&data);
         // The data is the bytes recorded (its SHA-256 as written): core:sha512 is not computed.
         let stored = read_sigmf_stored(&path, Some(&actual.to_uppercase())).unwrap();
         assert!(!stored.recording.sha512_checked);
         assert_eq!(stored.sha256[1].1, actual);
         // A recorded hash the data does not match falls back to core:sha512, which refuses it.
-        let other = crate::storage::hash::sha256(b"other bytes");
+        let other = crate::storage::sha256(b"other bytes");
         let e = read_sigmf_stored(&path, Some(&other))
             .unwrap_err()
             .to_string();

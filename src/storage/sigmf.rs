@@ -136,7 +136,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// UTC time as RFC 3339 with milliseconds, from the system clock.
-pub(crate) fn utc_now_rfc3339() -> String {
+pub fn utc_now_rfc3339() -> String {
     crate::time::rfc3339_millis(std::time::SystemTime::now())
 }
 

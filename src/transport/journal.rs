@@ -65,7 +65,7 @@ enum Queued {
 /// Cannot create the journal or its folder.
 #[derive(Debug, thiserror::Error)]
 #[error("cannot create I/O journal `{path}`: {source}; check the --trace-io path")]
-pub(crate) struct JournalError {
+pub struct JournalError {
     pub path: PathBuf,
     pub source: std::io::Error,
 }
@@ -112,7 +112,7 @@ pub struct Origin {
 impl Journal {
     /// Creates (truncates) the journal. With `keep_binary`, binary messages are also written to
     /// `<journal>.blobs/<seq>.bin`.
-    pub(crate) fn create(path: &Path, keep_binary: bool) -> Result<Self, JournalError> {
+    pub fn create(path: &Path, keep_binary: bool) -> Result<Self, JournalError> {
         let err = |source| JournalError {
             path: path.to_path_buf(),
             source,

@@ -3,15 +3,15 @@
 //! A [`Link`] opens the transport named by a [`Resource`] and offers the same operations on all of
 //! them: write a message (given as parts, sent without copying them together), read a message
 //! (HiSLIP DataEnd, VXI-11 END, VICP EOI, or a newline outside `#N` blocks), device clear, status
-//! byte, reconnect, close. Every exchange goes to the I/O [`journal`] when one is attached.
+//! byte, reconnect, close. Every exchange goes to the I/O `journal` when one is attached.
 //!
 //! | module | wire |
 //! |---|---|
-//! | `socket` | raw TCP, newline-terminated, block-aware ([`framing`]) |
+//! | `socket` | raw TCP, newline-terminated, block-aware (`framing`) |
 //! | [`vxi11`] | ONC-RPC record marking, portmapper, core and abort channels |
 //! | [`hislip`] | HiSLIP 1.0 sync + async channels |
 //! | [`vicp`] | LeCroy VICP headers with sequence numbers |
-//! | [`serial`] | `serialport` on its own thread |
+//! | `serial` | `serialport` on its own thread |
 //!
 //! Deadlines and limits (docs/io-timeouts.md): a read ends by `start + read timeout +
 //! min(bytes of this message received, max_message_bytes) / min_rate`; bytes thrown away (stale
@@ -25,14 +25,19 @@
 //! reopens the connection (after an abandoned write, which may have left half a frame on the wire).
 
 pub(crate) mod error;
-pub mod framing;
+pub(crate) mod framing;
 pub mod hislip;
-pub mod io;
-pub mod journal;
-pub mod serial;
+pub(crate) mod io;
+pub(crate) mod journal;
+pub(crate) mod serial;
 pub(crate) mod socket;
 pub mod vicp;
 pub mod vxi11;
+
+pub use framing::*;
+pub use io::*;
+pub use journal::*;
+pub use serial::*;
 
 pub(crate) use error::Rounded;
 pub use error::{CodecError, ErrorKind, LinkError};

@@ -66,7 +66,7 @@ impl Segment<'_> {
     }
 
     /// One code in volts.
-    pub(crate) fn volt(&self, code: i16) -> f64 {
+    pub fn volt(&self, code: i16) -> f64 {
         self.gain * f64::from(code) - self.offset
     }
 
@@ -288,7 +288,7 @@ impl Trace {
     }
 
     /// Whether this is a sequence-mode record of more than one segment.
-    pub(crate) fn is_sequence(&self) -> bool {
+    pub fn is_sequence(&self) -> bool {
         self.segments > 1
     }
 

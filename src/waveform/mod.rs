@@ -2,12 +2,12 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`bits`] | bit sources (seeded PRBS or a user payload), payload framing and recovery, error counting |
-//! | [`msk_lfm`] | MSK-LFM pulse generator and its dechirp + half-sine integrate-and-dump receiver |
-//! | [`ofdm`] | OFDM frame generator (QPSK Gray, CP, ideal interpolation) and its receiver |
-//! | [`ber`] | `erfc`, the theoretical BER curves and the Monte-Carlo BER helper |
+//! | `bits` | bit sources (seeded PRBS or a user payload), payload framing and recovery, error counting |
+//! | `msk_lfm` | MSK-LFM pulse generator and its dechirp + half-sine integrate-and-dump receiver |
+//! | `ofdm` | OFDM frame generator (QPSK Gray, CP, ideal interpolation) and its receiver |
+//! | `ber` | `erfc`, the theoretical BER curves and the Monte-Carlo BER helper |
 //! | [`quantise`] | quantisation to the M8195A's signed 8-bit codes with back-off, clipping report |
-//! | [`spec`] | [`spec::WaveformSpec`]: which waveform with which parameters, as plain data (TOML) |
+//! | `spec` | [`spec::WaveformSpec`]: which waveform with which parameters, as plain data (TOML) |
 //!
 //! Conventions (sample order, scaling, bit order) follow `CONVENTIONS.md` of the project: complex
 //! baseband `Complex64`, unit mean power per sample, bits as `u8` values 0/1 taken least significant
@@ -59,9 +59,16 @@ impl Classify for DecodeError {
     }
 }
 
-pub mod ber;
-pub mod bits;
-pub mod msk_lfm;
-pub mod ofdm;
-pub mod quantise;
-pub mod spec;
+pub(crate) mod ber;
+pub(crate) mod bits;
+pub(crate) mod msk_lfm;
+pub(crate) mod ofdm;
+pub(crate) mod quantise;
+pub(crate) mod spec;
+
+pub use ber::*;
+pub use bits::*;
+pub use msk_lfm::*;
+pub use ofdm::*;
+pub use quantise::*;
+pub use spec::*;

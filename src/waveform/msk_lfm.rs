@@ -317,7 +317,7 @@ impl MskLfm {
     }
 
     /// Generates at least `min_pulses` pulses from `source` (a payload takes as many as it needs;
-    /// framing in [`super::bits`]).
+    /// framing in `super::bits`).
     ///
     /// # Errors
     ///

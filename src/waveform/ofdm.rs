@@ -319,7 +319,7 @@ impl Ofdm {
     }
 
     /// Generates at least `min_frames` frames from `source` (a payload takes as many frames as it
-    /// needs; framing in [`super::bits`]).
+    /// needs; framing in `super::bits`).
     ///
     /// # Errors
     ///

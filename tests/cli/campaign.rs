@@ -3,14 +3,15 @@
 //! uninterrupted run's), mock_lab dropping the AWG link mid-step, a tampered step file, dry run,
 //! spec errors, the prompt and command positioners, `campaign new`, the thesis' lab chapter.
 
-use radbench::campaign::manifest::{Manifest, Status, StepTables};
-use radbench::campaign::plan::{self, BenchInfo, Step};
-use radbench::campaign::run::{self, NewRun, Observer, Quiet};
+use radbench::campaign;
 use radbench::campaign::SpecFile;
+use radbench::campaign::{BenchInfo, Step};
+use radbench::campaign::{Manifest, Status, StepTables};
+use radbench::campaign::{NewRun, Observer, Quiet};
 use radbench::driver::RfPermit;
 use radbench::exit::Classify;
-use radbench::measure::bench::Bench;
-use radbench::measure::interrupt::Interrupt;
+use radbench::measure::Bench;
+use radbench::measure::Interrupt;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
@@ -336,10 +337,14 @@ impl Observer for DropAwgLink {
 
 /// Plans the campaign of `spec_path` and runs it into `out` (RF permitted, no journal, no
 /// signal), within the test's time limit.
-async fn start_run(spec_path: &Path, out: &Path, observer: &mut dyn Observer) -> run::Finished {
+async fn start_run(
+    spec_path: &Path,
+    out: &Path,
+    observer: &mut dyn Observer,
+) -> campaign::Finished {
     let spec = SpecFile::load(spec_path).unwrap();
     let bench = BenchInfo::load(&spec, None).unwrap();
-    let plan = plan::plan(&spec, &bench).unwrap();
+    let plan = campaign::plan(&spec, &bench).unwrap();
     let new = NewRun {
         spec,
         bench,
@@ -350,7 +355,7 @@ async fn start_run(spec_path: &Path, out: &Path, observer: &mut dyn Observer) ->
         interrupt: Interrupt::never(),
         input: None,
     };
-    tokio::time::timeout(LIMIT, run::start(new, observer))
+    tokio::time::timeout(LIMIT, campaign::start(new, observer))
         .await
         .expect("the run ends within the time limit")
         .unwrap()
@@ -372,7 +377,7 @@ async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
     assert!(m.reason.unwrap().starts_with("step 4 of 6: "));
     let finished = tokio::time::timeout(
         LIMIT,
-        run::resume(
+        campaign::resume(
             &out,
             RfPermit::granted_by_user(),
             false,
@@ -728,7 +733,7 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
         async move {
             tokio::time::timeout(
                 LIMIT,
-                run::resume(
+                campaign::resume(
                     &out,
                     RfPermit::granted_by_user(),
                     force,

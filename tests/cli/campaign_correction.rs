@@ -5,7 +5,7 @@
 //! `campaign thesis-lab`, whose accuracy campaign lands within 0.1 mm of the ideal chain's.
 
 use super::support::radbench_in;
-use radbench::campaign::manifest::{Manifest, Status};
+use radbench::campaign::{Manifest, Status};
 use serde_json::Value;
 use std::path::Path;
 

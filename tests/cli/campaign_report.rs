@@ -2,9 +2,10 @@
 //! from the run's own numbers, and `radbench campaign report RUN_DIR` writing both again byte for
 //! byte. Each test runs one example campaign on the built-in mock lab (loopback only).
 
-use radbench::campaign::manifest::Manifest;
-use radbench::campaign::report::{self, figures::wilson95, Figure};
-use radbench::campaign::results::{AlgorithmResult, Results};
+use radbench::campaign;
+use radbench::campaign::Manifest;
+use radbench::campaign::{wilson95, Figure};
+use radbench::campaign::{AlgorithmResult, Results};
 use std::path::{Path, PathBuf};
 
 async fn radbench(args: &[&str]) -> (i32, String, String) {
@@ -30,7 +31,7 @@ async fn run(name: &str) -> (tempfile::TempDir, PathBuf, Manifest, Results) {
     assert_eq!(code, 0, "{err}");
     assert!(stdout.contains("report.html"), "{stdout}");
     let manifest = Manifest::load(&out).unwrap();
-    let results = report::load_results(&out).unwrap();
+    let results = campaign::load_results(&out).unwrap();
     (tmp, out, manifest, results)
 }
 
@@ -69,8 +70,8 @@ fn check_well_formed(html: &str) {
 /// hashes still hold).
 async fn check_reports(dir: &Path, figures: &[Figure]) {
     // Every report also shows every step's range profile, from the step folders.
-    let results = report::load_results(dir).unwrap();
-    let profiles = report::profiles::step_profiles(dir, &results).expect("the steps' profiles");
+    let results = campaign::load_results(dir).unwrap();
+    let profiles = campaign::step_profiles(dir, &results).expect("the steps' profiles");
     assert_eq!(profiles.id, "step-profiles");
     let rows = profiles.chart.y_categories.as_ref().unwrap();
     assert_eq!(rows.len(), results.steps.len());
@@ -78,7 +79,7 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
         .chart
         .series
         .iter()
-        .filter(|s| s.style == radbench::campaign::report::plots::Style::Trace)
+        .filter(|s| s.style == radbench::campaign::Style::Trace)
         .count();
     assert_eq!(traces, results.steps.len(), "one profile per step");
     let mut all = figures.to_vec();
@@ -182,7 +183,7 @@ fn ids(figures: &[Figure]) -> Vec<&'static str> {
     figures.iter().map(|f| f.id).collect()
 }
 
-fn series<'a>(f: &'a Figure, starts: &str) -> &'a radbench::campaign::report::plots::Series {
+fn series<'a>(f: &'a Figure, starts: &str) -> &'a radbench::campaign::Series {
     f.chart
         .series
         .iter()
@@ -197,7 +198,7 @@ fn close(a: f64, b: f64) -> bool {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn accuracy_plots_the_error_with_and_without_interpolation_within_the_bounds() {
     let (_tmp, dir, manifest, results) = run("accuracy").await;
-    let figures = report::figures(&manifest, &results);
+    let figures = campaign::figures(&manifest, &results);
     assert_eq!(ids(&figures), ["accuracy-error"]);
     let f = &figures[0];
     let interp = series(f, "correlation, sub-sample");
@@ -224,7 +225,7 @@ async fn accuracy_plots_the_error_with_and_without_interpolation_within_the_boun
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn resolution_plots_resolved_or_not_per_bandwidth() {
     let (_tmp, dir, manifest, results) = run("resolution").await;
-    let figures = report::figures(&manifest, &results);
+    let figures = campaign::figures(&manifest, &results);
     assert_eq!(ids(&figures), ["resolution"]);
     let f = &figures[0];
     assert_eq!(
@@ -253,7 +254,7 @@ async fn resolution_plots_resolved_or_not_per_bandwidth() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn single_target_plots_width_and_psl_beside_the_thesis() {
     let (_tmp, dir, manifest, results) = run("single-target").await;
-    let figures = report::figures(&manifest, &results);
+    let figures = campaign::figures(&manifest, &results);
     assert_eq!(ids(&figures), ["single-width", "single-psl"]);
     let a: &AlgorithmResult = &results.steps[0].algorithms["correlation"];
     // Four repetitions: mean +- std of the repetitions.
@@ -284,7 +285,7 @@ async fn single_target_plots_width_and_psl_beside_the_thesis() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn link_plots_ber_with_theory_and_the_radar_figures() {
     let (_tmp, dir, manifest, results) = run("link").await;
-    let figures = report::figures(&manifest, &results);
+    let figures = campaign::figures(&manifest, &results);
     assert_eq!(
         ids(&figures),
         [

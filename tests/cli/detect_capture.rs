@@ -5,15 +5,15 @@
 use super::scenes::{random_pillars_within, realistic_scene, scene};
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
-use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, CaptureRequest, Prepared, Rig};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::options::ProcessOptions;
+use radbench::measure::Interrupt;
+use radbench::measure::ProcessOptions;
+use radbench::measure::{prepare, CaptureRequest, Prepared, Rig};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
 use radbench::rng::SplitMix64;
-use radbench::simulate::run::simulate;
-use radbench::simulate::scene::Target as SimTarget;
-use radbench::simulate::spec::RunSpec;
-use radbench::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
+use radbench::simulate::simulate;
+use radbench::simulate::RunSpec;
+use radbench::simulate::Target as SimTarget;
+use radbench::waveform::{SweepBand, WaveformKind, WaveformSpec};
 use serde_json::json;
 use std::time::Duration;
 

@@ -274,7 +274,7 @@ fn csv_rows(path: &Path) -> Vec<BTreeMap<String, String>> {
 }
 
 fn manifest_hash(run: &Path, file: &str) -> Option<String> {
-    let m = radbench::campaign::manifest::Manifest::load(run).unwrap();
+    let m = radbench::campaign::Manifest::load(run).unwrap();
     m.files
         .iter()
         .find(|f| f.path == Path::new(file))
@@ -308,7 +308,7 @@ async fn a_run_exports_each_step_in_its_group_and_results_csv_is_results_json_fl
     let csv = std::fs::read(run.join("results.csv")).unwrap();
     assert_eq!(
         manifest_hash(&run, "results.csv").unwrap(),
-        radbench::storage::hash::sha256(&csv)
+        radbench::storage::sha256(&csv)
     );
     let rows = csv_rows(&run.join("results.csv"));
     assert_eq!(rows.len(), steps.len());
@@ -421,7 +421,7 @@ async fn bad_inputs_and_outputs_are_refused_with_the_documented_exit_codes() {
 
 /// A run folder as radbench wrote it before results.csv: the file and its manifest record gone.
 fn as_before_results_csv(run: &Path) {
-    let mut m = radbench::campaign::manifest::Manifest::load(run).unwrap();
+    let mut m = radbench::campaign::Manifest::load(run).unwrap();
     m.files.retain(|f| f.path != Path::new("results.csv"));
     m.store(run).unwrap();
     std::fs::remove_file(run.join("results.csv")).unwrap();
@@ -454,7 +454,7 @@ async fn a_run_folder_from_before_results_csv_resumes_and_reports_with_one() {
     assert_eq!(rows.len(), 3);
     assert_eq!(
         manifest_hash(&run, "results.csv").unwrap(),
-        radbench::storage::hash::sha256(&std::fs::read(run.join("results.csv")).unwrap())
+        radbench::storage::sha256(&std::fs::read(run.join("results.csv")).unwrap())
     );
 
     // `campaign report` writes it for a complete run that lacks it, and records it.
@@ -464,7 +464,7 @@ async fn a_run_folder_from_before_results_csv_resumes_and_reports_with_one() {
     let csv = std::fs::read(run.join("results.csv")).unwrap();
     assert_eq!(
         manifest_hash(&run, "results.csv").unwrap(),
-        radbench::storage::hash::sha256(&csv)
+        radbench::storage::sha256(&csv)
     );
     assert_eq!(csv_rows(&run.join("results.csv")), rows);
 
@@ -482,6 +482,6 @@ async fn a_run_folder_from_before_results_csv_resumes_and_reports_with_one() {
     assert_eq!(rows[0]["snr_db"], "15");
     assert_eq!(
         manifest_hash(&run, "results.csv").unwrap(),
-        radbench::storage::hash::sha256(&std::fs::read(run.join("results.csv")).unwrap())
+        radbench::storage::sha256(&std::fs::read(run.join("results.csv")).unwrap())
     );
 }

@@ -29,7 +29,7 @@
 //! saying so. The I/O journal is kept outside the run folder (`--trace-io`), so it tells the
 //! bench's last commands whatever became of the folder.
 
-use radbench::campaign::manifest::{Manifest, Status, StepStatus};
+use radbench::campaign::{Manifest, Status, StepStatus};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;

@@ -77,7 +77,7 @@ async fn scpi_one_shot_saves_binary_and_journals() {
     assert!(text.lines().any(|l| l == "1"), "{text}");
     let expected = mock_lab::emulator::loopback::pseudo_random_bytes(1000, 5);
     assert_eq!(std::fs::read(&saved).unwrap(), expected);
-    assert!(text.contains(&radbench::transport::journal::sha256_hex(&expected)));
+    assert!(text.contains(&radbench::transport::sha256_hex(&expected)));
 
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&journal)
         .unwrap()
@@ -103,7 +103,7 @@ async fn scpi_one_shot_saves_binary_and_journals() {
     assert_eq!(&kept[..6], b"#41000");
     assert_eq!(
         binary["sha256"],
-        radbench::transport::journal::sha256_hex(&kept).as_str()
+        radbench::transport::sha256_hex(&kept).as_str()
     );
 }
 

@@ -81,7 +81,7 @@ async fn the_original_options_give_the_original_figures_exactly() {
             let bytes = std::fs::read(d.join(path)).unwrap();
             assert_eq!(
                 s["sha256"].as_str().unwrap(),
-                radbench::storage::hash::sha256(&bytes)
+                radbench::storage::sha256(&bytes)
             );
         }
     }
@@ -232,7 +232,7 @@ async fn a_recording_radbench_did_not_make_takes_the_waveform_from_options() {
     let (code, _, err) = radbench(d, &["capture", "--allow-rf", "--out", "c"]).await;
     assert_eq!(code, 0, "{err}");
     // Another tool's recording of the same samples: cf32, big-endian, no radbench metadata.
-    let rec = radbench::storage::recording::read_sigmf(&d.join("c/capture.sigmf-meta")).unwrap();
+    let rec = radbench::storage::read_sigmf(&d.join("c/capture.sigmf-meta")).unwrap();
     let trigger = rec.radbench.as_ref().unwrap().trigger_offset_s.unwrap();
     let mut data = Vec::new();
     for z in &rec.samples {

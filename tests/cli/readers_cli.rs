@@ -9,7 +9,7 @@ use std::process::{Command, Output};
 use std::time::Duration;
 
 use bytes::Bytes;
-use radbench::storage::recording::{read_sigmf, read_trc, SampleUnit};
+use radbench::storage::{read_sigmf, read_trc, SampleUnit};
 use radbench::trc::{BlockBuilder, ByteOrder, Trace};
 use serde_json::{json, Value};
 

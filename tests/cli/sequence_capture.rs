@@ -5,11 +5,11 @@
 
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
-use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, Measurement, Rig};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::options::ProcessOptions;
-use radbench::waveform::spec::WaveformKind;
+use radbench::measure::Interrupt;
+use radbench::measure::ProcessOptions;
+use radbench::measure::{prepare, Measurement, Rig};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
+use radbench::waveform::WaveformKind;
 use std::time::Duration;
 
 const LABMASTER: &str = include_str!("../../instruments/lecroy_labmaster10zi_a.toml");

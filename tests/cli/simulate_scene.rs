@@ -10,12 +10,12 @@ use super::scenes::{random_pillars_within, realistic_scene, scene};
 use crate::support::radbench_in;
 use radbench::catalog::Catalog;
 use radbench::driver::RfPermit;
-use radbench::measure::bench::{Bench, BenchSource, BuiltIn};
-use radbench::measure::capture::{prepare, Rig};
-use radbench::measure::interrupt::Interrupt;
-use radbench::measure::options::ProcessOptions;
+use radbench::measure::Interrupt;
+use radbench::measure::ProcessOptions;
+use radbench::measure::{prepare, Rig};
+use radbench::measure::{Bench, BenchSource, BuiltIn};
 use radbench::rng::SplitMix64;
-use radbench::waveform::spec::WaveformKind;
+use radbench::waveform::WaveformKind;
 use serde_json::{json, Value};
 use std::path::Path;
 

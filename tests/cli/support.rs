@@ -38,11 +38,11 @@ pub async fn radbench_in(dir: Option<&Path>, args: &[&str]) -> (i32, String, Str
 /// The thesis' waveform of `kind` as a capture request: seed 1, no payload, no background,
 /// a 10 s wait for the trigger.
 pub fn thesis_request(
-    kind: radbench::waveform::spec::WaveformKind,
-    options: radbench::measure::options::ProcessOptions,
+    kind: radbench::waveform::WaveformKind,
+    options: radbench::measure::ProcessOptions,
     tx_off: bool,
-) -> radbench::measure::capture::CaptureRequest {
-    radbench::measure::capture::CaptureRequest {
+) -> radbench::measure::CaptureRequest {
+    radbench::measure::CaptureRequest {
         waveform: kind.thesis_default(),
         payload: None,
         seed: 1,

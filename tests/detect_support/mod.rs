@@ -5,16 +5,16 @@
 #![allow(dead_code)]
 
 use num_complex::Complex64;
-use radbench::dsp::decimate::PeriodicDecimator;
-use radbench::dsp::detect::{DetectOptions, Detector, SpectralLines, TabulatedPsf};
-use radbench::dsp::metrics::Axis;
-use radbench::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig};
-use radbench::dsp::range_profile::CorrelationProfiler;
+use radbench::dsp::Axis;
+use radbench::dsp::CorrelationProfiler;
+use radbench::dsp::PeriodicDecimator;
 use radbench::dsp::C0;
+use radbench::dsp::{DetectOptions, Detector, SpectralLines, TabulatedPsf};
+use radbench::dsp::{IDiv, OfdmRadar, OfdmRadarConfig};
 use radbench::rng::SplitMix64;
-use radbench::waveform::bits::BitSource;
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use radbench::waveform::ofdm::{Ofdm, OfdmParams};
+use radbench::waveform::BitSource;
+use radbench::waveform::{MskLfm, MskLfmParams};
+use radbench::waveform::{Ofdm, OfdmParams};
 use rustfft::{Fft, FftPlanner};
 use std::f64::consts::PI;
 use std::sync::Arc;

@@ -5,8 +5,8 @@
 use std::time::Duration;
 
 use radbench::catalog::{Catalog, InstrumentModel};
-use radbench::driver::safe_state::{share, Bench, Shared};
-use radbench::driver::scripted::ERROR_CHECK;
+use radbench::driver::ERROR_CHECK;
+use radbench::driver::{share, Bench, Shared};
 use radbench::driver::{Awg, RfFrontEnd, SafeState};
 
 /// Every wait in the driver tests is bounded by this.

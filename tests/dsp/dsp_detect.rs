@@ -6,7 +6,7 @@
 use crate::detect_support;
 
 use detect_support::*;
-use radbench::dsp::detect::{
+use radbench::dsp::{
     CfarKind, DetectOptions, Detections, Method, NoiseEstimate, PointSpread, Sidelobes,
 };
 use radbench::rng::SplitMix64;
@@ -318,7 +318,7 @@ fn bad_input_is_an_error_naming_the_field() {
             "min_separation_m",
         ),
     ] {
-        let e = radbench::dsp::detect::Detector::new(bench.psf(), options)
+        let e = radbench::dsp::Detector::new(bench.psf(), options)
             .unwrap_err()
             .to_string();
         assert!(e.contains(field), "{e}");
@@ -337,8 +337,8 @@ fn bad_input_is_an_error_naming_the_field() {
 fn bench_capture_path_with_the_decimator_in_the_spread() {
     // 80 GSa/s, 30 dB per sample, decimated by the lab decimator: the spread takes the reference's
     // spectrum times the decimator's response (what the capture pipeline supplies).
-    use radbench::dsp::decimate::PeriodicDecimator;
-    use radbench::dsp::detect::{Detector, TabulatedPsf};
+    use radbench::dsp::PeriodicDecimator;
+    use radbench::dsp::{Detector, TabulatedPsf};
     let mut bench = Bench::new(Wave::MskLfm);
     let axis = bench.axis;
     let mut decimator = PeriodicDecimator::new(80e9, 5, 0.55e9).unwrap();

@@ -4,8 +4,8 @@
 use crate::dsp_support;
 
 use dsp_support::*;
-use radbench::dsp::metrics::{resolve_targets, CaCfar, Interpolation};
-use radbench::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
+use radbench::dsp::{resolve_targets, CaCfar, Interpolation};
+use radbench::dsp::{IDiv, OfdmRadar, OfdmRadarConfig, RangeProfile};
 use radbench::rng::SplitMix64;
 
 fn profile(seed: u64, symbols: usize, targets: &[Target], snr_db: Option<f64>) -> RangeProfile {

@@ -6,11 +6,11 @@ use dsp_support::*;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use proptest::prelude::*;
-use radbench::dsp::metrics::{resolve_targets, Axis, Interpolation};
-use radbench::dsp::music::{
+use radbench::dsp::{resolve_targets, Axis, Interpolation};
+use radbench::dsp::{
     HermitianEigen, ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion,
 };
-use radbench::dsp::ofdm_radar::{IDiv, OfdmRadar, OfdmRadarConfig};
+use radbench::dsp::{IDiv, OfdmRadar, OfdmRadarConfig};
 use radbench::rng::SplitMix64;
 
 fn random_hermitian(rng: &mut SplitMix64, n: usize, rank: usize, noise: f64) -> DMatrix<Complex64> {

@@ -5,14 +5,12 @@ use crate::dsp_support;
 
 use dsp_support::*;
 use num_complex::Complex64;
-use radbench::dsp::metrics::{
-    interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
-};
-use radbench::dsp::ofdm_radar::{
+use radbench::dsp::Window;
+use radbench::dsp::{interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation};
+use radbench::dsp::{
     Averaging, FftPrecision, IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig,
     RangeDopplerMap, RangeProfile,
 };
-use radbench::dsp::window::Window;
 use radbench::rng::SplitMix64;
 
 fn argmax(v: &[f64]) -> usize {

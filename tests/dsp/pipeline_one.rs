@@ -1,11 +1,11 @@
 //! One pipeline: a simulation and a bench capture of the same samples with the same options give
 //! bit-identical range profiles and the same detections, for every algorithm.
 
-use radbench::measure::pipeline::{Pipeline, RecordGeometry};
 use radbench::measure::Algorithm;
-use radbench::simulate::run::{first_trial, process_options, simulate, transmission};
-use radbench::simulate::scene::Target;
-use radbench::simulate::spec::{RunSpec, WaveformSpec};
+use radbench::measure::{Pipeline, RecordGeometry};
+use radbench::simulate::Target;
+use radbench::simulate::{first_trial, process_options, simulate, transmission};
+use radbench::simulate::{RunSpec, WaveformSpec};
 
 fn spec(waveform: WaveformSpec, algorithm: Algorithm) -> RunSpec {
     let mut spec = RunSpec::new(
@@ -32,7 +32,7 @@ fn capture_path(spec: &RunSpec) -> radbench::measure::Processed {
     let tx = transmission(spec).unwrap();
     let raw = first_trial(spec).unwrap();
     let window = raw.samples.len() / spec.upsample();
-    let sim = radbench::simulate::run::pipeline(spec, tx.clone(), window).unwrap();
+    let sim = radbench::simulate::pipeline(spec, tx.clone(), window).unwrap();
     // The same options and geometry, built independently of the simulation.
     let mut pipeline = Pipeline::new(
         tx,

@@ -4,7 +4,7 @@
 //! test checks the other half: that something outside the crate needs it. It parses each crate
 //! from `lib.rs` along its `mod` declarations (test modules skipped) and lists its `pub` items:
 //! free items and the `pub` functions of inherent impls. An item counts as used when its name is
-//! written outside the crate (the binary, tests, benchmarks, examples, doc examples, the other
+//! written outside the crate (the binary with its `cli` and `live`, tests, benchmarks, examples, doc examples, the other
 //! crate of the workspace), or when it appears in the signature of an item that is used (a field
 //! type, an argument, a return type, a variant's payload, a trait's methods). The names are
 //! compared as words, so a method called `new` is always "used": the check is a floor, not proof.
@@ -226,9 +226,18 @@ fn assert_all_used(crate_name: &str, unused: &[String]) {
 #[test]
 fn every_public_item_of_radbench_is_used_outside_it() {
     let root = root();
-    // python/src: the Python package's extension module (its own workspace) calls radbench.
-    let outside =
-        ["src/main.rs", "tests", "benches", "examples", "python/src"].map(|p| root.join(p));
+    // python/src: the Python package's extension module (its own workspace) calls radbench;
+    // src/cli and src/live: the binary's modules.
+    let outside = [
+        "src/main.rs",
+        "src/cli",
+        "src/live",
+        "tests",
+        "benches",
+        "examples",
+        "python/src",
+    ]
+    .map(|p| root.join(p));
     let unused = unused_public_items(&root.join("src/lib.rs"), &outside);
     assert_all_used("radbench", &unused);
 }

@@ -1,10 +1,10 @@
 //! Must-hold figures of the simulation (issue 2), through the library API.
 
-use radbench::simulate::accuracy::{run_steps, AccuracySpec};
-use radbench::simulate::run::simulate;
-use radbench::simulate::scene::{CarrierPhase, Target};
-use radbench::simulate::spec::{Algorithm, RunSpec, WaveformSpec};
-use radbench::simulate::thesis::mean_psl_and_width;
+use radbench::simulate::mean_psl_and_width;
+use radbench::simulate::simulate;
+use radbench::simulate::{run_steps, AccuracySpec};
+use radbench::simulate::{Algorithm, RunSpec, WaveformSpec};
+use radbench::simulate::{CarrierPhase, Target};
 
 fn one_target(waveform: WaveformSpec) -> (f64, f64) {
     let spec = RunSpec::new("t", waveform, vec![Target::at(3.0)]);

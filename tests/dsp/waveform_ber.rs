@@ -4,11 +4,11 @@
 //! binomial standard deviations (the chance that a correct receiver fails one of the points is
 //! below 1e-4 in all), so a receiver 1 dB off theory fails clearly at every point.
 
-use radbench::waveform::ber::{
+use radbench::waveform::{
     ber_msk_lfm_theory, ber_ofdm_theory, measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint,
 };
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams, PulseLength};
-use radbench::waveform::ofdm::{Ofdm, OfdmParams};
+use radbench::waveform::{MskLfm, MskLfmParams, PulseLength};
+use radbench::waveform::{Ofdm, OfdmParams};
 
 const BUDGET: BerBudget = BerBudget {
     min_bits: 20_000,

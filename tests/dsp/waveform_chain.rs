@@ -2,11 +2,11 @@
 //! delay compensation, correlated against the 16 GSa/s transmit pulse: the echo's delay survives.
 
 use num_complex::Complex64;
-use radbench::dsp::correlate::CrossCorrelator;
-use radbench::dsp::decimate::{Alignment, Decimator, DecimatorConfig};
+use radbench::dsp::CrossCorrelator;
+use radbench::dsp::{Alignment, Decimator, DecimatorConfig};
 use radbench::rng::SplitMix64;
-use radbench::waveform::bits::BitSource;
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams};
+use radbench::waveform::BitSource;
+use radbench::waveform::{MskLfm, MskLfmParams};
 
 /// Peak lag with parabolic interpolation on the magnitude.
 fn peak(r: &[Complex64]) -> f64 {

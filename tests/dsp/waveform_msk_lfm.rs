@@ -2,8 +2,8 @@
 
 use num_complex::Complex64;
 use radbench::rng::SplitMix64;
-use radbench::waveform::bits::BitSource;
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams, PulseLength};
+use radbench::waveform::BitSource;
+use radbench::waveform::{MskLfm, MskLfmParams, PulseLength};
 
 /// Largest phase step between neighbouring samples that a continuous-phase MSK-LFM can take: the
 /// chirp's instantaneous frequency is within +-B/2 and MSK adds +-1/(4T).
@@ -84,7 +84,7 @@ fn payload_round_trip_at_high_snr() {
     SplitMix64::new(9).add_noise(&mut rx, 1250.0 / 10f64.powf(1.2));
     let bits = w.demodulate(&rx).unwrap();
     assert_eq!(bits, sig.bits);
-    let payload = radbench::waveform::bits::unframe_payload(&bits).unwrap();
+    let payload = radbench::waveform::unframe_payload(&bits).unwrap();
     assert_eq!(String::from_utf8(payload).unwrap(), text);
 }
 

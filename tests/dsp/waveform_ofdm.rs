@@ -2,8 +2,8 @@
 
 use num_complex::Complex64;
 use radbench::rng::SplitMix64;
-use radbench::waveform::bits::{unframe_payload, BitSource};
-use radbench::waveform::ofdm::{Equalisation, Ofdm, OfdmParams};
+use radbench::waveform::{unframe_payload, BitSource};
+use radbench::waveform::{Equalisation, Ofdm, OfdmParams};
 use rustfft::FftPlanner;
 
 #[test]

@@ -1,9 +1,9 @@
 //! Waveforms through the AWG's 8-bit DAC: clipping reported, data still decoded.
 
-use radbench::waveform::bits::{unframe_payload, BitSource};
-use radbench::waveform::msk_lfm::{MskLfm, MskLfmParams};
-use radbench::waveform::ofdm::{Equalisation, Ofdm, OfdmParams};
-use radbench::waveform::quantise::{quantise, BackoffReference};
+use radbench::waveform::{quantise, BackoffReference};
+use radbench::waveform::{unframe_payload, BitSource};
+use radbench::waveform::{Equalisation, Ofdm, OfdmParams};
+use radbench::waveform::{MskLfm, MskLfmParams};
 
 #[test]
 fn msk_lfm_uses_full_scale_without_clipping() {

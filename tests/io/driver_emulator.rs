@@ -15,7 +15,7 @@ use mock_lab::server::vxi11::Vxi11Addresses;
 use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
 use radbench::address::Resource;
 use radbench::catalog::InstrumentModel;
-use radbench::driver::io::open_session;
+use radbench::driver::open_session;
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
     M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings,
@@ -351,7 +351,7 @@ async fn gotmic_with_a_stale_reply(
     one_behind: Option<&'static [u8]>,
 ) -> Result<Gotmic, DriverError> {
     use mock_lab::server::Handler;
-    use radbench::transport::serial::{OnOpen, SerialLink};
+    use radbench::transport::{OnOpen, SerialLink};
     use serialport::SerialPort;
     use std::io::{Read, Write};
     let (mut peer, client) = serialport::TTYPort::pair().expect("pty pair");
@@ -395,7 +395,7 @@ async fn gotmic_with_a_stale_reply(
         Box::new(session),
         &model,
         "tx",
-        radbench::driver::gotmic::Framing::from_catalog(&model),
+        radbench::driver::Framing::from_catalog(&model),
     ))
     .await
 }
@@ -539,8 +539,8 @@ struct GuardedPair {
     awg_emu: Arc<AwgEmu>,
     tx_emu: Arc<GotmicEmu>,
     safe: radbench::driver::SafeState,
-    awg: radbench::driver::safe_state::Shared<dyn Awg>,
-    tx: radbench::driver::safe_state::Shared<dyn RfFrontEnd>,
+    awg: radbench::driver::Shared<dyn Awg>,
+    tx: radbench::driver::Shared<dyn RfFrontEnd>,
     _servers: (ServerHandle, server::serial::SerialHandle),
 }
 

@@ -13,15 +13,15 @@ use driver_support::{bounded, model};
 use mock_lab::lab::{self, Lab, LabOptions};
 use mock_lab::server::launch::Transport;
 use radbench::address::Resource;
-use radbench::driver::gotmic::Framing;
-use radbench::driver::io::{open_session, session_options};
-use radbench::driver::lecroy::commands::COMMAND_ERRORS;
-use radbench::driver::safe_state::{share, Bench as Drivers, Shared};
+use radbench::driver::Framing;
+use radbench::driver::COMMAND_ERRORS;
+use radbench::driver::{open_session, session_options};
 use radbench::driver::{
     run_guarded, Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, ErrorKind, FaultPlan,
     FaultSwitch, FaultyIo, Gotmic, IqCapture, IqWaveform, Lecroy, LoadedSegment, M8195a, Outcome,
     RfFrontEnd, RfPermit, RfSettings, SafeState,
 };
+use radbench::driver::{share, Bench as Drivers, Shared};
 use radbench::rng::SplitMix64;
 use radbench::session::{Session, SCPI_ERROR_QUERY};
 use radbench::transport::LinkError;

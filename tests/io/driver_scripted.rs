@@ -7,11 +7,11 @@ use crate::driver_support;
 use std::time::Duration;
 
 use driver_support::{bounded, guarded, model, AWG_SAFE_STATE};
-use radbench::driver::scripted::{Failure, ERROR_CHECK};
 use radbench::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, Gotmic, IqWaveform, Lecroy,
     M8195a, ReferenceClock, RfFrontEnd, RfPermit, RfSettings, ScriptLog, Scripted,
 };
+use radbench::driver::{Failure, ERROR_CHECK};
 use radbench::exit::{Classify, ExitClass};
 use radbench::trc::BlockBuilder;
 
@@ -873,7 +873,7 @@ async fn a_dropped_guard_runs_the_safe_state_synchronously() {
 
 #[tokio::test]
 async fn gotmic_crc_framing_frames_requests_and_rejects_corrupted_replies() {
-    use radbench::driver::gotmic::Framing;
+    use radbench::driver::Framing;
     use radbench::session::Crc8;
     let m = model("gotmic-eband-tx");
     let smbus = Crc8 {

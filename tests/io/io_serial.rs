@@ -165,12 +165,9 @@ async fn a_reply_left_unread_is_drained_not_taken_by_the_next_session() {
         Some((line, peer))
     });
     let device = client.name().unwrap_or_default();
-    let link = radbench::transport::serial::SerialLink::from_port(
-        Box::new(client),
-        device.clone(),
-        1 << 20,
-    )
-    .unwrap();
+    let link =
+        radbench::transport::SerialLink::from_port(Box::new(client), device.clone(), 1 << 20)
+            .unwrap();
     let resource: radbench::address::Resource = format!("ASRL{device}::INSTR").parse().unwrap();
     let link = radbench::transport::Link::from_serial(
         resource,

@@ -127,12 +127,9 @@ async fn setup(proto: Proto, fault: Fault) -> Setup {
             let _ = done.send(());
         });
         let name = serialport::SerialPort::name(&slave).unwrap_or_default();
-        let serial = radbench::transport::serial::SerialLink::from_port(
-            Box::new(slave),
-            name.clone(),
-            LIMIT,
-        )
-        .expect("serial link");
+        let serial =
+            radbench::transport::SerialLink::from_port(Box::new(slave), name.clone(), LIMIT)
+                .expect("serial link");
         let resource = format!("ASRL{name}::INSTR").parse().expect("resource");
         return Setup {
             link: Link::from_serial(resource, serial, options()),

@@ -2,9 +2,9 @@
 //! opening handshake properly, takes one request, and then commits one [`Fault`].
 
 use radbench::rng::SplitMix64;
-use radbench::transport::hislip::codec::{self as hislip, msg};
-use radbench::transport::vicp::codec as vicp;
-use radbench::transport::vxi11::rpc::{record_mark, XdrWriter};
+use radbench::transport::hislip::{self as hislip, msg};
+use radbench::transport::vicp;
+use radbench::transport::vxi11::{record_mark, XdrWriter};
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

@@ -9,7 +9,7 @@ use mock_lab::server::{self, Handler, ServerHandle, ServerOptions};
 use radbench::address::Resource;
 use radbench::rng::SplitMix64;
 use radbench::session::{BlockForm, Session, SessionError, SessionOptions};
-use radbench::transport::{journal, Direction, LinkError, Progress, Timeouts};
+use radbench::transport::{sha256_hex, Direction, LinkError, Progress, Timeouts};
 use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
@@ -147,7 +147,7 @@ pub async fn check_block_64mb(proto: Proto) {
     let mut s = open(&bench, Duration::from_secs(10)).await;
     let len = 64 << 20;
     let data = payload(len, 0x5EED);
-    let sent_hash = journal::sha256_hex(&data);
+    let sent_hash = sha256_hex(&data);
     bounded(s.write_block("DATA ", &data, BlockForm::Definite))
         .await
         .unwrap();
@@ -160,7 +160,7 @@ pub async fn check_block_64mb(proto: Proto) {
     }));
     let block = bounded(s.query_block("DATA?")).await.unwrap();
     assert_eq!(block.len(), len);
-    assert_eq!(journal::sha256_hex(block.payload()), sent_hash);
+    assert_eq!(sha256_hex(block.payload()), sent_hash);
     let reports = std::mem::take(&mut *reports.lock().unwrap());
     assert!(
         !reports.is_empty(),

@@ -15,10 +15,10 @@
 
 use super::plots::{Chart, HLine, Point, Series, Style};
 use crate::campaign::kind::{has_own_figures, kind_figures, SweepParameter};
-use crate::campaign::manifest::Manifest;
-use crate::campaign::results::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
+use crate::campaign::Manifest;
+use crate::campaign::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
 use crate::physics::C0;
-use crate::waveform::spec::{WaveformKind, WaveformSpec};
+use crate::waveform::{WaveformKind, WaveformSpec};
 
 /// One plot of the report.
 #[derive(Debug, Clone, PartialEq)]

@@ -4,8 +4,8 @@
 use super::figures::Figure;
 use super::markdown::{status_line, steps_table, summary_tables, Table, UNCERTAINTY_NOTE};
 use super::plots;
-use crate::campaign::manifest::Manifest;
-use crate::campaign::results::Results;
+use crate::campaign::Manifest;
+use crate::campaign::Results;
 use std::fmt::Write as _;
 
 const STYLE: &str = "body{font-family:sans-serif;margin:2em;max-width:1100px;color:#222}\

@@ -6,7 +6,7 @@
 //! the run folder, so `campaign report` draws it again byte for byte.
 
 use super::html::escape;
-use crate::campaign::results::{Results, StepResult};
+use crate::campaign::{Results, StepResult};
 use std::fmt::Write as _;
 use std::path::Path;
 

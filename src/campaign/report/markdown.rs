@@ -2,8 +2,8 @@
 
 use super::figures::{is_accuracy, is_single, thesis_widths, waveform_of, wilson95, Figure};
 use super::pm;
-use crate::campaign::manifest::Manifest;
-use crate::campaign::results::{AlgorithmResult, Results};
+use crate::campaign::Manifest;
+use crate::campaign::{AlgorithmResult, Results};
 use crate::physics::C0;
 use std::fmt::Write as _;
 
@@ -80,11 +80,7 @@ fn strongest_std(a: &AlgorithmResult) -> Option<f64> {
         .and_then(|t| t.range_std_m)
 }
 
-fn figure(
-    value: Option<f64>,
-    spread: Option<crate::campaign::results::MeanStd>,
-    digits: usize,
-) -> String {
+fn figure(value: Option<f64>, spread: Option<crate::campaign::MeanStd>, digits: usize) -> String {
     match (spread, value) {
         (Some(m), _) => format!("{} (n={})", pm(m.mean, Some(m.std), digits), m.n),
         (None, Some(v)) => pm(v, None, digits),

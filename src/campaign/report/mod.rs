@@ -13,31 +13,35 @@
 //! | `markdown` | `report.md` |
 //! | `html` | `report.html` |
 
-pub mod figures;
+pub(crate) mod figures;
 pub(crate) mod html;
 pub(crate) mod link;
 pub(crate) mod markdown;
-pub mod plots;
-pub mod profiles;
+pub(crate) mod plots;
+pub(crate) mod profiles;
+
+pub use figures::*;
+pub use plots::*;
+pub use profiles::*;
 
 use super::manifest::Manifest;
 use super::results::Results;
 use super::{io, CampaignError};
-use crate::storage::atomic::write_atomic;
+use crate::storage::write_atomic;
 use std::path::{Path, PathBuf};
 
 pub use figures::{figures, Figure};
 
 /// The Markdown report's file name in a run folder.
-pub(crate) const FILE: &str = "report.md";
+pub(crate) const REPORT_FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
-pub(crate) const HTML_FILE: &str = "report.html";
+pub const HTML_FILE: &str = "report.html";
 
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
     let mut figures = figures(manifest, results);
     figures.extend(profiles::step_profiles(dir, results));
-    let md = dir.join(FILE);
+    let md = dir.join(REPORT_FILE);
     write_atomic(
         &md,
         markdown::markdown(manifest, results, &figures).as_bytes(),
@@ -54,7 +58,7 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
 /// folder from before it) is recorded too.
 /// Without `force` such a `results.json` is refused: the report would not show what the run
 /// recorded, and the manifest's hashes would be false from then on.
-pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
+pub fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String>), CampaignError> {
     use super::manifest::FileRecord;
     use super::run::RESULTS_FILE;
     let mut manifest = Manifest::load(dir)?;
@@ -87,7 +91,7 @@ pub(crate) fn rewrite(dir: &Path, force: bool) -> Result<(PathBuf, Option<String
         }
         return Ok((md, None));
     };
-    for file in [RESULTS_FILE, csv, FILE, HTML_FILE] {
+    for file in [RESULTS_FILE, csv, REPORT_FILE, HTML_FILE] {
         manifest.set_file(FileRecord::of(dir, Path::new(file))?);
     }
     manifest.store(dir)?;

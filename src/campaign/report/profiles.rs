@@ -7,7 +7,7 @@
 
 use super::figures::Figure;
 use super::plots::{Chart, Point, Series, Style};
-use crate::campaign::results::Results;
+use crate::campaign::Results;
 use std::path::Path;
 
 /// Depth of each row, dB under the step's peak.

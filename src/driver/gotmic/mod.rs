@@ -229,7 +229,7 @@ impl Gotmic {
         // read as the identity, which it never is (the connect fails: no CRC, no identity).
         // Once `*IDN?` and the ID register have answered as they must, every reply the module
         // owed anyone before has been sent.
-        options.link.serial_on_open = crate::transport::serial::OnOpen::Flush;
+        options.link.serial_on_open = crate::transport::OnOpen::Flush;
         let session = Session::open(resource, options, journal, name)
             .await
             .map_err(session(name))?;

@@ -10,9 +10,11 @@
 //! error queue: its command and execution error registers (`CMR?`, `EXR?`) are read after each
 //! configuration batch instead.
 
-pub mod commands;
+pub(crate) mod commands;
+
 /// The LeCroy waveform format lives in [`crate::trc`] (a pure codec shared with file readers).
 pub use crate::trc as wavedesc;
+pub use commands::*;
 
 use std::time::Duration;
 

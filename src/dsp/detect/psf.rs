@@ -363,7 +363,7 @@ impl TabulatedPsf {
         })
     }
 
-    /// The spread of a correlation profile (`crate::dsp::range_profile::CorrelationProfiler`) taken
+    /// The spread of a correlation profile (`crate::dsp::CorrelationProfiler`) taken
     /// circularly over one repetition: lines `|REF_k|^2 H(nu_k)`, with `reference` the P samples
     /// correlated against and `response(nu)` any extra complex response of the capture at `nu`
     /// cycles per sample in [-0.5, 0.5) (the decimator's pass band on the bench; `None`: flat).

@@ -103,8 +103,7 @@ impl Detector {
                 None => break,
             }
         }
-        let (_, height) =
-            crate::dsp::metrics::interpolate_peak(&self.own, peak, Interpolation::ParabolicDb);
+        let (_, height) = crate::dsp::interpolate_peak(&self.own, peak, Interpolation::ParabolicDb);
         let width = width_3db(&self.own, peak, height).map(|w| w * axis.step);
         let p = c.a.norm_sqr();
         let psl_lin = 10f64.powf(self.shape.psl_db / 10.0);

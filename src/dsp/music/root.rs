@@ -86,7 +86,7 @@ pub(super) fn ranges(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dsp::music::{ModelOrder, Music, MusicConfig, MusicSpectrum};
+    use crate::dsp::{ModelOrder, Music, MusicConfig, MusicSpectrum};
 
     /// I_div of point targets, one symbol: x[k] = sum exp(-j 2 pi (k - N/2) df tau).
     fn synthetic_idiv(n: usize, df: f64, ranges: &[f64]) -> Vec<Complex64> {

@@ -2,7 +2,7 @@
 //! shares with the waveform's generator in `numerology.rs`).
 
 use super::numerology::{Fault, Numerology};
-use crate::dsp::window::Window;
+use crate::dsp::Window;
 use crate::dsp::{DspError, C0};
 
 /// How the per-symbol profiles are combined.

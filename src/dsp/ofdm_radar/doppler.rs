@@ -13,7 +13,7 @@
 
 use super::config::OfdmRadarConfig;
 use super::idiv::IDiv;
-use crate::dsp::window::Window;
+use crate::dsp::Window;
 use crate::dsp::{DspError, C0};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};

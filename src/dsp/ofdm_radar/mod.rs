@@ -249,7 +249,7 @@ impl OfdmRadar {
 
     /// The coherent (complex) range profile of `idiv` into `out` (resized to K values): the same
     /// windowed, zero-padded IFFT of the symbol-averaged `I_div` as [`OfdmRadar::profile`] with
-    /// [`Averaging::Coherent`], before taking the magnitude. The input of [`crate::dsp::detect`],
+    /// [`Averaging::Coherent`], before taking the magnitude. The input of `crate::dsp::detect`,
     /// whatever the configured averaging.
     ///
     /// # Errors
@@ -285,7 +285,7 @@ impl OfdmRadar {
     }
 
     /// The window coefficients across subcarriers divided by their sum (ascending frequency): the
-    /// spectral lines of this receiver's point spread (`crate::dsp::detect::SpectralLines::ofdm`).
+    /// spectral lines of this receiver's point spread (`crate::dsp::SpectralLines::ofdm`).
     pub fn normalised_window(&self) -> &[f64] {
         &self.weights
     }

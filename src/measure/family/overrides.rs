@@ -4,7 +4,7 @@
 //! the field in its own spelling ([`OverrideError::field`]). What each family takes and how it
 //! applies them is its room's ([`Family::apply`](super::Family::apply)).
 
-use crate::waveform::spec::{SweepBand, WaveformKind, WaveformSpec};
+use crate::waveform::{SweepBand, WaveformKind, WaveformSpec};
 
 /// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
 /// but beyond this it fits neither the scope's record nor the host usefully.

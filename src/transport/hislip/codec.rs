@@ -2,7 +2,7 @@
 //! parameter u32, payload length u64`, then the payload.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
+use crate::transport::{FrameHeader, Framed, FramedDecoder};
 
 pub const HEADER_LEN: usize = 16;
 const FORMAT: &str = "HiSLIP";
@@ -141,7 +141,7 @@ pub(crate) const FIRST_MESSAGE_ID: u32 = 0xFFFF_FF00;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transport::io::Decode;
+    use crate::transport::Decode;
     use bytes::BytesMut;
 
     fn frames(chunks: &[&[u8]], limit: u64) -> Result<Vec<Frame>, CodecError> {

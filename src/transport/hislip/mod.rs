@@ -4,9 +4,10 @@
 //! Replies are matched by MessageID: a Data/DataEnd frame carrying an older ID (a reply to a
 //! message abandoned after a timeout) is discarded, so a stale reply is never taken as the answer.
 
-pub mod codec;
+pub(crate) mod codec;
 
-use self::codec::{msg, Frame, FrameDecoder, Header, FIRST_MESSAGE_ID, HEADER_LEN};
+pub use codec::*;
+
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};

@@ -75,9 +75,9 @@ pub struct LinkOptions {
     pub progress: Option<ProgressFn>,
     pub progress_step_bytes: u64,
     /// Serial settings for `ASRL` resources (from the bench file).
-    pub serial: crate::transport::serial::SerialSettings,
+    pub serial: crate::transport::SerialSettings,
     /// What a serial link does with the line before its first request (drains it by default).
-    pub serial_on_open: crate::transport::serial::OnOpen,
+    pub serial_on_open: crate::transport::OnOpen,
     /// Where the ONC-RPC portmapper listens (VXI-11 without an explicit port); 111 on instruments.
     pub portmapper_port: u16,
 }

@@ -285,7 +285,7 @@ mod tests {
     /// CPU time by 15 %).
     #[tokio::test(flavor = "current_thread")]
     async fn a_dropped_large_frame_buffer_is_reused_for_the_next() {
-        use crate::transport::hislip::codec::{encode_frame, FrameDecoder};
+        use crate::transport::hislip::{encode_frame, FrameDecoder};
         // Not a multiple of the 64 KiB reads: a frame ends a few bytes into its last read.
         const LEN: usize = (4 << 20) + 100;
         let payload = vec![0x5a_u8; LEN];

@@ -2,7 +2,7 @@
 //! reserved u8, length u32 BE`, then the block.
 
 use crate::transport::error::CodecError;
-use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
+use crate::transport::{FrameHeader, Framed, FramedDecoder};
 
 pub const HEADER_LEN: usize = 8;
 pub const VERSION: u8 = 1;

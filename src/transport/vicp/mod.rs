@@ -5,9 +5,10 @@
 //! reply to a command abandoned after a timeout) is discarded. Device clear is a header with the
 //! CLEAR flag.
 
-pub mod codec;
+pub(crate) mod codec;
 
-use self::codec::{next_seq, op, BlockDecoder, Header, HEADER_LEN};
+pub use codec::*;
+
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};

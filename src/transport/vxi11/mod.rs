@@ -6,11 +6,12 @@
 //! call is still outstanding at the next device clear, the client first sends device_abort on the
 //! abort channel so the server gives up the blocked read.
 
-pub mod messages;
-pub mod rpc;
+pub(crate) mod messages;
+pub(crate) mod rpc;
 
-use self::messages::{flags, proc_, reason, CreateLinkResp};
-use self::rpc::{encode_call_header, pad, record_mark, RecordDecoder, XdrReader, XdrWriter};
+pub use messages::*;
+pub use rpc::*;
+
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
 use bytes::{Bytes, BytesMut};

@@ -8,16 +8,25 @@
 //! - [`read_capture`]: a capture's repetitions in volts, decimated and aligned, its metadata;
 //! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes.
 //!
-//! Errors are the command line's (`crate::exit::render` gives its text, `super::classify` its
-//! exit class).
+//! The options are parsed by the same clap definitions the command line flattens into its
+//! commands ([`ProcessArgs`], [`WaveformArgs`], [`PayloadArgs`]); `radbench process` also
+//! shares the per-capture work (`compute`, `folder_names`, the hashes a run recorded).
+//!
+//! Errors are the command line's ([`crate::exit::render`] gives its text, [`crate::classify`]
+//! its exit class).
 
-use super::process::{self, Args};
-use super::{Cli, Command};
+mod batch;
+mod options;
+
+use batch::on_cached_pipeline;
+pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
+pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
+
 use crate::exit::bad_input;
-use crate::measure::options::ProcessOverrides;
 use crate::measure::reprocess::{self, Loaded, Source, WaveformChoice};
+use crate::measure::ProcessOverrides;
 use crate::measure::{Aligned, Dac, MeasureError, ProcessOptions, Processed, RawIq, Transmission};
-use crate::waveform::spec::WaveformKind;
+use crate::waveform::WaveformKind;
 use clap::Parser;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -38,6 +47,33 @@ fn parse_error(e: &clap::Error) -> anyhow::Error {
     bad_input(parts.join("; "))
 }
 
+/// `radbench process`'s processing options alone.
+#[derive(clap::Parser)]
+#[command(disable_help_flag = true, disable_version_flag = true)]
+struct ProcessParser {
+    #[command(flatten)]
+    options: ProcessArgs,
+}
+
+/// The waveform options of `radbench capture` alone.
+#[derive(clap::Parser)]
+#[command(disable_help_flag = true, disable_version_flag = true)]
+struct TransmissionParser {
+    #[command(flatten)]
+    waveform_args: WaveformArgs,
+    #[command(flatten)]
+    bits: PayloadArgs,
+}
+
+/// An option of `radbench process` that processing in memory has not.
+fn not_in_memory(name: &str) -> anyhow::Error {
+    bad_input(format!(
+        "{name}: not an option of processing in memory (nothing is written; a response is \
+         measured with `radbench process --calibration CAPTURE --reference-range M`, whose file \
+         is then given as --calibration)"
+    ))
+}
+
 /// One capture of the inputs: what names it (its `.sigmf-meta`, or its I and Q `.trc`) and the
 /// folder name `radbench process` gives its results.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,7 +90,7 @@ pub fn captures(inputs: &[PathBuf]) -> anyhow::Result<Vec<CaptureInput>> {
         sources.push(found.map_err(|e| bad_input(e.to_string()))?);
     }
     let refs: Vec<&Source> = sources.iter().collect();
-    let names = process::folder_names(&refs);
+    let names = folder_names(&refs);
     Ok(sources
         .iter()
         .zip(names)
@@ -89,7 +125,7 @@ fn one_capture(files: &[PathBuf]) -> anyhow::Result<Source> {
 /// `radbench process`'s options, parsed and checked as its command line does.
 #[derive(Debug)]
 pub struct ProcessRequest {
-    args: Box<Args>,
+    args: Box<ProcessArgs>,
     waveform: WaveformChoice,
     overrides: ProcessOverrides,
 }
@@ -108,26 +144,25 @@ impl ProcessRequest {
     /// "--m", "32"]`). What writes files or steers the command (`--out`, `--jobs`, `--json`,
     /// `--reference-range`) is refused.
     pub fn parse(options: &[String]) -> anyhow::Result<ProcessRequest> {
-        let argv = ["radbench", "process", "-"]
+        // What the command has but processing in memory has not: refused by name (the command's
+        // parser would take them; this one would only call them unknown).
+        for o in options.iter().filter(|o| o.starts_with("--")) {
+            let name = o.split('=').next().unwrap_or(o);
+            if ["--out", "--jobs", "--json"].contains(&name) {
+                return Err(not_in_memory(name));
+            }
+        }
+        let argv = ["radbench process"]
             .into_iter()
             .map(String::from)
             .chain(options.iter().cloned());
-        let cli = Cli::try_parse_from(argv).map_err(|e| parse_error(&e))?;
-        let Command::Process(args) = cli.command else {
-            return Err(bad_input("options: not options of `radbench process`"));
-        };
-        let refused = [
-            ("--out", args.out.is_some()),
-            ("--jobs", args.jobs.is_some()),
-            ("--json", args.json),
-            ("--reference-range", args.reference_range.is_some()),
-        ];
-        if let Some((name, _)) = refused.iter().find(|(_, given)| *given) {
-            return Err(bad_input(format!(
-                "{name}: not an option of processing in memory (nothing is written; a response \
-                 is measured with `radbench process --calibration CAPTURE --reference-range M`, \
-                 whose file is then given as --calibration)"
-            )));
+        let args = Box::new(
+            ProcessParser::try_parse_from(argv)
+                .map_err(|e| parse_error(&e))?
+                .options,
+        );
+        if args.reference_range.is_some() {
+            return Err(not_in_memory("--reference-range"));
         }
         // Nothing is written: --reference-range, the one option that writes, is refused above.
         let (waveform, overrides) = args.settings(Path::new("."))?;
@@ -143,10 +178,10 @@ impl ProcessRequest {
         let source = one_capture(files)?;
         // A capture of a run folder is checked against the hash its run recorded, as
         // `radbench process` checks it.
-        let recorded = process::recorded_data_hashes(&[&source]);
-        let (loaded, r, sources) = process::compute(
+        let recorded = recorded_data_hashes(&[&source]);
+        let (loaded, r, sources) = compute(
             &source,
-            process::recorded_for(&source, &recorded),
+            recorded_for(&source, &recorded),
             &self.waveform,
             &self.overrides,
             self.args.background.as_deref(),
@@ -189,7 +224,7 @@ impl ProcessRequest {
             &self.overrides,
             self.args.background.as_deref(),
         )?;
-        let r = process::on_cached_pipeline(&loaded, resolved)?;
+        let r = on_cached_pipeline(&loaded, resolved)?;
         let summary = crate::measure::record::reprocessed_summary(&[], &loaded, &r);
         Ok(InMemory {
             summary,
@@ -284,21 +319,17 @@ pub fn transmission(kind: WaveformKind, options: &[String]) -> anyhow::Result<Tr
             )));
         }
     }
-    let name = kind.name();
-    let argv = ["radbench", "capture", "--waveform", name]
+    let argv = ["radbench capture"]
         .into_iter()
         .map(String::from)
         .chain(options.iter().cloned());
-    let cli = Cli::try_parse_from(argv).map_err(|e| parse_error(&e))?;
-    let Command::Capture(args) = cli.command else {
-        return Err(bad_input("options: not options of `radbench capture`"));
-    };
+    let args = TransmissionParser::try_parse_from(argv).map_err(|e| parse_error(&e))?;
     let spec = args.waveform_args.spec(kind)?;
-    let payload = args.payload.as_ref().map(|p| p.as_bytes().to_vec());
+    let payload = args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec());
     Ok(Transmission::new(
         &spec,
         payload.as_deref(),
-        args.seed,
+        args.bits.seed,
         Dac::default(),
     )?)
 }

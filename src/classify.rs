@@ -1,5 +1,6 @@
 //! From an error chain to the process exit code: each layer's error type knows its
-//! [`ExitClass`]; this walks the chain and asks the first one that does.
+//! [`ExitClass`]; this walks the chain and asks the first one that does. Above every layer (it
+//! names each layer's error type); the binary and the Python package call it.
 
 use crate::exit::{Classified, Classify, ExitClass};
 
@@ -32,16 +33,16 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::dsp::DspError,
         crate::address::AddressError,
         crate::transport::LinkError,
-        crate::transport::journal::JournalError,
+        crate::transport::JournalError,
         crate::session::SessionError,
         crate::catalog::CatalogError,
         crate::driver::DriverError,
         crate::driver::TrcError,
         crate::storage::StorageError,
-        crate::storage::recording::RecordingError,
+        crate::storage::RecordingError,
         crate::simulate::SimError,
         crate::measure::MeasureError,
-        crate::measure::bench_file::BenchFileError,
+        crate::measure::BenchFileError,
         crate::campaign::CampaignError,
         crate::campaign::SpecError,
     );
