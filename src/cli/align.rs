@@ -10,7 +10,7 @@ use crate::driver::RfPermit;
 use crate::exit::bad_input;
 use crate::live::{Event, Live};
 use crate::measure::bench::Bench;
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::capture::{self, CaptureRequest, Rig};
 use crate::measure::interrupt::Interrupt;
 use crate::measure::MeasureError;
@@ -62,9 +62,8 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
     pub scope_transport: ScopeLink,
-    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
-    pub scope_model: Option<ScopeModel>,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
     #[command(flatten)]
     pub live: LiveArgs,
 }
@@ -89,15 +88,12 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
     }
-    let source = super::capture::with_scope_model(
-        bench_source(
-            args.bench.as_deref(),
-            args.scene.as_deref(),
-            args.awg_transport,
-            args.scope_transport,
-        )?,
-        args.scope_model,
-    )?;
+    let source = args.scope_model.apply(bench_source(
+        args.bench.as_deref(),
+        args.scene.as_deref(),
+        args.awg_transport,
+        args.scope_transport,
+    )?)?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);

@@ -3,7 +3,7 @@
 
 use super::capture::{bench_source, journal, open_bench};
 use crate::exit::{Classified, ExitClass};
-use crate::measure::bench::{AwgLink, ScopeLink, ScopeModel};
+use crate::measure::bench::{AwgLink, ScopeLink};
 use crate::measure::doctor::{self, Status};
 use crate::measure::interrupt::Interrupt;
 use std::path::PathBuf;
@@ -16,24 +16,20 @@ pub struct Args {
     /// Print one JSON object: {"bench", "ok", "checks": [{"id", "status", "detail", "fix"}]}.
     #[arg(long)]
     pub json: bool,
-    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
-    pub scope_model: Option<ScopeModel>,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;
-        let source = super::capture::with_scope_model(
-            bench_source(
-                args.bench.as_deref(),
-                None,
-                AwgLink::Hislip,
-                ScopeLink::Vicp,
-            )?,
-            args.scope_model,
-        )?;
+        let source = args.scope_model.apply(bench_source(
+            args.bench.as_deref(),
+            None,
+            AwgLink::Hislip,
+            ScopeLink::Vicp,
+        )?)?;
         let bench = open_bench(source, args.json).await?;
         let report = doctor::run(&bench, journal(global)?, &interrupt).await?;
         // A stop signal during a check that does not switch anything on: that check finished
