@@ -4,7 +4,7 @@
 //! trigger with RF on.
 
 use crate::support::{radbench_in, signal, until};
-use mock_lab::lab::{Lab, LabOptions, ScopeModel};
+use mock_lab::lab::{Lab, LabOptions};
 use mock_lab::server::launch::Transport;
 use serde_json::Value;
 use std::path::Path;
@@ -29,7 +29,7 @@ async fn uxr_lab() -> Lab {
     tokio::time::timeout(
         Duration::from_secs(10),
         mock_lab::lab::start(LabOptions {
-            scope_model: ScopeModel::KeysightUxr,
+            scope_model: "keysight-uxr".parse().unwrap(),
             ..LabOptions::default()
         }),
     )
@@ -263,7 +263,6 @@ async fn a_signal_while_rf_is_on_leaves_the_bench_safe_with_the_uxr() {
     assert_eq!(out.status.code(), Some(143), "{err}");
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
     assert!(!lab.bench.rx.front_end().rf_enabled, "Rx off");
-    assert!(!lab.bench.uxr.state().armed || out.status.code() == Some(143));
 }
 
 /// `radbench calibrate` (the system delay) and `calibrate response` on the built-in lab serving
