@@ -3,8 +3,6 @@
 //! Catalog files written before the `[vendor]` table give both fields under `[digitizer]` (their
 //! old place); the catalog loader moves them here, so this reads one place.
 
-use serde::Deserialize;
-
 use crate::catalog::InstrumentModel;
 use crate::driver::DriverError;
 
@@ -13,8 +11,7 @@ const TEMPLATE: &str = "LECROY_2_3";
 const TEMPLATE_BYTES: u32 = 346;
 
 /// The `[vendor]` table of a LeCroy catalog file; both fields optional.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, Default, PartialEq)]
 struct Vendor {
     /// The WAVEDESC template name the firmware writes (`LECROY_2_3`).
     wavedesc_template: Option<String>,
@@ -29,16 +26,49 @@ fn bad(model: &InstrumentModel, reason: String) -> DriverError {
     }
 }
 
+/// Reads the table, naming the `vendor.` field of any problem and what is allowed.
 fn vendor(model: &InstrumentModel) -> Result<Vendor, DriverError> {
-    Vendor::deserialize(toml::Value::Table(model.vendor.clone())).map_err(|e| {
-        bad(
+    const FIELDS: &str = "wavedesc_template, wavedesc_bytes";
+    if let Some(key) = model
+        .vendor
+        .keys()
+        .find(|k| !FIELDS.split(", ").any(|f| f == k.as_str()))
+    {
+        return Err(bad(
             model,
-            format!(
-                "[vendor] of a lecroy-maui model: {} (fields: wavedesc_template = \"{TEMPLATE}\", \
-                 wavedesc_bytes = {TEMPLATE_BYTES}; both optional)",
-                e.to_string().trim()
-            ),
-        )
+            format!("vendor.{key}: the lecroy-maui driver reads no such field; allowed: {FIELDS}"),
+        ));
+    }
+    let wavedesc_template = match model.vendor.get("wavedesc_template") {
+        None => None,
+        Some(toml::Value::String(s)) => Some(s.clone()),
+        Some(other) => {
+            return Err(bad(
+                model,
+                format!(
+                    "vendor.wavedesc_template: must be a template name such as \"{TEMPLATE}\" \
+                     (got {other})"
+                ),
+            ))
+        }
+    };
+    let wavedesc_bytes = match model.vendor.get("wavedesc_bytes") {
+        None => None,
+        Some(toml::Value::Integer(n)) if u32::try_from(*n).is_ok() => u32::try_from(*n).ok(),
+        Some(other) => {
+            return Err(bad(
+                model,
+                format!(
+                    "vendor.wavedesc_bytes: must be a size in bytes, 0 ..= {} (such as \
+                     {TEMPLATE_BYTES}) (got {other})",
+                    u32::MAX
+                ),
+            ))
+        }
+    };
+    Ok(Vendor {
+        wavedesc_template,
+        wavedesc_bytes,
     })
 }
 
@@ -130,6 +160,17 @@ mod tests {
         let e = check_vendor(&parse_model("x.toml", &stray).unwrap())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("[vendor]") && e.contains("`x`"), "{e}");
+        assert!(
+            e.contains("vendor.x") && e.contains("wavedesc_bytes"),
+            "{e}"
+        );
+        let typed = lecroy().replace("wavedesc_bytes = 346", "wavedesc_bytes = \"346\"");
+        let e = check_vendor(&parse_model("x.toml", &typed).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("vendor.wavedesc_bytes") && e.contains("\"346\""),
+            "{e}"
+        );
     }
 }
