@@ -2,7 +2,7 @@
 //! capture, with 1 and 4 pillars plus the bench's leakage, and the one-off cost of building the
 //! point spread. Run: `cargo bench --bench detect`.
 
-#[path = "../tests/detect_support/mod.rs"]
+#[path = "../tests/support/detect/mod.rs"]
 mod detect_support;
 
 use detect_support::*;

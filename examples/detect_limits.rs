@@ -5,13 +5,13 @@
 //! 2. one pillar: detection probability against its SNR in the profile;
 //! 3. noise only: false targets per profile against the false-alarm probability.
 //!
-//! Every profile goes through the real kernels (tests/detect_support): the thesis MSK-LFM through
+//! Every profile goes through the real kernels (tests/support/detect): the thesis MSK-LFM through
 //! the correlation profiler, the thesis OFDM frame through the Fourier receiver, 37 dB per sample at
 //! 16 GSa/s for a unit echo, the bench's leakage (0.01 at 3 cm) present.
 //!
 //! Run: `cargo run --release --example detect_limits` (about a minute; `--quick` for fewer trials).
 
-#[path = "../tests/detect_support/mod.rs"]
+#[path = "../tests/support/detect/mod.rs"]
 mod detect_support;
 
 use detect_support::*;

@@ -2,7 +2,7 @@
 //!
 //! # Layer map
 //!
-//! Imports only point down (`tests/dsp/layers.rs` checks it). Pure layers (`waveform`, `dsp`) do no
+//! Imports only point down (`tests/house/layers.rs` checks it). Pure layers (`waveform`, `dsp`) do no
 //! I/O and never touch tokio or the file system; everything that talks to an instrument goes
 //! through `driver -> session -> transport`; `measure` talks to instruments only through `driver`.
 //!
@@ -35,7 +35,7 @@
 //! `pub(crate) mod x;`, with `pub use x::*;` beside it when it holds public items.
 //!
 //! `#![warn(unreachable_pub)]` keeps every `pub` item reachable, so a `pub` that is not part of
-//! the API shows as a warning (an error in CI); `tests/dsp/public_api.rs` fails on a `pub` item
+//! the API shows as a warning (an error in CI); `tests/house/public_api.rs` fails on a `pub` item
 //! that nothing outside the crate names (the binary with its `cli` and `live`, tests,
 //! benchmarks, examples, the Python package, doc examples) or reaches through a used signature.
 //!

@@ -1,5 +1,6 @@
 //! A panic runs the safe state from the panic hook (its own test binary: the hook is global).
 
+#[path = "support/driver/mod.rs"]
 mod driver_support;
 
 use std::time::Duration;

@@ -4,7 +4,9 @@
 //! 50 ms, replies to older requests forever, data that never ends the message. Each gives its
 //! documented error (docs/io-timeouts.md) within its bound, with bounded memory, and no panic.
 
+#[path = "support/alloc_count/mod.rs"]
 mod io_alloc_count;
+#[path = "support/io_faults/mod.rs"]
 mod io_faults_support;
 
 use io_faults_support::{run, Fault, Proto};

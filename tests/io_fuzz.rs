@@ -6,6 +6,7 @@
 //! CI runs proptest's default number of cases; run them long with, e.g.,
 //! `PROPTEST_CASES=200000 cargo test --release -p radbench --test io_fuzz` (docs/fuzzing.md).
 
+#[path = "support/alloc_count/mod.rs"]
 mod io_alloc_count;
 
 use bytes::{Bytes, BytesMut};

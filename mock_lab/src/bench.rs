@@ -8,7 +8,6 @@
 use crate::catalog::CatalogError;
 use crate::control::SharedScene;
 use crate::emulator::gotmic::Gotmic;
-use crate::emulator::keysight_uxr::KeysightUxr;
 use crate::emulator::lecroy::trigger::{AcquisitionRequest, Capture, TriggerSource};
 use crate::emulator::lecroy::wavedesc::TriggerTimestamp;
 use crate::emulator::lecroy::Lecroy;
@@ -23,9 +22,9 @@ use std::time::{Duration, Instant};
 pub struct Bench {
     pub awg: Arc<M8195a>,
     pub scope: Arc<Lecroy>,
-    /// The Infiniium UXR on the same inputs (served instead of the LeCroy when the lab's scope
-    /// model says so).
-    pub uxr: Arc<KeysightUxr>,
+    /// The scope inputs (the marker, channels 1 and 2), for the scope the lab serves when it is
+    /// not the LeCroy (`crate::emulator::SCOPES`).
+    inputs: Arc<BenchSource>,
     pub tx: Arc<Gotmic>,
     pub rx: Arc<Gotmic>,
     pub scene: Arc<SharedScene>,
@@ -51,16 +50,20 @@ impl Bench {
             synth: Mutex::new(Synthesizer::new(seed)),
         });
         let scope = Arc::new(Lecroy::embedded_with(source.clone())?);
-        let uxr = Arc::new(KeysightUxr::embedded_with(source)?);
         Ok(Bench {
             awg,
             scope,
-            uxr,
+            inputs: source,
             tx,
             rx,
             scene,
             marker_cable,
         })
+    }
+
+    /// The scope inputs, for another scope emulator on the same bench.
+    pub(crate) fn inputs(&self) -> Arc<dyn TriggerSource> {
+        self.inputs.clone()
     }
 
     /// Whether anything could radiate or drive an output now: Tx RF on, or an AWG output on, or the

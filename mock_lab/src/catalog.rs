@@ -135,8 +135,6 @@ pub struct DigitizerLimits {
     pub trigger_sources: Vec<String>,
     pub ext_trigger_level_v_min: f64,
     pub ext_trigger_level_v_max: f64,
-    pub wavedesc_template: String,
-    pub wavedesc_bytes: u32,
     /// Most segments of one sequence-mode acquisition (0: no sequence mode).
     #[serde(default)]
     pub max_sequence_segments: u32,

@@ -5,13 +5,15 @@
 //! | instrument | transports |
 //! |---|---|
 //! | `awg` (M8195A) | raw socket, HiSLIP, VXI-11 |
-//! | `scope` (LabMaster) | VICP, VXI-11 (only the one selected as its remote interface listens; the other refuses connections and is listed with `"active": false` and the reason) |
+//! | `scope` (LabMaster, the default) | VICP, VXI-11 (only the one selected as its remote interface listens; the other refuses connections and is listed with `"active": false` and the reason) |
+//! | `scope` (another of [`ScopeModel::ALL`], `scope_model`) | the transports of its row |
 //! | `tx`, `rx` (Gotmic) | serial, on pseudo-terminals |
 //! | `loopback` (test instrument, optional) | raw socket, VXI-11, HiSLIP, VICP, serial |
 
 use crate::bench::Bench;
 use crate::catalog::CatalogError;
 use crate::control;
+use crate::emulator::lecroy::trigger::TriggerSource;
 use crate::emulator::lecroy::{Lecroy, RemoteInterface};
 use crate::emulator::loopback::Loopback;
 use crate::faults::Faults;
@@ -56,52 +58,85 @@ impl Default for LabOptions {
             scope_remote: RemoteInterface::Vicp,
             with_loopback: false,
             loopback_vicp_port: None,
-            scope_model: ScopeModel::Lecroy,
+            scope_model: ScopeModel::default(),
         }
     }
 }
 
-/// The scope the lab serves: both see the same bench (AWG marker on their external trigger,
-/// the scene on channels 1 and 2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ScopeModel {
-    /// Teledyne LeCroy LabMaster 10 Zi-A over VICP or VXI-11 (its remote interface).
-    #[default]
-    Lecroy,
-    /// Keysight Infiniium UXR0334A over HiSLIP and VXI-11.
-    KeysightUxr,
+/// A scope the lab can serve as `scope` (a row of `emulator::SCOPES`, listed in [`ScopeModel::ALL`]): every one sees
+/// the same bench (AWG marker on its external trigger, the scene on channels 1 and 2).
+#[derive(Clone, Copy)]
+pub struct ScopeModel {
+    /// The name the command line and spec files use.
+    pub(crate) name: &'static str,
+    /// The catalog key radbench's bench file names.
+    pub(crate) catalog_key: &'static str,
+    /// One line of help.
+    pub(crate) about: &'static str,
+    /// The transports it is served on; the first is the default.
+    pub(crate) transports: &'static [Transport],
+    pub(crate) emulator: ScopeEmulator,
+}
+
+/// Builds a scope's emulator on the bench's inputs.
+pub(crate) type BuildScope = fn(Arc<dyn TriggerSource>) -> Result<Arc<dyn Handler>, CatalogError>;
+
+/// How the lab gets a scope's emulator.
+#[derive(Clone, Copy)]
+pub(crate) enum ScopeEmulator {
+    /// The bench's own LeCroy ([`Bench::scope`]), served on VICP and VXI-11, only the one its
+    /// remote interface selects answering.
+    BenchLecroy,
+    /// Built for the lab on the bench's inputs, served on all its transports.
+    Build(BuildScope),
 }
 
 impl ScopeModel {
+    /// Every scope the lab can serve, the default first.
+    pub const ALL: [ScopeModel; crate::emulator::SCOPES.len()] = crate::emulator::SCOPES;
+
     /// The catalog key radbench's bench file names.
     pub fn catalog_key(self) -> &'static str {
-        match self {
-            ScopeModel::Lecroy => "lecroy-labmaster10zi-a",
-            ScopeModel::KeysightUxr => "keysight-uxr0334a",
-        }
+        self.catalog_key
     }
-
-    pub const ALL: [ScopeModel; 2] = [ScopeModel::Lecroy, ScopeModel::KeysightUxr];
 
     /// The name the command line and spec files use.
     pub fn name(self) -> &'static str {
-        match self {
-            ScopeModel::Lecroy => "lecroy",
-            ScopeModel::KeysightUxr => "keysight-uxr",
-        }
+        self.name
     }
 
     pub fn about(self) -> &'static str {
-        match self {
-            ScopeModel::Lecroy => {
-                "Teledyne LeCroy LabMaster 10 Zi-A (VICP or VXI-11), saves `.trc` files beside the SigMF"
-            }
-            ScopeModel::KeysightUxr => {
-                "Keysight Infiniium UXR0334A (HiSLIP, or VXI-11 with --scope-transport vxi11), saves \
-                 the SigMF recording only"
-            }
+        self.about
+    }
+
+    /// The transport to reach it on when `asked` for one: `asked` when it is served on it,
+    /// otherwise its default (the first it is served on).
+    pub fn transport(self, asked: Transport) -> Transport {
+        if self.transports.contains(&asked) {
+            asked
+        } else {
+            self.transports[0]
         }
+    }
+}
+
+impl Default for ScopeModel {
+    fn default() -> Self {
+        ScopeModel::ALL[0]
+    }
+}
+
+impl PartialEq for ScopeModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for ScopeModel {}
+
+impl std::fmt::Debug for ScopeModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ScopeModel({})", self.name)
     }
 }
 
@@ -123,6 +158,19 @@ impl std::str::FromStr for ScopeModel {
 impl std::fmt::Display for ScopeModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+impl serde::Serialize for ScopeModel {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ScopeModel {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        name.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -332,27 +380,41 @@ impl Drop for AbortOnDrop {
 }
 
 /// What the lab serves: each instrument's handler and the transports it speaks.
-fn served(bench: &Arc<Bench>, with_loopback: bool, scope: ScopeModel) -> Vec<Served> {
+fn served(
+    bench: &Arc<Bench>,
+    with_loopback: bool,
+    scope: ScopeModel,
+) -> Result<Vec<Served>, LabError> {
     let awg = Served {
         name: "awg",
         handler: bench.awg.clone(),
         transports: &[Transport::Raw, Transport::Hislip, Transport::Vxi11],
         remote: None,
     };
-    let mut served = vec![
-        awg,
-        Served {
+    let mut served = vec![awg];
+    match scope.emulator {
+        ScopeEmulator::BenchLecroy => served.extend([
+            Served {
+                name: "scope",
+                handler: Arc::new(bench.scope.port(RemoteInterface::Vicp)),
+                transports: &[Transport::Vicp],
+                remote: Some(RemoteInterface::Vicp),
+            },
+            Served {
+                name: "scope",
+                handler: Arc::new(bench.scope.port(RemoteInterface::Vxi11)),
+                transports: &[Transport::Vxi11],
+                remote: Some(RemoteInterface::Vxi11),
+            },
+        ]),
+        ScopeEmulator::Build(emulator) => served.push(Served {
             name: "scope",
-            handler: Arc::new(bench.scope.port(RemoteInterface::Vicp)),
-            transports: &[Transport::Vicp],
-            remote: Some(RemoteInterface::Vicp),
-        },
-        Served {
-            name: "scope",
-            handler: Arc::new(bench.scope.port(RemoteInterface::Vxi11)),
-            transports: &[Transport::Vxi11],
-            remote: Some(RemoteInterface::Vxi11),
-        },
+            handler: emulator(bench.inputs())?,
+            transports: scope.transports,
+            remote: None,
+        }),
+    }
+    served.extend([
         Served {
             name: "tx",
             handler: bench.tx.clone(),
@@ -365,18 +427,7 @@ fn served(bench: &Arc<Bench>, with_loopback: bool, scope: ScopeModel) -> Vec<Ser
             transports: &[Transport::Serial],
             remote: None,
         },
-    ];
-    if scope == ScopeModel::KeysightUxr {
-        served.splice(
-            1..3,
-            [Served {
-                name: "scope",
-                handler: bench.uxr.clone(),
-                transports: &[Transport::Hislip, Transport::Vxi11],
-                remote: None,
-            }],
-        );
-    }
+    ]);
     if with_loopback {
         served.push(Served {
             name: "loopback",
@@ -391,7 +442,7 @@ fn served(bench: &Arc<Bench>, with_loopback: bool, scope: ScopeModel) -> Vec<Ser
             remote: None,
         });
     }
-    served
+    Ok(served)
 }
 
 /// The ports of one endpoint: the slot's defaults, the fixed VICP ports asked for, and the
@@ -421,7 +472,7 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     options.validate()?;
     let bench = Arc::new(Bench::new(options.scene.clone())?);
     bench.scope.set_remote_interface(options.scope_remote);
-    let served = served(&bench, options.with_loopback, options.scope_model);
+    let served = served(&bench, options.with_loopback, options.scope_model)?;
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));
     let scope_switch = Arc::new(ScopeSwitch {
         scope: bench.scope.clone(),

@@ -14,7 +14,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use mock_lab::emulator::lecroy::RemoteInterface;
-use mock_lab::lab::{self, Announce, LabOptions};
+use mock_lab::lab::{self, Announce, LabOptions, ScopeModel};
 use mock_lab::scene::Scene;
 use mock_lab::server::DEFAULT_MAX_MESSAGE_SIZE;
 
@@ -59,10 +59,9 @@ struct ServeArgs {
     /// The scope's remote interface: only this protocol answers, as on the real scope.
     #[arg(long, value_enum, default_value = "vicp")]
     scope_remote: ScopeRemote,
-    /// The scope served as `scope`: the LeCroy (VICP / VXI-11) or the Keysight Infiniium UXR
-    /// (HiSLIP and VXI-11).
-    #[arg(long, value_enum, default_value = "lecroy")]
-    scope_model: ScopeModelArg,
+    /// The scope served as `scope` (the lab's table of scopes, listed below).
+    #[arg(long, value_parser = scope_models(), default_value = "lecroy")]
+    scope_model: ScopeModel,
     /// Keep serving when standard input closes (for running detached, `< /dev/null`); stop
     /// with Ctrl-C / SIGINT or SIGTERM only.
     #[arg(long)]
@@ -76,10 +75,15 @@ struct ServeArgs {
     max_message_size: usize,
 }
 
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-enum ScopeModelArg {
-    Lecroy,
-    KeysightUxr,
+/// clap's parser of `--scope-model`: the names of the lab's table, each with its line of help.
+fn scope_models() -> impl clap::builder::TypedValueParser<Value = ScopeModel> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(
+        ScopeModel::ALL
+            .iter()
+            .map(|m| PossibleValue::new(m.name()).help(m.about())),
+    )
+    .map(|s| s.parse::<ScopeModel>().unwrap_or_default())
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -133,10 +137,7 @@ fn main() -> ExitCode {
         },
         with_loopback: true,
         loopback_vicp_port: args.loopback_vicp_port,
-        scope_model: match args.scope_model {
-            ScopeModelArg::Lecroy => mock_lab::lab::ScopeModel::Lecroy,
-            ScopeModelArg::KeysightUxr => mock_lab::lab::ScopeModel::KeysightUxr,
-        },
+        scope_model: args.scope_model,
     };
     if let Err(err) = options.validate() {
         return fail(err.exit_code(), &err.to_string());

@@ -13,8 +13,8 @@ use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::measure::scene_control::Scene;
 use crate::measure::CorrectionMode;
+use crate::measure::{planning_scope_resource, AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
 use crate::measure::{Algorithm, ProcessOptions};
-use crate::measure::{AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
 use crate::measure::{BenchCalibration, BenchFile, InstrumentEntry};
 use crate::waveform::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
@@ -196,13 +196,9 @@ pub struct BenchInfo {
     pub tx_attenuation_db: Option<(f64, f64)>,
 }
 
-/// The models the built-in mock lab serves (as `mock-lab serve` writes its bench file).
-const BUILT_IN_MODELS: [&str; 4] = [
-    "keysight-m8195a",
-    "lecroy-labmaster10zi-a",
-    "gotmic-eband-tx",
-    "gotmic-eband-rx",
-];
+/// The models the built-in mock lab serves besides its scope (as `mock-lab serve` writes its bench
+/// file); the scope's is its [`ScopeModel::catalog_key`].
+const BUILT_IN_MODELS: [&str; 3] = ["keysight-m8195a", "gotmic-eband-tx", "gotmic-eband-rx"];
 
 impl BenchInfo {
     /// The bench of `--bench`, or of the spec's `[bench]`, or the built-in mock lab.
@@ -318,12 +314,9 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
     BenchFile {
         catalog: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
-        scope: match scope {
-            ScopeModel::Lecroy => entry(BUILT_IN_MODELS[1], "VICP::127.0.0.1"),
-            other => entry(other.catalog_key(), "TCPIP::127.0.0.1::hislip0::INSTR"),
-        },
-        tx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
-        rx: Some(entry(BUILT_IN_MODELS[3], "ASRL/dev/null::INSTR")),
+        scope: entry(scope.catalog_key(), planning_scope_resource(scope)),
+        tx: Some(entry(BUILT_IN_MODELS[1], "ASRL/dev/null::INSTR")),
+        rx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
         simulation: None,
         calibration: Some(BenchCalibration {
             system_delay_s: scene.system_delay_s,

@@ -75,7 +75,8 @@ pub struct BenchSection {
     /// Built-in mock lab only: the scope's transport.
     #[serde(default)]
     pub scope_transport: Option<crate::measure::ScopeLink>,
-    /// Built-in mock lab only: the scope it serves (`lecroy`, the default, or `keysight-uxr`).
+    /// Built-in mock lab only: the scope it serves (a name of mock_lab's table of scopes; default
+    /// the first, `lecroy`).
     #[serde(default)]
     pub scope_model: Option<crate::measure::ScopeModel>,
 }

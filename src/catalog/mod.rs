@@ -147,7 +147,7 @@ impl Catalog {
 /// Parses and validates one catalog file. `file` names it in error messages.
 pub fn parse_model(file: &str, text: &str) -> Result<InstrumentModel, CatalogError> {
     let index = FieldIndex::new(text);
-    let model: InstrumentModel = toml::from_str(text).map_err(|e| {
+    let mut model: InstrumentModel = toml::from_str(text).map_err(|e| {
         let offset = e.span().map(|s| s.start);
         CatalogError::Invalid {
             file: file.to_string(),
@@ -161,8 +161,10 @@ pub fn parse_model(file: &str, text: &str) -> Result<InstrumentModel, CatalogErr
             }],
         }
     })?;
+    let moved = validate::adopt_old_places(&mut model);
     let problems: Vec<Problem> = validate::validate(&model)
         .into_iter()
+        .chain(moved)
         .map(|(field, reason)| Problem {
             line: index.line_of_path(&field),
             field,

@@ -291,12 +291,14 @@ pub struct DigitizerLimits {
     pub trigger_sources: Vec<String>,
     pub ext_trigger_level_v_min: f64,
     pub ext_trigger_level_v_max: f64,
-    /// LeCroy only (WAVEDESC template and size), kept here for catalog files written before the
-    /// `[vendor]` table; a LeCroy file may give them in either place.
+    /// The old place of the LeCroy's `[vendor] wavedesc_template` (catalog files written before
+    /// the `[vendor]` table). The loader moves it there; a file giving both places with different
+    /// values is refused.
     #[serde(default)]
-    pub wavedesc_template: Option<String>,
+    pub(crate) wavedesc_template: Option<String>,
+    /// The old place of the LeCroy's `[vendor] wavedesc_bytes` (as `wavedesc_template`).
     #[serde(default)]
-    pub wavedesc_bytes: Option<u32>,
+    pub(crate) wavedesc_bytes: Option<u32>,
     /// Most segments one sequence-mode acquisition records (one trigger each); 0 when the model
     /// has no sequence mode, and repetitions are then separate acquisitions.
     #[serde(default)]

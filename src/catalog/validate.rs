@@ -565,14 +565,43 @@ fn check_digitizer(c: &mut Checks, d: &DigitizerLimits) {
     if d.trigger_sources.is_empty() {
         c.fail("digitizer.trigger_sources", "needs at least one source");
     }
-    if let (Some("LECROY_2_3"), Some(bytes)) = (d.wavedesc_template.as_deref(), d.wavedesc_bytes) {
-        if bytes != 346 {
-            c.fail(
-                "digitizer.wavedesc_bytes",
-                format!("the LECROY_2_3 descriptor is 346 bytes (got {bytes})"),
-            );
+}
+
+/// Moves fields written in their old place (a generic section, before the `[vendor]` table
+/// existed) into `[vendor]`, where the driver family reads them. A file that gives a field in both
+/// places with different values is refused, naming both; the same value twice is accepted.
+pub(super) fn adopt_old_places(model: &mut InstrumentModel) -> Vec<(String, String)> {
+    let mut c = Checks::default();
+    let Some(d) = &model.digitizer else {
+        return c.0;
+    };
+    let old = [
+        (
+            "wavedesc_template",
+            d.wavedesc_template.clone().map(toml::Value::String),
+        ),
+        (
+            "wavedesc_bytes",
+            d.wavedesc_bytes.map(|b| toml::Value::Integer(b.into())),
+        ),
+    ];
+    for (key, value) in old {
+        let Some(value) = value else { continue };
+        match model.vendor.get(key) {
+            Some(new) if *new != value => c.fail(
+                format!("digitizer.{key}"),
+                format!(
+                    "given twice with different values: `vendor.{key}` = {new} and \
+                     `digitizer.{key}` = {value} (its old place); keep `vendor.{key}` only"
+                ),
+            ),
+            Some(_) => {}
+            None => {
+                model.vendor.insert(key.to_string(), value);
+            }
         }
     }
+    c.0
 }
 
 fn check_rf(c: &mut Checks, rf: &RfLimits, kind: InstrumentKind) {

@@ -13,7 +13,7 @@ use radbench::measure;
 use radbench::measure::Bench;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
-use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{CaptureRequest, Rig};
 use radbench::waveform::WaveformKind;
 use serde_json::json;
@@ -63,9 +63,8 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
     pub scope_transport: ScopeLink,
-    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
-    pub scope_model: Option<ScopeModel>,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
     #[command(flatten)]
     pub live: LiveArgs,
 }
@@ -90,15 +89,12 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit.into());
     }
-    let source = super::capture::with_scope_model(
-        bench_source(
-            args.bench.as_deref(),
-            args.scene.as_deref(),
-            args.awg_transport,
-            args.scope_transport,
-        )?,
-        args.scope_model,
-    )?;
+    let source = args.scope_model.apply(bench_source(
+        args.bench.as_deref(),
+        args.scene.as_deref(),
+        args.awg_transport,
+        args.scope_transport,
+    )?)?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);

@@ -55,6 +55,8 @@ pub struct DelayArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
@@ -73,12 +75,12 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         return Err(MeasureError::NoPermit.into());
     }
     super::runtime()?.block_on(async {
-        let source = bench_source(
+        let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),
             None,
             AwgLink::Hislip,
             ScopeLink::Vicp,
-        )?;
+        )?)?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         // With the response the bench file names corrected, the delay is the corrected chain's:

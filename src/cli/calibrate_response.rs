@@ -62,6 +62,8 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
 fn check(args: &Args) -> Result<(), MeasureError> {
@@ -105,12 +107,12 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let waveform = args.waveform_args.spec(args.waveform)?;
     let started = std::time::Instant::now();
     super::runtime()?.block_on(async {
-        let source = bench_source(
+        let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),
             args.scene.as_deref(),
             AwgLink::Hislip,
             ScopeLink::Vicp,
-        )?;
+        )?)?;
         let out = match (&args.out, &bench_path(&args)) {
             (Some(o), _) => Some(o.clone()),
             (None, Some(b)) => Some(default_out(b)),

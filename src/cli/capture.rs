@@ -10,7 +10,7 @@ use radbench::measure::CorrectionMode;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::Provenance;
-use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{Bench, BenchSource, BuiltIn};
 use radbench::measure::{CaptureRequest, Measurement};
 use radbench::storage::write_group;
@@ -74,10 +74,8 @@ pub struct Args {
     /// Built-in mock lab only: transport to the scope.
     #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
     pub scope_transport: ScopeLink,
-    /// Built-in mock lab only: the scope it serves (default lecroy; keysight-uxr is reached over
-    /// HiSLIP, or VXI-11 with --scope-transport vxi11).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
-    pub scope_model: Option<ScopeModel>,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
     /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
@@ -146,25 +144,6 @@ pub(crate) fn calibration_warnings(
         }
     }
     out
-}
-
-/// `--scope-model` applied to the built-in lab; with `--bench` the bench file names the scope, so
-/// the option is refused there.
-pub(crate) fn with_scope_model(
-    mut source: BenchSource,
-    model: Option<ScopeModel>,
-) -> anyhow::Result<BenchSource> {
-    match (&mut source, model) {
-        (_, None) => {}
-        (BenchSource::BuiltIn(b), Some(m)) => b.scope_model = m,
-        (BenchSource::File(_), Some(_)) => {
-            return Err(bad_input(
-                "--scope-model applies to the built-in mock lab only: with --bench, the bench \
-                 file's [scope] model names the scope",
-            ))
-        }
-    }
-    Ok(source)
 }
 
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
@@ -290,15 +269,12 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
             "--live: needs --repeat N|forever (one capture is over before a page could show it)",
         ));
     }
-    let source = with_scope_model(
-        bench_source(
-            args.bench.as_deref(),
-            args.scene.as_deref(),
-            args.awg_transport,
-            args.scope_transport,
-        )?,
-        args.scope_model,
-    )?;
+    let source = args.scope_model.apply(bench_source(
+        args.bench.as_deref(),
+        args.scene.as_deref(),
+        args.awg_transport,
+        args.scope_transport,
+    )?)?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;

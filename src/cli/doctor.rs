@@ -6,7 +6,7 @@ use radbench::exit::{Classified, ExitClass};
 use radbench::measure;
 use radbench::measure::Interrupt;
 use radbench::measure::Status;
-use radbench::measure::{AwgLink, ScopeLink, ScopeModel};
+use radbench::measure::{AwgLink, ScopeLink};
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -17,24 +17,20 @@ pub struct Args {
     /// Print one JSON object: {"bench", "ok", "checks": [{"id", "status", "detail", "fix"}]}.
     #[arg(long)]
     pub json: bool,
-    /// Built-in mock lab only: the scope it serves (lecroy or keysight-uxr).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
-    pub scope_model: Option<ScopeModel>,
+    #[command(flatten)]
+    pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;
-        let source = super::capture::with_scope_model(
-            bench_source(
-                args.bench.as_deref(),
-                None,
-                AwgLink::Hislip,
-                ScopeLink::Vicp,
-            )?,
-            args.scope_model,
-        )?;
+        let source = args.scope_model.apply(bench_source(
+            args.bench.as_deref(),
+            None,
+            AwgLink::Hislip,
+            ScopeLink::Vicp,
+        )?)?;
         let bench = open_bench(source, args.json).await?;
         let report = measure::run(&bench, journal(global)?, &interrupt).await?;
         // A stop signal during a check that does not switch anything on: that check finished

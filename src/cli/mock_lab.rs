@@ -42,7 +42,7 @@ pub struct ServeArgs {
     /// The scope's remote interface: only this protocol answers, as on the real scope.
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_remote: ScopeRemote,
-    /// The scope served as `scope`: lecroy (VICP / VXI-11) or keysight-uxr (HiSLIP and VXI-11).
+    /// The scope served as `scope` (the lab's table of scopes, listed below).
     #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
     pub scope_model: Option<ScopeModel>,
     /// Also serve the generic loopback test instrument on every transport.

@@ -24,6 +24,7 @@ pub(crate) mod process;
 pub(crate) mod progress;
 pub(crate) mod recording;
 pub(crate) mod repeat;
+pub(crate) mod scope_model;
 pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;

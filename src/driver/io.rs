@@ -146,7 +146,7 @@ pub fn max_message_bytes(model: &InstrumentModel) -> usize {
             // A sequence adds one TRIGTIME entry (two f64) per segment.
             d.max_points_per_channel
                 .saturating_mul(2)
-                .saturating_add(u64::from(d.wavedesc_bytes.unwrap_or(0)))
+                .saturating_add(u64::from(super::open::record_header_bytes(model)))
                 .saturating_add(u64::from(d.max_sequence_segments).saturating_mul(16))
         })
     };

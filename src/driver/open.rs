@@ -71,6 +71,7 @@ pub(crate) fn check(model: &InstrumentModel) -> Result<(), DriverError> {
         ));
     }
     match name {
+        "lecroy-maui" => super::lecroy::check_vendor(model),
         "keysight-infiniium" => super::keysight_uxr::check_vendor(model),
         _ if model.vendor.is_empty() => Ok(()),
         _ => Err(unknown(
@@ -188,6 +189,15 @@ pub(crate) async fn open_rf_other_mode(
     }
 }
 
+/// Bytes a digitizer's family puts in front of each channel's record (LeCroy's WAVEDESC), for
+/// the session's message limit; 0 for families that send their scaling apart.
+pub(crate) fn record_header_bytes(model: &InstrumentModel) -> u32 {
+    match family(model) {
+        "lecroy-maui" => super::lecroy::wavedesc_bytes(model),
+        _ => 0,
+    }
+}
+
 /// What an AWG will do with a waveform, planned from the catalog alone (no instrument touched).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct AwgPlan {
@@ -286,7 +296,8 @@ mod tests {
         .unwrap();
         let e = check(&wrong).unwrap_err().to_string();
         assert!(e.contains("does not drive kind \"digitizer\""), "{e}");
-        let stray = parse_model("x.toml", &format!("{lecroy}\n[vendor]\nx = 1\n")).unwrap();
+        let awg = file("keysight_m8195a.toml");
+        let stray = parse_model("x.toml", &format!("{awg}\n[vendor]\nx = 1\n")).unwrap();
         let e = check(&stray).unwrap_err().to_string();
         assert!(
             e.contains("reads no [vendor] table") && e.contains('x'),

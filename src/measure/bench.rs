@@ -25,9 +25,9 @@ pub enum AwgLink {
     Vxi11,
 }
 
-/// How to reach the built-in mock lab's scope: the LeCroy's VICP or VXI-11, the Infiniium's
-/// HiSLIP (its default, also for `Vicp`, which it does not speak) or VXI-11
-/// (`--scope-transport`, a spec's `scope_transport`).
+/// How to reach the built-in mock lab's scope (`--scope-transport`, a spec's `scope_transport`):
+/// VICP or VXI-11; a scope served without VICP (the Infiniium) is reached on its default
+/// transport (HiSLIP) for `Vicp`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ScopeLink {
@@ -70,7 +70,7 @@ impl ScopeLink {
 
     pub fn about(self) -> &'static str {
         match self {
-            ScopeLink::Vicp => "LeCroy's VICP (the Infiniium: HiSLIP)",
+            ScopeLink::Vicp => "VICP (a scope without it: its default transport, e.g. HiSLIP)",
             ScopeLink::Vxi11 => "VXI-11 (ONC RPC)",
         }
     }
@@ -78,6 +78,17 @@ impl ScopeLink {
 
 named_enum!(AwgLink, "AWG transport");
 named_enum!(ScopeLink, "scope transport");
+
+/// A placeholder resource of the built-in lab's scope `model` for planning (the lab's ports are
+/// known only once it runs): one of its default transport.
+pub(crate) fn planning_scope_resource(model: ScopeModel) -> &'static str {
+    match model.transport(Transport::Vicp) {
+        Transport::Vicp => "VICP::127.0.0.1",
+        Transport::Vxi11 => "TCPIP::127.0.0.1::inst0::INSTR",
+        Transport::Raw => "TCPIP::127.0.0.1::5025::SOCKET",
+        Transport::Hislip | Transport::Serial => "TCPIP::127.0.0.1::hislip0::INSTR",
+    }
+}
 
 /// The built-in mock lab: its scene and the transports to use.
 #[derive(Debug, Clone, Default)]
@@ -138,11 +149,11 @@ impl Bench {
                     AwgLink::Hislip => Transport::Hislip,
                     AwgLink::Vxi11 => Transport::Vxi11,
                 };
-                let scope_t = match (b.scope_model, b.scope) {
-                    (_, ScopeLink::Vxi11) => Transport::Vxi11,
-                    (ScopeModel::Lecroy, ScopeLink::Vicp) => Transport::Vicp,
-                    (ScopeModel::KeysightUxr, ScopeLink::Vicp) => Transport::Hislip,
-                };
+                // `vicp` (the default) is the served scope's first transport when it has no VICP.
+                let scope_t = b.scope_model.transport(match b.scope {
+                    ScopeLink::Vicp => Transport::Vicp,
+                    ScopeLink::Vxi11 => Transport::Vxi11,
+                });
                 let mut file = BenchFile::parse(
                     &lab.bench_toml(awg_t, scope_t),
                     Path::new("<built-in mock lab>"),
@@ -247,4 +258,39 @@ pub(crate) async fn query_control(address: &str, request: &str) -> Result<Value,
                 CONTROL_TIMEOUT.as_secs()
             ))
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lab's table of scopes is all radbench needs to serve one: each names a digitizer of the
+    /// built-in catalog whose driver family radbench has, by a name that parses back.
+    #[test]
+    fn every_scope_the_lab_serves_is_a_catalog_digitizer_radbench_opens() {
+        let catalog = crate::catalog::Catalog::embedded().unwrap();
+        let mut names = std::collections::HashSet::new();
+        for m in ScopeModel::ALL {
+            assert!(names.insert(m.name()), "{m} twice");
+            assert_eq!(m.name().parse::<ScopeModel>().unwrap(), m);
+            let json = serde_json::to_string(&m).unwrap();
+            assert_eq!(serde_json::from_str::<ScopeModel>(&json).unwrap(), m);
+            let entry = catalog.get(m.catalog_key()).unwrap();
+            assert_eq!(
+                entry.instrument.kind,
+                crate::catalog::InstrumentKind::Digitizer
+            );
+            crate::driver::open::check(entry).unwrap_or_else(|e| panic!("{m}: {e}"));
+        }
+        assert_eq!(ScopeModel::default().name(), "lecroy");
+        let uxr: ScopeModel = "keysight-uxr".parse().unwrap();
+        assert_eq!(uxr.transport(Transport::Vicp), Transport::Hislip);
+        assert_eq!(uxr.transport(Transport::Vxi11), Transport::Vxi11);
+        assert_eq!(
+            ScopeModel::default().transport(Transport::Vicp),
+            Transport::Vicp
+        );
+        let e = "tek".parse::<ScopeModel>().unwrap_err();
+        assert!(e.contains("lecroy, keysight-uxr"), "{e}");
+    }
 }

@@ -4,7 +4,7 @@
 //! trigger with RF on.
 
 use crate::support::{radbench_in, signal, until};
-use mock_lab::lab::{Lab, LabOptions, ScopeModel};
+use mock_lab::lab::{Lab, LabOptions};
 use mock_lab::server::launch::Transport;
 use serde_json::Value;
 use std::path::Path;
@@ -29,7 +29,7 @@ async fn uxr_lab() -> Lab {
     tokio::time::timeout(
         Duration::from_secs(10),
         mock_lab::lab::start(LabOptions {
-            scope_model: ScopeModel::KeysightUxr,
+            scope_model: "keysight-uxr".parse().unwrap(),
             ..LabOptions::default()
         }),
     )
@@ -263,5 +263,91 @@ async fn a_signal_while_rf_is_on_leaves_the_bench_safe_with_the_uxr() {
     assert_eq!(out.status.code(), Some(143), "{err}");
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
     assert!(!lab.bench.rx.front_end().rf_enabled, "Rx off");
-    assert!(!lab.bench.uxr.state().armed || out.status.code() == Some(143));
+}
+
+/// `radbench calibrate` (the system delay) and `calibrate response` on the built-in lab serving
+/// the UXR (`--scope-model keysight-uxr`, the option capture, align and doctor share): the delay
+/// is the simulated cables', the exchanges are the Infiniium's, the response names the UXR; and
+/// the option is refused beside a bench file.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn calibrate_and_calibrate_response_on_the_built_in_lab_with_the_uxr() {
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("journal.jsonl");
+    let (code, stdout, err) = radbench(&[
+        "--trace-io",
+        journal.to_str().unwrap(),
+        "calibrate",
+        "--reference-range",
+        "1.0",
+        "--scope-model",
+        "keysight-uxr",
+        "--allow-rf",
+        "--json",
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    let delay = v["system_delay_s"].as_f64().unwrap();
+    let nominal = mock_lab::scene::Scene::default().system_delay_s;
+    assert!(
+        (delay - nominal).abs() < 10e-12,
+        "delay {delay} vs {nominal}"
+    );
+    let exchanges = std::fs::read_to_string(&journal).unwrap();
+    assert!(
+        exchanges.contains(":WAV"),
+        "the Infiniium's waveform commands"
+    );
+    assert!(!exchanges.contains("VBS"), "no LeCroy automation command");
+
+    // The response, on a pillar at 1 m of the thesis lab's chain.
+    std::fs::write(
+        dir.path().join("reference.toml"),
+        "seed = 3\nsnr_db = 25.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n\
+         [chain]\npreset = \"thesis-lab\"\n",
+    )
+    .unwrap();
+    let out = dir.path().join("response.toml");
+    let (code, _, err) = radbench(&[
+        "calibrate",
+        "response",
+        "--reference-range",
+        "1.0",
+        "--scene",
+        dir.path().join("reference.toml").to_str().unwrap(),
+        "--scope-model",
+        "keysight-uxr",
+        "--allow-rf",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ])
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let header = std::fs::read_to_string(&out).unwrap();
+    assert!(header.contains("UXR0334A"), "{header}");
+    assert!(dir.path().join("response.npy").exists());
+
+    // Beside a bench file the file names the scope: refused as bad input.
+    let lab = uxr_lab().await;
+    let bench = bench_file(dir.path(), &lab, Transport::Hislip);
+    for args in [
+        &["calibrate", "--reference-range", "1.0"][..],
+        &["calibrate", "response", "--reference-range", "1.0"][..],
+    ] {
+        let mut args = args.to_vec();
+        args.extend([
+            "--bench",
+            &bench,
+            "--scope-model",
+            "keysight-uxr",
+            "--allow-rf",
+        ]);
+        let (code, _, err) = radbench(&args).await;
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(
+            err.contains("--scope-model applies to the built-in mock lab only"),
+            "{err}"
+        );
+    }
 }

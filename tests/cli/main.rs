@@ -3,9 +3,9 @@
 //! One test binary for many suites: each file below was its own binary, linked separately.
 
 #[macro_use]
-#[path = "../io_support/mod.rs"]
+#[path = "../support/io/mod.rs"]
 mod io_support;
-#[path = "../process_support/mod.rs"]
+#[path = "../support/process/mod.rs"]
 mod process_support;
 
 mod ambiguity;

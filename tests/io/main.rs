@@ -2,10 +2,10 @@
 //!
 //! One test binary for many suites: each file below was its own binary, linked separately.
 
-#[path = "../driver_support/mod.rs"]
+#[path = "../support/driver/mod.rs"]
 mod driver_support;
 #[macro_use]
-#[path = "../io_support/mod.rs"]
+#[path = "../support/io/mod.rs"]
 mod io_support;
 
 mod driver_emulator;

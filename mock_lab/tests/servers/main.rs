@@ -5,7 +5,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 // The same helpers as radbench's tests (test plumbing, not protocol code: independence is kept).
-#[path = "../../../tests/process_support/mod.rs"]
+#[path = "../../../tests/support/process/mod.rs"]
 mod process_support;
 
 mod cli;

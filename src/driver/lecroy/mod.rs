@@ -11,6 +11,7 @@
 //! configuration batch instead.
 
 pub(crate) mod commands;
+mod vendor;
 
 /// The LeCroy waveform format lives in [`crate::trc`] (a pure codec shared with file readers).
 pub use crate::trc as wavedesc;
@@ -31,6 +32,8 @@ use crate::address::Resource;
 use crate::catalog::{DigitizerLimits, InstrumentModel};
 use crate::session::{parse_f64, register_error_text, DeviceError, Identity, SessionError};
 use crate::transport::Journal;
+
+pub(crate) use self::vendor::{check_vendor, wavedesc_bytes};
 
 /// Channel that carries I.
 pub(crate) const I_CHANNEL: u8 = 1;
@@ -107,7 +110,8 @@ impl Lecroy {
     ///
     /// # Errors
     ///
-    /// [`DriverError::Catalog`] when the model has no `[digitizer]` section;
+    /// [`DriverError::Catalog`] when the model has no `[digitizer]` section or its `[vendor]` table
+    /// does not check;
     /// [`DriverError::RemoteInterface`] when the scope does not answer; [`DriverError::Session`] when
     /// the link fails otherwise; [`DriverError::Reply`] or [`DriverError::WrongInstrument`] when
     /// `*IDN?` is unreadable or not the catalog model.
@@ -116,6 +120,7 @@ impl Lecroy {
         model: &InstrumentModel,
         name: &str,
     ) -> Result<Lecroy, DriverError> {
+        check_vendor(model)?;
         let limits = model
             .digitizer
             .clone()

@@ -193,8 +193,8 @@ fn semantic_errors_name_field_line_and_what_is_allowed() {
 fn several_problems_are_all_reported() {
     let text = mutate(
         embedded("lecroy_labmaster10zi_a.toml"),
-        "wavedesc_bytes = 346",
-        "wavedesc_bytes = 320",
+        "ext_trigger_level_v_max = 0.5",
+        "ext_trigger_level_v_max = -0.6",
     );
     let text = mutate(
         &text,
@@ -209,10 +209,55 @@ fn several_problems_are_all_reported() {
         [
             "transport[0].port",
             "digitizer.volts_per_div_default",
-            "digitizer.wavedesc_bytes"
+            "digitizer.ext_trigger_level_v_max"
         ]
     );
     assert!(ps.iter().all(|p| p.line.is_some()));
+}
+
+/// The shipped LeCroy file with its `[vendor]` WAVEDESC fields also (or only) under
+/// `[digitizer]`, their old place: `(template, bytes)` written there.
+fn lecroy_old_place(keep_vendor: bool, bytes: u32) -> String {
+    let mut text = embedded("lecroy_labmaster10zi_a.toml").to_string();
+    if !keep_vendor {
+        text = mutate(&text, "wavedesc_template = \"LECROY_2_3\"\n", "");
+        text = mutate(&text, "wavedesc_bytes = 346\n", "");
+    }
+    mutate(
+        &text,
+        "[digitizer]\n",
+        &format!("[digitizer]\nwavedesc_template = \"LECROY_2_3\"\nwavedesc_bytes = {bytes}\n"),
+    )
+}
+
+#[test]
+fn lecroy_wavedesc_fields_load_from_the_vendor_table_or_their_old_place() {
+    let new = parse_model("new.toml", embedded("lecroy_labmaster10zi_a.toml")).unwrap();
+    assert_eq!(new.vendor["wavedesc_template"].as_str(), Some("LECROY_2_3"));
+    assert_eq!(new.vendor["wavedesc_bytes"].as_integer(), Some(346));
+    // A file written for the radbench before the [vendor] table: the same model.
+    let old = parse_model("old.toml", &lecroy_old_place(false, 346)).unwrap();
+    assert_eq!(old.vendor, new.vendor);
+    // Both places with the same value: accepted.
+    let both = parse_model("both.toml", &lecroy_old_place(true, 346)).unwrap();
+    assert_eq!(both.vendor, new.vendor);
+}
+
+#[test]
+fn lecroy_wavedesc_fields_in_both_places_with_different_values_are_refused_naming_both() {
+    let text = lecroy_old_place(true, 320);
+    let ps = problems(parse_model("both.toml", &text));
+    assert_eq!(ps.len(), 1, "{ps:?}");
+    assert_eq!(ps[0].field, "digitizer.wavedesc_bytes");
+    assert_eq!(ps[0].line, Some(line_of(&text, "wavedesc_bytes = 320")));
+    assert!(
+        ps[0].reason.contains("vendor.wavedesc_bytes")
+            && ps[0].reason.contains("346")
+            && ps[0].reason.contains("320")
+            && ps[0].reason.contains("old place"),
+        "{}",
+        ps[0].reason
+    );
 }
 
 #[test]

@@ -165,7 +165,7 @@ fn every_module_of_the_crate_is_in_the_layer_table() {
     for m in declared {
         assert!(
             ALLOWED.iter().any(|(name, _)| *name == m),
-            "src/lib.rs declares `{m}` but tests/dsp/layers.rs does not place it in a layer"
+            "src/lib.rs declares `{m}` but tests/house/layers.rs does not place it in a layer"
         );
     }
 }
