@@ -212,3 +212,60 @@ fn campaigns_name_no_mock_lab_path() {
     }
     assert!(found.is_empty(), "{}", found.join("\n"));
 }
+
+/// The library files that may name mock_lab: the built-in bench (started in-process, its scene
+/// behind the typed seam, its offline scope for simulated captures) and the errors it returns.
+/// The binary (`src/cli`) is not the library and may use it; so may tests.
+const MOCK_LAB_USERS: [&str; 6] = [
+    "src/measure/bench.rs",
+    "src/measure/scene_control.rs",
+    "src/measure/scene_capture.rs",
+    "src/measure/mod.rs",
+    "src/measure/predistortion_tests.rs",
+    "src/simulate/scene_bench.rs",
+];
+
+#[test]
+fn only_the_built_in_bench_names_mock_lab() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    sources(&root.join("src"), &mut files);
+    let mut found = Vec::new();
+    for f in files {
+        let rel = f
+            .strip_prefix(root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        if rel.starts_with("src/cli/")
+            || rel == "src/main.rs"
+            || MOCK_LAB_USERS.contains(&rel.as_str())
+        {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (i, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            if code.contains("mock_lab::") || code.contains("use mock_lab") {
+                found.push(format!("{rel}:{}: {}", i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "only the built-in bench may use mock_lab ({MOCK_LAB_USERS:?}); found:\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn the_mock_lab_users_exist() {
+    // A file renamed away from the list would silently widen nothing but rot the list.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for f in MOCK_LAB_USERS {
+        assert!(
+            root.join(f).is_file(),
+            "{f} is listed in MOCK_LAB_USERS but does not exist"
+        );
+    }
+}
