@@ -86,7 +86,14 @@ pub(crate) fn on_cached_pipeline<R: Record>(
     loaded: &Loaded<R>,
     resolved: reprocess::Resolved,
 ) -> Result<Reprocessed, anyhow::Error> {
-    let rate = loaded.repetitions[0].sample_rate_hz();
+    // A recording that names no repetition (an empty `.trc` sequence) has no rate to build for.
+    let Some(rate) = loaded.repetitions.first().map(|r| r.sample_rate_hz()) else {
+        return Err(MeasureError::RecordTooShort {
+            points: 0,
+            needed: resolved.period,
+        }
+        .into());
+    };
     let key = serde_json::to_string(&json!({
         "tx": resolved.tx.describe(),
         "options": resolved.options,

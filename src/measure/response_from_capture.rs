@@ -37,7 +37,11 @@ pub(crate) fn calibrate_from_capture(
         ..ProcessOverrides::default()
     };
     let resolved = reprocess::resolve(&loaded, &WaveformChoice::default(), &overrides, None)?;
-    let rate = loaded.repetitions[0].sample_rate_hz;
+    let rate = loaded
+        .repetitions
+        .first()
+        .map(|r| r.sample_rate_hz)
+        .ok_or_else(|| bad("the recording holds no repetition".into()))?;
     let mut pipeline = reprocess::pipeline(&resolved, rate)?;
     let aligned = loaded
         .repetitions
