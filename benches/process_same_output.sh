@@ -11,7 +11,8 @@
 # 2. `radbench campaign run` of the same campaign with OLD and with NEW: every file that does not
 #    carry the time of the run (profiles, plots, result.json, results, reports) byte for byte.
 #    Skipped: the raw files and summaries that record when they were taken (`.trc`,
-#    `capture.sigmf-meta`, `summary.json`, `manifest.toml`, `io-journal.jsonl`).
+#    `capture.sigmf-meta`, `summary.json`, `manifest.toml`, `io-journal.jsonl`); the reports
+#    are compared with the binary's commit (40 hex digits) masked.
 #
 # Exits 0 when everything matches, 1 with the differing files listed otherwise.
 set -euo pipefail
@@ -44,11 +45,14 @@ compare() { # a b what
             continue
         fi
         n=$((n + 1))
-        if [ "$(basename "$f")" = manifest.toml ]; then
-            cmp -s <(grep -v '^written_at = ' "$a/$f") <(grep -v '^written_at = ' "$b/$f") && continue
-        else
-            cmp -s "$a/$f" "$b/$f" && continue
-        fi
+        case "$(basename "$f")" in
+            manifest.toml)
+                cmp -s <(grep -v '^written_at = ' "$a/$f") <(grep -v '^written_at = ' "$b/$f") && continue ;;
+            report.md | report.html) # they name the commit of the binary
+                cmp -s <(sed -E 's/[0-9a-f]{40}/COMMIT/g' "$a/$f") \
+                    <(sed -E 's/[0-9a-f]{40}/COMMIT/g' "$b/$f") && continue ;;
+            *) cmp -s "$a/$f" "$b/$f" && continue ;;
+        esac
         echo "DIFFERENT ($what): $f"
         bad=$((bad + 1))
         status=1

@@ -541,29 +541,27 @@ impl Decimator {
         }
     }
 
-    /// The delay-compensated filter's outputs on the `n`-periodic signal `sample(p mod n)`:
-    /// output `k` (`0..out.len()`) is `sum_j hr[j] x[(k D + j - (L - 1) / 2) mod n]`, written to
-    /// `out[(k + rotate) % out.len()]`. Each output is the same sum, in the same order, as
-    /// [`process`](Self::process) gives for the periodic extension of the signal (the phase
-    /// block holds the same samples; only the way they are gathered differs), so the same bits.
+    /// The delay-compensated filter's outputs `ks` on the `n`-periodic signal `sample(p mod n)`,
+    /// appended to `out`: output `k` is `sum_j hr[j] x[(k D + j - (L - 1) / 2) mod n]`. Each output
+    /// is the same sum, in the same order, as [`process`](Self::process) gives for the periodic
+    /// extension of the signal (the phase block holds the same samples; only the way they are
+    /// gathered differs), so the same bits.
     fn periodic_into(
         &mut self,
         n: usize,
-        sample: impl Fn(usize) -> Complex64,
-        rotate: usize,
-        out: &mut [Complex64],
+        sample: &impl Fn(usize) -> Complex64,
+        ks: std::ops::Range<usize>,
+        out: &mut Vec<Complex64>,
     ) {
-        let outputs = out.len();
-        if outputs == 0 || n == 0 {
+        if n == 0 {
             return;
         }
         let d = self.factor;
         let half = (self.taps.len() - 1) / 2;
         let stride = self.stride;
-        let mut at = rotate % outputs;
-        let mut k0 = 0;
-        while k0 < outputs {
-            let count = (outputs - k0).min(BLOCK_OUT);
+        let mut k0 = ks.start;
+        while k0 < ks.end {
+            let count = (ks.end - k0).min(BLOCK_OUT);
             let rows = count + stride - BLOCK_OUT;
             // Input index of row 0, column 0 (before wrapping around the period).
             let first = (k0 * d) as i64 - half as i64;
@@ -588,13 +586,12 @@ impl Decimator {
                 }
             }
             self.run_kernel(count);
-            for (&re, &im) in self.out_re[..count].iter().zip(&self.out_im[..count]) {
-                out[at] = Complex64::new(re, im);
-                at += 1;
-                if at == outputs {
-                    at = 0;
-                }
-            }
+            out.extend(
+                self.out_re[..count]
+                    .iter()
+                    .zip(&self.out_im[..count])
+                    .map(|(&re, &im)| Complex64::new(re, im)),
+            );
             k0 += count;
         }
     }
@@ -787,8 +784,12 @@ impl PeriodicDecimator {
         rotate: usize,
     ) -> Vec<Complex64> {
         if self.decimator.alignment() == Alignment::Compensated && self.guard <= n {
-            let mut out = vec![Complex64::new(0.0, 0.0); n / self.decimator.factor()];
-            self.decimator.periodic_into(n, sample, rotate, &mut out);
+            // Output k goes to (k + rotate) % len: the outputs from len - rotate on come first.
+            let len = n / self.decimator.factor();
+            let mut out = Vec::with_capacity(len);
+            let split = (len - rotate % len.max(1)) % len.max(1);
+            self.decimator.periodic_into(n, &sample, split..len, &mut out);
+            self.decimator.periodic_into(n, &sample, 0..split, &mut out);
             return out;
         }
         let y = self.decimate_extended(n, sample);
