@@ -549,7 +549,7 @@ impl Decimator {
     fn periodic_into(
         &mut self,
         n: usize,
-        samples: &impl Samples,
+        sample: &impl Fn(usize) -> Complex64,
         ks: std::ops::Range<usize>,
         out: &mut Vec<Complex64>,
     ) {
@@ -570,11 +570,16 @@ impl Decimator {
                 let row_re = &mut self.phase_re[r * stride..r * stride + rows];
                 let row_im = &mut self.phase_im[r * stride..r * stride + rows];
                 if first >= 0 && last <= n as i64 {
-                    samples.row(first as usize + r, d, row_re, row_im);
+                    let base = first as usize + r;
+                    for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
+                        let z = sample(base + i * d);
+                        *re = z.re;
+                        *im = z.im;
+                    }
                 } else {
                     for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
                         let p = (first + (i * d + r) as i64).rem_euclid(n as i64) as usize;
-                        let z = samples.at(p);
+                        let z = sample(p);
                         *re = z.re;
                         *im = z.im;
                     }
@@ -691,66 +696,6 @@ fn kernel<const FMA: bool>(
     }
 }
 
-/// Samples a [`PeriodicDecimator`] reads: sample `k`, and a strided row of them (what filling a
-/// phase block takes; an implementation may read it faster than sample by sample).
-pub(crate) trait Samples {
-    /// Sample `k`.
-    fn at(&self, k: usize) -> Complex64;
-    /// Samples `first + i * step` for `i` in `0..re.len()` (all in range), split into their real
-    /// and imaginary parts: the same values as [`at`](Self::at).
-    fn row(&self, first: usize, step: usize, re: &mut [f64], im: &mut [f64]) {
-        for (i, (re, im)) in re.iter_mut().zip(im.iter_mut()).enumerate() {
-            let z = self.at(first + i * step);
-            *re = z.re;
-            *im = z.im;
-        }
-    }
-}
-
-/// Samples given by a function of their index.
-pub(crate) struct Mapped<F>(pub F);
-
-impl<F: Fn(usize) -> Complex64> Samples for Mapped<F> {
-    fn at(&self, k: usize) -> Complex64 {
-        (self.0)(k)
-    }
-}
-
-/// 16-bit I and Q words scaled to volts as `gain * word - offset` (per channel): a scope's record
-/// read straight from its codes.
-pub(crate) struct ScaledWords<'a> {
-    pub i: &'a [i16],
-    pub q: &'a [i16],
-    pub gain: [f64; 2],
-    pub offset: [f64; 2],
-}
-
-impl Samples for ScaledWords<'_> {
-    fn at(&self, k: usize) -> Complex64 {
-        let ([gi, gq], [oi, oq]) = (self.gain, self.offset);
-        Complex64::new(
-            gi * f64::from(self.i[k]) - oi,
-            gq * f64::from(self.q[k]) - oq,
-        )
-    }
-
-    fn row(&self, first: usize, step: usize, re: &mut [f64], im: &mut [f64]) {
-        // The same arithmetic as `at`, with the words walked by iterators (no index checks).
-        let ([gi, gq], [oi, oq]) = (self.gain, self.offset);
-        let words = self.i[first..]
-            .iter()
-            .step_by(step)
-            .zip(self.q[first..].iter().step_by(step));
-        let mut filled = 0;
-        for ((re, im), (&wi, &wq)) in re.iter_mut().zip(im.iter_mut()).zip(words) {
-            *re = gi * f64::from(wi) - oi;
-            *im = gq * f64::from(wq) - oq;
-            filled += 1;
-        }
-        assert_eq!(filled, re.len(), "a row past the end of the words");
-    }
-}
-
 /// The lab decimator ([`Decimator`], delay-compensated) applied to a periodic capture: the
 /// capture is extended circularly by whole output samples on both sides, so the filter sees what a
 /// continuously repeated frame (or a zero-padded pulse) would give, with no edge transient.
@@ -825,17 +770,17 @@ impl PeriodicDecimator {
         n: usize,
         sample: impl Fn(usize) -> Complex64,
     ) -> Vec<Complex64> {
-        self.decimate_rotated(n, &Mapped(sample), 0)
+        self.decimate_map_rotated(n, sample, 0)
     }
 
     /// [`decimate_map`](Self::decimate_map) with its output rotated by `rotate` samples: output
     /// `k` lands at `(k + rotate) % len` (what aligning a record to its marker does next), with
     /// no extended record: each phase block is read from `sample` directly (around the period
     /// where the filter reaches past an end). The same bits as decimating the extended record.
-    pub(crate) fn decimate_rotated(
+    pub(crate) fn decimate_map_rotated(
         &mut self,
         n: usize,
-        samples: &impl Samples,
+        sample: impl Fn(usize) -> Complex64,
         rotate: usize,
     ) -> Vec<Complex64> {
         if self.decimator.alignment() == Alignment::Compensated && self.guard <= n {
@@ -843,12 +788,11 @@ impl PeriodicDecimator {
             let len = n / self.decimator.factor();
             let mut out = Vec::with_capacity(len);
             let split = (len - rotate % len.max(1)) % len.max(1);
-            self.decimator
-                .periodic_into(n, samples, split..len, &mut out);
-            self.decimator.periodic_into(n, samples, 0..split, &mut out);
+            self.decimator.periodic_into(n, &sample, split..len, &mut out);
+            self.decimator.periodic_into(n, &sample, 0..split, &mut out);
             return out;
         }
-        let y = self.decimate_extended(n, |k| samples.at(k));
+        let y = self.decimate_extended(n, sample);
         if y.is_empty() {
             return y;
         }
@@ -860,7 +804,7 @@ impl PeriodicDecimator {
     }
 
     /// The extended record (`guard` samples of the period's end before it, of its start after
-    /// it) decimated whole: the definition [`decimate_rotated`](Self::decimate_rotated)
+    /// it) decimated whole: the definition [`decimate_map_rotated`](Self::decimate_map_rotated)
     /// computes without the record, and what it does for a capture shorter than the guard.
     fn decimate_extended(
         &mut self,
@@ -1073,42 +1017,12 @@ mod tests {
             let mut d = PeriodicDecimator::from_design(&config, designed(factor)).unwrap();
             let x = noise(n, seed);
             let y = d.decimate_extended(n, |k| x[k]);
-            let got = d.decimate_rotated(n, &Mapped(|k| x[k]), rotate);
+            let got = d.decimate_map_rotated(n, |k| x[k], rotate);
             prop_assert_eq!(got.len(), y.len());
             for (k, v) in y.iter().enumerate() {
                 let at = (k + rotate) % y.len();
                 prop_assert_eq!(got[at].re.to_bits(), v.re.to_bits(), "output {} of {}", k, n);
                 prop_assert_eq!(got[at].im.to_bits(), v.im.to_bits(), "output {} of {}", k, n);
-            }
-        }
-
-        #[test]
-        fn scaled_words_give_the_bits_of_their_volts(
-            n in 0usize..3000,
-            rotate in 0usize..1000,
-            seed in any::<u64>(),
-        ) {
-            let mut r = crate::rng::SplitMix64::new(seed);
-            let mut word = || (r.next_u64() >> 48) as u16 as i16;
-            let i: Vec<i16> = (0..n).map(|_| word()).collect();
-            let q: Vec<i16> = (0..n).map(|_| word()).collect();
-            let (gain, offset) = ([3.1e-5, 2.9e-5], [0.013, -0.007]);
-            let config = DecimatorConfig::for_band(80e9, 5, 0.5e9).unwrap();
-            let mut d = PeriodicDecimator::from_design(&config, designed(5)).unwrap();
-            let volts = |k: usize| {
-                Complex64::new(
-                    gain[0] * f64::from(i[k]) - offset[0],
-                    gain[1] * f64::from(q[k]) - offset[1],
-                )
-            };
-            let y = d.decimate_extended(n, volts);
-            let words = ScaledWords { i: &i, q: &q, gain, offset };
-            let got = d.decimate_rotated(n, &words, rotate);
-            prop_assert_eq!(got.len(), y.len());
-            for (k, v) in y.iter().enumerate() {
-                let at = (k + rotate) % y.len();
-                prop_assert_eq!(got[at].re.to_bits(), v.re.to_bits());
-                prop_assert_eq!(got[at].im.to_bits(), v.im.to_bits());
             }
         }
 

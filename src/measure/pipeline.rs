@@ -21,7 +21,7 @@ use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR}
 use super::payload::PayloadDecoder;
 use super::transmit::{Modulation, Transmission};
 use super::MeasureError;
-use crate::dsp::decimate::{DecimatorConfig, Mapped, PeriodicDecimator, Samples, ScaledWords};
+use crate::dsp::decimate::{DecimatorConfig, PeriodicDecimator};
 use crate::dsp::detect::{Detector, SpectralLines, TabulatedPsf};
 use crate::dsp::metrics::Axis;
 use crate::dsp::music::root_music_ranges;
@@ -926,25 +926,20 @@ impl Pipeline {
     /// Decimates one repetition of `raw` to the waveform rate and rotates it to the marker edge.
     pub fn align(&mut self, raw: &RawIq) -> Result<Aligned, MeasureError> {
         let x = &raw.samples;
-        self.align_map(
-            x.len(),
-            raw.sample_rate_hz,
-            raw.first_point_s,
-            &Mapped(|k| x[k]),
-        )
+        self.align_map(x.len(), raw.sample_rate_hz, raw.first_point_s, |k| x[k])
     }
 
     /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
     /// same arithmetic as `measure::station::Captured::raw`, so the same result).
     pub(crate) fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
-        let n = raw.i.len().min(raw.q.len());
-        let words = ScaledWords {
-            i: &raw.i[..n],
-            q: &raw.q[..n],
-            gain: raw.gain,
-            offset: raw.offset,
-        };
-        self.align_map(n, raw.sample_rate_hz, raw.first_point_s, &words)
+        let (i, q) = (&raw.i, &raw.q);
+        let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);
+        self.align_map(
+            i.len().min(q.len()),
+            raw.sample_rate_hz,
+            raw.first_point_s,
+            |k| Complex64::new(gi * f64::from(i[k]) - oi, gq * f64::from(q[k]) - oq),
+        )
     }
 
     fn align_map(
@@ -952,7 +947,7 @@ impl Pipeline {
         len: usize,
         sample_rate_hz: f64,
         first_point_s: f64,
-        samples: &impl Samples,
+        sample: impl Fn(usize) -> Complex64,
     ) -> Result<Aligned, MeasureError> {
         let factor = self.factor(sample_rate_hz)?;
         let period = self.geometry.period;
@@ -971,7 +966,7 @@ impl Pipeline {
         let s = (shift as i64).rem_euclid(period as i64) as usize;
         let samples = match self.decimator.as_mut() {
             None => {
-                let y: Vec<Complex64> = (0..needed).map(|k| samples.at(k)).collect();
+                let y: Vec<Complex64> = (0..needed).map(sample).collect();
                 let mut samples = vec![ZERO; period];
                 let (head, tail) = y.split_at(period - s);
                 samples[s..].copy_from_slice(head);
@@ -979,7 +974,7 @@ impl Pipeline {
                 samples
             }
             // Decimated straight into place.
-            Some((_, _, dec)) => dec.decimate_rotated(needed, samples, s),
+            Some((_, _, dec)) => dec.decimate_map_rotated(needed, sample, s),
         };
         Ok(Aligned {
             samples,
