@@ -788,7 +788,8 @@ impl PeriodicDecimator {
             let len = n / self.decimator.factor();
             let mut out = Vec::with_capacity(len);
             let split = (len - rotate % len.max(1)) % len.max(1);
-            self.decimator.periodic_into(n, &sample, split..len, &mut out);
+            self.decimator
+                .periodic_into(n, &sample, split..len, &mut out);
             self.decimator.periodic_into(n, &sample, 0..split, &mut out);
             return out;
         }
