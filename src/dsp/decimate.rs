@@ -541,6 +541,61 @@ impl Decimator {
         }
     }
 
+    /// The delay-compensated filter's outputs `ks` on the `n`-periodic signal `sample(p mod n)`,
+    /// appended to `out`: output `k` is `sum_j hr[j] x[(k D + j - (L - 1) / 2) mod n]`. Each output
+    /// is the same sum, in the same order, as [`process`](Self::process) gives for the periodic
+    /// extension of the signal (the phase block holds the same samples; only the way they are
+    /// gathered differs), so the same bits.
+    fn periodic_into(
+        &mut self,
+        n: usize,
+        sample: &impl Fn(usize) -> Complex64,
+        ks: std::ops::Range<usize>,
+        out: &mut Vec<Complex64>,
+    ) {
+        if n == 0 {
+            return;
+        }
+        let d = self.factor;
+        let half = (self.taps.len() - 1) / 2;
+        let stride = self.stride;
+        let mut k0 = ks.start;
+        while k0 < ks.end {
+            let count = (ks.end - k0).min(BLOCK_OUT);
+            let rows = count + stride - BLOCK_OUT;
+            // Input index of row 0, column 0 (before wrapping around the period).
+            let first = (k0 * d) as i64 - half as i64;
+            let last = first + (rows * d) as i64;
+            for r in 0..d {
+                let row_re = &mut self.phase_re[r * stride..r * stride + rows];
+                let row_im = &mut self.phase_im[r * stride..r * stride + rows];
+                if first >= 0 && last <= n as i64 {
+                    let base = first as usize + r;
+                    for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
+                        let z = sample(base + i * d);
+                        *re = z.re;
+                        *im = z.im;
+                    }
+                } else {
+                    for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
+                        let p = (first + (i * d + r) as i64).rem_euclid(n as i64) as usize;
+                        let z = sample(p);
+                        *re = z.re;
+                        *im = z.im;
+                    }
+                }
+            }
+            self.run_kernel(count);
+            out.extend(
+                self.out_re[..count]
+                    .iter()
+                    .zip(&self.out_im[..count])
+                    .map(|(&re, &im)| Complex64::new(re, im)),
+            );
+            k0 += count;
+        }
+    }
+
     fn run_kernel(&mut self, count: usize) {
         #[cfg(target_arch = "x86_64")]
         if self.use_fma {
@@ -711,6 +766,48 @@ impl PeriodicDecimator {
     /// [`decimate`](Self::decimate) of the `n` samples `sample(0..n)`, read straight into the
     /// extended record (e.g. from the scope's words, without a record in volts first).
     pub(crate) fn decimate_map(
+        &mut self,
+        n: usize,
+        sample: impl Fn(usize) -> Complex64,
+    ) -> Vec<Complex64> {
+        self.decimate_map_rotated(n, sample, 0)
+    }
+
+    /// [`decimate_map`](Self::decimate_map) with its output rotated by `rotate` samples: output
+    /// `k` lands at `(k + rotate) % len` (what aligning a record to its marker does next), with
+    /// no extended record: each phase block is read from `sample` directly (around the period
+    /// where the filter reaches past an end). The same bits as decimating the extended record.
+    pub(crate) fn decimate_map_rotated(
+        &mut self,
+        n: usize,
+        sample: impl Fn(usize) -> Complex64,
+        rotate: usize,
+    ) -> Vec<Complex64> {
+        if self.decimator.alignment() == Alignment::Compensated && self.guard <= n {
+            // Output k goes to (k + rotate) % len: the outputs from len - rotate on come first.
+            let len = n / self.decimator.factor();
+            let mut out = Vec::with_capacity(len);
+            let split = (len - rotate % len.max(1)) % len.max(1);
+            self.decimator
+                .periodic_into(n, &sample, split..len, &mut out);
+            self.decimator.periodic_into(n, &sample, 0..split, &mut out);
+            return out;
+        }
+        let y = self.decimate_extended(n, sample);
+        if y.is_empty() {
+            return y;
+        }
+        let s = rotate % y.len();
+        let mut out = Vec::with_capacity(y.len());
+        out.extend_from_slice(&y[y.len() - s..]);
+        out.extend_from_slice(&y[..y.len() - s]);
+        out
+    }
+
+    /// The extended record (`guard` samples of the period's end before it, of its start after
+    /// it) decimated whole: the definition [`decimate_map_rotated`](Self::decimate_map_rotated)
+    /// computes without the record, and what it does for a capture shorter than the guard.
+    fn decimate_extended(
         &mut self,
         n: usize,
         sample: impl Fn(usize) -> Complex64,
@@ -908,6 +1005,26 @@ mod tests {
             d.finish(&mut pieces);
             prop_assert_eq!(whole.len(), n.div_ceil(factor));
             prop_assert_eq!(pieces, whole);
+        }
+
+        #[test]
+        fn periodic_without_the_extended_record_gives_the_same_bits(
+            n in 0usize..4000,
+            factor in 2usize..7,
+            rotate in 0usize..5000,
+            seed in any::<u64>(),
+        ) {
+            let config = DecimatorConfig::for_band(80e9, factor, 0.5e9).unwrap();
+            let mut d = PeriodicDecimator::from_design(&config, designed(factor)).unwrap();
+            let x = noise(n, seed);
+            let y = d.decimate_extended(n, |k| x[k]);
+            let got = d.decimate_map_rotated(n, |k| x[k], rotate);
+            prop_assert_eq!(got.len(), y.len());
+            for (k, v) in y.iter().enumerate() {
+                let at = (k + rotate) % y.len();
+                prop_assert_eq!(got[at].re.to_bits(), v.re.to_bits(), "output {} of {}", k, n);
+                prop_assert_eq!(got[at].im.to_bits(), v.im.to_bits(), "output {} of {}", k, n);
+            }
         }
 
         #[test]

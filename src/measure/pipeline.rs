@@ -960,19 +960,23 @@ impl Pipeline {
             });
         }
         self.prepare_capture_rate(sample_rate_hz)?;
-        let y = match self.decimator.as_mut() {
-            None => (0..needed).map(sample).collect(),
-            Some((_, _, dec)) => dec.decimate_map(needed, sample),
-        };
         // Rotate so sample m sits at m / fs after the marker edge, up to a sub-sample residual.
         let fs = self.tx.sample_rate_hz();
         let shift = (first_point_s * fs).round();
         let residual_s = first_point_s - shift / fs;
         let s = (shift as i64).rem_euclid(period as i64) as usize;
-        let mut samples = vec![ZERO; period];
-        let (head, tail) = y.split_at(period - s);
-        samples[s..].copy_from_slice(head);
-        samples[..s].copy_from_slice(tail);
+        let samples = match self.decimator.as_mut() {
+            None => {
+                let y: Vec<Complex64> = (0..needed).map(sample).collect();
+                let mut samples = vec![ZERO; period];
+                let (head, tail) = y.split_at(period - s);
+                samples[s..].copy_from_slice(head);
+                samples[..s].copy_from_slice(tail);
+                samples
+            }
+            // Decimated straight into place.
+            Some((_, _, dec)) => dec.decimate_map_rotated(needed, sample, s),
+        };
         Ok(Aligned {
             samples,
             residual_s,

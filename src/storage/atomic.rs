@@ -46,8 +46,10 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     let (mut file, tmp) = create_temporary(path).map_err(io)?;
     // Removes the temporary file on every way out but success (errors and panics alike).
     let mut guard = TempGuard(Some(tmp.clone()));
-    let grouped = GROUP.with(|g| g.borrow().is_some());
-    let mut hasher = grouped.then(Sha256::new);
+    // In a group: whether it hashes its files (`Some(true)`) or not.
+    let group_hashes = GROUP.with(|g| g.borrow().as_ref().map(|g| g.hashed));
+    let grouped = group_hashes.is_some();
+    let mut hasher = group_hashes.unwrap_or(false).then(Sha256::new);
     let mut bytes = 0u64;
     let mut hashing = std::time::Duration::ZERO;
     let written = (|| {
@@ -71,23 +73,25 @@ pub(crate) fn write_atomic_parts(path: &Path, parts: &[&[u8]]) -> Result<(), Sto
     })();
     written.map_err(io)?;
     guard.0 = None;
-    match hasher {
-        Some(hasher) => {
-            in_flight().insert(tmp.clone());
-            GROUP.with(|g| {
-                if let Some(group) = g.borrow_mut().as_mut() {
-                    group.hashing += hashing;
-                    group.pending.push(Pending {
-                        file,
-                        tmp,
-                        path: path.to_path_buf(),
-                        bytes,
-                        sha256: super::hash::hex(&hasher.finalize()),
-                    });
-                }
-            });
-        }
-        None => sync_folder(path),
+    if grouped {
+        in_flight().insert(tmp.clone());
+        let sha256 = hasher
+            .map(|h| super::hash::hex(&h.finalize()))
+            .unwrap_or_default();
+        GROUP.with(|g| {
+            if let Some(group) = g.borrow_mut().as_mut() {
+                group.hashing += hashing;
+                group.pending.push(Pending {
+                    file,
+                    tmp,
+                    path: path.to_path_buf(),
+                    bytes,
+                    sha256,
+                });
+            }
+        });
+    } else {
+        sync_folder(path);
     }
     Ok(())
 }
@@ -163,7 +167,8 @@ struct Pending {
     sha256: String,
 }
 
-/// A file a [`write_group`] made durable: where, how long, its SHA-256 (hashed as written).
+/// A file a [`write_group`] made durable: where, how long, its SHA-256 (hashed as written;
+/// empty for a [`write_group_open`], which does not hash).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct WrittenFile {
     pub path: PathBuf,
@@ -171,10 +176,21 @@ pub struct WrittenFile {
     pub sha256: String,
 }
 
-#[derive(Default)]
 struct Group {
     pending: Vec<Pending>,
     hashing: std::time::Duration,
+    /// Whether each file is hashed as it is written (for a manifest that lists the files).
+    hashed: bool,
+}
+
+impl Group {
+    fn new(hashed: bool) -> Group {
+        Group {
+            pending: Vec::new(),
+            hashing: std::time::Duration::ZERO,
+            hashed,
+        }
+    }
 }
 
 /// What a [`write_group`] wrote: every file in writing order, and the time spent hashing them.
@@ -223,7 +239,7 @@ pub fn write_group<R, E: From<StorageError>>(
         let mut g = g.borrow_mut();
         let fresh = g.is_none();
         if fresh {
-            *g = Some(Group::default());
+            *g = Some(Group::new(true));
         }
         fresh
     });
@@ -248,7 +264,10 @@ impl OpenGroup {
     /// What [`write_group`] does at its end: every file synced and renamed into place in writing
     /// order, then each folder synced once; the first failure, after trying them all.
     pub fn finish(mut self) -> Result<GroupWritten, StorageError> {
-        finish_group(self.0.take().unwrap_or_default())
+        match self.0.take() {
+            Some(group) => finish_group(group),
+            None => Ok(GroupWritten::default()),
+        }
     }
 }
 
@@ -262,7 +281,8 @@ impl Drop for OpenGroup {
 
 /// [`write_group`] without its end: returns the group open (see [`OpenGroup`]). When `write`
 /// fails or panics, the group is ended at once, as [`write_group`] ends it. Inside another group
-/// it belongs to that one (the returned group is empty).
+/// it belongs to that one (the returned group is empty). Its files are not hashed (their
+/// [`WrittenFile::sha256`] is empty): `radbench process`, its one user, lists no written files.
 pub fn write_group_open<R, E: From<StorageError>>(
     write: impl FnOnce() -> Result<R, E>,
 ) -> Result<(R, OpenGroup), E> {
@@ -271,9 +291,14 @@ pub fn write_group_open<R, E: From<StorageError>>(
         return write().map(|r| (r, OpenGroup(None)));
     }
     let (value, _) = write_group(|| -> Result<_, E> {
+        GROUP.with(|g| {
+            if let Some(group) = g.borrow_mut().as_mut() {
+                group.hashed = false;
+            }
+        });
         let value = write()?;
         // Taken before write_group's end, which then has nothing left to do.
-        let group = GROUP.with(|g| g.borrow_mut().replace(Group::default()));
+        let group = GROUP.with(|g| g.borrow_mut().replace(Group::new(false)));
         Ok((value, group))
     })?;
     let (value, group) = value;
@@ -283,7 +308,10 @@ pub fn write_group_open<R, E: From<StorageError>>(
 /// Syncs and renames every pending file of this thread's group, then syncs their folders.
 /// Keeps going past a failure and returns the first.
 fn end_group() -> Result<GroupWritten, StorageError> {
-    finish_group(GROUP.with(|g| g.borrow_mut().take()).unwrap_or_default())
+    match GROUP.with(|g| g.borrow_mut().take()) {
+        Some(group) => finish_group(group),
+        None => Ok(GroupWritten::default()),
+    }
 }
 
 /// [`end_group`] of `group`.
@@ -568,12 +596,20 @@ mod tests {
             .join()
             .unwrap()
             .unwrap();
-        let got: Vec<(PathBuf, u64)> = written
+        let got: Vec<(PathBuf, u64, String)> = written
             .files
             .into_iter()
-            .map(|f| (f.path, f.bytes))
+            .map(|f| (f.path, f.bytes, f.sha256))
             .collect();
-        assert_eq!(got, [(dir.path().join("a"), 1), (dir.path().join("b"), 2)]);
+        // Not hashed (nobody lists them).
+        let none = String::new();
+        assert_eq!(
+            got,
+            [
+                (dir.path().join("a"), 1, none.clone()),
+                (dir.path().join("b"), 2, none)
+            ]
+        );
         assert_eq!(names(dir.path()), ["a", "b"]);
         // Dropped unfinished: finished all the same.
         let ((), open) = write_group_open(|| write_atomic(&dir.path().join("c"), b"3")).unwrap();

@@ -517,7 +517,7 @@ fn decode_samples(
 /// The I and Q words of `ci16` payload parts (whole samples only, as [`decode_samples`]).
 fn decode_words(payload: &[&[u8]], little_endian: bool) -> (Vec<i16>, Vec<i16>) {
     let n = payload.iter().map(|p| p.len() / 4).sum();
-    let (mut i, mut q) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut i, mut q) = (vec![0i16; n], vec![0i16; n]);
     let word = |b: [u8; 2]| {
         if little_endian {
             i16::from_le_bytes(b)
@@ -525,11 +525,16 @@ fn decode_words(payload: &[&[u8]], little_endian: bool) -> (Vec<i16>, Vec<i16>) 
             i16::from_be_bytes(b)
         }
     };
+    // Into slices of known length (no capacity check per sample: the loop vectorises).
+    let mut at = 0;
     for part in payload {
-        for s in part.chunks_exact(4) {
-            i.push(word([s[0], s[1]]));
-            q.push(word([s[2], s[3]]));
+        let samples = part.len() / 4;
+        let (i, q) = (&mut i[at..at + samples], &mut q[at..at + samples]);
+        for ((s, i), q) in part.chunks_exact(4).zip(i.iter_mut()).zip(q.iter_mut()) {
+            *i = word([s[0], s[1]]);
+            *q = word([s[2], s[3]]);
         }
+        at += samples;
     }
     (i, q)
 }
