@@ -31,9 +31,7 @@ pub(crate) const SCOPES: [ScopeModel; 2] = [
     ScopeModel {
         name: "keysight-uxr",
         catalog_key: "keysight-uxr0334a",
-        about:
-            "Keysight Infiniium UXR0334A (HiSLIP, or VXI-11 with --scope-transport vxi11), saves \
-                the SigMF recording only",
+        about: "Keysight Infiniium UXR0334A (HiSLIP or VXI-11), saves the SigMF recording only",
         transports: &[Transport::Hislip, Transport::Vxi11],
         emulator: ScopeEmulator::Build(|source| {
             Ok(Arc::new(keysight_uxr::KeysightUxr::embedded_with(source)?))
