@@ -252,13 +252,14 @@ mod tests {
                 "{quiet}"
             );
         }
-        let all = beyond_loopback_warning("0.0.0.0".parse().unwrap()).unwrap();
+        // The unspecified address is only classified here, never bound.
+        let all = beyond_loopback_warning(std::net::Ipv4Addr::UNSPECIFIED.into()).unwrap();
         assert!(all.starts_with("WARNING: --listen 0.0.0.0"), "{all}");
         assert!(all.contains("not encrypted") && all.contains("in place of 127.0.0.1"));
         let lan = beyond_loopback_warning("192.0.2.7".parse().unwrap()).unwrap();
         assert!(lan.contains("--listen 192.0.2.7") && lan.contains("not encrypted"));
         assert!(!lan.contains("in place of"), "{lan}");
-        let v6 = beyond_loopback_warning("::".parse().unwrap()).unwrap();
+        let v6 = beyond_loopback_warning(std::net::Ipv6Addr::UNSPECIFIED.into()).unwrap();
         assert!(v6.contains("in place of 127.0.0.1"), "{v6}");
     }
 }
