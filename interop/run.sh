@@ -19,8 +19,11 @@ fi
 echo "interop: building mock-lab and radbench"
 cargo build --quiet -p mock_lab --bin mock-lab
 cargo build --quiet -p radbench --bin radbench
-export MOCK_LAB_BIN="$PWD/target/debug/mock-lab"
-export RADBENCH_BIN="$PWD/target/debug/radbench"
+# cargo's own target folder (CARGO_TARGET_DIR when set, as cargo itself does), made absolute.
+target_dir=${CARGO_TARGET_DIR:-target}
+case "$target_dir" in /*) ;; *) target_dir="$PWD/$target_dir" ;; esac
+export MOCK_LAB_BIN="$target_dir/debug/mock-lab"
+export RADBENCH_BIN="$target_dir/debug/radbench"
 
 set +e
 "$VENV/bin/python" -m pytest -q -p no:cacheprovider interop
