@@ -104,8 +104,16 @@ def test_fixture_takes_a_scene_from_its_marker(mock_lab):
     assert mock_lab.scene["snr_db"] == 20.0
 
 
+def pytest11_entry_points():
+    """The installed `pytest11` entry points (Python 3.9's `entry_points()` takes no `group`)."""
+    points = importlib.metadata.entry_points()
+    if hasattr(points, "select"):
+        return points.select(group="pytest11")
+    return points.get("pytest11", [])
+
+
 def test_the_plugin_is_registered_under_pytest11():
-    found = [e for e in importlib.metadata.entry_points(group="pytest11") if e.name == "radbench"]
+    found = [e for e in pytest11_entry_points() if e.name == "radbench"]
     assert found and found[0].value == "radbench.pytest_plugin"
 
 
