@@ -30,6 +30,7 @@ use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfi
 use crate::dsp::response::RxEqualiser;
 use crate::dsp::Axis;
 use crate::dsp::C0;
+use crate::dsp::decimate::{Samples, ScaledWords};
 use crate::dsp::{DecimatorConfig, PeriodicDecimator};
 use crate::dsp::{Detector, SpectralLines, TabulatedPsf};
 use crate::dsp::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
@@ -212,8 +213,7 @@ pub struct Processed {
 /// reference itself, or its weighted version).
 fn echo_spectrum(reference: &[Complex64], filter: &[Complex64]) -> Vec<Complex64> {
     let n = reference.len();
-    let mut planner = rustfft::FftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(n);
+    let fft = crate::dsp::plans::forward(n);
     let mut r = reference.to_vec();
     let mut f = filter.to_vec();
     fft.process(&mut r);
@@ -933,13 +933,17 @@ impl Pipeline {
     /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
     /// same arithmetic as `measure::station::Captured::raw`, so the same result).
     pub(crate) fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
-        let (i, q) = (&raw.i, &raw.q);
-        let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);
+        let words = ScaledWords {
+            i: &raw.i,
+            q: &raw.q,
+            gain: raw.gain,
+            offset: raw.offset,
+        };
         self.align_map(
-            i.len().min(q.len()),
+            raw.i.len().min(raw.q.len()),
             raw.sample_rate_hz,
             raw.first_point_s,
-            |k| Complex64::new(gi * f64::from(i[k]) - oi, gq * f64::from(q[k]) - oq),
+            words,
         )
     }
 
@@ -948,7 +952,7 @@ impl Pipeline {
         len: usize,
         sample_rate_hz: f64,
         first_point_s: f64,
-        sample: impl Fn(usize) -> Complex64,
+        sample: impl Samples,
     ) -> Result<Aligned, MeasureError> {
         let factor = self.factor(sample_rate_hz)?;
         let period = self.geometry.period;
@@ -967,7 +971,7 @@ impl Pipeline {
         let s = (shift as i64).rem_euclid(period as i64) as usize;
         let samples = match self.decimator.as_mut() {
             None => {
-                let y: Vec<Complex64> = (0..needed).map(sample).collect();
+                let y: Vec<Complex64> = (0..needed).map(|k| sample.at(k)).collect();
                 let mut samples = vec![ZERO; period];
                 let (head, tail) = y.split_at(period - s);
                 samples[s..].copy_from_slice(head);
