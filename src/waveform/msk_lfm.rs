@@ -368,14 +368,12 @@ impl MskLfm {
             ));
         }
         soft.fill(0.0);
-        // soft[2k] accumulates I symbol k, soft[2k+1] Q symbol k, sample by sample in order.
-        let chirp = &self.chirp;
-        accumulate_runs(&self.i_index, soft, 0, |n, acc| {
-            acc + (pulse[n] * chirp[n].conj()).re * self.cos_weight[n]
-        });
-        accumulate_runs(&self.q_index, soft, 1, |n, acc| {
-            acc - (pulse[n] * chirp[n].conj()).im * self.sin_weight[n]
-        });
+        // soft[2k] accumulates I symbol k, soft[2k+1] Q symbol k.
+        for (n, &z) in pulse.iter().enumerate() {
+            let d = z * self.chirp[n].conj();
+            soft[2 * self.i_index[n] as usize] += d.re * self.cos_weight[n];
+            soft[2 * self.q_index[n] as usize + 1] -= d.im * self.sin_weight[n];
+        }
         for (v, e) in soft.iter_mut().zip(&self.symbol_energy) {
             *v /= e;
         }
@@ -442,59 +440,6 @@ impl MskLfm {
             bits.extend(soft.iter().map(|&v| u8::from(v < 0.0)));
         }
         Ok(bits)
-    }
-}
-
-/// Runs of samples side by side in [`accumulate_runs`].
-const RUN_LANES: usize = 4;
-
-/// For each run of equal `index[n]` (in order of `n`), `soft[2 index + parity]` advanced by
-/// `step(n, acc)` sample after sample: the same sums, in the same order, as one loop over `n`.
-/// The runs of different symbols are independent, so `RUN_LANES` of them go side by side
-/// (their additions overlap in the CPU instead of waiting for each other); runs of one symbol
-/// (the I symbol that wraps around the pulse) are never in the same group, so each continues
-/// from what the earlier one left.
-fn accumulate_runs(
-    index: &[u32],
-    soft: &mut [f64],
-    parity: usize,
-    step: impl Fn(usize, f64) -> f64,
-) {
-    let mut runs: Vec<(usize, usize, usize)> = Vec::new();
-    let mut start = 0;
-    for n in 1..=index.len() {
-        if n == index.len() || index[n] != index[start] {
-            runs.push((start, n, 2 * index[start] as usize + parity));
-            start = n;
-        }
-    }
-    let one = |soft: &mut [f64], (a, b, slot): (usize, usize, usize)| {
-        let mut acc = soft[slot];
-        for n in a..b {
-            acc = step(n, acc);
-        }
-        soft[slot] = acc;
-    };
-    for group in runs.chunks(RUN_LANES) {
-        let distinct = group
-            .iter()
-            .enumerate()
-            .all(|(k, r)| group[..k].iter().all(|o| o.2 != r.2));
-        if group.len() < RUN_LANES || !distinct {
-            group.iter().for_each(|&r| one(soft, r));
-            continue;
-        }
-        let shortest = group.iter().map(|(a, b, _)| b - a).min().unwrap_or(0);
-        let mut acc: [f64; RUN_LANES] = std::array::from_fn(|l| soft[group[l].2]);
-        for t in 0..shortest {
-            for l in 0..RUN_LANES {
-                acc[l] = step(group[l].0 + t, acc[l]);
-            }
-        }
-        for (l, &(a, b, slot)) in group.iter().enumerate() {
-            soft[slot] = acc[l];
-            one(soft, (a + shortest, b, slot));
-        }
     }
 }
 
@@ -586,60 +531,6 @@ mod tests {
         for (s, b) in soft.iter().zip(&sig.bits) {
             assert!((s - (1.0 - 2.0 * f64::from(*b))).abs() < 1e-9);
         }
-    }
-
-    /// The matched filter as one loop over the samples (before session 18).
-    fn soft_bits_one_loop(w: &MskLfm, pulse: &[Complex64]) -> Vec<f64> {
-        let mut soft = vec![0.0; w.n_bits];
-        for (n, &z) in pulse.iter().enumerate() {
-            let d = z * w.chirp[n].conj();
-            soft[2 * w.i_index[n] as usize] += d.re * w.cos_weight[n];
-            soft[2 * w.q_index[n] as usize + 1] -= d.im * w.sin_weight[n];
-        }
-        for (v, e) in soft.iter_mut().zip(&w.symbol_energy) {
-            *v /= e;
-        }
-        soft
-    }
-
-    #[test]
-    fn soft_bits_by_runs_side_by_side_are_the_bits_of_one_loop() {
-        let mut seed = 0x5eed_u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        };
-        let d = MskLfmParams::default();
-        let shapes = [
-            d,
-            MskLfmParams { bits_per_pulse: 2, ..d },
-            MskLfmParams { bits_per_pulse: 4, ..d },
-            MskLfmParams { bits_per_pulse: 6, ..d },
-            MskLfmParams { bits_per_pulse: 10, ..d },
-            MskLfmParams { bits_per_pulse: 64, ..d },
-        ];
-        for p in shapes {
-            let w = MskLfm::new(p).unwrap();
-            for _ in 0..3 {
-                let pulse: Vec<Complex64> = (0..w.n_samples)
-                    .map(|_| Complex64::new(next(), next()))
-                    .collect();
-                let mut soft = vec![0.0; w.n_bits];
-                w.soft_bits_into(&pulse, &mut soft).unwrap();
-                let want = soft_bits_one_loop(&w, &pulse);
-                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&soft), bits(&want), "{} bits per pulse", w.n_bits);
-            }
-        }
-        let small = small();
-        let pulse: Vec<Complex64> = (0..small.n_samples)
-            .map(|_| Complex64::new(next(), next()))
-            .collect();
-        let mut soft = vec![0.0; small.n_bits];
-        small.soft_bits_into(&pulse, &mut soft).unwrap();
-        assert_eq!(soft, soft_bits_one_loop(&small, &pulse));
     }
 
     #[test]
