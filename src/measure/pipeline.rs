@@ -230,15 +230,29 @@ fn level_scale(options: &ProcessOptions) -> f64 {
     }
 }
 
+/// The reference over one period and the correlation's filter (`None`: the reference itself,
+/// the rectangular window).
+struct EchoInputs {
+    reference: Vec<Complex64>,
+    filter: Option<Vec<Complex64>>,
+}
+
+impl EchoInputs {
+    fn filter(&self) -> &[Complex64] {
+        self.filter.as_deref().unwrap_or(&self.reference)
+    }
+}
+
 /// The range processing of one algorithm, with its plans and workspaces.
 enum RangeProcessor {
     Correlation {
         profiler: Box<CorrelationProfiler>,
         lags: usize,
         extended: Vec<Complex64>,
-        /// The echo spectrum the profile sees: transmit spectrum times the conjugate filter
-        /// spectrum (before the capture chain's response), for the detector's point spread.
-        echo_spectrum: Vec<Complex64>,
+        /// What the detector's point spread is made from: the echo spectrum the profile sees
+        /// (transmit spectrum times the conjugate filter spectrum, before the capture chain's
+        /// response) is made from these only when the point spread is not in the cache.
+        echo: EchoInputs,
     },
     Ofdm(Box<OfdmProcessor>),
 }
@@ -272,18 +286,23 @@ impl RangeProcessor {
         reference.resize(period, ZERO);
         let window = options.window.to_dsp();
         let filter = if window == crate::dsp::Window::Rectangular {
-            reference.clone()
+            None
         } else {
-            weighted_filter(&reference, &window, tx.band_hz(), fs)?
+            Some(weighted_filter(&reference, &window, tx.band_hz(), fs)?)
         };
-        let profiler =
-            CorrelationProfiler::with_filter(&reference, &filter, period + lags - 1, lags, fs)?;
-        let echo_spectrum = echo_spectrum(&reference, &filter);
+        let echo = EchoInputs { reference, filter };
+        let profiler = CorrelationProfiler::with_filter(
+            &echo.reference,
+            echo.filter(),
+            period + lags - 1,
+            lags,
+            fs,
+        )?;
         Ok(RangeProcessor::Correlation {
             profiler: Box::new(profiler),
             lags,
             extended: Vec::with_capacity(period + lags - 1),
-            echo_spectrum,
+            echo,
         })
     }
 }
@@ -503,24 +522,35 @@ fn decimator(
 }
 
 /// The point spread of a correlation profile: the echo spectrum weighted by the decimator's pass
-/// band, tabulated over `span` lags; kept in the cache on disk (keyed by the spectrum, the
-/// decimator's taps and the span).
+/// band, tabulated over `span` lags; kept in the cache on disk, keyed by what the echo spectrum
+/// is made from (the reference and the filter: the same build makes the same spectrum from them,
+/// and the build is in every key), the decimator's taps and the span. The spectrum itself (two
+/// FFTs) is made only when the piece is built.
 fn detector_psf(
-    echo_spectrum: &[Complex64],
+    echo: &EchoInputs,
     decimator: Option<&PeriodicDecimator>,
     span: usize,
 ) -> Result<TabulatedPsf, MeasureError> {
     use crate::storage::cache;
-    const KIND: &str = "correlation-psf-v1";
-    let mut key = cache::Key::new(KIND).u64(span as u64);
-    for chunk in echo_spectrum.chunks(4096) {
-        let bytes: Vec<u8> = chunk
-            .iter()
-            .flat_map(|z| [z.re.to_le_bytes(), z.im.to_le_bytes()])
-            .flatten()
-            .collect();
-        key = key.bytes(&bytes);
-    }
+    const KIND: &str = "correlation-psf-v2";
+    let samples = |key: cache::Key, x: &[Complex64]| {
+        let mut key = key.u64(x.len() as u64);
+        let mut bytes = Vec::with_capacity(4096 * 16);
+        for chunk in x.chunks(4096) {
+            bytes.clear();
+            bytes.extend(chunk.iter().flat_map(|z| {
+                let (re, im) = (z.re.to_le_bytes(), z.im.to_le_bytes());
+                re.into_iter().chain(im)
+            }));
+            key = key.bytes(&bytes);
+        }
+        key
+    };
+    let mut key = samples(cache::Key::new(KIND).u64(span as u64), &echo.reference);
+    key = match &echo.filter {
+        Some(filter) => samples(key.u64(1), filter),
+        None => key.u64(0),
+    };
     key = match decimator {
         Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
         None => key.u64(0),
@@ -531,7 +561,7 @@ fn detector_psf(
         TabulatedPsf::to_bytes,
         TabulatedPsf::from_bytes,
         || {
-            let mut spectrum = echo_spectrum.to_vec();
+            let mut spectrum = echo_spectrum(&echo.reference, echo.filter());
             if let Some(dec) = decimator {
                 let p = spectrum.len();
                 for (k, v) in spectrum.iter_mut().enumerate() {
@@ -837,14 +867,10 @@ impl Pipeline {
         }
         let options = detect::detect_options(&self.options);
         let detector = match &self.range {
-            RangeProcessor::Correlation {
-                echo_spectrum,
-                lags,
-                ..
-            } => {
+            RangeProcessor::Correlation { echo, lags, .. } => {
                 let decimator = self.decimator.as_ref().map(|(_, _, dec)| dec);
-                let span = (*lags + 16).min(echo_spectrum.len() / 2 - 1);
-                Detector::new(detector_psf(echo_spectrum, decimator, span)?, options)?
+                let span = (*lags + 16).min(echo.reference.len() / 2 - 1);
+                Detector::new(detector_psf(echo, decimator, span)?, options)?
             }
             RangeProcessor::Ofdm(o) => {
                 if o.music.is_some() {
