@@ -77,7 +77,10 @@ pub(crate) struct ScaledWords<'a> {
 impl Samples for ScaledWords<'_> {
     fn at(&self, k: usize) -> Complex64 {
         let ([gi, gq], [oi, oq]) = (self.gain, self.offset);
-        Complex64::new(gi * f64::from(self.i[k]) - oi, gq * f64::from(self.q[k]) - oq)
+        Complex64::new(
+            gi * f64::from(self.i[k]) - oi,
+            gq * f64::from(self.q[k]) - oq,
+        )
     }
 
     // The same arithmetic as `at`, with the words' bounds checked once per row.

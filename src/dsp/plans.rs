@@ -13,9 +13,13 @@ use std::sync::{Arc, Mutex};
 /// are used), so a long session of many lengths does not grow without bound.
 const KEPT: usize = 32;
 
+/// A plan made, with when it was last asked for.
+type Made = (u64, Arc<dyn Fft<f64>>);
+
 struct Plans {
     planner: FftPlanner<f64>,
-    made: HashMap<(usize, bool), (u64, Arc<dyn Fft<f64>>)>,
+    /// By length and direction (forward: true).
+    made: HashMap<(usize, bool), Made>,
     clock: u64,
 }
 

@@ -21,6 +21,7 @@ use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR}
 use super::payload::PayloadDecoder;
 use super::transmit::Transmission;
 use super::MeasureError;
+use crate::dsp::decimate::{Samples, ScaledWords};
 use crate::dsp::music::root_music_ranges;
 use crate::dsp::ofdm_radar::{
     IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig, RangeDopplerMap,
@@ -30,7 +31,6 @@ use crate::dsp::range_profile::{music_profile, weighted_filter, CorrelationProfi
 use crate::dsp::response::RxEqualiser;
 use crate::dsp::Axis;
 use crate::dsp::C0;
-use crate::dsp::decimate::{Samples, ScaledWords};
 use crate::dsp::{DecimatorConfig, PeriodicDecimator};
 use crate::dsp::{Detector, SpectralLines, TabulatedPsf};
 use crate::dsp::{ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};

@@ -423,8 +423,14 @@ mod tests {
 
     #[test]
     fn the_ramp_side_by_side_at_the_segment_edges_and_the_capture_length() {
-        let lengths = [1, 2, 3, 1023, 1024, 1025, 2046, 2047, 2048, 2049, 2050, 4096, 8194];
-        for (k, n) in lengths.into_iter().chain([160_000, 6 * 1024 + 2]).enumerate() {
+        let lengths = [
+            1, 2, 3, 1023, 1024, 1025, 2046, 2047, 2048, 2049, 2050, 4096, 8194,
+        ];
+        for (k, n) in lengths
+            .into_iter()
+            .chain([160_000, 6 * 1024 + 2])
+            .enumerate()
+        {
             same_bits(n, 12.345 * k as f64 - 40.0, k as u64).unwrap();
         }
     }
