@@ -532,32 +532,9 @@ fn detector_psf(
     span: usize,
 ) -> Result<TabulatedPsf, MeasureError> {
     use crate::storage::cache;
-    const KIND: &str = "correlation-psf-v2";
-    let samples = |key: cache::Key, x: &[Complex64]| {
-        let mut key = key.u64(x.len() as u64);
-        let mut bytes = Vec::with_capacity(4096 * 16);
-        for chunk in x.chunks(4096) {
-            bytes.clear();
-            bytes.extend(chunk.iter().flat_map(|z| {
-                let (re, im) = (z.re.to_le_bytes(), z.im.to_le_bytes());
-                re.into_iter().chain(im)
-            }));
-            key = key.bytes(&bytes);
-        }
-        key
-    };
-    let mut key = samples(cache::Key::new(KIND).u64(span as u64), &echo.reference);
-    key = match &echo.filter {
-        Some(filter) => samples(key.u64(1), filter),
-        None => key.u64(0),
-    };
-    key = match decimator {
-        Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
-        None => key.u64(0),
-    };
     cache::get_or_build(
-        KIND,
-        key,
+        PSF_KIND,
+        psf_key(echo, decimator, span),
         TabulatedPsf::to_bytes,
         TabulatedPsf::from_bytes,
         || {
@@ -576,6 +553,41 @@ fn detector_psf(
             Ok::<_, MeasureError>(TabulatedPsf::from_dft_spectrum(&spectrum, span)?)
         },
     )
+}
+
+/// The kind (name and format) of [`detector_psf`]'s cached pieces.
+const PSF_KIND: &str = "correlation-psf-v2";
+
+/// What [`detector_psf`]'s piece depends on: the reference, the filter (or that it is the
+/// reference), the decimator's factor and taps, and the span.
+fn psf_key(
+    echo: &EchoInputs,
+    decimator: Option<&PeriodicDecimator>,
+    span: usize,
+) -> crate::storage::cache::Key {
+    use crate::storage::cache;
+    let samples = |key: cache::Key, x: &[Complex64]| {
+        let mut key = key.u64(x.len() as u64);
+        let mut bytes = Vec::with_capacity(4096 * 16);
+        for chunk in x.chunks(4096) {
+            bytes.clear();
+            bytes.extend(chunk.iter().flat_map(|z| {
+                let (re, im) = (z.re.to_le_bytes(), z.im.to_le_bytes());
+                re.into_iter().chain(im)
+            }));
+            key = key.bytes(&bytes);
+        }
+        key
+    };
+    let mut key = samples(cache::Key::new(PSF_KIND).u64(span as u64), &echo.reference);
+    key = match &echo.filter {
+        Some(filter) => samples(key.u64(1), filter),
+        None => key.u64(0),
+    };
+    match decimator {
+        Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
+        None => key.u64(0),
+    }
 }
 
 /// The configured pipeline (see the module docs).
@@ -1244,6 +1256,33 @@ mod tests {
 
     fn tx(spec: WaveformSpec) -> Arc<Transmission> {
         Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap())
+    }
+
+    #[test]
+    fn the_point_spreads_key_follows_the_reference_the_filter_and_the_span() {
+        let reference: Vec<Complex64> = (0..5000)
+            .map(|k| Complex64::from_polar(1.0, 1e-4 * (k * k) as f64))
+            .collect();
+        let echo = |reference: &[Complex64], filter: Option<Vec<Complex64>>| EchoInputs {
+            reference: reference.to_vec(),
+            filter,
+        };
+        let key = |e: &EchoInputs, span: usize| psf_key(e, None, span).digest();
+        let rect = key(&echo(&reference, None), 100);
+        assert_eq!(rect, key(&echo(&reference, None), 100));
+        // The same values as a filter of their own are another key (never mistaken for the
+        // reference standing in for itself), as is a filter that differs in one sample.
+        assert_ne!(rect, key(&echo(&reference, Some(reference.clone())), 100));
+        let mut weighted = reference.clone();
+        weighted[2500] *= 0.5;
+        let a = key(&echo(&reference, Some(weighted.clone())), 100);
+        weighted[2500] *= 0.5;
+        assert_ne!(a, key(&echo(&reference, Some(weighted)), 100));
+        let mut other = reference.clone();
+        other[4999].im = -other[4999].im;
+        assert_ne!(rect, key(&echo(&other, None), 100));
+        assert_ne!(rect, key(&echo(&reference[..4999], None), 100));
+        assert_ne!(rect, key(&echo(&reference, None), 101));
     }
 
     fn geometry(tx: &Transmission) -> RecordGeometry {
