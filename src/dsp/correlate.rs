@@ -35,7 +35,7 @@ use std::ops::RangeInclusive;
 use std::sync::Arc;
 
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
+use rustfft::Fft;
 
 use super::DspError;
 
@@ -197,9 +197,8 @@ impl CrossCorrelator {
                 (best.1, best.2)
             }
         };
-        let mut planner = FftPlanner::new();
-        let forward = planner.plan_fft_forward(fft_len);
-        let inverse = planner.plan_fft_inverse(fft_len);
+        let forward = super::plans::forward(fft_len);
+        let inverse = super::plans::inverse(fft_len);
         let scratch_len = forward
             .get_inplace_scratch_len()
             .max(inverse.get_inplace_scratch_len());

@@ -44,6 +44,64 @@ use num_complex::Complex64;
 
 use super::DspError;
 
+/// A record read by index, and by stride where that can be faster than one index at a time.
+pub(crate) trait Samples {
+    /// Sample `k`.
+    fn at(&self, k: usize) -> Complex64;
+
+    /// `(re[t], im[t]) = at(start + t * step)` for every `t`: the same values as
+    /// [`at`](Self::at).
+    fn strided(&self, start: usize, step: usize, re: &mut [f64], im: &mut [f64]) {
+        for (t, (r, i)) in re.iter_mut().zip(im.iter_mut()).enumerate() {
+            let z = self.at(start + t * step);
+            *r = z.re;
+            *i = z.im;
+        }
+    }
+}
+
+impl<F: Fn(usize) -> Complex64> Samples for F {
+    fn at(&self, k: usize) -> Complex64 {
+        self(k)
+    }
+}
+
+/// A scope's 16-bit I and Q words as volts: `gain * word - offset` per channel.
+pub(crate) struct ScaledWords<'a> {
+    pub(crate) i: &'a [i16],
+    pub(crate) q: &'a [i16],
+    pub(crate) gain: [f64; 2],
+    pub(crate) offset: [f64; 2],
+}
+
+impl Samples for ScaledWords<'_> {
+    fn at(&self, k: usize) -> Complex64 {
+        let ([gi, gq], [oi, oq]) = (self.gain, self.offset);
+        Complex64::new(
+            gi * f64::from(self.i[k]) - oi,
+            gq * f64::from(self.q[k]) - oq,
+        )
+    }
+
+    // The same arithmetic as `at`, with the words' bounds checked once per row.
+    fn strided(&self, start: usize, step: usize, re: &mut [f64], im: &mut [f64]) {
+        let count = re.len().min(im.len());
+        if count == 0 {
+            return;
+        }
+        let end = start + (count - 1) * step + 1;
+        let ([gi, gq], [oi, oq]) = (self.gain, self.offset);
+        let words = self.i[start..end]
+            .iter()
+            .step_by(step)
+            .zip(self.q[start..end].iter().step_by(step));
+        for ((r, m), (&a, &b)) in re.iter_mut().zip(im.iter_mut()).zip(words) {
+            *r = gi * f64::from(a) - oi;
+            *m = gq * f64::from(b) - oq;
+        }
+    }
+}
+
 /// Outputs computed per transposed block (sized so the phase arrays stay in the L1/L2 cache).
 const BLOCK_OUT: usize = 512;
 /// Outputs per register block of the kernel: 16 keeps 8 independent AVX2 accumulators in flight
@@ -549,7 +607,7 @@ impl Decimator {
     fn periodic_into(
         &mut self,
         n: usize,
-        sample: &impl Fn(usize) -> Complex64,
+        sample: &impl Samples,
         ks: std::ops::Range<usize>,
         out: &mut Vec<Complex64>,
     ) {
@@ -570,16 +628,11 @@ impl Decimator {
                 let row_re = &mut self.phase_re[r * stride..r * stride + rows];
                 let row_im = &mut self.phase_im[r * stride..r * stride + rows];
                 if first >= 0 && last <= n as i64 {
-                    let base = first as usize + r;
-                    for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
-                        let z = sample(base + i * d);
-                        *re = z.re;
-                        *im = z.im;
-                    }
+                    sample.strided(first as usize + r, d, row_re, row_im);
                 } else {
                     for (i, (re, im)) in row_re.iter_mut().zip(row_im.iter_mut()).enumerate() {
                         let p = (first + (i * d + r) as i64).rem_euclid(n as i64) as usize;
-                        let z = sample(p);
+                        let z = sample.at(p);
                         *re = z.re;
                         *im = z.im;
                     }
@@ -780,7 +833,7 @@ impl PeriodicDecimator {
     pub(crate) fn decimate_map_rotated(
         &mut self,
         n: usize,
-        sample: impl Fn(usize) -> Complex64,
+        sample: impl Samples,
         rotate: usize,
     ) -> Vec<Complex64> {
         if self.decimator.alignment() == Alignment::Compensated && self.guard <= n {
@@ -807,11 +860,8 @@ impl PeriodicDecimator {
     /// The extended record (`guard` samples of the period's end before it, of its start after
     /// it) decimated whole: the definition [`decimate_map_rotated`](Self::decimate_map_rotated)
     /// computes without the record, and what it does for a capture shorter than the guard.
-    fn decimate_extended(
-        &mut self,
-        n: usize,
-        sample: impl Fn(usize) -> Complex64,
-    ) -> Vec<Complex64> {
+    fn decimate_extended(&mut self, n: usize, sample: impl Samples) -> Vec<Complex64> {
+        let sample = |k: usize| sample.at(k);
         let g = self.guard.min(n);
         let mut extended = std::mem::take(&mut self.extended);
         extended.clear();
@@ -1024,6 +1074,36 @@ mod tests {
                 let at = (k + rotate) % y.len();
                 prop_assert_eq!(got[at].re.to_bits(), v.re.to_bits(), "output {} of {}", k, n);
                 prop_assert_eq!(got[at].im.to_bits(), v.im.to_bits(), "output {} of {}", k, n);
+            }
+        }
+
+        #[test]
+        fn words_read_by_stride_give_the_bits_of_words_read_one_by_one(
+            n in 0usize..4000,
+            factor in 2usize..7,
+            rotate in 0usize..5000,
+            seed in any::<u64>(),
+            gain in 1e-6f64..1e-2,
+            offset in -1.0f64..1.0,
+        ) {
+            let config = DecimatorConfig::for_band(80e9, factor, 0.5e9).unwrap();
+            let mut d = PeriodicDecimator::from_design(&config, designed(factor)).unwrap();
+            let x = noise(n, seed);
+            let i: Vec<i16> = x.iter().map(|z| (z.re * 32767.0) as i16).collect();
+            let q: Vec<i16> = x.iter().map(|z| (z.im * 32767.0) as i16).collect();
+            let words = ScaledWords { i: &i, q: &q, gain: [gain, 2.0 * gain], offset: [offset, -offset] };
+            let one_by_one = |k: usize| {
+                Complex64::new(
+                    gain * f64::from(i[k]) - offset,
+                    2.0 * gain * f64::from(q[k]) + offset,
+                )
+            };
+            let want = d.decimate_map_rotated(n, one_by_one, rotate);
+            let got = d.decimate_map_rotated(n, words, rotate);
+            prop_assert_eq!(got.len(), want.len());
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                prop_assert_eq!(g.re.to_bits(), w.re.to_bits(), "output {} of {}", k, n);
+                prop_assert_eq!(g.im.to_bits(), w.im.to_bits(), "output {} of {}", k, n);
             }
         }
 

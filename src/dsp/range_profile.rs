@@ -189,9 +189,8 @@ pub(crate) fn weighted_filter(
             band_hz[0], band_hz[1]
         )));
     }
-    let mut planner = rustfft::FftPlanner::<f64>::new();
     let mut spec = tx.to_vec();
-    planner.plan_fft_forward(n).process(&mut spec);
+    super::plans::forward(n).process(&mut spec);
     // Bins inside the band, ascending frequency, get the window's coefficients; the transmit
     // spectrum's own ripple is divided out (regularised where it is weak) so the output spectrum
     // of an echo is the window itself and the side-lobes are the window's.
@@ -218,7 +217,7 @@ pub(crate) fn weighted_filter(
             None => ZERO,
         };
     }
-    planner.plan_fft_inverse(n).process(&mut spec);
+    super::plans::inverse(n).process(&mut spec);
     Ok(spec)
 }
 

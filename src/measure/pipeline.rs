@@ -21,6 +21,7 @@ use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR}
 use super::payload::PayloadDecoder;
 use super::transmit::Transmission;
 use super::MeasureError;
+use crate::dsp::decimate::{Samples, ScaledWords};
 use crate::dsp::music::root_music_ranges;
 use crate::dsp::ofdm_radar::{
     IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig, RangeDopplerMap,
@@ -212,8 +213,7 @@ pub struct Processed {
 /// reference itself, or its weighted version).
 fn echo_spectrum(reference: &[Complex64], filter: &[Complex64]) -> Vec<Complex64> {
     let n = reference.len();
-    let mut planner = rustfft::FftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(n);
+    let fft = crate::dsp::plans::forward(n);
     let mut r = reference.to_vec();
     let mut f = filter.to_vec();
     fft.process(&mut r);
@@ -230,15 +230,29 @@ fn level_scale(options: &ProcessOptions) -> f64 {
     }
 }
 
+/// The reference over one period and the correlation's filter (`None`: the reference itself,
+/// the rectangular window).
+struct EchoInputs {
+    reference: Vec<Complex64>,
+    filter: Option<Vec<Complex64>>,
+}
+
+impl EchoInputs {
+    fn filter(&self) -> &[Complex64] {
+        self.filter.as_deref().unwrap_or(&self.reference)
+    }
+}
+
 /// The range processing of one algorithm, with its plans and workspaces.
 enum RangeProcessor {
     Correlation {
         profiler: Box<CorrelationProfiler>,
         lags: usize,
         extended: Vec<Complex64>,
-        /// The echo spectrum the profile sees: transmit spectrum times the conjugate filter
-        /// spectrum (before the capture chain's response), for the detector's point spread.
-        echo_spectrum: Vec<Complex64>,
+        /// What the detector's point spread is made from: the echo spectrum the profile sees
+        /// (transmit spectrum times the conjugate filter spectrum, before the capture chain's
+        /// response) is made from these only when the point spread is not in the cache.
+        echo: EchoInputs,
     },
     Ofdm(Box<OfdmProcessor>),
 }
@@ -272,18 +286,23 @@ impl RangeProcessor {
         reference.resize(period, ZERO);
         let window = options.window.to_dsp();
         let filter = if window == crate::dsp::Window::Rectangular {
-            reference.clone()
+            None
         } else {
-            weighted_filter(&reference, &window, tx.band_hz(), fs)?
+            Some(weighted_filter(&reference, &window, tx.band_hz(), fs)?)
         };
-        let profiler =
-            CorrelationProfiler::with_filter(&reference, &filter, period + lags - 1, lags, fs)?;
-        let echo_spectrum = echo_spectrum(&reference, &filter);
+        let echo = EchoInputs { reference, filter };
+        let profiler = CorrelationProfiler::with_filter(
+            &echo.reference,
+            echo.filter(),
+            period + lags - 1,
+            lags,
+            fs,
+        )?;
         Ok(RangeProcessor::Correlation {
             profiler: Box::new(profiler),
             lags,
             extended: Vec::with_capacity(period + lags - 1),
-            echo_spectrum,
+            echo,
         })
     }
 }
@@ -503,35 +522,23 @@ fn decimator(
 }
 
 /// The point spread of a correlation profile: the echo spectrum weighted by the decimator's pass
-/// band, tabulated over `span` lags; kept in the cache on disk (keyed by the spectrum, the
-/// decimator's taps and the span).
+/// band, tabulated over `span` lags; kept in the cache on disk, keyed by what the echo spectrum
+/// is made from (the reference and the filter: the same build makes the same spectrum from them,
+/// and the build is in every key), the decimator's taps and the span. The spectrum itself (two
+/// FFTs) is made only when the piece is built.
 fn detector_psf(
-    echo_spectrum: &[Complex64],
+    echo: &EchoInputs,
     decimator: Option<&PeriodicDecimator>,
     span: usize,
 ) -> Result<TabulatedPsf, MeasureError> {
     use crate::storage::cache;
-    const KIND: &str = "correlation-psf-v1";
-    let mut key = cache::Key::new(KIND).u64(span as u64);
-    for chunk in echo_spectrum.chunks(4096) {
-        let bytes: Vec<u8> = chunk
-            .iter()
-            .flat_map(|z| [z.re.to_le_bytes(), z.im.to_le_bytes()])
-            .flatten()
-            .collect();
-        key = key.bytes(&bytes);
-    }
-    key = match decimator {
-        Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
-        None => key.u64(0),
-    };
     cache::get_or_build(
-        KIND,
-        key,
+        PSF_KIND,
+        psf_key(echo, decimator, span),
         TabulatedPsf::to_bytes,
         TabulatedPsf::from_bytes,
         || {
-            let mut spectrum = echo_spectrum.to_vec();
+            let mut spectrum = echo_spectrum(&echo.reference, echo.filter());
             if let Some(dec) = decimator {
                 let p = spectrum.len();
                 for (k, v) in spectrum.iter_mut().enumerate() {
@@ -546,6 +553,41 @@ fn detector_psf(
             Ok::<_, MeasureError>(TabulatedPsf::from_dft_spectrum(&spectrum, span)?)
         },
     )
+}
+
+/// The kind (name and format) of [`detector_psf`]'s cached pieces.
+const PSF_KIND: &str = "correlation-psf-v2";
+
+/// What [`detector_psf`]'s piece depends on: the reference, the filter (or that it is the
+/// reference), the decimator's factor and taps, and the span.
+fn psf_key(
+    echo: &EchoInputs,
+    decimator: Option<&PeriodicDecimator>,
+    span: usize,
+) -> crate::storage::cache::Key {
+    use crate::storage::cache;
+    let samples = |key: cache::Key, x: &[Complex64]| {
+        let mut key = key.u64(x.len() as u64);
+        let mut bytes = Vec::with_capacity(4096 * 16);
+        for chunk in x.chunks(4096) {
+            bytes.clear();
+            bytes.extend(chunk.iter().flat_map(|z| {
+                let (re, im) = (z.re.to_le_bytes(), z.im.to_le_bytes());
+                re.into_iter().chain(im)
+            }));
+            key = key.bytes(&bytes);
+        }
+        key
+    };
+    let mut key = samples(cache::Key::new(PSF_KIND).u64(span as u64), &echo.reference);
+    key = match &echo.filter {
+        Some(filter) => samples(key.u64(1), filter),
+        None => key.u64(0),
+    };
+    match decimator {
+        Some(dec) => key.u64(dec.factor() as u64).f64s(dec.taps()),
+        None => key.u64(0),
+    }
 }
 
 /// The configured pipeline (see the module docs).
@@ -837,14 +879,10 @@ impl Pipeline {
         }
         let options = detect::detect_options(&self.options);
         let detector = match &self.range {
-            RangeProcessor::Correlation {
-                echo_spectrum,
-                lags,
-                ..
-            } => {
+            RangeProcessor::Correlation { echo, lags, .. } => {
                 let decimator = self.decimator.as_ref().map(|(_, _, dec)| dec);
-                let span = (*lags + 16).min(echo_spectrum.len() / 2 - 1);
-                Detector::new(detector_psf(echo_spectrum, decimator, span)?, options)?
+                let span = (*lags + 16).min(echo.reference.len() / 2 - 1);
+                Detector::new(detector_psf(echo, decimator, span)?, options)?
             }
             RangeProcessor::Ofdm(o) => {
                 if o.music.is_some() {
@@ -933,13 +971,17 @@ impl Pipeline {
     /// [`align`](Self::align) of the scope's words, converted to volts as they are read (the
     /// same arithmetic as `measure::station::Captured::raw`, so the same result).
     pub(crate) fn align_words(&mut self, raw: &RawWords) -> Result<Aligned, MeasureError> {
-        let (i, q) = (&raw.i, &raw.q);
-        let ([gi, gq], [oi, oq]) = (raw.gain, raw.offset);
+        let words = ScaledWords {
+            i: &raw.i,
+            q: &raw.q,
+            gain: raw.gain,
+            offset: raw.offset,
+        };
         self.align_map(
-            i.len().min(q.len()),
+            raw.i.len().min(raw.q.len()),
             raw.sample_rate_hz,
             raw.first_point_s,
-            |k| Complex64::new(gi * f64::from(i[k]) - oi, gq * f64::from(q[k]) - oq),
+            words,
         )
     }
 
@@ -948,7 +990,7 @@ impl Pipeline {
         len: usize,
         sample_rate_hz: f64,
         first_point_s: f64,
-        sample: impl Fn(usize) -> Complex64,
+        sample: impl Samples,
     ) -> Result<Aligned, MeasureError> {
         let factor = self.factor(sample_rate_hz)?;
         let period = self.geometry.period;
@@ -967,7 +1009,7 @@ impl Pipeline {
         let s = (shift as i64).rem_euclid(period as i64) as usize;
         let samples = match self.decimator.as_mut() {
             None => {
-                let y: Vec<Complex64> = (0..needed).map(sample).collect();
+                let y: Vec<Complex64> = (0..needed).map(|k| sample.at(k)).collect();
                 let mut samples = vec![ZERO; period];
                 let (head, tail) = y.split_at(period - s);
                 samples[s..].copy_from_slice(head);
@@ -1214,6 +1256,33 @@ mod tests {
 
     fn tx(spec: WaveformSpec) -> Arc<Transmission> {
         Arc::new(Transmission::new(&spec, None, 1, Dac::default()).unwrap())
+    }
+
+    #[test]
+    fn the_point_spreads_key_follows_the_reference_the_filter_and_the_span() {
+        let reference: Vec<Complex64> = (0..5000)
+            .map(|k| Complex64::from_polar(1.0, 1e-4 * (k * k) as f64))
+            .collect();
+        let echo = |reference: &[Complex64], filter: Option<Vec<Complex64>>| EchoInputs {
+            reference: reference.to_vec(),
+            filter,
+        };
+        let key = |e: &EchoInputs, span: usize| psf_key(e, None, span).digest();
+        let rect = key(&echo(&reference, None), 100);
+        assert_eq!(rect, key(&echo(&reference, None), 100));
+        // The same values as a filter of their own are another key (never mistaken for the
+        // reference standing in for itself), as is a filter that differs in one sample.
+        assert_ne!(rect, key(&echo(&reference, Some(reference.clone())), 100));
+        let mut weighted = reference.clone();
+        weighted[2500] *= 0.5;
+        let a = key(&echo(&reference, Some(weighted.clone())), 100);
+        weighted[2500] *= 0.5;
+        assert_ne!(a, key(&echo(&reference, Some(weighted)), 100));
+        let mut other = reference.clone();
+        other[4999].im = -other[4999].im;
+        assert_ne!(rect, key(&echo(&other, None), 100));
+        assert_ne!(rect, key(&echo(&reference[..4999], None), 100));
+        assert_ne!(rect, key(&echo(&reference, None), 101));
     }
 
     fn geometry(tx: &Transmission) -> RecordGeometry {

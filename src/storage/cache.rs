@@ -63,6 +63,12 @@ impl Key {
     fn finish(self) -> [u8; 32] {
         self.0.finalize().into()
     }
+
+    /// The key's bytes, for tests elsewhere that compare keys.
+    #[cfg(test)]
+    pub(crate) fn digest(self) -> [u8; 32] {
+        self.finish()
+    }
 }
 
 /// This build: a rebuilt executable (another size or modification time) keys every piece anew.

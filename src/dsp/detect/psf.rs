@@ -18,7 +18,6 @@
 //! interpolation error stays below about 1e-6 of the peak (-120 dB).
 
 use num_complex::Complex64;
-use rustfft::FftPlanner;
 use std::f64::consts::PI;
 
 use crate::dsp::DspError;
@@ -330,7 +329,7 @@ impl TabulatedPsf {
         let span = span_cells + 2;
         let len = 2 * span * per_cell + 1;
         let mut table = vec![ZERO; len];
-        let ifft = FftPlanner::new().plan_fft_inverse(p);
+        let ifft = crate::dsp::plans::inverse(p);
         let mut buf = vec![ZERO; p];
         let mut scratch = vec![ZERO; ifft.get_inplace_scratch_len()];
         // Shift by f / U cell for the table's points at x = m + f / U: the phasors
@@ -380,9 +379,7 @@ impl TabulatedPsf {
     ) -> Result<Self, DspError> {
         let p = reference.len();
         let mut spectrum = reference.to_vec();
-        FftPlanner::new()
-            .plan_fft_forward(p.max(1))
-            .process(&mut spectrum);
+        crate::dsp::plans::forward(p.max(1)).process(&mut spectrum);
         for (k, s) in spectrum.iter_mut().enumerate() {
             let power = s.norm_sqr();
             *s = Complex64::new(power, 0.0);

@@ -15,7 +15,7 @@ use crate::waveform::ParamError;
 use crate::waveform::{MskLfm, MskLfmParams, PulseLength};
 use crate::waveform::{SweepBand, WaveformSpec};
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
+use rustfft::Fft;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -164,9 +164,8 @@ struct MskLfmModulation {
 
 impl Modulation for MskLfmModulation {
     fn payload_decoder(&self, period: usize) -> Box<dyn DecodePayload> {
-        let mut planner = FftPlanner::<f64>::new();
-        let forward = planner.plan_fft_forward(period);
-        let inverse = planner.plan_fft_inverse(period);
+        let forward = crate::dsp::plans::forward(period);
+        let inverse = crate::dsp::plans::inverse(period);
         let scratch_len = forward
             .get_inplace_scratch_len()
             .max(inverse.get_inplace_scratch_len());
@@ -297,23 +296,142 @@ fn fractional_shift(
     let n = x.len();
     forward.process_with_scratch(x, scratch);
     let step = -2.0 * std::f64::consts::PI * shift / n as f64;
-    // The phase ramp by recurrence (one complex product per bin), restarted from an exact
-    // phasor every EXACT_EVERY bins so rounding cannot accumulate: no sin/cos per bin.
-    const EXACT_EVERY: usize = 1024;
-    let rotate = Complex64::from_polar(1.0, step);
-    let mut phasor = Complex64::new(0.0, 0.0);
-    let scale = 1.0 / n as f64;
-    for (k, v) in x.iter_mut().enumerate() {
-        if k % EXACT_EVERY == 0 || k == n / 2 + 1 {
-            let signed = if k <= n / 2 {
-                k as f64
-            } else {
-                k as f64 - n as f64
-            };
-            phasor = Complex64::from_polar(scale, step * signed);
-        }
-        *v *= phasor;
-        phasor *= rotate;
-    }
+    ramp(x, step, 1.0 / n as f64);
     inverse.process_with_scratch(x, scratch);
+}
+
+/// The phase ramp restarts from an exact phasor every `RAMP_EXACT_EVERY` bins (and at the first
+/// negative frequency) so rounding cannot accumulate.
+const RAMP_EXACT_EVERY: usize = 1024;
+
+/// Segments of the ramp run side by side (independent recurrences: their products overlap in
+/// the CPU instead of waiting for each other).
+const RAMP_LANES: usize = 4;
+
+/// `x[k] *= scale * e^(i step k')` for every bin `k` (`k'` its signed frequency): the phase
+/// ramp by recurrence (one complex product per bin, no sin/cos per bin), restarted from an exact
+/// phasor at every multiple of `RAMP_EXACT_EVERY` and at `n / 2 + 1`. The segments between
+/// restarts are independent, so `RAMP_LANES` of them are advanced together; each bin gets the
+/// same products in the same order as one recurrence over all bins, so the same bits.
+fn ramp(x: &mut [Complex64], step: f64, scale: f64) {
+    let n = x.len();
+    let exact = |k: usize| {
+        let signed = if k <= n / 2 {
+            k as f64
+        } else {
+            k as f64 - n as f64
+        };
+        Complex64::from_polar(scale, step * signed)
+    };
+    let rotate = Complex64::from_polar(1.0, step);
+    let mut starts: Vec<usize> = (0..n).step_by(RAMP_EXACT_EVERY).collect();
+    let negative = n / 2 + 1;
+    if negative < n && negative % RAMP_EXACT_EVERY != 0 {
+        let at = starts.partition_point(|&s| s < negative);
+        starts.insert(at, negative);
+    }
+    let ends: Vec<usize> = starts.iter().skip(1).copied().chain([n]).collect();
+    let segments: Vec<(usize, usize)> = starts.into_iter().zip(ends).collect();
+    let mut groups = segments.chunks_exact(RAMP_LANES);
+    for group in &mut groups {
+        let shortest = group.iter().map(|(a, b)| b - a).min().unwrap_or(0);
+        let mut phasor: [Complex64; RAMP_LANES] = std::array::from_fn(|l| exact(group[l].0));
+        for t in 0..shortest {
+            for l in 0..RAMP_LANES {
+                x[group[l].0 + t] *= phasor[l];
+                phasor[l] *= rotate;
+            }
+        }
+        for (l, &(a, b)) in group.iter().enumerate() {
+            let mut p = phasor[l];
+            for v in &mut x[a + shortest..b] {
+                *v *= p;
+                p *= rotate;
+            }
+        }
+    }
+    for &(a, b) in groups.remainder() {
+        let mut p = exact(a);
+        for v in &mut x[a..b] {
+            *v *= p;
+            p *= rotate;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The ramp as one recurrence over all bins (the decoder's loop before session 18).
+    fn ramp_one_recurrence(x: &mut [Complex64], step: f64, scale: f64) {
+        let n = x.len();
+        const EXACT_EVERY: usize = 1024;
+        let rotate = Complex64::from_polar(1.0, step);
+        let mut phasor = Complex64::new(0.0, 0.0);
+        for (k, v) in x.iter_mut().enumerate() {
+            if k % EXACT_EVERY == 0 || k == n / 2 + 1 {
+                let signed = if k <= n / 2 {
+                    k as f64
+                } else {
+                    k as f64 - n as f64
+                };
+                phasor = Complex64::from_polar(scale, step * signed);
+            }
+            *v *= phasor;
+            phasor *= rotate;
+        }
+    }
+
+    /// `n` seeded values in -1..1 (a 64-bit LCG's top bits).
+    fn noise(n: usize, seed: u64) -> Vec<Complex64> {
+        let mut s = seed | 1;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        (0..n).map(|_| Complex64::new(next(), next())).collect()
+    }
+
+    fn same_bits(n: usize, shift: f64, seed: u64) -> Result<(), TestCaseError> {
+        let x = noise(n, seed);
+        let step = -2.0 * std::f64::consts::PI * shift / n.max(1) as f64;
+        let scale = 1.0 / n.max(1) as f64;
+        let (mut a, mut b) = (x.clone(), x);
+        ramp(&mut a, step, scale);
+        ramp_one_recurrence(&mut b, step, scale);
+        for (k, (u, v)) in a.iter().zip(&b).enumerate() {
+            prop_assert_eq!(u.re.to_bits(), v.re.to_bits(), "bin {} of {}", k, n);
+            prop_assert_eq!(u.im.to_bits(), v.im.to_bits(), "bin {} of {}", k, n);
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #[test]
+        fn the_ramp_side_by_side_gives_the_bits_of_one_recurrence(
+            n in 0usize..20_000,
+            shift in -5000.0f64..5000.0,
+            seed in any::<u64>(),
+        ) {
+            same_bits(n, shift, seed)?;
+        }
+    }
+
+    #[test]
+    fn the_ramp_side_by_side_at_the_segment_edges_and_the_capture_length() {
+        let lengths = [
+            1, 2, 3, 1023, 1024, 1025, 2046, 2047, 2048, 2049, 2050, 4096, 8194,
+        ];
+        for (k, n) in lengths
+            .into_iter()
+            .chain([160_000, 6 * 1024 + 2])
+            .enumerate()
+        {
+            same_bits(n, 12.345 * k as f64 - 40.0, k as u64).unwrap();
+        }
+    }
 }
