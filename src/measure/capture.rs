@@ -3,9 +3,10 @@
 //!
 //! Order, so that a measurement that was going to be refused never radiates: the transmission is
 //! generated, the processing options checked, the instrument settings planned against the catalog,
-//! then the pipeline is built (decimator, plans) while the instruments are connected (connecting
-//! sends no RF command); only when both are done is the waveform uploaded and RF switched on. A
-//! preparation that fails stops the measurement there. With a background (checked through the
+//! then the pipeline is built (decimator, plans) while the instruments are connected and the
+//! waveform uploaded (connecting sends no RF command, the upload leaves the outputs off); only
+//! when both are done is RF switched on. A preparation that fails stops the measurement there,
+//! the bench put in its safe state when the upload had begun. With a background (checked through the
 //! pipeline) the pipeline is built and the background read and checked before any instrument is
 //! connected: a file that does not fit is refused with nothing sent.
 
@@ -302,6 +303,9 @@ pub struct Rig {
     station: Station,
     /// The transmission the AWG holds and what the upload left.
     loaded: Option<(Arc<Transmission>, Uploaded)>,
+    /// `loaded` was uploaded by [`Rig::upload_ahead`] for the next measurement, in this process
+    /// and with nothing in between: used as it is, not read back from the AWG first.
+    fresh: bool,
 }
 
 impl Rig {
@@ -316,7 +320,60 @@ impl Rig {
         Ok(Rig {
             station,
             loaded: None,
+            fresh: false,
         })
+    }
+
+    /// Uploads `tx` for the next measurement (AWG configured and loaded with its outputs left
+    /// off, scope configured for `segments` triggers per acquisition): nothing radiates. On a
+    /// failure, or when `interrupt` fires first, the bench is put in its safe state (as the
+    /// capture's guard does) and the error returned.
+    pub(crate) async fn upload_ahead(
+        &mut self,
+        tx: &Arc<Transmission>,
+        plan: &CapturePlan,
+        segments: u32,
+        interrupt: &Interrupt,
+    ) -> Result<(), MeasureError> {
+        self.loaded = None;
+        self.fresh = false;
+        let outcome = tokio::select! {
+            up = self.station.upload(tx, plan, segments) => Some(up),
+            _ = interrupt.wait() => None,
+        };
+        match outcome {
+            Some(Ok(up)) => {
+                self.loaded = Some((tx.clone(), up));
+                self.fresh = true;
+                Ok(())
+            }
+            Some(Err(e)) => {
+                self.engage_safe_state().await;
+                Err(e)
+            }
+            None => {
+                let report = self.engage_safe_state().await;
+                Err(MeasureError::Interrupted {
+                    signal: interrupt
+                        .received()
+                        .unwrap_or(super::interrupt::StopSignal::Interrupt),
+                    report: report.to_string(),
+                })
+            }
+        }
+    }
+
+    /// Runs the bench's safe-state sequence now, warning when it did not complete.
+    pub(crate) async fn engage_safe_state(&mut self) -> SafeStateReport {
+        self.loaded = None;
+        self.fresh = false;
+        let report = self.station.safe_state().engage().await;
+        if !report.is_safe() {
+            eprintln!(
+                "WARNING: the safe state did not complete: {report}; switch the bench off by hand"
+            );
+        }
+        report
     }
 
     pub fn identities(&self) -> &Identities {
@@ -358,6 +415,7 @@ impl Rig {
         interrupt: &Interrupt,
     ) -> Result<Taken, MeasureError> {
         check_repetitions(repetitions)?;
+        let fresh = std::mem::take(&mut self.fresh);
         let loaded = self
             .loaded
             .as_ref()
@@ -369,6 +427,7 @@ impl Rig {
                 &prepared.tx,
                 &prepared.plan,
                 loaded,
+                fresh,
                 repetitions,
                 permit,
                 interrupt,
@@ -635,36 +694,71 @@ pub async fn take(
         let built = build_pipeline(&planned, request).await?;
         (built, Rig::connect(bench, &catalog, journal).await?)
     } else {
-        connect_while_building(build_pipeline(&planned, request), async {
-            Rig::connect(bench, &catalog, journal).await
-        })
+        let segments = planned.plan.sequence_segments(repetitions);
+        build_while_uploading(
+            build_pipeline(&planned, request),
+            Rig::connect(bench, &catalog, journal),
+            &planned.tx,
+            &planned.plan,
+            segments,
+            interrupt,
+        )
         .await?
     };
     let prepared = planned.with(built);
+    // RF goes on in here, only now that every check has passed and the pipeline is built.
     let taken = rig
         .acquire(bench, &prepared, repetitions, permit, interrupt)
         .await?;
     Ok((taken, prepared))
 }
 
-/// Connects while the pipeline is built (the instruments' round trips and the pipeline's
-/// computing overlap; connecting sends no RF command, and RF goes on only after both are done).
+/// Connects, then uploads the waveform, while the pipeline is built: the instruments' round
+/// trips and the pipeline's computing overlap. Nothing here radiates: connecting sends no RF
+/// command, the upload configures the AWG and the scope with the outputs left off, and RF goes
+/// on only in [`Rig::acquire`], after this has returned with the pipeline built.
+///
 /// The preparation's error wins, as when it came first: a refused preparation is reported at
-/// once (the connection is dropped half-way), a failed connection waits for the preparation.
-async fn connect_while_building<B, C>(
+/// once while the instruments connect (the connection is dropped half-way, nothing uploaded); a
+/// failed connection waits for the preparation. A preparation that fails while (or after) the
+/// waveform is uploaded waits for the upload to end, then puts the bench in its safe state
+/// (outputs off, AWG stopped, Tx and Rx off) before it is reported. A failed or interrupted
+/// upload puts the bench in its safe state at once, as inside the capture's guard.
+pub(crate) async fn build_while_uploading<B>(
     building: impl std::future::Future<Output = Result<B, MeasureError>>,
-    connecting: impl std::future::Future<Output = Result<C, MeasureError>>,
-) -> Result<(B, C), MeasureError> {
+    connecting: impl std::future::Future<Output = Result<Rig, MeasureError>>,
+    tx: &Arc<Transmission>,
+    plan: &CapturePlan,
+    segments: u32,
+    interrupt: &Interrupt,
+) -> Result<(B, Rig), MeasureError> {
     tokio::pin!(building);
     tokio::pin!(connecting);
-    tokio::select! {
+    let mut rig = tokio::select! {
         built = &mut building => {
+            // Built before the instruments answered: the upload goes on in the capture's guard.
             let built = built?;
-            Ok((built, connecting.await?))
+            return Ok((built, connecting.await?));
         }
-        connected = &mut connecting => {
-            let built = building.await?;
-            Ok((built, connected?))
+        connected = &mut connecting => match connected {
+            Ok(rig) => rig,
+            Err(e) => {
+                building.await?;
+                return Err(e);
+            }
+        },
+    };
+    let (built, uploaded) = tokio::join!(building, rig.upload_ahead(tx, plan, segments, interrupt));
+    match (built, uploaded) {
+        (Ok(built), Ok(())) => Ok((built, rig)),
+        (Ok(_), Err(e)) => Err(e),
+        (Err(e), uploaded) => {
+            if uploaded.is_ok() {
+                // The AWG and scope are set up but nothing was switched on: leave the bench in
+                // its safe state all the same, as after any failed measurement.
+                rig.engage_safe_state().await;
+            }
+            Err(e)
         }
     }
 }
@@ -714,6 +808,96 @@ mod tests {
         Dac, MeasureError, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission,
     };
     use crate::waveform::WaveformSpec;
+
+    /// The upload goes on while the pipeline is built; a preparation that fails after the upload
+    /// began is reported, and the bench ends in its safe state with nothing ever switched on.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_preparation_failing_during_the_upload_leaves_the_bench_safe_never_radiating() {
+        use super::{build_while_uploading, plan_request, CaptureRequest, Rig};
+        use crate::measure::{Bench, BenchSource, BuiltIn, Interrupt};
+        use std::time::Duration;
+        let bench = Bench::open(BenchSource::BuiltIn(Box::<BuiltIn>::default()))
+            .await
+            .unwrap();
+        let lab = &bench.lab.as_ref().unwrap().bench;
+        let catalog = bench.file.catalog().unwrap();
+        let kind = crate::waveform::WaveformKind::MskLfm;
+        let request = CaptureRequest {
+            waveform: kind.thesis_default(),
+            payload: None,
+            seed: 1,
+            options: ProcessOptions::for_waveform(kind),
+            tx_off: false,
+            wait_s: 10.0,
+            background: None,
+        };
+        let planned = plan_request(&bench, &catalog, &request).await.unwrap();
+        let uploading = || {
+            lab.awg
+                .log()
+                .texts()
+                .iter()
+                .any(|t| t.contains(":TRAC1:DEF"))
+        };
+        // The preparation fails once the AWG has been told to define the waveform's segment.
+        let failing = async {
+            let began = async {
+                while !uploading() {
+                    tokio::time::sleep(Duration::from_millis(1)).await;
+                }
+            };
+            tokio::time::timeout(Duration::from_secs(30), began)
+                .await
+                .expect("the upload began within 30 s");
+            Err::<(), _>(MeasureError::Worker("the preparation failed".into()))
+        };
+        let err = build_while_uploading(
+            failing,
+            Rig::connect(&bench, &catalog, None),
+            &planned.tx,
+            &planned.plan,
+            planned.plan.sequence_segments(1),
+            &Interrupt::never(),
+        )
+        .await
+        .err()
+        .expect("the preparation's failure is reported");
+        assert!(
+            matches!(&err, MeasureError::Worker(m) if m == "the preparation failed"),
+            "{err}"
+        );
+        assert!(uploading(), "the upload had begun");
+        assert!(lab.is_safe(), "outputs off, AWG stopped, Tx off");
+        let awg = lab.awg.log().texts();
+        let commands: Vec<&str> = awg
+            .iter()
+            .flat_map(|t| t.split(';'))
+            .map(str::trim)
+            .collect();
+        assert!(
+            !commands
+                .iter()
+                .any(|c| c.contains("OUTP") && c.ends_with(" ON")),
+            "an AWG output was switched on: {awg:?}"
+        );
+        assert!(
+            commands.iter().any(|c| c.contains("OUTP1 OFF")),
+            "the safe state ran after the upload: {awg:?}"
+        );
+        for (name, front) in [("tx", &lab.tx), ("rx", &lab.rx)] {
+            assert!(!front.front_end().rf_enabled, "{name} off");
+            let writes: Vec<String> = front
+                .log()
+                .texts()
+                .into_iter()
+                .filter(|t| t.starts_with("W 02"))
+                .collect();
+            assert!(
+                writes.iter().all(|t| t.starts_with("W 02 0000")),
+                "{name} was enabled: {writes:?}"
+            );
+        }
+    }
 
     #[test]
     fn a_capture_without_repetitions_is_refused_not_averaged() {
