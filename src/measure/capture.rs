@@ -166,12 +166,66 @@ pub(crate) async fn plan_request(
     catalog: &Catalog,
     request: &CaptureRequest,
 ) -> Result<Planned, MeasureError> {
-    let spec = request.waveform;
-    let payload = request.payload.clone();
-    let seed = request.seed;
-    let tx =
-        off_runtime(move || Transmission::new(&spec, payload.as_deref(), seed, Dac::default()))
-            .await??;
+    plan_generated(bench, catalog, request, None).await
+}
+
+/// A request's transmission (its waveform, payload and seed, before any correction), generated
+/// on a blocking thread from the moment it is started: `radbench capture` starts it before the
+/// bench file is read, and [`take`] waits for it. It touches no instrument; its errors are
+/// reported where generating would have reported them, after the bench file's.
+pub struct Generation {
+    key: (WaveformSpec, Option<Vec<u8>>, u64),
+    work: tokio::task::JoinHandle<Result<Transmission, MeasureError>>,
+}
+
+impl Generation {
+    /// Starts generating the transmission of a request's `waveform`, `payload` and `seed`.
+    pub fn start(waveform: WaveformSpec, payload: Option<Vec<u8>>, seed: u64) -> Generation {
+        let key = (waveform, payload, seed);
+        let (spec, payload, seed) = key.clone();
+        let work = tokio::task::spawn_blocking(move || {
+            Transmission::new(&spec, payload.as_deref(), seed, Dac::default())
+        });
+        Generation { key, work }
+    }
+
+    /// The transmission, if it was started for `request`'s waveform, payload and seed.
+    async fn of(self, request: &CaptureRequest) -> Option<Result<Transmission, MeasureError>> {
+        let (spec, payload, seed) = &self.key;
+        if *spec != request.waveform || *payload != request.payload || *seed != request.seed {
+            self.work.abort();
+            return None;
+        }
+        Some(
+            self.work
+                .await
+                .map_err(|e| MeasureError::Worker(e.to_string()))
+                .and_then(|tx| tx),
+        )
+    }
+}
+
+/// [`plan_request`] with the transmission from `generation` when it was started for `request`.
+async fn plan_generated(
+    bench: &Bench,
+    catalog: &Catalog,
+    request: &CaptureRequest,
+    generation: Option<Generation>,
+) -> Result<Planned, MeasureError> {
+    let generated = match generation {
+        Some(g) => g.of(request).await,
+        None => None,
+    };
+    let tx = match generated {
+        Some(tx) => tx?,
+        None => {
+            let spec = request.waveform;
+            let payload = request.payload.clone();
+            let seed = request.seed;
+            off_runtime(move || Transmission::new(&spec, payload.as_deref(), seed, Dac::default()))
+                .await??
+        }
+    };
     // Pre-distorted for the chain's response when the correction asks (before the instruments
     // are planned: the catalog's limits are checked on the codes that will play).
     let tx = Arc::new(tx.with_correction(&request.options)?);
@@ -668,8 +722,16 @@ pub async fn measure(
     journal: Option<Journal>,
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
-    let (taken, mut prepared) =
-        take(bench, request, repetitions, permit, journal, interrupt).await?;
+    let (taken, mut prepared) = take(
+        bench,
+        request,
+        None,
+        repetitions,
+        permit,
+        journal,
+        interrupt,
+    )
+    .await?;
     let processing = process_with(&mut prepared, &taken.captured).await?;
     Ok(taken.with(processing))
 }
@@ -677,9 +739,11 @@ pub async fn measure(
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
 /// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
 /// capture while it is processed, so that a capture whose processing fails is still kept.
+/// `generation`: the request's transmission, started earlier ([`Generation::start`]).
 pub async fn take(
     bench: &Bench,
     request: &CaptureRequest,
+    generation: Option<Generation>,
     repetitions: usize,
     permit: &RfPermit,
     journal: Option<Journal>,
@@ -687,7 +751,7 @@ pub async fn take(
 ) -> Result<(Taken, Prepared), MeasureError> {
     check_repetitions(repetitions)?;
     let catalog = bench.file.catalog()?;
-    let planned = plan_request(bench, &catalog, request).await?;
+    let planned = plan_generated(bench, &catalog, request, generation).await?;
     let (built, mut rig) = if request.background.is_some() {
         // A background is read and checked against this measurement before any instrument is
         // talked to: a file that does not fit is bad input, refused with nothing sent.

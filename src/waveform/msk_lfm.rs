@@ -519,6 +519,42 @@ impl MskLfm {
 mod tests {
     use super::*;
 
+    /// The tables built on several threads hold the values one thread computes, bit for bit.
+    #[test]
+    fn tables_built_on_threads_equal_one_threads() {
+        let params = MskLfmParams {
+            pulse: PulseLength::Samples(PARALLEL_TABLES_FROM * 3 + 17),
+            centre_hz: 0.2e9,
+            ..MskLfmParams::default()
+        };
+        let w = MskLfm::new(params).unwrap();
+        let n = w.n_samples;
+        let spb = n as f64 / w.n_bits as f64;
+        let table = Tables {
+            spb,
+            half_symbols: (w.n_bits / 2) as u32,
+            centre: n as f64 / 2.0,
+            chirp_rate: std::f64::consts::PI * (params.bandwidth_hz / params.sample_rate_hz)
+                / n as f64,
+            shift: 2.0 * std::f64::consts::PI * params.centre_hz / params.sample_rate_hz,
+        };
+        let mut chirp = vec![Complex64::new(0.0, 0.0); n];
+        let (mut cw, mut sw) = (vec![0.0; n], vec![0.0; n]);
+        let (mut ii, mut qi) = (vec![0u32; n], vec![0u32; n]);
+        table.fill(0, &mut chirp, &mut cw, &mut sw, &mut ii, &mut qi);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let cbits = |v: &[Complex64]| {
+            v.iter()
+                .map(|z| (z.re.to_bits(), z.im.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(cbits(&w.chirp), cbits(&chirp));
+        assert_eq!(bits(&w.cos_weight), bits(&cw));
+        assert_eq!(bits(&w.sin_weight), bits(&sw));
+        assert_eq!(w.i_index, ii);
+        assert_eq!(w.q_index, qi);
+    }
+
     /// Energy of one pulse of `w` per band `[lo, hi)` Hz, as fractions of the total.
     fn energy_in(w: &MskLfm, bands: &[(f64, f64)]) -> Vec<f64> {
         let bits: Vec<u8> = (0..w.bits_per_pulse())
