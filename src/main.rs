@@ -118,7 +118,7 @@ mod huge_pages {
     fn reuse(len: usize) -> Option<*mut u8> {
         let mut k = kept();
         let slot = k.blocks.iter().position(|&(_, l)| l == len)?;
-        let (addr, _) = std::mem::replace(&mut k.blocks[slot], (0, 0));
+        let (addr, _) = std::mem::take(&mut k.blocks[slot]);
         k.bytes -= len;
         Some(addr as *mut u8)
     }
