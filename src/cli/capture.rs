@@ -387,7 +387,7 @@ async fn measure_into(
         m.processing.processed.warnings.extend(warnings);
     }
     let ((_, summary), group) =
-        write_group_open(|| measure::write_processed(&out, &m, &raw, &provenance))?;
+        write_group_open(|| measure::write_processed_beside(&out, &m, &raw, &provenance))?;
     group.finish().map_err(MeasureError::from)?;
     if let Some(signal) = interrupt.received() {
         eprintln!(

@@ -333,12 +333,35 @@ pub fn write_raw(
 
 /// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
 /// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
-/// algorithm applied to the same capture.
+/// algorithm applied to the same capture. Every file is written on the calling thread (in its
+/// write group, if any: a campaign's manifest lists them).
 pub fn write_processed(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
     provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    write_processed_with(out, m, raw, provenance, false)
+}
+
+/// [`write_processed`] for a one-shot capture: the link figure is drawn on a thread of its own
+/// (in a write group of its own, ended before `summary.json` is written) while the profiles are
+/// written, the second core being free by then.
+pub fn write_processed_beside(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    write_processed_with(out, m, raw, provenance, true)
+}
+
+fn write_processed_with(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+    beside: bool,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
     create_dir(out)?;
     let profiles = write_profiles(
@@ -349,7 +372,7 @@ pub fn write_processed(
         &m.processing.options,
         m.taken.ground_truth.as_ref(),
         true,
-        true,
+        beside,
     )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
