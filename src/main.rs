@@ -72,9 +72,9 @@ fn main() {
 /// the exit, `strace -f -tt`). Every allocation of 1 MiB or more is a mapping of its own, whole
 /// 2 MiB pages aligned to 2 MiB and advised `MADV_HUGEPAGE` before it is touched, so the kernel
 /// backs it with huge pages where it can: one fault per 2 MiB, and little to free at the exit.
-/// Freed blocks are kept for reuse by a later allocation of the same number of huge pages (at
-/// most 64 blocks and 512 MiB, as glibc keeps smaller ones, `keep_large_buffers`), so repeated
-/// captures do not fault their buffers in again. Where transparent huge pages are off the advice
+/// Blocks are a power of two of huge pages long; freed ones are kept for reuse by a later
+/// allocation of the same length (at most 64 blocks and 512 MiB, as glibc keeps smaller ones,
+/// `keep_large_buffers`), so repeated captures do not fault their buffers in again. Where transparent huge pages are off the advice
 /// does nothing and the blocks are ordinary pages.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 mod huge_pages {
@@ -106,12 +106,19 @@ mod huge_pages {
 
     pub(crate) struct HugePages;
 
-    /// The block length of a large allocation (whole huge pages), `None` for the others.
+    /// The block length of a large allocation, `None` for the others: a power of two of huge
+    /// pages, so that the few lengths there are find kept blocks again (a buffer grown piece by
+    /// piece, or of a slightly different size the next time, reuses one). Pages of a block that
+    /// are never touched cost nothing.
     fn block(layout: Layout) -> Option<usize> {
         if layout.size() < FROM || layout.align() > HUGE_PAGE {
             return None;
         }
-        layout.size().checked_next_multiple_of(HUGE_PAGE)
+        layout
+            .size()
+            .div_ceil(HUGE_PAGE)
+            .checked_next_power_of_two()?
+            .checked_mul(HUGE_PAGE)
     }
 
     /// A kept block of exactly `len` bytes.
@@ -251,8 +258,9 @@ mod huge_pages {
             v.truncate(1000);
             v.shrink_to_fit();
             assert!(v.iter().enumerate().all(|(k, &x)| x as usize == k));
-            // A size no other test allocates (12 huge pages), so nothing else takes the block.
-            let size = (23 << 20) + 1;
+            // A size no other test allocates (a block of 32 huge pages), so nothing else takes
+            // the block.
+            let size = (40 << 20) + 1;
             let big: Vec<u8> = vec![7; size];
             let at = big.as_ptr() as usize;
             drop(big);
