@@ -335,7 +335,7 @@ pub fn write_raw(
 /// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
 /// algorithm applied to the same capture. Every file is written on the calling thread (in its
 /// write group, if any: a campaign's manifest lists them).
-pub fn write_processed(
+pub(crate) fn write_processed(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
@@ -344,7 +344,7 @@ pub fn write_processed(
     write_processed_with(out, m, raw, provenance, false)
 }
 
-/// [`write_processed`] for a one-shot capture: the link figure is drawn on a thread of its own
+/// `write_processed` for a one-shot capture: the link figure is drawn on a thread of its own
 /// (in a write group of its own, ended before `summary.json` is written) while the profiles are
 /// written, the second core being free by then.
 pub fn write_processed_beside(
