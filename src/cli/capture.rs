@@ -13,7 +13,7 @@ use radbench::measure::Provenance;
 use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{Bench, BenchSource, BuiltIn};
 use radbench::measure::{CaptureRequest, Measurement};
-use radbench::storage::write_group;
+use radbench::storage::write_group_open;
 use radbench::waveform::WaveformKind;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -295,6 +295,12 @@ async fn measure_into(
     out: &Path,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
+    let payload = args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec());
+    // The transmission is generated while the bench file is read and the options resolved.
+    let generation = args
+        .repeat
+        .is_none()
+        .then(|| measure::Generation::start(waveform, payload.clone(), args.bits.seed));
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
@@ -312,7 +318,7 @@ async fn measure_into(
     options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
     let request = CaptureRequest {
         waveform,
-        payload: args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec()),
+        payload,
         seed: args.bits.seed,
         options,
         tx_off: args.tx_off,
@@ -335,6 +341,7 @@ async fn measure_into(
     let (taken, mut prepared) = measure::take(
         &bench,
         &request,
+        generation,
         args.repetitions,
         &RfPermit::granted_by_user(),
         journal(global)?,
@@ -353,11 +360,16 @@ async fn measure_into(
         let (out, taken, provenance) = (out.clone(), taken.clone(), provenance.clone());
         let options = prepared.options_for(&taken.captured);
         tokio::task::spawn_blocking(move || {
-            write_group(|| measure::write_raw(&out, &taken, &options, &provenance))
+            // Not hashed: a capture lists no written file's SHA-256 (the SigMF data's SHA-512
+            // is in its metadata).
+            let (raw, group) =
+                write_group_open(|| measure::write_raw(&out, &taken, &options, &provenance))?;
+            group.finish().map_err(MeasureError::from)?;
+            Ok::<_, MeasureError>(raw)
         })
     };
     let processing = measure::process_with(&mut prepared, &taken.captured).await;
-    let (raw, _) = raw_writer
+    let raw = raw_writer
         .await
         .map_err(|e| MeasureError::Worker(format!("writing the raw capture: {e}")))??;
     let processing = processing.with_context(|| {
@@ -374,7 +386,9 @@ async fn measure_into(
         let warnings = calibration_warnings(cal, &m.taken.identities);
         m.processing.processed.warnings.extend(warnings);
     }
-    let ((_, summary), _) = write_group(|| measure::write_processed(&out, &m, &raw, &provenance))?;
+    let ((_, summary), group) =
+        write_group_open(|| measure::write_processed_beside(&out, &m, &raw, &provenance))?;
+    group.finish().map_err(MeasureError::from)?;
     if let Some(signal) = interrupt.received() {
         eprintln!(
             "{} received after the capture: the bench is safe and the files are written to {}",

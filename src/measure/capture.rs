@@ -3,9 +3,10 @@
 //!
 //! Order, so that a measurement that was going to be refused never radiates: the transmission is
 //! generated, the processing options checked, the instrument settings planned against the catalog,
-//! then the pipeline is built (decimator, plans) while the instruments are connected (connecting
-//! sends no RF command); only when both are done is the waveform uploaded and RF switched on. A
-//! preparation that fails stops the measurement there. With a background (checked through the
+//! then the pipeline is built (decimator, plans) while the instruments are connected and the
+//! waveform uploaded (connecting sends no RF command, the upload leaves the outputs off); only
+//! when both are done is RF switched on. A preparation that fails stops the measurement there,
+//! the bench put in its safe state when the upload had begun. With a background (checked through the
 //! pipeline) the pipeline is built and the background read and checked before any instrument is
 //! connected: a file that does not fit is refused with nothing sent.
 
@@ -165,12 +166,66 @@ pub(crate) async fn plan_request(
     catalog: &Catalog,
     request: &CaptureRequest,
 ) -> Result<Planned, MeasureError> {
-    let spec = request.waveform;
-    let payload = request.payload.clone();
-    let seed = request.seed;
-    let tx =
-        off_runtime(move || Transmission::new(&spec, payload.as_deref(), seed, Dac::default()))
-            .await??;
+    plan_generated(bench, catalog, request, None).await
+}
+
+/// A request's transmission (its waveform, payload and seed, before any correction), generated
+/// on a blocking thread from the moment it is started: `radbench capture` starts it before the
+/// bench file is read, and [`take`] waits for it. It touches no instrument; its errors are
+/// reported where generating would have reported them, after the bench file's.
+pub struct Generation {
+    key: (WaveformSpec, Option<Vec<u8>>, u64),
+    work: tokio::task::JoinHandle<Result<Transmission, MeasureError>>,
+}
+
+impl Generation {
+    /// Starts generating the transmission of a request's `waveform`, `payload` and `seed`.
+    pub fn start(waveform: WaveformSpec, payload: Option<Vec<u8>>, seed: u64) -> Generation {
+        let key = (waveform, payload, seed);
+        let (spec, payload, seed) = key.clone();
+        let work = tokio::task::spawn_blocking(move || {
+            Transmission::new(&spec, payload.as_deref(), seed, Dac::default())
+        });
+        Generation { key, work }
+    }
+
+    /// The transmission, if it was started for `request`'s waveform, payload and seed.
+    async fn of(self, request: &CaptureRequest) -> Option<Result<Transmission, MeasureError>> {
+        let (spec, payload, seed) = &self.key;
+        if *spec != request.waveform || *payload != request.payload || *seed != request.seed {
+            self.work.abort();
+            return None;
+        }
+        Some(
+            self.work
+                .await
+                .map_err(|e| MeasureError::Worker(e.to_string()))
+                .and_then(|tx| tx),
+        )
+    }
+}
+
+/// [`plan_request`] with the transmission from `generation` when it was started for `request`.
+async fn plan_generated(
+    bench: &Bench,
+    catalog: &Catalog,
+    request: &CaptureRequest,
+    generation: Option<Generation>,
+) -> Result<Planned, MeasureError> {
+    let generated = match generation {
+        Some(g) => g.of(request).await,
+        None => None,
+    };
+    let tx = match generated {
+        Some(tx) => tx?,
+        None => {
+            let spec = request.waveform;
+            let payload = request.payload.clone();
+            let seed = request.seed;
+            off_runtime(move || Transmission::new(&spec, payload.as_deref(), seed, Dac::default()))
+                .await??
+        }
+    };
     // Pre-distorted for the chain's response when the correction asks (before the instruments
     // are planned: the catalog's limits are checked on the codes that will play).
     let tx = Arc::new(tx.with_correction(&request.options)?);
@@ -302,6 +357,9 @@ pub struct Rig {
     station: Station,
     /// The transmission the AWG holds and what the upload left.
     loaded: Option<(Arc<Transmission>, Uploaded)>,
+    /// `loaded` was uploaded by [`Rig::upload_ahead`] for the next measurement, in this process
+    /// and with nothing in between: used as it is, not read back from the AWG first.
+    fresh: bool,
 }
 
 impl Rig {
@@ -316,7 +374,60 @@ impl Rig {
         Ok(Rig {
             station,
             loaded: None,
+            fresh: false,
         })
+    }
+
+    /// Uploads `tx` for the next measurement (AWG configured and loaded with its outputs left
+    /// off, scope configured for `segments` triggers per acquisition): nothing radiates. On a
+    /// failure, or when `interrupt` fires first, the bench is put in its safe state (as the
+    /// capture's guard does) and the error returned.
+    pub(crate) async fn upload_ahead(
+        &mut self,
+        tx: &Arc<Transmission>,
+        plan: &CapturePlan,
+        segments: u32,
+        interrupt: &Interrupt,
+    ) -> Result<(), MeasureError> {
+        self.loaded = None;
+        self.fresh = false;
+        let outcome = tokio::select! {
+            up = self.station.upload(tx, plan, segments) => Some(up),
+            _ = interrupt.wait() => None,
+        };
+        match outcome {
+            Some(Ok(up)) => {
+                self.loaded = Some((tx.clone(), up));
+                self.fresh = true;
+                Ok(())
+            }
+            Some(Err(e)) => {
+                self.engage_safe_state().await;
+                Err(e)
+            }
+            None => {
+                let report = self.engage_safe_state().await;
+                Err(MeasureError::Interrupted {
+                    signal: interrupt
+                        .received()
+                        .unwrap_or(super::interrupt::StopSignal::Interrupt),
+                    report: report.to_string(),
+                })
+            }
+        }
+    }
+
+    /// Runs the bench's safe-state sequence now, warning when it did not complete.
+    pub(crate) async fn engage_safe_state(&mut self) -> SafeStateReport {
+        self.loaded = None;
+        self.fresh = false;
+        let report = self.station.safe_state().engage().await;
+        if !report.is_safe() {
+            eprintln!(
+                "WARNING: the safe state did not complete: {report}; switch the bench off by hand"
+            );
+        }
+        report
     }
 
     pub fn identities(&self) -> &Identities {
@@ -358,6 +469,7 @@ impl Rig {
         interrupt: &Interrupt,
     ) -> Result<Taken, MeasureError> {
         check_repetitions(repetitions)?;
+        let fresh = std::mem::take(&mut self.fresh);
         let loaded = self
             .loaded
             .as_ref()
@@ -369,6 +481,7 @@ impl Rig {
                 &prepared.tx,
                 &prepared.plan,
                 loaded,
+                fresh,
                 repetitions,
                 permit,
                 interrupt,
@@ -609,8 +722,16 @@ pub async fn measure(
     journal: Option<Journal>,
     interrupt: &Interrupt,
 ) -> Result<Measurement, MeasureError> {
-    let (taken, mut prepared) =
-        take(bench, request, repetitions, permit, journal, interrupt).await?;
+    let (taken, mut prepared) = take(
+        bench,
+        request,
+        None,
+        repetitions,
+        permit,
+        journal,
+        interrupt,
+    )
+    .await?;
     let processing = process_with(&mut prepared, &taken.captured).await?;
     Ok(taken.with(processing))
 }
@@ -618,9 +739,11 @@ pub async fn measure(
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
 /// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
 /// capture while it is processed, so that a capture whose processing fails is still kept.
+/// `generation`: the request's transmission, started earlier ([`Generation::start`]).
 pub async fn take(
     bench: &Bench,
     request: &CaptureRequest,
+    generation: Option<Generation>,
     repetitions: usize,
     permit: &RfPermit,
     journal: Option<Journal>,
@@ -628,43 +751,78 @@ pub async fn take(
 ) -> Result<(Taken, Prepared), MeasureError> {
     check_repetitions(repetitions)?;
     let catalog = bench.file.catalog()?;
-    let planned = plan_request(bench, &catalog, request).await?;
+    let planned = plan_generated(bench, &catalog, request, generation).await?;
     let (built, mut rig) = if request.background.is_some() {
         // A background is read and checked against this measurement before any instrument is
         // talked to: a file that does not fit is bad input, refused with nothing sent.
         let built = build_pipeline(&planned, request).await?;
         (built, Rig::connect(bench, &catalog, journal).await?)
     } else {
-        connect_while_building(build_pipeline(&planned, request), async {
-            Rig::connect(bench, &catalog, journal).await
-        })
+        let segments = planned.plan.sequence_segments(repetitions);
+        build_while_uploading(
+            build_pipeline(&planned, request),
+            Rig::connect(bench, &catalog, journal),
+            &planned.tx,
+            &planned.plan,
+            segments,
+            interrupt,
+        )
         .await?
     };
     let prepared = planned.with(built);
+    // RF goes on in here, only now that every check has passed and the pipeline is built.
     let taken = rig
         .acquire(bench, &prepared, repetitions, permit, interrupt)
         .await?;
     Ok((taken, prepared))
 }
 
-/// Connects while the pipeline is built (the instruments' round trips and the pipeline's
-/// computing overlap; connecting sends no RF command, and RF goes on only after both are done).
+/// Connects, then uploads the waveform, while the pipeline is built: the instruments' round
+/// trips and the pipeline's computing overlap. Nothing here radiates: connecting sends no RF
+/// command, the upload configures the AWG and the scope with the outputs left off, and RF goes
+/// on only in [`Rig::acquire`], after this has returned with the pipeline built.
+///
 /// The preparation's error wins, as when it came first: a refused preparation is reported at
-/// once (the connection is dropped half-way), a failed connection waits for the preparation.
-async fn connect_while_building<B, C>(
+/// once while the instruments connect (the connection is dropped half-way, nothing uploaded); a
+/// failed connection waits for the preparation. A preparation that fails while (or after) the
+/// waveform is uploaded waits for the upload to end, then puts the bench in its safe state
+/// (outputs off, AWG stopped, Tx and Rx off) before it is reported. A failed or interrupted
+/// upload puts the bench in its safe state at once, as inside the capture's guard.
+pub(crate) async fn build_while_uploading<B>(
     building: impl std::future::Future<Output = Result<B, MeasureError>>,
-    connecting: impl std::future::Future<Output = Result<C, MeasureError>>,
-) -> Result<(B, C), MeasureError> {
+    connecting: impl std::future::Future<Output = Result<Rig, MeasureError>>,
+    tx: &Arc<Transmission>,
+    plan: &CapturePlan,
+    segments: u32,
+    interrupt: &Interrupt,
+) -> Result<(B, Rig), MeasureError> {
     tokio::pin!(building);
     tokio::pin!(connecting);
-    tokio::select! {
+    let mut rig = tokio::select! {
         built = &mut building => {
+            // Built before the instruments answered: the upload goes on in the capture's guard.
             let built = built?;
-            Ok((built, connecting.await?))
+            return Ok((built, connecting.await?));
         }
-        connected = &mut connecting => {
-            let built = building.await?;
-            Ok((built, connected?))
+        connected = &mut connecting => match connected {
+            Ok(rig) => rig,
+            Err(e) => {
+                building.await?;
+                return Err(e);
+            }
+        },
+    };
+    let (built, uploaded) = tokio::join!(building, rig.upload_ahead(tx, plan, segments, interrupt));
+    match (built, uploaded) {
+        (Ok(built), Ok(())) => Ok((built, rig)),
+        (Ok(_), Err(e)) => Err(e),
+        (Err(e), uploaded) => {
+            if uploaded.is_ok() {
+                // The AWG and scope are set up but nothing was switched on: leave the bench in
+                // its safe state all the same, as after any failed measurement.
+                rig.engage_safe_state().await;
+            }
+            Err(e)
         }
     }
 }
@@ -714,6 +872,96 @@ mod tests {
         Dac, MeasureError, Pipeline, ProcessOptions, RawIq, RecordGeometry, Transmission,
     };
     use crate::waveform::WaveformSpec;
+
+    /// The upload goes on while the pipeline is built; a preparation that fails after the upload
+    /// began is reported, and the bench ends in its safe state with nothing ever switched on.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_preparation_failing_during_the_upload_leaves_the_bench_safe_never_radiating() {
+        use super::{build_while_uploading, plan_request, CaptureRequest, Rig};
+        use crate::measure::{Bench, BenchSource, BuiltIn, Interrupt};
+        use std::time::Duration;
+        let bench = Bench::open(BenchSource::BuiltIn(Box::<BuiltIn>::default()))
+            .await
+            .unwrap();
+        let lab = &bench.lab.as_ref().unwrap().bench;
+        let catalog = bench.file.catalog().unwrap();
+        let kind = crate::waveform::WaveformKind::MskLfm;
+        let request = CaptureRequest {
+            waveform: kind.thesis_default(),
+            payload: None,
+            seed: 1,
+            options: ProcessOptions::for_waveform(kind),
+            tx_off: false,
+            wait_s: 10.0,
+            background: None,
+        };
+        let planned = plan_request(&bench, &catalog, &request).await.unwrap();
+        let uploading = || {
+            lab.awg
+                .log()
+                .texts()
+                .iter()
+                .any(|t| t.contains(":TRAC1:DEF"))
+        };
+        // The preparation fails once the AWG has been told to define the waveform's segment.
+        let failing = async {
+            let began = async {
+                while !uploading() {
+                    tokio::time::sleep(Duration::from_millis(1)).await;
+                }
+            };
+            tokio::time::timeout(Duration::from_secs(30), began)
+                .await
+                .expect("the upload began within 30 s");
+            Err::<(), _>(MeasureError::Worker("the preparation failed".into()))
+        };
+        let err = build_while_uploading(
+            failing,
+            Rig::connect(&bench, &catalog, None),
+            &planned.tx,
+            &planned.plan,
+            planned.plan.sequence_segments(1),
+            &Interrupt::never(),
+        )
+        .await
+        .err()
+        .expect("the preparation's failure is reported");
+        assert!(
+            matches!(&err, MeasureError::Worker(m) if m == "the preparation failed"),
+            "{err}"
+        );
+        assert!(uploading(), "the upload had begun");
+        assert!(lab.is_safe(), "outputs off, AWG stopped, Tx off");
+        let awg = lab.awg.log().texts();
+        let commands: Vec<&str> = awg
+            .iter()
+            .flat_map(|t| t.split(';'))
+            .map(str::trim)
+            .collect();
+        assert!(
+            !commands
+                .iter()
+                .any(|c| c.contains("OUTP") && c.ends_with(" ON")),
+            "an AWG output was switched on: {awg:?}"
+        );
+        assert!(
+            commands.iter().any(|c| c.contains("OUTP1 OFF")),
+            "the safe state ran after the upload: {awg:?}"
+        );
+        for (name, front) in [("tx", &lab.tx), ("rx", &lab.rx)] {
+            assert!(!front.front_end().rf_enabled, "{name} off");
+            let writes: Vec<String> = front
+                .log()
+                .texts()
+                .into_iter()
+                .filter(|t| t.starts_with("W 02"))
+                .collect();
+            assert!(
+                writes.iter().all(|t| t.starts_with("W 02 0000")),
+                "{name} was enabled: {writes:?}"
+            );
+        }
+    }
 
     #[test]
     fn a_capture_without_repetitions_is_refused_not_averaged() {

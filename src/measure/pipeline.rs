@@ -833,19 +833,31 @@ impl Pipeline {
                 waveform: tx.len(),
             });
         }
-        // Correlation takes every family; the other algorithms divide by an OFDM frame's symbols.
-        let range = match (options.algorithm, tx.modulation.ofdm_frame()) {
-            (Algorithm::Correlation, _) => RangeProcessor::correlation(&tx, &options, &geometry)?,
-            (_, Some((generator, symbols))) => RangeProcessor::Ofdm(Box::new(OfdmProcessor::new(
-                &tx, generator, symbols, &options,
-            )?)),
-            (alg, None) => {
-                return Err(MeasureError::AlgorithmNeedsOfdm {
+        // The payload decoder's tables are built on a thread of their own meanwhile (they
+        // depend on the transmission alone; an error is reported after the range processor's).
+        let (range, payload) = std::thread::scope(|scope| {
+            let payload = scope.spawn(|| PayloadDecoder::new(&tx, geometry.period));
+            // Correlation takes every family; the other algorithms divide by an OFDM frame's
+            // symbols.
+            let range = match (options.algorithm, tx.modulation.ofdm_frame()) {
+                (Algorithm::Correlation, _) => {
+                    RangeProcessor::correlation(&tx, &options, &geometry)
+                }
+                (_, Some((generator, symbols))) => {
+                    OfdmProcessor::new(&tx, generator, symbols, &options)
+                        .map(|o| RangeProcessor::Ofdm(Box::new(o)))
+                }
+                (alg, None) => Err(MeasureError::AlgorithmNeedsOfdm {
                     algorithm: alg.name(),
-                })
-            }
-        };
-        let payload = PayloadDecoder::new(&tx, geometry.period)?;
+                }),
+            };
+            let payload = payload
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (range, payload)
+        });
+        let range = range?;
+        let payload = payload?;
         let (equaliser, correction_check) = match &options.correction {
             Some(used) => {
                 let (eq, mut check) = equaliser_for(used, geometry.period, tx.sample_rate_hz())?;

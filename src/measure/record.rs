@@ -50,7 +50,10 @@ pub struct ProfileFiles {
 /// Writes the profiles of `processed` into `out` (CSV, npy, SVG and PNG plots, the
 /// range-Doppler map when there is one, the link figure when data was decoded: `link.svg`, and
 /// `link.png` when `link_png`), titled `"{program}: {waveform} {algorithm}"`, the scene's targets
-/// drawn when `scene` (a simulated bench's ground truth) names them.
+/// drawn when `scene` (a simulated bench's ground truth) names them. `beside`: the link figure is
+/// drawn on a thread of its own while the profiles are written (a one-shot capture, whose
+/// second core is free by then), its files put in place before this returns.
+#[allow(clippy::too_many_arguments)]
 fn write_profiles(
     out: &Path,
     program: &str,
@@ -59,8 +62,9 @@ fn write_profiles(
     o: &ProcessOptions,
     scene: Option<&Value>,
     link_png: bool,
+    beside: bool,
 ) -> Result<ProfileFiles, MeasureError> {
-    let files = ProfileFiles {
+    let mut files = ProfileFiles {
         profile_csv: out.join("profile.csv"),
         profile_npy: out.join("profile.npy"),
         plot_svg: out.join("profile.svg"),
@@ -72,45 +76,72 @@ fn write_profiles(
         link_svg: None,
         link_png: None,
     };
-    let mut files = files;
-    if let Some(trace) = processed.payload.as_ref().and_then(|p| p.trace.as_ref()) {
-        let p = processed.payload.as_ref();
-        let figures = match (p.and_then(|p| p.evm_rms_pct), p.and_then(|p| p.mer_db)) {
-            (Some(e), Some(m)) => format!(": EVM {e:.2} % rms, MER {m:.1} dB"),
-            _ => String::new(),
-        };
-        let fig = trace.figure(format!("{program}: {} link{figures}", tx.name()));
-        let svg = out.join("link.svg");
-        plot::link::draw_link(&svg, &fig)?;
-        files.link_svg = Some(svg);
-        if link_png {
-            let png = out.join("link.png");
-            plot::link::draw_link(&png, &fig)?;
-            files.link_png = Some(png);
-        }
-    }
-    let truth: Vec<f64> = scene
-        .and_then(|s| s["targets"].as_array())
-        .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
-        .unwrap_or_default();
-    let (plot, table) = super::figure::profile_figure(
-        format!("{program}: {} {}", tx.name(), o.algorithm.name()),
-        processed,
-        o,
-        truth,
-    );
-    table.write(&files.profile_csv)?;
-    table.write(&files.profile_npy)?;
-    plot::draw(&files.plot_svg, &plot)?;
-    plot::draw(&files.plot_png, &plot)?;
-    if let (Some(map), Some(path)) = (&processed.range_doppler, &files.range_doppler_png) {
-        let fig = super::figure::range_doppler_figure(
-            format!("{program}: {} range-Doppler", tx.name()),
-            map,
-            &processed.targets,
+    let link = processed
+        .payload
+        .as_ref()
+        .and_then(|p| p.trace.as_ref().map(|t| (p, t)))
+        .map(|(p, trace)| {
+            let figures = match (p.evm_rms_pct, p.mer_db) {
+                (Some(e), Some(m)) => format!(": EVM {e:.2} % rms, MER {m:.1} dB"),
+                _ => String::new(),
+            };
+            let fig = trace.figure(format!("{program}: {} link{figures}", tx.name()));
+            let svg = out.join("link.svg");
+            let png = link_png.then(|| out.join("link.png"));
+            files.link_svg = Some(svg.clone());
+            files.link_png = png.clone();
+            move || -> Result<(), MeasureError> {
+                plot::link::draw_link(&svg, &fig)?;
+                if let Some(png) = png {
+                    plot::link::draw_link(&png, &fig)?;
+                }
+                Ok(())
+            }
+        });
+    let profiles = || -> Result<(), MeasureError> {
+        let truth: Vec<f64> = scene
+            .and_then(|s| s["targets"].as_array())
+            .map(|t| t.iter().filter_map(|x| x["range_m"].as_f64()).collect())
+            .unwrap_or_default();
+        let (plot, table) = super::figure::profile_figure(
+            format!("{program}: {} {}", tx.name(), o.algorithm.name()),
+            processed,
             o,
+            truth,
         );
-        plot::draw_heatmap(path, &fig)?;
+        table.write(&files.profile_csv)?;
+        table.write(&files.profile_npy)?;
+        plot::draw(&files.plot_svg, &plot)?;
+        plot::draw(&files.plot_png, &plot)?;
+        if let (Some(map), Some(path)) = (&processed.range_doppler, &files.range_doppler_png) {
+            let fig = super::figure::range_doppler_figure(
+                format!("{program}: {} range-Doppler", tx.name()),
+                map,
+                &processed.targets,
+                o,
+            );
+            plot::draw_heatmap(path, &fig)?;
+        }
+        Ok(())
+    };
+    match link {
+        Some(link) if beside => {
+            let (drawn, written) = std::thread::scope(|scope| {
+                // A group of its own on its thread (groups are per thread), ended below.
+                let drawn = scope.spawn(|| crate::storage::atomic::write_group_open(link));
+                let written = profiles();
+                (drawn.join(), written)
+            });
+            let (_, group) = drawn
+                .map_err(|_| MeasureError::Worker("drawing the link figure panicked".into()))??;
+            group.finish()?;
+            written?;
+        }
+        Some(link) => {
+            link()?;
+            profiles()?;
+        }
+        None => profiles()?,
     }
     Ok(files)
 }
@@ -302,12 +333,35 @@ pub fn write_raw(
 
 /// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
 /// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
-/// algorithm applied to the same capture.
-pub fn write_processed(
+/// algorithm applied to the same capture. Every file is written on the calling thread (in its
+/// write group, if any: a campaign's manifest lists them).
+pub(crate) fn write_processed(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
     provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    write_processed_with(out, m, raw, provenance, false)
+}
+
+/// `write_processed` for a one-shot capture: the link figure is drawn on a thread of its own
+/// (in a write group of its own, ended before `summary.json` is written) while the profiles are
+/// written, the second core being free by then.
+pub fn write_processed_beside(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    write_processed_with(out, m, raw, provenance, true)
+}
+
+fn write_processed_with(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+    beside: bool,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
     create_dir(out)?;
     let profiles = write_profiles(
@@ -318,6 +372,7 @@ pub fn write_processed(
         &m.processing.options,
         m.taken.ground_truth.as_ref(),
         true,
+        beside,
     )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
@@ -414,6 +469,7 @@ pub fn write_reprocessed<R>(
             o,
             loaded.ground_truth(),
             link_png,
+            false,
         )?,
         summary: out.join("summary.json"),
     };

@@ -576,12 +576,15 @@ impl Station {
 
     /// Upload (unless `loaded` says the AWG still holds this waveform) and acquire under the
     /// safe-state guard: the bench ends in its safe state whatever happens, also when
-    /// `interrupt` fires first.
+    /// `interrupt` fires first. `fresh`: `loaded` was uploaded just before, for this capture
+    /// (see `Rig::upload_ahead`), and is used as it is; otherwise the AWG is asked first.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) async fn capture(
         &mut self,
         tx: &Transmission,
         plan: &CapturePlan,
         loaded: Option<&Uploaded>,
+        fresh: bool,
         repetitions: usize,
         permit: &RfPermit,
         interrupt: &Interrupt,
@@ -590,6 +593,7 @@ impl Station {
         let segments = plan.sequence_segments(repetitions);
         let work = async {
             let mut up = match loaded {
+                Some(up) if fresh => up.clone(),
                 Some(up) => {
                     // The AWG may have been power-cycled or reset since: look before trusting it.
                     let now = self.awg_applied().await?;

@@ -167,7 +167,7 @@ struct Pending {
     sha256: String,
 }
 
-/// A file a [`write_group`] made durable: where, how long, its SHA-256 (hashed as written;
+/// A file a `write_group` made durable: where, how long, its SHA-256 (hashed as written;
 /// empty for a [`write_group_open`], which does not hash).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct WrittenFile {
@@ -193,7 +193,7 @@ impl Group {
     }
 }
 
-/// What a [`write_group`] wrote: every file in writing order, and the time spent hashing them.
+/// What a `write_group` wrote: every file in writing order, and the time spent hashing them.
 #[derive(Debug, Clone, Default)]
 pub struct GroupWritten {
     pub files: Vec<WrittenFile>,
@@ -223,7 +223,7 @@ fn in_flight() -> std::sync::MutexGuard<'static, std::collections::HashSet<PathB
 /// before an error or a panic inside `write` are still put in place (nothing written is lost).
 /// Returns `write`'s value and every file, in writing order. A nested group belongs to the
 /// outer one (it returns no files; the outer one ends them).
-pub fn write_group<R, E: From<StorageError>>(
+pub(crate) fn write_group<R, E: From<StorageError>>(
     write: impl FnOnce() -> Result<R, E>,
 ) -> Result<(R, GroupWritten), E> {
     struct End(bool);
@@ -254,14 +254,14 @@ pub fn write_group<R, E: From<StorageError>>(
     Ok((value, ended?))
 }
 
-/// A [`write_group`] whose end is left to the caller: its files are written and on their way
+/// A `write_group` whose end is left to the caller: its files are written and on their way
 /// to the disk, not yet synced nor in place. [`OpenGroup::finish`] ends it, on any thread (a
 /// thread that only waits for the disk), so the thread that wrote it can go on computing; dropped
 /// unfinished, it is finished quietly.
 pub struct OpenGroup(Option<Group>);
 
 impl OpenGroup {
-    /// What [`write_group`] does at its end: every file synced and renamed into place in writing
+    /// What `write_group` does at its end: every file synced and renamed into place in writing
     /// order, then each folder synced once; the first failure, after trying them all.
     pub fn finish(mut self) -> Result<GroupWritten, StorageError> {
         match self.0.take() {
@@ -279,8 +279,8 @@ impl Drop for OpenGroup {
     }
 }
 
-/// [`write_group`] without its end: returns the group open (see [`OpenGroup`]). When `write`
-/// fails or panics, the group is ended at once, as [`write_group`] ends it. Inside another group
+/// `write_group` without its end: returns the group open (see [`OpenGroup`]). When `write`
+/// fails or panics, the group is ended at once, as `write_group` ends it. Inside another group
 /// it belongs to that one (the returned group is empty). Its files are not hashed (their
 /// [`WrittenFile::sha256`] is empty): `radbench process`, its one user, lists no written files.
 pub fn write_group_open<R, E: From<StorageError>>(

@@ -151,6 +151,54 @@ pub struct MskLfmSignal {
     pub payload_len: Option<usize>,
 }
 
+/// Pulses of at least this many samples build their tables on several threads.
+const PARALLEL_TABLES_FROM: usize = 32_768;
+
+/// Most threads building one pulse's tables.
+const MAX_TABLE_THREADS: usize = 4;
+
+/// What a sample's table entries are computed from (see [`MskLfm::new`]).
+#[derive(Clone, Copy)]
+struct Tables {
+    spb: f64,
+    half_symbols: u32,
+    centre: f64,
+    chirp_rate: f64,
+    shift: f64,
+}
+
+impl Tables {
+    /// The entries of samples `start..start + chirp.len()`.
+    fn fill(
+        self,
+        start: usize,
+        chirp: &mut [Complex64],
+        cos_weight: &mut [f64],
+        sin_weight: &mut [f64],
+        i_index: &mut [u32],
+        q_index: &mut [u32],
+    ) {
+        let Tables {
+            spb,
+            half_symbols,
+            centre,
+            chirp_rate,
+            shift,
+        } = self;
+        for (k, c) in chirp.iter_mut().enumerate() {
+            let n = start + k;
+            let x = n as f64 - centre;
+            let (s, co) = (chirp_rate * x * x + shift * x).sin_cos();
+            *c = Complex64::new(co, s);
+            let (sw, cw) = (std::f64::consts::FRAC_PI_2 * n as f64 / spb).sin_cos();
+            cos_weight[k] = cw;
+            sin_weight[k] = sw;
+            i_index[k] = ((n as f64 + spb) / (2.0 * spb)).floor() as u32 % half_symbols;
+            q_index[k] = ((n as f64 / (2.0 * spb)).floor() as u32).min(half_symbols - 1);
+        }
+    }
+}
+
 impl MskLfm {
     /// Validates `params` and builds the tables.
     ///
@@ -207,23 +255,47 @@ impl MskLfm {
         let centre = n_samples as f64 / 2.0;
         let chirp_rate = std::f64::consts::PI * (b / fs) / n_samples as f64;
         let shift = 2.0 * std::f64::consts::PI * f0 / fs;
-        let mut chirp = Vec::with_capacity(n_samples);
-        let mut cos_weight = Vec::with_capacity(n_samples);
-        let mut sin_weight = Vec::with_capacity(n_samples);
-        let mut i_index = Vec::with_capacity(n_samples);
-        let mut q_index = Vec::with_capacity(n_samples);
-        for n in 0..n_samples {
-            let x = n as f64 - centre;
-            let (s, c) = (chirp_rate * x * x + shift * x).sin_cos();
-            chirp.push(Complex64::new(c, s));
-            let (sw, cw) = (std::f64::consts::FRAC_PI_2 * n as f64 / spb).sin_cos();
-            cos_weight.push(cw);
-            sin_weight.push(sw);
-            let i = ((n as f64 + spb) / (2.0 * spb)).floor() as u32 % half_symbols;
-            let q = ((n as f64 / (2.0 * spb)).floor() as u32).min(half_symbols - 1);
-            i_index.push(i);
-            q_index.push(q);
-        }
+        let table = Tables {
+            spb,
+            half_symbols,
+            centre,
+            chirp_rate,
+            shift,
+        };
+        let mut chirp = vec![Complex64::new(0.0, 0.0); n_samples];
+        let mut cos_weight = vec![0.0; n_samples];
+        let mut sin_weight = vec![0.0; n_samples];
+        let mut i_index = vec![0u32; n_samples];
+        let mut q_index = vec![0u32; n_samples];
+        // Each sample's entries depend on its index alone: long pulses are split between threads
+        // (the same expression per sample, so the same values as on one thread).
+        let threads = if n_samples >= PARALLEL_TABLES_FROM {
+            std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_TABLE_THREADS))
+        } else {
+            1
+        };
+        let chunk = n_samples.div_ceil(threads);
+        std::thread::scope(|scope| {
+            let parts = chirp
+                .chunks_mut(chunk)
+                .zip(cos_weight.chunks_mut(chunk))
+                .zip(sin_weight.chunks_mut(chunk))
+                .zip(i_index.chunks_mut(chunk))
+                .zip(q_index.chunks_mut(chunk))
+                .enumerate();
+            let mut here = None;
+            for (k, ((((c, cw), sw), ii), qi)) in parts {
+                let start = k * chunk;
+                if k == 0 {
+                    here = Some((c, cw, sw, ii, qi));
+                } else {
+                    scope.spawn(move || table.fill(start, c, cw, sw, ii, qi));
+                }
+            }
+            if let Some((c, cw, sw, ii, qi)) = here {
+                table.fill(0, c, cw, sw, ii, qi);
+            }
+        });
         let mut symbol_energy = vec![0.0; n_bits];
         for n in 0..n_samples {
             symbol_energy[2 * i_index[n] as usize] += cos_weight[n] * cos_weight[n];
@@ -446,6 +518,42 @@ impl MskLfm {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The tables built on several threads hold the values one thread computes, bit for bit.
+    #[test]
+    fn tables_built_on_threads_equal_one_threads() {
+        let params = MskLfmParams {
+            pulse: PulseLength::Samples(PARALLEL_TABLES_FROM * 3 + 17),
+            centre_hz: 0.2e9,
+            ..MskLfmParams::default()
+        };
+        let w = MskLfm::new(params).unwrap();
+        let n = w.n_samples;
+        let spb = n as f64 / w.n_bits as f64;
+        let table = Tables {
+            spb,
+            half_symbols: (w.n_bits / 2) as u32,
+            centre: n as f64 / 2.0,
+            chirp_rate: std::f64::consts::PI * (params.bandwidth_hz / params.sample_rate_hz)
+                / n as f64,
+            shift: 2.0 * std::f64::consts::PI * params.centre_hz / params.sample_rate_hz,
+        };
+        let mut chirp = vec![Complex64::new(0.0, 0.0); n];
+        let (mut cw, mut sw) = (vec![0.0; n], vec![0.0; n]);
+        let (mut ii, mut qi) = (vec![0u32; n], vec![0u32; n]);
+        table.fill(0, &mut chirp, &mut cw, &mut sw, &mut ii, &mut qi);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let cbits = |v: &[Complex64]| {
+            v.iter()
+                .map(|z| (z.re.to_bits(), z.im.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(cbits(&w.chirp), cbits(&chirp));
+        assert_eq!(bits(&w.cos_weight), bits(&cw));
+        assert_eq!(bits(&w.sin_weight), bits(&sw));
+        assert_eq!(w.i_index, ii);
+        assert_eq!(w.q_index, qi);
+    }
 
     /// Energy of one pulse of `w` per band `[lo, hi)` Hz, as fractions of the total.
     fn energy_in(w: &MskLfm, bands: &[(f64, f64)]) -> Vec<f64> {
