@@ -75,7 +75,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import re  # noqa: E402
@@ -91,6 +90,8 @@ import tomllib  # noqa: E402
 import time  # noqa: E402
 import tty  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+from io_journal import connect_span, journal_times  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pyvicp  # noqa: E402
@@ -553,32 +554,6 @@ def python_round(lab, rm, count, seed):
 
 ONE_SHOT_FIRST_BYTE_S = 0.030
 ONE_SHOT_CONNECT_S = 0.020
-
-
-def journal_times(line):
-    """(start, end) of one journal line, seconds since the epoch (`time` is when it was
-    written, at the end of the exchange)."""
-    end = datetime.datetime.fromisoformat(line["time"].replace("Z", "+00:00")).timestamp()
-    return end - line["elapsed_us"] * 1e-6, end
-
-
-def connect_span(journal):
-    """(first connect's start, last identification's end): `*IDN?` answered for the AWG and
-    the scope, the ID register (`R 00`) for Tx and Rx."""
-    starts, done = [], {}
-    asked = {}
-    for line in journal:
-        who, text = line["instrument"], line.get("text", "")
-        start, end = journal_times(line)
-        if line["direction"] == "event" and line.get("kind") == "connect":
-            starts.append(start)
-        elif line["direction"] == "write":
-            asked[who] = text
-        elif line["direction"] == "read" and who not in done:
-            q = asked.get(who, "")
-            if q.startswith("*IDN?") and who in ("awg", "scope") or q.startswith("R 00"):
-                done[who] = end
-    return min(starts), max(done.values())
 
 
 def radbench_one_shot(binary: str, bench: Path, out: Path):

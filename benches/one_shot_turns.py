@@ -19,7 +19,6 @@ Prints min / median of each, per binary. Standard library only.
 """
 
 import argparse
-import datetime
 import json
 import os
 import shutil
@@ -29,27 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-
-def journal_times(line):
-    end = datetime.datetime.fromisoformat(line["time"].replace("Z", "+00:00")).timestamp()
-    return end - line["elapsed_us"] * 1e-6, end
-
-
-def identified(journal):
-    """(first connect's start, last identification's end), as compare_campaign.py counts."""
-    starts, done, asked = [], {}, {}
-    for line in journal:
-        who, text = line["instrument"], line.get("text", "")
-        start, end = journal_times(line)
-        if line["direction"] == "event" and line.get("kind") == "connect":
-            starts.append(start)
-        elif line["direction"] == "write":
-            asked[who] = text
-        elif line["direction"] == "read" and who not in done:
-            q = asked.get(who, "")
-            if q.startswith("*IDN?") and who in ("awg", "scope") or q.startswith("R 00"):
-                done[who] = end
-    return min(starts), max(done.values())
+from io_journal import connect_span, journal_times
 
 
 def one_shot(binary, bench, out):
@@ -66,7 +45,7 @@ def one_shot(binary, bench, out):
     spans = [journal_times(x) for x in journal]
     first = min(s for s, _ in spans)
     last = max(e for _, e in spans)
-    c0, c1 = identified(journal)
+    c0, c1 = connect_span(journal)
 
     def start_of(prefix, instrument=None):
         return min(s for (s, _), x in zip(spans, journal)
