@@ -74,8 +74,9 @@ fn main() {
 /// backs it with huge pages where it can: one fault per 2 MiB, and little to free at the exit.
 /// Blocks are a power of two of huge pages long; freed ones are kept for reuse by a later
 /// allocation of the same length (at most 64 blocks and 512 MiB, as glibc keeps smaller ones,
-/// `keep_large_buffers`), so repeated captures do not fault their buffers in again. Where transparent huge pages are off the advice
-/// does nothing and the blocks are ordinary pages.
+/// `keep_large_buffers`), so repeated captures do not fault their buffers in again. Where
+/// transparent huge pages are off the advice does nothing and the blocks are ordinary pages.
+/// `RADBENCH_HUGE_PAGES=off` in the environment leaves every allocation to glibc, as before.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 mod huge_pages {
     use std::alloc::{GlobalAlloc, Layout, System};
@@ -106,12 +107,38 @@ mod huge_pages {
 
     pub(crate) struct HugePages;
 
+    /// Whether large allocations get blocks of their own: yes unless the environment says
+    /// `RADBENCH_HUGE_PAGES=off` (a machine where huge pages are scarce and the kernel's
+    /// compaction stalls the faults). Read once, at the first large allocation, and never
+    /// changed afterwards, so a block is always freed the way it was made.
+    fn enabled() -> bool {
+        use std::sync::atomic::{AtomicU8, Ordering};
+        const UNKNOWN: u8 = 0;
+        const ON: u8 = 1;
+        const OFF: u8 = 2;
+        static STATE: AtomicU8 = AtomicU8::new(UNKNOWN);
+        let known = STATE.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return known == ON;
+        }
+        // `getenv` allocates nothing (the allocator may not), and radbench never changes its
+        // environment: every thread that gets here reads the same answer.
+        // SAFETY: a NUL-terminated name; the value, when there is one, is a C string owned by
+        // the environment.
+        let off = unsafe {
+            let value = libc::getenv(c"RADBENCH_HUGE_PAGES".as_ptr());
+            !value.is_null() && std::ffi::CStr::from_ptr(value).to_bytes() == b"off"
+        };
+        STATE.store(if off { OFF } else { ON }, Ordering::Relaxed);
+        !off
+    }
+
     /// The block length of a large allocation, `None` for the others: a power of two of huge
     /// pages, so that the few lengths there are find kept blocks again (a buffer grown piece by
     /// piece, or of a slightly different size the next time, reuses one). Pages of a block that
     /// are never touched cost nothing.
     fn block(layout: Layout) -> Option<usize> {
-        if layout.size() < FROM || layout.align() > HUGE_PAGE {
+        if layout.size() < FROM || layout.align() > HUGE_PAGE || !enabled() {
             return None;
         }
         layout
@@ -248,6 +275,10 @@ mod huge_pages {
         /// when asked, and are reused once freed.
         #[test]
         fn large_blocks_keep_their_contents_and_are_reused() {
+            if !super::enabled() {
+                eprintln!("RADBENCH_HUGE_PAGES=off: glibc's blocks, nothing of ours to test");
+                return;
+            }
             let mut v: Vec<u32> = (0..(3 << 20) / 4).collect();
             assert_eq!(
                 v.as_ptr() as usize % super::HUGE_PAGE,
