@@ -46,6 +46,9 @@ pub(crate) struct ChainEstimator {
     weight_image: Vec<f64>,
     /// Lag-domain gate, by signed lag.
     gate: Vec<f64>,
+    /// Its flat half-width, s, and the transmitted repetition it was made for.
+    gate_s: f64,
+    reference: Vec<Complex64>,
     fft: Arc<dyn Fft<f64>>,
     ifft: Arc<dyn Fft<f64>>,
 }
@@ -112,6 +115,8 @@ impl ChainEstimator {
             weight: Vec::new(),
             weight_image: Vec::new(),
             gate,
+            gate_s,
+            reference: reference.to_vec(),
             fft,
             ifft,
         };
@@ -156,6 +161,23 @@ impl ChainEstimator {
 
     pub(crate) fn period(&self) -> usize {
         self.n
+    }
+
+    /// The gate's flat half-width, s.
+    pub(crate) fn gate_s(&self) -> f64 {
+        self.gate_s
+    }
+
+    /// The transmitted repetition.
+    pub(crate) fn reference(&self) -> &[Complex64] {
+        &self.reference
+    }
+
+    /// What a fit predicts of the reference's relative spectrum, per bin: `H X + H' X~`.
+    pub(crate) fn predicted(&self, fitted: &Fitted) -> Vec<Complex64> {
+        (0..self.n)
+            .map(|k| fitted.direct[k] * self.x[k] + fitted.image[k] * self.x_image[k])
+            .collect()
     }
 
     /// Frequency of bin `k`, Hz (signed, baseband).

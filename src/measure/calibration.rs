@@ -63,7 +63,7 @@ pub fn estimate_delay(
 }
 
 /// The widest window a response calibration opens around its reference by default, seconds.
-const MAX_DEFAULT_GATE_S: f64 = 8e-9;
+pub(crate) const MAX_DEFAULT_GATE_S: f64 = 8e-9;
 
 /// The response calibration's default half-window around a reference at `reference_range_m`:
 /// as wide as 8 ns (the chain's longer echoes), but with its taper (half as wide again) ending

@@ -27,9 +27,15 @@ pub struct Detection {
     /// grid-free estimators).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub on_grid_m: Option<f64>,
-    /// Echo power over the noise power per profile cell, dB.
+    /// Echo power over the noise power per profile cell, dB: the noise measured beside the
+    /// waveform's band, where none of the signal is (`Pipeline::process`); absent when the
+    /// record leaves no room beside the band or the algorithm gives no complex profile.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub snr_db: Option<f64>,
+    /// Echo power over the detector's residual floor per cell (what CLEAN leaves away from the
+    /// targets: noise, and where the point spread is not the bench's, the model's misfit), dB.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_to_floor_db: Option<f64>,
     /// -3 dB width of the target's own response (the profile minus every other target), cm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub width_3db_cm: Option<f64>,
@@ -96,7 +102,8 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
         level_db: t.level_db,
         above_threshold_db: Some(t.above_threshold_db),
         on_grid_m: Some(on_grid),
-        snr_db: t.snr_db,
+        snr_db: None,
+        peak_to_floor_db: t.snr_db,
         width_3db_cm: t.width_3db_m.map(|w| w * 100.0),
         sidelobe_db: t.sidelobes.psl_db(),
         sidelobe_note: match t.sidelobes {
@@ -129,6 +136,7 @@ pub(crate) fn detect(
                     above_threshold_db: None,
                     on_grid_m: None,
                     snr_db: None,
+                    peak_to_floor_db: None,
                     width_3db_cm: None,
                     sidelobe_db: None,
                     sidelobe_note: None,

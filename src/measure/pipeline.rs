@@ -191,8 +191,12 @@ pub struct Processed {
     pub width_3db_cm: Option<f64>,
     /// Peak side-lobe level around the strongest target, dB.
     pub sidelobe_db: Option<f64>,
-    /// Strongest peak over the median of the profile, dB.
+    /// The strongest target's signal-to-noise ratio per profile cell, dB (the noise measured
+    /// beside the band: [`Detection::snr_db`]).
     pub snr_db: Option<f64>,
+    /// The strongest target over the detector's residual floor, dB
+    /// ([`Detection::peak_to_floor_db`]).
+    pub peak_to_floor_db: Option<f64>,
     pub payload: Option<PayloadResult>,
     /// The detection threshold per primary-profile cell (amplitude; empty for the subspace
     /// estimators), reflectors outside the range window, the noise level.
@@ -624,6 +628,24 @@ struct CorrectionCheck {
 /// and its -3 dB width by this, cm.
 const CORRECTION_WORSE_DB: f64 = 1.5;
 const CORRECTION_WIDER_CM: f64 = 0.2;
+
+/// The noise beside the band is taken from no higher than this fraction of the rate (the
+/// decimator's response is still well above its stop band there).
+const BESIDE_LIMIT: f64 = 0.35;
+/// The decimator's roll-off beside the band is undone by at most this gain (20 dB).
+const MAX_ROLL_OFF_GAIN: f64 = 10.0;
+
+/// Each target's signal-to-noise ratio from the noise power per cell (`None`: unknown).
+fn set_snr(detection: &mut DetectionReport, noise_per_cell: Option<f64>) {
+    for t in &mut detection.targets {
+        t.snr_db = match (noise_per_cell, t.fitted) {
+            (Some(noise), Some((_, a))) if a.norm_sqr() > 0.0 => {
+                Some(10.0 * (a.norm_sqr() / noise).log10())
+            }
+            _ => None,
+        };
+    }
+}
 
 impl CorrectionCheck {
     fn warnings(
@@ -1123,6 +1145,74 @@ impl Pipeline {
         })())
     }
 
+    /// The record's content beside the waveform's band, moved into it: what lay
+    /// [`Pipeline::beside_shift_hz`] below the band (clear of the band and of its I/Q image) is
+    /// the receiver's noise alone. The decimator's roll-off there is undone, so the noise is as
+    /// strong as inside the band. `None` when the record has no room beside the band.
+    fn noise_beside_band(&self, samples: &[Complex64]) -> Option<Vec<Complex64>> {
+        let n = samples.len();
+        let fs = self.tx.sample_rate_hz();
+        let shift_hz = self.beside_shift_hz();
+        let edge = self.tx.spec.band_edge_hz();
+        if n < 16 || shift_hz + edge > BESIDE_LIMIT * fs {
+            return None;
+        }
+        let shift = ((shift_hz / fs * n as f64).round() as usize).max(1);
+        let mut spectrum = samples.to_vec();
+        crate::dsp::plans::forward(n).process(&mut spectrum);
+        let nu = |k: usize| {
+            let k = k % n;
+            (if k <= n / 2 {
+                k as f64
+            } else {
+                k as f64 - n as f64
+            }) / n as f64
+        };
+        let decimator = self.decimator.as_ref().map(|(_, _, d)| d);
+        let mut moved = vec![Complex64::new(0.0, 0.0); n];
+        for (k, out) in moved.iter_mut().enumerate() {
+            let from = (k + n - shift) % n;
+            let gain = decimator.map_or(1.0, |d| {
+                let (here, there) = (d.response_at_output(nu(k)), d.response_at_output(nu(from)));
+                if there > 0.0 {
+                    (here / there).min(MAX_ROLL_OFF_GAIN)
+                } else {
+                    0.0
+                }
+            });
+            *out = spectrum[from] * (gain / n as f64);
+        }
+        crate::dsp::plans::inverse(n).process(&mut moved);
+        Some(moved)
+    }
+
+    /// How far below the band the noise is taken from, Hz: past the band's lowest edge and its
+    /// I/Q image, with a quarter band to spare.
+    fn beside_shift_hz(&self) -> f64 {
+        2.0 * self.tx.spec.band_edge_hz() + 0.25 * self.tx.bandwidth_hz()
+    }
+
+    /// The mean noise power per cell of the primary profile of a noise-only record (`None` for
+    /// the algorithms without a complex profile).
+    fn noise_per_cell(
+        &mut self,
+        noise: &[Complex64],
+        residual_s: f64,
+    ) -> Result<Option<f64>, MeasureError> {
+        let range = self.range_profiles(noise, self.offset_m(residual_s))?;
+        let Some(z) = range.complex else {
+            return Ok(None);
+        };
+        let mut power: Vec<f64> = z.iter().map(|v| v.norm_sqr()).collect();
+        if power.is_empty() {
+            return Ok(None);
+        }
+        let mid = power.len() / 2;
+        let median = *power.select_nth_unstable_by(mid, f64::total_cmp).1;
+        // The median of an exponential (complex Gaussian noise's power) is ln 2 of its mean.
+        Ok(Some(median / std::f64::consts::LN_2).filter(|p| *p > 0.0))
+    }
+
     /// Range offset of an aligned record: the residual after the trigger minus the system delay.
     pub(crate) fn offset_m(&self, residual_s: f64) -> f64 {
         (residual_s - self.options.system_delay_s) * C0 / 2.0
@@ -1177,9 +1267,15 @@ impl Pipeline {
                 *a -= b;
             }
         }
+        // The noise beside the band, taken before the correction (which then treats it as it
+        // treats the band's own noise).
+        let mut beside = self.noise_beside_band(&aligned.samples);
         if let Some(eq) = &mut self.equaliser {
             // A subtracted background took the DC with it.
             eq.apply(&mut aligned.samples, background.is_none())?;
+            if let Some(noise) = beside.as_mut() {
+                eq.apply(noise, background.is_none())?;
+            }
         }
         let analysis = self.analyse(&aligned)?;
         let Analysis {
@@ -1205,10 +1301,15 @@ impl Pipeline {
             None => None,
         };
         let primary = range.primary();
+        if let Some(noise) = beside {
+            let per_cell = self.noise_per_cell(&noise, aligned.residual_s)?;
+            set_snr(&mut detection, per_cell);
+        }
         let strongest = detection.strongest.map(|i| &detection.targets[i]);
         let width_3db_cm = strongest.and_then(|t| t.width_3db_cm);
         let sidelobe_db = strongest.and_then(|t| t.sidelobe_db);
         let snr_db = strongest.and_then(|t| t.snr_db);
+        let peak_to_floor_db = strongest.and_then(|t| t.peak_to_floor_db);
         if detection.targets.is_empty() {
             warnings.push(detect::no_target_hint(&aligned.samples, primary));
         }
@@ -1249,6 +1350,7 @@ impl Pipeline {
             width_3db_cm,
             sidelobe_db,
             snr_db,
+            peak_to_floor_db,
             payload,
             detection,
             range_doppler,

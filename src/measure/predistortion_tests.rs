@@ -68,6 +68,8 @@ fn calibration(response: Response) -> Calibration {
             figures: response.figures,
             reference: ReferenceFigures::default(),
             instruments: InstrumentsSeen::default(),
+            chain_echoes: Vec::new(),
+            scene_echoes: Vec::new(),
         },
         response,
         path: "test-response.toml".into(),

@@ -160,6 +160,7 @@ pub(crate) fn result_json(
         "width_3db_cm": p.width_3db_cm,
         "sidelobe_db": p.sidelobe_db,
         "snr_db": p.snr_db,
+        "peak_to_floor_db": p.peak_to_floor_db,
         "velocity_resolution_mps": p.detection.velocity_resolution_mps,
         "payload": p.payload,
         "clipped_samples": p.clipping,

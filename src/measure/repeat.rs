@@ -152,6 +152,7 @@ mod tests {
             above_threshold_db: Some(10.0),
             on_grid_m: None,
             snr_db: None,
+            peak_to_floor_db: None,
             width_3db_cm: None,
             sidelobe_db: None,
             sidelobe_note: None,

@@ -12,10 +12,12 @@
 //! linear phase relative to the expected delay `2 R / c + system delay`: corrected, the reference
 //! lands at its true range with the bench's system delay.
 
+use super::calibration::MAX_DEFAULT_GATE_S;
 use super::MeasureError;
+use crate::dsp::chain_echoes;
 use crate::dsp::iq_image::{rx_skew_direct, split_measured, TxIq};
 use crate::dsp::response::{
-    iq_imbalance_of_noise, undo_iq, ChainEstimator, ResponseTable, RxEqualiser, BAND_FLOOR,
+    iq_imbalance_of_noise, undo_iq, ChainEstimator, Fitted, ResponseTable, RxEqualiser, BAND_FLOOR,
 };
 use crate::dsp::C0;
 use num_complex::Complex64;
@@ -40,6 +42,23 @@ pub(crate) const COLUMNS: [&str; 7] = [
 
 /// Figures are taken where the waveform's power is within 3 dB of its peak.
 const FIGURE_COVERAGE: f64 = 0.5;
+
+/// The chain's discrete echoes are searched this far behind the reference at least (and the
+/// leakage as far ahead), s: an IF cable's round trip is 6-20 ns on a lab bench.
+const MIN_ECHO_REACH_S: f64 = 40e-9;
+/// Echoes weaker than this relative to the reference are left alone, dB: under what a
+/// corrected capture's detector could mistake for a target.
+const WEAKEST_ECHO_DB: f64 = -75.0;
+/// Most echoes taken out of one reference.
+const MOST_ECHOES: usize = 12;
+/// Rounds of the scene's search (the leakage, then what its first estimate left).
+const SCENE_ROUNDS: usize = 3;
+/// A gate closed before a chain echo ends its taper this far ahead of it, s (the echo's main
+/// lobe at 1 GHz of band).
+const GATE_MARGIN_S: f64 = 1e-9;
+/// ... but keeps this much of the chain's main response in the fit, s (a module-to-horn
+/// standing wave and its second round trip).
+const SHORTEST_CLOSED_GATE_S: f64 = 3e-9;
 
 /// Which of the chain's measured errors a measurement corrects (`--correction`, a campaign's
 /// `processing.correction`; recorded as [`CorrectionUsed::mode`]).
@@ -197,6 +216,36 @@ pub struct ResponseHeader {
     pub figures: ResponseFigures,
     pub reference: ReferenceFigures,
     pub instruments: InstrumentsSeen,
+    /// Discrete echoes behind every path, beyond the gate (an IF cable's), folded into the table.
+    #[serde(default)]
+    pub chain_echoes: Vec<EchoSeen>,
+    /// The reference scene's own echoes beyond the gate (the Tx->Rx leakage ahead of the
+    /// reference, and its chain echoes): taken out of the reference before the fit, not
+    /// corrected in captures.
+    #[serde(default)]
+    pub scene_echoes: Vec<EchoSeen>,
+}
+
+/// One discrete echo relative to the reference's delay (`dsp::chain_echoes`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EchoSeen {
+    /// After the reference (negative: ahead of it), ns.
+    pub delay_ns: f64,
+    /// Relative to the reference, dB.
+    pub level_db: f64,
+    /// Relative to the reference at the carrier, degrees.
+    pub phase_deg: f64,
+}
+
+impl EchoSeen {
+    fn of(e: &crate::dsp::chain_echoes::Echo) -> Self {
+        EchoSeen {
+            delay_ns: e.delay_s * 1e9,
+            level_db: 20.0 * e.gain.norm().max(1e-300).log10(),
+            phase_deg: e.gain.arg().to_degrees(),
+        }
+    }
 }
 
 /// A measured response: the header's figures and the table.
@@ -209,6 +258,10 @@ pub struct Response {
     pub figures: ResponseFigures,
     pub band_hz: [f64; 2],
     pub system_delay_s: f64,
+    /// The chain's discrete echoes beyond the gate (folded into `table`).
+    pub chain_echoes: Vec<EchoSeen>,
+    /// The reference scene's echoes beyond the gate (not in `table`).
+    pub scene_echoes: Vec<EchoSeen>,
 }
 
 impl Response {
@@ -487,6 +540,8 @@ fn table_from(
         figures: header.figures,
         band_hz: header.band_hz,
         system_delay_s: header.system_delay_s,
+        chain_echoes: header.chain_echoes.clone(),
+        scene_echoes: header.scene_echoes.clone(),
     })
 }
 
@@ -552,15 +607,31 @@ pub(crate) fn measure(
     for m in mean_spectrum.iter_mut() {
         *m /= reps;
     }
-    let fitted = est.fit_relative(&mean_spectrum, &mut Vec::new());
-    let directs: Vec<Vec<Complex64>> = relative
+    let reach_s = MIN_ECHO_REACH_S.max(expected_delay_s - system_delay_s + 3e-9);
+    let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s)?;
+    let (est, echoes, gate_s) = (whole.est, whole.echoes, whole.gate_s);
+    let directs: Vec<Vec<Complex64>> = whole
+        .relative
         .par_iter()
         .map_init(Vec::new, |scratch, z| {
-            est.direct_given_image(z, &fitted.image_for_direct, scratch)
+            let mut d = est.direct_given_image(z, &whole.fitted.image_for_direct, scratch);
+            for (v, e) in d.iter_mut().zip(&whole.chain_factor) {
+                *v *= e;
+            }
+            d
         })
         .collect();
-    drop(relative);
     let cover = est.coverage();
+    let fitted = Fitted {
+        direct: whole
+            .fitted
+            .direct
+            .iter()
+            .zip(&whole.chain_factor)
+            .map(|(d, e)| d * e)
+            .collect(),
+        ..whole.fitted
+    };
     // Normalise to the band's mean (power-weighted): unit gain, zero mean phase.
     let (mut num, mut den) = (Complex64::new(0.0, 0.0), 0.0);
     for k in (0..n).filter(|&k| cover[k] >= FIGURE_COVERAGE) {
@@ -628,6 +699,132 @@ pub(crate) fn measure(
         figures,
         band_hz,
         system_delay_s,
+        chain_echoes: echoes.chain.iter().map(EchoSeen::of).collect(),
+        scene_echoes: echoes.scene.iter().map(EchoSeen::of).collect(),
+    })
+}
+
+/// The gated fit of the reference's mean relative spectrum, with what lies beyond the gate
+/// accounted for (`dsp::chain_echoes`), and the repetitions' spectra made alike.
+struct WholeChain {
+    est: ChainEstimator,
+    /// The gate the final fit was made with, s.
+    gate_s: f64,
+    /// The gated fit, the chain's echoes beyond the gate not in it.
+    fitted: Fitted,
+    /// The chain's echoes beyond the gate, per bin: the response is `fitted.direct` times this.
+    chain_factor: Vec<Complex64>,
+    /// The repetitions' relative spectra with every echo found divided out.
+    relative: Vec<Vec<Complex64>>,
+    echoes: chain_echoes::Echoes,
+}
+
+/// First the scene beyond the gate (the leakage ahead of the reference) is divided out; with
+/// nothing of the scene left near the reference, the gated fit may then open to the widest
+/// default gate and take in all of the chain's main response (a short gate's taper would leave
+/// part of it behind). Then the chain's own echoes beyond that gate (an IF cable's), divided out
+/// before the last fit and multiplied back into the response.
+fn fit_whole_chain(
+    est: ChainEstimator,
+    mut mean: Vec<Complex64>,
+    mut relative: Vec<Vec<Complex64>>,
+    reach_s: f64,
+) -> Result<WholeChain, MeasureError> {
+    let n = est.period();
+    let fs = est.frequency_hz(1) * n as f64;
+    let search = |est: &ChainEstimator, fitted: &Fitted, mean: &[Complex64], gate_s: f64| {
+        chain_echoes::find(
+            mean,
+            &est.predicted(fitted),
+            &est.coverage(),
+            |k| est.frequency_hz(k),
+            fs,
+            chain_echoes::Search {
+                inner_s: 1.5 * gate_s,
+                reach_s,
+                weakest_db: WEAKEST_ECHO_DB,
+                most: MOST_ECHOES,
+            },
+        )
+    };
+    let divide = |mean: &mut Vec<Complex64>,
+                  relative: &mut Vec<Vec<Complex64>>,
+                  by: &dyn Fn(f64) -> Complex64,
+                  est: &ChainEstimator| {
+        let d: Vec<Complex64> = (0..n).map(|k| by(est.frequency_hz(k))).collect();
+        let apply = |z: &mut Vec<Complex64>| z.iter_mut().zip(&d).for_each(|(v, d)| *v /= d);
+        relative.par_iter_mut().for_each(apply);
+        apply(mean);
+    };
+    let mut gate_s = est.gate_s();
+    let mut est = est;
+    let mut fitted = est.fit_relative(&mean, &mut Vec::new());
+    let mut echoes = chain_echoes::Echoes {
+        reach_s,
+        ..Default::default()
+    };
+    // The leakage's main lobe may reach into the gate's taper and bias the first estimate of it:
+    // what the division leaves is searched again with the gate's fit made without it.
+    for _ in 0..SCENE_ROUNDS {
+        let scene = search(&est, &fitted, &mean, gate_s).scene;
+        if scene.is_empty() {
+            break;
+        }
+        let found = chain_echoes::Echoes {
+            scene,
+            ..Default::default()
+        };
+        divide(&mut mean, &mut relative, &|f| found.scene_at(f), &est);
+        fitted = est.fit_relative(&mean, &mut Vec::new());
+        echoes.scene.extend(found.scene);
+    }
+    if !echoes.scene.is_empty() {
+        if gate_s < MAX_DEFAULT_GATE_S {
+            let reference = est.reference().to_vec();
+            est = ChainEstimator::new(&reference, n, fs, MAX_DEFAULT_GATE_S)?;
+            gate_s = MAX_DEFAULT_GATE_S;
+        }
+        fitted = est.fit_relative(&mean, &mut Vec::new());
+    }
+    // A chain echo in the gate's taper would be half in the fit and half out: the gate closes
+    // before the nearest one, and the search is made again.
+    let nearest = search(&est, &fitted, &mean, gate_s / 1.5)
+        .chain
+        .iter()
+        .map(|e| e.delay_s)
+        .fold(f64::INFINITY, f64::min);
+    if nearest < 1.5 * gate_s {
+        let closed = ((nearest - GATE_MARGIN_S) / 1.5).max(SHORTEST_CLOSED_GATE_S);
+        if closed < gate_s {
+            let reference = est.reference().to_vec();
+            est = ChainEstimator::new(&reference, n, fs, closed)?;
+            gate_s = closed;
+            fitted = est.fit_relative(&mean, &mut Vec::new());
+        }
+    }
+    let second = search(&est, &fitted, &mean, gate_s);
+    let mut chain_factor = vec![Complex64::new(1.0, 0.0); n];
+    if !(second.chain.is_empty() && second.scene.is_empty()) {
+        divide(
+            &mut mean,
+            &mut relative,
+            &|f| second.chain_at(f) * second.scene_at(f),
+            &est,
+        );
+        fitted = est.fit_relative(&mean, &mut Vec::new());
+        chain_factor = (0..n)
+            .map(|k| second.chain_at(est.frequency_hz(k)))
+            .collect();
+        echoes.chain = second.chain;
+        echoes.scene.extend(second.scene);
+    }
+    Ok(WholeChain {
+        est,
+        gate_s,
+        fitted,
+        chain_factor,
+        relative,
+        echoes,
     })
 }
 

@@ -24,6 +24,14 @@ pub(crate) const MIN_IMPROVEMENT_DB: f64 = 0.1;
 /// moves it, 0.01-0.02 cm).
 pub(crate) const MIN_WIDTH_IMPROVEMENT_CM: f64 = 0.05;
 
+/// A chain that measures this uneven (gain ripple p-p, dB; phase ripple p-p, degrees) or shows a
+/// discrete echo may be corrected to a reference within [`NEAR_FLAT_DB`] and [`NEAR_FLAT_CM`] of
+/// a flat chain's figures even when they were that close before.
+const UNEVEN_RIPPLE_DB: f64 = 0.5;
+const UNEVEN_PHASE_DEG: f64 = 5.0;
+const NEAR_FLAT_DB: f64 = 0.15;
+const NEAR_FLAT_CM: f64 = 0.1;
+
 /// A flat band's -3 dB width in range cells `c / 2B` (a sinc's).
 const FLAT_CHAIN_WIDTH: f64 = 0.8859;
 
@@ -100,7 +108,15 @@ impl Calibrated {
             "side-lobe {b:.2} -> {a:.2} dB, width {wb:.2} -> {wa:.2} cm; a flat chain's \
              {FLAT_CHAIN_SIDELOBE_DB} dB, {flat_width_cm:.2} cm"
         );
-        if closer && !worse {
+        // A chain can be far from flat and still give a nearly flat side-lobe and width (the
+        // thesis-lab chain with OFDM does): there, a correction that leaves the reference flat
+        // is kept.
+        let m = &self.response.figures;
+        let uneven = m.ripple_db_pp >= UNEVEN_RIPPLE_DB
+            || m.phase_ripple_deg_pp >= UNEVEN_PHASE_DEG
+            || !self.response.chain_echoes.is_empty();
+        let flat_after = off_psl(a) <= NEAR_FLAT_DB && off_width(wa) <= NEAR_FLAT_CM;
+        if (closer || (uneven && flat_after)) && !worse {
             Ok(what)
         } else {
             Err(format!(
@@ -136,6 +152,8 @@ impl Calibrated {
                 tx: id.tx.clone(),
                 rx: id.rx.clone(),
             },
+            chain_echoes: self.response.chain_echoes.clone(),
+            scene_echoes: self.response.scene_echoes.clone(),
         };
         Calibration::save(path, &self.response, header)
     }

@@ -12,6 +12,7 @@ mod ambiguity;
 mod bad_input;
 mod calibrate_repeat;
 mod calibrate_response;
+mod calibration_reach;
 mod campaign;
 mod campaign_correction;
 mod campaign_report;

@@ -69,6 +69,13 @@ pub struct Chain {
     pub multipath_level_db: Option<f64>,
     /// Its phase relative to the direct path's carrier phase at the longer delay, degrees.
     pub multipath_phase_deg: Option<f64>,
+    /// A discrete echo behind every path (an IF cable mismatched at both ends, between the Rx
+    /// module and the scope): its extra delay, nanoseconds.
+    pub cable_echo_ns: Option<f64>,
+    /// Its level relative to the path it follows, dB (None or -inf = no echo).
+    pub cable_echo_db: Option<f64>,
+    /// Its phase relative to that path at the carrier, degrees.
+    pub cable_echo_phase_deg: Option<f64>,
     /// AWG and scope locked to one 10 MHz reference (as in the thesis).
     pub shared_reference: Option<bool>,
     /// Without a shared reference: how fast the scope's timebase runs against the AWG's, ppm.
@@ -101,6 +108,9 @@ pub struct ChainParams {
     pub multipath_extra_m: f64,
     pub multipath_level_db: f64,
     pub multipath_phase_deg: f64,
+    pub cable_echo_ns: f64,
+    pub cable_echo_db: f64,
+    pub cable_echo_phase_deg: f64,
     pub shared_reference: bool,
     pub timebase_offset_ppm: f64,
     pub shared_lo: bool,
@@ -127,6 +137,9 @@ impl ChainParams {
         multipath_extra_m: 0.3,
         multipath_level_db: f64::NEG_INFINITY,
         multipath_phase_deg: 180.0,
+        cable_echo_ns: 15.0,
+        cable_echo_db: f64::NEG_INFINITY,
+        cable_echo_phase_deg: 0.0,
         shared_reference: true,
         timebase_offset_ppm: 0.0,
         shared_lo: true,
@@ -235,6 +248,13 @@ impl ChainParams {
             let d = self.dispersion_ps_per_ghz * 1e-12 / 1e9;
             h *= Complex64::from_polar(1.0, -PI * d * f * f);
         }
+        if self.cable_echo_db.is_finite() {
+            // One echo behind every path (leakage included): the cable's round trip.
+            let g = 10f64.powf(self.cable_echo_db / 20.0);
+            let phase =
+                2.0 * PI * f * self.cable_echo_ns * 1e-9 + self.cable_echo_phase_deg.to_radians();
+            h *= Complex64::new(1.0, 0.0) + Complex64::from_polar(g, -phase);
+        }
         if !self.response.is_empty() {
             let [gain_db, phase_deg] = interpolate(&self.response, f);
             h *= Complex64::from_polar(10f64.powf(gain_db / 20.0), phase_deg.to_radians());
@@ -302,6 +322,11 @@ impl Chain {
             multipath_extra_m: self.multipath_extra_m.unwrap_or(base.multipath_extra_m),
             multipath_level_db: self.multipath_level_db.unwrap_or(base.multipath_level_db),
             multipath_phase_deg: self.multipath_phase_deg.unwrap_or(base.multipath_phase_deg),
+            cable_echo_ns: self.cable_echo_ns.unwrap_or(base.cable_echo_ns),
+            cable_echo_db: self.cable_echo_db.unwrap_or(base.cable_echo_db),
+            cable_echo_phase_deg: self
+                .cable_echo_phase_deg
+                .unwrap_or(base.cable_echo_phase_deg),
             shared_reference: self.shared_reference.unwrap_or(base.shared_reference),
             timebase_offset_ppm: self.timebase_offset_ppm.unwrap_or(base.timebase_offset_ppm),
             shared_lo: self.shared_lo.unwrap_or(base.shared_lo),
@@ -354,6 +379,16 @@ impl Chain {
         finite_in(
             "chain.multipath_phase_deg",
             p.multipath_phase_deg,
+            -360.0,
+            360.0,
+        )?;
+        finite_in("chain.cable_echo_ns", p.cable_echo_ns, 0.1, 200.0)?;
+        if p.cable_echo_db != f64::NEG_INFINITY {
+            finite_in("chain.cable_echo_db", p.cable_echo_db, -120.0, -3.0)?;
+        }
+        finite_in(
+            "chain.cable_echo_phase_deg",
+            p.cable_echo_phase_deg,
             -360.0,
             360.0,
         )?;

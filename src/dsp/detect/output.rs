@@ -16,7 +16,10 @@ pub enum Sidelobes {
         stronger_db: f64,
     },
     /// The expected side-lobes lie within 10 dB of the noise.
-    BelowNoise,
+    BelowNoise {
+        /// The noise relative to the target, dB: the side-lobes are under this plus 10 dB.
+        noise_db: f64,
+    },
     /// The side-lobe region runs off the profile.
     AtEdge,
     /// No side-lobe outside the main lobe could be found.
@@ -43,7 +46,11 @@ impl Sidelobes {
                 "side-lobe region shared with the target at {with_range_m:.3} m \
                  ({stronger_db:+.1} dB)"
             ),
-            Sidelobes::BelowNoise => "side-lobes within 10 dB of the noise".into(),
+            Sidelobes::BelowNoise { noise_db } => format!(
+                "side-lobes within 10 dB of the noise (the noise is {noise_db:.1} dB under the \
+                 target: the side-lobe level is under {:.1} dB)",
+                -noise_db + 10.0
+            ),
             Sidelobes::AtEdge => "side-lobe region runs off the profile".into(),
             Sidelobes::Undefined => "no side-lobe found".into(),
         }

@@ -492,6 +492,9 @@ pub struct PsfShape {
     pub psl_span: f64,
 }
 
+/// The PSL is looked for within this many resolution cells of a target at most.
+const PSL_SPAN_RESOLUTIONS: f64 = 6.0;
+
 impl PsfShape {
     /// Measures `psf` over `|x| <= min(support, max_cells)`, in steps of 1/8 cell.
     ///
@@ -567,7 +570,12 @@ impl PsfShape {
         // Where the envelope first drops 3 dB under the PSL: the highest side-lobes lie inside.
         let limit = psl * 10f64.powf(-0.3);
         let span_cells = envelope.iter().position(|&e| e <= limit).unwrap_or(d_max) as f64;
-        let psl_span = span_cells.max(3.0 * resolution).min(d_max as f64);
+        // Equiripple side-lobes (Dolph-Chebyshev) never fall off: their PSL is that of the
+        // first few, so the span is capped rather than running off every profile.
+        let psl_span = span_cells
+            .min(PSL_SPAN_RESOLUTIONS * resolution)
+            .max(3.0 * resolution)
+            .min(d_max as f64);
         let noise_cells = 1.0 + 2.0 * envelope_sum(&pos, &neg, SUB);
         Ok(Self {
             first_null,

@@ -112,7 +112,12 @@ impl Detector {
         }
         if let Some(s) = noise {
             if p * psl_lin < 10.0 * s {
-                return (width, Sidelobes::BelowNoise);
+                return (
+                    width,
+                    Sidelobes::BelowNoise {
+                        noise_db: 10.0 * (p / s).log10(),
+                    },
+                );
             }
         }
         let rho = 10f64.powf(self.options.model_floor_db / 10.0);
