@@ -204,3 +204,10 @@ fn guide_command_lines_are_read_as_a_shell_would() {
     assert_eq!(command("# only a comment"), Ok(None));
     assert!(command("radbench mock-lab serve > bench.toml").is_err());
 }
+
+/// Issue 39: the README is a first screen, not the development log (that is under docs/dev/).
+#[test]
+fn guide_readme_is_at_most_400_lines() {
+    let lines = page("README.md").lines().count();
+    assert!(lines <= 400, "README.md has {lines} lines: move detail into docs/");
+}
