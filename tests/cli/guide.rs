@@ -209,5 +209,8 @@ fn guide_command_lines_are_read_as_a_shell_would() {
 #[test]
 fn guide_readme_is_at_most_400_lines() {
     let lines = page("README.md").lines().count();
-    assert!(lines <= 400, "README.md has {lines} lines: move detail into docs/");
+    assert!(
+        lines <= 400,
+        "README.md has {lines} lines: move detail into docs/"
+    );
 }
