@@ -4,7 +4,7 @@
 # response measured and checked, the calibration written), for both waveforms. Target (issue 22):
 # under 2 s with 16 repetitions.
 #
-# The scene is the README's: one pillar at 1.0 m on the `thesis-lab` chain, SNR 25 dB. Prints
+# The scene is docs/calibration.md's: one pillar at 1.0 m on the `thesis-lab` chain, SNR 25 dB. Prints
 # the best and median wall time of RUNS runs per waveform and the load average around them
 # (the machine is shared: read the best with the load). Everything stays in a temporary folder.
 #

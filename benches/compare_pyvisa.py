@@ -108,7 +108,7 @@ def radbench_round(binary: str, resource: str, size: int, runs: int, payload_sha
 
 
 class PyvisaClient:
-    """pyvisa-py with its best settings for big blocks (chosen on this machine, see README):
+    """pyvisa-py with its best settings for big blocks (chosen on this machine, see docs/speed.md):
 
     * uploads: `write_raw` of the whole program message built once before timing (`DATA `,
       the `#8` header, the payload, LF). `write_binary_values(..., datatype='B')` would do the

@@ -1,5 +1,5 @@
 """radbench's errors as Python exceptions: each carries radbench's message (``str(e)``) and
-the exit code the command line gives the same error (``e.exit_code``, README "Exit codes")."""
+the exit code the command line gives the same error (``e.exit_code``, docs/exit-codes.md)."""
 
 from __future__ import annotations
 

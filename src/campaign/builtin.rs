@@ -438,8 +438,8 @@ fn resolution_rows(r: &Results, dir: PathBuf) -> Vec<LabRow> {
             agrees: resolved == thesis_resolved,
             reason: (resolved != thesis_resolved).then(|| {
                 "two echoes within about one resolution cell add or cancel with their relative \
-                 80 GHz carrier phase, which millimetres of placement change (README, \
-                 'Simulations and the thesis')"
+                 80 GHz carrier phase, which millimetres of placement change \
+                 (docs/commands.md, 'Simulations and the thesis')"
                     .to_string()
             }),
             dir: dir.clone(),

@@ -37,7 +37,7 @@ pub use radbench::classify;
 #[derive(Debug, Parser)]
 #[command(name = "radbench", version, about, long_about = None)]
 pub struct Cli {
-    /// Write every instrument exchange to this file as JSON Lines (see README, "I/O journal").
+    /// Write every instrument exchange to this file as JSON Lines (see docs/io-journal.md).
     #[arg(long, global = true, value_name = "FILE")]
     pub trace_io: Option<PathBuf>,
     /// More log output on stderr (-v info, -vv debug, -vvv trace).

@@ -388,7 +388,7 @@ fn write_processed_with(
     Ok((files, summary))
 }
 
-/// What `capture --json` prints and `summary.json` holds (README, "--json").
+/// What `capture --json` prints and `summary.json` holds (docs/capture.md, "--json").
 pub(crate) fn summary_json(
     m: &Measurement,
     files: &CaptureFiles,

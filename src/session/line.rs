@@ -1,6 +1,6 @@
 //! Line protocols in which every request gets exactly one reply line, unlike IEEE 488.2 where only
-//! queries answer: the Gotmic modules' project-defined register protocol (README, "The Gotmic
-//! modules' vendor protocol is not public"): `R <reg>` answers `OK <value>`, `W <reg> <value>`
+//! queries answer: the Gotmic modules' project-defined register protocol (instruments/README.md,
+//! "Gotmic E-band Tx and Rx"): `R <reg>` answers `OK <value>`, `W <reg> <value>`
 //! answers `OK`, a refused request answers `ERR <code> <text>`, and after `CRC ON` every line in
 //! both directions ends in `*<hh>`, a CRC-8 of the text before the `*`.
 //!

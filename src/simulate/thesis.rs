@@ -96,8 +96,8 @@ impl ThesisTable {
         let agree = self.rows.iter().filter(|r| r.agrees).count();
         let _ = writeln!(
             out,
-            "{agree} of {} rows agree; every row expected to agree (the README, 'Simulations and \
-             the thesis') {}.",
+            "{agree} of {} rows agree; every row expected to agree (docs/commands.md, 'Simulations \
+             and the thesis') {}.",
             self.rows.len(),
             if self.rows.iter().all(|r| r.agrees || !r.expected_to_agree) {
                 "does"

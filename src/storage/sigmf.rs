@@ -4,7 +4,7 @@
 //! `radbench:vertical_gain` and `radbench:vertical_offset` turn them into volts
 //! (`volts = gain * word - offset`, per channel). Everything radbench knows about the capture that
 //! the SigMF core has no field for lives in the `radbench:` namespace, declared in
-//! `core:extensions`; the README lists its keys.
+//! `core:extensions`; docs/capture.md lists its keys.
 //!
 //! Both files are written atomically (temporary file, then rename): an interrupted write leaves
 //! either the old file or the new one, never half of one.

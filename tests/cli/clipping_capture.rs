@@ -72,14 +72,15 @@ fn only_the_pillars(v: &Value, pillars: &[(f64, f64)], what: &str) {
     }
 }
 
-/// The keys README's `--json` table of `radbench capture` documents (first column, in backticks).
+/// The keys docs/capture.md's `--json` table of `radbench capture` documents (first column, in
+/// backticks).
 fn documented_keys() -> Vec<String> {
-    let readme =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
-    let table = readme
+    let page = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/capture.md");
+    let page = std::fs::read_to_string(page).unwrap();
+    let table = page
         .split("**`--json`** prints one object:")
         .nth(1)
-        .expect("README has the --json table of capture");
+        .expect("docs/capture.md has the --json table of capture");
     table
         .trim_start()
         .lines()
@@ -219,7 +220,7 @@ async fn hard_clipping_products_are_not_targets_and_process_repeats_it() {
 async fn an_unclipped_capture_reports_zero_and_no_warning() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // The README scene: well inside the rails for both waveforms.
+    // The scene of examples/scene.toml: well inside the rails for both waveforms.
     let readme = [(1.0, 0.5), (1.3, 0.3)];
     for waveform in ["msk-lfm", "ofdm"] {
         let name = format!("plain-{waveform}");
@@ -232,12 +233,12 @@ async fn an_unclipped_capture_reports_zero_and_no_warning() {
         );
         assert!(c["conservative_detection"].is_null());
         assert!(clipping_warnings(&printed).is_empty(), "{printed}");
-        // Every key capture prints is documented (README, "--json").
+        // Every key capture prints is documented (docs/capture.md, "--json").
         let documented = documented_keys();
         for key in printed.as_object().unwrap().keys() {
             assert!(
                 documented.contains(key),
-                "`{key}` of capture --json is not in README's --json table ({documented:?})"
+                "`{key}` of capture --json is not in docs/capture.md's --json table ({documented:?})"
             );
         }
         only_the_pillars(&summary, &readme, waveform);

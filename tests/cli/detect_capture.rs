@@ -132,7 +132,7 @@ impl Lab {
 async fn the_readme_scene_and_the_cases_users_meet_first() {
     let mut lab = Lab::start(false).await;
     let cases: [(&str, &[(f64, f64)]); 3] = [
-        ("the README example", &[(1.0, 0.5), (1.3, 0.3)]),
+        ("examples/scene.toml", &[(1.0, 0.5), (1.3, 0.3)]),
         ("two equal pillars 0.8 m apart", &[(1.0, 0.5), (1.8, 0.5)]),
         (
             "a pillar 15 dB weaker 0.45 m from a strong one",
@@ -254,7 +254,7 @@ async fn random_scenes_on_the_thesis_lab_chain_every_pillar_and_no_false_target(
     let mut lab = Lab::start(false).await;
     let mut rng = SplitMix64::new(0x7E515);
     let mut failures = Vec::new();
-    // 12 scenes in CI; `RB_SCENES=75` for the figure in the README.
+    // 12 scenes in CI; `RB_SCENES=75` for the figure in docs/detection.md.
     let scenes = std::env::var("RB_SCENES")
         .ok()
         .and_then(|v| v.parse().ok())

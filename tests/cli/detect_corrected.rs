@@ -9,7 +9,7 @@ use radbench::rng::SplitMix64;
 use serde_json::Value;
 use std::path::Path;
 
-/// 6 scenes per waveform in CI; `RB_SCENES=75` for the figure in the README.
+/// 6 scenes per waveform in CI; `RB_SCENES=75` for the figure in docs/calibration.md.
 fn scenes_per_waveform() -> u64 {
     std::env::var("RB_SCENES")
         .ok()

@@ -54,7 +54,7 @@ fn readme_scene_reports_both_pillars_with_their_own_sidelobes() {
     for wave in WAVES {
         let mut bench = Bench::new(wave);
         let pillars = [Pillar::physical(1.0, 0.5), Pillar::physical(1.3, 0.3)];
-        let d = assert_scene(&mut bench, &pillars, 1, "README scene");
+        let d = assert_scene(&mut bench, &pillars, 1, "examples/scene.toml");
         let det = bench.detector(DetectOptions::default());
         let psf_psl = det.shape().psl_db;
         for (t, p) in d.targets.iter().zip(&pillars) {
