@@ -487,7 +487,20 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
         opt(p.sidelobe_db, "dB"),
         pm(spread.and_then(|s| s.sidelobe_db), "dB")
     );
-    println!("SNR (profile peak over median): {}", opt(p.snr_db, "dB"));
+    println!(
+        "SNR (the strongest target over the noise beside the band): {}; over the detector's \
+         residual floor: {}",
+        opt(p.snr_db, "dB"),
+        opt(p.peak_to_floor_db, "dB")
+    );
+    let losses = &p.losses_db;
+    if losses.window > 0.0 || losses.correction.is_some() {
+        println!(
+            "SNR lost to the window: {:.2} dB; to the correction: {}",
+            losses.window,
+            opt(losses.correction, "dB")
+        );
+    }
     if let Some(pl) = &p.payload {
         match (&pl.text, &pl.error) {
             (Some(t), _) => println!(

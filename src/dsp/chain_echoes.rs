@@ -268,7 +268,7 @@ mod tests {
             .map(|k| if f(k).abs() <= fs / 32.0 { 1.0 } else { 0.0 })
             .collect();
         let z = (0..n)
-            .map(|k| factor(echoes, f(k)) + rng.complex_gaussian(sigma))
+            .map(|k| factor(echoes, f(k)) + rng.complex_gaussian(sigma * sigma))
             .collect();
         (z, coverage)
     }

@@ -383,6 +383,8 @@ pub(crate) struct RxEqualiser {
     rx_skew_s: f64,
     /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
     inverse: Vec<Complex64>,
+    /// What the inverse costs in signal-to-noise ratio over the table's band, dB (positive).
+    snr_loss_db: f64,
     fs: f64,
     fft: Arc<dyn Fft<f64>>,
     ifft: Arc<dyn Fft<f64>>,
@@ -443,8 +445,10 @@ impl RxEqualiser {
                 h.conj() / ((h.norm_sqr() + lambda) * n as f64)
             })
             .collect();
+        let snr_loss_db = inverse_snr_loss_db(&table.response, lambda);
         let mut planner = FftPlanner::new();
         Ok(RxEqualiser {
+            snr_loss_db,
             dc,
             iq: iq.map(|(g_db, phi_deg)| (10f64.powf(g_db / 20.0), phi_deg.to_radians())),
             rx_skew_s: 0.0,
@@ -454,6 +458,12 @@ impl RxEqualiser {
             ifft: planner.plan_fft_inverse(n),
             scratch: Vec::new(),
         })
+    }
+
+    /// What the correction costs in signal-to-noise ratio, dB (positive): the inverse lifts the
+    /// noise where the chain is weak.
+    pub(crate) fn snr_loss_db(&self) -> f64 {
+        self.snr_loss_db
     }
 
     /// The same correction, with the receiver's Q skew (s) undone as well.
@@ -489,6 +499,24 @@ impl RxEqualiser {
         }
         self.ifft.process_with_scratch(y, &mut self.scratch[..need]);
         Ok(())
+    }
+}
+
+/// The SNR an inverse `E = conj(H) / (|H|^2 + lambda)` leaves against a matched filter on the
+/// chain as it is, over points of even waveform power: `|sum E H|^2 / (sum |E|^2 sum |H|^2)`, dB
+/// lost (Cauchy-Schwarz: 0 for a flat chain).
+fn inverse_snr_loss_db(h: &[Complex64], lambda: f64) -> f64 {
+    let (mut signal, mut noise, mut matched) = (Complex64::new(0.0, 0.0), 0.0, 0.0);
+    for v in h {
+        let e = v.conj() / (v.norm_sqr() + lambda);
+        signal += e * v;
+        noise += e.norm_sqr();
+        matched += v.norm_sqr();
+    }
+    if noise > 0.0 && matched > 0.0 && signal.norm() > 0.0 {
+        -10.0 * (signal.norm_sqr() / (noise * matched)).log10()
+    } else {
+        0.0
     }
 }
 

@@ -85,6 +85,24 @@ impl Window {
         Ok(w)
     }
 
+    /// What the window costs in signal-to-noise ratio against none, dB (positive): over a band
+    /// of even power, `(sum w)^2 / (N sum w^2)`.
+    pub fn mismatch_loss_db(&self) -> f64 {
+        const POINTS: usize = 1024;
+        match self.coefficients(POINTS) {
+            Ok(w) => {
+                let sum: f64 = w.iter().sum();
+                let power: f64 = w.iter().map(|v| v * v).sum();
+                if power > 0.0 {
+                    -10.0 * (sum * sum / (POINTS as f64 * power)).log10()
+                } else {
+                    0.0
+                }
+            }
+            Err(_) => 0.0,
+        }
+    }
+
     /// A short name for reports: `rect`, `hann`, `taylor(4,-35)`, `chebyshev(-50)`.
     pub fn name(&self) -> String {
         match *self {
@@ -298,5 +316,22 @@ mod tests {
         }
         .validate()
         .is_err());
+    }
+
+    #[test]
+    fn the_mismatch_losses_are_the_textbook_ones() {
+        // Harris (1978): Hann 1.76 dB; a rectangle costs nothing.
+        assert!(Window::Rectangular.mismatch_loss_db().abs() < 1e-9);
+        assert!((Window::Hann.mismatch_loss_db() - 1.76).abs() < 0.02);
+        let cheb = Window::Chebyshev { sll_db: -50.0 }.mismatch_loss_db();
+        let taylor = Window::Taylor {
+            nbar: 4,
+            sll_db: -35.0,
+        }
+        .mismatch_loss_db();
+        assert!(
+            taylor > 0.5 && taylor < cheb && cheb < 2.5,
+            "{taylor} {cheb}"
+        );
     }
 }

@@ -82,6 +82,60 @@ pub struct DetectionReport {
     pub capped: bool,
     /// The velocity resolution of the targets' `velocity_mps` (OFDM frames), m/s.
     pub velocity_resolution_mps: Option<f64>,
+    /// Detections that sit where a known chain echo of a stronger target falls: not targets.
+    pub chain_echoes: Vec<ChainEcho>,
+}
+
+/// A detection taken for a stronger target's chain echo (`"chain_echo": true`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChainEcho {
+    #[serde(flatten)]
+    pub detection: Detection,
+    pub chain_echo: bool,
+    /// The stronger target it follows, m, and the calibration's echo it matches: its delay (ns)
+    /// and level (dB) behind every path.
+    pub of_range_m: f64,
+    pub echo_delay_ns: f64,
+    pub echo_level_db: f64,
+}
+
+/// A detection this much stronger than a known chain echo of a stronger target would make it is
+/// a target of its own, dB.
+const CHAIN_ECHO_MARGIN_DB: f64 = 6.0;
+/// ... and it must lie this close to where that echo falls, m (a third of a 1 GHz range cell).
+const CHAIN_ECHO_SLACK_M: f64 = 0.05;
+
+/// Moves the targets that sit at a known chain echo's offset behind a stronger target, no
+/// stronger than that echo (plus [`CHAIN_ECHO_MARGIN_DB`]), from `targets` to `chain_echoes`.
+/// `echoes` are (delay s, level dB) behind every path.
+pub(crate) fn flag_chain_echoes(report: &mut DetectionReport, echoes: &[(f64, f64)]) {
+    if echoes.is_empty() || report.targets.len() < 2 {
+        return;
+    }
+    let targets = std::mem::take(&mut report.targets);
+    let mut kept = Vec::with_capacity(targets.len());
+    for t in &targets {
+        let matched = targets.iter().find_map(|s| {
+            echoes.iter().find_map(|&(delay_s, level_db)| {
+                let behind_m = delay_s * crate::physics::C0 / 2.0;
+                let at = (t.range_m - s.range_m - behind_m).abs() <= CHAIN_ECHO_SLACK_M;
+                let weak = t.level_db <= s.level_db + level_db + CHAIN_ECHO_MARGIN_DB;
+                (at && weak && s.level_db > t.level_db).then_some((s.range_m, delay_s, level_db))
+            })
+        });
+        match matched {
+            Some((of, delay_s, level_db)) => report.chain_echoes.push(ChainEcho {
+                detection: t.clone(),
+                chain_echo: true,
+                of_range_m: of,
+                echo_delay_ns: delay_s * 1e9,
+                echo_level_db: level_db,
+            }),
+            None => kept.push(t.clone()),
+        }
+    }
+    report.targets = kept;
+    report.strongest = strongest(&report.targets);
 }
 
 /// The detector options of the processing options.
@@ -164,6 +218,7 @@ pub(crate) fn detect(
                 capped: found.capped,
                 strongest: None,
                 velocity_resolution_mps: None,
+                chain_echoes: Vec::new(),
             }
         }
         _ => {

@@ -197,6 +197,9 @@ pub struct Processed {
     /// The strongest target over the detector's residual floor, dB
     /// ([`Detection::peak_to_floor_db`]).
     pub peak_to_floor_db: Option<f64>,
+    /// What the processing costs in signal-to-noise ratio against a matched filter on the
+    /// chain as it is, dB: the window's mismatch, and the receive correction's noise lift.
+    pub losses_db: Losses,
     pub payload: Option<PayloadResult>,
     /// The detection threshold per primary-profile cell (amplitude; empty for the subspace
     /// estimators), reflectors outside the range window, the noise level.
@@ -622,12 +625,24 @@ struct CorrectionCheck {
     /// The calibration's reference was processed with the waveform's default processing (no
     /// window): its figures compare with a capture processed alike only.
     comparable: bool,
+    /// The chain's discrete echoes the calibration measured: (delay s, level dB) behind every
+    /// path.
+    chain_echoes: Vec<(f64, f64)>,
 }
 
 /// A corrected target's peak side-lobe may exceed the calibration's by this before a warning, dB,
 /// and its -3 dB width by this, cm.
 const CORRECTION_WORSE_DB: f64 = 1.5;
 const CORRECTION_WIDER_CM: f64 = 0.2;
+
+/// SNR losses of the processing, dB (positive: lost).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Losses {
+    /// The window's mismatch against none (over a band of even power).
+    pub window: f64,
+    /// The receive correction's noise lift (absent without one).
+    pub correction: Option<f64>,
+}
 
 /// The noise beside the band is taken from no higher than this fraction of the rate (the
 /// decimator's response is still well above its stop band there).
@@ -822,6 +837,12 @@ fn equaliser_for(
         sidelobe_db: cal.header.reference.sidelobe_db_after,
         width_cm: cal.header.reference.width_cm_after,
         comparable: false,
+        chain_echoes: cal
+            .header
+            .chain_echoes
+            .iter()
+            .map(|e| (e.delay_ns * 1e-9, e.level_db))
+            .collect(),
     };
     let equaliser = match used.mode.as_str() {
         "rx" => Some(cal.response.equaliser(period, fs)?),
@@ -1301,6 +1322,17 @@ impl Pipeline {
             None => None,
         };
         let primary = range.primary();
+        if let Some(check) = &self.correction_check {
+            detect::flag_chain_echoes(&mut detection, &check.chain_echoes);
+            for e in &detection.chain_echoes {
+                warnings.push(format!(
+                    "the echo at {:.4} m is taken for the chain's: it lies {:.1} ns behind the \
+                     target at {:.4} m, where the calibration measured an echo of every path at \
+                     {:.1} dB (listed in chain_echoes, not in targets)",
+                    e.detection.range_m, e.echo_delay_ns, e.of_range_m, e.echo_level_db
+                ));
+            }
+        }
         if let Some(noise) = beside {
             let per_cell = self.noise_per_cell(&noise, aligned.residual_s)?;
             set_snr(&mut detection, per_cell);
@@ -1351,6 +1383,10 @@ impl Pipeline {
             sidelobe_db,
             snr_db,
             peak_to_floor_db,
+            losses_db: Losses {
+                window: self.options.window.to_dsp().mismatch_loss_db(),
+                correction: self.equaliser.as_ref().map(|e| e.snr_loss_db()),
+            },
             payload,
             detection,
             range_doppler,

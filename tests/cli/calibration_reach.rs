@@ -52,7 +52,9 @@ async fn ok(dir: &Path, args: &[&str]) -> Value {
 async fn ideal_sidelobes(waveform: &str) -> Vec<f64> {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write(d, "ideal.toml", scene(&[(PILLAR_M, 0.5)], 25.0, 11), -40.0);
+    let mut ideal = scene(&[(PILLAR_M, 0.5)], 25.0, 11);
+    ideal["chain"] = json!({"preset": "ideal"});
+    write(d, "ideal.toml", ideal, -40.0);
     ok(
         d,
         &[
@@ -218,4 +220,63 @@ async fn every_window_and_correction_after_calibrating_a_real_chain_msk_lfm() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_window_and_correction_after_calibrating_a_real_chain_ofdm() {
     cases("ofdm").await;
+}
+
+/// A weak pillar 40 dB under a strong one, 1 m behind it, is still found once the chain is
+/// corrected: what the correction knows of the chain does not hide real targets.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pillar_40_db_under_a_strong_one_1_m_behind_is_found_after_correction() {
+    for waveform in ["msk-lfm", "ofdm"] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        write_scene(d, "reference.toml", 1.0, true, -26.0, 7);
+        let mut two = scene(&[(2.0, 0.5), (3.0, 0.005)], 25.0, 13);
+        two["chain"] = chain(true);
+        write(d, "two.toml", two, -26.0);
+        ok(
+            d,
+            &[
+                "calibrate",
+                "response",
+                "--reference-range",
+                "1.0",
+                "--scene",
+                "reference.toml",
+                "--allow-rf",
+                "--waveform",
+                waveform,
+                "--out",
+                "response.toml",
+                "--json",
+            ],
+        )
+        .await;
+        let c = ok(
+            d,
+            &[
+                "capture",
+                "--allow-rf",
+                "--scene",
+                "two.toml",
+                "--waveform",
+                waveform,
+                "--calibration",
+                "response.toml",
+                "--json",
+                "--out",
+                "c",
+            ],
+        )
+        .await;
+        let found: Vec<f64> = c["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| t["range_m"].as_f64().unwrap())
+            .collect();
+        assert!(
+            found.len() == 2 && (found[0] - 2.0).abs() < 0.01 && (found[1] - 3.0).abs() < 0.01,
+            "{waveform}: {found:?}"
+        );
+    }
 }
