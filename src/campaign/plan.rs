@@ -75,6 +75,16 @@ pub struct BenchPlan {
     pub calibrated: bool,
 }
 
+impl BenchPlan {
+    /// What every output of a run on this bench must say about it (it is not calibrated).
+    pub fn warnings(&self) -> Vec<String> {
+        (!self.calibrated)
+            .then(|| crate::measure::uncalibrated_warning(self.file.as_deref()))
+            .into_iter()
+            .collect()
+    }
+}
+
 /// Who places the targets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PositionerPlan {
