@@ -99,8 +99,7 @@ mod tests {
         };
         let err = ProcessRequest::parse_keywords(&options)
             .and_then(|r| r.samples(raw))
-            .err()
-            .expect("refused");
+            .expect_err("refused");
         let class = err
             .downcast_ref::<crate::exit::Classified>()
             .map(|c| c.class);
