@@ -271,8 +271,9 @@ impl BenchInfo {
                         let text = std::fs::read_to_string(&p).map_err(|e| {
                             spec.error("bench.scene", format!("cannot read {}: {e}", p.display()))
                         })?;
-                        Scene::from_toml(&text, &p.display().to_string())
-                            .map_err(|e| spec.error("bench.scene", e.to_string()))?
+                        Scene::from_toml(&text, &p.display().to_string()).map_err(|e| {
+                            spec.error("bench.scene", crate::exit::with_key_hint(&e.to_string()))
+                        })?
                     }
                     None => Scene::default(),
                 };

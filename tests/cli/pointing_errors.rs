@@ -99,6 +99,16 @@ async fn unknown_bench_and_spec_keys_name_the_nearest_allowed_key() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("spec.toml:2: `repetitons`"), "{err}");
     assert!(err.contains("did you mean `repetitions`?"), "{err}");
+
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, "snr_bd = 20.0\n").unwrap();
+    let (code, _, err) = radbench_in(
+        Some(dir.path()),
+        &["capture", "--allow-rf", "--scene", scene.to_str().unwrap()],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("did you mean `snr_db`?"), "{err}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
