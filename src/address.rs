@@ -152,8 +152,10 @@ impl FromStr for Resource {
                 _ => Err(err("a serial resource is `ASRL<device>::INSTR`")),
             }
         } else {
+            let letters = first.trim_end_matches(|c: char| c.is_ascii_digit());
             Err(err(&format!(
-                "unknown interface `{first}` (expected TCPIP, VICP or ASRL)"
+                "unknown interface `{first}` (expected TCPIP, VICP or ASRL){}",
+                crate::exit::did_you_mean(letters, ["TCPIP", "VICP", "ASRL"])
             )))
         }
     }
@@ -268,7 +270,12 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
             });
         }
         [host, middle, last] if last.eq_ignore_ascii_case("INSTR") => (host, Some(middle), true),
-        [_, _, last] => return Err(format!("resource class `{last}` is not SOCKET or INSTR")),
+        [_, _, last] => {
+            return Err(format!(
+                "resource class `{last}` is not SOCKET or INSTR{}",
+                crate::exit::did_you_mean(last, ["SOCKET", "INSTR"])
+            ))
+        }
         _ => return Err("a TCPIP resource has at most four `::`-separated fields".to_string()),
     };
     let Some(middle) = middle else {
@@ -300,6 +307,7 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
             instr_suffix,
         });
     }
+    check_near_miss(middle, instr_suffix)?;
     let (host, port) = split_port(host_field)?;
     check_host(&host)?;
     if middle.contains(char::is_whitespace) {
@@ -315,10 +323,42 @@ fn parse_tcpip(board: Option<u32>, parts: &[String]) -> Result<Resource, String>
     })
 }
 
+/// Refuses a VXI-11 device name one slip away from a keyword (`hislp0`, `isnt0`, `INSRT`): taken
+/// as written it would send the connection to the portmapper (port 111) and fail far from the
+/// typo.
+fn check_near_miss(middle: &str, instr_suffix: bool) -> Result<(), String> {
+    let lower = middle.to_ascii_lowercase();
+    let name = lower.trim_end_matches(|c: char| c.is_ascii_digit() || c == ',');
+    let number = &middle[name.len()..];
+    if !instr_suffix && number.is_empty() && name != "inst" {
+        if let Some(class) = crate::exit::nearest(name, ["INSTR", "SOCKET"]) {
+            return Err(format!(
+                "`{middle}` is not a VXI-11 device or resource class; did you mean `{class}`?"
+            ));
+        }
+    }
+    let (keyword, meant) = match crate::exit::nearest(name, ["hislip", "inst"]) {
+        Some("hislip") => ("hislip", "HiSLIP"),
+        Some(_) => ("inst", "VXI-11"),
+        None => return Ok(()),
+    };
+    let number = if number.is_empty() { "0" } else { number };
+    Err(format!(
+        "`{middle}` is not a device name radbench knows; did you mean `{keyword}{number}` \
+         ({meant})? Taken as a VXI-11 device it would be looked up through the portmapper"
+    ))
+}
+
 fn parse_vicp(parts: &[String]) -> Result<Resource, String> {
     let (host_field, instr_suffix) = match parts {
         [host] => (host, false),
         [host, class] if class.eq_ignore_ascii_case("INSTR") => (host, true),
+        [_, class] => {
+            return Err(format!(
+                "a VICP resource is `VICP::host[,port][::INSTR]`{}",
+                crate::exit::did_you_mean(class, ["INSTR"])
+            ))
+        }
         _ => return Err("a VICP resource is `VICP::host[,port][::INSTR]`".into()),
     };
     let (host, port) = split_port(host_field)?;
@@ -507,6 +547,31 @@ mod tests {
         assert_eq!(r.to_string(), "TCPIP0::host::hislip1::INSTR");
         let r: Resource = "vicp::h::instr".parse().unwrap();
         assert_eq!(r.to_string(), "VICP::h::INSTR");
+    }
+
+    #[test]
+    fn a_misspelt_keyword_gets_a_did_you_mean() {
+        let msg = |s: &str| s.parse::<Resource>().unwrap_err().to_string();
+        let hislip = msg("TCPIP0::192.168.1.20::hislp0::INSTR");
+        assert!(
+            hislip.contains("did you mean `hislip0` (HiSLIP)?"),
+            "{hislip}"
+        );
+        assert!(msg("TCPIP0::h::hsilip1").contains("did you mean `hislip1`"));
+        assert!(msg("TCPIP0::h::isnt0::INSTR").contains("did you mean `inst0` (VXI-11)?"));
+        assert!(msg("TCPIP0::h::5025::SOKET").contains("did you mean `SOCKET`?"));
+        assert!(msg("TCPIP0::h::inst0::INSRT").contains("did you mean `INSTR`?"));
+        assert!(msg("TCPIP0::h::INSRT").contains("did you mean `INSTR`?"));
+        assert!(msg("TCIPIP0::h::INSTR").contains("did you mean `TCPIP`?"));
+        assert!(msg("VICP::h::INTSR").contains("did you mean `INSTR`?"));
+        // Device names far from a keyword are VXI-11 devices as written.
+        for ok in [
+            "TCPIP::h::gpib0,5::INSTR",
+            "TCPIP::h::inst3",
+            "TCPIP::h::hpib7::INSTR",
+        ] {
+            assert!(ok.parse::<Resource>().is_ok(), "{ok}");
+        }
     }
 
     #[test]

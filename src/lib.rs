@@ -182,9 +182,10 @@ macro_rules! named_enum {
                     .ok_or_else(|| {
                         let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
                         format!(
-                            concat!("unknown ", $what, " `{}`: allowed: {}"),
+                            concat!("unknown ", $what, " `{}`: allowed: {}{}"),
                             s,
-                            names.join(", ")
+                            names.join(", "),
+                            $crate::exit::did_you_mean(s, names.iter().copied())
                         )
                     })
             }

@@ -279,7 +279,9 @@ def process(
     ``-`` (``m=32``, ``p=2``, ``zero_pad=20``, ``window="hann"``, ``detector="os-cfar"``,
     ``pfa=1e-4``, ``min_range=0.3``, ``system_delay=2.5e-9``, ``no_background=True``,
     ``bandwidth=2e9``, ``payload="hello"``, ``seed=3``, ...), with the same defaults, checks and
-    messages (``radbench process --help`` lists them). Options not given keep what the capture
+    messages (``radbench process --help`` lists them), except that a message names the keyword
+    (``window``), not the command line's option (``--window``), and an unknown keyword gets the
+    nearest one (``windw``: did you mean ``window``?). Options not given keep what the capture
     recorded. Returns :class:`Processed`; its ``options`` holds every option used.
     """
     if waveform is not None:

@@ -110,10 +110,23 @@ class MockLab:
         """The scene control channel's ``host:port`` (one JSON object per line)."""
         return self._running().control_address()
 
-    def bench_toml(self, path: Optional[Union[str, "os.PathLike[str]"]] = None) -> str:
+    def bench_toml(self, path: Optional[Union[str, "os.PathLike[str]"]] = None, *,
+                   calibrated: bool = False) -> str:
         """A radbench bench file for this bench (for ``radbench capture --bench FILE`` while it
-        runs); written to ``path`` when given."""
+        runs); written to ``path`` when given.
+
+        Without ``calibrated`` the file has no ``[calibration]``, as a real bench before
+        ``radbench calibrate``: ranges include the lab's fixed system delay (the scene's
+        ``system_delay_s``, 2.5 ns by default, 0.375 m) and every output warns that the bench is
+        not calibrated. With ``calibrated=True`` it holds the lab's delay as its calibration
+        (``[calibration] system_delay_s``, exact: the simulated cables are known), so ranges
+        are true ranges at once."""
         text = self._running().bench_toml(self._scope_remote)
+        if calibrated:
+            delay = float(self.scene["system_delay_s"])
+            text += ("\n[calibration]\n# The simulated bench's own system delay (its scene's "
+                     "system_delay_s), known exactly.\n"
+                     f"system_delay_s = {delay!r}\n")
         if path is not None:
             with open(path, "w", encoding="utf-8") as f:
                 f.write(text)

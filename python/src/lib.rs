@@ -87,7 +87,7 @@ fn process_capture<'py>(
     options: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let done = py
-        .detach(|| ProcessRequest::parse(&options).and_then(|r| r.capture(&files)))
+        .detach(|| ProcessRequest::parse_keywords(&options).and_then(|r| r.capture(&files)))
         .map_err(to_py)?;
     processed_dict(py, done)
 }
@@ -107,7 +107,7 @@ fn process_samples<'py>(
         first_point_s,
     };
     let done = py
-        .detach(|| ProcessRequest::parse(&options).and_then(|r| r.samples(raw)))
+        .detach(|| ProcessRequest::parse_keywords(&options).and_then(|r| r.samples(raw)))
         .map_err(to_py)?;
     processed_dict(py, done)
 }

@@ -190,3 +190,17 @@ def test_bench_file_of_mock_lab_serves_radbench_capture(tmp_path):
         # No [calibration] in the bench file: ranges include the scene's system delay.
         expected = 1.7 + 299_792_458.0 * lab.scene["system_delay_s"] / 2
         assert any(abs(t["range_m"] - expected) < 0.01 for t in summary["targets"]), summary["targets"]
+        # ... and the capture says so in its warnings, naming what to run.
+        assert any("radbench calibrate" in w for w in summary["warnings"]), summary["warnings"]
+
+        # With the lab's calibration written, ranges are true ranges and nothing is warned of.
+        text = lab.bench_toml(bench, calibrated=True)
+        assert f"system_delay_s = {lab.scene['system_delay_s']!r}" in text
+        done = subprocess.run([radbench_bin(), "capture", "--bench", str(bench), "--allow-rf", "--json",
+                               "--out", str(tmp_path / "cap-calibrated")], capture_output=True,
+                              text=True, timeout=150, stdin=subprocess.DEVNULL)
+        assert done.returncode == 0, done.stderr
+        summary = json.loads(done.stdout)
+        assert summary["system_delay_s"] == lab.scene["system_delay_s"]
+        assert any(abs(t["range_m"] - 1.7) < 0.01 for t in summary["targets"]), summary["targets"]
+        assert not any("radbench calibrate" in w for w in summary["warnings"]), summary["warnings"]

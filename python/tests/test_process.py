@@ -93,9 +93,16 @@ def test_waveforms_are_the_ones_capture_sends(archive):
 
 
 def test_errors_carry_radbench_messages_and_exit_codes(archive, tmp_path):
-    with pytest.raises(radbench.InputError, match="zero-padd") as e:
+    with pytest.raises(radbench.InputError, match="unknown keyword `zero_padd`; did you mean `zero_pad`") as e:
         radbench.process(archive["msk-lfm"], zero_padd=3)
     assert e.value.exit_code == 2 and isinstance(e.value, ValueError)
+    # Errors name the Python keyword, never the command line's `--option`.
+    with pytest.raises(radbench.InputError, match="unknown keyword `windw`; did you mean `window`") as e:
+        radbench.process(archive["msk-lfm"], windw="hann")
+    assert "--" not in str(e.value)
+    with pytest.raises(radbench.InputError, match="window") as e:
+        radbench.process(archive["msk-lfm"], window="hanning")
+    assert "--window" not in str(e.value)
     with pytest.raises(radbench.InputError, match="algorithm"):
         radbench.process(archive["msk-lfm"], algorithm="bogus")
     with pytest.raises(radbench.RadbenchError, match="music"):

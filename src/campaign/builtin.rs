@@ -11,7 +11,6 @@ use crate::driver::RfPermit;
 use crate::measure::Interrupt;
 use crate::waveform::{SweepBand, WaveformSpec};
 use serde::Serialize;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The kinds `radbench campaign new` knows, with their spec text.
@@ -586,82 +585,6 @@ impl LabRow {
             dir: PathBuf::new(),
         }
     }
-}
-
-/// The table for the terminal.
-pub fn lab_table(rows: &[LabRow]) -> String {
-    let chain = rows.first().map_or("ideal", |r| r.chain.as_str());
-    let chosen_head = format!("radbench ({chain})");
-    let rx_head = format!("radbench ({chain}, rx)");
-    let both_head = format!("radbench ({chain}, both)");
-    let with_rx = rows.iter().any(|r| r.radbench_rx.is_some());
-    let width = |head: &str, f: &dyn Fn(&LabRow) -> usize| {
-        rows.iter().map(f).max().unwrap_or(0).max(head.len())
-    };
-    let ws = width("scenario", &|r| r.scenario.len());
-    let wt = width("thesis (lab)", &|r| r.thesis.len());
-    let wi = width("radbench (ideal)", &|r| r.radbench_ideal.len());
-    let wr = width(&chosen_head, &|r| r.radbench.len());
-    let wx = width(&rx_head, &|r| r.radbench_rx.as_deref().map_or(0, str::len));
-    let wb = width(&both_head, &|r| {
-        r.radbench_both.as_deref().map_or(0, str::len)
-    });
-    let rx_cell = |rx: &str, both: &str| {
-        if with_rx {
-            format!(" {rx:<wx$} {both:<wb$}")
-        } else {
-            String::new()
-        }
-    };
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "{:<8} {:<ws$} {:<wt$} {:<wi$} {:<wr$}{} {:<5} reason",
-        "section",
-        "scenario",
-        "thesis (lab)",
-        "radbench (ideal)",
-        chosen_head,
-        rx_cell(&rx_head, &both_head),
-        "agree"
-    );
-    for r in rows {
-        let _ = writeln!(
-            out,
-            "{:<8} {:<ws$} {:<wt$} {:<wi$} {:<wr$}{} {:<5} {}",
-            r.section,
-            r.scenario,
-            r.thesis,
-            r.radbench_ideal,
-            r.radbench,
-            rx_cell(
-                r.radbench_rx.as_deref().unwrap_or("-"),
-                r.radbench_both.as_deref().unwrap_or("-")
-            ),
-            if r.agrees { "yes" } else { "no" },
-            r.reason.as_deref().unwrap_or("")
-        );
-    }
-    let agree = rows.iter().filter(|r| r.agrees).count();
-    let _ = writeln!(
-        out,
-        "{agree} of {} rows agree on the {chain} chain. The mock lab is not the thesis' room: \
-         where they differ, the reason names the physical effect.",
-        rows.len()
-    );
-    if with_rx {
-        let _ = writeln!(
-            out,
-            "agree judges the uncorrected {chain} column against the thesis' lab. The rx column is \
-             the same chain with the receive correction, both with the AWG's codes pre-distorted \
-             and the receiver's DC and I/Q corrected; the same calibrations for both (radbench \
-             calibrate response, measured in-process on one pillar at {LAB_REFERENCE_M} m, once \
-             with the 1 GHz chirp for the MSK-LFM rows and once with OFDM for the OFDM rows; \
-             beyond the band it was measured on, as for the 2 GHz chirp's upper half, a table \
-             holds its edge values)."
-        );
-    }
-    out
 }
 
 #[cfg(test)]

@@ -25,6 +25,7 @@ pub(crate) mod builtin;
 pub(crate) mod export;
 mod folder;
 pub(crate) mod kind;
+pub(crate) mod lab_table;
 pub(crate) mod manifest;
 pub(crate) mod plan;
 pub(crate) mod positioner;
@@ -40,6 +41,7 @@ mod worker;
 
 pub use builtin::*;
 pub use export::*;
+pub use lab_table::*;
 pub use manifest::*;
 pub use plan::*;
 pub use report::*;

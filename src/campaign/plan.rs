@@ -75,6 +75,16 @@ pub struct BenchPlan {
     pub calibrated: bool,
 }
 
+impl BenchPlan {
+    /// What every output of a run on this bench must say about it (it is not calibrated).
+    pub fn warnings(&self) -> Vec<String> {
+        (!self.calibrated)
+            .then(|| crate::measure::uncalibrated_warning(self.file.as_deref()))
+            .into_iter()
+            .collect()
+    }
+}
+
 /// Who places the targets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PositionerPlan {
@@ -261,8 +271,9 @@ impl BenchInfo {
                         let text = std::fs::read_to_string(&p).map_err(|e| {
                             spec.error("bench.scene", format!("cannot read {}: {e}", p.display()))
                         })?;
-                        Scene::from_toml(&text, &p.display().to_string())
-                            .map_err(|e| spec.error("bench.scene", e.to_string()))?
+                        Scene::from_toml(&text, &p.display().to_string()).map_err(|e| {
+                            spec.error("bench.scene", crate::exit::with_key_hint(&e.to_string()))
+                        })?
                     }
                     None => Scene::default(),
                 };

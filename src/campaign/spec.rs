@@ -401,7 +401,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 
 /// A parser error as file:line:field and the parser's message (which names what is allowed).
 fn syntax_error(text: &str, path: &Path, e: &toml::de::Error) -> SpecError {
-    let mut message = e.message().trim().to_string();
+    let mut message = crate::exit::with_key_hint(e.message().trim());
     if message.contains("untagged enum ModelOrder") {
         message = "allowed: a number of targets (1 or more, below music_m), or \"targets\" (each \
                    step's number of targets)"

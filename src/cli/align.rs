@@ -54,6 +54,8 @@ pub struct Args {
     /// Longest wait for the marker-triggered acquisition, seconds.
     #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub wait: f64,
+    #[command(flatten)]
+    pub timeout: super::args::TimeoutArgs,
     /// Built-in mock lab only: its scene file (see examples/scene.toml).
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
@@ -87,8 +89,9 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         return Err(bad_input("--count 0: allowed: 1 or more captures"));
     }
     if !args.allow_rf {
-        return Err(MeasureError::NoPermit.into());
+        return Err(MeasureError::NoPermit { run: "alignment" }.into());
     }
+    args.timeout.apply()?;
     let source = args.scope_model.apply(bench_source(
         args.bench.as_deref(),
         args.scene.as_deref(),
@@ -101,11 +104,9 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     options.system_delay_s = bench.file.system_delay_s();
     options.min_range_m = args.min_range;
     options.max_range_m = args.max_range;
-    if bench.file.calibration.is_none() && !args.json {
-        eprintln!(
-            "note: the bench file has no [calibration]: ranges include the fixed system delay; \
-             run `radbench calibrate --reference-range METRES --bench FILE` first"
-        );
+    if let Some(w) = bench.file.uncalibrated_warning() {
+        // Once here; --json repeats it in each capture's "warnings".
+        eprintln!("warning: {w}");
     }
     let request = CaptureRequest {
         waveform,
@@ -121,6 +122,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         l.send(Event::Set("kind", json!("align")));
         l.send(Event::Set("title", json!("align")));
     }
+    live_cli::bench_warnings(live.as_ref(), &bench);
     let result = captures(&args, global, &bench, &request, &interrupt, live.as_ref()).await;
     live_cli::finish(
         live,
@@ -195,9 +197,7 @@ async fn captures(
                     "distance_m": distance,
                 }),
             ));
-            for w in &p.warnings {
-                l.send(Event::Log("warning", format!("capture {k}: {w}")));
-            }
+            live_cli::capture_warnings(l, bench, k, &p.warnings);
         }
         let text = if args.json {
             json!({

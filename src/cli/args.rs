@@ -134,3 +134,33 @@ mod tests {
         assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }
 }
+
+/// `--timeout`: how long an instrument may take to start a reply, for every instrument of the
+/// bench (the catalog's `[timeouts] read_ms` otherwise). Named by the timeout messages' advice.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct TimeoutArgs {
+    /// Longest wait for an instrument's reply to start, seconds, for every instrument of the
+    /// bench (default: each model's catalog `[timeouts] read_ms`); raise it for a slow one.
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub timeout: Option<f64>,
+}
+
+/// The largest `--timeout`: an hour (a reply that takes longer is not coming).
+const MAX_TIMEOUT_S: f64 = 3600.0;
+
+impl TimeoutArgs {
+    /// Gives every link opened from now on the timeout, when one is given; refuses one that is
+    /// not a positive number of seconds up to an hour.
+    pub(crate) fn apply(self) -> anyhow::Result<()> {
+        let Some(s) = self.timeout else {
+            return Ok(());
+        };
+        if !(s.is_finite() && s > 0.0 && s <= MAX_TIMEOUT_S) {
+            return Err(radbench::exit::bad_input(format!(
+                "--timeout {s}: allowed: a positive number of seconds, at most {MAX_TIMEOUT_S}"
+            )));
+        }
+        radbench::driver::set_read_timeout(std::time::Duration::from_secs_f64(s));
+        Ok(())
+    }
+}

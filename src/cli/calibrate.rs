@@ -72,7 +72,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
         .ok_or_else(|| radbench::exit::bad_input("--reference-range METRES is needed"))?;
     check(reference_range, args.search)?;
     if !args.allow_rf {
-        return Err(MeasureError::NoPermit.into());
+        return Err(MeasureError::NoPermit { run: "calibration" }.into());
     }
     super::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(

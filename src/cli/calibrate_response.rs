@@ -97,7 +97,7 @@ fn check(args: &Args) -> Result<(), MeasureError> {
         }
     }
     if !args.allow_rf {
-        return Err(MeasureError::NoPermit);
+        return Err(MeasureError::NoPermit { run: "calibration" });
     }
     Ok(())
 }
@@ -287,13 +287,12 @@ fn print_report(
         g.spread_db_max, g.spread_deg_max
     );
     println!(
-        "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {} -> {}",
+        "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {}",
         opt(f.sidelobe_db_before, "dB"),
         opt(f.sidelobe_db_after, "dB"),
         opt(f.width_cm_before, "cm"),
         opt(f.width_cm_after, "cm"),
-        opt(f.range_m_before.map(|v| v * 1.0), "m"),
-        opt(f.range_m_after, "m"),
+        range_change(f.range_m_before, f.range_m_after),
     );
     match (stored, refused) {
         (_, Some(why)) if stored.is_none() => println!("NOT stored: {why}"),
@@ -307,6 +306,22 @@ fn print_report(
 }
 
 /// The measured gain (dB) and phase (degrees / 10) against frequency, with the spread.
+/// The reference's range before and after the correction, at the precision it is measured to
+/// (0.1 mm), with the change in millimetres: the correction moves it by far less than a
+/// centimetre, which `2.00 m -> 2.00 m` would hide.
+fn range_change(before: Option<f64>, after: Option<f64>) -> String {
+    let m = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4} m"));
+    match (before, after) {
+        (Some(b), Some(a)) => format!(
+            "{} -> {} ({} mm)",
+            m(before),
+            m(after),
+            radbench::measure::signed((a - b) * 1e3, 1)
+        ),
+        _ => format!("{} -> {}", m(before), m(after)),
+    }
+}
+
 fn draw(path: &Path, r: &Response) -> Result<(), MeasureError> {
     use radbench::storage::{Curve, LineStyle, ProfilePlot};
     let f: Vec<f64> = r.table.freq_hz.iter().map(|f| f / 1e9).collect();
@@ -374,5 +389,17 @@ fn contiguous_around_zero(freq_hz: &[f64]) -> (f64, f64) {
     match (freq_hz.get(lo), freq_hz.get(hi)) {
         (Some(a), Some(b)) if b > a => (a / 1e9, b / 1e9),
         _ => (-1.0, 1.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn ranges_show_the_millimetres_the_correction_moves() {
+        assert_eq!(
+            super::range_change(Some(2.00031), Some(1.99992)),
+            "2.0003 m -> 1.9999 m (-0.4 mm)"
+        );
+        assert_eq!(super::range_change(Some(2.0), None), "2.0000 m -> -");
     }
 }

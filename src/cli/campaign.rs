@@ -60,6 +60,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
+    pub timeout: super::args::TimeoutArgs,
+    #[command(flatten)]
     pub live: super::live::LiveArgs,
 }
 
@@ -79,6 +81,8 @@ pub struct ResumeArgs {
     /// JSON Lines on stdout, as for `campaign run`.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
     pub live: super::live::LiveArgs,
 }
@@ -188,6 +192,8 @@ struct DoneEvent<'a> {
     dir: &'a Path,
     status: &'static str,
     summary: &'a Summary,
+    /// What the whole run must be read with (the bench is not calibrated).
+    warnings: Vec<String>,
 }
 
 fn line(v: &impl Serialize) -> String {
@@ -293,6 +299,13 @@ fn step_line(done: &StepDone<'_>) -> String {
     )
 }
 
+/// What a run folder's whole run must be read with, from its manifest (its bench's plan).
+fn run_warnings(dir: &Path) -> Vec<String> {
+    campaign::Manifest::load(dir)
+        .map(|m| m.plan.bench.warnings())
+        .unwrap_or_default()
+}
+
 /// Prints the end of a run and turns a stop into the command's error.
 fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
     if json {
@@ -303,6 +316,7 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
                 dir: &finished.dir,
                 status: finished.status.name(),
                 summary: &finished.summary,
+                warnings: run_warnings(&finished.dir),
             })
         );
     } else {
@@ -392,8 +406,12 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         return Ok(());
     }
     if !a.allow_rf {
-        return Err(MeasureError::NoPermit.into());
+        return Err(MeasureError::NoPermit {
+            run: "campaign's steps",
+        }
+        .into());
     }
+    a.timeout.apply()?;
     let interrupt = Interrupt::listen()?;
     let out = a.out.clone().unwrap_or_else(|| {
         // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`,
@@ -417,11 +435,9 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
             "no bench file: running on the built-in mock lab (simulated, in-process on 127.0.0.1)"
         );
     }
-    if !plan.bench.calibrated {
-        eprintln!(
-            "note: the bench file has no [calibration]: ranges include the fixed system delay; run \
-             `radbench calibrate` first"
-        );
+    let warnings = plan.bench.warnings();
+    for w in &warnings {
+        eprintln!("warning: {w}");
     }
     let mut printer = Printer { json: a.json };
     let live = a.live.start(&interrupt, a.json).await?;
@@ -438,6 +454,9 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
             "plot_axes",
             super::live::campaign_axes(parameter.map(|p| p.name())),
         ));
+        for w in warnings {
+            l.send(Event::Log("warning", w));
+        }
     }
     let stop = interrupt.clone();
     let mut observer = super::live::LiveObserver {
@@ -487,8 +506,12 @@ async fn live_end(
 
 async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
     if !a.allow_rf {
-        return Err(MeasureError::NoPermit.into());
+        return Err(MeasureError::NoPermit {
+            run: "campaign's steps",
+        }
+        .into());
     }
+    a.timeout.apply()?;
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
     let live = a.live.start(&interrupt, a.json).await?;
@@ -500,6 +523,10 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
             json!(format!("campaign resume {}", a.run_dir.display())),
         ));
         l.send(Event::Set("plot_axes", super::live::campaign_axes(None)));
+    }
+    for w in run_warnings(&a.run_dir) {
+        eprintln!("warning: {w}");
+        super::live::send(live.as_ref(), crate::live::Event::Log("warning", w));
     }
     let stop = interrupt.clone();
     let mut observer = super::live::LiveObserver {

@@ -22,75 +22,97 @@ use std::sync::Arc;
 pub struct Args {
     /// Bench file (TOML) naming the instruments; without one, a simulated bench (mock_lab) is
     /// started in-process on 127.0.0.1.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = "Bench")]
     pub bench: Option<PathBuf>,
-    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm")]
+    #[arg(long, value_parser = super::args::listed::<WaveformKind>(), default_value = "msk-lfm", help_heading = "Waveform")]
     pub waveform: WaveformKind,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Waveform")]
     pub waveform_args: WaveformArgs,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Processing")]
     pub processing: ProcessingArgs,
     /// Subtract this earlier capture (its .sigmf-meta) before processing, e.g. an empty scene.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = "Processing")]
     pub background: Option<PathBuf>,
     /// Output folder (default runs/<UTC time>-<waveform>).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help_heading = "Output")]
     pub out: Option<PathBuf>,
     /// Explicit permit to switch on the AWG outputs and the Tx/Rx front ends for this capture.
-    #[arg(long)]
+    #[arg(long, help_heading = "Bench")]
     pub allow_rf: bool,
     /// Write into an --out folder that holds files already (they are replaced; the command says
     /// which).
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub force: bool,
     /// Leave the transmitter off (noise-floor and leakage checks); needs --allow-rf for the rest.
-    #[arg(long)]
+    #[arg(long, help_heading = "Bench")]
     pub tx_off: bool,
     /// Print one JSON object instead of the text report.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub json: bool,
     /// The payload text or the PRBS seed (the library's: the Python package parses them too).
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Waveform")]
     pub bits: PayloadArgs,
     /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
-    #[arg(long, default_value_t = 0.15, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        default_value_t = 0.15,
+        allow_hyphen_values = true,
+        help_heading = "Processing"
+    )]
     pub min_range: f64,
     /// Ignore detections farther than this, metres.
-    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        allow_hyphen_values = true,
+        help_heading = "Processing"
+    )]
     pub max_range: f64,
     /// Marker-triggered repetitions per measurement: each processed, and their coherent average
     /// reported with the spread (mean and standard deviation) of the repetitions.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 1,
+        help_heading = "Processing"
+    )]
     pub repetitions: usize,
     /// Longest wait for the marker-triggered acquisition, seconds.
-    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        allow_hyphen_values = true,
+        help_heading = "Bench"
+    )]
     pub wait: f64,
+    #[command(flatten, next_help_heading = "Bench")]
+    pub timeout: super::args::TimeoutArgs,
     /// Built-in mock lab only: its scene file (see examples/scene.toml).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = "Built-in lab")]
     pub scene: Option<PathBuf>,
     /// Built-in mock lab only: transport to the AWG.
-    #[arg(long, value_parser = super::args::listed::<AwgLink>(), default_value = "hislip")]
+    #[arg(long, value_parser = super::args::listed::<AwgLink>(), default_value = "hislip", help_heading = "Built-in lab")]
     pub awg_transport: AwgLink,
     /// Built-in mock lab only: transport to the scope.
-    #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp")]
+    #[arg(long, value_parser = super::args::listed::<ScopeLink>(), default_value = "vicp", help_heading = "Built-in lab")]
     pub scope_transport: ScopeLink,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Built-in lab")]
     pub scope_model: super::scope_model::ScopeModelArgs,
     /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
     /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
     /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
     /// calibration (or --calibration is given), none otherwise.
-    #[arg(long, value_parser = super::args::listed::<CorrectionMode>())]
+    #[arg(long, value_parser = super::args::listed::<CorrectionMode>(), help_heading = "Processing")]
     pub correction: Option<CorrectionMode>,
     /// A response calibration (`radbench calibrate response`) instead of the bench file's.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = "Processing")]
     pub calibration: Option<PathBuf>,
     /// Capture N times, or `forever` (until Ctrl-C or the live page's Stop): each capture's
     /// files in a folder of its own in --out (capture-0001, ...); the bench is connected and the
     /// waveform uploaded once, RF is on only while capturing.
-    #[arg(long, value_name = "N|forever", value_parser = super::repeat::parse_repeat)]
+    #[arg(long, value_name = "N|forever", value_parser = super::repeat::parse_repeat, help_heading = "Output")]
     pub repeat: Option<super::repeat::Repeat>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Live")]
     pub live: super::live::LiveArgs,
 }
 
@@ -262,8 +284,9 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if !args.allow_rf {
-        return Err(MeasureError::NoPermit.into());
+        return Err(MeasureError::NoPermit { run: "capture" }.into());
     }
+    args.timeout.apply()?;
     if args.live.live && args.repeat.is_none() {
         return Err(bad_input(
             "--live: needs --repeat N|forever (one capture is over before a page could show it)",
@@ -307,11 +330,9 @@ async fn measure_into(
     options.system_delay_s = bench.file.system_delay_s();
     options.min_range_m = args.min_range;
     options.max_range_m = args.max_range;
-    if bench.file.calibration.is_none() {
-        eprintln!(
-            "note: the bench file has no [calibration]: ranges include the fixed system delay; \
-             run `radbench calibrate --reference-range METRES --bench FILE` first"
-        );
+    if let Some(w) = bench.file.uncalibrated_warning() {
+        // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
+        eprintln!("warning: {w}");
     }
     let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
     let mode = args.correction.unwrap_or(CorrectionMode::Rx);
@@ -463,7 +484,7 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
                 .unwrap_or_default();
             let moving = t
                 .velocity_mps
-                .map(|v| format!("   {v:+.1} m/s"))
+                .map(|v| format!("   {} m/s", radbench::measure::signed(v, 1)))
                 .unwrap_or_default();
             println!(
                 "  {:>9.4} m   {:>6.1} dB{moving}{spread}",
@@ -509,8 +530,10 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
             ),
             (None, Some(e)) => println!("payload: not decoded: {e}"),
             (None, None) => println!(
-                "data bits: {} errors in {} (BER {:.2e})",
-                pl.bit_errors, pl.bits, pl.ber
+                "data bits: {} errors in {} (BER {})",
+                pl.bit_errors,
+                pl.bits,
+                radbench::measure::rate(pl.ber)
             ),
         }
     }

@@ -18,10 +18,13 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
+    pub timeout: super::args::TimeoutArgs,
+    #[command(flatten)]
     pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+    args.timeout.apply()?;
     let runtime = super::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;

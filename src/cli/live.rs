@@ -107,6 +107,21 @@ pub(crate) fn send(live: Option<&Live>, event: Event) {
     }
 }
 
+/// Tells the page, once, what every capture on `bench` warns of (it is not calibrated).
+pub(crate) fn bench_warnings(live: Option<&Live>, bench: &Bench) {
+    if let Some(w) = bench.file.uncalibrated_warning() {
+        send(live, Event::Log("warning", w));
+    }
+}
+
+/// Capture `k`'s warnings on the page, without the bench's (told once by [`bench_warnings`]).
+pub(crate) fn capture_warnings(live: &Live, bench: &Bench, k: u64, warnings: &[String]) {
+    let told = bench.file.uncalibrated_warning();
+    for w in warnings.iter().filter(|w| Some(*w) != told.as_ref()) {
+        live.send(Event::Log("warning", format!("capture {k}: {w}")));
+    }
+}
+
 /// The end: the status published, the browsers that keep up given a moment, the server stopped.
 pub(crate) async fn finish(live: Option<Live>, status: &str, error: Option<&anyhow::Error>) {
     if let Some(live) = live {

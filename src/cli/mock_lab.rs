@@ -64,7 +64,8 @@ pub enum ScopeRemote {
 pub(crate) fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| bad_input(format!("cannot read scene file {}: {e}", path.display())))?;
-    Scene::from_toml(&text, &path.display().to_string()).map_err(|e| bad_input(e.to_string()))
+    Scene::from_toml(&text, &path.display().to_string())
+        .map_err(|e| bad_input(radbench::exit::with_key_hint(&e.to_string())))
 }
 
 pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {

@@ -80,6 +80,7 @@ pub(crate) async fn captures(
             json!({"x": "capture", "y": "strongest target (m)"}),
         ));
     }
+    live_cli::bench_warnings(live.as_ref(), bench);
     let result = run(
         args,
         global,
@@ -170,9 +171,7 @@ async fn run(
                 truth: truth_ranges(m.taken.ground_truth.as_ref()),
                 label: format!("capture {k}"),
             });
-            for w in &p.warnings {
-                l.send(Event::Log("warning", format!("capture {k}: {w}")));
-            }
+            live_cli::capture_warnings(l, bench, k, &p.warnings);
         }
         if args.json {
             summary["capture"] = json!(k);

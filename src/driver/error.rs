@@ -5,6 +5,8 @@ use crate::exit::{Classify, ExitClass};
 use crate::session::{DeviceError, ErrorList, SessionError};
 use crate::transport::ErrorKind;
 
+use super::safe_state::SafeStateReport;
+
 use crate::trc::TrcError;
 
 /// Everything a driver operation can fail with.
@@ -75,8 +77,9 @@ pub enum DriverError {
         expected: String,
         idn: String,
     },
-    /// The scope does not answer on this protocol; it is most likely set to the other one.
-    #[error("{resource}: no answer over {protocol} ({source}); the scope's remote interface is probably set to {other}: change Utilities > Utilities Setup > Remote to {protocol}, or use the {other} resource string")]
+    /// The scope does not answer on this protocol: off, unreachable, or set to the other one (the
+    /// error cannot tell which, so it lists them).
+    #[error("{resource}: no answer over {protocol}: {source}. If the scope is on and reachable, check its remote setting: Utilities > Utilities Setup > Remote must be {protocol} (if it is {other}, use the {other} resource string instead)")]
     RemoteInterface {
         resource: String,
         protocol: &'static str,
@@ -85,11 +88,14 @@ pub enum DriverError {
         source: Box<SessionError>,
     },
     /// The single acquisition did not complete.
-    #[error("no marker edge: check the AWG runs and its marker output is on ({instrument} waited {waited_s} s for a trigger on {source_name})")]
+    #[error("no marker edge: check the AWG runs and its marker output is on ({instrument} waited {waited_s} s for a trigger on {source_name}){}", safe_state_text(.safe_state.as_ref()))]
     NoTrigger {
         instrument: String,
         source_name: String,
         waited_s: f64,
+        /// What the capture's safe state did after RF was on (filled in by the capture, which
+        /// runs it; `None` from the driver itself).
+        safe_state: Option<SafeStateReport>,
     },
     /// A waveform block that cannot be decoded.
     #[error("{instrument}: channel C{channel}: {source}")]
@@ -114,6 +120,21 @@ pub enum DriverError {
     /// Operations called in an order the driver cannot serve (a program error, not a user one).
     #[error("{instrument}: {what}")]
     Sequence { instrument: String, what: String },
+}
+
+/// The end of a message about a stop while RF was on: what the safe state switched off, or that
+/// it did not complete.
+fn safe_state_text(report: Option<&SafeStateReport>) -> String {
+    match report {
+        None => String::new(),
+        Some(r) if r.steps.is_empty() => String::new(),
+        Some(r) if r.is_safe() => {
+            format!("; RF was on and is off again, the bench is in its safe state ({r})")
+        }
+        Some(r) => format!(
+            "; RF was on and the safe state did NOT complete ({r}): switch the bench off by hand"
+        ),
+    }
 }
 
 /// Wraps a session error with the instrument's name: `.map_err(session(name))`.
@@ -204,10 +225,45 @@ mod tests {
             instrument: "scope".into(),
             source_name: "EX".into(),
             waited_s: 2.0,
+            safe_state: None,
         };
         assert!(trigger
             .to_string()
             .starts_with("no marker edge: check the AWG runs and its marker output is on"));
+        assert!(trigger.to_string().ends_with("trigger on EX)"));
         assert_eq!(trigger.exit_class(), ExitClass::Instrument);
+    }
+
+    #[test]
+    fn a_missing_edge_after_rf_confirms_what_was_switched_off() {
+        use super::super::safe_state::SafeStep;
+        let step = |step, error: Option<&str>| SafeStep {
+            step,
+            error: error.map(str::to_string),
+        };
+        let edge = |steps| DriverError::NoTrigger {
+            instrument: "scope".into(),
+            source_name: "EX".into(),
+            waited_s: 10.0,
+            safe_state: Some(SafeStateReport { steps }),
+        };
+        let safe = edge(vec![
+            step("Tx RF off", None),
+            step("Rx off", None),
+            step("AWG outputs off and :ABOR", None),
+        ])
+        .to_string();
+        assert!(
+            safe.ends_with(
+                "; RF was on and is off again, the bench is in its safe state (Tx RF off: done; \
+                 Rx off: done; AWG outputs off and :ABOR: done)"
+            ),
+            "{safe}"
+        );
+        let unsafe_ = edge(vec![step("Tx RF off", Some("timed out"))]).to_string();
+        assert!(
+            unsafe_.contains("the safe state did NOT complete (Tx RF off: FAILED (timed out))"),
+            "{unsafe_}"
+        );
     }
 }

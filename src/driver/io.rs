@@ -7,6 +7,7 @@
 
 use std::future::Future;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use crate::address::Resource;
@@ -99,15 +100,32 @@ impl InstrumentIo for Session {
     }
 }
 
-/// Link timeouts from a catalog model's timeout policy: connect, read and write as given, and the
-/// per-megabyte allowance turned into the slowest healthy transfer rate.
+/// The read timeout of every link opened from now on, in place of the catalog models' `[timeouts]
+/// read_ms` (milliseconds; 0: each model's own). Set once by the command line's `--timeout`.
+static READ_TIMEOUT_MS: AtomicU64 = AtomicU64::new(0);
+
+/// Gives every instrument link opened from now on `read` as its read timeout (the time a reply
+/// may take to start), in place of each catalog model's `[timeouts] read_ms`: the command line's
+/// `--timeout`, for an instrument slower than its catalog entry says.
+pub fn set_read_timeout(read: Duration) {
+    let ms = u64::try_from(read.as_millis()).unwrap_or(u64::MAX).max(1);
+    READ_TIMEOUT_MS.store(ms, Ordering::Relaxed);
+}
+
+/// Link timeouts from a catalog model's timeout policy: connect, read and write as given (the
+/// read timeout [`set_read_timeout`]'s when set), and the per-megabyte allowance turned into the
+/// slowest healthy transfer rate.
 pub(crate) fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
     let min_rate = 1_000_000_000u64
         .checked_div(policy.per_megabyte_ms)
         .unwrap_or(u64::MAX);
+    let read_ms = match READ_TIMEOUT_MS.load(Ordering::Relaxed) {
+        0 => policy.read_ms,
+        ms => ms,
+    };
     Timeouts {
         connect: Duration::from_millis(policy.connect_ms),
-        read: Duration::from_millis(policy.read_ms),
+        read: Duration::from_millis(read_ms),
         write: Duration::from_millis(policy.write_ms),
         min_rate_bytes_per_s: min_rate.max(1),
     }

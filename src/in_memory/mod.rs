@@ -16,6 +16,7 @@
 //! its exit class).
 
 mod batch;
+mod keywords;
 mod options;
 
 use batch::on_cached_pipeline;
@@ -46,6 +47,9 @@ fn parse_error(e: &clap::Error) -> anyhow::Error {
     }
     bad_input(parts.join("; "))
 }
+
+/// The options of `radbench process` that processing in memory refuses (nothing is written).
+const REFUSED_IN_MEMORY: [&str; 4] = ["--out", "--jobs", "--json", "--reference-range"];
 
 /// `radbench process`'s processing options alone.
 #[derive(clap::Parser)]
@@ -128,6 +132,8 @@ pub struct ProcessRequest {
     args: Box<ProcessArgs>,
     waveform: WaveformChoice,
     overrides: ProcessOverrides,
+    /// The option names to write as keywords in errors ([`ProcessRequest::parse_keywords`]).
+    keywords: Option<Vec<String>>,
 }
 
 /// One capture (or record of samples) processed: `summary.json` as `radbench process` writes it
@@ -148,7 +154,7 @@ impl ProcessRequest {
         // parser would take them; this one would only call them unknown).
         for o in options.iter().filter(|o| o.starts_with("--")) {
             let name = o.split('=').next().unwrap_or(o);
-            if ["--out", "--jobs", "--json"].contains(&name) {
+            if REFUSED_IN_MEMORY[..3].contains(&name) {
                 return Err(not_in_memory(name));
             }
         }
@@ -170,11 +176,53 @@ impl ProcessRequest {
             args,
             waveform,
             overrides,
+            keywords: None,
         })
+    }
+
+    /// [`parse`](Self::parse) for options given as keywords (the Python package's
+    /// `process(window="hann")`, passed here as `--window=hann`): an unknown one is named as the
+    /// keyword it was (`windw`, with a did-you-mean), and every message names keywords, not
+    /// command-line options.
+    pub fn parse_keywords(options: &[String]) -> anyhow::Result<ProcessRequest> {
+        use clap::CommandFactory;
+        let longs: Vec<String> = ProcessParser::command()
+            .get_arguments()
+            .filter_map(|a| a.get_long())
+            .map(String::from)
+            .collect();
+        keywords::check_known(options, &longs, &REFUSED_IN_MEMORY)?;
+        let named: Vec<String> = longs
+            .into_iter()
+            .chain(REFUSED_IN_MEMORY.iter().map(|r| r[2..].to_string()))
+            .collect();
+        let mut request = Self::parse(options).map_err(|e| keywords::in_keywords(e, &named))?;
+        request.keywords = Some(named);
+        Ok(request)
+    }
+
+    /// `err` in the words the options were given in (keywords after
+    /// [`parse_keywords`](Self::parse_keywords)).
+    fn in_callers_words(&self, err: anyhow::Error) -> anyhow::Error {
+        match &self.keywords {
+            Some(named) => keywords::in_keywords(err, named),
+            None => err,
+        }
     }
 
     /// The capture `files` name, processed as `radbench process` processes it.
     pub fn capture(&self, files: &[PathBuf]) -> anyhow::Result<InMemory> {
+        self.capture_files(files)
+            .map_err(|e| self.in_callers_words(e))
+    }
+
+    /// A record of samples, processed as a capture radbench did not make (`--waveform` and its
+    /// parameters, `--seed`, `--payload`, `--trigger-offset` describe it).
+    pub fn samples(&self, raw: RawIq) -> anyhow::Result<InMemory> {
+        self.samples_of(raw).map_err(|e| self.in_callers_words(e))
+    }
+
+    fn capture_files(&self, files: &[PathBuf]) -> anyhow::Result<InMemory> {
         let source = one_capture(files)?;
         // A capture of a run folder is checked against the hash its run recorded, as
         // `radbench process` checks it.
@@ -197,7 +245,7 @@ impl ProcessRequest {
 
     /// A record of samples (volts, one repetition starting `first_point_s` after the marker)
     /// processed as a capture radbench did not make: the waveform must be given (`--waveform`).
-    pub fn samples(&self, raw: RawIq) -> anyhow::Result<InMemory> {
+    fn samples_of(&self, raw: RawIq) -> anyhow::Result<InMemory> {
         if raw.samples.is_empty() {
             return Err(bad_input(
                 "samples: an empty record; give at least one repetition",

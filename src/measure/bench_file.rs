@@ -149,7 +149,8 @@ impl BenchFile {
             path: path.to_path_buf(),
             message,
         };
-        let mut bench: BenchFile = toml::from_str(text).map_err(|e| invalid(e.to_string()))?;
+        let mut bench: BenchFile = toml::from_str(text)
+            .map_err(|e| invalid(crate::exit::with_key_hint(&e.to_string())))?;
         let index = crate::catalog::locate::FieldIndex::new(text);
         bench.path = path.to_path_buf();
         for section in ["awg", "scope", "tx", "rx", "calibration", "simulation"] {
@@ -312,6 +313,26 @@ impl BenchFile {
     pub fn system_delay_s(&self) -> f64 {
         self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
     }
+
+    /// The warning a capture on this bench carries in every output while it has no delay
+    /// calibration; `None` once `radbench calibrate` has stored one.
+    pub fn uncalibrated_warning(&self) -> Option<String> {
+        self.calibration
+            .is_none()
+            .then(|| uncalibrated_warning(Some(&self.path)))
+    }
+}
+
+/// The warning of a bench without `[calibration]` (`bench_file`: its path, for the command to
+/// run). Ranges are then 0.375 m or so too long: nothing else shows it.
+pub fn uncalibrated_warning(bench_file: Option<&Path>) -> String {
+    let file = bench_file.map_or("FILE".to_string(), |p| p.display().to_string());
+    format!(
+        "the bench is not calibrated (its bench file has no [calibration]: system_delay_s 0): \
+         every range includes the fixed delay of cables, horns and marker latency; put a \
+         target at a known range and run `radbench calibrate --reference-range METRES --bench \
+         {file} --allow-rf`"
+    )
 }
 
 /// Writes `calibration` into the bench file at `path`: its `[calibration]` section's values are

@@ -503,6 +503,7 @@ impl Rig {
         self.loaded = Some((prepared.tx.clone(), captured.uploaded.clone()));
         let ground_truth = bench.ground_truth().await;
         Ok(Taken {
+            bench_warnings: bench.file.uncalibrated_warning().into_iter().collect(),
             tx: prepared.tx.clone(),
             plan: prepared.plan.clone(),
             captured,
@@ -526,11 +527,17 @@ pub struct Taken {
     pub safe_state: SafeStateReport,
     /// The background subtracted, if any: its file and SHA-256.
     pub background: Option<BackgroundFile>,
+    /// What every output of this capture must say about the bench (it is not calibrated).
+    pub(crate) bench_warnings: Vec<String>,
 }
 
 impl Taken {
     /// The measurement, with what a pipeline made of this capture.
     pub fn with(self, mut processing: Processing) -> Measurement {
+        // The bench's first: they qualify every figure after them.
+        let own = std::mem::take(&mut processing.processed.warnings);
+        processing.processed.warnings = self.bench_warnings.clone();
+        processing.processed.warnings.extend(own);
         if let Some(truth) = &self.ground_truth {
             let o = &processing.options;
             let outside: Vec<String> = truth["targets"]

@@ -37,6 +37,7 @@ pub(crate) mod export;
 pub(crate) mod family;
 pub(crate) mod figure;
 pub(crate) mod interrupt;
+pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
 pub(crate) mod pipeline;
@@ -62,6 +63,7 @@ pub use doctor::*;
 pub use export::*;
 pub use figure::*;
 pub use interrupt::*;
+pub use numbers::*;
 pub use options::*;
 pub use pipeline::*;
 pub use record::*;
@@ -100,12 +102,13 @@ pub enum MeasureError {
          and esprit need --waveform ofdm"
     )]
     AlgorithmNeedsOfdm { algorithm: &'static str },
-    /// RF was asked for without the user's permit.
+    /// RF was asked for without the user's permit; `run` names what would have radiated
+    /// ("capture", "campaign run", ...).
     #[error(
         "the AWG outputs and the front ends stay off without an explicit permit: pass --allow-rf \
-         to switch them on for this capture (they are switched off again at the end)"
+         to switch them on for this {run} (they are switched off again at the end)"
     )]
-    NoPermit,
+    NoPermit { run: &'static str },
     /// The waveform does not fit the AWG (catalog limits).
     #[error("the {waveform} waveform does not fit the {instrument}: {reason}")]
     DoesNotFit {
@@ -226,7 +229,7 @@ impl MeasureError {
         match self {
             MeasureError::Option { .. }
             | MeasureError::AlgorithmNeedsOfdm { .. }
-            | MeasureError::NoPermit
+            | MeasureError::NoPermit { .. }
             | MeasureError::DoesNotFit { .. }
             | MeasureError::RateNotMultiple { .. }
             | MeasureError::BackgroundShape { .. }

@@ -643,7 +643,7 @@ impl Station {
         };
         let (outcome, report) = crate::driver::run_guarded(&safe, work, interrupt.wait()).await;
         let result = match outcome {
-            Outcome::Finished(r) => r,
+            Outcome::Finished(r) => r.map_err(|e| with_safe_state(e, &report)),
             Outcome::Interrupted => Err(MeasureError::Interrupted {
                 signal: interrupt
                     .received()
@@ -659,6 +659,25 @@ impl Drop for Station {
     fn drop(&mut self) {
         // The panic hook must not keep this bench's links (a serial port) open after it closes.
         crate::driver::clear_panic_safe_state(&self.safe);
+    }
+}
+
+/// A stop while RF was on says what the safe state then switched off (a missing marker edge:
+/// the operator is at the bench, wondering whether it still radiates).
+fn with_safe_state(e: MeasureError, report: &SafeStateReport) -> MeasureError {
+    match e {
+        MeasureError::Driver(crate::driver::DriverError::NoTrigger {
+            instrument,
+            source_name,
+            waited_s,
+            ..
+        }) => MeasureError::Driver(crate::driver::DriverError::NoTrigger {
+            instrument,
+            source_name,
+            waited_s,
+            safe_state: Some(report.clone()),
+        }),
+        other => other,
     }
 }
 

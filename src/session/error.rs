@@ -55,7 +55,7 @@ pub enum SessionError {
         after: Option<String>,
         errors: Vec<DeviceError>,
     },
-    #[error("{resource}: no reply to `{query}` within {}, and the instrument's error queue holds: {}. A query the instrument refuses gets no reply; if it was only slow, raise the timeout", crate::transport::Rounded(*.after), ErrorList(.errors))]
+    #[error("{resource}: no reply to `{query}` within {}, and the instrument's error queue holds: {}. A query the instrument refuses gets no reply; if it was only slow, raise the timeout (--timeout SECONDS)", crate::transport::Rounded(*.after), ErrorList(.errors))]
     Unanswered {
         resource: String,
         query: String,

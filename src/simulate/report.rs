@@ -110,18 +110,26 @@ pub fn ber_text(points: &[BerCurvePoint]) -> String {
         "{:<8} {:>6} {:>10} {:>8} {:>11} {:>11} {:>23}  within  {:>6}",
         "waveform", "Eb/N0", "bits", "errors", "BER", "theory", "95 % interval", "dev"
     );
+    // Nothing counted reads `0`, not `0.000e0`.
+    let sci = |x: f64| {
+        if x == 0.0 {
+            "0".to_string()
+        } else {
+            format!("{x:.3e}")
+        }
+    };
     for p in points {
         let _ = writeln!(
             out,
-            "{:<8} {:>5.1}  {:>10} {:>8} {:>11.3e} {:>11.3e} [{:>9.3e}, {:>9.3e}]  {:<6}  {:>+5.1}σ",
+            "{:<8} {:>5.1}  {:>10} {:>8} {:>11} {:>11} [{:>9}, {:>9}]  {:<6}  {:>+5.1}σ",
             p.waveform,
             p.eb_n0_db,
             p.bits,
             p.bit_errors,
-            p.ber,
-            p.ber_theory,
-            p.ci95_low,
-            p.ci95_high,
+            sci(p.ber),
+            sci(p.ber_theory),
+            sci(p.ci95_low),
+            sci(p.ci95_high),
             if p.theory_within_ci95 { "yes" } else { "no" },
             p.deviation_sigma
         );

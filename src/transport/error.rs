@@ -24,6 +24,38 @@ impl std::fmt::Display for Rounded {
     }
 }
 
+/// A decoding error with one protocol prefix: the codec's own when it names its format (`VICP:
+/// bad header ...`), else the link's.
+fn codec_text(protocol: &str, source: &CodecError) -> String {
+    match source {
+        CodecError::TooLarge { .. } | CodecError::BadHeader { .. } => source.to_string(),
+        CodecError::Xdr { .. } => format!("{protocol}: {source}"),
+    }
+}
+
+/// The possible causes of a failed connect, as far as the error tells them apart: a refusal means
+/// something answered and nothing listens on that port; silence may be anything on the way.
+fn connect_causes(source: &std::io::Error, protocol: &str) -> String {
+    match source.kind() {
+        std::io::ErrorKind::ConnectionRefused => format!(
+            "the connection was refused: the host answered, but nothing accepts {protocol} \
+             connections on that port. Possible causes: the instrument is off or still starting \
+             up (a PC-based instrument answers before its software does); its {protocol} server \
+             is disabled, or its remote interface is set to another protocol; the address or \
+             port is wrong"
+        ),
+        std::io::ErrorKind::TimedOut => format!(
+            "nothing answered. Possible causes: the instrument is off or not on this network; a \
+             firewall drops the connection; the address is wrong; its {protocol} server is \
+             disabled"
+        ),
+        _ => format!(
+            "check the address, that the instrument is on, and that its {protocol} server is \
+             enabled"
+        ),
+    }
+}
+
 /// What the caller should do about an error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ErrorKind {
@@ -45,7 +77,7 @@ pub enum CodecError {
         announced: u64,
         limit: u64,
     },
-    #[error("{format}: bad header: {detail}")]
+    #[error("{format}: bad header ({detail}): what answered does not speak {format}; check that the resource names the instrument's {format} port")]
     BadHeader {
         format: &'static str,
         detail: &'static str,
@@ -57,7 +89,7 @@ pub enum CodecError {
 /// A failure of the link to the instrument.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
-    #[error("cannot connect to {target}: {source}; check the address, that the instrument is on, and that its {protocol} server is enabled")]
+    #[error("cannot connect to {target}: {source}; {}", connect_causes(.source, .protocol))]
     Connect {
         target: String,
         protocol: &'static str,
@@ -65,7 +97,7 @@ pub enum LinkError {
     },
     #[error("cannot resolve host `{host}`: check the resource string")]
     Resolve { host: String },
-    #[error("{op} timed out after {}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. Raise the timeout if the instrument is just slow", Rounded(*.after))]
+    #[error("{op} timed out after {}; the device is cleared before the link is used again, so a late reply is never taken for the next answer. If the instrument is just slow, raise the timeout (--timeout SECONDS)", Rounded(*.after))]
     Timeout { op: &'static str, after: Duration },
     #[error(
         "the instrument closed the connection during {op}; it is reopened before the next operation"
@@ -81,7 +113,7 @@ pub enum LinkError {
         protocol: &'static str,
         detail: String,
     },
-    #[error("{protocol}: {source}")]
+    #[error("{}", codec_text(.protocol, .source))]
     Codec {
         protocol: &'static str,
         #[source]
@@ -198,5 +230,42 @@ mod tests {
                 .starts_with("HiSLIP read timed out after 2 s;"),
             "{e}"
         );
+        assert!(
+            e.to_string()
+                .ends_with("raise the timeout (--timeout SECONDS)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_bad_header_has_one_prefix_and_says_what_answered_is_not() {
+        let e = LinkError::codec("VICP")(CodecError::BadHeader {
+            format: "VICP",
+            detail: "header version is not 1",
+        });
+        let text = e.to_string();
+        assert!(
+            text.starts_with("VICP: bad header (header version is not 1)"),
+            "{text}"
+        );
+        assert_eq!(text.matches("VICP:").count(), 1, "{text}");
+        assert!(text.contains("what answered does not speak VICP"), "{text}");
+    }
+
+    #[test]
+    fn a_refused_connect_says_refused_and_lists_the_causes() {
+        let e = LinkError::Connect {
+            target: "127.0.0.1:1861".into(),
+            protocol: "VICP",
+            source: std::io::Error::from(std::io::ErrorKind::ConnectionRefused),
+        };
+        let text = e.to_string();
+        assert!(text.contains("the connection was refused"), "{text}");
+        assert!(
+            text.contains("Possible causes: the instrument is off"),
+            "{text}"
+        );
+        assert!(text.contains("its VICP server is disabled"), "{text}");
+        assert!(!text.contains("probably"), "{text}");
     }
 }

@@ -32,6 +32,7 @@ mod io_cli;
 mod keysight_uxr;
 mod link_quality;
 mod live_exit_paths;
+mod pointing_errors;
 mod process_cli;
 mod readers_cli;
 mod scenes;

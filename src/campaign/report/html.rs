@@ -14,7 +14,8 @@ th,td{border:1px solid #bbb;padding:3px 7px;text-align:left}th{background:#eee}\
 figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #ddd}\
 figcaption{font-size:14px;max-width:800px}\
 .links{display:grid;grid-template-columns:1fr 1fr;gap:0 12px}.links figure{margin:0.5em 0}\
-.links figcaption{font-size:12px}";
+.links figcaption{font-size:12px}\
+.warning{background:#fff3cd;border-left:4px solid #d39e00;padding:6px 10px}";
 
 /// Text for HTML element content and attribute values.
 pub(crate) fn escape(s: &str) -> String {
@@ -69,6 +70,13 @@ pub(crate) fn html(
         let _ = writeln!(out, "<p>{}</p>", escape(d));
     }
     let _ = writeln!(out, "<p>{}</p>", escape(&status_line(manifest)));
+    for w in manifest.plan.bench.warnings() {
+        let _ = writeln!(
+            out,
+            "<p class=\"warning\"><strong>Warning:</strong> {}</p>",
+            escape(&w)
+        );
+    }
     let _ = writeln!(out, "<p>{}</p>", escape(UNCERTAINTY_NOTE));
     for f in figures {
         // A plot that cannot be drawn says why; the report (and the run) goes on.

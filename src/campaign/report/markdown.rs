@@ -93,8 +93,16 @@ fn ber(a: &AlgorithmResult) -> String {
         Some(p) if p.bits > 0 => {
             let (lo, hi) = wilson95(p.bit_errors, p.bits);
             format!(
-                "{}/{} = {:.2e} [{:.1e}, {:.1e}]",
-                p.bit_errors, p.bits, p.ber, lo, hi
+                "{}/{} = {} [{}, {:.1e}]",
+                p.bit_errors,
+                p.bits,
+                crate::measure::rate(p.ber),
+                if lo == 0.0 {
+                    "0".into()
+                } else {
+                    format!("{lo:.1e}")
+                },
+                hi
             )
         }
         Some(p) => p.error.clone().unwrap_or_else(|| "no bits".into()),
@@ -311,6 +319,9 @@ pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure
         let _ = writeln!(out, "{d}\n");
     }
     let _ = writeln!(out, "{}\n", status_line(manifest));
+    for w in plan.bench.warnings() {
+        let _ = writeln!(out, "**Warning:** {w}\n");
+    }
     let _ = writeln!(out, "{UNCERTAINTY_NOTE}\n");
     for t in summary_tables(manifest, results) {
         md_table(&mut out, &t);

@@ -396,6 +396,7 @@ impl KeysightUxr {
             instrument: self.scpi.name().to_string(),
             source_name: self.vendor.trigger_source.clone(),
             waited_s: wait_s,
+            safe_state: None,
         })
     }
 

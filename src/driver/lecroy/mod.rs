@@ -434,6 +434,7 @@ impl Lecroy {
                 instrument: self.scpi.name().to_string(),
                 source_name: commands::EXTERNAL.to_string(),
                 waited_s: wait_s,
+                safe_state: None,
             });
         }
         Ok(())
