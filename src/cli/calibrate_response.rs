@@ -230,6 +230,8 @@ fn print_report(
                 "band_hz": r.band_hz,
                 "figures": g,
                 "reference": f,
+                "chain_echoes": r.chain_echoes,
+                "scene_echoes": r.scene_echoes,
                 "repetitions": args.repetitions,
                 "stored_in": stored.map(|c| c.path.display().to_string()),
                 "sha256": stored.map(|c| c.sha256.clone()),
@@ -286,6 +288,26 @@ fn print_report(
         "  spread over reps     {:.3} dB, {:.2} deg (largest across the band)",
         g.spread_db_max, g.spread_deg_max
     );
+    for e in &r.chain_echoes {
+        println!(
+            "  chain echo           {:.2} ns behind every path, {:.1} dB, {:+.0} deg (an IF \
+             cable's, or another mismatch; kept in the response)",
+            e.delay_ns, e.level_db, e.phase_deg
+        );
+    }
+    for e in &r.scene_echoes {
+        let place = if e.delay_ns < 0.0 {
+            "ahead of"
+        } else {
+            "behind"
+        };
+        println!(
+            "  leakage/scene        {:.2} ns {place} the reference, {:.1} dB (divided out of the \
+             reference only)",
+            e.delay_ns.abs(),
+            e.level_db
+        );
+    }
     println!(
         "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {}",
         opt(f.sidelobe_db_before, "dB"),

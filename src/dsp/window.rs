@@ -87,7 +87,7 @@ impl Window {
 
     /// What the window costs in signal-to-noise ratio against none, dB (positive): over a band
     /// of even power, `(sum w)^2 / (N sum w^2)`.
-    pub fn mismatch_loss_db(&self) -> f64 {
+    pub(crate) fn mismatch_loss_db(&self) -> f64 {
         const POINTS: usize = 1024;
         match self.coefficients(POINTS) {
             Ok(w) => {
