@@ -199,7 +199,38 @@ impl Runner {
         let t = Instant::now();
         let outcome = self.finish(stopped).await;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
-        outcome.map_err(|e| self.unrecorded(e, safe))
+        outcome.map_err(|e| {
+            let e = self.unrecorded(e, safe);
+            self.record_status_in_place(&e, observer);
+            e
+        })
+    }
+
+    /// The session's end could not be stored whole (`e`): the manifest's status room, rewritten
+    /// in place, says `interrupted` and why, so that the folder does not claim a process still
+    /// works on it (see the manifest's module docs).
+    fn record_status_in_place(&mut self, e: &CampaignError, observer: &mut dyn Observer) {
+        if matches!(e, CampaignError::FolderLost { .. }) {
+            return;
+        }
+        let m = &mut self.manifest;
+        m.status = Status::Interrupted;
+        if m.reason.is_none() {
+            m.reason = Some(format!(
+                "every step was measured, but the run's end could not be written: {}",
+                match e {
+                    CampaignError::Unrecorded { source, .. } => crate::exit::render_chain(source),
+                    other => crate::exit::render_chain(other),
+                }
+            ));
+        }
+        m.exit_code = Some(e.exit_class().code());
+        if let Err(err) = m.store_status_in_place(&self.dir) {
+            observer.note(&format!(
+                "the manifest's status could not be recorded either ({err}): readers take a \
+                 `running` manifest with no process holding the folder's lock as interrupted"
+            ));
+        }
     }
 
     /// A session's end that could not be written (`results.json`, the report, the manifest: a
