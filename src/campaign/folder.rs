@@ -145,6 +145,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
             })
             .collect(),
         files: Vec::new(),
+        retries: Vec::new(),
     };
     let mut runner = Runner::new(
         out,

@@ -106,6 +106,9 @@ pub struct Manifest {
     pub steps: Vec<StepRecord>,
     /// The run's own files (results, report, journals), hashed when last written.
     pub files: Vec<FileRecord>,
+    /// Every retry of a step after a transient fault, in order (`[run] retries`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub retries: Vec<super::retry::RetryRecord>,
 }
 
 /// The fields of the status room, in the manifest's order (serialised as the manifest
@@ -612,6 +615,7 @@ mod tests {
             plan,
             sessions: Vec::new(),
             files: Vec::new(),
+            retries: Vec::new(),
         }
     }
 

@@ -35,3 +35,4 @@ mod sequence_capture;
 mod simulate_cli;
 mod simulate_scene;
 mod support;
+mod unattended;
