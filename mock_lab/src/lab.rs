@@ -424,7 +424,7 @@ impl LinkFaults {
     }
 
     /// Checks the request's `drop`, `stall`, `power_cycle` and `for_s` (nothing changes yet).
-    fn check<'a>(&'a self, f: &control::BenchFault) -> Result<LinkRequest<'a>, String> {
+    fn check(&self, f: &control::BenchFault) -> Result<LinkRequest<'_>, String> {
         let needs_for = f.stall.is_some() || f.power_cycle.is_some();
         let for_ = match (f.for_s, needs_for) {
             (None, true) => return Err("for_s: needed with stall and power_cycle (seconds)".into()),
