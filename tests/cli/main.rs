@@ -10,6 +10,7 @@ mod process_support;
 
 mod ambiguity;
 mod bad_input;
+mod bounded_commands;
 mod calibrate_repeat;
 mod calibrate_response;
 mod campaign;
