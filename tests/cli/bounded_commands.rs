@@ -178,3 +178,34 @@ async fn idn_on_a_stalled_hislip_peer_gives_up_within_its_total() {
         "{seconds:.1} s: {err}"
     );
 }
+
+/// The case of issue 40: an instrument that identifies itself, then stalls. Over HiSLIP the
+/// query's timeout, the device clear and the error check each waited their own time (14 s with
+/// `--timeout 2` before the total); the total cuts it at `--connect-timeout + --timeout + 2 s`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn scpi_on_a_stalled_hislip_instrument_gives_up_at_its_total() {
+    let lab = super::support::start_lab().await;
+    let resource = lab
+        .endpoint("awg", mock_lab::server::launch::Transport::Hislip)
+        .unwrap()
+        .resource;
+    lab.awg_faults
+        .stall_for(std::time::Duration::from_secs(600));
+    let args = [
+        "scpi",
+        "--connect-timeout",
+        "1",
+        "--timeout",
+        "2",
+        &resource,
+        "*IDN?",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let (code, err, seconds, _) = measured(args).await;
+    lab.awg_faults.clear();
+    assert_eq!(code, 3, "{err}");
+    assert!(err.contains("gave up after 5.0 s in all"), "{err}");
+    assert!(seconds < 5.0 + 1.5, "{seconds:.1} s: {err}");
+}
