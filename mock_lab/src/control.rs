@@ -16,6 +16,13 @@
 //! | `{"cmd":"scope_remote","interface":"vxi11"}` | switch the scope's remote interface (`vicp` or `vxi11`); replies once only that endpoint accepts connections |
 //! | `{"cmd":"endpoints"}` | `{"ok":true,"endpoints":[...]}`: every endpoint now, with `active` |
 //! | `{"cmd":"fault","marker_cable":false,"tx_crc":"off"}` | bench faults: the marker cable unplugged (`true` plugs it back), a Gotmic module's CRC mode fixed `on` or `off` by its configuration (`free`: as at power-on); fields left out are kept |
+//! | `{"cmd":"fault","drop":"awg"}` | the next exchange with `awg`, `scope`, `tx` or `rx` is cut: half its reply sent, then the connection closed (a serial line cannot close: the half line is all that comes) |
+//! | `{"cmd":"fault","stall":"scope","for_s":5}` | `awg` or `scope` holds every reply for `for_s` seconds from now (what it answers meanwhile arrives when the stall ends) |
+//! | `{"cmd":"fault","power_cycle":"tx","for_s":3}` | the `tx` or `rx` module's power goes off for `for_s` seconds (its port answers nothing) and comes back at power-on defaults (RF off, registers at reset, CRC mode as at power-on) |
+//!
+//! `drop`, `stall` and `power_cycle` may be combined with each other and with the bench faults
+//! in one request; `for_s` (0 to 3600) goes with `stall` and `power_cycle`, and is refused
+//! without them.
 //!
 //! Errors reply `{"ok":false,"error":"..."}` and change nothing. A line longer than 1 MiB is
 //! read to its end and refused whole.
@@ -185,6 +192,14 @@ pub(crate) struct BenchFault {
     pub tx_crc: Option<String>,
     /// The same for the Rx module.
     pub rx_crc: Option<String>,
+    /// The instrument whose next exchange is cut (`awg`, `scope`, `tx`, `rx`).
+    pub drop: Option<String>,
+    /// The instrument whose replies are held for `for_s` (`awg`, `scope`).
+    pub stall: Option<String>,
+    /// The module whose power goes off for `for_s` (`tx`, `rx`).
+    pub power_cycle: Option<String>,
+    /// Seconds of a stall or a power cut.
+    pub for_s: Option<f64>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -225,6 +240,10 @@ enum Request {
         marker_cable: Option<bool>,
         tx_crc: Option<String>,
         rx_crc: Option<String>,
+        drop: Option<String>,
+        stall: Option<String>,
+        power_cycle: Option<String>,
+        for_s: Option<f64>,
     },
 }
 
@@ -306,12 +325,20 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
                 marker_cable,
                 tx_crc,
                 rx_crc,
+                drop,
+                stall,
+                power_cycle,
+                for_s,
             }),
             Some(panel),
         ) => panel.fault(&BenchFault {
             marker_cable,
             tx_crc,
             rx_crc,
+            drop,
+            stall,
+            power_cycle,
+            for_s,
         }),
         (Ok(req), _) => shared.try_apply(req),
         (Err(e), _) => Err(e),

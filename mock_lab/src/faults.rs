@@ -7,11 +7,12 @@
 //!
 //! Delay and 1-byte segments stay on until switched off; the dropped connection and the missing
 //! reply are one-shot (they hit the next response only), so the test can check that the client
-//! recovers and the following exchange succeeds.
+//! recovers and the following exchange succeeds. A stall (every reply held until a moment) and a
+//! silence (every reply swallowed until a moment: a module without power) end by themselves.
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// Run-time switchable faults for one server. Cheap to share: wrap it in an [`Arc`] and keep a
 /// clone in the test.
@@ -21,6 +22,10 @@ pub struct Faults {
     byte_segments: AtomicBool,
     drop_next: AtomicU32,
     swallow_next: AtomicU32,
+    /// Replies are held until then (a stalled instrument).
+    stalled_until: Mutex<Option<Instant>>,
+    /// Replies are swallowed until then (a module without power).
+    silent_until: Mutex<Option<Instant>>,
     /// Faults of a wider scope (the whole lab) that apply here too.
     shared: Option<Arc<Faults>>,
 }
@@ -92,12 +97,26 @@ impl Faults {
         self.swallow_next.fetch_add(1, Ordering::SeqCst);
     }
 
+    /// Hold every reply until `for_` from now (a stalled instrument: what it answers in that
+    /// time arrives when the stall ends).
+    pub fn stall_for(&self, for_: Duration) {
+        *lock(&self.stalled_until) = Some(Instant::now() + for_);
+    }
+
+    /// Swallow every reply until `for_` from now (a module whose power is off: it hears
+    /// nothing, answers nothing).
+    pub fn silence_for(&self, for_: Duration) {
+        *lock(&self.silent_until) = Some(Instant::now() + for_);
+    }
+
     /// Switch every fault off, including pending one-shots.
     pub fn clear(&self) {
         self.reply_delay_us.store(0, Ordering::SeqCst);
         self.byte_segments.store(false, Ordering::SeqCst);
         self.drop_next.store(0, Ordering::SeqCst);
         self.swallow_next.store(0, Ordering::SeqCst);
+        *lock(&self.stalled_until) = None;
+        *lock(&self.silent_until) = None;
     }
 
     /// Decide how the next response is delivered, consuming a pending one-shot fault.
@@ -121,19 +140,31 @@ impl Faults {
     }
 
     fn plan_own(&self) -> ReplyPlan {
-        let fate = if take_one(&self.swallow_next) {
+        let now = Instant::now();
+        let left = |until: &Mutex<Option<Instant>>| {
+            lock(until)
+                .map(|t| t.saturating_duration_since(now))
+                .filter(|d| !d.is_zero())
+        };
+        let fate = if left(&self.silent_until).is_some() || take_one(&self.swallow_next) {
             ReplyFate::Swallow
         } else if take_one(&self.drop_next) {
             ReplyFate::DropMidway
         } else {
             ReplyFate::Deliver
         };
+        let delay = Duration::from_micros(self.reply_delay_us.load(Ordering::SeqCst));
         ReplyPlan {
-            delay: Duration::from_micros(self.reply_delay_us.load(Ordering::SeqCst)),
+            delay: delay.max(left(&self.stalled_until).unwrap_or_default()),
             byte_segments: self.byte_segments.load(Ordering::SeqCst),
             fate,
         }
     }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    // Plain data: a panic elsewhere leaves it consistent.
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// Decrement `counter` if it is positive; true when a pending fault was taken.
@@ -168,6 +199,20 @@ mod tests {
             assert!(plan.byte_segments);
         }
         faults.clear();
+        assert_eq!(faults.plan_reply(), ReplyPlan::CLEAN);
+    }
+
+    #[test]
+    fn a_stall_holds_and_a_silence_swallows_until_they_end() {
+        let faults = Faults::new();
+        faults.stall_for(Duration::from_secs(60));
+        let plan = faults.plan_reply();
+        assert!(plan.delay > Duration::from_secs(59) && plan.fate == ReplyFate::Deliver);
+        faults.silence_for(Duration::from_secs(60));
+        assert_eq!(faults.plan_reply().fate, ReplyFate::Swallow);
+        assert_eq!(faults.plan_reply().fate, ReplyFate::Swallow);
+        faults.stall_for(Duration::ZERO);
+        faults.silence_for(Duration::ZERO);
         assert_eq!(faults.plan_reply(), ReplyPlan::CLEAN);
     }
 

@@ -23,6 +23,7 @@ use crate::server::switch::Switchable;
 use crate::server::{Handler, ServerError, ServerOptions, DEFAULT_MAX_MESSAGE_SIZE};
 use std::net::{Ipv4Addr, SocketAddr};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
 
 /// How to start the lab.
 #[derive(Debug, Clone)]
@@ -254,6 +255,10 @@ pub struct Lab {
     pub faults: Arc<Faults>,
     /// Fault switches of the scope's servers only (the lab-wide ones apply to them too).
     pub scope_faults: Arc<Faults>,
+    /// The same for the AWG's servers, and the Tx and Rx modules' serial ports.
+    pub awg_faults: Arc<Faults>,
+    pub tx_faults: Arc<Faults>,
+    pub rx_faults: Arc<Faults>,
     /// Every endpoint as it is now, in serving order.
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
     /// The scope served as `scope`.
@@ -276,6 +281,8 @@ struct ScopeSwitch {
     scope: Arc<Lecroy>,
     /// The bench, for its fault switches.
     bench: Arc<Bench>,
+    /// Each instrument's link faults (`awg`, `scope`, `tx`, `rx`).
+    links: LinkFaults,
     /// (protocol, index in the lab's endpoint list, server).
     servers: tokio::sync::Mutex<Vec<(RemoteInterface, usize, Switchable)>>,
     endpoints: Arc<Mutex<Vec<Endpoint>>>,
@@ -348,6 +355,7 @@ impl control::Panel for ScopeSwitch {
         // Everything checked before anything changes.
         let tx = mode(&fault.tx_crc, "tx_crc")?;
         let rx = mode(&fault.rx_crc, "rx_crc")?;
+        let links = self.links.check(fault)?;
         if let Some(on) = fault.marker_cable {
             self.bench
                 .marker_cable
@@ -359,9 +367,88 @@ impl control::Panel for ScopeSwitch {
         if let Some(m) = rx {
             self.bench.rx.set_crc_fixed(m);
         }
+        if let Some(faults) = links.drop {
+            faults.drop_next_reply_midway();
+        }
+        if let Some((faults, for_)) = links.stall {
+            faults.stall_for(for_);
+        }
+        if let Some((module, faults, for_)) = links.power_cycle {
+            match module {
+                "tx" => self.bench.tx.power_cycle(),
+                _ => self.bench.rx.power_cycle(),
+            }
+            faults.silence_for(for_);
+        }
         Ok(serde_json::json!({
             "marker_cable": self.bench.marker_cable.load(std::sync::atomic::Ordering::SeqCst),
         }))
+    }
+}
+
+/// Each instrument's link faults, for the control channel's `drop`, `stall` and `power_cycle`.
+#[derive(Clone)]
+struct LinkFaults {
+    awg: Arc<Faults>,
+    scope: Arc<Faults>,
+    tx: Arc<Faults>,
+    rx: Arc<Faults>,
+}
+
+/// The link faults a `fault` request asks for, checked.
+#[derive(Default)]
+struct LinkRequest<'a> {
+    drop: Option<&'a Faults>,
+    stall: Option<(&'a Faults, Duration)>,
+    power_cycle: Option<(&'static str, &'a Faults, Duration)>,
+}
+
+/// Longest stall or power cut the control channel accepts, seconds.
+const LONGEST_FAULT_S: f64 = 3600.0;
+
+impl LinkFaults {
+    fn of(&self, name: &str, field: &str, allowed: &[&str]) -> Result<&Faults, String> {
+        let faults = match name {
+            "awg" if allowed.contains(&"awg") => &self.awg,
+            "scope" if allowed.contains(&"scope") => &self.scope,
+            "tx" if allowed.contains(&"tx") => &self.tx,
+            "rx" if allowed.contains(&"rx") => &self.rx,
+            _ => {
+                return Err(format!(
+                    "{field}: {name:?}: allowed: {}",
+                    allowed.join(", ")
+                ))
+            }
+        };
+        Ok(faults)
+    }
+
+    /// Checks the request's `drop`, `stall`, `power_cycle` and `for_s` (nothing changes yet).
+    fn check(&self, f: &control::BenchFault) -> Result<LinkRequest<'_>, String> {
+        let needs_for = f.stall.is_some() || f.power_cycle.is_some();
+        let for_ = match (f.for_s, needs_for) {
+            (None, true) => return Err("for_s: needed with stall and power_cycle (seconds)".into()),
+            (Some(_), false) => return Err("for_s: only with stall or power_cycle".into()),
+            (Some(s), true) if !(s.is_finite() && (0.0..=LONGEST_FAULT_S).contains(&s)) => {
+                return Err(format!(
+                    "for_s: {s}: allowed: 0 to {LONGEST_FAULT_S} seconds"
+                ))
+            }
+            (s, _) => Duration::from_secs_f64(s.unwrap_or(0.0)),
+        };
+        let mut request = LinkRequest::default();
+        if let Some(name) = &f.drop {
+            request.drop = Some(self.of(name, "drop", &["awg", "scope", "tx", "rx"])?);
+        }
+        if let Some(name) = &f.stall {
+            request.stall = Some((self.of(name, "stall", &["awg", "scope"])?, for_));
+        }
+        if let Some(name) = &f.power_cycle {
+            let faults = self.of(name, "power_cycle", &["tx", "rx"])?;
+            let module = if name == "tx" { "tx" } else { "rx" };
+            request.power_cycle = Some((module, faults, for_));
+        }
+        Ok(request)
     }
 }
 
@@ -474,14 +561,21 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     bench.scope.set_remote_interface(options.scope_remote);
     let served = served(&bench, options.with_loopback, options.scope_model)?;
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));
+    let faults = Faults::new();
+    let links = LinkFaults {
+        awg: Faults::layered(faults.clone()),
+        scope: Faults::layered(faults.clone()),
+        tx: Faults::layered(faults.clone()),
+        rx: Faults::layered(faults.clone()),
+    };
+    let scope_faults = links.scope.clone();
     let scope_switch = Arc::new(ScopeSwitch {
         scope: bench.scope.clone(),
         bench: bench.clone(),
+        links: links.clone(),
         servers: tokio::sync::Mutex::new(Vec::new()),
         endpoints: endpoints_now.clone(),
     });
-    let faults = Faults::new();
-    let scope_faults = Faults::layered(faults.clone());
     let mut running = Vec::new();
     let mut endpoints = Vec::new();
     let mut slot = 0u16;
@@ -496,10 +590,12 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
             let ports = ports_of(&options, s, transport, slot, &mut portmapper)?;
             let server_options = ServerOptions {
                 max_message_size: options.max_message_size,
-                faults: if s.name == "scope" {
-                    scope_faults.clone()
-                } else {
-                    faults.clone()
+                faults: match s.name {
+                    "awg" => links.awg.clone(),
+                    "scope" => links.scope.clone(),
+                    "tx" => links.tx.clone(),
+                    "rx" => links.rx.clone(),
+                    _ => faults.clone(),
                 },
             };
             let failed = |source| LabError::Server {
@@ -555,6 +651,9 @@ pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
         _control: control_server,
         faults,
         scope_faults,
+        awg_faults: links.awg,
+        tx_faults: links.tx,
+        rx_faults: links.rx,
         endpoints: endpoints_now,
         scope_model: options.scope_model,
         _running: running,
@@ -949,5 +1048,97 @@ mod tests {
         assert_eq!(v["ok"], true, "{v}");
         assert!(lab.bench.marker_cable.load(Ordering::SeqCst));
         assert_eq!(lab.bench.tx.line("CRC OFF"), "OK");
+    }
+
+    #[tokio::test]
+    async fn link_faults_drop_stall_and_power_cycle_from_the_control_channel() {
+        use crate::faults::ReplyFate;
+        use tokio::io::AsyncReadExt;
+        let lab = tokio::time::timeout(Duration::from_secs(10), start(LabOptions::default()))
+            .await
+            .unwrap()
+            .unwrap();
+        let raw = lab.endpoint("awg", Transport::Raw).unwrap().address.clone();
+        // One *IDN? on a new connection: what arrived before the server closed or 5 s passed.
+        let idn = || async {
+            let mut stream = tokio::net::TcpStream::connect(&raw).await.unwrap();
+            stream.write_all(b"*IDN?\n").await.unwrap();
+            let mut got = Vec::new();
+            let mut buf = [0u8; 256];
+            while !got.ends_with(b"\n") {
+                match tokio::time::timeout(Duration::from_secs(5), stream.read(&mut buf)).await {
+                    Ok(Ok(0)) | Ok(Err(_)) | Err(_) => break,
+                    Ok(Ok(n)) => got.extend_from_slice(&buf[..n]),
+                }
+            }
+            String::from_utf8_lossy(&got).into_owned()
+        };
+        let whole = idn().await;
+        assert!(whole.starts_with("MOCK_LAB,M8195A-EMU") && whole.ends_with('\n'));
+        // drop: the next exchange is cut halfway and closed; the one after is whole.
+        let v = control(&lab, r#"{"cmd":"fault","drop":"awg"}"#).await;
+        assert_eq!(v["ok"], true, "{v}");
+        let cut = idn().await;
+        assert!(!cut.ends_with('\n') && whole.starts_with(&cut), "{cut:?}");
+        assert_eq!(idn().await, whole);
+        // stall: the reply is held for the time asked, then comes whole.
+        let v = control(&lab, r#"{"cmd":"fault","stall":"awg","for_s":0.4}"#).await;
+        assert_eq!(v["ok"], true, "{v}");
+        let t = std::time::Instant::now();
+        assert_eq!(idn().await, whole);
+        assert!(
+            t.elapsed() >= Duration::from_millis(350),
+            "{:?}",
+            t.elapsed()
+        );
+        // power_cycle: the module answers nothing for for_s, then is back at power-on (CRC off).
+        assert!(lab.bench.tx.line("CRC ON").starts_with("OK"));
+        assert!(lab.bench.tx.line("CRC OFF").starts_with("ERR"), "CRC is on");
+        let v = control(&lab, r#"{"cmd":"fault","power_cycle":"tx","for_s":30}"#).await;
+        assert_eq!(v["ok"], true, "{v}");
+        assert_eq!(lab.tx_faults.plan_reply().fate, ReplyFate::Swallow);
+        assert_eq!(lab.rx_faults.plan_reply().fate, ReplyFate::Deliver);
+        assert_eq!(
+            lab.bench.tx.line("CRC OFF"),
+            "OK",
+            "back at power-on: CRC off"
+        );
+        lab.tx_faults.clear();
+        // Bad requests change nothing, and say what is allowed.
+        for (request, says) in [
+            (
+                r#"{"cmd":"fault","stall":"tx","for_s":1}"#,
+                "stall: \"tx\": allowed: awg, scope",
+            ),
+            (r#"{"cmd":"fault","stall":"awg"}"#, "for_s: needed"),
+            (
+                r#"{"cmd":"fault","drop":"awg","for_s":1}"#,
+                "for_s: only with",
+            ),
+            (
+                r#"{"cmd":"fault","power_cycle":"awg","for_s":1}"#,
+                "allowed: tx, rx",
+            ),
+            (
+                r#"{"cmd":"fault","power_cycle":"rx","for_s":-1}"#,
+                "for_s: -1",
+            ),
+            (
+                r#"{"cmd":"fault","drop":"awg","stall":"scope","for_s":1e9}"#,
+                "0 to 3600",
+            ),
+        ] {
+            let v = control(&lab, request).await;
+            assert_eq!(v["ok"], false, "{request}: {v}");
+            assert!(
+                v["error"].as_str().unwrap().contains(says),
+                "{request}: {v}"
+            );
+        }
+        assert_eq!(idn().await, whole, "no drop was switched on");
+        assert_eq!(
+            lab.scope_faults.plan_reply(),
+            crate::faults::ReplyPlan::CLEAN
+        );
     }
 }

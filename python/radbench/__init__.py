@@ -336,6 +336,32 @@ class Run:
         return self.manifest.get("status", "unknown")
 
 
+#: The reason :func:`read_run` gives a ``running`` manifest that no process works on (as
+#: radbench's own readers do, docs/campaign.md "A status that never lies").
+STALE_REASON = (
+    "the process that ran it stopped without recording its end (a crash, SIGKILL, a power "
+    "loss, or a file system that refused the last write): no process holds the run folder's lock"
+)
+
+
+def _lock_is_held(root: Path) -> bool:
+    """Whether a process works in the run folder now (holds ``.radbench.lock``)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: cannot tell, believe the manifest
+        return True
+    try:
+        f = open(root / ".radbench.lock", "rb")
+    except OSError:
+        return False
+    with f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        return False
+
+
 def _json_file(path: Path) -> Optional[Dict[str, Any]]:
     if not path.is_file():
         return None
@@ -355,6 +381,9 @@ def read_run(path: PathLike, *, captures: bool = True) -> Run:
             manifest = _toml.load(f)
     except (OSError, ValueError) as e:
         raise InputError(f"{manifest_path}: {e}") from e
+    if manifest.get("status") == "running" and not _lock_is_held(root):
+        manifest["status"] = "interrupted"
+        manifest.setdefault("reason", STALE_REASON)
     steps = []
     for planned in manifest.get("plan", {}).get("steps", []):
         index = int(planned["index"])

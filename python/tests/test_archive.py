@@ -58,3 +58,17 @@ def test_dask_example_equals_radbench_process_jobs_2(campaign, archive):
     assert list(on_dask) == list(cli) and len(cli) == 9
     for name, summary in cli.items():
         assert on_dask[name] == {k: v for k, v in summary.items() if k != "files"}, name
+
+
+def test_a_running_manifest_nobody_works_on_reads_as_interrupted(campaign, tmp_path):
+    import fcntl
+    import shutil
+    run_dir = tmp_path / "run"
+    shutil.copytree(campaign, run_dir)
+    manifest = run_dir / "manifest.toml"
+    manifest.write_text(manifest.read_text().replace('status = "complete"', 'status = "running"', 1))
+    with open(run_dir / ".radbench.lock", "rb") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        assert radbench.read_run(run_dir, captures=False).status == "running"
+    r = radbench.read_run(run_dir, captures=False)
+    assert r.status == "interrupted" and r.manifest["reason"] == radbench.STALE_REASON

@@ -145,6 +145,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
             })
             .collect(),
         files: Vec::new(),
+        retries: Vec::new(),
     };
     let mut runner = Runner::new(
         out,
@@ -374,6 +375,19 @@ pub(super) fn lock(dir: &Path) -> Result<Lock, CampaignError> {
         });
     }
     Ok(Lock { _file: file })
+}
+
+/// Whether a process holds `dir`'s lock (works in the run folder now). A shared lock taken
+/// for a moment tells: it is refused while a run or resume holds the exclusive one. A folder
+/// without a lock file has no process in it.
+pub(crate) fn lock_is_held(dir: &Path) -> bool {
+    use std::os::fd::AsRawFd;
+    let Ok(file) = std::fs::File::open(dir.join(LOCK_FILE)) else {
+        return false;
+    };
+    // SAFETY: flock on a file descriptor this function owns; closing it releases the lock.
+    let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_SH | libc::LOCK_NB) };
+    rc != 0
 }
 
 #[cfg(test)]

@@ -3,11 +3,20 @@
 //! version and git commit, the instruments' identities, each step's state, what the instruments
 //! reported applying and every file written with its SHA-256, the sessions (first run, resumes)
 //! and the status: `running` while a process works on it, then `complete` or `interrupted` with
-//! the reason and the step where it stopped. A manifest left at `running` means the process died
-//! without a word (a crash, SIGKILL, power loss); resume treats it as interrupted.
+//! the reason and the step where it stopped (never left at `running` after a stop: see below).
 //!
 //! It is rewritten atomically after each step and fsynced with its folder (`write_atomic` syncs
 //! both).
+//!
+//! A status that never lies: the file opens with its status room, the first [`STATUS_ROOM`]
+//! bytes (one disk sector), holding `format`, `status`, `reason`, `stopped_at_step` and
+//! `exit_code`, padded with a comment line. When the session's end cannot be written atomically
+//! (a full disk: the new file needs blocks the disk no longer has), the runner rewrites that room
+//! in place ([`Manifest::store_status_in_place`]): the same bytes of the same file, blocks it
+//! already owns, so `interrupted` and the reason reach the disk whatever the space left. Where
+//! even that is impossible (a read-only file system, a crash, SIGKILL, a power loss), a reader
+//! is not fooled either: [`Manifest::load`] reports a `running` manifest whose folder lock no
+//! process holds as `interrupted` (see [`STALE_REASON`]).
 
 use super::plan::Plan;
 use super::{io, CampaignError};
@@ -23,6 +32,18 @@ pub(crate) const FORMAT: u32 = 1;
 
 /// The manifest's file name in a run folder.
 pub const MANIFEST_FILE: &str = "manifest.toml";
+
+/// Bytes at the start of `manifest.toml` that hold the status and are rewritten in place when
+/// the whole file cannot be (one 512-byte sector: a device writes it whole or not at all).
+pub const STATUS_ROOM: usize = 512;
+
+/// The reason [`Manifest::load`] gives a `running` manifest that no process works on.
+pub const STALE_REASON: &str = "the process that ran it stopped without recording its end (a \
+     crash, SIGKILL, a power loss, or a file system that refused the last write): no process \
+     holds the run folder's lock";
+
+/// The comment that pads the status room.
+const ROOM_PAD: &str = "# status room, rewritten in place when this file cannot be replaced";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -85,6 +106,66 @@ pub struct Manifest {
     pub steps: Vec<StepRecord>,
     /// The run's own files (results, report, journals), hashed when last written.
     pub files: Vec<FileRecord>,
+    /// Every retry of a step after a transient fault, in order (`[run] retries`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub retries: Vec<super::retry::RetryRecord>,
+}
+
+/// The fields of the status room, in the manifest's order (serialised as the manifest
+/// serialises them, so the manifest's text starts with this one's).
+#[derive(Serialize)]
+struct Head<'a> {
+    format: u32,
+    status: Status,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reason: Option<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stopped_at_step: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    exit_code: Option<i32>,
+}
+
+impl<'a> Head<'a> {
+    fn of(m: &'a Manifest) -> Head<'a> {
+        Head {
+            format: m.format,
+            status: m.status,
+            reason: m.reason.as_deref(),
+            stopped_at_step: m.stopped_at_step,
+            exit_code: m.exit_code,
+        }
+    }
+
+    /// The status room's bytes: this head, its reason shortened when it does not fit, padded
+    /// to [`STATUS_ROOM`] bytes.
+    fn room(&self) -> Result<String, toml::ser::Error> {
+        let mut reason = self.reason.map(str::to_owned);
+        loop {
+            let head = Head {
+                reason: reason.as_deref(),
+                ..*self
+            };
+            let text = toml::to_string(&head)?;
+            // The pad: at least "#\n".
+            let free = STATUS_ROOM as isize - text.len() as isize - 2;
+            if free >= 0 {
+                let free = free as usize;
+                let pad = &ROOM_PAD[..ROOM_PAD.len().min(free + 1)];
+                let spaces = " ".repeat(STATUS_ROOM - text.len() - pad.len() - 1);
+                return Ok(format!("{text}{pad}{spaces}\n"));
+            }
+            // Too long: cut the reason (escaping may take more bytes, hence the loop).
+            let Some(r) = reason.as_mut() else {
+                unreachable!("a head without a reason fits the status room");
+            };
+            let mut keep = r.len().saturating_sub(free.unsigned_abs() + 3);
+            while !r.is_char_boundary(keep) {
+                keep -= 1;
+            }
+            r.truncate(keep);
+            r.push('…');
+        }
+    }
 }
 
 /// An input file: where it came from, its copy in the run folder, its SHA-256.
@@ -314,14 +395,15 @@ impl Manifest {
                 "cannot read it ({e}): RUN_DIR must be a folder `radbench campaign run` wrote"
             ),
         })?;
-        let manifest: Manifest = toml::from_str(&text).map_err(|e| CampaignError::Manifest {
-            path: path.clone(),
-            message: format!(
-                "not a campaign manifest this radbench ({}) reads: {}",
-                env!("CARGO_PKG_VERSION"),
-                e.message()
-            ),
-        })?;
+        let mut manifest: Manifest =
+            toml::from_str(&text).map_err(|e| CampaignError::Manifest {
+                path: path.clone(),
+                message: format!(
+                    "not a campaign manifest this radbench ({}) reads: {}",
+                    env!("CARGO_PKG_VERSION"),
+                    e.message()
+                ),
+            })?;
         if manifest.format != FORMAT {
             return Err(CampaignError::Manifest {
                 path,
@@ -331,13 +413,81 @@ impl Manifest {
                 ),
             });
         }
+        if manifest.status == Status::Running && !super::folder::lock_is_held(dir) {
+            manifest.status = Status::Interrupted;
+            manifest.reason.get_or_insert_with(|| STALE_REASON.into());
+        }
         Ok(manifest)
+    }
+
+    /// The manifest's text: the status room, then the rest as `text` (the whole manifest
+    /// serialised) has it.
+    fn laid_out(&self, text: String) -> Result<String, toml::ser::Error> {
+        let head = Head::of(self);
+        let serialised = toml::to_string(&head)?;
+        let Some(body) = text.strip_prefix(&serialised) else {
+            // The serialiser wrote the head's fields otherwise than alone: no room, no harm
+            // (only the in-place rewrite is then refused).
+            debug_assert!(false, "the manifest does not start with its head");
+            return Ok(text);
+        };
+        let mut out = head.room()?;
+        out.push_str(body);
+        Ok(out)
+    }
+
+    /// Rewrites the status room of `dir/manifest.toml` in place with this manifest's status,
+    /// reason, step and exit code (the rest of the file stays as last stored). For a session's
+    /// end that could not be stored whole: it needs no new block on the disk. Refused when the
+    /// file on disk has no status room (written by an older radbench).
+    pub fn store_status_in_place(&self, dir: &Path) -> Result<(), CampaignError> {
+        use std::os::unix::fs::FileExt;
+        let path = dir.join(MANIFEST_FILE);
+        let room = Head::of(self).room().map_err(|e| CampaignError::Manifest {
+            path: path.clone(),
+            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
+        })?;
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(io(&path))?;
+        let mut old = vec![0u8; STATUS_ROOM + 32];
+        let mut got = 0;
+        while got < old.len() {
+            match file
+                .read_at(&mut old[got..], got as u64)
+                .map_err(io(&path))?
+            {
+                0 => break,
+                n => got += n,
+            }
+        }
+        let has_room = got > STATUS_ROOM
+            && old[STATUS_ROOM - 1] == b'\n'
+            && old[..STATUS_ROOM].windows(2).any(|w| w == b"\n#")
+            && old[STATUS_ROOM..got].starts_with(b"radbench_version = ");
+        if !has_room {
+            return Err(CampaignError::Manifest {
+                path,
+                message: "has no status room to record the run's end in (written by an older \
+                          radbench)"
+                    .into(),
+            });
+        }
+        file.write_all_at(room.as_bytes(), 0).map_err(io(&path))?;
+        file.sync_all().map_err(io(&path))?;
+        Ok(())
     }
 
     /// Writes `dir/manifest.toml` atomically and makes it durable with its folder.
     pub fn store(&mut self, dir: &Path) -> Result<(), CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
         let text = toml::to_string(self).map_err(|e| CampaignError::Manifest {
+            path: dir.join(MANIFEST_FILE),
+            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
+        })?;
+        let text = self.laid_out(text).map_err(|e| CampaignError::Manifest {
             path: dir.join(MANIFEST_FILE),
             message: format!("cannot be written: {e} (a radbench bug, please report it)"),
         })?;
@@ -362,7 +512,9 @@ impl Manifest {
         let steps = std::mem::take(&mut self.steps);
         let head = toml::to_string(self);
         self.steps = steps;
-        let mut text = head.map_err(unwritable)?;
+        let mut text = self
+            .laid_out(head.map_err(unwritable)?)
+            .map_err(unwritable)?;
         for step in &self.steps {
             match cache.0.get(&step.index) {
                 Some((record, table)) if record == step => text.push_str(table),
@@ -415,6 +567,142 @@ mod tests {
             toml::to_string(&t).unwrap(),
             "a = 1\nc = [1.5]\n\n[d]\ne = \"x\"\n"
         );
+    }
+
+    fn manifest() -> Manifest {
+        use crate::campaign::plan::{plan, BenchInfo};
+        use crate::campaign::spec::SpecFile;
+        let spec = SpecFile::parse(
+            "[sweep]\nparameter = \"position\"\nvalues = [1.0, 0.9]\n",
+            Path::new("t.toml"),
+        )
+        .unwrap();
+        let bench = BenchInfo::load(&spec, None).unwrap();
+        let plan = plan(&spec, &bench).unwrap();
+        let file = InputFile {
+            path: "t.toml".into(),
+            copy: "spec.toml".into(),
+            sha256: "00".into(),
+        };
+        Manifest {
+            format: FORMAT,
+            status: Status::Running,
+            reason: None,
+            stopped_at_step: None,
+            exit_code: None,
+            radbench_version: "0".into(),
+            git_commit: None,
+            created: "c".into(),
+            updated: "u".into(),
+            spec: file,
+            bench_file: None,
+            bench_catalog: Vec::new(),
+            calibration: None,
+            instruments: None,
+            base_scene: None,
+            steps: plan
+                .steps
+                .iter()
+                .map(|s| StepRecord {
+                    index: s.index,
+                    status: StepStatus::Pending,
+                    dir: s.dir_name().into(),
+                    measured_at: None,
+                    applied: None,
+                    files: Vec::new(),
+                })
+                .collect(),
+            plan,
+            sessions: Vec::new(),
+            files: Vec::new(),
+            retries: Vec::new(),
+        }
+    }
+
+    /// Holds the folder's lock as a run does, so that `load` reads `running` as it is.
+    fn locked(dir: &Path) -> crate::campaign::folder::Lock {
+        crate::campaign::folder::lock(dir).unwrap()
+    }
+
+    #[test]
+    fn the_manifest_starts_with_its_status_room() {
+        let dir = tempfile::tempdir().unwrap();
+        let _lock = locked(dir.path());
+        let mut m = manifest();
+        m.store(dir.path()).unwrap();
+        let text = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
+        assert!(
+            text.starts_with("format = 1\nstatus = \"running\"\n"),
+            "{text}"
+        );
+        assert_eq!(&text[STATUS_ROOM - 1..STATUS_ROOM], "\n");
+        assert!(
+            text[STATUS_ROOM..].starts_with("radbench_version = "),
+            "{text}"
+        );
+        let back = Manifest::load(dir.path()).unwrap();
+        m.updated = back.updated.clone();
+        assert_eq!(back, m);
+        // The cached writer lays it out the same.
+        m.store_cached(dir.path(), &mut StepTables::default())
+            .unwrap();
+        let cached = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
+        assert!(cached[STATUS_ROOM..].starts_with("radbench_version = "));
+        assert_eq!(Manifest::load(dir.path()).unwrap().steps, m.steps);
+    }
+
+    #[test]
+    fn the_status_is_rewritten_in_place_in_the_same_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let _lock = locked(dir.path());
+        let mut m = manifest();
+        m.store(dir.path()).unwrap();
+        let path = dir.path().join(MANIFEST_FILE);
+        let before = std::fs::read(&path).unwrap();
+        m.status = Status::Interrupted;
+        m.reason = Some(format!(
+            "step 2 of 2: {}",
+            "a \"long\" reason é ".repeat(60)
+        ));
+        m.stopped_at_step = Some(2);
+        m.exit_code = Some(4);
+        m.store_status_in_place(dir.path()).unwrap();
+        let after = std::fs::read(&path).unwrap();
+        assert_eq!(after.len(), before.len());
+        assert_eq!(after[STATUS_ROOM..], before[STATUS_ROOM..]);
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.status, Status::Interrupted);
+        assert_eq!(back.stopped_at_step, Some(2));
+        assert_eq!(back.exit_code, Some(4));
+        let reason = back.reason.unwrap();
+        assert!(reason.starts_with("step 2 of 2: a \"long\"") && reason.ends_with('…'));
+        assert_eq!(back.steps, m.steps);
+    }
+
+    #[test]
+    fn a_manifest_without_a_status_room_is_not_patched() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = manifest();
+        let path = dir.path().join(MANIFEST_FILE);
+        std::fs::write(&path, toml::to_string(&m).unwrap()).unwrap();
+        let before = std::fs::read(&path).unwrap();
+        let err = m.store_status_in_place(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("no status room"), "{err}");
+        assert_eq!(std::fs::read(&path).unwrap(), before);
+    }
+
+    #[test]
+    fn a_running_manifest_nobody_works_on_reads_as_interrupted() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut m = manifest();
+        {
+            let _lock = locked(dir.path());
+            m.store(dir.path()).unwrap();
+            assert_eq!(Manifest::load(dir.path()).unwrap().status, Status::Running);
+        }
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.status, Status::Interrupted);
+        assert_eq!(back.reason.as_deref(), Some(STALE_REASON));
     }
 
     #[test]

@@ -15,6 +15,7 @@
 //! | `resume` | continuing an interrupted run: what changed since, the steps whose files broke |
 //! | `prepare` | every (waveform, algorithm) prepared before anything is connected |
 //! | `runner` | the steps (connect, place, set the simulated scene, capture), settling the worker's steps, the finish |
+//! | `retry` | the retry policy: which faults are transient, the wait before each retry, the record of one |
 //! | `step_job` | a step's job on the worker: process with every algorithm, write the files, record the step |
 //! | `report` | the run's `report.md` and `report.html` (plots inline) |
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
@@ -33,6 +34,7 @@ mod prepare;
 pub(crate) mod report;
 pub(crate) mod results;
 mod resume;
+pub(crate) mod retry;
 pub(crate) mod run;
 mod runner;
 pub(crate) mod spec;
@@ -46,6 +48,7 @@ pub use manifest::*;
 pub use plan::*;
 pub use report::*;
 pub use results::*;
+pub use retry::RetryRecord;
 pub use run::*;
 
 use crate::driver::ErrorKind;

@@ -27,6 +27,12 @@ pub(crate) const MAX_VELOCITY_MPS: f64 = 1000.0;
 /// Most steps one campaign may hold.
 pub(crate) const MAX_STEPS: usize = 10_000;
 
+/// Most retries of one step (`[run] retries`, `--retries`).
+pub const MAX_RETRIES: usize = 10;
+
+/// Longest first wait before a retry, seconds (`[run] retry_backoff_s`).
+pub(crate) const MAX_RETRY_BACKOFF_S: f64 = 600.0;
+
 /// The resolved campaign.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
@@ -36,6 +42,12 @@ pub struct Plan {
     pub seed: u64,
     pub repetitions: usize,
     pub wait_s: f64,
+    /// Times a step is measured again after a transient fault (`[run] retries`).
+    #[serde(default)]
+    pub retries: usize,
+    /// The wait before a step's first retry, seconds, doubled before each next one.
+    #[serde(default)]
+    pub retry_backoff_s: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub payload: Option<String>,
     pub bench: BenchPlan,
@@ -428,6 +440,19 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
             format!("{}: allowed 0 < seconds <= 3600", s.wait_s),
         ));
     }
+    if s.run.retries > MAX_RETRIES {
+        return Err(spec.error(
+            "run.retries",
+            format!("{}: allowed 0..={MAX_RETRIES}", s.run.retries),
+        ));
+    }
+    let backoff = s.run.retry_backoff_s;
+    if !(backoff.is_finite() && (0.0..=MAX_RETRY_BACKOFF_S).contains(&backoff)) {
+        return Err(spec.error(
+            "run.retry_backoff_s",
+            format!("{backoff}: allowed 0 <= seconds <= {MAX_RETRY_BACKOFF_S}"),
+        ));
+    }
     let base = base_waveform(spec)?;
     let mut processing = processing(spec, base.kind(), bench)?;
     if let Some((mode, cal)) = correction(spec, bench)? {
@@ -505,6 +530,8 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         seed: s.seed,
         repetitions: s.repetitions,
         wait_s: s.wait_s,
+        retries: s.run.retries,
+        retry_backoff_s: backoff,
         payload: s.waveform.payload.clone(),
         bench: BenchPlan {
             file: bench.file.as_ref().map(|(p, _)| p.clone()),

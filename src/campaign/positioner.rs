@@ -99,6 +99,12 @@ impl Positioner {
         Ok(())
     }
 
+    /// Whether this positioner places targets on the bench itself (the operator, a program),
+    /// rather than in the simulated scene.
+    pub(crate) fn places_real_targets(&self) -> bool {
+        self.plan.kind != PositionerKind::MockLab
+    }
+
     /// The simulated `scene` with the targets where this positioner puts them for a step at
     /// `nominal`: the mock lab's positioner stands the step's targets in the scene (each keeps
     /// the amplitude of the scene's target of its index, or of its last); the operator and a

@@ -17,7 +17,7 @@ use super::{io, report, CampaignError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
 use crate::exit::Classify;
-use crate::measure::scene_control::{Scene, SceneControlError};
+use crate::measure::scene_control::{Scene, SceneControlError, Target};
 use crate::measure::Interrupt;
 use crate::measure::MeasureError;
 use crate::measure::Provenance;
@@ -199,7 +199,38 @@ impl Runner {
         let t = Instant::now();
         let outcome = self.finish(stopped).await;
         self.timing.overhead_s += t.elapsed().as_secs_f64();
-        outcome.map_err(|e| self.unrecorded(e, safe))
+        outcome.map_err(|e| {
+            let e = self.unrecorded(e, safe);
+            self.record_status_in_place(&e, observer);
+            e
+        })
+    }
+
+    /// The session's end could not be stored whole (`e`): the manifest's status room, rewritten
+    /// in place, says `interrupted` and why, so that the folder does not claim a process still
+    /// works on it (see the manifest's module docs).
+    fn record_status_in_place(&mut self, e: &CampaignError, observer: &mut dyn Observer) {
+        if matches!(e, CampaignError::FolderLost { .. }) {
+            return;
+        }
+        let m = &mut self.manifest;
+        m.status = Status::Interrupted;
+        if m.reason.is_none() {
+            m.reason = Some(format!(
+                "every step was measured, but the run's end could not be written: {}",
+                match e {
+                    CampaignError::Unrecorded { source, .. } => crate::exit::render_chain(source),
+                    other => crate::exit::render_chain(other),
+                }
+            ));
+        }
+        m.exit_code = Some(e.exit_class().code());
+        if let Err(err) = m.store_status_in_place(&self.dir) {
+            observer.note(&format!(
+                "the manifest's status could not be recorded either ({err}): readers take a \
+                 `running` manifest with no process holding the folder's lock as interrupted"
+            ));
+        }
     }
 
     /// A session's end that could not be written (`results.json`, the report, the manifest: a
@@ -250,7 +281,7 @@ impl Runner {
                     where_: format!("before step {} of {n}; nothing was radiating", step.index),
                 });
             }
-            self.measure_step(k, &step, observer).await?;
+            self.measure_step_retrying(k, &step, observer).await?;
             if let Some(signal) = self.interrupt.received() {
                 if k + 1 < n {
                     return Err(CampaignError::Interrupted {
@@ -274,9 +305,13 @@ impl Runner {
     }
 
     /// The simulated scene of a step: the base scene with the step's noise seed, SNR and the
-    /// targets where the positioner puts them.
-    fn step_scene(&self, step: &Step) -> Option<Scene> {
+    /// targets where the positioner puts them; `placed`: the targets a program or the operator
+    /// placed on the bench (the lab's own, as they stand now), kept as they are.
+    fn step_scene(&self, step: &Step, placed: Option<Vec<Target>>) -> Option<Scene> {
         let mut scene = self.base_scene.clone()?;
+        if let Some(targets) = placed {
+            scene.targets = targets;
+        }
         if let Some(seed) = step.noise_seed {
             scene.seed = seed;
         }
@@ -302,7 +337,7 @@ impl Runner {
             // A fresh lab per step when it cannot reseed its noise (see the module docs). Close
             // the previous lab's links before its servers go.
             self.connection = None;
-            let scene = self.step_scene(step).unwrap_or_default();
+            let scene = self.step_scene(step, None).unwrap_or_default();
             let bench = Bench::open(BenchSource::BuiltIn(Box::new(
                 self.plan.bench.built_in(scene),
             )))
@@ -354,6 +389,90 @@ impl Runner {
         Ok(())
     }
 
+    /// On a simulated bench whose targets a program or the operator places (a `command` or
+    /// `prompt` positioner, as in a rehearsal of the lab's stage script moving the simulated
+    /// pillar over the control channel): the lab's targets as they stand, which the step's scene
+    /// keeps (only the noise seed and the SNR are the step's). `None` when the runner places them.
+    async fn placed_targets(&self) -> Result<Option<Vec<Target>>, CampaignError> {
+        let Some(p) = &self.positioner else {
+            return Ok(None);
+        };
+        let Some(conn) = &self.connection else {
+            return Ok(None);
+        };
+        if !p.places_real_targets() || !self.plan.bench.simulated {
+            return Ok(None);
+        }
+        Ok(Some(conn.bench.scene().await.map_err(control)?.targets))
+    }
+
+    /// [`measure_step`](Self::measure_step), measured again from the start after a transient
+    /// fault (see `retry`), at most `plan.retries` times: before each retry the bench is put in
+    /// its safe state, its links closed (opened again, identities checked again, by the retry),
+    /// the retry recorded and told, and the wait (doubled each time) passed. A fault that is not
+    /// transient, or one that outlasts the retries, stops the run as without retries.
+    async fn measure_step_retrying(
+        &mut self,
+        k: usize,
+        step: &Step,
+        observer: &mut dyn Observer,
+    ) -> Result<(), CampaignError> {
+        let mut attempt = 0;
+        loop {
+            let e = match self.measure_step(k, step, observer).await {
+                Ok(()) => return Ok(()),
+                Err(e) => e,
+            };
+            let Some(instrument) = super::retry::transient_instrument(&e) else {
+                return Err(e);
+            };
+            if attempt >= self.plan.retries {
+                return Err(e);
+            }
+            attempt += 1;
+            let instrument = instrument.to_string();
+            let fault = crate::exit::render_chain(&e);
+            let at = crate::time::rfc3339_millis(std::time::SystemTime::now());
+            // The capture's guard has run the safe state already; once more on every link, and
+            // then they are closed: the retry connects afresh.
+            let safe_state = match self.connection.take() {
+                Some(conn) => conn.rig.safe_state().engage().await.to_string(),
+                None => "nothing was connected".into(),
+            };
+            self.identified = false;
+            self.first_placement = true;
+            let wait = super::retry::backoff(self.plan.retry_backoff_s, attempt);
+            let n = self.plan.steps.len();
+            observer.note(&format!(
+                "step {} of {n}: {instrument}: {fault}; safe state: {safe_state}; retry \
+                 {attempt} of {} in {:.1} s",
+                step.index,
+                self.plan.retries,
+                wait.as_secs_f64()
+            ));
+            self.manifest.retries.push(super::retry::RetryRecord {
+                step: step.index,
+                attempt,
+                instrument,
+                fault,
+                at,
+                safe_state,
+                wait_s: wait.as_secs_f64(),
+            });
+            tokio::select! {
+                () = tokio::time::sleep(wait) => {}
+                signal = self.interrupt.wait() => return Err(CampaignError::Interrupted {
+                    signal,
+                    where_: format!(
+                        "waiting to retry step {} of {n}, which will be measured again; \
+                         nothing was radiating",
+                        step.index
+                    ),
+                }),
+            }
+        }
+    }
+
     /// Measures step `k` and hands its files to the writer (see [`Runner::settle_oldest`]).
     async fn measure_step(
         &mut self,
@@ -371,7 +490,7 @@ impl Runner {
             }
             self.first_placement = false;
         }
-        let scene = self.step_scene(step);
+        let scene = self.step_scene(step, self.placed_targets().await?);
         let reseeds = self.reseed == Some(true);
         // A built-in lab started afresh for this step already has its scene.
         let started_with_scene = self.plan.bench.file.is_none() && !reseeds;

@@ -45,6 +45,37 @@ pub struct Spec {
     pub sweep: Option<SweepSection>,
     #[serde(default)]
     pub steps: Vec<StepSection>,
+    #[serde(default)]
+    pub run: RunSection,
+}
+
+/// `[run]`: how the run rides out a transient fault (docs/campaign.md, "Retries").
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSection {
+    /// Times a step is measured again after a transient fault (`--retries` overrides it).
+    #[serde(default = "default_retries")]
+    pub retries: usize,
+    /// The wait before the first retry of a step, seconds; doubled before each next one.
+    #[serde(default = "default_retry_backoff")]
+    pub retry_backoff_s: f64,
+}
+
+impl Default for RunSection {
+    fn default() -> Self {
+        RunSection {
+            retries: default_retries(),
+            retry_backoff_s: default_retry_backoff(),
+        }
+    }
+}
+
+fn default_retries() -> usize {
+    2
+}
+
+fn default_retry_backoff() -> f64 {
+    2.0
 }
 
 fn default_seed() -> u64 {

@@ -59,6 +59,11 @@ pub struct RunArgs {
     /// JSON Lines on stdout: one "step" event per step and a last "done" event.
     #[arg(long)]
     pub json: bool,
+    /// Times a step is measured again after a transient fault (a lost connection, a timeout, a
+    /// missing trigger, a Gotmic CRC or identity failure); overrides the spec's `[run] retries`
+    /// (default 2).
+    #[arg(long, value_name = "N")]
+    pub retries: Option<usize>,
     #[command(flatten)]
     pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
@@ -359,7 +364,16 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     let spec = SpecFile::load(&a.spec)?;
     let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
     let catalog = bench.catalog()?;
-    let plan = campaign::plan(&spec, &bench)?;
+    let mut plan = campaign::plan(&spec, &bench)?;
+    if let Some(n) = a.retries {
+        if n > campaign::MAX_RETRIES {
+            return Err(bad_input(format!(
+                "--retries {n}: allowed 0..={}",
+                campaign::MAX_RETRIES
+            )));
+        }
+        plan.retries = n;
+    }
     if a.dry_run && a.live.live {
         return Err(bad_input(
             "--live: a dry run measures nothing to show; drop --dry-run or --live",

@@ -16,12 +16,15 @@ pub struct Args {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
-    let identity = runtime.block_on(async {
+    // One exchange, bounded in total (see `bounded`).
+    let budget = args.connect.budget(1)?;
+    let identity = runtime.block_on(budget.run(&args.connect.address, async {
         let mut session = args.connect.open(global).await?;
+        session.link_options_mut().progress = Some(budget.counting(None));
         let identity = session.idn().await;
         let _ = session.close().await;
         anyhow::Ok(identity?)
-    })?;
+    }))?;
     if args.json {
         // JSON escapes control characters itself.
         out(&serde_json::to_string_pretty(&identity)?)

@@ -11,6 +11,7 @@ pub(crate) mod align;
 pub(crate) mod args;
 pub(crate) mod benchmarks;
 pub(crate) mod benchmarks_io;
+pub(crate) mod bounded;
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_response;
 pub(crate) mod campaign;

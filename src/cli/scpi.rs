@@ -85,7 +85,21 @@ impl ConnectArgs {
             )));
         }
         options.link.serial.baud = self.baud;
+        // One reply is capped in memory (docs/io-timeouts.md): the transports refuse a longer one.
+        options.link.max_message_bytes = super::bounded::MAX_REPLY_BYTES;
         Ok(options)
+    }
+
+    /// The total a one-shot command of `exchanges` commands may take (see `bounded`).
+    pub fn budget(&self, exchanges: usize) -> anyhow::Result<super::bounded::Budget> {
+        let options = self.session_options()?;
+        let t = options.link.timeouts;
+        Ok(super::bounded::Budget::new(
+            t.connect,
+            t.read,
+            exchanges,
+            t.min_rate_bytes_per_s,
+        ))
     }
 
     /// Parses the address, opens the journal if asked, connects.
@@ -212,6 +226,9 @@ async fn clear_earlier_errors(session: &mut Session) -> anyhow::Result<()> {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let runtime = super::runtime()?;
+    if !args.commands.is_empty() {
+        return runtime.block_on(one_shot_bounded(&args, global));
+    }
     let mut session = runtime.block_on(args.connect.open(global))?;
     // Long blocks show a bar on stderr (only on a terminal).
     let bar = TransferBar::new();
@@ -226,19 +243,38 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         if check_errors {
             runtime.block_on(clear_earlier_errors(&mut session))?;
         }
-        if args.commands.is_empty() {
-            interactive(&runtime, &mut session, &mut saver, check_errors, &bar)
-        } else {
-            runtime.block_on(one_shot(
-                &mut session,
-                &args.commands,
-                &mut saver,
-                check_errors,
-                &bar,
-            ))
-        }
+        interactive(&runtime, &mut session, &mut saver, check_errors, &bar)
     })();
     let _ = runtime.block_on(session.close());
+    result
+}
+
+/// The commands of the command line, the whole exchange bounded in total (see `bounded`).
+async fn one_shot_bounded(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let budget = args.connect.budget(args.commands.len())?;
+    let bar = TransferBar::new();
+    let mut saver = BinarySaver::new(args.save_binary.clone());
+    let work = async {
+        let mut session = args.connect.open(global).await?;
+        // Long blocks show a bar on stderr (only on a terminal); every byte read earns time.
+        session.link_options_mut().progress = Some(budget.counting(Some(bar.callback())));
+        let check_errors = match (args.check_errors, args.no_check_errors) {
+            (_, true) => false,
+            (true, _) => true,
+            _ => known_to_keep_errors(&mut session).await,
+        };
+        let result = async {
+            if check_errors {
+                clear_earlier_errors(&mut session).await?;
+            }
+            one_shot(&mut session, &args.commands, &mut saver, check_errors, &bar).await
+        }
+        .await;
+        let _ = session.close().await;
+        result
+    };
+    let result = budget.run(&args.connect.address, work).await;
+    bar.finish();
     result
 }
 

@@ -367,7 +367,10 @@ async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let mut saboteur = DropAwgLink { at: 4, lab: None };
-    let finished = start_run(&example("accuracy.toml"), &out, &mut saboteur).await;
+    // Without retries (a dropped link is otherwise retried: tests/cli/unattended.rs).
+    let accuracy = std::fs::read_to_string(example("accuracy.toml")).unwrap();
+    let spec = write_spec(dir.path(), &format!("{accuracy}\n[run]\nretries = 0\n"));
+    let finished = start_run(&spec, &out, &mut saboteur).await;
     let err = finished.stopped.expect("the lost link stops the run");
     assert_eq!(err.exit_class().code(), 3, "{err}");
     assert_eq!(finished.status, Status::Interrupted);

@@ -1,8 +1,9 @@
 //! The campaign fault matrix on the built-in mock lab: the run folder renamed, deleted, made
 //! read-only, and its disk full, each at three moments of a three-step campaign. Every case is a
 //! clear stop: exit 4, a message naming the folder and saying what to do, the bench left in its
-//! safe state, the manifest on disk true (every file it lists there with its SHA-256) and never
-//! `complete`; and `campaign resume`, once the fault is removed (remounted read-write, space
+//! safe state, the manifest on disk true (every file it lists there with its SHA-256) and
+//! `interrupted`, never `complete` nor `running` (a full disk: written in the manifest's status
+//! room in place; read-only: read so, no process holding the folder's lock); and `campaign resume`, once the fault is removed (remounted read-write, space
 //! freed, at the folder's new path), finishes the run into a true `complete` whose
 //! `results.json` equals an uninterrupted run's. A deleted folder has nothing left to resume:
 //! the message says so, and the old path is not re-created.
@@ -435,7 +436,20 @@ async fn case(fault: Fault, moment: Moment) {
 
     // The manifest on disk at the stop: the steps written before, each file true.
     let m = Manifest::load(&run).unwrap();
-    assert_ne!(m.status, Status::Complete, "{what}");
+    assert_eq!(m.status, Status::Interrupted, "{what}");
+    if fault == Fault::DiskFull {
+        // Recorded in the file itself (its status room, rewritten in place), not only read so
+        // because no process holds the folder's lock.
+        let text = std::fs::read_to_string(run.join("manifest.toml")).unwrap();
+        assert!(
+            text.contains("\nstatus = \"interrupted\"\n") && text.contains("\nexit_code = 4\n"),
+            "{what}: {text}"
+        );
+        assert!(
+            !m.reason.as_deref().unwrap_or("").contains("lock"),
+            "{what}: {m:?}"
+        );
+    }
     let written: Vec<usize> = match (fault, moment) {
         (Fault::DiskFull, Moment::Last) => vec![1, 2, 3],
         (_, moment) => (1..moment.step()).collect(),

@@ -10,6 +10,7 @@ mod process_support;
 
 mod ambiguity;
 mod bad_input;
+mod bounded_commands;
 mod calibrate_repeat;
 mod calibrate_response;
 mod calibration_reach;
@@ -40,3 +41,4 @@ mod sequence_capture;
 mod simulate_cli;
 mod simulate_scene;
 mod support;
+mod unattended;

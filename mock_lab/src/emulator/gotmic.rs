@@ -247,6 +247,19 @@ impl Gotmic {
         }
     }
 
+    /// Power off and on again: every writable register back at its reset value (RF off), the
+    /// line's CRC mode as at power-on (or as the module's configuration fixes it). The module's
+    /// surroundings (interlock, LO, temperature) are not the module's to forget.
+    pub fn power_cycle(&self) {
+        let mut st = self.lock();
+        for (address, value) in st.values.iter_mut() {
+            if let Some(r) = self.model.registers.iter().find(|r| r.address == *address) {
+                *value = r.reset;
+            }
+        }
+        st.crc = st.crc_fixed.unwrap_or(false);
+    }
+
     /// What the module does now.
     pub fn front_end(&self) -> FrontEndState {
         let st = self.lock();

@@ -2,7 +2,9 @@
 //! sheet is inline), well-formed (every element closed) so it opens from disk anywhere.
 
 use super::figures::Figure;
-use super::markdown::{status_line, steps_table, summary_tables, Table, UNCERTAINTY_NOTE};
+use super::markdown::{
+    retries_table, status_line, steps_table, summary_tables, Table, UNCERTAINTY_NOTE,
+};
 use super::plots;
 use crate::campaign::Manifest;
 use crate::campaign::Results;
@@ -102,6 +104,9 @@ pub(crate) fn html(
         table(&mut out, &t);
     }
     table(&mut out, &steps_table(results));
+    if let Some(t) = retries_table(manifest) {
+        table(&mut out, &t);
+    }
     let done = results.steps.len();
     if done < plan.steps.len() {
         let _ = writeln!(

@@ -300,6 +300,34 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
     out
 }
 
+/// Every retry of a step after a transient fault (none: no table).
+pub(crate) fn retries_table(manifest: &Manifest) -> Option<Table> {
+    if manifest.retries.is_empty() {
+        return None;
+    }
+    Some(Table {
+        title: "Retries".into(),
+        header: ["step", "retry", "instrument", "fault", "at", "wait (s)"]
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+        rows: manifest
+            .retries
+            .iter()
+            .map(|r| {
+                vec![
+                    r.step.to_string(),
+                    r.attempt.to_string(),
+                    r.instrument.clone(),
+                    r.fault.replace('|', "\\|").replace('\n', " "),
+                    r.at.clone(),
+                    format!("{:.1}", r.wait_s),
+                ]
+            })
+            .collect(),
+    })
+}
+
 fn md_table(out: &mut String, t: &Table) {
     let _ = writeln!(out, "## {}\n", t.title);
     let _ = writeln!(out, "| {} |", t.header.join(" | "));
@@ -327,6 +355,9 @@ pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure
         md_table(&mut out, &t);
     }
     md_table(&mut out, &steps_table(results));
+    if let Some(t) = retries_table(manifest) {
+        md_table(&mut out, &t);
+    }
     let done = results.steps.len();
     if done < plan.steps.len() {
         let _ = writeln!(
