@@ -252,18 +252,23 @@ mod tests {
     use super::*;
     use crate::rng::SplitMix64;
 
-    /// A flat band of `n` bins at `fs`, 1/16 of it in band, and a reference spectrum with
-    /// `echoes` (relative delays and gains), plus noise of `sigma` per bin.
-    fn spectrum(n: usize, fs: f64, echoes: &[Echo], sigma: f64) -> (Vec<Complex64>, Vec<f64>) {
-        let mut rng = SplitMix64::new(5);
-        let f = |k: usize| {
+    /// Bin `k`'s frequency of `n` at `fs`, Hz.
+    fn frequency(n: usize, fs: f64) -> impl Fn(usize) -> f64 {
+        move |k| {
             (if k <= n / 2 {
                 k as f64
             } else {
                 k as f64 - n as f64
             }) * fs
                 / n as f64
-        };
+        }
+    }
+
+    /// A flat band of `n` bins at `fs`, 1/16 of it in band, and a reference spectrum with
+    /// `echoes` (relative delays and gains), plus noise of `sigma` per bin.
+    fn spectrum(n: usize, fs: f64, echoes: &[Echo], sigma: f64) -> (Vec<Complex64>, Vec<f64>) {
+        let mut rng = SplitMix64::new(5);
+        let f = frequency(n, fs);
         let coverage: Vec<f64> = (0..n)
             .map(|k| if f(k).abs() <= fs / 32.0 { 1.0 } else { 0.0 })
             .collect();
@@ -291,14 +296,7 @@ mod tests {
         };
         let (z, coverage) = spectrum(n, fs, &[cable, leakage, both], 1e-3);
         let model = vec![Complex64::new(1.0, 0.0); n];
-        let f = |k: usize| {
-            (if k <= n / 2 {
-                k as f64
-            } else {
-                k as f64 - n as f64
-            }) * fs
-                / n as f64
-        };
+        let f = frequency(n, fs);
         let search = Search {
             inner_s: 4e-9,
             reach_s: 40e-9,
@@ -311,7 +309,7 @@ mod tests {
         assert!((c.delay_s - cable.delay_s).abs() < 5e-12, "{c:?}");
         assert!((c.gain - cable.gain).norm() < 0.002, "{c:?}");
         assert!(
-            found.scene.len() >= 1 && found.scene.len() <= 2,
+            !found.scene.is_empty() && found.scene.len() <= 2,
             "{found:?}"
         );
         let l = found.scene[0];
@@ -324,14 +322,7 @@ mod tests {
         let (n, fs) = (16384, 16e9);
         let (z, coverage) = spectrum(n, fs, &[], 3e-3);
         let model = vec![Complex64::new(1.0, 0.0); n];
-        let f = |k: usize| {
-            (if k <= n / 2 {
-                k as f64
-            } else {
-                k as f64 - n as f64
-            }) * fs
-                / n as f64
-        };
+        let f = frequency(n, fs);
         let search = Search {
             inner_s: 4e-9,
             reach_s: 40e-9,

@@ -24,6 +24,29 @@ async fn run(dir: &Path, args: &[&str]) -> Value {
     serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"))
 }
 
+/// Every pillar found within 1 cm and nothing else; otherwise what was found, missing and false.
+fn within_1_cm(pillars: &[(f64, f64)], targets: &Value) -> Option<String> {
+    let found: Vec<f64> = targets
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["range_m"].as_f64().unwrap())
+        .collect();
+    let missing: Vec<f64> = pillars
+        .iter()
+        .map(|p| p.0)
+        .filter(|r| !found.iter().any(|f| (f - r).abs() <= 0.01))
+        .collect();
+    let extra: Vec<f64> = found
+        .iter()
+        .copied()
+        .filter(|f| !pillars.iter().any(|p| (f - p.0).abs() <= 0.01))
+        .collect();
+    (!missing.is_empty() || !extra.is_empty()).then(|| {
+        format!("pillars {pillars:?}, found {found:?} (missing {missing:?}, false {extra:?})")
+    })
+}
+
 fn write(dir: &Path, name: &str, scene: &Value) -> String {
     std::fs::write(dir.join(name), toml::to_string(scene).unwrap()).unwrap();
     name.to_string()
@@ -80,27 +103,8 @@ async fn corrected_random_thesis_lab_scenes_every_pillar_within_1_cm_and_no_fals
                 ],
             )
             .await;
-            let found: Vec<f64> = c["targets"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|t| t["range_m"].as_f64().unwrap())
-                .collect();
-            let missing: Vec<f64> = pillars
-                .iter()
-                .map(|p| p.0)
-                .filter(|r| !found.iter().any(|f| (f - r).abs() <= 0.01))
-                .collect();
-            let extra: Vec<f64> = found
-                .iter()
-                .copied()
-                .filter(|f| !pillars.iter().any(|p| (f - p.0).abs() <= 0.01))
-                .collect();
-            if !missing.is_empty() || !extra.is_empty() {
-                failures.push(format!(
-                    "{waveform} scene {k}: pillars {pillars:?}, found {found:?} (missing \
-                     {missing:?}, false {extra:?})"
-                ));
+            if let Some(wrong) = within_1_cm(&pillars, &c["targets"]) {
+                failures.push(format!("{waveform} scene {k}: {wrong}"));
             }
         }
     }
@@ -187,26 +191,10 @@ async fn a_cable_echo_and_a_1_m_reference_every_pillar_within_1_cm_no_false_targ
                     ],
                 )
                 .await;
-                let found: Vec<f64> = p["processed"][0]["summary"]["targets"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|t| t["range_m"].as_f64().unwrap())
-                    .collect();
-                let missing: Vec<f64> = pillars
-                    .iter()
-                    .map(|p| p.0)
-                    .filter(|r| !found.iter().any(|f| (f - r).abs() <= 0.01))
-                    .collect();
-                let extra: Vec<f64> = found
-                    .iter()
-                    .copied()
-                    .filter(|f| !pillars.iter().any(|p| (f - p.0).abs() <= 0.01))
-                    .collect();
-                if !missing.is_empty() || !extra.is_empty() {
+                let targets = &p["processed"][0]["summary"]["targets"];
+                if let Some(wrong) = within_1_cm(&pillars, targets) {
                     failures.push(format!(
-                        "{waveform} {window} scene {k} (cable {chain}): pillars {pillars:?}, found \
-                         {found:?} (missing {missing:?}, false {extra:?})"
+                        "{waveform} {window} scene {k} (cable {chain}): {wrong}"
                     ));
                 }
             }
