@@ -93,8 +93,8 @@ impl Window {
             Ok(w) => {
                 let sum: f64 = w.iter().sum();
                 let power: f64 = w.iter().map(|v| v * v).sum();
-                if power > 0.0 {
-                    -10.0 * (sum * sum / (POINTS as f64 * power)).log10()
+                if power > 0.0 && sum > 0.0 {
+                    10.0 * (POINTS as f64 * power / (sum * sum)).log10()
                 } else {
                     0.0
                 }

@@ -649,6 +649,10 @@ pub struct Losses {
 const BESIDE_LIMIT: f64 = 0.35;
 /// The decimator's roll-off beside the band is undone by at most this gain (20 dB).
 const MAX_ROLL_OFF_GAIN: f64 = 10.0;
+/// Frequencies across the band the roll-off is averaged over.
+const ROLL_OFF_POINTS: usize = 32;
+/// Samples per block of the frequency shift's phasor recurrence.
+const PHASOR_BLOCK: usize = 4096;
 
 /// Each target's signal-to-noise ratio from the noise power per cell (`None`: unknown).
 fn set_snr(detection: &mut DetectionReport, noise_per_cell: Option<f64>) {
@@ -1178,32 +1182,38 @@ impl Pipeline {
         if n < 16 || shift_hz + edge > BESIDE_LIMIT * fs {
             return None;
         }
-        let shift = ((shift_hz / fs * n as f64).round() as usize).max(1);
-        let mut spectrum = samples.to_vec();
-        crate::dsp::plans::forward(n).process(&mut spectrum);
-        let nu = |k: usize| {
-            let k = k % n;
-            (if k <= n / 2 {
-                k as f64
+        // A whole number of cycles over the record, so the shift stays circular.
+        let shift = ((shift_hz / fs * n as f64).round()).max(1.0);
+        let step = 2.0 * std::f64::consts::PI * shift / n as f64;
+        // The decimator's roll-off where the noise came from against where it lands, as one
+        // power ratio over the band (the roll-off is gentle there: a ratio per bin would cost
+        // two filter responses per bin for a fraction of a dB).
+        let gain = self.decimator.as_ref().map_or(1.0, |(_, _, d)| {
+            let [lo, hi] = self.tx.band_hz();
+            let (mut here, mut there) = (0.0, 0.0);
+            for j in 0..ROLL_OFF_POINTS {
+                let f = lo + (hi - lo) * (j as f64 + 0.5) / ROLL_OFF_POINTS as f64;
+                here += d.response_at_output(f / fs).powi(2);
+                there += d
+                    .response_at_output((f - shift * fs / n as f64) / fs)
+                    .powi(2);
+            }
+            if there > 0.0 {
+                (here / there).sqrt().min(MAX_ROLL_OFF_GAIN)
             } else {
-                k as f64 - n as f64
-            }) / n as f64
-        };
-        let decimator = self.decimator.as_ref().map(|(_, _, d)| d);
-        let mut moved = vec![Complex64::new(0.0, 0.0); n];
-        for (k, out) in moved.iter_mut().enumerate() {
-            let from = (k + n - shift) % n;
-            let gain = decimator.map_or(1.0, |d| {
-                let (here, there) = (d.response_at_output(nu(k)), d.response_at_output(nu(from)));
-                if there > 0.0 {
-                    (here / there).min(MAX_ROLL_OFF_GAIN)
-                } else {
-                    0.0
-                }
-            });
-            *out = spectrum[from] * (gain / n as f64);
+                0.0
+            }
+        });
+        // The phasor by recurrence, anchored afresh every block against rounding.
+        let mut moved = Vec::with_capacity(n);
+        let turn = Complex64::from_polar(1.0, step);
+        for (b, block) in samples.chunks(PHASOR_BLOCK).enumerate() {
+            let mut phasor = Complex64::from_polar(gain, step * (b * PHASOR_BLOCK) as f64);
+            for v in block {
+                moved.push(v * phasor);
+                phasor *= turn;
+            }
         }
-        crate::dsp::plans::inverse(n).process(&mut moved);
         Some(moved)
     }
 
