@@ -91,6 +91,7 @@ mod tests {
             instrument: "scope".into(),
             source_name: "EX".into(),
             waited_s: 1.0,
+            safe_state: None,
         });
         assert_eq!(transient_instrument(&trigger), Some("scope"));
         let crc = driver(DriverError::Reply {
