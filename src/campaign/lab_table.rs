@@ -7,8 +7,8 @@ use std::fmt::Write as _;
 /// The widest line printed: a terminal of 100 columns shows every line whole.
 pub(crate) const WIDTH: usize = 100;
 
-/// The rows as a table, or as a list when the table would be wider than [`WIDTH`], and the
-/// notes on how to read them.
+/// The rows as a table, or as a list when the table would be wider than `WIDTH` (100 columns),
+/// and the notes on how to read them.
 pub fn lab_table(rows: &[LabRow]) -> String {
     let table = columns(rows);
     let mut out = if table.lines().all(|l| l.chars().count() <= WIDTH) {
