@@ -35,10 +35,11 @@ pub const MANIFEST_FILE: &str = "manifest.toml";
 
 /// Bytes at the start of `manifest.toml` that hold the status and are rewritten in place when
 /// the whole file cannot be (one 512-byte sector: a device writes it whole or not at all).
-pub const STATUS_ROOM: usize = 512;
+pub(crate) const STATUS_ROOM: usize = 512;
 
 /// The reason [`Manifest::load`] gives a `running` manifest that no process works on.
-pub const STALE_REASON: &str = "the process that ran it stopped without recording its end (a \
+pub(crate) const STALE_REASON: &str =
+    "the process that ran it stopped without recording its end (a \
      crash, SIGKILL, a power loss, or a file system that refused the last write): no process \
      holds the run folder's lock";
 
@@ -440,7 +441,7 @@ impl Manifest {
     /// reason, step and exit code (the rest of the file stays as last stored). For a session's
     /// end that could not be stored whole: it needs no new block on the disk. Refused when the
     /// file on disk has no status room (written by an older radbench).
-    pub fn store_status_in_place(&self, dir: &Path) -> Result<(), CampaignError> {
+    pub(crate) fn store_status_in_place(&self, dir: &Path) -> Result<(), CampaignError> {
         use std::os::unix::fs::FileExt;
         let path = dir.join(MANIFEST_FILE);
         let room = Head::of(self).room().map_err(|e| CampaignError::Manifest {

@@ -5,8 +5,8 @@
 
 use super::CampaignError;
 use crate::driver::DriverError;
+use crate::driver::ErrorKind;
 use crate::measure::MeasureError;
-use crate::transport::ErrorKind;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
@@ -70,8 +70,6 @@ pub(crate) fn backoff(first_s: f64, attempt: usize) -> Duration {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::session::SessionError;
-    use crate::transport::LinkError;
 
     fn driver(d: DriverError) -> CampaignError {
         CampaignError::Measure(MeasureError::Driver(d))
@@ -79,14 +77,9 @@ mod tests {
 
     #[test]
     fn glitches_are_retried_and_a_broken_bench_is_not() {
-        let lost = driver(DriverError::Session {
-            instrument: "scope".into(),
-            source: Box::new(SessionError::Link {
-                resource: "TCPIP0::127.0.0.1::inst0::INSTR".into(),
-                source: LinkError::NotOpen,
-            }),
-        });
-        assert_eq!(transient_instrument(&lost), Some("scope"));
+        // A lost connection (a session error of the transport's kind) is ridden out end to end
+        // in tests/cli/unattended.rs (a dropped AWG and a dropped scope): campaign may not name
+        // the session and transport layers, even in its tests.
         let trigger = driver(DriverError::NoTrigger {
             instrument: "scope".into(),
             source_name: "EX".into(),
