@@ -184,8 +184,8 @@ pub struct InputFile {
 /// when it was measured.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationRecord {
-    /// `rx`.
-    pub mode: String,
+    /// `rx`, `tx` or `both`.
+    pub mode: crate::measure::CorrectionMode,
     /// The calibration header as the plan named it (absolute).
     pub path: PathBuf,
     /// The header's copy, relative to the run folder.

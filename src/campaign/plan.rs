@@ -6,7 +6,7 @@
 //! without touching an instrument.
 
 use super::kind::{sorted_ranges, SweepAt, SweepParameter};
-use super::spec::{ModelOrder, PositionerKind, SpecError, SpecFile, SweepSection};
+use super::spec::{PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
@@ -458,11 +458,13 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     if let Some((mode, cal)) = correction(spec, bench)? {
         // Resolved once: every step's pipelines apply (and record) the same calibration.
         for o in &mut processing {
-            o.correction = Some(cal.used_as(mode.name()));
+            o.correction = Some(cal.used_as(mode));
         }
     }
-    let from_targets = matches!(s.processing.music_p, Some(ModelOrder::Named(_)))
-        && processing.iter().any(|o| o.algorithm.is_subspace());
+    let from_targets = matches!(
+        s.processing.music_p,
+        Some(crate::measure::ModelOrderChoice::Named(_))
+    ) && processing.iter().any(|o| o.algorithm.is_subspace());
     let positioner = positioner(spec, bench)?;
     let mut steps = raw_steps(spec, &base, bench)?;
     let min = processing[0].min_range_m;
@@ -664,10 +666,16 @@ fn processing(
     bench: &BenchInfo,
 ) -> Result<Vec<ProcessOptions>, SpecError> {
     let p = &spec.spec.processing;
-    let algorithms = if p.algorithms.is_empty() {
-        vec![Algorithm::default_for(kind)]
-    } else {
-        p.algorithms.clone()
+    let algorithms = match (p.algorithm, p.algorithms.is_empty()) {
+        (Some(_), false) => {
+            return Err(spec.error(
+                "processing.algorithm",
+                "given with processing.algorithms: list every algorithm in `algorithms`",
+            ))
+        }
+        (Some(a), true) => vec![a],
+        (None, true) => vec![Algorithm::default_for(kind)],
+        (None, false) => p.algorithms.clone(),
     };
     let mut out: Vec<ProcessOptions> = Vec::new();
     for (i, &a) in algorithms.iter().enumerate() {
@@ -686,33 +694,10 @@ fn processing(
                 format!("{} is listed twice", a.name()),
             ));
         }
-        let mut o = ProcessOptions {
-            algorithm: a,
-            ..ProcessOptions::default()
-        };
-        macro_rules! set {
-            ($($f:ident),*) => { $(if let Some(v) = p.$f { o.$f = v; })* };
-        }
-        set!(
-            music_m,
-            forward_backward,
-            zero_pad,
-            window,
-            fft_precision,
-            interpolate,
-            detector,
-            pfa,
-            min_range_m,
-            max_range_m
-        );
-        o.music_p = match p.music_p {
-            Some(ModelOrder::Fixed(n)) => Some(n),
-            _ => None,
-        };
-        o.min_separation_m = p.min_separation_m;
-        if let Some(db) = p.chain_floor_db {
-            o.chain_floor_db = db;
-        }
+        // The section's choices over the defaults, with this algorithm (a step's "targets"
+        // model order is counted per step).
+        let mut o = p.apply(ProcessOptions::default());
+        o.algorithm = a;
         o.system_delay_s = bench.bench_file().system_delay_s();
         out.push(o);
     }

@@ -171,7 +171,7 @@ impl ProcessRequest {
             return Err(not_in_memory("--reference-range"));
         }
         // Nothing is written: --reference-range, the one option that writes, is refused above.
-        let (waveform, overrides) = args.settings(Path::new("."))?;
+        let (waveform, overrides) = args.settings(None)?;
         Ok(ProcessRequest {
             args,
             waveform,

@@ -8,7 +8,9 @@
 //! | `bench` | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | `family` | each waveform family's behaviour in one room (`family/msk_lfm.rs`, `family/ofdm.rs`): overrides, transmission, payload decoder, algorithms; `family::of` is the one `match` over the families |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
-//! | `options` | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
+//! | `choices` | the processing choices a user makes, declared once: command-line options, a campaign's `[processing]`, Python's keywords |
+//! | `listed` | library enums taken by name on the command line and in files, and clap's parser of them |
+//! | `options` | the processing options (algorithm, window, M/p, ranges, Pfa) as plain data, and their defaults |
 //! | `pipeline` | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
 //! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
@@ -30,6 +32,7 @@ pub(crate) mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;
 pub(crate) mod capture;
+pub(crate) mod choices;
 pub(crate) mod clipping;
 pub(crate) mod detect;
 pub(crate) mod doctor;
@@ -37,6 +40,7 @@ pub(crate) mod export;
 pub(crate) mod family;
 pub(crate) mod figure;
 pub(crate) mod interrupt;
+pub(crate) mod listed;
 pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
@@ -76,7 +80,9 @@ pub use station::*;
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).
 pub use capture::measure;
+pub use choices::{ModelOrderChoice, ModelOrderName, ProcessingChoices};
 pub use clipping::{ClipDetection, Clipping};
+pub use listed::{listed, Listed};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 pub use reprocess::Repetition;

@@ -2,6 +2,7 @@
 //! `processing` in `summary.json` and the SigMF metadata so a capture can be re-processed
 //! identically. Library types only: the CLI maps its own argument enums onto these.
 
+use super::choices::ProcessingChoices;
 use crate::dsp::FftPrecision;
 use crate::dsp::Window;
 use crate::waveform::WaveformKind;
@@ -80,7 +81,7 @@ impl Algorithm {
 
     /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
     /// Fourier for OFDM.
-    pub fn default_for(waveform: WaveformKind) -> Algorithm {
+    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
         super::family::of_kind(waveform).default_algorithm()
     }
 }
@@ -356,30 +357,21 @@ impl ProcessOptions {
 }
 
 /// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
-/// defaults): `None` keeps the base's value.
+/// defaults): the user's [`ProcessingChoices`], and what re-processing resolves beside them.
 #[derive(Debug, Clone, Default)]
 pub struct ProcessOverrides {
-    pub algorithm: Option<Algorithm>,
-    pub music_m: Option<usize>,
-    pub music_p: Option<Option<usize>>,
-    pub forward_backward: Option<bool>,
-    pub zero_pad: Option<usize>,
-    pub window: Option<WindowName>,
-    pub fft_precision: Option<FftPrecisionName>,
-    pub interpolate: Option<bool>,
+    /// The choices made (their correction and calibration are resolved into `correction`).
+    pub choices: ProcessingChoices,
     pub system_delay_s: Option<f64>,
-    pub min_range_m: Option<f64>,
-    pub max_range_m: Option<f64>,
-    pub detector: Option<DetectorName>,
-    pub pfa: Option<f64>,
-    pub min_separation_m: Option<Option<f64>>,
-    pub chain_floor_db: Option<f64>,
     pub awg_amplitude_vpp: Option<Option<f64>>,
     pub correction: Option<Option<super::response::CorrectionUsed>>,
     /// Subtract the background the capture recorded (when it had one).
     pub keep_background: bool,
-    /// `--correction rx` without a file: the capture must have recorded a calibration.
-    pub require_correction: bool,
+    /// `--correction MODE` without a file: the capture must have recorded a calibration, used
+    /// with this mode.
+    pub require_correction: Option<super::response::CorrectionMode>,
+    /// Every option exactly (a campaign's further algorithms), the carrier aside.
+    pub(crate) exact: Option<Box<ProcessOptions>>,
 }
 
 impl ProcessOverrides {
@@ -387,71 +379,38 @@ impl ProcessOverrides {
     /// processed with these gives what `options` gave (a campaign's further algorithms). The
     /// capture's background is kept.
     pub(crate) fn replacing(options: &ProcessOptions) -> Self {
-        // Destructured, so that an option added later cannot be forgotten here.
-        let ProcessOptions {
-            algorithm,
-            music_m,
-            music_p,
-            forward_backward,
-            zero_pad,
-            window,
-            fft_precision,
-            interpolate,
-            system_delay_s,
-            min_range_m,
-            max_range_m,
-            detector,
-            pfa,
-            min_separation_m,
-            chain_floor_db,
-            carrier_hz: _,
-            awg_amplitude_vpp,
-            correction,
-        } = options.clone();
         Self {
-            algorithm: Some(algorithm),
-            music_m: Some(music_m),
-            music_p: Some(music_p),
-            forward_backward: Some(forward_backward),
-            zero_pad: Some(zero_pad),
-            window: Some(window),
-            fft_precision: Some(fft_precision),
-            interpolate: Some(interpolate),
-            system_delay_s: Some(system_delay_s),
-            min_range_m: Some(min_range_m),
-            max_range_m: Some(max_range_m),
-            detector: Some(detector),
-            pfa: Some(pfa),
-            min_separation_m: Some(min_separation_m),
-            chain_floor_db: Some(chain_floor_db),
-            awg_amplitude_vpp: Some(awg_amplitude_vpp),
-            correction: Some(correction),
+            exact: Some(Box::new(options.clone())),
             keep_background: true,
-            require_correction: false,
+            ..Self::default()
         }
+    }
+
+    /// Whether an algorithm was chosen (a capture recorded with another waveform's is then
+    /// still processed as chosen).
+    pub(crate) fn algorithm_given(&self) -> bool {
+        self.exact.is_some() || self.choices.algorithm.is_some()
+    }
+
+    /// Whether the bench's system delay was given.
+    pub(crate) fn system_delay_given(&self) -> bool {
+        self.exact.is_some() || self.system_delay_s.is_some()
     }
 
     /// `base` with every given value replaced.
     pub(crate) fn apply(&self, base: ProcessOptions) -> ProcessOptions {
+        if let Some(exact) = &self.exact {
+            return ProcessOptions {
+                carrier_hz: base.carrier_hz,
+                ..(**exact).clone()
+            };
+        }
+        let base = self.choices.apply(base);
         ProcessOptions {
-            algorithm: self.algorithm.unwrap_or(base.algorithm),
-            music_m: self.music_m.unwrap_or(base.music_m),
-            music_p: self.music_p.unwrap_or(base.music_p),
-            forward_backward: self.forward_backward.unwrap_or(base.forward_backward),
-            zero_pad: self.zero_pad.unwrap_or(base.zero_pad),
-            window: self.window.unwrap_or(base.window),
-            fft_precision: self.fft_precision.unwrap_or(base.fft_precision),
-            interpolate: self.interpolate.unwrap_or(base.interpolate),
             system_delay_s: self.system_delay_s.unwrap_or(base.system_delay_s),
-            min_range_m: self.min_range_m.unwrap_or(base.min_range_m),
-            max_range_m: self.max_range_m.unwrap_or(base.max_range_m),
-            detector: self.detector.unwrap_or(base.detector),
-            pfa: self.pfa.unwrap_or(base.pfa),
-            min_separation_m: self.min_separation_m.unwrap_or(base.min_separation_m),
-            chain_floor_db: self.chain_floor_db.unwrap_or(base.chain_floor_db),
-            carrier_hz: base.carrier_hz,
             awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
-            correction: self.correction.clone().unwrap_or(base.correction),
+            correction: self.correction.clone().unwrap_or(base.correction.clone()),
+            ..base
         }
     }
 }
