@@ -201,6 +201,23 @@ impl ProcessRequest {
         Ok(request)
     }
 
+    /// The Python package's keywords, a JSON object (`{"window": "hann", "m": 32}`): the
+    /// processing choices through serde as [`crate::measure::ProcessingChoices`], the
+    /// command's own options (the waveform of a capture radbench did not make, `seed`,
+    /// `payload`, `background`, ...) as [`parse_keywords`](Self::parse_keywords) takes them.
+    pub fn from_keywords(keywords: &str) -> anyhow::Result<ProcessRequest> {
+        let (choices, own) = keywords::split(keywords)?;
+        let mut request = Self::parse_keywords(&own)?;
+        request.args.choices = choices;
+        let (waveform, overrides) = request
+            .args
+            .settings(None)
+            .map_err(|e| request.in_callers_words(e))?;
+        request.waveform = waveform;
+        request.overrides = overrides;
+        Ok(request)
+    }
+
     /// `err` in the words the options were given in (keywords after
     /// [`parse_keywords`](Self::parse_keywords)).
     fn in_callers_words(&self, err: anyhow::Error) -> anyhow::Error {
