@@ -14,7 +14,7 @@
 
 use super::listed::listed;
 use super::options::{Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName};
-use super::response::CorrectionMode;
+use super::response::{CorrectionMode, CorrectionUsed};
 use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -268,6 +268,65 @@ impl ProcessingChoices {
         "correction",
         "calibration",
     ];
+}
+
+/// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
+/// defaults): the user's [`ProcessingChoices`], and what re-processing resolves beside them.
+#[derive(Debug, Clone, Default)]
+pub struct ProcessOverrides {
+    /// The choices made (their correction and calibration are resolved into `correction`).
+    pub choices: ProcessingChoices,
+    pub system_delay_s: Option<f64>,
+    pub awg_amplitude_vpp: Option<Option<f64>>,
+    pub correction: Option<Option<CorrectionUsed>>,
+    /// Subtract the background the capture recorded (when it had one).
+    pub keep_background: bool,
+    /// `--correction MODE` without a file: the capture must have recorded a calibration, used
+    /// with this mode.
+    pub require_correction: Option<CorrectionMode>,
+    /// Every option exactly (a campaign's further algorithms), the carrier aside.
+    pub(crate) exact: Option<Box<ProcessOptions>>,
+}
+
+impl ProcessOverrides {
+    /// Every option of `options` (its carrier aside, which comes with the capture): a capture
+    /// processed with these gives what `options` gave (a campaign's further algorithms). The
+    /// capture's background is kept.
+    pub(crate) fn replacing(options: &ProcessOptions) -> Self {
+        Self {
+            exact: Some(Box::new(options.clone())),
+            keep_background: true,
+            ..Self::default()
+        }
+    }
+
+    /// Whether an algorithm was chosen (a capture recorded with another waveform's is then
+    /// still processed as chosen).
+    pub(crate) fn algorithm_given(&self) -> bool {
+        self.exact.is_some() || self.choices.algorithm.is_some()
+    }
+
+    /// Whether the bench's system delay was given.
+    pub(crate) fn system_delay_given(&self) -> bool {
+        self.exact.is_some() || self.system_delay_s.is_some()
+    }
+
+    /// `base` with every given value replaced.
+    pub(crate) fn apply(&self, base: ProcessOptions) -> ProcessOptions {
+        if let Some(exact) = &self.exact {
+            return ProcessOptions {
+                carrier_hz: base.carrier_hz,
+                ..(**exact).clone()
+            };
+        }
+        let base = self.choices.apply(base);
+        ProcessOptions {
+            system_delay_s: self.system_delay_s.unwrap_or(base.system_delay_s),
+            awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
+            correction: self.correction.clone().unwrap_or(base.correction.clone()),
+            ..base
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,10 +1,9 @@
 //! Library enums the command line and the files take by name ([`Listed`]), and clap's parser
 //! of them ([`listed`]): one spelling per value, its `FromStr` and a line of help.
 
+use super::bench::{AwgLink, ScopeLink, ScopeModel};
+use super::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
 use super::response::CorrectionMode;
-use super::{
-    Algorithm, AwgLink, DetectorName, FftPrecisionName, ScopeLink, ScopeModel, WindowName,
-};
 use crate::waveform::WaveformKind;
 
 /// A library enum the command line takes by name: its values (with a line of help each) and its

@@ -80,7 +80,7 @@ pub use station::*;
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).
 pub use capture::measure;
-pub use choices::{ModelOrderChoice, ModelOrderName, ProcessingChoices};
+pub use choices::{ModelOrderChoice, ModelOrderName, ProcessOverrides, ProcessingChoices};
 pub use clipping::{ClipDetection, Clipping};
 pub use listed::{listed, Listed};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};

@@ -8,8 +8,9 @@
 //! the waveform from the caller.
 
 use super::capture::{process_repetitions, BackgroundFile};
+use super::choices::ProcessOverrides;
 use super::clipping::{ClipCount, Rails, RecordClipping, ScopeAdc};
-use super::options::{ProcessOptions, ProcessOverrides};
+use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{RepetitionResult, Spread};
 use super::transmit::{self, Dac, Transmission};
