@@ -443,14 +443,14 @@ impl Runner {
             self.first_placement = true;
             let wait = super::retry::backoff(self.plan.retry_backoff_s, attempt);
             let n = self.plan.steps.len();
-            observer.note(&format!(
+            let text = format!(
                 "step {} of {n}: {instrument}: {fault}; safe state: {safe_state}; retry \
                  {attempt} of {} in {:.1} s",
                 step.index,
                 self.plan.retries,
                 wait.as_secs_f64()
-            ));
-            self.manifest.retries.push(super::retry::RetryRecord {
+            );
+            let record = super::retry::RetryRecord {
                 step: step.index,
                 attempt,
                 instrument,
@@ -458,7 +458,14 @@ impl Runner {
                 at,
                 safe_state,
                 wait_s: wait.as_secs_f64(),
+            };
+            observer.retrying(&super::run::Retrying {
+                record: &record,
+                of: n,
+                retries: self.plan.retries,
+                text: &text,
             });
+            self.manifest.retries.push(record);
             tokio::select! {
                 () = tokio::time::sleep(wait) => {}
                 signal = self.interrupt.wait() => return Err(CampaignError::Interrupted {
