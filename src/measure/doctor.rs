@@ -32,8 +32,8 @@ const OPEN_TIMEOUT: Duration = Duration::from_secs(5);
 /// The most all the checks may take together, whatever the instruments do (a stall after every
 /// answer, replies that never end): each wait is cut to what is left of it, and a check that
 /// finds nothing left is skipped. The safe state after the marker check is not cut (at most
-/// [`SAFE_STEP_TIMEOUT`] a step). docs/doctor.md.
-pub const CHECKS_TOTAL: Duration = Duration::from_secs(40);
+/// `SAFE_STEP_TIMEOUT` a step). docs/doctor.md.
+pub(crate) const CHECKS_TOTAL: Duration = Duration::from_secs(40);
 /// Longest wait for the marker's edge at the scope, seconds.
 const MARKER_WAIT_S: f64 = 1.0;
 /// Longest the whole marker check may take (configure, download, acquire), seconds.
@@ -854,11 +854,9 @@ async fn marker_check(
     let bounded_work = async {
         tokio::time::timeout(deadline, work)
             .await
-            .unwrap_or_else(|_| {
-                Err(MeasureError::RfDeadline {
-                    seconds: deadline.as_secs_f64(),
-                })
-            })
+            .unwrap_or(Err(MeasureError::RfDeadline {
+                seconds: deadline.as_secs_f64(),
+            }))
     };
     let (outcome, report) = crate::driver::run_guarded(&safe, bounded_work, interrupt.wait()).await;
     crate::driver::clear_panic_safe_state(&safe);
