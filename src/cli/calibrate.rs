@@ -74,6 +74,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit { run: "calibration" }.into());
     }
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
     super::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),

@@ -104,6 +104,7 @@ fn check(args: &Args) -> Result<(), MeasureError> {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(&args)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
     let waveform = args.waveform_args.spec(args.waveform)?;
     let started = std::time::Instant::now();
     super::runtime()?.block_on(async {

@@ -287,6 +287,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         return Err(MeasureError::NoPermit { run: "capture" }.into());
     }
     args.timeout.apply()?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     if args.live.live && args.repeat.is_none() {
         return Err(bad_input(
             "--live: needs --repeat N|forever (one capture is over before a page could show it)",

@@ -20,6 +20,7 @@ pub(crate) mod doctor;
 pub(crate) mod export;
 pub(crate) mod idn;
 pub(crate) mod live;
+pub(crate) mod manual_front;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
 pub(crate) mod progress;

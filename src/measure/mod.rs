@@ -24,6 +24,7 @@
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
 //! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
+//! | `manual` | front ends with `driver = "manual"`: the operator's instructions, confirmation and exit note |
 
 pub(crate) mod ambiguity;
 pub(crate) mod bench;
@@ -37,6 +38,7 @@ pub(crate) mod export;
 pub(crate) mod family;
 pub(crate) mod figure;
 pub(crate) mod interrupt;
+pub(crate) mod manual;
 pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
@@ -63,6 +65,7 @@ pub use doctor::*;
 pub use export::*;
 pub use figure::*;
 pub use interrupt::*;
+pub use manual::*;
 pub use numbers::*;
 pub use options::*;
 pub use pipeline::*;
