@@ -33,6 +33,7 @@ mod io_cli;
 mod keysight_uxr;
 mod link_quality;
 mod manual_front;
+mod other_protocol;
 mod live_exit_paths;
 mod pointing_errors;
 mod process_cli;
