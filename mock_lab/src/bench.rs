@@ -44,7 +44,7 @@ impl Bench {
 
     /// The bench with Tx and Rx modules of the given models (their line protocol and register
     /// map as a catalog file describes them).
-    pub fn with_front_ends(
+    pub(crate) fn with_front_ends(
         scene: Scene,
         tx: crate::catalog::RfModel,
         rx: crate::catalog::RfModel,

@@ -92,13 +92,13 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         return Err(MeasureError::NoPermit { run: "alignment" }.into());
     }
     args.timeout.apply()?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
     let source = args.scope_model.apply(bench_source(
         args.bench.as_deref(),
         args.scene.as_deref(),
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);

@@ -74,7 +74,6 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit { run: "calibration" }.into());
     }
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
     super::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),
@@ -82,6 +81,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             AwgLink::Hislip,
             ScopeLink::Vicp,
         )?)?;
+        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         // With the response the bench file names corrected, the delay is the corrected chain's:

@@ -104,7 +104,6 @@ fn check(args: &Args) -> Result<(), MeasureError> {
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     check(&args)?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
     let waveform = args.waveform_args.spec(args.waveform)?;
     let started = std::time::Instant::now();
     super::runtime()?.block_on(async {
@@ -119,6 +118,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             (None, Some(b)) => Some(default_out(b)),
             (None, None) => None,
         };
+        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         let catalog = bench.file.catalog()?;

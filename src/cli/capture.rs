@@ -287,7 +287,6 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         return Err(MeasureError::NoPermit { run: "capture" }.into());
     }
     args.timeout.apply()?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     if args.live.live && args.repeat.is_none() {
         return Err(bad_input(
             "--live: needs --repeat N|forever (one capture is over before a page could show it)",
@@ -299,6 +298,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;

@@ -31,6 +31,7 @@ pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;
 pub(crate) mod trc;
+pub(crate) mod verify_catalog;
 pub(crate) mod waveform;
 
 pub use radbench::classify;

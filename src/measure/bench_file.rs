@@ -63,7 +63,7 @@ pub struct InstrumentEntry {
 }
 
 /// The `driver` of a front end radbench does not talk to: the operator sets it by hand.
-pub const MANUAL_DRIVER: &str = "manual";
+pub(crate) const MANUAL_DRIVER: &str = "manual";
 
 /// A front end with `driver = "manual"`: radbench never opens it; it tells the operator what to
 /// set, asks for a confirmation before the first RF, and relies on the AWG outputs for the safe

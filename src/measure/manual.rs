@@ -10,7 +10,7 @@ use crate::catalog::Catalog;
 const DEFAULT_RF_HZ: f64 = 80e9;
 
 /// The answer that confirms the manual front ends are set (case-insensitive, trimmed).
-pub const MANUAL_CONFIRMATION: &str = "yes";
+pub(crate) const MANUAL_CONFIRMATION: &str = "yes";
 
 /// Whether `answer` (one line of standard input) confirms.
 pub fn confirms(answer: &str) -> bool {

@@ -24,6 +24,7 @@
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
 //! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
+//! | `verify_catalog` | `doctor --verify-catalog`: the catalog's inferred values asked of the instruments; override files |
 //! | `manual` | front ends with `driver = "manual"`: the operator's instructions, confirmation and exit note |
 
 pub(crate) mod ambiguity;
@@ -55,6 +56,7 @@ pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
 pub(crate) mod station;
 pub(crate) mod transmit;
+pub(crate) mod verify_catalog;
 
 pub use ambiguity::*;
 pub use bench::*;
@@ -75,6 +77,7 @@ pub use reprocess::*;
 pub use response::*;
 pub use response_run::*;
 pub use station::*;
+pub use verify_catalog::*;
 
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).

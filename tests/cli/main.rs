@@ -44,3 +44,4 @@ mod simulate_cli;
 mod simulate_scene;
 mod support;
 mod unattended;
+mod verify_catalog;
