@@ -545,7 +545,10 @@ pub fn check_rf(model: &RfModel) -> Result<(), CatalogError> {
                 return Err(invalid(
                     WHAT,
                     key,
-                    format!("{template:?}: allowed placeholders, once each: {}", needs.join(" ")),
+                    format!(
+                        "{template:?}: allowed placeholders, once each: {}",
+                        needs.join(" ")
+                    ),
                 ));
             }
         }

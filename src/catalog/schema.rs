@@ -493,7 +493,8 @@ impl NumberFormat {
     pub fn read(self, text: &str) -> Option<u16> {
         match self {
             NumberFormat::Hex2 | NumberFormat::Hex4 => {
-                if text.is_empty() || text.len() > 4 || !text.chars().all(|c| c.is_ascii_hexdigit()) {
+                if text.is_empty() || text.len() > 4 || !text.chars().all(|c| c.is_ascii_hexdigit())
+                {
                     return None;
                 }
                 u16::from_str_radix(text, 16).ok()

@@ -661,12 +661,18 @@ fn check_protocol(c: &mut Checks, p: &LineProtocol) {
             if wanted && count != 1 {
                 c.fail(
                     format!("protocol.{key}"),
-                    format!("{text:?} must hold {placeholder} once (allowed: {})", needs.join(" and ")),
+                    format!(
+                        "{text:?} must hold {placeholder} once (allowed: {})",
+                        needs.join(" and ")
+                    ),
                 );
             } else if !wanted && count > 0 {
                 c.fail(
                     format!("protocol.{key}"),
-                    format!("{text:?} holds {placeholder}; allowed: {}", needs.join(" and ")),
+                    format!(
+                        "{text:?} holds {placeholder}; allowed: {}",
+                        needs.join(" and ")
+                    ),
                 );
             }
         }
@@ -674,7 +680,10 @@ fn check_protocol(c: &mut Checks, p: &LineProtocol) {
     template(c, "read", &p.read, &["{address}"]);
     template(c, "write", &p.write, &["{address}", "{value}"]);
     if p.read.contains("{address}{value}") || p.write.contains("{address}{value}") {
-        c.fail("protocol.write", "{address} and {value} need text between them");
+        c.fail(
+            "protocol.write",
+            "{address} and {value} need text between them",
+        );
     }
     for (key, text) in [
         ("identify", &p.identify),

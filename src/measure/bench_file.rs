@@ -381,7 +381,11 @@ impl BenchFile {
             } else {
                 InstrumentKind::RfRx
             };
-            if catalog.get(key).ok().is_none_or(|c| c.instrument.kind != kind) {
+            if catalog
+                .get(key)
+                .ok()
+                .is_none_or(|c| c.instrument.kind != kind)
+            {
                 let line = self
                     .lines
                     .get(&format!("{}.model", m.section))
@@ -470,7 +474,9 @@ fn take_manual(bench: &mut BenchFile) -> Result<Vec<ManualFrontEnd>, (String, St
             if !(f.is_finite() && f > 0.0) {
                 return Err((
                     field("rf_frequency_hz"),
-                    format!("[{section}] rf_frequency_hz = {f}: must be a positive frequency in Hz"),
+                    format!(
+                        "[{section}] rf_frequency_hz = {f}: must be a positive frequency in Hz"
+                    ),
                 ));
             }
         }

@@ -109,7 +109,11 @@ pub fn manual_exit_note(manual: &[ManualFrontEnd]) -> String {
     };
     let manual_names = names(manual);
     let verb = if manual.len() > 1 { "are" } else { "is" };
-    let module = if manual.len() > 1 { "modules" } else { "module" };
+    let module = if manual.len() > 1 {
+        "modules"
+    } else {
+        "module"
+    };
     format!(
         "{manual_names} {verb} manual: {awg}; it did not switch the {manual_names} {module} \
          off: switch {} off by hand",
@@ -153,7 +157,10 @@ driver = "manual"
             text.contains("Tx: RF 80.000 GHz (LO 13.3333 GHz, x6), attenuation 10.0 dB"),
             "{text}"
         );
-        assert!(text.contains("Rx: RF 80.000 GHz, attenuation as for"), "{text}");
+        assert!(
+            text.contains("Rx: RF 80.000 GHz, attenuation as for"),
+            "{text}"
+        );
         assert!(confirms(" YES\n") && !confirms("y") && !confirms(""));
     }
 
@@ -174,9 +181,14 @@ driver = "manual"
             .check_models(&Catalog::embedded().unwrap())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("[tx] model") && e.contains("gotmic-eband-tx"), "{e}");
-        let driven_without_resource =
-            MANUAL.replace("[rx]\ndriver = \"manual\"\n", "[rx]\nmodel = \"gotmic-eband-rx\"\n");
+        assert!(
+            e.contains("[tx] model") && e.contains("gotmic-eband-tx"),
+            "{e}"
+        );
+        let driven_without_resource = MANUAL.replace(
+            "[rx]\ndriver = \"manual\"\n",
+            "[rx]\nmodel = \"gotmic-eband-rx\"\n",
+        );
         let e = BenchFile::parse(&driven_without_resource, Path::new("b.toml")).unwrap_err();
         assert!(
             e.to_string().contains("[rx] resource: missing")

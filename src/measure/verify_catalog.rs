@@ -64,7 +64,10 @@ pub struct CatalogCheck {
 impl CatalogCheck {
     /// How many values have this verdict's word.
     pub fn count(&self, word: &str) -> usize {
-        self.values.iter().filter(|v| v.verdict.word() == word).count()
+        self.values
+            .iter()
+            .filter(|v| v.verdict.word() == word)
+            .count()
     }
 }
 
@@ -90,7 +93,10 @@ fn past_deadline() -> Verdict {
 fn unqueryable(model: &InstrumentModel) -> Vec<(String, String)> {
     let mut out = Vec::new();
     if let Some(a) = &model.awg {
-        out.push(("awg.dac_rate_default".into(), format!("{:e} Sa/s", a.dac_rate_default)));
+        out.push((
+            "awg.dac_rate_default".into(),
+            format!("{:e} Sa/s", a.dac_rate_default),
+        ));
         out.push((
             "awg.internal_memory_samples".into(),
             a.internal_memory_samples.to_string(),
@@ -103,7 +109,10 @@ fn unqueryable(model: &InstrumentModel) -> Vec<(String, String)> {
     }
     if let Some(d) = &model.digitizer {
         let rates: Vec<String> = d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
-        out.push(("digitizer.sample_rates".into(), format!("{} Sa/s", rates.join(", "))));
+        out.push((
+            "digitizer.sample_rates".into(),
+            format!("{} Sa/s", rates.join(", ")),
+        ));
         out.push((
             "digitizer.max_points_per_channel".into(),
             d.max_points_per_channel.to_string(),
@@ -136,10 +145,7 @@ async fn bounded<T>(
 ) -> Result<T, String> {
     match tokio::time::timeout(EXCHANGE_LIMIT, work).await {
         Ok(r) => r.map_err(|e| e.to_string()),
-        Err(_) => Err(format!(
-            "no identity within {} s",
-            EXCHANGE_LIMIT.as_secs()
-        )),
+        Err(_) => Err(format!("no identity within {} s", EXCHANGE_LIMIT.as_secs())),
     }
 }
 
@@ -185,7 +191,11 @@ pub async fn verify_catalog(
     ];
     for (name, entry) in [("tx", &file.tx), ("rx", &file.rx)] {
         if let Some(e) = entry {
-            instruments.push((name, parse(&e.resource, name)?, catalog.get(&e.model)?.clone()));
+            instruments.push((
+                name,
+                parse(&e.resource, name)?,
+                catalog.get(&e.model)?.clone(),
+            ));
         }
     }
     let mut values = Vec::new();
@@ -211,16 +221,12 @@ pub async fn verify_catalog(
             let j = journal.clone();
             let r = resource.clone();
             identity_verdict(match model.instrument.kind {
-                InstrumentKind::Awg => {
-                    bounded(open::open_awg(r, model, j, name))
-                        .await
-                        .map(|d| d.identity().to_string())
-                }
-                InstrumentKind::Digitizer => {
-                    bounded(open::open_digitizer(r, model, j, name))
-                        .await
-                        .map(|d| d.identity().to_string())
-                }
+                InstrumentKind::Awg => bounded(open::open_awg(r, model, j, name))
+                    .await
+                    .map(|d| d.identity().to_string()),
+                InstrumentKind::Digitizer => bounded(open::open_digitizer(r, model, j, name))
+                    .await
+                    .map(|d| d.identity().to_string()),
                 InstrumentKind::RfTx | InstrumentKind::RfRx => {
                     bounded(open::open_rf(r, model, j, name))
                         .await
@@ -359,7 +365,10 @@ mod tests {
 
     #[test]
     fn options_compare_as_sets() {
-        assert_eq!(option_set("\"004,001, 16G,002\""), option_set("001,002,004,16G"));
+        assert_eq!(
+            option_set("\"004,001, 16G,002\""),
+            option_set("001,002,004,16G")
+        );
         assert_ne!(option_set("001,002"), option_set("001,002,004,16G"));
         assert!(option_set("0").is_empty());
     }

@@ -64,7 +64,11 @@ async fn manual_bench(dir: &Path) -> (Lab, PathBuf) {
 /// radbench sent the modules nothing, left them as the operator set them, and the AWG is off.
 fn untouched_and_awg_off(lab: &Lab) {
     for module in [&lab.bench.tx, &lab.bench.rx] {
-        assert!(module.log().texts().is_empty(), "{:?}", module.log().texts());
+        assert!(
+            module.log().texts().is_empty(),
+            "{:?}",
+            module.log().texts()
+        );
         assert!(module.front_end().rf_enabled);
     }
     let pb = lab.bench.awg.playback();
@@ -128,7 +132,13 @@ async fn capture_needs_the_operator_s_confirmation() {
         "{err}"
     );
     assert!(!dir.path().join("refused").exists());
-    assert!(lab.bench.awg.playback().channels.iter().all(|c| !c.output_on));
+    assert!(lab
+        .bench
+        .awg
+        .playback()
+        .channels
+        .iter()
+        .all(|c| !c.output_on));
     untouched_and_awg_off(&lab);
     // Confirmed: the capture runs on the modules as the operator set them.
     let confirmed = args("confirmed");
@@ -138,7 +148,10 @@ async fn capture_needs_the_operator_s_confirmation() {
     assert!(err.contains("confirmed: the Tx and Rx settings"), "{err}");
     assert!(err.contains(SWITCHED_OFF), "{err}");
     let summary = std::fs::read_to_string(dir.path().join("confirmed/summary.json")).unwrap();
-    assert!(summary.contains("manual,gotmic-eband-tx,not connected"), "{summary}");
+    assert!(
+        summary.contains("manual,gotmic-eband-tx,not connected"),
+        "{summary}"
+    );
     untouched_and_awg_off(&lab);
 }
 

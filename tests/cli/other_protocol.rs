@@ -48,7 +48,8 @@ async fn another_protocol_drives_the_modules_with_no_code_change() {
     );
     std::fs::write(dir.path().join("bench.toml"), bench).unwrap();
 
-    let (code, out, err) = radbench_in(Some(dir.path()), &["doctor", "--bench", "bench.toml"]).await;
+    let (code, out, err) =
+        radbench_in(Some(dir.path()), &["doctor", "--bench", "bench.toml"]).await;
     assert_eq!(code, 0, "{out}\n{err}");
     assert!(
         out.contains("tx.crc_mode") && out.contains("the module speaks plain lines"),
@@ -63,7 +64,14 @@ async fn another_protocol_drives_the_modules_with_no_code_change() {
         LIMIT,
         radbench_in(
             Some(dir.path()),
-            &["capture", "--bench", "bench.toml", "--allow-rf", "--out", "run"],
+            &[
+                "capture",
+                "--bench",
+                "bench.toml",
+                "--allow-rf",
+                "--out",
+                "run",
+            ],
         ),
     )
     .await

@@ -12,7 +12,10 @@ async fn the_catalog_is_checked_on_the_instruments() {
     let verify = ["doctor", "--bench", &bench, "--verify-catalog"];
     let (code, out, err) = radbench_in(Some(dir.path()), &verify).await;
     assert_eq!(code, 0, "{out}\n{err}");
-    assert!(out.contains("awg.options") && out.contains("0 differ"), "{out}");
+    assert!(
+        out.contains("awg.options") && out.contains("0 differ"),
+        "{out}"
+    );
     let rows = out.lines().filter(|l| !l.starts_with(' '));
     for line in rows.filter(|l| l.contains(" identity ") || l.contains(" awg.options ")) {
         assert!(line.ends_with("confirmed"), "{line}\n{out}");
@@ -21,7 +24,9 @@ async fn the_catalog_is_checked_on_the_instruments() {
     assert!(out.contains("cannot be queried"), "{out}");
 
     // A unit with other options.
-    lab.bench.awg.set_options(Some(vec!["001".into(), "002".into()]));
+    lab.bench
+        .awg
+        .set_options(Some(vec!["001".into(), "002".into()]));
     let mut with_overrides = verify.to_vec();
     with_overrides.extend(["--write-overrides", "overrides", "--json"]);
     let (code, out, err) = radbench_in(Some(dir.path()), &with_overrides).await;
@@ -41,7 +46,10 @@ async fn the_catalog_is_checked_on_the_instruments() {
     assert!(err.contains("catalog = \"overrides\""), "{err}");
 
     // The bench pointed at the overrides: confirmed.
-    let pointed = format!("catalog = \"overrides\"\n{}", std::fs::read_to_string(&bench).unwrap());
+    let pointed = format!(
+        "catalog = \"overrides\"\n{}",
+        std::fs::read_to_string(&bench).unwrap()
+    );
     std::fs::write(&bench, pointed).unwrap();
     let (code, out, err) = radbench_in(Some(dir.path()), &verify).await;
     assert_eq!(code, 0, "{out}\n{err}");

@@ -293,9 +293,9 @@ impl Gotmic {
         let outcome = self
             .check_crc(request, crc_mode)
             .and_then(|framed| {
-                framed.strip_prefix(prefix).ok_or_else(|| {
-                    refuse("syntax", format!("requests start with {prefix:?}"))
-                })
+                framed
+                    .strip_prefix(prefix)
+                    .ok_or_else(|| refuse("syntax", format!("requests start with {prefix:?}")))
             })
             .and_then(|body| self.handle(&mut st, body.trim()));
         let reply = match outcome {
@@ -576,7 +576,10 @@ mod tests {
 
     #[test]
     fn request_templates() {
-        assert_eq!(match_template("R {address}", "r 03"), Some([Some("03"), None]));
+        assert_eq!(
+            match_template("R {address}", "r 03"),
+            Some([Some("03"), None])
+        );
         assert_eq!(
             match_template("W {address} {value}", "W 02 000F"),
             Some([Some("02"), Some("000F")])
@@ -587,7 +590,10 @@ mod tests {
         );
         assert_eq!(match_template("R {address}", "R 03 04"), None);
         assert_eq!(match_template("R {address}", "W 03"), None);
-        assert_eq!(match_template("GET {address}?", "GET 7?"), Some([Some("7"), None]));
+        assert_eq!(
+            match_template("GET {address}?", "GET 7?"),
+            Some([Some("7"), None])
+        );
         assert_eq!(match_template("GET {address}?", "GET 7"), None);
     }
 }

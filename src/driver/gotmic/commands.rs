@@ -57,15 +57,19 @@ impl Grammar {
     }
 
     pub(crate) fn read(&self, address: u8) -> String {
-        self.p
-            .read
-            .replace("{address}", &self.p.address_format.write(u16::from(address)))
+        self.p.read.replace(
+            "{address}",
+            &self.p.address_format.write(u16::from(address)),
+        )
     }
 
     pub(crate) fn write(&self, address: u8, value: u16) -> String {
         self.p
             .write
-            .replace("{address}", &self.p.address_format.write(u16::from(address)))
+            .replace(
+                "{address}",
+                &self.p.address_format.write(u16::from(address)),
+            )
             .replace("{value}", &self.p.value_format.write(value))
     }
 

@@ -293,7 +293,10 @@ impl Gotmic {
             name: name.to_string(),
         };
         let checksum_on = match framing {
-            Framing::Crc8(_) => driver.grammar.checksum_on().map(|on| driver.grammar.request(on)),
+            Framing::Crc8(_) => driver
+                .grammar
+                .checksum_on()
+                .map(|on| driver.grammar.request(on)),
             Framing::Plain => None,
         };
         if let Some(on) = checksum_on {
