@@ -371,6 +371,10 @@ impl control::Panel for ScopeSwitch {
         if let Some(m) = rx {
             self.bench.rx.set_crc_fixed(m);
         }
+        if let Some(options) = &fault.awg_options {
+            let answer = (!options.is_empty()).then(|| options.clone());
+            self.bench.awg.set_options(answer);
+        }
         if let Some(faults) = links.drop {
             faults.drop_next_reply_midway();
         }

@@ -3,6 +3,26 @@
 //! file the bench file can point to, after which the value is confirmed.
 
 use super::support::{lab_bench_file, radbench_in, start_lab};
+use std::time::Duration;
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+/// One request on the lab's control channel and its one-line answer.
+async fn control(lab: &mock_lab::lab::Lab, request: &str) -> serde_json::Value {
+    let stream = tokio::net::TcpStream::connect(lab.control).await.unwrap();
+    let (rd, mut wr) = stream.into_split();
+    wr.write_all(format!("{request}\n").as_bytes())
+        .await
+        .unwrap();
+    let mut line = String::new();
+    tokio::time::timeout(
+        Duration::from_secs(10),
+        BufReader::new(rd).read_line(&mut line),
+    )
+    .await
+    .unwrap()
+    .unwrap();
+    serde_json::from_str(&line).unwrap()
+}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_catalog_is_checked_on_the_instruments() {
@@ -23,10 +43,9 @@ async fn the_catalog_is_checked_on_the_instruments() {
     assert!(out.contains("digitizer.max_sequence_segments"), "{out}");
     assert!(out.contains("cannot be queried"), "{out}");
 
-    // A unit with other options.
-    lab.bench
-        .awg
-        .set_options(Some(vec!["001".into(), "002".into()]));
+    // A unit with other options, set through the lab's control channel.
+    let answer = control(&lab, r#"{"cmd":"fault","awg_options":["001","002"]}"#).await;
+    assert_ne!(answer["ok"], false, "{answer}");
     let mut with_overrides = verify.to_vec();
     with_overrides.extend(["--write-overrides", "overrides", "--json"]);
     let (code, out, err) = radbench_in(Some(dir.path()), &with_overrides).await;

@@ -61,7 +61,7 @@ pub struct M8195a {
 impl M8195a {
     /// Makes `*OPT?` answer `options` (a unit with other options than the catalog lists, for
     /// `doctor --verify-catalog`'s tests); `None`: the catalog's again.
-    pub fn set_options(&self, options: Option<Vec<String>>) {
+    pub(crate) fn set_options(&self, options: Option<Vec<String>>) {
         self.lock().options = options;
     }
 
