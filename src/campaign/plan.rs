@@ -333,6 +333,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         driver: None,
         volts_per_div: None,
         attenuation_db: None,
+        rf_frequency_hz: None,
     };
     BenchFile {
         catalog: None,
@@ -347,6 +348,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
             measured_at: None,
             response: None,
         }),
+        manual: Vec::new(),
         lines: Default::default(),
         path: PathBuf::from("(built-in mock lab)"),
     }

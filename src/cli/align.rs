@@ -93,6 +93,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);

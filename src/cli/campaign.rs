@@ -472,6 +472,8 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         .into());
     }
     a.timeout.apply()?;
+    let _manual =
+        super::manual_front::confirm(bench.file.as_ref().map(|(_, f)| f), "campaign run")?;
     let interrupt = Interrupt::listen()?;
     let out = a.out.clone().unwrap_or_else(|| {
         // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`,
@@ -573,6 +575,11 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
     }
     a.timeout.apply()?;
     let retries = retries(a.retries)?;
+    // The run's bench file, as its manifest names it (a missing manifest is the resume's error).
+    let bench_file = campaign::Manifest::load(&a.run_dir)
+        .ok()
+        .and_then(|m| m.plan.bench.file);
+    let _manual = super::manual_front::confirm_file(bench_file.as_deref(), "campaign resume")?;
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
     let live = a.live.start(&interrupt, a.json).await?;

@@ -273,6 +273,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;

@@ -579,6 +579,17 @@ pub async fn run(
             }
         }
     }
+    for m in &file.manual {
+        list.warn(
+            format!("{}.driver", m.section),
+            format!(
+                "manual (driver = \"manual\"): radbench does not talk to the {} module and \
+                 cannot switch it off; runs ask the operator to confirm its settings",
+                m.name()
+            ),
+            super::manual::manual_doctor_fix(m),
+        );
+    }
     for (name, g) in &mut modules {
         let limits = fronts
             .iter()
@@ -786,6 +797,11 @@ async fn marker_check(
     deadline: Duration,
 ) -> Result<(), MeasureError> {
     let awg: Shared<dyn Awg> = safe_state::share(awg);
+    let fronts_off = if modules.is_empty() {
+        "no front end driven by radbench"
+    } else {
+        "the front ends it drives off"
+    };
     let mut tx = None;
     let mut rx = None;
     for (name, g) in modules {
@@ -898,7 +914,7 @@ async fn marker_check(
     if safe_ok {
         list.pass(
             "safe_state",
-            "after the checks: AWG outputs off and stopped, front ends off",
+            format!("after the checks: AWG outputs off and stopped, {fronts_off}"),
         );
     } else {
         list.fail(

@@ -26,6 +26,8 @@
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
 //! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
+//! | `verify_catalog` | `doctor --verify-catalog`: the catalog's inferred values asked of the instruments; override files |
+//! | `manual` | front ends with `driver = "manual"`: the operator's instructions, confirmation and exit note |
 
 pub(crate) mod ambiguity;
 pub(crate) mod bench;
@@ -41,6 +43,7 @@ pub(crate) mod family;
 pub(crate) mod figure;
 pub(crate) mod interrupt;
 pub(crate) mod listed;
+pub(crate) mod manual;
 pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
@@ -57,6 +60,7 @@ pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
 pub(crate) mod station;
 pub(crate) mod transmit;
+pub(crate) mod verify_catalog;
 
 pub use ambiguity::*;
 pub use bench::*;
@@ -67,6 +71,7 @@ pub use doctor::*;
 pub use export::*;
 pub use figure::*;
 pub use interrupt::*;
+pub use manual::{confirms, manual_exit_note, manual_instructions, manual_refused};
 pub use numbers::*;
 pub use options::*;
 pub use pipeline::*;
@@ -76,6 +81,7 @@ pub use reprocess::*;
 pub use response::*;
 pub use response_run::*;
 pub use station::*;
+pub use verify_catalog::*;
 
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).
