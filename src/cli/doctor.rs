@@ -35,7 +35,13 @@ pub struct Args {
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     args.timeout.apply()?;
     if args.verify_catalog {
-        return super::verify_catalog::run(&args, global);
+        let request = super::verify_catalog::Request {
+            bench: args.bench.as_deref(),
+            scope_model: &args.scope_model,
+            json: args.json,
+            write_overrides: args.write_overrides.as_deref(),
+        };
+        return super::verify_catalog::run(request, global);
     }
     let runtime = super::runtime()?;
     runtime.block_on(async {

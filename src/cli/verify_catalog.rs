@@ -6,10 +6,19 @@ use super::capture::{bench_source, journal, open_bench};
 use radbench::exit::{Classified, ExitClass};
 use radbench::measure::{self, AwgLink, CatalogCheck, ScopeLink, Verdict};
 
-pub(crate) fn run(args: &super::doctor::Args, global: &super::Global) -> anyhow::Result<()> {
+/// What `doctor --verify-catalog` was given (the doctor's own arguments, without importing
+/// the doctor: it calls this).
+pub(crate) struct Request<'a> {
+    pub bench: Option<&'a std::path::Path>,
+    pub scope_model: &'a super::scope_model::ScopeModelArgs,
+    pub json: bool,
+    pub write_overrides: Option<&'a std::path::Path>,
+}
+
+pub(crate) fn run(args: Request<'_>, global: &super::Global) -> anyhow::Result<()> {
     super::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
-            args.bench.as_deref(),
+            args.bench,
             None,
             AwgLink::Hislip,
             ScopeLink::Vicp,
@@ -21,7 +30,7 @@ pub(crate) fn run(args: &super::doctor::Args, global: &super::Global) -> anyhow:
         } else {
             super::terminal::out(&text(&check))?;
         }
-        if let Some(dir) = &args.write_overrides {
+        if let Some(dir) = args.write_overrides {
             let written = measure::write_overrides(&check, &bench.file.catalog()?, dir)?;
             for path in &written {
                 eprintln!("wrote {}", path.display());

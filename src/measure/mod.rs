@@ -81,7 +81,7 @@ pub use reprocess::*;
 pub use response::*;
 pub use response_run::*;
 pub use station::*;
-pub use verify_catalog::*;
+pub use verify_catalog::{verify_catalog, write_overrides, CatalogCheck, CatalogValue, Verdict};
 
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).
