@@ -43,7 +43,6 @@ pub fn export_run(
     progress: &mut dyn FnMut(&str, usize, usize),
 ) -> Result<RunExported, CampaignError> {
     let manifest = Manifest::load(dir)?;
-    let algorithms = manifest.plan.algorithm_names();
     let done: Vec<_> = manifest
         .steps
         .iter()
@@ -65,6 +64,14 @@ pub fn export_run(
                 message: format!("step {}: {}", step.index, e.reason),
             }
         })?;
+        // The step's own algorithms (a step may set its own: `algorithm` in a sweep).
+        let variant = manifest
+            .plan
+            .steps
+            .iter()
+            .find(|s| s.index == step.index)
+            .map_or(0, |s| s.processing);
+        let algorithms = manifest.plan.algorithm_names_of(variant);
         let others = algorithms[1..]
             .iter()
             .map(|name| algorithm_options(&step_dir, name))
@@ -93,7 +100,7 @@ pub fn export_run(
             "created": manifest.created,
             "dir": dir,
         },
-        "algorithms": algorithms,
+        "algorithms": manifest.plan.algorithm_names(),
         "steps": steps,
         "pending_steps": pending,
         "nominal": manifest.plan.steps.iter().map(|s| json!({

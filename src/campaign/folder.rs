@@ -291,7 +291,8 @@ pub(super) fn check_calibration(
     ));
     let copy = dir.join(&rec.copy);
     let copy = std::path::absolute(&copy).unwrap_or(copy);
-    for o in &mut plan.processing {
+    let variants = plan.processing_variants.iter_mut().flatten();
+    for o in plan.processing.iter_mut().chain(variants) {
         if let Some(c) = &mut o.correction {
             c.calibration = copy.display().to_string();
         }

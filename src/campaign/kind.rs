@@ -3,6 +3,12 @@
 //! step, whether only a simulated bench can set it, the `results.json` metrics its figures read
 //! and the report's figures of its steps.
 //!
+//! Beside the kinds, [`SETTINGS`] is the table of every setting a step can set (a `[[sweep]]`
+//! axis or a `[[steps]]` key): its name, unit, how its value reads and what it sets in the step.
+//! A new sweepable setting is one row there (and, when a bench must check it, a line in
+//! `plan::check_nominal`). The six settings that are also kinds (`position`, `separation`,
+//! `bandwidth`, `tx-attenuation`, `snr`, `velocity`) set the step as their kind does.
+//!
 //! Adding a kind: a variant here and its arm in [`SweepParameter::kind`], its figure function
 //! (`report/figures.rs`) when it has figures of its own, and its commented spec
 //! (`examples/<kind>.toml`, listed in `builtin::TEMPLATES` for `radbench campaign new`).
@@ -12,6 +18,8 @@ use super::plan::{Nominal, Range, MAX_VELOCITY_MPS};
 use super::report::figures::{self, Figure};
 use super::results::StepResult;
 use super::spec::{SpecError, SpecFile, SweepSection};
+use crate::measure::capture::MAX_REPETITIONS;
+use crate::measure::{Algorithm, WindowName};
 use serde::{Deserialize, Serialize};
 
 /// `sweep.parameter`: what a sweep moves, one value per step.
@@ -43,8 +51,6 @@ pub(crate) struct Kind {
     /// Only a simulated bench can set it (the built-in mock lab, or a bench file with
     /// `[simulation]`).
     pub simulated_only: bool,
-    /// Its values place the targets (the steps' `targets` are the sweep's values).
-    pub places_targets: bool,
     /// What a value sets in the step (the targets, the bandwidth, ...).
     pub set: fn(&mut Nominal, f64, &SweepAt<'_>) -> Result<(), SpecError>,
     /// The `results.json` metrics (of each algorithm) its own figures plot: what a reader of the
@@ -64,11 +70,15 @@ pub(crate) struct KindFigures {
     pub draw: fn(&Manifest, &[&StepResult]) -> Vec<Figure>,
 }
 
-/// Where a sweep's value is set: the spec (for errors), its `[sweep]`, the step (0-based).
+/// Where a setting's value is set: the spec (for errors), its `[[sweep]]` table (an empty one
+/// for a `[[steps]]` entry), the setting's row, the field naming the value and the prefix of its
+/// sibling fields (`sweep`, `sweep[1]`, `steps[3]`).
 pub(crate) struct SweepAt<'a> {
     pub spec: &'a SpecFile,
     pub sweep: &'a SweepSection,
-    pub k: usize,
+    pub setting: &'a Setting,
+    pub value_field: String,
+    pub prefix: String,
 }
 
 impl SweepParameter {
@@ -90,7 +100,6 @@ impl SweepParameter {
                 unit: "m",
                 show: |v| format!("{v:.3} m"),
                 simulated_only: false,
-                places_targets: true,
                 set: set_position,
                 metrics: &["error_m", "error_on_grid_m", "targets"],
                 figures: Some(KindFigures {
@@ -103,7 +112,6 @@ impl SweepParameter {
                 unit: "m",
                 show: |v| format!("{v:.3} m"),
                 simulated_only: false,
-                places_targets: true,
                 set: set_separation,
                 metrics: &[],
                 figures: None,
@@ -113,7 +121,6 @@ impl SweepParameter {
                 unit: "Hz",
                 show: |v| format!("{} GHz", v / 1e9),
                 simulated_only: false,
-                places_targets: false,
                 set: |n, v, _| {
                     n.bandwidth_hz = v;
                     Ok(())
@@ -126,7 +133,6 @@ impl SweepParameter {
                 unit: "dB",
                 show: |v| format!("{v} dB"),
                 simulated_only: false,
-                places_targets: false,
                 set: |n, v, _| {
                     n.tx_attenuation_db = Some(v);
                     Ok(())
@@ -139,7 +145,6 @@ impl SweepParameter {
                 unit: "dB",
                 show: |v| format!("{v} dB"),
                 simulated_only: true,
-                places_targets: false,
                 set: |n, v, _| {
                     n.snr_db = Some(v);
                     Ok(())
@@ -152,7 +157,6 @@ impl SweepParameter {
                 unit: "m/s",
                 show: |v| format!("{v} m/s"),
                 simulated_only: true,
-                places_targets: false,
                 set: set_velocity,
                 metrics: &["error_m", "truth_error_m"],
                 figures: Some(KindFigures {
@@ -161,6 +165,11 @@ impl SweepParameter {
                 }),
             },
         }
+    }
+
+    /// The kind named `name`, if any.
+    pub(crate) fn from_name(name: &str) -> Option<SweepParameter> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
     /// As the spec spells it.
@@ -201,7 +210,7 @@ fn set_position(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecErr
     let which = at.sweep.target.unwrap_or(0);
     if which >= t.len() {
         return Err(at.spec.error(
-            "sweep.target",
+            &format!("{}.target", at.prefix),
             format!(
                 "{which}: sweep.targets holds {} targets (0-based index)",
                 t.len()
@@ -219,16 +228,15 @@ fn set_separation(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecE
         match at.sweep.targets.as_deref() {
             Some([first]) => *first,
             _ => return Err(at.spec.error(
-                "sweep.targets",
+                &format!("{}.targets", at.prefix),
                 "a separation sweep needs targets = [R]: the first target's range, metres (the \
                  second stands R + separation)",
             )),
         };
     if v <= 0.0 {
-        return Err(at.spec.error(
-            &format!("sweep.values[{}]", at.k),
-            format!("{v}: a separation above 0 m"),
-        ));
+        return Err(at
+            .spec
+            .error(&at.value_field, format!("{v}: a separation above 0 m")));
     }
     n.targets = sorted_ranges(vec![base, base + v]);
     Ok(())
@@ -238,7 +246,7 @@ fn set_separation(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecE
 fn set_velocity(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecError> {
     if v.abs() > MAX_VELOCITY_MPS {
         return Err(at.spec.error(
-            &format!("sweep.values[{}]", at.k),
+            &at.value_field,
             format!("{v}: allowed -{MAX_VELOCITY_MPS} ..= {MAX_VELOCITY_MPS} m/s"),
         ));
     }
@@ -275,6 +283,282 @@ pub(crate) fn has_own_figures(s: &StepResult) -> bool {
     s.nominal
         .parameter
         .is_some_and(|p| p.kind().figures.is_some())
+}
+
+// ---- Every setting a step can set --------------------------------------------------------
+
+/// One value of a setting: a number in its unit, or a name (`window`, `algorithm`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum AxisValue {
+    Number(f64),
+    Name(String),
+}
+
+impl std::fmt::Display for AxisValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AxisValue::Number(v) => write!(f, "{v}"),
+            AxisValue::Name(n) => f.write_str(n),
+        }
+    }
+}
+
+impl AxisValue {
+    /// The number, when it is one.
+    pub fn number(&self) -> Option<f64> {
+        match self {
+            AxisValue::Number(v) => Some(*v),
+            AxisValue::Name(_) => None,
+        }
+    }
+}
+
+/// A swept setting's value at one step (`results.csv` has a column per name).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisSetting {
+    /// As the table of settings spells it.
+    pub name: String,
+    pub value: AxisValue,
+}
+
+/// How a setting's values read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Reads {
+    /// A finite number in the unit.
+    Number,
+    /// A whole number (`start`/`step` whole too).
+    Count,
+    /// A name of a list (`values = ["hann", "taylor"]`).
+    Name(&'static [&'static str]),
+}
+
+/// One row: everything that depends on a setting.
+pub(crate) struct Setting {
+    /// As `[[sweep]] parameter` and `[[steps]]` spell it.
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub reads: Reads,
+    /// The step's field it sets (errors found after planning name it).
+    pub field: &'static str,
+    /// Sets the value in the step; errors name `at.value_field`.
+    pub apply: fn(&mut Nominal, &AxisValue, &SweepAt<'_>) -> Result<(), SpecError>,
+}
+
+const WINDOWS: &[&str] = &["rect", "hann", "taylor", "chebyshev"];
+const ALGORITHMS: &[&str] = &["correlation", "fourier", "music", "root-music", "esprit"];
+
+/// Every setting a step can set (see the module docs).
+pub(crate) const SETTINGS: &[Setting] = &[
+    kind_row("position", "targets"),
+    kind_row("separation", "targets"),
+    kind_row("bandwidth", "bandwidth_hz"),
+    kind_row("tx-attenuation", "tx_attenuation_db"),
+    kind_row("snr", "snr_db"),
+    kind_row("velocity", "velocity_mps"),
+    Setting {
+        name: "rx-attenuation",
+        unit: "dB",
+        reads: Reads::Number,
+        field: "rx_attenuation_db",
+        apply: |n, v, at| {
+            n.rx_attenuation_db = Some(number(v, at)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "awg-amplitude",
+        unit: "Vpp",
+        reads: Reads::Number,
+        field: "awg_amplitude_vpp",
+        apply: |n, v, at| {
+            n.awg_amplitude_vpp = Some(number(v, at)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "volts-per-div",
+        unit: "V/div",
+        reads: Reads::Number,
+        field: "volts_per_div",
+        apply: |n, v, at| {
+            n.volts_per_div = Some(number(v, at)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "pulse-length",
+        unit: "s",
+        reads: Reads::Number,
+        field: "pulse_s",
+        apply: |n, v, at| {
+            n.pulse_s = Some(number(v, at)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "bits",
+        unit: "bits per pulse",
+        reads: Reads::Count,
+        field: "bits_per_pulse",
+        apply: |n, v, at| {
+            n.bits_per_pulse = Some(count(v, at, 1, usize::MAX)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "subcarriers",
+        unit: "subcarriers",
+        reads: Reads::Count,
+        field: "subcarriers",
+        apply: |n, v, at| {
+            n.subcarriers = Some(count(v, at, 1, usize::MAX)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "repetitions",
+        unit: "repetitions",
+        reads: Reads::Count,
+        field: "repetitions",
+        apply: |n, v, at| {
+            n.repetitions = Some(count(v, at, 1, MAX_REPETITIONS)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "window",
+        unit: "",
+        reads: Reads::Name(WINDOWS),
+        field: "window",
+        apply: |n, v, at| {
+            n.window = Some(named::<WindowName>(v, at, WINDOWS)?);
+            Ok(())
+        },
+    },
+    Setting {
+        name: "algorithm",
+        unit: "",
+        reads: Reads::Name(ALGORITHMS),
+        field: "algorithm",
+        apply: |n, v, at| {
+            n.algorithm = Some(named::<Algorithm>(v, at, ALGORITHMS)?);
+            Ok(())
+        },
+    },
+];
+
+/// A kind's row: its unit and what it sets come from campaign/kind.rs.
+const fn kind_row(name: &'static str, field: &'static str) -> Setting {
+    Setting {
+        name,
+        unit: "",
+        reads: Reads::Number,
+        field,
+        apply: apply_kind,
+    }
+}
+
+fn apply_kind(n: &mut Nominal, v: &AxisValue, at: &SweepAt<'_>) -> Result<(), SpecError> {
+    let p = SweepParameter::from_name(at.setting.name).expect("a kind's row names a kind");
+    (p.kind().set)(n, number(v, at)?, at)
+}
+
+impl Setting {
+    /// The row of `name`.
+    pub(crate) fn named(name: &str) -> Option<&'static Setting> {
+        SETTINGS.iter().find(|s| s.name == name)
+    }
+
+    /// The kind of the same name, when it is one.
+    pub(crate) fn kind(&self) -> Option<SweepParameter> {
+        SweepParameter::from_name(self.name)
+    }
+
+    /// The values' unit (a kind's from its table).
+    pub(crate) fn unit(&self) -> &'static str {
+        match self.kind() {
+            Some(p) => p.unit(),
+            None => self.unit,
+        }
+    }
+
+    /// The axis label of a figure: `awg-amplitude (Vpp)`, `window`.
+    pub(crate) fn label(&self) -> String {
+        match self.unit() {
+            "" => self.name.to_string(),
+            u => format!("{} ({u})", self.name),
+        }
+    }
+}
+
+/// Every setting's name, for an error's "allowed".
+pub(crate) fn allowed_names() -> String {
+    SETTINGS
+        .iter()
+        .map(|s| s.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn number(v: &AxisValue, at: &SweepAt<'_>) -> Result<f64, SpecError> {
+    match v {
+        AxisValue::Number(x) if x.is_finite() => Ok(*x),
+        other => Err(at.spec.error(
+            &at.value_field,
+            format!(
+                "{other:?}: {} takes a finite number in {}",
+                at.setting.name,
+                at.setting.unit()
+            ),
+        )),
+    }
+}
+
+fn count(v: &AxisValue, at: &SweepAt<'_>, min: usize, max: usize) -> Result<usize, SpecError> {
+    let x = number(v, at)?;
+    if x.fract() == 0.0 && x >= min as f64 && x <= max as f64 {
+        return Ok(x as usize);
+    }
+    let upper = if max == usize::MAX {
+        String::new()
+    } else {
+        max.to_string()
+    };
+    Err(at.spec.error(
+        &at.value_field,
+        format!(
+            "{x}: {} takes a whole number {min}..={upper}",
+            at.setting.name
+        ),
+    ))
+}
+
+fn named<T: serde::de::DeserializeOwned>(
+    v: &AxisValue,
+    at: &SweepAt<'_>,
+    allowed: &[&str],
+) -> Result<T, SpecError> {
+    let bad = || {
+        at.spec.error(
+            &at.value_field,
+            format!(
+                "{v}: {} takes one of {}",
+                at.setting.name,
+                allowed
+                    .iter()
+                    .map(|a| format!("\"{a}\""))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )
+    };
+    match v {
+        AxisValue::Name(n) => {
+            serde_json::from_value(serde_json::Value::String(n.clone())).map_err(|_| bad())
+        }
+        AxisValue::Number(_) => Err(bad()),
+    }
 }
 
 #[cfg(test)]
@@ -316,6 +600,25 @@ mod tests {
                     "{p}: {m} is not a field of results.json's algorithm results"
                 );
             }
+        }
+    }
+    #[test]
+    fn every_kind_has_its_row_and_names_are_unique() {
+        for p in SweepParameter::ALL {
+            assert!(Setting::named(p.name()).is_some(), "{p}");
+        }
+        for (i, s) in SETTINGS.iter().enumerate() {
+            assert!(SETTINGS[..i].iter().all(|o| o.name != s.name), "{}", s.name);
+        }
+    }
+
+    #[test]
+    fn the_names_lists_are_the_serde_names() {
+        for w in WINDOWS {
+            let _: WindowName = serde_json::from_value(serde_json::json!(w)).unwrap();
+        }
+        for a in ALGORITHMS {
+            let _: Algorithm = serde_json::from_value(serde_json::json!(a)).unwrap();
         }
     }
 }

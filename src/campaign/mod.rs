@@ -6,7 +6,7 @@
 //! |---|---|
 //! | `spec` | the spec file: serde with unknown fields refused, errors at file:line:field |
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
-//! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table |
+//! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table; and the table of every setting a step can set (sweep axes, `[[steps]]` keys) |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
 //! | `manifest` | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
 //! | `manifest_store` | storing the manifest after each step, the step tables copied from the last file, not held in memory |
@@ -60,6 +60,7 @@ use crate::measure::MeasureError;
 use crate::measure::StopSignal;
 use std::path::PathBuf;
 
+pub use kind::{AxisSetting, AxisValue};
 pub use plan::Plan;
 pub use spec::{SpecError, SpecFile};
 

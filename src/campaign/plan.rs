@@ -5,7 +5,7 @@
 //! [`plan`] is pure; [`BenchInfo::load`] reads the bench file (or describes the built-in lab)
 //! without touching an instrument.
 
-use super::kind::{sorted_ranges, SweepAt, SweepParameter};
+use super::kind::{sorted_ranges, AxisSetting, AxisValue, Setting, SweepAt, SweepParameter};
 use super::spec::{PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
@@ -14,7 +14,7 @@ use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPET
 use crate::measure::scene_control::Scene;
 use crate::measure::CorrectionMode;
 use crate::measure::{planning_scope_resource, AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
-use crate::measure::{Algorithm, ProcessOptions};
+use crate::measure::{Algorithm, ProcessOptions, ProcessingChoices, WindowName};
 use crate::measure::{BenchCalibration, BenchFile, InstrumentEntry};
 use crate::waveform::{WaveformKind, WaveformSpec};
 use serde::{Deserialize, Serialize};
@@ -57,6 +57,10 @@ pub struct Plan {
     pub waveforms: Vec<WaveformSpec>,
     /// One entry per algorithm (first = the primary, whose capture files sit in the step folder).
     pub processing: Vec<ProcessOptions>,
+    /// The processing of steps that set their own window or algorithm: [`Step::processing`]
+    /// `i >= 1` is entry `i - 1` (one entry per algorithm, as `processing`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub processing_variants: Vec<Vec<ProcessOptions>>,
     /// The subspace algorithms take each step's number of targets as their model order
     /// (`music_p = "targets"`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -119,7 +123,7 @@ pub struct Range {
 }
 
 /// The set-points of one step, as planned.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Nominal {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub label: Option<String>,
@@ -140,6 +144,34 @@ pub struct Nominal {
     /// targets move at it; absent: they stand still, or keep the scene's own velocity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity_mps: Option<f64>,
+    /// Every swept setting's value at this step, outer axis first (`[[sweep]]` tables, or a
+    /// `[sweep]` of a setting that is not a kind): `results.csv` has a column per name.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub axes: Vec<AxisSetting>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rx_attenuation_db: Option<f64>,
+    /// The AWG's I and Q amplitude, volts peak to peak.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub awg_amplitude_vpp: Option<f64>,
+    /// The scope's vertical scale of both channels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub volts_per_div: Option<f64>,
+    /// MSK-LFM: the pulse length, seconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pulse_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bits_per_pulse: Option<usize>,
+    /// OFDM: the subcarriers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subcarriers: Option<usize>,
+    /// Marker-triggered repetitions of this step (absent: the spec's `repetitions`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repetitions: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<WindowName>,
+    /// The one algorithm this step is processed with (absent: the spec's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub algorithm: Option<Algorithm>,
 }
 
 impl Nominal {
@@ -155,6 +187,15 @@ impl Nominal {
         }
         if let (Some(p), Some(v)) = (self.parameter, self.value) {
             parts.push(format!("{p} {}", (p.kind().show)(v)));
+        }
+        for a in &self.axes {
+            let unit = Setting::named(&a.name).map_or("", |s| s.unit());
+            match (&a.value, unit) {
+                (AxisValue::Number(_), u) if !u.is_empty() => {
+                    parts.push(format!("{} {} {u}", a.name, a.value))
+                }
+                _ => parts.push(format!("{} {}", a.name, a.value)),
+            }
         }
         if !self.targets.is_empty() {
             let r: Vec<String> = self
@@ -184,6 +225,13 @@ pub struct Step {
     /// The subspace algorithms' model order at this step (`music_p = "targets"`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub music_p: Option<usize>,
+    /// Its processing: 0 the plan's, `i >= 1` [`Plan::processing_variants`]`[i - 1]`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub processing: usize,
+}
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
 }
 
 impl Step {
@@ -216,6 +264,49 @@ pub struct BenchInfo {
     pub simulated: bool,
     /// The Tx attenuation radbench can set, dB (`None`: the bench has no `[tx]`).
     pub tx_attenuation_db: Option<(f64, f64)>,
+    /// The Rx attenuation radbench can set, dB (`None`: the bench has no `[rx]`).
+    pub rx_attenuation_db: Option<(f64, f64)>,
+    /// The AWG's amplitude range, volts peak to peak (its catalog entry).
+    pub awg_amplitude_vpp: Option<(f64, f64)>,
+    /// The scope's vertical scales, V/div (its catalog entry).
+    pub volts_per_div: Option<(f64, f64)>,
+}
+
+/// The ranges of the bench's settings a step may set (its catalog's).
+struct Ranges {
+    tx: Option<(f64, f64)>,
+    rx: Option<(f64, f64)>,
+    awg: Option<(f64, f64)>,
+    vdiv: Option<(f64, f64)>,
+}
+
+fn ranges_of(catalog: &Catalog, file: &BenchFile) -> Ranges {
+    // The attenuation range the model's register allows.
+    let att = |entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
+        let model = catalog.get(&entry.as_ref()?.model).ok()?;
+        let step = model.rf.as_ref()?.attenuation_step_db;
+        let reg = model.registers.iter().find(|r| r.name == "GAIN_ATT")?;
+        Some((
+            f64::from(reg.min.unwrap_or(0)) * step,
+            f64::from(reg.max.unwrap_or(0)) * step,
+        ))
+    };
+    let awg = catalog
+        .get(&file.awg.model)
+        .ok()
+        .and_then(|m| m.awg.as_ref())
+        .map(|a| (a.amplitude_vpp_min, a.amplitude_vpp_max));
+    let vdiv = catalog
+        .get(&file.scope.model)
+        .ok()
+        .and_then(|m| m.digitizer.as_ref())
+        .map(|d| (d.volts_per_div_min, d.volts_per_div_max));
+    Ranges {
+        tx: att(&file.tx),
+        rx: att(&file.rx),
+        awg,
+        vdiv,
+    }
 }
 
 /// The models the built-in mock lab serves besides its scope (as `mock-lab serve` writes its bench
@@ -249,16 +340,6 @@ impl BenchInfo {
         built_in_only("awg_transport", section.awg_transport.is_some())?;
         built_in_only("scope_transport", section.scope_transport.is_some())?;
         built_in_only("scope_model", section.scope_model.is_some())?;
-        // The Tx attenuation range the model's register allows, from the bench's catalog.
-        let tx_range = |catalog: &Catalog, entry: &Option<InstrumentEntry>| -> Option<(f64, f64)> {
-            let model = catalog.get(&entry.as_ref()?.model).ok()?;
-            let step = model.rf.as_ref()?.attenuation_step_db;
-            let reg = model.registers.iter().find(|r| r.name == "GAIN_ATT")?;
-            Some((
-                f64::from(reg.min.unwrap_or(0)) * step,
-                f64::from(reg.max.unwrap_or(0)) * step,
-            ))
-        };
         match file {
             Some(path) => {
                 let bench = BenchFile::load(&path).map_err(crate::measure::MeasureError::from)?;
@@ -266,8 +347,12 @@ impl BenchInfo {
                     .catalog()
                     .map_err(crate::measure::MeasureError::from)?;
                 let path = std::path::absolute(&path).unwrap_or(path);
+                let r = ranges_of(&catalog, &bench);
                 Ok(BenchInfo {
-                    tx_attenuation_db: tx_range(&catalog, &bench.tx),
+                    tx_attenuation_db: r.tx,
+                    rx_attenuation_db: r.rx,
+                    awg_amplitude_vpp: r.awg,
+                    volts_per_div: r.vdiv,
                     simulated: bench.simulation.is_some(),
                     file: Some((path, bench)),
                     scene: None,
@@ -291,8 +376,12 @@ impl BenchInfo {
                 };
                 let file = built_in_bench_file(&scene, section.scope_model.unwrap_or_default());
                 let catalog = Catalog::embedded().map_err(crate::measure::MeasureError::from)?;
+                let r = ranges_of(&catalog, &file);
                 Ok(BenchInfo {
-                    tx_attenuation_db: tx_range(&catalog, &file.tx),
+                    tx_attenuation_db: r.tx,
+                    rx_attenuation_db: r.rx,
+                    awg_amplitude_vpp: r.awg,
+                    volts_per_div: r.vdiv,
                     file: None,
                     scene: Some(scene),
                     awg_transport: Some(section.awg_transport.unwrap_or_default()),
@@ -417,6 +506,30 @@ impl Plan {
         self.processing.iter().map(|o| o.algorithm.name()).collect()
     }
 
+    /// The processing of variant `v` (0: the plan's own; see [`Step::processing`]).
+    pub(crate) fn processing_of(&self, v: usize) -> &[ProcessOptions] {
+        match v {
+            0 => &self.processing,
+            v => &self.processing_variants[v - 1],
+        }
+    }
+
+    /// The algorithms' names of variant `v`, in order.
+    pub(crate) fn algorithm_names_of(&self, v: usize) -> Vec<&'static str> {
+        self.processing_of(v)
+            .iter()
+            .map(|o| o.algorithm.name())
+            .collect()
+    }
+
+    /// The repetitions of step `k` (0-based).
+    pub(crate) fn repetitions_at(&self, k: usize) -> usize {
+        self.steps[k]
+            .nominal
+            .repetitions
+            .unwrap_or(self.repetitions)
+    }
+
     /// Whether step `k` (0-based) places targets (its targets differ from the step before, or it
     /// is the first step of a session).
     pub(crate) fn moves_at(&self, k: usize, first_of_session: bool) -> bool {
@@ -456,11 +569,12 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         ));
     }
     let base = base_waveform(spec)?;
-    let mut processing = processing(spec, base.kind(), bench)?;
-    if let Some((mode, cal)) = correction(spec, bench)? {
+    let mut processing = processing(spec, &s.processing, base.kind(), bench)?;
+    let correction = correction(spec, bench)?;
+    if let Some((mode, cal)) = &correction {
         // Resolved once: every step's pipelines apply (and record) the same calibration.
         for o in &mut processing {
-            o.correction = Some(cal.used_as(mode));
+            o.correction = Some(cal.used_as(*mode));
         }
     }
     let from_targets = matches!(
@@ -472,11 +586,10 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     let min = processing[0].min_range_m;
     let max = processing[0].max_range_m;
     let mut waveforms: Vec<WaveformSpec> = Vec::new();
+    let mut variants: Vec<Vec<ProcessOptions>> = Vec::new();
     for (k, step) in steps.iter_mut().enumerate() {
         check_nominal(spec, bench, k, &step.nominal, (min, max))?;
-        let wf = base
-            .with_bandwidth(step.nominal.bandwidth_hz)
-            .map_err(|e| spec.error(&step_field(spec, k, "bandwidth_hz", None), e.to_string()))?;
+        let wf = step_waveform(spec, &base, k, &step.nominal)?;
         step.waveform = match waveforms.iter().position(|w| *w == wf) {
             Some(i) => i,
             None => {
@@ -484,6 +597,34 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
                 waveforms.len() - 1
             }
         };
+        let n = &step.nominal;
+        if n.window.is_some() || n.algorithm.is_some() {
+            let mut choices = s.processing.clone();
+            if let Some(w) = n.window {
+                choices.window = Some(w);
+            }
+            if let Some(a) = n.algorithm {
+                choices.algorithm = Some(a);
+                choices.algorithms.clear();
+            }
+            let mut own = processing_at(spec, k, &choices, wf.kind(), bench)?;
+            if let Some((mode, cal)) = &correction {
+                for o in &mut own {
+                    o.correction = Some(cal.used_as(*mode));
+                }
+            }
+            step.processing = if own == processing {
+                0
+            } else {
+                match variants.iter().position(|v| *v == own) {
+                    Some(i) => i + 1,
+                    None => {
+                        variants.push(own);
+                        variants.len()
+                    }
+                }
+            };
+        }
         if bench.simulated {
             step.noise_seed = Some(noise_seed(s.seed, step.index));
         }
@@ -505,7 +646,8 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     // MUSIC's M against each planned waveform, named in the spec (not as the CLI's --m).
     for wf in &waveforms {
         if let Some(subcarriers) = crate::measure::family::of(wf).subcarriers() {
-            for o in processing.iter().filter(|o| o.algorithm.is_subspace()) {
+            let every = processing.iter().chain(variants.iter().flatten());
+            for o in every.filter(|o| o.algorithm.is_subspace()) {
                 if o.music_m < 2 || o.music_m > subcarriers {
                     return Err(spec.error(
                         "processing.music_m",
@@ -550,6 +692,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         positioner,
         waveforms,
         processing,
+        processing_variants: variants,
         music_p_from_targets: from_targets,
         steps,
     })
@@ -603,22 +746,141 @@ fn check_nominal(
             ));
         }
     }
+    let levels = [
+        (
+            nominal.rx_attenuation_db,
+            bench.rx_attenuation_db,
+            "rx_attenuation_db",
+            "dB",
+            "the bench has no [rx] radbench controls: add the Rx to the bench file",
+        ),
+        (
+            nominal.awg_amplitude_vpp,
+            bench.awg_amplitude_vpp,
+            "awg_amplitude_vpp",
+            "Vpp",
+            "the bench's AWG model has no amplitude range in its catalog",
+        ),
+        (
+            nominal.volts_per_div,
+            bench.volts_per_div,
+            "volts_per_div",
+            "V/div",
+            "the bench's scope model has no vertical scales in its catalog",
+        ),
+    ];
+    for (value, range, field, unit, missing) in levels {
+        let Some(v) = value else { continue };
+        let Some((lo, hi)) = range else {
+            return Err(spec.error(&step_field(spec, k, field, None), missing));
+        };
+        if !(v.is_finite() && v >= lo && v <= hi) {
+            return Err(spec.error(
+                &step_field(spec, k, field, None),
+                format!("{v} {unit}: allowed {lo} ..= {hi} {unit} (the bench's catalog)"),
+            ));
+        }
+    }
     Ok(())
 }
 
 /// The field of step `k`: `steps[k].name` for an explicit list, the sweep's field otherwise.
 fn step_field(spec: &SpecFile, k: usize, name: &str, item: Option<usize>) -> String {
     let item = item.map(|i| format!("[{i}]")).unwrap_or_default();
-    if spec.spec.sweep.is_some() {
-        let p = spec.spec.sweep.as_ref().map(|s| s.parameter);
-        match (name, p) {
-            ("targets", Some(p)) if p.kind().places_targets => "sweep.values".into(),
-            ("targets", _) => format!("sweep.targets{item}"),
-            _ => "sweep.values".into(),
+    let Some(sweeps) = &spec.spec.sweep else {
+        // A [[steps]] entry may give the field by its setting's name.
+        let by_setting = super::kind::SETTINGS
+            .iter()
+            .find(|s| s.field == name && spec.spec.steps[k].settings.contains_key(s.name));
+        return match by_setting {
+            Some(s) => format!("steps[{k}].{}", s.name),
+            None => format!("steps[{k}].{name}{item}"),
+        };
+    };
+    let tables = sweeps.tables();
+    // The axis that sets the field, else the table naming the targets, else the first.
+    let sets = tables
+        .iter()
+        .find(|(_, sw)| Setting::named(&sw.parameter).is_some_and(|s| s.field == name));
+    match (name, sets) {
+        (_, Some((prefix, _))) => format!("{prefix}.values"),
+        ("targets", None) => {
+            let holder = tables.iter().find(|(_, sw)| sw.targets.is_some());
+            let prefix = holder
+                .or(tables.first())
+                .map_or("sweep", |(p, _)| p.as_str());
+            format!("{prefix}.targets{item}")
         }
-    } else {
-        format!("steps[{k}].{name}{item}")
+        _ => tables
+            .first()
+            .map_or("sweep".into(), |(p, _)| format!("{p}.values")),
     }
+}
+
+/// Step `k`'s waveform: the spec's with what the step sets (bandwidth, pulse, bits,
+/// subcarriers), checked as the spec's own.
+fn step_waveform(
+    spec: &SpecFile,
+    base: &WaveformSpec,
+    k: usize,
+    n: &Nominal,
+) -> Result<WaveformSpec, SpecError> {
+    let shaped = n.pulse_s.is_some() || n.bits_per_pulse.is_some() || n.subcarriers.is_some();
+    if !shaped {
+        return base
+            .with_bandwidth(n.bandwidth_hz)
+            .map_err(|e| spec.error(&step_field(spec, k, "bandwidth_hz", None), e.to_string()));
+    }
+    let w = &spec.spec.waveform;
+    let overrides = WaveformOverrides {
+        bandwidth_hz: Some(n.bandwidth_hz),
+        sample_rate_hz: w.sample_rate_hz,
+        pulse_s: n.pulse_s.or(w.pulse_s),
+        bits_per_pulse: n.bits_per_pulse.or(w.bits_per_pulse),
+        band: w.band,
+        subcarriers: n.subcarriers.or(w.subcarriers),
+        oversampling: w.oversampling,
+        cp_fraction: w.cp_fraction,
+        symbols: w.symbols,
+        preamble_symbols: w.preamble_symbols,
+    };
+    // The field of the step's own setting that the waveform refuses, else the bandwidth's.
+    let field = |f: &str| -> String {
+        let own = match f {
+            "pulse_s" if n.pulse_s.is_some() => Some("pulse_s"),
+            "bits_per_pulse" if n.bits_per_pulse.is_some() => Some("bits_per_pulse"),
+            "subcarriers" if n.subcarriers.is_some() => Some("subcarriers"),
+            _ => None,
+        };
+        step_field(spec, k, own.unwrap_or("bandwidth_hz"), None)
+    };
+    let out = overrides
+        .apply(w.kind)
+        .map_err(|e| spec.error(&field(e.field()), e.to_string()))?;
+    let guess = if n.subcarriers.is_some() {
+        "subcarriers"
+    } else if n.bits_per_pulse.is_some() {
+        "bits_per_pulse"
+    } else {
+        "pulse_s"
+    };
+    match out.samples_per_repetition() {
+        Ok(s) if s as f64 > MAX_SAMPLES_PER_REPETITION => {
+            return Err(spec.error(
+                &field(guess),
+                format!(
+                    "one repetition of {s} samples; allowed at most \
+                     {MAX_SAMPLES_PER_REPETITION:.0e}"
+                ),
+            ))
+        }
+        Ok(_) => {}
+        Err(e) => return Err(spec.error(&field(guess), e.to_string())),
+    }
+    crate::measure::family::of(&out)
+        .check()
+        .map_err(|e| spec.error(&field(guess), e.to_string()))?;
+    Ok(out)
 }
 
 /// The spec's waveform: the thesis' defaults with the parameters given.
@@ -661,13 +923,30 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
     Ok(spec_out)
 }
 
-/// One set of processing options per algorithm.
-fn processing(
+/// One set of processing options per algorithm of step `k`, which sets its own window or
+/// algorithm (errors name the step's field).
+fn processing_at(
     spec: &SpecFile,
+    k: usize,
+    choices: &ProcessingChoices,
     kind: WaveformKind,
     bench: &BenchInfo,
 ) -> Result<Vec<ProcessOptions>, SpecError> {
-    let p = &spec.spec.processing;
+    processing(spec, choices, kind, bench).map_err(|e| match e {
+        SpecError::Field { message, .. } => {
+            spec.error(&step_field(spec, k, "algorithm", None), message)
+        }
+        other => other,
+    })
+}
+
+/// One set of processing options per algorithm.
+fn processing(
+    spec: &SpecFile,
+    p: &ProcessingChoices,
+    kind: WaveformKind,
+    bench: &BenchInfo,
+) -> Result<Vec<ProcessOptions>, SpecError> {
     let algorithms = match (p.algorithm, p.algorithms.is_empty()) {
         (Some(_), false) => {
             return Err(spec.error(
@@ -822,44 +1101,51 @@ fn positioner(spec: &SpecFile, bench: &BenchInfo) -> Result<Option<PositionerPla
     }))
 }
 
-/// The values of the sweep.
-fn sweep_values(spec: &SpecFile) -> Result<Vec<f64>, SpecError> {
-    let Some(sw) = &spec.spec.sweep else {
-        return Ok(Vec::new());
-    };
+/// The values of the sweep table at `prefix`.
+fn sweep_values(
+    spec: &SpecFile,
+    prefix: &str,
+    sw: &SweepSection,
+) -> Result<Vec<AxisValue>, SpecError> {
+    let f = |name: &str| format!("{prefix}.{name}");
     let values = match (&sw.values, sw.start, sw.step, sw.count) {
         (Some(v), None, None, None) => v.clone(),
         (None, Some(start), Some(step), Some(count)) => {
             if !(1..=MAX_STEPS).contains(&count) {
-                return Err(spec.error("sweep.count", format!("{count}: allowed 1..={MAX_STEPS}")));
+                return Err(spec.error(&f("count"), format!("{count}: allowed 1..={MAX_STEPS}")));
             }
-            for (field, v) in [("sweep.start", start), ("sweep.step", step)] {
+            for (field, v) in [(f("start"), start), (f("step"), step)] {
                 if !v.is_finite() {
                     return Err(spec.error(
-                        field,
+                        &field,
                         format!("{v:?}: a finite number in the parameter's unit"),
                     ));
                 }
             }
-            (0..count).map(|k| start + step * k as f64).collect()
+            (0..count)
+                .map(|k| AxisValue::Number(start + step * k as f64))
+                .collect()
         }
-        (None, Some(start), None, None) => vec![start],
+        (None, Some(start), None, None) => vec![AxisValue::Number(start)],
         _ => {
             return Err(spec.error(
-                "sweep",
+                prefix,
                 "give either `values = [...]` or `start`, `step` and `count`",
             ))
         }
     };
     if values.is_empty() || values.len() > MAX_STEPS {
         return Err(spec.error(
-            "sweep.values",
+            &f("values"),
             format!("{} values: allowed 1..={MAX_STEPS}", values.len()),
         ));
     }
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+    if let Some(i) = values
+        .iter()
+        .position(|v| v.number().is_some_and(|x| !x.is_finite()))
+    {
         return Err(spec.error(
-            &format!("sweep.values[{i}]"),
+            &format!("{prefix}.values[{i}]"),
             "a finite number in the parameter's unit",
         ));
     }
@@ -879,7 +1165,7 @@ fn raw_steps(
             "steps",
             "the campaign has no steps: add [sweep] or one [[steps]] table per step",
         )),
-        (Some(sw), true) => sweep_steps(spec, sw, bandwidth, bench),
+        (Some(sw), true) => sweep_steps(spec, &sw.tables(), bandwidth, bench),
         (None, false) => listed_steps(spec, bandwidth),
     }
 }
@@ -892,47 +1178,120 @@ fn nominal_step(index: usize, nominal: Nominal) -> Step {
         waveform: 0,
         noise_seed: None,
         music_p: None,
+        processing: 0,
     }
 }
 
-/// The steps of a `[sweep]`: one per value of its parameter.
+/// One axis of a sweep: its table, its setting and its values.
+struct Axis<'a> {
+    prefix: &'a str,
+    sweep: &'a SweepSection,
+    setting: &'static Setting,
+    values: Vec<AxisValue>,
+}
+
+/// The steps of the sweep tables: every combination of their values, the last table varying
+/// fastest. One table of a kind sweeps as that kind always has (its `parameter` and `value`
+/// in every output); other sweeps name each step's values in `axes`.
 fn sweep_steps(
     spec: &SpecFile,
-    sw: &SweepSection,
+    tables: &[(String, &SweepSection)],
     bandwidth: f64,
     bench: &BenchInfo,
 ) -> Result<Vec<Step>, SpecError> {
-    let values = sweep_values(spec)?;
-    let targets = sw.targets.clone();
-    let p = sw.parameter;
-    let kind = p.kind();
-    if sw.target.is_some() && p != SweepParameter::Position {
-        return Err(spec.error("sweep.target", "applies to parameter = \"position\" only"));
+    let mut axes: Vec<Axis<'_>> = Vec::new();
+    for (prefix, sw) in tables {
+        let setting = Setting::named(&sw.parameter).ok_or_else(|| {
+            spec.error(
+                &format!("{prefix}.parameter"),
+                "not a setting (checked when parsed)",
+            )
+        })?;
+        let kind = setting.kind();
+        if sw.target.is_some() && kind != Some(SweepParameter::Position) {
+            return Err(spec.error(
+                &format!("{prefix}.target"),
+                "applies to parameter = \"position\" only",
+            ));
+        }
+        if kind.is_some_and(|p| p.kind().simulated_only) && !bench.simulated {
+            return Err(spec.error(
+                &format!("{prefix}.parameter"),
+                format!(
+                    "{} is set only on a simulated bench (the built-in mock lab, or a bench file \
+                     with [simulation]); on a real bench sweep tx-attenuation instead",
+                    setting.name
+                ),
+            ));
+        }
+        if let Some((other, _)) = axes
+            .iter()
+            .map(|a| (a.prefix, a))
+            .find(|(_, a)| a.setting.field == setting.field)
+        {
+            return Err(spec.error(
+                &format!("{prefix}.parameter"),
+                format!("{} sets what {other} already sweeps", setting.name),
+            ));
+        }
+        axes.push(Axis {
+            prefix,
+            sweep: sw,
+            setting,
+            values: sweep_values(spec, prefix, sw)?,
+        });
     }
-    if kind.simulated_only && !bench.simulated {
-        return Err(spec.error(
-            "sweep.parameter",
-            format!(
-                "{p} is set only on a simulated bench (the built-in mock lab, or a bench file \
-                 with [simulation]); on a real bench sweep tx-attenuation instead"
-            ),
-        ));
-    }
-    let mut out = Vec::new();
-    for (k, &v) in values.iter().enumerate() {
+    let total = axes
+        .iter()
+        .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+        .filter(|n| *n <= MAX_STEPS)
+        .ok_or_else(|| {
+            spec.error(
+                "sweep",
+                format!("more than {MAX_STEPS} steps in all (the product of the tables' values)"),
+            )
+        })?;
+    let legacy = match axes.as_slice() {
+        [one] => one.setting.kind(),
+        _ => None,
+    };
+    let targets = axes.iter().find_map(|a| a.sweep.targets.clone());
+    let mut out = Vec::with_capacity(total);
+    for index in 0..total {
         let mut n = Nominal {
-            label: None,
-            parameter: Some(p),
-            value: Some(v),
             targets: targets.clone().map(sorted_ranges).unwrap_or_default(),
             bandwidth_hz: bandwidth,
-            tx_attenuation_db: None,
-            snr_db: None,
-            velocity_mps: None,
+            ..Nominal::default()
         };
-        let at = SweepAt { spec, sweep: sw, k };
-        (kind.set)(&mut n, v, &at)?;
-        out.push(nominal_step(k + 1, n));
+        // The value index of each axis: the last varies fastest.
+        let mut rest = index;
+        let mut at_axis = vec![0; axes.len()];
+        for (i, a) in axes.iter().enumerate().rev() {
+            at_axis[i] = rest % a.values.len();
+            rest /= a.values.len();
+        }
+        for (a, &k) in axes.iter().zip(&at_axis) {
+            let v = &a.values[k];
+            let at = SweepAt {
+                spec,
+                sweep: a.sweep,
+                setting: a.setting,
+                value_field: format!("{}.values[{k}]", a.prefix),
+                prefix: a.prefix.to_string(),
+            };
+            (a.setting.apply)(&mut n, v, &at)?;
+            match legacy {
+                Some(p) => {
+                    n.parameter = Some(p);
+                    n.value = v.number();
+                }
+                None => n.axes.push(AxisSetting {
+                    name: a.setting.name.to_string(),
+                    value: v.clone(),
+                }),
+            }
+        }
+        out.push(nominal_step(index + 1, n));
     }
     Ok(out)
 }
@@ -941,56 +1300,63 @@ fn sweep_steps(
 fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError> {
     let s = &spec.spec;
     let mut out = Vec::new();
-    let mut targets: Vec<Range> = Vec::new();
-    let mut bw = bandwidth;
-    let mut att = None;
-    let mut snr = None;
-    let mut velocity = None;
+    // What the steps carry from one to the next.
+    let mut n = Nominal {
+        bandwidth_hz: bandwidth,
+        ..Nominal::default()
+    };
+    let empty = SweepSection::default();
     for (k, st) in s.steps.iter().enumerate() {
         if let Some(t) = &st.targets {
-            targets = sorted_ranges(t.clone());
+            n.targets = sorted_ranges(t.clone());
         }
         if let Some(b) = st.bandwidth_hz {
-            bw = b;
+            n.bandwidth_hz = b;
         }
         if st.tx_attenuation_db.is_some() {
-            att = st.tx_attenuation_db;
+            n.tx_attenuation_db = st.tx_attenuation_db;
         }
         if st.snr_db.is_some() {
-            snr = st.snr_db;
+            n.snr_db = st.snr_db;
         }
         if st.velocity_mps.is_some() {
-            velocity = st.velocity_mps;
+            n.velocity_mps = st.velocity_mps;
         }
-        if let Some(v) = velocity {
+        for (name, v) in &st.settings {
+            let setting = Setting::named(name).ok_or_else(|| {
+                spec.error(
+                    &format!("steps[{k}].{name}"),
+                    "not a setting (checked when parsed)",
+                )
+            })?;
+            let at = SweepAt {
+                spec,
+                sweep: &empty,
+                setting,
+                value_field: format!("steps[{k}].{name}"),
+                prefix: format!("steps[{k}]"),
+            };
+            (setting.apply)(&mut n, v, &at)?;
+        }
+        if let Some(v) = n.velocity_mps {
             if !(v.is_finite() && v.abs() <= MAX_VELOCITY_MPS) {
                 return Err(spec.error(
-                    &format!("steps[{k}].velocity_mps"),
+                    &step_field(spec, k, "velocity_mps", None),
                     format!("{v}: allowed -{MAX_VELOCITY_MPS} ..= {MAX_VELOCITY_MPS} m/s"),
                 ));
             }
         }
-        if let Some(v) = snr {
+        if let Some(v) = n.snr_db {
             if !(-60.0..=200.0).contains(&v) {
                 return Err(spec.error(
-                    &format!("steps[{k}].snr_db"),
+                    &step_field(spec, k, "snr_db", None),
                     format!("{v}: allowed -60 ..= 200 dB"),
                 ));
             }
         }
-        out.push(nominal_step(
-            k + 1,
-            Nominal {
-                label: st.label.clone(),
-                parameter: None,
-                value: None,
-                targets: targets.clone(),
-                bandwidth_hz: bw,
-                tx_attenuation_db: att,
-                snr_db: snr,
-                velocity_mps: velocity,
-            },
-        ));
+        let mut here = n.clone();
+        here.label = st.label.clone();
+        out.push(nominal_step(k + 1, here));
     }
     Ok(out)
 }
@@ -1019,7 +1385,7 @@ impl Plan {
     pub fn estimate_step_s(&self, k: usize, costs: &[WaveformCost], uploads: bool) -> f64 {
         let step = &self.steps[k];
         let c = costs[step.waveform];
-        let reps = self.repetitions as f64;
+        let reps = self.repetitions_at(k) as f64;
         let mut t = FILES_PER_STEP_S;
         if k == 0 {
             t += CONNECT_S;
@@ -1036,7 +1402,9 @@ impl Plan {
                 0.0
             };
         t += reps * per_rep;
-        t += self.processing.len() as f64 * (reps + 1.0).min(reps * 2.0) * points
+        t += self.processing_of(step.processing).len() as f64
+            * (reps + 1.0).min(reps * 2.0)
+            * points
             / PROCESS_POINTS_PER_S;
         if let Some(p) = &self.positioner {
             if self.moves_at(k, k == 0) {
@@ -1163,12 +1531,30 @@ impl Plan {
             if let Some(a) = n.tx_attenuation_db {
                 sends.push(format!("Tx: attenuation {a} dB"));
             }
+            if let Some(a) = n.rx_attenuation_db {
+                sends.push(format!("Rx: attenuation {a} dB"));
+            }
+            if let Some(a) = n.awg_amplitude_vpp {
+                sends.push(format!("AWG: amplitude {a} Vpp"));
+            }
+            if let Some(v) = n.volts_per_div {
+                sends.push(format!("scope: {v} V/div"));
+            }
+            if step.processing != 0 {
+                let o = &self.processing_of(step.processing)[0];
+                sends.push(format!(
+                    "processing: {}, window {}",
+                    self.algorithm_names_of(step.processing).join(", "),
+                    o.window.name()
+                ));
+            }
             if let Some(p) = step.music_p {
                 sends.push(format!("processing: subspace model order p = {p}"));
             }
             sends.push(format!(
                 "RF on, {} marker-triggered capture(s) of {} points per channel, RF off",
-                self.repetitions, c.points
+                self.repetitions_at(k),
+                c.points
             ));
             let t = self.estimate_step_s(k, costs, self.uploads_at(k));
             total += t;

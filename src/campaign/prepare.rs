@@ -6,25 +6,46 @@ use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{self, Prepared};
 
-/// Every (waveform, algorithm) prepared, and for `music_p = "targets"` every (waveform,
-/// subspace algorithm, model order) the steps need: transmissions generated, options checked,
-/// instrument settings planned against the catalog, pipelines built. Touches no instrument.
+/// (waveform, processing variant, algorithm, model order of the steps that set their own).
+pub(super) type PreparedKey = (usize, usize, usize, Option<usize>);
+
+/// Every (waveform, algorithm) prepared, every (waveform, processing variant, algorithm) the
+/// steps that set their own window or algorithm need, and for `music_p = "targets"` every
+/// (waveform, variant, subspace algorithm, model order): transmissions generated, options
+/// checked, instrument settings planned against the catalog, pipelines built. Touches no
+/// instrument.
 pub struct PreparedSet {
-    /// `[waveform][algorithm]`.
+    /// `[waveform][algorithm]` of the plan's own processing.
     pub base: Vec<Vec<Prepared>>,
-    /// `(waveform, algorithm, p)` for the steps' own model orders.
-    pub(super) ordered: Vec<((usize, usize, usize), Prepared)>,
+    /// The others, by key.
+    pub(super) more: Vec<(PreparedKey, Prepared)>,
 }
 
 impl PreparedSet {
-    /// The preparation for waveform `w`, algorithm `a` at a step whose model order is `p`.
-    pub(super) fn get_mut(&mut self, w: usize, a: usize, p: Option<usize>) -> &mut Prepared {
-        if let Some(p) = p {
-            if let Some(i) = self.ordered.iter().position(|(k, _)| *k == (w, a, p)) {
-                return &mut self.ordered[i].1;
-            }
+    /// The preparation for waveform `w`, variant `v`, algorithm `a` at a step whose model order
+    /// is `p`.
+    pub(super) fn get_mut(
+        &mut self,
+        w: usize,
+        v: usize,
+        a: usize,
+        p: Option<usize>,
+    ) -> &mut Prepared {
+        let key = Self::key_in(&self.more, (w, v, a, p));
+        match key.and_then(|k| self.more.iter().position(|(x, _)| *x == k)) {
+            Some(i) => &mut self.more[i].1,
+            None => &mut self.base[w][a],
         }
-        &mut self.base[w][a]
+    }
+
+    /// The key `want` is prepared under: itself, or without its model order; `None`: the base.
+    fn key_in(more: &[(PreparedKey, Prepared)], want: PreparedKey) -> Option<PreparedKey> {
+        let has = |k: PreparedKey| more.iter().any(|(x, _)| *x == k);
+        if has(want) {
+            return Some(want);
+        }
+        let (w, v, a, _) = want;
+        has((w, v, a, None)).then_some((w, v, a, None))
     }
 }
 
@@ -47,19 +68,24 @@ pub async fn prepare_all(
         all.insert(0, first);
         base.push(all);
     }
-    let mut ordered: Vec<((usize, usize, usize), Prepared)> = Vec::new();
+    let mut more: Vec<(PreparedKey, Prepared)> = Vec::new();
     for step in &plan.steps {
-        let Some(p) = step.music_p else { continue };
-        for (a, o) in plan.processing.iter().enumerate() {
-            let key = (step.waveform, a, p);
-            if !o.algorithm.is_subspace() || ordered.iter().any(|(k, _)| *k == key) {
+        let (w, v) = (step.waveform, step.processing);
+        for (a, o) in plan.processing_of(v).iter().enumerate() {
+            if v != 0 && !more.iter().any(|(k, _)| *k == (w, v, a, None)) {
+                let prepared = base[w][0].with_options(o.clone()).await?;
+                more.push(((w, v, a, None), prepared));
+            }
+            let Some(p) = step.music_p else { continue };
+            let key = (w, v, a, Some(p));
+            if !o.algorithm.is_subspace() || more.iter().any(|(k, _)| *k == key) {
                 continue;
             }
             let mut options = o.clone();
             options.music_p = Some(p);
-            let prepared = base[step.waveform][0].with_options(options).await?;
-            ordered.push((key, prepared));
+            let prepared = base[w][0].with_options(options).await?;
+            more.push((key, prepared));
         }
     }
-    Ok(PreparedSet { base, ordered })
+    Ok(PreparedSet { base, more })
 }

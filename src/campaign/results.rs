@@ -452,10 +452,31 @@ fn csv_field(text: &str) -> String {
 pub(crate) fn to_csv(results: &Results) -> String {
     let num = |v: Option<f64>| v.map(|x| x.to_string()).unwrap_or_default();
     let flag = |v: Option<bool>| v.map(|b| b.to_string()).unwrap_or_default();
+    // A column per swept setting (several axes, or a setting that is not a kind), after the
+    // fixed ones, in the order the steps name them.
+    let mut axes: Vec<&str> = Vec::new();
+    for a in results.steps.iter().flat_map(|s| &s.nominal.axes) {
+        if !axes.contains(&a.name.as_str()) {
+            axes.push(&a.name);
+        }
+    }
     let mut out = CSV_COLUMNS.join(",");
+    for a in &axes {
+        out.push_str(&format!(",{}", axis_column(a)));
+    }
     out.push('\n');
     for step in &results.steps {
         let n = &step.nominal;
+        let axis_fields: Vec<String> = axes
+            .iter()
+            .map(|name| {
+                n.axes
+                    .iter()
+                    .find(|a| a.name == *name)
+                    .map(|a| csv_field(&a.value.to_string()))
+                    .unwrap_or_default()
+            })
+            .collect();
         for (name, a) in &step.algorithms {
             for (k, row) in csv_targets(step, a).iter().enumerate() {
                 let t = row.detection.map(|i| &a.targets[i]);
@@ -493,11 +514,21 @@ pub(crate) fn to_csv(results: &Results) -> String {
                     csv_field(p.and_then(|p| p.error.as_deref()).unwrap_or("")),
                 ];
                 out.push_str(&fields.join(","));
+                for f in &axis_fields {
+                    out.push(',');
+                    out.push_str(f);
+                }
                 out.push('\n');
             }
         }
     }
     out
+}
+
+/// The `results.csv` column of a swept setting: `swept_` and its name in snake case
+/// (`swept_awg_amplitude`), apart from the measured columns of the same words.
+pub(crate) fn axis_column(name: &str) -> String {
+    format!("swept_{}", name.replace('-', "_"))
 }
 
 /// The thesis' rule: with two or more targets, each has its own detection within +-s/2.
@@ -621,6 +652,7 @@ mod tests {
                 tx_attenuation_db: None,
                 snr_db: None,
                 velocity_mps: None,
+                ..Nominal::default()
             },
             repetitions: 1,
             algorithms,

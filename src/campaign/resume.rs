@@ -57,6 +57,9 @@ pub async fn resume(
         scope_model: plan.bench.scope_model,
         simulated: plan.bench.simulated,
         tx_attenuation_db: None,
+        rx_attenuation_db: None,
+        awg_amplitude_vpp: None,
+        volts_per_div: None,
     };
     let catalog = info.catalog().map_err(MeasureError::from)?;
     let t_prepare = Instant::now();

@@ -69,8 +69,11 @@ pub(super) struct Runner {
     pub(super) manifest: Manifest,
     plan: Plan,
     prepared: PreparedSet,
-    /// The Tx attenuation each waveform's plan had before any step changed it.
-    base_tx_attenuation: Vec<f64>,
+    /// The levels each waveform's plan had before any step changed them.
+    base_levels: Vec<Levels>,
+    /// The AWG amplitude and V/div the last capture was configured with (a change uploads
+    /// again: the AWG and scope take them with the waveform).
+    configured: Option<(f64, f64)>,
     journal: Option<Journal>,
     permit: RfPermit,
     interrupt: Interrupt,
@@ -130,11 +133,12 @@ impl Runner {
         let folder = FolderIdentity::of(&dir)?;
         Ok(Runner {
             folder,
-            base_tx_attenuation: prepared
+            base_levels: prepared
                 .base
                 .iter()
-                .map(|p| p[0].plan.tx.attenuation_db)
+                .map(|p| Levels::of(&p[0].plan))
                 .collect(),
+            configured: None,
             base_scene: plan.bench.scene.clone().or(manifest.base_scene.clone()),
             dir,
             plan,
@@ -267,7 +271,7 @@ impl Runner {
                     step: &step,
                     of: n,
                     result: &result,
-                    primary: self.plan.algorithm_names()[0],
+                    primary: self.plan.algorithm_names_of(step.processing)[0],
                     dir: self.dir.join(step.dir_name()),
                     skipped: true,
                 });
@@ -518,17 +522,20 @@ impl Runner {
         }
         observer.step_starting(step, n, &conn.bench);
         let w = step.waveform;
-        let primary = self.prepared.get_mut(w, 0, step.music_p);
-        primary.plan.tx.attenuation_db = step
-            .nominal
-            .tx_attenuation_db
-            .unwrap_or(self.base_tx_attenuation[w]);
+        let primary = self.prepared.get_mut(w, step.processing, 0, step.music_p);
+        let levels = self.base_levels[w].with(&step.nominal);
+        levels.set(&mut primary.plan);
+        let configured = (levels.awg_vpp, levels.volts_per_div);
+        if self.configured.is_some_and(|c| c != configured) {
+            conn.rig.forget_upload();
+        }
+        self.configured = Some(configured);
         let taken = conn
             .rig
             .acquire(
                 &conn.bench,
                 primary,
-                self.plan.repetitions,
+                step.nominal.repetitions.unwrap_or(self.plan.repetitions),
                 &self.permit,
                 &self.interrupt,
             )
@@ -569,7 +576,7 @@ impl Runner {
             dir: self.dir.clone(),
             folder: self.folder,
             step: step.clone(),
-            names: self.plan.algorithm_names(),
+            names: self.plan.algorithm_names_of(step.processing),
             bandwidth_hz: self.plan.waveforms[step.waveform].bandwidth_hz(),
             provenance: Provenance {
                 bench_file: self.plan.bench.file.clone(),
@@ -630,7 +637,7 @@ impl Runner {
             step: &p.step,
             of: self.plan.steps.len(),
             result: &result,
-            primary: self.plan.algorithm_names()[0],
+            primary: self.plan.algorithm_names_of(p.step.processing)[0],
             dir: self.dir.join(p.step.dir_name()),
             skipped: false,
         });
@@ -758,6 +765,45 @@ impl Runner {
 }
 
 /// A refusal of the simulated bench's scene control, as the campaign's error.
+/// The bench levels a step may set, as a waveform's capture plan holds them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Levels {
+    tx_db: f64,
+    rx_db: f64,
+    awg_vpp: f64,
+    volts_per_div: f64,
+}
+
+impl Levels {
+    fn of(plan: &crate::measure::CapturePlan) -> Levels {
+        Levels {
+            tx_db: plan.tx.attenuation_db,
+            rx_db: plan.rx.attenuation_db,
+            awg_vpp: plan.awg.i_amplitude_vpp,
+            volts_per_div: plan.scope.i_volts_per_div,
+        }
+    }
+
+    /// These levels with what the step sets.
+    fn with(self, n: &crate::campaign::Nominal) -> Levels {
+        Levels {
+            tx_db: n.tx_attenuation_db.unwrap_or(self.tx_db),
+            rx_db: n.rx_attenuation_db.unwrap_or(self.rx_db),
+            awg_vpp: n.awg_amplitude_vpp.unwrap_or(self.awg_vpp),
+            volts_per_div: n.volts_per_div.unwrap_or(self.volts_per_div),
+        }
+    }
+
+    fn set(self, plan: &mut crate::measure::CapturePlan) {
+        plan.tx.attenuation_db = self.tx_db;
+        plan.rx.attenuation_db = self.rx_db;
+        plan.awg.i_amplitude_vpp = self.awg_vpp;
+        plan.awg.q_amplitude_vpp = self.awg_vpp;
+        plan.scope.i_volts_per_div = self.volts_per_div;
+        plan.scope.q_volts_per_div = self.volts_per_div;
+    }
+}
+
 fn control(e: SceneControlError) -> CampaignError {
     CampaignError::Control(e.to_string())
 }

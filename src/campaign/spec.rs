@@ -7,7 +7,7 @@
 //! wrong types come from the TOML parser's span; values out of range are located again in the
 //! text (toml_edit keeps the spans) when the checks after parsing find them.
 
-use super::kind::SweepParameter;
+use super::kind::{allowed_names, AxisValue, Reads, Setting};
 #[cfg(test)]
 use crate::measure::CorrectionMode;
 use crate::measure::ProcessingChoices;
@@ -46,8 +46,10 @@ pub struct Spec {
     pub processing: ProcessingChoices,
     #[serde(default)]
     pub positioner: Option<PositionerSection>,
+    /// `[sweep]` (one axis) or `[[sweep]]` tables (several axes, nested: the last varies
+    /// fastest).
     #[serde(default)]
-    pub sweep: Option<SweepSection>,
+    pub sweep: Option<Sweeps>,
     #[serde(default)]
     pub steps: Vec<StepSection>,
     #[serde(default)]
@@ -222,14 +224,60 @@ impl PositionerKind {
     }
 }
 
-/// `[sweep]`: one parameter over a list of values.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+/// `[sweep]` or `[[sweep]]`: one table, or several nested.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Sweeps {
+    One(SweepSection),
+    Many(Vec<SweepSection>),
+}
+
+impl Sweeps {
+    /// The tables, outer first, each with the prefix of its fields (`sweep`, `sweep[1]`).
+    pub fn tables(&self) -> Vec<(String, &SweepSection)> {
+        match self {
+            Sweeps::One(s) => vec![("sweep".into(), s)],
+            Sweeps::Many(v) => v
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (format!("sweep[{i}]"), s))
+                .collect(),
+        }
+    }
+}
+
+// A table or an array of tables, each read by `SweepSection`'s own derive (so its errors keep
+// their place in the file).
+impl<'de> Deserialize<'de> for Sweeps {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Sweeps;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a [sweep] table or [[sweep]] tables")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, m: A) -> Result<Sweeps, A::Error> {
+                SweepSection::deserialize(serde::de::value::MapAccessDeserializer::new(m))
+                    .map(Sweeps::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, s: A) -> Result<Sweeps, A::Error> {
+                Vec::<SweepSection>::deserialize(serde::de::value::SeqAccessDeserializer::new(s))
+                    .map(Sweeps::Many)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// One sweep axis: a setting over a list of values.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SweepSection {
-    pub parameter: SweepParameter,
-    /// The values, in the parameter's unit (or `start`, `step`, `count`).
+    /// A setting's name (campaign/kind.rs (`SETTINGS`) lists them: `position`, `awg-amplitude`, ...).
+    pub parameter: String,
+    /// The values, in the parameter's unit, or names (or `start`, `step`, `count`).
     #[serde(default)]
-    pub values: Option<Vec<f64>>,
+    pub values: Option<Vec<AxisValue>>,
     #[serde(default)]
     pub start: Option<f64>,
     #[serde(default)]
@@ -248,7 +296,6 @@ pub struct SweepSection {
 /// `[[steps]]`: one explicit step; what it does not give stays as the step before left it (the
 /// first step starts from the spec's waveform and the bench's own settings).
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
 pub struct StepSection {
     #[serde(default)]
     pub label: Option<String>,
@@ -265,7 +312,21 @@ pub struct StepSection {
     /// Simulated benches only: the targets' radial velocity, m/s (positive receding).
     #[serde(default)]
     pub velocity_mps: Option<f64>,
+    /// Any other setting by its name (`awg-amplitude = 0.5`, `window = "hann"`), checked
+    /// against campaign/kind.rs (`SETTINGS`) once parsed.
+    #[serde(flatten)]
+    pub settings: std::collections::BTreeMap<String, AxisValue>,
 }
+
+/// The fields a `[[steps]]` entry has besides the settings' names.
+const STEP_FIELDS: [&str; 6] = [
+    "label",
+    "targets",
+    "bandwidth_hz",
+    "tx_attenuation_db",
+    "snr_db",
+    "velocity_mps",
+];
 
 /// A spec that cannot be used: the file, the line, the field and what is allowed.
 #[derive(Debug, thiserror::Error)]
@@ -324,11 +385,61 @@ impl SpecFile {
     /// Parses spec text; `path` names it in errors and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<SpecFile, SpecError> {
         let spec: Spec = toml::from_str(text).map_err(|e| syntax_error(text, path, &e))?;
-        Ok(SpecFile {
+        let file = SpecFile {
             path: path.to_path_buf(),
             text: text.to_string(),
             spec,
-        })
+        };
+        file.check_setting_names()?;
+        Ok(file)
+    }
+
+    /// Every `[[sweep]] parameter` and `[[steps]]` key names a setting of campaign/kind.rs (`SETTINGS`),
+    /// and `start`/`step`/`count` sweep numbers only.
+    fn check_setting_names(&self) -> Result<(), SpecError> {
+        if let Some(sweeps) = &self.spec.sweep {
+            for (prefix, sw) in sweeps.tables() {
+                let Some(setting) = Setting::named(&sw.parameter) else {
+                    return Err(self.error(
+                        &format!("{prefix}.parameter"),
+                        format!(
+                            "\"{}\" is not a setting a step can set; allowed: {}",
+                            sw.parameter,
+                            allowed_names()
+                        ),
+                    ));
+                };
+                let ranged = sw.start.is_some() || sw.step.is_some() || sw.count.is_some();
+                if let (Reads::Name(names), true) = (setting.reads, ranged) {
+                    return Err(self.error(
+                        &prefix,
+                        format!(
+                            "{} is swept over names: give values = [{}] (not start, step, \
+                             count)",
+                            setting.name,
+                            names
+                                .iter()
+                                .map(|n| format!("\"{n}\""))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        for (k, st) in self.spec.steps.iter().enumerate() {
+            if let Some(name) = st.settings.keys().find(|n| Setting::named(n).is_none()) {
+                return Err(self.error(
+                    &format!("steps[{k}].{name}"),
+                    format!(
+                        "unknown field; allowed: {}, or a setting: {}",
+                        STEP_FIELDS.join(", "),
+                        allowed_names()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The folder relative paths of the spec start from.

@@ -5,7 +5,7 @@ use super::folder::FolderIdentity;
 use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus};
 use super::manifest_store::ManifestStore;
 use super::plan::Step;
-use super::prepare::PreparedSet;
+use super::prepare::{PreparedKey, PreparedSet};
 use super::results::{self, AlgorithmOutput, StepResult};
 use super::run::STEP_RESULT;
 use super::{io, CampaignError};
@@ -36,8 +36,8 @@ pub(super) struct WorkerSide {
     pub(super) store: ManifestStore,
 }
 
-/// (waveform, algorithm, model order of the steps that set their own).
-type PipelineKey = (usize, usize, Option<usize>);
+/// As [`PreparedKey`].
+type PipelineKey = PreparedKey;
 
 impl WorkerSide {
     /// Takes every pipeline out of `prepared`.
@@ -45,21 +45,21 @@ impl WorkerSide {
         let mut side = WorkerSide::default();
         for (w, all) in prepared.base.iter_mut().enumerate() {
             for (a, p) in all.iter_mut().enumerate() {
-                side.pipelines.insert((w, a, None), p.lend()?);
+                side.pipelines.insert((w, 0, a, None), p.lend()?);
             }
         }
-        for (&(w, a, p), prep) in prepared.ordered.iter_mut().map(|(k, v)| (&*k, v)) {
-            side.pipelines.insert((w, a, Some(p)), prep.lend()?);
+        for (key, prep) in prepared.more.iter_mut() {
+            side.pipelines.insert(*key, prep.lend()?);
         }
         Ok(side)
     }
 
-    /// The key of the pipeline for waveform `w`, algorithm `a` at a step of model order `p`
-    /// (as [`PreparedSet`] chooses).
-    fn key(&self, w: usize, a: usize, p: Option<usize>) -> PipelineKey {
+    /// The key of the pipeline for waveform `w`, processing variant `v`, algorithm `a` at a
+    /// step of model order `p` (as [`PreparedSet`] chooses).
+    fn key(&self, w: usize, v: usize, a: usize, p: Option<usize>) -> PipelineKey {
         match p {
-            Some(p) if self.pipelines.contains_key(&(w, a, Some(p))) => (w, a, Some(p)),
-            _ => (w, a, None),
+            Some(p) if self.pipelines.contains_key(&(w, v, a, Some(p))) => (w, v, a, Some(p)),
+            _ => (w, v, a, None),
         }
     }
 }
@@ -99,7 +99,7 @@ impl StepJob {
         let w = self.step.waveform;
         let processed: Result<Vec<Processing>, MeasureError> = (0..self.names.len())
             .map(|a| {
-                let key = side.key(w, a, self.step.music_p);
+                let key = side.key(w, self.step.processing, a, self.step.music_p);
                 let pipeline = side.pipelines.get_mut(&key).ok_or_else(|| {
                     MeasureError::Worker("an earlier step lost the pipeline".into())
                 })?;

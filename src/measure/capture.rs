@@ -378,6 +378,13 @@ impl Rig {
         })
     }
 
+    /// Forgets what the AWG holds: the next measurement uploads (and configures the AWG and
+    /// scope) again; a campaign step that changes the AWG amplitude or V/div asks for it.
+    pub(crate) fn forget_upload(&mut self) {
+        self.loaded = None;
+        self.fresh = false;
+    }
+
     /// Uploads `tx` for the next measurement (AWG configured and loaded with its outputs left
     /// off, scope configured for `segments` triggers per acquisition): nothing radiates. On a
     /// failure, or when `interrupt` fires first, the bench is put in its safe state (as the

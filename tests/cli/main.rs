@@ -17,6 +17,7 @@ mod calibration_reach;
 mod campaign;
 mod campaign_correction;
 mod campaign_report;
+mod campaign_sweeps;
 mod capture_e2e;
 mod cli_safety;
 mod clipping_capture;

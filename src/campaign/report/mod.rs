@@ -9,6 +9,7 @@
 //! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
 //! | [`profiles`] | every step's range profile, one waterfall row per step |
+//! | `sweep` | a sweep over any settings: each metric against the inner axis, a line per outer value |
 //! | `link` | every step's link figure (constellation, channel estimate or phase trajectory) with its EVM and MER, small multiples |
 //! | `markdown` | `report.md` |
 //! | `html` | `report.html` |
@@ -19,6 +20,7 @@ pub(crate) mod link;
 pub(crate) mod markdown;
 pub(crate) mod plots;
 pub(crate) mod profiles;
+pub(crate) mod sweep;
 
 pub use figures::*;
 pub use plots::*;
@@ -40,6 +42,7 @@ pub const HTML_FILE: &str = "report.html";
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
     let mut figures = figures(manifest, results);
+    figures.extend(sweep::sweep_figures(&results.steps));
     figures.extend(profiles::step_profiles(dir, results));
     let md = dir.join(REPORT_FILE);
     write_atomic(

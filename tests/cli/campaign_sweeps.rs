@@ -1,0 +1,274 @@
+//! Campaigns over any settings and several axes, end to end on the built-in mock lab: a
+//! position x bandwidth spec runs its 6 steps in the documented order (the last table fastest),
+//! resumes after SIGKILL at step 4 with results equal to an uninterrupted run's, and its
+//! `results.csv` has a column per axis; an AWG-amplitude sweep and a window sweep run and their
+//! reports plot the metrics against the swept value; bad names are refused with the table, the
+//! key and what is allowed.
+
+use radbench::campaign::{Manifest, Status};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+use tokio::io::{AsyncBufReadExt, BufReader};
+use tokio::process::Command;
+
+use super::support::{radbench_in, LIMIT};
+
+const BIN: &str = env!("CARGO_BIN_EXE_radbench");
+
+const TWO_AXES: &str = r#"
+name = "position-by-bandwidth"
+seed = 3
+
+[[sweep]]
+parameter = "position"
+values = [0.95, 1.0, 1.05]
+
+[[sweep]]
+parameter = "bandwidth"
+values = [1e9, 2e9]
+"#;
+
+fn write_spec(dir: &Path, text: &str) -> PathBuf {
+    let p = dir.join("spec.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn read_json(path: &Path) -> Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+async fn run(spec: &Path, out: &Path, extra: &[&str]) -> (i32, String, String) {
+    let mut args = vec![
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    radbench_in(None, &args).await
+}
+
+/// The header of a CSV file and its rows as column -> text (no quoted commas in these runs).
+fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_axes_run_in_order_resume_after_sigkill_and_have_a_column_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(dir.path(), TWO_AXES);
+    // The plan: 6 steps, the bandwidth (the last table) varying fastest.
+    let (code, plan, err) = run(&spec, &dir.path().join("none"), &["--dry-run"]).await;
+    assert_eq!(code, 0, "{err}");
+    assert!(plan.contains("6 steps"), "{plan}");
+    assert!(
+        plan.contains("step 2/6: position 0.95 m, bandwidth 2000000000 Hz"),
+        "{plan}"
+    );
+    // The uninterrupted run.
+    let whole = dir.path().join("whole");
+    let (code, stdout, err) = run(&spec, &whole, &["--allow-rf", "--json"]).await;
+    assert_eq!(code, 0, "{err}");
+    let steps: Vec<Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|v| v["event"] == "step")
+        .collect();
+    assert_eq!(steps.len(), 6, "{stdout}");
+    let order = [
+        (0.95, 1e9),
+        (0.95, 2e9),
+        (1.0, 1e9),
+        (1.0, 2e9),
+        (1.05, 1e9),
+        (1.05, 2e9),
+    ];
+    for (s, (position, bandwidth)) in steps.iter().zip(order) {
+        let axes = &s["nominal"]["axes"];
+        assert_eq!(axes[0]["name"], "position", "{s}");
+        assert_eq!(axes[0]["value"].as_f64(), Some(position), "{s}");
+        assert_eq!(axes[1]["name"], "bandwidth", "{s}");
+        assert_eq!(axes[1]["value"].as_f64(), Some(bandwidth), "{s}");
+        assert_eq!(s["nominal"]["bandwidth_hz"].as_f64(), Some(bandwidth));
+        assert_eq!(
+            s["nominal"]["targets"][0]["range_m"].as_f64(),
+            Some(position)
+        );
+    }
+    let (header, rows) = csv(&whole.join("results.csv"));
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no {name} in {header:?}"))
+    };
+    let (p, b) = (col("swept_position"), col("swept_bandwidth"));
+    assert_eq!(rows.len(), 6);
+    for (row, (position, bandwidth)) in rows.iter().zip(order) {
+        assert_eq!(row[p].parse::<f64>().unwrap(), position);
+        assert_eq!(row[b].parse::<f64>().unwrap(), bandwidth);
+    }
+    // The report plots each metric against the bandwidth, a line per position.
+    let html = std::fs::read_to_string(whole.join("report.html")).unwrap();
+    assert!(html.contains("id=\"sweep-error\""));
+    assert!(html.contains("position 0.95"), "a line per outer value");
+
+    // The same run killed (SIGKILL: no chance to record anything) as step 4 starts, resumed.
+    let killed = dir.path().join("killed");
+    let mut child = Command::new(BIN)
+        .args([
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--allow-rf",
+            "--json",
+        ])
+        .arg("--out")
+        .arg(&killed)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let step_4 = async {
+        while let Some(line) = lines.next_line().await.unwrap() {
+            let v: Value = serde_json::from_str(&line).unwrap();
+            if v["event"] == "start" && v["index"] == 4 {
+                return;
+            }
+        }
+        panic!("the campaign ended before step 4");
+    };
+    tokio::time::timeout(LIMIT, step_4).await.expect("step 4");
+    child.start_kill().unwrap();
+    tokio::time::timeout(LIMIT, child.wait())
+        .await
+        .expect("killed")
+        .unwrap();
+    // Nothing recorded the stop: the manifest reads as a run that was cut short.
+    assert_ne!(Manifest::load(&killed).unwrap().status, Status::Complete);
+    let (code, _, err) = radbench_in(
+        None,
+        &["campaign", "resume", killed.to_str().unwrap(), "--allow-rf"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(Manifest::load(&killed).unwrap().status, Status::Complete);
+    assert_eq!(
+        read_json(&killed.join("results.json")),
+        read_json(&whole.join("results.json"))
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_awg_amplitude_sweep_sets_the_awg_and_reports_against_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(
+        dir.path(),
+        "[sweep]\nparameter = \"awg-amplitude\"\nvalues = [0.2, 0.4]\ntargets = [1.0]\n",
+    );
+    let out = dir.path().join("run");
+    let (code, _, err) = run(&spec, &out, &["--allow-rf"]).await;
+    assert_eq!(code, 0, "{err}");
+    // Each step configured the AWG at its amplitude.
+    let journal = std::fs::read_to_string(out.join("io-journal.jsonl")).unwrap();
+    let first = journal.find(":VOLT1 0.2").expect("the AWG set to 0.2 Vpp");
+    assert!(journal[first..].contains(":VOLT1 0.4"), "then to 0.4 Vpp");
+    let (header, rows) = csv(&out.join("results.csv"));
+    let a = header
+        .iter()
+        .position(|h| h == "swept_awg_amplitude")
+        .unwrap();
+    assert_eq!(rows[1][a], "0.4");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("id=\"sweep-error\""));
+    assert!(html.contains("awg-amplitude (Vpp)"));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("Range error against awg-amplitude"), "{md}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_window_sweep_processes_each_step_with_its_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(
+        dir.path(),
+        "[sweep]\nparameter = \"window\"\nvalues = [\"rect\", \"hann\"]\ntargets = [1.0]\n",
+    );
+    let out = dir.path().join("run");
+    let (code, _, err) = run(&spec, &out, &["--allow-rf"]).await;
+    assert_eq!(code, 0, "{err}");
+    let results = read_json(&out.join("results.json"));
+    let psl = |k: usize| {
+        results["steps"][k]["algorithms"]["correlation"]["sidelobe_db"]
+            .as_f64()
+            .unwrap()
+    };
+    // Hann's side-lobes sit far below the rectangular window's -13 dB.
+    assert!(psl(1) < psl(0) - 10.0, "rect {} hann {}", psl(0), psl(1));
+    let summary = read_json(&out.join("step-002/summary.json"));
+    assert_eq!(summary["processing"]["window"], "hann", "{summary}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("id=\"sweep-psl\""));
+    assert!(html.contains("Peak side-lobe level against window"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_settings_name_the_table_the_key_and_what_is_allowed() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "[[sweep]]\nparameter = \"position\"\nvalues = [1.0]\n[[sweep]]\nparameter = \"height\"\nvalues = [1]\n",
+            "`sweep[1].parameter`",
+            "awg-amplitude",
+        ),
+        (
+            "[sweep]\nparameter = \"window\"\nvalues = [\"hann\", \"box\"]\n",
+            "`sweep.values[1]`",
+            "\"taylor\"",
+        ),
+        (
+            "[sweep]\nparameter = \"window\"\nstart = 1\nstep = 1\ncount = 2\n",
+            "`sweep`",
+            "values = [\"rect\"",
+        ),
+        (
+            "[sweep]\nparameter = \"awg-amplitude\"\nvalues = [0.3, 9.0]\n",
+            "`sweep.values`",
+            "Vpp",
+        ),
+        (
+            "[[steps]]\ntargets = [1.0]\nawg-amplitud = 0.3\n",
+            "`steps[0].awg-amplitud`",
+            "awg-amplitude",
+        ),
+        (
+            "[[steps]]\ntargets = [1.0]\nrepetitions = 0\n",
+            "`steps[0].repetitions`",
+            "1..=",
+        ),
+    ];
+    for (text, field, allowed) in cases {
+        let spec = write_spec(dir.path(), text);
+        let (code, _, err) = run(&spec, &dir.path().join("none"), &["--dry-run"]).await;
+        assert_eq!(code, 2, "{text}: {err}");
+        assert!(err.contains(field), "{text}: {err}");
+        assert!(err.contains(allowed), "{text}: {err}");
+    }
+}
