@@ -79,6 +79,12 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
     let prepare_s = t_prepare.elapsed().as_secs_f64();
     let t0 = Instant::now();
     let out = run.out.clone();
+    // Refused before anything is created or connected when the run cannot fit.
+    let needed = run.plan.estimate_bytes_from(0, &prepared.costs());
+    let when = format!("for its {} steps", run.plan.steps.len());
+    if let Some(w) = super::disk::check(&out, needed, &when, super::disk::MARGIN_BYTES)? {
+        observer.note(&w);
+    }
     if out.exists() {
         let empty = std::fs::read_dir(&out).map_err(io(&out))?.next().is_none();
         if !empty {

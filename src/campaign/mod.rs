@@ -21,9 +21,11 @@
 //! | `report` | the run's `report.md` and `report.html` (plots inline) |
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
+//! | [`disk`] | the disk budget: each step's bytes estimated, the free space probed, checked at the start and before each step |
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 
 pub(crate) mod builtin;
+pub mod disk;
 pub(crate) mod export;
 mod folder;
 pub(crate) mod kind;
@@ -152,6 +154,18 @@ pub enum CampaignError {
     /// The run is already complete.
     #[error("{dir}: the run is complete; nothing to resume")]
     Complete { dir: PathBuf },
+    /// Too little free space where the run writes.
+    #[error(
+        "{dir}: {free} free, the run needs about {needed} {when}; free some space (or thin the \
+         output: [output] in the spec, docs/campaign.md \"Disk budget\") and run again \
+         (`radbench campaign resume DIR --allow-rf` continues a started run)"
+    )]
+    DiskFull {
+        dir: PathBuf,
+        free: String,
+        needed: String,
+        when: String,
+    },
 }
 
 impl CampaignError {
@@ -178,6 +192,7 @@ impl CampaignError {
             }
             CampaignError::Io { .. }
             | CampaignError::FolderLost { .. }
+            | CampaignError::DiskFull { .. }
             | CampaignError::Unrecorded { .. } => (Abort, ExitClass::Processing),
             CampaignError::OperatorStopped { .. } => (Abort, ExitClass::Interrupted),
             CampaignError::Interrupted { signal, .. } => (Abort, signal.exit_class()),

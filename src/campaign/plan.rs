@@ -6,7 +6,7 @@
 //! without touching an instrument.
 
 use super::kind::{sorted_ranges, AxisSetting, AxisValue, Setting, SweepAt, SweepParameter};
-use super::spec::{PositionerKind, SpecError, SpecFile, SweepSection};
+use super::spec::{OutputSection, PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
@@ -61,6 +61,9 @@ pub struct Plan {
     /// `i >= 1` is entry `i - 1` (one entry per algorithm, as `processing`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub processing_variants: Vec<Vec<ProcessOptions>>,
+    /// Which of a step's files stay (`[output]`; a run from before it kept every file).
+    #[serde(default = "OutputSection::keep_all")]
+    pub output: OutputSection,
     /// The subspace algorithms take each step's number of targets as their model order
     /// (`music_p = "targets"`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -693,6 +696,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         waveforms,
         processing,
         processing_variants: variants,
+        output: s.output,
         music_p_from_targets: from_targets,
         steps,
     })
@@ -1475,6 +1479,7 @@ impl Plan {
             let _ = writeln!(out, "positioner: {}", describe_positioner(p));
         }
         let mut total = 0.0;
+        let mut bytes = 0;
         let mut operator = false;
         for k in 0..self.steps.len() {
             let step = &self.steps[k];
@@ -1557,11 +1562,13 @@ impl Plan {
                 c.points
             ));
             let t = self.estimate_step_s(k, costs, self.uploads_at(k));
+            let b = self.estimate_step_bytes(k, costs);
             total += t;
+            bytes += b;
             for s in sends {
                 let _ = writeln!(out, "    {s}");
             }
-            let _ = writeln!(out, "    about {t:.2} s");
+            let _ = writeln!(out, "    about {t:.2} s, {} on disk", super::disk::mb(b));
         }
         let _ = writeln!(
             out,
@@ -1572,6 +1579,16 @@ impl Plan {
             } else {
                 ""
             }
+        );
+        let o = &self.output;
+        let _ = writeln!(
+            out,
+            "estimated disk: about {} ([output] keep_trc = {}, keep_bitmaps = {}, \
+             keep_link_plots = {})",
+            super::disk::mb(bytes),
+            o.keep_trc,
+            o.keep_bitmaps,
+            o.keep_link_plots
         );
         out
     }

@@ -1,7 +1,7 @@
 //! Everything a plan needs prepared before anything is connected: transmissions generated,
 //! options checked, instrument settings planned against the catalog, pipelines built.
 
-use super::plan::{BenchInfo, Plan};
+use super::plan::{BenchInfo, Plan, WaveformCost};
 use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{self, Prepared};
@@ -22,6 +22,21 @@ pub struct PreparedSet {
 }
 
 impl PreparedSet {
+    /// What the plan needs to know of each prepared waveform to estimate a step.
+    pub fn costs(&self) -> Vec<WaveformCost> {
+        self.base
+            .iter()
+            .map(|p| {
+                let c = &p[0].plan;
+                WaveformCost {
+                    samples: c.period,
+                    points: c.period * c.decimation,
+                    capture_rate_hz: c.scope.sample_rate_hz,
+                }
+            })
+            .collect()
+    }
+
     /// The preparation for waveform `w`, variant `v`, algorithm `a` at a step whose model order
     /// is `p`.
     pub(super) fn get_mut(

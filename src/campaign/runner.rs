@@ -71,6 +71,8 @@ pub(super) struct Runner {
     prepared: PreparedSet,
     /// The levels each waveform's plan had before any step changed them.
     base_levels: Vec<Levels>,
+    /// Each waveform's capture size, for the disk check before each step.
+    costs: Vec<crate::campaign::WaveformCost>,
     /// The AWG amplitude and V/div the last capture was configured with (a change uploads
     /// again: the AWG and scope take them with the waveform).
     configured: Option<(f64, f64)>,
@@ -139,6 +141,7 @@ impl Runner {
                 .map(|p| Levels::of(&p[0].plan))
                 .collect(),
             configured: None,
+            costs: prepared.costs(),
             base_scene: plan.bench.scene.clone().or(manifest.base_scene.clone()),
             dir,
             plan,
@@ -284,6 +287,14 @@ impl Runner {
                     signal,
                     where_: format!("before step {} of {n}; nothing was radiating", step.index),
                 });
+            }
+            // Before any RF of the step: is there room for its files? (A step before that
+            // failed to write is the first failure, and the one reported.)
+            let needed = self.plan.estimate_step_files_bytes(k, &self.costs);
+            let when = format!("for step {} of {n}", step.index);
+            if let Err(e) = super::disk::check(&self.dir, needed, &when, 0) {
+                self.settle_all(observer).await?;
+                return Err(e);
             }
             self.measure_step_retrying(k, &step, observer).await?;
             if let Some(signal) = self.interrupt.received() {
@@ -578,6 +589,7 @@ impl Runner {
             step: step.clone(),
             names: self.plan.algorithm_names_of(step.processing),
             bandwidth_hz: self.plan.waveforms[step.waveform].bandwidth_hz(),
+            output: self.plan.output,
             provenance: Provenance {
                 bench_file: self.plan.bench.file.clone(),
                 simulated: self.plan.bench.simulated,

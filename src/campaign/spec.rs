@@ -54,6 +54,54 @@ pub struct Spec {
     pub steps: Vec<StepSection>,
     #[serde(default)]
     pub run: RunSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[output]`: which of a step's files stay in the run folder (docs/campaign.md, "Disk budget").
+/// Every file by default, as before; a night run drops the `.trc` copy and the bitmaps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// The scope's own `.trc` files (the same words as the SigMF recording).
+    #[serde(default = "yes")]
+    pub keep_trc: bool,
+    /// The PNG copies of the profile and link plots (the SVGs stay).
+    #[serde(default = "yes")]
+    pub keep_bitmaps: bool,
+    /// The link figure (`link.svg`, and `link.png` with the bitmaps).
+    #[serde(default = "yes")]
+    pub keep_link_plots: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for OutputSection {
+    fn default() -> Self {
+        Self::keep_all()
+    }
+}
+
+impl OutputSection {
+    /// Every file kept (the default, and a run folder written before `[output]` existed).
+    pub fn keep_all() -> Self {
+        OutputSection {
+            keep_trc: true,
+            keep_bitmaps: true,
+            keep_link_plots: true,
+        }
+    }
+
+    /// Whether a step's file named `name` stays.
+    pub fn keeps(&self, name: &str) -> bool {
+        let bitmap = name.ends_with(".png");
+        let link = name == "link.svg" || name == "link.png";
+        !(name.ends_with(".trc") && !self.keep_trc
+            || bitmap && !self.keep_bitmaps
+            || link && !self.keep_link_plots)
+    }
 }
 
 /// `[run]`: how the run rides out a transient fault (docs/campaign.md, "Retries").

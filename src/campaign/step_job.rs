@@ -82,6 +82,8 @@ pub(super) struct StepJob {
     pub(super) names: Vec<&'static str>,
     pub(super) bandwidth_hz: f64,
     pub(super) provenance: Provenance,
+    /// Which files stay (`[output]`): the others are removed once written.
+    pub(super) output: super::spec::OutputSection,
 }
 
 impl StepJob {
@@ -165,8 +167,18 @@ impl StepJob {
         // campaign's bookkeeping (a lone `radbench capture` does not hash its files).
         let files_s = t_files.elapsed().as_secs_f64() - files.hashing_s;
         let t_over = Instant::now();
-        let records: Vec<FileRecord> = files
-            .files
+        // The files `[output]` drops go now (the write group wrote them with the others): the
+        // manifest lists only what stays.
+        let mut kept = Vec::with_capacity(files.files.len());
+        for f in files.files {
+            let name = f.path.file_name().map(|n| n.to_string_lossy().into_owned());
+            if name.is_some_and(|n| !self.output.keeps(&n)) {
+                std::fs::remove_file(&f.path).map_err(io(&f.path))?;
+            } else {
+                kept.push(f);
+            }
+        }
+        let records: Vec<FileRecord> = kept
             .into_iter()
             .map(|f| FileRecord {
                 path: f

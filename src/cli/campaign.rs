@@ -427,18 +427,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     }
     if a.dry_run {
         let prepared = campaign::prepare_all(&plan, &bench, &catalog).await?;
-        let costs: Vec<WaveformCost> = prepared
-            .base
-            .iter()
-            .map(|p| {
-                let c = &p[0].plan;
-                WaveformCost {
-                    samples: c.period,
-                    points: c.period * c.decimation,
-                    capture_rate_hz: c.scope.sample_rate_hz,
-                }
-            })
-            .collect();
+        let costs: Vec<WaveformCost> = prepared.costs();
         if a.json {
             let steps: Vec<_> = (0..plan.steps.len())
                 .map(|k| {
@@ -449,6 +438,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
                         "noise_seed": plan.steps[k].noise_seed,
                         "uploads": plan.uploads_at(k),
                         "estimate_s": plan.estimate_step_s(k, &costs, plan.uploads_at(k)),
+                        "estimate_bytes": plan.estimate_step_bytes(k, &costs),
                     })
                 })
                 .collect();
@@ -457,7 +447,13 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
                 .sum();
             println!(
                 "{}",
-                json!({"event": "plan", "plan": plan, "steps": steps, "estimate_s": total})
+                json!({
+                    "event": "plan",
+                    "plan": plan,
+                    "steps": steps,
+                    "estimate_s": total,
+                    "estimate_bytes": plan.estimate_bytes_from(0, &costs),
+                })
             );
         } else {
             print!("{}", plan.describe(&costs));

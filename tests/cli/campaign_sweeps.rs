@@ -272,3 +272,125 @@ async fn bad_settings_name_the_table_the_key_and_what_is_allowed() {
         assert!(err.contains(allowed), "{text}: {err}");
     }
 }
+
+/// Runs radbench with `args` and the environment `env`; (exit code, stdout, stderr), bounded.
+async fn radbench_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
+    let mut command = Command::new(BIN);
+    command
+        .args(args)
+        .envs(env.iter().copied())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true);
+    let out = tokio::time::timeout(LIMIT, command.output())
+        .await
+        .expect("radbench finishes in time")
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Bytes of every file under `dir`.
+fn bytes_under(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let meta = e.metadata().unwrap();
+            if meta.is_dir() {
+                bytes_under(&e.path())
+            } else {
+                meta.len()
+            }
+        })
+        .sum()
+}
+
+const THREE_STEPS: &str = "[sweep]\nparameter = \"position\"\nvalues = [0.9, 1.0, 1.1]\n";
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_dry_runs_disk_estimate_is_within_20_percent_default_and_thinned() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, output) in [
+        ("default", ""),
+        (
+            "night",
+            "\n[output]\nkeep_trc = false\nkeep_bitmaps = false\n",
+        ),
+        (
+            "thinned",
+            "\n[output]\nkeep_trc = false\nkeep_bitmaps = false\nkeep_link_plots = false\n",
+        ),
+    ] {
+        let spec = write_spec(dir.path(), &format!("{THREE_STEPS}{output}"));
+        let out = dir.path().join(name);
+        let (code, plan, err) = run(&spec, &out, &["--dry-run", "--json"]).await;
+        assert_eq!(code, 0, "{err}");
+        let plan: Value = serde_json::from_str(plan.trim()).unwrap();
+        let estimate = plan["estimate_bytes"].as_u64().unwrap() as f64;
+        let (code, _, err) = run(&spec, &out, &["--allow-rf"]).await;
+        assert_eq!(code, 0, "{err}");
+        let written = bytes_under(&out) as f64;
+        let off = (estimate - written).abs() / written;
+        assert!(
+            off < 0.2,
+            "{name}: estimated {estimate} B, wrote {written} B ({:.0} % off)",
+            off * 100.0
+        );
+        let step = out.join("step-001");
+        assert_eq!(step.join("C1.trc").exists(), name == "default", "{name}");
+        assert_eq!(step.join("profile.png").exists(), name == "default");
+        assert_eq!(step.join("link.svg").exists(), name != "thinned");
+        assert!(step.join("capture.sigmf-data").exists());
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_filesystem_is_refused_before_rf_and_a_tight_one_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = write_spec(dir.path(), THREE_STEPS);
+    let out = dir.path().join("run");
+    let args = [
+        "campaign",
+        "run",
+        spec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--allow-rf",
+    ];
+    let (code, _, err) = radbench_env(&args, &[("RADBENCH_TEST_FREE_BYTES", "1000000")]).await;
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("1.0 MB free"), "{err}");
+    assert!(
+        err.contains("needs about") && err.contains("for its 3 steps"),
+        "{err}"
+    );
+    // Refused before anything was created, connected or switched on.
+    assert!(!out.exists(), "{err}");
+    // Enough, but less than the margin to spare: a warning, and the run goes on.
+    let (code, plan, _) = radbench_in(
+        None,
+        &[
+            "campaign",
+            "run",
+            spec.to_str().unwrap(),
+            "--dry-run",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0);
+    let plan: Value = serde_json::from_str(plan.trim()).unwrap();
+    let tight = (plan["estimate_bytes"].as_u64().unwrap() * 2).to_string();
+    let (code, _, err) = radbench_env(&args, &[("RADBENCH_TEST_FREE_BYTES", &tight)]).await;
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("to spare"),
+        "{err}"
+    );
+}
