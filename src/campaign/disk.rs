@@ -8,7 +8,7 @@ use std::path::Path;
 
 /// The environment variable that replaces the free-space probe, in bytes: a test hook (a full
 /// filesystem without needing root to mount a small one). Not for use on a bench.
-pub const FREE_BYTES_HOOK: &str = "RADBENCH_TEST_FREE_BYTES";
+pub(crate) const FREE_BYTES_HOOK: &str = "RADBENCH_TEST_FREE_BYTES";
 
 /// One `.trc` file's header and trailer, bytes (a LeCroy WAVEDESC and its text).
 const TRC_OVERHEAD: f64 = 360.0;
@@ -23,7 +23,7 @@ const LINK_PNG_BYTES: f64 = 154e3;
 /// The run's own files per step: the report's share, the I/O journal, the manifest and results.
 const RUN_BYTES_PER_STEP: f64 = 130e3;
 /// Past the estimate, free space below this margin gets a warning at the start.
-pub const MARGIN_BYTES: u64 = 1 << 30;
+pub(crate) const MARGIN_BYTES: u64 = 1 << 30;
 
 impl Plan {
     /// The estimated bytes step `k` (0-based) writes, its share of the run's files included.
@@ -32,7 +32,7 @@ impl Plan {
     }
 
     /// The estimated bytes of step `k`'s own files (its folder).
-    pub fn estimate_step_files_bytes(&self, k: usize, costs: &[WaveformCost]) -> u64 {
+    pub(crate) fn estimate_step_files_bytes(&self, k: usize, costs: &[WaveformCost]) -> u64 {
         let step = &self.steps[k];
         let points = costs[step.waveform].points as f64;
         let reps = self.repetitions_at(k) as f64;
@@ -66,7 +66,7 @@ impl Plan {
 
 /// Free bytes for an unprivileged writer on the filesystem holding `path` (or its nearest
 /// existing ancestor); [`FREE_BYTES_HOOK`] replaces the probe.
-pub fn free_bytes(path: &Path) -> std::io::Result<u64> {
+pub(crate) fn free_bytes(path: &Path) -> std::io::Result<u64> {
     if let Ok(v) = std::env::var(FREE_BYTES_HOOK) {
         return v.trim().parse().map_err(|_| {
             std::io::Error::other(format!("{FREE_BYTES_HOOK}={v:?} is not a number of bytes"))
@@ -85,6 +85,7 @@ fn statvfs_free(path: &Path) -> std::io::Result<u64> {
     use std::os::unix::ffi::OsStrExt;
     let c = std::ffi::CString::new(path.as_os_str().as_bytes())
         .map_err(|_| std::io::Error::other("a path with a NUL byte"))?;
+    // SAFETY: statvfs is plain old data; all zeroes is a valid value of it.
     let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
     // SAFETY: `c` is a valid NUL-terminated path and `st` a writable statvfs.
     let rc = unsafe { libc::statvfs(c.as_ptr(), &mut st) };

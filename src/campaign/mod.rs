@@ -22,6 +22,7 @@
 //! | `builtin` | the campaigns `radbench campaign new` prints, and the thesis' lab chapter |
 //! | `worker` | the lower-priority thread that processes and writes steps beside the captures |
 //! | [`disk`] | the disk budget: each step's bytes estimated, the free space probed, checked at the start and before each step |
+//! | [`notify`] | telling someone: a bounded, logged program run when a run ends |
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 
 pub(crate) mod builtin;
@@ -32,6 +33,7 @@ pub(crate) mod kind;
 pub(crate) mod lab_table;
 pub(crate) mod manifest;
 mod manifest_store;
+pub mod notify;
 pub(crate) mod plan;
 pub(crate) mod positioner;
 mod prepare;

@@ -61,6 +61,9 @@ pub struct Plan {
     /// `i >= 1` is entry `i - 1` (one entry per algorithm, as `processing`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub processing_variants: Vec<Vec<ProcessOptions>>,
+    /// Who is told when the run ends (`[run] notify`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notify: Option<super::notify::NotifyPlan>,
     /// Which of a step's files stay (`[output]`; a run from before it kept every file).
     #[serde(default = "OutputSection::keep_all")]
     pub output: OutputSection,
@@ -697,9 +700,43 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         processing,
         processing_variants: variants,
         output: s.output,
+        notify: notify_plan(spec)?,
         music_p_from_targets: from_targets,
         steps,
     })
+}
+
+/// `[run] notify`, checked.
+fn notify_plan(spec: &SpecFile) -> Result<Option<super::notify::NotifyPlan>, SpecError> {
+    let r = &spec.spec.run;
+    let t = r.notify_timeout_s;
+    if !(t.is_finite() && t > 0.0 && t <= 3600.0) {
+        return Err(spec.error(
+            "run.notify_timeout_s",
+            format!("{t}: allowed 0 < seconds <= 3600"),
+        ));
+    }
+    match r.notify.first() {
+        // No program, but its bound, for a `--notify` on the command line.
+        None if t != super::notify::DEFAULT_NOTIFY_TIMEOUT_S => {
+            Ok(Some(super::notify::NotifyPlan {
+                command: Vec::new(),
+                workdir: None,
+                timeout_s: t,
+            }))
+        }
+        None => Ok(None),
+        Some(p) if p.trim().is_empty() => Err(spec.error(
+            "run.notify",
+            "the first entry is the program: a path relative to the spec's folder or a name on \
+             PATH",
+        )),
+        Some(_) => Ok(Some(super::notify::NotifyPlan {
+            command: r.notify.clone(),
+            workdir: Some(std::path::absolute(spec.folder()).unwrap_or(spec.folder())),
+            timeout_s: t,
+        })),
+    }
 }
 
 /// Step `k`'s targets stand inside the processing window, and what it sets the bench can set.
@@ -1568,7 +1605,7 @@ impl Plan {
             for s in sends {
                 let _ = writeln!(out, "    {s}");
             }
-            let _ = writeln!(out, "    about {t:.2} s, {} on disk", super::disk::mb(b));
+            let _ = writeln!(out, "    about {t:.2} s, {} on disk", megabytes(b));
         }
         let _ = writeln!(
             out,
@@ -1585,13 +1622,18 @@ impl Plan {
             out,
             "estimated disk: about {} ([output] keep_trc = {}, keep_bitmaps = {}, \
              keep_link_plots = {})",
-            super::disk::mb(bytes),
+            megabytes(bytes),
             o.keep_trc,
             o.keep_bitmaps,
             o.keep_link_plots
         );
         out
     }
+}
+
+/// Bytes as megabytes, one decimal.
+fn megabytes(bytes: u64) -> String {
+    format!("{:.1} MB", bytes as f64 / 1e6)
 }
 
 /// One line on the positioner.

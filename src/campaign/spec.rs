@@ -98,9 +98,8 @@ impl OutputSection {
     pub fn keeps(&self, name: &str) -> bool {
         let bitmap = name.ends_with(".png");
         let link = name == "link.svg" || name == "link.png";
-        !(name.ends_with(".trc") && !self.keep_trc
-            || bitmap && !self.keep_bitmaps
-            || link && !self.keep_link_plots)
+        let trc = name.ends_with(".trc");
+        (self.keep_trc || !trc) && (self.keep_bitmaps || !bitmap) && (self.keep_link_plots || !link)
     }
 }
 
@@ -114,6 +113,17 @@ pub struct RunSection {
     /// The wait before the first retry of a step, seconds; doubled before each next one.
     #[serde(default = "default_retry_backoff")]
     pub retry_backoff_s: f64,
+    /// A program and its arguments run when the run ends (complete, failed or stopped), with
+    /// `RADBENCH_RUN_DIR`, `RADBENCH_STATUS` and `RADBENCH_SUMMARY` in its environment.
+    #[serde(default)]
+    pub notify: Vec<String>,
+    /// The longest the notify program may run, seconds (killed past it).
+    #[serde(default = "default_notify_timeout")]
+    pub notify_timeout_s: f64,
+}
+
+fn default_notify_timeout() -> f64 {
+    super::notify::DEFAULT_NOTIFY_TIMEOUT_S
 }
 
 impl Default for RunSection {
@@ -121,6 +131,8 @@ impl Default for RunSection {
         RunSection {
             retries: default_retries(),
             retry_backoff_s: default_retry_backoff(),
+            notify: Vec::new(),
+            notify_timeout_s: default_notify_timeout(),
         }
     }
 }

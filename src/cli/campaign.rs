@@ -64,6 +64,11 @@ pub struct RunArgs {
     /// (default 2).
     #[arg(long, value_name = "N")]
     pub retries: Option<usize>,
+    /// A program to run when the run ends (complete, failed or stopped), with RADBENCH_RUN_DIR,
+    /// RADBENCH_STATUS and RADBENCH_SUMMARY in its environment; overrides the spec's `[run]
+    /// notify`. Bounded by `[run] notify_timeout_s` (default 30 s); never changes the exit code.
+    #[arg(long, value_name = "PROGRAM")]
+    pub notify: Option<String>,
     #[command(flatten)]
     pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
@@ -90,6 +95,11 @@ pub struct ResumeArgs {
     /// run`); without it, the run's own (`[run] retries` or the first session's --retries).
     #[arg(long, value_name = "N")]
     pub retries: Option<usize>,
+    /// A program to run when the run ends (complete, failed or stopped), with RADBENCH_RUN_DIR,
+    /// RADBENCH_STATUS and RADBENCH_SUMMARY in its environment; overrides the spec's `[run]
+    /// notify`. Bounded by `[run] notify_timeout_s` (default 30 s); never changes the exit code.
+    #[arg(long, value_name = "PROGRAM")]
+    pub notify: Option<String>,
     #[command(flatten)]
     pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
@@ -521,6 +531,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         inner: &mut printer,
         live: live.clone(),
     };
+    let notify = notify_of(plan.notify.as_ref(), a.notify.as_deref(), &out);
     let finished = campaign::start(
         NewRun {
             spec,
@@ -535,16 +546,87 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         &mut observer,
     )
     .await;
-    live_end(live, finished, &stop, a.json).await
+    live_end(live, finished, &stop, a.json, notify).await
 }
 
-/// Tells the live view how the run ended, then concludes as without it.
+/// Who a run tells at its end: `--notify PROGRAM` over the plan's `[run] notify`, and the run
+/// folder.
+fn notify_of(
+    plan: Option<&campaign::notify::NotifyPlan>,
+    flag: Option<&str>,
+    dir: &Path,
+) -> Option<(campaign::notify::NotifyPlan, PathBuf)> {
+    let n = match (flag, plan) {
+        (Some(p), plan) => campaign::notify::NotifyPlan {
+            command: vec![p.to_string()],
+            workdir: None,
+            timeout_s: plan.map_or(campaign::notify::DEFAULT_NOTIFY_TIMEOUT_S, |n| n.timeout_s),
+        },
+        (None, Some(n)) if !n.command.is_empty() => n.clone(),
+        (None, _) => return None,
+    };
+    Some((n, dir.to_path_buf()))
+}
+
+/// Runs the notify program for how the run ended (its own outcome is logged, never returned).
+async fn tell(
+    notify: Option<(campaign::notify::NotifyPlan, PathBuf)>,
+    finished: &Result<Finished, CampaignError>,
+) {
+    let Some((n, dir)) = notify else { return };
+    let (status, summary) = match finished {
+        Ok(f) => {
+            let s = &f.summary;
+            let status = match (&f.stopped, f.stopped.as_ref().and_then(|e| e.signal())) {
+                (None, _) => "complete",
+                (Some(_), Some(_)) => "stopped",
+                (Some(_), None) => "failed",
+            };
+            let largest = s.max_abs_error_m.map_or(String::new(), |e| {
+                format!(", largest error {:.3} mm", e * 1e3)
+            });
+            let why = f
+                .stopped
+                .as_ref()
+                .map_or(String::new(), |e| format!(": {e}"));
+            (
+                status,
+                format!(
+                    "{}: {} of {} steps done{largest}{why}",
+                    s.name, s.done, s.steps
+                ),
+            )
+        }
+        Err(e) => (
+            if e.signal().is_some() {
+                "stopped"
+            } else {
+                "failed"
+            },
+            e.to_string(),
+        ),
+    };
+    let summary: String = summary
+        .lines()
+        .next()
+        .unwrap_or("")
+        .chars()
+        .take(500)
+        .collect();
+    let line = campaign::notify::notify(&n, &dir, status, &summary).await;
+    eprintln!("{line}");
+}
+
+/// Tells the live view (and the notify program) how the run ended, then concludes as without
+/// them.
 async fn live_end(
     live: Option<crate::live::Live>,
     finished: Result<Finished, CampaignError>,
     interrupt: &Interrupt,
     json: bool,
+    notify: Option<(campaign::notify::NotifyPlan, PathBuf)>,
 ) -> anyhow::Result<()> {
+    tell(notify, &finished).await;
     let status = match &finished {
         Ok(f) => f.status.name(),
         Err(_) if interrupt.received().is_some() => "interrupted",
@@ -572,9 +654,13 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
     a.timeout.apply()?;
     let retries = retries(a.retries)?;
     // The run's bench file, as its manifest names it (a missing manifest is the resume's error).
-    let bench_file = campaign::Manifest::load(&a.run_dir)
-        .ok()
-        .and_then(|m| m.plan.bench.file);
+    let manifest = campaign::Manifest::load(&a.run_dir).ok();
+    let notify = notify_of(
+        manifest.as_ref().and_then(|m| m.plan.notify.as_ref()),
+        a.notify.as_deref(),
+        &a.run_dir,
+    );
+    let bench_file = manifest.and_then(|m| m.plan.bench.file);
     let _manual = super::manual_front::confirm_file(bench_file.as_deref(), "campaign resume")?;
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
@@ -625,7 +711,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         }
         other => other,
     };
-    live_end(live, finished, &stop, a.json).await
+    live_end(live, finished, &stop, a.json, notify).await
 }
 
 async fn thesis_lab(a: ThesisLabArgs) -> anyhow::Result<()> {

@@ -16,6 +16,7 @@ mod calibrate_response;
 mod calibration_reach;
 mod campaign;
 mod campaign_correction;
+mod campaign_notify;
 mod campaign_report;
 mod campaign_sweeps;
 mod capture_e2e;
