@@ -91,57 +91,8 @@ pub struct Args {
     pub live: super::live::LiveArgs,
 }
 
-/// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
-pub(crate) fn resolve_correction(
-    correction: Option<CorrectionMode>,
-    calibration: Option<&Path>,
-    bench: &radbench::measure::Bench,
-) -> anyhow::Result<Option<radbench::measure::Calibration>> {
-    use radbench::measure::Calibration;
-    let named = calibration.map(Path::to_path_buf).or_else(|| {
-        bench
-            .path
-            .as_ref()
-            .and_then(|p| bench.file.response_path(p))
-    });
-    match (correction, named) {
-        (Some(CorrectionMode::None), _) => Ok(None),
-        (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
-        (Some(mode), None) => Err(radbench::exit::bad_input(format!(
-            "--correction {} needs a response calibration: the bench file names none; run \
-             `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \
-             --calibration FILE",
-            mode.name()
-        ))),
-        (None, None) => Ok(None),
-    }
-}
-
-/// Warnings about a calibration used on this bench: other instruments than it was measured with.
-pub(crate) fn calibration_warnings(
-    cal: &radbench::measure::Calibration,
-    identities: &radbench::measure::Identities,
-) -> Vec<String> {
-    let seen = &cal.header.instruments;
-    let mut out = Vec::new();
-    for (what, then, now) in [
-        ("AWG", Some(&seen.awg), Some(&identities.awg)),
-        ("scope", Some(&seen.scope), Some(&identities.scope)),
-        ("Tx", seen.tx.as_ref(), identities.tx.as_ref()),
-        ("Rx", seen.rx.as_ref(), identities.rx.as_ref()),
-    ] {
-        if then != now {
-            out.push(format!(
-                "the response calibration {} was measured with the {what} {:?}, this capture \
-                 used {:?}: measure it again on this bench (`radbench calibrate response`)",
-                cal.path.display(),
-                then.map_or("none", |s| s.as_str()),
-                now.map_or("none", |s| s.as_str()),
-            ));
-        }
-    }
-    out
-}
+// Shared with the Python package's warm session (one definition of each).
+pub(crate) use radbench::in_memory::{calibration_warnings, prepare_out, resolve_correction};
 
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
 pub(crate) fn bench_source(
@@ -189,57 +140,6 @@ pub(crate) fn journal(
         Some(p) => Some(radbench::transport::Journal::create(p, false)?),
         None => None,
     })
-}
-
-/// Checks the output folder before anything radiates: a new or empty folder is created and
-/// written to; one that holds files needs `force` (the files it holds are listed in the message,
-/// or printed as replaced). A file, or a folder that cannot be written, is bad input.
-pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
-    if out.exists() && !out.is_dir() {
-        return Err(bad_input(format!(
-            "--out {}: is a file; give a folder (it is created when missing)",
-            out.display()
-        )));
-    }
-    if out.is_dir() {
-        let mut held: Vec<String> = std::fs::read_dir(out)
-            .map_err(|e| bad_input(format!("--out {}: cannot read it: {e}", out.display())))?
-            .filter_map(Result::ok)
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|n| !n.starts_with('.'))
-            .collect();
-        held.sort();
-        if !held.is_empty() {
-            let list = held.join(", ");
-            if !force {
-                return Err(bad_input(format!(
-                    "--out {}: holds files already ({list}); give a new folder, or --force to \
-                     replace them",
-                    out.display()
-                )));
-            }
-            eprintln!(
-                "--force: files in {} are replaced where this capture writes the same names ({list})",
-                out.display()
-            );
-        }
-    }
-    std::fs::create_dir_all(out)
-        .map_err(|e| bad_input(format!("--out {}: cannot create it: {e}", out.display())))?;
-    // A folder that cannot be written must not cost a capture: try before RF goes on.
-    let probe = out.join(format!(".radbench-write-probe-{}", std::process::id()));
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-        .and_then(|_| std::fs::remove_file(&probe))
-        .map_err(|e| {
-            bad_input(format!(
-                "--out {}: cannot write into it: {e}",
-                out.display()
-            ))
-        })?;
-    Ok(())
 }
 
 /// The default output folder: `runs/<UTC time>-<name>`.

@@ -6,7 +6,9 @@
 //!   as `radbench process` processes it, its `summary.json` returned with the arrays behind it;
 //! - [`captures`]: the captures `radbench process INPUT...` would process, with its folder names;
 //! - [`read_capture`]: a capture's repetitions in volts, decimated and aligned, its metadata;
-//! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes.
+//! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes;
+//! - [`BenchSession`]: a warm session on a bench (`radbench.Bench`): captures as `radbench
+//!   capture` takes them ([`CaptureOptions`]), connections, upload and pipeline kept between them.
 //!
 //! The options are parsed by the same clap definitions the command line flattens into its
 //! commands ([`ProcessArgs`], [`WaveformArgs`], [`PayloadArgs`]); `radbench process` also
@@ -16,11 +18,16 @@
 //! its exit class).
 
 mod batch;
+mod bench;
+mod bench_lock;
+mod capture_call;
 mod keywords;
 mod options;
 
 use batch::on_cached_pipeline;
 pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
+pub use bench::{BenchSession, Call, SessionSource};
+pub use capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 
 use crate::exit::bad_input;
