@@ -10,6 +10,10 @@
 //! (or dropping it) puts the bench in its safe state and releases the instruments and the
 //! bench's lock ([`BenchLock`]: a second session on the same instruments is refused).
 
+mod campaign;
+
+pub use campaign::{CampaignEvents, CampaignSpec};
+
 use super::bench_lock::BenchLock;
 use super::capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 use super::InMemory;
@@ -198,6 +202,45 @@ impl BenchSession {
             };
             let _ = tx.send(result);
         });
+        call
+    }
+
+    /// [`spawn`](Self::spawn) for work whose future cannot move between threads (a
+    /// campaign's): driven on a thread of its own, on the session's runtime.
+    fn spawn_on_thread<T, F, Fut>(&self, work: F) -> Call<T>
+    where
+        T: Send + 'static,
+        F: FnOnce(tokio::sync::OwnedMutexGuard<Warm>, Interrupt) -> Fut + Send + 'static,
+        Fut: Future<Output = anyhow::Result<T>>,
+    {
+        let (tx, done) = mpsc::channel();
+        let interrupt = Interrupt::never();
+        let call = Call {
+            done,
+            interrupt: interrupt.clone(),
+        };
+        let (Some(runtime), Some(warm)) = (&self.runtime, &self.warm) else {
+            let _ = tx.send(Err(closed()));
+            return call;
+        };
+        let (handle, warm) = (runtime.handle().clone(), warm.clone());
+        let failed = tx.clone();
+        let started = std::thread::Builder::new()
+            .name("radbench-session-call".into())
+            .spawn(move || {
+                let result = handle.block_on(async move {
+                    let guard = warm.lock_owned().await;
+                    if guard.closed {
+                        Err(closed())
+                    } else {
+                        work(guard, interrupt).await
+                    }
+                });
+                let _ = tx.send(result);
+            });
+        if let Err(e) = started {
+            let _ = failed.send(Err(e.into()));
+        }
         call
     }
 

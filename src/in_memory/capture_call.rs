@@ -67,7 +67,13 @@ impl CaptureOptions {
             .filter_map(|a| a.get_long())
             .map(String::from)
             .collect();
-        keywords::check_known(&own, &longs, &[])?;
+        // An unknown keyword is compared with the processing choices too (did you mean ...).
+        let known: Vec<String> = longs
+            .iter()
+            .cloned()
+            .chain(ProcessingChoices::KEYS.iter().map(|k| k.to_string()))
+            .collect();
+        keywords::check_known(&own, &known, &[])?;
         let argv = ["capture"]
             .into_iter()
             .map(String::from)

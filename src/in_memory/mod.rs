@@ -26,7 +26,7 @@ mod options;
 
 use batch::on_cached_pipeline;
 pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
-pub use bench::{BenchSession, Call, SessionSource};
+pub use bench::{BenchSession, Call, CampaignEvents, CampaignSpec, SessionSource};
 pub use capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 
