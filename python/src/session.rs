@@ -10,6 +10,7 @@ use pyo3::types::PyDict;
 use radbench::in_memory::{
     BenchSession, Call, CampaignEvents, CampaignSpec, CaptureOptions, SessionSource,
 };
+use radbench::measure::BuiltIn;
 use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::Duration;
@@ -135,10 +136,15 @@ impl Session {
                     .map_err(|e: String| bad(format!("scope_model: {e}")))
             })
             .transpose()?;
+        // The built-in lab's choices, when any was made (refused beside a bench file).
+        let built_in = (scene.is_some() || scope_model.is_some()).then(|| BuiltIn {
+            scene: scene.unwrap_or_default(),
+            scope_model: scope_model.unwrap_or_default(),
+            ..BuiltIn::default()
+        });
         let source = SessionSource {
             bench,
-            scene,
-            scope_model,
+            built_in,
             allow_rf,
             trace_io,
         };

@@ -16,7 +16,7 @@ pub use campaign::{CampaignEvents, CampaignSpec};
 
 use super::bench_lock::BenchLock;
 use super::capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
-use super::InMemory;
+use super::processed::InMemory;
 use crate::catalog::Catalog;
 use crate::driver::Journal;
 use crate::driver::{RfPermit, SafeStateReport};
@@ -24,9 +24,8 @@ use crate::exit::bad_input;
 use crate::measure::record::capture_summary;
 use crate::measure::{self, Algorithm, Bench, BenchCalibration, BenchSource, BuiltIn};
 use crate::measure::{CaptureRequest, CorrectionMode, Interrupt, MeasureError, Prepared};
-use crate::measure::{ProcessOptions, Provenance, Rig, ScopeModel, StopSignal};
+use crate::measure::{ProcessOptions, Provenance, Rig, StopSignal};
 use crate::waveform::WaveformSpec;
-use mock_lab::scene::Scene;
 use serde_json::{json, Value};
 use std::future::Future;
 use std::path::PathBuf;
@@ -43,10 +42,9 @@ const STOP_TIMEOUT: Duration = Duration::from_secs(10);
 pub struct SessionSource {
     /// A bench file; `None`: the built-in mock lab, started for the session.
     pub bench: Option<PathBuf>,
-    /// The built-in mock lab's scene (refused with a bench file).
-    pub scene: Option<Scene>,
-    /// The scope the built-in mock lab serves (refused with a bench file).
-    pub scope_model: Option<ScopeModel>,
+    /// The built-in mock lab's scene and scope (`--scene`, `--scope-model`), when given:
+    /// refused with a bench file.
+    pub built_in: Option<BuiltIn>,
     /// The explicit permit to switch RF on (`--allow-rf`).
     pub allow_rf: bool,
     /// Every instrument exchange journaled here (`--trace-io`).
@@ -54,29 +52,20 @@ pub struct SessionSource {
 }
 
 impl SessionSource {
-    /// The bench's source, checked as the command line checks `--bench`, `--scene` and
+    /// The bench's source, checked as the command line checks `--bench` beside `--scene` and
     /// `--scope-model`.
     fn source(&self) -> anyhow::Result<BenchSource> {
-        if let Some(path) = &self.bench {
-            for (given, what) in [
-                (self.scene.is_some(), "scene"),
-                (self.scope_model.is_some(), "scope_model"),
-            ] {
-                if given {
-                    return Err(bad_input(format!(
-                        "{what}: applies to the built-in mock lab only; with a bench file, the \
-                         file names the instruments (change a mock lab's scene through its \
-                         control channel)"
-                    )));
-                }
-            }
-            return Ok(BenchSource::File(path.clone()));
+        match (&self.bench, &self.built_in) {
+            (Some(_), Some(_)) => Err(bad_input(
+                "scene, scope_model: apply to the built-in mock lab only; with a bench file, the \
+                 file names the instruments (change a mock lab's scene through its control \
+                 channel)",
+            )),
+            (Some(path), None) => Ok(BenchSource::File(path.clone())),
+            (None, built_in) => Ok(BenchSource::BuiltIn(Box::new(
+                built_in.clone().unwrap_or_default(),
+            ))),
         }
-        Ok(BenchSource::BuiltIn(Box::new(BuiltIn {
-            scene: self.scene.clone().unwrap_or_default(),
-            scope_model: self.scope_model.unwrap_or_default(),
-            ..BuiltIn::default()
-        })))
     }
 }
 
@@ -276,6 +265,34 @@ impl BenchSession {
         })
     }
 
+    /// `radbench campaign run SPEC [--bench FILE] [--out DIR]` (the session's bench file, if it
+    /// has one; else the built-in mock lab the spec describes), its events to `to`. The
+    /// session's connections are released for the run (the campaign connects as the command
+    /// does); its lock is kept, so no other session comes in between. Ends with the run
+    /// folder, or the error that stopped the run (the folder is resumable).
+    pub fn campaign_run(
+        &self,
+        spec: CampaignSpec,
+        out: Option<PathBuf>,
+        retries: Option<usize>,
+        to: CampaignEvents,
+    ) -> Call<PathBuf> {
+        self.spawn_on_thread(move |mut warm, interrupt| async move {
+            warm.before_campaign().await?;
+            let bench_file = warm.bench.path.clone();
+            campaign::run(spec, bench_file.as_deref(), out, retries, to, interrupt).await
+        })
+    }
+
+    /// `radbench campaign resume DIR`: only the steps not measured yet (as
+    /// [`campaign_run`](Self::campaign_run)).
+    pub fn campaign_resume(&self, dir: PathBuf, to: CampaignEvents) -> Call<PathBuf> {
+        self.spawn_on_thread(move |mut warm, interrupt| async move {
+            warm.before_campaign().await?;
+            campaign::resume(&dir, to, interrupt).await
+        })
+    }
+
     /// Puts the bench in its safe state and releases the instruments; later calls are refused.
     /// The safe state's report.
     pub fn close(&self) -> Call<String> {
@@ -314,6 +331,22 @@ impl Warm {
             // Nothing connected: the last call's guard left the bench safe, or it never radiated.
             None => SafeStateReport::default(),
         }
+    }
+
+    /// The permit checked, then the safe state, the connections released and the preparation
+    /// dropped: a campaign connects itself.
+    async fn before_campaign(&mut self) -> anyhow::Result<()> {
+        if !self.allow_rf {
+            return Err(MeasureError::NoPermit {
+                run: "campaign's steps",
+            }
+            .into());
+        }
+        self.prepared = None;
+        if let Some(mut rig) = self.rig.take() {
+            rig.engage_safe_state().await;
+        }
+        Ok(())
     }
 
     /// Connects the rig again when an error or the doctor released it.
@@ -600,14 +633,14 @@ mod tests {
 
     #[test]
     fn a_second_session_on_the_same_instruments_is_refused_with_the_reason() {
-        use mock_lab::server::launch::Transport;
+        // A lab that runs on its own, and its bench file.
         let runtime = tokio::runtime::Runtime::new().unwrap();
         let lab = runtime
-            .block_on(mock_lab::lab::start(mock_lab::lab::LabOptions::default()))
+            .block_on(Bench::open(BenchSource::BuiltIn(Box::default())))
             .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("bench.toml");
-        std::fs::write(&file, lab.bench_toml(Transport::Hislip, Transport::Vicp)).unwrap();
+        std::fs::write(&file, toml::to_string(&lab.file).unwrap()).unwrap();
         let source = SessionSource {
             bench: Some(file),
             ..SessionSource::default()
@@ -617,11 +650,10 @@ mod tests {
         let text = crate::exit::render(&err);
         assert!(text.contains("the instruments are in use"), "{text}");
         assert!(text.contains(&std::process::id().to_string()), "{text}");
-        assert_eq!(
-            crate::classify(&err),
-            crate::exit::ExitClass::Instrument,
-            "{text}"
-        );
+        let class = err
+            .downcast_ref::<crate::exit::Classified>()
+            .map(|c| c.class);
+        assert_eq!(class, Some(crate::exit::ExitClass::Instrument), "{text}");
         drop(first);
         let again = BenchSession::open(source).unwrap();
         drop(again);

@@ -79,7 +79,7 @@ impl CaptureOptions {
             .map(String::from)
             .chain(own.iter().cloned());
         let args = CaptureParser::try_parse_from(argv)
-            .map_err(|e| keywords::in_keywords(super::parse_error(&e), &longs))?;
+            .map_err(|e| keywords::in_keywords(keywords::parse_error(&e), &longs))?;
         crate::measure::check_repetitions(repetitions)?;
         // Checked now, before anything is sent: a bad value is refused with the bench untouched.
         args.waveform_args

@@ -412,7 +412,7 @@ impl BenchFile {
     }
 
     /// The response calibration the bench file names, relative to `bench_path`'s folder.
-    pub fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
+    pub(crate) fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
         let name = self.calibration.as_ref()?.response.as_ref()?;
         Some(bench_path.parent().unwrap_or(Path::new(".")).join(name))
     }

@@ -54,11 +54,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "catalog", "driver", "dsp", "exit", "measure", "physics", "storage", "time", "waveform",
         ],
     ),
-    // The in-memory API (the Python package's entry) and the options `radbench process` shares.
+    // The in-memory API (the Python package's entry) and the options `radbench process` shares;
+    // its warm bench session holds a connected bench as a campaign does (catalog, driver).
     (
         "in_memory",
         &[
-            "campaign", "exit", "measure", "simulate", "storage", "waveform",
+            "campaign", "catalog", "driver", "exit", "measure", "simulate", "storage", "waveform",
         ],
     ),
     // From an error chain to its exit class: names every layer's error type.

@@ -1,13 +1,10 @@
 //! A campaign from a warm session (`Bench.campaign(spec).run()`): `radbench campaign run` and
-//! `resume`, each step's result handed to the caller as it lands. The session's own connections
-//! are released for the run (the campaign connects as the command does), its bench lock kept, so
-//! no other session comes in between.
+//! `resume`, each step's result handed to the caller as it lands ([`CampaignEvents`]).
 
-use super::{BenchSession, Call, Warm};
 use crate::campaign::{self, BenchInfo, CampaignError, NewRun, Observer, SpecFile, StepDone};
 use crate::driver::RfPermit;
 use crate::exit::bad_input;
-use crate::measure::{Interrupt, MeasureError};
+use crate::measure::Interrupt;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -110,100 +107,69 @@ fn concluded(finished: campaign::Finished) -> anyhow::Result<PathBuf> {
     }
 }
 
-impl Warm {
-    /// Safe state, connections released, the preparation dropped: a campaign connects itself.
-    async fn release(&mut self) {
-        self.prepared = None;
-        if let Some(mut rig) = self.rig.take() {
-            rig.engage_safe_state().await;
-        }
+/// `radbench campaign run SPEC [--bench FILE] [--out DIR] [--retries N]`.
+pub(super) async fn run(
+    spec: CampaignSpec,
+    bench_file: Option<&Path>,
+    out: Option<PathBuf>,
+    retries: Option<usize>,
+    to: CampaignEvents,
+    interrupt: Interrupt,
+) -> anyhow::Result<PathBuf> {
+    let spec = spec.load()?;
+    let bench = BenchInfo::load(&spec, bench_file)?;
+    let mut plan = campaign::plan(&spec, &bench)?;
+    if let Some(n) = retries {
+        plan.retries = n;
     }
-
-    fn bench_file(&self) -> Option<&Path> {
-        self.bench.path.as_deref()
-    }
+    let out = out.unwrap_or_else(|| default_out(&plan.name));
+    let _ = to.events.send(json!({"event": "start", "dir": out}));
+    let mut observer = Forward {
+        to,
+        interrupt: interrupt.clone(),
+    };
+    let finished = campaign::start(
+        NewRun {
+            spec,
+            bench,
+            plan,
+            out,
+            journal: None,
+            permit: RfPermit::granted_by_user(),
+            interrupt,
+            input: None,
+        },
+        &mut observer,
+    )
+    .await?;
+    concluded(finished)
 }
 
-impl BenchSession {
-    /// `radbench campaign run SPEC [--bench FILE] [--out DIR]` (the session's bench file, if it
-    /// has one; else the built-in mock lab the spec describes), its events to `to`. Ends with the
-    /// run folder, or the error that stopped the run.
-    pub fn campaign_run(
-        &self,
-        spec: CampaignSpec,
-        out: Option<PathBuf>,
-        retries: Option<usize>,
-        to: CampaignEvents,
-    ) -> Call<PathBuf> {
-        self.spawn_on_thread(move |mut warm, interrupt| async move {
-            if !warm.allow_rf {
-                return Err(MeasureError::NoPermit {
-                    run: "campaign's steps",
-                }
-                .into());
-            }
-            let spec = spec.load()?;
-            let bench = BenchInfo::load(&spec, warm.bench_file())?;
-            let mut plan = campaign::plan(&spec, &bench)?;
-            if let Some(n) = retries {
-                plan.retries = n;
-            }
-            let out = out.unwrap_or_else(|| default_out(&plan.name));
-            let _ = to.events.send(json!({"event": "start", "dir": out}));
-            warm.release().await;
-            let mut observer = Forward {
-                to,
-                interrupt: interrupt.clone(),
-            };
-            let finished = campaign::start(
-                NewRun {
-                    spec,
-                    bench,
-                    plan,
-                    out,
-                    journal: None,
-                    permit: RfPermit::granted_by_user(),
-                    interrupt,
-                    input: None,
-                },
-                &mut observer,
-            )
-            .await?;
-            concluded(finished)
-        })
-    }
-
-    /// `radbench campaign resume DIR`: only the steps not measured yet.
-    pub fn campaign_resume(&self, dir: PathBuf, to: CampaignEvents) -> Call<PathBuf> {
-        self.spawn_on_thread(move |mut warm, interrupt| async move {
-            if !warm.allow_rf {
-                return Err(MeasureError::NoPermit {
-                    run: "campaign's steps",
-                }
-                .into());
-            }
-            let _ = to.events.send(json!({"event": "start", "dir": dir}));
-            warm.release().await;
-            let mut observer = Forward {
-                to,
-                interrupt: interrupt.clone(),
-            };
-            let finished = campaign::resume(
-                &dir,
-                RfPermit::granted_by_user(),
-                false,
-                None,
-                interrupt,
-                None,
-                &mut observer,
-            )
-            .await;
-            match finished {
-                Ok(f) => concluded(f),
-                // Nothing left to measure: the run is what the caller wanted.
-                Err(CampaignError::Complete { dir }) => Ok(dir),
-                Err(e) => Err(e.into()),
-            }
-        })
+/// `radbench campaign resume DIR`.
+pub(super) async fn resume(
+    dir: &Path,
+    to: CampaignEvents,
+    interrupt: Interrupt,
+) -> anyhow::Result<PathBuf> {
+    let _ = to.events.send(json!({"event": "start", "dir": dir}));
+    let mut observer = Forward {
+        to,
+        interrupt: interrupt.clone(),
+    };
+    let finished = campaign::resume(
+        dir,
+        RfPermit::granted_by_user(),
+        false,
+        None,
+        interrupt,
+        None,
+        &mut observer,
+    )
+    .await;
+    match finished {
+        Ok(f) => concluded(f),
+        // Nothing left to measure: the run is what the caller wanted.
+        Err(CampaignError::Complete { dir }) => Ok(dir),
+        Err(e) => Err(e.into()),
     }
 }
