@@ -587,7 +587,7 @@ mod tests {
         // Stopped as Ctrl-C stops the command: the interruption, the bench safe.
         let call = session.capture(capture_options(r#"{"seed": 3}"#));
         call.stop();
-        let err = ended(call).err().expect("stopped");
+        let err = ended(call).expect_err("stopped");
         assert!(
             matches!(
                 err.downcast_ref::<MeasureError>(),
