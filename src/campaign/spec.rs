@@ -9,6 +9,7 @@
 
 use super::kind::SweepParameter;
 use crate::measure::CorrectionMode;
+use crate::measure::Ranging;
 use crate::measure::{Algorithm, DetectorName, FftPrecisionName, WindowName};
 use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
@@ -208,6 +209,9 @@ pub struct ProcessingSection {
     pub min_separation_m: Option<f64>,
     #[serde(default)]
     pub chain_floor_db: Option<f64>,
+    /// How each target's range is measured: `envelope` (default) or `phase`.
+    #[serde(default)]
+    pub ranging: Option<Ranging>,
     #[serde(default)]
     pub min_range_m: Option<f64>,
     #[serde(default)]

@@ -6,7 +6,9 @@
 //! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
 pub(crate) use radbench::in_memory::{listed, PayloadArgs, WaveformArgs};
-use radbench::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName};
+use radbench::measure::{
+    Algorithm, DetectorName, FftPrecisionName, ProcessOptions, Ranging, WindowName,
+};
 use radbench::waveform::WaveformKind;
 
 /// Range processing choices shared by `capture`, `simulate run` and `process`.
@@ -63,6 +65,11 @@ pub struct ProcessingArgs {
         allow_hyphen_values = true
     )]
     pub chain_floor_db: f64,
+    /// How each target's range is measured: envelope (default), or phase: refined by the echo's
+    /// carrier phase against the calibration's reference, to a fraction of a micrometre
+    /// (docs/metrology.md; needs --calibration of a response calibration).
+    #[arg(long, value_parser = listed::<Ranging>(), value_name = "MODE", default_value = "envelope")]
+    pub ranging: Ranging,
 }
 
 impl ProcessingArgs {
@@ -81,6 +88,7 @@ impl ProcessingArgs {
             pfa: self.pfa,
             min_separation_m: self.min_separation,
             chain_floor_db: self.chain_floor_db,
+            ranging: self.ranging,
             ..ProcessOptions::default()
         }
     }
@@ -130,6 +138,7 @@ mod tests {
         round_trip::<DetectorName>();
         round_trip::<CarrierPhase>();
         round_trip::<CorrectionMode>();
+        round_trip::<Ranging>();
         let err = "pmcw".parse::<WaveformKind>().unwrap_err();
         assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }

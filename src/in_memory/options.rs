@@ -11,6 +11,7 @@ use crate::exit::bad_input;
 use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::CorrectionMode;
 use crate::measure::WaveformChoice;
+use crate::measure::Ranging;
 use crate::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName};
 use crate::measure::{AwgLink, ScopeLink, ScopeModel};
 use crate::simulate::CarrierPhase;
@@ -142,6 +143,18 @@ impl Listed for CorrectionMode {
     }
     fn about(self) -> &'static str {
         CorrectionMode::about(self)
+    }
+}
+
+impl Listed for Ranging {
+    fn all() -> &'static [Self] {
+        &Ranging::ALL
+    }
+    fn name(self) -> &'static str {
+        Ranging::name(self)
+    }
+    fn about(self) -> &'static str {
+        Ranging::about(self)
     }
 }
 
@@ -297,6 +310,9 @@ pub struct ProcessArgs {
     /// The detector's chain floor, dB (see `capture --help`).
     #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     pub chain_floor_db: Option<f64>,
+    /// How each target's range is measured: envelope, or phase (see `capture --help`).
+    #[arg(long, value_parser = listed::<Ranging>(), value_name = "MODE")]
+    pub ranging: Option<Ranging>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub min_range: Option<f64>,
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
@@ -349,6 +365,7 @@ impl ProcessArgs {
             chain_floor_db: self.chain_floor_db,
             awg_amplitude_vpp: None,
             correction: None,
+            ranging: self.ranging,
             keep_background: !self.no_background,
             require_correction: false,
         }
