@@ -316,8 +316,8 @@ pub(super) fn target_ranges(targets: &serde_json::Value) -> Vec<String> {
         .as_array()
         .map(|t| {
             t.iter()
-                .filter_map(|x| x["range_m"].as_f64())
-                .map(|r| format!("{r:.4} m"))
+                .filter_map(|x| Some((x["range_m"].as_f64()?, x["range_std_m"].as_f64())))
+                .map(|(r, s)| super::capture::range_text(r, s))
                 .collect()
         })
         .unwrap_or_default()

@@ -12,6 +12,7 @@
 //! driver = "lecroy-maui"                          # optional: checked against the catalog
 //! resource = "VICP::192.168.1.30"
 //! volts_per_div = 0.05                            # optional, both channels
+//! trigger_jitter_s = 1e-12                        # optional: RMS, data sheet (1 ps if not given)
 //!
 //! [tx]                                            # optional: a Tx radbench does not control
 //! model = "gotmic-eband-tx"                       # must be switched on by hand
@@ -54,6 +55,10 @@ pub struct InstrumentEntry {
     /// Front ends only: attenuation once enabled, dB.
     #[serde(default)]
     pub attenuation_db: Option<f64>,
+    /// Scope only: its RMS trigger jitter, seconds, from its data sheet (or measured): every
+    /// range's uncertainty carries it (docs/metrology.md; 1 ps when not stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger_jitter_s: Option<f64>,
 }
 
 /// A simulated bench's extras.
@@ -160,6 +165,7 @@ impl BenchFile {
                 "resource",
                 "volts_per_div",
                 "attenuation_db",
+                "trigger_jitter_s",
                 "system_delay_s",
                 "control",
             ] {
@@ -196,6 +202,17 @@ impl BenchFile {
                         &format!("{section}.volts_per_div"),
                         format!(
                             "[{section}] volts_per_div = {v}: must be a positive number of volts"
+                        ),
+                    ));
+                }
+            }
+            if let Some(j) = entry.trigger_jitter_s {
+                if !(j.is_finite() && (0.0..=1e-9).contains(&j)) {
+                    return Err(invalid_at(
+                        &format!("{section}.trigger_jitter_s"),
+                        format!(
+                            "[{section}] trigger_jitter_s = {j}: must be an RMS jitter in \
+                             seconds, 0 ..= 1e-9 (a scope's is 0.1e-12 .. 2e-12)"
                         ),
                     ));
                 }

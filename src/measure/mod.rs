@@ -41,6 +41,7 @@ pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
 pub(crate) mod pipeline;
+pub(crate) mod ranging;
 #[cfg(test)]
 mod predistortion_tests;
 pub(crate) mod record;

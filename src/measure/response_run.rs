@@ -353,6 +353,7 @@ fn corrected(
     let range = request.reference_range_m;
     let (sb, wb, rb) = reference_of(&before, range);
     let (sa, wa, ra) = reference_of(&after, range);
+    let phase_anchor = pipeline.phase_anchor(&after, range);
     Ok(ReferenceFigures {
         sidelobe_db_before: sb,
         sidelobe_db_after: sa,
@@ -360,5 +361,6 @@ fn corrected(
         width_cm_after: wa,
         range_m_before: rb,
         range_m_after: ra,
+        phase_anchor,
     })
 }

@@ -32,6 +32,7 @@ mod guide_markdown;
 mod io_cli;
 mod keysight_uxr;
 mod link_quality;
+mod metrology;
 mod live_exit_paths;
 mod pointing_errors;
 mod process_cli;
