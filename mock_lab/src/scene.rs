@@ -169,7 +169,7 @@ impl Default for Scene {
 
 /// Simulated time between two captures by default, seconds: a lab engineer's capture, look and
 /// next capture.
-pub const DEFAULT_CAPTURE_INTERVAL_S: f64 = 1.0;
+const DEFAULT_CAPTURE_INTERVAL_S: f64 = 1.0;
 
 /// A scene file or change that cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -442,7 +442,7 @@ impl Synthesizer {
 
     /// The simulated clock of the last capture, seconds (the scene's `clock_s` plus
     /// `capture_interval_s` per capture before it): what its ground truth records.
-    pub fn last_clock_s(&self) -> f64 {
+    pub(crate) fn last_clock_s(&self) -> f64 {
         self.last_clock_s
     }
 

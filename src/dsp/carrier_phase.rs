@@ -34,7 +34,11 @@ impl BandShape {
             return None;
         }
         let freq = |k: usize| {
-            let signed = if k <= n / 2 { k as f64 } else { k as f64 - n as f64 };
+            let signed = if k <= n / 2 {
+                k as f64
+            } else {
+                k as f64 - n as f64
+            };
             signed * fs / n as f64
         };
         let s1: f64 = cross.iter().map(|c| c.re).sum();
@@ -134,7 +138,10 @@ mod tests {
         let power: Vec<f64> = cross.iter().map(|c| c.re).collect();
         let b = BandShape::of_spectrum(&cross, &power, fs).unwrap();
         assert!((b.mean_hz - 0.4995e9).abs() < 1e6, "{b:?}");
-        assert!((b.rms_hz / (1e9 / 12f64.sqrt()) - 1.0).abs() < 1e-3, "{b:?}");
+        assert!(
+            (b.rms_hz / (1e9 / 12f64.sqrt()) - 1.0).abs() < 1e-3,
+            "{b:?}"
+        );
         // 68 dB per cell: about 23 um (the "about 20 um").
         let std = b.envelope_std_m(10f64.powf(6.8));
         assert!((20e-6..26e-6).contains(&std), "{std}");

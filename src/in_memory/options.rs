@@ -10,8 +10,8 @@
 use crate::exit::bad_input;
 use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::CorrectionMode;
-use crate::measure::WaveformChoice;
 use crate::measure::Ranging;
+use crate::measure::WaveformChoice;
 use crate::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName};
 use crate::measure::{AwgLink, ScopeLink, ScopeModel};
 use crate::simulate::CarrierPhase;

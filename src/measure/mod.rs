@@ -41,9 +41,9 @@ pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
 pub(crate) mod pipeline;
-pub(crate) mod ranging;
 #[cfg(test)]
 mod predistortion_tests;
+pub(crate) mod ranging;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;

@@ -146,9 +146,7 @@ impl RangingModel {
         band: Option<BandShape>,
         anchor: Option<PhaseAnchor>,
     ) -> Self {
-        let jitter_s = options
-            .trigger_jitter_s
-            .unwrap_or(TYPICAL_TRIGGER_JITTER_S);
+        let jitter_s = options.trigger_jitter_s.unwrap_or(TYPICAL_TRIGGER_JITTER_S);
         let jitter_m = C0 * jitter_s / 2.0;
         // A response calibration sets the ranges (its reference lands at its stated range):
         // its reference's envelope uncertainty is the calibration's. Without one, a measured
@@ -194,6 +192,11 @@ impl RangingModel {
                 }
             },
         };
+        let fixed_echoes: Vec<Echo> = report
+            .targets
+            .iter()
+            .filter_map(|d| echo_of(d, noise_per_cell))
+            .collect();
         for t in &mut report.targets {
             let Some(echo) = echo_of(t, noise_per_cell) else {
                 continue;
@@ -201,12 +204,12 @@ impl RangingModel {
             let Some(snr_std) = self.snr_std_m(echo.snr) else {
                 continue;
             };
-            let envelope_std = (snr_std.powi(2) + self.jitter_m.powi(2)
-                + self.calibration_std_m.powi(2))
-            .sqrt();
+            let envelope_std =
+                (snr_std.powi(2) + self.jitter_m.powi(2) + self.calibration_std_m.powi(2)).sqrt();
             t.range_std_m = Some(envelope_std);
             if let Some((anchor, leak)) = &reference {
-                match self.phase_range(anchor, leak, &echo, snr_std) {
+                let fixed = self.fixed_echo(anchor, &fixed_echoes, &echo);
+                match self.phase_range(anchor, leak, &echo, snr_std, fixed) {
                     Ok((range_m, std_m)) => {
                         t.range_m = range_m;
                         t.range_std_m = Some(std_m);
@@ -221,6 +224,24 @@ impl RangingModel {
         warnings
     }
 
+    /// The calibration record's fixed reflector in this record, for a target `echo` other than
+    /// it: (its range now, the variance of its move, its range then).
+    fn fixed_echo(
+        &self,
+        anchor: &PhaseAnchor,
+        echoes: &[Echo],
+        echo: &Echo,
+    ) -> Option<(f64, f64, f64)> {
+        let (then_m, then_std) = (anchor.fixed_range_m?, anchor.fixed_snr_std_m?);
+        let now = echoes
+            .iter()
+            .filter(|e| (e.range_m - then_m).abs() <= LEAKAGE_SEARCH_M)
+            .filter(|e| (e.range_m - echo.range_m).abs() > LEAKAGE_SEARCH_M)
+            .max_by(|a, b| a.amplitude.norm().total_cmp(&b.amplitude.norm()))?;
+        let var = self.snr_std_m(now.snr)?.powi(2) + then_std.powi(2);
+        Some((now.range_m, var, then_m))
+    }
+
     /// The calibration's anchor and this record's leakage (the time and phase reference).
     fn in_record_reference(
         &self,
@@ -232,17 +253,19 @@ impl RangingModel {
              (`radbench calibrate response`) that measured one",
         )?;
         if self.band.is_none() {
-            return Err("this algorithm gives no complex profile (use correlation or fourier)".into());
+            return Err(
+                "this algorithm gives no complex profile (use correlation or fourier)".into(),
+            );
         }
         let near =
             anchor.leakage_range_m - LEAKAGE_SEARCH_M..=anchor.leakage_range_m + LEAKAGE_SEARCH_M;
         let leak = leakage(report, near, noise_per_cell).ok_or_else(|| {
-                format!(
-                    "the Tx -> Rx leakage (the time and phase reference, at {:.4} m in the \
+            format!(
+                "the Tx -> Rx leakage (the time and phase reference, at {:.4} m in the \
                      calibration) is not in this record",
-                    anchor.leakage_range_m
-                )
-            })?;
+                anchor.leakage_range_m
+            )
+        })?;
         Ok((anchor, leak))
     }
 
@@ -254,20 +277,45 @@ impl RangingModel {
         leak: &Echo,
         echo: &Echo,
         snr_std_m: f64,
+        fixed: Option<(f64, f64, f64)>,
     ) -> Result<(f64, f64), String> {
         let leak_std = self.snr_std_m(leak.snr).unwrap_or(f64::INFINITY);
-        // The envelope that unwraps the phase: the target against the anchor, the trigger's
-        // jitter (capture's and calibration's) estimated from the leakage's move, weighted by
-        // how well the leakage's envelope knows it.
+        // The envelope that unwraps the phase: the target against the anchor, less the common
+        // move of the record (the trigger's jitter, capture's and calibration's, and the chain's
+        // drift) where a fixed reflector of the calibration's record shows it (the leakage's
+        // envelope cannot: it is cut by the profile's start), weighted by how well it knows it.
+        // A move the jitter cannot explain (over 3 sd) is drift: taken out whole.
         let jitter_var = 2.0 * self.jitter_m.powi(2);
-        let leak_var = leak_std.powi(2) + anchor.leakage_snr_std_m.powi(2);
-        let weight = jitter_var / (jitter_var + leak_var);
+        // The leakage's envelope is too distorted to measure the move, but tells a drift of the
+        // chain since the calibration, which the jitter does not explain: no cycle is guessed.
         let leak_move = leak.range_m - anchor.leakage_range_m;
-        let rough = anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * leak_move;
-        let rough_std = (snr_std_m.powi(2)
-            + anchor.envelope_snr_std_m.powi(2)
-            + jitter_var * leak_var / (jitter_var + leak_var))
-            .sqrt();
+        let leak_var = leak_std.powi(2) + anchor.leakage_snr_std_m.powi(2);
+        if fixed.is_none() && leak_move.abs() > 3.0 * (jitter_var + leak_var).sqrt() {
+            return Err(format!(
+                "the leakage moved {:.2} mm since the calibration, more than the trigger's \
+                 jitter explains: the chain drifted and the phase's cycle is not known \
+                 (calibrate again, or add a fixed reflector to the scene)",
+                leak_move * 1e3
+            ));
+        }
+        let (weight, left_var, common_move) = match fixed {
+            Some((now, fixed_var, then_m)) => {
+                let moved = now - then_m;
+                if moved.abs() > 3.0 * (jitter_var + fixed_var).sqrt() {
+                    (1.0, fixed_var, moved)
+                } else {
+                    (
+                        jitter_var / (jitter_var + fixed_var),
+                        jitter_var * fixed_var / (jitter_var + fixed_var),
+                        moved,
+                    )
+                }
+            }
+            None => (0.0, jitter_var, 0.0),
+        };
+        let rough =
+            anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * common_move;
+        let rough_std = (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var).sqrt();
         let phase = wrap((echo.amplitude / leak.amplitude).arg() - anchor.phase_to_leakage_rad);
         let range_m = unwrap_range(anchor.range_m, phase, rough, rough_std, self.carrier_hz)
             .ok_or_else(|| {
@@ -313,16 +361,26 @@ impl RangingModel {
         )?;
         let horns = f64::NEG_INFINITY..=LEAKAGE_REACH_M.min(reference.range_m - 0.3);
         let leak = leakage(report, horns, noise_per_cell)?;
+        // A fixed reflector: the strongest other target of the calibration's record (the
+        // unwrapping's envelope takes the record's common move from it).
+        let fixed = strongest(
+            &mut report
+                .targets
+                .iter()
+                .filter_map(|d| echo_of(d, noise_per_cell))
+                .filter(|e| (e.range_m - reference.range_m).abs() >= 0.3),
+        );
         Some(PhaseAnchor {
+            fixed_range_m: fixed.map(|f| f.range_m),
+            fixed_snr_std_m: fixed.and_then(|f| self.snr_std_m(f.snr)),
             range_m: reference_range_m,
             envelope_range_m: reference.range_m,
             envelope_snr_std_m: self.snr_std_m(reference.snr)?,
             leakage_range_m: leak.range_m,
             leakage_snr_std_m: self.snr_std_m(leak.snr)?,
             phase_to_leakage_rad: (reference.amplitude / leak.amplitude).arg(),
-            phase_std_rad: (phase_std_rad(reference.snr).powi(2)
-                + phase_std_rad(leak.snr).powi(2))
-            .sqrt(),
+            phase_std_rad: (phase_std_rad(reference.snr).powi(2) + phase_std_rad(leak.snr).powi(2))
+                .sqrt(),
         })
     }
 }

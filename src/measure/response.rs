@@ -178,6 +178,13 @@ pub struct PhaseAnchor {
     pub phase_to_leakage_rad: f64,
     /// That phase difference's standard uncertainty from the two SNRs, rad.
     pub phase_std_rad: f64,
+    /// A fixed reflector in the same record (the strongest other target), m, and its envelope's
+    /// standard uncertainty from its SNR: phase ranging's unwrapping takes the trigger's jitter
+    /// and the chain's drift from its move.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_range_m: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_snr_std_m: Option<f64>,
 }
 
 impl PhaseAnchor {

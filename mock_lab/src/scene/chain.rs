@@ -433,8 +433,18 @@ impl Chain {
         if let Some(table) = &self.response {
             check_table(table)?;
         }
-        finite_in("chain.drift_ps_per_min", p.drift_ps_per_min, -1000.0, 1000.0)?;
-        finite_in("chain.drift_deg_per_min", p.drift_deg_per_min, -3600.0, 3600.0)?;
+        finite_in(
+            "chain.drift_ps_per_min",
+            p.drift_ps_per_min,
+            -1000.0,
+            1000.0,
+        )?;
+        finite_in(
+            "chain.drift_deg_per_min",
+            p.drift_deg_per_min,
+            -3600.0,
+            3600.0,
+        )?;
         Ok(())
     }
 }
