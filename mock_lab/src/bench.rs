@@ -35,11 +35,25 @@ pub struct Bench {
 impl Bench {
     /// The bench with the built-in instrument models and `scene` in front of the antennas.
     pub fn new(scene: Scene) -> Result<Bench, CatalogError> {
+        Bench::with_front_ends(
+            scene,
+            crate::catalog::gotmic_tx()?,
+            crate::catalog::gotmic_rx()?,
+        )
+    }
+
+    /// The bench with Tx and Rx modules of the given models (their line protocol and register
+    /// map as a catalog file describes them).
+    pub(crate) fn with_front_ends(
+        scene: Scene,
+        tx: crate::catalog::RfModel,
+        rx: crate::catalog::RfModel,
+    ) -> Result<Bench, CatalogError> {
         let seed = scene.seed;
         let scene = SharedScene::new(scene);
         let awg = Arc::new(M8195a::embedded()?);
-        let tx = Arc::new(Gotmic::tx_embedded()?);
-        let rx = Arc::new(Gotmic::rx_embedded()?);
+        let tx = Arc::new(Gotmic::new(tx)?);
+        let rx = Arc::new(Gotmic::new(rx)?);
         let marker_cable = Arc::new(AtomicBool::new(true));
         let source = Arc::new(BenchSource {
             marker_cable: marker_cable.clone(),

@@ -211,12 +211,118 @@ pub struct ProtocolError {
     pub text: String,
 }
 
+/// The module's line protocol as the catalog describes it (instruments/README.md, "The line
+/// protocol as data"); every key but `error` defaults to the radbench-project protocol's spelling.
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
 pub struct LineProtocol {
+    /// `crc8` or `none`.
+    #[serde(default)]
+    pub checksum: Checksum,
+    #[serde(default)]
     pub crc_poly: u8,
+    #[serde(default)]
     pub crc_init: u8,
+    /// Switches the checksum on; empty: always on (with `crc8`).
+    #[serde(default = "default_checksum_on")]
+    pub checksum_on: String,
+    #[serde(default = "default_checksum_off")]
+    pub checksum_off: String,
+    #[serde(default)]
+    pub request_prefix: String,
+    #[serde(default)]
+    pub reply_prefix: String,
+    #[serde(default = "default_identify")]
+    pub identify: String,
+    #[serde(default = "default_read")]
+    pub read: String,
+    #[serde(default = "default_write")]
+    pub write: String,
+    #[serde(default = "default_address_format")]
+    pub address_format: NumberFormat,
+    #[serde(default = "default_value_format")]
+    pub value_format: NumberFormat,
+    #[serde(default = "default_reply_ok")]
+    pub reply_ok: String,
+    #[serde(default = "default_reply_error")]
+    pub reply_error: String,
     #[serde(rename = "error")]
     pub errors: Vec<ProtocolError>,
+}
+
+fn default_checksum_on() -> String {
+    "CRC ON".into()
+}
+fn default_checksum_off() -> String {
+    "CRC OFF".into()
+}
+fn default_identify() -> String {
+    "*IDN?".into()
+}
+fn default_read() -> String {
+    "R {address}".into()
+}
+fn default_write() -> String {
+    "W {address} {value}".into()
+}
+fn default_address_format() -> NumberFormat {
+    NumberFormat::Hex2
+}
+fn default_value_format() -> NumberFormat {
+    NumberFormat::Hex4
+}
+fn default_reply_ok() -> String {
+    "OK".into()
+}
+fn default_reply_error() -> String {
+    "ERR".into()
+}
+
+/// A line's checksum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Checksum {
+    #[default]
+    Crc8,
+    None,
+}
+
+/// How a number is written on the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NumberFormat {
+    Hex2,
+    Hex4,
+    Dec,
+}
+
+impl NumberFormat {
+    pub fn write(self, value: u16) -> String {
+        match self {
+            NumberFormat::Hex2 => format!("{value:02X}"),
+            NumberFormat::Hex4 => format!("{value:04X}"),
+            NumberFormat::Dec => value.to_string(),
+        }
+    }
+
+    /// A number in this format (hex with an optional `0x`, at most as many digits as the
+    /// format writes; decimal up to 65535).
+    pub fn read(self, text: &str) -> Option<u16> {
+        let (digits, radix, most) = match self {
+            NumberFormat::Hex2 | NumberFormat::Hex4 => {
+                let most = if self == NumberFormat::Hex2 { 2 } else { 4 };
+                let digits = text
+                    .strip_prefix("0x")
+                    .or_else(|| text.strip_prefix("0X"))
+                    .unwrap_or(text);
+                (digits, 16, most)
+            }
+            NumberFormat::Dec => (text, 10, 5),
+        };
+        if digits.is_empty() || digits.len() > most || !digits.chars().all(|c| c.is_digit(radix)) {
+            return None;
+        }
+        u16::from_str_radix(digits, radix).ok()
+    }
 }
 
 /// A Gotmic module model: identity, behaviour, protocol and register map.
@@ -371,8 +477,9 @@ pub fn check_digitizer(model: &DigitizerModel) -> Result<(), CatalogError> {
     Ok(())
 }
 
-/// Reads a Gotmic module file (for example `embedded::GOTMIC_TX`).
-pub(crate) fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
+/// Reads a Gotmic module file (for example `embedded::GOTMIC_TX`, or a lab's own description of
+/// its modules' protocol).
+pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
     const WHAT: &str = "RF module";
     let file: RfFile = parse(WHAT, text)?;
     let model = RfModel {
@@ -427,6 +534,31 @@ pub fn check_rf(model: &RfModel) -> Result<(), CatalogError> {
                 format!("{register} needs a bit field named {field}"),
             ));
         }
+    }
+    let p = &model.protocol;
+    for (key, template, needs) in [
+        ("protocol.read", &p.read, &["{address}"][..]),
+        ("protocol.write", &p.write, &["{address}", "{value}"][..]),
+    ] {
+        for placeholder in ["{address}", "{value}"] {
+            if template.matches(placeholder).count() != usize::from(needs.contains(&placeholder)) {
+                return Err(invalid(
+                    WHAT,
+                    key,
+                    format!(
+                        "{template:?}: allowed placeholders, once each: {}",
+                        needs.join(" ")
+                    ),
+                ));
+            }
+        }
+    }
+    if p.identify.trim().is_empty() || p.reply_ok.is_empty() || p.reply_error.is_empty() {
+        return Err(invalid(
+            WHAT,
+            "protocol",
+            "identify, reply_ok and reply_error must not be empty",
+        ));
     }
     for name in [
         "syntax",

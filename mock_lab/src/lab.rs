@@ -11,7 +11,7 @@
 //! | `loopback` (test instrument, optional) | raw socket, VXI-11, HiSLIP, VICP, serial |
 
 use crate::bench::Bench;
-use crate::catalog::CatalogError;
+use crate::catalog::{CatalogError, RfModel};
 use crate::control;
 use crate::emulator::lecroy::trigger::TriggerSource;
 use crate::emulator::lecroy::{Lecroy, RemoteInterface};
@@ -46,6 +46,9 @@ pub struct LabOptions {
     pub scope_model: ScopeModel,
     /// Port of the loopback instrument's VICP endpoint (interop tests through pyvisa need 1861).
     pub loopback_vicp_port: Option<u16>,
+    /// The Tx and Rx modules' catalog files instead of the built-in ones (a lab's own description
+    /// of its modules' line protocol and register map, `catalog::rf_from_str`).
+    pub front_ends: Option<(RfModel, RfModel)>,
 }
 
 impl Default for LabOptions {
@@ -59,6 +62,7 @@ impl Default for LabOptions {
             scope_remote: RemoteInterface::Vicp,
             with_loopback: false,
             loopback_vicp_port: None,
+            front_ends: None,
             scope_model: ScopeModel::default(),
         }
     }
@@ -367,6 +371,10 @@ impl control::Panel for ScopeSwitch {
         if let Some(m) = rx {
             self.bench.rx.set_crc_fixed(m);
         }
+        if let Some(options) = &fault.awg_options {
+            let answer = (!options.is_empty()).then(|| options.clone());
+            self.bench.awg.set_options(answer);
+        }
         if let Some(faults) = links.drop {
             faults.drop_next_reply_midway();
         }
@@ -557,7 +565,10 @@ fn ports_of(
 /// Starts the lab. Must run inside a tokio runtime; returns once every endpoint listens.
 pub async fn start(options: LabOptions) -> Result<Lab, LabError> {
     options.validate()?;
-    let bench = Arc::new(Bench::new(options.scene.clone())?);
+    let bench = Arc::new(match &options.front_ends {
+        Some((tx, rx)) => Bench::with_front_ends(options.scene.clone(), tx.clone(), rx.clone())?,
+        None => Bench::new(options.scene.clone())?,
+    });
     bench.scope.set_remote_interface(options.scope_remote);
     let served = served(&bench, options.with_loopback, options.scope_model)?;
     let endpoints_now = Arc::new(Mutex::new(Vec::new()));

@@ -138,6 +138,7 @@ fn main() -> ExitCode {
         with_loopback: true,
         loopback_vicp_port: args.loopback_vicp_port,
         scope_model: args.scope_model,
+        front_ends: None,
     };
     if let Err(err) = options.validate() {
         return fail(err.exit_code(), &err.to_string());

@@ -247,6 +247,20 @@ def _argv(options: Mapping[str, Any]) -> List[str]:
     return argv
 
 
+def _json_value(value: Any) -> Any:
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if hasattr(value, "item"):  # a NumPy scalar
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not an option value")
+
+
+def _keywords(options: Mapping[str, Any]) -> str:
+    """Keyword options as the JSON object radbench deserializes them from (``None`` keeps the
+    default)."""
+    return json.dumps({k: v for k, v in options.items() if v is not None}, default=_json_value)
+
+
 def _processed(d: Dict[str, Any]) -> Processed:
     return Processed(
         summary=json.loads(d["summary_json"]),
@@ -275,28 +289,31 @@ def process(
     ``capture_rate`` in Hz are required; the record starts at the marker unless
     ``trigger_offset`` says otherwise). ``waveform``: ``"msk-lfm"`` or ``"ofdm"`` (captures
     radbench did not make); ``algorithm``: ``correlation``, ``fourier``, ``music``,
-    ``root-music``, ``esprit``. ``options`` are ``radbench process``'s options with ``_`` for
-    ``-`` (``m=32``, ``p=2``, ``zero_pad=20``, ``window="hann"``, ``detector="os-cfar"``,
-    ``pfa=1e-4``, ``min_range=0.3``, ``system_delay=2.5e-9``, ``no_background=True``,
-    ``bandwidth=2e9``, ``payload="hello"``, ``seed=3``, ...), with the same defaults, checks and
-    messages (``radbench process --help`` lists them), except that a message names the keyword
-    (``window``), not the command line's option (``--window``), and an unknown keyword gets the
-    nearest one (``windw``: did you mean ``window``?). Options not given keep what the capture
+    ``root-music``, ``esprit``. ``options`` are the processing choices, by the names a campaign's
+    ``[processing]`` table uses or the command line's with ``_`` for ``-`` (``m=32`` or
+    ``music_m=32``, ``p=2``, ``zero_pad=20``, ``window="hann"``, ``detector="os-cfar"``,
+    ``pfa=1e-4``, ``min_range=0.3``, ``correction="rx"``, ``calibration=PATH``, ...; they reach
+    radbench as one JSON object, deserialized into the same type the command line and campaigns
+    use), and ``radbench process``'s own options (``system_delay=2.5e-9``,
+    ``no_background=True``, ``bandwidth=2e9``, ``payload="hello"``, ``seed=3``, ...), with the
+    same defaults, checks and messages (``radbench process --help`` lists them), except that a
+    message names the keyword (``window``), not the command line's option (``--window``), and an
+    unknown keyword gets the nearest one (``windw``: did you mean ``window``?). Options not given keep what the capture
     recorded. Returns :class:`Processed`; its ``options`` holds every option used.
     """
     if waveform is not None:
         waveform = waveform.replace("_", "-")
-    argv = _argv({"waveform": waveform, "algorithm": algorithm, **options})
+    keywords = _keywords({"waveform": waveform, "algorithm": algorithm, **options})
     if isinstance(capture_or_samples, np.ndarray):
         samples = np.ascontiguousarray(capture_or_samples, dtype=np.complex128)
         if samples.ndim != 1:
             raise InputError(f"samples: shape {samples.shape}; give one record, a 1-D array")
         if capture_rate is None:
             raise InputError("capture_rate: needed with samples (their sample rate in Hz)")
-        return _processed(_radbench.process_samples(samples, float(capture_rate), 0.0, argv))
+        return _processed(_radbench.process_samples(samples, float(capture_rate), 0.0, keywords))
     if capture_rate is not None:
         raise InputError("capture_rate: only with samples (a capture says its own rate)")
-    return _processed(_radbench.process_capture(_files(capture_or_samples), argv))
+    return _processed(_radbench.process_capture(_files(capture_or_samples), keywords))
 
 
 def captures(*inputs: PathLike) -> Dict[str, List[str]]:

@@ -79,15 +79,16 @@ fn processed_dict<'py>(py: Python<'py>, done: InMemory) -> PyResult<Bound<'py, P
     Ok(d)
 }
 
-/// One capture processed as `radbench process FILES OPTIONS` processes it (nothing written).
+/// One capture processed as `radbench process FILES OPTIONS` processes it (nothing written);
+/// `keywords`: the options as a JSON object of Python keywords.
 #[pyfunction]
 fn process_capture<'py>(
     py: Python<'py>,
     files: Vec<PathBuf>,
-    options: Vec<String>,
+    keywords: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let done = py
-        .detach(|| ProcessRequest::parse_keywords(&options).and_then(|r| r.capture(&files)))
+        .detach(|| ProcessRequest::from_keywords(keywords).and_then(|r| r.capture(&files)))
         .map_err(to_py)?;
     processed_dict(py, done)
 }
@@ -99,7 +100,7 @@ fn process_samples<'py>(
     samples: PyReadonlyArray1<'py, Complex64>,
     sample_rate_hz: f64,
     first_point_s: f64,
-    options: Vec<String>,
+    keywords: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let raw = RawIq {
         samples: samples.as_array().to_vec(),
@@ -107,7 +108,7 @@ fn process_samples<'py>(
         first_point_s,
     };
     let done = py
-        .detach(|| ProcessRequest::parse_keywords(&options).and_then(|r| r.samples(raw)))
+        .detach(|| ProcessRequest::from_keywords(keywords).and_then(|r| r.samples(raw)))
         .map_err(to_py)?;
     processed_dict(py, done)
 }

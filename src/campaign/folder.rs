@@ -235,7 +235,7 @@ fn copy_calibration(out: &Path, plan: &Plan) -> Result<Option<CalibrationRecord>
     write_atomic(&out.join(&copy), &header)?;
     write_atomic(&out.join(&table_copy), &table)?;
     Ok(Some(CalibrationRecord {
-        mode: used.mode.clone(),
+        mode: used.mode,
         path,
         copy,
         table_copy,

@@ -306,6 +306,7 @@ mod tests {
             resolved: None,
             payload: None,
             spread: None,
+            chain_echoes: Vec::new(),
         };
         let fields = serde_json::to_value(&one).unwrap();
         for p in SweepParameter::ALL {

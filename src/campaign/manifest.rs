@@ -102,7 +102,7 @@ pub struct Manifest {
     pub plan: Plan,
     pub sessions: Vec<Session>,
     /// Never empty in a stored manifest (a plan has steps); skipped when empty so that
-    /// [`store_cached`](Self::store_cached) can append the steps' tables itself.
+    /// [`ManifestStore`](super::ManifestStore) can append the steps' tables itself.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub steps: Vec<StepRecord>,
     /// The run's own files (results, report, journals), hashed when last written.
@@ -184,8 +184,8 @@ pub struct InputFile {
 /// when it was measured.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationRecord {
-    /// `rx`.
-    pub mode: String,
+    /// `rx`, `tx` or `both`.
+    pub mode: crate::measure::CorrectionMode,
     /// The calibration header as the plan named it (absolute).
     pub path: PathBuf,
     /// The header's copy, relative to the run folder.
@@ -280,10 +280,6 @@ pub enum StepStatus {
     Done,
 }
 
-/// Step tables already serialised by [`Manifest::store_cached`], by step index.
-#[derive(Debug, Default)]
-pub struct StepTables(std::collections::HashMap<usize, (StepRecord, String)>);
-
 /// One step's state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StepRecord {
@@ -299,6 +295,21 @@ pub struct StepRecord {
     /// Every file of the step, relative to the run folder.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<FileRecord>,
+}
+
+impl StepRecord {
+    /// The record without what the instruments applied and its files: what the runner keeps of
+    /// a step once its table is in the manifest file ([`ManifestStore`](super::ManifestStore)).
+    pub(crate) fn status_only(&self) -> StepRecord {
+        StepRecord {
+            index: self.index,
+            status: self.status,
+            dir: self.dir.clone(),
+            measured_at: self.measured_at.clone(),
+            applied: None,
+            files: Vec::new(),
+        }
+    }
 }
 
 /// A file and its SHA-256.
@@ -330,6 +341,14 @@ impl FileRecord {
             )),
             Ok(_) => None,
         }
+    }
+}
+
+/// A manifest the serialiser refused (a radbench bug).
+fn unwritable(dir: &Path, e: toml::ser::Error) -> CampaignError {
+    CampaignError::Manifest {
+        path: dir.join(MANIFEST_FILE),
+        message: format!("cannot be written: {e} (a radbench bug, please report it)"),
     }
 }
 
@@ -484,57 +503,34 @@ impl Manifest {
     /// Writes `dir/manifest.toml` atomically and makes it durable with its folder.
     pub fn store(&mut self, dir: &Path) -> Result<(), CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
-        let text = toml::to_string(self).map_err(|e| CampaignError::Manifest {
-            path: dir.join(MANIFEST_FILE),
-            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
-        })?;
-        let text = self.laid_out(text).map_err(|e| CampaignError::Manifest {
-            path: dir.join(MANIFEST_FILE),
-            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
-        })?;
+        let text = toml::to_string(self)
+            .and_then(|text| self.laid_out(text))
+            .map_err(|e| unwritable(dir, e))?;
         // write_atomic makes the file and its folder entry durable (fsync of both).
         write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
         Ok(())
     }
 
-    /// [`store`](Self::store), serialising only the steps whose record changed since the last
-    /// call with the same `cache` (a finished step's table is kept as text): a run of N steps
-    /// writes its manifest N times, and each would otherwise serialise every step again.
-    pub fn store_cached(
-        &mut self,
-        dir: &Path,
-        cache: &mut StepTables,
-    ) -> Result<(), CampaignError> {
+    /// The manifest's text without its steps (the status room, then every other field), with
+    /// `updated` set to now: what [`ManifestStore`](super::ManifestStore) writes before the
+    /// step tables.
+    pub(crate) fn head_text(&mut self, dir: &Path) -> Result<String, CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
-        let unwritable = |e: toml::ser::Error| CampaignError::Manifest {
-            path: dir.join(MANIFEST_FILE),
-            message: format!("cannot be written: {e} (a radbench bug, please report it)"),
-        };
         let steps = std::mem::take(&mut self.steps);
         let head = toml::to_string(self);
         self.steps = steps;
-        let mut text = self
-            .laid_out(head.map_err(unwritable)?)
-            .map_err(unwritable)?;
-        for step in &self.steps {
-            match cache.0.get(&step.index) {
-                Some((record, table)) if record == step => text.push_str(table),
-                _ => {
-                    #[derive(Serialize)]
-                    struct One<'a> {
-                        steps: [&'a StepRecord; 1],
-                    }
-                    let table = toml::to_string(&One { steps: [step] }).map_err(unwritable)?;
-                    text.push('\n');
-                    text.push_str(&table);
-                    cache
-                        .0
-                        .insert(step.index, (step.clone(), format!("\n{table}")));
-                }
-            }
+        head.and_then(|h| self.laid_out(h))
+            .map_err(|e| unwritable(dir, e))
+    }
+
+    /// One step's table as the manifest holds it (a blank line, then `[[steps]]`).
+    pub(crate) fn step_table(step: &StepRecord, dir: &Path) -> Result<String, CampaignError> {
+        #[derive(Serialize)]
+        struct One<'a> {
+            steps: [&'a StepRecord; 1],
         }
-        write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
-        Ok(())
+        let table = toml::to_string(&One { steps: [step] }).map_err(|e| unwritable(dir, e))?;
+        Ok(format!("\n{table}"))
     }
 
     /// The record of step `index` (1-based).
@@ -644,12 +640,22 @@ mod tests {
         let back = Manifest::load(dir.path()).unwrap();
         m.updated = back.updated.clone();
         assert_eq!(back, m);
-        // The cached writer lays it out the same.
-        m.store_cached(dir.path(), &mut StepTables::default())
-            .unwrap();
+        // The step-by-step writer lays it out the same, a changed step's table replaced.
+        let mut store = super::super::ManifestStore::default();
+        store.store_whole(&mut m, dir.path()).unwrap();
         let cached = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
         assert!(cached[STATUS_ROOM..].starts_with("radbench_version = "));
         assert_eq!(Manifest::load(dir.path()).unwrap().steps, m.steps);
+        let mut changed = m.steps[0].clone();
+        changed.measured_at = Some("a longer time than before".into());
+        let mut head = Manifest {
+            steps: Vec::new(),
+            ..m.clone()
+        };
+        store.store(&mut head, dir.path(), Some(&changed)).unwrap();
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.steps[0], changed);
+        assert_eq!(back.steps[1..], m.steps[1..]);
     }
 
     #[test]

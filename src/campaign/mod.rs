@@ -9,6 +9,7 @@
 //! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
 //! | `manifest` | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
+//! | `manifest_store` | storing the manifest after each step, the step tables copied from the last file, not held in memory |
 //! | `results` | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
 //! | `run` | executing a plan into a run folder, and resuming one: what callers use |
 //! | `folder` | the run folder: its identity, start (created, locked, inputs copied), the copies' checks on resume |
@@ -28,6 +29,7 @@ mod folder;
 pub(crate) mod kind;
 pub(crate) mod lab_table;
 pub(crate) mod manifest;
+mod manifest_store;
 pub(crate) mod plan;
 pub(crate) mod positioner;
 mod prepare;
@@ -45,6 +47,7 @@ pub use builtin::*;
 pub use export::*;
 pub use lab_table::*;
 pub use manifest::*;
+pub use manifest_store::ManifestStore;
 pub use plan::*;
 pub use report::*;
 pub use results::*;

@@ -6,7 +6,7 @@
 //! without touching an instrument.
 
 use super::kind::{sorted_ranges, SweepAt, SweepParameter};
-use super::spec::{ModelOrder, PositionerKind, SpecError, SpecFile, SweepSection};
+use super::spec::{PositionerKind, SpecError, SpecFile, SweepSection};
 use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
@@ -333,6 +333,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         driver: None,
         volts_per_div: None,
         attenuation_db: None,
+        rf_frequency_hz: None,
         trigger_jitter_s: None,
     };
     BenchFile {
@@ -352,6 +353,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
             measured_at: None,
             response: None,
         }),
+        manual: Vec::new(),
         lines: Default::default(),
         path: PathBuf::from("(built-in mock lab)"),
     }
@@ -463,11 +465,13 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     if let Some((mode, cal)) = correction(spec, bench)? {
         // Resolved once: every step's pipelines apply (and record) the same calibration.
         for o in &mut processing {
-            o.correction = Some(cal.used_as(mode.name()));
+            o.correction = Some(cal.used_as(mode));
         }
     }
-    let from_targets = matches!(s.processing.music_p, Some(ModelOrder::Named(_)))
-        && processing.iter().any(|o| o.algorithm.is_subspace());
+    let from_targets = matches!(
+        s.processing.music_p,
+        Some(crate::measure::ModelOrderChoice::Named(_))
+    ) && processing.iter().any(|o| o.algorithm.is_subspace());
     let positioner = positioner(spec, bench)?;
     let mut steps = raw_steps(spec, &base, bench)?;
     let min = processing[0].min_range_m;
@@ -669,10 +673,16 @@ fn processing(
     bench: &BenchInfo,
 ) -> Result<Vec<ProcessOptions>, SpecError> {
     let p = &spec.spec.processing;
-    let algorithms = if p.algorithms.is_empty() {
-        vec![Algorithm::default_for(kind)]
-    } else {
-        p.algorithms.clone()
+    let algorithms = match (p.algorithm, p.algorithms.is_empty()) {
+        (Some(_), false) => {
+            return Err(spec.error(
+                "processing.algorithm",
+                "given with processing.algorithms: list every algorithm in `algorithms`",
+            ))
+        }
+        (Some(a), true) => vec![a],
+        (None, true) => vec![Algorithm::default_for(kind)],
+        (None, false) => p.algorithms.clone(),
     };
     let mut out: Vec<ProcessOptions> = Vec::new();
     for (i, &a) in algorithms.iter().enumerate() {
@@ -691,34 +701,10 @@ fn processing(
                 format!("{} is listed twice", a.name()),
             ));
         }
-        let mut o = ProcessOptions {
-            algorithm: a,
-            ..ProcessOptions::default()
-        };
-        macro_rules! set {
-            ($($f:ident),*) => { $(if let Some(v) = p.$f { o.$f = v; })* };
-        }
-        set!(
-            music_m,
-            forward_backward,
-            zero_pad,
-            window,
-            fft_precision,
-            interpolate,
-            detector,
-            pfa,
-            min_range_m,
-            max_range_m,
-            ranging
-        );
-        o.music_p = match p.music_p {
-            Some(ModelOrder::Fixed(n)) => Some(n),
-            _ => None,
-        };
-        o.min_separation_m = p.min_separation_m;
-        if let Some(db) = p.chain_floor_db {
-            o.chain_floor_db = db;
-        }
+        // The section's choices over the defaults, with this algorithm (a step's "targets"
+        // model order is counted per step).
+        let mut o = p.apply(ProcessOptions::default());
+        o.algorithm = a;
         let file = bench.bench_file();
         o.system_delay_s = file.system_delay_s();
         o.trigger_jitter_s = file.scope.trigger_jitter_s;

@@ -79,6 +79,34 @@ pub struct AlgorithmResult {
     /// only; the figures above are the coherent average's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spread: Option<SpreadFigures>,
+    /// Detections taken for a stronger target's chain echo (where the response calibration
+    /// measured an echo behind every path): not among `targets` (absent when none, and in runs
+    /// written before them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub chain_echoes: Vec<ChainEchoResult>,
+}
+
+/// A detection taken for the chain's echo of a stronger target (the capture's `chain_echoes`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChainEchoResult {
+    pub range_m: f64,
+    pub level_db: f64,
+    /// The stronger target it follows, m.
+    pub of_range_m: f64,
+    /// The calibration's echo it matches: its delay (ns) and level (dB) behind every path.
+    pub echo_delay_ns: f64,
+    pub echo_level_db: f64,
+}
+
+impl ChainEchoResult {
+    /// What the user reads of it (the capture's warning, in a line).
+    pub fn describe(&self) -> String {
+        format!(
+            "the echo at {:.4} m ({:.1} dB) is taken for the chain's: it lies {:.1} ns behind the \
+             target at {:.4} m, where the calibration measured an echo of every path at {:.1} dB",
+            self.range_m, self.level_db, self.echo_delay_ns, self.of_range_m, self.echo_level_db
+        )
+    }
 }
 
 /// Mean, sample standard deviation (n - 1) and count of one figure over the repetitions.
@@ -210,6 +238,19 @@ pub(crate) fn step_result(
                         sidelobe_db: s.sidelobe_db.map(MeanStd::from),
                         snr_db: s.snr_db.map(MeanStd::from),
                     }),
+                chain_echoes: o
+                    .processed
+                    .detection
+                    .chain_echoes
+                    .iter()
+                    .map(|e| ChainEchoResult {
+                        range_m: e.detection.range_m,
+                        level_db: e.detection.level_db,
+                        of_range_m: e.of_range_m,
+                        echo_delay_ns: e.echo_delay_ns,
+                        echo_level_db: e.echo_level_db,
+                    })
+                    .collect(),
                 targets,
             };
             (o.name.to_string(), result)
@@ -575,6 +616,7 @@ mod tests {
                     mer_db: None,
                 }),
                 spread: None,
+                chain_echoes: Vec::new(),
             },
         );
         StepResult {

@@ -16,11 +16,13 @@ use crate::measure::MeasureError;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Continues an interrupted run in `dir`.
+/// Continues an interrupted run in `dir`; `retries`, when given, replaces the plan's `[run]
+/// retries` from now on (as `campaign run --retries` sets it).
 pub async fn resume(
     dir: &Path,
     permit: RfPermit,
     force: bool,
+    retries: Option<usize>,
     interrupt: Interrupt,
     input: Option<LineSource>,
     observer: &mut dyn Observer,
@@ -39,6 +41,9 @@ pub async fn resume(
         });
     }
     check_spec_unchanged(dir, &manifest)?;
+    if let Some(n) = retries {
+        manifest.plan.retries = n;
+    }
     let mut plan = manifest.plan.clone();
     let mut forced = Vec::new();
     let bench_file = reload_bench_file(&plan, force, &mut forced)?;

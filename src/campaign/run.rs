@@ -40,6 +40,7 @@ use super::manifest::Status;
 use super::plan::{BenchInfo, Plan, Step};
 use super::positioner::LineSource;
 use super::results::StepResult;
+use super::retry::RetryRecord;
 use super::spec::SpecFile;
 use super::CampaignError;
 use crate::driver::RfPermit;
@@ -74,6 +75,23 @@ pub trait Observer: Send {
     fn step_done(&mut self, _done: &StepDone<'_>) {}
     /// Something the user should know (on stderr in the CLI).
     fn note(&mut self, _text: &str) {}
+    /// A step met a transient fault and is about to be measured again (the bench already in its
+    /// safe state, the wait not passed yet). By default told as a note (`text`).
+    fn retrying(&mut self, retry: &Retrying<'_>) {
+        self.note(retry.text);
+    }
+}
+
+/// A retry of a step, as it begins.
+pub struct Retrying<'a> {
+    /// What the manifest records of it.
+    pub record: &'a RetryRecord,
+    /// The plan's steps.
+    pub of: usize,
+    /// The most retries of one step (`[run] retries`, `--retries`).
+    pub retries: usize,
+    /// The same in a line, as told on stderr.
+    pub text: &'a str,
 }
 
 /// An observer that hears nothing.

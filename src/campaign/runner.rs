@@ -47,7 +47,6 @@ pub(super) fn new_session(kind: &str, now: &str, journal: &Path) -> Session {
 /// A captured step that the worker processes (every algorithm), writes, hashes and records in
 /// the manifest while the next steps are captured.
 struct PendingStep {
-    k: usize,
     step: Step,
     outcome: tokio::sync::oneshot::Receiver<WorkerOutcome>,
 }
@@ -88,7 +87,6 @@ pub(super) struct Runner {
     /// Whether the user was told that the noise will not be reproducible.
     warned_noise: bool,
     force: bool,
-    results: Vec<Option<StepResult>>,
     /// Processes and writes the steps beside the captures.
     worker: StepWorker,
     worker_side: Arc<Mutex<WorkerSide>>,
@@ -124,7 +122,6 @@ impl Runner {
             source: std::io::Error::other(e.to_string()),
         })?;
         let positioner = plan.positioner.clone().map(|p| Positioner::new(p, input));
-        let n = plan.steps.len();
         let worker_side = Arc::new(Mutex::new(WorkerSide::lend_all(&mut prepared)?));
         let worker = StepWorker::start().map_err(|e| CampaignError::Io {
             path: dir.clone(),
@@ -153,7 +150,6 @@ impl Runner {
             reseed: None,
             warned_noise: false,
             force,
-            results: vec![None; n],
             worker,
             worker_side,
             pending: VecDeque::new(),
@@ -171,7 +167,12 @@ impl Runner {
     ) -> Result<Finished, CampaignError> {
         let t = Instant::now();
         self.folder.check(&self.dir)?;
-        self.manifest.store(&self.dir)?;
+        self.store_manifest(true)?;
+        // Every step's table is in the file now: keep only the steps' states (memory stays flat
+        // over a long run; see `manifest_store`).
+        for step in &mut self.manifest.steps {
+            *step = step.status_only();
+        }
         self.timing.overhead_s += t.elapsed().as_secs_f64();
         let mut stopped = self.steps(observer).await.err();
         // The last steps' files (also when the run stopped: a capture taken is kept).
@@ -270,7 +271,6 @@ impl Runner {
                     dir: self.dir.join(step.dir_name()),
                     skipped: true,
                 });
-                self.results[k] = Some(result);
                 // The targets may have been moved since: place them again at the next step.
                 self.first_placement = true;
                 continue;
@@ -443,14 +443,14 @@ impl Runner {
             self.first_placement = true;
             let wait = super::retry::backoff(self.plan.retry_backoff_s, attempt);
             let n = self.plan.steps.len();
-            observer.note(&format!(
+            let text = format!(
                 "step {} of {n}: {instrument}: {fault}; safe state: {safe_state}; retry \
                  {attempt} of {} in {:.1} s",
                 step.index,
                 self.plan.retries,
                 wait.as_secs_f64()
-            ));
-            self.manifest.retries.push(super::retry::RetryRecord {
+            );
+            let record = super::retry::RetryRecord {
                 step: step.index,
                 attempt,
                 instrument,
@@ -458,7 +458,14 @@ impl Runner {
                 at,
                 safe_state,
                 wait_s: wait.as_secs_f64(),
+            };
+            observer.retrying(&super::run::Retrying {
+                record: &record,
+                of: n,
+                retries: self.plan.retries,
+                text: &text,
             });
+            self.manifest.retries.push(record);
             tokio::select! {
                 () = tokio::time::sleep(wait) => {}
                 signal = self.interrupt.wait() => return Err(CampaignError::Interrupted {
@@ -546,14 +553,17 @@ impl Runner {
         } else {
             Ok(())
         };
-        self.hand_over(k, step, taken);
+        self.hand_over(step, taken);
         before
     }
 
     /// Gives `taken` to the worker, which processes it with every algorithm, writes the step's
     /// files, hashes them and stores the manifest recording it.
-    fn hand_over(&mut self, k: usize, step: &Step, taken: Taken) {
+    fn hand_over(&mut self, step: &Step, taken: Taken) {
+        // The manifest's head alone: the worker's store has every step's table.
+        let steps = std::mem::take(&mut self.manifest.steps);
         let mut snapshot = self.manifest.clone();
+        self.manifest.steps = steps;
         snapshot.session_mut().timing = self.timing.clone();
         let job = StepJob {
             dir: self.dir.clone(),
@@ -569,7 +579,6 @@ impl Runner {
         let side = self.worker_side.clone();
         let outcome = self.worker.submit(move || job.run(&side, taken, snapshot));
         self.pending.push_back(PendingStep {
-            k,
             step: step.clone(),
             outcome,
         });
@@ -625,17 +634,33 @@ impl Runner {
             dir: self.dir.join(p.step.dir_name()),
             skipped: false,
         });
-        self.results[p.k] = Some(result);
         Ok(())
     }
 
+    /// Stores the manifest: `whole` from its records (before the first step), else its head with
+    /// the step tables the worker's store last wrote (no job runs: every step handed over has
+    /// been collected).
+    fn store_manifest(&mut self, whole: bool) -> Result<(), CampaignError> {
+        let mut side = self.worker_side.lock().unwrap_or_else(|p| p.into_inner());
+        if whole {
+            side.store.store_whole(&mut self.manifest, &self.dir)
+        } else {
+            side.store.store(&mut self.manifest, &self.dir, None)
+        }
+    }
+
     /// `results.json` with every step that has a result, in step order, and `results.csv` from
-    /// it.
+    /// it. The results are read back from the steps' folders (each step's `result.json`, as a
+    /// resume reads the steps it keeps), not held in memory over the run.
     fn write_results(&mut self) -> Result<Results, CampaignError> {
         self.folder.check(&self.dir)?;
-        let results = Results {
-            steps: self.results.iter().flatten().cloned().collect(),
-        };
+        let mut steps = Vec::new();
+        for (k, step) in self.plan.steps.iter().enumerate() {
+            if self.manifest.steps[k].status == StepStatus::Done {
+                steps.push(self.stored_result(step)?);
+            }
+        }
+        let results = Results { steps };
         let path = self.dir.join(RESULTS_FILE);
         write_atomic(&path, format!("{:#}\n", json!(results)).as_bytes())?;
         self.manifest
@@ -698,7 +723,7 @@ impl Runner {
         self.manifest
             .set_file(FileRecord::of(&self.dir, Path::new(report::HTML_FILE))?);
         self.folder.check(&self.dir)?;
-        self.manifest.store(&self.dir)?;
+        self.store_manifest(false)?;
         let max = |f: fn(&results::AlgorithmResult) -> Option<f64>| {
             results
                 .steps

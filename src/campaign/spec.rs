@@ -8,9 +8,11 @@
 //! text (toml_edit keeps the spans) when the checks after parsing find them.
 
 use super::kind::SweepParameter;
+#[cfg(test)]
 use crate::measure::CorrectionMode;
-use crate::measure::Ranging;
-use crate::measure::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use crate::measure::ProcessingChoices;
+#[cfg(test)]
+use crate::measure::{ModelOrderChoice as ModelOrder, ModelOrderName};
 use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -39,7 +41,9 @@ pub struct Spec {
     #[serde(default)]
     pub waveform: WaveformSection,
     #[serde(default)]
-    pub processing: ProcessingSection,
+    /// `[processing]`: the algorithms (each applied to the same captures) and the choices they
+    /// share; anything not given takes the defaults of `radbench capture`.
+    pub processing: ProcessingChoices,
     #[serde(default)]
     pub positioner: Option<PositionerSection>,
     #[serde(default)]
@@ -175,70 +179,6 @@ impl Default for WaveformSection {
             payload: None,
         }
     }
-}
-
-/// `[processing]`: the algorithms (each applied to the same captures) and the options they share;
-/// anything not given takes the defaults of `radbench capture`.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ProcessingSection {
-    /// Default: the waveform's own (correlation for MSK-LFM, fourier for OFDM).
-    #[serde(default)]
-    pub algorithms: Vec<Algorithm>,
-    #[serde(default)]
-    pub music_m: Option<usize>,
-    /// The subspace algorithms' model order: a number, or `"targets"` (each step's number of
-    /// targets, as the thesis set it by hand); estimated from the eigenvalues (MDL) when absent.
-    #[serde(default)]
-    pub music_p: Option<ModelOrder>,
-    #[serde(default)]
-    pub forward_backward: Option<bool>,
-    #[serde(default)]
-    pub zero_pad: Option<usize>,
-    #[serde(default)]
-    pub window: Option<WindowName>,
-    #[serde(default)]
-    pub fft_precision: Option<FftPrecisionName>,
-    #[serde(default)]
-    pub interpolate: Option<bool>,
-    #[serde(default)]
-    pub detector: Option<DetectorName>,
-    #[serde(default)]
-    pub pfa: Option<f64>,
-    #[serde(default)]
-    pub min_separation_m: Option<f64>,
-    #[serde(default)]
-    pub chain_floor_db: Option<f64>,
-    /// How each target's range is measured: `envelope` (default) or `phase`.
-    #[serde(default)]
-    pub ranging: Option<Ranging>,
-    #[serde(default)]
-    pub min_range_m: Option<f64>,
-    #[serde(default)]
-    pub max_range_m: Option<f64>,
-    /// The correction: `none`, `rx`, `tx` or `both` (default: `rx` when `calibration` is given
-    /// or the bench file names a response calibration, `none` otherwise).
-    #[serde(default)]
-    pub correction: Option<CorrectionMode>,
-    /// A response calibration (`radbench calibrate response`), relative to the spec's folder
-    /// (default: the one the bench file's `[calibration] response` names).
-    #[serde(default)]
-    pub calibration: Option<PathBuf>,
-}
-
-/// `processing.music_p`: a number of targets, or `"targets"`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(untagged)]
-pub enum ModelOrder {
-    Fixed(usize),
-    Named(ModelOrderName),
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ModelOrderName {
-    /// The step's number of nominal targets.
-    Targets,
 }
 
 /// `[positioner]`: who places the targets.
@@ -437,7 +377,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 /// A parser error as file:line:field and the parser's message (which names what is allowed).
 fn syntax_error(text: &str, path: &Path, e: &toml::de::Error) -> SpecError {
     let mut message = crate::exit::with_key_hint(e.message().trim());
-    if message.contains("untagged enum ModelOrder") {
+    if message.contains("untagged enum ModelOrderChoice") {
         message = "allowed: a number of targets (1 or more, below music_m), or \"targets\" (each \
                    step's number of targets)"
             .into();

@@ -2,7 +2,8 @@
 //! the step's files (one write group), hash them and store the manifest that records the step.
 
 use super::folder::FolderIdentity;
-use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus, StepTables};
+use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus};
+use super::manifest_store::ManifestStore;
 use super::plan::Step;
 use super::prepare::PreparedSet;
 use super::results::{self, AlgorithmOutput, StepResult};
@@ -13,7 +14,7 @@ use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;
 use crate::storage::{write_atomic, write_group, GroupWritten};
 use serde_json::json;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -25,15 +26,14 @@ pub(super) struct WorkerOutcome {
 }
 
 /// What only step jobs use, one job at a time in step order: every pipeline of the campaign
-/// (lent by the preparations when the run starts) and the records of the steps recorded so far.
+/// (lent by the preparations when the run starts) and the manifest's store, which holds where
+/// every step's table lies in the manifest last written (also the steps the runner has not
+/// collected yet). The runner stores the manifest through it too, before the first step and at
+/// the end, when no job runs.
 #[derive(Default)]
 pub(super) struct WorkerSide {
     pipelines: HashMap<PipelineKey, LentPipeline>,
-    /// Steps this session's jobs recorded: a job's manifest holds them all, also those the
-    /// runner has not collected yet.
-    recorded: BTreeMap<usize, StepRecord>,
-    /// The manifest's step tables as last written, so each store serialises only what changed.
-    tables: StepTables,
+    pub(super) store: ManifestStore,
 }
 
 /// (waveform, algorithm, model order of the steps that set their own).
@@ -66,7 +66,8 @@ impl WorkerSide {
 
 /// What the writer did for a step.
 pub(super) struct Written {
-    /// The step's manifest record, as stored.
+    /// The step's manifest record as stored, without its files and what was applied
+    /// ([`StepRecord::status_only`]).
     pub(super) record: StepRecord,
     pub(super) files_s: f64,
     /// Hashing and storing the manifest.
@@ -85,7 +86,8 @@ pub(super) struct StepJob {
 
 impl StepJob {
     /// Processes the capture with every algorithm's pipeline, writes the step's files and
-    /// stores the manifest `snapshot` with this step and every step recorded before it done.
+    /// stores the manifest `snapshot` (its head: its steps are not read) with this step done and
+    /// the other steps as the last store left them.
     pub(super) fn run(
         self,
         side: &Mutex<WorkerSide>,
@@ -105,14 +107,9 @@ impl StepJob {
             })
             .collect();
         let processing_s = t.elapsed().as_secs_f64();
-        let done = processed.map_err(CampaignError::from).and_then(|p| {
-            let side = &mut *side;
-            self.record(taken, p, snapshot, &side.recorded, &mut side.tables)
-        });
-        if let Ok((_, written)) = &done {
-            side.recorded
-                .insert(written.record.index, written.record.clone());
-        }
+        let done = processed
+            .map_err(CampaignError::from)
+            .and_then(|p| self.record(taken, p, snapshot, &mut side.store));
         WorkerOutcome { processing_s, done }
     }
 
@@ -121,8 +118,7 @@ impl StepJob {
         taken: Taken,
         mut processings: Vec<Processing>,
         mut snapshot: Manifest,
-        recorded: &BTreeMap<usize, StepRecord>,
-        tables: &mut StepTables,
+        store: &mut ManifestStore,
     ) -> Result<(StepResult, Written), CampaignError> {
         let mut others = processings.split_off(1);
         let mut m = taken.with(processings.pop().expect("the primary algorithm"));
@@ -182,21 +178,20 @@ impl StepJob {
                 sha256: f.sha256,
             })
             .collect();
-        for (&index, record) in recorded {
-            *snapshot.step_mut(index) = record.clone();
-        }
-        let rec = snapshot.step_mut(self.step.index);
-        rec.status = StepStatus::Done;
-        rec.measured_at = Some(crate::time::rfc3339_millis(std::time::SystemTime::now()));
-        rec.applied = applied;
-        rec.files = records;
-        let record = rec.clone();
+        let record = StepRecord {
+            index: self.step.index,
+            status: StepStatus::Done,
+            dir: rel,
+            measured_at: Some(crate::time::rfc3339_millis(std::time::SystemTime::now())),
+            applied,
+            files: records,
+        };
         self.folder.check(&self.dir)?;
-        snapshot
-            .store_cached(&self.dir, tables)
+        store
+            .store(&mut snapshot, &self.dir, Some(&record))
             .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
         let written = Written {
-            record,
+            record: record.status_only(),
             files_s,
             overhead_s: t_over.elapsed().as_secs_f64() + files.hashing_s,
         };

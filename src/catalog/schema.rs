@@ -350,15 +350,163 @@ pub enum Parity {
     Odd,
 }
 
-/// The request/reply line protocol of a register-based module.
+/// The request/reply line protocol of a register-based module, as data: framing, request
+/// words, reply words, number formats. Every key but `error` defaults to the radbench-project
+/// protocol's spelling (instruments/README.md, "The line protocol as data").
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LineProtocol {
+    /// What this description is, for people (e.g. "radbench-project line protocol, not Gotmic's").
+    #[serde(default)]
+    pub name: String,
+    /// Checksum on every line: `crc8` (`<line><separator><hh>`) or `none`.
+    #[serde(default)]
+    pub checksum: Checksum,
+    #[serde(default)]
     pub crc_name: String,
+    #[serde(default)]
     pub crc_poly: u8,
+    #[serde(default)]
     pub crc_init: u8,
+    /// The request that switches the checksum on (sent without one); empty: always on.
+    #[serde(default = "default_checksum_on")]
+    pub checksum_on: String,
+    /// The request that switches the checksum off (the emulator's; the driver never sends it).
+    #[serde(default = "default_checksum_off")]
+    pub checksum_off: String,
+    /// Text before every request (an address byte, `$`, ...), checksum computed after it.
+    #[serde(default)]
+    pub request_prefix: String,
+    /// Text before every reply; a reply without it is unreadable.
+    #[serde(default)]
+    pub reply_prefix: String,
+    /// The identity request; its reply is `<manufacturer>,<model>,<serial>,<firmware>`.
+    #[serde(default = "default_identify")]
+    pub identify: String,
+    /// A register read; `{address}` is replaced by the register's address.
+    #[serde(default = "default_read")]
+    pub read: String,
+    /// A register write; `{address}` and `{value}` are replaced.
+    #[serde(default = "default_write")]
+    pub write: String,
+    #[serde(default = "default_address_format")]
+    pub address_format: NumberFormat,
+    #[serde(default = "default_value_format")]
+    pub value_format: NumberFormat,
+    /// The reply to an accepted request; a read's value follows after one space.
+    #[serde(default = "default_reply_ok")]
+    pub reply_ok: String,
+    /// The start of a refusal: `<reply_error> <code> <text>`.
+    #[serde(default = "default_reply_error")]
+    pub reply_error: String,
     #[serde(rename = "error")]
     pub errors: Vec<ProtocolError>,
+}
+
+impl Default for LineProtocol {
+    /// The radbench-project protocol's spelling, with no error table.
+    fn default() -> Self {
+        LineProtocol {
+            name: String::new(),
+            checksum: Checksum::Crc8,
+            crc_name: "CRC-8/SMBUS".into(),
+            crc_poly: 0x07,
+            crc_init: 0x00,
+            checksum_on: default_checksum_on(),
+            checksum_off: default_checksum_off(),
+            request_prefix: String::new(),
+            reply_prefix: String::new(),
+            identify: default_identify(),
+            read: default_read(),
+            write: default_write(),
+            address_format: default_address_format(),
+            value_format: default_value_format(),
+            reply_ok: default_reply_ok(),
+            reply_error: default_reply_error(),
+            errors: Vec::new(),
+        }
+    }
+}
+
+fn default_checksum_on() -> String {
+    "CRC ON".into()
+}
+fn default_checksum_off() -> String {
+    "CRC OFF".into()
+}
+fn default_identify() -> String {
+    "*IDN?".into()
+}
+fn default_read() -> String {
+    "R {address}".into()
+}
+fn default_write() -> String {
+    "W {address} {value}".into()
+}
+fn default_address_format() -> NumberFormat {
+    NumberFormat::Hex2
+}
+fn default_value_format() -> NumberFormat {
+    NumberFormat::Hex4
+}
+fn default_reply_ok() -> String {
+    "OK".into()
+}
+fn default_reply_error() -> String {
+    "ERR".into()
+}
+
+/// A line's checksum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Checksum {
+    /// CRC-8 (`crc_poly`, `crc_init`, MSB first) as two hex digits after `*`.
+    #[default]
+    Crc8,
+    /// Bare lines.
+    None,
+}
+
+/// How a number is written in a request or reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NumberFormat {
+    /// Two upper-case hex digits (`0A`).
+    Hex2,
+    /// Four upper-case hex digits (`003F`).
+    Hex4,
+    /// Decimal (`63`).
+    Dec,
+}
+
+impl NumberFormat {
+    /// `value` written in this format.
+    pub fn write(self, value: u16) -> String {
+        match self {
+            NumberFormat::Hex2 => format!("{value:02X}"),
+            NumberFormat::Hex4 => format!("{value:04X}"),
+            NumberFormat::Dec => value.to_string(),
+        }
+    }
+
+    /// A number in this format (hex: 1 to 4 digits, any case); `None` otherwise.
+    pub fn read(self, text: &str) -> Option<u16> {
+        match self {
+            NumberFormat::Hex2 | NumberFormat::Hex4 => {
+                if text.is_empty() || text.len() > 4 || !text.chars().all(|c| c.is_ascii_hexdigit())
+                {
+                    return None;
+                }
+                u16::from_str_radix(text, 16).ok()
+            }
+            NumberFormat::Dec => {
+                if text.is_empty() || !text.chars().all(|c| c.is_ascii_digit()) {
+                    return None;
+                }
+                text.parse().ok()
+            }
+        }
+    }
 }
 
 /// One `ERR <code> <text>` reply the module can give.

@@ -654,6 +654,61 @@ fn check_serial(c: &mut Checks, s: &SerialSettings) {
 }
 
 fn check_protocol(c: &mut Checks, p: &LineProtocol) {
+    let template = |c: &mut Checks, key: &str, text: &str, needs: &[&str]| {
+        for placeholder in ["{address}", "{value}"] {
+            let wanted = needs.contains(&placeholder);
+            let count = text.matches(placeholder).count();
+            if wanted && count != 1 {
+                c.fail(
+                    format!("protocol.{key}"),
+                    format!(
+                        "{text:?} must hold {placeholder} once (allowed: {})",
+                        needs.join(" and ")
+                    ),
+                );
+            } else if !wanted && count > 0 {
+                c.fail(
+                    format!("protocol.{key}"),
+                    format!(
+                        "{text:?} holds {placeholder}; allowed: {}",
+                        needs.join(" and ")
+                    ),
+                );
+            }
+        }
+    };
+    template(c, "read", &p.read, &["{address}"]);
+    template(c, "write", &p.write, &["{address}", "{value}"]);
+    if p.read.contains("{address}{value}") || p.write.contains("{address}{value}") {
+        c.fail(
+            "protocol.write",
+            "{address} and {value} need text between them",
+        );
+    }
+    for (key, text) in [
+        ("identify", &p.identify),
+        ("reply_ok", &p.reply_ok),
+        ("reply_error", &p.reply_error),
+    ] {
+        if text.trim().is_empty() {
+            c.fail(format!("protocol.{key}"), "must not be empty");
+        }
+    }
+    if p.reply_ok.starts_with(&p.reply_error) || p.reply_error.starts_with(&p.reply_ok) {
+        c.fail(
+            "protocol.reply_error",
+            format!(
+                "{:?} and reply_ok {:?} must not start alike (a reply must be one or the other)",
+                p.reply_error, p.reply_ok
+            ),
+        );
+    }
+    if p.checksum == Checksum::Crc8 && p.crc_poly == 0 {
+        c.fail(
+            "protocol.crc_poly",
+            "checksum = \"crc8\" needs a polynomial (e.g. 0x07); or checksum = \"none\"",
+        );
+    }
     let mut codes = HashSet::new();
     for (i, e) in p.errors.iter().enumerate() {
         if !codes.insert(e.code) {

@@ -2,7 +2,7 @@
 //! and its distance to `--target-range`, so a pillar can be placed to a millimetre. RF is on only
 //! while capturing; the safe state runs after each capture and on every exit.
 
-use super::args::{ProcessingArgs, WaveformArgs};
+use super::args::WaveformArgs;
 use super::capture::{bench_source, journal, open_bench};
 use super::live::{self as live_cli, LiveArgs};
 use super::repeat::{stopped_between, truth_ranges};
@@ -15,6 +15,7 @@ use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{CaptureRequest, Rig};
+use radbench::measure::{CorrectionMode, ProcessingChoices};
 use radbench::waveform::WaveformKind;
 use serde_json::json;
 use std::path::PathBuf;
@@ -32,7 +33,7 @@ pub struct Args {
     #[command(flatten)]
     pub waveform_args: WaveformArgs,
     #[command(flatten)]
-    pub processing: ProcessingArgs,
+    pub processing: ProcessingChoices,
     /// Explicit permit to switch on the AWG outputs and the Tx/Rx while each capture runs.
     #[arg(long)]
     pub allow_rf: bool,
@@ -45,12 +46,6 @@ pub struct Args {
     /// Marker-triggered repetitions per capture, averaged coherently.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub repetitions: usize,
-    /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
-    #[arg(long, default_value_t = 0.15, allow_hyphen_values = true)]
-    pub min_range: f64,
-    /// Ignore detections farther than this, metres.
-    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
-    pub max_range: f64,
     /// Longest wait for the marker-triggered acquisition, seconds.
     #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub wait: f64,
@@ -98,13 +93,20 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);
     options.system_delay_s = bench.file.system_delay_s();
     options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
-    options.min_range_m = args.min_range;
-    options.max_range_m = args.max_range;
+    let processing = &args.processing;
+    let calibration = super::capture::resolve_correction(
+        processing.correction,
+        processing.calibration.as_deref(),
+        &bench,
+    )?;
+    let mode = processing.correction.unwrap_or(CorrectionMode::Rx);
+    options.correction = calibration.as_ref().map(|c| c.used_as(mode));
     if let Some(w) = bench.file.uncalibrated_warning() {
         // Once here; --json repeats it in each capture's "warnings".
         eprintln!("warning: {w}");
@@ -210,6 +212,8 @@ async fn captures(
                 "distance_m": distance,
                 "targets": p.targets.iter().map(|t| json!({"range_m": t.range_m, "level_db": t.level_db})).collect::<Vec<_>>(),
                 "truth_m": if bench.is_simulated() { json!(truth) } else { json!(null) },
+                "correction": m.processing.options.correction.as_ref().map(|c| c.mode),
+                "sidelobe_db": p.sidelobe_db,
                 "warnings": p.warnings,
             })
             .to_string()

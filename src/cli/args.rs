@@ -6,100 +6,15 @@
 //! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
 pub(crate) use radbench::in_memory::{listed, PayloadArgs, WaveformArgs};
-use radbench::measure::{
-    Algorithm, DetectorName, FftPrecisionName, ProcessOptions, Ranging, WindowName,
-};
-use radbench::waveform::WaveformKind;
-
-/// Range processing choices shared by `capture`, `simulate run` and `process`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct ProcessingArgs {
-    /// Range processing: correlation (default for MSK-LFM), fourier (default for OFDM), music,
-    /// root-music or esprit (OFDM).
-    #[arg(long, value_parser = listed::<Algorithm>())]
-    pub algorithm: Option<Algorithm>,
-    /// MUSIC sub-vector (covariance) length M.
-    #[arg(long = "m", value_name = "M", default_value_t = 64)]
-    pub music_m: usize,
-    /// Number of targets for MUSIC/root-MUSIC/ESPRIT (default: estimated with MDL).
-    #[arg(long = "p", value_name = "P")]
-    pub music_p: Option<usize>,
-    /// Forward smoothing only (no forward-backward averaging) for MUSIC.
-    #[arg(long)]
-    pub forward_only: bool,
-    /// OFDM Fourier zero-padding factor: IFFT length = K x subcarriers.
-    #[arg(long, value_name = "K", default_value_t = 10)]
-    pub zero_pad: usize,
-    /// Window on the range processing (OFDM: across the subcarriers; correlation: on the matched
-    /// filter's spectrum).
-    #[arg(long, value_parser = listed::<WindowName>(), value_name = "NAME", default_value = "rect")]
-    pub window: WindowName,
-    /// Precision of the OFDM receiver's per-symbol FFT (the rest is double precision).
-    #[arg(long, value_parser = listed::<FftPrecisionName>(), value_name = "P", default_value = "single")]
-    pub fft_precision: FftPrecisionName,
-    /// Report the on-grid peak (no sub-sample interpolation).
-    #[arg(long)]
-    pub no_interpolation: bool,
-    /// Detector of the correlation and Fourier profiles (docs/detection.md compares them).
-    #[arg(long, value_parser = listed::<DetectorName>(), value_name = "NAME", default_value = "clean")]
-    pub detector: DetectorName,
-    /// Probability of false alarm of the detector, per profile cell.
-    #[arg(
-        long,
-        value_name = "P",
-        default_value_t = 1e-6,
-        allow_hyphen_values = true
-    )]
-    pub pfa: f64,
-    /// Targets closer than this are reported as one, metres (default: 0.75 resolution cells).
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_separation: Option<f64>,
-    /// Around a target whose main lobe does not fit the ideal point spread to 50 dB, a weaker
-    /// echo within 1.6 m is a target only within this many dB of it (the chain's own echoes are
-    /// part of its response; docs/detection.md). Lower it for a bench known to be cleaner;
-    /// -200 turns it off.
-    #[arg(
-        long,
-        value_name = "DB",
-        default_value_t = -17.0,
-        allow_hyphen_values = true
-    )]
-    pub chain_floor_db: f64,
-    /// How each target's range is measured: envelope (default), or phase: refined by the echo's
-    /// carrier phase against the calibration's reference, to a fraction of a micrometre
-    /// (docs/metrology.md; needs --calibration of a response calibration).
-    #[arg(long, value_parser = listed::<Ranging>(), value_name = "MODE", default_value = "envelope")]
-    pub ranging: Ranging,
-}
-
-impl ProcessingArgs {
-    /// The library options for `waveform` (ranges and calibration left at their defaults).
-    pub fn options(&self, waveform: WaveformKind) -> ProcessOptions {
-        ProcessOptions {
-            algorithm: self.algorithm.unwrap_or(Algorithm::default_for(waveform)),
-            music_m: self.music_m,
-            music_p: self.music_p,
-            forward_backward: !self.forward_only,
-            zero_pad: self.zero_pad,
-            window: self.window,
-            fft_precision: self.fft_precision,
-            interpolate: !self.no_interpolation,
-            detector: self.detector,
-            pfa: self.pfa,
-            min_separation_m: self.min_separation,
-            chain_floor_db: self.chain_floor_db,
-            ranging: self.ranging,
-            ..ProcessOptions::default()
-        }
-    }
-}
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use radbench::in_memory::Listed;
     use radbench::measure::CorrectionMode;
+    use radbench::measure::{Algorithm, DetectorName, FftPrecisionName, WindowName};
     use radbench::simulate::CarrierPhase;
+    use radbench::waveform::WaveformKind;
 
     /// Every value of `T` parses from its name (by clap too) and prints as it; clap refuses
     /// another one naming the option and every allowed value.
@@ -138,7 +53,7 @@ mod tests {
         round_trip::<DetectorName>();
         round_trip::<CarrierPhase>();
         round_trip::<CorrectionMode>();
-        round_trip::<Ranging>();
+        round_trip::<radbench::measure::Ranging>();
         let err = "pmcw".parse::<WaveformKind>().unwrap_err();
         assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }

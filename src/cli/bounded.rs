@@ -10,6 +10,11 @@
 //! bound (docs/io-timeouts.md); the steps around a command (identifying the instrument, reading
 //! its error queue, clearing the device after a timeout) each add theirs, and before this bound a
 //! half block then a stall kept `scpi` 14 s and more on HiSLIP and VXI-11 with `--timeout 2`.
+//!
+//! The interactive `scpi` has the same bound for its connection (one exchange: connecting, the
+//! identity probe, the error queue emptied) and for each line at the prompt (one exchange, with
+//! the reply timeout `\timeout` set); a line past it is abandoned and the device cleared, within
+//! `--timeout + 2 s` more, and the prompt goes on.
 
 use radbench::exit::{Classified, ExitClass};
 use radbench::transport::{Direction, Progress, ProgressFn};
@@ -94,12 +99,25 @@ impl Budget {
         what: &str,
         work: impl Future<Output = anyhow::Result<T>>,
     ) -> anyhow::Result<T> {
+        match self.run_or_give_up(what, work).await {
+            Ok(out) => out,
+            Err(gave_up) => Err(gave_up),
+        }
+    }
+
+    /// [`run`](Self::run), the give-up told apart: `Err` when the time was spent (`work`
+    /// dropped mid-exchange, so the caller may clear the device), else `work`'s own result.
+    pub(crate) async fn run_or_give_up<T>(
+        &self,
+        what: &str,
+        work: impl Future<Output = anyhow::Result<T>>,
+    ) -> Result<anyhow::Result<T>, anyhow::Error> {
         let start = Instant::now();
         tokio::pin!(work);
         loop {
             let deadline = start + self.allowed();
             tokio::select! {
-                out = &mut work => return out,
+                out = &mut work => return Ok(out),
                 () = tokio::time::sleep_until(deadline.into()) => {
                     // Bytes that arrived meanwhile earned more time.
                     if start + self.allowed() > Instant::now() {

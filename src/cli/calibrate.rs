@@ -81,6 +81,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             AwgLink::Hislip,
             ScopeLink::Vicp,
         )?)?;
+        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         // With the response the bench file names corrected, the delay is the corrected chain's:

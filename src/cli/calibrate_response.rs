@@ -118,6 +118,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             (None, Some(b)) => Some(default_out(b)),
             (None, None) => None,
         };
+        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         let catalog = bench.file.catalog()?;

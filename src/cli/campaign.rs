@@ -6,7 +6,7 @@ use radbench::campaign::Status;
 use radbench::campaign::{AlgorithmResult, TargetResult, Truth};
 use radbench::campaign::{BenchInfo, Nominal, Step, WaveformCost};
 use radbench::campaign::{CampaignError, SpecFile};
-use radbench::campaign::{Finished, NewRun, Observer, StepDone, Summary};
+use radbench::campaign::{Finished, NewRun, Observer, Retrying, StepDone, Summary};
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
 use radbench::measure::Bench;
@@ -86,10 +86,25 @@ pub struct ResumeArgs {
     /// JSON Lines on stdout, as for `campaign run`.
     #[arg(long)]
     pub json: bool,
+    /// Times a step is measured again after a transient fault, from now on (as for `campaign
+    /// run`); without it, the run's own (`[run] retries` or the first session's --retries).
+    #[arg(long, value_name = "N")]
+    pub retries: Option<usize>,
     #[command(flatten)]
     pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
     pub live: super::live::LiveArgs,
+}
+
+/// `--retries N`, checked: 0 ..= the most retries of a step.
+fn retries(n: Option<usize>) -> anyhow::Result<Option<usize>> {
+    match n {
+        Some(n) if n > campaign::MAX_RETRIES => Err(bad_input(format!(
+            "--retries {n}: allowed 0..={}",
+            campaign::MAX_RETRIES
+        ))),
+        n => Ok(n),
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -190,6 +205,21 @@ struct StepEvent<'a> {
     dir: &'a Path,
 }
 
+/// `{"event":"retry",...}` when a step is about to be measured again after a transient fault.
+#[derive(Serialize)]
+struct RetryEvent<'a> {
+    event: &'static str,
+    index: usize,
+    of: usize,
+    attempt: usize,
+    retries: usize,
+    instrument: &'a str,
+    fault: &'a str,
+    at: &'a str,
+    safe_state: &'a str,
+    wait_s: f64,
+}
+
 /// The last line: `{"event":"done","dir","status","summary"}`.
 #[derive(Serialize)]
 struct DoneEvent<'a> {
@@ -249,6 +279,28 @@ impl Observer for Printer {
 
     fn note(&mut self, text: &str) {
         eprintln!("{text}");
+    }
+
+    fn retrying(&mut self, retry: &Retrying<'_>) {
+        let r = retry.record;
+        if self.json {
+            println!(
+                "{}",
+                line(&RetryEvent {
+                    event: "retry",
+                    index: r.step,
+                    of: retry.of,
+                    attempt: r.attempt,
+                    retries: retry.retries,
+                    instrument: &r.instrument,
+                    fault: &r.fault,
+                    at: &r.at,
+                    safe_state: &r.safe_state,
+                    wait_s: r.wait_s,
+                })
+            );
+        }
+        eprintln!("{}", retry.text);
     }
 }
 
@@ -365,13 +417,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
     let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
     let catalog = bench.catalog()?;
     let mut plan = campaign::plan(&spec, &bench)?;
-    if let Some(n) = a.retries {
-        if n > campaign::MAX_RETRIES {
-            return Err(bad_input(format!(
-                "--retries {n}: allowed 0..={}",
-                campaign::MAX_RETRIES
-            )));
-        }
+    if let Some(n) = retries(a.retries)? {
         plan.retries = n;
     }
     if a.dry_run && a.live.live {
@@ -426,6 +472,8 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         .into());
     }
     a.timeout.apply()?;
+    let _manual =
+        super::manual_front::confirm(bench.file.as_ref().map(|(_, f)| f), "campaign run")?;
     let interrupt = Interrupt::listen()?;
     let out = a.out.clone().unwrap_or_else(|| {
         // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`,
@@ -526,6 +574,12 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         .into());
     }
     a.timeout.apply()?;
+    let retries = retries(a.retries)?;
+    // The run's bench file, as its manifest names it (a missing manifest is the resume's error).
+    let bench_file = campaign::Manifest::load(&a.run_dir)
+        .ok()
+        .and_then(|m| m.plan.bench.file);
+    let _manual = super::manual_front::confirm_file(bench_file.as_deref(), "campaign resume")?;
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
     let live = a.live.start(&interrupt, a.json).await?;
@@ -551,6 +605,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         &a.run_dir,
         RfPermit::granted_by_user(),
         a.force,
+        retries,
         interrupt,
         None,
         &mut observer,

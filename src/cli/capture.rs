@@ -1,7 +1,7 @@
 //! `radbench capture`: one complete measurement, on the bench of a bench file or on the built-in
 //! mock lab. Parses, calls `measure`, prints.
 
-use super::args::{PayloadArgs, ProcessingArgs, WaveformArgs};
+use super::args::{PayloadArgs, WaveformArgs};
 use anyhow::Context;
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
@@ -29,7 +29,7 @@ pub struct Args {
     #[command(flatten, next_help_heading = "Waveform")]
     pub waveform_args: WaveformArgs,
     #[command(flatten, next_help_heading = "Processing")]
-    pub processing: ProcessingArgs,
+    pub processing: radbench::measure::ProcessingChoices,
     /// Subtract this earlier capture (its .sigmf-meta) before processing, e.g. an empty scene.
     #[arg(long, value_name = "FILE", help_heading = "Processing")]
     pub background: Option<PathBuf>,
@@ -52,22 +52,6 @@ pub struct Args {
     /// The payload text or the PRBS seed (the library's: the Python package parses them too).
     #[command(flatten, next_help_heading = "Waveform")]
     pub bits: PayloadArgs,
-    /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres.
-    #[arg(
-        long,
-        default_value_t = 0.15,
-        allow_hyphen_values = true,
-        help_heading = "Processing"
-    )]
-    pub min_range: f64,
-    /// Ignore detections farther than this, metres.
-    #[arg(
-        long,
-        default_value_t = 10.0,
-        allow_hyphen_values = true,
-        help_heading = "Processing"
-    )]
-    pub max_range: f64,
     /// Marker-triggered repetitions per measurement: each processed, and their coherent average
     /// reported with the spread (mean and standard deviation) of the repetitions.
     #[arg(
@@ -98,15 +82,6 @@ pub struct Args {
     pub scope_transport: ScopeLink,
     #[command(flatten, next_help_heading = "Built-in lab")]
     pub scope_model: super::scope_model::ScopeModelArgs,
-    /// Correction of the chain's measured errors: none; rx (DC, I/Q imbalance and the chain's
-    /// response on receive); tx (the AWG's codes pre-distorted for the response); both (tx, and
-    /// the receiver's DC and I/Q imbalance). Default: rx when the bench file names a response
-    /// calibration (or --calibration is given), none otherwise.
-    #[arg(long, value_parser = super::args::listed::<CorrectionMode>(), help_heading = "Processing")]
-    pub correction: Option<CorrectionMode>,
-    /// A response calibration (`radbench calibrate response`) instead of the bench file's.
-    #[arg(long, value_name = "FILE", help_heading = "Processing")]
-    pub calibration: Option<PathBuf>,
     /// Capture N times, or `forever` (until Ctrl-C or the live page's Stop): each capture's
     /// files in a folder of its own in --out (capture-0001, ...); the bench is connected and the
     /// waveform uploaded once, RF is on only while capturing.
@@ -315,6 +290,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
+    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;
@@ -346,15 +322,17 @@ async fn measure_into(
     let mut options = args.processing.options(kind);
     options.system_delay_s = bench.file.system_delay_s();
     options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
-    options.min_range_m = args.min_range;
-    options.max_range_m = args.max_range;
     if let Some(w) = bench.file.uncalibrated_warning() {
         // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
         eprintln!("warning: {w}");
     }
-    let calibration = resolve_correction(args.correction, args.calibration.as_deref(), &bench)?;
-    let mode = args.correction.unwrap_or(CorrectionMode::Rx);
-    options.correction = calibration.as_ref().map(|c| c.used_as(mode.name()));
+    let calibration = resolve_correction(
+        args.processing.correction,
+        args.processing.calibration.as_deref(),
+        &bench,
+    )?;
+    let mode = args.processing.correction.unwrap_or(CorrectionMode::Rx);
+    options.correction = calibration.as_ref().map(|c| c.used_as(mode));
     let request = CaptureRequest {
         waveform,
         payload,

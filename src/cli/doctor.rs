@@ -21,10 +21,28 @@ pub struct Args {
     pub timeout: super::args::TimeoutArgs,
     #[command(flatten)]
     pub scope_model: super::scope_model::ScopeModelArgs,
+    /// Instead of the checklist: ask each instrument for the values the catalog only infers
+    /// (identity, `*OPT?`, ...) and print per value: confirmed, differs (with the instrument's
+    /// answer) or cannot be queried (and why).
+    #[arg(long)]
+    pub verify_catalog: bool,
+    /// With --verify-catalog: write the instrument files of the models that differ, with the
+    /// instruments' answers, into DIR (then write `catalog = "DIR"` in the bench file).
+    #[arg(long, value_name = "DIR", requires = "verify_catalog")]
+    pub write_overrides: Option<PathBuf>,
 }
 
 pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     args.timeout.apply()?;
+    if args.verify_catalog {
+        let request = super::verify_catalog::Request {
+            bench: args.bench.as_deref(),
+            scope_model: &args.scope_model,
+            json: args.json,
+            write_overrides: args.write_overrides.as_deref(),
+        };
+        return super::verify_catalog::run(request, global);
+    }
     let runtime = super::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;

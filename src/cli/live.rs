@@ -4,7 +4,7 @@
 
 use crate::live::{Event, Live, Options};
 use radbench::campaign::Step;
-use radbench::campaign::{Observer, StepDone};
+use radbench::campaign::{Observer, Retrying, StepDone};
 use radbench::exit::bad_input;
 use radbench::measure::Bench;
 use radbench::measure::{Interrupt, StopSignal};
@@ -228,6 +228,14 @@ impl Observer for LiveObserver<'_> {
             .map(|t| t.targets.iter().map(|x| x.range_m).collect())
             .unwrap_or_default();
         self.send(Event::Row(step_row(done)));
+        // A detection taken for the chain's echo: the calibration's warning, as the capture says it.
+        for e in primary
+            .map(|a| a.chain_echoes.as_slice())
+            .unwrap_or_default()
+        {
+            let text = format!("step {}/{}: {}", r.index, done.of, e.describe());
+            self.send(Event::Log("warning", text));
+        }
         self.send(Event::ProfileFile {
             csv: done.dir.join("profile.csv"),
             detections,
@@ -244,6 +252,20 @@ impl Observer for LiveObserver<'_> {
             "note"
         };
         self.send(Event::Log(level, text.to_string()));
+    }
+
+    fn retrying(&mut self, retry: &Retrying<'_>) {
+        self.inner.retrying(retry);
+        let r = retry.record;
+        // The page's log lists it (a retry's own colour), and the current line says it.
+        self.send(Event::Log("retry", retry.text.to_string()));
+        self.send(Event::Set(
+            "current",
+            json!(format!(
+                "step {}/{}: {} failed ({}); retry {} of {} in {:.1} s",
+                r.step, retry.of, r.instrument, r.fault, r.attempt, retry.retries, r.wait_s
+            )),
+        ));
     }
 }
 

@@ -20,6 +20,7 @@ pub(crate) mod doctor;
 pub(crate) mod export;
 pub(crate) mod idn;
 pub(crate) mod live;
+pub(crate) mod manual_front;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
 pub(crate) mod progress;
@@ -30,6 +31,7 @@ pub(crate) mod scpi;
 pub(crate) mod simulate;
 pub mod terminal;
 pub(crate) mod trc;
+pub(crate) mod verify_catalog;
 pub(crate) mod waveform;
 
 pub use radbench::classify;

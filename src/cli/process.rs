@@ -151,7 +151,8 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             )));
         }
     }
-    let (waveform, overrides) = args.options.settings(&out)?;
+    let measured = args.options.measure_reference(&out)?;
+    let (waveform, overrides) = args.options.settings(measured)?;
     let discovered = measure::discover(&args.inputs);
     let sources: Vec<&Source> = discovered.iter().filter_map(|d| d.as_ref().ok()).collect();
     let names = folder_names(&sources);

@@ -9,6 +9,7 @@
 //! is written after every line entered, so no way of leaving loses it, and neither read nor
 //! written when standard input is not a terminal (commands piped in are not history).
 
+use super::bounded::Budget;
 use super::progress::TransferBar;
 use super::terminal::{is_stdout_closed, out, printable, printable_bytes};
 use anyhow::Context;
@@ -229,22 +230,36 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     if !args.commands.is_empty() {
         return runtime.block_on(one_shot_bounded(&args, global));
     }
-    let mut session = runtime.block_on(args.connect.open(global))?;
     // Long blocks show a bar on stderr (only on a terminal).
     let bar = TransferBar::new();
-    session.link_options_mut().progress = Some(bar.callback());
+    // Connecting, the identity probe and emptying the error queue: one exchange's total.
+    let budget = args.connect.budget(1)?;
+    let (mut session, check_errors) =
+        runtime.block_on(budget.run(&args.connect.address, async {
+            let mut session = args.connect.open(global).await?;
+            session.link_options_mut().progress = Some(budget.counting(Some(bar.callback())));
+            let check_errors = match (args.check_errors, args.no_check_errors) {
+                (_, true) => false,
+                (true, _) => true,
+                _ => known_to_keep_errors(&mut session).await,
+            };
+            if check_errors {
+                if let Err(e) = clear_earlier_errors(&mut session).await {
+                    let _ = session.close().await;
+                    return Err(e);
+                }
+            }
+            anyhow::Ok((session, check_errors))
+        }))?;
     let mut saver = BinarySaver::new(args.save_binary.clone());
-    let check_errors = match (args.check_errors, args.no_check_errors) {
-        (_, true) => false,
-        (true, _) => true,
-        _ => runtime.block_on(known_to_keep_errors(&mut session)),
-    };
-    let result = (|| {
-        if check_errors {
-            runtime.block_on(clear_earlier_errors(&mut session))?;
-        }
-        interactive(&runtime, &mut session, &mut saver, check_errors, &bar)
-    })();
+    let result = interactive(
+        &runtime,
+        &mut session,
+        &args.connect,
+        &mut saver,
+        check_errors,
+        &bar,
+    );
     let _ = runtime.block_on(session.close());
     result
 }
@@ -473,6 +488,7 @@ fn history_path() -> Option<PathBuf> {
 fn interactive(
     runtime: &tokio::runtime::Runtime,
     session: &mut Session,
+    connect: &ConnectArgs,
     saver: &mut BinarySaver,
     check_errors: bool,
     bar: &TransferBar,
@@ -511,10 +527,21 @@ fn interactive(
             // Written at once: no way of leaving (a signal, a lost terminal) loses it.
             let _ = editor.append_history(h);
         }
+        // Each line one exchange's total, with the reply timeout as `\timeout` left it.
+        let t = session.link_options_mut().timeouts;
+        let budget = Budget::new(t.connect, t.read, 1, t.min_rate_bytes_per_s);
+        session.link_options_mut().progress = Some(budget.counting(Some(bar.callback())));
+        let what = connect.address.clone();
         let step = runtime.block_on(async {
             // Listening for Ctrl-C starts before the command is sent.
             let interrupt = interrupted();
-            line_or_cancel(session, &line, saver, check_errors, interrupt).await
+            let line = Line {
+                text: &line,
+                check_errors,
+                budget: &budget,
+                what: &what,
+            };
+            line_or_cancel(session, line, saver, interrupt).await
         });
         bar.finish();
         let shown = match step {
@@ -530,7 +557,15 @@ fn interactive(
                 Ok(())
             }
             Step::Cancelled(Err(e)) => {
-                report(&anyhow::Error::new(e).context("cancelled, but the device clear failed"));
+                report(&e.context("cancelled, but the device clear failed"));
+                Ok(())
+            }
+            Step::GaveUp(e, cleared) => {
+                report(&e);
+                match cleared {
+                    Ok(()) => eprintln!("(the device was cleared; the session stays open)"),
+                    Err(e) => report(&e.context("the device clear failed too: \\reconnect")),
+                }
                 Ok(())
             }
         };
@@ -576,21 +611,35 @@ enum Step {
     /// It ran to its end.
     Done(anyhow::Result<Option<Flow>>),
     /// `interrupt` fired first: the line was abandoned and the device cleared (the result).
-    Cancelled(Result<(), SessionError>),
+    Cancelled(anyhow::Result<()>),
+    /// It passed its total (why), was abandoned and the device cleared (the result).
+    GaveUp(anyhow::Error, anyhow::Result<()>),
 }
 
-/// Runs one prompt line unless `interrupt` fires first. Then the unfinished exchange is dropped
-/// (the link knows it is mid-message and recovers) and the device is cleared, so the
-/// instrument drops the command and its late reply, and the session goes on.
+/// One line at the prompt and its total.
+struct Line<'a> {
+    text: &'a str,
+    check_errors: bool,
+    budget: &'a Budget,
+    /// The resource, for the give-up's message.
+    what: &'a str,
+}
+
+/// Runs one prompt line within its budget unless `interrupt` fires first. An abandoned line's
+/// unfinished exchange is dropped (the link knows it is mid-message and recovers) and the
+/// device is cleared, so the instrument drops the command and its late reply, and the session
+/// goes on. The clear is bounded too (`--timeout + 2 s`).
 async fn line_or_cancel(
     session: &mut Session,
-    line: &str,
+    line: Line<'_>,
     saver: &mut BinarySaver,
-    check_errors: bool,
     interrupt: impl Future<Output = ()>,
 ) -> Step {
     let finished = {
-        let work = interactive_line(session, line, saver, check_errors);
+        let work = line.budget.run_or_give_up(
+            line.what,
+            interactive_line(session, line.text, saver, line.check_errors),
+        );
         tokio::pin!(work);
         tokio::pin!(interrupt);
         tokio::select! {
@@ -599,8 +648,21 @@ async fn line_or_cancel(
         }
     };
     match finished {
-        Some(result) => Step::Done(result),
-        None => Step::Cancelled(session.device_clear().await),
+        Some(Ok(result)) => Step::Done(result),
+        Some(Err(gave_up)) => Step::GaveUp(gave_up, bounded_clear(session).await),
+        None => Step::Cancelled(bounded_clear(session).await),
+    }
+}
+
+/// A device clear within the reply timeout and the margin.
+async fn bounded_clear(session: &mut Session) -> anyhow::Result<()> {
+    let wait = session.link_options_mut().timeouts.read + super::bounded::MARGIN;
+    match tokio::time::timeout(wait, session.device_clear()).await {
+        Ok(done) => Ok(done?),
+        Err(_) => Err(anyhow::anyhow!(
+            "no answer to the device clear within {:.1} s",
+            wait.as_secs_f64()
+        )),
     }
 }
 
@@ -776,13 +838,19 @@ mod tests {
                     .unwrap();
                 let mut saver = BinarySaver::new(None);
                 let limit = Duration::from_secs(20);
+                let budget = Budget::new(Duration::ZERO, Duration::from_secs(120), 1, 1);
+                let line = |text| Line {
+                    text,
+                    check_errors: false,
+                    budget: &budget,
+                    what: "x",
+                };
                 let step = tokio::time::timeout(
                     limit,
                     line_or_cancel(
                         &mut session,
-                        "SLOW? 60000",
+                        line("SLOW? 60000"),
                         &mut saver,
-                        false,
                         tokio::time::sleep(Duration::from_millis(200)),
                     ),
                 )
@@ -793,9 +861,8 @@ mod tests {
                     limit,
                     line_or_cancel(
                         &mut session,
-                        "*IDN?",
+                        line("*IDN?"),
                         &mut saver,
-                        false,
                         std::future::pending(),
                     ),
                 )

@@ -8,8 +8,9 @@
 //! amplitude (default 1), radial velocity in m/s (default 0, positive = moving away). Example:
 //! `--targets 1.0,1.06:0.8` or `--targets 3:1:-2.5`.
 
-use super::args::{ProcessingArgs, WaveformArgs};
+use super::args::WaveformArgs;
 use radbench::exit::bad_input;
+use radbench::measure::ProcessingChoices;
 use radbench::simulate;
 use radbench::simulate::CarrierPhase;
 use radbench::simulate::{parse_targets, RunSpec};
@@ -67,12 +68,6 @@ pub struct RunArgs {
         conflicts_with_all = ["targets", "snr_db", "capture_rate", "carrier_phase"]
     )]
     pub scene: Option<PathBuf>,
-    /// With --scene: ignore detections closer than this, metres (as `capture`).
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_range: Option<f64>,
-    /// With --scene: ignore detections farther than this, metres (as `capture`).
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub max_range: Option<f64>,
     /// With --scene: text to send in the waveform (default: PRBS bits from --seed).
     #[arg(long, value_name = "TEXT")]
     pub payload: Option<String>,
@@ -80,7 +75,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     pub snr_db: Option<f64>,
     #[command(flatten)]
-    pub processing: ProcessingArgs,
+    pub processing: ProcessingChoices,
     /// Echo carrier phase: physical (80 GHz), centred (0 Hz) or thesis (B/2, the thesis' model).
     #[arg(long, value_parser = super::args::listed::<CarrierPhase>(), default_value = "physical")]
     pub carrier_phase: CarrierPhase,
@@ -107,8 +102,6 @@ pub struct RunArgs {
 }
 
 /// `capture`'s default range window (`--min-range`, `--max-range`), metres.
-const CAPTURE_MIN_RANGE_M: f64 = 0.15;
-const CAPTURE_MAX_RANGE_M: f64 = 10.0;
 
 #[derive(Debug, clap::Args)]
 pub struct BerArgs {
@@ -157,12 +150,16 @@ fn run_thesis(args: ThesisArgs) -> anyhow::Result<()> {
 
 fn run_free(a: RunArgs) -> anyhow::Result<()> {
     let kind = a.waveform;
+    if a.processing.correction.is_some() || a.processing.calibration.is_some() {
+        return Err(bad_input(
+            "--correction and --calibration apply to a bench's captures (capture, align, \
+             process); a simulation has no measured chain to correct",
+        ));
+    }
     let waveform = a.waveform_args.spec(kind)?;
     let (outcome, spec) = match &a.scene {
         Some(path) => {
-            let mut options = a.processing.options(kind);
-            options.min_range_m = a.min_range.unwrap_or(CAPTURE_MIN_RANGE_M);
-            options.max_range_m = a.max_range.unwrap_or(CAPTURE_MAX_RANGE_M);
+            let options = a.processing.options(kind);
             let scene = SceneSpec {
                 scene: super::mock_lab::load_scene(path)?,
                 waveform,
@@ -176,8 +173,8 @@ fn run_free(a: RunArgs) -> anyhow::Result<()> {
         }
         None => {
             for (given, option) in [
-                (a.min_range.is_some(), "--min-range"),
-                (a.max_range.is_some(), "--max-range"),
+                (a.processing.min_range_m.is_some(), "--min-range"),
+                (a.processing.max_range_m.is_some(), "--max-range"),
                 (a.payload.is_some(), "--payload"),
             ] {
                 if given {

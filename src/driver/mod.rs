@@ -6,6 +6,7 @@
 //! | `io` | [`InstrumentIo`]: what drivers need from a session, implemented by `Session`; session options from the catalog |
 //! | `scpi` | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
 //! | `identity` | `*IDN?` checked against the catalog model |
+//! | `ask` | one bounded query on a fresh session (`doctor --verify-catalog`) |
 //! | `limits` | settings checked against the catalog's limits before anything is sent |
 //! | `scripted` | `Scripted`: a fake session for tests that pin exact command sequences (feature `testing`) |
 //! | `trace` | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
@@ -53,6 +54,7 @@
 
 #![warn(clippy::missing_errors_doc, clippy::missing_panics_doc)]
 
+pub(crate) mod ask;
 pub(crate) mod capability;
 pub(crate) mod error;
 #[cfg(any(test, feature = "testing"))]

@@ -1,9 +1,69 @@
 //! `radbench process`'s options as keywords (the Python package's `process(window="hann")`):
-//! the same parser, with errors that name the keyword (`window`), not the command line's option
-//! (`--window`), and a did-you-mean for an unknown one.
+//! the processing choices through serde ([`ProcessingChoices`], the type the command line and
+//! a campaign's `[processing]` use), the command's own options (the waveform of a capture
+//! radbench did not make, the background, ...) through its parser; errors name the keyword
+//! (`window`), not the command line's option (`--window`), with a did-you-mean for an unknown
+//! one.
 
-use crate::exit::{did_you_mean, Classified, Classify};
-use crate::measure::MeasureError;
+use crate::exit::{bad_input, did_you_mean, Classified, Classify};
+use crate::measure::{MeasureError, ModelOrderChoice, ProcessingChoices};
+use serde_json::{Map, Value};
+
+/// Keywords of the command line's flags that choose the off state, as the choice they make.
+const FLAG_KEYWORDS: [(&str, &str); 2] = [
+    ("forward_only", "forward_backward"),
+    ("no_interpolation", "interpolate"),
+];
+
+/// A JSON object of keywords split into the processing choices (deserialized, a bad value
+/// named by its keyword) and the command's own options as its command-line text (`None` and
+/// `false` left out, `true` a flag).
+pub(super) fn split(keywords: &str) -> anyhow::Result<(ProcessingChoices, Vec<String>)> {
+    let map: Map<String, Value> = serde_json::from_str(keywords)
+        .map_err(|e| bad_input(format!("keywords: not a JSON object of options: {e}")))?;
+    let mut choices = Map::new();
+    let mut own = Vec::new();
+    for (key, value) in map {
+        if value.is_null() {
+            continue;
+        }
+        if let Some((_, choice)) = FLAG_KEYWORDS.iter().find(|(k, _)| *k == key) {
+            if value.as_bool() == Some(true) {
+                choices.insert(choice.to_string(), Value::Bool(false));
+            }
+            continue;
+        }
+        if ProcessingChoices::KEYS.contains(&key.as_str()) {
+            // One at a time first: a refused value is named by its keyword.
+            let one = Map::from_iter([(key.clone(), value.clone())]);
+            if let Err(e) = serde_json::from_value::<ProcessingChoices>(Value::Object(one)) {
+                return Err(bad_input(format!("{key}: {e}")));
+            }
+            choices.insert(key, value);
+            continue;
+        }
+        match value {
+            Value::Bool(false) => {}
+            Value::Bool(true) => own.push(format!("--{}", key.replace('_', "-"))),
+            Value::String(s) => own.push(format!("--{}={s}", key.replace('_', "-"))),
+            other => own.push(format!("--{}={other}", key.replace('_', "-"))),
+        }
+    }
+    let choices: ProcessingChoices =
+        serde_json::from_value(Value::Object(choices)).map_err(|e| bad_input(e.to_string()))?;
+    if !choices.algorithms.is_empty() {
+        return Err(bad_input(
+            "algorithms: a campaign's list; processing in memory takes one `algorithm`",
+        ));
+    }
+    if let Some(ModelOrderChoice::Named(_)) = choices.music_p {
+        return Err(bad_input(
+            "p: \"targets\" counts a campaign step's targets; give a number of targets (or none: \
+             estimated with MDL)",
+        ));
+    }
+    Ok((choices, own))
+}
 
 /// The keyword of a command-line option: `--zero-pad` -> `zero_pad`.
 fn keyword(long: &str) -> String {
@@ -127,6 +187,65 @@ mod tests {
         let text = message(&["--waveform=ofdm", "--zero-pad=0"]);
         assert!(text.contains("zero_pad"), "{text}");
         assert!(!text.contains("--zero-pad"), "{text}");
+    }
+
+    /// The error of processing a short record of zeros with `keywords` (a JSON object).
+    fn json_message(keywords: &str) -> String {
+        let raw = crate::measure::RawIq {
+            samples: vec![num_complex::Complex64::new(0.0, 0.0); 64],
+            sample_rate_hz: 16e9,
+            first_point_s: 0.0,
+        };
+        let err = ProcessRequest::from_keywords(keywords)
+            .and_then(|r| r.samples(raw))
+            .expect_err("refused");
+        crate::exit::render(&err)
+    }
+
+    #[test]
+    fn keywords_as_json_make_the_command_lines_choices() {
+        let request = ProcessRequest::from_keywords(
+            r#"{"waveform":"ofdm","algorithm":"music","m":32,"p":2,"window":"hann",
+                "forward_only":true,"no_interpolation":false,"min_range":0.3,"seed":3,
+                "zero_pad":null}"#,
+        )
+        .unwrap();
+        let cli = ProcessRequest::parse(
+            &[
+                "--waveform=ofdm",
+                "--algorithm=music",
+                "--m=32",
+                "--p=2",
+                "--window=hann",
+                "--forward-only",
+                "--min-range=0.3",
+                "--seed=3",
+            ]
+            .map(String::from),
+        )
+        .unwrap();
+        assert_eq!(request.args.choices, cli.args.choices);
+        assert_eq!(request.args.seed, Some(3));
+        assert_eq!(
+            format!("{:?}", request.overrides),
+            format!("{:?}", cli.overrides)
+        );
+    }
+
+    #[test]
+    fn a_json_keyword_is_named_as_given() {
+        let text = json_message(r#"{"waveform":"msk-lfm","window":"hanning"}"#);
+        assert!(text.starts_with("window: "), "{text}");
+        assert!(text.contains("hann"), "{text}");
+        let text = json_message(r#"{"waveform":"msk-lfm","windw":"hann"}"#);
+        assert!(
+            text.starts_with("unknown keyword `windw`; did you mean `window`?"),
+            "{text}"
+        );
+        let text = json_message(r#"{"waveform":"msk-lfm","p":"targets"}"#);
+        assert!(text.starts_with("p: \"targets\""), "{text}");
+        let text = json_message(r#"{"waveform":"ofdm","zero_pad":0}"#);
+        assert!(text.contains("zero_pad") && !text.contains("--"), "{text}");
     }
 
     #[test]

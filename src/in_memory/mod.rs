@@ -132,7 +132,7 @@ pub struct ProcessRequest {
     args: Box<ProcessArgs>,
     waveform: WaveformChoice,
     overrides: ProcessOverrides,
-    /// The option names to write as keywords in errors ([`ProcessRequest::parse_keywords`]).
+    /// The option names to write as keywords in errors (`ProcessRequest::parse_keywords`).
     keywords: Option<Vec<String>>,
 }
 
@@ -171,7 +171,7 @@ impl ProcessRequest {
             return Err(not_in_memory("--reference-range"));
         }
         // Nothing is written: --reference-range, the one option that writes, is refused above.
-        let (waveform, overrides) = args.settings(Path::new("."))?;
+        let (waveform, overrides) = args.settings(None)?;
         Ok(ProcessRequest {
             args,
             waveform,
@@ -184,7 +184,7 @@ impl ProcessRequest {
     /// `process(window="hann")`, passed here as `--window=hann`): an unknown one is named as the
     /// keyword it was (`windw`, with a did-you-mean), and every message names keywords, not
     /// command-line options.
-    pub fn parse_keywords(options: &[String]) -> anyhow::Result<ProcessRequest> {
+    pub(crate) fn parse_keywords(options: &[String]) -> anyhow::Result<ProcessRequest> {
         use clap::CommandFactory;
         let longs: Vec<String> = ProcessParser::command()
             .get_arguments()
@@ -201,8 +201,25 @@ impl ProcessRequest {
         Ok(request)
     }
 
+    /// The Python package's keywords, a JSON object (`{"window": "hann", "m": 32}`): the
+    /// processing choices through serde as [`crate::measure::ProcessingChoices`], the
+    /// command's own options (the waveform of a capture radbench did not make, `seed`,
+    /// `payload`, `background`, ...) as `parse_keywords` takes them.
+    pub fn from_keywords(keywords: &str) -> anyhow::Result<ProcessRequest> {
+        let (choices, own) = keywords::split(keywords)?;
+        let mut request = Self::parse_keywords(&own)?;
+        request.args.choices = choices;
+        let (waveform, overrides) = request
+            .args
+            .settings(None)
+            .map_err(|e| request.in_callers_words(e))?;
+        request.waveform = waveform;
+        request.overrides = overrides;
+        Ok(request)
+    }
+
     /// `err` in the words the options were given in (keywords after
-    /// [`parse_keywords`](Self::parse_keywords)).
+    /// `parse_keywords`).
     fn in_callers_words(&self, err: anyhow::Error) -> anyhow::Error {
         match &self.keywords {
             Some(named) => keywords::in_keywords(err, named),

@@ -10,81 +10,13 @@
 use crate::exit::bad_input;
 use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::CorrectionMode;
-use crate::measure::Ranging;
 use crate::measure::WaveformChoice;
-use crate::measure::{Algorithm, DetectorName, FftPrecisionName, ProcessOverrides, WindowName};
-use crate::measure::{AwgLink, ScopeLink, ScopeModel};
+use crate::measure::{CorrectionUsed, ProcessOverrides, ProcessingChoices};
 use crate::simulate::CarrierPhase;
 use crate::waveform::{SweepBand, WaveformKind, WaveformSpec};
 use std::path::{Path, PathBuf};
 
-/// A library enum the command line takes by name: its values (with a line of help each) and its
-/// `FromStr`, so clap parses the library's own type (no mirror enum here).
-pub trait Listed: std::str::FromStr + Copy + Send + Sync + 'static {
-    fn all() -> &'static [Self];
-    fn name(self) -> &'static str;
-    fn about(self) -> &'static str;
-}
-
-impl Listed for WaveformKind {
-    fn all() -> &'static [Self] {
-        &WaveformKind::ALL
-    }
-    fn name(self) -> &'static str {
-        WaveformKind::name(self)
-    }
-    fn about(self) -> &'static str {
-        WaveformKind::about(self)
-    }
-}
-
-impl Listed for Algorithm {
-    fn all() -> &'static [Self] {
-        &Algorithm::ALL
-    }
-    fn name(self) -> &'static str {
-        Algorithm::name(self)
-    }
-    fn about(self) -> &'static str {
-        Algorithm::about(self)
-    }
-}
-
-impl Listed for WindowName {
-    fn all() -> &'static [Self] {
-        &WindowName::ALL
-    }
-    fn name(self) -> &'static str {
-        WindowName::name(self)
-    }
-    fn about(self) -> &'static str {
-        WindowName::about(self)
-    }
-}
-
-impl Listed for FftPrecisionName {
-    fn all() -> &'static [Self] {
-        &FftPrecisionName::ALL
-    }
-    fn name(self) -> &'static str {
-        FftPrecisionName::name(self)
-    }
-    fn about(self) -> &'static str {
-        FftPrecisionName::about(self)
-    }
-}
-
-impl Listed for DetectorName {
-    fn all() -> &'static [Self] {
-        &DetectorName::ALL
-    }
-    fn name(self) -> &'static str {
-        DetectorName::name(self)
-    }
-    fn about(self) -> &'static str {
-        DetectorName::about(self)
-    }
-}
+pub use crate::measure::{listed, Listed};
 
 impl Listed for CarrierPhase {
     fn all() -> &'static [Self] {
@@ -96,80 +28,6 @@ impl Listed for CarrierPhase {
     fn about(self) -> &'static str {
         CarrierPhase::about(self)
     }
-}
-
-impl Listed for AwgLink {
-    fn all() -> &'static [Self] {
-        &AwgLink::ALL
-    }
-    fn name(self) -> &'static str {
-        AwgLink::name(self)
-    }
-    fn about(self) -> &'static str {
-        AwgLink::about(self)
-    }
-}
-
-impl Listed for ScopeLink {
-    fn all() -> &'static [Self] {
-        &ScopeLink::ALL
-    }
-    fn name(self) -> &'static str {
-        ScopeLink::name(self)
-    }
-    fn about(self) -> &'static str {
-        ScopeLink::about(self)
-    }
-}
-
-impl Listed for ScopeModel {
-    fn all() -> &'static [Self] {
-        &ScopeModel::ALL
-    }
-    fn name(self) -> &'static str {
-        ScopeModel::name(self)
-    }
-    fn about(self) -> &'static str {
-        ScopeModel::about(self)
-    }
-}
-
-impl Listed for CorrectionMode {
-    fn all() -> &'static [Self] {
-        &CorrectionMode::ALL
-    }
-    fn name(self) -> &'static str {
-        CorrectionMode::name(self)
-    }
-    fn about(self) -> &'static str {
-        CorrectionMode::about(self)
-    }
-}
-
-impl Listed for Ranging {
-    fn all() -> &'static [Self] {
-        &Ranging::ALL
-    }
-    fn name(self) -> &'static str {
-        Ranging::name(self)
-    }
-    fn about(self) -> &'static str {
-        Ranging::about(self)
-    }
-}
-
-/// clap's parser of a [`Listed`] enum: `--help` lists its values, a wrong one is refused naming
-/// the option and every allowed value (as for a clap `ValueEnum`).
-pub fn listed<T: Listed>() -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-    PossibleValuesParser::new(T::all().iter().map(|v| match v.about() {
-        "" => PossibleValue::new(v.name()),
-        about => PossibleValue::new(v.name()).help(about),
-    }))
-    .map(|s| match s.parse::<T>() {
-        Ok(v) => v,
-        Err(_) => unreachable!("clap passes only the listed values"),
-    })
 }
 
 /// The waveform's parameters; unset ones keep the thesis' values.
@@ -281,151 +139,104 @@ pub struct ProcessArgs {
     /// Do not subtract the background the capture recorded.
     #[arg(long)]
     pub no_background: bool,
-    #[arg(long, value_parser = listed::<Algorithm>())]
-    pub algorithm: Option<Algorithm>,
-    /// MUSIC sub-vector (covariance) length M.
-    #[arg(long = "m", value_name = "M")]
-    pub music_m: Option<usize>,
-    /// Number of targets for MUSIC/root-MUSIC/ESPRIT.
-    #[arg(long = "p", value_name = "P")]
-    pub music_p: Option<usize>,
-    /// Forward smoothing only for MUSIC.
-    #[arg(long)]
-    pub forward_only: bool,
-    #[arg(long, value_name = "K")]
-    pub zero_pad: Option<usize>,
-    #[arg(long, value_parser = listed::<WindowName>(), value_name = "NAME")]
-    pub window: Option<WindowName>,
-    #[arg(long, value_parser = listed::<FftPrecisionName>(), value_name = "P")]
-    pub fft_precision: Option<FftPrecisionName>,
-    /// Report the on-grid peak (no sub-sample interpolation).
-    #[arg(long)]
-    pub no_interpolation: bool,
-    #[arg(long, value_parser = listed::<DetectorName>(), value_name = "NAME")]
-    pub detector: Option<DetectorName>,
-    #[arg(long, value_name = "P", allow_hyphen_values = true)]
-    pub pfa: Option<f64>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_separation: Option<f64>,
-    /// The detector's chain floor, dB (see `capture --help`).
-    #[arg(long, value_name = "DB", allow_hyphen_values = true)]
-    pub chain_floor_db: Option<f64>,
-    /// How each target's range is measured: envelope, or phase (see `capture --help`).
-    #[arg(long, value_parser = listed::<Ranging>(), value_name = "MODE")]
-    pub ranging: Option<Ranging>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub min_range: Option<f64>,
-    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
-    pub max_range: Option<f64>,
+    #[command(flatten)]
+    pub choices: ProcessingChoices,
     /// The bench's fixed delay, seconds (default: what the capture was processed with).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     pub system_delay: Option<f64>,
-    /// Receive correction: none, or rx (DC, I/Q imbalance and the chain's response, from a
-    /// calibration). Default: what the capture was processed with; rx with --calibration.
-    #[arg(long, value_parser = listed::<CorrectionMode>())]
-    pub correction: Option<CorrectionMode>,
-    /// A response calibration (`radbench calibrate response` wrote it) to correct with, for
-    /// captures made without one; with --reference-range, a capture of one reference pillar
-    /// from which the response is measured (written to OUT/reference-response.toml).
-    #[arg(long, value_name = "FILE")]
-    pub calibration: Option<PathBuf>,
     /// The reference pillar's true range in the --calibration capture, metres.
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub reference_range: Option<f64>,
 }
 
 impl ProcessArgs {
-    /// The waveform and the processing options asked for (`out`: where a response measured with
-    /// `--reference-range` is stored).
-    pub fn settings(&self, out: &Path) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
+    /// The waveform and the processing options asked for; `measured`: the response
+    /// [`measure_reference`](Self::measure_reference) measured, when it ran.
+    pub fn settings(
+        &self,
+        measured: Option<CorrectionUsed>,
+    ) -> anyhow::Result<(WaveformChoice, ProcessOverrides)> {
         let waveform = self.waveform()?;
-        let mut overrides = self.overrides();
-        overrides.correction = self.correction(out)?;
-        overrides.require_correction =
-            self.correction == Some(CorrectionMode::Rx) && self.calibration.is_none();
+        let mut overrides = ProcessOverrides {
+            choices: self.choices.clone(),
+            system_delay_s: self.system_delay,
+            keep_background: !self.no_background,
+            ..ProcessOverrides::default()
+        };
+        let (correction, require) = self.correction(measured)?;
+        overrides.correction = correction;
+        overrides.require_correction = require;
         Ok((waveform, overrides))
     }
 
-    fn overrides(&self) -> ProcessOverrides {
-        ProcessOverrides {
-            algorithm: self.algorithm,
-            music_m: self.music_m,
-            music_p: self.music_p.map(Some),
-            forward_backward: self.forward_only.then_some(false),
-            zero_pad: self.zero_pad,
-            window: self.window,
-            fft_precision: self.fft_precision,
-            interpolate: self.no_interpolation.then_some(false),
-            system_delay_s: self.system_delay,
-            min_range_m: self.min_range,
-            max_range_m: self.max_range,
-            detector: self.detector,
-            pfa: self.pfa,
-            min_separation_m: self.min_separation.map(Some),
-            chain_floor_db: self.chain_floor_db,
-            awg_amplitude_vpp: None,
-            correction: None,
-            ranging: self.ranging,
-            keep_background: !self.no_background,
-            require_correction: false,
-        }
-    }
-
-    /// The correction asked for: `None` keeps what each capture recorded.
-    fn correction(
-        &self,
-        out: &Path,
-    ) -> anyhow::Result<Option<Option<crate::measure::CorrectionUsed>>> {
-        use crate::measure::Calibration;
-        if let Some(r) = self.reference_range {
-            crate::measure::check(r, 2.0)?;
-            let Some(capture) = &self.calibration else {
-                return Err(bad_input(
-                    "--reference-range needs --calibration CAPTURE: the capture of one reference \
-                     pillar to measure the response from",
-                ));
-            };
-            if self.correction == Some(CorrectionMode::None) {
-                return Err(bad_input(
-                    "--correction none with --calibration: give one or the other",
-                ));
-            }
-            std::fs::create_dir_all(out)?;
-            let cal = crate::measure::response_from_capture::calibrate_from_capture(
-                capture,
-                r,
-                crate::measure::default_gate_s(r),
-                &out.join("reference-response.toml"),
-            )?;
-            eprintln!(
-                "response measured from {} (reference at {r} m): side-lobe {:.2} -> {:.2} dB; \
-                 stored in {}",
-                capture.display(),
-                cal.header.reference.sidelobe_db_before.unwrap_or(f64::NAN),
-                cal.header.reference.sidelobe_db_after.unwrap_or(f64::NAN),
-                cal.path.display()
-            );
-            return Ok(Some(Some(cal.used())));
-        }
-        if matches!(
-            self.correction,
-            Some(CorrectionMode::Tx | CorrectionMode::Both)
-        ) {
+    /// With `--reference-range`: the response measured from the `--calibration` capture of one
+    /// reference pillar, written to `out/reference-response.toml` (the one option that writes:
+    /// an explicit step of `radbench process`, never a side effect of parsing). `None` without
+    /// it.
+    pub fn measure_reference(&self, out: &Path) -> anyhow::Result<Option<CorrectionUsed>> {
+        let Some(r) = self.reference_range else {
+            return Ok(None);
+        };
+        crate::measure::check(r, 2.0)?;
+        let Some(capture) = &self.choices.calibration else {
             return Err(bad_input(
-                "--correction: none or rx (a capture already made cannot be pre-distorted; one \
-                 captured with tx or both is processed as it was unless --correction is given)",
+                "--reference-range needs --calibration CAPTURE: the capture of one reference \
+                 pillar to measure the response from",
+            ));
+        };
+        if self.choices.correction == Some(CorrectionMode::None) {
+            return Err(bad_input(
+                "--correction none with --calibration: give one or the other",
             ));
         }
-        Ok(match (self.correction, &self.calibration) {
+        std::fs::create_dir_all(out)?;
+        let cal = crate::measure::response_from_capture::calibrate_from_capture(
+            capture,
+            r,
+            crate::measure::default_gate_s(r),
+            &out.join("reference-response.toml"),
+        )?;
+        eprintln!(
+            "response measured from {} (reference at {r} m): side-lobe {:.2} -> {:.2} dB; \
+             stored in {}",
+            capture.display(),
+            cal.header.reference.sidelobe_db_before.unwrap_or(f64::NAN),
+            cal.header.reference.sidelobe_db_after.unwrap_or(f64::NAN),
+            cal.path.display()
+        );
+        Ok(Some(cal.used()))
+    }
+
+    /// The correction asked for (`None` keeps what each capture recorded), and the mode each
+    /// capture's own recorded calibration is to be used with when no file is given.
+    #[allow(clippy::type_complexity)]
+    fn correction(
+        &self,
+        measured: Option<CorrectionUsed>,
+    ) -> anyhow::Result<(Option<Option<CorrectionUsed>>, Option<CorrectionMode>)> {
+        use crate::measure::Calibration;
+        let mode = self.choices.correction;
+        if let Some(used) = measured {
+            // Measured from a capture of the reference pillar: applied on receive.
+            return Ok((Some(Some(used)), None));
+        }
+        Ok(match (mode, &self.choices.calibration) {
             (Some(CorrectionMode::None), Some(_)) => {
                 return Err(bad_input(
                     "--correction none with --calibration: give one or the other",
                 ))
             }
-            (Some(CorrectionMode::None), None) => Some(None),
-            (_, Some(path)) => Some(Some(Calibration::load(path)?.used())),
-            // rx without a file: what each capture recorded (checked per capture).
-            (_, None) => None,
+            (Some(CorrectionMode::None), None) => (Some(None), None),
+            (mode, Some(path)) => (
+                Some(Some(
+                    Calibration::load(path)?.used_as(mode.unwrap_or(CorrectionMode::Rx)),
+                )),
+                None,
+            ),
+            // A mode without a file: each capture's own recorded calibration, with that mode
+            // (checked per capture).
+            (Some(mode), None) => (None, Some(mode)),
+            (None, None) => (None, None),
         })
     }
 

@@ -49,7 +49,8 @@ pub(crate) enum Event {
     Set(&'static str, Value),
     /// A finished step: its row of the steps table (replaces a row of the same `index`).
     Row(Value),
-    /// A warning or an error (`level` "warning" or "error").
+    /// A warning, an error or a campaign's retry (`level` "warning", "error", "note" or
+    /// "retry"; each retry also counts in the state's `retries`).
     Log(&'static str, String),
     /// The profile written to this `profile.csv` (read by the composer, off the measurement's
     /// path), with the detections and the simulated truth to draw on it.
@@ -414,6 +415,10 @@ async fn apply(state: &mut Map<String, Value>, event: Event) {
             }
         }
         Event::Log(level, text) => {
+            if level == "retry" {
+                let n = state.get("retries").and_then(Value::as_u64).unwrap_or(0);
+                state.insert("retries".into(), json!(n + 1));
+            }
             if let Some(log) = state
                 .entry("log")
                 .or_insert_with(|| json!([]))

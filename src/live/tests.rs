@@ -287,3 +287,22 @@ async fn a_frame_says_when_its_oldest_event_was_handed_over() {
     );
     live.finish("complete", Duration::ZERO).await;
 }
+
+#[tokio::test]
+async fn a_retry_is_in_the_log_and_counted() {
+    let mut state = Map::new();
+    let retry = |n| {
+        Event::Log(
+            "retry",
+            format!("step 3 of 6: awg: connection closed; safe state: ...; retry {n} of 2 in 2 s"),
+        )
+    };
+    apply(&mut state, retry(1)).await;
+    apply(&mut state, Event::Log("warning", "a warning".into())).await;
+    apply(&mut state, retry(2)).await;
+    assert_eq!(state["retries"], json!(2));
+    let log = state["log"].as_array().unwrap();
+    assert_eq!(log.len(), 3);
+    assert_eq!(log[0]["level"], "retry");
+    assert!(log[2]["text"].as_str().unwrap().contains("retry 2 of 2"));
+}

@@ -14,14 +14,15 @@
 //! volts_per_div = 0.05                            # optional, both channels
 //! trigger_jitter_s = 1e-12                        # optional: RMS, data sheet (1 ps if not given)
 //!
-//! [tx]                                            # optional: a Tx radbench does not control
-//! model = "gotmic-eband-tx"                       # must be switched on by hand
+//! [tx]                                            # optional: without it, no Tx is driven
+//! model = "gotmic-eband-tx"
 //! resource = "ASRL/dev/ttyUSB0::INSTR"
 //! attenuation_db = 10.0                           # optional, once enabled
 //!
-//! [rx]                                            # optional, like [tx]
-//! model = "gotmic-eband-rx"
-//! resource = "ASRL/dev/ttyUSB1::INSTR"
+//! [rx]                                            # optional, like [tx]; or a manual front end:
+//! driver = "manual"                               # radbench does not talk to it: the operator
+//! attenuation_db = 0.0                            # sets it and confirms before the first RF
+//! rf_frequency_hz = 80e9                          # optional (default 80 GHz), for the operator
 //!
 //! [simulation]                                    # only for a mock_lab bench
 //! control = "127.0.0.1:40001"                     # its scene control channel
@@ -41,9 +42,11 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct InstrumentEntry {
-    /// Catalog key (`radbench` embeds `instruments/*.toml`).
+    /// Catalog key (`radbench` embeds `instruments/*.toml`); optional for a manual front end.
+    #[serde(default)]
     pub model: String,
-    /// VISA-style resource string.
+    /// VISA-style resource string; none for a manual front end.
+    #[serde(default)]
     pub resource: String,
     /// Optional: the driver family the catalog entry must name (`lecroy-maui`,
     /// `keysight-infiniium`, ...), checked on load; the catalog's `driver` decides either way.
@@ -59,6 +62,36 @@ pub struct InstrumentEntry {
     /// range's uncertainty carries it (docs/metrology.md; 1 ps when not stated).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trigger_jitter_s: Option<f64>,
+    /// Manual front ends only: the RF frequency the operator sets, Hz (default 80 GHz).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rf_frequency_hz: Option<f64>,
+}
+
+/// The `driver` of a front end radbench does not talk to: the operator sets it by hand.
+pub(crate) const MANUAL_DRIVER: &str = "manual";
+
+/// A front end with `driver = "manual"`: radbench never opens it; it tells the operator what to
+/// set, asks for a confirmation before the first RF, and relies on the AWG outputs for the safe
+/// state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ManualFrontEnd {
+    /// `tx` or `rx`: the bench file's section.
+    pub section: &'static str,
+    /// The catalog key, when the bench file names one (for the LO multiplier and limits).
+    pub model: Option<String>,
+    pub attenuation_db: Option<f64>,
+    pub rf_frequency_hz: Option<f64>,
+}
+
+impl ManualFrontEnd {
+    /// `Tx` or `Rx`, for messages.
+    pub fn name(&self) -> &'static str {
+        if self.section == "tx" {
+            "Tx"
+        } else {
+            "Rx"
+        }
+    }
 }
 
 /// A simulated bench's extras.
@@ -104,6 +137,10 @@ pub struct BenchFile {
     pub simulation: Option<Simulation>,
     #[serde(default)]
     pub calibration: Option<BenchCalibration>,
+    /// The front ends of `[tx]`/`[rx]` with `driver = "manual"` (taken out of `tx`/`rx`, which
+    /// hold only the front ends radbench drives).
+    #[serde(skip)]
+    pub manual: Vec<ManualFrontEnd>,
     /// Where each `section.key` is written (1-based lines), for errors found after parsing.
     #[serde(skip)]
     pub lines: std::collections::BTreeMap<String, usize>,
@@ -165,6 +202,7 @@ impl BenchFile {
                 "resource",
                 "volts_per_div",
                 "attenuation_db",
+                "rf_frequency_hz",
                 "trigger_jitter_s",
                 "system_delay_s",
                 "control",
@@ -175,6 +213,7 @@ impl BenchFile {
                 }
             }
         }
+        let taken = take_manual(&mut bench);
         let at = |field: &str| {
             bench
                 .lines
@@ -183,6 +222,41 @@ impl BenchFile {
                 .unwrap_or_default()
         };
         let invalid_at = |field: &str, message: String| invalid(format!("{}{message}", at(field)));
+        bench.manual = taken.map_err(|(field, m)| invalid_at(&field, m))?;
+        for (section, entry) in [
+            ("awg", Some(&bench.awg)),
+            ("scope", Some(&bench.scope)),
+            ("tx", bench.tx.as_ref()),
+            ("rx", bench.rx.as_ref()),
+        ] {
+            let Some(entry) = entry else { continue };
+            for (key, value) in [("model", &entry.model), ("resource", &entry.resource)] {
+                if value.is_empty() {
+                    let manual = if matches!(section, "tx" | "rx") {
+                        format!(", or driver = \"{MANUAL_DRIVER}\" for a front end radbench does not talk to")
+                    } else {
+                        String::new()
+                    };
+                    return Err(invalid(format!(
+                        "[{section}] {key}: missing; give the instrument's {}{manual}",
+                        if key == "model" {
+                            "catalog key"
+                        } else {
+                            "resource string"
+                        }
+                    )));
+                }
+            }
+            if entry.rf_frequency_hz.is_some() {
+                return Err(invalid_at(
+                    &format!("{section}.rf_frequency_hz"),
+                    format!(
+                        "[{section}] rf_frequency_hz: only for driver = \"{MANUAL_DRIVER}\" (a \
+                         driven front end's frequency is set by radbench)"
+                    ),
+                ));
+            }
+        }
         for (section, entry) in [
             ("awg", Some(&bench.awg)),
             ("scope", Some(&bench.scope)),
@@ -317,6 +391,40 @@ impl BenchFile {
                 })?;
             }
         }
+        for m in &self.manual {
+            let Some(key) = &m.model else { continue };
+            let kind = if m.section == "tx" {
+                InstrumentKind::RfTx
+            } else {
+                InstrumentKind::RfRx
+            };
+            if catalog
+                .get(key)
+                .ok()
+                .is_none_or(|c| c.instrument.kind != kind)
+            {
+                let line = self
+                    .lines
+                    .get(&format!("{}.model", m.section))
+                    .map(|l| format!("line {l}: "))
+                    .unwrap_or_default();
+                let fits: Vec<&str> = catalog
+                    .models()
+                    .filter(|(c, _)| c.instrument.kind == kind)
+                    .map(|(c, _)| c.instrument.key.as_str())
+                    .collect();
+                return Err(BenchFileError::Invalid {
+                    path: self.path.clone(),
+                    message: format!(
+                        "{line}[{}] model = {key:?}: not a {} front end of the instrument \
+                         catalog (a manual front end may leave the model out); allowed: {}",
+                        m.section,
+                        m.name(),
+                        fits.join(", ")
+                    ),
+                });
+            }
+        }
         Ok(())
     }
 
@@ -338,6 +446,65 @@ impl BenchFile {
             .is_none()
             .then(|| uncalibrated_warning(Some(&self.path)))
     }
+}
+
+/// Moves the `[tx]`/`[rx]` entries with `driver = "manual"` out of `bench` and checks them; an
+/// error is (the field, the message).
+fn take_manual(bench: &mut BenchFile) -> Result<Vec<ManualFrontEnd>, (String, String)> {
+    let mut manual = Vec::new();
+    for section in ["tx", "rx"] {
+        let slot = if section == "tx" {
+            &mut bench.tx
+        } else {
+            &mut bench.rx
+        };
+        if slot.as_ref().and_then(|e| e.driver.as_deref()) != Some(MANUAL_DRIVER) {
+            continue;
+        }
+        let Some(e) = slot.take() else { continue };
+        let field = |key: &str| format!("{section}.{key}");
+        if !e.resource.is_empty() {
+            return Err((
+                field("resource"),
+                format!(
+                    "[{section}] resource = {:?}: a manual front end is not connected; remove \
+                     the resource, or the driver = \"{MANUAL_DRIVER}\" line to drive it",
+                    e.resource
+                ),
+            ));
+        }
+        if e.volts_per_div.is_some() {
+            return Err((
+                field("volts_per_div"),
+                format!("[{section}] volts_per_div: only for [scope]"),
+            ));
+        }
+        if let Some(a) = e.attenuation_db {
+            if !(a.is_finite() && a >= 0.0) {
+                return Err((
+                    field("attenuation_db"),
+                    format!("[{section}] attenuation_db = {a}: must be 0 dB or more"),
+                ));
+            }
+        }
+        if let Some(f) = e.rf_frequency_hz {
+            if !(f.is_finite() && f > 0.0) {
+                return Err((
+                    field("rf_frequency_hz"),
+                    format!(
+                        "[{section}] rf_frequency_hz = {f}: must be a positive frequency in Hz"
+                    ),
+                ));
+            }
+        }
+        manual.push(ManualFrontEnd {
+            section,
+            model: (!e.model.is_empty()).then_some(e.model),
+            attenuation_db: e.attenuation_db,
+            rf_frequency_hz: e.rf_frequency_hz,
+        });
+    }
+    Ok(manual)
 }
 
 /// The warning of a bench without `[calibration]` (`bench_file`: its path, for the command to

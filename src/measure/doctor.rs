@@ -29,6 +29,11 @@ use std::time::Duration;
 
 /// Longest wait for one instrument to be reached and identified.
 const OPEN_TIMEOUT: Duration = Duration::from_secs(5);
+/// The most all the checks may take together, whatever the instruments do (a stall after every
+/// answer, replies that never end): each wait is cut to what is left of it, and a check that
+/// finds nothing left is skipped. The safe state after the marker check is not cut (at most
+/// `SAFE_STEP_TIMEOUT` a step). docs/doctor.md.
+pub(crate) const CHECKS_TOTAL: Duration = Duration::from_secs(40);
 /// Longest wait for the marker's edge at the scope, seconds.
 const MARKER_WAIT_S: f64 = 1.0;
 /// Longest the whole marker check may take (configure, download, acquire), seconds.
@@ -129,9 +134,27 @@ impl List {
     }
 }
 
+/// When the doctor's checks must be done ([`CHECKS_TOTAL`] from the start).
+#[derive(Debug, Clone, Copy)]
+struct Deadline(tokio::time::Instant);
+
+impl Deadline {
+    fn start() -> Deadline {
+        Deadline(tokio::time::Instant::now() + CHECKS_TOTAL)
+    }
+
+    /// `wait`, or what is left before the deadline when that is less.
+    fn bound(self, wait: Duration) -> Duration {
+        wait.min(
+            self.0
+                .saturating_duration_since(tokio::time::Instant::now()),
+        )
+    }
+}
+
 /// Whether a TCP listener answers at the resource's address: `None` for serial resources, else
 /// `Ok(address)` or `Err(what happened)`.
-async fn tcp_probe(resource: &Resource) -> Option<Result<String, String>> {
+async fn tcp_probe(resource: &Resource, deadline: Deadline) -> Option<Result<String, String>> {
     use crate::address::{HISLIP_DEFAULT_PORT, PORTMAPPER_PORT, VICP_DEFAULT_PORT};
     let (host, port) = match resource {
         Resource::Socket { host, port, .. } => (host, *port),
@@ -146,30 +169,37 @@ async fn tcp_probe(resource: &Resource) -> Option<Result<String, String>> {
     } else {
         format!("{host}:{port}")
     };
-    let result =
-        match tokio::time::timeout(OPEN_TIMEOUT, tokio::net::TcpStream::connect(&address)).await {
-            Ok(Ok(_)) => Ok(address),
-            Ok(Err(e)) => Err(format!("{address}: {e}")),
-            Err(_) => Err(format!(
-                "{address}: no answer to the connection within {} s",
-                OPEN_TIMEOUT.as_secs()
-            )),
-        };
+    let wait = deadline.bound(OPEN_TIMEOUT);
+    let result = match tokio::time::timeout(wait, tokio::net::TcpStream::connect(&address)).await {
+        Ok(Ok(_)) => Ok(address),
+        Ok(Err(e)) => Err(format!("{address}: {e}")),
+        Err(_) => Err(format!(
+            "{address}: no answer to the connection within {} s",
+            seconds(wait)
+        )),
+    };
     Some(result)
 }
 
 /// An open with a bound: `Err` text when it fails or takes too long.
 async fn bounded<T>(
+    deadline: Deadline,
     work: impl std::future::Future<Output = Result<T, DriverError>>,
 ) -> Result<T, String> {
-    match tokio::time::timeout(OPEN_TIMEOUT, work).await {
+    let wait = deadline.bound(OPEN_TIMEOUT);
+    match tokio::time::timeout(wait, work).await {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(e)) => Err(e.to_string()),
         Err(_) => Err(format!(
             "no identity within {} s (the link opened but the instrument did not answer)",
-            OPEN_TIMEOUT.as_secs()
+            seconds(wait)
         )),
     }
+}
+
+/// A wait in seconds as the checklist says it (`5`, `2.5`).
+fn seconds(wait: Duration) -> String {
+    format!("{}", (wait.as_secs_f64() * 10.0).round() / 10.0)
 }
 
 fn wrong_instrument(err: &str) -> bool {
@@ -238,16 +268,25 @@ async fn open_front(
     res: &Resource,
     model: &InstrumentModel,
     journal: Option<Journal>,
+    deadline: Deadline,
 ) -> (
     Result<Box<dyn RfFrontEnd>, String>,
     Option<Box<dyn RfFrontEnd>>,
 ) {
-    match bounded(open::open_rf(res.clone(), model, journal.clone(), name)).await {
+    match bounded(
+        deadline,
+        open::open_rf(res.clone(), model, journal.clone(), name),
+    )
+    .await
+    {
         Ok(g) => (Ok(g), None),
         Err(e) => {
-            let answered = bounded(open::open_rf_other_mode(res.clone(), model, journal, name))
-                .await
-                .ok();
+            let answered = bounded(
+                deadline,
+                open::open_rf_other_mode(res.clone(), model, journal, name),
+            )
+            .await
+            .ok();
             (Err(e), answered)
         }
     }
@@ -255,16 +294,19 @@ async fn open_front(
 
 /// The scope's other remote interface at the same host: the resource to try, from the lab's
 /// endpoint list on a simulated bench, else the protocol's standard port.
-async fn other_scope_resource(bench: &Bench, resource: &Resource) -> Option<Resource> {
+async fn other_scope_resource(
+    bench: &Bench,
+    resource: &Resource,
+    deadline: Deadline,
+) -> Option<Resource> {
     let want = match resource {
         Resource::Vicp { .. } => "vxi11",
         Resource::Vxi11 { .. } => "vicp",
         _ => return None,
     };
-    if let Some(Ok(reply)) = bench
-        .control(&serde_json::json!({"cmd": "endpoints"}))
-        .await
-    {
+    let request = serde_json::json!({"cmd": "endpoints"});
+    let asked = bench.control(&request);
+    if let Ok(Some(Ok(reply))) = tokio::time::timeout(deadline.bound(OPEN_TIMEOUT), asked).await {
         let found = reply["endpoints"].as_array().and_then(|list| {
             list.iter()
                 .find(|e| e["instrument"] == "scope" && e["transport"] == want)
@@ -328,35 +370,35 @@ pub async fn run(
             .collect::<Result<_, MeasureError>>()?;
 
     // The AWG and the scope: the listener first, then the driver's open (identity checked).
-    let (awg_probe, scope_probe) = tokio::join!(tcp_probe(&awg_res), tcp_probe(&scope_res));
+    let deadline = Deadline::start();
+    let (awg_probe, scope_probe) = tokio::join!(
+        tcp_probe(&awg_res, deadline),
+        tcp_probe(&scope_res, deadline)
+    );
     let awg_open = async {
         if matches!(awg_probe, Some(Err(_))) {
             return Err("not reachable".to_string());
         }
-        bounded(open::open_awg(
-            awg_res.clone(),
-            &awg_model,
-            journal.clone(),
-            "awg",
-        ))
+        bounded(
+            deadline,
+            open::open_awg(awg_res.clone(), &awg_model, journal.clone(), "awg"),
+        )
         .await
     };
     let scope_open = async {
         if matches!(scope_probe, Some(Err(_))) {
             return Err("not reachable".to_string());
         }
-        bounded(open::open_digitizer(
-            scope_res.clone(),
-            &scope_model,
-            journal.clone(),
-            "scope",
-        ))
+        bounded(
+            deadline,
+            open::open_digitizer(scope_res.clone(), &scope_model, journal.clone(), "scope"),
+        )
         .await
     };
     let front_opens = async {
         let mut out = Vec::new();
         for (name, res, model) in &fronts {
-            out.push(open_front(name, res, model, journal.clone()).await);
+            out.push(open_front(name, res, model, journal.clone(), deadline).await);
         }
         out
     };
@@ -389,11 +431,14 @@ pub async fn run(
     let scope_unanswered = matches!(scope_probe, Some(Err(_)))
         || matches!(&scope, Err(e) if e.contains("remote interface"));
     if scope_unanswered {
-        let other = other_scope_resource(bench, &scope_res).await;
+        let other = other_scope_resource(bench, &scope_res, deadline).await;
         let other_answer = match &other {
-            Some(r) => bounded(open::open_digitizer(r.clone(), &scope_model, None, "scope"))
-                .await
-                .map(|s| s.identity().to_string()),
+            Some(r) => bounded(
+                deadline,
+                open::open_digitizer(r.clone(), &scope_model, None, "scope"),
+            )
+            .await
+            .map(|s| s.identity().to_string()),
             None => Err("no other interface to try".into()),
         };
         let this = interface_name(protocol);
@@ -534,12 +579,23 @@ pub async fn run(
             }
         }
     }
+    for m in &file.manual {
+        list.warn(
+            format!("{}.driver", m.section),
+            format!(
+                "manual (driver = \"manual\"): radbench does not talk to the {} module and \
+                 cannot switch it off; runs ask the operator to confirm its settings",
+                m.name()
+            ),
+            super::manual::manual_doctor_fix(m),
+        );
+    }
     for (name, g) in &mut modules {
         let limits = fronts
             .iter()
             .find(|(n, _, _)| n == name)
             .and_then(|(_, _, model)| model.rf.clone());
-        match tokio::time::timeout(OPEN_TIMEOUT, g.status()).await {
+        match tokio::time::timeout(deadline.bound(OPEN_TIMEOUT), g.status()).await {
             Ok(Ok(s)) => {
                 if s.powered && s.faults.is_empty() {
                     list.pass(format!("{name}.status"), "powered, no latched fault");
@@ -629,7 +685,7 @@ pub async fn run(
             ),
             Err(_) => list.fail(
                 format!("{name}.status"),
-                "no status within 5 s",
+                "no status in time (5 s, or what was left of the doctor's checks)",
                 "check the cable and the module",
             ),
         }
@@ -640,8 +696,9 @@ pub async fn run(
     let mut awg = awg;
     match (&mut awg, &mut scope) {
         (Some(a), Some(s)) => {
-            let awg_ref = tokio::time::timeout(OPEN_TIMEOUT, a.applied()).await;
-            let scope_ref = tokio::time::timeout(OPEN_TIMEOUT, s.reference_clock()).await;
+            let awg_ref = tokio::time::timeout(deadline.bound(OPEN_TIMEOUT), a.applied()).await;
+            let scope_ref =
+                tokio::time::timeout(deadline.bound(OPEN_TIMEOUT), s.reference_clock()).await;
             match (awg_ref, scope_ref) {
                 (Ok(Ok(applied)), Ok(Ok(sref))) => {
                     let a_ext = applied
@@ -688,8 +745,21 @@ pub async fn run(
     // The marker at the scope's trigger, transmitter off.
     match (awg, scope) {
         _ if interrupt.received().is_some() => list.skip("marker", "interrupted: not tried"),
+        // Too little left for the scope's wait: nothing is switched on.
+        (Some(_), Some(_))
+            if deadline.bound(MARKER_DEADLINE).as_secs_f64() < 2.0 * MARKER_WAIT_S =>
+        {
+            list.skip(
+                "marker",
+                format!(
+                    "not tried: the doctor's {} s for its checks were spent before it",
+                    CHECKS_TOTAL.as_secs()
+                ),
+            )
+        }
         (Some(a), Some(s)) if !tx_on => {
-            marker_check(&mut list, a, s, modules, &scope_model, interrupt).await?;
+            let deadline = deadline.bound(MARKER_DEADLINE);
+            marker_check(&mut list, a, s, modules, &scope_model, interrupt, deadline).await?;
         }
         (Some(_), Some(_)) => list.skip("marker", "the transmitter is on: not tried"),
         _ => list.skip("marker", "the AWG or the scope was not identified"),
@@ -724,8 +794,14 @@ async fn marker_check(
     modules: Vec<(&'static str, Box<dyn RfFrontEnd>)>,
     scope_model: &InstrumentModel,
     interrupt: &Interrupt,
+    deadline: Duration,
 ) -> Result<(), MeasureError> {
     let awg: Shared<dyn Awg> = safe_state::share(awg);
+    let fronts_off = if modules.is_empty() {
+        "no front end driven by radbench"
+    } else {
+        "the front ends it drives off"
+    };
     let mut tx = None;
     let mut rx = None;
     for (name, g) in modules {
@@ -792,13 +868,11 @@ async fn marker_check(
         Ok::<_, MeasureError>(seen)
     };
     let bounded_work = async {
-        tokio::time::timeout(MARKER_DEADLINE, work)
+        tokio::time::timeout(deadline, work)
             .await
-            .unwrap_or_else(|_| {
-                Err(MeasureError::RfDeadline {
-                    seconds: MARKER_DEADLINE.as_secs_f64(),
-                })
-            })
+            .unwrap_or(Err(MeasureError::RfDeadline {
+                seconds: deadline.as_secs_f64(),
+            }))
     };
     let (outcome, report) = crate::driver::run_guarded(&safe, bounded_work, interrupt.wait()).await;
     crate::driver::clear_panic_safe_state(&safe);
@@ -840,7 +914,7 @@ async fn marker_check(
     if safe_ok {
         list.pass(
             "safe_state",
-            "after the checks: AWG outputs off and stopped, front ends off",
+            format!("after the checks: AWG outputs off and stopped, {fronts_off}"),
         );
     } else {
         list.fail(

@@ -3,7 +3,8 @@
 //! description, the recorded options, the same [`Pipeline`](super::Pipeline)), so they are what
 //! radbench computes, not a second implementation. Names, shapes and units: `docs/export.md`.
 
-use super::options::{ProcessOptions, ProcessOverrides};
+use super::choices::ProcessOverrides;
+use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Processed};
 use super::reprocess::{self, Record, Source, WaveformChoice};
 use super::MeasureError;

@@ -8,7 +8,9 @@
 //! | `bench` | the bench in use: a bench file, or the built-in mock lab started in-process |
 //! | `family` | each waveform family's behaviour in one room (`family/msk_lfm.rs`, `family/ofdm.rs`): overrides, transmission, payload decoder, algorithms; `family::of` is the one `match` over the families |
 //! | `transmit` | the waveform as AWG codes plus what the receiver needs |
-//! | `options` | the processing choices (algorithm, window, M/p, ranges, Pfa) as plain data |
+//! | `choices` | the processing choices a user makes, declared once: command-line options, a campaign's `[processing]`, Python's keywords |
+//! | `listed` | library enums taken by name on the command line and in files, and clap's parser of them |
+//! | `options` | the processing options (algorithm, window, M/p, ranges, Pfa) as plain data, and their defaults |
 //! | `pipeline` | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
 //! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
@@ -24,12 +26,15 @@
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
 //! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
+//! | `verify_catalog` | `doctor --verify-catalog`: the catalog's inferred values asked of the instruments; override files |
+//! | `manual` | front ends with `driver = "manual"`: the operator's instructions, confirmation and exit note |
 
 pub(crate) mod ambiguity;
 pub(crate) mod bench;
 pub(crate) mod bench_file;
 pub(crate) mod calibration;
 pub(crate) mod capture;
+pub(crate) mod choices;
 pub(crate) mod clipping;
 pub(crate) mod detect;
 pub(crate) mod doctor;
@@ -37,6 +42,8 @@ pub(crate) mod export;
 pub(crate) mod family;
 pub(crate) mod figure;
 pub(crate) mod interrupt;
+pub(crate) mod listed;
+pub(crate) mod manual;
 pub(crate) mod numbers;
 pub(crate) mod options;
 pub(crate) mod payload;
@@ -54,6 +61,7 @@ pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
 pub(crate) mod station;
 pub(crate) mod transmit;
+pub(crate) mod verify_catalog;
 
 pub use ambiguity::*;
 pub use bench::*;
@@ -64,6 +72,7 @@ pub use doctor::*;
 pub use export::*;
 pub use figure::*;
 pub use interrupt::*;
+pub use manual::{confirms, manual_exit_note, manual_instructions, manual_refused};
 pub use numbers::*;
 pub use options::*;
 pub use pipeline::*;
@@ -73,11 +82,14 @@ pub use reprocess::*;
 pub use response::*;
 pub use response_run::*;
 pub use station::*;
+pub use verify_catalog::{verify_catalog, write_overrides, CatalogCheck, CatalogValue, Verdict};
 
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the
 // re-processing's `Repetition` (`response`'s are the crate's own).
 pub use capture::measure;
+pub use choices::{ModelOrderChoice, ModelOrderName, ProcessOverrides, ProcessingChoices};
 pub use clipping::{ClipDetection, Clipping};
+pub use listed::{listed, Listed};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 pub use reprocess::Repetition;

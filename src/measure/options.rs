@@ -80,7 +80,7 @@ impl Algorithm {
 
     /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
     /// Fourier for OFDM.
-    pub fn default_for(waveform: WaveformKind) -> Algorithm {
+    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
         super::family::of_kind(waveform).default_algorithm()
     }
 }
@@ -297,7 +297,8 @@ impl Ranging {
         match self {
             Ranging::Envelope => "The echo's envelope (default)",
             Ranging::Phase => {
-                "The envelope refined by the carrier phase against the calibration's reference                  (needs a response calibration)"
+                "The envelope refined by the carrier phase against the calibration's reference \
+                 (needs a response calibration)"
             }
         }
     }
@@ -402,114 +403,6 @@ impl ProcessOptions {
         Self {
             algorithm: Algorithm::default_for(waveform),
             ..Self::default()
-        }
-    }
-}
-
-/// Processing options given explicitly, laid over a base (what a saved capture recorded, or the
-/// defaults): `None` keeps the base's value.
-#[derive(Debug, Clone, Default)]
-pub struct ProcessOverrides {
-    pub algorithm: Option<Algorithm>,
-    pub music_m: Option<usize>,
-    pub music_p: Option<Option<usize>>,
-    pub forward_backward: Option<bool>,
-    pub zero_pad: Option<usize>,
-    pub window: Option<WindowName>,
-    pub fft_precision: Option<FftPrecisionName>,
-    pub interpolate: Option<bool>,
-    pub system_delay_s: Option<f64>,
-    pub min_range_m: Option<f64>,
-    pub max_range_m: Option<f64>,
-    pub detector: Option<DetectorName>,
-    pub pfa: Option<f64>,
-    pub min_separation_m: Option<Option<f64>>,
-    pub chain_floor_db: Option<f64>,
-    pub awg_amplitude_vpp: Option<Option<f64>>,
-    pub correction: Option<Option<super::response::CorrectionUsed>>,
-    pub ranging: Option<Ranging>,
-    /// Subtract the background the capture recorded (when it had one).
-    pub keep_background: bool,
-    /// `--correction rx` without a file: the capture must have recorded a calibration.
-    pub require_correction: bool,
-}
-
-impl ProcessOverrides {
-    /// Every option of `options` (its carrier aside, which comes with the capture): a capture
-    /// processed with these gives what `options` gave (a campaign's further algorithms). The
-    /// capture's background is kept.
-    pub(crate) fn replacing(options: &ProcessOptions) -> Self {
-        // Destructured, so that an option added later cannot be forgotten here.
-        let ProcessOptions {
-            algorithm,
-            music_m,
-            music_p,
-            forward_backward,
-            zero_pad,
-            window,
-            fft_precision,
-            interpolate,
-            system_delay_s,
-            min_range_m,
-            max_range_m,
-            detector,
-            pfa,
-            min_separation_m,
-            chain_floor_db,
-            carrier_hz: _,
-            awg_amplitude_vpp,
-            correction,
-            ranging,
-            trigger_jitter_s: _,
-        } = options.clone();
-        Self {
-            algorithm: Some(algorithm),
-            music_m: Some(music_m),
-            music_p: Some(music_p),
-            forward_backward: Some(forward_backward),
-            zero_pad: Some(zero_pad),
-            window: Some(window),
-            fft_precision: Some(fft_precision),
-            interpolate: Some(interpolate),
-            system_delay_s: Some(system_delay_s),
-            min_range_m: Some(min_range_m),
-            max_range_m: Some(max_range_m),
-            detector: Some(detector),
-            pfa: Some(pfa),
-            min_separation_m: Some(min_separation_m),
-            chain_floor_db: Some(chain_floor_db),
-            awg_amplitude_vpp: Some(awg_amplitude_vpp),
-            correction: Some(correction),
-            ranging: Some(ranging),
-            keep_background: true,
-            require_correction: false,
-        }
-    }
-
-    /// `base` with every given value replaced.
-    pub(crate) fn apply(&self, base: ProcessOptions) -> ProcessOptions {
-        ProcessOptions {
-            algorithm: self.algorithm.unwrap_or(base.algorithm),
-            music_m: self.music_m.unwrap_or(base.music_m),
-            music_p: self.music_p.unwrap_or(base.music_p),
-            forward_backward: self.forward_backward.unwrap_or(base.forward_backward),
-            zero_pad: self.zero_pad.unwrap_or(base.zero_pad),
-            window: self.window.unwrap_or(base.window),
-            fft_precision: self.fft_precision.unwrap_or(base.fft_precision),
-            interpolate: self.interpolate.unwrap_or(base.interpolate),
-            system_delay_s: self.system_delay_s.unwrap_or(base.system_delay_s),
-            min_range_m: self.min_range_m.unwrap_or(base.min_range_m),
-            max_range_m: self.max_range_m.unwrap_or(base.max_range_m),
-            detector: self.detector.unwrap_or(base.detector),
-            pfa: self.pfa.unwrap_or(base.pfa),
-            min_separation_m: self.min_separation_m.unwrap_or(base.min_separation_m),
-            chain_floor_db: self.chain_floor_db.unwrap_or(base.chain_floor_db),
-            carrier_hz: base.carrier_hz,
-            awg_amplitude_vpp: self.awg_amplitude_vpp.unwrap_or(base.awg_amplitude_vpp),
-            correction: self.correction.clone().unwrap_or(base.correction),
-            ranging: self.ranging.unwrap_or(base.ranging),
-            // A bench's figure, recorded with the capture: re-processing keeps it.
-            trigger_jitter_s: base.trigger_jitter_s,
         }
     }
 }

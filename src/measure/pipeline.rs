@@ -859,11 +859,12 @@ fn equaliser_for(
     period: usize,
     fs: f64,
 ) -> Result<(Option<RxEqualiser>, CorrectionCheck), MeasureError> {
-    if !matches!(used.mode.as_str(), "rx" | "tx" | "both") {
+    use super::response::CorrectionMode;
+    if used.mode == CorrectionMode::None {
         return Err(MeasureError::option(
             "correction",
-            &used.mode,
-            "none, rx, tx or both",
+            used.mode,
+            "rx, tx or both with a calibration (none names none)",
         ));
     }
     let cal = super::response::Calibration::load_used(used)?;
@@ -881,12 +882,12 @@ fn equaliser_for(
             .collect(),
         anchor: cal.header.reference.phase_anchor,
     };
-    let equaliser = match used.mode.as_str() {
-        "rx" => Some(cal.response.equaliser(period, fs)?),
+    let equaliser = match used.mode {
+        CorrectionMode::Rx => Some(cal.response.equaliser(period, fs)?),
         // The transmitter's codes carry the response's inverse: the receiver takes out only its
         // own DC and I/Q imbalance.
-        "both" => Some(cal.response.receiver_only(period, fs)?),
-        _ => None,
+        CorrectionMode::Both => Some(cal.response.receiver_only(period, fs)?),
+        CorrectionMode::Tx | CorrectionMode::None => None,
     };
     Ok((equaliser, check))
 }

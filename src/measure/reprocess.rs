@@ -8,8 +8,9 @@
 //! the waveform from the caller.
 
 use super::capture::{process_repetitions, BackgroundFile};
+use super::choices::ProcessOverrides;
 use super::clipping::{ClipCount, Rails, RecordClipping, ScopeAdc};
-use super::options::{ProcessOptions, ProcessOverrides};
+use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{RepetitionResult, Spread};
 use super::transmit::{self, Dac, Transmission};
@@ -808,7 +809,7 @@ pub(crate) fn resolve<R>(
                 .to_string(),
         );
     }
-    if loaded.recorded_options().is_none() && overrides.system_delay_s.is_none() {
+    if loaded.recorded_options().is_none() && !overrides.system_delay_given() {
         assumed.push(
             "the capture does not record the bench's system delay and --system-delay was not \
              given: 0 s was assumed, so every range includes the fixed delay of cables and horns \
@@ -839,23 +840,29 @@ pub(crate) fn resolve<R>(
     };
     let base = loaded
         .recorded_options()
-        .filter(|o| o.algorithm.supports(tx.spec.kind()) || overrides.algorithm.is_some())
+        .filter(|o| o.algorithm.supports(tx.spec.kind()) || overrides.algorithm_given())
         .unwrap_or_else(|| ProcessOptions::for_waveform(tx.spec.kind()));
-    let options = overrides.apply(base);
+    let mut options = overrides.apply(base);
+    if let Some(mode) = overrides.require_correction {
+        let Some(used) = options.correction.as_mut() else {
+            return Err(MeasureError::option(
+                "correction",
+                mode,
+                format!(
+                    "{mode} needs a calibration: this capture was made without one; pass \
+                     --calibration FILE (`radbench calibrate response` writes one)"
+                ),
+            ));
+        };
+        used.mode = mode;
+    }
+    check_predistorted(loaded.recorded_options().as_ref(), &options)?;
     // `with_correction` changes only a transmission pre-distorted for the chain (tx, both).
     let tx = if predistorts(&options) {
         Arc::new(Arc::unwrap_or_clone(tx).with_correction(&options)?)
     } else {
         tx
     };
-    if overrides.require_correction && options.correction.is_none() {
-        return Err(MeasureError::option(
-            "correction",
-            "rx",
-            "rx needs a calibration: this capture was made without one; pass --calibration FILE \
-             (`radbench calibrate response` writes one)",
-        ));
-    }
     let period = loaded.recorded_period().unwrap_or(tx.len()).max(tx.len());
     let background = background.map(Path::to_path_buf).or_else(|| {
         overrides
@@ -872,10 +879,48 @@ pub(crate) fn resolve<R>(
     })
 }
 
+/// tx and both process a capture against its own pre-distorted codes: refused for a capture
+/// that was not captured with them; rx for one that was (its codes already carry the chain's
+/// inverse: dividing the response out again would correct twice).
+fn check_predistorted(
+    recorded: Option<&ProcessOptions>,
+    options: &ProcessOptions,
+) -> Result<(), MeasureError> {
+    let Some(used) = options.correction.as_ref() else {
+        return Ok(());
+    };
+    let sent = recorded.and_then(|o| o.correction.as_ref()).map(|u| u.mode);
+    let predistorted = sent.is_some_and(|m| m.predistorts());
+    if predistorted == used.mode.predistorts() {
+        return Ok(());
+    }
+    if predistorted {
+        return Err(MeasureError::option(
+            "correction",
+            used.mode,
+            format!(
+                "tx, both or none for this capture: it was captured with correction {}, so its \
+                 codes already carry the chain's inverse (rx would correct twice)",
+                sent.map_or("none", |m| m.name())
+            ),
+        ));
+    }
+    Err(MeasureError::option(
+        "correction",
+        used.mode,
+        format!(
+            "none or rx for this capture: it was captured with correction {}, so its codes were \
+             not pre-distorted; tx and both process a capture made with them, against its own \
+             codes",
+            sent.map_or("none", |m| m.name())
+        ),
+    ))
+}
+
 /// Whether [`Transmission::with_correction`] pre-distorts for `options` (anything else leaves
 /// the transmission as it is).
 fn predistorts(options: &ProcessOptions) -> bool {
-    matches!(&options.correction, Some(used) if used.mode == "tx" || used.mode == "both")
+    matches!(&options.correction, Some(used) if used.mode.predistorts())
 }
 
 /// Transmissions made again from captures' descriptions, by the description: the captures of a

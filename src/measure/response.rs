@@ -88,6 +88,11 @@ impl CorrectionMode {
         CorrectionMode::Both,
     ];
 
+    /// Whether the AWG's codes are pre-distorted (tx, both).
+    pub(crate) fn predistorts(self) -> bool {
+        matches!(self, CorrectionMode::Tx | CorrectionMode::Both)
+    }
+
     /// As `--correction` and the recorded `mode` spell it.
     pub fn name(self) -> &'static str {
         match self {
@@ -119,8 +124,9 @@ named_enum!(CorrectionMode, "correction");
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CorrectionUsed {
-    /// `rx`: DC, I/Q imbalance and the chain's response corrected on receive.
-    pub mode: String,
+    /// `rx`: DC, I/Q imbalance and the chain's response corrected on receive; `tx`, `both`
+    /// (files keep the text).
+    pub mode: CorrectionMode,
     /// The calibration header's path (absolute when it could be resolved).
     pub calibration: String,
     /// SHA-256 of the header (which holds its table's SHA-256).
@@ -425,7 +431,7 @@ impl Calibration {
     /// What a measurement records when it uses this calibration.
     pub fn used(&self) -> CorrectionUsed {
         CorrectionUsed {
-            mode: "rx".into(),
+            mode: CorrectionMode::Rx,
             calibration: self.path.display().to_string(),
             sha256: self.sha256.clone(),
             measured_at: self.header.measured_at.clone(),
@@ -433,9 +439,9 @@ impl Calibration {
     }
 
     /// What a measurement records when it uses this calibration with `mode` (rx, tx or both).
-    pub fn used_as(&self, mode: &str) -> CorrectionUsed {
+    pub fn used_as(&self, mode: CorrectionMode) -> CorrectionUsed {
         CorrectionUsed {
-            mode: mode.into(),
+            mode,
             ..self.used()
         }
     }

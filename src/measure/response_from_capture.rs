@@ -4,7 +4,7 @@
 //! with the transmitter off, the DC and the receiver's I/Q imbalance are not measured (left at
 //! zero); the response is.
 
-use super::options::ProcessOverrides;
+use super::choices::ProcessOverrides;
 use super::pipeline::Aligned;
 use super::reprocess::{self, WaveformChoice};
 use super::response::{measure, Calibration};

@@ -441,6 +441,18 @@ impl Station {
         };
         identities.tx = tx.as_ref().map(|g| idn(g.identity()));
         identities.rx = rx.as_ref().map(|g| idn(g.identity()));
+        for m in &bench.manual {
+            // Recorded as what it is: not asked, set by the operator.
+            let slot = if m.section == "tx" {
+                &mut identities.tx
+            } else {
+                &mut identities.rx
+            };
+            *slot = Some(format!(
+                "manual,{},not connected,set by the operator",
+                m.model.as_deref().unwrap_or("front end")
+            ));
+        }
         let awg: Shared<dyn Awg> = safe_state::share(awg);
         let tx: Option<Shared<dyn RfFrontEnd>> = tx.map(safe_state::share);
         let rx: Option<Shared<dyn RfFrontEnd>> = rx.map(safe_state::share);

@@ -150,9 +150,9 @@ impl Transmission {
         options: &super::options::ProcessOptions,
     ) -> Result<Transmission, MeasureError> {
         match &options.correction {
-            Some(used) if used.mode == "tx" || used.mode == "both" => {
+            Some(used) if used.mode.predistorts() => {
                 let cal = super::response::Calibration::load_used(used)?;
-                self.predistorted(&cal, used.mode == "both")
+                self.predistorted(&cal, used.mode == super::response::CorrectionMode::Both)
             }
             _ => Ok(self),
         }

@@ -374,3 +374,60 @@ fn unknown_key_lists_the_known_ones() {
     let err = catalog.get("tektronix-awg70k").unwrap_err();
     assert!(err.to_string().contains("keysight-m8195a"), "{err}");
 }
+
+#[test]
+fn a_malformed_line_protocol_is_refused_with_the_key_and_what_is_allowed() {
+    let tx = embedded("gotmic_eband_tx.toml");
+    let cases = [
+        (
+            "write = \"W {address} {value}\"",
+            "write = \"W {address}\"",
+            "protocol.write",
+            "must hold {value} once",
+        ),
+        (
+            "read = \"R {address}\"",
+            "read = \"R {address} {value}\"",
+            "protocol.read",
+            "holds {value}",
+        ),
+        (
+            "reply_error = \"ERR\"",
+            "reply_error = \"OK!\"",
+            "protocol.reply_error",
+            "must not start alike",
+        ),
+        (
+            "crc_poly = 0x07",
+            "crc_poly = 0x00",
+            "protocol.crc_poly",
+            "checksum = \"none\"",
+        ),
+    ];
+    for (from, to, field, reason) in cases {
+        let ps = problems(parse_model("proto.toml", &mutate(tx, from, to)));
+        assert!(
+            ps.iter()
+                .any(|p| p.field == field && p.reason.contains(reason)),
+            "{to}: {ps:?}"
+        );
+    }
+    // An unknown checksum kind names the key and the kinds there are.
+    let err = parse_model(
+        "proto.toml",
+        &mutate(tx, "checksum = \"crc8\"", "checksum = \"crc16\""),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("checksum") && err.contains("crc8") && err.contains("none"),
+        "{err}"
+    );
+    // Another protocol, described with every key, loads.
+    let fixture = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/protocols/acme_eband_tx.toml"),
+    )
+    .unwrap();
+    parse_model("acme_eband_tx.toml", &fixture).unwrap();
+}

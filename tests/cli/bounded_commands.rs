@@ -58,19 +58,27 @@ async fn peer(proto: Proto, fault: Fault) -> String {
 
 /// Runs radbench with `args`; (exit code, stderr, seconds, peak resident set in bytes).
 async fn measured(args: Vec<String>) -> (i32, String, f64, u64) {
+    measured_with_input(args, "").await
+}
+
+/// [`measured`] with `input` on standard input (lines at the interactive prompt).
+async fn measured_with_input(args: Vec<String>, input: &'static str) -> (i32, String, f64, u64) {
     tokio::task::spawn_blocking(move || {
         use std::os::unix::process::ExitStatusExt;
         let t = Instant::now();
         // Waited for below with wait4, which gives the child's own peak resident set.
         #[allow(clippy::zombie_processes)]
-        let child = std::process::Command::new(BIN)
+        let mut child = std::process::Command::new(BIN)
             .args(&args)
-            .stdin(std::process::Stdio::null())
+            .stdin(std::process::Stdio::piped())
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();
         let pid = child.id() as libc::pid_t;
+        let mut stdin = child.stdin.take().unwrap();
+        std::io::Write::write_all(&mut stdin, input.as_bytes()).unwrap();
+        drop(stdin);
         let mut stderr = child.stderr.unwrap();
         let reader = std::thread::spawn(move || {
             let mut text = String::new();
@@ -208,4 +216,109 @@ async fn scpi_on_a_stalled_hislip_instrument_gives_up_at_its_total() {
     assert_eq!(code, 3, "{err}");
     assert!(err.contains("gave up after 5.0 s in all"), "{err}");
     assert!(seconds < 5.0 + 1.5, "{seconds:.1} s: {err}");
+}
+
+fn strings(args: &[&str]) -> Vec<String> {
+    args.iter().map(|s| s.to_string()).collect()
+}
+
+/// The interactive `scpi`'s connection (the identity probe and the error queue) has one
+/// exchange's total: a peer that takes the first request (here the error queue's, with
+/// `--check-errors`) and then sends half a block and stalls ends it with exit 3 within
+/// `--connect-timeout + --timeout + 2 s`, before the prompt.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn interactive_scpi_connecting_to_a_stalled_peer_gives_up_within_its_total() {
+    for proto in [Proto::Hislip, Proto::Vxi11] {
+        let resource = peer(proto, Fault::AnnouncedNeverArrives).await;
+        let args = strings(&[
+            "scpi",
+            "--connect-timeout",
+            "2",
+            "--timeout",
+            "1",
+            "--check-errors",
+            &resource,
+        ]);
+        let (code, err, seconds, _) = measured_with_input(args, "*IDN?\n").await;
+        // The probe's own timeout, the peer gone after it, or the total: exit 3 in time.
+        assert_eq!(code, 3, "{proto:?}: {err}");
+        let total = 2.0 + 1.0 + 2.0 + LIMIT as f64 / 10e6;
+        assert!(seconds < total + 1.5, "{proto:?}: {seconds:.1} s: {err}");
+    }
+}
+
+/// A line at the interactive prompt has one exchange's total: a stalled or flooding reply is
+/// abandoned at `--connect-timeout + --timeout + 2 s` (plus the bytes at `--min-rate`), the
+/// device cleared within `--timeout + 2 s`, and the prompt goes on to the next line (here the end
+/// of input), memory under the reply cap.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_line_at_the_scpi_prompt_gives_up_within_its_total_and_the_prompt_goes_on() {
+    for (proto, fault) in [
+        (Proto::Hislip, Fault::AnnouncedNeverArrives),
+        (Proto::Vxi11, Fault::NoReply),
+        (Proto::Vxi11, Fault::NeverEnds),
+        (Proto::Socket, Fault::NeverEnds),
+    ] {
+        let what = format!("{proto:?} {fault:?}");
+        let resource = peer(proto, fault).await;
+        let args = strings(&[
+            "scpi",
+            "--connect-timeout",
+            "2",
+            "--timeout",
+            "1",
+            "--min-rate",
+            "10",
+            "--no-check-errors",
+            &resource,
+        ]);
+        let (code, err, seconds, peak) = measured_with_input(args, "DATA?\n").await;
+        // The line's error is told (its read timeout, or the total that cut it), and the prompt
+        // goes on to the end of input.
+        assert_eq!(code, 0, "{what}: {err}");
+        assert!(err.contains("error: "), "{what}: {err}");
+        let earned = match fault {
+            Fault::NeverEnds => CAP as f64 / 10e6,
+            _ => LIMIT as f64 / 10e6,
+        };
+        let total = (2.0 + 1.0 + 2.0 + earned) + (1.0 + 2.0);
+        eprintln!(
+            "{what}: {seconds:.2} s (total {total:.1} s), peak {} MiB",
+            peak >> 20
+        );
+        assert!(seconds < total + 1.5, "{what}: {seconds:.1} s: {err}");
+        assert!(
+            peak < 2 * CAP + (96 << 20),
+            "{what}: peak {} MiB",
+            peak >> 20
+        );
+    }
+}
+
+/// `doctor` has a total for its checks (40 s, src/measure/doctor.rs `CHECKS_TOTAL`): a bench
+/// whose AWG floods a reply that never ends and whose scope sends half a block and stalls ends
+/// with exit 3 within it, memory under the catalog's largest message.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn doctor_on_a_flooding_awg_and_a_stalled_scope_ends_within_its_total() {
+    let awg = peer(Proto::Hislip, Fault::NeverEnds).await;
+    let scope = peer(Proto::Vicp, Fault::AnnouncedNeverArrives).await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = dir.path().join("bench.toml");
+    std::fs::write(
+        &bench,
+        format!(
+            "[awg]\nmodel = \"keysight-m8195a\"\nresource = \"{awg}\"\n\
+             [scope]\nmodel = \"lecroy-labmaster10zi-a\"\nresource = \"{scope}\"\n"
+        ),
+    )
+    .unwrap();
+    let args = strings(&["doctor", "--bench", bench.to_str().unwrap()]);
+    let (code, err, seconds, peak) = measured(args).await;
+    assert_eq!(code, 3, "{err}");
+    assert!(
+        err.contains("awg.reachable") || err.contains("awg.identity"),
+        "{err}"
+    );
+    assert!(seconds < 40.0 + 1.5, "{seconds:.1} s: {err}");
+    assert!(peak < 2 * CAP + (96 << 20), "peak {} MiB", peak >> 20);
 }

@@ -279,6 +279,86 @@ async fn a_calibration_on_the_thesis_lab_chain_corrects_a_pillar_elsewhere_to_th
             json(&std::fs::read_to_string(d.join(&again).join(&out).join("summary.json")).unwrap());
         assert_eq!(p["targets"], s["targets"], "{mode}");
     }
+    // A pre-distorted capture processed with the other pre-distorting mode: its own codes, the
+    // receiver's DC and I/Q imbalance corrected too.
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "process",
+            "c-tx",
+            "--correction",
+            "both",
+            "--out",
+            "p-tx-both",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let p = json(&std::fs::read_to_string(d.join("p-tx-both/c-tx/summary.json")).unwrap());
+    assert_eq!(p["processing"]["correction"]["mode"], "both", "{p}");
+    assert_eq!(p["targets"].as_array().unwrap().len(), 1, "{p}");
+    assert!((p["targets"][0]["range_m"].as_f64().unwrap() - 2.3).abs() < 1e-3);
+    // rx on codes that already carry the chain's inverse would correct twice; tx on codes that
+    // do not would correct nothing: both refused, naming why.
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "process",
+            "c-tx",
+            "--calibration",
+            "response.toml",
+            "--out",
+            "p-twice",
+        ],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("correct twice"), "{err}");
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "process",
+            "c-none",
+            "--correction",
+            "tx",
+            "--calibration",
+            "response.toml",
+            "--out",
+            "p-not-sent",
+        ],
+    )
+    .await;
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("not pre-distorted"), "{err}");
+    // align corrects as capture does.
+    let (code, out, err) = radbench(
+        d,
+        &[
+            "align",
+            "--allow-rf",
+            "--scene",
+            &lab,
+            "--calibration",
+            "response.toml",
+            "--correction",
+            "rx",
+            "--target-range",
+            "2.3",
+            "--count",
+            "1",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let a = json(out.lines().next().unwrap());
+    assert_eq!(a["correction"], "rx", "{a}");
+    assert!((a["distance_m"].as_f64().unwrap()).abs() < 1e-3, "{a}");
+    assert!(
+        (a["sidelobe_db"].as_f64().unwrap() - psl_ideal).abs() < 0.5,
+        "{a} vs ideal {psl_ideal} dB"
+    );
+
     let summary = json(&std::fs::read_to_string(d.join("c-rx/summary.json")).unwrap());
     let used = &summary["processing"]["correction"];
     assert_eq!(used["mode"], "rx", "{summary}");

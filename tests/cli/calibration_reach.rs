@@ -387,3 +387,69 @@ async fn clutter_beyond_the_window_pulls_a_weak_pillar_under_half_a_mm_on_the_id
          {corrected:?} mm"
     );
 }
+
+/// A calibration file written before `[[chain_echoes]]` and `[[scene_echoes]]` existed (the
+/// fresh file with both tables taken out of its header, as the older writer left it: the echoes
+/// folded into its table all the same) still loads and corrects: the pillar on the cable-echo
+/// chain within 0.5 mm, no detection taken for a chain echo (the file names none).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_calibration_written_before_its_echo_lists_still_loads_and_corrects() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_scene(d, "reference.toml", 1.0, true, -40.0, 7);
+    write_scene(d, "pillar.toml", PILLAR_M, true, -40.0, 11);
+    ok(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            "reference.toml",
+            "--allow-rf",
+            "--out",
+            "response.toml",
+            "--json",
+        ],
+    )
+    .await;
+    let header = std::fs::read_to_string(d.join("response.toml")).unwrap();
+    assert!(header.contains("[[chain_echoes]]"), "{header}");
+    let mut old: toml::Table = toml::from_str(&header).unwrap();
+    assert!(old.remove("chain_echoes").is_some());
+    old.remove("scene_echoes");
+    let old = toml::to_string(&old).unwrap();
+    assert!(!old.contains("chain_echoes") && !old.contains("scene_echoes"));
+    // The table beside the header is the fresh one's (its name and hash are in the header).
+    std::fs::write(d.join("response.toml"), old).unwrap();
+    let c = ok(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "pillar.toml",
+            "--calibration",
+            "response.toml",
+            "--correction",
+            "rx",
+            "--json",
+            "--out",
+            "c",
+        ],
+    )
+    .await;
+    let ranges: Vec<f64> = c["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|t| t["range_m"].as_f64())
+        .collect();
+    assert!(
+        ranges.iter().any(|r| (r - PILLAR_M).abs() <= 0.5e-3),
+        "{ranges:?}: {c}"
+    );
+    let flagged = c["chain_echoes"].as_array().map_or(0, Vec::len);
+    assert_eq!(flagged, 0, "{c}");
+}

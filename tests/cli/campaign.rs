@@ -6,7 +6,7 @@
 use radbench::campaign;
 use radbench::campaign::SpecFile;
 use radbench::campaign::{BenchInfo, Step};
-use radbench::campaign::{Manifest, Status, StepTables};
+use radbench::campaign::{Manifest, ManifestStore, Status};
 use radbench::campaign::{NewRun, Observer, Quiet};
 use radbench::driver::RfPermit;
 use radbench::exit::Classify;
@@ -190,17 +190,42 @@ async fn the_accuracy_campaign_measures_within_a_millimetre() {
     stores_cached_like_whole(m);
 }
 
-/// The step worker's manifest store (step tables kept as text between stores) writes what a
-/// whole serialisation does, and a step whose record changed is written anew.
+/// The step worker's manifest store (each step's table copied from the file it wrote last, not
+/// held in memory) writes what a whole serialisation does, and a step whose record changed is
+/// written anew, longer or shorter than before.
 fn stores_cached_like_whole(mut m: Manifest) {
     let dir = tempfile::tempdir().unwrap();
-    let mut tables = StepTables::default();
-    m.store_cached(dir.path(), &mut tables).unwrap();
+    let mut store = ManifestStore::default();
+    store.store_whole(&mut m, dir.path()).unwrap();
     assert_eq!(Manifest::load(dir.path()).unwrap(), m);
+    let mut head = Manifest {
+        steps: Vec::new(),
+        ..m.clone()
+    };
     m.steps[2].measured_at = Some("changed".into());
+    store
+        .store(&mut head, dir.path(), Some(&m.steps[2]))
+        .unwrap();
     m.steps[4].files.pop();
-    m.store_cached(dir.path(), &mut tables).unwrap();
-    assert_eq!(Manifest::load(dir.path()).unwrap(), m);
+    store
+        .store(&mut head, dir.path(), Some(&m.steps[4]))
+        .unwrap();
+    let another = m.steps[1].files[0].clone();
+    m.steps[0].files.push(another);
+    store
+        .store(&mut head, dir.path(), Some(&m.steps[0]))
+        .unwrap();
+    let last = m.steps.len() - 1;
+    m.steps[last].files.clear();
+    store
+        .store(&mut head, dir.path(), Some(&m.steps[last]))
+        .unwrap();
+    head.files.clear();
+    m.files.clear();
+    store.store(&mut head, dir.path(), None).unwrap();
+    let back = Manifest::load(dir.path()).unwrap();
+    m.updated = back.updated.clone();
+    assert_eq!(back, m);
     let whole = dir.path().join("whole");
     std::fs::create_dir(&whole).unwrap();
     m.store(&whole).unwrap();
@@ -384,6 +409,7 @@ async fn a_dropped_awg_link_stops_the_run_and_resume_uploads_again() {
             &out,
             RfPermit::granted_by_user(),
             false,
+            None,
             Interrupt::never(),
             None,
             &mut Quiet,
@@ -740,6 +766,7 @@ async fn resume_refuses_a_recalibrated_bench_unless_forced() {
                     &out,
                     RfPermit::granted_by_user(),
                     force,
+                    None,
                     Interrupt::never(),
                     None,
                     &mut Quiet,

@@ -99,7 +99,7 @@ async fn a_corrected_campaign_records_its_calibration_and_resume_refuses_a_chang
         .calibration
         .clone()
         .expect("the manifest records the calibration");
-    assert_eq!(rec.mode, "rx");
+    assert_eq!(rec.mode, radbench::measure::CorrectionMode::Rx);
     assert_eq!(rec.path, cal);
     assert_eq!(rec.sha256, cal_sha);
     let header: toml::Table = toml::from_str(std::str::from_utf8(&cal_bytes).unwrap()).unwrap();

@@ -308,13 +308,15 @@ async fn held_past_the_retries(glitch: Glitch) {
     assert_eq!(m.stopped_at_step, Some(3));
     assert_eq!(m.retries.len(), 2, "{:?}", m.retries);
     safe_between_captures(&out.join("io-journal.jsonl"));
-    // Resumed without the fault: the run completes as an undisturbed one.
+    // Resumed without the fault (and with more retries from now on, as `campaign resume
+    // --retries 4` asks): the run completes as an undisturbed one.
     let finished = tokio::time::timeout(
         LIMIT,
         campaign::resume(
             &out,
             RfPermit::granted_by_user(),
             false,
+            Some(4),
             Interrupt::never(),
             None,
             &mut Quiet,
@@ -329,6 +331,7 @@ async fn held_past_the_retries(glitch: Glitch) {
         *expected,
         "{glitch:?}"
     );
+    assert_eq!(Manifest::load(&out).unwrap().plan.retries, 4);
 }
 
 macro_rules! glitches {
@@ -348,4 +351,109 @@ glitches! {
     a_missing_marker_edge_is_ridden_out: ridden_out MarkerOut;
     a_dropped_scope_connection_held_stops_resumably: held_past_the_retries DropScope;
     a_missing_marker_edge_held_stops_resumably: held_past_the_retries MarkerOut;
+}
+
+/// `campaign run --json` prints each retry as an event, between the step's `start` and its
+/// `step`: `{"event":"retry","index","of","attempt","retries","instrument","fault","at",
+/// "safe_state","wait_s"}` (the CLI against a lab of this process, whose AWG drops its
+/// connection once, mid-step).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn campaign_json_prints_each_retry_as_an_event() {
+    use tokio::io::AsyncBufReadExt;
+    let lab = tokio::time::timeout(
+        Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions::default()),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    super::support::lab_bench_file(d, &lab);
+    let spec = d.join("spec.toml");
+    std::fs::write(
+        &spec,
+        "name = \"glitch\"\nwait_s = 1.5\n[bench]\nfile = \"bench.toml\"\n\
+         [sweep]\nparameter = \"position\"\nvalues = [1.0, 1.1, 1.2]\n\
+         [run]\nretries = 2\nretry_backoff_s = 0.1\n",
+    )
+    .unwrap();
+    let mut child = tokio::process::Command::new(env!("CARGO_BIN_EXE_radbench"))
+        .args(["campaign", "run", "--allow-rf", "--json", "--out"])
+        .arg(d.join("run"))
+        .arg(&spec)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    let mut lines = tokio::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut events: Vec<Value> = Vec::new();
+    let read = async {
+        while let Some(line) = lines.next_line().await.unwrap() {
+            let event: Value = serde_json::from_str(&line).unwrap();
+            let first_start_of_2 = event["event"] == "start"
+                && event["index"] == 2
+                && events.iter().all(|e| e["index"] != 2);
+            if first_start_of_2 {
+                lab.awg_faults.drop_next_reply_midway();
+            }
+            events.push(event);
+        }
+        child.wait().await.unwrap()
+    };
+    let status = tokio::time::timeout(LIMIT, read)
+        .await
+        .expect("the run ends");
+    assert!(status.success(), "{events:?}");
+    let kinds: Vec<(String, u64)> = events
+        .iter()
+        .map(|e| {
+            let kind = e["event"].as_str().unwrap().to_string();
+            (kind, e["index"].as_u64().unwrap_or(0))
+        })
+        .collect();
+    let retry = events
+        .iter()
+        .find(|e| e["event"] == "retry")
+        .unwrap_or_else(|| panic!("no retry event: {kinds:?}"));
+    assert_eq!(retry["index"], 2, "{retry}");
+    assert_eq!(retry["of"], 3, "{retry}");
+    assert_eq!(retry["attempt"], 1, "{retry}");
+    assert_eq!(retry["retries"], 2, "{retry}");
+    assert_eq!(retry["instrument"], "awg", "{retry}");
+    let safe = retry["safe_state"].as_str().unwrap();
+    assert!(safe.contains("AWG outputs off"), "{retry}");
+    assert_eq!(retry["wait_s"], 0.1, "{retry}");
+    // After the step's start, before its step event; the run completes.
+    let at = |kind: &str, index: u64| {
+        kinds
+            .iter()
+            .position(|k| k.0 == kind && k.1 == index)
+            .unwrap_or_else(|| panic!("no {kind} {index}: {kinds:?}"))
+    };
+    let retry_at = at("retry", 2);
+    assert!(
+        at("start", 2) < retry_at && retry_at < at("step", 2),
+        "{kinds:?}"
+    );
+    assert_eq!(events.last().unwrap()["status"], "complete", "{kinds:?}");
+    let m = Manifest::load(&d.join("run")).unwrap();
+    assert_eq!(m.retries.len(), 1, "{:?}", m.retries);
+}
+
+/// `campaign resume --retries N` is checked as `campaign run --retries` is: exit 2 naming the
+/// flag and what is allowed, before anything is read or connected.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resume_retries_past_the_most_is_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_radbench"))
+        .args(["campaign", "resume", "--allow-rf", "--retries", "11"])
+        .arg(dir.path())
+        .output();
+    let out = tokio::time::timeout(LIMIT, out).await.unwrap().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--retries 11: allowed 0..=10"), "{err}");
 }

@@ -1,7 +1,9 @@
-//! Gotmic E-band Tx/Rx emulators behind the PROJECT-DEFINED serial protocol of instruments.md
-//! section 5 (the vendor's protocol is not public; this is not it).
+//! Gotmic E-band Tx/Rx emulators behind the line protocol their catalog file describes: by default
+//! the PROJECT-DEFINED protocol of instruments.md section 5 (the vendor's protocol is not public;
+//! this is not it); any other description (`[protocol]`: checksum, prefixes, request and reply
+//! words, number formats) is served the same way, so a lab's own description is tested here.
 //!
-//! One ASCII request per line, one reply line per request:
+//! One ASCII request per line, one reply line per request; in the built-in spelling:
 //!
 //! | request | reply |
 //! |---|---|
@@ -24,7 +26,7 @@
 use std::sync::{Mutex, MutexGuard};
 
 use super::received_log::ReceivedLog;
-use crate::catalog::{self, Access, CatalogError, Register, RfModel};
+use crate::catalog::{self, Access, CatalogError, Checksum, Register, RfModel};
 use crate::server::Handler;
 
 const LOG_CAPACITY: usize = 1000;
@@ -107,13 +109,14 @@ impl Gotmic {
             .map(|r| (r.address, r.reset))
             .collect();
         let temperature_dc = (model.limits.ambient_temperature_c * 10.0).round() as i16;
+        let crc = always_crc(&model);
         Ok(Gotmic {
             inner: Mutex::new(ModuleState {
                 values,
                 interlock_open: false,
                 lo_present: true,
                 temperature_dc,
-                crc: false,
+                crc,
                 crc_fixed: None,
             }),
             log: ReceivedLog::new("gotmic", LOG_CAPACITY),
@@ -257,7 +260,7 @@ impl Gotmic {
                 *value = r.reset;
             }
         }
-        st.crc = st.crc_fixed.unwrap_or(false);
+        st.crc = st.crc_fixed.unwrap_or(always_crc(&self.model));
     }
 
     /// What the module does now.
@@ -286,9 +289,15 @@ impl Gotmic {
         let mut st = self.lock();
         let crc_mode = st.crc;
         let request = line.trim_end_matches(['\r', '\n']).trim();
+        let prefix = self.model.protocol.request_prefix.as_str();
         let outcome = self
             .check_crc(request, crc_mode)
-            .and_then(|body| self.handle(&mut st, body));
+            .and_then(|framed| {
+                framed
+                    .strip_prefix(prefix)
+                    .ok_or_else(|| refuse("syntax", format!("requests start with {prefix:?}")))
+            })
+            .and_then(|body| self.handle(&mut st, body.trim()));
         let reply = match outcome {
             Ok(reply) => reply,
             Err(refusal) => {
@@ -296,13 +305,15 @@ impl Gotmic {
                 let (code, text) = error
                     .map(|e| (e.code, e.text.as_str()))
                     .unwrap_or((1, "error"));
+                let err = &self.model.protocol.reply_error;
                 if refusal.detail.is_empty() {
-                    format!("ERR {code} {text}")
+                    format!("{err} {code} {text}")
                 } else {
-                    format!("ERR {code} {text}: {}", refusal.detail)
+                    format!("{err} {code} {text}: {}", refusal.detail)
                 }
             }
         };
+        let reply = format!("{}{reply}", self.model.protocol.reply_prefix);
         if crc_mode {
             let p = &self.model.protocol;
             format!(
@@ -333,49 +344,61 @@ impl Gotmic {
     }
 
     fn handle(&self, st: &mut ModuleState, body: &str) -> Result<String, Refusal> {
-        let words: Vec<&str> = body.split_whitespace().collect();
-        match words.as_slice() {
-            [idn] if idn.eq_ignore_ascii_case("*IDN?") => Ok(self.model.identity.idn()),
-            [r, reg] if r.eq_ignore_ascii_case("R") => {
-                let register = self.register_at(reg)?;
-                Ok(format!("OK {:04X}", self.read(st, register)))
-            }
-            [w, reg, value] if w.eq_ignore_ascii_case("W") => {
-                let register = self.register_at(reg)?;
-                let value = parse_hex(value, 4).ok_or_else(|| {
-                    refuse("syntax", format!("{value:?} is not a 1-4 digit hex value"))
-                })?;
-                self.write(st, register, value)?;
-                Ok("OK".into())
-            }
-            [crc, mode] if crc.eq_ignore_ascii_case("CRC") => {
-                if let Some(fixed) = st.crc_fixed {
-                    let now = if fixed { "ON" } else { "OFF" };
-                    return Err(refuse(
-                        "syntax",
-                        format!("CRC is fixed {now} by the module's configuration"),
-                    ));
-                }
-                st.crc = match mode.to_ascii_uppercase().as_str() {
-                    "ON" => true,
-                    "OFF" => false,
-                    _ => return Err(refuse("syntax", "CRC takes ON or OFF")),
-                };
-                Ok("OK".into())
-            }
-            [] => Err(refuse("syntax", "empty request")),
-            _ => Err(refuse(
-                "syntax",
-                "expected *IDN?, R <reg>, W <reg> <value> or CRC ON|OFF",
-            )),
+        let p = &self.model.protocol;
+        let ok = p.reply_ok.as_str();
+        let switchable = p.checksum == Checksum::Crc8;
+        let same = |word: &str| !word.is_empty() && body.eq_ignore_ascii_case(word.trim());
+        if body.is_empty() {
+            return Err(refuse("syntax", "empty request"));
         }
+        if same(&p.identify) {
+            return Ok(self.model.identity.idn());
+        }
+        if switchable && (same(&p.checksum_on) || same(&p.checksum_off)) {
+            if let Some(fixed) = st.crc_fixed {
+                let now = if fixed { "ON" } else { "OFF" };
+                return Err(refuse(
+                    "syntax",
+                    format!("CRC is fixed {now} by the module's configuration"),
+                ));
+            }
+            st.crc = same(&p.checksum_on);
+            return Ok(ok.into());
+        }
+        if let Some([Some(reg), _]) = match_template(&p.read, body) {
+            let register = self.register_at(reg)?;
+            return Ok(format!(
+                "{ok} {}",
+                p.value_format.write(self.read(st, register))
+            ));
+        }
+        if let Some([Some(reg), Some(value)]) = match_template(&p.write, body) {
+            let register = self.register_at(reg)?;
+            let value = p.value_format.read(value).ok_or_else(|| {
+                refuse(
+                    "syntax",
+                    format!("{value:?} is not a value in {:?}", p.value_format),
+                )
+            })?;
+            self.write(st, register, value)?;
+            return Ok(ok.into());
+        }
+        let mut forms = vec![p.identify.clone(), p.read.clone(), p.write.clone()];
+        if switchable && !p.checksum_on.is_empty() {
+            forms.push(format!("{} | {}", p.checksum_on, p.checksum_off));
+        }
+        Err(refuse(
+            "syntax",
+            format!("expected one of: {}", forms.join(", ")),
+        ))
     }
 
     fn register_at(&self, text: &str) -> Result<&Register, Refusal> {
-        let address = parse_hex(text, 2).ok_or_else(|| {
+        let format = self.model.protocol.address_format;
+        let address = format.read(text).ok_or_else(|| {
             refuse(
                 "syntax",
-                format!("{text:?} is not a 1-2 digit hex register"),
+                format!("{text:?} is not a register address in {format:?}"),
             )
         })?;
         self.model
@@ -440,29 +463,75 @@ impl Gotmic {
         }
         let latch = self.value(st, "FAULT_LATCH");
         if latch != 0 {
-            let address = self.reg("FAULT_LATCH").address;
+            let p = &self.model.protocol;
+            let address = p
+                .address_format
+                .write(u16::from(self.reg("FAULT_LATCH").address));
+            let clear = p
+                .write
+                .replace("{address}", &address)
+                .replace("{value}", &p.value_format.write(latch));
             return Err(refuse(
                 "not_allowed",
-                format!("fault latched (0x{latch:04X}); clear it with W {address:02X} {latch:04X}"),
+                format!("fault latched (0x{latch:04X}); clear it with {clear}"),
             ));
         }
         Ok(())
     }
 }
 
-/// Parses 1..=`max_digits` hex digits, with an optional `0x` prefix.
-fn parse_hex(text: &str, max_digits: usize) -> Option<u16> {
-    let digits = text
-        .strip_prefix("0x")
-        .or_else(|| text.strip_prefix("0X"))
-        .unwrap_or(text);
-    if digits.is_empty()
-        || digits.len() > max_digits
-        || !digits.chars().all(|c| c.is_ascii_hexdigit())
-    {
-        return None;
+/// Whether the model's lines always carry the checksum (`crc8` without a request to switch it on).
+fn always_crc(model: &RfModel) -> bool {
+    model.protocol.checksum == Checksum::Crc8 && model.protocol.checksum_on.trim().is_empty()
+}
+
+/// Matches `line` against a request template (`R {address}`, `SET {address}={value}`): the
+/// literal text case-insensitively, each placeholder one non-empty word without blanks. Returns
+/// `[address, value]` as found.
+fn match_template<'a>(template: &str, line: &'a str) -> Option<[Option<&'a str>; 2]> {
+    let mut found = [None, None];
+    let mut rest = line;
+    let mut tpl = template;
+    while !tpl.is_empty() {
+        let next = ["{address}", "{value}"]
+            .iter()
+            .enumerate()
+            .filter_map(|(k, p)| tpl.find(p).map(|at| (at, k, p.len())))
+            .min();
+        let Some((at, slot, len)) = next else {
+            // Only literal text is left: the line must end with it.
+            return rest.eq_ignore_ascii_case(tpl).then_some(found);
+        };
+        let literal = &tpl[..at];
+        if !rest
+            .get(..literal.len())
+            .is_some_and(|head| head.eq_ignore_ascii_case(literal))
+        {
+            return None;
+        }
+        rest = &rest[literal.len()..];
+        tpl = &tpl[at + len..];
+        // The placeholder runs to the next literal text (or the end).
+        let stop = ["{address}", "{value}"]
+            .iter()
+            .filter_map(|p| tpl.find(p))
+            .min()
+            .unwrap_or(tpl.len());
+        let next_literal = &tpl[..stop];
+        let end = if next_literal.is_empty() {
+            rest.len()
+        } else {
+            rest.to_ascii_uppercase()
+                .find(&next_literal.to_ascii_uppercase())?
+        };
+        let word = &rest[..end];
+        if word.is_empty() || word.contains(char::is_whitespace) {
+            return None;
+        }
+        found[slot] = Some(word);
+        rest = &rest[end..];
     }
-    u16::from_str_radix(digits, 16).ok()
+    rest.is_empty().then_some(found)
 }
 
 impl Handler for Gotmic {
@@ -495,10 +564,36 @@ mod tests {
     }
 
     #[test]
-    fn hex_parsing() {
-        assert_eq!(parse_hex("0x3F", 4), Some(0x3F));
-        assert_eq!(parse_hex("003f", 4), Some(0x3F));
-        assert_eq!(parse_hex("123", 2), None);
-        assert_eq!(parse_hex("g", 2), None);
+    fn number_parsing() {
+        use crate::catalog::NumberFormat;
+        assert_eq!(NumberFormat::Hex4.read("0x3F"), Some(0x3F));
+        assert_eq!(NumberFormat::Hex4.read("003f"), Some(0x3F));
+        assert_eq!(NumberFormat::Hex2.read("123"), None);
+        assert_eq!(NumberFormat::Hex2.read("g"), None);
+        assert_eq!(NumberFormat::Dec.read("63"), Some(63));
+        assert_eq!(NumberFormat::Dec.read("3F"), None);
+    }
+
+    #[test]
+    fn request_templates() {
+        assert_eq!(
+            match_template("R {address}", "r 03"),
+            Some([Some("03"), None])
+        );
+        assert_eq!(
+            match_template("W {address} {value}", "W 02 000F"),
+            Some([Some("02"), Some("000F")])
+        );
+        assert_eq!(
+            match_template("SET {address}={value}", "set 18=63"),
+            Some([Some("18"), Some("63")])
+        );
+        assert_eq!(match_template("R {address}", "R 03 04"), None);
+        assert_eq!(match_template("R {address}", "W 03"), None);
+        assert_eq!(
+            match_template("GET {address}?", "GET 7?"),
+            Some([Some("7"), None])
+        );
+        assert_eq!(match_template("GET {address}?", "GET 7"), None);
     }
 }

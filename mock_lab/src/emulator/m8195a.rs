@@ -46,6 +46,8 @@ struct Inner {
     esr: u8,
     ese: u8,
     sre: u8,
+    /// What `*OPT?` answers instead of the catalog's options (a unit with other options).
+    options: Option<Vec<String>>,
 }
 
 /// The emulated M8195A.
@@ -57,6 +59,12 @@ pub struct M8195a {
 }
 
 impl M8195a {
+    /// Makes `*OPT?` answer `options` (a unit with other options than the catalog lists, for
+    /// `doctor --verify-catalog`'s tests); `None`: the catalog's again.
+    pub(crate) fn set_options(&self, options: Option<Vec<String>>) {
+        self.lock().options = options;
+    }
+
     /// An emulator with the limits of `model`, in its power-on state. Refuses a model the emulator
     /// cannot work with (no dividers, channels out of range).
     pub fn new(model: AwgModel) -> Result<M8195a, CatalogError> {
@@ -70,6 +78,7 @@ impl M8195a {
                 esr: 0,
                 ese: 0,
                 sre: 0,
+                options: None,
             }),
             log: ReceivedLog::new("m8195a", LOG_CAPACITY),
             model,
@@ -222,7 +231,13 @@ impl M8195a {
             }
             "*WAI" => no_params(None),
             "*TST?" => no_params(Some("0".into())),
-            "*OPT?" => no_params(Some(self.model.limits.options.join(","))),
+            "*OPT?" => no_params(Some(
+                inner
+                    .options
+                    .as_ref()
+                    .unwrap_or(&self.model.limits.options)
+                    .join(","),
+            )),
             "*ESR?" => {
                 let value = inner.esr;
                 inner.esr = 0;

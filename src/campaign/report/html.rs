@@ -3,7 +3,8 @@
 
 use super::figures::Figure;
 use super::markdown::{
-    retries_table, status_line, steps_table, summary_tables, Table, UNCERTAINTY_NOTE,
+    chain_echoes_table, retries_table, status_line, steps_table, summary_tables, Table,
+    CHAIN_ECHOES_NOTE, UNCERTAINTY_NOTE,
 };
 use super::plots;
 use crate::campaign::Manifest;
@@ -104,6 +105,10 @@ pub(crate) fn html(
         table(&mut out, &t);
     }
     table(&mut out, &steps_table(results));
+    if let Some(t) = chain_echoes_table(results) {
+        table(&mut out, &t);
+        let _ = writeln!(out, "<p>{}</p>", escape(CHAIN_ECHOES_NOTE));
+    }
     if let Some(t) = retries_table(manifest) {
         table(&mut out, &t);
     }

@@ -300,6 +300,54 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
     out
 }
 
+/// Under the chain echoes' table.
+pub(crate) const CHAIN_ECHOES_NOTE: &str = "Each of these detections lies where the response \
+calibration measured an echo behind every path (an IF cable's, a connector's), behind a stronger \
+target and no stronger than that echo: it is taken for the chain's, listed here and not among \
+the targets (each step's summary.json lists it in `chain_echoes`). A real target there would be \
+stronger than the echo; check the scene if one is expected.";
+
+/// Every detection a step's processing took for the chain's echo of a stronger target (none:
+/// no table): the calibration's warning, kept where the run's reader looks.
+pub(crate) fn chain_echoes_table(results: &Results) -> Option<Table> {
+    let rows: Vec<Vec<String>> = results
+        .steps
+        .iter()
+        .flat_map(|s| {
+            s.algorithms.iter().flat_map(move |(name, a)| {
+                a.chain_echoes.iter().map(move |e| {
+                    vec![
+                        s.index.to_string(),
+                        name.clone(),
+                        format!("{:.4}", e.range_m),
+                        format!("{:.1}", e.level_db),
+                        format!("{:.4}", e.of_range_m),
+                        format!("{:.1} ns, {:.1} dB", e.echo_delay_ns, e.echo_level_db),
+                    ]
+                })
+            })
+        })
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    Some(Table {
+        title: "Chain echoes (not targets)".into(),
+        header: [
+            "step",
+            "algorithm",
+            "echo at (m)",
+            "level (dB)",
+            "behind the target at (m)",
+            "the calibration's chain echo",
+        ]
+        .iter()
+        .map(|h| h.to_string())
+        .collect(),
+        rows,
+    })
+}
+
 /// Every retry of a step after a transient fault (none: no table).
 pub(crate) fn retries_table(manifest: &Manifest) -> Option<Table> {
     if manifest.retries.is_empty() {
@@ -355,6 +403,10 @@ pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure
         md_table(&mut out, &t);
     }
     md_table(&mut out, &steps_table(results));
+    if let Some(t) = chain_echoes_table(results) {
+        md_table(&mut out, &t);
+        let _ = writeln!(out, "{CHAIN_ECHOES_NOTE}\n");
+    }
     if let Some(t) = retries_table(manifest) {
         md_table(&mut out, &t);
     }
@@ -381,4 +433,56 @@ pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure
          (SigMF, .trc) and profiles."
     );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step whose processing took a detection for the chain's echo: the report lists it, with
+    /// the target it follows and the calibration's echo; a run without any has no such table.
+    #[test]
+    fn the_chain_echoes_a_step_flagged_are_in_their_own_table() {
+        let step = |echoes: serde_json::Value| {
+            serde_json::json!({
+                "index": 2,
+                "nominal": {"targets": [{"range_m": 2.0}], "bandwidth_hz": 1e9},
+                "repetitions": 1,
+                "algorithms": {"correlation": {
+                    "targets": [{"range_m": 2.0001, "range_std_m": null, "level_db": -6.0}],
+                    "width_3db_cm": 13.3, "sidelobe_db": -13.3, "snr_db": null,
+                    "error_m": 1e-4, "error_on_grid_m": null, "truth_error_m": null,
+                    "truth_error_on_grid_m": null, "missed": 0, "resolved": null,
+                    "payload": null, "chain_echoes": echoes}}
+            })
+        };
+        let results = |echoes| -> Results {
+            serde_json::from_value(serde_json::json!({"steps": [step(echoes)]})).unwrap()
+        };
+        let flagged = results(serde_json::json!([{"range_m": 4.2487, "level_db": -36.5,
+            "of_range_m": 2.0001, "echo_delay_ns": 15.0, "echo_level_db": -30.2}]));
+        let t = chain_echoes_table(&flagged).expect("a table");
+        assert_eq!(
+            t.rows,
+            vec![vec![
+                "2".to_string(),
+                "correlation".into(),
+                "4.2487".into(),
+                "-36.5".into(),
+                "2.0001".into(),
+                "15.0 ns, -30.2 dB".into(),
+            ]]
+        );
+        assert!(chain_echoes_table(&results(serde_json::json!([]))).is_none());
+        // Written before chain echoes were recorded: read as none.
+        let mut old = step(serde_json::json!([]));
+        old["algorithms"]["correlation"]
+            .as_object_mut()
+            .unwrap()
+            .remove("chain_echoes");
+        let old: Results = serde_json::from_value(serde_json::json!({"steps": [old]})).unwrap();
+        assert!(old.steps[0].algorithms["correlation"]
+            .chain_echoes
+            .is_empty());
+    }
 }

@@ -1,30 +1,23 @@
-//! The spellings of the project-defined Gotmic line protocol (instruments.md section 5), in one
-//! place. This is NOT the vendor's protocol (which is not public): it is radbench's own documented
-//! register-over-serial protocol, spoken by the mock_lab emulator, and meant to be replaced behind
-//! the same driver when the real one is known. One request per line, one reply line per request:
+//! The Gotmic line protocol's grammar, read from the catalog's `[protocol]` (instruments/README.md,
+//! "The line protocol as data"): the identity request, the register read and write requests, the
+//! reply words and how numbers are written. The built-in description is radbench's own
+//! project-defined protocol, NOT the vendor's (which is not public); a lab whose modules speak
+//! another one describes it in an instrument file, without Rust. One request per line, one reply
+//! line per request:
 //!
-//! | request | reply |
+//! | request (built-in spelling) | reply |
 //! |---|---|
-//! | `*IDN?` | `<manufacturer>,<model>,<serial>,<firmware>` |
-//! | `R <reg hex2>` | `OK <value hex4>` |
-//! | `W <reg hex2> <value hex4>` | `OK` |
-//! | anything refused | `ERR <code> <text>` |
+//! | `*IDN?` (`identify`) | `<manufacturer>,<model>,<serial>,<firmware>` |
+//! | `R <reg hex2>` (`read`) | `OK <value hex4>` (`reply_ok`, `value_format`) |
+//! | `W <reg hex2> <value hex4>` (`write`) | `OK` |
+//! | anything refused | `ERR <code> <text>` (`reply_error`) |
 
-pub(crate) const IDN: &str = "*IDN?";
-/// Switches CRC framing on. Sent unframed: a module with CRC off switches it on and answers `OK`;
-/// a module already in CRC mode refuses the unframed line with the CRC error and stays on. Either
-/// way CRC framing is on afterwards.
-pub(crate) const CRC_ON: &str = "CRC ON";
+use crate::catalog::{InstrumentModel, LineProtocol};
 
-// CRC framing (`*<hh>` suffixes) is the session's [`Crc8`](crate::session::Crc8): one CRC-8 for
-// the driver and the session's line protocol.
-
-pub(crate) fn read(address: u8) -> String {
-    format!("R {address:02X}")
-}
-
-pub(crate) fn write(address: u8, value: u16) -> String {
-    format!("W {address:02X} {value:04X}")
+/// The catalog's grammar of one module model.
+#[derive(Debug, Clone)]
+pub(crate) struct Grammar {
+    p: LineProtocol,
 }
 
 /// A reply line, parsed.
@@ -36,49 +29,131 @@ pub(crate) enum Reply {
     Err { code: i32, text: String },
 }
 
-/// Parses one reply line; `None` when it is neither `OK [hhhh]` nor `ERR <code> <text>`.
-pub(crate) fn parse_reply(line: &str) -> Option<Reply> {
-    let line = line.trim();
-    if let Some(rest) = line.strip_prefix("ERR") {
-        let rest = rest.trim_start();
-        let (code, text) = rest.split_once(' ').unwrap_or((rest, ""));
-        return Some(Reply::Err {
-            code: code.parse().ok()?,
-            text: text.trim().to_string(),
-        });
+impl Grammar {
+    /// The model's grammar (the built-in spelling when it has no `[protocol]`).
+    pub(crate) fn of(model: &InstrumentModel) -> Grammar {
+        Grammar {
+            p: model.protocol.clone().unwrap_or_default(),
+        }
     }
-    let rest = line.strip_prefix("OK")?;
-    let rest = rest.trim();
-    if rest.is_empty() {
-        return Some(Reply::Ok(None));
+
+    pub(crate) fn identify(&self) -> &str {
+        &self.p.identify
     }
-    if rest.len() > 4 || !rest.chars().all(|c| c.is_ascii_hexdigit()) {
-        return None;
+
+    /// The request that switches the checksum on; `None` when the module always uses it.
+    pub(crate) fn checksum_on(&self) -> Option<&str> {
+        Some(self.p.checksum_on.as_str()).filter(|s| !s.is_empty())
     }
-    u16::from_str_radix(rest, 16)
-        .ok()
-        .map(|v| Reply::Ok(Some(v)))
+
+    /// `body` with the request prefix.
+    pub(crate) fn request(&self, body: &str) -> String {
+        format!("{}{body}", self.p.request_prefix)
+    }
+
+    /// The reply without its prefix; `None` when the prefix is missing.
+    pub(crate) fn reply<'a>(&self, line: &'a str) -> Option<&'a str> {
+        line.trim().strip_prefix(self.p.reply_prefix.as_str())
+    }
+
+    pub(crate) fn read(&self, address: u8) -> String {
+        self.p.read.replace(
+            "{address}",
+            &self.p.address_format.write(u16::from(address)),
+        )
+    }
+
+    pub(crate) fn write(&self, address: u8, value: u16) -> String {
+        self.p
+            .write
+            .replace(
+                "{address}",
+                &self.p.address_format.write(u16::from(address)),
+            )
+            .replace("{value}", &self.p.value_format.write(value))
+    }
+
+    /// What an accepted and a refused reply look like, for messages.
+    pub(crate) fn reply_forms(&self) -> String {
+        format!(
+            "{ok} [value] or {err} <code> <text>",
+            ok = self.p.reply_ok,
+            err = self.p.reply_error
+        )
+    }
+
+    /// Parses one reply line (prefix removed); `None` when it is neither an acceptance (with an
+    /// optional value in the catalog's format) nor a refusal with a numeric code.
+    pub(crate) fn parse_reply(&self, line: &str) -> Option<Reply> {
+        let line = line.trim();
+        if let Some(rest) = line.strip_prefix(self.p.reply_error.as_str()) {
+            let rest = rest.trim_start();
+            let (code, text) = rest.split_once(' ').unwrap_or((rest, ""));
+            return Some(Reply::Err {
+                code: code.parse().ok()?,
+                text: text.trim().to_string(),
+            });
+        }
+        let rest = line.strip_prefix(self.p.reply_ok.as_str())?.trim();
+        if rest.is_empty() {
+            return Some(Reply::Ok(None));
+        }
+        self.p.value_format.read(rest).map(|v| Reply::Ok(Some(v)))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::catalog::{Checksum, NumberFormat};
 
     #[test]
-    fn requests_and_replies() {
-        assert_eq!(read(3), "R 03");
-        assert_eq!(write(2, 0xF), "W 02 000F");
-        assert_eq!(parse_reply("OK 003F"), Some(Reply::Ok(Some(63))));
-        assert_eq!(parse_reply("OK"), Some(Reply::Ok(None)));
+    fn the_built_in_spelling() {
+        let g = Grammar {
+            p: LineProtocol::default(),
+        };
+        assert_eq!(g.read(3), "R 03");
+        assert_eq!(g.write(2, 0xF), "W 02 000F");
+        assert_eq!(g.parse_reply("OK 003F"), Some(Reply::Ok(Some(63))));
+        assert_eq!(g.parse_reply("OK"), Some(Reply::Ok(None)));
         assert_eq!(
-            parse_reply("ERR 5 not allowed"),
+            g.parse_reply("ERR 5 not allowed"),
             Some(Reply::Err {
                 code: 5,
                 text: "not allowed".into()
             })
         );
-        assert_eq!(parse_reply("OK 12345"), None);
-        assert_eq!(parse_reply("hello"), None);
-        assert_eq!(parse_reply("ERR x y"), None);
+        assert_eq!(g.parse_reply("OK 12345"), None);
+        assert_eq!(g.parse_reply("hello"), None);
+        assert_eq!(g.parse_reply("ERR x y"), None);
+    }
+
+    #[test]
+    fn another_spelling_from_data() {
+        let g = Grammar {
+            p: LineProtocol {
+                checksum: Checksum::None,
+                read: "GET {address}".into(),
+                write: "SET {address}={value}".into(),
+                address_format: NumberFormat::Dec,
+                value_format: NumberFormat::Dec,
+                reply_ok: "ACK".into(),
+                reply_error: "NAK".into(),
+                request_prefix: "#1 ".into(),
+                ..LineProtocol::default()
+            },
+        };
+        assert_eq!(g.read(18), "GET 18");
+        assert_eq!(g.write(18, 63), "SET 18=63");
+        assert_eq!(g.request("GET 18"), "#1 GET 18");
+        assert_eq!(g.parse_reply("ACK 63"), Some(Reply::Ok(Some(63))));
+        assert_eq!(g.parse_reply("ACK 3F"), None);
+        assert_eq!(
+            g.parse_reply("NAK 2 unknown register"),
+            Some(Reply::Err {
+                code: 2,
+                text: "unknown register".into()
+            })
+        );
     }
 }

@@ -1,15 +1,17 @@
-//! Gotmic E-band transmitter and receiver modules over serial, through the project-defined line
-//! protocol of `commands` (not the vendor's protocol, which is not public).
+//! Gotmic E-band transmitter and receiver modules over serial, through the line protocol the
+//! catalog describes (`commands`; the built-in description is the project-defined protocol, not
+//! the vendor's, which is not public).
 //!
-//! The register map (addresses, bit positions, writable ranges, the expected module ID) comes
-//! from the catalog, so the real map can replace it as data. Safety: enabling needs an
+//! The grammar (framing, checksum, request and reply words, number formats) and the register map
+//! (addresses, bit positions, writable ranges, the expected module ID) come from the catalog, so
+//! a module's real protocol replaces them as data. Safety: enabling needs an
 //! [`RfPermit`]; attenuation goes to maximum before the enable; latched faults, interlock, over
 //! temperature and LO lock are checked; every write is read back; any failure after the enable
 //! switches the module off again before the error is returned.
 
 pub(crate) mod commands;
 
-use self::commands::Reply;
+use self::commands::{Grammar, Reply};
 use super::capability::{ReadyToEnable, RfFrontEnd, RfSettings, RfStatus};
 use super::error::{session, DriverError};
 use super::identity;
@@ -17,7 +19,7 @@ use super::io::{session_options, BoxFuture, InstrumentIo};
 use super::limits::within;
 use super::permit::RfPermit;
 use crate::address::Resource;
-use crate::catalog::{InstrumentModel, Register, RfDirection, RfLimits};
+use crate::catalog::{Checksum, InstrumentModel, Register, RfDirection, RfLimits};
 use crate::session::{Crc8, Identity, Session};
 use crate::transport::{Journal, SerialSettings};
 
@@ -148,20 +150,25 @@ impl Framing {
         match Framing::from_catalog(model) {
             Framing::Crc8(_) => Framing::Plain,
             Framing::Plain => Framing::Crc8(Crc8 {
-                poly: model.protocol.as_ref().map_or(0x07, |p| p.crc_poly),
+                poly: model
+                    .protocol
+                    .as_ref()
+                    .map(|p| p.crc_poly)
+                    .filter(|&poly| poly != 0)
+                    .unwrap_or(0x07),
                 init: model.protocol.as_ref().map_or(0x00, |p| p.crc_init),
             }),
         }
     }
 
-    /// CRC-8 when the catalog's `[protocol]` defines one, else plain lines.
+    /// CRC-8 when the catalog's `[protocol]` says `checksum = "crc8"`, else plain lines.
     pub fn from_catalog(model: &InstrumentModel) -> Framing {
         match &model.protocol {
-            Some(p) => Framing::Crc8(Crc8 {
+            Some(p) if p.checksum == Checksum::Crc8 => Framing::Crc8(Crc8 {
                 poly: p.crc_poly,
                 init: p.crc_init,
             }),
-            None => Framing::Plain,
+            _ => Framing::Plain,
         }
     }
 }
@@ -170,6 +177,7 @@ impl Framing {
 pub struct Gotmic {
     io: Box<dyn InstrumentIo>,
     framing: Framing,
+    grammar: Grammar,
     model: InstrumentModel,
     limits: RfLimits,
     map: Map,
@@ -272,6 +280,7 @@ impl Gotmic {
         let mut driver = Gotmic {
             io,
             framing,
+            grammar: Grammar::of(model),
             model: model.clone(),
             limits,
             map,
@@ -283,22 +292,27 @@ impl Gotmic {
             },
             name: name.to_string(),
         };
-        if let Framing::Crc8(_) = framing {
-            // Whatever the module answers (OK, or the CRC error of a module already in CRC
-            // mode), CRC framing is on afterwards; the framed *IDN? below proves it.
-            let reply = driver
-                .io
-                .query(commands::CRC_ON)
-                .await
-                .map_err(session(name))?;
-            tracing::debug!(instrument = name, "CRC ON -> {reply}");
+        let checksum_on = match framing {
+            Framing::Crc8(_) => driver
+                .grammar
+                .checksum_on()
+                .map(|on| driver.grammar.request(on)),
+            Framing::Plain => None,
+        };
+        if let Some(on) = checksum_on {
+            // Sent unframed. Whatever the module answers (OK, or the CRC error of a module
+            // already in CRC mode), CRC framing is on afterwards; the framed identity request
+            // below proves it.
+            let reply = driver.io.query(&on).await.map_err(session(name))?;
+            tracing::debug!(instrument = name, "{on} -> {reply}");
         }
-        let idn_text = driver.line(commands::IDN).await?;
+        let identify = driver.grammar.identify().to_string();
+        let idn_text = driver.line(&identify).await?;
         driver.identity = identity::check(
             model,
             name,
             &driver.io.resource_text(),
-            commands::IDN,
+            &identify,
             &idn_text,
         )?;
         let id = driver.read(&driver.map.id.clone()).await?;
@@ -315,22 +329,37 @@ impl Gotmic {
         Ok(driver)
     }
 
-    /// One request line and its reply line, framed and checked as configured.
+    /// One request line and its reply line, prefixed, framed and checked as configured.
     async fn line(&mut self, request: &str) -> Result<String, DriverError> {
-        match self.framing {
-            Framing::Plain => self.io.query(request).await.map_err(session(&self.name)),
+        let request = self.grammar.request(request);
+        let (sent, body) = match self.framing {
+            Framing::Plain => {
+                let reply = self.io.query(&request).await.map_err(session(&self.name))?;
+                (request, reply)
+            }
             Framing::Crc8(crc) => {
-                let sent = crc.frame(request);
+                let sent = crc.frame(&request);
                 let reply = self.io.query(&sent).await.map_err(session(&self.name))?;
-                crc.unframe(reply.trim())
+                let body = crc
+                    .unframe(reply.trim())
                     .map(str::to_string)
                     .ok_or_else(|| DriverError::Reply {
                         instrument: self.name.clone(),
-                        command: sent,
+                        command: sent.clone(),
                         expected: "a reply ending in a valid *<hh> CRC-8 (check the cable and the line settings)",
                         reply,
-                    })
+                    })?;
+                (sent, body)
             }
+        };
+        match self.grammar.reply(&body) {
+            Some(text) => Ok(text.to_string()),
+            None => Err(DriverError::Reply {
+                instrument: self.name.clone(),
+                command: sent,
+                expected: "a reply starting with the catalog's protocol.reply_prefix",
+                reply: body,
+            }),
         }
     }
 
@@ -340,7 +369,7 @@ impl Gotmic {
 
     async fn request(&mut self, line: &str) -> Result<Option<u16>, DriverError> {
         let reply = self.line(line).await?;
-        match commands::parse_reply(&reply) {
+        match self.grammar.parse_reply(&reply) {
             Some(Reply::Ok(v)) => Ok(v),
             Some(Reply::Err { code, text }) => Err(DriverError::LineRefused {
                 instrument: self.name.clone(),
@@ -351,21 +380,22 @@ impl Gotmic {
             None => Err(DriverError::Reply {
                 instrument: self.name.clone(),
                 command: line.to_string(),
-                expected: "OK [hhhh] or ERR <code> <text>",
-                reply,
+                expected: "the catalog's reply forms (protocol.reply_ok [value] or \
+                           protocol.reply_error <code> <text>)",
+                reply: format!("{reply} (expected {})", self.grammar.reply_forms()),
             }),
         }
     }
 
     async fn read(&mut self, register: &Register) -> Result<u16, DriverError> {
-        let line = commands::read(register.address);
+        let line = self.grammar.read(register.address);
         match self.request(&line).await? {
             Some(v) => Ok(v),
             None => Err(DriverError::Reply {
                 instrument: self.name.clone(),
                 command: line,
-                expected: "OK <value hex4>",
-                reply: "OK".into(),
+                expected: "an acceptance with the register's value",
+                reply: "an acceptance without a value".into(),
             }),
         }
     }
@@ -381,7 +411,7 @@ impl Gotmic {
                 allowed: format!("{min} ..= {max}"),
             });
         }
-        self.request(&commands::write(register.address, value))
+        self.request(&self.grammar.write(register.address, value))
             .await?;
         let read = self.read(register).await?;
         if read != value {
@@ -522,7 +552,7 @@ impl Gotmic {
         let map = self.map.clone();
         // On (for the live view) from the moment the enable is sent, until a switch-off took.
         crate::driver::rf_state::set(&self.name, true);
-        self.request(&commands::write(map.control.address, map.enable_mask))
+        self.request(&self.grammar.write(map.control.address, map.enable_mask))
             .await?;
         let status = self.read(&map.status).await?;
         let control = self.read(&map.control).await?;
@@ -584,7 +614,7 @@ impl Gotmic {
             .iter()
             .filter(|f| f.bit < 16)
             .fold(0u16, |m, f| m | (1 << f.bit));
-        self.request(&commands::write(map.faults.address, mask))
+        self.request(&self.grammar.write(map.faults.address, mask))
             .await?;
         let left = self.read(&map.faults).await?;
         if left != 0 {

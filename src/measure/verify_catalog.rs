@@ -1,0 +1,375 @@
+//! `radbench doctor --verify-catalog`: asks each instrument of the bench for what the catalog
+//! only infers (instruments/README.md, tags [I] and [P]) and says, per value, whether the
+//! instrument confirms it, answers differently (with its answer), or cannot be asked (with why:
+//! radbench knows no query for it on that family, or the instrument did not answer). Nothing
+//! radiating is sent: identities, `*OPT?`. Every exchange is bounded, and the whole check by one
+//! deadline. `write_overrides` turns the differences into instrument files for the bench's
+//! `catalog` folder.
+
+use super::bench::Bench;
+use super::MeasureError;
+use crate::address::Resource;
+use crate::catalog::{Catalog, InstrumentKind, InstrumentModel, Origin, EMBEDDED_FILES};
+use crate::driver::{open, DriverError, Journal};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Longest wait for one exchange (connecting included).
+const EXCHANGE_LIMIT: Duration = Duration::from_secs(5);
+/// Longest the whole check may take.
+const DEADLINE: Duration = Duration::from_secs(40);
+
+/// How one catalog value came out.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "verdict", rename_all = "snake_case")]
+pub enum Verdict {
+    Confirmed { answer: String },
+    Differs { answer: String },
+    CannotBeQueried { why: String },
+}
+
+impl Verdict {
+    pub fn word(&self) -> &'static str {
+        match self {
+            Verdict::Confirmed { .. } => "confirmed",
+            Verdict::Differs { .. } => "differs",
+            Verdict::CannotBeQueried { .. } => "cannot be queried",
+        }
+    }
+}
+
+/// One catalog value and what the instrument said about it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CatalogValue {
+    /// `awg`, `scope`, `tx` or `rx`.
+    pub instrument: &'static str,
+    /// The catalog key of its model.
+    pub model: String,
+    /// The field, as in the instrument file (`awg.options`, `identity`).
+    pub field: String,
+    /// The catalog's value.
+    pub catalog: String,
+    #[serde(flatten)]
+    pub verdict: Verdict,
+}
+
+/// Every value checked.
+#[derive(Debug, Clone, Serialize)]
+pub struct CatalogCheck {
+    pub bench: String,
+    pub values: Vec<CatalogValue>,
+}
+
+impl CatalogCheck {
+    /// How many values have this verdict's word.
+    pub fn count(&self, word: &str) -> usize {
+        self.values
+            .iter()
+            .filter(|v| v.verdict.word() == word)
+            .count()
+    }
+}
+
+fn no_query(family: &str) -> Verdict {
+    Verdict::CannotBeQueried {
+        why: format!(
+            "radbench knows no remote query for it on {family}: check the datasheet, the \
+             instrument's front panel or its option list, and correct the instrument file"
+        ),
+    }
+}
+
+fn past_deadline() -> Verdict {
+    Verdict::CannotBeQueried {
+        why: format!(
+            "not asked: the check's deadline of {} s passed",
+            DEADLINE.as_secs()
+        ),
+    }
+}
+
+/// The inferred values of a model that no query reaches, as (field, value).
+fn unqueryable(model: &InstrumentModel) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    if let Some(a) = &model.awg {
+        out.push((
+            "awg.dac_rate_default".into(),
+            format!("{:e} Sa/s", a.dac_rate_default),
+        ));
+        out.push((
+            "awg.internal_memory_samples".into(),
+            a.internal_memory_samples.to_string(),
+        ));
+        out.push((
+            "awg.extended_memory_samples".into(),
+            a.extended_memory_samples.to_string(),
+        ));
+        out.push(("awg.max_segment_id".into(), a.max_segment_id.to_string()));
+    }
+    if let Some(d) = &model.digitizer {
+        let rates: Vec<String> = d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
+        out.push((
+            "digitizer.sample_rates".into(),
+            format!("{} Sa/s", rates.join(", ")),
+        ));
+        out.push((
+            "digitizer.max_points_per_channel".into(),
+            d.max_points_per_channel.to_string(),
+        ));
+        out.push((
+            "digitizer.volts_per_div_min / max".into(),
+            format!("{} / {} V", d.volts_per_div_min, d.volts_per_div_max),
+        ));
+        out.push((
+            "digitizer.max_sequence_segments".into(),
+            d.max_sequence_segments.to_string(),
+        ));
+    }
+    out
+}
+
+/// What the driver's identity check made of an open (`Ok`: the identity it read).
+fn identity_verdict(opened: Result<String, String>) -> Verdict {
+    match opened {
+        Ok(idn) => Verdict::Confirmed { answer: idn },
+        Err(e) if e.contains("which is not") || e.contains("ID register") => {
+            Verdict::Differs { answer: e }
+        }
+        Err(e) => Verdict::CannotBeQueried { why: e },
+    }
+}
+
+async fn bounded<T>(
+    work: impl std::future::Future<Output = Result<T, DriverError>>,
+) -> Result<T, String> {
+    match tokio::time::timeout(EXCHANGE_LIMIT, work).await {
+        Ok(r) => r.map_err(|e| e.to_string()),
+        Err(_) => Err(format!("no identity within {} s", EXCHANGE_LIMIT.as_secs())),
+    }
+}
+
+/// The installed options `*OPT?` lists (blank and `0` entries dropped), sorted.
+fn option_set(text: &str) -> Vec<String> {
+    let mut set: Vec<String> = text
+        .trim_matches('"')
+        .split(',')
+        .map(|o| o.trim().trim_matches('"').to_ascii_uppercase())
+        .filter(|o| !o.is_empty() && o != "0")
+        .collect();
+    set.sort();
+    set.dedup();
+    set
+}
+
+/// Asks every instrument of `bench` for what its catalog entry infers. `journal`: `--trace-io`.
+pub async fn verify_catalog(
+    bench: &Bench,
+    journal: Option<Journal>,
+) -> Result<CatalogCheck, MeasureError> {
+    let started = Instant::now();
+    let file = &bench.file;
+    let catalog: Catalog = file.catalog()?;
+    let parse = |text: &str, section: &'static str| -> Result<Resource, MeasureError> {
+        text.parse().map_err(|source| MeasureError::Resource {
+            section,
+            text: text.to_string(),
+            source,
+        })
+    };
+    let mut instruments: Vec<(&'static str, Resource, InstrumentModel)> = vec![
+        (
+            "awg",
+            parse(&file.awg.resource, "awg")?,
+            catalog.get(&file.awg.model)?.clone(),
+        ),
+        (
+            "scope",
+            parse(&file.scope.resource, "scope")?,
+            catalog.get(&file.scope.model)?.clone(),
+        ),
+    ];
+    for (name, entry) in [("tx", &file.tx), ("rx", &file.rx)] {
+        if let Some(e) = entry {
+            instruments.push((
+                name,
+                parse(&e.resource, name)?,
+                catalog.get(&e.model)?.clone(),
+            ));
+        }
+    }
+    let mut values = Vec::new();
+    for (name, resource, model) in &instruments {
+        let late = started.elapsed() >= DEADLINE;
+        let key = model.instrument.key.clone();
+        let family = open::family(model).to_string();
+        let value = |field: &str, catalog: String, verdict: Verdict| CatalogValue {
+            instrument: name,
+            model: key.clone(),
+            field: field.to_string(),
+            catalog,
+            verdict,
+        };
+        let expected = format!(
+            "manufacturer {}, model {}",
+            model.identity.manufacturer.join(" | "),
+            model.identity.model.join(" | ")
+        );
+        let identity = if late {
+            past_deadline()
+        } else {
+            let j = journal.clone();
+            let r = resource.clone();
+            identity_verdict(match model.instrument.kind {
+                InstrumentKind::Awg => bounded(open::open_awg(r, model, j, name))
+                    .await
+                    .map(|d| d.identity().to_string()),
+                InstrumentKind::Digitizer => bounded(open::open_digitizer(r, model, j, name))
+                    .await
+                    .map(|d| d.identity().to_string()),
+                InstrumentKind::RfTx | InstrumentKind::RfRx => {
+                    bounded(open::open_rf(r, model, j, name))
+                        .await
+                        .map(|d| d.identity().to_string())
+                }
+            })
+        };
+        let reached = !matches!(identity, Verdict::CannotBeQueried { .. });
+        values.push(value("identity", expected, identity));
+        if let Some(awg) = &model.awg {
+            let mut listed = awg.options.clone();
+            listed.sort();
+            let verdict = if started.elapsed() >= DEADLINE {
+                past_deadline()
+            } else if !reached {
+                Verdict::CannotBeQueried {
+                    why: "not asked: the instrument was not identified".into(),
+                }
+            } else {
+                match crate::driver::ask::ask_once(
+                    resource.clone(),
+                    model,
+                    "*OPT?",
+                    EXCHANGE_LIMIT,
+                    journal.clone(),
+                    name,
+                )
+                .await
+                {
+                    Ok(reply) if option_set(&reply) == option_set(&listed.join(",")) => {
+                        Verdict::Confirmed { answer: reply }
+                    }
+                    Ok(reply) => Verdict::Differs { answer: reply },
+                    Err(why) => Verdict::CannotBeQueried { why },
+                }
+            };
+            values.push(value("awg.options", listed.join(","), verdict));
+        }
+        for (field, shown) in unqueryable(model) {
+            values.push(value(&field, shown, no_query(&family)));
+        }
+        if model.protocol.is_some() {
+            values.push(value(
+                "protocol, register map",
+                "project-defined".into(),
+                Verdict::CannotBeQueried {
+                    why: "radbench's own description, not the vendor's: the identity above is \
+                          what the module answered in it; describe the module's real protocol \
+                          in its instrument file (instruments/README.md)"
+                        .into(),
+                },
+            ));
+        }
+    }
+    Ok(CatalogCheck {
+        bench: bench.describe(),
+        values,
+    })
+}
+
+/// The instrument file `model` was loaded from, as text.
+fn source_text(catalog: &Catalog, key: &str) -> Option<(String, String)> {
+    let (_, origin) = catalog.models().find(|(m, _)| m.instrument.key == key)?;
+    match origin {
+        Origin::Embedded(name) => EMBEDDED_FILES
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(n, t)| ((*n).to_string(), (*t).to_string())),
+        Origin::File(path) => Some((
+            path.file_name()?.to_string_lossy().into_owned(),
+            std::fs::read_to_string(path).ok()?,
+        )),
+    }
+}
+
+/// Writes, for each model with a value that differs and can be written down (`*OPT?`), a copy of
+/// its instrument file holding the instrument's answer into `dir` (created); the bench file's
+/// `catalog = "<dir>"` then makes radbench use them. Returns the files written.
+///
+/// # Errors
+/// [`MeasureError::Storage`] when `dir` or a file cannot be written.
+pub fn write_overrides(
+    check: &CatalogCheck,
+    catalog: &Catalog,
+    dir: &Path,
+) -> Result<Vec<PathBuf>, MeasureError> {
+    let mut written = Vec::new();
+    let mut keys: Vec<&str> = check
+        .values
+        .iter()
+        .filter(|v| matches!(v.verdict, Verdict::Differs { .. }) && v.field == "awg.options")
+        .map(|v| v.model.as_str())
+        .collect();
+    keys.dedup();
+    for key in keys {
+        let Some((name, text)) = source_text(catalog, key) else {
+            continue;
+        };
+        let Ok(mut doc) = text.parse::<toml_edit::DocumentMut>() else {
+            continue;
+        };
+        for v in check.values.iter().filter(|v| v.model == key) {
+            if let (Verdict::Differs { answer }, "awg.options") = (&v.verdict, v.field.as_str()) {
+                let mut array = toml_edit::Array::new();
+                for o in option_set(answer) {
+                    array.push(o);
+                }
+                if let Some(table) = doc.get_mut("awg").and_then(|t| t.as_table_mut()) {
+                    table.insert("options", toml_edit::value(array));
+                }
+            }
+        }
+        let header = format!(
+            "# Written by `radbench doctor --verify-catalog --write-overrides`: the built-in {key} \
+             with the values\n# the instrument answered differently. Point the bench file's \
+             `catalog` at this folder.\n"
+        );
+        std::fs::create_dir_all(dir).map_err(|e| storage(dir, e))?;
+        let path = dir.join(&name);
+        crate::storage::write_atomic(&path, format!("{header}{doc}").as_bytes())?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+fn storage(path: &Path, e: std::io::Error) -> MeasureError {
+    MeasureError::Storage(crate::storage::StorageError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_compare_as_sets() {
+        assert_eq!(
+            option_set("\"004,001, 16G,002\""),
+            option_set("001,002,004,16G")
+        );
+        assert_ne!(option_set("001,002"), option_set("001,002,004,16G"));
+        assert!(option_set("0").is_empty());
+    }
+}
