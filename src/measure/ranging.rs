@@ -371,6 +371,8 @@ impl RangingModel {
                 .filter(|e| (e.range_m - reference.range_m).abs() >= 0.3),
         );
         Some(PhaseAnchor {
+            // Set by the calibration, which knows how many records it averaged.
+            repetitions: None,
             fixed_range_m: fixed.map(|f| f.range_m),
             fixed_snr_std_m: fixed.and_then(|f| self.snr_std_m(f.snr)),
             range_m: reference_range_m,

@@ -191,16 +191,23 @@ pub struct PhaseAnchor {
     pub fixed_range_m: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixed_snr_std_m: Option<f64>,
+    /// The repetitions the record averages, each with its own trigger jitter (absent in
+    /// calibrations made before it was written: taken as one, the conservative reading).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repetitions: Option<usize>,
 }
 
 impl PhaseAnchor {
     /// The envelope's calibration uncertainty it gives, m: its SNR's, and its record's trigger
-    /// jitter (`jitter_m` as range) or, when larger, the corrected reference's own offset from
+    /// jitter (`jitter_m` as range, one record's: the average of `repetitions` records carries
+    /// `1 / sqrt(repetitions)` of it) or, when larger, the corrected reference's own offset from
     /// its stated range (one draw of that jitter plus what the correction leaves: a clutter's
     /// pull, the chain's misfit).
     pub(crate) fn envelope_std_m(&self, jitter_m: f64) -> f64 {
         let offset = self.envelope_range_m - self.range_m;
-        (self.envelope_snr_std_m.powi(2) + jitter_m.powi(2).max(offset.powi(2))).sqrt()
+        let records = self.repetitions.unwrap_or(1).max(1) as f64;
+        let jitter_var = jitter_m.powi(2) / records;
+        (self.envelope_snr_std_m.powi(2) + jitter_var.max(offset.powi(2))).sqrt()
     }
 }
 
