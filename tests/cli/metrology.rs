@@ -221,8 +221,8 @@ async fn unwrapping_steps_of_a_quarter_wavelength_and_3_cm_jumps_never_slips_a_c
 /// of them, in both modes. Several calibrations: each has its own jitter, common to its
 /// captures. `RB_COVERAGE=N` positions per calibration (default 25, over 8 calibrations).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[ignore = "not met yet (docs/metrology.md, Measured): envelope 99.0 %, phase 86.5 % of 200; \
-            run with --ignored"]
+#[ignore = "phase mode not met yet (docs/metrology.md, Measured): envelope 95.0 %, phase 86.5 % \
+            of 200; run with --ignored (RB_COVERAGE_DUMP=1 prints each phase range's error)"]
 async fn the_truth_lies_within_1_96_sd_of_95_percent_of_the_ranges_in_both_modes() {
     let per_calibration: usize = std::env::var("RB_COVERAGE")
         .ok()
@@ -242,6 +242,14 @@ async fn the_truth_lies_within_1_96_sd_of_95_percent_of_the_ranges_in_both_modes
             let out = format!("p{k}");
             let (r, s, _) = capture_phase(d, &bench_scene(p, 1000 * c + k as u64), &out, p).await;
             let z = (r - p).abs() / s;
+            if std::env::var_os("RB_COVERAGE_DUMP").is_some() {
+                eprintln!(
+                    "phase c{c} k{k}: err {:+.2} um, sd {:.2} um, z {:+.2}",
+                    (r - p) * 1e6,
+                    s * 1e6,
+                    (r - p) / s
+                );
+            }
             worst[1] = worst[1].max(z);
             inside[1] += usize::from(z <= 1.96);
             truths.push(p);
