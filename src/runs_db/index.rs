@@ -110,21 +110,32 @@ pub fn index(catalog: &Path, roots: &[PathBuf]) -> Result<IndexReport, RunsDbErr
     }
     let mut seen_runs = HashSet::new();
     let mut seen_captures = HashSet::new();
+    let known = known_runs(&conn).map_err(|e| RunsDbError::sql(catalog, e))?;
     for root in roots {
         let found = discover(root);
         for batch in found.chunks(BATCH) {
             let read: Vec<_> = batch
                 .par_iter()
                 .map(|f| match f {
-                    Found::Run(d) => (d, read_run(d).map(|r| r.map(Read::Run))),
+                    Found::Run(d) => (d, read_run_unless_known(d, &known)),
                     Found::Capture(d) => (d, read_capture(d).map(|c| c.map(Read::Capture))),
                 })
                 .collect();
+            // One transaction per batch: every run in it whole or not at all, so a kill loses
+            // at most this batch, which the next index writes (fewer commits: faster).
+            let tx = conn
+                .transaction_with_behavior(TransactionBehavior::Immediate)
+                .map_err(|e| RunsDbError::sql(catalog, e))?;
+            let mut captures = Vec::new();
             for (dir, r) in read {
                 match r {
+                    Ok(Some(Read::Same(run_id))) => {
+                        seen_runs.insert(run_id);
+                        report.runs_unchanged += 1;
+                    }
                     Ok(Some(Read::Run(run))) => {
                         seen_runs.insert(run.run_id.clone());
-                        if write_run(&mut conn, &run)? {
+                        if write_run_in(&tx, &run)? {
                             report.runs_written += 1;
                         } else {
                             report.runs_unchanged += 1;
@@ -132,17 +143,22 @@ pub fn index(catalog: &Path, roots: &[PathBuf]) -> Result<IndexReport, RunsDbErr
                     }
                     Ok(Some(Read::Capture(c))) => {
                         seen_captures.insert(path_text(&c.dir));
-                        if write_capture(&mut conn, &c)? {
-                            report.captures_written += 1;
-                        } else {
-                            report.captures_unchanged += 1;
-                        }
+                        captures.push(c);
                     }
                     Ok(None) => {}
                     Err(e) => report.failed.push(FailedFolder {
                         path: dir.clone(),
                         reason: e.to_string(),
                     }),
+                }
+            }
+            tx.commit().map_err(|e| RunsDbError::sql(catalog, e))?;
+            // Captures in transactions of their own: their files are hashed first.
+            for c in captures {
+                if write_capture(&mut conn, &c)? {
+                    report.captures_written += 1;
+                } else {
+                    report.captures_unchanged += 1;
                 }
             }
         }
@@ -159,7 +175,40 @@ pub fn index(catalog: &Path, roots: &[PathBuf]) -> Result<IndexReport, RunsDbErr
 
 enum Read {
     Run(RunRecord),
+    /// A run indexed already as its files are (its id).
+    Same(String),
     Capture(CaptureRecord),
+}
+
+/// (manifest SHA-256, results SHA-256, run id) of every indexed run by folder, but those
+/// indexed while `running` (whose status may have changed without a byte of the folder).
+type Known = std::collections::HashMap<String, (String, Option<String>, String)>;
+
+fn known_runs(conn: &Connection) -> rusqlite::Result<Known> {
+    let mut q = conn.prepare(
+        "SELECT dir, manifest_sha256, results_sha256, run_id FROM runs WHERE status <> 'running'",
+    )?;
+    let rows = q.query_map([], |r| Ok((r.get(0)?, (r.get(1)?, r.get(2)?, r.get(3)?))))?;
+    rows.collect()
+}
+
+/// The run folder `dir`, read and parsed unless its manifest and results hash to what the
+/// catalog holds for that folder (then only its id: re-indexing reads, hashes, skips).
+fn read_run_unless_known(dir: &Path, known: &Known) -> Result<Option<Read>, RunsDbError> {
+    let abs = super::record::absolute(dir);
+    if let Some((manifest, results, id)) = known.get(&path_text(&abs)) {
+        let hash = |name: &str| {
+            std::fs::read(dir.join(name))
+                .ok()
+                .map(|b| crate::storage::sha256(&b))
+        };
+        if hash(crate::campaign::MANIFEST_FILE).as_ref() == Some(manifest)
+            && hash(super::record::RESULTS_FILE) == *results
+        {
+            return Ok(Some(Read::Same(id.clone())));
+        }
+    }
+    Ok(read_run(dir)?.map(Read::Run))
 }
 
 /// Folds the WAL back into the database file (best effort: a reader may hold it).
@@ -190,7 +239,7 @@ fn prune(
     {
         let stale_runs: Vec<String> = {
             let mut q = tx
-                .prepare(
+                .prepare_cached(
                     "SELECT run_id FROM runs WHERE dir = ?1 OR substr(dir, 1, length(?2)) = ?2",
                 )
                 .map_err(sql)?;
@@ -207,7 +256,7 @@ fn prune(
         }
         let stale_captures: Vec<String> = {
             let mut q = tx
-                .prepare(
+                .prepare_cached(
                     "SELECT dir FROM captures WHERE run_id IS NULL
                      AND (dir = ?1 OR substr(dir, 1, length(?2)) = ?2)",
                 )
@@ -230,10 +279,12 @@ fn prune(
 
 fn delete_run(tx: &Connection, run_id: &str) -> rusqlite::Result<()> {
     for table in ["targets", "instruments", "assets"] {
-        tx.execute(&format!("DELETE FROM {table} WHERE owner = ?1"), [run_id])?;
+        tx.prepare_cached(&format!("DELETE FROM {table} WHERE owner = ?1"))?
+            .execute([run_id])?;
     }
     // run_metrics, steps and the steps' captures go with it (ON DELETE CASCADE).
-    tx.execute("DELETE FROM runs WHERE run_id = ?1", [run_id])?;
+    tx.prepare_cached("DELETE FROM runs WHERE run_id = ?1")?
+        .execute([run_id])?;
     Ok(())
 }
 
@@ -245,33 +296,45 @@ fn delete_capture(tx: &Connection, dir: &str) -> rusqlite::Result<()> {
     Ok(())
 }
 
-/// Writes one run's rows in one transaction (replacing the run's earlier rows). `false` when the
-/// catalog already held this manifest and these results at this folder.
+/// Writes one run's rows in one transaction of its own. `false` when the catalog already held
+/// this manifest and these results at this folder.
 pub(crate) fn write_run(conn: &mut Connection, run: &RunRecord) -> Result<bool, RunsDbError> {
-    let sql = |e| RunsDbError::sql(&run.dir, e);
     let tx = conn
         .transaction_with_behavior(TransactionBehavior::Immediate)
-        .map_err(sql)?;
+        .map_err(|e| RunsDbError::sql(&run.dir, e))?;
+    let written = write_run_in(&tx, run)?;
+    tx.commit().map_err(|e| RunsDbError::sql(&run.dir, e))?;
+    Ok(written)
+}
+
+/// Writes one run's rows (replacing the run's earlier rows) in the transaction `tx`.
+fn write_run_in(tx: &Connection, run: &RunRecord) -> Result<bool, RunsDbError> {
+    let sql = |e| RunsDbError::sql(&run.dir, e);
     let dir = path_text(&run.dir);
-    let known: Option<(String, Option<String>, String)> = tx
-        .query_row(
-            "SELECT manifest_sha256, results_sha256, dir FROM runs WHERE run_id = ?1",
-            [&run.run_id],
-            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+    let known: Option<(String, Option<String>, String, String)> = tx
+        .prepare_cached(
+            "SELECT manifest_sha256, results_sha256, dir, status FROM runs WHERE run_id = ?1",
         )
-        .optional()
+        .and_then(|mut q| {
+            q.query_row([&run.run_id], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
+            })
+            .optional()
+        })
         .map_err(sql)?;
-    if known
-        .as_ref()
-        .is_some_and(|(m, r, d)| *m == run.manifest_sha256 && *r == run.results_sha256 && *d == dir)
-    {
+    if known.as_ref().is_some_and(|(m, r, d, status)| {
+        *m == run.manifest_sha256
+            && *r == run.results_sha256
+            && *d == dir
+            && status == run.manifest.status.name()
+    }) {
         return Ok(false);
     }
-    delete_run(&tx, &run.run_id).map_err(sql)?;
+    delete_run(tx, &run.run_id).map_err(sql)?;
     // A folder replaced by another run of another id: the old run's rows go.
     let replaced: Vec<String> = {
         let mut q = tx
-            .prepare("SELECT run_id FROM runs WHERE dir = ?1")
+            .prepare_cached("SELECT run_id FROM runs WHERE dir = ?1")
             .map_err(sql)?;
         let rows = q
             .query_map([&dir], |r| r.get::<_, String>(0))
@@ -279,10 +342,9 @@ pub(crate) fn write_run(conn: &mut Connection, run: &RunRecord) -> Result<bool, 
         rows.filter_map(Result::ok).collect()
     };
     for id in replaced {
-        delete_run(&tx, &id).map_err(sql)?;
+        delete_run(tx, &id).map_err(sql)?;
     }
-    insert_run(&tx, run, &dir).map_err(sql)?;
-    tx.commit().map_err(sql)?;
+    insert_run(tx, run, &dir).map_err(sql)?;
     Ok(true)
 }
 
@@ -291,39 +353,39 @@ fn insert_run(tx: &Connection, run: &RunRecord, dir: &str) -> rusqlite::Result<(
     let id = run.run_id.as_str();
     let algorithms = run.algorithms();
     let primary = algorithms.first().copied().unwrap_or("");
-    tx.execute(
+    tx.prepare_cached(
         "INSERT INTO runs (run_id, dir, name, sweep, status, reason, created, updated,
            radbench_version, git_commit, simulated, bench_file, waveforms, algorithms, scope_idn,
            awg_idn, calibration_sha256, steps_total, steps_done, manifest_sha256, results_sha256)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18,
            ?19, ?20, ?21)",
-        params![
-            id,
-            dir,
-            m.plan.name,
-            run.sweep(),
-            m.status.name(),
-            m.reason,
-            m.created,
-            m.updated,
-            m.radbench_version,
-            m.git_commit,
-            m.plan.bench.simulated,
-            m.plan.bench.file.as_deref().map(path_text),
-            run.waveforms().join(","),
-            algorithms.join(","),
-            m.instruments.as_ref().map(|i| i.scope.as_str()),
-            m.instruments.as_ref().map(|i| i.awg.as_str()),
-            m.calibration.as_ref().map(|c| c.sha256.as_str()),
-            m.steps.len() as i64,
-            run.steps_done() as i64,
-            run.manifest_sha256,
-            run.results_sha256,
-        ],
-    )?;
+    )?
+    .execute(params![
+        id,
+        dir,
+        m.plan.name,
+        run.sweep(),
+        m.status.name(),
+        m.reason,
+        m.created,
+        m.updated,
+        m.radbench_version,
+        m.git_commit,
+        m.plan.bench.simulated,
+        m.plan.bench.file.as_deref().map(path_text),
+        run.waveforms().join(","),
+        algorithms.join(","),
+        m.instruments.as_ref().map(|i| i.scope.as_str()),
+        m.instruments.as_ref().map(|i| i.awg.as_str()),
+        m.calibration.as_ref().map(|c| c.sha256.as_str()),
+        m.steps.len() as i64,
+        run.steps_done() as i64,
+        run.manifest_sha256,
+        run.results_sha256,
+    ])?;
     {
         let mut q =
-            tx.prepare("INSERT INTO run_metrics (run_id, name, value) VALUES (?1, ?2, ?3)")?;
+            tx.prepare_cached("INSERT INTO run_metrics (run_id, name, value) VALUES (?1, ?2, ?3)")?;
         for (name, value) in run.metrics() {
             q.execute(params![id, name, value])?;
         }
@@ -337,7 +399,8 @@ fn insert_run(tx: &Connection, run: &RunRecord, dir: &str) -> rusqlite::Result<(
         )?;
     }
     if let Some(i) = &m.instruments {
-        let mut q = tx.prepare("INSERT INTO instruments (owner, role, idn) VALUES (?1, ?2, ?3)")?;
+        let mut q =
+            tx.prepare_cached("INSERT INTO instruments (owner, role, idn) VALUES (?1, ?2, ?3)")?;
         for (role, idn) in [
             ("awg", Some(&i.awg)),
             ("scope", Some(&i.scope)),
@@ -357,18 +420,18 @@ fn insert_run(tx: &Connection, run: &RunRecord, dir: &str) -> rusqlite::Result<(
 fn insert_steps(tx: &Connection, run: &RunRecord, primary: &str) -> rusqlite::Result<()> {
     let m = &run.manifest;
     let id = run.run_id.as_str();
-    let mut step_q = tx.prepare(
+    let mut step_q = tx.prepare_cached(
         "INSERT INTO steps (run_id, step, algorithm, status, dir, measured_at, label, parameter,
            value, bandwidth_hz, waveform, error_m, truth_error_m, snr_db, width_3db_cm,
            sidelobe_db, missed, resolved, ber)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18,
            ?19)",
     )?;
-    let mut target_q = tx.prepare(
+    let mut target_q = tx.prepare_cached(
         "INSERT INTO targets (owner, step, algorithm, idx, range_m, level_db)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
     )?;
-    let mut capture_q = tx.prepare(
+    let mut capture_q = tx.prepare_cached(
         "INSERT INTO captures (dir, origin, run_id, step, measured_at, waveform, algorithm,
            scope_idn, simulated, radbench_version, targets, snr_db, summary_sha256)
          VALUES (?1, 'campaign', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)
@@ -468,7 +531,7 @@ fn insert_steps(tx: &Connection, run: &RunRecord, primary: &str) -> rusqlite::Re
 
 fn insert_run_assets(tx: &Connection, run: &RunRecord) -> rusqlite::Result<()> {
     let m = &run.manifest;
-    let mut q = tx.prepare(
+    let mut q = tx.prepare_cached(
         "INSERT INTO assets (path, owner, bytes, sha256, mtime_ns) VALUES (?1, ?2, ?3, ?4, NULL)
          ON CONFLICT (path) DO UPDATE SET owner = excluded.owner, bytes = excluded.bytes,
            sha256 = excluded.sha256, mtime_ns = NULL",
