@@ -7,13 +7,13 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The schema, plain SQL (docs/catalog.md documents it).
-pub const SCHEMA_SQL: &str = include_str!("schema.sql");
+pub(crate) const SCHEMA_SQL: &str = include_str!("schema.sql");
 
 /// The schema's version, in the `meta` table: a catalog of another version is rebuilt.
 pub(crate) const SCHEMA_VERSION: &str = "1";
 
 /// The catalog's file name in a runs folder.
-pub const CATALOG_FILE: &str = "catalog.sqlite";
+pub(crate) const CATALOG_FILE: &str = "catalog.sqlite";
 
 /// The default catalog: `runs/catalog.sqlite` (the folder radbench writes its runs in by default).
 pub fn default_catalog() -> PathBuf {

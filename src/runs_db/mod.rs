@@ -3,7 +3,7 @@
 //! instruments and files with their SHA-256. The folders stay the truth: the catalog is built
 //! from them (`radbench runs index`), kept up to date as the commands write them (off their
 //! path: [`Registrar`]) and can be deleted and rebuilt at any time. The schema is plain SQL
-//! ([`SCHEMA_SQL`], docs/catalog.md), for `sqlite3`, pandas or DuckDB as much as for `radbench
+//! (`src/runs_db/schema.sql`, docs/catalog.md), for `sqlite3`, pandas or DuckDB as much as for `radbench
 //! runs`.
 
 use crate::exit::{Classify, ExitClass};
@@ -15,10 +15,10 @@ pub(crate) mod query;
 pub(crate) mod record;
 pub(crate) mod register;
 
-pub use db::{default_catalog, CATALOG_FILE, SCHEMA_SQL};
+pub use db::default_catalog;
 pub use index::*;
 pub use query::*;
-pub use record::{metrics, run_id, METRIC_NAMES};
+pub use record::{run_id, METRIC_NAMES};
 pub use register::*;
 
 /// Why the catalog could not be read or written.

@@ -13,9 +13,9 @@ use std::path::Path;
 /// What `runs list` and `runs query` select runs by (every field optional, all must hold).
 #[derive(Debug, Clone, Default)]
 pub struct RunFilter {
-    /// Created at or after (RFC 3339 or `YYYY-MM-DD`).
+    /// Created at or after (as [`parse_time`] gives it).
     pub since: Option<String>,
-    /// Created before (RFC 3339 or `YYYY-MM-DD`: that day excluded... see [`day_bound`]).
+    /// Created before (as [`parse_time`] gives it: a day means its start, so it is excluded).
     pub until: Option<String>,
     /// The campaign's name (`accuracy`, ...) or its sweep's parameter (`position`, ...).
     pub kind: Option<String>,
@@ -72,17 +72,6 @@ impl Op {
             Op::Ge => ">=",
             Op::Eq => "=",
             Op::Ne => "<>",
-        }
-    }
-
-    pub fn holds(self, a: f64, b: f64) -> bool {
-        match self {
-            Op::Lt => a < b,
-            Op::Le => a <= b,
-            Op::Gt => a > b,
-            Op::Ge => a >= b,
-            Op::Eq => a == b,
-            Op::Ne => a != b,
         }
     }
 }

@@ -123,7 +123,7 @@ impl RunRecord {
 /// The figures `--where` and `trend` read, over every step of `results`: unprefixed over every
 /// algorithm (as the campaign's own summary), and `<algorithm>.<name>` for each algorithm alone.
 /// A figure no step has (no SNR for MUSIC, no truth on a real bench) is absent, never zero.
-pub fn metrics(results: &Results) -> BTreeMap<String, f64> {
+pub(crate) fn metrics(results: &Results) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     let mut names: Vec<&str> = results
         .steps
@@ -139,7 +139,7 @@ pub fn metrics(results: &Results) -> BTreeMap<String, f64> {
     out
 }
 
-/// Every metric name [`metrics`] can give (without an algorithm's prefix), for messages and docs.
+/// Every metric name a run can have (without an algorithm's prefix), for messages and docs.
 pub const METRIC_NAMES: [&str; 14] = [
     "steps",
     "max_abs_error_m",

@@ -14,9 +14,13 @@ use std::time::{Duration, Instant};
 /// How long one registration waits for another writer of the catalog.
 const BUSY: Duration = Duration::from_millis(200);
 
+/// The shortest time between two registrations while a command runs (a long campaign's
+/// manifest grows with its steps: registering it after every step would cost a core).
+const MIN_INTERVAL: Duration = Duration::from_secs(2);
+
 /// `RADBENCH_CATALOG`: the catalog the commands register into (`off`: none); without it, the
 /// `catalog.sqlite` beside the folder written (in its parent: the runs folder).
-pub const CATALOG_ENV: &str = "RADBENCH_CATALOG";
+pub(crate) const CATALOG_ENV: &str = "RADBENCH_CATALOG";
 
 /// Where the folder `dir` is registered, if anywhere.
 pub fn catalog_for(dir: &Path) -> Option<PathBuf> {
@@ -51,16 +55,23 @@ impl Registrar {
             .name("radbench-catalog".into())
             .spawn(move || {
                 let mut warnings = Vec::new();
-                while let Ok(first) = queue.recv() {
-                    // Folders queued meanwhile: each registered once, the latest state.
-                    let mut pending = vec![first];
-                    pending.extend(queue.try_iter());
-                    let mut folders: Vec<PathBuf> = Vec::new();
-                    for Job::Folder(d) in pending {
-                        if !folders.contains(&d) {
-                            folders.push(d);
+                let mut pending: Vec<PathBuf> = Vec::new();
+                let mut open = true;
+                while open || !pending.is_empty() {
+                    if pending.is_empty() {
+                        match queue.recv() {
+                            Ok(Job::Folder(d)) => pending.push(d),
+                            Err(_) => break,
                         }
                     }
+                    // Folders queued meanwhile: each registered once, in its latest state.
+                    for Job::Folder(d) in queue.try_iter() {
+                        pending.push(d);
+                    }
+                    let t = Instant::now();
+                    let mut folders = std::mem::take(&mut pending);
+                    folders.sort();
+                    folders.dedup();
                     for d in folders {
                         if let Err(e) = register_folder(&catalog, &d) {
                             warnings.push(format!(
@@ -71,6 +82,18 @@ impl Registrar {
                                 d.display(),
                                 d.parent().unwrap_or(Path::new(".")).display()
                             ));
+                        }
+                    }
+                    // At most a tenth of a core, and not more often than every MIN_INTERVAL,
+                    // while the command measures: what arrives meanwhile waits, unless the
+                    // command is ending (then at once).
+                    let rest = (t.elapsed() * 9).max(MIN_INTERVAL);
+                    let until = Instant::now() + rest;
+                    while open {
+                        match queue.recv_timeout(until.saturating_duration_since(Instant::now())) {
+                            Ok(Job::Folder(d)) => pending.push(d),
+                            Err(mpsc::RecvTimeoutError::Timeout) => break,
+                            Err(mpsc::RecvTimeoutError::Disconnected) => open = false,
                         }
                     }
                 }
@@ -109,7 +132,7 @@ impl Registrar {
 
 /// Registers one folder (a run or a capture, or a folder of captures such as `process`'s
 /// output) into `catalog`, with a short busy timeout.
-pub fn register_folder(catalog: &Path, dir: &Path) -> Result<(), RunsDbError> {
+pub(crate) fn register_folder(catalog: &Path, dir: &Path) -> Result<(), RunsDbError> {
     // Read first: a folder with nothing to register creates no catalog.
     if let Some(run) = read_run(dir)? {
         return super::index::write_run(&mut db::open(catalog, BUSY)?, &run).map(drop);
