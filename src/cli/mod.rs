@@ -122,7 +122,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trc(args) => trc::run(args, &global),
         Command::Recording(args) => recording::run(args, &global),
         Command::Waveform(args) => waveform::run(args, &global),
-        Command::Runs(args) => runs::run(args, &global),
+        Command::Runs(args) => runs::run(args),
     }
 }
 

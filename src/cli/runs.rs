@@ -131,7 +131,7 @@ pub struct TrendArgs {
     pub output: Output,
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let catalog = args.catalog.unwrap_or_else(runs_db::default_catalog);
     match args.command {
         Command::Index(a) => index(&catalog, a),
