@@ -449,26 +449,6 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn times_convert_to_days() {
-        assert_eq!(seconds("1970-01-01T00:00:00Z"), 0.0);
-        assert_eq!(seconds("1970-01-02T00:00:01.5Z"), 86_401.5);
-        let d = days_since("2026-12-01T00:00:00.000Z", "2026-12-05T12:00:00.000Z");
-        assert!((d - 4.5).abs() < 1e-9, "{d}");
-    }
-
-    #[test]
-    fn csv_quotes_what_needs_it() {
-        assert_eq!(csv_field("a,b"), "\"a,b\"");
-        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
-        assert_eq!(csv_field("plain"), "plain");
-    }
-}
-
 /// How long a command waits at its end for its registrations (they take milliseconds; a locked
 /// catalog gives up after its busy timeout): never longer.
 const SETTLE: std::time::Duration = std::time::Duration::from_secs(1);
@@ -546,5 +526,25 @@ impl radbench::campaign::Observer for Registering<'_> {
         if let Some(i) = self.inner.as_mut() {
             i.retrying(retry);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_convert_to_days() {
+        assert_eq!(seconds("1970-01-01T00:00:00Z"), 0.0);
+        assert_eq!(seconds("1970-01-02T00:00:01.5Z"), 86_401.5);
+        let d = days_since("2026-12-01T00:00:00.000Z", "2026-12-05T12:00:00.000Z");
+        assert!((d - 4.5).abs() < 1e-9, "{d}");
+    }
+
+    #[test]
+    fn csv_quotes_what_needs_it() {
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
+        assert_eq!(csv_field("plain"), "plain");
     }
 }

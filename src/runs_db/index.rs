@@ -174,7 +174,7 @@ pub fn index(catalog: &Path, roots: &[PathBuf]) -> Result<IndexReport, RunsDbErr
 }
 
 enum Read {
-    Run(RunRecord),
+    Run(Box<RunRecord>),
     /// A run indexed already as its files are (its id).
     Same(String),
     Capture(CaptureRecord),
@@ -208,7 +208,7 @@ fn read_run_unless_known(dir: &Path, known: &Known) -> Result<Option<Read>, Runs
             return Ok(Some(Read::Same(id.clone())));
         }
     }
-    Ok(read_run(dir)?.map(Read::Run))
+    Ok(read_run(dir)?.map(|r| Read::Run(Box::new(r))))
 }
 
 /// Folds the WAL back into the database file (best effort: a reader may hold it).

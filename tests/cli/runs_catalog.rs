@@ -256,6 +256,9 @@ fn walk(archive: &Path) -> Vec<Walked> {
         .collect()
 }
 
+/// Which runs a query should give, from the folders.
+type Keep = Box<dyn Fn(&Walked) -> bool>;
+
 fn queried(catalog: &str, args: &[&str], cwd: &Path) -> Vec<String> {
     let mut all = vec!["runs", "--catalog", catalog, "query", "--json"];
     all.extend_from_slice(args);
@@ -298,7 +301,7 @@ fn queries_give_what_walking_the_folders_gives() {
             .as_ref()
             .is_some_and(|i| i.scope.to_lowercase().contains(text))
     };
-    let cases: Vec<(Vec<&str>, Box<dyn Fn(&Walked) -> bool>)> = vec![
+    let cases: Vec<(Vec<&str>, Keep)> = vec![
         (vec![], Box::new(|_| true)),
         (
             vec!["--kind", "accuracy"],
