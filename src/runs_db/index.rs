@@ -52,7 +52,8 @@ pub(crate) enum Found {
     Capture(PathBuf),
 }
 
-/// The run folders (a `manifest.toml`) and capture folders (a `summary.json`) under `root`,
+/// The capture folders (a `summary.json`) and run folders (a `manifest.toml` without one) under
+/// `root`,
 /// `root` itself included, in name order. A run folder's steps are the run's (not listed).
 pub(crate) fn discover(root: &Path) -> Vec<Found> {
     let mut out = Vec::new();
@@ -61,12 +62,13 @@ pub(crate) fn discover(root: &Path) -> Vec<Found> {
 }
 
 fn walk(dir: &Path, depth: usize, out: &mut Vec<Found>) {
-    if dir.join(crate::campaign::MANIFEST_FILE).is_file() {
-        out.push(Found::Run(dir.to_path_buf()));
-        return;
-    }
+    // A summary first: `radbench process` writes a manifest of its own beside it.
     if dir.join(super::record::SUMMARY_FILE).is_file() {
         out.push(Found::Capture(dir.to_path_buf()));
+        return;
+    }
+    if dir.join(crate::campaign::MANIFEST_FILE).is_file() {
+        out.push(Found::Run(dir.to_path_buf()));
         return;
     }
     if depth >= MAX_DEPTH {

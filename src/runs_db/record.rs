@@ -232,7 +232,7 @@ fn mean(v: &[f64]) -> Option<f64> {
 #[derive(Debug, Clone)]
 pub(crate) struct CaptureRecord {
     pub dir: PathBuf,
-    /// `capture` or `process` (a folder with a `processed_from`/`source` reads as processed).
+    /// `capture` or `process`.
     pub origin: &'static str,
     pub summary: Value,
     pub summary_sha256: String,
@@ -251,7 +251,8 @@ pub(crate) fn read_capture(dir: &Path) -> Result<Option<CaptureRecord>, RunsDbEr
         path: path.clone(),
         reason: format!("not a summary.json radbench reads: {e}"),
     })?;
-    let origin = if summary.get("source").is_some() || summary.get("processed_from").is_some() {
+    // `radbench process` writes a manifest of its sources beside the summary.
+    let origin = if dir.join(crate::campaign::MANIFEST_FILE).is_file() {
         "process"
     } else {
         "capture"

@@ -133,25 +133,23 @@ impl Registrar {
 /// Registers one folder (a run or a capture, or a folder of captures such as `process`'s
 /// output) into `catalog`, with a short busy timeout.
 pub(crate) fn register_folder(catalog: &Path, dir: &Path) -> Result<(), RunsDbError> {
+    use super::index::Found;
     // Read first: a folder with nothing to register creates no catalog.
-    if let Some(run) = read_run(dir)? {
-        return super::index::write_run(&mut db::open(catalog, BUSY)?, &run).map(drop);
-    }
+    let mut runs = Vec::new();
     let mut captures = Vec::new();
-    match read_capture(dir)? {
-        Some(c) => captures.push(c),
-        None => {
-            for found in super::index::discover(dir) {
-                if let super::index::Found::Capture(d) = found {
-                    captures.extend(read_capture(&d)?);
-                }
-            }
+    for found in super::index::discover(dir) {
+        match found {
+            Found::Run(d) => runs.extend(read_run(&d)?),
+            Found::Capture(d) => captures.extend(read_capture(&d)?),
         }
     }
-    if captures.is_empty() {
+    if runs.is_empty() && captures.is_empty() {
         return Ok(());
     }
     let mut conn = db::open(catalog, BUSY)?;
+    for r in &runs {
+        super::index::write_run(&mut conn, r)?;
+    }
     for c in &captures {
         super::index::write_capture(&mut conn, c)?;
     }

@@ -436,3 +436,33 @@ fn queries_give_what_walking_the_folders_gives() {
     }
     assert_eq!(count_runs(&catalog), 120, "nothing was dropped");
 }
+
+#[test]
+fn capture_and_process_register_what_an_index_of_their_folders_gives() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    ok(&["capture", "--allow-rf", "--out", "runs/capture"], root);
+    ok(
+        &["process", "runs/capture", "--out", "runs/processed"],
+        root,
+    );
+    let catalog = root.join("runs/catalog.sqlite");
+    let registered = dump(&catalog);
+    let listed = ok(&["runs", "captures", "--json"], root);
+    let listed: Vec<serde_json::Value> = serde_json::from_str(&listed).unwrap();
+    let mut origins: Vec<&str> = listed
+        .iter()
+        .map(|c| c["origin"].as_str().unwrap())
+        .collect();
+    origins.sort();
+    assert_eq!(origins, ["capture", "process"], "{listed:?}");
+    assert!(registered.iter().any(|r| r.starts_with("assets:")));
+    // Rebuilt from the folders alone: the same rows.
+    std::fs::remove_file(&catalog).unwrap();
+    for side in ["catalog.sqlite-wal", "catalog.sqlite-shm"] {
+        let _ = std::fs::remove_file(root.join("runs").join(side));
+    }
+    let report = ok(&["runs", "index", "--json"], root);
+    assert!(report.contains("\"failed\":[]"), "{report}");
+    assert_eq!(dump(&catalog), registered);
+}
