@@ -5,6 +5,8 @@ import numpy as np
 import numpy.typing as npt
 
 from . import waveform as waveform
+from ._catalog import Catalog as Catalog
+from ._catalog import catalog as catalog
 from ._lab import MockLab as MockLab
 from .errors import InputError as InputError
 from .errors import InstrumentError as InstrumentError

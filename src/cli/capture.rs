@@ -299,6 +299,8 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         // A refused or failed capture leaves no empty folder behind (one with files stays).
         let _ = std::fs::remove_dir(&out);
     }
+    // Its files are durable: into the run catalog (bounded; never the command's error).
+    super::runs::register_now(&out);
     result
 }
 

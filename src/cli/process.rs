@@ -225,6 +225,10 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             Err(e) => failures.push((o.source, e)),
         }
     }
+    // Every output is durable and in place: into the run catalog (bounded; never the error).
+    if !done.is_empty() {
+        super::runs::register_now(&out);
+    }
     report(&args, &out, &done, &failures, elapsed)?;
     if failures.is_empty() {
         return Ok(());

@@ -39,6 +39,7 @@ mod other_protocol;
 mod pointing_errors;
 mod process_cli;
 mod readers_cli;
+mod runs_catalog;
 mod scenes;
 mod sequence_capture;
 mod simulate_cli;

@@ -61,6 +61,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "campaign", "exit", "measure", "simulate", "storage", "waveform",
         ],
     ),
+    // The run catalog (SQLite): reads run folders (campaign) and capture folders.
+    ("runs_db", &["campaign", "exit", "storage", "time"]),
     // From an error chain to its exit class: names every layer's error type.
     (
         "classify",
@@ -72,6 +74,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "dsp",
             "exit",
             "measure",
+            "runs_db",
             "session",
             "simulate",
             "storage",
