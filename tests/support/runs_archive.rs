@@ -112,6 +112,7 @@ pub fn write_run(dir: &Path, plans: &[Plan], seed: u64, i: u64) {
                         .map(|t| TargetResult {
                             range_m: t.range_m + error_m,
                             range_std_m: None,
+                            range_uncertainty_m: None,
                             level_db: -40.0,
                             on_grid_m: None,
                         })
