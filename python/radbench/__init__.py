@@ -9,6 +9,8 @@ the numbers are radbench's:
 - :func:`process` runs ``radbench process``'s pipeline on a capture or on samples and returns
   what its ``summary.json`` holds, with the profiles as numpy arrays;
 - :func:`captures` lists the captures ``radbench process`` would process in an archive;
+- :func:`catalog` opens the run catalog (``runs/catalog.sqlite``) and queries its runs and
+  captures (plain :mod:`sqlite3` over its documented schema);
 - :mod:`radbench.waveform` makes the transmitted waveforms and their AWG codes;
 - :class:`Bench` drives a bench (a bench file, or the built-in mock lab) as ``radbench capture``
   does, warm: connected once, the waveform and the pipeline kept between captures;
@@ -34,6 +36,7 @@ from . import _radbench
 from . import waveform
 from .errors import InputError, InstrumentError, ProcessingError, RadbenchError
 from ._lab import MockLab
+from ._catalog import Catalog, catalog
 
 if sys.version_info >= (3, 11):
     import tomllib as _toml
@@ -43,6 +46,7 @@ else:  # pragma: no cover - Python 3.9 and 3.10
 __all__ = [
     "Bench",
     "Capture",
+    "Catalog",
     "InputError",
     "InstrumentError",
     "MockLab",
@@ -53,6 +57,7 @@ __all__ = [
     "Run",
     "Step",
     "captures",
+    "catalog",
     "process",
     "read_capture",
     "read_run",

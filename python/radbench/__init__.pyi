@@ -6,6 +6,8 @@ import numpy.typing as npt
 
 from . import waveform as waveform
 from ._bench import Bench as Bench
+from ._catalog import Catalog as Catalog
+from ._catalog import catalog as catalog
 from ._lab import MockLab as MockLab
 from .errors import InputError as InputError
 from .errors import InstrumentError as InstrumentError

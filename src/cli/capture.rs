@@ -94,6 +94,23 @@ pub struct Args {
 // Shared with the Python package's warm session (one definition of each).
 pub(crate) use radbench::in_memory::{calibration_warnings, prepare_out, resolve_correction};
 
+/// A range with its standard uncertainty, to the uncertainty's first digit: `1.000037 m ± 0.8 µm`
+/// (`1.0002 m` at least four places; the range alone at four places without one).
+pub(crate) fn range_text(range_m: f64, std_m: Option<f64>) -> String {
+    let Some(std) = std_m.filter(|s| s.is_finite() && *s > 0.0) else {
+        return format!("{range_m:.4} m");
+    };
+    let places = (-std.log10()).floor().clamp(4.0, 9.0) as usize;
+    let u = if std < 10e-6 {
+        format!("{:.1} µm", std * 1e6)
+    } else if std < 1e-3 {
+        format!("{:.0} µm", std * 1e6)
+    } else {
+        format!("{:.2} mm", std * 1e3)
+    };
+    format!("{range_m:.places$} m ± {u}")
+}
+
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
 pub(crate) fn bench_source(
     bench: Option<&Path>,
@@ -182,6 +199,8 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         // A refused or failed capture leaves no empty folder behind (one with files stays).
         let _ = std::fs::remove_dir(&out);
     }
+    // Its files are durable: into the run catalog (bounded; never the command's error).
+    super::runs::register_now(&out);
     result
 }
 
@@ -204,6 +223,7 @@ async fn measure_into(
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
     options.system_delay_s = bench.file.system_delay_s();
+    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
     if let Some(w) = bench.file.uncalibrated_warning() {
         // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
         eprintln!("warning: {w}");
@@ -365,8 +385,9 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
                 .map(|v| format!("   {} m/s", radbench::measure::signed(v, 1)))
                 .unwrap_or_default();
             println!(
-                "  {:>9.4} m   {:>6.1} dB{moving}{spread}",
-                t.range_m, t.level_db
+                "  {:>9}   {:>6.1} dB{moving}{spread}",
+                range_text(t.range_m, t.range_std_m),
+                t.level_db
             );
         }
     }
@@ -424,4 +445,17 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
     }
     println!("files: {}", out.display());
     text.trim_end().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::range_text;
+
+    #[test]
+    fn a_range_is_printed_to_its_uncertainty() {
+        assert_eq!(range_text(1.000_037_2, Some(0.8e-6)), "1.000037 m ± 0.8 µm");
+        assert_eq!(range_text(1.000_237, Some(150e-6)), "1.0002 m ± 150 µm");
+        assert_eq!(range_text(2.5, Some(2e-3)), "2.5000 m ± 2.00 mm");
+        assert_eq!(range_text(2.5, None), "2.5000 m");
+    }
 }

@@ -62,6 +62,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "campaign", "catalog", "driver", "exit", "measure", "simulate", "storage", "waveform",
         ],
     ),
+    // The run catalog (SQLite): reads run folders (campaign) and capture folders.
+    ("runs_db", &["campaign", "exit", "storage", "time"]),
     // From an error chain to its exit class: names every layer's error type.
     (
         "classify",
@@ -73,6 +75,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "dsp",
             "exit",
             "measure",
+            "runs_db",
             "session",
             "simulate",
             "storage",
