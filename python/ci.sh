@@ -42,6 +42,21 @@ run_tests() {
 }
 run_tests "$WORK/test/bin/python"
 
+echo "python: the example notebook python/examples/bench.ipynb, executed headless (nbclient)"
+"$WORK/test/bin/python" -m pip install --quiet --disable-pip-version-check \
+    -r python/tests/requirements-notebook.txt
+(cd "$WORK" && "$WORK/test/bin/python" - "$ROOT/python/examples/bench.ipynb" <<'EOF'
+import sys
+
+import nbformat
+from nbclient import NotebookClient
+
+nb = nbformat.read(sys.argv[1], as_version=4)
+NotebookClient(nb, timeout=300, kernel_name="python3").execute()
+print(f"python: the notebook ran its {len(nb.cells)} cells")
+EOF
+)
+
 # The oldest Pythons the package supports (requires-python >= 3.9; the wheel is abi3-py39),
 # when this machine has them (on PATH or from pyenv): the same wheel and tests, with the newest
 # releases of the test tools that still install there.

@@ -45,6 +45,7 @@ fn registered_class(cause: &(dyn std::error::Error + 'static)) -> Option<ExitCla
         crate::measure::BenchFileError,
         crate::campaign::CampaignError,
         crate::campaign::SpecError,
+        crate::runs_db::RunsDbError,
     );
     None
 }

@@ -57,7 +57,8 @@
 //! | [`measure`] | 4 | the bench in use, each waveform family's room (`family`: overrides, transmission, payload decoder, algorithms; one `match` in `family::of`), the capture plan, capture under the safe-state guard, the one processing [`measure::Pipeline`] (with the receive correction), the chain's response calibration (measure, store, pre-distort), a capture's files, the bench doctor, the simulated bench's scene behind a typed seam (`set_scene`, `reseed`, `scene`) |
 //! | [`campaign`] | app | measurement campaigns: spec (TOML) -> plan -> run folder (manifest, steps, `results.json`, report; its identity checked before every write), the kinds (one table, `kind.rs`), the runner and its step jobs, positioners (commands in their own process group), resume, the thesis' lab chapter |
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
-//! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s own options parsed by the command line's clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]) and the processing choices deserialized into [`measure::ProcessingChoices`] (the type the command line and campaigns use), captures processed and read back, the transmission |
+//! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s own options parsed by the command line's clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]) and the processing choices deserialized into [`measure::ProcessingChoices`] (the type the command line and campaigns use), captures processed and read back, the transmission; the warm bench session ([`in_memory::BenchSession`]: `radbench.Bench`, captures and campaigns through `measure`'s rig and `campaign`'s runner, one session per bench) |
+//! | [`runs_db`] | app | the run catalog: one SQLite file indexing run and capture folders (runs, steps, captures, targets, calibrations, instruments, files with SHA-256), filled by `radbench runs index` and, off the measurement's path, by the commands that write the folders; queries, trends |
 //! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
 //!
 //! The binary (`src/main.rs`) holds what only the command line needs: `cli` (one module per
@@ -210,6 +211,7 @@ pub mod in_memory;
 pub mod measure;
 pub mod physics;
 pub mod rng;
+pub mod runs_db;
 pub mod session;
 pub mod simulate;
 pub mod storage;

@@ -126,7 +126,7 @@ impl BenchSource {
     }
 
     fn synthesise(&self, pb: &Playback, request: &AcquisitionRequest) -> Capture {
-        let scene = self.scene.snapshot();
+        let mut scene = self.scene.snapshot();
         let ch1 = pb.channel(1);
         let ch2 = pb.channel(2);
         let len = ch1.map_or(0, |c| c.samples.len());
@@ -183,6 +183,8 @@ impl BenchSource {
             }
             Err(e) => tracing::warn!(error = %e, "bench: no signal synthesised"),
         }
+        // The ground truth holds the simulated clock this capture was made at (the drift's).
+        scene.clock_s = synth.last_clock_s();
         drop(synth);
         self.scene.record_capture(scene);
         let rate = ch1.map_or(0.0, |c| c.sample_rate);

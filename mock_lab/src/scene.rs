@@ -130,6 +130,17 @@ pub struct Scene {
     pub chain: Chain,
     /// Seed of the noise and jitter generator (each capture advances it).
     pub seed: u64,
+    /// A fixed reference reflector (`[reference]`: a corner reflector on the table that never
+    /// moves), named so that radbench's phase ranging can take it as the time and phase
+    /// reference of every record; none by default.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<Target>,
+    /// The lab's simulated clock at this scene's first capture, seconds: the chain's drift
+    /// (`[chain] drift_ps_per_min`, `drift_deg_per_min`) is taken at it. In a capture's ground
+    /// truth: the clock at that capture.
+    pub clock_s: f64,
+    /// Simulated time between two captures, seconds (the clock advances by it per capture).
+    pub capture_interval_s: f64,
 }
 
 impl Default for Scene {
@@ -149,9 +160,16 @@ impl Default for Scene {
             impairments: Impairments::default(),
             chain: Chain::default(),
             seed: 1,
+            reference: None,
+            clock_s: 0.0,
+            capture_interval_s: DEFAULT_CAPTURE_INTERVAL_S,
         }
     }
 }
+
+/// Simulated time between two captures by default, seconds: a lab engineer's capture, look and
+/// next capture.
+const DEFAULT_CAPTURE_INTERVAL_S: f64 = 1.0;
 
 /// A scene file or change that cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -211,6 +229,18 @@ impl Scene {
         finite_in("trigger_jitter_s", self.trigger_jitter_s, 0.0, 1e-9)?;
         finite_in("leakage.amplitude", self.leakage.amplitude, 0.0, 10.0)?;
         finite_in("leakage.delay_s", self.leakage.delay_s, 0.0, 1e-6)?;
+        finite_in("clock_s", self.clock_s, 0.0, 1e9)?;
+        finite_in("capture_interval_s", self.capture_interval_s, 0.0, 1e6)?;
+        if let Some(r) = &self.reference {
+            finite_in("reference.range_m", r.range_m, 0.0, 150.0)?;
+            finite_in("reference.amplitude", r.amplitude, 0.0, 10.0)?;
+            if r.velocity_mps != 0.0 {
+                return Err(invalid(
+                    "reference.velocity_mps",
+                    "the reference reflector is fixed: 0 (or leave it out)",
+                ));
+            }
+        }
         for (list, name) in [(&self.targets, "targets"), (&self.clutter, "clutter")] {
             if list.len() > MAX_REFLECTORS {
                 return Err(invalid(
@@ -383,6 +413,11 @@ pub struct Synthesizer {
     lo_phase: Vec<Complex64>,
     lo_tx: Vec<Complex64>,
     lo_rx: Vec<Complex64>,
+    /// Captures synthesised so far: the simulated clock advances by the scene's
+    /// `capture_interval_s` per capture.
+    captures: u64,
+    /// The simulated clock of the last capture, seconds.
+    last_clock_s: f64,
 }
 
 impl Synthesizer {
@@ -400,7 +435,15 @@ impl Synthesizer {
             lo_phase: Vec::new(),
             lo_tx: Vec::new(),
             lo_rx: Vec::new(),
+            captures: 0,
+            last_clock_s: 0.0,
         }
+    }
+
+    /// The simulated clock of the last capture, seconds (the scene's `clock_s` plus
+    /// `capture_interval_s` per capture before it): what its ground truth records.
+    pub(crate) fn last_clock_s(&self) -> f64 {
+        self.last_clock_s
     }
 
     /// Restarts the noise and jitter generator from `seed`.
@@ -495,7 +538,7 @@ impl Synthesizer {
         setup: &CaptureSetup,
     ) -> Result<Capture, SceneError> {
         check_vertical(setup)?;
-        let (y, horiz_offset) = self.volts(
+        let (_, horiz_offset) = self.volts(
             scene,
             awg,
             front,
@@ -503,7 +546,11 @@ impl Synthesizer {
             setup.points,
             setup.trigger_offset_s,
         )?;
-        Ok(quantise(y, setup, horiz_offset, scene.clone()))
+        let truth = Scene {
+            clock_s: self.last_clock_s,
+            ..scene.clone()
+        };
+        Ok(quantise(&self.record, setup, horiz_offset, truth))
     }
 
     /// What the scope's inputs see (I + jQ in volts, before its ADC) for `points` samples at
@@ -523,6 +570,9 @@ impl Synthesizer {
         let l = awg.i.len();
         let up = (sample_rate / awg.sample_rate).round() as usize;
         let period = l * up;
+        let clock_s = scene.clock_s + self.captures as f64 * scene.capture_interval_s;
+        self.captures += 1;
+        self.last_clock_s = clock_s;
         let jitter = scene.trigger_jitter_s * self.rng.gaussian();
         let horiz_offset = first_point_s + jitter;
         // A timebase offset or an Rx skew samples between the grid's points: render a grid that
@@ -541,7 +591,7 @@ impl Synthesizer {
         y.resize(len, Complex64::new(0.0, 0.0));
         let gain = if awg.playing { front.path_gain() } else { 0.0 };
         if gain > 0.0 {
-            let paths = paths(scene, &chain);
+            let paths = paths(scene, &chain, clock_s);
             let linewidth = scene.impairments.phase_noise_linewidth_hz;
             if chain.shared_lo && linewidth > 0.0 {
                 let tx = ToGrid {
@@ -669,34 +719,40 @@ struct Path {
     phase_rad: f64,
 }
 
-fn paths(scene: &Scene, chain: &ChainParams) -> Vec<Path> {
-    let mut out = Vec::with_capacity(2 * scene.targets.len() + scene.clutter.len() + 1);
+/// Every path at `clock_s` on the simulated clock (the chain's drift taken there).
+fn paths(scene: &Scene, chain: &ChainParams, clock_s: f64) -> Vec<Path> {
+    let mut out = Vec::with_capacity(2 * scene.targets.len() + scene.clutter.len() + 2);
     let bounce = chain.multipath_ratio();
-    for (k, t) in scene.targets.iter().chain(&scene.clutter).enumerate() {
+    let (drift_s, drift_rad) = chain.drift_at(clock_s);
+    let system_delay_s = scene.system_delay_s + drift_s;
+    // The reference reflector is fixed clutter with a name: after the targets, so a target's
+    // second path keeps its index.
+    let fixed = scene.clutter.iter().chain(&scene.reference);
+    for (k, t) in scene.targets.iter().chain(fixed).enumerate() {
         let direct = Path {
-            delay_s: 2.0 * t.range_m / C0 + scene.system_delay_s,
+            delay_s: 2.0 * t.range_m / C0 + system_delay_s,
             amplitude: t.amplitude,
             carrier_hz: scene.carrier_hz,
             doppler_hz: -2.0 * t.velocity_mps * scene.carrier_hz / C0,
-            phase_rad: 0.0,
+            phase_rad: drift_rad,
         };
         out.push(direct);
         if bounce > 0.0 && k < scene.targets.len() {
             out.push(Path {
                 delay_s: direct.delay_s + chain.multipath_delay_s(),
                 amplitude: t.amplitude * bounce,
-                phase_rad: chain.multipath_phase_deg.to_radians(),
+                phase_rad: drift_rad + chain.multipath_phase_deg.to_radians(),
                 ..direct
             });
         }
     }
     if scene.leakage.amplitude > 0.0 {
         out.push(Path {
-            delay_s: scene.leakage.delay_s + scene.system_delay_s,
+            delay_s: scene.leakage.delay_s + system_delay_s,
             amplitude: scene.leakage.amplitude,
             carrier_hz: scene.carrier_hz,
             doppler_hz: 0.0,
-            phase_rad: 0.0,
+            phase_rad: drift_rad,
         });
     }
     out

@@ -9,7 +9,11 @@ the numbers are radbench's:
 - :func:`process` runs ``radbench process``'s pipeline on a capture or on samples and returns
   what its ``summary.json`` holds, with the profiles as numpy arrays;
 - :func:`captures` lists the captures ``radbench process`` would process in an archive;
+- :func:`catalog` opens the run catalog (``runs/catalog.sqlite``) and queries its runs and
+  captures (plain :mod:`sqlite3` over its documented schema);
 - :mod:`radbench.waveform` makes the transmitted waveforms and their AWG codes;
+- :class:`Bench` drives a bench (a bench file, or the built-in mock lab) as ``radbench capture``
+  does, warm: connected once, the waveform and the pipeline kept between captures;
 - :class:`MockLab` runs the simulated bench in-process on 127.0.0.1 for pyvisa scripts (and
   the ``mock_lab`` pytest fixture gives one to a test).
 
@@ -32,6 +36,7 @@ from . import _radbench
 from . import waveform
 from .errors import InputError, InstrumentError, ProcessingError, RadbenchError
 from ._lab import MockLab
+from ._catalog import Catalog, catalog
 
 if sys.version_info >= (3, 11):
     import tomllib as _toml
@@ -39,7 +44,9 @@ else:  # pragma: no cover - Python 3.9 and 3.10
     import tomli as _toml
 
 __all__ = [
+    "Bench",
     "Capture",
+    "Catalog",
     "InputError",
     "InstrumentError",
     "MockLab",
@@ -50,6 +57,7 @@ __all__ = [
     "Run",
     "Step",
     "captures",
+    "catalog",
     "process",
     "read_capture",
     "read_run",
@@ -225,6 +233,19 @@ class Processed:
     def profile(self) -> Optional[Profile]:
         return self.profiles[0] if self.profiles else None
 
+    def _repr_html_(self) -> str:
+        """Jupyter: the profile as inline SVG, the targets as a table."""
+        from ._html import processed_html
+
+        return processed_html(self)
+
+    def plot(self, ax: Any = None) -> Any:
+        """Draws the profiles (dB over range, targets marked) on ``ax``, or on a new figure's
+        axes; needs matplotlib (an optional dependency). Returns the axes."""
+        from ._html import plot
+
+        return plot(self, ax)
+
 
 def _option_text(value: Any) -> str:
     if isinstance(value, float):
@@ -352,6 +373,12 @@ class Run:
     def status(self) -> str:
         return self.manifest.get("status", "unknown")
 
+    def _repr_html_(self) -> str:
+        """Jupyter: the steps as a table (nominal and measured ranges)."""
+        from ._html import run_html
+
+        return run_html(self)
+
 
 #: The reason :func:`read_run` gives a ``running`` manifest that no process works on (as
 #: radbench's own readers do, docs/campaign.md "A status that never lies").
@@ -422,3 +449,6 @@ def read_run(path: PathLike, *, captures: bool = True) -> Run:
         steps=steps,
         results=_json_file(root / "results.json"),
     )
+
+
+from ._bench import Bench  # noqa: E402  (it uses the helpers above)

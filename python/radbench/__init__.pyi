@@ -5,6 +5,9 @@ import numpy as np
 import numpy.typing as npt
 
 from . import waveform as waveform
+from ._bench import Bench as Bench
+from ._catalog import Catalog as Catalog
+from ._catalog import catalog as catalog
 from ._lab import MockLab as MockLab
 from .errors import InputError as InputError
 from .errors import InstrumentError as InstrumentError
@@ -70,6 +73,8 @@ class Processed:
     def waveform(self) -> str: ...
     @property
     def profile(self) -> Optional[Profile]: ...
+    def _repr_html_(self) -> str: ...
+    def plot(self, ax: Any = ...) -> Any: ...
 
 class Step:
     index: int
@@ -86,6 +91,7 @@ class Run:
     results: Optional[Dict[str, Any]]
     @property
     def status(self) -> str: ...
+    def _repr_html_(self) -> str: ...
 
 def read_capture(path: Union[PathLike, Sequence[PathLike]]) -> Capture: ...
 STALE_REASON: str

@@ -8,6 +8,13 @@ your own pyvisa code runs against radbench's simulated bench with one argument::
 
 Each test gets a fresh bench (a :class:`radbench.MockLab`), stopped after it. The marker
 ``@pytest.mark.mock_lab(scene=..., scope_remote=...)`` passes its arguments to ``MockLab``.
+
+``radbench_bench`` is a :class:`radbench.Bench` (RF permitted: the bench is simulated) on that
+fresh ``mock_lab``, closed after the test::
+
+    def test_my_analysis(radbench_bench, mock_lab):
+        mock_lab.move(0, 2.0)
+        assert abs(radbench_bench.capture().ranges_m[0] - 2.0) < 0.01
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from typing import Iterator
 
 import pytest
 
+from ._bench import Bench
 from ._lab import MockLab
 
 
@@ -35,3 +43,11 @@ def mock_lab(request: pytest.FixtureRequest) -> Iterator[MockLab]:
     args = marker.args if marker else ()
     with MockLab(*args, **kwargs) as lab:
         yield lab
+
+
+@pytest.fixture
+def radbench_bench(mock_lab: MockLab) -> Iterator[Bench]:
+    """A warm :class:`radbench.Bench` on this test's ``mock_lab`` (RF permitted), closed after
+    it."""
+    with Bench(mock_lab, allow_rf=True) as bench:
+        yield bench

@@ -14,9 +14,11 @@ use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 use std::time::Duration;
 
+mod session;
+
 /// radbench's error as the Python exception of its exit class (`radbench.errors`), carrying
 /// radbench's message and its exit code.
-fn to_py(err: anyhow::Error) -> PyErr {
+pub(crate) fn to_py(err: anyhow::Error) -> PyErr {
     let code = radbench::classify(&err).code();
     py_error(code, radbench::exit::render(&err))
 }
@@ -54,7 +56,7 @@ fn complex<'py>(py: Python<'py>, v: Vec<Complex64>) -> Bound<'py, PyArray1<Compl
 }
 
 /// The arrays and JSON of one processing, as a dict for the Python layer.
-fn processed_dict<'py>(py: Python<'py>, done: InMemory) -> PyResult<Bound<'py, PyDict>> {
+pub(crate) fn processed_dict<'py>(py: Python<'py>, done: InMemory) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("summary_json", json_text(&done.summary))?;
     d.set_item(
@@ -157,6 +159,17 @@ fn read_capture<'py>(py: Python<'py>, files: Vec<PathBuf>) -> PyResult<Bound<'py
     Ok(d)
 }
 
+/// A waveform kind by its command-line name.
+pub(crate) fn waveform_kind(kind: &str) -> PyResult<WaveformKind> {
+    match kind {
+        "msk-lfm" => Ok(WaveformKind::MskLfm),
+        "ofdm" => Ok(WaveformKind::Ofdm),
+        other => Err(to_py(radbench::exit::bad_input(format!(
+            "waveform: {other:?}; msk-lfm or ofdm"
+        )))),
+    }
+}
+
 /// The waveform `radbench capture --waveform KIND OPTIONS` transmits, with its AWG codes.
 #[pyfunction]
 fn transmission<'py>(
@@ -164,15 +177,7 @@ fn transmission<'py>(
     kind: &str,
     options: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let kind = match kind {
-        "msk-lfm" => WaveformKind::MskLfm,
-        "ofdm" => WaveformKind::Ofdm,
-        other => {
-            return Err(to_py(radbench::exit::bad_input(format!(
-                "waveform: {other:?}; msk-lfm or ofdm"
-            ))))
-        }
-    };
+    let kind = waveform_kind(kind)?;
     let tx = py
         .detach(|| in_memory::transmission(kind, &options))
         .map_err(to_py)?;
@@ -339,6 +344,7 @@ fn _radbench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_capture, m)?)?;
     m.add_function(wrap_pyfunction!(transmission, m)?)?;
     m.add_class::<Lab>()?;
+    m.add_class::<session::Session>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -429,11 +429,16 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         volts_per_div: None,
         attenuation_db: None,
         rf_frequency_hz: None,
+        trigger_jitter_s: None,
     };
     BenchFile {
         catalog: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
-        scope: entry(scope.catalog_key(), planning_scope_resource(scope)),
+        scope: InstrumentEntry {
+            // The simulated scope's jitter is its scene's.
+            trigger_jitter_s: Some(scene.trigger_jitter_s),
+            ..entry(scope.catalog_key(), planning_scope_resource(scope))
+        },
         tx: Some(entry(BUILT_IN_MODELS[1], "ASRL/dev/null::INSTR")),
         rx: Some(entry(BUILT_IN_MODELS[2], "ASRL/dev/null::INSTR")),
         simulation: None,
@@ -1020,7 +1025,9 @@ fn processing(
         // model order is counted per step).
         let mut o = p.apply(ProcessOptions::default());
         o.algorithm = a;
-        o.system_delay_s = bench.bench_file().system_delay_s();
+        let file = bench.bench_file();
+        o.system_delay_s = file.system_delay_s();
+        o.trigger_jitter_s = file.scope.trigger_jitter_s;
         out.push(o);
     }
     Ok(out)

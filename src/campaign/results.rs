@@ -4,7 +4,8 @@
 //!
 //! ```json
 //! {"steps": [{"index": 1, "nominal": {...}, "repetitions": 1,
-//!   "algorithms": {"correlation": {"targets": [{"range_m", "range_std_m", "level_db", "on_grid_m"}],
+//!   "algorithms": {"correlation": {"targets": [{"range_m", "range_std_m", "range_uncertainty_m",
+//!     "level_db", "on_grid_m"}],
 //!     "width_3db_cm", "sidelobe_db", "snr_db", "error_m", "error_on_grid_m", "truth_error_m",
 //!     "truth_error_on_grid_m", "missed", "resolved", "payload",
 //!     "spread": {"width_3db_cm": {"mean", "std", "n"}, "sidelobe_db", "snr_db"}}},
@@ -140,6 +141,10 @@ pub struct TargetResult {
     pub range_m: f64,
     /// Standard deviation of the repetitions' own ranges (several repetitions only).
     pub range_std_m: Option<f64>,
+    /// The range's standard uncertainty (the detection's `range_std_m`: SNR, trigger jitter,
+    /// calibration; docs/metrology.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_uncertainty_m: Option<f64>,
     pub level_db: f64,
     /// The nearest profile cell (absent for the grid-free estimators).
     pub on_grid_m: Option<f64>,
@@ -270,6 +275,7 @@ fn target_results(p: &Processed, spread: Option<&Spread>) -> Vec<TargetResult> {
                 .and_then(|s| s.targets.get(k))
                 .and_then(|s| s.range)
                 .map(|r| r.std),
+            range_uncertainty_m: t.range_std_m,
             level_db: t.level_db,
             on_grid_m: t.on_grid_m,
         })
@@ -330,7 +336,7 @@ fn errors(
 pub(crate) const CSV_FILE: &str = "results.csv";
 
 /// The columns of `results.csv`, in order (docs/campaign.md says what each holds).
-pub(crate) const CSV_COLUMNS: [&str; 27] = [
+pub(crate) const CSV_COLUMNS: [&str; 28] = [
     "step",
     "label",
     "parameter",
@@ -343,6 +349,7 @@ pub(crate) const CSV_COLUMNS: [&str; 27] = [
     "truth_m",
     "range_m",
     "range_std_m",
+    "range_uncertainty_m",
     "on_grid_m",
     "level_db",
     "error_m",
@@ -497,6 +504,7 @@ pub(crate) fn to_csv(results: &Results) -> String {
                     num(row.truth),
                     num(range),
                     num(t.and_then(|t| t.range_std_m)),
+                    num(t.and_then(|t| t.range_uncertainty_m)),
                     num(grid),
                     num(t.map(|t| t.level_db)),
                     num(minus(range, row.nominal)),
@@ -598,6 +606,7 @@ mod tests {
         TargetResult {
             range_m,
             range_std_m: None,
+            range_uncertainty_m: None,
             level_db: -6.0,
             on_grid_m: Some(on_grid_m),
         }

@@ -53,6 +53,7 @@ mod tests {
         round_trip::<DetectorName>();
         round_trip::<CarrierPhase>();
         round_trip::<CorrectionMode>();
+        round_trip::<radbench::measure::Ranging>();
         let err = "pmcw".parse::<WaveformKind>().unwrap_err();
         assert!(err.contains("msk-lfm, ofdm"), "{err}");
     }

@@ -527,8 +527,10 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         }
     }
     let stop = interrupt.clone();
+    // The run catalog hears of each step after it is durable, on its own thread.
+    let mut registering = super::runs::Registering::new(Some(&mut printer), &out);
     let mut observer = super::live::LiveObserver {
-        inner: &mut printer,
+        inner: &mut registering,
         live: live.clone(),
     };
     let notify = notify_of(plan.notify.as_ref(), a.notify.as_deref(), &out);
@@ -546,6 +548,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         &mut observer,
     )
     .await;
+    registering.settle(finished.as_ref().ok().map(|f| f.dir.as_path()));
     live_end(live, finished, &stop, a.json, notify).await
 }
 
@@ -679,8 +682,9 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         super::live::send(live.as_ref(), crate::live::Event::Log("warning", w));
     }
     let stop = interrupt.clone();
+    let mut registering = super::runs::Registering::new(Some(&mut printer), &a.run_dir);
     let mut observer = super::live::LiveObserver {
-        inner: &mut printer,
+        inner: &mut registering,
         live: live.clone(),
     };
     let finished = match campaign::resume(
@@ -711,6 +715,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         }
         other => other,
     };
+    registering.settle(Some(&a.run_dir));
     live_end(live, finished, &stop, a.json, notify).await
 }
 

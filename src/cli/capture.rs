@@ -91,56 +91,24 @@ pub struct Args {
     pub live: super::live::LiveArgs,
 }
 
-/// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
-pub(crate) fn resolve_correction(
-    correction: Option<CorrectionMode>,
-    calibration: Option<&Path>,
-    bench: &radbench::measure::Bench,
-) -> anyhow::Result<Option<radbench::measure::Calibration>> {
-    use radbench::measure::Calibration;
-    let named = calibration.map(Path::to_path_buf).or_else(|| {
-        bench
-            .path
-            .as_ref()
-            .and_then(|p| bench.file.response_path(p))
-    });
-    match (correction, named) {
-        (Some(CorrectionMode::None), _) => Ok(None),
-        (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
-        (Some(mode), None) => Err(radbench::exit::bad_input(format!(
-            "--correction {} needs a response calibration: the bench file names none; run \
-             `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \
-             --calibration FILE",
-            mode.name()
-        ))),
-        (None, None) => Ok(None),
-    }
-}
+// Shared with the Python package's warm session (one definition of each).
+pub(crate) use radbench::in_memory::{calibration_warnings, prepare_out, resolve_correction};
 
-/// Warnings about a calibration used on this bench: other instruments than it was measured with.
-pub(crate) fn calibration_warnings(
-    cal: &radbench::measure::Calibration,
-    identities: &radbench::measure::Identities,
-) -> Vec<String> {
-    let seen = &cal.header.instruments;
-    let mut out = Vec::new();
-    for (what, then, now) in [
-        ("AWG", Some(&seen.awg), Some(&identities.awg)),
-        ("scope", Some(&seen.scope), Some(&identities.scope)),
-        ("Tx", seen.tx.as_ref(), identities.tx.as_ref()),
-        ("Rx", seen.rx.as_ref(), identities.rx.as_ref()),
-    ] {
-        if then != now {
-            out.push(format!(
-                "the response calibration {} was measured with the {what} {:?}, this capture \
-                 used {:?}: measure it again on this bench (`radbench calibrate response`)",
-                cal.path.display(),
-                then.map_or("none", |s| s.as_str()),
-                now.map_or("none", |s| s.as_str()),
-            ));
-        }
-    }
-    out
+/// A range with its standard uncertainty, to the uncertainty's first digit: `1.000037 m ± 0.8 µm`
+/// (`1.0002 m` at least four places; the range alone at four places without one).
+pub(crate) fn range_text(range_m: f64, std_m: Option<f64>) -> String {
+    let Some(std) = std_m.filter(|s| s.is_finite() && *s > 0.0) else {
+        return format!("{range_m:.4} m");
+    };
+    let places = (-std.log10()).floor().clamp(4.0, 9.0) as usize;
+    let u = if std < 10e-6 {
+        format!("{:.1} µm", std * 1e6)
+    } else if std < 1e-3 {
+        format!("{:.0} µm", std * 1e6)
+    } else {
+        format!("{:.2} mm", std * 1e3)
+    };
+    format!("{range_m:.places$} m ± {u}")
 }
 
 /// The bench of `--bench`, or the built-in lab with `--scene` and the transports.
@@ -191,57 +159,6 @@ pub(crate) fn journal(
     })
 }
 
-/// Checks the output folder before anything radiates: a new or empty folder is created and
-/// written to; one that holds files needs `force` (the files it holds are listed in the message,
-/// or printed as replaced). A file, or a folder that cannot be written, is bad input.
-pub(crate) fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
-    if out.exists() && !out.is_dir() {
-        return Err(bad_input(format!(
-            "--out {}: is a file; give a folder (it is created when missing)",
-            out.display()
-        )));
-    }
-    if out.is_dir() {
-        let mut held: Vec<String> = std::fs::read_dir(out)
-            .map_err(|e| bad_input(format!("--out {}: cannot read it: {e}", out.display())))?
-            .filter_map(Result::ok)
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|n| !n.starts_with('.'))
-            .collect();
-        held.sort();
-        if !held.is_empty() {
-            let list = held.join(", ");
-            if !force {
-                return Err(bad_input(format!(
-                    "--out {}: holds files already ({list}); give a new folder, or --force to \
-                     replace them",
-                    out.display()
-                )));
-            }
-            eprintln!(
-                "--force: files in {} are replaced where this capture writes the same names ({list})",
-                out.display()
-            );
-        }
-    }
-    std::fs::create_dir_all(out)
-        .map_err(|e| bad_input(format!("--out {}: cannot create it: {e}", out.display())))?;
-    // A folder that cannot be written must not cost a capture: try before RF goes on.
-    let probe = out.join(format!(".radbench-write-probe-{}", std::process::id()));
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-        .and_then(|_| std::fs::remove_file(&probe))
-        .map_err(|e| {
-            bad_input(format!(
-                "--out {}: cannot write into it: {e}",
-                out.display()
-            ))
-        })?;
-    Ok(())
-}
-
 /// The default output folder: `runs/<UTC time>-<name>`.
 pub(crate) fn default_out(name: &str) -> PathBuf {
     let stamp = radbench::storage::utc_now_rfc3339()
@@ -282,6 +199,8 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         // A refused or failed capture leaves no empty folder behind (one with files stays).
         let _ = std::fs::remove_dir(&out);
     }
+    // Its files are durable: into the run catalog (bounded; never the command's error).
+    super::runs::register_now(&out);
     result
 }
 
@@ -304,6 +223,7 @@ async fn measure_into(
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
     options.system_delay_s = bench.file.system_delay_s();
+    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
     if let Some(w) = bench.file.uncalibrated_warning() {
         // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
         eprintln!("warning: {w}");
@@ -465,8 +385,9 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
                 .map(|v| format!("   {} m/s", radbench::measure::signed(v, 1)))
                 .unwrap_or_default();
             println!(
-                "  {:>9.4} m   {:>6.1} dB{moving}{spread}",
-                t.range_m, t.level_db
+                "  {:>9}   {:>6.1} dB{moving}{spread}",
+                range_text(t.range_m, t.range_std_m),
+                t.level_db
             );
         }
     }
@@ -524,4 +445,17 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
     }
     println!("files: {}", out.display());
     text.trim_end().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::range_text;
+
+    #[test]
+    fn a_range_is_printed_to_its_uncertainty() {
+        assert_eq!(range_text(1.000_037_2, Some(0.8e-6)), "1.000037 m ± 0.8 µm");
+        assert_eq!(range_text(1.000_237, Some(150e-6)), "1.0002 m ± 150 µm");
+        assert_eq!(range_text(2.5, Some(2e-3)), "2.5000 m ± 2.00 mm");
+        assert_eq!(range_text(2.5, None), "2.5000 m");
+    }
 }

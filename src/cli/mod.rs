@@ -26,6 +26,7 @@ pub(crate) mod process;
 pub(crate) mod progress;
 pub(crate) mod recording;
 pub(crate) mod repeat;
+pub(crate) mod runs;
 pub(crate) mod scope_model;
 pub(crate) mod scpi;
 pub(crate) mod simulate;
@@ -90,6 +91,9 @@ pub enum Command {
     Waveform(waveform::Args),
     /// Show a SigMF recording: datatype, rate, samples, statistics, radbench's metadata.
     Recording(recording::Args),
+    /// The run catalog (one SQLite file): index run and capture folders, list, show, query,
+    /// captures, a metric's trend (docs/catalog.md).
+    Runs(runs::Args),
 }
 
 /// Options every subcommand can see.
@@ -118,6 +122,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trc(args) => trc::run(args, &global),
         Command::Recording(args) => recording::run(args, &global),
         Command::Waveform(args) => waveform::run(args, &global),
+        Command::Runs(args) => runs::run(args),
     }
 }
 

@@ -225,6 +225,10 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             Err(e) => failures.push((o.source, e)),
         }
     }
+    // Every output is durable and in place: into the run catalog (bounded; never the error).
+    if !done.is_empty() {
+        super::runs::register_now(&out);
+    }
     report(&args, &out, &done, &failures, elapsed)?;
     if failures.is_empty() {
         return Ok(());
@@ -317,8 +321,8 @@ pub(super) fn target_ranges(targets: &serde_json::Value) -> Vec<String> {
         .as_array()
         .map(|t| {
             t.iter()
-                .filter_map(|x| x["range_m"].as_f64())
-                .map(|r| format!("{r:.4} m"))
+                .filter_map(|x| Some((x["range_m"].as_f64()?, x["range_std_m"].as_f64())))
+                .map(|(r, s)| super::capture::range_text(r, s))
                 .collect()
         })
         .unwrap_or_default()

@@ -26,6 +26,7 @@ impl Classify for DspError {
 }
 
 pub(crate) mod ambiguity;
+pub(crate) mod carrier_phase;
 pub(crate) mod chain_echoes;
 pub(crate) mod correlate;
 pub(crate) mod decimate;

@@ -9,6 +9,22 @@ use crate::exit::{bad_input, did_you_mean, Classified, Classify};
 use crate::measure::{MeasureError, ModelOrderChoice, ProcessingChoices};
 use serde_json::{Map, Value};
 
+/// A command-line parse error on one line: what is wrong and what is allowed (clap's possible
+/// values and tips), without its usage and `--help` lines.
+pub(super) fn parse_error(e: &clap::Error) -> anyhow::Error {
+    let text = e.to_string();
+    let parts: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
+        .map(|l| l.trim_start_matches("error: "))
+        .collect();
+    if parts.is_empty() {
+        return bad_input("invalid options");
+    }
+    bad_input(parts.join("; "))
+}
+
 /// Keywords of the command line's flags that choose the off state, as the choice they make.
 const FLAG_KEYWORDS: [(&str, &str); 2] = [
     ("forward_only", "forward_backward"),

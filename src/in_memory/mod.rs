@@ -6,7 +6,9 @@
 //!   as `radbench process` processes it, its `summary.json` returned with the arrays behind it;
 //! - [`captures`]: the captures `radbench process INPUT...` would process, with its folder names;
 //! - [`read_capture`]: a capture's repetitions in volts, decimated and aligned, its metadata;
-//! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes.
+//! - [`transmission`]: the waveform `radbench capture --waveform KIND` makes, with its AWG codes;
+//! - [`BenchSession`]: a warm session on a bench (`radbench.Bench`): captures as `radbench
+//!   capture` takes them ([`CaptureOptions`]), connections, upload and pipeline kept between them.
 //!
 //! The options are parsed by the same clap definitions the command line flattens into its
 //! commands ([`ProcessArgs`], [`WaveformArgs`], [`PayloadArgs`]); `radbench process` also
@@ -16,37 +18,30 @@
 //! its exit class).
 
 mod batch;
+mod bench;
+mod bench_lock;
+mod capture_call;
 mod keywords;
 mod options;
+mod processed;
 
 use batch::on_cached_pipeline;
 pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
+pub use bench::{BenchSession, Call, CampaignEvents, CampaignSpec, SessionSource};
+pub use capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
+pub use processed::InMemory;
+
+use keywords::parse_error;
 
 use crate::exit::bad_input;
 use crate::measure::reprocess::{self, Loaded, Source, WaveformChoice};
 use crate::measure::ProcessOverrides;
-use crate::measure::{Aligned, Dac, MeasureError, ProcessOptions, Processed, RawIq, Transmission};
+use crate::measure::{Aligned, Dac, MeasureError, RawIq, Transmission};
 use crate::waveform::WaveformKind;
 use clap::Parser;
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
-
-/// A command-line parse error on one line: what is wrong and what is allowed (clap's possible
-/// values and tips), without its usage and `--help` lines.
-fn parse_error(e: &clap::Error) -> anyhow::Error {
-    let text = e.to_string();
-    let parts: Vec<&str> = text
-        .lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
-        .map(|l| l.trim_start_matches("error: "))
-        .collect();
-    if parts.is_empty() {
-        return bad_input("invalid options");
-    }
-    bad_input(parts.join("; "))
-}
 
 /// The options of `radbench process` that processing in memory refuses (nothing is written).
 const REFUSED_IN_MEMORY: [&str; 4] = ["--out", "--jobs", "--json", "--reference-range"];
@@ -134,15 +129,6 @@ pub struct ProcessRequest {
     overrides: ProcessOverrides,
     /// The option names to write as keywords in errors (`ProcessRequest::parse_keywords`).
     keywords: Option<Vec<String>>,
-}
-
-/// One capture (or record of samples) processed: `summary.json` as `radbench process` writes it
-/// (but `files`), the arrays behind it and every option used.
-#[derive(Debug, Clone)]
-pub struct InMemory {
-    pub summary: Value,
-    pub processed: Processed,
-    pub options: ProcessOptions,
 }
 
 impl ProcessRequest {

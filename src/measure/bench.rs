@@ -133,6 +133,7 @@ impl Bench {
             }
             BenchSource::BuiltIn(b) => {
                 let nominal_delay = b.scene.system_delay_s;
+                let jitter = b.scene.trigger_jitter_s;
                 let remote = match b.scope {
                     ScopeLink::Vicp => RemoteInterface::Vicp,
                     ScopeLink::Vxi11 => RemoteInterface::Vxi11,
@@ -160,6 +161,8 @@ impl Bench {
                 )?;
                 // The simulated bench's cables are known exactly: its nominal delay is its
                 // calibration.
+                // ... and its scope's trigger jitter is its scene's.
+                file.scope.trigger_jitter_s = Some(jitter);
                 file.calibration = Some(BenchCalibration {
                     system_delay_s: nominal_delay,
                     reference_range_m: None,

@@ -12,6 +12,7 @@
 //! driver = "lecroy-maui"                          # optional: checked against the catalog
 //! resource = "VICP::192.168.1.30"
 //! volts_per_div = 0.05                            # optional, both channels
+//! trigger_jitter_s = 1e-12                        # optional: RMS, data sheet (1 ps if not given)
 //!
 //! [tx]                                            # optional: without it, no Tx is driven
 //! model = "gotmic-eband-tx"
@@ -57,6 +58,10 @@ pub struct InstrumentEntry {
     /// Front ends only: attenuation once enabled, dB.
     #[serde(default)]
     pub attenuation_db: Option<f64>,
+    /// Scope only: its RMS trigger jitter, seconds, from its data sheet (or measured): every
+    /// range's uncertainty carries it (docs/metrology.md; 1 ps when not stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger_jitter_s: Option<f64>,
     /// Manual front ends only: the RF frequency the operator sets, Hz (default 80 GHz).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rf_frequency_hz: Option<f64>,
@@ -198,6 +203,7 @@ impl BenchFile {
                 "volts_per_div",
                 "attenuation_db",
                 "rf_frequency_hz",
+                "trigger_jitter_s",
                 "system_delay_s",
                 "control",
             ] {
@@ -270,6 +276,17 @@ impl BenchFile {
                         &format!("{section}.volts_per_div"),
                         format!(
                             "[{section}] volts_per_div = {v}: must be a positive number of volts"
+                        ),
+                    ));
+                }
+            }
+            if let Some(j) = entry.trigger_jitter_s {
+                if !(j.is_finite() && (0.0..=1e-9).contains(&j)) {
+                    return Err(invalid_at(
+                        &format!("{section}.trigger_jitter_s"),
+                        format!(
+                            "[{section}] trigger_jitter_s = {j}: must be an RMS jitter in \
+                             seconds, 0 ..= 1e-9 (a scope's is 0.1e-12 .. 2e-12)"
                         ),
                     ));
                 }
@@ -412,7 +429,7 @@ impl BenchFile {
     }
 
     /// The response calibration the bench file names, relative to `bench_path`'s folder.
-    pub fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
+    pub(crate) fn response_path(&self, bench_path: &Path) -> Option<PathBuf> {
         let name = self.calibration.as_ref()?.response.as_ref()?;
         Some(bench_path.parent().unwrap_or(Path::new(".")).join(name))
     }

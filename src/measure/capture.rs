@@ -791,6 +791,43 @@ pub async fn take(
     Ok((taken, prepared))
 }
 
+/// [`prepare`] on a connected rig, as [`take`] prepares a one-shot capture: the waveform is
+/// uploaded while the pipeline is built (a warm session's first capture of a request). Without
+/// a rig, or with a background (checked before anything is sent), the pipeline alone is built.
+/// When the upload or the build fails after the upload began, the rig is gone (`None`: its
+/// connections dropped, the bench in its safe state as [`build_while_uploading`] leaves it).
+pub(crate) async fn prepare_uploading(
+    bench: &Bench,
+    catalog: &Catalog,
+    request: &CaptureRequest,
+    rig: &mut Option<Rig>,
+    repetitions: usize,
+    interrupt: &Interrupt,
+) -> Result<Prepared, MeasureError> {
+    let planned = plan_request(bench, catalog, request).await?;
+    match rig.take() {
+        Some(connected) if request.background.is_none() => {
+            let segments = planned.plan.sequence_segments(repetitions);
+            let (built, connected) = build_while_uploading(
+                build_pipeline(&planned, request),
+                async { Ok(connected) },
+                &planned.tx,
+                &planned.plan,
+                segments,
+                interrupt,
+            )
+            .await?;
+            *rig = Some(connected);
+            Ok(planned.with(built))
+        }
+        other => {
+            *rig = other;
+            let built = build_pipeline(&planned, request).await?;
+            Ok(planned.with(built))
+        }
+    }
+}
+
 /// Connects, then uploads the waveform, while the pipeline is built: the instruments' round
 /// trips and the pipeline's computing overlap. Nothing here radiates: connecting sends no RF
 /// command, the upload configures the AWG and the scope with the outputs left off, and RF goes

@@ -13,7 +13,9 @@
 #![allow(rustdoc::broken_intra_doc_links)]
 
 use super::listed::listed;
-use super::options::{Algorithm, DetectorName, FftPrecisionName, ProcessOptions, WindowName};
+use super::options::{
+    Algorithm, DetectorName, FftPrecisionName, ProcessOptions, Ranging, WindowName,
+};
 use super::response::{CorrectionMode, CorrectionUsed};
 use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
@@ -96,6 +98,12 @@ pub struct ProcessingChoices {
     #[arg(long, value_name = "DB", allow_hyphen_values = true)]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chain_floor_db: Option<f64>,
+    /// How each target's range is measured: envelope (the echo's envelope), or phase: refined by
+    /// the echo's carrier phase against the calibration's reference, to a fraction of a
+    /// micrometre (docs/metrology.md; needs a response calibration) [default: envelope].
+    #[arg(long, value_parser = listed::<Ranging>(), value_name = "MODE")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ranging: Option<Ranging>,
     /// Ignore detections closer than this (the Tx -> Rx leakage sits near 0 m), metres
     /// [default: 0.15].
     #[arg(long = "min-range", value_name = "METRES", allow_hyphen_values = true)]
@@ -163,6 +171,7 @@ impl ProcessingChoices {
             pfa,
             min_separation_m,
             chain_floor_db,
+            ranging,
             min_range_m,
             max_range_m,
             correction: _,
@@ -186,6 +195,7 @@ impl ProcessingChoices {
             pfa: pfa.unwrap_or(base.pfa),
             min_separation_m: min_separation_m.or(base.min_separation_m),
             chain_floor_db: chain_floor_db.unwrap_or(base.chain_floor_db),
+            ranging: ranging.unwrap_or(base.ranging),
             min_range_m: min_range_m.unwrap_or(base.min_range_m),
             max_range_m: max_range_m.unwrap_or(base.max_range_m),
             ..base
@@ -220,6 +230,8 @@ impl ProcessingChoices {
             carrier_hz: _,
             awg_amplitude_vpp: _,
             correction: _,
+            ranging,
+            trigger_jitter_s: _,
         } = options.clone();
         Self {
             algorithm: Some(algorithm),
@@ -235,6 +247,7 @@ impl ProcessingChoices {
             pfa: Some(pfa),
             min_separation_m,
             chain_floor_db: Some(chain_floor_db),
+            ranging: Some(ranging),
             min_range_m: Some(min_range_m),
             max_range_m: Some(max_range_m),
             correction: None,
@@ -261,6 +274,7 @@ impl ProcessingChoices {
         "min_separation_m",
         "min_separation",
         "chain_floor_db",
+        "ranging",
         "min_range_m",
         "min_range",
         "max_range_m",
@@ -424,7 +438,7 @@ mod tests {
         for n in &names {
             assert!(ProcessingChoices::KEYS.contains(n), "{n} missing from KEYS");
         }
-        assert_eq!(names.len(), 17);
+        assert_eq!(names.len(), 18);
     }
 
     #[test]

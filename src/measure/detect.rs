@@ -19,6 +19,10 @@ use serde::Serialize;
 pub struct Detection {
     /// Range from the antennas, m (sub-sample interpolated unless `--no-interpolation`).
     pub range_m: f64,
+    /// Its standard uncertainty, m: the SNR's, the trigger jitter left, the calibration's
+    /// (`measure::ranging`, docs/metrology.md); absent where the SNR is unknown.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_std_m: Option<f64>,
     /// Echo amplitude relative to a unit-gain path from AWG output to scope input, dB.
     pub level_db: f64,
     /// Height above the detection threshold, dB (absent for the subspace estimators).
@@ -76,6 +80,10 @@ pub struct DetectionReport {
     /// subtracted, as an amplitude (empty for the subspace estimators): the threshold applies to
     /// it.
     pub residual: Vec<f64>,
+    /// The same residual as complex values and the profile's axis: phase ranging seeks the
+    /// leakage in it (CLEAN keeps a weak one as part of a strong target's response).
+    pub(crate) residual_complex: Vec<Complex64>,
+    pub(crate) axis: Option<crate::dsp::Axis>,
     /// Noise power per profile cell, dB (on the profile's scale).
     pub noise_db: Option<f64>,
     /// The detector stopped at its most targets: there may be more.
@@ -153,6 +161,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
     let on_grid = start + t.cell.round() * axis_step;
     Detection {
         range_m: if interpolate { t.range_m } else { on_grid },
+        range_std_m: None,
         level_db: t.level_db,
         above_threshold_db: Some(t.above_threshold_db),
         on_grid_m: Some(on_grid),
@@ -186,6 +195,7 @@ pub(crate) fn detect(
                 .filter(|r| window.contains(*r))
                 .map(|&range_m| Detection {
                     range_m,
+                    range_std_m: None,
                     level_db: level_at(levels, range_m),
                     above_threshold_db: None,
                     on_grid_m: None,
@@ -214,6 +224,8 @@ pub(crate) fn detect(
                 outside: found.outside.iter().map(convert).collect(),
                 threshold: found.threshold,
                 residual: found.residual.iter().map(|v| v.norm()).collect(),
+                residual_complex: found.residual,
+                axis: Some(axis),
                 noise_db: found.noise_power.map(|p| 10.0 * p.max(1e-300).log10()),
                 capped: found.capped,
                 strongest: None,

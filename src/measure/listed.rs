@@ -2,7 +2,7 @@
 //! of them ([`listed`]): one spelling per value, its `FromStr` and a line of help.
 
 use super::bench::{AwgLink, ScopeLink, ScopeModel};
-use super::options::{Algorithm, DetectorName, FftPrecisionName, WindowName};
+use super::options::{Algorithm, DetectorName, FftPrecisionName, Ranging, WindowName};
 use super::response::CorrectionMode;
 use crate::waveform::WaveformKind;
 
@@ -119,6 +119,18 @@ impl Listed for CorrectionMode {
     }
     fn about(self) -> &'static str {
         CorrectionMode::about(self)
+    }
+}
+
+impl Listed for Ranging {
+    fn all() -> &'static [Self] {
+        &Ranging::ALL
+    }
+    fn name(self) -> &'static str {
+        Ranging::name(self)
+    }
+    fn about(self) -> &'static str {
+        Ranging::about(self)
     }
 }
 

@@ -50,6 +50,7 @@ pub(crate) mod payload;
 pub(crate) mod pipeline;
 #[cfg(test)]
 mod predistortion_tests;
+pub(crate) mod ranging;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;

@@ -269,6 +269,48 @@ impl DetectorName {
 
 named_enum!(DetectorName, "detector");
 
+/// How each target's range is measured (docs/metrology.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ranging {
+    /// The echo's envelope: the fitted position of its point spread (default).
+    #[default]
+    Envelope,
+    /// The envelope refined by the echo's carrier phase against the calibrated reference's,
+    /// with a reference in the same record (the Tx -> Rx leakage) taking out the trigger's jitter.
+    Phase,
+}
+
+impl Ranging {
+    /// Every value.
+    pub const ALL: [Ranging; 2] = [Ranging::Envelope, Ranging::Phase];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Ranging::Envelope => "envelope",
+            Ranging::Phase => "phase",
+        }
+    }
+
+    /// One line on the value (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            Ranging::Envelope => "The echo's envelope (default)",
+            Ranging::Phase => {
+                "The envelope refined by the carrier phase against the calibration's reference \
+                 (needs a response calibration)"
+            }
+        }
+    }
+
+    /// Serde's `skip_serializing_if`: the default is not written (summaries stay as they were).
+    pub(crate) fn is_envelope(&self) -> bool {
+        *self == Ranging::Envelope
+    }
+}
+
+named_enum!(Ranging, "ranging");
+
 /// Largest OFDM zero-padding factor accepted (1000 x 128 subcarriers = 128 000 range bins).
 pub(crate) const MAX_ZERO_PAD: usize = 1000;
 
@@ -318,6 +360,14 @@ pub struct ProcessOptions {
     pub awg_amplitude_vpp: Option<f64>,
     /// The receive correction applied, and the calibration it came from (`None`: uncorrected).
     pub correction: Option<super::response::CorrectionUsed>,
+    /// How each target's range is measured (`envelope` is not written).
+    #[serde(skip_serializing_if = "Ranging::is_envelope")]
+    pub ranging: Ranging,
+    /// The scope's RMS trigger jitter as the bench file states it (`[scope] trigger_jitter_s`),
+    /// seconds; `None`: not stated, a typical scope's is assumed
+    /// (`ranging::TYPICAL_TRIGGER_JITTER_S`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trigger_jitter_s: Option<f64>,
 }
 
 impl Default for ProcessOptions {
@@ -341,6 +391,8 @@ impl Default for ProcessOptions {
             carrier_hz: 80e9,
             awg_amplitude_vpp: None,
             correction: None,
+            ranging: Ranging::Envelope,
+            trigger_jitter_s: None,
         }
     }
 }

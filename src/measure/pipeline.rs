@@ -19,6 +19,7 @@ use super::clipping::{self, Clipping, RecordClipping, ScopeAdc};
 use super::detect;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
+use super::ranging::RangingModel;
 use super::transmit::Transmission;
 use super::MeasureError;
 use crate::dsp::decimate::{Samples, ScaledWords};
@@ -226,6 +227,33 @@ fn echo_spectrum(reference: &[Complex64], filter: &[Complex64]) -> Vec<Complex64
     fft.process(&mut r);
     fft.process(&mut f);
     r.iter().zip(&f).map(|(a, b)| a * b.conj()).collect()
+}
+
+/// The band shape of the profile's point spread (the transmitted spectrum and the window's
+/// filter over one period), which the range uncertainty is made from; `None` for the subspace
+/// estimators (no complex profile).
+fn band_shape(
+    tx: &Transmission,
+    options: &ProcessOptions,
+    period: usize,
+) -> Option<crate::dsp::carrier_phase::BandShape> {
+    if options.algorithm.is_subspace() {
+        return None;
+    }
+    let fs = tx.sample_rate_hz();
+    let mut reference = tx.reference.clone();
+    reference.resize(period.max(tx.reference.len()), ZERO);
+    let window = options.window.to_dsp();
+    let filter = if window == crate::dsp::Window::Rectangular {
+        reference.clone()
+    } else {
+        weighted_filter(&reference, &window, tx.band_hz(), fs).ok()?
+    };
+    let cross = echo_spectrum(&reference, &filter);
+    let mut f = filter;
+    crate::dsp::plans::forward(f.len()).process(&mut f);
+    let power: Vec<f64> = f.iter().map(|v| v.norm_sqr()).collect();
+    crate::dsp::carrier_phase::BandShape::of_spectrum(&cross, &power, fs)
 }
 
 /// Relative scale of the levels: 1 / (volts at the AWG output per unit of the reference).
@@ -612,6 +640,8 @@ pub struct Pipeline {
     /// its calibration promised.
     equaliser: Option<RxEqualiser>,
     correction_check: Option<CorrectionCheck>,
+    /// Each target's uncertainty and, with `--ranging phase`, its phase range.
+    ranging: RangingModel,
 }
 
 /// What a calibration reached on its reference, to warn when a capture corrected with it does
@@ -628,6 +658,8 @@ struct CorrectionCheck {
     /// The chain's discrete echoes the calibration measured: (delay s, level dB) behind every
     /// path.
     chain_echoes: Vec<(f64, f64)>,
+    /// The calibration's reference as phase ranging takes it.
+    anchor: Option<super::response::PhaseAnchor>,
 }
 
 /// A corrected target's peak side-lobe may exceed the calibration's by this before a warning, dB,
@@ -848,6 +880,7 @@ fn equaliser_for(
             .iter()
             .map(|e| (e.delay_ns * 1e-9, e.level_db))
             .collect(),
+        anchor: cal.header.reference.phase_anchor,
     };
     let equaliser = match used.mode {
         CorrectionMode::Rx => Some(cal.response.equaliser(period, fs)?),
@@ -917,7 +950,14 @@ impl Pipeline {
             }
             None => (None, None),
         };
+        let band = band_shape(&tx, &options, geometry.period);
+        let ranging = RangingModel::new(
+            &options,
+            band,
+            correction_check.as_ref().and_then(|c| c.anchor),
+        );
         Ok(Pipeline {
+            ranging,
             equaliser,
             correction_check,
             level_scale: level_scale(&options),
@@ -956,6 +996,22 @@ impl Pipeline {
         };
         self.detector = Some((capture_rate_hz, detector));
         Ok(())
+    }
+
+    /// The phase anchor of a calibration's corrected reference record `processed` (the
+    /// reference at `reference_range_m` against the leakage), `None` where either is missing.
+    pub(crate) fn phase_anchor(
+        &self,
+        processed: &Processed,
+        reference_range_m: f64,
+    ) -> Option<super::response::PhaseAnchor> {
+        // The noise per cell the targets' SNR was measured against.
+        let noise = processed.detection.targets.iter().find_map(|t| {
+            let (_, a) = t.fitted?;
+            Some(a.norm_sqr() / 10f64.powf(t.snr_db? / 10.0))
+        });
+        self.ranging
+            .anchor_of(&processed.detection, noise, reference_range_m)
     }
 
     pub fn options(&self) -> &ProcessOptions {
@@ -1344,10 +1400,14 @@ impl Pipeline {
                 ));
             }
         }
-        if let Some(noise) = beside {
-            let per_cell = self.noise_per_cell(&noise, aligned.residual_s)?;
+        let per_cell = match beside {
+            Some(noise) => self.noise_per_cell(&noise, aligned.residual_s)?,
+            None => None,
+        };
+        if per_cell.is_some() {
             set_snr(&mut detection, per_cell);
         }
+        warnings.extend(self.ranging.apply(&mut detection, per_cell));
         let strongest = detection.strongest.map(|i| &detection.targets[i]);
         let width_3db_cm = strongest.and_then(|t| t.width_3db_cm);
         let sidelobe_db = strongest.and_then(|t| t.sidelobe_db);

@@ -396,6 +396,14 @@ pub(crate) fn summary_json(
     files: &CaptureFiles,
     provenance: &Provenance,
 ) -> Value {
+    let mut summary = capture_summary(m, provenance);
+    summary["files"] = json!(files);
+    summary
+}
+
+/// [`summary_json`] of a capture whose files were not written (no `files` key): what a warm
+/// session returns when it writes nothing.
+pub(crate) fn capture_summary(m: &Measurement, provenance: &Provenance) -> Value {
     let p = &m.processing.processed;
     let o = &m.processing.options;
     extended(
@@ -414,7 +422,6 @@ pub(crate) fn summary_json(
             "instruments": m.taken.identities,
             "applied": m.taken.captured.applied,
             "transmission": m.taken.tx.describe(),
-            "files": files,
         }),
     )
 }

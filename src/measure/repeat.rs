@@ -148,6 +148,7 @@ mod tests {
     fn det(range_m: f64, level_db: f64) -> Detection {
         Detection {
             range_m,
+            range_std_m: None,
             level_db,
             above_threshold_db: Some(10.0),
             on_grid_m: None,

@@ -157,6 +157,58 @@ pub struct ReferenceFigures {
     pub width_cm_after: Option<f64>,
     pub range_m_before: Option<f64>,
     pub range_m_after: Option<f64>,
+    /// The corrected reference's carrier phase against the leakage in its record: what
+    /// `--ranging phase` measures every range from (absent in calibrations made before it, or
+    /// where no leakage was seen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase_anchor: Option<PhaseAnchor>,
+}
+
+/// The reference of a response calibration as phase ranging needs it (`[reference.phase_anchor]`
+/// in the calibration's header): where it was, where its envelope and the Tx -> Rx leakage's were
+/// seen in its corrected record, and its carrier phase against the leakage's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseAnchor {
+    /// The reference's stated range, m (`--reference-range`): phase ranges are measured from it.
+    pub range_m: f64,
+    /// Its envelope's fitted range in the corrected record, m.
+    pub envelope_range_m: f64,
+    /// That envelope's standard uncertainty from its SNR, m (the record's trigger jitter apart).
+    pub envelope_snr_std_m: f64,
+    /// The leakage's fitted range in the same record, m.
+    pub leakage_range_m: f64,
+    /// Its standard uncertainty from its SNR, m.
+    pub leakage_snr_std_m: f64,
+    /// The reference's carrier phase minus the leakage's, rad.
+    pub phase_to_leakage_rad: f64,
+    /// That phase difference's standard uncertainty from the two SNRs, rad.
+    pub phase_std_rad: f64,
+    /// A fixed reflector in the same record (the strongest other target), m, and its envelope's
+    /// standard uncertainty from its SNR: phase ranging's unwrapping takes the trigger's jitter
+    /// and the chain's drift from its move.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_range_m: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_snr_std_m: Option<f64>,
+    /// The repetitions the record averages, each with its own trigger jitter (absent in
+    /// calibrations made before it was written: taken as one, the conservative reading).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repetitions: Option<usize>,
+}
+
+impl PhaseAnchor {
+    /// The envelope's calibration uncertainty it gives, m: its SNR's, and its record's trigger
+    /// jitter (`jitter_m` as range, one record's: the average of `repetitions` records carries
+    /// `1 / sqrt(repetitions)` of it) or, when larger, the corrected reference's own offset from
+    /// its stated range (one draw of that jitter plus what the correction leaves: a clutter's
+    /// pull, the chain's misfit).
+    pub(crate) fn envelope_std_m(&self, jitter_m: f64) -> f64 {
+        let offset = self.envelope_range_m - self.range_m;
+        let records = self.repetitions.unwrap_or(1).max(1) as f64;
+        let jitter_var = jitter_m.powi(2) / records;
+        (self.envelope_snr_std_m.powi(2) + jitter_var.max(offset.powi(2))).sqrt()
+    }
 }
 
 /// What was measured, in figures.

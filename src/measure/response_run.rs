@@ -8,7 +8,8 @@ use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
 use super::response::{
-    measure, Calibration, InstrumentsSeen, ReferenceFigures, Response, ResponseHeader, FORMAT,
+    measure, Calibration, InstrumentsSeen, PhaseAnchor, ReferenceFigures, Response, ResponseHeader,
+    FORMAT,
 };
 use super::station::{Captured, Identities};
 use super::MeasureError;
@@ -315,6 +316,8 @@ fn align(
 struct Uncorrected {
     mean: Aligned,
     before: Processed,
+    /// The records `mean` averages.
+    averaged: usize,
 }
 
 fn uncorrected(pipeline: &mut Pipeline, aligned: &[Aligned]) -> Result<Uncorrected, MeasureError> {
@@ -322,7 +325,11 @@ fn uncorrected(pipeline: &mut Pipeline, aligned: &[Aligned]) -> Result<Uncorrect
         MeasureError::option("repetitions", 0, "at least 1 repetition with RF on")
     })?;
     let before = pipeline.process(mean.clone(), None)?;
-    Ok(Uncorrected { mean, before })
+    Ok(Uncorrected {
+        mean,
+        before,
+        averaged: aligned.len(),
+    })
 }
 
 /// The reference's figures in the repetitions' average, uncorrected and corrected with
@@ -344,7 +351,11 @@ fn corrected(
     uncorrected: Uncorrected,
     request: &CalibrateRequest,
 ) -> Result<ReferenceFigures, MeasureError> {
-    let Uncorrected { mean, before } = uncorrected;
+    let Uncorrected {
+        mean,
+        before,
+        averaged,
+    } = uncorrected;
     let period = mean.samples.len();
     let fs = pipeline.transmission().sample_rate_hz();
     pipeline.set_equaliser(Some(response.equaliser(period, fs)?));
@@ -353,6 +364,11 @@ fn corrected(
     let range = request.reference_range_m;
     let (sb, wb, rb) = reference_of(&before, range);
     let (sa, wa, ra) = reference_of(&after, range);
+    let phase_anchor = pipeline.phase_anchor(&after, range).map(|a| PhaseAnchor {
+        // Each record's trigger jitter is its own: their average's is sqrt(n) smaller.
+        repetitions: Some(averaged),
+        ..a
+    });
     Ok(ReferenceFigures {
         sidelobe_db_before: sb,
         sidelobe_db_after: sa,
@@ -360,5 +376,6 @@ fn corrected(
         width_cm_after: wa,
         range_m_before: rb,
         range_m_after: ra,
+        phase_anchor,
     })
 }

@@ -64,13 +64,15 @@ pub(crate) struct SceneCapture {
 impl SceneCapture {
     /// Everything `capture --scene` prepares for `request` on a lab started with `scene`: the
     /// request's options get the lab's calibration (its nominal system delay), as the built-in
-    /// bench file has it.
+    /// bench file has it, and its scope's trigger jitter (the scene's, as the built-in bench
+    /// states it).
     pub(crate) fn prepare(
         scene: &Scene,
         request: &CaptureRequest,
     ) -> Result<SceneCapture, MeasureError> {
         let mut options = request.options.clone();
         options.system_delay_s = scene.system_delay_s;
+        options.trigger_jitter_s = Some(scene.trigger_jitter_s);
         let tx = Arc::new(Transmission::new(
             &request.waveform,
             request.payload.as_deref(),

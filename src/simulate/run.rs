@@ -235,6 +235,8 @@ pub fn process_options(spec: &RunSpec) -> ProcessOptions {
         max_range_m: spec.max_range_m().min(1e4),
         carrier_hz: crate::simulate::scene::BENCH_CARRIER_HZ,
         awg_amplitude_vpp: None,
+        // A simulation's record has no trigger.
+        trigger_jitter_s: Some(0.0),
         ..spec.processing.clone()
     }
 }

@@ -958,9 +958,12 @@ async fn a_very_long_campaign_name_makes_a_short_folder_name() {
     )
     .await;
     assert_eq!(code, 0, "{}", &err[..err.len().min(500)]);
+    // The run folders (the run catalog, catalog.sqlite, sits beside them).
     let runs: Vec<String> = std::fs::read_dir(dir.path().join("runs"))
         .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_type().unwrap().is_dir())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
         .collect();
     assert_eq!(runs.len(), 1, "{runs:?}");
     assert!(

@@ -54,13 +54,16 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "catalog", "driver", "dsp", "exit", "measure", "physics", "storage", "time", "waveform",
         ],
     ),
-    // The in-memory API (the Python package's entry) and the options `radbench process` shares.
+    // The in-memory API (the Python package's entry) and the options `radbench process` shares;
+    // its warm bench session holds a connected bench as a campaign does (catalog, driver).
     (
         "in_memory",
         &[
-            "campaign", "exit", "measure", "simulate", "storage", "waveform",
+            "campaign", "catalog", "driver", "exit", "measure", "simulate", "storage", "waveform",
         ],
     ),
+    // The run catalog (SQLite): reads run folders (campaign) and capture folders.
+    ("runs_db", &["campaign", "exit", "storage", "time"]),
     // From an error chain to its exit class: names every layer's error type.
     (
         "classify",
@@ -72,6 +75,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "dsp",
             "exit",
             "measure",
+            "runs_db",
             "session",
             "simulate",
             "storage",

@@ -86,6 +86,13 @@ pub struct Chain {
     /// Tx drive (AWG output |I + jQ|, volts) at which the Tx is 1 dB compressed (soft limiter,
     /// Rapp p = 2). None = linear.
     pub tx_p1db_v: Option<f64>,
+    /// Slow drift of every path's delay against the lab's simulated clock (the scene's
+    /// `clock_s`), ps per minute: cables and modules warming up. An RF delay: it turns the
+    /// carrier phase too.
+    pub drift_ps_per_min: Option<f64>,
+    /// Slow drift of every path's carrier phase against the simulated clock, degrees per minute
+    /// (an LO distribution path warming up).
+    pub drift_deg_per_min: Option<f64>,
 }
 
 /// The chain's numbers after the preset and the overrides.
@@ -115,6 +122,8 @@ pub struct ChainParams {
     pub timebase_offset_ppm: f64,
     pub shared_lo: bool,
     pub tx_p1db_v: f64,
+    pub drift_ps_per_min: f64,
+    pub drift_deg_per_min: f64,
 }
 
 impl ChainParams {
@@ -144,6 +153,8 @@ impl ChainParams {
         timebase_offset_ppm: 0.0,
         shared_lo: true,
         tx_p1db_v: f64::INFINITY,
+        drift_ps_per_min: 0.0,
+        drift_deg_per_min: 0.0,
     };
 
     /// The thesis' bench, as examples/scene.toml explains field by field.
@@ -174,6 +185,15 @@ impl ChainParams {
     /// True when the chain does nothing: the synthesis skips every chain step.
     pub fn is_ideal(&self) -> bool {
         *self == ChainParams::IDEAL
+    }
+
+    /// The drift at `clock_s` on the simulated clock: (extra delay s, extra phase rad).
+    pub(crate) fn drift_at(&self, clock_s: f64) -> (f64, f64) {
+        let minutes = clock_s / 60.0;
+        (
+            self.drift_ps_per_min * 1e-12 * minutes,
+            self.drift_deg_per_min.to_radians() * minutes,
+        )
     }
 
     /// The scope's timebase error, relative (0 with a shared reference).
@@ -331,6 +351,8 @@ impl Chain {
             timebase_offset_ppm: self.timebase_offset_ppm.unwrap_or(base.timebase_offset_ppm),
             shared_lo: self.shared_lo.unwrap_or(base.shared_lo),
             tx_p1db_v: self.tx_p1db_v.unwrap_or(base.tx_p1db_v),
+            drift_ps_per_min: self.drift_ps_per_min.unwrap_or(base.drift_ps_per_min),
+            drift_deg_per_min: self.drift_deg_per_min.unwrap_or(base.drift_deg_per_min),
         }
     }
 
@@ -411,6 +433,18 @@ impl Chain {
         if let Some(table) = &self.response {
             check_table(table)?;
         }
+        finite_in(
+            "chain.drift_ps_per_min",
+            p.drift_ps_per_min,
+            -1000.0,
+            1000.0,
+        )?;
+        finite_in(
+            "chain.drift_deg_per_min",
+            p.drift_deg_per_min,
+            -3600.0,
+            3600.0,
+        )?;
         Ok(())
     }
 }

@@ -384,3 +384,106 @@ fn presets_resolve_and_fields_override_them() {
         assert!(err.contains(field), "{text}: {err}");
     }
 }
+
+/// The tone's complex value at the capture of the record `y` (its bin).
+fn tone_value(y: Vec<Complex64>, bin_hz: f64) -> Complex64 {
+    let n = y.len();
+    spectrum(y)[bin_of(bin_hz, n)]
+}
+
+#[test]
+fn the_drift_moves_every_path_by_its_delay_and_phase_against_the_simulated_clock() {
+    let l = 4096;
+    let bin = 64;
+    let (i, q) = tone(l, bin, 100.0);
+    let f = bin as f64 * FS_AWG / l as f64;
+    let n = l * 5;
+    let chain = Chain {
+        drift_ps_per_min: Some(2.0),
+        drift_deg_per_min: Some(10.0),
+        ..Chain::default()
+    };
+    let at = |clock_s: f64| {
+        let s = Scene {
+            clock_s,
+            ..scene(1.0, chain.clone())
+        };
+        tone_value(record(&s, &i, &q, n), f)
+    };
+    let (start, later) = (at(0.0), at(180.0));
+    // 3 minutes: 6 ps of delay (the carrier and the tone turn with it) and 30 degrees.
+    let want = -2.0 * PI * (80e9 + f) * 6e-12 + 30f64.to_radians();
+    let got = (later / start).arg();
+    let wrap = |x: f64| (x + PI).rem_euclid(2.0 * PI) - PI;
+    assert!(wrap(got - want).abs() < 1e-6, "{got} rad, want {want} rad");
+    assert!(((later.norm() / start.norm()) - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn the_clock_advances_by_the_capture_interval_and_the_ground_truth_records_it() {
+    let (i, q) = tone(1024, 8, 100.0);
+    let s = Scene {
+        clock_s: 60.0,
+        capture_interval_s: 10.0,
+        reference: Some(Target {
+            range_m: 0.5,
+            amplitude: 0.1,
+            velocity_mps: 0.0,
+        }),
+        ..scene(1.0, Chain::default())
+    };
+    let mut synth = Synthesizer::new(3);
+    let setup = CaptureSetup {
+        sample_rate: FS,
+        points: 5120,
+        trigger_offset_s: 0.0,
+        volts_per_div: [0.1, 0.1],
+        offset_v: [0.0, 0.0],
+    };
+    let clocks: Vec<f64> = (0..3)
+        .map(|_| {
+            synth
+                .capture(&s, &awg(&i, &q), FrontEnds::ALL_ON, &setup)
+                .unwrap()
+                .scene
+                .clock_s
+        })
+        .collect();
+    assert_eq!(clocks, [60.0, 70.0, 80.0]);
+}
+
+#[test]
+fn a_reference_reflector_is_one_more_fixed_path() {
+    let l = 4096;
+    let bin = 64;
+    let (i, q) = tone(l, bin, 100.0);
+    let f = bin as f64 * FS_AWG / l as f64;
+    let n = l * 5;
+    let reflector = Target {
+        range_m: 0.5,
+        amplitude: 0.1,
+        velocity_mps: 0.0,
+    };
+    let without = tone_value(record(&scene(1.0, Chain::default()), &i, &q, n), f);
+    let with = Scene {
+        reference: Some(reflector.clone()),
+        ..scene(1.0, Chain::default())
+    };
+    let with = tone_value(record(&with, &i, &q, n), f);
+    let alone = Scene {
+        targets: vec![reflector],
+        ..scene(1.0, Chain::default())
+    };
+    let alone = tone_value(record(&alone, &i, &q, n), f);
+    assert!((with - without - alone).norm() < 1e-9 * without.norm());
+    let bad = Scene {
+        reference: Some(Target {
+            range_m: -1.0,
+            amplitude: 0.1,
+            velocity_mps: 0.0,
+        }),
+        ..Scene::default()
+    };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("reference.range_m"), "{err}");
+}
