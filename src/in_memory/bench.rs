@@ -420,6 +420,7 @@ impl Warm {
         }
         let mut options = o.choices.options(o.waveform);
         options.system_delay_s = self.bench.file.system_delay_s();
+        options.trigger_jitter_s = self.bench.file.scope.trigger_jitter_s;
         let calibration = resolve_correction(
             o.choices.correction,
             o.choices.calibration.as_deref(),
