@@ -113,6 +113,9 @@ async fn reference() -> &'static Reference {
             std::fs::write(d.join("fault.sh"), "exit 0\n").unwrap();
             std::fs::create_dir(d.join("mnt")).unwrap();
             let child = Command::new(BIN)
+                // The run folder's pages are counted: no run catalog beside it (its own
+                // full-disk behaviour is tests/cli/runs_catalog.rs's).
+                .env("RADBENCH_CATALOG", "off")
                 .args([
                     "campaign",
                     "run",
@@ -174,6 +177,8 @@ impl Shell {
         };
         let mut child = command
             .current_dir(dir)
+            // As the reference run: no run catalog beside the counted run folder.
+            .env("RADBENCH_CATALOG", "off")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log)
