@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::io::AsyncWriteExt;
 use tokio::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_radbench");
@@ -239,35 +239,8 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let spec = example("accuracy.toml");
-    let mut child = Command::new(BIN)
-        .args([
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--json",
-        ])
-        .arg("--out")
-        .arg(&out)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let wait_for_step_4 = async {
-        while let Some(line) = lines.next_line().await.unwrap() {
-            let v: Value = serde_json::from_str(&line).unwrap();
-            if v["event"] == "start" && v["index"] == 4 {
-                return;
-            }
-        }
-        panic!("the campaign ended before step 4");
-    };
-    tokio::time::timeout(LIMIT, wait_for_step_4)
-        .await
-        .expect("step 4 starts");
+    // Its lines stay open to the end: radbench's --json output never meets a closed pipe.
+    let (mut child, _lines) = super::support::campaign_at_step(&spec, &out, 4).await;
     let pid = child.id().unwrap().to_string();
     assert!(std::process::Command::new("kill")
         .args([signal, &pid])

@@ -2,15 +2,9 @@
 //! summary when a run completes, fails or is stopped; one that hangs is killed at its bound; the
 //! run's exit code never changes.
 
-use serde_json::Value;
 use std::path::Path;
-use std::process::Stdio;
-use tokio::io::{AsyncBufReadExt, BufReader};
-use tokio::process::Command;
 
 use super::support::{radbench_in, LIMIT};
-
-const BIN: &str = env!("CARGO_BIN_EXE_radbench");
 
 /// Writes what the notify program hears to `heard.txt` in the spec's folder.
 const NOTIFY: &str = "[run]\nnotify = [\"sh\", \"-c\", \
@@ -105,33 +99,7 @@ async fn a_stopped_run_tells_stopped() {
         ),
     );
     let out = dir.path().join("run");
-    let mut child = Command::new(BIN)
-        .args([
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--json",
-        ])
-        .arg("--out")
-        .arg(&out)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .kill_on_drop(true)
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let step_2 = async {
-        while let Some(line) = lines.next_line().await.unwrap() {
-            let v: Value = serde_json::from_str(&line).unwrap();
-            if v["event"] == "start" && v["index"] == 2 {
-                return;
-            }
-        }
-        panic!("the campaign ended before step 2");
-    };
-    tokio::time::timeout(LIMIT, step_2).await.expect("step 2");
+    let (mut child, mut lines) = super::support::campaign_at_step(&spec, &out, 2).await;
     super::support::signal(&child, "INT");
     let drain = async { while lines.next_line().await.unwrap().is_some() {} };
     tokio::time::timeout(LIMIT, drain)

@@ -9,7 +9,6 @@ use radbench::campaign::{Manifest, Status};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
-use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::Command;
 
 use super::support::{radbench_in, LIMIT};
@@ -130,33 +129,7 @@ async fn two_axes_run_in_order_resume_after_sigkill_and_have_a_column_each() {
 
     // The same run killed (SIGKILL: no chance to record anything) as step 4 starts, resumed.
     let killed = dir.path().join("killed");
-    let mut child = Command::new(BIN)
-        .args([
-            "campaign",
-            "run",
-            spec.to_str().unwrap(),
-            "--allow-rf",
-            "--json",
-        ])
-        .arg("--out")
-        .arg(&killed)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .kill_on_drop(true)
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let step_4 = async {
-        while let Some(line) = lines.next_line().await.unwrap() {
-            let v: Value = serde_json::from_str(&line).unwrap();
-            if v["event"] == "start" && v["index"] == 4 {
-                return;
-            }
-        }
-        panic!("the campaign ended before step 4");
-    };
-    tokio::time::timeout(LIMIT, step_4).await.expect("step 4");
+    let (mut child, _lines) = super::support::campaign_at_step(&spec, &killed, 4).await;
     child.start_kill().unwrap();
     tokio::time::timeout(LIMIT, child.wait())
         .await

@@ -97,3 +97,41 @@ pub fn lab_bench_file(dir: &Path, lab: &mock_lab::lab::Lab) -> String {
     std::fs::write(&path, lab.bench_toml(Transport::Hislip, Transport::Vicp)).unwrap();
     path.display().to_string()
 }
+
+/// The `--json` lines a running radbench still has to print.
+pub type JsonLines = tokio::io::Lines<tokio::io::BufReader<tokio::process::ChildStdout>>;
+
+/// `radbench campaign run SPEC --allow-rf --json --out OUT` started and watched until step `step`
+/// starts: the child (killed if the test gives up on it) and the lines it prints after that.
+pub async fn campaign_at_step(
+    spec: &Path,
+    out: &Path,
+    step: u64,
+) -> (tokio::process::Child, JsonLines) {
+    use tokio::io::AsyncBufReadExt;
+    let mut child = Command::new(BIN)
+        .args(["campaign", "run"])
+        .arg(spec)
+        .args(["--allow-rf", "--json", "--out"])
+        .arg(out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .kill_on_drop(true)
+        .spawn()
+        .unwrap();
+    let mut lines = tokio::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    let started = async {
+        while let Some(line) = lines.next_line().await.unwrap() {
+            let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+            if v["event"] == "start" && v["index"] == step {
+                return;
+            }
+        }
+        panic!("the campaign ended before step {step}");
+    };
+    tokio::time::timeout(LIMIT, started)
+        .await
+        .unwrap_or_else(|_| panic!("step {step} starts"));
+    (child, lines)
+}
