@@ -59,6 +59,7 @@
 //! | [`simulate`] | app | the thesis' chapter-4 scenarios, free-form simulations and mock-lab scenes in-process, on the same pipeline |
 //! | [`in_memory`] | app | the commands' results in memory (the Python package's entry): `radbench process`'s own options parsed by the command line's clap definitions ([`in_memory::ProcessArgs`], [`in_memory::WaveformArgs`]) and the processing choices deserialized into [`measure::ProcessingChoices`] (the type the command line and campaigns use), captures processed and read back, the transmission; the warm bench session ([`in_memory::BenchSession`]: `radbench.Bench`, captures and campaigns through `measure`'s rig and `campaign`'s runner, one session per bench) |
 //! | [`runs_db`] | app | the run catalog: one SQLite file indexing run and capture folders (runs, steps, captures, targets, calibrations, instruments, files with SHA-256), filled by `radbench runs index` and, off the measurement's path, by the commands that write the folders; queries, trends |
+//! | [`archive`] | app | archive processing driven by the run catalog: the captures a query selects, each processed into a folder addressed by content (input SHA-256, options hash, version), written under a temporary name and renamed when complete; what `radbench process --from-catalog` and the Python package's Dask path run |
 //! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
 //!
 //! The binary (`src/main.rs`) holds what only the command line needs: `cli` (one module per
@@ -201,6 +202,7 @@ macro_rules! named_enum {
 }
 
 pub mod address;
+pub mod archive;
 pub mod campaign;
 pub mod catalog;
 mod classify;

@@ -23,6 +23,7 @@ pub(crate) mod live;
 pub(crate) mod manual_front;
 pub(crate) mod mock_lab;
 pub(crate) mod process;
+pub(crate) mod process_catalog;
 pub(crate) mod progress;
 pub(crate) mod recording;
 pub(crate) mod repeat;

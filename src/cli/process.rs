@@ -19,10 +19,26 @@ use std::path::{Path, PathBuf};
 pub struct Args {
     /// Captures: capture folders, run folders (every step), .sigmf-meta files, or .trc pairs
     /// (the I file then the Q file).
-    #[arg(value_name = "INPUT", required = true)]
+    #[arg(
+        value_name = "INPUT",
+        required_unless_present = "from_catalog",
+        conflicts_with = "from_catalog"
+    )]
     pub inputs: Vec<PathBuf>,
+    /// Process the captures the run catalog selects instead of INPUTs: terms joined by `and`,
+    /// `NAME = VALUE` for since, until, kind, waveform, scope, calibration, status, origin, or
+    /// `METRIC OP NUMBER` (e.g. "waveform = msk-lfm and since = 2026-12-01"; "all": every
+    /// capture). Outputs are addressed by content in --out (default: processed/ beside the
+    /// catalog): a rerun skips what is done. docs/catalog.md.
+    #[arg(long, value_name = "QUERY")]
+    pub from_catalog: Option<String>,
+    /// The catalog --from-catalog reads and registers its outputs in (default
+    /// runs/catalog.sqlite).
+    #[arg(long, value_name = "FILE", requires = "from_catalog")]
+    pub catalog: Option<PathBuf>,
     /// Output folder (default runs/<UTC time>-process); one sub-folder per capture. Must not
-    /// exist yet or be empty.
+    /// exist yet or be empty (with --from-catalog: a store that grows, one folder per input,
+    /// options and version).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Print one JSON object instead of the text report.
@@ -134,6 +150,9 @@ impl Finishers {
 }
 
 pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+    if let Some(query) = &args.from_catalog {
+        return super::process_catalog::run(&args, query);
+    }
     let out = args
         .out
         .clone()

@@ -193,6 +193,7 @@ fn filter(f: &Filters, limit: Option<usize>) -> anyhow::Result<RunFilter> {
         scope: f.scope.clone(),
         calibration: f.calibration.clone(),
         status: f.status.clone(),
+        origin: None,
         conditions: match &f.where_ {
             Some(w) => runs_db::parse_where(w)?,
             None => Vec::new(),

@@ -204,6 +204,12 @@ impl ProcessRequest {
         Ok(request)
     }
 
+    /// The options as parsed, and the waveform and processing options they resolve to (archive
+    /// processing addresses its outputs by them).
+    pub(crate) fn parts(&self) -> (&ProcessArgs, &WaveformChoice, &ProcessOverrides) {
+        (&self.args, &self.waveform, &self.overrides)
+    }
+
     /// `err` in the words the options were given in (keywords after
     /// `parse_keywords`).
     fn in_callers_words(&self, err: anyhow::Error) -> anyhow::Error {

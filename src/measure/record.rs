@@ -446,7 +446,9 @@ pub struct SourceFile {
 #[derive(Serialize)]
 struct ReprocessManifest<'a> {
     radbench_version: &'a str,
-    written_at: String,
+    /// None in a folder addressed by content (its bytes depend on its inputs alone).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    written_at: Option<String>,
     /// What was read (never written to).
     sources: &'a [SourceFile],
     processing: &'a super::options::ProcessOptions,
@@ -460,6 +462,31 @@ pub fn write_reprocessed<R>(
     loaded: &super::reprocess::Loaded<R>,
     r: &super::reprocess::Reprocessed,
     link_png: bool,
+) -> Result<(ReprocessFiles, Value), MeasureError> {
+    write_reprocessed_as(out, sources, loaded, r, link_png, false)
+}
+
+/// [`write_reprocessed`] for a folder addressed by content (archive processing): its bytes are
+/// a function of the sources, the options and radbench's version alone, so the manifest has no
+/// write time and the summary names its files relative to the folder (written under a
+/// temporary name, then renamed).
+pub fn write_reprocessed_by_content<R>(
+    out: &Path,
+    sources: &[SourceFile],
+    loaded: &super::reprocess::Loaded<R>,
+    r: &super::reprocess::Reprocessed,
+    link_png: bool,
+) -> Result<(ReprocessFiles, Value), MeasureError> {
+    write_reprocessed_as(out, sources, loaded, r, link_png, true)
+}
+
+fn write_reprocessed_as<R>(
+    out: &Path,
+    sources: &[SourceFile],
+    loaded: &super::reprocess::Loaded<R>,
+    r: &super::reprocess::Reprocessed,
+    link_png: bool,
+    by_content: bool,
 ) -> Result<(ReprocessFiles, Value), MeasureError> {
     std::fs::create_dir_all(out).map_err(|source| StorageError::Io {
         path: out.to_path_buf(),
@@ -485,7 +512,7 @@ pub fn write_reprocessed<R>(
     };
     let manifest = ReprocessManifest {
         radbench_version: env!("CARGO_PKG_VERSION"),
-        written_at: crate::storage::utc_now_rfc3339(),
+        written_at: (!by_content).then(crate::storage::utc_now_rfc3339),
         sources,
         processing: o,
     };
@@ -496,10 +523,29 @@ pub fn write_reprocessed<R>(
     write_atomic(&files.manifest, text.as_bytes())?;
     let mut summary = reprocessed_summary(sources, loaded, r);
     if let Value::Object(map) = &mut summary {
-        map.insert("files".into(), json!(files));
+        let mut named = json!(files);
+        if by_content {
+            relative_to(&mut named, out);
+        }
+        map.insert("files".into(), named);
     }
     write_atomic(&files.summary, format!("{summary:#}\n").as_bytes())?;
     Ok((files, summary))
+}
+
+/// Every path in `v` under `dir`, made relative to it (`dir` itself becomes `.`).
+fn relative_to(v: &mut Value, dir: &Path) {
+    match v {
+        Value::String(s) => {
+            if let Ok(rel) = Path::new(s.as_str()).strip_prefix(dir) {
+                let rel = rel.to_string_lossy();
+                *s = if rel.is_empty() { ".".into() } else { rel.into_owned() };
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(|x| relative_to(x, dir)),
+        Value::Object(o) => o.values_mut().for_each(|x| relative_to(x, dir)),
+        _ => {}
+    }
 }
 
 /// The `summary.json` of a re-processed capture but its `files` (what `radbench process` writes

@@ -10,7 +10,7 @@ use std::time::Duration;
 pub(crate) const SCHEMA_SQL: &str = include_str!("schema.sql");
 
 /// The schema's version, in the `meta` table: a catalog of another version is rebuilt.
-pub(crate) const SCHEMA_VERSION: &str = "1";
+pub(crate) const SCHEMA_VERSION: &str = "2";
 
 /// The catalog's file name in a runs folder.
 pub(crate) const CATALOG_FILE: &str = "catalog.sqlite";

@@ -11,12 +11,14 @@ use std::path::{Path, PathBuf};
 
 pub(crate) mod db;
 pub(crate) mod index;
+pub(crate) mod processed;
 pub(crate) mod query;
 pub(crate) mod record;
 pub(crate) mod register;
 
 pub use db::default_catalog;
 pub use index::*;
+pub use processed::*;
 pub use query::*;
 pub use record::{run_id, METRIC_NAMES};
 pub use register::*;

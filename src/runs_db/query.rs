@@ -29,6 +29,8 @@ pub struct RunFilter {
     pub status: Option<String>,
     /// Terms over the run's metrics, all of which must hold.
     pub conditions: Vec<Condition>,
+    /// Captures only: made by `capture`, `process` or `campaign` (a run's step).
+    pub origin: Option<String>,
     /// Most rows (newest first); `None`: all.
     pub limit: Option<usize>,
 }
@@ -514,40 +516,215 @@ pub struct CaptureRow {
     pub snr_db: Option<f64>,
 }
 
-/// The captures `filter` selects (its dates, waveform and scope), newest first.
+/// The captures `filter` selects, newest first: dates on `measured_at`, the waveform and scope
+/// of the capture, its origin; the run filters (kind, calibration, status, `--where`) through
+/// the run a campaign step belongs to (a capture of no run has none to match).
 pub fn captures(catalog: &Path, filter: &RunFilter) -> Result<Vec<CaptureRow>, RunsDbError> {
     let conn = db::open_existing(catalog)?;
-    let sql = |e| RunsDbError::sql(catalog, e);
-    let mut q = conn
-        .prepare(
-            "SELECT dir, origin, run_id, step, measured_at, waveform, algorithm, scope_idn,
-               targets, snr_db FROM captures
-             WHERE (?1 IS NULL OR measured_at >= ?1) AND (?2 IS NULL OR measured_at < ?2)
-               AND (?3 IS NULL OR waveform = ?3)
-               AND (?4 IS NULL OR instr(lower(coalesce(scope_idn, '')), lower(?4)) > 0)
-             ORDER BY measured_at DESC, dir",
-        )
-        .map_err(sql)?;
-    let rows = q
-        .query_map(
-            rusqlite::params![filter.since, filter.until, filter.waveform, filter.scope],
-            |r| {
-                Ok(CaptureRow {
-                    dir: r.get(0)?,
-                    origin: r.get(1)?,
-                    run_id: r.get(2)?,
-                    step: r.get(3)?,
-                    measured_at: r.get(4)?,
-                    waveform: r.get(5)?,
-                    algorithm: r.get(6)?,
-                    scope_idn: r.get(7)?,
-                    targets: r.get(8)?,
-                    snr_db: r.get(9)?,
-                })
-            },
-        )
-        .map_err(sql)?;
-    rows.collect::<Result<_, _>>().map_err(sql)
+    query_captures(&conn, filter).map_err(|e| RunsDbError::sql(catalog, e))
+}
+
+fn query_captures(conn: &Connection, f: &RunFilter) -> rusqlite::Result<Vec<CaptureRow>> {
+    let mut sql = String::from(
+        "SELECT c.dir, c.origin, c.run_id, c.step, c.measured_at, c.waveform, c.algorithm,
+           c.scope_idn, c.targets, c.snr_db
+         FROM captures c LEFT JOIN runs r ON r.run_id = c.run_id
+         WHERE 1",
+    );
+    let mut args: Vec<SqlValue> = Vec::new();
+    let mut bind = |sql: &mut String, clause: &str, v: SqlValue| {
+        args.push(v);
+        sql.push_str(&clause.replace('?', &format!("?{}", args.len())));
+    };
+    let text = |s: &String| SqlValue::Text(s.clone());
+    if let Some(s) = &f.since {
+        bind(&mut sql, " AND c.measured_at >= ?", text(s));
+    }
+    if let Some(u) = &f.until {
+        bind(&mut sql, " AND c.measured_at < ?", text(u));
+    }
+    if let Some(k) = &f.kind {
+        bind(&mut sql, " AND (r.name = ? OR r.sweep = ?)", text(k));
+    }
+    if let Some(w) = &f.waveform {
+        bind(&mut sql, " AND c.waveform = ?", text(w));
+    }
+    if let Some(s) = &f.scope {
+        bind(
+            &mut sql,
+            " AND instr(lower(coalesce(c.scope_idn, '')), ?) > 0",
+            SqlValue::Text(s.to_lowercase()),
+        );
+    }
+    match f.calibration.as_deref() {
+        None => {}
+        Some("none") => sql.push_str(" AND r.run_id IS NOT NULL AND r.calibration_sha256 IS NULL"),
+        Some(c) => {
+            bind(
+                &mut sql,
+                " AND substr(r.calibration_sha256, 1, length(?)) = ?",
+                SqlValue::Text(c.to_lowercase()),
+            );
+        }
+    }
+    if let Some(s) = &f.status {
+        bind(&mut sql, " AND r.status = ?", text(s));
+    }
+    if let Some(o) = &f.origin {
+        bind(&mut sql, " AND c.origin = ?", text(o));
+    }
+    for c in &f.conditions {
+        bind(
+            &mut sql,
+            " AND EXISTS (SELECT 1 FROM run_metrics m WHERE m.run_id = r.run_id AND m.name = ?",
+            text(&c.metric),
+        );
+        // The operator from Op's fixed list, never from the user's text.
+        bind(
+            &mut sql,
+            &format!(" AND m.value {} ?)", c.op.sql()),
+            SqlValue::Real(c.value),
+        );
+    }
+    sql.push_str(" ORDER BY c.measured_at DESC, c.dir");
+    if let Some(l) = f.limit {
+        bind(&mut sql, " LIMIT ?", SqlValue::Integer(l as i64));
+    }
+    let mut q = conn.prepare(&sql)?;
+    let rows = q.query_map(rusqlite::params_from_iter(args), |r| {
+        Ok(CaptureRow {
+            dir: r.get(0)?,
+            origin: r.get(1)?,
+            run_id: r.get(2)?,
+            step: r.get(3)?,
+            measured_at: r.get(4)?,
+            waveform: r.get(5)?,
+            algorithm: r.get(6)?,
+            scope_idn: r.get(7)?,
+            targets: r.get(8)?,
+            snr_db: r.get(9)?,
+        })
+    })?;
+    rows.collect()
+}
+
+/// The statuses a run can have (`--status`, `status=`).
+pub(crate) const STATUSES: [&str; 3] = ["complete", "interrupted", "running"];
+
+/// The origins a capture can have (`origin=`).
+const ORIGINS: [&str; 3] = ["capture", "process", "campaign"];
+
+/// The names a query's `NAME = VALUE` terms may use (the others are metric terms).
+const QUERY_FIELDS: [&str; 8] = [
+    "since",
+    "until",
+    "kind",
+    "waveform",
+    "scope",
+    "calibration",
+    "status",
+    "origin",
+];
+
+/// A query in one line, as `radbench process --from-catalog` and the Python package's Dask path
+/// take it: the filters of `radbench runs captures` as `NAME = VALUE` terms (`since`, `until`,
+/// `kind`, `waveform`, `scope`, `calibration`, `status`, `origin`) and the metric terms of
+/// `--where`, joined by `and`; e.g. `waveform = msk-lfm and since = 2026-12-01 and
+/// max_abs_error_m < 1e-3`. Empty (or `all`): every capture. An error names the term at fault.
+pub fn parse_query(text: &str) -> Result<RunFilter, RunsDbError> {
+    let bad = |reason: String| RunsDbError::BadInput {
+        field: "query".into(),
+        reason,
+    };
+    let mut f = RunFilter::default();
+    let trimmed = text.trim();
+    if trimmed.is_empty() || trimmed.eq_ignore_ascii_case("all") {
+        return Ok(f);
+    }
+    let mut metric_terms = Vec::new();
+    for term in split_and(text) {
+        let term = term.trim();
+        let field = term
+            .split(['=', '<', '>', '!'])
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        if !QUERY_FIELDS.contains(&field.as_str()) {
+            // A metric term compares with a number: anything else names a filter that is not.
+            let value = term
+                .rsplit(['=', '<', '>'])
+                .next()
+                .unwrap_or("")
+                .trim();
+            if term.contains(['=', '<', '>']) && value.parse::<f64>().is_err() {
+                return Err(bad(format!(
+                    "`{term}`: `{field}` is not a filter (give one of {}) and `{value}` is not a \
+                     number to compare a metric with",
+                    QUERY_FIELDS.join(", ")
+                )));
+            }
+            metric_terms.push(term);
+            continue;
+        }
+        let rest = term[term.find(['=', '<', '>', '!']).unwrap_or(term.len())..].trim_start();
+        let Some(value) = rest.strip_prefix("==").or_else(|| rest.strip_prefix('=')) else {
+            return Err(bad(format!(
+                "`{term}`: {field} takes `{field} = VALUE` (only `=`; dates as `since = DATE` \
+                 and `until = DATE`)"
+            )));
+        };
+        let value = value.trim().trim_matches(['"', '\'']).to_string();
+        if value.is_empty() {
+            return Err(bad(format!("`{term}`: no value after `=`")));
+        }
+        let allowed = |list: &[&str]| -> Result<(), RunsDbError> {
+            if list.contains(&value.as_str()) {
+                Ok(())
+            } else {
+                Err(bad(format!(
+                    "`{term}`: {field} `{value}` is not one of {}",
+                    list.join(", ")
+                )))
+            }
+        };
+        let slot = match field.as_str() {
+            "since" => {
+                f.since = Some(parse_time("query: since", &value)?);
+                continue;
+            }
+            "until" => {
+                f.until = Some(parse_time("query: until", &value)?);
+                continue;
+            }
+            "kind" => &mut f.kind,
+            "waveform" => &mut f.waveform,
+            "scope" => &mut f.scope,
+            "calibration" => &mut f.calibration,
+            "status" => {
+                allowed(&STATUSES)?;
+                &mut f.status
+            }
+            _ => {
+                allowed(&ORIGINS)?;
+                &mut f.origin
+            }
+        };
+        if slot.is_some() {
+            return Err(bad(format!("`{term}`: {field} is given twice")));
+        }
+        *slot = Some(value);
+    }
+    if !metric_terms.is_empty() {
+        f.conditions = parse_where(&metric_terms.join(" and ")).map_err(|e| match e {
+            RunsDbError::BadInput { reason, .. } => bad(format!(
+                "{reason} (a term is `NAME = VALUE` for {} or `METRIC OP NUMBER`)",
+                QUERY_FIELDS.join(", ")
+            )),
+            other => other,
+        })?;
+    }
+    Ok(f)
 }
 
 #[cfg(test)]
@@ -577,6 +754,26 @@ mod tests {
         ] {
             let err = parse_where(bad).unwrap_err().to_string();
             assert!(err.contains("--where"), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn queries_are_filters_and_metric_terms_and_name_what_is_wrong() {
+        let f = parse_query("waveform = msk-lfm and since = 2026-12-01 and max_abs_error_m < 1e-3")
+            .unwrap();
+        assert_eq!(f.waveform.as_deref(), Some("msk-lfm"));
+        assert_eq!(f.since.as_deref(), Some("2026-12-01T00:00:00"));
+        assert_eq!(f.conditions.len(), 1);
+        assert!(parse_query("all").unwrap().conditions.is_empty());
+        for (bad, names) in [
+            ("wavefrm = ofdm", "wavefrm"),
+            ("status = done", "done"),
+            ("since = yesterday", "yesterday"),
+            ("kind < accuracy", "kind"),
+            ("origin = capture and origin = process", "twice"),
+        ] {
+            let err = parse_query(bad).unwrap_err().to_string();
+            assert!(err.contains("query") && err.contains(names), "{bad}: {err}");
         }
     }
 

@@ -125,3 +125,16 @@ CREATE TABLE IF NOT EXISTS assets (
 );
 CREATE INDEX IF NOT EXISTS assets_by_owner ON assets (owner);
 CREATE INDEX IF NOT EXISTS assets_by_sha256 ON assets (sha256);
+
+-- Outputs of `radbench process --from-catalog` and the Python package's Dask path, addressed by
+-- content: one row per (input, processing options, radbench version) and output folder.
+CREATE TABLE IF NOT EXISTS processed (
+    input_sha256     TEXT NOT NULL,
+    options_sha256   TEXT NOT NULL,
+    radbench_version TEXT NOT NULL,
+    out_dir          TEXT NOT NULL,
+    input_dir        TEXT NOT NULL,
+    options          TEXT NOT NULL,
+    PRIMARY KEY (input_sha256, options_sha256, radbench_version, out_dir)
+) WITHOUT ROWID;
+CREATE INDEX IF NOT EXISTS processed_by_input ON processed (input_dir);

@@ -39,6 +39,7 @@ mod manual_front;
 mod metrology;
 mod other_protocol;
 mod pointing_errors;
+mod process_catalog;
 mod process_cli;
 mod readers_cli;
 mod runs_catalog;

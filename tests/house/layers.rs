@@ -64,6 +64,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
     // The run catalog (SQLite): reads run folders (campaign) and capture folders.
     ("runs_db", &["campaign", "exit", "storage", "time"]),
+    // Archive processing over the catalog: the in-memory API's per-capture work, the catalog's
+    // queries, content-addressed output folders.
+    (
+        "archive",
+        &["exit", "in_memory", "measure", "runs_db", "storage"],
+    ),
     // From an error chain to its exit class: names every layer's error type.
     (
         "classify",
