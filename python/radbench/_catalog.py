@@ -229,10 +229,11 @@ class Catalog:
 
     def to_pandas(self, table: str = "runs") -> Any:
         """A whole table of the catalog as a DataFrame (``runs``, ``run_metrics``, ``steps``,
-        ``captures``, ``targets``, ``calibrations``, ``instruments`` or ``assets``)."""
+        ``captures``, ``targets``, ``calibrations``, ``instruments``, ``assets`` or
+        ``processed``)."""
         tables = (
             "runs", "run_metrics", "steps", "captures", "targets", "calibrations",
-            "instruments", "assets",
+            "instruments", "assets", "processed",
         )
         if table not in tables:
             raise ValueError(f"table={table!r}: allowed: {', '.join(tables)}")

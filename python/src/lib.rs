@@ -8,6 +8,7 @@ use numpy::{Complex64, IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use radbench::archive;
 use radbench::in_memory::{self, InMemory, ProcessRequest};
 use radbench::measure::RawIq;
 use radbench::waveform::WaveformKind;
@@ -120,6 +121,90 @@ fn process_samples<'py>(
 fn captures(py: Python<'_>, inputs: Vec<PathBuf>) -> PyResult<Vec<(String, Vec<PathBuf>)>> {
     let found = py.detach(|| in_memory::captures(&inputs)).map_err(to_py)?;
     Ok(found.into_iter().map(|c| (c.name, c.files)).collect())
+}
+
+/// The captures `query` selects in `catalog` (or the capture folders `dirs`, when given), as
+/// archive units: `[(input_dir, input_sha256)]`.
+#[pyfunction]
+#[pyo3(signature = (catalog, query, dirs=None))]
+fn archive_units(
+    py: Python<'_>,
+    catalog: PathBuf,
+    query: &str,
+    dirs: Option<Vec<PathBuf>>,
+) -> PyResult<Vec<(PathBuf, String)>> {
+    let units = py
+        .detach(|| match &dirs {
+            Some(d) => archive::units_of(&catalog, d),
+            None => archive::units(&catalog, query),
+        })
+        .map_err(to_py)?;
+    Ok(units
+        .into_iter()
+        .map(|u| (u.input_dir, u.input_sha256))
+        .collect())
+}
+
+/// One archive unit processed into `out/<address>` unless done: `(status, out_dir)`, status
+/// `written` or `skipped`. `markers`: a folder where each computation started leaves a file.
+#[pyfunction]
+#[pyo3(signature = (input_dir, input_sha256, out, keywords, markers=None))]
+fn archive_process_unit(
+    py: Python<'_>,
+    input_dir: PathBuf,
+    input_sha256: String,
+    out: PathBuf,
+    keywords: &str,
+    markers: Option<PathBuf>,
+) -> PyResult<(String, PathBuf)> {
+    let unit = archive::Unit {
+        input_dir,
+        input_sha256,
+    };
+    let done = py
+        .detach(|| {
+            let settings = archive::ArchiveSettings::from_keywords(keywords)?;
+            std::fs::create_dir_all(&out)?;
+            archive::process_unit(&unit, &out, &settings, markers.as_deref())
+        })
+        .map_err(to_py)?;
+    let status = match done.status {
+        archive::UnitStatus::Written => "written",
+        archive::UnitStatus::Skipped => "skipped",
+    };
+    Ok((status.to_string(), done.out_dir))
+}
+
+/// Registers done units `[(input_dir, input_sha256, out_dir)]` in the catalog's `processed`
+/// table and removes the temporary folders of done units in `out`; how many were removed.
+#[pyfunction]
+fn archive_register(
+    py: Python<'_>,
+    catalog: PathBuf,
+    out: PathBuf,
+    keywords: &str,
+    done: Vec<(PathBuf, String, PathBuf)>,
+) -> PyResult<usize> {
+    py.detach(|| -> anyhow::Result<usize> {
+        let settings = archive::ArchiveSettings::from_keywords(keywords)?;
+        let rows: Vec<_> = done
+            .into_iter()
+            .map(|(input_dir, input_sha256, out_dir)| {
+                archive::UnitDone {
+                    unit: archive::Unit {
+                        input_dir,
+                        input_sha256,
+                    },
+                    out_dir,
+                    status: archive::UnitStatus::Written,
+                }
+                .row(&settings)
+            })
+            .collect();
+        radbench::runs_db::record_processed(&catalog, &rows)?;
+        Ok(archive::sweep_partials(&out))
+    })
+    .map_err(to_py)
 }
 
 /// A saved capture: every repetition raw (volts, capture rate) and decimated, its metadata.
@@ -343,6 +428,9 @@ fn _radbench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(captures, m)?)?;
     m.add_function(wrap_pyfunction!(read_capture, m)?)?;
     m.add_function(wrap_pyfunction!(transmission, m)?)?;
+    m.add_function(wrap_pyfunction!(archive_units, m)?)?;
+    m.add_function(wrap_pyfunction!(archive_process_unit, m)?)?;
+    m.add_function(wrap_pyfunction!(archive_register, m)?)?;
     m.add_class::<Lab>()?;
     m.add_class::<session::Session>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -9,7 +9,7 @@ mod settings;
 mod unit;
 
 pub use settings::ArchiveSettings;
-pub use unit::{process_unit, sweep_partials, units, Unit, UnitDone, UnitStatus};
+pub use unit::{process_unit, sweep_partials, units, units_of, Unit, UnitDone, UnitStatus};
 
 /// radbench's version, the third part of every output's address.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -88,11 +88,21 @@ fn source_of(dir: &Path) -> anyhow::Result<Source> {
 pub fn units(catalog: &Path, query: &str) -> anyhow::Result<Vec<Unit>> {
     let filter = runs_db::parse_query(query)?;
     let rows = runs_db::captures(catalog, &filter)?;
+    let dirs: Vec<PathBuf> = rows
+        .into_iter()
+        .filter(|r| r.origin != "process")
+        .map(|r| PathBuf::from(r.dir))
+        .collect();
+    units_of(catalog, &dirs)
+}
+
+/// The units of the capture folders `dirs` (as a query over the catalog listed them, e.g. the
+/// Python package's `catalog(path).captures(...)`), hashed as [`units`] hashes them.
+pub fn units_of(catalog: &Path, dirs: &[PathBuf]) -> anyhow::Result<Vec<Unit>> {
     let mut picked = Vec::new();
-    for row in rows.into_iter().filter(|r| r.origin != "process") {
-        let dir = PathBuf::from(&row.dir);
-        let source = source_of(&dir)?;
-        picked.push((dir, source_files(&source)));
+    for dir in dirs {
+        let source = source_of(dir)?;
+        picked.push((dir.clone(), source_files(&source)));
     }
     let all: Vec<PathBuf> = picked.iter().flat_map(|(_, f)| f.clone()).collect();
     let known = runs_db::known_sha256(catalog, &all)?;

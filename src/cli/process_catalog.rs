@@ -9,13 +9,14 @@ use serde_json::json;
 use std::path::Path;
 
 pub(crate) fn run(args: &super::process::Args, query: &str) -> anyhow::Result<()> {
-    let catalog = args.catalog.clone().unwrap_or_else(runs_db::default_catalog);
-    let out = args.out.clone().unwrap_or_else(|| {
-        catalog
-            .parent()
-            .unwrap_or(Path::new("."))
-            .join("processed")
-    });
+    let catalog = args
+        .catalog
+        .clone()
+        .unwrap_or_else(runs_db::default_catalog);
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| catalog.parent().unwrap_or(Path::new(".")).join("processed"));
     let jobs = args.jobs.unwrap_or(0);
     if args.jobs == Some(0) || jobs > 256 {
         return Err(radbench::exit::bad_input(format!(
@@ -126,4 +127,3 @@ fn report(
     ));
     super::terminal::out(&text)
 }
-

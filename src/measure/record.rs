@@ -539,7 +539,11 @@ fn relative_to(v: &mut Value, dir: &Path) {
         Value::String(s) => {
             if let Ok(rel) = Path::new(s.as_str()).strip_prefix(dir) {
                 let rel = rel.to_string_lossy();
-                *s = if rel.is_empty() { ".".into() } else { rel.into_owned() };
+                *s = if rel.is_empty() {
+                    ".".into()
+                } else {
+                    rel.into_owned()
+                };
             }
         }
         Value::Array(a) => a.iter_mut().for_each(|x| relative_to(x, dir)),

@@ -652,11 +652,7 @@ pub fn parse_query(text: &str) -> Result<RunFilter, RunsDbError> {
             .to_ascii_lowercase();
         if !QUERY_FIELDS.contains(&field.as_str()) {
             // A metric term compares with a number: anything else names a filter that is not.
-            let value = term
-                .rsplit(['=', '<', '>'])
-                .next()
-                .unwrap_or("")
-                .trim();
+            let value = term.rsplit(['=', '<', '>']).next().unwrap_or("").trim();
             if term.contains(['=', '<', '>']) && value.parse::<f64>().is_err() {
                 return Err(bad(format!(
                     "`{term}`: `{field}` is not a filter (give one of {}) and `{value}` is not a \

@@ -92,7 +92,15 @@ fn a_rerun_skips_a_killed_run_is_finished_bytewise_and_a_bad_query_is_named() {
 
     // Uninterrupted, then again: the second does nothing.
     let first = ok(
-        &["process", "--from-catalog", "all", "--jobs", "2", "--out", "whole"],
+        &[
+            "process",
+            "--from-catalog",
+            "all",
+            "--jobs",
+            "2",
+            "--out",
+            "whole",
+        ],
         root,
     );
     assert!(
@@ -100,7 +108,15 @@ fn a_rerun_skips_a_killed_run_is_finished_bytewise_and_a_bad_query_is_named() {
         "{first}"
     );
     let again = ok(
-        &["process", "--from-catalog", "all", "--jobs", "2", "--out", "whole"],
+        &[
+            "process",
+            "--from-catalog",
+            "all",
+            "--jobs",
+            "2",
+            "--out",
+            "whole",
+        ],
         root,
     );
     assert!(
@@ -135,7 +151,15 @@ fn a_rerun_skips_a_killed_run_is_finished_bytewise_and_a_bad_query_is_named() {
     let before = folders(&killed);
     assert!(before < CAPTURES, "the kill came after the end: {before}");
     let rerun = ok(
-        &["process", "--from-catalog", "all", "--jobs", "2", "--out", "killed"],
+        &[
+            "process",
+            "--from-catalog",
+            "all",
+            "--jobs",
+            "2",
+            "--out",
+            "killed",
+        ],
         root,
     );
     assert!(
@@ -167,13 +191,13 @@ fn a_rerun_skips_a_killed_run_is_finished_bytewise_and_a_bad_query_is_named() {
         ("status = done", "done"),
         ("max_abs_error_m < small", "small"),
     ] {
-        let out = radbench(
-            &["process", "--from-catalog", query, "--out", "bad"],
-            root,
-        );
+        let out = radbench(&["process", "--from-catalog", query, "--out", "bad"], root);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{query}: {err}");
-        assert!(err.contains(named) && err.contains("query"), "{query}: {err}");
+        assert!(
+            err.contains(named) && err.contains("query"),
+            "{query}: {err}"
+        );
         assert!(!root.join("bad").exists());
     }
 }

@@ -1,0 +1,107 @@
+"""Archive processing on Dask: the captures a catalog query selects, each processed into a
+folder addressed by content, the same unit as ``radbench process --from-catalog`` (the Rust core,
+called in-process, no subprocess). See docs/catalog.md.
+
+Each unit writes ``OUT/<input>-<options>-v<version>`` under a hidden temporary name and renames
+it when complete, and skips a unit whose folder exists: a rerun does only what is missing, and a
+worker killed mid-unit leaves no half-written or duplicated result (Dask runs its task again on
+another worker, which finds the folder done or writes it). The output set is byte-identical to
+``radbench process --from-catalog QUERY --out OUT``'s with the same options.
+
+Example (a LocalCluster of two worker processes)::
+
+    from distributed import Client, LocalCluster
+    import radbench.dask as rd
+
+    with LocalCluster(n_workers=2, threads_per_worker=1) as cluster, Client(cluster):
+        bag = rd.process_bag("runs/catalog.sqlite", "waveform = ofdm", "runs/processed",
+                             algorithm="music")
+        done = bag.compute()
+    rd.register("runs/catalog.sqlite", "runs/processed", done, algorithm="music")
+
+On a cluster, only the ``Client`` changes (``Client("tcp://scheduler:8786")``); the catalog, the
+captures and ``out`` must be at the same paths on every worker (a shared file system).
+
+dask is optional: ``pip install "radbench[dask]"`` (dask[bag] and distributed).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Union
+
+from . import _keywords, _radbench
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = ["units", "process_unit", "process_bag", "register"]
+
+
+def units(
+    catalog: PathLike, query: str = "all", *, captures: Optional[Iterable[Mapping[str, Any]]] = None
+) -> List[Dict[str, str]]:
+    """The units to process: the captures ``query`` selects in ``catalog`` (the language of
+    ``radbench process --from-catalog``, e.g. ``"waveform = ofdm and since = 2026-11-01"``), or
+    the records ``captures`` (from ``radbench.catalog(path).captures(**filters)``). Each is a
+    dict ``{"input_dir", "input_sha256"}``."""
+    dirs = None if captures is None else [os.fspath(c["dir"]) for c in captures]
+    found = _radbench.archive_units(os.fspath(catalog), query, dirs)
+    return [{"input_dir": os.fspath(d), "input_sha256": sha} for d, sha in found]
+
+
+def process_unit(
+    unit: Mapping[str, str], out: PathLike, markers: Optional[PathLike] = None, **processing: Any
+) -> Dict[str, str]:
+    """One unit processed into ``out`` unless done: ``unit`` plus ``status`` (``"written"`` or
+    ``"skipped"``) and ``out_dir``. ``processing``: ``radbench.process``'s keywords. ``markers``:
+    a folder where each computation started leaves a file (to count work)."""
+    status, out_dir = _radbench.archive_process_unit(
+        os.fspath(unit["input_dir"]),
+        unit["input_sha256"],
+        os.fspath(out),
+        _keywords(processing),
+        None if markers is None else os.fspath(markers),
+    )
+    return {**unit, "status": status, "out_dir": os.fspath(out_dir)}
+
+
+def process_bag(
+    catalog: PathLike,
+    query: str = "all",
+    out: Optional[PathLike] = None,
+    *,
+    captures: Optional[Iterable[Mapping[str, Any]]] = None,
+    markers: Optional[PathLike] = None,
+    **processing: Any,
+) -> Any:
+    """A :class:`dask.bag.Bag` of the selected units, one per partition, each mapped through
+    :func:`process_unit` (lazy: ``.compute()`` runs it on the current scheduler). ``out``
+    defaults to ``processed/`` beside the catalog, as the command's. Register the results with
+    :func:`register`."""
+    try:
+        import dask.bag as db
+    except ImportError as e:
+        raise ImportError(
+            "radbench.dask.process_bag needs dask: pip install 'dask[bag]' distributed "
+            "(or pip install 'radbench[dask]')"
+        ) from e
+    if out is None:
+        out = os.path.join(os.path.dirname(os.path.abspath(os.fspath(catalog))), "processed")
+    selected = units(catalog, query, captures=captures)
+    if not selected:
+        return db.from_sequence([], npartitions=1)
+    bag = db.from_sequence(selected, npartitions=len(selected))
+    return bag.map(process_unit, os.fspath(out), markers, **processing)
+
+
+def register(
+    catalog: PathLike, out: PathLike, done: Iterable[Mapping[str, str]], **processing: Any
+) -> int:
+    """Registers computed results (``process_bag(...).compute()``) in the catalog's
+    ``processed`` table, as the command does, and removes the temporary folders of done units
+    in ``out`` (left by killed workers); how many were removed. ``processing``: the keywords
+    the units were processed with."""
+    rows = [(d["input_dir"], d["input_sha256"], d["out_dir"]) for d in done]
+    return _radbench.archive_register(
+        os.fspath(catalog), os.fspath(out), _keywords(processing), rows
+    )
