@@ -83,7 +83,7 @@ impl ArchiveSettings {
     }
 
     /// The options as hashed.
-    pub fn described(&self) -> &str {
+    pub(crate) fn described(&self) -> &str {
         &self.described
     }
 }

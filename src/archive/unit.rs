@@ -22,7 +22,7 @@ pub struct Unit {
 
 impl Unit {
     /// The output folder's name: input, options, version.
-    pub fn address(&self, settings: &ArchiveSettings) -> String {
+    pub(crate) fn address(&self, settings: &ArchiveSettings) -> String {
         format!(
             "{}-{}-v{VERSION}",
             &self.input_sha256[..16],
@@ -82,7 +82,7 @@ fn source_of(dir: &Path) -> anyhow::Result<Source> {
 }
 
 /// The captures `query` selects in `catalog` (the language of
-/// [`runs_db::parse_query`]), newest first, with their addresses' input SHA-256: as the
+/// `runs_db::parse_query`), newest first, with their addresses' input SHA-256: as the
 /// catalog's `assets` table has them, or hashed when a file is not there or changed since.
 /// Outputs of `process` are results, not captures: never selected.
 pub fn units(catalog: &Path, query: &str) -> anyhow::Result<Vec<Unit>> {

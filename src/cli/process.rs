@@ -151,7 +151,15 @@ impl Finishers {
 
 pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     if let Some(query) = &args.from_catalog {
-        return super::process_catalog::run(&args, query);
+        return super::process_catalog::run(&super::process_catalog::Request {
+            query,
+            catalog: args.catalog.clone(),
+            out: args.out.clone(),
+            jobs: args.jobs,
+            json: args.json,
+            link_png: args.link_png,
+            options: &args.options,
+        });
     }
     let out = args
         .out

@@ -6,9 +6,21 @@ use radbench::archive::{self, ArchiveSettings, UnitDone, UnitStatus};
 use radbench::runs_db;
 use rayon::prelude::*;
 use serde_json::json;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-pub(crate) fn run(args: &super::process::Args, query: &str) -> anyhow::Result<()> {
+/// What `radbench process --from-catalog` was given.
+pub(crate) struct Request<'a> {
+    pub(crate) query: &'a str,
+    pub(crate) catalog: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
+    pub(crate) jobs: Option<usize>,
+    pub(crate) json: bool,
+    pub(crate) link_png: bool,
+    pub(crate) options: &'a radbench::in_memory::ProcessArgs,
+}
+
+pub(crate) fn run(args: &Request<'_>) -> anyhow::Result<()> {
+    let query = args.query;
     let catalog = args
         .catalog
         .clone()
@@ -84,7 +96,7 @@ fn count(done: &[UnitDone], status: UnitStatus) -> usize {
 }
 
 fn report(
-    args: &super::process::Args,
+    args: &Request<'_>,
     out: &Path,
     settings: &ArchiveSettings,
     done: &[UnitDone],

@@ -470,7 +470,7 @@ pub fn write_reprocessed<R>(
 /// a function of the sources, the options and radbench's version alone, so the manifest has no
 /// write time and the summary names its files relative to the folder (written under a
 /// temporary name, then renamed).
-pub fn write_reprocessed_by_content<R>(
+pub(crate) fn write_reprocessed_by_content<R>(
     out: &Path,
     sources: &[SourceFile],
     loaded: &super::reprocess::Loaded<R>,

@@ -14,7 +14,7 @@ use std::time::Duration;
 /// The SHA-256 of each of `files` that the catalog's `assets` table holds for the file as it is
 /// now (same size and, when recorded, same modification time). Files it has not, or has for an
 /// older content, are left out: the caller hashes them.
-pub fn known_sha256(
+pub(crate) fn known_sha256(
     catalog: &Path,
     files: &[PathBuf],
 ) -> Result<HashMap<PathBuf, String>, RunsDbError> {

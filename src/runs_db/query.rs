@@ -631,7 +631,7 @@ const QUERY_FIELDS: [&str; 8] = [
 /// `kind`, `waveform`, `scope`, `calibration`, `status`, `origin`) and the metric terms of
 /// `--where`, joined by `and`; e.g. `waveform = msk-lfm and since = 2026-12-01 and
 /// max_abs_error_m < 1e-3`. Empty (or `all`): every capture. An error names the term at fault.
-pub fn parse_query(text: &str) -> Result<RunFilter, RunsDbError> {
+pub(crate) fn parse_query(text: &str) -> Result<RunFilter, RunsDbError> {
     let bad = |reason: String| RunsDbError::BadInput {
         field: "query".into(),
         reason,

@@ -222,6 +222,47 @@ fn a_campaign_with_a_locked_or_damaged_catalog_completes_and_the_next_index_fixe
     );
 }
 
+#[test]
+fn a_campaign_whose_catalog_cannot_be_written_completes_and_the_next_index_fixes_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let (_, reference) = campaign(root, "reference");
+    // A catalog nothing can be written to, as on a full or read-only disk: its folder is a
+    // file (root may write anywhere else).
+    let blocked = root.join("not-a-folder");
+    std::fs::write(&blocked, b"").unwrap();
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/accuracy.toml");
+    let out = root.join("runs/unwritable");
+    let output = output_within(
+        Command::new(BIN)
+            .args([
+                "campaign",
+                "run",
+                spec.to_str().unwrap(),
+                "--allow-rf",
+                "--out",
+            ])
+            .arg(&out)
+            .current_dir(root)
+            .env("RADBENCH_CATALOG", blocked.join("catalog.sqlite")),
+        LIMIT,
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert_eq!(
+        std::fs::read(out.join("results.json")).unwrap(),
+        reference,
+        "the same results with the catalog unwritable"
+    );
+    assert!(
+        stderr.contains("run catalog") && stderr.contains("runs index"),
+        "{stderr}"
+    );
+    // The next index of the runs folder holds both runs.
+    ok(&["runs", "index"], root);
+    assert_eq!(count_runs(&root.join("runs/catalog.sqlite")), 2);
+}
+
 /// A run folder, as the test reads it without the catalog.
 struct Walked {
     run_id: String,
