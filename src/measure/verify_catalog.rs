@@ -2,7 +2,7 @@
 //! only infers (instruments/README.md, tags [I] and [P]) and says, per value, whether the
 //! instrument confirms it, answers differently (with its answer), or cannot be asked (with why:
 //! radbench knows no query for it on that family, or the instrument did not answer). Nothing
-//! radiating is sent: identities, `*OPT?`. Every exchange is bounded, and the whole check by one
+//! radiating is sent: identities, `*OPT?`, the limit queries of `driver::instrument_limits`. Every exchange is bounded, and the whole check by one
 //! deadline. `write_overrides` turns the differences into instrument files for the bench's
 //! `catalog` folder.
 
@@ -10,7 +10,7 @@ use super::bench::Bench;
 use super::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentKind, InstrumentModel, Origin, EMBEDDED_FILES};
-use crate::driver::{open, DriverError, Journal};
+use crate::driver::{instrument_limits, open, DriverError, Journal};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -89,44 +89,81 @@ fn past_deadline() -> Verdict {
     }
 }
 
-/// The inferred values of a model that no query reaches, as (field, value).
-fn unqueryable(model: &InstrumentModel) -> Vec<(String, String)> {
+/// How a catalog number is shown: rates in Sa/s as `6.4e10 Sa/s`, whole numbers as integers.
+fn show(v: f64, unit: &str) -> String {
+    match unit {
+        "Sa/s" => format!("{v:e} Sa/s"),
+        _ if v.fract() == 0.0 && v.abs() < 1e18 => format!("{}{unit}", v as i64),
+        _ => format!("{v}{unit}"),
+    }
+}
+
+/// The inferred limits of a model: field, the catalog's number, its unit (for [`show`]).
+fn inferred_limits(model: &InstrumentModel) -> Vec<(&'static str, f64, &'static str)> {
     let mut out = Vec::new();
     if let Some(a) = &model.awg {
-        out.push((
-            "awg.dac_rate_default".into(),
-            format!("{:e} Sa/s", a.dac_rate_default),
-        ));
-        out.push((
-            "awg.internal_memory_samples".into(),
-            a.internal_memory_samples.to_string(),
-        ));
-        out.push((
-            "awg.extended_memory_samples".into(),
-            a.extended_memory_samples.to_string(),
-        ));
-        out.push(("awg.max_segment_id".into(), a.max_segment_id.to_string()));
+        out.extend([
+            ("awg.dac_rate_min", a.dac_rate_min, "Sa/s"),
+            ("awg.dac_rate_max", a.dac_rate_max, "Sa/s"),
+            ("awg.dac_rate_default", a.dac_rate_default, "Sa/s"),
+            (
+                "awg.internal_memory_samples",
+                a.internal_memory_samples as f64,
+                "",
+            ),
+            (
+                "awg.extended_memory_samples",
+                a.extended_memory_samples as f64,
+                "",
+            ),
+        ]);
     }
     if let Some(d) = &model.digitizer {
-        let rates: Vec<String> = d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
-        out.push((
-            "digitizer.sample_rates".into(),
-            format!("{} Sa/s", rates.join(", ")),
-        ));
-        out.push((
-            "digitizer.max_points_per_channel".into(),
-            d.max_points_per_channel.to_string(),
-        ));
-        out.push((
-            "digitizer.volts_per_div_min / max".into(),
-            format!("{} / {} V", d.volts_per_div_min, d.volts_per_div_max),
-        ));
-        out.push((
-            "digitizer.max_sequence_segments".into(),
-            d.max_sequence_segments.to_string(),
-        ));
+        let highest = d.sample_rates.iter().copied().fold(0.0, f64::max);
+        out.extend([
+            ("digitizer.sample_rates", highest, "Sa/s"),
+            (
+                "digitizer.max_points_per_channel",
+                d.max_points_per_channel as f64,
+                "",
+            ),
+            ("digitizer.volts_per_div_min", d.volts_per_div_min, " V"),
+            ("digitizer.volts_per_div_max", d.volts_per_div_max, " V"),
+            (
+                "digitizer.max_sequence_segments",
+                f64::from(d.max_sequence_segments),
+                "",
+            ),
+        ]);
     }
     out
+}
+
+/// Equal within the printing precision of the instruments' replies.
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-6 * a.abs().max(b.abs())
+}
+
+/// `awg.max_segment_id` from the installed options: without `SEQ` the M8195A keeps one segment;
+/// with it, more than one, and no query says how many.
+fn segment_verdict(catalog_max: u32, options: &str) -> Verdict {
+    let seq = option_set(options).iter().any(|o| o == "SEQ");
+    match (seq, catalog_max) {
+        (false, 1) => Verdict::Confirmed {
+            answer: "1 (no SEQ in *OPT?: one segment)".into(),
+        },
+        (false, _) => Verdict::Differs {
+            answer: "1 (no SEQ in *OPT?: one segment)".into(),
+        },
+        (true, 1) => Verdict::Differs {
+            answer: "more than 1 (SEQ in *OPT?)".into(),
+        },
+        (true, _) => Verdict::CannotBeQueried {
+            why: "SEQ is installed, so more than one segment; the M8195A has no query for \
+                  how many: check its datasheet"
+                .into(),
+        },
+    }
 }
 
 /// What the driver's identity check made of an open (`Ok`: the identity it read).
@@ -236,6 +273,7 @@ pub async fn verify_catalog(
         };
         let reached = !matches!(identity, Verdict::CannotBeQueried { .. });
         values.push(value("identity", expected, identity));
+        let mut options_reply: Option<Result<String, String>> = None;
         if let Some(awg) = &model.awg {
             let mut listed = awg.options.clone();
             listed.sort();
@@ -246,7 +284,7 @@ pub async fn verify_catalog(
                     why: "not asked: the instrument was not identified".into(),
                 }
             } else {
-                match crate::driver::ask::ask_once(
+                let reply = crate::driver::ask::ask_once(
                     resource.clone(),
                     model,
                     "*OPT?",
@@ -254,8 +292,9 @@ pub async fn verify_catalog(
                     journal.clone(),
                     name,
                 )
-                .await
-                {
+                .await;
+                options_reply = Some(reply.clone());
+                match reply {
                     Ok(reply) if option_set(&reply) == option_set(&listed.join(",")) => {
                         Verdict::Confirmed { answer: reply }
                     }
@@ -265,8 +304,56 @@ pub async fn verify_catalog(
             };
             values.push(value("awg.options", listed.join(","), verdict));
         }
-        for (field, shown) in unqueryable(model) {
-            values.push(value(&field, shown, no_query(&family)));
+        let read = if !reached || started.elapsed() >= DEADLINE {
+            Vec::new()
+        } else {
+            let reach = instrument_limits::Reach {
+                resource: resource.clone(),
+                model,
+                limit: EXCHANGE_LIMIT,
+                journal: journal.clone(),
+                name,
+            };
+            instrument_limits::read_limits(&family, &reach).await
+        };
+        for (field, expected, unit) in inferred_limits(model) {
+            let verdict = match read.iter().find(|(f, _)| *f == field) {
+                Some((_, Ok(v))) if same(*v, expected) => Verdict::Confirmed {
+                    answer: show(*v, unit),
+                },
+                Some((_, Ok(v))) => Verdict::Differs {
+                    answer: show(*v, unit),
+                },
+                Some((_, Err(why))) => Verdict::CannotBeQueried { why: why.clone() },
+                None if !reached => Verdict::CannotBeQueried {
+                    why: "not asked: the instrument was not identified".into(),
+                },
+                None if started.elapsed() >= DEADLINE => past_deadline(),
+                None => no_query(&family),
+            };
+            let shown = match (field, &model.digitizer) {
+                ("digitizer.sample_rates", Some(d)) => {
+                    let rates: Vec<String> =
+                        d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
+                    format!("{} Sa/s (the highest is asked)", rates.join(", "))
+                }
+                _ => show(expected, unit),
+            };
+            values.push(value(field, shown, verdict));
+        }
+        if let Some(awg) = &model.awg {
+            let verdict = match options_reply.as_ref() {
+                Some(Ok(reply)) if family == "keysight-m8195a" => {
+                    segment_verdict(awg.max_segment_id, reply)
+                }
+                Some(Err(why)) => Verdict::CannotBeQueried { why: why.clone() },
+                _ => no_query(&family),
+            };
+            values.push(value(
+                "awg.max_segment_id",
+                awg.max_segment_id.to_string(),
+                verdict,
+            ));
         }
         if model.protocol.is_some() {
             values.push(value(

@@ -36,15 +36,40 @@ async fn the_catalog_is_checked_on_the_instruments() {
         out.contains("awg.options") && out.contains("0 differ"),
         "{out}"
     );
-    let rows = out.lines().filter(|l| !l.starts_with(' '));
-    for line in rows.filter(|l| l.contains(" identity ") || l.contains(" awg.options ")) {
+    // Every value of the AWG and the scope is asked and confirmed: options, rates, memory, V/div,
+    // segment counts.
+    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with(' ')).collect();
+    let asked = rows
+        .iter()
+        .filter(|l| l.starts_with("awg ") || l.starts_with("scope "));
+    for line in asked.clone() {
         assert!(line.ends_with("confirmed"), "{line}\n{out}");
     }
-    assert!(out.contains("digitizer.max_sequence_segments"), "{out}");
+    for field in [
+        "awg.dac_rate_max",
+        "awg.internal_memory_samples",
+        "awg.extended_memory_samples",
+        "awg.max_segment_id",
+        "digitizer.sample_rates",
+        "digitizer.max_points_per_channel",
+        "digitizer.volts_per_div_min",
+        "digitizer.volts_per_div_max",
+        "digitizer.max_sequence_segments",
+    ] {
+        assert!(
+            asked.clone().any(|l| l.contains(&format!(" {field} "))),
+            "{field}\n{out}"
+        );
+    }
+    // What is left unasked says why (the modules' project-defined protocol).
     assert!(out.contains("cannot be queried"), "{out}");
 
-    // A unit with other options, set through the lab's control channel.
-    let answer = control(&lab, r#"{"cmd":"fault","awg_options":["001","002"]}"#).await;
+    // A unit with other options and another top rate, set through the lab's control channel.
+    let answer = control(
+        &lab,
+        r#"{"cmd":"fault","awg_options":["001","002"],"awg_raster_max":6e10}"#,
+    )
+    .await;
     assert_ne!(answer["ok"], false, "{answer}");
     let mut with_overrides = verify.to_vec();
     with_overrides.extend(["--write-overrides", "overrides", "--json"]);
@@ -59,11 +84,21 @@ async fn the_catalog_is_checked_on_the_instruments() {
         .unwrap();
     assert_eq!(options["verdict"], "differs", "{options}");
     assert_eq!(options["answer"], "001,002", "{options}");
+    let rate = json["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["field"] == "awg.dac_rate_max")
+        .unwrap();
+    assert_eq!(rate["verdict"], "differs", "{rate}");
+    assert_eq!(rate["answer"], "6e10 Sa/s", "{rate}");
     let written = dir.path().join("overrides/keysight_m8195a.toml");
     let text = std::fs::read_to_string(&written).unwrap();
     assert!(text.contains("options = [\"001\", \"002\"]"), "{text}");
     assert!(err.contains("catalog = \"overrides\""), "{err}");
 
+    // The rate is not written down yet: the unit gets the catalog's back.
+    control(&lab, r#"{"cmd":"fault","awg_raster_max":0}"#).await;
     // The bench pointed at the overrides: confirmed.
     let pointed = format!(
         "catalog = \"overrides\"\n{}",
