@@ -433,6 +433,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
     };
     BenchFile {
         catalog: None,
+        catalog_overrides: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
         scope: InstrumentEntry {
             // The simulated scope's jitter is its scene's.
