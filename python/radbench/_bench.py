@@ -53,7 +53,10 @@ class Bench:
     ``bench``: a bench file; ``None`` starts the built-in mock lab (as the command line does
     without ``--bench``; ``scene``, a scene file or dict, and ``scope_model`` choose it); or a
     running :class:`MockLab` (its bench file, calibrated with the lab's exact delay). RF is
-    switched on only with ``allow_rf=True``. ``trace_io``: a file that journals every exchange
+    switched on only with ``allow_rf=True``. A bench file with manual front ends
+    (``driver = "manual"``) also needs ``manual_front_ends_confirmed=True``: the operator has set
+    them by hand (what the command line's typed ``yes`` says); without it a capture is refused
+    with :class:`InputError` before anything is switched on. ``trace_io``: a file that journals every exchange
     with the instruments (``--trace-io``).
 
     Use it as a context manager::
@@ -77,6 +80,7 @@ class Bench:
         allow_rf: bool = False,
         scope_model: Optional[str] = None,
         trace_io: Optional[PathLike] = None,
+        manual_front_ends_confirmed: bool = False,
     ) -> None:
         self._session: Optional[Any] = None
         self._bench_file: Optional[str] = None
@@ -100,6 +104,7 @@ class Bench:
                 allow_rf=bool(allow_rf),
                 scope_model=scope_model,
                 trace_io=os.fspath(trace_io) if trace_io is not None else None,
+                manual_front_ends_confirmed=bool(manual_front_ends_confirmed),
                 **_scene_keywords(scene),
             )
         except BaseException:

@@ -109,7 +109,7 @@ impl Session {
     /// `bench`: a bench file, or `None` for the built-in mock lab (`scene_toml` with its
     /// `origin`, or `scene_json`; `scope_model`).
     #[new]
-    #[pyo3(signature = (bench=None, scene_toml=None, scene_json=None, origin="<scene>", allow_rf=false, scope_model=None, trace_io=None))]
+    #[pyo3(signature = (bench=None, scene_toml=None, scene_json=None, origin="<scene>", allow_rf=false, scope_model=None, trace_io=None, manual_front_ends_confirmed=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -120,6 +120,7 @@ impl Session {
         allow_rf: bool,
         scope_model: Option<String>,
         trace_io: Option<PathBuf>,
+        manual_front_ends_confirmed: bool,
     ) -> PyResult<Self> {
         use mock_lab::scene::Scene;
         let bad = |m: String| to_py(radbench::exit::bad_input(m));
@@ -146,6 +147,7 @@ impl Session {
             bench,
             built_in,
             allow_rf,
+            manual_front_ends_confirmed,
             trace_io,
         };
         // Opening is bounded by the connections' own timeouts.

@@ -243,7 +243,15 @@ async fn calibrate_lab(
         gate_s: 4e-9,
     };
     let mut rig = Rig::connect(&bench, &catalog, None).await?;
-    let calibrated = calibrate_with(&mut rig, &bench, &request, interrupt).await;
+    let calibrated = calibrate_with(
+        &mut rig,
+        &bench,
+        &request,
+        // The built-in lab: simulated front ends, none manual.
+        &crate::driver::RfPermit::granted_by_user(),
+        interrupt,
+    )
+    .await;
     drop(rig);
     let calibrated = calibrated?;
     let improvement = calibrated.verdict().map_err(|why| {

@@ -118,7 +118,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             (None, Some(b)) => Some(default_out(b)),
             (None, None) => None,
         };
-        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
+        let manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         let catalog = bench.file.catalog()?;
@@ -129,7 +129,8 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             gate_s: gate_s(&args),
         };
         let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
-        let calibrated = calibrate_with(&mut rig, &bench, &request, &interrupt).await?;
+        let calibrated =
+            calibrate_with(&mut rig, &bench, &request, &manual.permit(), &interrupt).await?;
         drop(rig);
         let (response, figures) = (&calibrated.response, &calibrated.reference);
         let verdict = calibrated.verdict();

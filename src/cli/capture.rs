@@ -190,11 +190,11 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
+    let manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;
-    let result = measure_into(args, global, kind, waveform, source, &out).await;
+    let result = measure_into(args, global, kind, waveform, source, &out, &manual.permit()).await;
     if result.is_err() && created {
         // A refused or failed capture leaves no empty folder behind (one with files stays).
         let _ = std::fs::remove_dir(&out);
@@ -211,6 +211,7 @@ async fn measure_into(
     waveform: radbench::waveform::WaveformSpec,
     source: radbench::measure::BenchSource,
     out: &Path,
+    permit: &RfPermit,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
     let payload = args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec());
@@ -252,6 +253,7 @@ async fn measure_into(
             &bench,
             &request,
             &interrupt,
+            permit,
             &out,
             calibration.as_ref(),
         )
@@ -262,7 +264,7 @@ async fn measure_into(
         &request,
         generation,
         args.repetitions,
-        &RfPermit::granted_by_user(),
+        permit,
         journal(global)?,
         &interrupt,
     )

@@ -47,6 +47,10 @@ pub struct SessionSource {
     pub built_in: Option<BuiltIn>,
     /// The explicit permit to switch RF on (`--allow-rf`).
     pub allow_rf: bool,
+    /// The operator set the bench file's manual front ends (`driver = "manual"`) by hand: what
+    /// the command line's typed `yes` says. Without it a bench with manual front ends is refused
+    /// before anything radiates.
+    pub manual_front_ends_confirmed: bool,
     /// Every instrument exchange journaled here (`--trace-io`).
     pub trace_io: Option<PathBuf>,
 }
@@ -112,6 +116,7 @@ struct Warm {
     prepared: Option<(CaptureRequest, Prepared)>,
     journal: Option<Journal>,
     allow_rf: bool,
+    manual_front_ends_confirmed: bool,
     closed: bool,
     _lock: BenchLock,
 }
@@ -142,6 +147,7 @@ impl BenchSession {
                 prepared: None,
                 journal,
                 allow_rf: source.allow_rf,
+                manual_front_ends_confirmed: source.manual_front_ends_confirmed,
                 closed: false,
                 _lock: lock,
             })
@@ -280,7 +286,17 @@ impl BenchSession {
         self.spawn_on_thread(move |mut warm, interrupt| async move {
             warm.before_campaign().await?;
             let bench_file = warm.bench.path.clone();
-            campaign::run(spec, bench_file.as_deref(), out, retries, to, interrupt).await
+            let permit = warm.permit();
+            campaign::run(
+                spec,
+                bench_file.as_deref(),
+                out,
+                retries,
+                to,
+                permit,
+                interrupt,
+            )
+            .await
         })
     }
 
@@ -289,7 +305,7 @@ impl BenchSession {
     pub fn campaign_resume(&self, dir: PathBuf, to: CampaignEvents) -> Call<PathBuf> {
         self.spawn_on_thread(move |mut warm, interrupt| async move {
             warm.before_campaign().await?;
-            campaign::resume(&dir, to, interrupt).await
+            campaign::resume(&dir, to, warm.permit(), interrupt).await
         })
     }
 
@@ -330,6 +346,17 @@ impl Warm {
             Some(mut rig) => rig.engage_safe_state().await,
             // Nothing connected: the last call's guard left the bench safe, or it never radiated.
             None => SafeStateReport::default(),
+        }
+    }
+
+    /// The user's permit (`allow_rf` is checked by each call), with the operator's confirmation
+    /// of the manual front ends when the session was opened with it.
+    fn permit(&self) -> RfPermit {
+        let permit = RfPermit::granted_by_user();
+        if self.manual_front_ends_confirmed {
+            permit.with_manual_front_ends_confirmed()
+        } else {
+            permit
         }
     }
 
@@ -392,15 +419,10 @@ impl Warm {
     ) -> Result<measure::Measurement, MeasureError> {
         let mut prepared = self.prepared(&request, repetitions, interrupt).await?;
         self.connected().await?;
+        let permit = self.permit();
         let rig = self.rig.as_mut().expect("connected above");
         let measured = rig
-            .measure(
-                &self.bench,
-                &mut prepared,
-                repetitions,
-                &RfPermit::granted_by_user(),
-                interrupt,
-            )
+            .measure(&self.bench, &mut prepared, repetitions, &permit, interrupt)
             .await;
         if measured.is_err() {
             // What the instruments hold after a failure is unknown: connect again next time.

@@ -476,6 +476,7 @@ impl Rig {
         interrupt: &Interrupt,
     ) -> Result<Taken, MeasureError> {
         check_repetitions(repetitions)?;
+        super::manual::check_confirmed(&bench.file, permit)?;
         let fresh = std::mem::take(&mut self.fresh);
         let loaded = self
             .loaded
@@ -764,6 +765,8 @@ pub async fn take(
     interrupt: &Interrupt,
 ) -> Result<(Taken, Prepared), MeasureError> {
     check_repetitions(repetitions)?;
+    // Before anything is sent (the upload included).
+    super::manual::check_confirmed(&bench.file, permit)?;
     let catalog = bench.file.catalog()?;
     let planned = plan_generated(bench, &catalog, request, generation).await?;
     let (built, mut rig) = if request.background.is_some() {

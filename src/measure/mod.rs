@@ -122,6 +122,15 @@ pub enum MeasureError {
          to switch them on for this {run} (they are switched off again at the end)"
     )]
     NoPermit { run: &'static str },
+    /// The bench has manual front ends and the permit carries no operator confirmation of their
+    /// settings: refused before anything is sent.
+    #[error(
+        "the {names} front end settings were not confirmed by the operator: the measurement did \
+         not start and nothing was switched on (command line: answer yes on standard input; \
+         Python: radbench.Bench(..., manual_front_ends_confirmed=True); Rust: \
+         RfPermit::with_manual_front_ends_confirmed)"
+    )]
+    ManualNotConfirmed { names: String },
     /// The waveform does not fit the AWG (catalog limits).
     #[error("the {waveform} waveform does not fit the {instrument}: {reason}")]
     DoesNotFit {
@@ -243,6 +252,7 @@ impl MeasureError {
             MeasureError::Option { .. }
             | MeasureError::AlgorithmNeedsOfdm { .. }
             | MeasureError::NoPermit { .. }
+            | MeasureError::ManualNotConfirmed { .. }
             | MeasureError::DoesNotFit { .. }
             | MeasureError::RateNotMultiple { .. }
             | MeasureError::BackgroundShape { .. }
