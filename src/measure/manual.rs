@@ -18,7 +18,7 @@ pub fn confirms(answer: &str) -> bool {
 }
 
 /// `Tx`, `Rx` or `Tx and Rx`.
-fn names(manual: &[ManualFrontEnd]) -> String {
+pub(crate) fn names(manual: &[ManualFrontEnd]) -> String {
     manual
         .iter()
         .map(ManualFrontEnd::name)
@@ -70,21 +70,6 @@ pub fn manual_instructions(bench: &BenchFile, catalog: Option<&Catalog>, run: &s
         names(&bench.manual)
     );
     out
-}
-
-/// Refuses `permit` on a bench with manual front ends unless the operator's confirmation is in
-/// it ([`crate::driver::RfPermit::with_manual_front_ends_confirmed`]): checked by every library entry point that
-/// radiates, before anything is sent, so only the command line's prompt is not enough.
-pub(crate) fn check_confirmed(
-    bench: &BenchFile,
-    permit: &crate::driver::RfPermit,
-) -> Result<(), super::MeasureError> {
-    if bench.manual.is_empty() || permit.manual_front_ends_confirmed() {
-        return Ok(());
-    }
-    Err(super::MeasureError::ManualNotConfirmed {
-        names: names(&bench.manual),
-    })
 }
 
 /// The doctor's advice for a manual front end.

@@ -194,7 +194,7 @@ pub async fn calibrate_with(
     permit: &RfPermit,
     interrupt: &Interrupt,
 ) -> Result<Calibrated, MeasureError> {
-    super::manual::check_confirmed(&bench.file, permit)?;
+    super::capture::check_manual_confirmed(bench, permit)?;
     let catalog = bench.file.catalog()?;
     let kind = request.waveform.kind();
     let system_delay_s = bench.file.system_delay_s();
