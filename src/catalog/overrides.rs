@@ -6,7 +6,7 @@
 //! ```toml
 //! [keysight-m8195a.awg]
 //! options = ["001", "002"]
-//! dac_rate_max = 6.0e10
+//! dac_rate_max = 6.45e10
 //! ```
 //!
 //! Each value replaces the model's, and the model is validated again as a whole, so an override
@@ -114,14 +114,14 @@ mod tests {
         let path = dir.path().join("overrides.toml");
         std::fs::write(
             &path,
-            "[keysight-m8195a.awg]\noptions = [\"001\"]\ndac_rate_max = 6.0e10\n",
+            "[keysight-m8195a.awg]\noptions = [\"001\"]\ndac_rate_max = 6.45e10\n",
         )
         .unwrap();
         let mut catalog = Catalog::embedded().unwrap();
         catalog.apply_overrides(&path).unwrap();
         let awg = catalog.get("keysight-m8195a").unwrap().awg.clone().unwrap();
         assert_eq!(awg.options, vec!["001".to_string()]);
-        assert_eq!(awg.dac_rate_max, 6.0e10);
+        assert_eq!(awg.dac_rate_max, 6.45e10);
         assert_eq!(awg.dac_rate_min, 53.76e9);
     }
 
