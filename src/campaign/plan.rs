@@ -1025,9 +1025,7 @@ fn processing(
         // model order is counted per step).
         let mut o = p.apply(ProcessOptions::default());
         o.algorithm = a;
-        let file = bench.bench_file();
-        o.system_delay_s = file.system_delay_s();
-        o.trigger_jitter_s = file.scope.trigger_jitter_s;
+        bench.bench_file().processing_of_this_bench(&mut o);
         out.push(o);
     }
     Ok(out)

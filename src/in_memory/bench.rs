@@ -431,8 +431,7 @@ impl Warm {
             return Err(MeasureError::NoPermit { run: "capture" }.into());
         }
         let mut options = o.choices.options(o.waveform);
-        options.system_delay_s = self.bench.file.system_delay_s();
-        options.trigger_jitter_s = self.bench.file.scope.trigger_jitter_s;
+        self.bench.file.processing_of_this_bench(&mut options);
         let calibration = resolve_correction(
             o.choices.correction,
             o.choices.calibration.as_deref(),
