@@ -106,11 +106,10 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
             "{}",
             f.id
         );
-        assert!(
-            md.contains(&format!("(`{}`)", f.id)),
-            "report.md lists {}",
-            f.id
-        );
+        let png = format!("](figures/{}.png)", f.id);
+        assert!(md.contains(&png), "report.md embeds {}", f.id);
+        let bytes = std::fs::read(dir.join("figures").join(format!("{}.png", f.id))).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG"), "{} is a PNG", f.id);
     }
     assert_eq!(html.matches("\" class=\"plot\">").count(), figures.len());
     check_link_figures(dir, &results, &html);
