@@ -223,6 +223,7 @@ impl StepJob {
 /// folder, each further algorithm's profiles in a subfolder named after it, the step's result.
 /// They become durable together (one write group: hashed as written, synced and renamed at the
 /// end, each folder synced once); the manifest that names them is written only afterwards.
+#[allow(clippy::too_many_arguments)]
 fn write_step_files(
     dir: &Path,
     rel: &Path,

@@ -1053,7 +1053,6 @@ fn calibration_checks(
 
 #[cfg(test)]
 mod tests {
-    use super::*;
 
     #[test]
     fn utc_stamps_parse_to_epoch_seconds() {

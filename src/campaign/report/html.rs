@@ -116,6 +116,7 @@ pub(crate) fn html(
     results: &Results,
     summary: &Summary,
     figures: &[Figure],
+    pngs: &[Option<Vec<u8>>],
     links: &str,
 ) -> String {
     let plan = &manifest.plan;
@@ -160,19 +161,20 @@ pub(crate) fn html(
             plan.steps.len()
         );
     }
-    for f in figures {
+    for (k, f) in figures.iter().enumerate() {
         // A heat map is a bitmap (thousands of cells); every other plot inline SVG. A plot that
         // cannot be drawn says why; the report (and the run) goes on.
         let (class, body) = if f.chart.heat.is_some() {
-            let body = match plots::png(&f.chart) {
+            let png = pngs.get(k).and_then(Option::as_ref).ok_or("see the log");
+            let body = match png {
                 Ok(png) => format!(
                     "<img src=\"data:image/png;base64,{}\" alt=\"{}\" width=\"{}\" height=\"{}\"/>",
-                    base64(&png),
+                    base64(png),
                     escape(&f.chart.title),
                     plots::SIZE.0,
                     plots::SIZE.1
                 ),
-                Err(e) => format!("<p>This plot could not be drawn: {}</p>", escape(&e)),
+                Err(e) => format!("<p>This plot could not be drawn: {}</p>", escape(e)),
             };
             ("heatmap", body)
         } else {

@@ -49,7 +49,12 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
     figures.extend(sweep::sweep_figures(&results.steps));
     figures.extend(profiles::step_profiles(dir, results));
     let summary = summary::summary(dir, manifest, results);
-    let images = write_pngs(dir, &figures)?;
+    let pngs = render_pngs(&figures);
+    let images: Vec<Option<String>> = figures
+        .iter()
+        .zip(&pngs)
+        .map(|(f, png)| png.as_ref().map(|_| format!("{FIGURES_DIR}/{}.png", f.id)))
+        .collect();
     let md = dir.join(REPORT_FILE);
     write_atomic(
         &md,
@@ -60,34 +65,34 @@ pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathB
         results,
         &summary,
         &figures,
+        &pngs,
         &link::section(dir, results),
     );
     write_atomic(&dir.join(HTML_FILE), page.as_bytes())?;
-    Ok(md)
-}
-
-/// Writes each figure as `figures/ID.png` (atomically); returns each one's path relative to
-/// `dir`, `None` for a plot that cannot be drawn (the report says so and goes on).
-fn write_pngs(dir: &Path, figures: &[Figure]) -> Result<Vec<Option<String>>, CampaignError> {
-    if figures.is_empty() {
-        return Ok(Vec::new());
-    }
-    let folder = dir.join(FIGURES_DIR);
-    std::fs::create_dir_all(&folder).map_err(io(&folder))?;
-    let mut out = Vec::new();
-    for f in figures {
-        match plots::png(&f.chart) {
-            Ok(png) => {
-                write_atomic(&folder.join(format!("{}.png", f.id)), &png)?;
-                out.push(Some(format!("{FIGURES_DIR}/{}.png", f.id)));
-            }
-            Err(e) => {
-                tracing::warn!("report figure {}: {e}", f.id);
-                out.push(None);
+    // The PNGs last: the reports say first what the run found, should the disk fill up.
+    if images.iter().any(Option::is_some) {
+        let folder = dir.join(FIGURES_DIR);
+        std::fs::create_dir_all(&folder).map_err(io(&folder))?;
+        for (image, png) in images.iter().zip(&pngs) {
+            if let (Some(image), Some(png)) = (image, png) {
+                write_atomic(&dir.join(image), png)?;
             }
         }
     }
-    Ok(out)
+    Ok(md)
+}
+
+/// Each figure as a PNG (`None` for a plot that cannot be drawn: the report says so and goes
+/// on).
+fn render_pngs(figures: &[Figure]) -> Vec<Option<Vec<u8>>> {
+    figures
+        .iter()
+        .map(|f| {
+            plots::png(&f.chart)
+                .map_err(|e| tracing::warn!("report figure {}: {e}", f.id))
+                .ok()
+        })
+        .collect()
 }
 
 /// Reads a run folder's manifest and results and writes its report and `results.csv` again;

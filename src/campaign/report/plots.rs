@@ -184,9 +184,11 @@ pub(crate) fn png(chart: &Chart) -> Result<Vec<u8>, String> {
 }
 
 type YTransform = Box<dyn Fn(f64) -> Option<f64>>;
+/// The x and y ranges of a chart and its y transform.
+type Extent = ((f64, f64), (f64, f64), YTransform);
 
 /// The axes' ranges (the legend's room above the data included) and the y transform.
-fn extent(chart: &Chart) -> Result<((f64, f64), (f64, f64), YTransform), String> {
+fn extent(chart: &Chart) -> Result<Extent, String> {
     if let Some(h) = chart
         .heat
         .as_ref()
