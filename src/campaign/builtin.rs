@@ -132,7 +132,7 @@ pub struct LabRow {
     /// A window's row: its peak side-lobe on this chain and on the ideal one, dB. It agrees
     /// when the corrected chain's is within [`WINDOW_AGREEMENT_DB`] of the ideal chain's.
     #[serde(skip)]
-    window_psl_db: Option<f64>,
+    pub(crate) window_psl_db: Option<f64>,
     /// The run folder the figure comes from.
     pub dir: PathBuf,
 }
