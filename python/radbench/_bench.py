@@ -201,6 +201,47 @@ class Bench:
         "stored_in"}``."""
         return json.loads(self._open().calibrate(float(reference_range), float(search)))
 
+    def calibrate_response(
+        self,
+        reference_range: float,
+        waveform: str = "msk-lfm",
+        *,
+        repetitions: int = 16,
+        gate_ns: Optional[float] = None,
+        out: Optional[PathLike] = None,
+        force: bool = False,
+        **waveform_options: Any,
+    ) -> Dict[str, Any]:
+        """``radbench calibrate response --reference-range R``: the chain's response measured
+        on the reference pillar ``reference_range`` metres away (the bench's system delay
+        calibrated first: :meth:`calibrate`), with ``waveform`` and its options
+        (``bandwidth``, ``pulse_us``, ``band``, ...: calibrate with what the captures will use).
+
+        It is checked to help (correcting the reference must bring it closer to a flat chain's
+        side-lobe and width; ``force=True`` stores it anyway) and stored: at ``out`` (a
+        ``.toml`` header, the table beside it), else beside the bench file as
+        ``<bench>-response.toml``, named in its ``[calibration]`` so this session's later
+        captures correct with it; the built-in mock lab's is not stored without ``out``.
+        Returns ``radbench calibrate response --json``'s object (``figures``, ``reference``,
+        ``chain_echoes``, ``stored_in``, ...); a refused one raises
+        :class:`radbench.errors.InputError` with the reason."""
+        from . import _keywords
+
+        if not isinstance(waveform, str):
+            raise InputError(f"waveform: {waveform!r}; msk-lfm or ofdm")
+        if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
+            raise InputError(f"repetitions: {repetitions!r}; a whole number, 1 or more")
+        found = self._open().calibrate_response(
+            float(reference_range),
+            waveform.replace("_", "-"),
+            _keywords(waveform_options),
+            repetitions,
+            None if gate_ns is None else float(gate_ns),
+            os.fspath(out) if out is not None else None,
+            bool(force),
+        )
+        return json.loads(found)
+
     def campaign(
         self,
         spec: Union[PathLike, Dict[str, Any]],

@@ -34,6 +34,17 @@ class Bench:
         **processing: Any,
     ) -> Processed: ...
     def calibrate(self, reference_range: float, *, search: float = ...) -> Dict[str, Any]: ...
+    def calibrate_response(
+        self,
+        reference_range: float,
+        waveform: str = ...,
+        *,
+        repetitions: int = ...,
+        gate_ns: Optional[float] = ...,
+        out: Optional[PathLike] = ...,
+        force: bool = ...,
+        **waveform_options: Any,
+    ) -> Dict[str, Any]: ...
     def campaign(
         self,
         spec: Union[PathLike, Dict[str, Any]],

@@ -8,7 +8,8 @@ use crate::{processed_dict, to_py, waveform_kind};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use radbench::in_memory::{
-    BenchSession, Call, CampaignEvents, CampaignSpec, CaptureOptions, SessionSource,
+    BenchSession, Call, CampaignEvents, CampaignSpec, CaptureOptions, ResponseOptions,
+    SessionSource,
 };
 use radbench::measure::BuiltIn;
 use std::path::PathBuf;
@@ -183,6 +184,36 @@ impl Session {
     /// `radbench calibrate --json`'s object, as JSON text.
     fn calibrate(&self, py: Python<'_>, reference_range: f64, search: f64) -> PyResult<String> {
         let found = wait_for(py, self.session()?.calibrate(reference_range, search))?;
+        Ok(found.to_string())
+    }
+
+    /// `radbench calibrate response --json`'s object, as JSON text: `keywords` a JSON object
+    /// of the waveform's options.
+    #[pyo3(signature = (reference_range, waveform, keywords, repetitions, gate_ns=None, out=None, force=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn calibrate_response(
+        &self,
+        py: Python<'_>,
+        reference_range: f64,
+        waveform: &str,
+        keywords: &str,
+        repetitions: usize,
+        gate_ns: Option<f64>,
+        out: Option<PathBuf>,
+        force: bool,
+    ) -> PyResult<String> {
+        let kind = waveform_kind(waveform)?;
+        let options = ResponseOptions::from_keywords(
+            kind,
+            keywords,
+            reference_range,
+            repetitions,
+            gate_ns,
+            out,
+            force,
+        )
+        .map_err(to_py)?;
+        let found = wait_for(py, self.session()?.calibrate_response(options))?;
         Ok(found.to_string())
     }
 

@@ -97,8 +97,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);
-    options.system_delay_s = bench.file.system_delay_s();
-    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
+    bench.file.processing_of_this_bench(&mut options);
     let processing = &args.processing;
     let calibration = super::capture::resolve_correction(
         processing.correction,

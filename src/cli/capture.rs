@@ -223,8 +223,7 @@ async fn measure_into(
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
-    options.system_delay_s = bench.file.system_delay_s();
-    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
+    bench.file.processing_of_this_bench(&mut options);
     if let Some(w) = bench.file.uncalibrated_warning() {
         // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
         eprintln!("warning: {w}");

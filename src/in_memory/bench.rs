@@ -17,13 +17,15 @@ pub use campaign::{CampaignEvents, CampaignSpec};
 use super::bench_lock::BenchLock;
 use super::capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 use super::processed::InMemory;
+use super::response_call::ResponseOptions;
 use crate::catalog::Catalog;
 use crate::driver::Journal;
 use crate::driver::{RfPermit, SafeStateReport};
 use crate::exit::bad_input;
 use crate::measure::record::capture_summary;
 use crate::measure::{self, Algorithm, Bench, BenchCalibration, BenchSource, BuiltIn};
-use crate::measure::{CaptureRequest, CorrectionMode, Interrupt, MeasureError, Prepared};
+use crate::measure::{CalibrateRequest, CaptureRequest, CorrectionMode, Interrupt};
+use crate::measure::{MeasureError, Prepared};
 use crate::measure::{ProcessOptions, Provenance, Rig, StopSignal};
 use crate::waveform::WaveformSpec;
 use serde_json::{json, Value};
@@ -258,6 +260,16 @@ impl BenchSession {
         })
     }
 
+    /// `radbench calibrate response`: the chain's response measured on the reference pillar,
+    /// checked to help, and stored (beside the bench file, or at `options.out`), named in the
+    /// bench file so this session's later captures correct with it. JSON as `radbench calibrate
+    /// response --json` prints it; a response that does not help is refused unless forced.
+    pub fn calibrate_response(&self, options: ResponseOptions) -> Call<Value> {
+        self.spawn(move |mut warm, interrupt| async move {
+            warm.calibrate_response(options, &interrupt).await
+        })
+    }
+
     /// `radbench doctor --json`'s report. The session's connections are released for it (the
     /// doctor opens its own) and made again by the next capture.
     pub fn doctor(&self) -> Call<Value> {
@@ -441,8 +453,7 @@ impl Warm {
             return Err(MeasureError::NoPermit { run: "capture" }.into());
         }
         let mut options = o.choices.options(o.waveform);
-        options.system_delay_s = self.bench.file.system_delay_s();
-        options.trigger_jitter_s = self.bench.file.scope.trigger_jitter_s;
+        self.bench.file.processing_of_this_bench(&mut options);
         let calibration = resolve_correction(
             o.choices.correction,
             o.choices.calibration.as_deref(),
@@ -543,6 +554,58 @@ impl Warm {
             "measured_range_m": estimate.measured_range_m,
             "stored_in": self.bench.path.as_ref().map(|p| p.display().to_string()),
         }))
+    }
+}
+
+impl Warm {
+    async fn calibrate_response(
+        &mut self,
+        o: ResponseOptions,
+        interrupt: &Interrupt,
+    ) -> anyhow::Result<Value> {
+        if !self.allow_rf {
+            return Err(MeasureError::NoPermit { run: "calibration" }.into());
+        }
+        let request = CalibrateRequest {
+            waveform: o.waveform_args.spec(o.waveform)?,
+            reference_range_m: o.reference_range_m,
+            repetitions: o.repetitions,
+            gate_s: measure::gate_or_default_s(o.gate_ns, o.reference_range_m),
+        };
+        // The calibration uploads its own waveform: the next capture prepares again.
+        self.prepared = None;
+        self.connected().await?;
+        let permit = self.permit();
+        let rig = self.rig.as_mut().expect("connected above");
+        let calibrated =
+            match measure::calibrate_with(rig, &self.bench, &request, &permit, interrupt).await {
+                Ok(c) => c,
+                Err(e) => {
+                    self.rig = None;
+                    return Err(e.into());
+                }
+            };
+        let verdict = calibrated.verdict();
+        if let (Err(why), false) = (&verdict, o.force) {
+            return Err(MeasureError::CorrectionRefused(format!(
+                "not stored: {why} (force=True stores it anyway)"
+            ))
+            .into());
+        }
+        let stored = match measure::response_path(o.out.as_deref(), &self.bench) {
+            Some(path) => Some(measure::store_response(
+                &calibrated,
+                &path,
+                &mut self.bench,
+            )?),
+            None => None,
+        };
+        let refused = verdict.err();
+        Ok(measure::response_report(
+            &calibrated,
+            stored.as_ref(),
+            refused.as_deref(),
+        ))
     }
 }
 

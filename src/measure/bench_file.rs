@@ -466,6 +466,13 @@ impl BenchFile {
         self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
     }
 
+    /// What this bench's captures are processed with, whatever the command: its calibrated
+    /// system delay and its scope's stated trigger jitter (each range's uncertainty).
+    pub fn processing_of_this_bench(&self, options: &mut super::ProcessOptions) {
+        options.system_delay_s = self.system_delay_s();
+        options.trigger_jitter_s = self.scope.trigger_jitter_s;
+    }
+
     /// The warning a capture on this bench carries in every output while it has no delay
     /// calibration; `None` once `radbench calibrate` has stored one.
     pub fn uncalibrated_warning(&self) -> Option<String> {
