@@ -23,6 +23,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from test_report_browser import LIMIT_S, RADBENCH, REPO, WINDOW, Browser
@@ -103,6 +104,26 @@ def faults(browser, origin: str):
     return out
 
 
+def check_round_ticks_and_titles(browser):
+    """Every tick a round value (1, 2 or 5 times a power of ten, times an integer), evenly
+    spaced; the profile's title a name, not a CSV column."""
+    axes = browser.evaluate(
+        """(() => ['profile', 'plot'].flatMap(id => ['tick-x', 'tick-y'].map(c =>
+            Array.from(document.querySelectorAll('#' + id + ' text.' + c)).map(t => t.textContent))))()"""
+    )
+    assert len(axes) == 4 and all(len(a) >= 3 for a in axes), axes
+    for texts in axes:
+        values = [float(t) for t in texts]
+        steps = {round(b - a, 9) for a, b in zip(values, values[1:])}
+        assert len(steps) == 1, texts
+        step = steps.pop()
+        mantissa = step / 10 ** np.floor(np.log10(step))
+        assert any(abs(mantissa - m) < 1e-6 for m in (1, 2, 5)), (step, texts)
+        assert all(abs(v / step - round(v / step)) < 1e-6 for v in values), texts
+    title = browser.evaluate("document.getElementById('profile-title').textContent")
+    assert "_db" not in title and "(dB)" in title, title
+
+
 def test_live_page_follows_a_campaign(browser, tmp_path):
     spec = prompt_spec(tmp_path)
     out = tmp_path / "run"
@@ -151,6 +172,7 @@ def test_live_page_follows_a_campaign(browser, tmp_path):
     assert last["lines"] == 1, last
     results = json.loads((out / "results.json").read_text())
     assert len(results["steps"]) == STEPS
+    check_round_ticks_and_titles(browser)
     img = browser.screenshot()
     assert img.shape == (WINDOW[1], WINDOW[0])
     dark = (img < 128).mean()

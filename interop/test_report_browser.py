@@ -4,11 +4,15 @@ Runs small campaigns on radbench's built-in mock lab (loopback only), opens each
 report.html from disk in headless Chromium driven over `--remote-debugging-pipe` (every host name
 unresolvable, so an external resource could not load anyway) and checks:
 - no console error or warning, no uncaught exception, no log entry of level error;
-- no request other than the file itself (no http(s), no other file);
+- no request other than the file itself (no http(s), no other file; a heat map's inline
+  `data:image/png` is part of the file);
 - every plot an SVG element (parsed as SVG), laid out with a non-zero size, visible, with shapes
   drawn, as many as the file holds;
 - every step's link figure (constellation and channel estimate or phase trajectory) likewise, with
   its points drawn and its EVM and MER in its caption;
+- the summary (verdict, operator, instruments) laid out above the first figure, in the DOM and
+  on the page;
+- a 30-step run's heat map (an inline PNG, `data:` URI) decoded and shown, below the summary;
 - a screenshot that is not blank (pixel variance, dark pixels).
 A control page with a console error and an external image proves the checks see such faults.
 
@@ -73,6 +77,42 @@ LINK_PROBE = """
   };
 }))()
 """
+
+
+# The summary and the first figure: their order in the DOM and their place on the page.
+SUMMARY_PROBE = """
+(() => {
+  const s = document.querySelector('#summary');
+  const f = document.querySelector('figure');
+  if (!s || !f) return {summary: !!s, figure: !!f};
+  return {
+    summary: true, figure: true,
+    before: !!(s.compareDocumentPosition(f) & Node.DOCUMENT_POSITION_FOLLOWING),
+    summary_bottom: s.getBoundingClientRect().bottom + window.scrollY,
+    figure_top: f.getBoundingClientRect().top + window.scrollY,
+    verdict: (s.querySelector('.verdict') || {}).textContent || '',
+    text: s.textContent,
+  };
+})()
+"""
+
+# A heat map's inline PNG: decoded, laid out, visible.
+HEATMAP_PROBE = """
+(() => Array.from(document.querySelectorAll('figure.heatmap img')).map(i => {
+  const r = i.getBoundingClientRect();
+  return {complete: i.complete, natural: i.naturalWidth, width: r.width, height: r.height};
+}))()
+"""
+
+
+def check_summary_first(browser):
+    s = browser.evaluate(SUMMARY_PROBE)
+    assert s["summary"] and s["figure"], s
+    assert s["before"], "the summary comes before the first figure in the DOM"
+    assert s["summary_bottom"] <= s["figure_top"], s
+    assert re.match(r"(PASS|FAIL|No verdict)", s["verdict"]), s
+    for fact in ["Operator", "AWG *IDN?", "Scope *IDN?", "Worst error", "False targets"]:
+        assert fact in s["text"], (fact, s["text"])
 
 
 def chromium() -> str:
@@ -206,7 +246,8 @@ class Browser:
                 out.append(f"exception: {p.get('exceptionDetails')}")
             elif m == "Log.entryAdded" and p["entry"].get("level") in ("error", "warning"):
                 out.append(f"log: {p['entry'].get('text')} {p['entry'].get('url', '')}")
-            elif m == "Network.requestWillBeSent" and p["request"]["url"] != page.as_uri():
+            elif m == "Network.requestWillBeSent" and p["request"]["url"] != page.as_uri() \
+                    and not p["request"]["url"].startswith("data:image/png;base64,"):
                 out.append(f"request: {p['request']['url']}")
             elif m == "Network.loadingFailed":
                 out.append(f"failed: {p.get('errorText')}")
@@ -284,9 +325,35 @@ def test_report_html_in_chromium(run_dir, browser):
         assert p["width"] > 100 and p["height"] > 50, p
         assert p["points"] > 20, p
         assert "EVM" in p["caption"] and "MER" in p["caption"], p
+    check_summary_first(browser)
     img = browser.screenshot()
     assert img.shape == (WINDOW[1], WINDOW[0])
     dark = (img < 128).mean()
     assert img.std() > 10, f"screenshot looks blank (std {img.std():.1f})"
     assert dark > 0.005, f"screenshot looks blank ({dark:.4f} dark)"
+    assert browser.faults(page) == []
+
+
+def test_a_30_step_report_draws_a_heat_map_below_the_summary(browser, tmp_path):
+    spec = tmp_path / "thirty.toml"
+    spec.write_text(
+        'name = "thirty"\n[sweep]\nparameter = "position"\nstart = 0.8\nstep = 0.02\ncount = 30\n'
+    )
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [RADBENCH, "campaign", "run", str(spec), "--allow-rf", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=LIMIT_S,
+        stdin=subprocess.DEVNULL,
+    )
+    assert done.returncode == 0, done.stderr
+    page = out / "report.html"
+    browser.open(page.as_uri())
+    check_summary_first(browser)
+    maps = browser.evaluate(HEATMAP_PROBE)
+    assert len(maps) == 1, maps
+    m = maps[0]
+    assert m["complete"] and m["natural"] > 100, m
+    assert m["width"] > 100 and m["height"] > 50, m
     assert browser.faults(page) == []

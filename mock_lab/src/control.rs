@@ -15,7 +15,7 @@
 //! | `{"cmd":"last_capture"}` | `{"ok":true,"captures":N,"scene":{...}}`: the scene of the last capture |
 //! | `{"cmd":"scope_remote","interface":"vxi11"}` | switch the scope's remote interface (`vicp` or `vxi11`); replies once only that endpoint accepts connections |
 //! | `{"cmd":"endpoints"}` | `{"ok":true,"endpoints":[...]}`: every endpoint now, with `active` |
-//! | `{"cmd":"fault","marker_cable":false,"tx_crc":"off"}` | bench faults: the marker cable unplugged (`true` plugs it back), a Gotmic module's CRC mode fixed `on` or `off` by its configuration (`free`: as at power-on), `"awg_options":["001"]` what the AWG's `*OPT?` answers (`[]`: the catalog's); fields left out are kept |
+//! | `{"cmd":"fault","marker_cable":false,"tx_crc":"off"}` | bench faults: the marker cable unplugged (`true` plugs it back), a Gotmic module's CRC mode fixed `on` or `off` by its configuration (`free`: as at power-on), `"awg_options":["001"]` what the AWG's `*OPT?` answers (`[]`: the catalog's), `"awg_raster_max":6e10` what its `:FREQ:RAST? MAX` answers (`0`: the catalog's); fields left out are kept |
 //! | `{"cmd":"fault","drop":"awg"}` | the next exchange with `awg`, `scope`, `tx` or `rx` is cut: half its reply sent, then the connection closed (a serial line cannot close: the half line is all that comes) |
 //! | `{"cmd":"fault","stall":"scope","for_s":5}` | `awg` or `scope` holds every reply for `for_s` seconds from now (what it answers meanwhile arrives when the stall ends) |
 //! | `{"cmd":"fault","power_cycle":"tx","for_s":3}` | the `tx` or `rx` module's power goes off for `for_s` seconds (its port answers nothing) and comes back at power-on defaults (RF off, registers at reset, CRC mode as at power-on) |
@@ -194,6 +194,8 @@ pub(crate) struct BenchFault {
     pub rx_crc: Option<String>,
     /// What the AWG's `*OPT?` answers (a unit with other options); `[]`: the catalog's again.
     pub awg_options: Option<Vec<String>>,
+    /// What the AWG's `:FREQ:RAST? MAX` answers (another unit's limit); `0`: the catalog's again.
+    pub awg_raster_max: Option<f64>,
     /// The instrument whose next exchange is cut (`awg`, `scope`, `tx`, `rx`).
     pub drop: Option<String>,
     /// The instrument whose replies are held for `for_s` (`awg`, `scope`).
@@ -243,6 +245,7 @@ enum Request {
         tx_crc: Option<String>,
         rx_crc: Option<String>,
         awg_options: Option<Vec<String>>,
+        awg_raster_max: Option<f64>,
         drop: Option<String>,
         stall: Option<String>,
         power_cycle: Option<String>,
@@ -329,6 +332,7 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
                 tx_crc,
                 rx_crc,
                 awg_options,
+                awg_raster_max,
                 drop,
                 stall,
                 power_cycle,
@@ -340,6 +344,7 @@ async fn answer(shared: &SharedScene, panel: Option<&dyn Panel>, line: Line) -> 
             tx_crc,
             rx_crc,
             awg_options,
+            awg_raster_max,
             drop,
             stall,
             power_cycle,

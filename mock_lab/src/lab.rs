@@ -375,6 +375,9 @@ impl control::Panel for ScopeSwitch {
             let answer = (!options.is_empty()).then(|| options.clone());
             self.bench.awg.set_options(answer);
         }
+        if let Some(max) = fault.awg_raster_max {
+            self.bench.awg.set_raster_max((max > 0.0).then_some(max));
+        }
         if let Some(faults) = links.drop {
             faults.drop_next_reply_midway();
         }

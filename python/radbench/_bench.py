@@ -53,7 +53,10 @@ class Bench:
     ``bench``: a bench file; ``None`` starts the built-in mock lab (as the command line does
     without ``--bench``; ``scene``, a scene file or dict, and ``scope_model`` choose it); or a
     running :class:`MockLab` (its bench file, calibrated with the lab's exact delay). RF is
-    switched on only with ``allow_rf=True``. ``trace_io``: a file that journals every exchange
+    switched on only with ``allow_rf=True``. A bench file with manual front ends
+    (``driver = "manual"``) also needs ``manual_front_ends_confirmed=True``: the operator has set
+    them by hand (what the command line's typed ``yes`` says); without it a capture is refused
+    with :class:`InputError` before anything is switched on. ``trace_io``: a file that journals every exchange
     with the instruments (``--trace-io``).
 
     Use it as a context manager::
@@ -77,6 +80,7 @@ class Bench:
         allow_rf: bool = False,
         scope_model: Optional[str] = None,
         trace_io: Optional[PathLike] = None,
+        manual_front_ends_confirmed: bool = False,
     ) -> None:
         self._session: Optional[Any] = None
         self._bench_file: Optional[str] = None
@@ -100,6 +104,7 @@ class Bench:
                 allow_rf=bool(allow_rf),
                 scope_model=scope_model,
                 trace_io=os.fspath(trace_io) if trace_io is not None else None,
+                manual_front_ends_confirmed=bool(manual_front_ends_confirmed),
                 **_scene_keywords(scene),
             )
         except BaseException:
@@ -195,6 +200,47 @@ class Bench:
         session use it. Returns ``{"system_delay_s", "reference_range_m", "measured_range_m",
         "stored_in"}``."""
         return json.loads(self._open().calibrate(float(reference_range), float(search)))
+
+    def calibrate_response(
+        self,
+        reference_range: float,
+        waveform: str = "msk-lfm",
+        *,
+        repetitions: int = 16,
+        gate_ns: Optional[float] = None,
+        out: Optional[PathLike] = None,
+        force: bool = False,
+        **waveform_options: Any,
+    ) -> Dict[str, Any]:
+        """``radbench calibrate response --reference-range R``: the chain's response measured
+        on the reference pillar ``reference_range`` metres away (the bench's system delay
+        calibrated first: :meth:`calibrate`), with ``waveform`` and its options
+        (``bandwidth``, ``pulse_us``, ``band``, ...: calibrate with what the captures will use).
+
+        It is checked to help (correcting the reference must bring it closer to a flat chain's
+        side-lobe and width; ``force=True`` stores it anyway) and stored: at ``out`` (a
+        ``.toml`` header, the table beside it), else beside the bench file as
+        ``<bench>-response.toml``, named in its ``[calibration]`` so this session's later
+        captures correct with it; the built-in mock lab's is not stored without ``out``.
+        Returns ``radbench calibrate response --json``'s object (``figures``, ``reference``,
+        ``chain_echoes``, ``stored_in``, ...); a refused one raises
+        :class:`radbench.errors.InputError` with the reason."""
+        from . import _keywords
+
+        if not isinstance(waveform, str):
+            raise InputError(f"waveform: {waveform!r}; msk-lfm or ofdm")
+        if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
+            raise InputError(f"repetitions: {repetitions!r}; a whole number, 1 or more")
+        found = self._open().calibrate_response(
+            float(reference_range),
+            waveform.replace("_", "-"),
+            _keywords(waveform_options),
+            repetitions,
+            None if gate_ns is None else float(gate_ns),
+            os.fspath(out) if out is not None else None,
+            bool(force),
+        )
+        return json.loads(found)
 
     def campaign(
         self,

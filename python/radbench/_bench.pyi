@@ -16,6 +16,7 @@ class Bench:
         allow_rf: bool = ...,
         scope_model: Optional[str] = ...,
         trace_io: Optional[PathLike] = ...,
+        manual_front_ends_confirmed: bool = ...,
     ) -> None: ...
     def __enter__(self) -> "Bench": ...
     def __exit__(self, *exc: Any) -> None: ...
@@ -33,6 +34,17 @@ class Bench:
         **processing: Any,
     ) -> Processed: ...
     def calibrate(self, reference_range: float, *, search: float = ...) -> Dict[str, Any]: ...
+    def calibrate_response(
+        self,
+        reference_range: float,
+        waveform: str = ...,
+        *,
+        repetitions: int = ...,
+        gate_ns: Optional[float] = ...,
+        out: Optional[PathLike] = ...,
+        force: bool = ...,
+        **waveform_options: Any,
+    ) -> Dict[str, Any]: ...
     def campaign(
         self,
         spec: Union[PathLike, Dict[str, Any]],

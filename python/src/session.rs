@@ -8,7 +8,8 @@ use crate::{processed_dict, to_py, waveform_kind};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use radbench::in_memory::{
-    BenchSession, Call, CampaignEvents, CampaignSpec, CaptureOptions, SessionSource,
+    BenchSession, Call, CampaignEvents, CampaignSpec, CaptureOptions, ResponseOptions,
+    SessionSource,
 };
 use radbench::measure::BuiltIn;
 use std::path::PathBuf;
@@ -109,7 +110,7 @@ impl Session {
     /// `bench`: a bench file, or `None` for the built-in mock lab (`scene_toml` with its
     /// `origin`, or `scene_json`; `scope_model`).
     #[new]
-    #[pyo3(signature = (bench=None, scene_toml=None, scene_json=None, origin="<scene>", allow_rf=false, scope_model=None, trace_io=None))]
+    #[pyo3(signature = (bench=None, scene_toml=None, scene_json=None, origin="<scene>", allow_rf=false, scope_model=None, trace_io=None, manual_front_ends_confirmed=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -120,6 +121,7 @@ impl Session {
         allow_rf: bool,
         scope_model: Option<String>,
         trace_io: Option<PathBuf>,
+        manual_front_ends_confirmed: bool,
     ) -> PyResult<Self> {
         use mock_lab::scene::Scene;
         let bad = |m: String| to_py(radbench::exit::bad_input(m));
@@ -146,6 +148,7 @@ impl Session {
             bench,
             built_in,
             allow_rf,
+            manual_front_ends_confirmed,
             trace_io,
         };
         // Opening is bounded by the connections' own timeouts.
@@ -181,6 +184,36 @@ impl Session {
     /// `radbench calibrate --json`'s object, as JSON text.
     fn calibrate(&self, py: Python<'_>, reference_range: f64, search: f64) -> PyResult<String> {
         let found = wait_for(py, self.session()?.calibrate(reference_range, search))?;
+        Ok(found.to_string())
+    }
+
+    /// `radbench calibrate response --json`'s object, as JSON text: `keywords` a JSON object
+    /// of the waveform's options.
+    #[pyo3(signature = (reference_range, waveform, keywords, repetitions, gate_ns=None, out=None, force=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn calibrate_response(
+        &self,
+        py: Python<'_>,
+        reference_range: f64,
+        waveform: &str,
+        keywords: &str,
+        repetitions: usize,
+        gate_ns: Option<f64>,
+        out: Option<PathBuf>,
+        force: bool,
+    ) -> PyResult<String> {
+        let kind = waveform_kind(waveform)?;
+        let options = ResponseOptions::from_keywords(
+            kind,
+            keywords,
+            reference_range,
+            repetitions,
+            gate_ns,
+            out,
+            force,
+        )
+        .map_err(to_py)?;
+        let found = wait_for(py, self.session()?.calibrate_response(options))?;
         Ok(found.to_string())
     }
 

@@ -4,6 +4,7 @@ class."""
 
 import _thread
 import json
+import os
 import threading
 from pathlib import Path
 
@@ -134,6 +135,52 @@ def test_keyboard_interrupt_in_a_capture_leaves_the_bench_safe(tmp_path):
         assert b.capture().ranges_m
 
 
+def open_descriptors():
+    return len(os.listdir("/proc/self/fd"))
+
+
+def os_threads():
+    return len(os.listdir("/proc/self/task"))
+
+
+def interrupt_during_a_capture(lab, b):
+    """Ctrl-C while `b` captures on `lab` (its scope has captured once more)."""
+    before = lab.last_capture()["captures"] or 0
+
+    def interrupt_once_the_scope_captured():
+        for _ in range(3000):  # at most 30 s
+            if (lab.last_capture()["captures"] or 0) > before:
+                break
+            threading.Event().wait(0.01)
+        _thread.interrupt_main()
+
+    watcher = threading.Thread(target=interrupt_once_the_scope_captured)
+    watcher.start()
+    with pytest.raises(KeyboardInterrupt):
+        b.capture(repetitions=200)
+    watcher.join(timeout=30)
+    assert not watcher.is_alive()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+def test_sessions_interrupted_or_not_leave_no_thread_or_descriptor_behind():
+    # One session first: what a process sets up once (thread pools, FFT plans) is not a leak.
+    with radbench.MockLab() as lab, radbench.Bench(lab, allow_rf=True) as b:
+        b.capture()
+    fds, threads = open_descriptors(), os_threads()
+    for _ in range(3):
+        with radbench.MockLab() as lab, radbench.Bench(lab, allow_rf=True) as b:
+            b.capture()
+            interrupt_during_a_capture(lab, b)
+            assert b.capture().ranges_m
+    # Threads end a moment after they are told to: look again for at most 10 s.
+    for _ in range(1000):
+        if (open_descriptors(), os_threads()) <= (fds, threads):
+            break
+        threading.Event().wait(0.01)
+    assert open_descriptors() <= fds and os_threads() <= threads, (fds, threads)
+
+
 def test_close_with_and_the_doctor():
     b = radbench.Bench(allow_rf=True)
     report = b.doctor()
@@ -143,6 +190,52 @@ def test_close_with_and_the_doctor():
     assert abs(cal["system_delay_s"] - 2.5e-9) < 0.05e-9 and cal["stored_in"] is None
     assert b.close() is not None
     assert b.closed and b.close() is None
+
+
+#: A reference pillar at 1 m on the thesis' chain (uneven: its response is worth correcting).
+THESIS_REFERENCE = (
+    "snr_db = 25.0\nseed = 4\n\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n\n"
+    "[chain]\npreset = \"thesis-lab\"\n"
+)
+
+
+def test_calibrate_response_equals_the_commands_and_later_captures_correct_with_it(tmp_path):
+    scene = tmp_path / "reference.toml"
+    scene.write_text(THESIS_REFERENCE)
+    cli = json.loads(run("calibrate", "response", "--reference-range", "1.0", "--scene", str(scene),
+                         "--allow-rf", "--json", "--out", str(tmp_path / "cli.toml")).stdout)
+    with radbench.Bench(scene=scene, allow_rf=True) as b:
+        py = b.calibrate_response(1.0, out=tmp_path / "py.toml")
+        # The same measurement on a fresh lab of the same scene, the same figures.
+        assert py["figures"] == cli["figures"] and py["reference"] == cli["reference"]
+        assert py["stored_in"] == str(tmp_path / "py.toml") and py["refused"] is None
+        assert (tmp_path / "py.npy").exists()
+        corrected = b.capture(calibration=tmp_path / "py.toml")
+        assert corrected.options["correction"]["calibration"] == str(tmp_path / "py.toml")
+        # Checked before anything radiates, named as the keywords they were given as.
+        with pytest.raises(radbench.InputError, match="gate_ns"):
+            b.calibrate_response(1.0, gate_ns=0.1)
+        with pytest.raises(radbench.InputError, match="bandwdth.*bandwidth"):
+            b.calibrate_response(1.0, bandwdth=1e9)
+        with pytest.raises(radbench.InputError, match="out"):
+            b.calibrate_response(1.0, out=tmp_path / "py.txt")
+    with radbench.Bench(scene=scene) as b, pytest.raises(radbench.InputError, match="allow"):
+        b.calibrate_response(1.0)
+
+
+def test_calibrate_response_on_a_bench_file_is_stored_beside_it_and_named_in_it(tmp_path):
+    scene = tmp_path / "reference.toml"
+    scene.write_text(THESIS_REFERENCE)
+    with radbench.MockLab(scene) as lab:
+        bench = tmp_path / "bench.toml"
+        lab.bench_toml(bench, calibrated=True)
+        with radbench.Bench(bench, allow_rf=True) as b:
+            found = b.calibrate_response(1.0)
+            assert found["stored_in"] == str(tmp_path / "bench-response.toml")
+            assert 'response = "bench-response.toml"' in bench.read_text()
+            # The bench's captures correct with it from now on, in this session too.
+            p = b.capture()
+            assert p.options["correction"]["calibration"].endswith("bench-response.toml")
 
 
 def test_the_radbench_bench_fixture(radbench_bench):

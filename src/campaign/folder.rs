@@ -133,6 +133,7 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
         bench_file: bench_in,
         bench_catalog,
         calibration,
+        operator: Some(manifest::operator(run.plan.operator.as_deref())),
         instruments: None,
         base_scene: None,
         plan: run.plan.clone(),
@@ -174,10 +175,13 @@ pub async fn start(run: NewRun, observer: &mut dyn Observer) -> Result<Finished,
 /// Copies the instrument files of the bench file's `catalog` folder into the run folder
 /// (`bench-catalog/`), so the limits the run was planned with stay with its data.
 fn copy_bench_catalog(out: &Path, bench: &BenchInfo) -> Result<Vec<InputFile>, CampaignError> {
-    let Some(dir) = bench.file.as_ref().and_then(|(_, f)| f.catalog_dir()) else {
+    let Some((_, file)) = bench.file.as_ref() else {
         return Ok(Vec::new());
     };
-    let files = crate::catalog::folder_files(&dir).map_err(MeasureError::from)?;
+    let files = file.catalog_files().map_err(MeasureError::from)?;
+    if files.is_empty() {
+        return Ok(Vec::new());
+    }
     let folder = out.join(BENCH_CATALOG_COPY);
     std::fs::create_dir_all(&folder).map_err(io(&folder))?;
     let mut copied = Vec::with_capacity(files.len());
@@ -341,8 +345,8 @@ pub(super) fn check_bench_catalog(
         .map(|f| (name(&f.copy), f.sha256.clone()))
         .collect();
     let mut now = Vec::new();
-    if let Some(dir) = bench_file.and_then(|f| f.catalog_dir()) {
-        for path in crate::catalog::folder_files(&dir).map_err(MeasureError::from)? {
+    if let Some(file) = bench_file {
+        for path in file.catalog_files().map_err(MeasureError::from)? {
             let bytes = std::fs::read(&path).map_err(io(&path))?;
             now.push((name(&path), manifest::sha256_bytes(&bytes)));
         }

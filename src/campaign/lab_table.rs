@@ -179,6 +179,7 @@ mod tests {
             agrees: true,
             reason: reason.map(String::from),
             dir: PathBuf::new(),
+            window_psl_db: None,
         }
     }
 

@@ -92,6 +92,10 @@ pub struct Manifest {
     /// The response calibration every step corrects with (`processing.correction = "rx"`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<CalibrationRecord>,
+    /// Who ran it: the spec's `[run] operator`, else `$USER` or `$LOGNAME` at the start, else
+    /// `unknown` (absent in runs from before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operator: Option<String>,
     /// `*IDN?` of each instrument at the first connection.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub instruments: Option<Instruments>,
@@ -110,6 +114,20 @@ pub struct Manifest {
     /// Every retry of a step after a transient fault, in order (`[run] retries`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub retries: Vec<super::retry::RetryRecord>,
+}
+
+/// Who runs a campaign: `planned` (the spec's `[run] operator`), else the environment's
+/// `$USER` or `$LOGNAME`, else `unknown`.
+pub(crate) fn operator(planned: Option<&str>) -> String {
+    planned
+        .map(str::to_owned)
+        .or_else(|| {
+            ["USER", "LOGNAME"]
+                .iter()
+                .filter_map(|k| std::env::var(k).ok())
+                .find(|v| !v.trim().is_empty())
+        })
+        .unwrap_or_else(|| "unknown".into())
 }
 
 /// The fields of the status room, in the manifest's order (serialised as the manifest
@@ -595,6 +613,7 @@ mod tests {
             bench_file: None,
             bench_catalog: Vec::new(),
             calibration: None,
+            operator: None,
             instruments: None,
             base_scene: None,
             steps: plan

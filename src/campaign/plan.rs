@@ -64,6 +64,9 @@ pub struct Plan {
     /// Who is told when the run ends (`[run] notify`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notify: Option<super::notify::NotifyPlan>,
+    /// Who runs it (`[run] operator`; the manifest records the environment's user without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operator: Option<String>,
     /// Which of a step's files stay (`[output]`; a run from before it kept every file).
     #[serde(default = "OutputSection::keep_all")]
     pub output: OutputSection,
@@ -433,6 +436,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
     };
     BenchFile {
         catalog: None,
+        catalog_overrides: None,
         awg: entry(BUILT_IN_MODELS[0], "TCPIP::127.0.0.1::hislip0::INSTR"),
         scope: InstrumentEntry {
             // The simulated scope's jitter is its scene's.
@@ -579,6 +583,14 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
             format!("{backoff}: allowed 0 <= seconds <= {MAX_RETRY_BACKOFF_S}"),
         ));
     }
+    if let Some(o) = &s.run.operator {
+        if o.trim().is_empty() || o.chars().any(char::is_control) || o.chars().count() > 200 {
+            return Err(spec.error(
+                "run.operator",
+                format!("{o:?}: allowed a name of 1 to 200 characters on one line"),
+            ));
+        }
+    }
     let base = base_waveform(spec)?;
     let mut processing = processing(spec, &s.processing, base.kind(), bench)?;
     let correction = correction(spec, bench)?;
@@ -706,6 +718,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
         processing_variants: variants,
         output: s.output,
         notify: notify_plan(spec)?,
+        operator: s.run.operator.clone(),
         music_p_from_targets: from_targets,
         steps,
     })
@@ -1025,9 +1038,7 @@ fn processing(
         // model order is counted per step).
         let mut o = p.apply(ProcessOptions::default());
         o.algorithm = a;
-        let file = bench.bench_file();
-        o.system_delay_s = file.system_delay_s();
-        o.trigger_jitter_s = file.scope.trigger_jitter_s;
+        bench.bench_file().processing_of_this_bench(&mut o);
         out.push(o);
     }
     Ok(out)

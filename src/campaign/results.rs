@@ -332,6 +332,29 @@ fn errors(
     (worst, worst_grid, missed)
 }
 
+/// The detections of `a` no nominal target of `step` takes (each takes the nearest within one
+/// resolution cell c0/(2B), as `error_m` matches them) and no simulated true target either:
+/// false targets, their ranges ascending. None when the step names no targets (nothing to
+/// tell a false one by).
+pub(crate) fn false_targets(step: &StepResult, a: &AlgorithmResult) -> Vec<f64> {
+    let nominal = step.nominal.ranges();
+    if nominal.is_empty() {
+        return Vec::new();
+    }
+    let cell = C0 / (2.0 * step.nominal.bandwidth_hz);
+    let truth: Vec<f64> = step
+        .truth
+        .as_ref()
+        .map(|t| t.targets.iter().map(|r| r.range_m).collect())
+        .unwrap_or_default();
+    let by_nominal = matches(&nominal, &a.targets, cell);
+    let by_truth = matches(&truth, &a.targets, cell);
+    (0..a.targets.len())
+        .filter(|i| !by_nominal.contains(&Some(*i)) && !by_truth.contains(&Some(*i)))
+        .map(|i| a.targets[i].range_m)
+        .collect()
+}
+
 /// `results.csv` in a run folder: `results.json` flat, for a spreadsheet or `pandas.read_csv`.
 pub(crate) const CSV_FILE: &str = "results.csv";
 

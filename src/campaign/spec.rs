@@ -120,6 +120,9 @@ pub struct RunSection {
     /// The longest the notify program may run, seconds (killed past it).
     #[serde(default = "default_notify_timeout")]
     pub notify_timeout_s: f64,
+    /// Who runs the campaign, as the report names them (else `$USER`, `$LOGNAME`).
+    #[serde(default)]
+    pub operator: Option<String>,
 }
 
 fn default_notify_timeout() -> f64 {
@@ -133,6 +136,7 @@ impl Default for RunSection {
             retry_backoff_s: default_retry_backoff(),
             notify: Vec::new(),
             notify_timeout_s: default_notify_timeout(),
+            operator: None,
         }
     }
 }

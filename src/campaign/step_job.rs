@@ -8,6 +8,7 @@ use super::plan::Step;
 use super::prepare::{PreparedKey, PreparedSet};
 use super::results::{self, AlgorithmOutput, StepResult};
 use super::run::STEP_RESULT;
+use super::spec::OutputSection;
 use super::{io, CampaignError};
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
 use crate::measure::record::{self, Provenance};
@@ -83,7 +84,7 @@ pub(super) struct StepJob {
     pub(super) bandwidth_hz: f64,
     pub(super) provenance: Provenance,
     /// Which files stay (`[output]`): the others are removed once written.
-    pub(super) output: super::spec::OutputSection,
+    pub(super) output: OutputSection,
 }
 
 impl StepJob {
@@ -161,18 +162,25 @@ impl StepJob {
             &self.names,
             &self.provenance,
             &result_json,
+            self.output,
         )
         .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
         // The files were hashed as they were written: that share of their time is the
         // campaign's bookkeeping (a lone `radbench capture` does not hash its files).
         let files_s = t_files.elapsed().as_secs_f64() - files.hashing_s;
         let t_over = Instant::now();
-        // The files `[output]` drops go now (the write group wrote them with the others): the
-        // manifest lists only what stays.
+        // The files `[output]` drops were never written (the writers skip them); one that was
+        // would be a bug: caught in tests, removed in a release build.
         let mut kept = Vec::with_capacity(files.files.len());
         for f in files.files {
             let name = f.path.file_name().map(|n| n.to_string_lossy().into_owned());
-            if name.is_some_and(|n| !self.output.keeps(&n)) {
+            let dropped = name.is_some_and(|n| !self.output.keeps(&n));
+            debug_assert!(
+                !dropped,
+                "[output] drops {} but it was written",
+                f.path.display()
+            );
+            if dropped {
                 std::fs::remove_file(&f.path).map_err(io(&f.path))?;
             } else {
                 kept.push(f);
@@ -215,6 +223,7 @@ impl StepJob {
 /// folder, each further algorithm's profiles in a subfolder named after it, the step's result.
 /// They become durable together (one write group: hashed as written, synced and renamed at the
 /// end, each folder synced once); the manifest that names them is written only afterwards.
+#[allow(clippy::too_many_arguments)]
 fn write_step_files(
     dir: &Path,
     rel: &Path,
@@ -223,6 +232,7 @@ fn write_step_files(
     names: &[&'static str],
     provenance: &Provenance,
     result_json: &str,
+    output: OutputSection,
 ) -> Result<GroupWritten, CampaignError> {
     let out = dir.join(rel);
     // The step's folder alone (not its parents): should the run folder vanish after the check,
@@ -232,12 +242,15 @@ fn write_step_files(
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
         Err(e) => return Err(io(&out)(e)),
     }
+    let keep = |name: &str| output.keeps(name);
     let ((), written) = write_group(|| {
-        let raw = record::write_raw(&out, &m.taken, &m.processing.options, provenance)?;
-        record::write_processed(&out, m, &raw, provenance)?;
+        let raw =
+            record::write_raw_keeping(&out, &m.taken, &m.processing.options, provenance, &keep)?;
+        record::write_processed_keeping(&out, m, &raw, provenance, &keep)?;
         for (p, name) in others.iter_mut().zip(&names[1..]) {
             swap_processing(m, p);
-            let written = record::write_processed(&out.join(name), m, &raw, provenance);
+            let written =
+                record::write_processed_keeping(&out.join(name), m, &raw, provenance, &keep);
             swap_processing(m, p);
             written?;
         }

@@ -9,6 +9,7 @@
 mod error;
 mod identity;
 pub(crate) mod locate;
+mod overrides;
 mod schema;
 mod validate;
 

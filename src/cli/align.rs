@@ -93,12 +93,11 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
+    let manual = super::manual_front::confirm_file(args.bench.as_deref(), "alignment")?;
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, args.json).await?;
     let mut options = args.processing.options(kind);
-    options.system_delay_s = bench.file.system_delay_s();
-    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
+    bench.file.processing_of_this_bench(&mut options);
     let processing = &args.processing;
     let calibration = super::capture::resolve_correction(
         processing.correction,
@@ -126,7 +125,16 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         l.send(Event::Set("title", json!("align")));
     }
     live_cli::bench_warnings(live.as_ref(), &bench);
-    let result = captures(&args, global, &bench, &request, &interrupt, live.as_ref()).await;
+    let permit = manual.permit();
+    let result = captures(
+        &args,
+        global,
+        &bench,
+        &request,
+        (&interrupt, &permit),
+        live.as_ref(),
+    )
+    .await;
     live_cli::finish(
         live,
         live_cli::status_of(&result, &interrupt),
@@ -141,7 +149,7 @@ async fn captures(
     global: &super::Global,
     bench: &Bench,
     request: &CaptureRequest,
-    interrupt: &Interrupt,
+    (interrupt, permit): (&Interrupt, &RfPermit),
     live: Option<&Live>,
 ) -> anyhow::Result<()> {
     let catalog = bench.file.catalog()?;
@@ -154,13 +162,7 @@ async fn captures(
         }
         k += 1;
         let m = rig
-            .measure(
-                bench,
-                &mut prepared,
-                args.repetitions,
-                &RfPermit::granted_by_user(),
-                interrupt,
-            )
+            .measure(bench, &mut prepared, args.repetitions, permit, interrupt)
             .await?;
         let p = &m.processing.processed;
         let strongest = p

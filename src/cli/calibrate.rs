@@ -3,7 +3,6 @@
 //! response`: measure the chain's response on the same reference (`calibrate_response.rs`).
 
 use super::capture::{bench_source, journal, open_bench};
-use radbench::driver::RfPermit;
 use radbench::measure;
 use radbench::measure::CaptureRequest;
 use radbench::measure::Interrupt;
@@ -81,7 +80,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             AwgLink::Hislip,
             ScopeLink::Vicp,
         )?)?;
-        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
+        let manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
         let bench = open_bench(source, args.json).await?;
         // With the response the bench file names corrected, the delay is the corrected chain's:
@@ -107,7 +106,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
             &bench,
             &request,
             1,
-            &RfPermit::granted_by_user(),
+            &manual.permit(),
             journal(global)?,
             &interrupt,
         )

@@ -6,12 +6,10 @@ use super::capture::{bench_source, journal, open_bench};
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::Rig;
-use radbench::measure::{calibrate_with, CalibrateRequest};
-use radbench::measure::{store_calibration, BenchCalibration};
-use radbench::measure::{AwgLink, ScopeLink};
-use radbench::measure::{Calibration, ReferenceFigures, Response};
+use radbench::measure::{calibrate_with, CalibrateRequest, Calibrated};
+use radbench::measure::{response_path, response_report, store_response};
+use radbench::measure::{AwgLink, Calibration, Response, ScopeLink};
 use radbench::waveform::WaveformKind;
-use serde_json::json;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -69,23 +67,8 @@ pub struct Args {
 fn check(args: &Args) -> Result<(), MeasureError> {
     radbench::measure::check(args.reference_range, 2.0)?;
     radbench::measure::check_repetitions(args.repetitions)?;
-    let gate_ns = args.gate_ns.unwrap_or(0.0);
-    if args.gate_ns.is_some() && !(gate_ns.is_finite() && (0.5..=50.0).contains(&gate_ns)) {
-        return Err(MeasureError::option(
-            "gate-ns",
-            gate_ns,
-            "a half-width in ns, 0.5 to 50 (about the chain's longest echo, a few ns)",
-        ));
-    }
-    if let Some(out) = &args.out {
-        if out.extension().and_then(|e| e.to_str()) != Some("toml") {
-            return Err(MeasureError::option(
-                "out",
-                out.display(),
-                "a file name ending in .toml (the table is written beside it as .npy)",
-            ));
-        }
-    }
+    radbench::measure::check_gate_ns(args.gate_ns)?;
+    radbench::measure::check_response_out(args.out.as_deref())?;
     if let Some(plot) = &args.plot {
         let ext = plot.extension().and_then(|e| e.to_str()).unwrap_or("");
         if !matches!(ext, "svg" | "png") {
@@ -113,14 +96,10 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             AwgLink::Hislip,
             ScopeLink::Vicp,
         )?)?;
-        let out = match (&args.out, &bench_path(&args)) {
-            (Some(o), _) => Some(o.clone()),
-            (None, Some(b)) => Some(default_out(b)),
-            (None, None) => None,
-        };
-        let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
+        let manual = super::manual_front::confirm_file(args.bench.as_deref(), "calibration")?;
         let interrupt = Interrupt::listen()?;
-        let bench = open_bench(source, args.json).await?;
+        let mut bench = open_bench(source, args.json).await?;
+        let out = response_path(args.out.as_deref(), &bench);
         let catalog = bench.file.catalog()?;
         let request = CalibrateRequest {
             waveform,
@@ -129,37 +108,25 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             gate_s: gate_s(&args),
         };
         let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
-        let calibrated = calibrate_with(&mut rig, &bench, &request, &interrupt).await?;
+        let calibrated =
+            calibrate_with(&mut rig, &bench, &request, &manual.permit(), &interrupt).await?;
         drop(rig);
-        let (response, figures) = (&calibrated.response, &calibrated.reference);
         let verdict = calibrated.verdict();
         if let (Err(why), false) = (&verdict, args.force) {
-            print_report(&args, response, figures, None, Some(why));
+            print_report(&args, &calibrated, None, Some(why));
             return Err(MeasureError::CorrectionRefused(format!(
                 "not stored: {why} (--force stores it anyway)"
             ))
             .into());
         }
         if let Some(plot) = &args.plot {
-            draw(plot, response)?;
+            draw(plot, &calibrated.response)?;
         }
         let stored = match &out {
-            Some(path) => {
-                let cal = calibrated.save(path)?;
-                if let Some(bench_path) = &bench.path {
-                    name_in_bench(bench_path, &bench.file, path)?;
-                }
-                Some(cal)
-            }
+            Some(path) => Some(store_response(&calibrated, path, &mut bench)?),
             None => None,
         };
-        print_report(
-            &args,
-            response,
-            figures,
-            stored.as_ref(),
-            verdict.err().as_ref(),
-        );
+        print_report(&args, &calibrated, stored.as_ref(), verdict.err().as_ref());
         if !args.json {
             eprintln!("took {:.2} s", started.elapsed().as_secs_f64());
         }
@@ -167,80 +134,24 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
     })
 }
 
-fn bench_path(args: &Args) -> Option<PathBuf> {
-    args.bench.clone()
-}
-
 /// The gate asked for, or the default for the reference's range.
 fn gate_s(args: &Args) -> f64 {
-    args.gate_ns.map_or_else(
-        || radbench::measure::default_gate_s(args.reference_range),
-        |ns| ns * 1e-9,
-    )
-}
-
-/// `<bench stem>-response.toml` beside the bench file.
-fn default_out(bench: &Path) -> PathBuf {
-    let stem = bench
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .unwrap_or("bench");
-    bench.with_file_name(format!("{stem}-response.toml"))
-}
-
-/// Names the calibration in the bench file's [calibration] section (relative to it when beside
-/// it), keeping the delay and every other line.
-fn name_in_bench(
-    bench_path: &Path,
-    file: &radbench::measure::BenchFile,
-    calibration: &Path,
-) -> Result<(), MeasureError> {
-    let dir = match bench_path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let abs = std::fs::canonicalize(calibration).unwrap_or_else(|_| calibration.to_path_buf());
-    let dir_abs = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let name = abs
-        .strip_prefix(&dir_abs)
-        .map(|p| p.display().to_string())
-        .unwrap_or_else(|_| abs.display().to_string());
-    let mut cal = file.calibration.clone().unwrap_or(BenchCalibration {
-        system_delay_s: 0.0,
-        reference_range_m: None,
-        measured_at: None,
-        response: None,
-    });
-    cal.response = Some(name);
-    store_calibration(bench_path, &cal)?;
-    Ok(())
+    radbench::measure::gate_or_default_s(args.gate_ns, args.reference_range)
 }
 
 fn print_report(
     args: &Args,
-    r: &Response,
-    f: &ReferenceFigures,
+    calibrated: &Calibrated,
     stored: Option<&Calibration>,
     refused: Option<&String>,
 ) {
-    let g = &r.figures;
     if args.json {
-        println!(
-            "{}",
-            json!({
-                "band_hz": r.band_hz,
-                "figures": g,
-                "reference": f,
-                "chain_echoes": r.chain_echoes,
-                "scene_echoes": r.scene_echoes,
-                "repetitions": args.repetitions,
-                "stored_in": stored.map(|c| c.path.display().to_string()),
-                "sha256": stored.map(|c| c.sha256.clone()),
-                "refused": refused,
-            })
-        );
+        let report = response_report(calibrated, stored, refused.map(String::as_str));
+        println!("{report}");
         return;
     }
+    let (r, f) = (&calibrated.response, &calibrated.reference);
+    let g = &r.figures;
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".into(), |v| format!("{v:.2} {unit}"));
     println!(
         "chain response over {:.3} .. {:.3} GHz ({} repetitions, gate +-{:.1} ns)",

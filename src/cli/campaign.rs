@@ -7,7 +7,6 @@ use radbench::campaign::{AlgorithmResult, TargetResult, Truth};
 use radbench::campaign::{BenchInfo, Nominal, Step, WaveformCost};
 use radbench::campaign::{CampaignError, SpecFile};
 use radbench::campaign::{Finished, NewRun, Observer, Retrying, StepDone, Summary};
-use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
 use radbench::measure::Bench;
 use radbench::measure::Interrupt;
@@ -478,8 +477,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
         .into());
     }
     a.timeout.apply()?;
-    let _manual =
-        super::manual_front::confirm(bench.file.as_ref().map(|(_, f)| f), "campaign run")?;
+    let manual = super::manual_front::confirm(bench.file.as_ref().map(|(_, f)| f), "campaign run")?;
     let interrupt = Interrupt::listen()?;
     let out = a.out.clone().unwrap_or_else(|| {
         // The name becomes part of a folder name: nothing but letters, digits, `.`, `_`, `-`,
@@ -541,7 +539,7 @@ async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
             plan,
             out,
             journal: global.trace_io.clone(),
-            permit: RfPermit::granted_by_user(),
+            permit: manual.permit(),
             interrupt,
             input: None,
         },
@@ -664,7 +662,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
         &a.run_dir,
     );
     let bench_file = manifest.and_then(|m| m.plan.bench.file);
-    let _manual = super::manual_front::confirm_file(bench_file.as_deref(), "campaign resume")?;
+    let manual = super::manual_front::confirm_file(bench_file.as_deref(), "campaign resume")?;
     let interrupt = Interrupt::listen()?;
     let mut printer = Printer { json: a.json };
     let live = a.live.start(&interrupt, a.json).await?;
@@ -689,7 +687,7 @@ async fn resume(a: ResumeArgs) -> anyhow::Result<()> {
     };
     let finished = match campaign::resume(
         &a.run_dir,
-        RfPermit::granted_by_user(),
+        manual.permit(),
         a.force,
         retries,
         interrupt,

@@ -190,11 +190,11 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
         args.awg_transport,
         args.scope_transport,
     )?)?;
-    let _manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
+    let manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
     let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
     let created = !out.exists();
     prepare_out(&out, args.force)?;
-    let result = measure_into(args, global, kind, waveform, source, &out).await;
+    let result = measure_into(args, global, kind, waveform, source, &out, &manual.permit()).await;
     if result.is_err() && created {
         // A refused or failed capture leaves no empty folder behind (one with files stays).
         let _ = std::fs::remove_dir(&out);
@@ -211,6 +211,7 @@ async fn measure_into(
     waveform: radbench::waveform::WaveformSpec,
     source: radbench::measure::BenchSource,
     out: &Path,
+    permit: &RfPermit,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
     let payload = args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec());
@@ -222,8 +223,7 @@ async fn measure_into(
     let interrupt = Interrupt::listen()?;
     let bench = open_bench(source, false).await?;
     let mut options = args.processing.options(kind);
-    options.system_delay_s = bench.file.system_delay_s();
-    options.trigger_jitter_s = bench.file.scope.trigger_jitter_s;
+    bench.file.processing_of_this_bench(&mut options);
     if let Some(w) = bench.file.uncalibrated_warning() {
         // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
         eprintln!("warning: {w}");
@@ -252,6 +252,7 @@ async fn measure_into(
             &bench,
             &request,
             &interrupt,
+            permit,
             &out,
             calibration.as_ref(),
         )
@@ -262,7 +263,7 @@ async fn measure_into(
         &request,
         generation,
         args.repetitions,
-        &RfPermit::granted_by_user(),
+        permit,
         journal(global)?,
         &interrupt,
     )

@@ -26,9 +26,10 @@ pub struct Args {
     /// answer) or cannot be queried (and why).
     #[arg(long)]
     pub verify_catalog: bool,
-    /// With --verify-catalog: write the instrument files of the models that differ, with the
-    /// instruments' answers, into DIR (then write `catalog = "DIR"` in the bench file).
-    #[arg(long, value_name = "DIR", requires = "verify_catalog")]
+    /// With --verify-catalog: write the values that differ, as the instruments answered them,
+    /// into one overrides file FILE (kept values merged; then write
+    /// `catalog_overrides = "FILE"` in the bench file).
+    #[arg(long, value_name = "FILE", requires = "verify_catalog")]
     pub write_overrides: Option<PathBuf>,
 }
 

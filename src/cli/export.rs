@@ -9,7 +9,7 @@ use radbench::exit::bad_input;
 use radbench::measure;
 use radbench::measure::export_capture;
 
-use radbench::storage::{ExportFormat, ExportWriter};
+use radbench::storage::{ComplexDtype, ExportFormat, ExportWriter};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -31,6 +31,26 @@ pub struct Args {
     /// Replace the output file if it exists.
     #[arg(long)]
     pub force: bool,
+    /// How complex arrays (I/Q, profiles, references) are stored: complex128 (float64 parts,
+    /// every digit) or complex64 (float32 parts: half the bytes, about 7 significant digits).
+    #[arg(long, value_enum, default_value_t = Dtype::Complex128, value_name = "DTYPE")]
+    pub dtype: Dtype,
+}
+
+/// `--dtype`: the NumPy names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Dtype {
+    Complex64,
+    Complex128,
+}
+
+impl From<Dtype> for ComplexDtype {
+    fn from(d: Dtype) -> Self {
+        match d {
+            Dtype::Complex64 => ComplexDtype::Complex64,
+            Dtype::Complex128 => ComplexDtype::Complex128,
+        }
+    }
 }
 
 /// What the input is.
@@ -154,7 +174,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
             source,
         })?;
     }
-    let mut writer = ExportWriter::create(&out, format)?;
+    let mut writer = ExportWriter::create(&out, format)?.with_complex_dtype(args.dtype.into());
     let started = std::time::Instant::now();
     let text = match input {
         Input::Capture(source) => {

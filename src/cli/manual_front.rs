@@ -2,6 +2,7 @@
 //! operator is told what to set and confirms on standard input; every exit then says what
 //! radbench switched off and what it did not.
 
+use radbench::driver::RfPermit;
 use radbench::measure::{self, BenchFile, ManualFrontEnd};
 use std::io::BufRead;
 use std::path::Path;
@@ -12,6 +13,20 @@ use std::path::Path;
 #[must_use = "the note is printed when this is dropped, at the end of the run"]
 pub(crate) struct ExitNote {
     manual: Vec<ManualFrontEnd>,
+}
+
+impl ExitNote {
+    /// The user's permit (the caller checked `--allow-rf`), carrying the operator's
+    /// confirmation of the manual front ends when there are any: the library refuses a bench
+    /// with manual front ends without it.
+    pub(crate) fn permit(&self) -> RfPermit {
+        let permit = RfPermit::granted_by_user();
+        if self.manual.is_empty() {
+            permit
+        } else {
+            permit.with_manual_front_ends_confirmed()
+        }
+    }
 }
 
 impl Drop for ExitNote {

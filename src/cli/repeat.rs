@@ -62,6 +62,7 @@ pub(crate) async fn captures(
     bench: &Bench,
     request: &CaptureRequest,
     interrupt: &Interrupt,
+    permit: &RfPermit,
     out: &Path,
     calibration: Option<&Calibration>,
 ) -> anyhow::Result<()> {
@@ -88,6 +89,7 @@ pub(crate) async fn captures(
         bench,
         request,
         interrupt,
+        permit,
         out,
         calibration,
         live.as_ref(),
@@ -110,6 +112,7 @@ async fn run(
     bench: &Bench,
     request: &CaptureRequest,
     interrupt: &Interrupt,
+    permit: &RfPermit,
     out: &Path,
     calibration: Option<&Calibration>,
     live: Option<&Live>,
@@ -133,13 +136,7 @@ async fn run(
             Event::Set("current", json!(format!("capture {k}/{of}: capturing"))),
         );
         let mut m = rig
-            .measure(
-                bench,
-                &mut prepared,
-                args.repetitions,
-                &RfPermit::granted_by_user(),
-                interrupt,
-            )
+            .measure(bench, &mut prepared, args.repetitions, permit, interrupt)
             .await?;
         if let Some(cal) = calibration {
             let warnings = calibration_warnings(cal, &m.taken.identities);

@@ -1,4 +1,4 @@
-//! `radbench doctor --verify-catalog [--write-overrides DIR]`: prints, per catalog value, what the
+//! `radbench doctor --verify-catalog [--write-overrides FILE]`: prints, per catalog value, what the
 //! instrument said (`measure::verify_catalog` asks). Exit 0 unless a value differs (exit 3, as a
 //! failed doctor check).
 
@@ -30,18 +30,19 @@ pub(crate) fn run(args: Request<'_>, global: &super::Global) -> anyhow::Result<(
         } else {
             super::terminal::out(&text(&check))?;
         }
-        if let Some(dir) = args.write_overrides {
-            let written = measure::write_overrides(&check, &bench.file.catalog()?, dir)?;
-            for path in &written {
-                eprintln!("wrote {}", path.display());
-            }
-            if written.is_empty() {
-                eprintln!("--write-overrides: no value to write (none differs, or only identities)");
-            } else {
-                eprintln!(
-                    "to use them, write catalog = \"{}\" in the bench file (relative to its folder)",
-                    dir.display()
-                );
+        if let Some(path) = args.write_overrides {
+            match measure::write_overrides(&check, path)? {
+                Some(written) => {
+                    eprintln!("wrote {}", written.display());
+                    eprintln!(
+                        "to use it, write catalog_overrides = \"{}\" in the bench file (relative to \
+                         its folder)",
+                        relative_to(&written, bench.file.path.parent()).display()
+                    );
+                }
+                None => eprintln!(
+                    "--write-overrides: no value to write (none differs, or only identities)"
+                ),
             }
         }
         let differ = check.count("differs");
@@ -52,10 +53,25 @@ pub(crate) fn run(args: Request<'_>, global: &super::Global) -> anyhow::Result<(
             class: ExitClass::Instrument,
             message: format!(
                 "{differ} catalog value(s) differ from the instruments' answers: correct the \
-                 instrument files (--write-overrides DIR writes them)"
+                 instrument files, or write the instruments' answers with --write-overrides FILE"
             ),
         }))
     })
+}
+
+/// `path` as the bench file names it: relative to the bench file's folder when inside it.
+fn relative_to(path: &std::path::Path, base: Option<&std::path::Path>) -> std::path::PathBuf {
+    let absolute = |p: &std::path::Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let full = absolute(path);
+    base.map(|b| {
+        absolute(if b.as_os_str().is_empty() {
+            std::path::Path::new(".")
+        } else {
+            b
+        })
+    })
+    .and_then(|b| full.strip_prefix(b).ok().map(std::path::Path::to_path_buf))
+    .unwrap_or(full)
 }
 
 /// One line per value; the answer or the reason indented under it.

@@ -34,3 +34,88 @@ pub(crate) async fn ask_once(
         )),
     }
 }
+
+/// A limit found by asking for an out-of-range value and reading back what the instrument made of
+/// it (the LeCroy family adapts such a value to the nearest it can do), then putting the setting
+/// back as it was. `set` holds `{}` where the value goes.
+pub(crate) struct Probe<'a> {
+    pub query: &'a str,
+    pub set: &'a str,
+    pub beyond: f64,
+}
+
+/// The value the instrument adapted `probe.beyond` to, restoring the setting after; or why not.
+pub(crate) async fn probe_limit(
+    resource: Resource,
+    model: &InstrumentModel,
+    probe: &Probe<'_>,
+    limit: Duration,
+    journal: Option<Journal>,
+    name: &str,
+) -> Result<f64, String> {
+    let number = |reply: String| {
+        reply_number(&reply)
+            .ok_or_else(|| format!("{} answered {reply:?}, not a number", probe.query))
+    };
+    let work = async {
+        let mut s = open_session(resource, model, "", journal, name)
+            .await
+            .map_err(|e| DriverError::to_string(&session(name)(e)))?;
+        let as_text = |e| DriverError::to_string(&session(name)(e));
+        let before = number(s.query(probe.query).await.map_err(as_text)?)?;
+        s.write(&probe.set.replace("{}", &format!("{:e}", probe.beyond)))
+            .await
+            .map_err(as_text)?;
+        let reached = s.query(probe.query).await.map_err(as_text).and_then(number);
+        // Put the setting back even when the read-back failed.
+        let restored = s
+            .write(&probe.set.replace("{}", &format!("{before:e}")))
+            .await;
+        let reached = reached?;
+        restored.map_err(as_text)?;
+        Ok(reached)
+    };
+    match tokio::time::timeout(limit, work).await {
+        Ok(r) => r,
+        Err(_) => Err(format!(
+            "no answer to {} within {}",
+            probe.query,
+            crate::transport::Rounded(limit)
+        )),
+    }
+}
+
+/// The first number in a reply, its header and unit aside: `C1:VDIV 50E-3 V` -> 0.05,
+/// `MSIZ 10MA` -> 1e7, `16000000000,16000000000` -> 1.6e10.
+pub(crate) fn reply_number(reply: &str) -> Option<f64> {
+    reply
+        .split(|c: char| c.is_whitespace() || c == ',' || c == '"' || c == '\'')
+        .find_map(|token| {
+            let upper = token.to_ascii_uppercase();
+            let (digits, scale) = [("MA", 1e6), ("K", 1e3), ("M", 1e6), ("G", 1e9)]
+                .iter()
+                .find_map(|(suffix, scale)| {
+                    upper
+                        .strip_suffix(suffix)
+                        .filter(|d| d.ends_with(|c: char| c.is_ascii_digit()))
+                        .map(|d| (d.to_string(), *scale))
+                })
+                .unwrap_or((upper.clone(), 1.0));
+            digits.parse::<f64>().ok().map(|v| v * scale)
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::reply_number;
+
+    #[test]
+    fn numbers_are_read_past_headers_and_units() {
+        assert_eq!(reply_number("C1:VDIV 50E-3 V"), Some(0.05));
+        assert_eq!(reply_number("MSIZ 10MA"), Some(1e7));
+        assert_eq!(reply_number("VBS 8E+10"), Some(8e10));
+        assert_eq!(reply_number("131072,131072"), Some(131072.0));
+        assert_eq!(reply_number("+6.5000000000E+10"), Some(6.5e10));
+        assert_eq!(reply_number("EXT"), None);
+    }
+}

@@ -7,6 +7,7 @@
 //! | `scpi` | [`Scpi`]: send, ask, typed asks, per-call timeouts, the error-queue check after a batch |
 //! | `identity` | `*IDN?` checked against the catalog model |
 //! | `ask` | one bounded query on a fresh session (`doctor --verify-catalog`) |
+//! | `instrument_limits` | the catalog limits `doctor --verify-catalog` reads, per family (`:FREQ:RAST? MAX`, `:TRAC1:FREE?`, `C1:VDIV`, `MSIZ`) |
 //! | `limits` | settings checked against the catalog's limits before anything is sent |
 //! | `scripted` | `Scripted`: a fake session for tests that pin exact command sequences (feature `testing`) |
 //! | `trace` | [`ChannelTrace`]: what a digitizer returns, in no vendor's terms (codes, scaling, timing, segments) |
@@ -61,6 +62,7 @@ pub(crate) mod error;
 pub(crate) mod fault;
 pub(crate) mod gotmic;
 pub(crate) mod identity;
+pub(crate) mod instrument_limits;
 pub(crate) mod io;
 pub(crate) mod keysight_uxr;
 pub(crate) mod lecroy;

@@ -9,7 +9,7 @@
 /// Proof that the user explicitly allowed outputs and RF to be switched on.
 #[derive(Debug)]
 pub struct RfPermit {
-    _private: (),
+    manual_front_ends_confirmed: bool,
 }
 
 impl RfPermit {
@@ -17,6 +17,24 @@ impl RfPermit {
     /// (a command-line flag, a confirmed prompt, a campaign file's explicit permission).
     pub fn granted_by_user() -> RfPermit {
         tracing::info!("RF and output permit granted by the user");
-        RfPermit { _private: () }
+        RfPermit {
+            manual_front_ends_confirmed: false,
+        }
+    }
+
+    /// Records that the operator set the bench's manual front ends (`driver = "manual"`) by
+    /// hand and confirmed it. Call this only where the operator confirmed (the command line's
+    /// typed `yes`, Python's `manual_front_ends_confirmed=True`): a measurement on a bench with
+    /// manual front ends is refused without it.
+    pub fn with_manual_front_ends_confirmed(self) -> RfPermit {
+        tracing::info!("manual front ends confirmed by the operator");
+        RfPermit {
+            manual_front_ends_confirmed: true,
+        }
+    }
+
+    /// Whether the operator confirmed the manual front ends' settings.
+    pub fn manual_front_ends_confirmed(&self) -> bool {
+        self.manual_front_ends_confirmed
     }
 }

@@ -17,13 +17,15 @@ pub use campaign::{CampaignEvents, CampaignSpec};
 use super::bench_lock::BenchLock;
 use super::capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 use super::processed::InMemory;
+use super::response_call::ResponseOptions;
 use crate::catalog::Catalog;
 use crate::driver::Journal;
 use crate::driver::{RfPermit, SafeStateReport};
 use crate::exit::bad_input;
 use crate::measure::record::capture_summary;
 use crate::measure::{self, Algorithm, Bench, BenchCalibration, BenchSource, BuiltIn};
-use crate::measure::{CaptureRequest, CorrectionMode, Interrupt, MeasureError, Prepared};
+use crate::measure::{CalibrateRequest, CaptureRequest, CorrectionMode, Interrupt};
+use crate::measure::{MeasureError, Prepared};
 use crate::measure::{ProcessOptions, Provenance, Rig, StopSignal};
 use crate::waveform::WaveformSpec;
 use serde_json::{json, Value};
@@ -47,6 +49,10 @@ pub struct SessionSource {
     pub built_in: Option<BuiltIn>,
     /// The explicit permit to switch RF on (`--allow-rf`).
     pub allow_rf: bool,
+    /// The operator set the bench file's manual front ends (`driver = "manual"`) by hand: what
+    /// the command line's typed `yes` says. Without it a bench with manual front ends is refused
+    /// before anything radiates.
+    pub manual_front_ends_confirmed: bool,
     /// Every instrument exchange journaled here (`--trace-io`).
     pub trace_io: Option<PathBuf>,
 }
@@ -112,6 +118,7 @@ struct Warm {
     prepared: Option<(CaptureRequest, Prepared)>,
     journal: Option<Journal>,
     allow_rf: bool,
+    manual_front_ends_confirmed: bool,
     closed: bool,
     _lock: BenchLock,
 }
@@ -142,6 +149,7 @@ impl BenchSession {
                 prepared: None,
                 journal,
                 allow_rf: source.allow_rf,
+                manual_front_ends_confirmed: source.manual_front_ends_confirmed,
                 closed: false,
                 _lock: lock,
             })
@@ -252,6 +260,16 @@ impl BenchSession {
         })
     }
 
+    /// `radbench calibrate response`: the chain's response measured on the reference pillar,
+    /// checked to help, and stored (beside the bench file, or at `options.out`), named in the
+    /// bench file so this session's later captures correct with it. JSON as `radbench calibrate
+    /// response --json` prints it; a response that does not help is refused unless forced.
+    pub fn calibrate_response(&self, options: ResponseOptions) -> Call<Value> {
+        self.spawn(move |mut warm, interrupt| async move {
+            warm.calibrate_response(options, &interrupt).await
+        })
+    }
+
     /// `radbench doctor --json`'s report. The session's connections are released for it (the
     /// doctor opens its own) and made again by the next capture.
     pub fn doctor(&self) -> Call<Value> {
@@ -280,7 +298,17 @@ impl BenchSession {
         self.spawn_on_thread(move |mut warm, interrupt| async move {
             warm.before_campaign().await?;
             let bench_file = warm.bench.path.clone();
-            campaign::run(spec, bench_file.as_deref(), out, retries, to, interrupt).await
+            let permit = warm.permit();
+            campaign::run(
+                spec,
+                bench_file.as_deref(),
+                out,
+                retries,
+                to,
+                permit,
+                interrupt,
+            )
+            .await
         })
     }
 
@@ -289,7 +317,7 @@ impl BenchSession {
     pub fn campaign_resume(&self, dir: PathBuf, to: CampaignEvents) -> Call<PathBuf> {
         self.spawn_on_thread(move |mut warm, interrupt| async move {
             warm.before_campaign().await?;
-            campaign::resume(&dir, to, interrupt).await
+            campaign::resume(&dir, to, warm.permit(), interrupt).await
         })
     }
 
@@ -330,6 +358,17 @@ impl Warm {
             Some(mut rig) => rig.engage_safe_state().await,
             // Nothing connected: the last call's guard left the bench safe, or it never radiated.
             None => SafeStateReport::default(),
+        }
+    }
+
+    /// The user's permit (`allow_rf` is checked by each call), with the operator's confirmation
+    /// of the manual front ends when the session was opened with it.
+    fn permit(&self) -> RfPermit {
+        let permit = RfPermit::granted_by_user();
+        if self.manual_front_ends_confirmed {
+            permit.with_manual_front_ends_confirmed()
+        } else {
+            permit
         }
     }
 
@@ -392,15 +431,10 @@ impl Warm {
     ) -> Result<measure::Measurement, MeasureError> {
         let mut prepared = self.prepared(&request, repetitions, interrupt).await?;
         self.connected().await?;
+        let permit = self.permit();
         let rig = self.rig.as_mut().expect("connected above");
         let measured = rig
-            .measure(
-                &self.bench,
-                &mut prepared,
-                repetitions,
-                &RfPermit::granted_by_user(),
-                interrupt,
-            )
+            .measure(&self.bench, &mut prepared, repetitions, &permit, interrupt)
             .await;
         if measured.is_err() {
             // What the instruments hold after a failure is unknown: connect again next time.
@@ -419,8 +453,7 @@ impl Warm {
             return Err(MeasureError::NoPermit { run: "capture" }.into());
         }
         let mut options = o.choices.options(o.waveform);
-        options.system_delay_s = self.bench.file.system_delay_s();
-        options.trigger_jitter_s = self.bench.file.scope.trigger_jitter_s;
+        self.bench.file.processing_of_this_bench(&mut options);
         let calibration = resolve_correction(
             o.choices.correction,
             o.choices.calibration.as_deref(),
@@ -521,6 +554,58 @@ impl Warm {
             "measured_range_m": estimate.measured_range_m,
             "stored_in": self.bench.path.as_ref().map(|p| p.display().to_string()),
         }))
+    }
+}
+
+impl Warm {
+    async fn calibrate_response(
+        &mut self,
+        o: ResponseOptions,
+        interrupt: &Interrupt,
+    ) -> anyhow::Result<Value> {
+        if !self.allow_rf {
+            return Err(MeasureError::NoPermit { run: "calibration" }.into());
+        }
+        let request = CalibrateRequest {
+            waveform: o.waveform_args.spec(o.waveform)?,
+            reference_range_m: o.reference_range_m,
+            repetitions: o.repetitions,
+            gate_s: measure::gate_or_default_s(o.gate_ns, o.reference_range_m),
+        };
+        // The calibration uploads its own waveform: the next capture prepares again.
+        self.prepared = None;
+        self.connected().await?;
+        let permit = self.permit();
+        let rig = self.rig.as_mut().expect("connected above");
+        let calibrated =
+            match measure::calibrate_with(rig, &self.bench, &request, &permit, interrupt).await {
+                Ok(c) => c,
+                Err(e) => {
+                    self.rig = None;
+                    return Err(e.into());
+                }
+            };
+        let verdict = calibrated.verdict();
+        if let (Err(why), false) = (&verdict, o.force) {
+            return Err(MeasureError::CorrectionRefused(format!(
+                "not stored: {why} (force=True stores it anyway)"
+            ))
+            .into());
+        }
+        let stored = match measure::response_path(o.out.as_deref(), &self.bench) {
+            Some(path) => Some(measure::store_response(
+                &calibrated,
+                &path,
+                &mut self.bench,
+            )?),
+            None => None,
+        };
+        let refused = verdict.err();
+        Ok(measure::response_report(
+            &calibrated,
+            stored.as_ref(),
+            refused.as_deref(),
+        ))
     }
 }
 

@@ -24,6 +24,7 @@ mod capture_call;
 mod keywords;
 mod options;
 mod processed;
+mod response_call;
 
 use batch::on_cached_pipeline;
 pub use batch::{compute, folder_names, recorded_data_hashes, recorded_for};
@@ -31,6 +32,7 @@ pub use bench::{BenchSession, Call, CampaignEvents, CampaignSpec, SessionSource}
 pub use capture_call::{calibration_warnings, prepare_out, resolve_correction, CaptureOptions};
 pub use options::{listed, Listed, PayloadArgs, ProcessArgs, WaveformArgs};
 pub use processed::InMemory;
+pub use response_call::ResponseOptions;
 
 use keywords::parse_error;
 

@@ -520,7 +520,9 @@ pub(crate) fn profile_json(
         .find(|(name, _)| name != "threshold_db" && name != "residual_db");
     let threshold = columns.iter().find(|(name, _)| name == "threshold_db");
     json!({
-        "label": main.map_or(label.to_string(), |(name, _)| format!("{label} {name}")),
+        "label": main.map_or(label.to_string(), |(name, _)| {
+            format!("{label}, {}", column_title(name))
+        }),
         "range_m": ranges,
         "level_db": main.map(|(_, v)| pooled(v)),
         "threshold_db": threshold.map(|(_, v)| pooled(v)),
@@ -530,6 +532,14 @@ pub(crate) fn profile_json(
             .collect::<Vec<_>>(),
         "truth_m": truth,
     })
+}
+
+/// A profile column's name as a person reads it: `correlation_db` is `correlation (dB)`.
+fn column_title(name: &str) -> String {
+    match name.strip_suffix("_db") {
+        Some(stem) => format!("{} (dB)", stem.replace('_', " ")),
+        None => name.replace('_', " "),
+    }
 }
 
 fn round(v: f64) -> f64 {

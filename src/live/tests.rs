@@ -234,7 +234,7 @@ fn the_page_profile_keeps_the_peaks_and_at_most_its_points() {
     assert_eq!(peak, -3.0);
     assert_eq!(v["threshold_db"].as_array().unwrap().len(), levels.len());
     assert_eq!(v["truth_m"], json!([2.5]));
-    assert_eq!(v["label"], "step 1 correlation_db");
+    assert_eq!(v["label"], "step 1, correlation (dB)");
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //!
 //! ```toml
 //! catalog = "my-instruments"                      # optional: instrument files of your own
+//! catalog_overrides = "overrides.toml"            # optional: your units' differing values
 //!
 //! [awg]
 //! model = "keysight-m8195a"                       # a key of the instrument catalog
@@ -127,6 +128,11 @@ pub struct BenchFile {
     /// that extends the built-in catalog, or overrides a built-in model of the same key.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub catalog: Option<PathBuf>,
+    /// One TOML file of values that replace the catalog's for this bench's units (relative to
+    /// the bench file; `doctor --verify-catalog --write-overrides FILE` writes it), applied on
+    /// top of the built-in models and the `catalog` folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub catalog_overrides: Option<PathBuf>,
     pub awg: InstrumentEntry,
     pub scope: InstrumentEntry,
     #[serde(default)]
@@ -315,9 +321,30 @@ impl BenchFile {
     }
 
     /// The instrument catalog of this bench: the built-in models, extended and overridden by the
-    /// files of its `catalog` folder when it names one.
+    /// files of its `catalog` folder when it names one, then its `catalog_overrides` file.
     pub fn catalog(&self) -> Result<crate::catalog::Catalog, crate::catalog::CatalogError> {
-        crate::catalog::Catalog::load(self.catalog_dir().as_deref())
+        let mut catalog = crate::catalog::Catalog::load(self.catalog_dir().as_deref())?;
+        if let Some(path) = self.catalog_overrides_file() {
+            catalog.apply_overrides(&path)?;
+        }
+        Ok(catalog)
+    }
+
+    /// The `catalog_overrides` file it names, relative to the bench file's own folder.
+    pub(crate) fn catalog_overrides_file(&self) -> Option<PathBuf> {
+        let base = self.path.parent().unwrap_or(Path::new("."));
+        self.catalog_overrides.as_ref().map(|file| base.join(file))
+    }
+
+    /// Every file the bench's catalog is read from beyond the built-in ones: the `catalog`
+    /// folder's instrument files, then the overrides file (what a run folder keeps a copy of).
+    pub(crate) fn catalog_files(&self) -> Result<Vec<PathBuf>, crate::catalog::CatalogError> {
+        let mut files = match self.catalog_dir() {
+            Some(dir) => crate::catalog::folder_files(&dir)?,
+            None => Vec::new(),
+        };
+        files.extend(self.catalog_overrides_file());
+        Ok(files)
     }
 
     /// The `catalog` folder it names, relative to the bench file's own folder.
@@ -437,6 +464,13 @@ impl BenchFile {
     /// The stored system delay, or 0 when the bench was never calibrated.
     pub fn system_delay_s(&self) -> f64 {
         self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
+    }
+
+    /// What this bench's captures are processed with, whatever the command: its calibrated
+    /// system delay and its scope's stated trigger jitter (each range's uncertainty).
+    pub fn processing_of_this_bench(&self, options: &mut super::ProcessOptions) {
+        options.system_delay_s = self.system_delay_s();
+        options.trigger_jitter_s = self.scope.trigger_jitter_s;
     }
 
     /// The warning a capture on this bench carries in every output while it has no delay

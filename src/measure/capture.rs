@@ -476,6 +476,7 @@ impl Rig {
         interrupt: &Interrupt,
     ) -> Result<Taken, MeasureError> {
         check_repetitions(repetitions)?;
+        check_manual_confirmed(bench, permit)?;
         let fresh = std::mem::take(&mut self.fresh);
         let loaded = self
             .loaded
@@ -727,6 +728,18 @@ pub(crate) fn process_repetitions<R: Alignable>(
     Ok((processed, each, Some(spread)))
 }
 
+/// Refuses `permit` on a bench with manual front ends unless the operator's confirmation is in
+/// it ([`RfPermit::with_manual_front_ends_confirmed`]): checked by every library entry point that
+/// radiates, before anything is sent, so that the command line's prompt is not the only guard.
+pub(crate) fn check_manual_confirmed(bench: &Bench, permit: &RfPermit) -> Result<(), MeasureError> {
+    if bench.file.manual.is_empty() || permit.manual_front_ends_confirmed() {
+        return Ok(());
+    }
+    Err(MeasureError::ManualNotConfirmed {
+        names: super::manual::names(&bench.file.manual),
+    })
+}
+
 /// [`prepare`], connect, one measurement of `repetitions`.
 pub async fn measure(
     bench: &Bench,
@@ -764,6 +777,8 @@ pub async fn take(
     interrupt: &Interrupt,
 ) -> Result<(Taken, Prepared), MeasureError> {
     check_repetitions(repetitions)?;
+    // Before anything is sent (the upload included).
+    check_manual_confirmed(bench, permit)?;
     let catalog = bench.file.catalog()?;
     let planned = plan_generated(bench, &catalog, request, generation).await?;
     let (built, mut rig) = if request.background.is_some() {

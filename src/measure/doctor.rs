@@ -926,40 +926,10 @@ async fn marker_check(
     Ok(())
 }
 
-/// Days since 1970-01-01 of a civil date (Howard Hinnant's algorithm).
-fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(m);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(d) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-/// Seconds since the epoch of an RFC 3339 UTC stamp `YYYY-MM-DDTHH:MM:SS[.fff]Z`.
-fn parse_utc(text: &str) -> Option<f64> {
-    let t = text.trim();
-    let (date, time) = t.split_once(['T', ' '])?;
-    let mut d = date.split('-');
-    let (y, m, day): (i64, u32, u32) = (
-        d.next()?.parse().ok()?,
-        d.next()?.parse().ok()?,
-        d.next()?.parse().ok()?,
-    );
-    let time = time.trim_end_matches('Z');
-    let mut parts = time.split(':');
-    let (h, mi): (f64, f64) = (parts.next()?.parse().ok()?, parts.next()?.parse().ok()?);
-    let s: f64 = parts.next().unwrap_or("0").parse().ok()?;
-    if !(1..=12).contains(&m) || !(1..=31).contains(&day) {
-        return None;
-    }
-    Some(days_from_civil(y, m, day) as f64 * 86_400.0 + h * 3600.0 + mi * 60.0 + s)
-}
-
 /// The age of a stamp in days, or why it cannot be told.
 fn age_days(stamp: &str) -> Result<f64, String> {
-    let then = parse_utc(stamp).ok_or_else(|| format!("`{stamp}` is not an RFC 3339 UTC time"))?;
+    let then = crate::time::parse_utc(stamp)
+        .ok_or_else(|| format!("`{stamp}` is not an RFC 3339 UTC time"))?;
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs_f64())
@@ -1083,10 +1053,10 @@ fn calibration_checks(
 
 #[cfg(test)]
 mod tests {
-    use super::*;
 
     #[test]
     fn utc_stamps_parse_to_epoch_seconds() {
+        use crate::time::parse_utc;
         assert_eq!(parse_utc("1970-01-01T00:00:00Z"), Some(0.0));
         assert_eq!(parse_utc("2000-03-01T00:00:00.000Z"), Some(951_868_800.0));
         assert_eq!(parse_utc("2026-11-21T20:00:00.500Z"), Some(1_795_291_200.5));

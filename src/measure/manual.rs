@@ -18,7 +18,7 @@ pub fn confirms(answer: &str) -> bool {
 }
 
 /// `Tx`, `Rx` or `Tx and Rx`.
-fn names(manual: &[ManualFrontEnd]) -> String {
+pub(crate) fn names(manual: &[ManualFrontEnd]) -> String {
     manual
         .iter()
         .map(ManualFrontEnd::name)

@@ -56,6 +56,7 @@ pub(crate) mod repeat;
 pub(crate) mod reprocess;
 pub(crate) mod response;
 pub(crate) mod response_from_capture;
+pub(crate) mod response_keep;
 pub(crate) mod response_run;
 pub(crate) mod scene_capture;
 pub(crate) mod scene_control;
@@ -80,6 +81,8 @@ pub use record::*;
 pub use repeat::*;
 pub use reprocess::*;
 pub use response::*;
+pub use response_keep::{check_gate_ns, check_response_out, gate_or_default_s};
+pub use response_keep::{response_path, response_report, store_response};
 pub use response_run::*;
 pub use station::*;
 pub use verify_catalog::{verify_catalog, write_overrides, CatalogCheck, CatalogValue, Verdict};
@@ -122,6 +125,15 @@ pub enum MeasureError {
          to switch them on for this {run} (they are switched off again at the end)"
     )]
     NoPermit { run: &'static str },
+    /// The bench has manual front ends and the permit carries no operator confirmation of their
+    /// settings: refused before anything is sent.
+    #[error(
+        "the {names} front end settings were not confirmed by the operator: the measurement did \
+         not start and nothing was switched on (command line: answer yes on standard input; \
+         Python: radbench.Bench(..., manual_front_ends_confirmed=True); Rust: \
+         RfPermit::with_manual_front_ends_confirmed)"
+    )]
+    ManualNotConfirmed { names: String },
     /// The waveform does not fit the AWG (catalog limits).
     #[error("the {waveform} waveform does not fit the {instrument}: {reason}")]
     DoesNotFit {
@@ -243,6 +255,7 @@ impl MeasureError {
             MeasureError::Option { .. }
             | MeasureError::AlgorithmNeedsOfdm { .. }
             | MeasureError::NoPermit { .. }
+            | MeasureError::ManualNotConfirmed { .. }
             | MeasureError::DoesNotFit { .. }
             | MeasureError::RateNotMultiple { .. }
             | MeasureError::BackgroundShape { .. }

@@ -47,6 +47,16 @@ pub struct ProfileFiles {
     pub link_png: Option<PathBuf>,
 }
 
+/// Which of a measurement's files are written, by file name: a campaign's `[output]` drops
+/// some (the `.trc` copy, the bitmaps, the link plots), which are then never written (not
+/// written and removed: a night run's disk never holds them). `summary.json` still names them.
+pub(crate) type Keep<'a> = &'a dyn Fn(&str) -> bool;
+
+/// Every file written (a lone capture, a re-processing).
+pub(crate) fn keep_all(_: &str) -> bool {
+    true
+}
+
 /// Writes the profiles of `processed` into `out` (CSV, npy, SVG and PNG plots, the
 /// range-Doppler map when there is one, the link figure when data was decoded: `link.svg`, and
 /// `link.png` when `link_png`), titled `"{program}: {waveform} {algorithm}"`, the scene's targets
@@ -63,6 +73,7 @@ fn write_profiles(
     scene: Option<&Value>,
     link_png: bool,
     beside: bool,
+    keep: Keep<'_>,
 ) -> Result<ProfileFiles, MeasureError> {
     let mut files = ProfileFiles {
         profile_csv: out.join("profile.csv"),
@@ -90,8 +101,13 @@ fn write_profiles(
             let png = link_png.then(|| out.join("link.png"));
             files.link_svg = Some(svg.clone());
             files.link_png = png.clone();
+            // Files `keep` drops are named (summary.json) but never written.
+            let svg = keep("link.svg").then_some(svg);
+            let png = png.filter(|_| keep("link.png"));
             move || -> Result<(), MeasureError> {
-                plot::link::draw_link(&svg, &fig)?;
+                if let Some(svg) = svg {
+                    plot::link::draw_link(&svg, &fig)?;
+                }
                 if let Some(png) = png {
                     plot::link::draw_link(&png, &fig)?;
                 }
@@ -111,9 +127,17 @@ fn write_profiles(
         );
         table.write(&files.profile_csv)?;
         table.write(&files.profile_npy)?;
-        plot::draw(&files.plot_svg, &plot)?;
-        plot::draw(&files.plot_png, &plot)?;
-        if let (Some(map), Some(path)) = (&processed.range_doppler, &files.range_doppler_png) {
+        if keep("profile.svg") {
+            plot::draw(&files.plot_svg, &plot)?;
+        }
+        if keep("profile.png") {
+            plot::draw(&files.plot_png, &plot)?;
+        }
+        let rd = files
+            .range_doppler_png
+            .as_ref()
+            .filter(|_| keep("range_doppler.png"));
+        if let (Some(map), Some(path)) = (&processed.range_doppler, rd) {
             let fig = super::figure::range_doppler_figure(
                 format!("{program}: {} range-Doppler", tx.name()),
                 map,
@@ -228,6 +252,17 @@ pub fn write_raw(
     options: &ProcessOptions,
     provenance: &Provenance,
 ) -> Result<RawFiles, MeasureError> {
+    write_raw_keeping(out, taken, options, provenance, &keep_all)
+}
+
+/// [`write_raw`] writing only the scope's files `keep` keeps (the SigMF recording always).
+pub(crate) fn write_raw_keeping(
+    out: &Path,
+    taken: &Taken,
+    options: &ProcessOptions,
+    provenance: &Provenance,
+    keep: Keep<'_>,
+) -> Result<RawFiles, MeasureError> {
     create_dir(out)?;
     let captured = &taken.captured;
     let first = captured.first();
@@ -322,8 +357,11 @@ pub fn write_raw(
     let mut native = Vec::new();
     for trace in [i, q] {
         if let Some(file) = &trace.native {
-            let path = out.join(format!("C{}.{}", trace.channel, file.extension));
-            write_atomic_parts(&path, &[&file.header, &file.body])?;
+            let name = format!("C{}.{}", trace.channel, file.extension);
+            let path = out.join(&name);
+            if keep(&name) {
+                write_atomic_parts(&path, &[&file.header, &file.body])?;
+            }
             native.push(path);
         }
     }
@@ -344,7 +382,18 @@ pub(crate) fn write_processed(
     raw: &RawFiles,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    write_processed_with(out, m, raw, provenance, false)
+    write_processed_with(out, m, raw, provenance, false, &keep_all)
+}
+
+/// [`write_processed`] writing only the files `keep` keeps (`summary.json` always).
+pub(crate) fn write_processed_keeping(
+    out: &Path,
+    m: &Measurement,
+    raw: &RawFiles,
+    provenance: &Provenance,
+    keep: Keep<'_>,
+) -> Result<(CaptureFiles, Value), MeasureError> {
+    write_processed_with(out, m, raw, provenance, false, keep)
 }
 
 /// `write_processed` for a one-shot capture: the link figure is drawn on a thread of its own
@@ -356,7 +405,7 @@ pub fn write_processed_beside(
     raw: &RawFiles,
     provenance: &Provenance,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
-    write_processed_with(out, m, raw, provenance, true)
+    write_processed_with(out, m, raw, provenance, true, &keep_all)
 }
 
 fn write_processed_with(
@@ -365,6 +414,7 @@ fn write_processed_with(
     raw: &RawFiles,
     provenance: &Provenance,
     beside: bool,
+    keep: Keep<'_>,
 ) -> Result<(CaptureFiles, Value), MeasureError> {
     create_dir(out)?;
     let profiles = write_profiles(
@@ -376,6 +426,7 @@ fn write_processed_with(
         m.taken.ground_truth.as_ref(),
         true,
         beside,
+        keep,
     )?;
     let files = CaptureFiles {
         dir: out.to_path_buf(),
@@ -507,6 +558,7 @@ fn write_reprocessed_as<R>(
             loaded.ground_truth(),
             link_png,
             false,
+            &keep_all,
         )?,
         summary: out.join("summary.json"),
     };

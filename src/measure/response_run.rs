@@ -185,13 +185,16 @@ fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Optio
     )
 }
 
-/// Calibrates on `bench` through a connected `rig` (a campaign keeps its own).
+/// Calibrates on `bench` through a connected `rig` (a campaign keeps its own), with the user's
+/// `permit` (refused on a bench with manual front ends unless it carries their confirmation).
 pub async fn calibrate_with(
     rig: &mut Rig,
     bench: &Bench,
     request: &CalibrateRequest,
+    permit: &RfPermit,
     interrupt: &Interrupt,
 ) -> Result<Calibrated, MeasureError> {
+    super::capture::check_manual_confirmed(bench, permit)?;
     let catalog = bench.file.catalog()?;
     let kind = request.waveform.kind();
     let system_delay_s = bench.file.system_delay_s();
@@ -216,7 +219,6 @@ pub async fn calibrate_with(
         prepare(bench, &catalog, &request_off)
     );
     let (on, off) = (on?, off?);
-    let permit = RfPermit::granted_by_user();
     let reps = request.repetitions;
     let tx = on.tx.clone();
     let fs = tx.sample_rate_hz();
@@ -236,7 +238,7 @@ pub async fn calibrate_with(
     let built = |b: tokio::task::JoinHandle<Result<Pipeline, MeasureError>>| async move {
         b.await.map_err(|e| MeasureError::Worker(e.to_string()))?
     };
-    let taken_on = rig.acquire(bench, &on, reps, &permit, interrupt).await?;
+    let taken_on = rig.acquire(bench, &on, reps, permit, interrupt).await?;
     let awg_vpp = taken_on.captured.applied.awg.i_amplitude_vpp;
     // ...and align those repetitions and process their average uncorrected while it captures
     // with RF off.
@@ -256,7 +258,7 @@ pub async fn calibrate_with(
             bench,
             &off,
             off_repetitions(reps, geometry.period),
-            &permit,
+            permit,
             interrupt
         ),
         aligning,

@@ -2,15 +2,15 @@
 //! only infers (instruments/README.md, tags [I] and [P]) and says, per value, whether the
 //! instrument confirms it, answers differently (with its answer), or cannot be asked (with why:
 //! radbench knows no query for it on that family, or the instrument did not answer). Nothing
-//! radiating is sent: identities, `*OPT?`. Every exchange is bounded, and the whole check by one
-//! deadline. `write_overrides` turns the differences into instrument files for the bench's
-//! `catalog` folder.
+//! radiating is sent: identities, `*OPT?`, the limit queries of `driver::instrument_limits`.
+//! Every exchange is bounded, and the whole check by one deadline. `write_overrides` writes the differences into one overrides file for the bench's
+//! `catalog_overrides`.
 
 use super::bench::Bench;
 use super::MeasureError;
 use crate::address::Resource;
-use crate::catalog::{Catalog, InstrumentKind, InstrumentModel, Origin, EMBEDDED_FILES};
-use crate::driver::{open, DriverError, Journal};
+use crate::catalog::{Catalog, InstrumentKind, InstrumentModel};
+use crate::driver::{instrument_limits, open, DriverError, Journal};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -89,44 +89,81 @@ fn past_deadline() -> Verdict {
     }
 }
 
-/// The inferred values of a model that no query reaches, as (field, value).
-fn unqueryable(model: &InstrumentModel) -> Vec<(String, String)> {
+/// How a catalog number is shown: rates in Sa/s as `6.4e10 Sa/s`, whole numbers as integers.
+fn show(v: f64, unit: &str) -> String {
+    match unit {
+        "Sa/s" => format!("{v:e} Sa/s"),
+        _ if v.fract() == 0.0 && v.abs() < 1e18 => format!("{}{unit}", v as i64),
+        _ => format!("{v}{unit}"),
+    }
+}
+
+/// The inferred limits of a model: field, the catalog's number, its unit (for [`show`]).
+fn inferred_limits(model: &InstrumentModel) -> Vec<(&'static str, f64, &'static str)> {
     let mut out = Vec::new();
     if let Some(a) = &model.awg {
-        out.push((
-            "awg.dac_rate_default".into(),
-            format!("{:e} Sa/s", a.dac_rate_default),
-        ));
-        out.push((
-            "awg.internal_memory_samples".into(),
-            a.internal_memory_samples.to_string(),
-        ));
-        out.push((
-            "awg.extended_memory_samples".into(),
-            a.extended_memory_samples.to_string(),
-        ));
-        out.push(("awg.max_segment_id".into(), a.max_segment_id.to_string()));
+        out.extend([
+            ("awg.dac_rate_min", a.dac_rate_min, "Sa/s"),
+            ("awg.dac_rate_max", a.dac_rate_max, "Sa/s"),
+            ("awg.dac_rate_default", a.dac_rate_default, "Sa/s"),
+            (
+                "awg.internal_memory_samples",
+                a.internal_memory_samples as f64,
+                "",
+            ),
+            (
+                "awg.extended_memory_samples",
+                a.extended_memory_samples as f64,
+                "",
+            ),
+        ]);
     }
     if let Some(d) = &model.digitizer {
-        let rates: Vec<String> = d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
-        out.push((
-            "digitizer.sample_rates".into(),
-            format!("{} Sa/s", rates.join(", ")),
-        ));
-        out.push((
-            "digitizer.max_points_per_channel".into(),
-            d.max_points_per_channel.to_string(),
-        ));
-        out.push((
-            "digitizer.volts_per_div_min / max".into(),
-            format!("{} / {} V", d.volts_per_div_min, d.volts_per_div_max),
-        ));
-        out.push((
-            "digitizer.max_sequence_segments".into(),
-            d.max_sequence_segments.to_string(),
-        ));
+        let highest = d.sample_rates.iter().copied().fold(0.0, f64::max);
+        out.extend([
+            ("digitizer.sample_rates", highest, "Sa/s"),
+            (
+                "digitizer.max_points_per_channel",
+                d.max_points_per_channel as f64,
+                "",
+            ),
+            ("digitizer.volts_per_div_min", d.volts_per_div_min, " V"),
+            ("digitizer.volts_per_div_max", d.volts_per_div_max, " V"),
+            (
+                "digitizer.max_sequence_segments",
+                f64::from(d.max_sequence_segments),
+                "",
+            ),
+        ]);
     }
     out
+}
+
+/// Equal within the printing precision of the instruments' replies.
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-6 * a.abs().max(b.abs())
+}
+
+/// `awg.max_segment_id` from the installed options: without `SEQ` the M8195A keeps one segment;
+/// with it, more than one, and no query says how many.
+fn segment_verdict(catalog_max: u32, options: &str) -> Verdict {
+    let seq = option_set(options).iter().any(|o| o == "SEQ");
+    match (seq, catalog_max) {
+        (false, 1) => Verdict::Confirmed {
+            answer: "1 (no SEQ in *OPT?: one segment)".into(),
+        },
+        (false, _) => Verdict::Differs {
+            answer: "1 (no SEQ in *OPT?: one segment)".into(),
+        },
+        (true, 1) => Verdict::Differs {
+            answer: "more than 1 (SEQ in *OPT?)".into(),
+        },
+        (true, _) => Verdict::CannotBeQueried {
+            why: "SEQ is installed, so more than one segment; the M8195A has no query for \
+                  how many: check its datasheet"
+                .into(),
+        },
+    }
 }
 
 /// What the driver's identity check made of an open (`Ok`: the identity it read).
@@ -236,6 +273,7 @@ pub async fn verify_catalog(
         };
         let reached = !matches!(identity, Verdict::CannotBeQueried { .. });
         values.push(value("identity", expected, identity));
+        let mut options_reply: Option<Result<String, String>> = None;
         if let Some(awg) = &model.awg {
             let mut listed = awg.options.clone();
             listed.sort();
@@ -246,7 +284,7 @@ pub async fn verify_catalog(
                     why: "not asked: the instrument was not identified".into(),
                 }
             } else {
-                match crate::driver::ask::ask_once(
+                let reply = crate::driver::ask::ask_once(
                     resource.clone(),
                     model,
                     "*OPT?",
@@ -254,8 +292,9 @@ pub async fn verify_catalog(
                     journal.clone(),
                     name,
                 )
-                .await
-                {
+                .await;
+                options_reply = Some(reply.clone());
+                match reply {
                     Ok(reply) if option_set(&reply) == option_set(&listed.join(",")) => {
                         Verdict::Confirmed { answer: reply }
                     }
@@ -265,8 +304,56 @@ pub async fn verify_catalog(
             };
             values.push(value("awg.options", listed.join(","), verdict));
         }
-        for (field, shown) in unqueryable(model) {
-            values.push(value(&field, shown, no_query(&family)));
+        let read = if !reached || started.elapsed() >= DEADLINE {
+            Vec::new()
+        } else {
+            let reach = instrument_limits::Reach {
+                resource: resource.clone(),
+                model,
+                limit: EXCHANGE_LIMIT,
+                journal: journal.clone(),
+                name,
+            };
+            instrument_limits::read_limits(&family, &reach).await
+        };
+        for (field, expected, unit) in inferred_limits(model) {
+            let verdict = match read.iter().find(|(f, _)| *f == field) {
+                Some((_, Ok(v))) if same(*v, expected) => Verdict::Confirmed {
+                    answer: show(*v, unit),
+                },
+                Some((_, Ok(v))) => Verdict::Differs {
+                    answer: show(*v, unit),
+                },
+                Some((_, Err(why))) => Verdict::CannotBeQueried { why: why.clone() },
+                None if !reached => Verdict::CannotBeQueried {
+                    why: "not asked: the instrument was not identified".into(),
+                },
+                None if started.elapsed() >= DEADLINE => past_deadline(),
+                None => no_query(&family),
+            };
+            let shown = match (field, &model.digitizer) {
+                ("digitizer.sample_rates", Some(d)) => {
+                    let rates: Vec<String> =
+                        d.sample_rates.iter().map(|r| format!("{r:e}")).collect();
+                    format!("{} Sa/s (the highest is asked)", rates.join(", "))
+                }
+                _ => show(expected, unit),
+            };
+            values.push(value(field, shown, verdict));
+        }
+        if let Some(awg) = &model.awg {
+            let verdict = match options_reply.as_ref() {
+                Some(Ok(reply)) if family == "keysight-m8195a" => {
+                    segment_verdict(awg.max_segment_id, reply)
+                }
+                Some(Err(why)) => Verdict::CannotBeQueried { why: why.clone() },
+                _ => no_query(&family),
+            };
+            values.push(value(
+                "awg.max_segment_id",
+                awg.max_segment_id.to_string(),
+                verdict,
+            ));
         }
         if model.protocol.is_some() {
             values.push(value(
@@ -287,69 +374,122 @@ pub async fn verify_catalog(
     })
 }
 
-/// The instrument file `model` was loaded from, as text.
-fn source_text(catalog: &Catalog, key: &str) -> Option<(String, String)> {
-    let (_, origin) = catalog.models().find(|(m, _)| m.instrument.key == key)?;
-    match origin {
-        Origin::Embedded(name) => EMBEDDED_FILES
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(n, t)| ((*n).to_string(), (*t).to_string())),
-        Origin::File(path) => Some((
-            path.file_name()?.to_string_lossy().into_owned(),
-            std::fs::read_to_string(path).ok()?,
-        )),
-    }
+/// The value to write for a field that differs, as the instrument file spells it (`None`: not
+/// one to write down, e.g. an identity or a segment count known only as "more than 1").
+fn override_value(
+    v: &CatalogValue,
+    answer: &str,
+) -> Option<(&'static str, String, toml_edit::Value)> {
+    let number = || crate::driver::ask::reply_number(answer);
+    let (table, key) = v.field.split_once('.')?;
+    let table: &'static str = match table {
+        "awg" => "awg",
+        "digitizer" => "digitizer",
+        _ => return None,
+    };
+    let value: toml_edit::Value = match v.field.as_str() {
+        "awg.options" => {
+            let mut array = toml_edit::Array::new();
+            for o in option_set(answer) {
+                array.push(o);
+            }
+            array.into()
+        }
+        "awg.max_segment_id" if answer.starts_with("1 ") => 1i64.into(),
+        "awg.max_segment_id" => return None,
+        "awg.internal_memory_samples"
+        | "awg.extended_memory_samples"
+        | "digitizer.max_points_per_channel"
+        | "digitizer.max_sequence_segments" => (number()? as i64).into(),
+        "digitizer.sample_rates" => {
+            // The highest rate was asked: it replaces the catalog's highest, the others stay.
+            let mut rates: Vec<f64> = v
+                .catalog
+                .split(|c: char| c == ',' || c.is_whitespace())
+                .filter_map(|t| t.parse::<f64>().ok())
+                .collect();
+            let top = rates.iter().copied().fold(f64::MIN, f64::max);
+            rates.retain(|r| *r != top);
+            rates.push(number()?);
+            rates.sort_by(f64::total_cmp);
+            rates.into_iter().collect::<toml_edit::Array>().into()
+        }
+        _ => number()?.into(),
+    };
+    Some((table, key.to_string(), value))
 }
 
-/// Writes, for each model with a value that differs and can be written down (`*OPT?`), a copy of
-/// its instrument file holding the instrument's answer into `dir` (created); the bench file's
-/// `catalog = "<dir>"` then makes radbench use them. Returns the files written.
+/// Writes the values that differ, as the instruments answered them, into the overrides file
+/// `path` (one TOML file, `[<model key>.<table>]` tables; values already in it are kept unless
+/// answered anew). The bench file's `catalog_overrides = "<path>"` applies it. An existing folder
+/// gets `overrides.toml` inside it. Returns the file written, or `None` when nothing differs.
 ///
 /// # Errors
-/// [`MeasureError::Storage`] when `dir` or a file cannot be written.
-pub fn write_overrides(
-    check: &CatalogCheck,
-    catalog: &Catalog,
-    dir: &Path,
-) -> Result<Vec<PathBuf>, MeasureError> {
-    let mut written = Vec::new();
-    let mut keys: Vec<&str> = check
-        .values
-        .iter()
-        .filter(|v| matches!(v.verdict, Verdict::Differs { .. }) && v.field == "awg.options")
-        .map(|v| v.model.as_str())
-        .collect();
-    keys.dedup();
-    for key in keys {
-        let Some((name, text)) = source_text(catalog, key) else {
-            continue;
-        };
-        let Ok(mut doc) = text.parse::<toml_edit::DocumentMut>() else {
-            continue;
-        };
-        for v in check.values.iter().filter(|v| v.model == key) {
-            if let (Verdict::Differs { answer }, "awg.options") = (&v.verdict, v.field.as_str()) {
-                let mut array = toml_edit::Array::new();
-                for o in option_set(answer) {
-                    array.push(o);
-                }
-                if let Some(table) = doc.get_mut("awg").and_then(|t| t.as_table_mut()) {
-                    table.insert("options", toml_edit::value(array));
-                }
-            }
+/// [`MeasureError::Storage`] when the file cannot be read or written; [`MeasureError::Option`]
+/// when an existing file is not an overrides file.
+pub fn write_overrides(check: &CatalogCheck, path: &Path) -> Result<Option<PathBuf>, MeasureError> {
+    let path = if path.is_dir() {
+        path.join("overrides.toml")
+    } else {
+        path.to_path_buf()
+    };
+    let mut doc = match std::fs::read_to_string(&path) {
+        Ok(text) => text.parse::<toml_edit::DocumentMut>().map_err(|e| {
+            MeasureError::option(
+                "write-overrides",
+                path.display(),
+                format!("a new file or an overrides file (this one is not TOML: {e})"),
+            )
+        })?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let mut doc = toml_edit::DocumentMut::new();
+            doc.decor_mut().set_prefix(
+                "# Written by `radbench doctor --verify-catalog --write-overrides`: the values this \
+                 bench's\n# instruments answered differently from the catalog. Apply it with\n# \
+                 catalog_overrides = \"<this file>\" in the bench file.\n",
+            );
+            doc
         }
-        let header = format!(
-            "# Written by `radbench doctor --verify-catalog --write-overrides`: the built-in {key} \
-             with the values\n# the instrument answered differently. Point the bench file's \
-             `catalog` at this folder.\n"
-        );
-        std::fs::create_dir_all(dir).map_err(|e| storage(dir, e))?;
-        let path = dir.join(&name);
-        crate::storage::write_atomic(&path, format!("{header}{doc}").as_bytes())?;
-        written.push(path);
+        Err(e) => return Err(storage(&path, e)),
+    };
+    let mut wrote = false;
+    for v in &check.values {
+        let Verdict::Differs { answer } = &v.verdict else {
+            continue;
+        };
+        let Some((table, key, value)) = override_value(v, answer) else {
+            continue;
+        };
+        let model = doc
+            .entry(&v.model)
+            .or_insert(toml_edit::table())
+            .as_table_mut()
+            .ok_or_else(|| not_a_table(&path, &v.model))?;
+        model.set_implicit(true);
+        let section = model
+            .entry(table)
+            .or_insert(toml_edit::table())
+            .as_table_mut()
+            .ok_or_else(|| not_a_table(&path, &format!("{}.{table}", v.model)))?;
+        section.insert(&key, toml_edit::value(value));
+        wrote = true;
     }
-    Ok(written)
+    if !wrote {
+        return Ok(None);
+    }
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| storage(parent, e))?;
+    }
+    crate::storage::write_atomic(&path, doc.to_string().as_bytes())?;
+    Ok(Some(path))
+}
+
+fn not_a_table(path: &Path, name: &str) -> MeasureError {
+    MeasureError::option(
+        "write-overrides",
+        path.display(),
+        format!("a new file or an overrides file (`{name}` is not a table in this one)"),
+    )
 }
 
 fn storage(path: &Path, e: std::io::Error) -> MeasureError {

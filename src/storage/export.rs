@@ -63,10 +63,13 @@ impl Array {
         }
     }
 
-    fn npy(&self) -> Result<Vec<u8>, String> {
+    fn npy(&self, complex: ComplexDtype) -> Result<Vec<u8>, String> {
         match self {
             Array::F64 { shape, data } => npy::encode_f64(shape, data),
-            Array::C128 { shape, data } => npy::encode_c128(shape, data),
+            Array::C128 { shape, data } => match complex {
+                ComplexDtype::Complex128 => npy::encode_c128(shape, data),
+                ComplexDtype::Complex64 => npy::encode_c64(shape, data),
+            },
             Array::U8(data) => npy::encode_u8(&[data.len()], data),
             Array::Text(text) => Ok(npy::encode_text(text)),
             Array::Records { rows, fields } => {
@@ -77,7 +80,7 @@ impl Array {
         }
     }
 
-    fn hdf5(&self, name: &str) -> Result<DatasetBuilder, String> {
+    fn hdf5(&self, name: &str, complex: ComplexDtype) -> Result<DatasetBuilder, String> {
         let f64_type = Datatype::FloatingPoint {
             size: 8,
             byte_order: ByteOrder::LittleEndian,
@@ -97,28 +100,41 @@ impl Array {
             }
             Array::C128 { shape: s, data } => {
                 check(s, data.len())?;
-                // h5py's complex128: a compound of float64 `r` and `i`.
-                let complex = Datatype::Compound {
-                    size: 16,
+                // h5py's complex128 (complex64): a compound of float64 (float32) `r` and `i`.
+                let part = complex.part_bytes();
+                let part_type = Datatype::FloatingPoint {
+                    size: part as u8,
+                    byte_order: ByteOrder::LittleEndian,
+                };
+                let compound = Datatype::Compound {
+                    size: 2 * part as u32,
                     fields: vec![
                         CompoundField {
                             name: "r".into(),
                             byte_offset: 0,
-                            datatype: f64_type.clone(),
+                            datatype: part_type.clone(),
                         },
                         CompoundField {
                             name: "i".into(),
-                            byte_offset: 8,
-                            datatype: f64_type,
+                            byte_offset: part as u32,
+                            datatype: part_type,
                         },
                     ],
                 };
-                let raw: Vec<u8> = data
-                    .iter()
-                    .flat_map(|v| [v.re.to_le_bytes(), v.im.to_le_bytes()])
-                    .flatten()
-                    .collect();
-                DatasetBuilder::new(name, complex, shape(s)).raw_data(raw)
+                let mut raw: Vec<u8> = Vec::with_capacity(data.len() * 2 * part);
+                for v in data {
+                    match complex {
+                        ComplexDtype::Complex128 => {
+                            raw.extend_from_slice(&v.re.to_le_bytes());
+                            raw.extend_from_slice(&v.im.to_le_bytes());
+                        }
+                        ComplexDtype::Complex64 => {
+                            raw.extend_from_slice(&(v.re as f32).to_le_bytes());
+                            raw.extend_from_slice(&(v.im as f32).to_le_bytes());
+                        }
+                    }
+                }
+                DatasetBuilder::new(name, compound, shape(s)).raw_data(raw)
             }
             Array::U8(data) => {
                 let t = Datatype::FixedPoint {
@@ -172,6 +188,27 @@ impl Array {
     }
 }
 
+/// How complex arrays are stored (`radbench export --dtype`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ComplexDtype {
+    /// float32 real and imaginary parts (`<c8`; in HDF5 a compound of float32 `r`, `i`): half
+    /// the bytes, about 7 significant digits.
+    Complex64,
+    /// float64 parts (`<c16`), every digit radbench computed.
+    #[default]
+    Complex128,
+}
+
+impl ComplexDtype {
+    /// Bytes of one real or imaginary part.
+    fn part_bytes(self) -> usize {
+        match self {
+            ComplexDtype::Complex64 => 4,
+            ComplexDtype::Complex128 => 8,
+        }
+    }
+}
+
 /// The file formats `radbench export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExportFormat {
@@ -200,6 +237,7 @@ pub struct ExportWriter {
     path: PathBuf,
     target: Target,
     names: std::collections::HashSet<String>,
+    complex: ComplexDtype,
 }
 
 impl ExportWriter {
@@ -217,7 +255,14 @@ impl ExportWriter {
             path: path.to_path_buf(),
             target,
             names: Default::default(),
+            complex: ComplexDtype::default(),
         })
+    }
+
+    /// Stores every complex array as `complex` (complex128 unless told).
+    pub fn with_complex_dtype(mut self, complex: ComplexDtype) -> Self {
+        self.complex = complex;
+        self
     }
 
     fn bad(&self, reason: String) -> StorageError {
@@ -240,17 +285,19 @@ impl ExportWriter {
         }
         match &mut self.target {
             Target::Npz(w) => {
-                let bytes = array.npy().map_err(|r| StorageError::BadData {
+                let bytes = array.npy(self.complex).map_err(|r| StorageError::BadData {
                     path: self.path.clone(),
                     reason: format!("{name}: {r}"),
                 })?;
                 w.add(name, &bytes)
             }
             Target::Hdf5(datasets) => {
-                let mut d = array.hdf5(name).map_err(|r| StorageError::BadData {
-                    path: self.path.clone(),
-                    reason: format!("{name}: {r}"),
-                })?;
+                let mut d = array
+                    .hdf5(name, self.complex)
+                    .map_err(|r| StorageError::BadData {
+                        path: self.path.clone(),
+                        reason: format!("{name}: {r}"),
+                    })?;
                 if let Some(u) = unit {
                     d = d.attribute(AttributeBuilder::fixed_string("units", u));
                 }

@@ -1,4 +1,5 @@
-//! NumPy `.npy` (format version 1.0) encoding of little-endian float64 and complex128 arrays.
+//! NumPy `.npy` (format version 1.0) encoding of little-endian float64, complex128 and
+//! complex64 arrays.
 //!
 //! Layout: magic `\x93NUMPY`, version 1.0, a little-endian u16 header length, an ASCII dict header
 //! padded with spaces and a newline so the data starts on a 64-byte boundary, then the data in C
@@ -26,6 +27,19 @@ pub fn encode_c128(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, Strin
     for v in data {
         out.extend_from_slice(&v.re.to_le_bytes());
         out.extend_from_slice(&v.im.to_le_bytes());
+    }
+    Ok(out)
+}
+
+/// Encodes a complex array of the given shape (row-major) as complex64 (`<c8`: float32 real
+/// and imaginary parts, half the bytes of complex128; each part rounded to the nearest f32).
+pub(crate) fn encode_c64(shape: &[usize], data: &[Complex64]) -> Result<Vec<u8>, String> {
+    check_shape(shape, data.len())?;
+    let mut out = header("<c8", shape);
+    out.reserve(data.len() * 8);
+    for v in data {
+        out.extend_from_slice(&(v.re as f32).to_le_bytes());
+        out.extend_from_slice(&(v.im as f32).to_le_bytes());
     }
     Ok(out)
 }

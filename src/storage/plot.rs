@@ -168,10 +168,18 @@ fn plot_error(path: &Path, reason: String) -> StorageError {
 fn render_png(
     draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
 ) -> Result<Vec<u8>, String> {
-    let (w, h) = SIZE;
+    render_png_sized(SIZE, draw)
+}
+
+/// [`render_png`] at `size` pixels.
+pub(crate) fn render_png_sized(
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+) -> Result<Vec<u8>, String> {
+    let (w, h) = size;
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
         draw(root)?;
     }
     let image = image::RgbImage::from_raw(w, h, rgb)
@@ -498,7 +506,7 @@ pub(crate) struct Heatmap {
 const HEATMAP_CELLS: (usize, usize) = (480, 240);
 
 /// A perceptually even blue-green-yellow scale (viridis' endpoints and midpoints).
-fn heat_colour(f: f64) -> RGBColor {
+pub(crate) fn heat_colour(f: f64) -> RGBColor {
     const STOPS: [(f64, (f64, f64, f64)); 5] = [
         (0.0, (68.0, 1.0, 84.0)),
         (0.25, (59.0, 82.0, 139.0)),
@@ -518,7 +526,49 @@ fn heat_colour(f: f64) -> RGBColor {
     )
 }
 
-/// Draws `map` as a PNG heat map (colour = dB under the maximum), atomically.
+/// Width of a heat map's colour bar (its scale and label included), pixels.
+pub(crate) const COLOUR_BAR_PX: u32 = 110;
+
+/// The colour scale of a heat map in `area` (a strip at the plot's right): `heat_colour` from
+/// `lo` (0) to `hi` (1) in `label`'s unit, with round ticks.
+pub(crate) fn draw_colour_bar<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    (lo, hi): (f64, f64),
+    label: &str,
+    top_px: u32,
+) -> Result<(), String> {
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| format!("{err}");
+    let mut bar = ChartBuilder::on(area)
+        .margin_top(top_px)
+        .margin_bottom(12)
+        .margin_right(8)
+        .y_label_area_size(0)
+        .right_y_label_area_size(70)
+        .x_label_area_size(45)
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(e)?;
+    bar.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_label_formatter(&|v: &f64| format!("{}", (v * 1e6).round() / 1e6 + 0.0))
+        .y_desc(label)
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    const STEPS: usize = 64;
+    let d = (hi - lo) / STEPS as f64;
+    bar.draw_series((0..STEPS).map(|k| {
+        let y = lo + k as f64 * d;
+        Rectangle::new(
+            [(0.0, y), (1.0, y + d)],
+            heat_colour((k as f64 + 0.5) / STEPS as f64).filled(),
+        )
+    }))
+    .map_err(e)?;
+    Ok(())
+}
+
+/// Draws `map` as a PNG heat map (colour = dB under the maximum, its scale beside), atomically.
 pub(crate) fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageError> {
     let bad = |reason: &str| StorageError::BadData {
         path: path.to_path_buf(),
@@ -559,7 +609,9 @@ pub(crate) fn draw_heatmap(path: &Path, map: &Heatmap) -> Result<(), StorageErro
         root.fill(&WHITE).map_err(e)?;
         let y0 = map.y[0] - dy / 2.0;
         let y1 = map.y[ny - 1] + dy / 2.0;
-        let mut chart = ChartBuilder::on(&root)
+        let (plot, scale) = root.split_horizontally(SIZE.0 - COLOUR_BAR_PX);
+        draw_colour_bar(&scale, (-map.range_db, 0.0), "dB under the peak", 44)?;
+        let mut chart = ChartBuilder::on(&plot)
             .caption(&map.title, ("sans-serif", 20))
             .margin(12)
             .x_label_area_size(45)

@@ -222,7 +222,18 @@ async fn the_spec_s_correction_errors_name_the_field_and_what_is_allowed() {
 /// `v`): tests/cli/campaign.rs runs the chapter once for both its checks and these.
 pub(crate) fn check_the_rx_and_both_columns_at_the_ideal_chain_s_figures(out: &Path, v: &Value) {
     let rows = v["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 7);
+    assert_eq!(rows.len(), 13);
+    // A row per low side-lobe window and waveform, judged corrected: each window's side-lobe
+    // within 2 dB of the ideal chain's, with rx.
+    let windows: Vec<&Value> = rows
+        .iter()
+        .filter(|r| r["scenario"].as_str().unwrap().ends_with(" window"))
+        .collect();
+    assert_eq!(windows.len(), 6, "{v}");
+    for r in &windows {
+        assert_eq!(r["agrees"], true, "{r}");
+        assert!(r["thesis"].as_str().unwrap().contains("design"), "{r}");
+    }
     assert!(
         rows.iter()
             .all(|r| r["radbench_rx"].is_string() && r["radbench_both"].is_string()),

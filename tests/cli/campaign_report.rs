@@ -106,11 +106,10 @@ async fn check_reports(dir: &Path, figures: &[Figure]) {
             "{}",
             f.id
         );
-        assert!(
-            md.contains(&format!("(`{}`)", f.id)),
-            "report.md lists {}",
-            f.id
-        );
+        let png = format!("](figures/{}.png)", f.id);
+        assert!(md.contains(&png), "report.md embeds {}", f.id);
+        let bytes = std::fs::read(dir.join("figures").join(format!("{}.png", f.id))).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG"), "{} is a PNG", f.id);
     }
     assert_eq!(html.matches("\" class=\"plot\">").count(), figures.len());
     check_link_figures(dir, &results, &html);
@@ -375,8 +374,11 @@ async fn a_missed_target_is_said_on_the_console_and_in_the_report() {
     assert!(lines[1].contains("MISSED 1"), "{}", lines[1]);
     let md = std::fs::read_to_string(d.join("run/report.md")).unwrap();
     assert!(md.contains("| missed 1 |"), "{md}");
+    // The summary leads with the verdict: a missed target fails the run.
+    assert!(md.contains("**FAIL: 1 nominal target(s) missed.**"), "{md}");
     let html = std::fs::read_to_string(d.join("run/report.html")).unwrap();
     assert!(html.contains("missed 1"), "the page says it too");
+    assert!(html.contains("<p class=\"verdict fail\">FAIL: 1 nominal target(s) missed.</p>"));
 }
 
 /// `campaign report` on a damaged run folder: a missing, binary or truncated `results.json` is

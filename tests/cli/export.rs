@@ -487,3 +487,88 @@ async fn a_run_folder_from_before_results_csv_resumes_and_reports_with_one() {
         radbench::storage::sha256(&std::fs::read(run.join("results.csv")).unwrap())
     );
 }
+
+/// `--dtype complex64`: every complex array `<c8` (its header says so), half its complex128
+/// bytes, each value the complex128 one within float32 precision; real arrays unchanged; the
+/// whole file smaller by the complex arrays' half. A bad value names `--dtype` and the allowed
+/// ones (exit 2).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn complex64_halves_the_complex_arrays_within_f32_precision() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
+    let (code, _, err) = radbench(
+        d,
+        &[
+            "capture",
+            "--allow-rf",
+            "--scene",
+            "scene.toml",
+            "--out",
+            "cap",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    for (dtype, out) in [("complex128", "c16.npz"), ("complex64", "c8.npz")] {
+        let (code, _, err) = radbench(
+            d,
+            &["export", "cap", "--npz", "--dtype", dtype, "--out", out],
+        )
+        .await;
+        assert_eq!(code, 0, "{err}");
+    }
+    let (code, _, err) = radbench(d, &["export", "cap", "--npz", "--out", "default.npz"]).await;
+    assert_eq!(code, 0, "{err}");
+    let wide = npz(&d.join("c16.npz"));
+    let narrow = npz(&d.join("c8.npz"));
+    assert_eq!(
+        npz(&d.join("default.npz")),
+        wide,
+        "complex128 is the default"
+    );
+    assert_eq!(
+        wide.keys().collect::<Vec<_>>(),
+        narrow.keys().collect::<Vec<_>>()
+    );
+    let (mut complex_wide, mut complex_narrow) = (0usize, 0usize);
+    for (name, w) in &wide {
+        let (wd, ws, wdata) = npy(w);
+        let (nd, ns, ndata) = npy(&narrow[name]);
+        assert_eq!(ws, ns, "{name}");
+        if !wd.contains("'<c16'") {
+            assert_eq!(w, &narrow[name], "{name}: not complex, unchanged");
+            continue;
+        }
+        assert!(nd.contains("'descr': '<c8'"), "{name}: {nd}");
+        assert_eq!(ndata.len() * 2, wdata.len(), "{name}: half the bytes");
+        complex_wide += wdata.len();
+        complex_narrow += ndata.len();
+        let parts64 = f64s(wdata);
+        let parts32: Vec<f64> = ndata
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64)
+            .collect();
+        assert_eq!(parts64.len(), parts32.len());
+        for (a, b) in parts64.iter().zip(&parts32) {
+            assert!(
+                (a - b).abs() <= a.abs() * f64::from(f32::EPSILON),
+                "{name}: {a} vs {b}"
+            );
+        }
+    }
+    assert!(complex_wide > 1_000_000, "the I/Q is exported");
+    assert_eq!(complex_narrow * 2, complex_wide);
+    let size = |f: &str| std::fs::metadata(d.join(f)).unwrap().len() as usize;
+    assert_eq!(
+        size("c16.npz") - size("c8.npz"),
+        complex_wide - complex_narrow,
+        "the file shrinks by the complex arrays' half, nothing else changes"
+    );
+    let (code, _, err) = radbench(d, &["export", "cap", "--npz", "--dtype", "float16"]).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--dtype") && err.contains("complex64") && err.contains("complex128"),
+        "{err}"
+    );
+}

@@ -18,6 +18,7 @@ mod campaign;
 mod campaign_correction;
 mod campaign_notify;
 mod campaign_report;
+mod campaign_summary;
 mod campaign_sweeps;
 mod capture_e2e;
 mod cli_safety;

@@ -191,3 +191,90 @@ async fn a_campaign_run_needs_the_confirmation_too() {
     assert!(out.contains("complete: 1 steps"), "{out}");
     untouched_and_awg_off(&lab);
 }
+
+/// The library (`measure::take`, and `radbench.Bench`'s session) refuses manual front ends
+/// unless the permit carries the operator's confirmation: nothing is sent to the AWG first.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_library_refuses_manual_front_ends_without_the_confirmation() {
+    use radbench::driver::RfPermit;
+    use radbench::in_memory::{BenchSession, SessionSource};
+    use radbench::measure::{self, Bench, BenchSource, Interrupt, MeasureError, ProcessOptions};
+    use radbench::waveform::WaveformKind;
+    let dir = tempfile::tempdir().unwrap();
+    let (lab, path) = manual_bench(dir.path()).await;
+    let bench = Bench::open(BenchSource::File(path.clone())).await.unwrap();
+    let request = super::support::thesis_request(
+        WaveformKind::MskLfm,
+        ProcessOptions::for_waveform(WaveformKind::MskLfm),
+        false,
+    );
+    lab.bench.awg.log().clear();
+    let refused = measure::take(
+        &bench,
+        &request,
+        None,
+        1,
+        &RfPermit::granted_by_user(),
+        None,
+        &Interrupt::never(),
+    )
+    .await
+    .err()
+    .expect("refused without the confirmation");
+    assert!(
+        matches!(refused, MeasureError::ManualNotConfirmed { .. }),
+        "{refused}"
+    );
+    let text = refused.to_string();
+    assert!(
+        text.contains("Tx and Rx front end settings were not confirmed")
+            && text.contains("manual_front_ends_confirmed=True")
+            && text.contains("nothing was switched on"),
+        "{text}"
+    );
+    assert!(
+        lab.bench.awg.log().texts().is_empty(),
+        "{:?}",
+        lab.bench.awg.log().texts()
+    );
+    untouched_and_awg_off(&lab);
+    drop(bench);
+
+    // The session behind Python's radbench.Bench: refused without the keyword, measured with it.
+    let session = move |confirmed: bool| SessionSource {
+        bench: Some(path.clone()),
+        allow_rf: true,
+        manual_front_ends_confirmed: confirmed,
+        ..SessionSource::default()
+    };
+    let (without, with) = tokio::task::spawn_blocking(move || {
+        let capture = |s: &BenchSession| {
+            let options = radbench::in_memory::CaptureOptions::from_keywords(
+                WaveformKind::MskLfm,
+                "{}",
+                1,
+                None,
+            )
+            .unwrap();
+            s.capture(options)
+                .wait(LIMIT)
+                .expect("the capture ends in time")
+                .map(|_| ())
+                .map_err(|e| radbench::exit::render(&e))
+        };
+        let refused = BenchSession::open(session(false)).unwrap();
+        let without = capture(&refused);
+        drop(refused);
+        let confirmed = BenchSession::open(session(true)).unwrap();
+        let with = capture(&confirmed);
+        drop(confirmed);
+        (without, with)
+    })
+    .await
+    .unwrap();
+    let err = without.expect_err("refused without manual_front_ends_confirmed");
+    assert!(err.contains("manual_front_ends_confirmed=True"), "{err}");
+    with.expect("measured with manual_front_ends_confirmed");
+    let pb = lab.bench.awg.playback();
+    assert!(!pb.running && pb.channels.iter().all(|c| !c.output_on));
+}

@@ -174,6 +174,7 @@ pub fn write_run(dir: &Path, plans: &[Plan], seed: u64, i: u64) {
             },
             measured_at: "2026-01-01T00:00:00.000Z".into(),
         }),
+        operator: Some("archive".into()),
         instruments: Some(Instruments {
             awg: "KEYSIGHT,M8195A,DE0001,4.0".into(),
             scope: scope.into(),

@@ -48,6 +48,8 @@ struct Inner {
     sre: u8,
     /// What `*OPT?` answers instead of the catalog's options (a unit with other options).
     options: Option<Vec<String>>,
+    /// What `:FREQ:RAST? MAX` answers instead of the catalog's limit (another unit).
+    pub(super) raster_max: Option<f64>,
 }
 
 /// The emulated M8195A.
@@ -65,6 +67,12 @@ impl M8195a {
         self.lock().options = options;
     }
 
+    /// Makes `:FREQ:RAST? MAX` answer `max` (a unit with another limit than the catalog's, for
+    /// `doctor --verify-catalog`'s tests); `None`: the catalog's again.
+    pub(crate) fn set_raster_max(&self, max: Option<f64>) {
+        self.lock().raster_max = max;
+    }
+
     /// An emulator with the limits of `model`, in its power-on state. Refuses a model the emulator
     /// cannot work with (no dividers, channels out of range).
     pub fn new(model: AwgModel) -> Result<M8195a, CatalogError> {
@@ -79,6 +87,7 @@ impl M8195a {
                 ese: 0,
                 sre: 0,
                 options: None,
+                raster_max: None,
             }),
             log: ReceivedLog::new("m8195a", LOG_CAPACITY),
             model,

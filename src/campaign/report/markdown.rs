@@ -2,6 +2,7 @@
 
 use super::figures::{is_accuracy, is_single, thesis_widths, waveform_of, wilson95, Figure};
 use super::pm;
+use super::summary::Summary;
 use crate::campaign::Manifest;
 use crate::campaign::{AlgorithmResult, Results};
 use crate::physics::C0;
@@ -12,6 +13,19 @@ pub(crate) struct Table {
     pub title: String,
     pub header: Vec<String>,
     pub rows: Vec<Vec<String>>,
+    /// Cells (row, column) that are bad news (a false target): drawn marked.
+    pub marks: Vec<(usize, usize)>,
+}
+
+impl Table {
+    fn new(title: impl Into<String>, header: &[&str], rows: Vec<Vec<String>>) -> Self {
+        Table {
+            title: title.into(),
+            header: header.iter().map(|h| h.to_string()).collect(),
+            rows,
+            marks: Vec::new(),
+        }
+    }
 }
 
 /// The header's facts, one line.
@@ -131,6 +145,7 @@ pub(crate) fn steps_table(results: &Results) -> Table {
         "nominal",
         "algorithm",
         "targets (m)",
+        "false targets (m)",
         "error (mm)",
         "on grid (mm)",
         "vs truth (mm)",
@@ -143,8 +158,13 @@ pub(crate) fn steps_table(results: &Results) -> Table {
         "MER (dB)",
     ];
     let mut rows = Vec::new();
+    let mut marks = Vec::new();
     for s in &results.steps {
         for (name, a) in &s.algorithms {
+            let false_ones = crate::campaign::results::false_targets(s, a);
+            if !false_ones.is_empty() {
+                marks.push((rows.len(), FALSE_TARGETS_COLUMN));
+            }
             let targets: Vec<String> = a
                 .targets
                 .iter()
@@ -163,6 +183,12 @@ pub(crate) fn steps_table(results: &Results) -> Table {
                 } else {
                     targets.join(", ")
                 },
+                if false_ones.is_empty() {
+                    "-".into()
+                } else {
+                    let r: Vec<String> = false_ones.iter().map(|r| format!("{r:.4}")).collect();
+                    format!("FALSE TARGET {}", r.join(", "))
+                },
                 with_missed(mm(a.error_m, strongest_std(a)), a.missed),
                 with_missed(mm(a.error_on_grid_m, None), a.missed),
                 mm(a.truth_error_m, None),
@@ -178,12 +204,13 @@ pub(crate) fn steps_table(results: &Results) -> Table {
             ]);
         }
     }
-    Table {
-        title: "Steps".into(),
-        header: header.iter().map(|h| h.to_string()).collect(),
-        rows,
-    }
+    let mut t = Table::new("Steps", &header, rows);
+    t.marks = marks;
+    t
 }
+
+/// The steps table's column of false targets (marked where a step has one).
+const FALSE_TARGETS_COLUMN: usize = 4;
 
 /// The summary tables of the run's kinds (accuracy bounds, the thesis' widths beside).
 pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Table> {
@@ -236,6 +263,7 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
             ]);
         }
         out.push(Table {
+            marks: Vec::new(),
             title: "Accuracy: largest |error| over the steps (thesis 4.4.2, Fig. 4.13)".into(),
             header: [
                 "algorithm",
@@ -280,6 +308,7 @@ pub(crate) fn summary_tables(manifest: &Manifest, results: &Results) -> Vec<Tabl
             }
         }
         out.push(Table {
+            marks: Vec::new(),
             title: "One target: -3 dB width and peak side-lobe level beside the thesis".into(),
             header: [
                 "step",
@@ -332,6 +361,7 @@ pub(crate) fn chain_echoes_table(results: &Results) -> Option<Table> {
         return None;
     }
     Some(Table {
+        marks: Vec::new(),
         title: "Chain echoes (not targets)".into(),
         header: [
             "step",
@@ -354,6 +384,7 @@ pub(crate) fn retries_table(manifest: &Manifest) -> Option<Table> {
         return None;
     }
     Some(Table {
+        marks: Vec::new(),
         title: "Retries".into(),
         header: ["step", "retry", "instrument", "fault", "at", "wait (s)"]
             .iter()
@@ -380,20 +411,55 @@ fn md_table(out: &mut String, t: &Table) {
     let _ = writeln!(out, "## {}\n", t.title);
     let _ = writeln!(out, "| {} |", t.header.join(" | "));
     let _ = writeln!(out, "|{}", "---|".repeat(t.header.len()));
-    for r in &t.rows {
-        let _ = writeln!(out, "| {} |", r.join(" | "));
+    for (i, r) in t.rows.iter().enumerate() {
+        let cells: Vec<String> = r
+            .iter()
+            .enumerate()
+            .map(|(j, c)| {
+                if t.marks.contains(&(i, j)) {
+                    format!("**⚠ {c}**")
+                } else {
+                    c.clone()
+                }
+            })
+            .collect();
+        let _ = writeln!(out, "| {} |", cells.join(" | "));
     }
     let _ = writeln!(out);
 }
 
-/// The whole `report.md`.
-pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure]) -> String {
+/// The summary the report opens with.
+fn md_summary(out: &mut String, summary: &Summary) {
+    let _ = writeln!(out, "## Summary\n");
+    let _ = writeln!(out, "**{}**\n", summary.verdict);
+    let _ = writeln!(out, "| | |\n|---|---|");
+    for f in &summary.facts {
+        let text = f.text.replace('|', "\\|").replace('\n', " ");
+        if f.alarm {
+            let _ = writeln!(out, "| **{}** | **⚠ {text}** |", f.name);
+        } else {
+            let _ = writeln!(out, "| {} | {text} |", f.name);
+        }
+    }
+    let _ = writeln!(out);
+}
+
+/// The whole `report.md`: the summary, the tables, then the figures (`images[k]`: figure k's
+/// PNG relative to the run folder, `None` when it could not be drawn).
+pub(crate) fn markdown(
+    manifest: &Manifest,
+    results: &Results,
+    summary: &Summary,
+    figures: &[Figure],
+    images: &[Option<String>],
+) -> String {
     let plan = &manifest.plan;
     let mut out = String::new();
     let _ = writeln!(out, "# Campaign {}\n", plan.name);
     if let Some(d) = &plan.description {
         let _ = writeln!(out, "{d}\n");
     }
+    md_summary(&mut out, summary);
     let _ = writeln!(out, "{}\n", status_line(manifest));
     for w in plan.bench.warnings() {
         let _ = writeln!(out, "**Warning:** {w}\n");
@@ -420,17 +486,29 @@ pub(crate) fn markdown(manifest: &Manifest, results: &Results, figures: &[Figure
         );
     }
     if !figures.is_empty() {
-        let _ = writeln!(out, "## Plots (in `report.html`)\n");
-        for f in figures {
-            let _ = writeln!(out, "- **{}** (`{}`): {}", f.chart.title, f.id, f.caption);
+        let _ = writeln!(out, "## Figures\n");
+        for (k, f) in figures.iter().enumerate() {
+            let _ = writeln!(out, "### {}\n", f.chart.title);
+            match images.get(k).and_then(Option::as_ref) {
+                Some(path) => {
+                    let _ = writeln!(
+                        out,
+                        "![{}]({path})\n",
+                        f.chart.title.replace(['[', ']'], "")
+                    );
+                }
+                None => {
+                    let _ = writeln!(out, "(This plot could not be drawn.)\n");
+                }
+            }
+            let _ = writeln!(out, "{}\n", f.caption);
         }
-        let _ = writeln!(out);
     }
     let _ = writeln!(
         out,
         "Files: `manifest.toml` (inputs, plan, identities, hashes), `results.json`, \
-         `report.html` (this report with its plots), one folder per step with its capture \
-         (SigMF, .trc) and profiles."
+         `report.html` (this report, its plots inline), `figures/` (these plots as PNG), one \
+         folder per step with its capture (SigMF, .trc) and profiles."
     );
     out
 }

@@ -9,6 +9,7 @@
 //! | [`mod@figures`] | which plots a run gets, from its numbers (and the thesis' values beside) |
 //! | [`plots`] | a chart as SVG text (plotters, the embedded font) |
 //! | [`profiles`] | every step's range profile, one waterfall row per step |
+//! | `summary` | the answer first: pass/fail, worst error, false targets, who, when, on what |
 //! | `sweep` | a sweep over any settings: each metric against the inner axis, a line per outer value |
 //! | `link` | every step's link figure (constellation, channel estimate or phase trajectory) with its EVM and MER, small multiples |
 //! | `markdown` | `report.md` |
@@ -20,6 +21,7 @@ pub(crate) mod link;
 pub(crate) mod markdown;
 pub(crate) mod plots;
 pub(crate) mod profiles;
+pub(crate) mod summary;
 pub(crate) mod sweep;
 
 pub use figures::*;
@@ -38,20 +40,59 @@ pub use figures::{figures, Figure};
 pub(crate) const REPORT_FILE: &str = "report.md";
 /// The HTML report's file name in a run folder.
 pub const HTML_FILE: &str = "report.html";
+/// The folder of the report's figures as PNG (`report.md` links them by this relative path).
+pub(crate) const FIGURES_DIR: &str = "figures";
 
 /// Writes `dir/report.md` and `dir/report.html` (each atomically); returns the Markdown's path.
 pub fn write(dir: &Path, manifest: &Manifest, results: &Results) -> Result<PathBuf, CampaignError> {
     let mut figures = figures(manifest, results);
     figures.extend(sweep::sweep_figures(&results.steps));
     figures.extend(profiles::step_profiles(dir, results));
+    let summary = summary::summary(dir, manifest, results);
+    let pngs = render_pngs(&figures);
+    let images: Vec<Option<String>> = figures
+        .iter()
+        .zip(&pngs)
+        .map(|(f, png)| png.as_ref().map(|_| format!("{FIGURES_DIR}/{}.png", f.id)))
+        .collect();
     let md = dir.join(REPORT_FILE);
     write_atomic(
         &md,
-        markdown::markdown(manifest, results, &figures).as_bytes(),
+        markdown::markdown(manifest, results, &summary, &figures, &images).as_bytes(),
     )?;
-    let page = html::html(manifest, results, &figures, &link::section(dir, results));
+    let page = html::html(
+        manifest,
+        results,
+        &summary,
+        &figures,
+        &pngs,
+        &link::section(dir, results),
+    );
     write_atomic(&dir.join(HTML_FILE), page.as_bytes())?;
+    // The PNGs last: the reports say first what the run found, should the disk fill up.
+    if images.iter().any(Option::is_some) {
+        let folder = dir.join(FIGURES_DIR);
+        std::fs::create_dir_all(&folder).map_err(io(&folder))?;
+        for (image, png) in images.iter().zip(&pngs) {
+            if let (Some(image), Some(png)) = (image, png) {
+                write_atomic(&dir.join(image), png)?;
+            }
+        }
+    }
     Ok(md)
+}
+
+/// Each figure as a PNG (`None` for a plot that cannot be drawn: the report says so and goes
+/// on).
+fn render_pngs(figures: &[Figure]) -> Vec<Option<Vec<u8>>> {
+    figures
+        .iter()
+        .map(|f| {
+            plots::png(&f.chart)
+                .map_err(|e| tracing::warn!("report figure {}: {e}", f.id))
+                .ok()
+        })
+        .collect()
 }
 
 /// Reads a run folder's manifest and results and writes its report and `results.csv` again;

@@ -3,7 +3,10 @@
 //! bit-error rates. Drawn with plotters and the embedded font of `storage::plot`, like
 //! every other plot of radbench.
 
-use crate::storage::plot::{draw_legend, register_font_once, Axes, PALETTE};
+use crate::storage::plot::{
+    draw_colour_bar, draw_legend, heat_colour, register_font_once, render_png_sized, Axes,
+    COLOUR_BAR_PX, PALETTE,
+};
 use plotters::prelude::*;
 
 /// Size of every chart, pixels.
@@ -92,6 +95,36 @@ pub struct Chart {
     pub hlines: Vec<HLine>,
     /// Vertical reference lines (x, label), dotted; their x widens the axis to show them.
     pub vlines: Vec<(f64, String)>,
+    /// A heat map under the series (its colour bar at the right).
+    pub(crate) heat: Option<Heat>,
+}
+
+/// Rows of cells over x, each at its own y, coloured by a value from `-depth` (dark) to 0
+/// (bright).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Heat {
+    /// Cell centres along x, ascending and uniform (at least 2).
+    pub x: Vec<f64>,
+    /// (y, one value per x cell), ascending y, one unit apart at most.
+    pub rows: Vec<(f64, Vec<f64>)>,
+    pub depth: f64,
+    /// The colour bar's label.
+    pub label: String,
+}
+
+impl Heat {
+    fn cell(&self) -> f64 {
+        self.x[1] - self.x[0]
+    }
+
+    /// The half height of a row: half the smallest step between rows (0.5 for one row).
+    fn half_row(&self) -> f64 {
+        self.rows
+            .windows(2)
+            .map(|w| w[1].0 - w[0].0)
+            .fold(1.0, f64::min)
+            / 2.0
+    }
 }
 
 impl Chart {
@@ -106,6 +139,7 @@ impl Chart {
             series: Vec::new(),
             hlines: Vec::new(),
             vlines: Vec::new(),
+            heat: None,
         }
     }
 }
@@ -131,8 +165,43 @@ fn pad((lo, hi): (f64, f64)) -> (f64, f64) {
 
 /// The chart as an SVG document (`<svg ...>...</svg>`).
 pub fn svg(chart: &Chart) -> Result<String, String> {
-    let ty = |y: f64| -> Option<f64> {
-        if chart.log_y {
+    let (x, y, ty) = extent(chart)?;
+    register_font_once();
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
+        render(root, chart, x, y, &ty).map_err(|e| format!("{}: {e}", chart.title))?;
+    }
+    Ok(out)
+}
+
+/// The chart as a PNG image (`report.md` embeds these; `report.html` a heat map).
+pub(crate) fn png(chart: &Chart) -> Result<Vec<u8>, String> {
+    let (x, y, ty) = extent(chart)?;
+    register_font_once();
+    render_png_sized(SIZE, |root| render(root, chart, x, y, &ty))
+        .map_err(|e| format!("{}: {e}", chart.title))
+}
+
+type YTransform = Box<dyn Fn(f64) -> Option<f64>>;
+/// The x and y ranges of a chart and its y transform.
+type Extent = ((f64, f64), (f64, f64), YTransform);
+
+/// The axes' ranges (the legend's room above the data included) and the y transform.
+fn extent(chart: &Chart) -> Result<Extent, String> {
+    if let Some(h) = chart
+        .heat
+        .as_ref()
+        .filter(|h| h.x.len() >= 2 && !h.rows.is_empty())
+    {
+        let (dx, dy) = (h.cell() / 2.0, h.half_row());
+        let x = (h.x[0] - dx, h.x[h.x.len() - 1] + dx);
+        let y = (h.rows[0].0 - dy, h.rows[h.rows.len() - 1].0 + dy);
+        return Ok((x, y, Box::new(Some)));
+    }
+    let log_y = chart.log_y;
+    let ty = move |y: f64| -> Option<f64> {
+        if log_y {
             (y > 0.0).then(|| y.log10())
         } else {
             Some(y)
@@ -172,13 +241,7 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
         + chart.hlines.iter().filter(|h| !h.label.is_empty()).count();
     let legend = (entries as f64 * 18.0 + 20.0) / PLOT_HEIGHT_PX;
     let y = (y.0, y.1 + (y.1 - y.0) * legend / (1.0 - legend).max(0.2));
-    register_font_once();
-    let mut out = String::new();
-    {
-        let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
-        render(root, chart, x, y, &ty).map_err(|e| format!("{}: {e}", chart.title))?;
-    }
-    Ok(out)
+    Ok((x, y, Box::new(ty)))
 }
 
 /// A tick label: six decimals at most, no "-0".
@@ -213,7 +276,15 @@ fn render<DB: DrawingBackend>(
     } else {
         70
     };
-    let mut c = ChartBuilder::on(&root)
+    let area = match &chart.heat {
+        Some(h) => {
+            let (plot, scale) = root.split_horizontally(SIZE.0 - COLOUR_BAR_PX);
+            draw_colour_bar(&scale, (-h.depth, 0.0), &h.label, 42)?;
+            plot
+        }
+        None => root.clone(),
+    };
+    let mut c = ChartBuilder::on(&area)
         .caption(&chart.title, ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(50)
@@ -250,11 +321,32 @@ fn render<DB: DrawingBackend>(
     if chart.log_y {
         mesh.y_labels(((y1 - y0) as usize + 1).max(2));
     }
+    if chart.heat.is_some() {
+        mesh.disable_mesh();
+    }
     mesh.draw().map_err(e)?;
+    if let Some(h) = &chart.heat {
+        draw_heat(&mut c, h)?;
+    }
     draw_reference_lines(&mut c, chart, (x0, x1), (y0, y1), ty)?;
     draw_series(&mut c, chart, y0, ty)?;
     draw_legend(&mut c, SeriesLabelPosition::UpperRight, 13)?;
     root.present().map_err(e)?;
+    Ok(())
+}
+
+/// The heat map's cells, one rectangle each.
+fn draw_heat<DB: DrawingBackend>(c: &mut Axes<'_, DB>, h: &Heat) -> Result<(), String> {
+    let (dx, dy) = (h.cell() / 2.0, h.half_row());
+    let cells = h.rows.iter().flat_map(|(y, values)| {
+        h.x.iter().zip(values).map(move |(x, v)| {
+            Rectangle::new(
+                [(x - dx, y - dy), (x + dx, y + dy)],
+                heat_colour(1.0 + v / h.depth).filled(),
+            )
+        })
+    });
+    c.draw_series(cells).map_err(drawing_error)?;
     Ok(())
 }
 
@@ -401,5 +493,24 @@ mod tests {
         c.log_y = true;
         c.series[0].points.push(Point::new(3.0, 0.0));
         assert!(svg(&c).is_ok());
+    }
+
+    #[test]
+    fn a_heat_map_draws_its_cells_and_its_colour_bar() {
+        let mut c = Chart::new("t", "range (m)", "step");
+        c.heat = Some(Heat {
+            x: vec![1.0, 1.1, 1.2],
+            rows: vec![
+                (1.0, vec![0.0, -20.0, -40.0]),
+                (2.0, vec![-40.0, 0.0, -3.0]),
+            ],
+            depth: 40.0,
+            label: "dB under the peak".into(),
+        });
+        let s = svg(&c).unwrap();
+        // 6 cells and the colour bar's 64 bands.
+        assert!(s.matches("<rect").count() >= 6 + 64, "{s}");
+        assert!(s.contains("dB under the peak"));
+        assert!(png(&c).unwrap().starts_with(b"\x89PNG"));
     }
 }

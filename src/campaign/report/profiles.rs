@@ -4,9 +4,12 @@
 //! walking toward the radar (accuracy), two peaks merging (resolution), the floor rising with
 //! the attenuation (link). Drawn from each step's own `profile.csv` (the first algorithm's
 //! column), so `campaign report` draws it again from the run folder.
+//!
+//! Past [`MAX_STACKED`] steps stacked rows would be a grey block: the profiles are then a heat
+//! map instead (range x step, dB under each step's peak, with its colour bar).
 
 use super::figures::Figure;
-use super::plots::{Chart, Point, Series, Style};
+use super::plots::{Chart, Heat, Point, Series, Style};
 use crate::campaign::Results;
 use std::path::Path;
 
@@ -16,6 +19,10 @@ const DEPTH_DB: f64 = 40.0;
 const MARGIN_M: f64 = 0.6;
 /// Points per profile at most (thinned evenly, peaks kept by taking each bin's maximum).
 const MAX_POINTS: usize = 600;
+/// Steps drawn as stacked profiles at most; more draw a heat map.
+pub(crate) const MAX_STACKED: usize = 24;
+/// Range cells of the heat map at most (each the maximum of the profile's points in it).
+const HEAT_CELLS: usize = 240;
 
 /// A step's profile: (range, dB) of its first dB column.
 fn read_profile(path: &Path) -> Option<Vec<(f64, f64)>> {
@@ -65,6 +72,9 @@ pub fn step_profiles(dir: &Path, results: &Results) -> Option<Figure> {
         (Some(lo), Some(hi)) => Some((lo - MARGIN_M, hi + MARGIN_M)),
         _ => None,
     };
+    if steps.len() > MAX_STACKED {
+        return heat_map(&steps, window);
+    }
     let mut chart = Chart::new(
         "Range profile of every step",
         "range (m)",
@@ -130,6 +140,91 @@ pub fn step_profiles(dir: &Path, results: &Results) -> Option<Figure> {
              profile.csv), one row per step from its peak (top of the row) down to {DEPTH_DB} \
              dB under it (bottom), within {MARGIN_M} m of the nominal targets (hollow markers \
              at the height of the row's peak: a peak under its marker is on target)."
+        ),
+        chart,
+    })
+}
+
+/// The profiles as a heat map: a row per step (y: the step's number), range cells of the
+/// window across, each cell the highest point of the profile in it, in dB under the step's peak.
+fn heat_map(
+    steps: &[(&crate::campaign::StepResult, Vec<(f64, f64)>)],
+    window: Option<(f64, f64)>,
+) -> Option<Figure> {
+    let (lo, hi) = window.or_else(|| {
+        let all = steps.iter().flat_map(|(_, p)| p.iter().map(|q| q.0));
+        let lo = all.clone().fold(f64::INFINITY, f64::min);
+        let hi = all.fold(f64::NEG_INFINITY, f64::max);
+        (lo < hi).then_some((lo, hi))
+    })?;
+    let width = (hi - lo) / HEAT_CELLS as f64;
+    let x: Vec<f64> = (0..HEAT_CELLS)
+        .map(|k| lo + (k as f64 + 0.5) * width)
+        .collect();
+    let mut rows = Vec::new();
+    let mut nominal = Vec::new();
+    for (s, profile) in steps {
+        let mut cells = vec![f64::NEG_INFINITY; HEAT_CELLS];
+        for &(r, v) in profile {
+            let k = ((r - lo) / width).floor();
+            if k >= 0.0 && (k as usize) < HEAT_CELLS {
+                let c = &mut cells[k as usize];
+                *c = c.max(v);
+            }
+        }
+        let peak = cells.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if !peak.is_finite() {
+            continue;
+        }
+        // A cell no point fell in (a coarse profile) takes its left neighbour's value.
+        let mut last = peak - DEPTH_DB;
+        for c in cells.iter_mut() {
+            if c.is_finite() {
+                last = *c;
+            } else {
+                *c = last;
+            }
+            *c = (*c - peak).clamp(-DEPTH_DB, 0.0);
+        }
+        let y = s.index as f64;
+        rows.push((y, cells));
+        nominal.extend(s.nominal.ranges().into_iter().map(|r| Point {
+            x: r,
+            y,
+            bar: None,
+            filled: false,
+        }));
+    }
+    if rows.is_empty() {
+        return None;
+    }
+    let mut chart = Chart::new(
+        "Range profile of every step (heat map)",
+        "range (m)",
+        "step",
+    );
+    chart.heat = Some(Heat {
+        x,
+        rows,
+        depth: DEPTH_DB,
+        label: "dB under the step's peak".into(),
+    });
+    if !nominal.is_empty() {
+        chart.series.push(Series {
+            label: "nominal target range".into(),
+            points: nominal,
+            style: Style::Markers,
+        });
+    }
+    Some(Figure {
+        id: "step-heatmap",
+        caption: format!(
+            "Every step's range profile (the first algorithm's, from its step folder's \
+             profile.csv) as a heat map: one row per step, {HEAT_CELLS} range cells within \
+             {MARGIN_M} m of the nominal targets, each the highest level in it, coloured from the \
+             step's peak (bright) down to {DEPTH_DB} dB under it (dark); hollow markers: the \
+             nominal target ranges. More than {MAX_STACKED} steps draw this map instead of \
+             stacked profiles."
         ),
         chart,
     })

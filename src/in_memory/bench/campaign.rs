@@ -114,6 +114,7 @@ pub(super) async fn run(
     out: Option<PathBuf>,
     retries: Option<usize>,
     to: CampaignEvents,
+    permit: RfPermit,
     interrupt: Interrupt,
 ) -> anyhow::Result<PathBuf> {
     let spec = spec.load()?;
@@ -135,7 +136,7 @@ pub(super) async fn run(
             plan,
             out,
             journal: None,
-            permit: RfPermit::granted_by_user(),
+            permit,
             interrupt,
             input: None,
         },
@@ -149,6 +150,7 @@ pub(super) async fn run(
 pub(super) async fn resume(
     dir: &Path,
     to: CampaignEvents,
+    permit: RfPermit,
     interrupt: Interrupt,
 ) -> anyhow::Result<PathBuf> {
     let _ = to.events.send(json!({"event": "start", "dir": dir}));
@@ -156,16 +158,7 @@ pub(super) async fn resume(
         to,
         interrupt: interrupt.clone(),
     };
-    let finished = campaign::resume(
-        dir,
-        RfPermit::granted_by_user(),
-        false,
-        None,
-        interrupt,
-        None,
-        &mut observer,
-    )
-    .await;
+    let finished = campaign::resume(dir, permit, false, None, interrupt, None, &mut observer).await;
     match finished {
         Ok(f) => concluded(f),
         // Nothing left to measure: the run is what the caller wanted.

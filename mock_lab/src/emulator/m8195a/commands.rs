@@ -57,7 +57,13 @@ pub(super) const TREE: &[Entry] = &[
         h::get_divider,
     ),
     both(":TRACe#:MMODe", h::set_memory_mode, h::get_memory_mode),
-    both("[:SOURce]:FREQuency:RASTer", h::set_raster, h::get_raster),
+    Entry {
+        pattern: "[:SOURce]:FREQuency:RASTer",
+        set: Some(h::set_raster),
+        query: Some(h::get_raster),
+        // `:FREQ:RAST? MIN|MAX|DEF`: the limits, as SCPI answers them.
+        query_params: true,
+    },
     both(
         "[:SOURce]:FUNCtion:MODE",
         h::set_function_mode,

@@ -146,8 +146,19 @@ pub(super) fn set_raster(inner: &mut Inner, call: &Call) -> Result<(), ScpiError
     Ok(())
 }
 
-pub(super) fn get_raster(inner: &mut Inner, _: &Call) -> Result<String, ScpiError> {
-    Ok(nr3(inner.state.raster))
+/// `:FREQ:RAST?`, or with `MIN`, `MAX` or `DEF` the catalog's limit (what `doctor
+/// --verify-catalog` asks).
+pub(super) fn get_raster(inner: &mut Inner, call: &Call) -> Result<String, ScpiError> {
+    if call.params.is_empty() {
+        return Ok(nr3(inner.state.raster));
+    }
+    let limits = &call.model.limits;
+    let rate = match call.keyword(&[("MIN", "MINIMUM"), ("MAX", "MAXIMUM"), ("DEF", "DEFAULT")])? {
+        "MIN" => limits.dac_rate_min,
+        "MAX" => inner.raster_max.unwrap_or(limits.dac_rate_max),
+        _ => limits.dac_rate_default,
+    };
+    Ok(nr3(rate))
 }
 
 pub(super) fn set_function_mode(inner: &mut Inner, call: &Call) -> Result<(), ScpiError> {
