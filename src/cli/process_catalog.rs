@@ -35,7 +35,7 @@ pub(crate) fn run(args: &Request<'_>) -> anyhow::Result<()> {
             "--jobs {jobs}: give 1 to 256 worker threads"
         )));
     }
-    let settings = ArchiveSettings::from_args(&args.options, args.link_png)?;
+    let settings = ArchiveSettings::from_args(args.options, args.link_png)?;
     let units = archive::units(&catalog, query)?;
     std::fs::create_dir_all(&out)?;
     let started = std::time::Instant::now();
