@@ -91,6 +91,14 @@ impl Default for OutputSection {
 }
 
 impl OutputSection {
+    /// Every file kept: a plan recorded before `[output]` existed (its run kept every file).
+    pub fn keep_all() -> Self {
+        OutputSection {
+            keep_trc: true,
+            keep_bitmaps: true,
+            keep_link_plots: true,
+        }
+    }
     /// Whether a step's file named `name` stays.
     pub fn keeps(&self, name: &str) -> bool {
         let bitmap = name.ends_with(".png");
