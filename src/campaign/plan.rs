@@ -433,6 +433,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
         attenuation_db: None,
         rf_frequency_hz: None,
         trigger_jitter_s: None,
+        reference_clock_hz: None,
     };
     BenchFile {
         catalog: None,

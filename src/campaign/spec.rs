@@ -59,12 +59,13 @@ pub struct Spec {
 }
 
 /// `[output]`: which of a step's files stay in the run folder (docs/campaign.md, "Disk budget").
-/// Every file by default, as before; a night run drops the `.trc` copy and the bitmaps.
+/// By default a night's: every file but the scope's `.trc` copy, whose words the SigMF recording
+/// holds (3.9 MB a step instead of 7.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSection {
     /// The scope's own `.trc` files (the same words as the SigMF recording).
-    #[serde(default = "yes")]
+    #[serde(default)]
     pub keep_trc: bool,
     /// The PNG copies of the profile and link plots (the SVGs stay).
     #[serde(default = "yes")]
@@ -79,13 +80,18 @@ fn yes() -> bool {
 }
 
 impl Default for OutputSection {
+    /// A night's: the `.trc` copy dropped, the bitmaps and the link figure kept.
     fn default() -> Self {
-        Self::keep_all()
+        OutputSection {
+            keep_trc: false,
+            keep_bitmaps: true,
+            keep_link_plots: true,
+        }
     }
 }
 
 impl OutputSection {
-    /// Every file kept (the default, and a run folder written before `[output]` existed).
+    /// Every file kept: a plan recorded before `[output]` existed (its run kept every file).
     pub fn keep_all() -> Self {
         OutputSection {
             keep_trc: true,
@@ -93,7 +99,6 @@ impl OutputSection {
             keep_link_plots: true,
         }
     }
-
     /// Whether a step's file named `name` stays.
     pub fn keeps(&self, name: &str) -> bool {
         let bitmap = name.ends_with(".png");

@@ -7,6 +7,8 @@
 //! [awg]
 //! model = "keysight-m8195a"                       # a key of the instrument catalog
 //! resource = "TCPIP::192.168.1.20::hislip0::INSTR"
+//! reference_clock_hz = 10e6                       # optional: lock to the shared 10 MHz at
+//!                                                 # REF IN (default: its internal reference)
 //!
 //! [scope]
 //! model = "lecroy-labmaster10zi-a"                # or "keysight-uxr0334a" (HiSLIP / VXI-11)
@@ -59,6 +61,10 @@ pub struct InstrumentEntry {
     /// Front ends only: attenuation once enabled, dB.
     #[serde(default)]
     pub attenuation_db: Option<f64>,
+    /// AWG only: the external reference at its REF IN, Hz (10e6 for a lab's shared 10 MHz):
+    /// every capture then sends `:ROSC:SOUR EXT`; absent, `:ROSC:SOUR INT` (its own clock).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_clock_hz: Option<f64>,
     /// Scope only: its RMS trigger jitter, seconds, from its data sheet (or measured): every
     /// range's uncertainty carries it (docs/metrology.md; 1 ps when not stated).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -282,6 +288,27 @@ impl BenchFile {
                         &format!("{section}.volts_per_div"),
                         format!(
                             "[{section}] volts_per_div = {v}: must be a positive number of volts"
+                        ),
+                    ));
+                }
+            }
+            if let Some(hz) = entry.reference_clock_hz {
+                let key = format!("{section}.reference_clock_hz");
+                if section != "awg" {
+                    return Err(invalid_at(
+                        &key,
+                        format!(
+                            "[{section}] reference_clock_hz: only [awg] takes it (the AWG's \
+                             external reference); a scope's is set on the scope"
+                        ),
+                    ));
+                }
+                if !(hz.is_finite() && (10e6..=300e6).contains(&hz)) {
+                    return Err(invalid_at(
+                        &key,
+                        format!(
+                            "[awg] reference_clock_hz = {hz}: the external reference's frequency \
+                             in Hz, 10e6 ..= 300e6 (a lab's shared reference is 10e6)"
                         ),
                     ));
                 }

@@ -716,8 +716,11 @@ pub async fn run(
                         list.warn(
                             "timebases",
                             format!("not shared: {detail}; each instrument runs on its own clock"),
-                            "for long records or phase-stable captures feed one 10 MHz to both \
-                             (AWG :ROSC:SOUR EXT, scope RCLK EXTERNAL); captures work without",
+                            "for long records or phase-stable captures feed one 10 MHz to both: \
+                             the AWG's REF IN with `reference_clock_hz = 10e6` in the bench \
+                             file's [awg] (radbench then sends :ROSC:SOUR EXT), and the scope's \
+                             reference input set to external (LeCroy RCLK EXTERNAL); captures \
+                             work without",
                         );
                     }
                 }

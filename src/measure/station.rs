@@ -141,6 +141,13 @@ pub(crate) fn plan(
         .ok_or_else(|| not_kind(&bench.scope, "scope", "a digitizer"))?;
     let awg = AwgSettings {
         sample_rate_hz: tx.sample_rate_hz(),
+        // The bench file's: a shared 10 MHz stays shared (never switched back to internal).
+        reference_clock: bench
+            .awg
+            .reference_clock_hz
+            .map_or(crate::driver::ReferenceClock::Internal, |frequency_hz| {
+                crate::driver::ReferenceClock::External { frequency_hz }
+            }),
         ..AwgSettings::default()
     };
     let name = &awg_model.instrument.model;

@@ -269,7 +269,7 @@ async fn interrupt_then_resume(signal: &str, code: i32, tamper: bool) {
     assert!(journal[last_on..].contains(":ABOR"));
     let mut remeasure = Vec::new();
     if tamper {
-        let f = out.join("step-002/C1.trc");
+        let f = out.join("step-002/capture.sigmf-data");
         let mut bytes = std::fs::read(&f).unwrap();
         let last = bytes.len() - 1;
         bytes[last] ^= 1;

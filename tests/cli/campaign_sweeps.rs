@@ -290,10 +290,8 @@ async fn the_dry_runs_disk_estimate_is_within_20_percent_default_and_thinned() {
     let dir = tempfile::tempdir().unwrap();
     for (name, output) in [
         ("default", ""),
-        (
-            "night",
-            "\n[output]\nkeep_trc = false\nkeep_bitmaps = false\n",
-        ),
+        ("with-trc", "\n[output]\nkeep_trc = true\n"),
+        ("night", "\n[output]\nkeep_bitmaps = false\n"),
         (
             "thinned",
             "\n[output]\nkeep_trc = false\nkeep_bitmaps = false\nkeep_link_plots = false\n",
@@ -315,8 +313,11 @@ async fn the_dry_runs_disk_estimate_is_within_20_percent_default_and_thinned() {
             off * 100.0
         );
         let step = out.join("step-001");
-        assert_eq!(step.join("C1.trc").exists(), name == "default", "{name}");
-        assert_eq!(step.join("profile.png").exists(), name == "default");
+        assert_eq!(step.join("C1.trc").exists(), name == "with-trc", "{name}");
+        assert_eq!(
+            step.join("profile.png").exists(),
+            matches!(name, "default" | "with-trc")
+        );
         assert_eq!(step.join("link.svg").exists(), name != "thinned");
         assert!(step.join("capture.sigmf-data").exists());
         std::fs::remove_dir_all(&out).unwrap();

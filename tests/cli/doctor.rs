@@ -353,3 +353,50 @@ async fn ctrl_c_during_the_marker_check_leaves_the_bench_safe() {
     assert!(!lab.bench.awg.playback().running, "AWG stopped");
     nothing_radiated(&lab, &journal);
 }
+
+/// A lab's shared 10 MHz stays shared: with `[awg] reference_clock_hz` a capture locks the AWG to
+/// its REF IN and never switches it back to internal; a bad value names the field.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_capture_keeps_the_awg_on_the_bench_file_s_external_reference() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bench = write_bench(d, "bench.toml", &lab, None);
+    let text = std::fs::read_to_string(&bench).unwrap();
+    let with_ref = text.replacen("[awg]\n", "[awg]\nreference_clock_hz = 10e6\n", 1);
+    assert_ne!(with_ref, text, "the bench file has an [awg] table");
+    std::fs::write(&bench, &with_ref).unwrap();
+    let journal = d.join("io.jsonl");
+    let (code, _, err) = super::support::radbench_in(
+        Some(d),
+        &[
+            "--trace-io",
+            journal.to_str().unwrap(),
+            "capture",
+            "--bench",
+            &bench,
+            "--allow-rf",
+            "--json",
+        ],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let sent = std::fs::read_to_string(&journal).unwrap();
+    assert!(
+        sent.contains(":ROSC:SOUR EXT"),
+        "the external reference chosen"
+    );
+    assert!(
+        !sent.contains(":ROSC:SOUR INT"),
+        "never switched back to internal"
+    );
+    let bad = with_ref.replace("reference_clock_hz = 10e6", "reference_clock_hz = 5");
+    std::fs::write(&bench, bad).unwrap();
+    let (code, _, err) =
+        super::support::radbench_in(Some(d), &["capture", "--bench", &bench, "--allow-rf"]).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("reference_clock_hz = 5") && err.contains("10e6"),
+        "{err}"
+    );
+}
