@@ -332,6 +332,8 @@ pub struct RfModel {
     pub limits: RfLimits,
     pub protocol: LineProtocol,
     pub registers: Vec<Register>,
+    /// What ends every line in both directions (`[serial] line_terminator`, LF by default).
+    pub line_terminator: String,
 }
 
 impl RfModel {
@@ -363,6 +365,13 @@ struct RfFile {
     protocol: LineProtocol,
     #[serde(rename = "register")]
     registers: Vec<Register>,
+    serial: Option<RfSerial>,
+}
+
+/// The part of `[serial]` the emulator needs: the baud rate and parity mean nothing on a pty.
+#[derive(Debug, Deserialize)]
+struct RfSerial {
+    line_terminator: String,
 }
 
 fn parse<T: for<'de> Deserialize<'de>>(what: &'static str, text: &str) -> Result<T, CatalogError> {
@@ -487,6 +496,9 @@ pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
         limits: file.rf,
         protocol: file.protocol,
         registers: file.registers,
+        line_terminator: file
+            .serial
+            .map_or_else(|| "\n".into(), |s| s.line_terminator),
     };
     check_rf(&model)?;
     Ok(model)
@@ -495,6 +507,16 @@ pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
 /// Checks that an RF model has the registers, bit fields and error names the emulator relies on.
 pub fn check_rf(model: &RfModel) -> Result<(), CatalogError> {
     const WHAT: &str = "RF module";
+    if model.line_terminator.is_empty() || model.line_terminator.len() > 4 {
+        return Err(invalid(
+            WHAT,
+            "serial.line_terminator",
+            format!(
+                "must be 1 to 4 characters (got {:?})",
+                model.line_terminator
+            ),
+        ));
+    }
     for name in [
         "ID",
         "STATUS",
@@ -592,6 +614,29 @@ pub fn lecroy() -> Result<DigitizerModel, CatalogError> {
 /// The built-in Gotmic E-band transmitter model.
 pub fn gotmic_tx() -> Result<RfModel, CatalogError> {
     rf_from_str(embedded::GOTMIC_TX)
+}
+
+/// The front ends a lab serves: each from its catalog file when one is given (a lab's own line
+/// protocol, tried before its modules arrive), else the built-in model. `None` when neither is
+/// given. Errors name the file.
+pub fn front_ends_from_files(
+    tx: Option<&std::path::Path>,
+    rx: Option<&std::path::Path>,
+) -> Result<Option<(RfModel, RfModel)>, String> {
+    if tx.is_none() && rx.is_none() {
+        return Ok(None);
+    }
+    let load = |path: Option<&std::path::Path>, built_in: fn() -> Result<RfModel, CatalogError>| {
+        match path {
+            None => built_in().map_err(|e| e.to_string()),
+            Some(path) => std::fs::read_to_string(path)
+                .map_err(|e| format!("cannot read {}: {e}", path.display()))
+                .and_then(|text| {
+                    rf_from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+                }),
+        }
+    };
+    Ok(Some((load(tx, gotmic_tx)?, load(rx, gotmic_rx)?)))
 }
 
 /// The built-in Gotmic E-band receiver model.

@@ -73,6 +73,14 @@ struct ServeArgs {
     /// Largest message accepted from a client, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = DEFAULT_MAX_MESSAGE_SIZE)]
     max_message_size: usize,
+    /// Serve the Tx module from this catalog file (its `[protocol]`, `[serial]` line terminator
+    /// and registers) instead of the built-in model: a lab's own protocol description, tried
+    /// with radbench before the module is on the bench.
+    #[arg(long, value_name = "FILE")]
+    tx_model: Option<std::path::PathBuf>,
+    /// The same for the Rx module.
+    #[arg(long, value_name = "FILE")]
+    rx_model: Option<std::path::PathBuf>,
 }
 
 /// clap's parser of `--scope-model`: the names of the lab's table, each with its line of help.
@@ -138,7 +146,13 @@ fn main() -> ExitCode {
         with_loopback: true,
         loopback_vicp_port: args.loopback_vicp_port,
         scope_model: args.scope_model,
-        front_ends: None,
+        front_ends: match mock_lab::catalog::front_ends_from_files(
+            args.tx_model.as_deref(),
+            args.rx_model.as_deref(),
+        ) {
+            Ok(models) => models,
+            Err(e) => return fail(2, &e),
+        },
     };
     if let Err(err) = options.validate() {
         return fail(err.exit_code(), &err.to_string());

@@ -648,8 +648,14 @@ fn check_serial(c: &mut Checks, s: &SerialSettings) {
             format!("must be 1 or 2 (got {})", s.stop_bits),
         );
     }
-    if s.line_terminator.is_empty() {
-        c.fail("serial.line_terminator", "must not be empty");
+    if s.line_terminator.is_empty() || s.line_terminator.len() > 4 {
+        c.fail(
+            "serial.line_terminator",
+            format!(
+                "must be 1 to 4 characters, e.g. \"\\n\", \"\\r\" or \"\\r\\n\" (got {:?})",
+                s.line_terminator
+            ),
+        );
     }
 }
 

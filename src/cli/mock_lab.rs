@@ -52,6 +52,14 @@ pub struct ServeArgs {
     /// SIGTERM stop it as well.
     #[arg(long)]
     pub until_stdin_closes: bool,
+    /// Serve the Tx module from this catalog file (its `[protocol]`, `[serial]` line terminator
+    /// and registers) instead of the built-in model: a lab's own protocol description, tried
+    /// with radbench before the module is on the bench.
+    #[arg(long, value_name = "FILE")]
+    pub tx_model: Option<PathBuf>,
+    /// The same for the Rx module.
+    #[arg(long, value_name = "FILE")]
+    pub rx_model: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -85,6 +93,11 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
         },
         with_loopback: a.with_loopback,
         scope_model: a.scope_model.unwrap_or_default(),
+        front_ends: mock_lab::catalog::front_ends_from_files(
+            a.tx_model.as_deref(),
+            a.rx_model.as_deref(),
+        )
+        .map_err(bad_input)?,
         ..LabOptions::default()
     };
     options.validate().map_err(classified)?;

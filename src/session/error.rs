@@ -75,7 +75,7 @@ pub enum SessionError {
         expected: &'static str,
         reply: String,
     },
-    #[error("command {command:?} contains a newline; send one command per call (or separate them with `;`)")]
+    #[error("command {command:?} contains a line end (LF, or the serial line's `line_terminator`); send one command per call (or separate them with `;`)")]
     CommandHasNewline { command: String },
     #[error("a definite block holds at most 999999999 bytes, this one has {len}; split it (e.g. several :TRAC:DATA writes at increasing offsets)")]
     BlockTooLarge { len: u64 },

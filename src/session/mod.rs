@@ -161,8 +161,9 @@ impl Session {
         self.link_err(source)
     }
 
-    fn check_command(command: &str) -> Result<(), SessionError> {
-        if command.contains('\n') {
+    fn check_command(&self, command: &str) -> Result<(), SessionError> {
+        let line_end = self.link.line_end();
+        if command.contains('\n') || command.bytes().any(|b| line_end.contains(&b)) {
             return Err(SessionError::CommandHasNewline {
                 command: command.to_string(),
             });
@@ -170,14 +171,15 @@ impl Session {
         Ok(())
     }
 
-    /// Sends a command (a newline is appended). On a line-protocol device the reply line is read
+    /// Sends a command (the link's line end is appended: LF, or a serial line's terminator). On a line-protocol device the reply line is read
     /// too, and an `ERR` reply is the device's refusal.
     pub async fn write(&mut self, command: &str) -> Result<(), SessionError> {
-        Self::check_command(command)?;
+        self.check_command(command)?;
         if self.options.line.is_some() {
             return self.line_exchange(command, None).await.map(drop);
         }
-        self.send_parts(&[command.as_bytes(), b"\n"]).await
+        let end = self.link.line_end().to_vec();
+        self.send_parts(&[command.as_bytes(), &end]).await
     }
 
     async fn send_parts(&mut self, parts: &[&[u8]]) -> Result<(), SessionError> {
@@ -222,7 +224,7 @@ impl Session {
         read: Option<Duration>,
     ) -> Result<Bytes, SessionError> {
         if self.options.line.is_some() {
-            Self::check_command(query)?;
+            self.check_command(query)?;
             let mut text = self.line_exchange(query, read).await?;
             text.push('\n');
             return Ok(Bytes::from(text));
@@ -334,7 +336,8 @@ impl Session {
             Some(crc) if self.crc_on => crc.frame(request),
             _ => request.to_string(),
         };
-        self.send_parts(&[line.as_bytes(), b"\n"]).await?;
+        let end = self.link.line_end().to_vec();
+        self.send_parts(&[line.as_bytes(), &end]).await?;
         let raw = self.read_raw_waiting(read).await?;
         Ok(reply::trim_reply(&String::from_utf8_lossy(&raw)).to_string())
     }
@@ -411,7 +414,7 @@ impl Session {
         payload: &[u8],
         form: BlockForm,
     ) -> Result<(), SessionError> {
-        Self::check_command(header)?;
+        self.check_command(header)?;
         let block_header = match form {
             BlockForm::Definite => {
                 reply::definite_header(payload.len() as u64).ok_or(SessionError::BlockTooLarge {
@@ -427,7 +430,8 @@ impl Session {
                 "#0".to_string()
             }
         };
-        self.send_parts(&[header.as_bytes(), block_header.as_bytes(), payload, b"\n"])
+        let end = self.link.line_end().to_vec();
+        self.send_parts(&[header.as_bytes(), block_header.as_bytes(), payload, &end])
             .await
     }
 

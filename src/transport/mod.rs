@@ -167,6 +167,16 @@ impl Link {
         &self.options
     }
 
+    /// What ends a request on this link: the serial settings' `line_terminator` on a serial
+    /// line, LF (IEEE 488.2) everywhere else.
+    pub(crate) fn line_end(&self) -> &[u8] {
+        if matches!(self.resource, Resource::Serial { .. }) {
+            self.options.serial.line_terminator.as_bytes()
+        } else {
+            b"\n"
+        }
+    }
+
     /// Timeouts, size limit and progress can be changed between operations.
     pub(crate) fn options_mut(&mut self) -> &mut LinkOptions {
         &mut self.options

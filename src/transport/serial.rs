@@ -1,5 +1,6 @@
 //! Serial links (`ASRL<device>::INSTR`): a blocking `serialport` owned by one thread, bridged to
-//! async with channels. Messages end at a newline outside binary blocks (as on a raw socket).
+//! async with channels. Messages end at a newline outside binary blocks (as on a raw socket), or at
+//! the last byte of the bench's `line_terminator` for modules whose firmware ends lines otherwise.
 //!
 //! Cancelling a request does not interrupt the thread mid-read: it finishes (or times out) and its
 //! result is dropped, so a reply nobody waits for is never handed to the next reader.
@@ -25,6 +26,10 @@ pub struct SerialSettings {
     pub stop_bits: u8,
     /// "none", "software" or "hardware".
     pub flow_control: String,
+    /// What ends every request; a reply ends at its last byte (as VISA's termination character),
+    /// and the bytes before it that belong to the terminator are stripped with the blanks.
+    /// "\n" by default; "\r" or "\r\n" for modules whose firmware wants them.
+    pub line_terminator: String,
 }
 
 impl Default for SerialSettings {
@@ -35,11 +40,17 @@ impl Default for SerialSettings {
             parity: "none".into(),
             stop_bits: 1,
             flow_control: "none".into(),
+            line_terminator: "\n".into(),
         }
     }
 }
 
 impl SerialSettings {
+    /// The byte a reply ends at: the terminator's last.
+    fn reply_end(&self) -> u8 {
+        self.line_terminator.bytes().last().unwrap_or(b'\n')
+    }
+
     fn builder(&self, path: &str) -> Result<serialport::SerialPortBuilder, LinkError> {
         let bad = |detail: String| LinkError::Serial {
             device: path.to_string(),
@@ -75,6 +86,12 @@ impl SerialSettings {
         };
         if self.baud == 0 {
             return Err(bad("baud = 0: give the line speed, e.g. 115200".into()));
+        }
+        if self.line_terminator.is_empty() || self.line_terminator.len() > 4 {
+            return Err(bad(format!(
+                "line_terminator = {:?}: allowed are 1 to 4 characters, e.g. \"\\n\", \"\\r\" or \"\\r\\n\"",
+                self.line_terminator
+            )));
         }
         Ok(serialport::new(path, self.baud)
             .data_bits(data_bits)
@@ -127,7 +144,7 @@ pub(crate) const DRAIN_LIMIT: Duration = Duration::from_secs(1);
 #[derive(Debug, Clone, Copy)]
 struct ReadBudget {
     base: Duration,
-    timeouts: super::Timeouts,
+    timeouts: super::io::Timeouts,
     max_counted: u64,
 }
 
@@ -186,7 +203,7 @@ impl SerialLink {
                 device: open_path,
                 detail: format!("cannot open: {e}; check the device path and permissions"),
             })?;
-        Self::from_port_with(port, path, limit, on_open)
+        Self::from_port_ending(port, path, limit, on_open, options.serial.reply_end())
     }
 
     /// Runs a link over an already open port (tests use a pseudo-terminal pair), drained before
@@ -208,6 +225,17 @@ impl SerialLink {
         limit: usize,
         on_open: OnOpen,
     ) -> Result<Self, LinkError> {
+        Self::from_port_ending(port, device, limit, on_open, b'\n')
+    }
+
+    /// [`from_port_with`](Self::from_port_with) for a device whose replies end at `reply_end`.
+    pub(crate) fn from_port_ending(
+        port: Box<dyn serialport::SerialPort>,
+        device: String,
+        limit: usize,
+        on_open: OnOpen,
+        reply_end: u8,
+    ) -> Result<Self, LinkError> {
         let limit = limit.min(MAX_MESSAGE);
         let (tx, rx) = mpsc::channel();
         let (released_tx, released) = mpsc::channel::<()>();
@@ -215,7 +243,7 @@ impl SerialLink {
         std::thread::Builder::new()
             .name(format!("serial {device}"))
             .spawn(move || {
-                serve(port, rx, name, limit, on_open);
+                serve(port, rx, name, limit, on_open, reply_end);
                 // The port is closed once serve returns: the link's drop may go on.
                 drop(released_tx);
             })
@@ -285,9 +313,10 @@ fn serve(
     device: String,
     limit: usize,
     on_open: OnOpen,
+    reply_end: u8,
 ) {
     let mut inbox = Inbox {
-        decoder: TerminatedDecoder::new(b'\n', limit),
+        decoder: TerminatedDecoder::new(reply_end, limit),
         ceiling: buffer_ceiling(limit),
         buf: BytesMut::with_capacity(4096),
     };
@@ -508,5 +537,18 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("data_bits"));
+        for bad in ["", "\r\n\r\n\r"] {
+            let s = SerialSettings {
+                line_terminator: bad.into(),
+                ..Default::default()
+            };
+            let e = s.builder("x").unwrap_err().to_string();
+            assert!(e.contains("line_terminator") && e.contains("1 to 4"), "{e}");
+        }
+        let cr = SerialSettings {
+            line_terminator: "\r\n".into(),
+            ..Default::default()
+        };
+        assert_eq!(cr.reply_end(), b'\n');
     }
 }

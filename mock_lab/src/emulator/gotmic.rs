@@ -551,6 +551,10 @@ impl Handler for Gotmic {
             .map(|l| self.line(l).into_bytes())
             .collect()
     }
+
+    fn line_terminator(&self) -> Option<&[u8]> {
+        Some(self.model.line_terminator.as_bytes())
+    }
 }
 
 #[cfg(test)]

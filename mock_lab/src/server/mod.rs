@@ -66,6 +66,11 @@ pub trait Handler: Send + Sync + 'static {
     }
     /// A group-execute trigger (VXI-11 device_trigger, HiSLIP Trigger).
     fn trigger(&self) {}
+    /// On a serial line: what ends every request and every reply, for devices that are not
+    /// IEEE 488.2 (a module's firmware ending lines with CR, say). `None`: LF, 488.2 framing.
+    fn line_terminator(&self) -> Option<&[u8]> {
+        None
+    }
 }
 
 /// One response message: byte pieces sent back to back. The pieces are shared ([`Bytes`]), so a

@@ -2,7 +2,9 @@
 //!
 //! The server owns the pty master (and keeps the slave open, so a client closing its end does
 //! not hang the master up); clients open [`SerialHandle::device_path`] like any serial port.
-//! One request per line (LF, CR LF accepted), each response sent with a LF. Blocking I/O on a
+//! One request per line (LF, CR LF accepted), each response sent with a LF; a handler with its own
+//! [`Handler::line_terminator`] (a module whose firmware ends lines with CR, say) gets plain lines
+//! ending at that terminator's last byte, and its replies end with it. Blocking I/O on a
 //! dedicated thread: the handler is called on that thread directly.
 //!
 //! Faults: delay, 1-byte segments and swallowed replies behave as on TCP; "dropped midway"
@@ -17,7 +19,7 @@ use std::time::Duration;
 use serialport::{SerialPort, TTYPort};
 
 use super::conn::terminated;
-use super::framing::Splitter;
+use super::framing::{Frame, FramingError, Splitter};
 use super::{Handler, ServerError, ServerOptions};
 use crate::faults::ReplyFate;
 
@@ -92,6 +94,7 @@ fn serve_lines(
     options: &ServerOptions,
     stop: &AtomicBool,
 ) -> io::Result<()> {
+    let line_end = handler.line_terminator().map(<[u8]>::to_vec);
     let mut splitter = Splitter::new(options.max_message_size);
     let mut buf: Vec<u8> = Vec::new();
     let mut chunk = vec![0u8; 64 << 10];
@@ -113,7 +116,11 @@ fn serve_lines(
         };
         buf.extend_from_slice(&chunk[..n]);
         loop {
-            let frame = match splitter.next_frame(&buf) {
+            let next = match &line_end {
+                Some(end) => plain_line(&buf, end, options.max_message_size),
+                None => splitter.next_frame(&buf),
+            };
+            let frame = match next {
                 Ok(Some(frame)) => frame,
                 Ok(None) => break,
                 Err(err) => {
@@ -130,7 +137,11 @@ fn serve_lines(
                 continue;
             }
             for response in handler.message(&line) {
-                match write_response(port, &terminated(response), options) {
+                let response = match &line_end {
+                    Some(end) => [response, end.clone()].concat(),
+                    None => terminated(response),
+                };
+                match write_response(port, &response, options) {
                     Ok(()) => {}
                     // Nobody reads the other end: drop the reply, keep serving.
                     Err(e) if e.kind() == io::ErrorKind::TimedOut => {
@@ -142,6 +153,28 @@ fn serve_lines(
         }
     }
     Ok(())
+}
+
+/// The first line of `buf` for a device that is not IEEE 488.2: it ends at the terminator's last
+/// byte (the bytes of the terminator before it are stripped), with no `#` blocks.
+fn plain_line(buf: &[u8], end: &[u8], max: usize) -> Result<Option<Frame>, FramingError> {
+    // Never empty (the catalog checks it); LF if it were.
+    let last = end.last().copied().unwrap_or(b'\n');
+    match buf.iter().position(|&b| b == last) {
+        Some(at) => {
+            let mut len = at;
+            let before_last = &end[..end.len().saturating_sub(1)];
+            while len > 0 && before_last.contains(&buf[len - 1]) {
+                len -= 1;
+            }
+            Ok(Some(Frame {
+                message_len: len,
+                consumed: at + 1,
+            }))
+        }
+        None if buf.len() > max => Err(FramingError::MessageTooLarge { max }),
+        None => Ok(None),
+    }
 }
 
 fn write_response(port: &mut TTYPort, response: &[u8], options: &ServerOptions) -> io::Result<()> {

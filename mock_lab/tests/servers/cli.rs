@@ -250,3 +250,63 @@ fn out_of_range_port_base_and_bad_scenes_are_bad_input() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+fn protocol_fixture(name: &str) -> String {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/data/protocols")
+        .join(name)
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// Sends `request` on a serial device and reads its reply up to and including `end`, bounded.
+fn serial_exchange(path: &str, request: &[u8], end: u8) -> Vec<u8> {
+    use std::io::Read;
+    let mut port = serialport::new(path, 115_200)
+        .timeout(std::time::Duration::from_millis(200))
+        .open()
+        .expect("the module's pty opens");
+    port.write_all(request).unwrap();
+    let deadline = std::time::Instant::now() + common::LIMIT;
+    let mut reply = Vec::new();
+    let mut byte = [0u8; 1];
+    while reply.last() != Some(&end) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no reply ending in {end:#04x}: {reply:?}"
+        );
+        if let Ok(1) = port.read(&mut byte) {
+            reply.push(byte[0]);
+        }
+    }
+    reply
+}
+
+#[test]
+fn tx_model_serves_a_modules_own_protocol_and_line_terminator() {
+    let served = Served::start(&["--tx-model", &protocol_fixture("acme_eband_tx.toml")]);
+    let tx = served.endpoint("tx", "serial")["address"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    // The fixture's words, ended by CR alone (no LF ever comes back).
+    let reply = serial_exchange(&tx, b"#1 ID?\r", b'\r');
+    let text = String::from_utf8_lossy(&reply);
+    assert!(text.contains("GOTMIC-EBAND-TX-EMU"), "{text:?}");
+    assert!(!text.contains('\n'), "{text:?}");
+    // The receiver kept the built-in model: its LF-ended `*IDN?`.
+    let rx = served.endpoint("rx", "serial")["address"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let reply = serial_exchange(&rx, b"*IDN?\n", b'\n');
+    assert!(
+        String::from_utf8_lossy(&reply).contains("GOTMIC-EBAND-RX-EMU"),
+        "{reply:?}"
+    );
+    drop(served);
+
+    let (code, err) = refused(&["--rx-model", "no-such-model.toml"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("no-such-model.toml"), "{err}");
+}

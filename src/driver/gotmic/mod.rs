@@ -198,6 +198,7 @@ fn serial_settings(model: &InstrumentModel) -> SerialSettings {
             crate::catalog::Parity::Odd => "odd",
         }
         .to_string();
+        s.line_terminator = c.line_terminator.clone();
     }
     s
 }
