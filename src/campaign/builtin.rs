@@ -2,11 +2,11 @@
 //! files as `examples/`), and the thesis' lab chapter run on the built-in mock lab and compared
 //! with the thesis' own lab figures.
 
+use super::error::CampaignError;
 use super::plan::{self, BenchInfo};
 use super::results::{AlgorithmResult, Results, StepResult};
 use super::run::{self, Finished, NewRun, Observer};
 use super::spec::SpecFile;
-use super::CampaignError;
 use crate::driver::RfPermit;
 use crate::measure::Interrupt;
 use crate::waveform::{SweepBand, WaveformSpec};
@@ -355,7 +355,7 @@ async fn calibrate_lab(
             chain.name
         ))
     })?;
-    std::fs::create_dir_all(dir).map_err(super::io(dir))?;
+    std::fs::create_dir_all(dir).map_err(super::error::io(dir))?;
     let path = dir.join(file);
     calibrated.save(&path)?;
     observer.note(&format!(
@@ -678,7 +678,7 @@ fn music_rows(r: &Results, dir: PathBuf, ideal: bool) -> Vec<LabRow> {
 
 fn load(finished: &Finished) -> Result<Results, CampaignError> {
     let path = finished.dir.join(run::RESULTS_FILE);
-    let text = std::fs::read_to_string(&path).map_err(super::io(&path))?;
+    let text = std::fs::read_to_string(&path).map_err(super::error::io(&path))?;
     serde_json::from_str(&text).map_err(|e| CampaignError::Manifest {
         path,
         message: e.to_string(),

@@ -2,8 +2,8 @@
 //! `[output]` choices), the free space where it writes, and the checks at the start and before
 //! each step (docs/campaign.md, "Disk budget").
 
+use super::error::CampaignError;
 use super::plan::{Plan, WaveformCost};
-use super::CampaignError;
 use std::path::Path;
 
 /// The environment variable that replaces the free-space probe, in bytes: a test hook (a full
@@ -113,7 +113,7 @@ pub(crate) fn check(
     when: &str,
     margin: u64,
 ) -> Result<Option<String>, CampaignError> {
-    let free = free_bytes(dir).map_err(super::io(dir))?;
+    let free = free_bytes(dir).map_err(super::error::io(dir))?;
     if free < needed {
         return Err(CampaignError::DiskFull {
             dir: dir.to_path_buf(),

@@ -4,8 +4,8 @@
 //! algorithm (`step-001/music/profile_amplitude`), as the run folder lays out their files; and
 //! one run-level `metadata` (the plan's name, the steps, `results.json`).
 
+use super::error::{io, CampaignError};
 use super::manifest::{Manifest, StepStatus};
-use super::{io, CampaignError};
 use crate::measure::export::{export_capture, Entry, FORMAT_VERSION};
 use crate::measure::reprocess;
 use crate::measure::ProcessOptions;

@@ -7,6 +7,7 @@
 //! bench file's instrument files, the response calibration) and, on resume, the checks that those
 //! inputs are still the ones the run started with.
 
+use super::error::{io, CampaignError};
 use super::manifest::{
     self, CalibrationRecord, InputFile, Manifest, Status, StepRecord, StepStatus,
 };
@@ -16,7 +17,6 @@ use super::run::{
     Finished, NewRun, Observer, BENCH_CATALOG_COPY, BENCH_COPY, CALIBRATION_COPY, SPEC_COPY,
 };
 use super::runner::{new_session, Runner};
-use super::{io, CampaignError};
 use crate::measure::MeasureError;
 use crate::storage::write_atomic;
 use std::os::unix::fs::MetadataExt;

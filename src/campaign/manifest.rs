@@ -18,8 +18,8 @@
 //! is not fooled either: [`Manifest::load`] reports a `running` manifest whose folder lock no
 //! process holds as `interrupted` (see [`STALE_REASON`]).
 
+use super::error::{io, CampaignError};
 use super::plan::Plan;
-use super::{io, CampaignError};
 use crate::measure::Identities;
 use crate::storage::write_atomic;
 use serde::{Deserialize, Serialize};

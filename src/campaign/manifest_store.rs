@@ -9,8 +9,8 @@
 //! it wrote last around the one that changed. It keeps their lengths alone (8 bytes a step), and
 //! the runner keeps each step's status alone ([`StepRecord::status_only`]).
 
+use super::error::{io, CampaignError};
 use super::manifest::{Manifest, StepRecord, MANIFEST_FILE};
-use super::{io, CampaignError};
 use crate::storage::atomic::AtomicFile;
 use std::os::unix::fs::FileExt;
 use std::path::Path;

@@ -5,9 +5,9 @@
 //! [`plan`] is pure; [`BenchInfo::load`] reads the bench file (or describes the built-in lab)
 //! without touching an instrument.
 
+use super::error::CampaignError;
 use super::kind::{sorted_ranges, AxisSetting, AxisValue, Setting, SweepAt, SweepParameter};
 use super::spec::{OutputSection, PositionerKind, SpecError, SpecFile, SweepSection};
-use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
 use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};

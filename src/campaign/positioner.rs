@@ -5,9 +5,9 @@
 //! radiates while the operator's hands are near the antennas or a stage moves. A stop signal
 //! ends the wait at once (the program is killed).
 
+use super::error::CampaignError;
 use super::plan::{substitute, Nominal, PositionerPlan};
 use super::spec::PositionerKind;
-use super::CampaignError;
 use crate::measure::scene_control::{Scene, Target};
 use crate::measure::Interrupt;
 use std::io::BufRead;

@@ -1,8 +1,8 @@
 //! Everything a plan needs prepared before anything is connected: transmissions generated,
 //! options checked, instrument settings planned against the catalog, pipelines built.
 
+use super::error::CampaignError;
 use super::plan::{BenchInfo, Plan, WaveformCost};
-use super::CampaignError;
 use crate::catalog::Catalog;
 use crate::measure::capture::{self, Prepared};
 

@@ -2,6 +2,7 @@
 //! started with (a change refuses the resume unless forced, and the manifest records it), the
 //! steps whose files are no longer as written measured again, the rest skipped.
 
+use super::error::CampaignError;
 use super::folder::{check_bench_catalog, check_calibration, check_spec_unchanged, lock};
 use super::manifest::{Manifest, Status, StepStatus};
 use super::plan::{BenchInfo, Plan};
@@ -9,7 +10,6 @@ use super::positioner::LineSource;
 use super::prepare::prepare_all;
 use super::run::{Finished, Observer, STEP_RESULT};
 use super::runner::{new_session, Runner};
-use super::CampaignError;
 use crate::driver::RfPermit;
 use crate::measure::Interrupt;
 use crate::measure::MeasureError;

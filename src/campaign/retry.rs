@@ -3,7 +3,7 @@
 //! its safe state, the links closed and opened again (identities checked again), the step measured
 //! again from the start, each retry recorded in the manifest and the report.
 
-use super::CampaignError;
+use super::error::CampaignError;
 use crate::driver::DriverError;
 use crate::driver::ErrorKind;
 use crate::measure::MeasureError;

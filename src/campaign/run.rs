@@ -36,13 +36,13 @@
 //! before the signal is kept and written. Every stop writes the manifest with status
 //! `interrupted`, the reason and the step to resume at.
 
+use super::error::CampaignError;
 use super::manifest::Status;
 use super::plan::{BenchInfo, Plan, Step};
 use super::positioner::LineSource;
 use super::results::StepResult;
 use super::retry::RetryRecord;
 use super::spec::SpecFile;
-use super::CampaignError;
 use crate::driver::RfPermit;
 use crate::exit::Classify;
 use crate::measure::Bench;

@@ -2,6 +2,7 @@
 //! safe-state guard, hand the capture to the worker), settling the steps the worker finished, and
 //! the finish (`results.json`, the report, the manifest, the final safe state).
 
+use super::error::{io, CampaignError};
 use super::folder::FolderIdentity;
 use super::manifest::{
     self, FileRecord, Instruments, Manifest, Session, Status, StepStatus, Timing,
@@ -9,11 +10,11 @@ use super::manifest::{
 use super::plan::{Plan, Step};
 use super::positioner::{LineSource, Positioner};
 use super::prepare::PreparedSet;
+use super::report;
 use super::results::{self, Results, StepResult};
 use super::run::{Finished, Observer, StepDone, Summary, RESULTS_FILE, STEP_RESULT};
 use super::step_job::{StepJob, WorkerOutcome, WorkerSide};
 use super::worker::StepWorker;
-use super::{io, report, CampaignError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
 use crate::exit::Classify;

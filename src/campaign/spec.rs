@@ -92,7 +92,7 @@ impl Default for OutputSection {
 
 impl OutputSection {
     /// Every file kept: a plan recorded before `[output]` existed (its run kept every file).
-    pub fn keep_all() -> Self {
+    pub(crate) fn keep_all() -> Self {
         OutputSection {
             keep_trc: true,
             keep_bitmaps: true,

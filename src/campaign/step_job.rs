@@ -1,6 +1,7 @@
 //! A step's job on the worker thread: process the capture with every algorithm's pipeline, write
 //! the step's files (one write group), hash them and store the manifest that records the step.
 
+use super::error::{io, CampaignError};
 use super::folder::FolderIdentity;
 use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus};
 use super::manifest_store::ManifestStore;
@@ -9,7 +10,6 @@ use super::prepare::{PreparedKey, PreparedSet};
 use super::results::{self, AlgorithmOutput, StepResult};
 use super::run::STEP_RESULT;
 use super::spec::OutputSection;
-use super::{io, CampaignError};
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
 use crate::measure::record::{self, Provenance};
 use crate::measure::MeasureError;

@@ -3,10 +3,10 @@
 //! reference: the zero-Doppler cut's figures, the Doppler shift that costs 1 dB of peak, and the
 //! delay-Doppler map as a plot.
 
+use super::error::MeasureError;
 use super::pipeline::Alignable;
 use super::reprocess::{self, Record};
 use super::transmit::{Dac, Transmission};
-use super::MeasureError;
 use crate::catalog::Catalog;
 use crate::driver::open::plan_awg;
 use crate::driver::AwgSettings;

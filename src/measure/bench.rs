@@ -2,7 +2,7 @@
 //! started in-process on 127.0.0.1 (kept alive as long as the [`Bench`]).
 
 use super::bench_file::{BenchCalibration, BenchFile};
-use super::MeasureError;
+use super::error::MeasureError;
 use mock_lab::emulator::lecroy::RemoteInterface;
 pub use mock_lab::lab::ScopeModel;
 use mock_lab::lab::{Lab, LabOptions};

@@ -1,8 +1,8 @@
 //! The bench's fixed system delay (cables, horns, marker latency), measured on a reference target
 //! at a known range.
 
+use super::error::MeasureError;
 use super::pipeline::Processed;
-use super::MeasureError;
 use crate::dsp::C0;
 use serde::Serialize;
 
@@ -68,7 +68,7 @@ pub(crate) const MAX_DEFAULT_GATE_S: f64 = 8e-9;
 /// The response calibration's default half-window around a reference at `reference_range_m`:
 /// as wide as 8 ns (the chain's longer echoes), but with its taper (half as wide again) ending
 /// 1 ns short of the Tx -> Rx leakage at the horns, which must stay out.
-pub fn default_gate_s(reference_range_m: f64) -> f64 {
+pub(crate) fn default_gate_s(reference_range_m: f64) -> f64 {
     let to_leakage = 2.0 * reference_range_m / C0;
     ((to_leakage - 1e-9) / 1.5).clamp(0.5e-9, MAX_DEFAULT_GATE_S)
 }

@@ -11,14 +11,15 @@
 //! connected: a file that does not fit is refused with nothing sent.
 
 use super::bench::Bench;
+use super::blocking::off_runtime;
 use super::clipping::{RecordClipping, ScopeAdc};
+use super::error::MeasureError;
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{self, RepetitionResult, Spread};
 use super::station::{self, CapturePlan, Captured, Identities, Station, Uploaded};
 use super::transmit::{Dac, Transmission};
-use super::{off_runtime, MeasureError};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit, SafeStateReport};
 use crate::waveform::WaveformSpec;

@@ -34,8 +34,8 @@
 //! (8-38 % clipped, MSK-LFM).
 
 use super::detect::DetectionReport;
+use super::error::MeasureError;
 use super::pipeline::Pipeline;
-use super::MeasureError;
 use crate::physics::C0;
 use num_complex::Complex64;
 use serde::Serialize;

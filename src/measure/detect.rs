@@ -6,9 +6,9 @@
 //! algorithms give their own estimates (MUSIC's refined peaks, root-MUSIC's and ESPRIT's ranges),
 //! kept inside the range window.
 
+use super::error::MeasureError;
 use super::options::ProcessOptions;
 use super::pipeline::RangeResult;
-use super::MeasureError;
 use crate::dsp::Profile;
 use crate::dsp::{DetectOptions, DetectedTarget, Detector, Sidelobes};
 use num_complex::Complex64;

@@ -12,10 +12,10 @@
 //! whatever happens (the I/O journal of `--trace-io` shows every exchange).
 
 use super::bench::Bench;
+use super::error::MeasureError;
 use super::interrupt::Interrupt;
 use super::response::Calibration as ResponseCalibration;
 use super::station::capture_rate;
-use super::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentModel};
 use crate::driver::open;

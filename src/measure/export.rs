@@ -4,10 +4,10 @@
 //! radbench computes, not a second implementation. Names, shapes and units: `docs/export.md`.
 
 use super::choices::ProcessOverrides;
+use super::error::MeasureError;
 use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Processed};
 use super::reprocess::{self, Record, Source, WaveformChoice};
-use super::MeasureError;
 use crate::storage::Array;
 use serde_json::{json, Map, Value};
 

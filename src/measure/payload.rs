@@ -2,9 +2,9 @@
 //! strongest echo by its family's decoder (`family`), and counted. Receivers and FFT plans are
 //! built once per pipeline.
 
+use super::error::MeasureError;
 use super::family::DecodePayload;
 use super::transmit::Transmission;
-use super::MeasureError;
 use crate::dsp::link_quality::LinkQuality;
 use crate::waveform::bits::{count_bit_errors, unframe_payload};
 use num_complex::Complex64;

@@ -17,11 +17,11 @@
 
 use super::clipping::{self, Clipping, RecordClipping, ScopeAdc};
 use super::detect;
+use super::error::MeasureError;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
 use super::ranging::RangingModel;
 use super::transmit::Transmission;
-use super::MeasureError;
 use crate::dsp::decimate::{Samples, ScaledWords};
 use crate::dsp::music::root_music_ranges;
 use crate::dsp::ofdm_radar::{

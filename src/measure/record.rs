@@ -2,10 +2,10 @@
 //! npy), plots and `summary.json`, every one written atomically into one folder.
 
 use super::capture::{Measurement, Taken};
+use super::error::MeasureError;
 use super::options::ProcessOptions;
 use super::pipeline::Processed;
 use super::transmit::Transmission;
-use super::MeasureError;
 use crate::storage::atomic::{write_atomic, write_atomic_parts};
 use crate::storage::plot;
 use crate::storage::sigmf::{self, SigmfMeta};

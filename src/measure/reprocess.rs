@@ -10,11 +10,11 @@
 use super::capture::{process_repetitions, BackgroundFile};
 use super::choices::ProcessOverrides;
 use super::clipping::{ClipCount, Rails, RecordClipping, ScopeAdc};
+use super::error::MeasureError;
 use super::options::ProcessOptions;
 use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
 use super::repeat::{RepetitionResult, Spread};
 use super::transmit::{self, Dac, Transmission};
-use super::MeasureError;
 use crate::storage::hash::sha256_file;
 use crate::storage::recording::{
     read_sigmf, read_sigmf_stored, read_trc, sigmf_paths, Recording, SampleUnit,

@@ -13,7 +13,7 @@
 //! lands at its true range with the bench's system delay.
 
 use super::calibration::MAX_DEFAULT_GATE_S;
-use super::MeasureError;
+use super::error::MeasureError;
 use crate::dsp::chain_echoes;
 use crate::dsp::iq_image::{rx_skew_direct, split_measured, TxIq};
 use crate::dsp::response::{

@@ -5,12 +5,12 @@
 //! zero); the response is.
 
 use super::choices::ProcessOverrides;
+use super::error::MeasureError;
 use super::pipeline::Aligned;
 use super::reprocess::{self, WaveformChoice};
 use super::response::{measure, Calibration};
 use super::response_run::{try_correction, CalibrateRequest, Calibrated};
 use super::station::Identities;
-use super::MeasureError;
 use std::path::Path;
 
 /// Measures the response from the capture at `capture` (a reference pillar at

@@ -2,8 +2,11 @@
 //! session (Python's `Bench.calibrate_response`): where it is stored, naming it in the bench
 //! file, and the report as data.
 
+use super::bench::Bench;
+use super::bench_file::{store_calibration, BenchCalibration};
+use super::error::MeasureError;
+use super::response::Calibration;
 use super::response_run::Calibrated;
-use super::{store_calibration, Bench, BenchCalibration, Calibration, MeasureError};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -35,7 +38,10 @@ pub fn check_response_out(out: Option<&Path>) -> Result<(), MeasureError> {
 
 /// The gate asked for (ns), or the default for the reference's range; seconds.
 pub fn gate_or_default_s(gate_ns: Option<f64>, reference_range_m: f64) -> f64 {
-    gate_ns.map_or_else(|| super::default_gate_s(reference_range_m), |ns| ns * 1e-9)
+    gate_ns.map_or_else(
+        || super::calibration::default_gate_s(reference_range_m),
+        |ns| ns * 1e-9,
+    )
 }
 
 /// Where the response is stored: `out`, else `<bench stem>-response.toml` beside the bench

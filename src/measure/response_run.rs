@@ -4,6 +4,7 @@
 
 use super::bench::Bench;
 use super::capture::{prepare, CaptureRequest, Rig};
+use super::error::MeasureError;
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
@@ -12,7 +13,6 @@ use super::response::{
     FORMAT,
 };
 use super::station::{Captured, Identities};
-use super::MeasureError;
 use crate::driver::RfPermit;
 use crate::waveform::WaveformSpec;
 use std::path::Path;
@@ -244,7 +244,7 @@ pub async fn calibrate_with(
     // with RF off.
     let aligning = async {
         let pipeline = built(building).await?;
-        super::off_runtime(move || {
+        super::blocking::off_runtime(move || {
             let mut pipeline = pipeline;
             pipeline.set_awg_amplitude(awg_vpp)?;
             let aligned = align(&mut pipeline, &taken_on.captured, 0..reps)?;
@@ -269,7 +269,7 @@ pub async fn calibrate_with(
     let identities = rig.identities().clone();
     let request = *request;
     let expected_delay_s = 2.0 * request.reference_range_m / crate::dsp::C0 + system_delay_s;
-    let (response, reference) = super::off_runtime(move || {
+    let (response, reference) = super::blocking::off_runtime(move || {
         let off = &taken_off.captured;
         let half = off.repetitions() / 2;
         let (first, second) = rayon::join(

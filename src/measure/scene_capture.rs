@@ -23,10 +23,10 @@
 use super::bench_file::{BenchCalibration, BenchFile};
 use super::capture::{process_repetitions, read_background, CaptureRequest};
 use super::clipping::ScopeAdc;
+use super::error::MeasureError;
 use super::pipeline::{Aligned, Pipeline, Processed, RawWords, RecordGeometry};
 use super::station::{self, CapturePlan};
 use super::transmit::{Dac, Transmission};
-use super::MeasureError;
 use crate::catalog::Catalog;
 use crate::driver::open::plan_awg;
 use crate::driver::scpi::number;

@@ -7,11 +7,11 @@
 
 use super::bench_file::{BenchFile, InstrumentEntry};
 use super::clipping::{Rails, ScopeAdc};
+use super::error::MeasureError;
 use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{RawIq, RawWords};
 use super::transmit::Transmission;
-use super::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, DigitizerLimits, InstrumentModel};
 use crate::driver::open;

@@ -1,8 +1,8 @@
 //! What the AWG plays: the waveform (made by its family's room, `family`), its 8-bit codes and
 //! marker, and what the receiver needs to know about it (the transmitted reference, the bits).
 
+use super::error::MeasureError;
 use super::family::{self, Modulated, Modulation};
-use super::MeasureError;
 use crate::driver::IqWaveform;
 use crate::waveform::BitSource;
 use crate::waveform::WaveformSpec;

@@ -7,7 +7,7 @@
 //! `catalog_overrides`.
 
 use super::bench::Bench;
-use super::MeasureError;
+use super::error::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentKind, InstrumentModel};
 use crate::driver::{instrument_limits, open, DriverError, Journal};

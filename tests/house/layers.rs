@@ -230,7 +230,7 @@ const MOCK_LAB_USERS: [&str; 6] = [
     "src/measure/bench.rs",
     "src/measure/scene_control.rs",
     "src/measure/scene_capture.rs",
-    "src/measure/mod.rs",
+    "src/measure/error.rs",
     "src/measure/predistortion_tests.rs",
     "src/simulate/scene_bench.rs",
 ];

@@ -28,9 +28,9 @@ pub use figures::*;
 pub use plots::*;
 pub use profiles::*;
 
+use super::error::{io, CampaignError};
 use super::manifest::Manifest;
 use super::results::Results;
-use super::{io, CampaignError};
 use crate::storage::write_atomic;
 use std::path::{Path, PathBuf};
 

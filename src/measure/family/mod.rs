@@ -16,10 +16,10 @@ mod msk_lfm;
 mod ofdm;
 pub(crate) mod overrides;
 
+use super::error::MeasureError;
 use super::options::{Algorithm, ProcessOptions};
 use super::payload::Decoded;
 use super::transmit::Transmission;
-use super::MeasureError;
 use crate::waveform::BitSource;
 use crate::waveform::ParamError;
 use crate::waveform::{Ofdm, SymbolMatrix};

@@ -5,9 +5,9 @@
 use super::overrides::{OverrideError, WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use super::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
 use crate::dsp::link_quality::link_quality;
+use crate::measure::error::MeasureError;
 use crate::measure::payload::{unwrapped_deg, Decoded, LinkTrace};
 use crate::measure::transmit::Transmission;
-use crate::measure::MeasureError;
 use crate::measure::{Algorithm, ProcessOptions};
 use crate::waveform::ber_msk_lfm_theory;
 use crate::waveform::BitSource;
