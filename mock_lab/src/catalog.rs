@@ -334,6 +334,8 @@ pub struct RfModel {
     pub registers: Vec<Register>,
     /// What ends every line in both directions (`[serial] line_terminator`, LF by default).
     pub line_terminator: String,
+    /// The file's `[instrument] key`: the model a bench file names (empty when the file has none).
+    pub key: String,
 }
 
 impl RfModel {
@@ -366,6 +368,13 @@ struct RfFile {
     #[serde(rename = "register")]
     registers: Vec<Register>,
     serial: Option<RfSerial>,
+    instrument: Option<RfInstrument>,
+}
+
+/// The part of `[instrument]` the emulator needs: the key a bench file names.
+#[derive(Debug, Deserialize)]
+struct RfInstrument {
+    key: String,
 }
 
 /// The part of `[serial]` the emulator needs: the baud rate and parity mean nothing on a pty.
@@ -499,6 +508,7 @@ pub fn rf_from_str(text: &str) -> Result<RfModel, CatalogError> {
         line_terminator: file
             .serial
             .map_or_else(|| "\n".into(), |s| s.line_terminator),
+        key: file.instrument.map(|i| i.key).unwrap_or_default(),
     };
     check_rf(&model)?;
     Ok(model)

@@ -732,13 +732,32 @@ impl Lab {
                 .map(|e| e.resource.clone())
                 .unwrap_or_default()
         };
+        // Front ends served from a lab's own instrument files are named by their files' keys;
+        // radbench finds those files only through the bench file's `catalog`.
+        let key = |model: &crate::catalog::RfModel, built_in: &'static str| {
+            if model.key.is_empty() {
+                built_in.to_string()
+            } else {
+                model.key.clone()
+            }
+        };
+        let (tx, rx) = (
+            key(self.bench.tx.model(), "gotmic-eband-tx"),
+            key(self.bench.rx.model(), "gotmic-eband-rx"),
+        );
+        let own = if [tx.as_str(), rx.as_str()] == ["gotmic-eband-tx", "gotmic-eband-rx"] {
+            ""
+        } else {
+            "# The Tx and Rx are served from your own instrument files: add catalog = \"FOLDER\"\n\
+             # (the folder holding them) at the top of this file.\n"
+        };
         format!(
             "# radbench bench file for the simulated lab (mock_lab); written by `mock-lab serve`.\n\
-             # Every resource below is on 127.0.0.1 and lives as long as that process.\n\n\
+             # Every resource below is on 127.0.0.1 and lives as long as that process.\n{own}\n\
              [awg]\nmodel = \"keysight-m8195a\"\nresource = \"{}\"\n\n\
              [scope]\nmodel = \"{}\"\nresource = \"{}\"\n\n\
-             [tx]\nmodel = \"gotmic-eband-tx\"\nresource = \"{}\"\n\n\
-             [rx]\nmodel = \"gotmic-eband-rx\"\nresource = \"{}\"\n\n\
+             [tx]\nmodel = \"{tx}\"\nresource = \"{}\"\n\n\
+             [rx]\nmodel = \"{rx}\"\nresource = \"{}\"\n\n\
              [simulation]\ncontrol = \"{}\"\n",
             resource("awg", awg),
             self.scope_model.catalog_key(),

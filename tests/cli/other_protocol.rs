@@ -39,11 +39,16 @@ async fn another_protocol_drives_the_modules_with_no_code_change() {
     std::fs::create_dir(&folder).unwrap();
     std::fs::write(folder.join("acme_eband_tx.toml"), &tx).unwrap();
     std::fs::write(folder.join("acme_eband_rx.toml"), &rx).unwrap();
+    // The lab's bench file names the served files' models, and says where radbench finds them.
+    let served = lab.bench_toml(Transport::Hislip, Transport::Vicp);
+    assert!(
+        served.contains("model = \"acme-eband-tx\"")
+            && served.contains("model = \"acme-eband-rx\"")
+            && served.contains("add catalog = \"FOLDER\""),
+        "{served}"
+    );
     let bench = format!(
-        "catalog = \"instruments\"\n{}\n[calibration]\nsystem_delay_s = {:e}\n",
-        lab.bench_toml(Transport::Hislip, Transport::Vicp)
-            .replace("gotmic-eband-tx", "acme-eband-tx")
-            .replace("gotmic-eband-rx", "acme-eband-rx"),
+        "catalog = \"instruments\"\n{served}\n[calibration]\nsystem_delay_s = {:e}\n",
         mock_lab::scene::Scene::default().system_delay_s
     );
     std::fs::write(dir.path().join("bench.toml"), bench).unwrap();
