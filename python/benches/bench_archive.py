@@ -10,7 +10,7 @@ folder every time (so that every capture is computed):
 - `radbench process ARCHIVE/c* --jobs 2` (the reference);
 - `radbench process --from-catalog all --jobs 2`;
 - radbench.dask.process_bag on a LocalCluster of 2 worker processes (1 thread each), the cluster
-  started before the clock starts.
+  started before the clock starts, in radbench.dask.worker_environment() (--dask-default: not).
 Throughput is captures per second of wall time (the best of the repeats). Then --campaigns pairs
 of `radbench campaign run examples/accuracy.toml`, registration on and RADBENCH_CATALOG=off
 alternating (which goes first alternates too): the mean step time of each (wall time / steps)
@@ -20,8 +20,10 @@ and the paired differences. Prints one JSON object.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import tempfile
@@ -52,6 +54,8 @@ def main() -> None:
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--campaigns", type=int, default=6)
     p.add_argument("--keep")
+    p.add_argument("--dask-default", action="store_true",
+                   help="start the Dask workers with Dask's defaults, not WORKER_CONFIG")
     a = p.parse_args()
     scratch = Path(tempfile.mkdtemp(prefix="bench-archive-"))
     runs = Path(a.keep) if a.keep else scratch / "runs"
@@ -65,9 +69,11 @@ def main() -> None:
 
     import radbench.dask as rd
 
+    config = contextlib.nullcontext() if a.dask_default else rd.worker_environment()
+
     times = {"process --jobs 2": [], "process --from-catalog --jobs 2": [], "dask 2 workers": []}
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    with config, LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                              dashboard_address=None) as cluster, Client(cluster) as client:
         client.run(lambda: __import__("radbench.dask"))
         for r in range(a.repeat):
             out = scratch / f"out{r}"
@@ -97,8 +103,11 @@ def main() -> None:
                 steps = len(results["steps"])
             step_s[mode].append(wall / steps)
     diffs = [on - off for on, off in zip(step_s["on"], step_s["off"])]
+    # The scratch folder holds the archive (GBs with --captures 96) and every output.
+    shutil.rmtree(scratch, ignore_errors=True)
     print(json.dumps({
         "captures": n,
+        "dask_workers": "Dask's defaults" if a.dask_default else "radbench.dask.worker_environment()",
         "captures_per_s": throughput,
         "relative_to_process_jobs_2": {k: v / reference for k, v in throughput.items()},
         "campaign_steps": steps,

@@ -99,3 +99,19 @@ def test_process_bag_without_dask_says_what_to_install(monkeypatch, catalog):
     monkeypatch.setattr(builtins, "__import__", no_dask)
     with pytest.raises(ImportError, match="pip install"):
         rd.process_bag(catalog, "all")
+
+
+def test_worker_environment_unsets_dasks_malloc_trim_threshold_in_the_workers():
+    from distributed import Client, LocalCluster
+
+    def trim_threshold():
+        return os.environ.get("MALLOC_TRIM_THRESHOLD_")
+
+    # Dask's default, which an earlier cluster of this process also left in os.environ.
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        assert list(client.run(trim_threshold).values()) == ["65536"]
+    with rd.worker_environment(), LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, Client(cluster) as client:
+        assert list(client.run(trim_threshold).values()) == [None]
