@@ -38,6 +38,7 @@ pub(crate) mod music;
 pub(crate) mod ofdm_radar;
 pub(crate) mod plans;
 pub(crate) mod range_profile;
+pub(crate) mod residual;
 pub(crate) mod response;
 pub(crate) mod window;
 

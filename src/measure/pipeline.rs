@@ -660,6 +660,9 @@ struct CorrectionCheck {
     chain_echoes: Vec<(f64, f64)>,
     /// The calibration's reference as phase ranging takes it.
     anchor: Option<super::response::PhaseAnchor>,
+    /// What the correction left on the calibration's reference, per window: the detector's
+    /// residual floor.
+    residual: Vec<super::response::ResidualSeen>,
 }
 
 /// A corrected target's peak side-lobe may exceed the calibration's by this before a warning, dB,
@@ -881,6 +884,7 @@ fn equaliser_for(
             .map(|e| (e.delay_ns * 1e-9, e.level_db))
             .collect(),
         anchor: cal.header.reference.phase_anchor,
+        residual: cal.header.residual.clone(),
     };
     let equaliser = match used.mode {
         CorrectionMode::Rx => Some(cal.response.equaliser(period, fs)?),
@@ -977,7 +981,18 @@ impl Pipeline {
         if matches!(&self.detector, Some((rate, _)) if *rate == capture_rate_hz) {
             return Ok(());
         }
-        let options = detect::detect_options(&self.options);
+        let mut options = detect::detect_options(&self.options);
+        // Where the calibration measured what its correction leaves on its reference with this
+        // window, the detector's floor near strong targets follows it.
+        options.residual_floor = self
+            .correction_check
+            .as_ref()
+            .and_then(|c| {
+                c.residual
+                    .iter()
+                    .find(|r| r.window == self.options.window.name())
+            })
+            .and_then(|r| r.floor());
         let detector = match &self.range {
             RangeProcessor::Correlation { echo, lags, .. } => {
                 let decimator = self.decimator.as_ref().map(|(_, _, dec)| dec);

@@ -45,6 +45,10 @@ fn measured(scene: &Scene, designed: &Transmission, played: &[num_complex::Compl
         delay,
         3e-9,
         scene.system_delay_s,
+        &super::response::ResidualWindows {
+            windows: &[],
+            band_hz: designed.band_hz(),
+        },
     )
     .expect("a response")
 }
@@ -70,6 +74,7 @@ fn calibration(response: Response) -> Calibration {
             instruments: InstrumentsSeen::default(),
             chain_echoes: Vec::new(),
             scene_echoes: Vec::new(),
+            residual: Vec::new(),
         },
         response,
         path: "test-response.toml".into(),

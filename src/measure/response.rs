@@ -286,6 +286,32 @@ pub struct ResponseHeader {
     /// corrected in captures.
     #[serde(default)]
     pub scene_echoes: Vec<EchoSeen>,
+    /// What the correction leaves on the reference beyond its main lobe, per range window
+    /// (`[[residual]]`): the detector's floor near strong targets follows it. Absent in
+    /// calibrations written before it was measured (no such floor then).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub residual: Vec<ResidualSeen>,
+}
+
+/// A calibration's residual profile for one window (`dsp::residual`): the largest power the
+/// correction leaves on the reference relative to its peak, in bins of range offset behind it
+/// and ahead of it, dB.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResidualSeen {
+    /// The range window (`--window`: rect, hann, taylor, chebyshev).
+    pub window: String,
+    /// Bin `j` covers offsets `[j bin_m, (j + 1) bin_m)`, m.
+    pub bin_m: f64,
+    pub behind_db: Vec<f64>,
+    pub ahead_db: Vec<f64>,
+}
+
+impl ResidualSeen {
+    /// The detector's floor from it (`None` for a profile that does not parse as one).
+    pub(crate) fn floor(&self) -> Option<crate::dsp::ResidualFloor> {
+        crate::dsp::ResidualFloor::from_db(self.bin_m, &self.behind_db, &self.ahead_db)
+    }
 }
 
 /// One discrete echo relative to the reference's delay (`dsp::chain_echoes`).
@@ -324,6 +350,8 @@ pub struct Response {
     pub chain_echoes: Vec<EchoSeen>,
     /// The reference scene's echoes beyond the gate (not in `table`).
     pub scene_echoes: Vec<EchoSeen>,
+    /// What the correction leaves on the reference, per window.
+    pub residual: Vec<ResidualSeen>,
 }
 
 impl Response {
@@ -604,6 +632,7 @@ fn table_from(
         system_delay_s: header.system_delay_s,
         chain_echoes: header.chain_echoes.clone(),
         scene_echoes: header.scene_echoes.clone(),
+        residual: header.residual.clone(),
     })
 }
 
@@ -615,9 +644,21 @@ pub(crate) struct Repetition<'a> {
     pub(crate) residual_s: f64,
 }
 
+/// How the reference is processed for its residual profiles: the range windows (name and
+/// window) and the waveform's band `[low, high]` Hz they span.
+pub(crate) struct ResidualWindows<'a> {
+    pub(crate) windows: &'a [(&'a str, crate::dsp::Window)],
+    pub(crate) band_hz: [f64; 2],
+}
+
+/// The residual profiles' bins, m: a few per 1 GHz range cell (15 cm).
+const RESIDUAL_BIN_M: f64 = 0.05;
+
 /// Measures the chain's response from aligned repetitions of one reference reflector (`on`) and
 /// of the receiver with the transmitter off (`off`). `reference` is the transmitted repetition;
 /// the reflector is expected at `expected_delay_s` after the marker (2 R / c + system delay).
+/// What the correction leaves on the reference is recorded for each of `residual`'s windows.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn measure(
     reference: &[Complex64],
     fs: f64,
@@ -626,6 +667,7 @@ pub(crate) fn measure(
     expected_delay_s: f64,
     gate_s: f64,
     system_delay_s: f64,
+    residual: &ResidualWindows<'_>,
 ) -> Result<Response, MeasureError> {
     let period = on.first().map(|a| a.samples.len()).ok_or_else(|| {
         MeasureError::option("repetitions", 0, "at least 1 repetition with RF on")
@@ -671,6 +713,7 @@ pub(crate) fn measure(
     }
     let reach_s = MIN_ECHO_REACH_S.max(expected_delay_s - system_delay_s + 3e-9);
     let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s)?;
+    let residual = residual_profiles(&whole, reach_s, residual)?;
     let (est, echoes, gate_s) = (whole.est, whole.echoes, whole.gate_s);
     let directs: Vec<Vec<Complex64>> = whole
         .relative
@@ -763,7 +806,56 @@ pub(crate) fn measure(
         system_delay_s,
         chain_echoes: echoes.chain.iter().map(EchoSeen::of).collect(),
         scene_echoes: echoes.scene.iter().map(EchoSeen::of).collect(),
+        residual,
     })
+}
+
+/// What the final fit leaves of the reference's mean spectrum (`dsp::residual`: `Z / (X H0) -
+/// 1` over the band, the scene's and the chain's echoes divided out as the table and the
+/// captures' correction take them), through each window, out to `reach_s` of delay either side.
+fn residual_profiles(
+    whole: &WholeChain,
+    reach_s: f64,
+    windows: &ResidualWindows<'_>,
+) -> Result<Vec<ResidualSeen>, MeasureError> {
+    let est = &whole.est;
+    let n = est.period();
+    let fs = est.frequency_hz(1) * n as f64;
+    let cover = est.coverage();
+    let model = est.predicted(&whole.fitted);
+    let ratio: Vec<Complex64> = (0..n)
+        .map(|k| {
+            if cover[k] >= BAND_FLOOR && model[k].norm_sqr() > 0.0 {
+                whole.mean[k] / model[k] - 1.0
+            } else {
+                Complex64::new(0.0, 0.0)
+            }
+        })
+        .collect();
+    let power: Vec<f64> = cover
+        .iter()
+        .map(|&c| if c >= BAND_FLOOR { c } else { 0.0 })
+        .collect();
+    let reach_m = reach_s * C0 / 2.0;
+    windows
+        .windows
+        .iter()
+        .map(|(name, window)| {
+            let weight = crate::dsp::residual::window_weights(
+                window,
+                &power,
+                |k| est.frequency_hz(k),
+                windows.band_hz,
+            )?;
+            let r = crate::dsp::residual::profile(&ratio, &weight, fs, RESIDUAL_BIN_M, reach_m)?;
+            Ok(ResidualSeen {
+                window: (*name).to_string(),
+                bin_m: r.bin_m,
+                behind_db: r.behind_db,
+                ahead_db: r.ahead_db,
+            })
+        })
+        .collect()
 }
 
 /// The gated fit of the reference's mean relative spectrum, with what lies beyond the gate
@@ -778,6 +870,8 @@ struct WholeChain {
     chain_factor: Vec<Complex64>,
     /// The repetitions' relative spectra with every echo found divided out.
     relative: Vec<Vec<Complex64>>,
+    /// Their mean, likewise: what `fitted` was fitted to.
+    mean: Vec<Complex64>,
     echoes: chain_echoes::Echoes,
 }
 
@@ -890,6 +984,7 @@ fn fit_whole_chain(
         fitted,
         chain_factor,
         relative,
+        mean,
         echoes,
     })
 }

@@ -65,6 +65,10 @@ pub(crate) fn calibrate_from_capture(
         expected_delay_s,
         gate_s,
         system_delay_s,
+        &super::response::ResidualWindows {
+            windows: &super::response_run::residual_windows(),
+            band_hz: tx.band_hz(),
+        },
     )?;
     let reference = try_correction(&mut pipeline, &response, &aligned, &request)?;
     let identities = loaded

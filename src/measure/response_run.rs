@@ -9,8 +9,8 @@ use super::interrupt::Interrupt;
 use super::options::ProcessOptions;
 use super::pipeline::{Aligned, Pipeline, Processed, RecordGeometry};
 use super::response::{
-    measure, Calibration, InstrumentsSeen, PhaseAnchor, ReferenceFigures, Response, ResponseHeader,
-    FORMAT,
+    measure, Calibration, InstrumentsSeen, PhaseAnchor, ReferenceFigures, ResidualWindows,
+    Response, ResponseHeader, FORMAT,
 };
 use super::station::{Captured, Identities};
 use crate::driver::RfPermit;
@@ -155,9 +155,18 @@ impl Calibrated {
             },
             chain_echoes: self.response.chain_echoes.clone(),
             scene_echoes: self.response.scene_echoes.clone(),
+            residual: self.response.residual.clone(),
         };
         Calibration::save(path, &self.response, header)
     }
+}
+
+/// Every range window (`--window`), for the calibration's residual profiles.
+pub(crate) fn residual_windows() -> Vec<(&'static str, crate::dsp::Window)> {
+    super::options::WindowName::ALL
+        .iter()
+        .map(|w| (w.name(), w.to_dsp()))
+        .collect()
 }
 
 /// The aligned repetitions as `response::measure` takes them.
@@ -289,6 +298,10 @@ pub async fn calibrate_with(
             expected_delay_s,
             request.gate_s,
             system_delay_s,
+            &ResidualWindows {
+                windows: &residual_windows(),
+                band_hz: tx.band_hz(),
+            },
         )?;
         let reference = corrected(&mut pipeline, &response, before, &request)?;
         Ok::<_, MeasureError>((response, reference))

@@ -91,14 +91,8 @@ async fn ideal_sidelobes(waveform: &str) -> Vec<f64> {
     out
 }
 
-/// Pre-distorted MSK-LFM (`tx`, `both`) processed with a low side-lobe window keeps one residue
-/// about 1.4 m behind the pillar, 61-66 dB under it (the release before this one had it too, at
-/// -61 dB): known, not yet understood, and held to this bound until it is (issue 38's note).
-const KNOWN_TX_RESIDUE_DB: f64 = -58.0;
-
-/// What is wrong with one processed capture's targets and side-lobe (empty when nothing);
-/// `residue_db`: a weaker extra target this far under the pillar is tolerated (the known one).
-fn check(summary: &Value, designed_db: f64, residue_db: Option<f64>) -> Vec<String> {
+/// What is wrong with one processed capture's targets and side-lobe (empty when nothing).
+fn check(summary: &Value, designed_db: f64) -> Vec<String> {
     let mut wrong = Vec::new();
     let targets = summary["targets"].as_array().cloned().unwrap_or_default();
     let pillar = targets.iter().find(|t| {
@@ -110,10 +104,6 @@ fn check(summary: &Value, designed_db: f64, residue_db: Option<f64>) -> Vec<Stri
     let extra: Vec<(f64, f64)> = targets
         .iter()
         .filter(|t| !pillar.is_some_and(|p| std::ptr::eq(*t, p)))
-        .filter(|t| match (residue_db, pillar) {
-            (Some(r), Some(p)) => level(t) - level(p) > r,
-            _ => true,
-        })
         .map(|t| (t["range_m"].as_f64().unwrap_or(f64::NAN), level(t)))
         .collect();
     if pillar.is_none() || !extra.is_empty() {
@@ -210,10 +200,7 @@ async fn one_case(
         )
         .await;
         for processed in p["processed"].as_array().unwrap() {
-            let pre_distorted = processed["source"] != "c-rx";
-            let residue = (waveform == "msk-lfm" && pre_distorted && *window != "rect")
-                .then_some(KNOWN_TX_RESIDUE_DB);
-            for w in check(&processed["summary"], designed_db, residue) {
+            for w in check(&processed["summary"], designed_db) {
                 wrong.push(format!(
                     "{case}, {} with {window}: {w}",
                     processed["source"]
@@ -278,33 +265,42 @@ async fn a_pillar_40_db_under_a_strong_one_1_m_behind_is_found_after_correction(
             ],
         )
         .await;
-        let c = ok(
-            d,
-            &[
-                "capture",
-                "--allow-rf",
-                "--scene",
-                "two.toml",
-                "--waveform",
-                waveform,
-                "--calibration",
-                "response.toml",
-                "--json",
-                "--out",
-                "c",
-            ],
-        )
-        .await;
-        let found: Vec<f64> = c["targets"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|t| t["range_m"].as_f64().unwrap())
-            .collect();
-        assert!(
-            found.len() == 2 && (found[0] - 2.0).abs() < 0.01 && (found[1] - 3.0).abs() < 0.01,
-            "{waveform}: {found:?}"
-        );
+        // The default (rx, no window), and pre-distorted with a low side-lobe window, where
+        // the calibration's residual profile sets the floor near the strong pillar.
+        for (correction, window) in [("rx", "rect"), ("tx", "taylor")] {
+            let out = format!("c-{correction}");
+            let c = ok(
+                d,
+                &[
+                    "capture",
+                    "--allow-rf",
+                    "--scene",
+                    "two.toml",
+                    "--waveform",
+                    waveform,
+                    "--calibration",
+                    "response.toml",
+                    "--correction",
+                    correction,
+                    "--window",
+                    window,
+                    "--json",
+                    "--out",
+                    &out,
+                ],
+            )
+            .await;
+            let found: Vec<f64> = c["targets"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|t| t["range_m"].as_f64().unwrap())
+                .collect();
+            assert!(
+                found.len() == 2 && (found[0] - 2.0).abs() < 0.01 && (found[1] - 3.0).abs() < 0.01,
+                "{waveform} {correction} {window}: {found:?}"
+            );
+        }
     }
 }
 
@@ -388,10 +384,118 @@ async fn clutter_beyond_the_window_pulls_a_weak_pillar_under_half_a_mm_on_the_id
     );
 }
 
-/// A calibration file written before `[[chain_echoes]]` and `[[scene_echoes]]` existed (the
-/// fresh file with both tables taken out of its header, as the older writer left it: the echoes
-/// folded into its table all the same) still loads and corrects: the pillar on the cable-echo
-/// chain within 0.5 mm, no detection taken for a chain echo (the file names none).
+/// The calibration's residual profile (`[[residual]]`, issue 38): what the correction leaves on
+/// the reference, per window. Pre-distorted MSK-LFM (`tx`) processed with a low side-lobe window
+/// keeps a residue about 1.4 m behind the pillar, about 60 dB under it: the gated fit's misfit in
+/// its taper (the reference's own profile shows it there at the same level). Corrected with a
+/// calibration whose header lacks the profile (as written before it existed) the residue is a
+/// target; with the profile the detector's floor follows it and it is not.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_scene(d, "reference.toml", 1.0, false, -40.0, 7);
+    write_scene(d, "pillar.toml", PILLAR_M, false, -40.0, 11);
+    ok(
+        d,
+        &[
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            "reference.toml",
+            "--allow-rf",
+            "--waveform",
+            "msk-lfm",
+            "--out",
+            "response.toml",
+            "--json",
+        ],
+    )
+    .await;
+    let header = std::fs::read_to_string(d.join("response.toml")).unwrap();
+    let parsed: toml::Table = toml::from_str(&header).unwrap();
+    let profiles = parsed["residual"].as_array().unwrap();
+    let windows: Vec<&str> = profiles
+        .iter()
+        .map(|r| r["window"].as_str().unwrap())
+        .collect();
+    assert_eq!(windows, ["rect", "hann", "taylor", "chebyshev"]);
+    // Taylor's profile: the residue's bins, 1.35-1.5 m behind, hold its level.
+    let taylor = &profiles[2];
+    let bin_m = taylor["bin_m"].as_float().unwrap();
+    let behind: Vec<f64> = taylor["behind_db"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_float().unwrap())
+        .collect();
+    let near = (1.35 / bin_m) as usize..(1.5 / bin_m) as usize;
+    let residue_db = behind[near].iter().copied().fold(f64::MIN, f64::max);
+    assert!((-66.0..=-54.0).contains(&residue_db), "{behind:?}");
+    let mut old = parsed.clone();
+    old.remove("residual");
+    std::fs::write(d.join("old.toml"), toml::to_string(&old).unwrap()).unwrap();
+    let mut found = Vec::new();
+    for cal in ["old.toml", "response.toml"] {
+        let out = format!("c-{cal}");
+        ok(
+            d,
+            &[
+                "capture",
+                "--allow-rf",
+                "--scene",
+                "pillar.toml",
+                "--waveform",
+                "msk-lfm",
+                "--calibration",
+                cal,
+                "--correction",
+                "tx",
+                "--window",
+                "taylor",
+                "--json",
+                "--out",
+                &out,
+            ],
+        )
+        .await;
+        let s: Value = serde_json::from_str(
+            &std::fs::read_to_string(d.join(&out).join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        let t: Vec<(f64, f64)> = s["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| {
+                (
+                    t["range_m"].as_f64().unwrap(),
+                    t["level_db"].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        found.push(t);
+    }
+    let (without, with) = (&found[0], &found[1]);
+    let pillar = |t: &[(f64, f64)]| t.iter().any(|(r, _)| (r - PILLAR_M).abs() <= 0.5e-3);
+    assert!(
+        pillar(without) && without.len() == 2 && (without[1].0 - PILLAR_M - 1.42).abs() < 0.05,
+        "without the profile the fit's residue is a target (if the fit no longer leaves it, \
+         this half of the test goes): {without:?}"
+    );
+    assert!(
+        pillar(with) && with.len() == 1,
+        "with the profile: {with:?}"
+    );
+}
+
+/// A calibration file written before `[[chain_echoes]]`, `[[scene_echoes]]` and `[[residual]]`
+/// existed (the fresh file with those tables taken out of its header, as the older writer left
+/// it: the echoes folded into its table all the same) still loads and corrects: the pillar on
+/// the cable-echo chain within 0.5 mm, no detection taken for a chain echo (the file names
+/// none).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_calibration_written_before_its_echo_lists_still_loads_and_corrects() {
     let dir = tempfile::tempdir().unwrap();
@@ -419,8 +523,10 @@ async fn a_calibration_written_before_its_echo_lists_still_loads_and_corrects() 
     let mut old: toml::Table = toml::from_str(&header).unwrap();
     assert!(old.remove("chain_echoes").is_some());
     old.remove("scene_echoes");
+    assert!(old.remove("residual").is_some(), "{header}");
     let old = toml::to_string(&old).unwrap();
     assert!(!old.contains("chain_echoes") && !old.contains("scene_echoes"));
+    assert!(!old.contains("residual"));
     // The table beside the header is the fresh one's (its name and hash are in the header).
     std::fs::write(d.join("response.toml"), old).unwrap();
     let c = ok(

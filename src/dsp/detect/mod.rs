@@ -60,6 +60,12 @@
 //! strong targets certify the model and keep the full reach above; a measured spread
 //! (calibration) is what lowers the floor on a real bench.
 //!
+//! **Residual floor.** A correction that knows the chain still leaves a residue on every path:
+//! what the calibration's fit did not explain, recorded on its reference per window as a residual
+//! profile (`dsp::residual`). With [`DetectOptions::residual_floor`] set, each fitted target adds
+//! `|a_i|^2 R(d)` times a 6 dB margin to the threshold at offset `d` behind or ahead of it, beyond
+//! its main lobe (the first null): a residue under it is not a target, a real target over it is.
+//!
 //! # Per-target metrics
 //! Width and peak side-lobe level are measured on a target's **own response**: the profile minus
 //! every other fitted target, over the region of the spread's highest side-lobes
@@ -76,9 +82,11 @@ mod options;
 mod output;
 pub(crate) mod psf;
 mod report;
+#[cfg(test)]
+mod residual_tests;
 
 pub use super::metrics::threshold::CfarKind;
-pub use options::{DetectOptions, Method, NoiseEstimate};
+pub use options::{DetectOptions, Method, NoiseEstimate, ResidualFloor};
 pub use output::{DetectedTarget, Detections, Sidelobes};
 pub use psf::{PointSpread, PsfShape, SpectralLines, TabulatedPsf};
 
@@ -114,6 +122,11 @@ pub struct Detector {
     mismatched: Vec<(f64, f64)>,
     /// The chain floor's reach, cells (set per profile from its axis).
     chain_extent: f64,
+    /// The residual floor per whole cell of offset behind a target and ahead of it, relative to
+    /// the target, margin included, 0 within its main lobe (set per profile from its axis;
+    /// empty without [`DetectOptions::residual_floor`]).
+    residual_behind: Vec<f64>,
+    residual_ahead: Vec<f64>,
 }
 
 impl std::fmt::Debug for Detector {
@@ -179,6 +192,8 @@ impl Detector {
             g: Vec::new(),
             mismatched: Vec::new(),
             chain_extent: 0.0,
+            residual_behind: Vec::new(),
+            residual_ahead: Vec::new(),
         })
     }
 
@@ -252,6 +267,7 @@ impl Detector {
         self.rejected.clear();
         self.mismatched.clear();
         self.chain_extent = self.options.chain_extent_m / axis.step;
+        self.residual_cells(axis.step);
         let capped = match self.options.method {
             Method::Clean { .. } => {
                 let capped = self.clean(z, &fitw, min_sep);
@@ -336,6 +352,21 @@ impl Detector {
                 *f += p * self.shape.envelope_at(c as f64 - comp.x);
             }
         }
+        if !self.residual_behind.is_empty() {
+            for comp in &self.model.comps {
+                let p = comp.a.norm_sqr();
+                let at = comp.x.round() as isize;
+                let sides = [(&self.residual_behind, 1isize), (&self.residual_ahead, -1)];
+                for (side, sign) in sides {
+                    for (k, r) in side.iter().enumerate().skip(1) {
+                        let c = at + sign * k as isize;
+                        if (0..n as isize).contains(&c) {
+                            self.floor[c as usize] += p * r;
+                        }
+                    }
+                }
+            }
+        }
         self.threshold.clear();
         self.threshold
             .extend(self.noise_thr.iter().zip(&self.floor).map(|(a, b)| a + b));
@@ -343,6 +374,30 @@ impl Detector {
             for c in 0..n {
                 self.threshold[c] += self.chain_floor(c as f64, None);
             }
+        }
+    }
+
+    /// The residual floor per cell of offset for a profile of cells `step` m apart: the
+    /// calibration's residual profile plus the margin, taken at each cell's offset, 0 within the
+    /// spread's first null (the target's own main lobe, which its fit accounts for).
+    fn residual_cells(&mut self, step: f64) {
+        self.residual_behind.clear();
+        self.residual_ahead.clear();
+        let Some(floor) = &self.options.residual_floor else {
+            return;
+        };
+        let margin = 10f64.powf(options::RESIDUAL_MARGIN_DB / 10.0);
+        let cells = (floor.reach_m() / step).ceil() as usize + 1;
+        let inner = self.shape.first_null.ceil() as usize;
+        for k in 0..cells {
+            let (behind, ahead) = if k < inner {
+                (0.0, 0.0)
+            } else {
+                let d = k as f64 * step;
+                (margin * floor.at(d), margin * floor.at(-d))
+            };
+            self.residual_behind.push(behind);
+            self.residual_ahead.push(ahead);
         }
     }
 

@@ -65,6 +65,65 @@ pub struct DetectOptions {
     /// to 10 ns of line, and the main lobe); out to twice as far its second round trip is taken
     /// at twice the floor in dB.
     pub chain_extent_m: f64,
+    /// CLEAN: what a calibration's correction leaves around every path, for the window in use
+    /// (its residual profile); beyond a target's main lobe, anything under it plus
+    /// `RESIDUAL_MARGIN_DB` (6 dB) relative to the target is not a target of its own. `None` (no
+    /// calibration, or one written before it recorded the profile): no such floor.
+    pub residual_floor: Option<ResidualFloor>,
+}
+
+/// The residual floor stands this far above the calibration's residual profile, dB: the profile
+/// is one measurement (the reference's noise is in it, -75 to -90 dB under the pillar) of a
+/// residue that moves by a few dB with the target's sub-cell position and the capture's noise;
+/// the residues seen in captures sit within 4 dB above it (docs/calibration.md).
+pub(crate) const RESIDUAL_MARGIN_DB: f64 = 6.0;
+
+/// A calibration's residual profile for one window (`dsp::residual`): the largest power the
+/// correction leaves relative to the target's, in bins of range offset behind it and ahead of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResidualFloor {
+    bin_m: f64,
+    behind: Vec<f64>,
+    ahead: Vec<f64>,
+}
+
+impl ResidualFloor {
+    /// From levels in dB relative to the target, bins of `bin_m` (bin `j`: `[j bin_m, (j + 1)
+    /// bin_m)` of offset); `None` when the bins are not positive or a level is not finite.
+    pub(crate) fn from_db(bin_m: f64, behind_db: &[f64], ahead_db: &[f64]) -> Option<Self> {
+        let lin = |v: &[f64]| -> Option<Vec<f64>> {
+            v.iter()
+                .map(|d| d.is_finite().then(|| 10f64.powf(d.min(0.0) / 10.0)))
+                .collect()
+        };
+        (bin_m.is_finite() && bin_m > 0.0).then_some(())?;
+        Some(Self {
+            bin_m,
+            behind: lin(behind_db)?,
+            ahead: lin(ahead_db)?,
+        })
+    }
+
+    /// How far it reaches either side, m.
+    pub(crate) fn reach_m(&self) -> f64 {
+        self.bin_m * self.behind.len().max(self.ahead.len()) as f64
+    }
+
+    /// The floor, relative to the target, `offset_m` behind it (negative: ahead): the largest of
+    /// the bin it falls in and its two neighbours (a target's position within a bin is not the
+    /// reference's); 0 beyond the profile.
+    pub(crate) fn at(&self, offset_m: f64) -> f64 {
+        let side = if offset_m >= 0.0 {
+            &self.behind
+        } else {
+            &self.ahead
+        };
+        let j = (offset_m.abs() / self.bin_m) as usize;
+        (j.saturating_sub(1)..=j + 1)
+            .filter_map(|b| side.get(b))
+            .copied()
+            .fold(0.0, f64::max)
+    }
 }
 
 impl Default for DetectOptions {
@@ -81,6 +140,7 @@ impl Default for DetectOptions {
             sidelobe_margin_db: 3.0,
             chain_floor_db: -17.0,
             chain_extent_m: 1.6,
+            residual_floor: None,
         }
     }
 }
