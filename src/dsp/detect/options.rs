@@ -73,9 +73,9 @@ pub struct DetectOptions {
 }
 
 /// The residual floor stands this far above the calibration's residual profile, dB: the profile
-/// is one measurement (the reference's noise is in it, -75 to -90 dB under the pillar) of a
-/// residue that moves by a few dB with the target's sub-cell position and the capture's noise;
-/// the residues seen in captures sit within 4 dB above it (docs/calibration.md).
+/// is one measurement (the reference's noise is in it, 73-95 dB under the pillar) of a residue
+/// that moves with the target's sub-cell position and the capture's noise; the residues seen in
+/// captures lay within 2 dB of it (docs/detection.md).
 pub(crate) const RESIDUAL_MARGIN_DB: f64 = 6.0;
 
 /// A calibration's residual profile for one window (`dsp::residual`): the largest power the
