@@ -23,16 +23,18 @@
 //! # What is public
 //!
 //! Each layer is a public module and the only public path to what it offers: its submodules are
-//! `pub(crate)` and the layer re-exports their `pub` items (`pub use sub::*`), so a user writes
+//! `pub(crate)` and the layer re-exports their `pub` items by name (`pub use sub::{A, b}`; no
+//! glob: the layer's `mod.rs` is the list of what it offers), so a user writes
 //! `radbench::<layer>::<Item>` (`radbench::simulate::RunSpec`, `radbench::measure::ProcessOptions`,
 //! `radbench::waveform::WaveformKind`), never the file an item lives in. Where two submodules of
 //! a layer define the same name, the layer says which one it offers (`measure` re-exports the
-//! capture's `measure` and the re-processing's `Repetition` by name) or the name was made
+//! capture's `measure` and the re-processing's `Repetition`) or the name was made
 //! unique (`measure::BenchCalibration`, the bench file's `[calibration]`, beside the response's
 //! `measure::Calibration`; `campaign::MANIFEST_FILE`). One exception: the transport's protocols
 //! keep their namespaces, whose codecs share names (`transport::hislip::Header`,
 //! `transport::vicp::Header`, `transport::vxi11::VERSION`). A new submodule is
-//! `pub(crate) mod x;`, with `pub use x::*;` beside it when it holds public items.
+//! `pub(crate) mod x;`, with `pub use x::{...};` beside it naming its public items (and
+//! `pub(crate) use` for what the crate's other layers reach through the layer).
 //!
 //! `#![warn(unreachable_pub)]` keeps every `pub` item reachable, so a `pub` that is not part of
 //! the API shows as a warning (an error in CI); `tests/house/public_api.rs` fails on a `pub` item

@@ -49,17 +49,31 @@ pub(crate) mod spec;
 mod step_job;
 mod worker;
 
-pub use builtin::*;
+pub use builtin::{kinds, template, thesis_lab, LabChain, LabRow};
 pub use error::CampaignError;
-pub use export::*;
-pub use lab_table::*;
-pub use manifest::*;
+pub use export::{export_run, put_all, RunExported};
+pub use lab_table::lab_table;
+pub use manifest::{
+    CalibrationRecord, FileRecord, InputFile, Instruments, Manifest, Session, Status, StepRecord,
+    StepStatus, Timing, MANIFEST_FILE,
+};
 pub use manifest_store::ManifestStore;
-pub use plan::*;
-pub use report::*;
-pub use results::*;
+pub use plan::{
+    plan, BenchInfo, BenchPlan, Nominal, PositionerPlan, Range, Step, WaveformCost, MAX_RETRIES,
+};
+pub use report::{
+    figures, load_results, rewrite, step_profiles, svg, theory, wilson95, write, Chart, Figure,
+    HLine, Point, Series, Style, HTML_FILE,
+};
+pub use results::{
+    AlgorithmResult, ChainEchoResult, MeanStd, PayloadFigures, Results, SpreadFigures, StepResult,
+    TargetResult, Truth,
+};
 pub use retry::RetryRecord;
-pub use run::*;
+pub use run::{
+    exit_code, prepare_all, resume, start, Finished, NewRun, Observer, Quiet, Retrying, StepDone,
+    Summary,
+};
 
 pub use kind::{AxisSetting, AxisValue};
 pub use plan::Plan;

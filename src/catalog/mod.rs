@@ -17,7 +17,12 @@ use std::path::{Path, PathBuf};
 
 pub use error::{CatalogError, Problem};
 pub use identity::Idn;
-pub use schema::*;
+pub use schema::{
+    AwgLimits, BitField, Checksum, DacMode, DigitizerLimits, DividerLimits, EmulatorIdentity,
+    Identity, Info, InstrumentKind, InstrumentModel, LineProtocol, NumberFormat, Parity,
+    ProtocolError, Quirks, Register, RegisterAccess, RfDirection, RfLimits, SerialSettings,
+    TimeoutPolicy, TransportKind, TransportSpec,
+};
 
 use locate::FieldIndex;
 

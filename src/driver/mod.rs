@@ -77,13 +77,16 @@ pub(crate) mod scpi;
 pub(crate) mod scripted;
 pub(crate) mod trace;
 
-pub use gotmic::*;
-pub use io::*;
-pub use lecroy::*;
-pub use rf_state::*;
-pub use safe_state::*;
+pub use gotmic::Framing;
+pub use io::{max_message_bytes, open_session, session_options, set_read_timeout};
+pub use lecroy::{
+    offset, sample_rate, segments, volts_per_div, wavedesc, waveform, COMMAND_ERRORS,
+    SEGMENTS_QUERY, STATUS, STOP,
+};
+pub use rf_state::snapshot;
+pub use safe_state::{share, Bench, SafeStep, Shared};
 #[cfg(any(test, feature = "testing"))]
-pub use scripted::*;
+pub use scripted::{Failure, DEVICE_CLEAR, ERROR_CHECK};
 
 /// What drivers report and take from the layers below, so callers need not reach past `driver`.
 pub use crate::session::Identity;

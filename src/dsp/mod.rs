@@ -42,14 +42,23 @@ pub(crate) mod residual;
 pub(crate) mod response;
 pub(crate) mod window;
 
-pub use correlate::*;
-pub use decimate::*;
-pub use detect::*;
-pub use metrics::*;
-pub use music::*;
-pub use ofdm_radar::*;
-pub use range_profile::*;
-pub use window::*;
+pub use correlate::{fast_fft_len, CrossCorrelator, Strategy};
+pub use decimate::{Alignment, Decimator, DecimatorConfig, LowPassSpec, PeriodicDecimator};
+pub use detect::{
+    CfarKind, DetectOptions, DetectedTarget, Detections, Detector, Method, NoiseEstimate,
+    PointSpread, PsfShape, Sidelobes, SpectralLines, TabulatedPsf,
+};
+pub use metrics::{
+    find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Axis, CaCfar,
+    CfarDetection, Interpolation, Peak, Resolution, SidelobeLevels,
+};
+pub use music::{HermitianEigen, ModelOrder, Music, MusicConfig, MusicSpectrum, OrderCriterion};
+pub use ofdm_radar::{
+    Averaging, FftPrecision, IDiv, OfdmRadar, OfdmRadarConfig, RangeDoppler, RangeDopplerConfig,
+    RangeDopplerMap, RangeProfile,
+};
+pub use range_profile::{CorrelationProfiler, Profile};
+pub use window::Window;
 
 /// Speed of light in vacuum, m/s (defined in [`crate::physics`]).
 pub use crate::physics::C0;

@@ -68,27 +68,45 @@ pub(crate) mod station;
 pub(crate) mod transmit;
 pub(crate) mod verify_catalog;
 
-pub use ambiguity::*;
-pub use bench::*;
-pub use bench_file::*;
-pub use calibration::*;
-pub use capture::*;
-pub use doctor::*;
-pub use export::*;
-pub use figure::*;
-pub use interrupt::*;
+pub use ambiguity::{ambiguity, AmbiguityReport};
+pub(crate) use bench::planning_scope_resource;
+pub use bench::{AwgLink, Bench, BenchSource, BuiltIn, ScopeLink, ScopeModel};
+pub use bench_file::{
+    store_calibration, uncalibrated_warning, BenchCalibration, BenchFile, BenchFileError,
+    InstrumentEntry, ManualFrontEnd, Simulation,
+};
+pub(crate) use calibration::default_gate_s;
+pub use calibration::{check, estimate_delay, DelayEstimate};
+pub(crate) use capture::prepare_uploading;
+pub use capture::{
+    check_repetitions, prepare, process_with, take, BackgroundFile, CaptureRequest, Generation,
+    Measurement, Prepared, Processing, Rig, Taken,
+};
+pub use doctor::{run, stopped, Check, Report, Status};
+pub use export::{export_capture, CaptureExport, Entry};
+pub use figure::profile_figure;
+pub use interrupt::{Interrupt, StopSignal};
 pub use manual::{confirms, manual_exit_note, manual_instructions, manual_refused};
-pub use numbers::*;
-pub use options::*;
-pub use pipeline::*;
-pub use record::*;
-pub use repeat::*;
-pub use reprocess::*;
-pub use response::*;
+pub use numbers::{rate, signed};
+pub use options::{DetectorName, Ranging};
+pub use pipeline::{Alignable, Detection, DetectionReport, Losses, PayloadResult, RawWords};
+pub(crate) use record::write_reprocessed_by_content;
+pub use record::{
+    write_capture, write_processed_beside, write_raw, write_reprocessed, CaptureFiles,
+    ProfileFiles, Provenance, RawFiles, ReprocessFiles, SourceFile,
+};
+pub use repeat::{RepetitionResult, Spread, Stat, TargetSpread};
+pub use reprocess::{
+    discover, sigmf, InputError, Loaded, Record, Reprocessed, Resolved, Source, WaveformChoice,
+};
+pub use response::{
+    Calibration, CorrectionMode, CorrectionUsed, EchoSeen, InstrumentsSeen, PhaseAnchor,
+    ReferenceFigures, Response, ResponseFigures, ResponseHeader,
+};
 pub use response_keep::{check_gate_ns, check_response_out, gate_or_default_s};
 pub use response_keep::{response_path, response_report, store_response};
-pub use response_run::*;
-pub use station::*;
+pub use response_run::{calibrate_with, CalibrateRequest, Calibrated};
+pub use station::{Applied, CapturePlan, Captured, Identities, RepetitionSource, Uploaded};
 pub use verify_catalog::{verify_catalog, write_overrides, CatalogCheck, CatalogValue, Verdict};
 
 // Names two flattened submodules both define, chosen here: the capture's `measure` and the

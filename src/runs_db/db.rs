@@ -57,15 +57,24 @@ pub(crate) fn open(path: &Path, busy: Duration) -> Result<Connection, RunsDbErro
     Ok(conn)
 }
 
-/// The catalog at `path` for reading: it must exist.
+/// The catalog at `path` for reading: it must exist. Its pages are read through a memory map
+/// (up to 256 MiB), not a `read` call each: a query over 10 000 runs touches thousands of pages
+/// (docs/catalog.md, "Speed"). Only readers map it: a file cut short under a mapping would
+/// kill the process, which a query may risk and a campaign's registration may not.
 pub(crate) fn open_existing(path: &Path) -> Result<Connection, RunsDbError> {
     if !path.is_file() {
         return Err(RunsDbError::Missing {
             path: path.to_path_buf(),
         });
     }
-    open(path, Duration::from_secs(5))
+    let conn = open(path, Duration::from_secs(5))?;
+    conn.pragma_update(None, "mmap_size", READ_MAP_BYTES)
+        .map_err(|e| RunsDbError::sql(path, e))?;
+    Ok(conn)
 }
+
+/// How much of the catalog a reader maps.
+const READ_MAP_BYTES: i64 = 256 << 20;
 
 /// Whether `e` says the file is not a database or is damaged (then `runs index` rebuilds it).
 pub(crate) fn is_corrupt(e: &rusqlite::Error) -> bool {

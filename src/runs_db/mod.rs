@@ -17,11 +17,16 @@ pub(crate) mod record;
 pub(crate) mod register;
 
 pub use db::default_catalog;
-pub use index::*;
-pub use processed::*;
-pub use query::*;
+pub use index::{index, FailedFolder, IndexReport};
+pub(crate) use processed::known_sha256;
+pub use processed::{record_processed, ProcessedRow};
+pub(crate) use query::parse_query;
+pub use query::{
+    captures, parse_time, parse_where, run_detail, runs, trend, AssetRow, CaptureRow, Condition,
+    Op, RunDetail, RunFilter, RunRow, StepRow, TrendPoint,
+};
 pub use record::{run_id, METRIC_NAMES};
-pub use register::*;
+pub use register::{catalog_for, Registrar};
 
 /// Why the catalog could not be read or written.
 #[derive(Debug, thiserror::Error)]

@@ -20,8 +20,8 @@ pub(crate) mod error;
 pub(crate) mod line;
 pub(crate) mod reply;
 
-pub use line::*;
-pub use reply::*;
+pub use line::{classify, LineReply};
+pub use reply::{parse_error_entry, trim_reply, without_idn_header, BlockProblem};
 
 pub(crate) use error::ErrorList;
 pub use error::{DeviceError, SessionError};

@@ -26,15 +26,17 @@ pub(crate) mod scene_bench;
 pub(crate) mod spec;
 pub(crate) mod thesis;
 
-pub use accuracy::*;
-pub use ber::*;
-pub use kernels::*;
-pub use report::*;
-pub use run::*;
-pub use scene::*;
-pub use scene_bench::*;
-pub use spec::*;
-pub use thesis::*;
+pub use accuracy::{run_steps, AccuracySpec, AccuracyStep, AccuracyStudy};
+pub use ber::{plot_series, run_curves, BerCurvePoint};
+pub use kernels::{time_all, KernelInputs, KernelTiming, Kernels, XCORR_LAGS};
+pub use report::{ber_text, scenario_text};
+pub use run::{echoes, first_trial, pipeline, process_options, simulate, transmission, SimOutcome};
+pub use scene::{parse_targets, CarrierPhase, Target};
+pub use scene_bench::{simulate_scene, SceneOutcome, SceneSpec};
+pub use spec::{
+    Algorithm, FftPrecisionName, ProcessOptions, RunSpec, ScenarioResult, WaveformSpec, WindowName,
+};
+pub use thesis::{mean_psl_and_width, run_all, ThesisRow, ThesisTable};
 
 /// Why a simulation could not run.
 #[derive(Debug, thiserror::Error)]

@@ -20,13 +20,18 @@ pub(crate) mod profile;
 pub(crate) mod recording;
 pub(crate) mod sigmf;
 
-pub use atomic::*;
-pub use export::*;
-pub use hash::*;
-pub use npy::*;
-pub use plot::*;
-pub use recording::*;
-pub use sigmf::*;
+pub(crate) use atomic::write_group;
+pub use atomic::{write_atomic, write_group_open, GroupWritten, OpenGroup, WrittenFile};
+pub use export::{Array, ComplexDtype, ExportFormat, ExportWriter};
+pub use hash::sha256;
+pub(crate) use hash::sha256_file;
+pub use npy::encode_c128;
+pub use plot::{draw, draw_ber, BerSeries, Curve, LineStyle, Marker, ProfilePlot};
+pub use recording::{
+    read_sigmf, read_trc, CaptureSegment, Component, Datatype, Extension, RadbenchMeta, Recording,
+    RecordingError, SampleUnit,
+};
+pub use sigmf::utc_now_rfc3339;
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -34,10 +34,12 @@ pub(crate) mod socket;
 pub mod vicp;
 pub mod vxi11;
 
-pub use framing::*;
-pub use io::*;
-pub use journal::*;
-pub use serial::*;
+pub use framing::TerminatedDecoder;
+pub use io::{
+    buffer_ceiling, reserve_announced, reserve_within, Decode, FrameHeader, Framed, FramedDecoder,
+};
+pub use journal::{sha256_hex, JournalError};
+pub use serial::{device_path, OnOpen, SerialLink};
 
 pub(crate) use error::Rounded;
 pub use error::{CodecError, ErrorKind, LinkError};

@@ -66,9 +66,13 @@ pub(crate) mod ofdm;
 pub(crate) mod quantise;
 pub(crate) mod spec;
 
-pub use ber::*;
-pub use bits::*;
-pub use msk_lfm::*;
-pub use ofdm::*;
-pub use quantise::*;
-pub use spec::*;
+pub use ber::{
+    ber_msk_lfm_theory, ber_ofdm_theory, measure_ber_msk_lfm, measure_ber_ofdm, BerBudget, BerPoint,
+};
+pub use bits::{unframe_payload, BitSource};
+pub use msk_lfm::{MskLfm, MskLfmParams, MskLfmSignal, PulseLength};
+pub use ofdm::{
+    Equalisation, Ofdm, OfdmParams, OfdmReceiver, OfdmReception, OfdmSignal, SymbolMatrix,
+};
+pub use quantise::{quantise, BackoffReference, Quantised};
+pub use spec::{SweepBand, WaveformKind, WaveformSpec};

@@ -22,8 +22,9 @@ use tokio::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_radbench");
 const C0: f64 = 299_792_458.0;
-/// Longest any one radbench invocation may take here.
-const LIMIT: Duration = Duration::from_secs(120);
+/// Longest any one radbench invocation may take here: a bound for a hang, not a speed test
+/// (the thesis-lab chapter takes ~45 s of CPU in the test build and ran 94 s at a load of 8).
+const LIMIT: Duration = Duration::from_secs(240);
 
 fn example(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -103,10 +103,48 @@ fn paths(text: &str) -> Vec<Vec<String>> {
     out
 }
 
+/// `text` without the statements that re-export a child module's items (`pub use child::{A, b};`,
+/// `pub(crate) use self::child::C;`): a layer naming what it offers from its own files is its
+/// public face, not a dependency on them (the parent only re-exports; the glob form of the
+/// same statement, `pub use child::*`, was never counted either).
+fn without_child_re_exports(me: &Module, text: &str, modules: &BTreeSet<Module>) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find("pub") {
+        let (before, from) = rest.split_at(at);
+        out.push_str(before);
+        let statement_end = from.find(';').map_or(from.len(), |e| e + 1);
+        let statement = &from[..statement_end];
+        let after_vis = statement
+            .strip_prefix("pub(crate)")
+            .or_else(|| statement.strip_prefix("pub"))
+            .unwrap_or(statement);
+        let child = after_vis
+            .trim_start()
+            .strip_prefix("use ")
+            .map(|p| p.trim_start().trim_start_matches("self::"))
+            .and_then(|p| p.split("::").next())
+            .map(|first| {
+                let mut m = me.clone();
+                m.push(first.trim().to_owned());
+                m
+            });
+        let starts_word = before.chars().last().is_none_or(|c| !is_word(c));
+        if starts_word && child.is_some_and(|c| modules.contains(&c)) {
+            rest = &from[statement_end..];
+        } else {
+            out.push_str("pub");
+            rest = &from[3..];
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
 /// The modules of `modules` that module `me` names.
 fn imports(me: &Module, text: &str, modules: &BTreeSet<Module>) -> BTreeSet<Module> {
     let mut found = BTreeSet::new();
-    for path in paths(&code(text)) {
+    for path in paths(&without_child_re_exports(me, &code(text), modules)) {
         let mut base: Module = match path[0].as_str() {
             "crate" => Vec::new(),
             "self" => me.clone(),
@@ -175,7 +213,7 @@ fn no_two_modules_of_dsp_or_waveform_import_each_other() {
 
 /// The circles left in the other layers and mock_lab (docs/architecture.md counts them): a
 /// ratchet, so that none is added while they are taken apart.
-const KNOWN_CIRCLES: usize = 40;
+const KNOWN_CIRCLES: usize = 39;
 
 #[test]
 fn import_circles_elsewhere_do_not_grow() {
@@ -220,4 +258,11 @@ fn the_circle_check_sees_parents_children_and_groups() {
     assert_eq!(found, ["dsp", "dsp::metrics", "dsp::music::root"]);
     let found = imports(&m("dsp::music::root"), "use super::Music;", &modules);
     assert!(found.contains(&m("dsp::music")));
+    // A parent naming its child's items is its public face, not an import of the child; a
+    // re-export from elsewhere still counts.
+    let text =
+        "pub use root::{A, b};\npub(crate) use self::root::C;\npub use super::metrics::Axis;";
+    let found = imports(&m("dsp::music"), text, &modules);
+    let found: Vec<String> = found.iter().map(|p| p.join("::")).collect();
+    assert_eq!(found, ["dsp::metrics"]);
 }

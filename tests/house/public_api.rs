@@ -259,3 +259,28 @@ fn every_public_item_of_mock_lab_is_used_outside_it() {
     let unused = unused_public_items(&root.join("mock_lab/src/lib.rs"), &outside);
     assert_all_used("mock_lab", &unused);
 }
+
+/// Each layer names what it re-exports (issue 42: "0 glob re-exports in the library's layers"):
+/// a `mod.rs` is the list of what its layer offers, and a new `pub` item is offered by adding
+/// its name there, not by the file it lives in. Glob imports for a file's own use (`use x::*`,
+/// e.g. `use super::*` in unit tests) are not re-exports and stay allowed.
+#[test]
+fn no_layer_re_exports_by_glob() {
+    let mut files = Vec::new();
+    sources(&root().join("src"), &mut files);
+    let mut globs = Vec::new();
+    for file in &files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let line = line.trim_start();
+            if line.starts_with("pub") && line.contains(" use ") && line.ends_with("::*;") {
+                globs.push(format!("{}:{}: {line}", file.display(), n + 1));
+            }
+        }
+    }
+    assert!(
+        globs.is_empty(),
+        "re-export these by name (pub use x::{{A, b}}):\n{}",
+        globs.join("\n")
+    );
+}

@@ -24,9 +24,9 @@ pub(crate) mod profiles;
 pub(crate) mod summary;
 pub(crate) mod sweep;
 
-pub use figures::*;
-pub use plots::*;
-pub use profiles::*;
+pub use figures::{theory, wilson95};
+pub use plots::{svg, Chart, HLine, Point, Series, Style};
+pub use profiles::step_profiles;
 
 use super::error::{io, CampaignError};
 use super::manifest::Manifest;

@@ -15,7 +15,10 @@ mod vendor;
 
 /// The LeCroy waveform format lives in [`crate::trc`] (a pure codec shared with file readers).
 pub use crate::trc as wavedesc;
-pub use commands::*;
+pub use commands::{
+    offset, sample_rate, segments, volts_per_div, waveform, COMMAND_ERRORS, SEGMENTS_QUERY, STATUS,
+    STOP,
+};
 
 use std::time::Duration;
 

@@ -6,7 +6,8 @@
 
 pub(crate) mod codec;
 
-pub use codec::*;
+pub(crate) use codec::FIRST_MESSAGE_ID;
+pub use codec::{encode_frame, msg, Frame, FrameDecoder, Header, HEADER_LEN};
 
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};

@@ -7,7 +7,8 @@
 
 pub(crate) mod codec;
 
-pub use codec::*;
+pub(crate) use codec::next_seq;
+pub use codec::{op, Block, BlockDecoder, Header, HEADER_LEN, VERSION};
 
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};

@@ -9,8 +9,14 @@
 pub(crate) mod messages;
 pub(crate) mod rpc;
 
-pub use messages::*;
-pub use rpc::*;
+pub use messages::{
+    decode_create_link, decode_error, decode_read_resp, decode_readstb_resp, decode_write_resp,
+    error, flags, proc_, reason, CreateLinkResp, ReadResp, VERSION,
+};
+pub(crate) use rpc::encode_call_header;
+pub use rpc::{
+    accept, decode_reply, pad, record_mark, RecordDecoder, Reply, ReplyFault, XdrReader, XdrWriter,
+};
 
 use super::error::LinkError;
 use super::io::{connect_tcp, write_parts, LinkOptions, ReadContext, Reassembly};
@@ -223,9 +229,7 @@ impl Vxi11Link {
                 protocol: "portmapper",
                 detail: format!(
                     "no VXI-11 core program registered on {host} (port {port}); give the port explicitly as TCPIP::{host},PORT::inst0::INSTR"
-                ),
-            }),
-        }
+                )})}
     }
 
     pub(crate) async fn write_message(
