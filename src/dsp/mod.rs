@@ -46,7 +46,7 @@ pub use correlate::{fast_fft_len, CrossCorrelator, Strategy};
 pub use decimate::{Alignment, Decimator, DecimatorConfig, LowPassSpec, PeriodicDecimator};
 pub use detect::{
     CfarKind, DetectOptions, DetectedTarget, Detections, Detector, Method, NoiseEstimate,
-    PointSpread, PsfShape, Sidelobes, SpectralLines, TabulatedPsf,
+    PointSpread, PsfShape, ResidualFloor, Sidelobes, SpectralLines, TabulatedPsf,
 };
 pub use metrics::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Axis, CaCfar,
