@@ -38,32 +38,21 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 __all__ = ["WORKER_CONFIG", "worker_environment", "units", "process_unit", "process_bag", "register"]
 
-#: Dask configuration for the workers that run radbench's units (see :func:`worker_environment`):
-#: each worker process's memory set up as the command line sets up its own (``src/main.rs``).
+#: Dask configuration for the workers that run radbench's units (see :func:`worker_environment`).
 #: Dask's nanny starts every worker with ``MALLOC_TRIM_THRESHOLD_=65536``, which also switches
 #: off glibc's adaptive mmap threshold: each of a unit's large buffers is then mapped and faulted
-#: in afresh, and a unit runs ~30 % slower (measured: 2 workers, 9.8 against 13.4 captures/s;
-#: docs/catalog.md). Here glibc keeps freed memory for reuse (mmap threshold 256 MiB, trim
-#: threshold 512 MiB, top pad 64 MiB, as ``radbench`` itself), and radbench's buffers of 1 MiB or
-#: more sit on transparent huge pages, reused once freed (``RADBENCH_HUGE_PAGES=on``, the
-#: extension's allocator, off by default in other processes). The cost: a worker's resident size
-#: stays at its peak (a few units' buffers). Workers started with ``dask worker`` read the same
-#: keys from their own configuration.
-WORKER_CONFIG: Dict[str, Any] = {
-    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": str(512 << 20),
-    "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": str(256 << 20),
-    "distributed.nanny.pre-spawn-environ.MALLOC_TOP_PAD_": str(64 << 20),
-    "distributed.nanny.pre-spawn-environ.RADBENCH_HUGE_PAGES": "on",
-}
+#: in afresh, and a unit runs ~30 % slower (measured: 2 workers, 9.5 against 13.4 captures/s;
+#: docs/catalog.md). None unsets it (workers then return freed memory to the system later).
+#: Workers started with ``dask worker`` read the same key from their own configuration.
+WORKER_CONFIG: Dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
 @contextlib.contextmanager
 def worker_environment() -> Iterator[None]:
-    """Starts the workers of the cluster made inside it with radbench's memory set-up instead of
-    Dask's malloc trim threshold (:data:`WORKER_CONFIG`):
-    ``with rd.worker_environment(), LocalCluster(...) as cluster:``. Also removes Dask's
-    threshold from this process's environment, where an earlier cluster's nanny leaves it (and
-    every later worker would inherit it). Needs dask."""
+    """Starts the workers of the cluster made inside it without Dask's malloc trim threshold
+    (:data:`WORKER_CONFIG`): ``with rd.worker_environment(), LocalCluster(...) as cluster:``.
+    Also removes the variable from this process's environment, where an earlier cluster's
+    nanny leaves it (and every later worker would inherit it). Needs dask."""
     import dask
 
     os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
