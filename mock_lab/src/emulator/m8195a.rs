@@ -50,6 +50,10 @@ struct Inner {
     options: Option<Vec<String>>,
     /// What `:FREQ:RAST? MAX` answers instead of the catalog's limit (another unit).
     pub(super) raster_max: Option<f64>,
+    /// What the AWG plays, as last built: the scope asks every few milliseconds while it waits
+    /// for a trigger, and building it copies the selected segments (megabytes). Cleared by every
+    /// message, the only way the state changes.
+    playback: Option<Playback>,
 }
 
 /// The emulated M8195A.
@@ -88,6 +92,7 @@ impl M8195a {
                 sre: 0,
                 options: None,
                 raster_max: None,
+                playback: None,
             }),
             log: ReceivedLog::new("m8195a", LOG_CAPACITY),
             model,
@@ -110,8 +115,13 @@ impl M8195a {
 
     /// What the AWG plays now (for the scene physics and tests).
     pub fn playback(&self) -> Playback {
-        let inner = self.lock();
-        inner.state.playback(&self.model)
+        let mut inner = self.lock();
+        if let Some(playback) = &inner.playback {
+            return playback.clone();
+        }
+        let playback = inner.state.playback(&self.model);
+        inner.playback = Some(playback.clone());
+        playback
     }
 
     /// A copy of the full settings and memory.
@@ -132,6 +142,7 @@ impl M8195a {
     pub fn execute(&self, message: &[u8]) -> Option<String> {
         self.log.record(message);
         let mut inner = self.lock();
+        inner.playback = None;
         let mut responses = Vec::new();
         let units = match split_units(message) {
             Ok(units) => units,

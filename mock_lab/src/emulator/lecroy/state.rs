@@ -5,6 +5,7 @@ use super::wavedesc::{
     one_two_five_index, waveform_block, ByteOrder, SampleWidth, TriggerTimestamp, WaveDesc,
 };
 use crate::catalog::DigitizerModel;
+use std::borrow::Cow;
 
 /// Most points per channel the emulator records (it keeps them in RAM); larger requests adapt.
 pub const EMULATOR_MAX_POINTS: u64 = 8 * 1024 * 1024;
@@ -422,11 +423,11 @@ impl ScopeState {
     /// What `WAVEFORM_SETUP` picks of a recorded channel: the values (SN 0 every segment of a
     /// sequence, k only the k-th, 1-based \[I\]; then first point, sparsing and count within
     /// each), the points of one segment, and the TRIGTIME entries of the segments picked.
-    fn window_of(
+    fn window_of<'a>(
         &self,
         acq: &Acquisition,
-        c: &RecordedChannel,
-    ) -> (Vec<i16>, u32, Vec<(f64, f64)>) {
+        c: &'a RecordedChannel,
+    ) -> (Cow<'a, [i16]>, u32, Vec<(f64, f64)>) {
         let count = acq.segment_times.len().max(1);
         let seg_len = c.values.len() / count;
         let chosen: Vec<usize> = match self.window.segment as usize {
@@ -436,15 +437,30 @@ impl ScopeState {
         };
         let first = self.window.first as usize;
         let sparsing = self.window.sparsing.max(1) as usize;
-        let mut values = Vec::new();
-        for &k in &chosen {
-            let segment = &c.values[k * seg_len..(k + 1) * seg_len];
-            let part = segment.iter().skip(first).step_by(sparsing).copied();
-            match self.window.points {
-                0 => values.extend(part),
-                n => values.extend(part.take(n as usize)),
-            }
-        }
+        let per_segment = seg_len.saturating_sub(first).div_ceil(sparsing);
+        let per_segment = match self.window.points {
+            0 => per_segment,
+            n => per_segment.min(n as usize),
+        };
+        let values =
+            if chosen.len() == count && first == 0 && sparsing == 1 && per_segment == seg_len {
+                // The whole record, as recorded: lent, not copied (it is millions of samples).
+                Cow::Borrowed(&c.values[..count * seg_len])
+            } else {
+                let mut values = Vec::with_capacity(chosen.len() * per_segment);
+                for &k in &chosen {
+                    let segment = &c.values[k * seg_len..(k + 1) * seg_len];
+                    values.extend(
+                        segment
+                            .iter()
+                            .skip(first)
+                            .step_by(sparsing)
+                            .take(per_segment)
+                            .copied(),
+                    );
+                }
+                Cow::Owned(values)
+            };
         let offset = acq.first_point_s + f64::from(self.window.first) / acq.sample_rate;
         let times = if acq.segment_times.len() > 1 {
             chosen
@@ -465,14 +481,14 @@ impl ScopeState {
         let recorded = self
             .acquisition
             .as_ref()
-            .and_then(|a| a.channels.get(ch).cloned().flatten().map(|c| (a, c)));
+            .and_then(|a| a.channels.get(ch)?.as_ref().map(|c| (a, c)));
         let sparsing = self.window.sparsing.max(1);
         let (values, desc_base, trigger_times) = match &recorded {
             Some((acq, c)) => {
                 let (values, seg_len, times) = self.window_of(acq, c);
                 (values, Some((acq, c, seg_len)), times)
             }
-            None => (Vec::new(), None, Vec::new()),
+            None => (Cow::Borrowed(&[][..]), None, Vec::new()),
         };
         let byte = self.width == SampleWidth::Byte;
         let word_to_desc = if byte { 256.0 } else { 1.0 };

@@ -213,33 +213,44 @@ pub(crate) fn encode(d: &WaveDesc) -> [u8; WAVEDESC_LEN] {
 }
 
 /// Encodes samples (16-bit scope values) in the requested width and order.
+#[cfg(test)]
 pub(crate) fn encode_samples(values: &[i16], width: SampleWidth, order: ByteOrder) -> Vec<u8> {
+    let mut out = Vec::new();
+    encode_samples_into(&mut out, values, width, order);
+    out
+}
+
+/// Appends the samples, encoded, to `out` (a record is millions of samples: written once, in
+/// place, rather than encoded apart and copied).
+fn encode_samples_into(out: &mut Vec<u8>, values: &[i16], width: SampleWidth, order: ByteOrder) {
     match width {
-        SampleWidth::Byte => values.iter().map(|v| (v >> 8) as i8 as u8).collect(),
+        SampleWidth::Byte => out.extend(values.iter().map(|v| (v >> 8) as i8 as u8)),
         SampleWidth::Word => {
-            let mut out = Vec::with_capacity(values.len() * 2);
+            out.reserve(values.len() * 2);
             for v in values {
                 out.extend_from_slice(&match order {
                     ByteOrder::HiFirst => v.to_be_bytes(),
                     ByteOrder::LoFirst => v.to_le_bytes(),
                 });
             }
-            out
         }
     }
 }
 
 /// `#9<9 digits>` + WAVEDESC + data array: the block of `WF? ALL` and the content of a `.trc` file.
 pub(crate) fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
-    let data = encode_samples(values, desc.width, desc.order);
     let trigtime = desc.trigtime_array();
-    let len = WAVEDESC_LEN + trigtime.len() + data.len();
+    let data_len = match desc.width {
+        SampleWidth::Byte => values.len(),
+        SampleWidth::Word => values.len() * 2,
+    };
+    let len = WAVEDESC_LEN + trigtime.len() + data_len;
     let mut out = Vec::with_capacity(11 + len);
     out.extend_from_slice(format!("#9{len:09}").as_bytes());
     out.extend_from_slice(&encode(desc));
     // Array order after the descriptor: USER_TEXT (none), TRIGTIME, RIS_TIME (none), data.
     out.extend_from_slice(&trigtime);
-    out.extend_from_slice(&data);
+    encode_samples_into(&mut out, values, desc.width, desc.order);
     out
 }
 
