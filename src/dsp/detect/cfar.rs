@@ -1,4 +1,6 @@
 //! The CFAR detector ([`Method::Cfar`]): peaks over a sliding-window threshold, twice.
+//! A peak under a stronger one's side-lobe envelope, or under the calibration's residual
+//! profile around it ([`DetectOptions::residual_floor`]), is that one's, not a target.
 
 use super::*;
 
@@ -36,7 +38,8 @@ impl Detector {
         for &c in &peaks {
             let masked = kept.iter().any(|&k| {
                 let d = (c as f64 - k as f64).abs();
-                d < min_sep || self.power[c] < self.power[k] * self.shape.envelope_at(d) * margin
+                let mask = self.shape.envelope_at(d) * margin + self.residual_at(c, k);
+                d < min_sep || self.power[c] < self.power[k] * mask
             });
             if !masked {
                 kept.push(c);
@@ -51,14 +54,16 @@ impl Detector {
         }
         self.model.refine(psf, z, fitw, MAX_SWEEPS);
         self.merge_close(min_sep);
-        // The reported threshold: the CFAR's, raised to the side-lobe mask of the kept peaks.
+        // The reported threshold: the CFAR's, raised to the side-lobe mask of the kept peaks
+        // (and the calibration's residual around them, where there is one).
         self.threshold.clear();
         self.threshold.extend_from_slice(&self.noise_thr);
         for &k in &kept {
-            for (c, t) in self.threshold.iter_mut().enumerate() {
+            for c in 0..n {
                 let d = (c as f64 - k as f64).abs();
                 if d >= 1.0 {
-                    *t = t.max(self.power[k] * self.shape.envelope_at(d) * margin);
+                    let mask = self.shape.envelope_at(d) * margin + self.residual_at(c, k);
+                    self.threshold[c] = self.threshold[c].max(self.power[k] * mask);
                 }
             }
         }

@@ -65,6 +65,7 @@
 //! profile (`dsp::residual`). With [`DetectOptions::residual_floor`] set, each fitted target adds
 //! `|a_i|^2 R(d)` times a 6 dB margin to the threshold at offset `d` behind or ahead of it, beyond
 //! its main lobe (the first null): a residue under it is not a target, a real target over it is.
+//! CFAR adds the same to its side-lobe mask around each kept peak.
 //!
 //! # Per-target metrics
 //! Width and peak side-lobe level are measured on a target's **own response**: the profile minus
@@ -399,6 +400,17 @@ impl Detector {
             self.residual_behind.push(behind);
             self.residual_ahead.push(ahead);
         }
+    }
+
+    /// The residual floor at cell `c` relative to a target at cell `at` (margin included; 0
+    /// within its main lobe, beyond the profile's reach or without a residual profile).
+    fn residual_at(&self, c: usize, at: usize) -> f64 {
+        let side = if c >= at {
+            &self.residual_behind
+        } else {
+            &self.residual_ahead
+        };
+        side.get(c.abs_diff(at)).copied().unwrap_or(0.0)
     }
 
     /// The highest chain floor at cell `x`, leaving out a target at `skip` (and any within a

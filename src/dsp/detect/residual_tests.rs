@@ -8,6 +8,10 @@ use crate::rng::SplitMix64;
 const STEP_M: f64 = 0.0375;
 
 fn detector(floor: Option<ResidualFloor>) -> Detector {
+    detector_with(floor, DetectOptions::default().method)
+}
+
+fn detector_with(floor: Option<ResidualFloor>, method: Method) -> Detector {
     let mut w = vec![0.0; 256];
     crate::dsp::window::Window::Taylor {
         nbar: 4,
@@ -21,6 +25,7 @@ fn detector(floor: Option<ResidualFloor>) -> Detector {
         psf,
         DetectOptions {
             residual_floor: floor,
+            method,
             ..DetectOptions::default()
         },
     )
@@ -81,6 +86,31 @@ fn the_residue_is_a_target_without_the_floor_and_not_with_it_and_the_weak_pillar
     assert!(near(&with, 7.5) && near(&with, 8.5), "{with:?}");
     // A real target 10 dB over the profile's margin at the residue's place is still one.
     let strong = found(&mut det, -47.0);
+    assert!(near(&strong, 7.5 + 1.4), "{strong:?}");
+}
+
+/// CFAR masks what lies under a kept peak's side-lobe envelope; a residue over that envelope
+/// but under the calibration's profile (its margin included) is masked too.
+#[test]
+fn cfar_masks_a_residue_under_the_profile_and_keeps_a_target_over_it() {
+    let cfar = Method::Cfar { kind: CfarKind::Ca };
+    let mut plain = detector_with(None, cfar);
+    let envelope_db = 10.0 * plain.shape.envelope_at(1.4 / STEP_M).log10();
+    // 20 dB over the envelope (CFAR's mask is the envelope plus 3 dB; its training cells hold
+    // the strong target's side-lobes, which puts its own threshold about 13 dB over them).
+    let residue_db = envelope_db + 20.0;
+    let near = |r: &[f64], at: f64| r.iter().any(|x| (x - at).abs() < 0.01);
+    let without = found(&mut plain, residue_db);
+    assert!(near(&without, 7.5 + 1.4), "{envelope_db} dB: {without:?}");
+    // The profile 3 dB under the residue: with the 6 dB margin it covers it.
+    let mut behind = vec![-100.0; 60];
+    behind[28] = residue_db - 3.0;
+    let floor = ResidualFloor::from_db(0.05, &behind, &[-100.0; 60]).unwrap();
+    let mut det = detector_with(Some(floor), cfar);
+    let with = found(&mut det, residue_db);
+    assert!(!near(&with, 7.5 + 1.4) && near(&with, 7.5), "{with:?}");
+    // A target 10 dB over the profile's margin at that place is still one.
+    let strong = found(&mut det, residue_db + 13.0);
     assert!(near(&strong, 7.5 + 1.4), "{strong:?}");
 }
 
