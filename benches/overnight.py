@@ -267,11 +267,27 @@ def main():
             if code != 0:
                 print("".join(notes[-20:]), file=sys.stderr)
             results[label] = json.loads((out / "results.json").read_text())
+            if args.save:
+                shutil.copy(out / "results.json", args.save / f"{label}-results.json")
+                if inject:
+                    (args.save / "faults.json").write_text(json.dumps(
+                        {"injected": injected, "retries": retries}, indent=1))
             # 5000 steps are ~17 GB: only results.json is compared, so the run goes before the next.
             shutil.rmtree(out)
     if args.compare:
         same = results["faults"] == results["undisturbed"]
         print(f"results.json equal to the undisturbed run's: {same}")
+        if not same:
+            a, b = results["faults"]["steps"], results["undisturbed"]["steps"]
+            if len(a) != len(b):
+                print(f"  {len(a)} steps against {len(b)}")
+            differ = [x["index"] for x, y in zip(a, b) if x != y]
+            print(f"  steps that differ ({len(differ)}): {differ[:40]}")
+            for x, y in zip(a, b):
+                if x != y:
+                    keys = sorted(k for k in set(x) | set(y) if x.get(k) != y.get(k))
+                    print(f"  first: step {x['index']}, keys {keys}")
+                    break
         return 0 if same else 1
     return 0
 
