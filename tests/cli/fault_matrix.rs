@@ -12,7 +12,7 @@
 //! |---------|----------------------------------------|-------------------------|
 //! | `First` | step 1 (nothing of a step written yet) | step 1's files |
 //! | `Mid`   | step 2, once step 1 is recorded        | step 2's files; a full disk has room for them, not for the manifest's journal line recording them |
-//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their manifest, not for the report (`results.json`, `results.csv` and `report.md` fit, `report.html` does not) |
+//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their journal line, not for the report (`results.json`, `results.csv` and `report.md` fit, `report.html` does not) |
 //!
 //! Every later write of the session is refused too (the next steps' files, `results.json`, the
 //! report, the manifest).
