@@ -4,8 +4,10 @@ mock-lab serve`, with a transient fault injected over the lab's control channel 
 steps (a dropped AWG or scope connection, the Tx power-cycled, the marker cable out for longer
 than the acquisition's wait), and radbench's memory (VmRSS), open file descriptors and threads
 sampled every second. It prints the samples' first and last tenths (flat: no leak over the
-night), the faults injected and the retries the manifest recorded, and, with --compare, whether
-results.json equals an undisturbed run's on a fresh lab.
+night), the steps' own first and last tenths (the time between two steps' starts, and the step
+worker's bookkeeping: hashing the files and storing the manifest, from radbench's debug log),
+the manifest's size at the end, the faults injected and the retries the manifest recorded, and,
+with --compare, whether results.json equals an undisturbed run's on a fresh lab.
 
 It is a benchmark, not a test: minutes per run (about 50 ms a step on a quiet PC).
 
@@ -21,6 +23,7 @@ import argparse
 import json
 import os
 import random
+import re
 import shutil
 import socket
 import statistics
@@ -95,7 +98,7 @@ def spec_file(path, steps, bench):
 
 
 class Sampler(threading.Thread):
-    """VmRSS (kB), open descriptors and threads of `pid`, every second."""
+    """VmRSS (kB), open descriptors and threads of `pid`, and the load average, every second."""
 
     def __init__(self, pid):
         super().__init__(daemon=True)
@@ -113,12 +116,20 @@ class Sampler(threading.Thread):
             fields = dict(line.split(":", 1) for line in status.splitlines() if ":" in line)
             rss = int(fields["VmRSS"].split()[0])
             threads = int(fields["Threads"])
-            self.samples.append((time.monotonic(), rss, fds, threads))
+            # The machine's load (1-minute average): the steps' times depend on it.
+            load = float(Path("/proc/loadavg").read_text().split()[0])
+            self.samples.append((time.monotonic(), rss, fds, threads, load))
+
+
+# The runner's debug line per step (src/campaign/runner.rs, `settle_oldest`).
+STEP_LOG = re.compile(r"step processed and written.*?step=(\d+).*?bookkeeping_s=([0-9.e-]+).*?waited_s=([0-9.e-]+)")
 
 
 def run_campaign(binary, spec, out, every, inject, control_address, seed):
     cmd = [binary, "campaign", "run", str(spec), "--allow-rf", "--json", "--out", str(out)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Warnings as without it, and the runner's line per step (the worker's bookkeeping time).
+    env = dict(os.environ, RADBENCH_LOG="warn,radbench::campaign::runner=debug", NO_COLOR="1")
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     sampler = Sampler(proc.pid)
     sampler.start()
     rng = random.Random(seed)
@@ -128,11 +139,16 @@ def run_campaign(binary, spec, out, every, inject, control_address, seed):
     err_reader = threading.Thread(target=lambda: notes.extend(proc.stderr), daemon=True)
     err_reader.start()
     next_at = every
+    starts = {}
     for line in proc.stdout:
         event = json.loads(line)
-        if event.get("event") != "start" or not inject:
+        if event.get("event") != "start":
             continue
         index = event["index"]
+        # The first start of each step (a retried step starts once).
+        starts.setdefault(index, time.monotonic())
+        if not inject:
+            continue
         if index >= next_at:
             next_at = index + rng.randint(every // 2, every + every // 2)
             request, undo = FAULTS[len(injected) % len(FAULTS)]
@@ -150,14 +166,31 @@ def run_campaign(binary, spec, out, every, inject, control_address, seed):
     err_reader.join(timeout=5)
     for t in timers:
         t.join()
-    return code, sampler.samples, injected, notes
+    order = sorted(starts)
+    step_s = [starts[b] - starts[a] for a, b in zip(order, order[1:]) if b == a + 1]
+    bookkeeping = []
+    kept_notes = []
+    for note in notes:
+        m = STEP_LOG.search(note)
+        if m:
+            bookkeeping.append((int(m[1]), float(m[2]), float(m[3])))
+        else:
+            kept_notes.append(note)
+    bookkeeping.sort()
+    return code, sampler.samples, injected, kept_notes, step_s, bookkeeping
+
+
+def first_last(values):
+    """Medians of the first and the last tenth of `values`."""
+    n = max(1, len(values) // 10)
+    return statistics.median(values[:n]), statistics.median(values[-n:])
 
 
 def tenths(samples):
-    n = max(1, len(samples) // 10)
-    first, last = samples[:n], samples[-n:]
-    pick = lambda rows, k: statistics.median(r[k] for r in rows)
-    return [(name, pick(first, k), pick(last, k)) for name, k in (("VmRSS kB", 1), ("fds", 2), ("threads", 3))]
+    return [
+        (name, *first_last([r[k] for r in samples]))
+        for name, k in (("VmRSS kB", 1), ("fds", 2), ("threads", 3), ("load avg", 4))
+    ]
 
 
 def main():
@@ -168,6 +201,7 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--bin", default=os.environ.get("RADBENCH_BIN"), help="radbench binary")
     ap.add_argument("--no-build", action="store_true", help="do not run cargo build --release")
+    ap.add_argument("--save", type=Path, help="write each run's samples and per-step times there (CSV)")
     args = ap.parse_args()
     binary = args.bin or str(ROOT / "target/release/radbench")
     if not args.no_build and not args.bin:
@@ -187,7 +221,7 @@ def main():
                 spec_file(spec, args.steps, bench)
                 out = tmp / f"run-{label}"
                 t0 = time.monotonic()
-                code, samples, injected, notes = run_campaign(
+                code, samples, injected, notes, step_s, bookkeeping = run_campaign(
                     binary, spec, out, args.every, inject, described["control"], args.seed
                 )
                 wall = time.monotonic() - t0
@@ -205,15 +239,55 @@ def main():
                 if spent:
                     print(f"  WARNING: {len(spent)} retries beyond the second")
             for name, first, last in tenths(samples):
-                print(f"  {name:9}: first tenth {first:10.0f}, last tenth {last:10.0f}")
+                print(f"  {name:9}: first tenth {first:10.1f}, last tenth {last:10.1f}")
+            if step_s:
+                first, last = first_last(step_s)
+                print(f"  step (start to next start), median: first tenth {1000 * first:.1f} ms, "
+                      f"last tenth {1000 * last:.1f} ms")
+            if bookkeeping:
+                first, last = first_last([b for _, b, _ in bookkeeping])
+                print(f"  worker's bookkeeping a step (hashing, manifest), median: first tenth "
+                      f"{1000 * first:.1f} ms, last tenth {1000 * last:.1f} ms")
+                first, last = first_last([w for _, _, w in bookkeeping])
+                print(f"  capture path waiting for the worker a step, median: first tenth "
+                      f"{1000 * first:.1f} ms, last tenth {1000 * last:.1f} ms")
+            print(f"  manifest.toml at the end: {(out / 'manifest.toml').stat().st_size / 1e6:.1f} MB")
+            if args.save:
+                args.save.mkdir(parents=True, exist_ok=True)
+                with open(args.save / f"{label}-samples.csv", "w") as f:
+                    f.write("t_s,vmrss_kb,fds,threads,loadavg\n")
+                    t0s = samples[0][0] if samples else 0
+                    f.writelines(f"{t - t0s:.2f},{r},{d},{n},{a}\n" for t, r, d, n, a in samples)
+                with open(args.save / f"{label}-steps.csv", "w") as f:
+                    f.write("step,bookkeeping_s,waited_s\n")
+                    f.writelines(f"{k},{b:.6f},{w:.6f}\n" for k, b, w in bookkeeping)
+                with open(args.save / f"{label}-intervals.csv", "w") as f:
+                    f.write("k,start_to_next_start_s\n")
+                    f.writelines(f"{k},{v:.6f}\n" for k, v in enumerate(step_s, 1))
             if code != 0:
                 print("".join(notes[-20:]), file=sys.stderr)
             results[label] = json.loads((out / "results.json").read_text())
+            if args.save:
+                shutil.copy(out / "results.json", args.save / f"{label}-results.json")
+                if inject:
+                    (args.save / "faults.json").write_text(json.dumps(
+                        {"injected": injected, "retries": retries}, indent=1))
             # 5000 steps are ~17 GB: only results.json is compared, so the run goes before the next.
             shutil.rmtree(out)
     if args.compare:
         same = results["faults"] == results["undisturbed"]
         print(f"results.json equal to the undisturbed run's: {same}")
+        if not same:
+            a, b = results["faults"]["steps"], results["undisturbed"]["steps"]
+            if len(a) != len(b):
+                print(f"  {len(a)} steps against {len(b)}")
+            differ = [x["index"] for x, y in zip(a, b) if x != y]
+            print(f"  steps that differ ({len(differ)}): {differ[:40]}")
+            for x, y in zip(a, b):
+                if x != y:
+                    keys = sorted(k for k in set(x) | set(y) if x.get(k) != y.get(k))
+                    print(f"  first: step {x['index']}, keys {keys}")
+                    break
         return 0 if same else 1
     return 0
 

@@ -406,6 +406,42 @@ def _lock_is_held(root: Path) -> bool:
         return False
 
 
+#: The manifest's step journal: while a session runs, one JSON line per step recorded since
+#: ``manifest.toml`` was last stored whole (docs/campaign.md, "Long runs").
+STEPS_JOURNAL = "manifest-steps.jsonl"
+
+
+def _merge_steps_journal(root: Path, manifest: Dict[str, Any]) -> None:
+    """Merges the run folder's step journal, if any, into ``manifest`` as radbench's own
+    readers do: each whole line of the file's last session, while that session has not ended
+    (a line cut short, or one that does not read, ends the journal)."""
+    try:
+        data = (root / STEPS_JOURNAL).read_bytes()
+    except FileNotFoundError:
+        return
+    sessions = manifest.get("sessions") or []
+    steps = manifest.get("steps") or []
+    if not sessions or "ended" in sessions[-1]:
+        return
+    lines = data.split(b"\n")[:-1]  # the last piece has no newline: not whole
+    for raw in lines:
+        try:
+            line = json.loads(raw)
+            index = int(line["step"]["index"])
+            ok = line["session"] == len(sessions) and line["step"]["status"] == "done"
+        except (ValueError, KeyError, TypeError):
+            break
+        if not ok or not 1 <= index <= len(steps):
+            break
+        steps[index - 1] = line["step"]
+        retries = manifest.setdefault("retries", [])
+        for r in line.get("retries", []):
+            if r not in retries:
+                retries.append(r)
+        manifest["updated"] = line["updated"]
+        sessions[-1]["timing"] = line["timing"]
+
+
 def _json_file(path: Path) -> Optional[Dict[str, Any]]:
     if not path.is_file():
         return None
@@ -425,6 +461,7 @@ def read_run(path: PathLike, *, captures: bool = True) -> Run:
             manifest = _toml.load(f)
     except (OSError, ValueError) as e:
         raise InputError(f"{manifest_path}: {e}") from e
+    _merge_steps_journal(root, manifest)
     if manifest.get("status") == "running" and not _lock_is_held(root):
         manifest["status"] = "interrupted"
         manifest.setdefault("reason", STALE_REASON)

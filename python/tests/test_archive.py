@@ -72,3 +72,34 @@ def test_a_running_manifest_nobody_works_on_reads_as_interrupted(campaign, tmp_p
         assert radbench.read_run(run_dir, captures=False).status == "running"
     r = radbench.read_run(run_dir, captures=False)
     assert r.status == "interrupted" and r.manifest["reason"] == radbench.STALE_REASON
+
+
+def test_the_steps_journal_of_a_running_session_is_merged(campaign, tmp_path):
+    """A run whose session still runs (or stopped without storing its end) has the steps it
+    recorded since its start in manifest-steps.jsonl: read_run merges them, as radbench does."""
+    import fcntl
+    import shutil
+    run_dir = tmp_path / "run"
+    shutil.copytree(campaign, run_dir)
+    manifest = radbench.read_run(run_dir, captures=False).manifest
+    done = manifest["steps"][0]
+    assert done["status"] == "done"
+    # manifest.toml as the session's start stored it: step 1 pending, the session not ended.
+    text = (run_dir / "manifest.toml").read_text()
+    text = text.replace('status = "complete"', 'status = "running"', 1)
+    text = text.replace('status = "done"', 'status = "pending"', 1)
+    text = "\n".join(line for line in text.split("\n") if not line.startswith("ended = "))
+    (run_dir / "manifest.toml").write_text(text)
+    line = {"session": len(manifest["sessions"]), "updated": "later", "step": done,
+            "timing": manifest["sessions"][-1]["timing"]}
+    journal = run_dir / radbench.STEPS_JOURNAL
+    journal.write_text(json.dumps(line) + "\n" + json.dumps(line)[:40])
+    with open(run_dir / ".radbench.lock", "rb") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        r = radbench.read_run(run_dir, captures=False)
+    assert r.status == "running" and r.manifest["updated"] == "later"
+    assert r.manifest["steps"][0]["status"] == "done"
+    assert r.manifest["steps"][0]["files"] == done["files"]
+    # Without the journal, step 1 reads pending: the journal is what recorded it.
+    journal.unlink()
+    assert radbench.read_run(run_dir, captures=False).manifest["steps"][0]["status"] == "pending"

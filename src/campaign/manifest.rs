@@ -33,6 +33,11 @@ pub(crate) const FORMAT: u32 = 1;
 /// The manifest's file name in a run folder.
 pub const MANIFEST_FILE: &str = "manifest.toml";
 
+/// The manifest's step journal in a run folder: while a session runs, one JSON line per step
+/// recorded since the session stored `manifest.toml` whole (see [`JournalLine`]). Gone once the
+/// session's end is stored whole; readers merge what is left ([`Manifest::load`]).
+pub const STEPS_JOURNAL: &str = "manifest-steps.jsonl";
+
 /// Bytes at the start of `manifest.toml` that hold the status and are rewritten in place when
 /// the whole file cannot be (one 512-byte sector: a device writes it whole or not at all).
 pub(crate) const STATUS_ROOM: usize = 512;
@@ -114,6 +119,63 @@ pub struct Manifest {
     /// Every retry of a step after a transient fault, in order (`[run] retries`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub retries: Vec<super::retry::RetryRecord>,
+}
+
+/// One line of the step journal ([`STEPS_JOURNAL`]): a step recorded done by session
+/// `session` (1-based, as `sessions` counts them), with the retries met since the line before
+/// and the session's timing and `updated` at that moment. A reader merges a line into
+/// `manifest.toml` only when the file's last session is `session` and has not ended (else the
+/// file already holds it: a journal its session's end did not get to remove).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JournalLine {
+    pub session: usize,
+    pub updated: String,
+    pub step: StepRecord,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub retries: Vec<super::retry::RetryRecord>,
+    pub timing: Timing,
+}
+
+impl JournalLine {
+    /// The complete, well-formed lines at the start of `text`, each with the offset just past
+    /// it. A line without its newline (a write cut short by a crash or a full disk), one that
+    /// does not parse, or a step the plan does not have ends the journal there: what follows is
+    /// not trusted (a step not recorded is measured again by a resume).
+    pub(crate) fn parse_all(text: &[u8], steps: usize) -> Vec<(JournalLine, u64)> {
+        let mut lines = Vec::new();
+        let mut at = 0usize;
+        while let Some(end) = text[at..].iter().position(|&b| b == b'\n') {
+            let Ok(line) = serde_json::from_slice::<JournalLine>(&text[at..at + end]) else {
+                break;
+            };
+            if !(1..=steps).contains(&line.step.index) || line.step.status != StepStatus::Done {
+                break;
+            }
+            at += end + 1;
+            lines.push((line, at as u64));
+        }
+        lines
+    }
+
+    /// Applies this line to `m` (see the type's docs); `false` when it does not belong to `m`'s
+    /// last session or that session has ended.
+    pub(crate) fn apply(self, m: &mut Manifest) -> bool {
+        let open = m.sessions.len() == self.session
+            && m.sessions.last().is_some_and(|s| s.ended.is_none());
+        if !open {
+            return false;
+        }
+        let index = self.step.index;
+        m.steps[index - 1] = self.step;
+        for r in self.retries {
+            if !m.retries.contains(&r) {
+                m.retries.push(r);
+            }
+        }
+        m.updated = self.updated;
+        m.session_mut().timing = self.timing;
+        true
+    }
 }
 
 /// Who runs a campaign: `planned` (the spec's `[run] operator`), else the environment's
@@ -451,11 +513,37 @@ impl Manifest {
                 ),
             });
         }
+        manifest.merge_steps_journal(dir)?;
         if manifest.status == Status::Running && !super::folder::lock_is_held(dir) {
             manifest.status = Status::Interrupted;
             manifest.reason.get_or_insert_with(|| STALE_REASON.into());
         }
         Ok(manifest)
+    }
+
+    /// Merges `dir`'s step journal ([`STEPS_JOURNAL`]), when there is one, into this manifest
+    /// read from `dir/manifest.toml`: the steps recorded since the file was stored whole.
+    fn merge_steps_journal(&mut self, dir: &Path) -> Result<(), CampaignError> {
+        let path = dir.join(STEPS_JOURNAL);
+        let text = match std::fs::read(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => {
+                return Err(CampaignError::Manifest {
+                    path,
+                    message: format!("cannot read it ({e})"),
+                })
+            }
+        };
+        if self.steps.len() != self.plan.steps.len() {
+            return Ok(());
+        }
+        for (line, _) in JournalLine::parse_all(&text, self.steps.len()) {
+            if !line.apply(self) {
+                break;
+            }
+        }
+        Ok(())
     }
 
     /// The manifest's text: the status room, then the rest as `text` (the whole manifest
@@ -518,7 +606,8 @@ impl Manifest {
         Ok(())
     }
 
-    /// Writes `dir/manifest.toml` atomically and makes it durable with its folder.
+    /// Writes `dir/manifest.toml` atomically and makes it durable with its folder, then removes
+    /// the step journal (this manifest holds its steps: it was merged on loading).
     pub fn store(&mut self, dir: &Path) -> Result<(), CampaignError> {
         self.updated = crate::time::rfc3339_millis(std::time::SystemTime::now());
         let text = toml::to_string(self)
@@ -526,7 +615,8 @@ impl Manifest {
             .map_err(|e| unwritable(dir, e))?;
         // write_atomic makes the file and its folder entry durable (fsync of both).
         write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
-        Ok(())
+        // Every step is in the file now (the journal's were merged when it was loaded).
+        super::manifest_store::remove_journal(dir)
     }
 
     /// The manifest's text without its steps (the status room, then every other field), with
@@ -659,22 +749,167 @@ mod tests {
         let back = Manifest::load(dir.path()).unwrap();
         m.updated = back.updated.clone();
         assert_eq!(back, m);
-        // The step-by-step writer lays it out the same, a changed step's table replaced.
+        // The step-by-step writer lays it out the same, a recorded step's table replaced.
         let mut store = super::super::ManifestStore::default();
         store.store_whole(&mut m, dir.path()).unwrap();
         let cached = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
         assert!(cached[STATUS_ROOM..].starts_with("radbench_version = "));
         assert_eq!(Manifest::load(dir.path()).unwrap().steps, m.steps);
-        let mut changed = m.steps[0].clone();
-        changed.measured_at = Some("a longer time than before".into());
+        m.sessions.push(session());
+        store.store_whole(&mut m, dir.path()).unwrap();
+        let changed = done_step(&m, 1);
+        store
+            .record_step(&line(&m, changed.clone()), dir.path())
+            .unwrap();
         let mut head = Manifest {
             steps: Vec::new(),
             ..m.clone()
         };
-        store.store(&mut head, dir.path(), Some(&changed)).unwrap();
+        store.store(&mut head, dir.path()).unwrap();
+        assert!(!dir.path().join(STEPS_JOURNAL).exists());
         let back = Manifest::load(dir.path()).unwrap();
         assert_eq!(back.steps[0], changed);
         assert_eq!(back.steps[1..], m.steps[1..]);
+    }
+
+    fn session() -> Session {
+        Session {
+            kind: "run".into(),
+            started: "s".into(),
+            ended: None,
+            journal: "io-journal.jsonl".into(),
+            skipped: Vec::new(),
+            remeasured: Vec::new(),
+            forced: None,
+            final_safe_state: None,
+            timing: Timing::default(),
+        }
+    }
+
+    /// Step `index` of `m` done, with what the instruments applied and a file.
+    fn done_step(m: &Manifest, index: usize) -> StepRecord {
+        let mut applied = toml::map::Map::new();
+        applied.insert("sample_rate_hz".into(), toml::Value::Float(8e10));
+        applied.insert("points".into(), toml::Value::Integer(800_000));
+        applied.insert("volts".into(), toml::Value::Float(1.0));
+        StepRecord {
+            status: StepStatus::Done,
+            measured_at: Some(format!("2026-12-06T00:00:0{index}.000Z")),
+            applied: Some(toml::Value::Table(applied)),
+            files: vec![FileRecord {
+                path: format!("step-00{index}/result.json").into(),
+                bytes: 10,
+                sha256: "ab".repeat(32),
+            }],
+            ..m.steps[index - 1].clone()
+        }
+    }
+
+    fn line(m: &Manifest, step: StepRecord) -> JournalLine {
+        JournalLine {
+            session: m.sessions.len(),
+            updated: format!("u{}", step.index),
+            step,
+            retries: Vec::new(),
+            timing: Timing {
+                bench_s: 1.5,
+                ..Timing::default()
+            },
+        }
+    }
+
+    #[test]
+    fn steps_are_appended_to_the_journal_and_read_back_merged() {
+        let dir = tempfile::tempdir().unwrap();
+        let _lock = locked(dir.path());
+        let mut m = manifest();
+        m.sessions.push(session());
+        let mut store = super::super::ManifestStore::default();
+        store.store_whole(&mut m, dir.path()).unwrap();
+        let file = std::fs::read(dir.path().join(MANIFEST_FILE)).unwrap();
+        // A step recorded: the manifest is not rewritten, a line is appended.
+        let one = done_step(&m, 1);
+        let mut first = line(&m, one.clone());
+        first.retries.push(super::super::RetryRecord {
+            step: 1,
+            attempt: 1,
+            instrument: "awg".into(),
+            fault: "connection closed".into(),
+            at: "t".into(),
+            safe_state: "done".into(),
+            wait_s: 0.5,
+        });
+        store.record_step(&first, dir.path()).unwrap();
+        assert_eq!(std::fs::read(dir.path().join(MANIFEST_FILE)).unwrap(), file);
+        let journal = std::fs::read_to_string(dir.path().join(STEPS_JOURNAL)).unwrap();
+        assert_eq!(journal.lines().count(), 1);
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.steps[0], one);
+        assert_eq!(back.steps[1], m.steps[1]);
+        assert_eq!(back.retries, first.retries);
+        assert_eq!(back.updated, "u1");
+        assert_eq!(back.sessions[0].timing.bench_s, 1.5);
+        // A second step, then a line cut short (a crash mid-append): the whole lines count.
+        let two = done_step(&m, 2);
+        store
+            .record_step(&line(&m, two.clone()), dir.path())
+            .unwrap();
+        let path = dir.path().join(STEPS_JOURNAL);
+        let whole = std::fs::read(&path).unwrap();
+        let cut = whole.len() - 5;
+        std::fs::write(&path, &whole[..cut]).unwrap();
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.steps[0], one);
+        assert_eq!(back.steps[1], m.steps[1], "a line cut short is not read");
+        std::fs::write(&path, &whole).unwrap();
+        assert_eq!(Manifest::load(dir.path()).unwrap().steps[1], two);
+        // Stored whole at the end: the file holds both steps, the journal is gone, the retry
+        // is there once.
+        let mut head = back.clone();
+        head.retries = first.retries.clone();
+        head.steps = Vec::new();
+        store.store(&mut head, dir.path()).unwrap();
+        assert!(!path.exists());
+        let back = Manifest::load(dir.path()).unwrap();
+        assert_eq!(back.steps, vec![one.clone(), two.clone()]);
+        assert_eq!(back.retries.len(), 1);
+        // A journal its session's end did not get to remove is not applied again once the
+        // session has ended (the file holds it), nor one of an earlier session.
+        std::fs::write(&path, &whole).unwrap();
+        let mut ended = back.clone();
+        ended.session_mut().ended = Some("e".into());
+        ended.steps[0].measured_at = Some("later".into());
+        ended.store(dir.path()).unwrap();
+        assert!(!path.exists(), "a whole store removes the journal");
+        std::fs::write(&path, &whole).unwrap();
+        assert_eq!(Manifest::load(dir.path()).unwrap().steps[0], ended.steps[0]);
+        let mut resumed = ended.clone();
+        resumed.sessions.push(session());
+        std::fs::write(
+            dir.path().join(MANIFEST_FILE),
+            toml::to_string(&resumed).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(Manifest::load(dir.path()).unwrap().steps[0], ended.steps[0]);
+    }
+
+    #[test]
+    fn a_step_the_plan_does_not_have_is_not_appended() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut m = manifest();
+        m.sessions.push(session());
+        let mut store = super::super::ManifestStore::default();
+        store.store_whole(&mut m, dir.path()).unwrap();
+        store
+            .record_step(&line(&m, done_step(&m, 1)), dir.path())
+            .unwrap();
+        let path = dir.path().join(STEPS_JOURNAL);
+        let before = std::fs::read(&path).unwrap();
+        // A step the plan does not have is refused before anything is written.
+        let mut wrong = done_step(&m, 2);
+        wrong.index = 9;
+        assert!(store.record_step(&line(&m, wrong), dir.path()).is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), before);
     }
 
     #[test]

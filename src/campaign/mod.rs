@@ -9,7 +9,7 @@
 //! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table; and the table of every setting a step can set (sweep axes, `[[steps]]` keys) |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
 //! | `manifest` | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
-//! | `manifest_store` | storing the manifest after each step, the step tables copied from the last file, not held in memory |
+//! | `manifest_store` | the manifest stored whole at a session's start and end, each step in between appended to its step journal (a cost per step that does not grow with the run), the step tables not held in memory |
 //! | `results` | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
 //! | `run` | executing a plan into a run folder, and resuming one: what callers use |
 //! | `folder` | the run folder: its identity, start (created, locked, inputs copied), the copies' checks on resume |
@@ -54,8 +54,8 @@ pub use error::CampaignError;
 pub use export::{export_run, put_all, RunExported};
 pub use lab_table::lab_table;
 pub use manifest::{
-    CalibrationRecord, FileRecord, InputFile, Instruments, Manifest, Session, Status, StepRecord,
-    StepStatus, Timing, MANIFEST_FILE,
+    CalibrationRecord, FileRecord, InputFile, Instruments, JournalLine, Manifest, Session, Status,
+    StepRecord, StepStatus, Timing, MANIFEST_FILE, STEPS_JOURNAL,
 };
 pub use manifest_store::ManifestStore;
 pub use plan::{

@@ -13,7 +13,7 @@ use super::prepare::PreparedSet;
 use super::report;
 use super::results::{self, Results, StepResult};
 use super::run::{Finished, Observer, StepDone, Summary, RESULTS_FILE, STEP_RESULT};
-use super::step_job::{StepJob, WorkerOutcome, WorkerSide};
+use super::step_job::{JournalPart, StepJob, WorkerOutcome, WorkerSide};
 use super::worker::StepWorker;
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
@@ -103,6 +103,8 @@ pub(super) struct Runner {
     measured: usize,
     skipped: usize,
     pub(super) timing: Timing,
+    /// The manifest's retries already handed to a step's journal line (or in the file).
+    retries_journaled: usize,
 }
 
 impl Runner {
@@ -165,6 +167,7 @@ impl Runner {
             measured: 0,
             skipped: 0,
             timing: Timing::default(),
+            retries_journaled: 0,
         })
     }
 
@@ -176,6 +179,7 @@ impl Runner {
         let t = Instant::now();
         self.folder.check(&self.dir)?;
         self.store_manifest(true)?;
+        self.retries_journaled = self.manifest.retries.len();
         // Every step's table is in the file now: keep only the steps' states (memory stays flat
         // over a long run; see `manifest_store`).
         for step in &mut self.manifest.steps {
@@ -579,11 +583,14 @@ impl Runner {
     /// Gives `taken` to the worker, which processes it with every algorithm, writes the step's
     /// files, hashes them and stores the manifest recording it.
     fn hand_over(&mut self, step: &Step, taken: Taken) {
-        // The manifest's head alone: the worker's store has every step's table.
-        let steps = std::mem::take(&mut self.manifest.steps);
-        let mut snapshot = self.manifest.clone();
-        self.manifest.steps = steps;
-        snapshot.session_mut().timing = self.timing.clone();
+        // What the step's journal line records beside the step (the worker's store has every
+        // step's table; the head is stored whole at the session's end).
+        let part = JournalPart {
+            session: self.manifest.sessions.len(),
+            retries: self.manifest.retries[self.retries_journaled..].to_vec(),
+            timing: self.timing.clone(),
+        };
+        self.retries_journaled = self.manifest.retries.len();
         let job = StepJob {
             dir: self.dir.clone(),
             folder: self.folder,
@@ -597,7 +604,7 @@ impl Runner {
             },
         };
         let side = self.worker_side.clone();
-        let outcome = self.worker.submit(move || job.run(&side, taken, snapshot));
+        let outcome = self.worker.submit(move || job.run(&side, taken, part));
         self.pending.push_back(PendingStep {
             step: step.clone(),
             outcome,
@@ -658,14 +665,14 @@ impl Runner {
     }
 
     /// Stores the manifest: `whole` from its records (before the first step), else its head with
-    /// the step tables the worker's store last wrote (no job runs: every step handed over has
-    /// been collected).
+    /// the step tables the worker's store last recorded, in the file or its step journal (no job
+    /// runs: every step handed over has been collected).
     fn store_manifest(&mut self, whole: bool) -> Result<(), CampaignError> {
         let mut side = self.worker_side.lock().unwrap_or_else(|p| p.into_inner());
         if whole {
             side.store.store_whole(&mut self.manifest, &self.dir)
         } else {
-            side.store.store(&mut self.manifest, &self.dir, None)
+            side.store.store(&mut self.manifest, &self.dir)
         }
     }
 

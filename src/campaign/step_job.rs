@@ -1,9 +1,10 @@
 //! A step's job on the worker thread: process the capture with every algorithm's pipeline, write
-//! the step's files (one write group), hash them and store the manifest that records the step.
+//! the step's files (one write group), hash them and record the step in the manifest's step
+//! journal (`manifest_store`).
 
 use super::error::{io, CampaignError};
 use super::folder::FolderIdentity;
-use super::manifest::{self, FileRecord, Manifest, StepRecord, StepStatus};
+use super::manifest::{self, FileRecord, JournalLine, StepRecord, StepStatus, Timing};
 use super::manifest_store::ManifestStore;
 use super::plan::Step;
 use super::prepare::{PreparedKey, PreparedSet};
@@ -75,6 +76,14 @@ pub(super) struct Written {
     pub(super) overhead_s: f64,
 }
 
+/// What the step's journal line records beside the step: the session, the retries met since
+/// the step before was handed over, the session's timing at the hand-over.
+pub(super) struct JournalPart {
+    pub(super) session: usize,
+    pub(super) retries: Vec<super::retry::RetryRecord>,
+    pub(super) timing: Timing,
+}
+
 /// What a step's worker needs besides the capture and the pipelines.
 pub(super) struct StepJob {
     pub(super) dir: PathBuf,
@@ -89,13 +98,12 @@ pub(super) struct StepJob {
 
 impl StepJob {
     /// Processes the capture with every algorithm's pipeline, writes the step's files and
-    /// stores the manifest `snapshot` (its head: its steps are not read) with this step done and
-    /// the other steps as the last store left them.
+    /// records the step done in the manifest's step journal, with `part`.
     pub(super) fn run(
         self,
         side: &Mutex<WorkerSide>,
         taken: Taken,
-        snapshot: Manifest,
+        part: JournalPart,
     ) -> WorkerOutcome {
         let mut side = side.lock().unwrap_or_else(|p| p.into_inner());
         let t = Instant::now();
@@ -112,7 +120,7 @@ impl StepJob {
         let processing_s = t.elapsed().as_secs_f64();
         let done = processed
             .map_err(CampaignError::from)
-            .and_then(|p| self.record(taken, p, snapshot, &mut side.store));
+            .and_then(|p| self.record(taken, p, part, &mut side.store));
         WorkerOutcome { processing_s, done }
     }
 
@@ -120,7 +128,7 @@ impl StepJob {
         self,
         taken: Taken,
         mut processings: Vec<Processing>,
-        mut snapshot: Manifest,
+        part: JournalPart,
         store: &mut ManifestStore,
     ) -> Result<(StepResult, Written), CampaignError> {
         let mut others = processings.split_off(1);
@@ -207,11 +215,19 @@ impl StepJob {
             files: records,
         };
         self.folder.check(&self.dir)?;
+        let status_only = record.status_only();
+        let line = JournalLine {
+            session: part.session,
+            updated: crate::time::rfc3339_millis(std::time::SystemTime::now()),
+            step: record,
+            retries: part.retries,
+            timing: part.timing,
+        };
         store
-            .store(&mut snapshot, &self.dir, Some(&record))
+            .record_step(&line, &self.dir)
             .map_err(|e| self.folder.lost(&self.dir).unwrap_or(e))?;
         let written = Written {
-            record: record.status_only(),
+            record: status_only,
             files_s,
             overhead_s: t_over.elapsed().as_secs_f64() + files.hashing_s,
         };

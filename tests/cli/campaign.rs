@@ -6,7 +6,7 @@
 use radbench::campaign;
 use radbench::campaign::SpecFile;
 use radbench::campaign::{BenchInfo, Step};
-use radbench::campaign::{Manifest, ManifestStore, Status};
+use radbench::campaign::{JournalLine, Manifest, ManifestStore, Status, STEPS_JOURNAL};
 use radbench::campaign::{NewRun, Observer, Quiet};
 use radbench::driver::RfPermit;
 use radbench::exit::Classify;
@@ -191,39 +191,46 @@ async fn the_accuracy_campaign_measures_within_a_millimetre() {
     stores_cached_like_whole(m);
 }
 
-/// The step worker's manifest store (each step's table copied from the file it wrote last, not
-/// held in memory) writes what a whole serialisation does, and a step whose record changed is
-/// written anew, longer or shorter than before.
+/// The step worker's manifest store (each step's table copied from the file it wrote last or
+/// appended to the step journal, not held in memory) writes what a whole serialisation does:
+/// steps recorded in the journal (a record changed, longer or shorter than before) read back
+/// merged while the session runs, and the session's end stores them all in the file.
 fn stores_cached_like_whole(mut m: Manifest) {
     let dir = tempfile::tempdir().unwrap();
     let mut store = ManifestStore::default();
+    // The session still runs: its steps recorded since the start are in the journal.
+    m.sessions.last_mut().unwrap().ended = None;
     store.store_whole(&mut m, dir.path()).unwrap();
     assert_eq!(Manifest::load(dir.path()).unwrap(), m);
     let mut head = Manifest {
         steps: Vec::new(),
         ..m.clone()
     };
+    fn line(m: &Manifest, k: usize) -> JournalLine {
+        JournalLine {
+            session: m.sessions.len(),
+            updated: m.updated.clone(),
+            step: m.steps[k].clone(),
+            retries: Vec::new(),
+            timing: m.sessions.last().unwrap().timing.clone(),
+        }
+    }
     m.steps[2].measured_at = Some("changed".into());
-    store
-        .store(&mut head, dir.path(), Some(&m.steps[2]))
-        .unwrap();
+    store.record_step(&line(&m, 2), dir.path()).unwrap();
     m.steps[4].files.pop();
-    store
-        .store(&mut head, dir.path(), Some(&m.steps[4]))
-        .unwrap();
+    store.record_step(&line(&m, 4), dir.path()).unwrap();
     let another = m.steps[1].files[0].clone();
     m.steps[0].files.push(another);
-    store
-        .store(&mut head, dir.path(), Some(&m.steps[0]))
-        .unwrap();
+    store.record_step(&line(&m, 0), dir.path()).unwrap();
     let last = m.steps.len() - 1;
     m.steps[last].files.clear();
-    store
-        .store(&mut head, dir.path(), Some(&m.steps[last]))
-        .unwrap();
+    store.record_step(&line(&m, last), dir.path()).unwrap();
+    // What the instruments applied reads back from the journal's JSON as it was.
+    assert_eq!(Manifest::load(dir.path()).unwrap(), m);
     head.files.clear();
     m.files.clear();
-    store.store(&mut head, dir.path(), None).unwrap();
+    store.store(&mut head, dir.path()).unwrap();
+    assert!(!dir.path().join(STEPS_JOURNAL).exists());
     let back = Manifest::load(dir.path()).unwrap();
     m.updated = back.updated.clone();
     assert_eq!(back, m);

@@ -11,8 +11,8 @@
 //! | moment  | the fault strikes at the positioner of | the first write refused |
 //! |---------|----------------------------------------|-------------------------|
 //! | `First` | step 1 (nothing of a step written yet) | step 1's files |
-//! | `Mid`   | step 2, once step 1 is recorded        | step 2's files; a full disk has room for them, not for the manifest recording them |
-//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their manifest, not for the report (`results.json`, `results.csv` and `report.md` fit, `report.html` does not) |
+//! | `Mid`   | step 2, once step 1 is recorded        | step 2's files; a full disk has room for them, not for the manifest's journal line recording them |
+//! | `Last`  | step 3, once step 2 is recorded        | step 3's files; a full disk has room for them and their journal line, not for the report (`results.json`, `results.csv` and `report.md` fit, `report.html` does not) |
 //!
 //! Every later write of the session is refused too (the next steps' files, `results.json`, the
 //! report, the manifest).
@@ -294,7 +294,8 @@ fn fault_script(fault: Fault, moment: Moment, reference: &Reference) -> String {
          [ \"$1\" = {at} ] && [ -e armed ] || exit 0\n\
          rm armed\n\
          i=0\n\
-         until [ \"$(grep -c '^status = \"done\"' mnt/run/manifest.toml)\" -ge {before} ]; do\n\
+         until [ \"$(cat mnt/run/manifest.toml mnt/run/manifest-steps.jsonl 2>/dev/null \
+         | grep -c -e '^status = \"done\"' -e '\"status\":\"done\"')\" -ge {before} ]; do\n\
          \x20 i=$((i + 1))\n\
          \x20 [ $i -le 2000 ] || {{ echo \"fault.sh: step {before} not recorded within 10 s\" >&2; exit 9; }}\n\
          \x20 sleep 0.005\n\
@@ -395,7 +396,7 @@ async fn case(fault: Fault, moment: Moment) {
             "its disk is full: free space on it",
         ),
         (Fault::DiskFull, Moment::Mid) => (
-            "The run had stopped: step 2 of 3: cannot write mnt/run/manifest.toml: No space",
+            "The run had stopped: step 2 of 3: cannot write mnt/run/manifest-steps.jsonl: No space",
             "its disk is full: free space on it",
         ),
         (Fault::DiskFull, Moment::Last) => (
