@@ -616,7 +616,7 @@ impl Manifest {
         // write_atomic makes the file and its folder entry durable (fsync of both).
         write_atomic(&dir.join(MANIFEST_FILE), text.as_bytes())?;
         // Every step is in the file now (the journal's were merged when it was loaded).
-        super::manifest_store::remove_journal(dir)
+        remove_journal(dir)
     }
 
     /// The manifest's text without its steps (the status room, then every other field), with
@@ -657,6 +657,18 @@ impl Manifest {
             Some(f) => *f = record,
             None => self.files.push(record),
         }
+    }
+}
+
+/// Removes `dir`'s step journal, if any, durably (`manifest.toml` holds its steps now).
+pub(crate) fn remove_journal(dir: &Path) -> Result<(), CampaignError> {
+    let path = dir.join(STEPS_JOURNAL);
+    match std::fs::remove_file(&path) {
+        Ok(()) => std::fs::File::open(dir)
+            .and_then(|folder| folder.sync_all())
+            .map_err(io(dir)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(io(&path)(e)),
     }
 }
 

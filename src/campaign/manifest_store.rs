@@ -24,7 +24,7 @@
 //! them at the end; the runner keeps each step's status alone ([`StepRecord::status_only`]).
 
 use super::error::{io, CampaignError};
-use super::manifest::{JournalLine, Manifest, MANIFEST_FILE, STEPS_JOURNAL};
+use super::manifest::{remove_journal, JournalLine, Manifest, MANIFEST_FILE, STEPS_JOURNAL};
 use crate::storage::atomic::AtomicFile;
 use std::io::Write;
 use std::os::unix::fs::{FileExt, OpenOptionsExt};
@@ -231,16 +231,6 @@ impl ManifestStore {
             path: dir.join(MANIFEST_FILE),
             message: format!("{message} (a radbench bug, please report it)"),
         }
-    }
-}
-
-/// Removes `dir`'s step journal, if any, durably (`manifest.toml` holds its steps now).
-pub(crate) fn remove_journal(dir: &Path) -> Result<(), CampaignError> {
-    let path = dir.join(STEPS_JOURNAL);
-    match std::fs::remove_file(&path) {
-        Ok(()) => sync_folder(dir).map_err(io(dir)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(e) => Err(io(&path)(e)),
     }
 }
 
