@@ -66,11 +66,11 @@ pub struct Args {
     pub live: LiveArgs,
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    super::runtime()?.block_on(run_async(args, global))
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
+    super::global::runtime()?.block_on(run_async(args, global))
 }
 
-async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
+async fn run_async(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if let Some(r) = args.target_range {
@@ -146,7 +146,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
 
 async fn captures(
     args: &Args,
-    global: &super::Global,
+    global: &super::global::Global,
     bench: &Bench,
     request: &CaptureRequest,
     (interrupt, permit): (&Interrupt, &RfPermit),

@@ -40,7 +40,7 @@ pub enum Target {
     Io(super::benchmarks_io::Args),
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     if let Some(Target::Io(io)) = args.target {
         return super::benchmarks_io::run(io, global);
     }

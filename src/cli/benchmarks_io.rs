@@ -199,7 +199,7 @@ async fn measure(
     ))
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     if args.runs == 0 {
         return Err(bad_input("--runs must be at least 1"));
     }
@@ -226,7 +226,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         eprintln!("radbench bench io: --trace-io is ignored (the journal would be timed too)");
     }
     let data = std::sync::Arc::new(payload(args.size, args.seed));
-    let runtime = super::runtime()?;
+    let runtime = super::global::runtime()?;
     let mut results = Vec::new();
     for address in &args.addresses {
         // On a worker thread, the task that waits for the socket runs where tokio's I/O driver

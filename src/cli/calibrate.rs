@@ -58,14 +58,14 @@ pub struct DelayArgs {
     pub scope_model: super::scope_model::ScopeModelArgs,
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     match args.command {
         Some(CalibrateCommand::Response(a)) => super::calibrate_response::run(*a, global),
         None => run_delay(args.delay, global),
     }
 }
 
-fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
+fn run_delay(args: DelayArgs, global: &super::global::Global) -> anyhow::Result<()> {
     let reference_range = args
         .reference_range
         .ok_or_else(|| radbench::exit::bad_input("--reference-range METRES is needed"))?;
@@ -73,7 +73,7 @@ fn run_delay(args: DelayArgs, global: &super::Global) -> anyhow::Result<()> {
     if !args.allow_rf {
         return Err(MeasureError::NoPermit { run: "calibration" }.into());
     }
-    super::runtime()?.block_on(async {
+    super::global::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),
             None,

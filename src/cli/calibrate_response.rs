@@ -85,11 +85,11 @@ fn check(args: &Args) -> Result<(), MeasureError> {
     Ok(())
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     check(&args)?;
     let waveform = args.waveform_args.spec(args.waveform)?;
     let started = std::time::Instant::now();
-    super::runtime()?.block_on(async {
+    super::global::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
             args.bench.as_deref(),
             args.scene.as_deref(),

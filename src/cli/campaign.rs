@@ -153,7 +153,7 @@ pub struct ThesisLabArgs {
     pub json: bool,
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     match args.command {
         Command::New(a) => {
             let text = campaign::template(&a.kind).ok_or_else(|| {
@@ -175,9 +175,9 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
             println!("report: {}", a.run_dir.join(campaign::HTML_FILE).display());
             Ok(())
         }
-        Command::Run(a) => super::runtime()?.block_on(run_spec(a, global)),
-        Command::Resume(a) => super::runtime()?.block_on(resume(a)),
-        Command::ThesisLab(a) => super::runtime()?.block_on(thesis_lab(a)),
+        Command::Run(a) => super::global::runtime()?.block_on(run_spec(a, global)),
+        Command::Resume(a) => super::global::runtime()?.block_on(resume(a)),
+        Command::ThesisLab(a) => super::global::runtime()?.block_on(thesis_lab(a)),
     }
 }
 
@@ -421,7 +421,7 @@ fn conclude(finished: Finished, json: bool) -> anyhow::Result<()> {
     }
 }
 
-async fn run_spec(a: RunArgs, global: &super::Global) -> anyhow::Result<()> {
+async fn run_spec(a: RunArgs, global: &super::global::Global) -> anyhow::Result<()> {
     let spec = SpecFile::load(&a.spec)?;
     let bench = BenchInfo::load(&spec, a.bench.as_deref())?;
     let catalog = bench.catalog()?;

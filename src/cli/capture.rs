@@ -151,7 +151,7 @@ pub(crate) async fn open_bench(source: BenchSource, quiet: bool) -> anyhow::Resu
 
 /// The I/O journal of `--trace-io`.
 pub(crate) fn journal(
-    global: &super::Global,
+    global: &super::global::Global,
 ) -> anyhow::Result<Option<radbench::transport::Journal>> {
     Ok(match &global.trace_io {
         Some(p) => Some(radbench::transport::Journal::create(p, false)?),
@@ -160,6 +160,19 @@ pub(crate) fn journal(
 }
 
 /// The default output folder: `runs/<UTC time>-<name>`.
+/// The `range_m` of each target in a summary's (or a ground truth's) `targets` list, as text.
+pub(super) fn target_ranges(targets: &serde_json::Value) -> Vec<String> {
+    targets
+        .as_array()
+        .map(|t| {
+            t.iter()
+                .filter_map(|x| Some((x["range_m"].as_f64()?, x["range_std_m"].as_f64())))
+                .map(|(r, s)| range_text(r, s))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 pub(crate) fn default_out(name: &str) -> PathBuf {
     let stamp = radbench::storage::utc_now_rfc3339()
         .replace([':', '-'], "")
@@ -167,12 +180,12 @@ pub(crate) fn default_out(name: &str) -> PathBuf {
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let runtime = super::runtime()?;
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
+    let runtime = super::global::runtime()?;
     runtime.block_on(run_async(args, global))
 }
 
-async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
+async fn run_async(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     let kind = args.waveform;
     let waveform = args.waveform_args.spec(kind)?;
     if !args.allow_rf {
@@ -206,7 +219,7 @@ async fn run_async(args: Args, global: &super::Global) -> anyhow::Result<()> {
 
 async fn measure_into(
     args: Args,
-    global: &super::Global,
+    global: &super::global::Global,
     kind: WaveformKind,
     waveform: radbench::waveform::WaveformSpec,
     source: radbench::measure::BenchSource,
@@ -438,7 +451,7 @@ pub(crate) fn report(m: &Measurement, out: &Path) -> String {
         }
     }
     if let Some(truth) = &m.taken.ground_truth {
-        let ranges = super::process::target_ranges(&truth["targets"]);
+        let ranges = target_ranges(&truth["targets"]);
         println!("simulated scene (ground truth): {}", ranges.join(", "));
     }
     for w in &p.warnings {

@@ -33,7 +33,7 @@ pub struct Args {
     pub write_overrides: Option<PathBuf>,
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
     args.timeout.apply()?;
     if args.verify_catalog {
         let request = super::verify_catalog::Request {
@@ -44,7 +44,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
         };
         return super::verify_catalog::run(request, global);
     }
-    let runtime = super::runtime()?;
+    let runtime = super::global::runtime()?;
     runtime.block_on(async {
         let interrupt = Interrupt::listen()?;
         let source = args.scope_model.apply(bench_source(

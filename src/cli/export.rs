@@ -143,7 +143,7 @@ fn default_out(input: &Path, format: ExportFormat) -> anyhow::Result<PathBuf> {
     }
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     let format = if args.hdf5 {
         ExportFormat::Hdf5
     } else {

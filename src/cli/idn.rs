@@ -14,8 +14,8 @@ pub struct Args {
     pub json: bool,
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let runtime = super::runtime()?;
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
+    let runtime = super::global::runtime()?;
     // One exchange, bounded in total (see `bounded`).
     let budget = args.connect.budget(1)?;
     let identity = runtime.block_on(budget.run(&args.connect.address, async {

@@ -76,7 +76,7 @@ pub(crate) fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
         .map_err(|e| bad_input(radbench::exit::with_key_hint(&e.to_string())))
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     let MockLabCommand::Serve(a) = args.command;
     let scene = match &a.scene {
         Some(path) => load_scene(path)?,
@@ -106,7 +106,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     } else {
         Announce::Human
     };
-    let runtime = super::runtime()?;
+    let runtime = super::global::runtime()?;
     let result = runtime.block_on(lab::serve_until_stopped(
         options,
         announce,

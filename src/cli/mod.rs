@@ -5,6 +5,7 @@
 #![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
 use clap::{Parser, Subcommand};
+use global::Global;
 use std::path::PathBuf;
 
 pub(crate) mod align;
@@ -18,6 +19,7 @@ pub(crate) mod campaign;
 pub(crate) mod capture;
 pub(crate) mod doctor;
 pub(crate) mod export;
+mod global;
 pub(crate) mod idn;
 pub(crate) mod live;
 pub(crate) mod manual_front;
@@ -35,8 +37,6 @@ pub mod terminal;
 pub(crate) mod trc;
 pub(crate) mod verify_catalog;
 pub(crate) mod waveform;
-
-pub use radbench::classify;
 
 /// radbench: the 80 GHz radar-communication bench and its signal processing.
 #[derive(Debug, Parser)]
@@ -97,12 +97,6 @@ pub enum Command {
     Runs(runs::Args),
 }
 
-/// Options every subcommand can see.
-#[derive(Debug, Clone, Default)]
-pub struct Global {
-    pub trace_io: Option<PathBuf>,
-}
-
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let global = Global {
         trace_io: cli.trace_io,
@@ -125,11 +119,4 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Waveform(args) => waveform::run(args, &global),
         Command::Runs(args) => runs::run(args),
     }
-}
-
-/// A tokio runtime for the subcommands that talk to instruments.
-pub fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
-    Ok(tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()?)
 }

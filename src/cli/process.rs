@@ -149,7 +149,7 @@ impl Finishers {
     }
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     if let Some(query) = &args.from_catalog {
         return super::process_catalog::run(&super::process_catalog::Request {
             query,
@@ -263,7 +263,7 @@ pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
     // The worst class among the failures decides the exit code: bad input before processing.
     let class = failures
         .iter()
-        .map(|(_, e)| super::classify(e))
+        .map(|(_, e)| radbench::classify(e))
         .min_by_key(|c| c.code())
         .unwrap_or(ExitClass::Processing);
     Err(anyhow::Error::new(Classified {
@@ -304,7 +304,7 @@ fn report(
             "failed": failures.iter().map(|(s, e)| json!({
                 "source": s,
                 "error": radbench::exit::render(e),
-                "exit_code": super::classify(e).code(),
+                "exit_code": radbench::classify(e).code(),
             })).collect::<Vec<_>>(),
             "seconds": elapsed_s,
         });
@@ -312,7 +312,7 @@ fn report(
     }
     let mut text = String::new();
     for (s, dir, summary) in done {
-        let targets = target_ranges(&summary["targets"]);
+        let targets = super::capture::target_ranges(&summary["targets"]);
         text.push_str(&format!(
             "{s}: {} {}: targets {} -> {}\n",
             summary["waveform"].as_str().unwrap_or("?"),
@@ -340,17 +340,4 @@ fn report(
         done.len() as f64 / elapsed_s.max(1e-9)
     ));
     super::terminal::out(&text)
-}
-
-/// The `range_m` of each target in a summary's (or a ground truth's) `targets` list, as text.
-pub(super) fn target_ranges(targets: &serde_json::Value) -> Vec<String> {
-    targets
-        .as_array()
-        .map(|t| {
-            t.iter()
-                .filter_map(|x| Some((x["range_m"].as_f64()?, x["range_std_m"].as_f64())))
-                .map(|(r, s)| super::capture::range_text(r, s))
-                .collect()
-        })
-        .unwrap_or_default()
 }

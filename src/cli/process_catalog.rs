@@ -73,7 +73,7 @@ pub(crate) fn run(args: &Request<'_>) -> anyhow::Result<()> {
     }
     let class = failed
         .iter()
-        .map(super::classify)
+        .map(radbench::classify)
         .min_by_key(|c| c.code())
         .unwrap_or(radbench::exit::ExitClass::Processing);
     Err(anyhow::Error::new(radbench::exit::Classified {

@@ -195,7 +195,7 @@ fn print_text(r: &Recording, first: usize) {
     }
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     report_files(
         &args.files,
         args.json,

@@ -57,7 +57,7 @@ pub(crate) async fn stopped_between(
 #[allow(clippy::too_many_arguments)]
 pub(crate) async fn captures(
     args: &Args,
-    global: &super::Global,
+    global: &super::global::Global,
     repeat: Repeat,
     bench: &Bench,
     request: &CaptureRequest,
@@ -107,7 +107,7 @@ pub(crate) async fn captures(
 #[allow(clippy::too_many_arguments)]
 async fn run(
     args: &Args,
-    global: &super::Global,
+    global: &super::global::Global,
     repeat: Repeat,
     bench: &Bench,
     request: &CaptureRequest,

@@ -104,7 +104,7 @@ impl ConnectArgs {
     }
 
     /// Parses the address, opens the journal if asked, connects.
-    pub async fn open(&self, global: &super::Global) -> anyhow::Result<Session> {
+    pub async fn open(&self, global: &super::global::Global) -> anyhow::Result<Session> {
         let resource: Resource = self.address.parse()?;
         let journal = match &global.trace_io {
             Some(path) => Some(Journal::create(path, self.trace_io_keep_binary)?),
@@ -225,8 +225,8 @@ async fn clear_earlier_errors(session: &mut Session) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
-    let runtime = super::runtime()?;
+pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
+    let runtime = super::global::runtime()?;
     if !args.commands.is_empty() {
         return runtime.block_on(one_shot_bounded(&args, global));
     }
@@ -265,7 +265,7 @@ pub(crate) fn run(args: Args, global: &super::Global) -> anyhow::Result<()> {
 }
 
 /// The commands of the command line, the whole exchange bounded in total (see `bounded`).
-async fn one_shot_bounded(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+async fn one_shot_bounded(args: &Args, global: &super::global::Global) -> anyhow::Result<()> {
     let budget = args.connect.budget(args.commands.len())?;
     let bar = TransferBar::new();
     let mut saver = BinarySaver::new(args.save_binary.clone());
@@ -820,7 +820,7 @@ mod tests {
         use mock_lab::emulator::loopback::Loopback;
         use mock_lab::server::launch::{self, Ports, Transport};
         use mock_lab::server::ServerOptions;
-        let runtime = crate::cli::runtime().unwrap();
+        let runtime = crate::cli::global::runtime().unwrap();
         runtime.block_on(async {
             for transport in [Transport::Raw, Transport::Hislip, Transport::Vxi11] {
                 let (_server, endpoint) = launch::start(

@@ -122,7 +122,7 @@ pub struct BerArgs {
 /// Most bits one Eb/N0 point may ask for: 100 million take about a minute per point on one core.
 const MAX_BER_BITS: usize = 100_000_000;
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     match args.command {
         SimCommand::Thesis(a) => run_thesis(a),
         SimCommand::Run(a) => run_free(*a),

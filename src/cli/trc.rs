@@ -258,7 +258,7 @@ fn print_text(path: &Path, t: &Trace, max_segments: usize) {
     }
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     report_files(
         &args.files,
         args.json,

@@ -15,8 +15,8 @@ pub(crate) struct Request<'a> {
     pub write_overrides: Option<&'a std::path::Path>,
 }
 
-pub(crate) fn run(args: Request<'_>, global: &super::Global) -> anyhow::Result<()> {
-    super::runtime()?.block_on(async {
+pub(crate) fn run(args: Request<'_>, global: &super::global::Global) -> anyhow::Result<()> {
+    super::global::runtime()?.block_on(async {
         let source = args.scope_model.apply(bench_source(
             args.bench,
             None,

@@ -54,7 +54,7 @@ pub struct AmbiguityArgs {
     pub json: bool,
 }
 
-pub(crate) fn run(args: Args, _global: &super::Global) -> anyhow::Result<()> {
+pub(crate) fn run(args: Args, _global: &super::global::Global) -> anyhow::Result<()> {
     match args.command {
         WaveformCommand::Ambiguity(a) => run_ambiguity(*a),
     }

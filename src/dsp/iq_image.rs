@@ -40,13 +40,23 @@ fn map_iq(
     map: impl Fn(f64, Complex64, Complex64) -> (Complex64, Complex64),
 ) {
     let n = spectrum.len();
+    // The Nyquist bin is its own mirror: a real signal holds no delay there.
+    map_iq_bins(spectrum, |k, i, q| {
+        map(if 2 * k == n { 0.0 } else { freq(k, n, fs) }, i, q)
+    });
+}
+
+/// [`map_iq`] with the bin's index instead of its frequency.
+fn map_iq_bins(
+    spectrum: &mut [Complex64],
+    map: impl Fn(usize, Complex64, Complex64) -> (Complex64, Complex64),
+) {
+    let n = spectrum.len();
     let one = |k: usize, own: Complex64, mirror: Complex64| {
         let mirror = mirror.conj();
         let i = (own + mirror) * 0.5;
         let q = (own - mirror) * Complex64::new(0.0, -0.5);
-        // The Nyquist bin is its own mirror: a real signal holds no delay there.
-        let f = if 2 * k == n { 0.0 } else { freq(k, n, fs) };
-        let (i, q) = map(f, i, q);
+        let (i, q) = map(k, i, q);
         i + Complex64::i() * q
     };
     for k in 0..=n / 2 {
@@ -125,13 +135,33 @@ pub(crate) fn rx_skew_direct(f: f64, skew_s: f64) -> Complex64 {
 }
 
 /// Takes a receiver's Q skew out of a period's spectrum (in place): Q advanced by `skew_s`.
+/// The reference [`undo_rx_skew_by_turns`] must equal.
+#[cfg(test)]
 pub(crate) fn undo_rx_skew(spectrum: &mut [Complex64], fs: f64, skew_s: f64) {
     if skew_s == 0.0 {
         return;
     }
-    map_iq(spectrum, fs, |f, i, q| {
-        (i, q * Complex64::from_polar(1.0, 2.0 * PI * f * skew_s))
-    });
+    map_iq(spectrum, fs, |f, i, q| (i, q * rx_skew_advance(f, skew_s)));
+}
+
+/// What advances Q by `skew_s` at `f`.
+fn rx_skew_advance(f: f64, skew_s: f64) -> Complex64 {
+    Complex64::from_polar(1.0, 2.0 * PI * f * skew_s)
+}
+
+/// The turn of Q that takes a receiver's skew out, for each bin of periods of `n` samples at
+/// `fs`: made once for a correction applied to many periods, so a period costs no trigonometry.
+pub(crate) fn rx_skew_turns(n: usize, fs: f64, skew_s: f64) -> Vec<Complex64> {
+    (0..n)
+        .map(|k| rx_skew_advance(if 2 * k == n { 0.0 } else { freq(k, n, fs) }, skew_s))
+        .collect()
+}
+
+/// Takes a receiver's Q skew out of a period's spectrum (in place) with the turns
+/// [`rx_skew_turns`] made: Q advanced, as `undo_rx_skew` (kept for the tests) does bin by bin.
+pub(crate) fn undo_rx_skew_by_turns(spectrum: &mut [Complex64], turns: &[Complex64]) {
+    debug_assert_eq!(spectrum.len(), turns.len());
+    map_iq_bins(spectrum, |k, i, q| (i, q * turns[k]));
 }
 
 /// The two ends' I/Q errors as one reference's image shows them.
@@ -292,6 +322,19 @@ mod tests {
     fn noise(n: usize, seed: u64) -> Vec<Complex64> {
         let mut rng = crate::rng::SplitMix64::new(seed);
         (0..n).map(|_| rng.complex_gaussian(1.0)).collect()
+    }
+
+    /// The turns made once give exactly what the per-call undo gives, Nyquist bin included.
+    #[test]
+    fn the_receivers_skew_by_turns_is_the_same_undo() {
+        for n in [512, 511] {
+            let (fs, skew) = (16e9, 3e-12);
+            let mut a = noise(n, 5);
+            let mut b = a.clone();
+            undo_rx_skew(&mut a, fs, skew);
+            undo_rx_skew_by_turns(&mut b, &rx_skew_turns(n, fs, skew));
+            assert_eq!(a, b);
+        }
     }
 
     #[test]

@@ -354,21 +354,38 @@ impl ResponseTable {
             0 => Complex64::new(1.0, 0.0),
             _ if f <= fr[0] => h[0],
             len if f >= fr[len - 1] => h[len - 1],
-            _ => {
-                let i = fr.partition_point(|&v| v <= f).clamp(1, fr.len() - 1);
-                let t = (f - fr[i - 1]) / (fr[i] - fr[i - 1]);
-                let (a, b) = (h[i - 1], h[i]);
-                let mag = a.norm() + t * (b.norm() - a.norm());
-                let mut dphi = b.arg() - a.arg();
-                if dphi > PI {
-                    dphi -= 2.0 * PI;
-                } else if dphi < -PI {
-                    dphi += 2.0 * PI;
-                }
-                Complex64::from_polar(mag, a.arg() + t * dphi)
-            }
+            _ => between(fr, f, |i| (h[i].norm(), h[i].arg())),
         }
     }
+
+    /// [`at`](Self::at) for many frequencies: each point's magnitude and phase taken once.
+    fn at_each(&self, f: impl Iterator<Item = f64>) -> Vec<Complex64> {
+        let polar: Vec<(f64, f64)> = self.response.iter().map(|h| (h.norm(), h.arg())).collect();
+        let (fr, h) = (&self.freq_hz, &self.response);
+        f.map(|f| match fr.len() {
+            0 => Complex64::new(1.0, 0.0),
+            _ if f <= fr[0] => h[0],
+            len if f >= fr[len - 1] => h[len - 1],
+            _ => between(fr, f, |i| polar[i]),
+        })
+        .collect()
+    }
+}
+
+/// Magnitude and phase interpolated linearly between the two points of `fr` around `f` (inside
+/// it), the phase the short way round; `polar(i)` is point `i`'s magnitude and phase.
+fn between(fr: &[f64], f: f64, polar: impl Fn(usize) -> (f64, f64)) -> Complex64 {
+    let i = fr.partition_point(|&v| v <= f).clamp(1, fr.len() - 1);
+    let t = (f - fr[i - 1]) / (fr[i] - fr[i - 1]);
+    let ((a_mag, a_arg), (b_mag, b_arg)) = (polar(i - 1), polar(i));
+    let mag = a_mag + t * (b_mag - a_mag);
+    let mut dphi = b_arg - a_arg;
+    if dphi > PI {
+        dphi -= 2.0 * PI;
+    } else if dphi < -PI {
+        dphi += 2.0 * PI;
+    }
+    Complex64::from_polar(mag, a_arg + t * dphi)
 }
 
 /// The receive-side correction of an aligned repetition: DC removed, the receiver's I/Q gain and
@@ -381,6 +398,8 @@ pub(crate) struct RxEqualiser {
     iq: Option<(f64, f64)>,
     /// The receiver samples Q this late (s): undone on the spectrum.
     rx_skew_s: f64,
+    /// Q's turn per bin that undoes it (empty when there is no skew).
+    rx_skew_turns: Vec<Complex64>,
     /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
     inverse: Vec<Complex64>,
     /// What the inverse costs in signal-to-noise ratio over the table's band, dB (positive).
@@ -439,11 +458,10 @@ impl RxEqualiser {
         }
         let lambda = REGULARISE * mean_power;
         let n = period;
-        let inverse = (0..n)
-            .map(|k| {
-                let h = table.at(signed(k, n) * fs / n as f64);
-                h.conj() / ((h.norm_sqr() + lambda) * n as f64)
-            })
+        let inverse = table
+            .at_each((0..n).map(|k| signed(k, n) * fs / n as f64))
+            .into_iter()
+            .map(|h| h.conj() / ((h.norm_sqr() + lambda) * n as f64))
             .collect();
         let snr_loss_db = inverse_snr_loss_db(&table.response, lambda);
         let mut planner = FftPlanner::new();
@@ -452,6 +470,7 @@ impl RxEqualiser {
             dc,
             iq: iq.map(|(g_db, phi_deg)| (10f64.powf(g_db / 20.0), phi_deg.to_radians())),
             rx_skew_s: 0.0,
+            rx_skew_turns: Vec::new(),
             fs,
             inverse,
             fft: planner.plan_fft_forward(n),
@@ -469,6 +488,11 @@ impl RxEqualiser {
     /// The same correction, with the receiver's Q skew (s) undone as well.
     pub(crate) fn with_rx_skew(mut self, skew_s: f64) -> Self {
         self.rx_skew_s = skew_s;
+        self.rx_skew_turns = if skew_s == 0.0 {
+            Vec::new()
+        } else {
+            super::iq_image::rx_skew_turns(self.inverse.len(), self.fs, skew_s)
+        };
         self
     }
 
@@ -493,7 +517,9 @@ impl RxEqualiser {
             self.scratch.resize(need, ZERO);
         }
         self.fft.process_with_scratch(y, &mut self.scratch[..need]);
-        super::iq_image::undo_rx_skew(y, self.fs, self.rx_skew_s);
+        if !self.rx_skew_turns.is_empty() {
+            super::iq_image::undo_rx_skew_by_turns(y, &self.rx_skew_turns);
+        }
         for (v, e) in y.iter_mut().zip(&self.inverse) {
             *v *= e;
         }
@@ -601,6 +627,24 @@ mod tests {
         }
         planner.plan_fft_inverse(n).process(&mut s);
         s
+    }
+
+    /// Many frequencies at once are exactly what one at a time gives, ends and phase wraps
+    /// included.
+    #[test]
+    fn the_table_at_each_frequency_is_the_table_at_it() {
+        let freq_hz: Vec<f64> = (0..50).map(|k| -1e9 + 4e7 * k as f64).collect();
+        let table = ResponseTable {
+            response: freq_hz
+                .iter()
+                .map(|&f| Complex64::from_polar(1.0 + 0.3 * (f / 2e8).sin(), f * 2e-8))
+                .collect(),
+            freq_hz,
+        };
+        let f: Vec<f64> = (0..997).map(|k| -1.2e9 + 2.5e6 * k as f64).collect();
+        let each = table.at_each(f.iter().copied());
+        let one: Vec<Complex64> = f.iter().map(|&f| table.at(f)).collect();
+        assert_eq!(each, one);
     }
 
     #[test]
