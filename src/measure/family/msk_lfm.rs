@@ -2,8 +2,8 @@
 //! algorithm; its data is decoded from the strongest echo (shifted to sample 0, derotated, then
 //! the generator's dechirp and half-sine integrate-and-dump).
 
+use super::contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
 use super::overrides::{OverrideError, WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
-use super::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
 use crate::dsp::link_quality::link_quality;
 use crate::measure::error::MeasureError;
 use crate::measure::payload::{unwrapped_deg, Decoded, LinkTrace};

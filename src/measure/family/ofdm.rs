@@ -2,8 +2,8 @@
 //! (Fourier by default; correlation, MUSIC, root-MUSIC and ESPRIT divide by its symbols); its data
 //! is decoded by the frame-aligned receiver, equalised from the preamble.
 
+use super::contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
 use super::overrides::{OverrideError, WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
-use super::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
 use crate::dsp::link_quality::link_quality;
 use crate::measure::error::MeasureError;
 use crate::measure::payload::{Decoded, LinkTrace};
