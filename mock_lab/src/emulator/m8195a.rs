@@ -10,6 +10,7 @@
 
 mod commands;
 mod handlers;
+mod inner;
 mod state;
 
 use std::sync::Mutex;
@@ -18,6 +19,7 @@ pub use state::{AwgState, Channel, ChannelPlayback, Memory, Playback, Segment};
 
 use self::commands::Entry;
 use self::handlers::Call;
+use self::inner::Inner;
 use super::received_log::ReceivedLog;
 use super::scpi::error_queue::{ErrorQueue, ScpiError};
 use super::scpi::header::{Header, PathContext, Pattern};
@@ -38,22 +40,6 @@ mod esr {
     pub(super) const DEVICE_ERROR: u8 = 0x08;
     pub(super) const EXECUTION_ERROR: u8 = 0x10;
     pub(super) const COMMAND_ERROR: u8 = 0x20;
-}
-
-struct Inner {
-    state: AwgState,
-    errors: ErrorQueue,
-    esr: u8,
-    ese: u8,
-    sre: u8,
-    /// What `*OPT?` answers instead of the catalog's options (a unit with other options).
-    options: Option<Vec<String>>,
-    /// What `:FREQ:RAST? MAX` answers instead of the catalog's limit (another unit).
-    pub(super) raster_max: Option<f64>,
-    /// What the AWG plays, as last built: the scope asks every few milliseconds while it waits
-    /// for a trigger, and building it copies the selected segments (megabytes). Cleared by every
-    /// message, the only way the state changes.
-    playback: Option<Playback>,
 }
 
 /// The emulated M8195A.

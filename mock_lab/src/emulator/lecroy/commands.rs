@@ -7,47 +7,13 @@
 
 use std::time::{Duration, Instant};
 
-use super::params::{channel_index, cmd_err, exe_err, one, text, value};
+use super::params::{channel_index, cmd_err, exe_err, one, text, value, Call, Report};
 use super::settings;
 use super::state::{HeaderMode, ScopeState, TriggerMode};
 use super::wavedesc::{ByteOrder, WAVEDESC_LEN};
 use super::{Fault, Lecroy, WAVEDESC_INSTRUMENT_NAME};
-use crate::catalog::DigitizerModel;
 use crate::emulator::scpi::message::{unquote, Param, Unit};
 use crate::emulator::scpi::numeric::Unit as NumUnit;
-
-/// What a command form runs with.
-pub(super) struct Call<'a> {
-    pub model: &'a DigitizerModel,
-    /// The sticky header path (`C1`, `EX`) at the time of the command.
-    pub path: &'a str,
-    /// `(long, short)` names, for replies and messages.
-    pub names: (&'static str, &'static str),
-    pub params: &'a [Param],
-}
-
-/// A setting's value as a query reports it.
-pub(super) struct Report {
-    /// Whether the reply repeats the path (`C1:VDIV 5.00E-02 V`) when headers are on.
-    pub on_path: bool,
-    pub body: String,
-}
-
-impl Report {
-    pub(super) fn plain(body: impl Into<String>) -> Report {
-        Report {
-            on_path: false,
-            body: body.into(),
-        }
-    }
-
-    pub(super) fn on_path(body: impl Into<String>) -> Report {
-        Report {
-            on_path: true,
-            body: body.into(),
-        }
-    }
-}
 
 type Set = fn(&mut ScopeState, &Call) -> Result<(), Fault>;
 type Get = fn(&ScopeState, &Call) -> Result<Report, Fault>;

@@ -1,10 +1,44 @@
-//! Parameters of the legacy commands and the scope's number format, with the CMR/EXR codes the
-//! scope sets when they are wrong.
+//! What a command form runs with (its call and its report), the parameters of the legacy commands
+//! and the scope's number format, with the CMR/EXR codes the scope sets when they are wrong.
 
 use super::state::ScopeState;
 use super::Fault;
+use crate::catalog::DigitizerModel;
 use crate::emulator::scpi::message::Param;
 use crate::emulator::scpi::numeric::{parse_with_unit, Unit};
+
+/// What a command form runs with.
+pub(super) struct Call<'a> {
+    pub model: &'a DigitizerModel,
+    /// The sticky header path (`C1`, `EX`) at the time of the command.
+    pub path: &'a str,
+    /// `(long, short)` names, for replies and messages.
+    pub names: (&'static str, &'static str),
+    pub params: &'a [Param],
+}
+
+/// A setting's value as a query reports it.
+pub(super) struct Report {
+    /// Whether the reply repeats the path (`C1:VDIV 5.00E-02 V`) when headers are on.
+    pub on_path: bool,
+    pub body: String,
+}
+
+impl Report {
+    pub(super) fn plain(body: impl Into<String>) -> Report {
+        Report {
+            on_path: false,
+            body: body.into(),
+        }
+    }
+
+    pub(super) fn on_path(body: impl Into<String>) -> Report {
+        Report {
+            on_path: true,
+            body: body.into(),
+        }
+    }
+}
 
 /// A command error: CMR code (1 unknown header, 2 illegal path, 3 illegal number, 5 unknown
 /// keyword, 10 block not allowed); abandons the rest of the message.

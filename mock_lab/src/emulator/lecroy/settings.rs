@@ -2,8 +2,9 @@
 //! locked scope state by the dispatcher in `commands`. Out-of-range values adapt (and flag VAB),
 //! as the scope does; words it does not know are command errors (CMR 5).
 
-use super::commands::{Call, Report};
-use super::params::{adapt, channel_index, cmd_err, exe_err, number, one, text, value, words};
+use super::params::{
+    adapt, channel_index, cmd_err, exe_err, number, one, text, value, words, Call, Report,
+};
 use super::state::{ChannelSettings, HeaderMode, ScopeState, TriggerMode};
 use super::trigger::Slope;
 use super::wavedesc::{ByteOrder, SampleWidth};

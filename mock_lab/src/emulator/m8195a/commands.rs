@@ -8,7 +8,7 @@
 //! nodes, suffixes and the compound-header rule in ~200 tested lines.
 
 use super::handlers::{self as h, Call, Get, Set};
-use super::Inner;
+use super::inner::Inner;
 use crate::emulator::scpi::error_queue::ScpiError;
 use crate::emulator::scpi::header::Pattern;
 

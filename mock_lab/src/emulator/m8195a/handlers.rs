@@ -2,8 +2,8 @@
 //! setters parse their parameters against the catalog's limits and change the state; getters
 //! answer in the instrument's format. Errors are the instrument's SCPI codes.
 
+use super::inner::Inner;
 use super::state::{AwgState, Memory};
-use super::Inner;
 use crate::catalog::AwgModel;
 use crate::emulator::scpi::error_queue::ScpiError;
 use crate::emulator::scpi::message::{unquote, Param};
