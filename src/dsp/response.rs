@@ -464,7 +464,6 @@ impl RxEqualiser {
             .map(|h| h.conj() / ((h.norm_sqr() + lambda) * n as f64))
             .collect();
         let snr_loss_db = inverse_snr_loss_db(&table.response, lambda);
-        let mut planner = FftPlanner::new();
         Ok(RxEqualiser {
             snr_loss_db,
             dc,
@@ -473,8 +472,9 @@ impl RxEqualiser {
             rx_skew_turns: Vec::new(),
             fs,
             inverse,
-            fft: planner.plan_fft_forward(n),
-            ifft: planner.plan_fft_inverse(n),
+            // The process's shared plans: the pipeline plans this length too.
+            fft: super::plans::forward(n),
+            ifft: super::plans::inverse(n),
             scratch: Vec::new(),
         })
     }

@@ -244,14 +244,25 @@ fn band_shape(
     let mut reference = tx.reference.clone();
     reference.resize(period.max(tx.reference.len()), ZERO);
     let window = options.window.to_dsp();
+    // The rectangular window's filter is the reference itself.
     let filter = if window == crate::dsp::Window::Rectangular {
-        reference.clone()
+        None
     } else {
-        weighted_filter(&reference, &window, tx.band_hz(), fs).ok()?
+        Some(weighted_filter(&reference, &window, tx.band_hz(), fs).ok()?)
     };
-    let cross = echo_spectrum(&reference, &filter);
-    let mut f = filter;
-    crate::dsp::plans::forward(f.len()).process(&mut f);
+    // echo_spectrum's product, with the filter's spectrum kept for its power (one FFT fewer;
+    // two fewer for the rectangular window).
+    let fft = crate::dsp::plans::forward(reference.len());
+    let mut r = reference;
+    fft.process(&mut r);
+    let f = match filter {
+        None => r.clone(),
+        Some(mut f) => {
+            fft.process(&mut f);
+            f
+        }
+    };
+    let cross: Vec<Complex64> = r.iter().zip(&f).map(|(a, b)| a * b.conj()).collect();
     let power: Vec<f64> = f.iter().map(|v| v.norm_sqr()).collect();
     crate::dsp::carrier_phase::BandShape::of_spectrum(&cross, &power, fs)
 }
