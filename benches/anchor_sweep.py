@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The calibration's phase anchor against the calibration pillar's place in the carrier's cycle
-(docs/metrology.md, "The anchor"): `calibrate response` on a pillar at R0 + k lambda/(2 STEPS),
+(docs/metrology.md, "The anchor, term by term"): `calibrate response` on a pillar at R0 + k lambda/(2 STEPS),
 k = 0..STEPS-1, each anchor's `phase_to_leakage_rad` less the phase the move should give
 (-4 pi dR / lambda), relative to the first. A perfect anchor gives 0 everywhere.
 
