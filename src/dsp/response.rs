@@ -383,6 +383,8 @@ pub(crate) struct RxEqualiser {
     rx_skew_s: f64,
     /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
     inverse: Vec<Complex64>,
+    /// Whether the receive filter was put back into `inverse` ([`RxEqualiser::keep_filter`]).
+    filter_kept: bool,
     /// What the inverse costs in signal-to-noise ratio over the table's band, dB (positive).
     snr_loss_db: f64,
     fs: f64,
@@ -454,6 +456,7 @@ impl RxEqualiser {
             rx_skew_s: 0.0,
             fs,
             inverse,
+            filter_kept: false,
             fft: planner.plan_fft_forward(n),
             ifft: planner.plan_fft_inverse(n),
             scratch: Vec::new(),
@@ -464,6 +467,19 @@ impl RxEqualiser {
     /// noise where the chain is weak.
     pub(crate) fn snr_loss_db(&self) -> f64 {
         self.snr_loss_db
+    }
+
+    /// Leaves the receive filter `g(nu)` (real, `nu` in cycles per sample) in the record, once:
+    /// the measured response includes it, and the point spread the detector subtracts does too.
+    pub(crate) fn keep_filter(&mut self, g: impl Fn(f64) -> f64) {
+        if self.filter_kept {
+            return;
+        }
+        let n = self.inverse.len();
+        for (k, e) in self.inverse.iter_mut().enumerate() {
+            *e *= g(signed(k, n) / n as f64);
+        }
+        self.filter_kept = true;
     }
 
     /// The same correction, with the receiver's Q skew (s) undone as well.
