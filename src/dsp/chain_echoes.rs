@@ -14,7 +14,6 @@
 
 use super::response::BAND_FLOOR;
 use num_complex::Complex64;
-use rustfft::FftPlanner;
 use std::f64::consts::PI;
 
 /// One discrete echo relative to the reference's delay: `gain e^{-j 2 pi f delay_s}`.
@@ -130,7 +129,7 @@ pub(crate) fn find(
         .iter()
         .map(|&k| z[k] / model[k] - Complex64::new(1.0, 0.0))
         .collect();
-    let ifft = FftPlanner::new().plan_fft_inverse(n);
+    let ifft = super::plans::inverse(n);
     let lag_s = |m: usize| {
         (if m <= n / 2 {
             m as f64

@@ -15,7 +15,7 @@
 
 use super::DspError;
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
+use rustfft::Fft;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -86,9 +86,9 @@ impl ChainEstimator {
                 1e9 * period as f64 / (3.0 * fs)
             )));
         }
-        let mut planner = FftPlanner::new();
-        let fft = planner.plan_fft_forward(period);
-        let ifft = planner.plan_fft_inverse(period);
+        // The process's shared plans: a calibration makes several estimators of one length.
+        let fft = super::plans::forward(period);
+        let ifft = super::plans::inverse(period);
         let mut x = reference.to_vec();
         x.resize(period, ZERO);
         let mut x_image: Vec<Complex64> = x.iter().map(|v| v.conj()).collect();
@@ -402,6 +402,8 @@ pub(crate) struct RxEqualiser {
     rx_skew_turns: Vec<Complex64>,
     /// `1 / H` per bin (unnormalised DFT scale folded in: 1 / n).
     inverse: Vec<Complex64>,
+    /// Whether the receive filter was put back into `inverse` ([`RxEqualiser::keep_filter`]).
+    filter_kept: bool,
     /// What the inverse costs in signal-to-noise ratio over the table's band, dB (positive).
     snr_loss_db: f64,
     fs: f64,
@@ -472,6 +474,7 @@ impl RxEqualiser {
             rx_skew_turns: Vec::new(),
             fs,
             inverse,
+            filter_kept: false,
             // The process's shared plans: the pipeline plans this length too.
             fft: super::plans::forward(n),
             ifft: super::plans::inverse(n),
@@ -483,6 +486,19 @@ impl RxEqualiser {
     /// noise where the chain is weak.
     pub(crate) fn snr_loss_db(&self) -> f64 {
         self.snr_loss_db
+    }
+
+    /// Leaves the receive filter `g(nu)` (real, `nu` in cycles per sample) in the record, once:
+    /// the measured response includes it, and the point spread the detector subtracts does too.
+    pub(crate) fn keep_filter(&mut self, g: impl Fn(f64) -> f64) {
+        if self.filter_kept {
+            return;
+        }
+        let n = self.inverse.len();
+        for (k, e) in self.inverse.iter_mut().enumerate() {
+            *e *= g(signed(k, n) / n as f64);
+        }
+        self.filter_kept = true;
     }
 
     /// The same correction, with the receiver's Q skew (s) undone as well.
@@ -592,6 +608,7 @@ pub(crate) fn iq_imbalance_of_noise(y: &[Complex64]) -> Option<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rustfft::FftPlanner;
 
     fn chirp(n: usize) -> Vec<Complex64> {
         // A 1 GHz chirp at 16 GSa/s over n samples.

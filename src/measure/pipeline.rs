@@ -1385,6 +1385,11 @@ impl Pipeline {
         // treats the band's own noise).
         let mut beside = self.noise_beside_band(&aligned.samples);
         if let Some(eq) = &mut self.equaliser {
+            // The measured response holds the decimator's pass band, and so does the point spread
+            // CLEAN subtracts: the correction leaves it in the record.
+            if let Some((_, _, dec)) = &self.decimator {
+                eq.keep_filter(|nu| dec.response_at_output(nu));
+            }
             // A subtracted background took the DC with it.
             eq.apply(&mut aligned.samples, background.is_none())?;
             if let Some(noise) = beside.as_mut() {
