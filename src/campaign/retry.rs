@@ -32,9 +32,9 @@ pub struct RetryRecord {
 /// The instrument of a transient fault in `e`, `None` when the fault is not one to retry: a lost
 /// or refused connection, a timeout, a missing trigger (marker edge), a Gotmic module's reply
 /// that fails its CRC or its identity, a Gotmic module found reset after a capture (back at its
-/// power-on state, RF off or silent: it lost power during the capture). Everything else stops the run at once, as without
-/// retries: an identity that changed (the runner's own check), an interlock or a latched fault,
-/// a refused setting, a spec error, the run folder gone, a signal.
+/// power-on state, RF off or silent: it lost power during the capture). Everything else stops
+/// the run at once, as without retries: an identity that changed (the runner's own check), an
+/// interlock or a latched fault, a refused setting, a spec error, the run folder gone, a signal.
 pub(crate) fn transient_instrument(e: &CampaignError) -> Option<&str> {
     let CampaignError::Measure(MeasureError::Driver(d)) = e else {
         return None;
