@@ -62,6 +62,7 @@ impl Bench {
             rx: rx.clone(),
             scene: scene.clone(),
             synth: Mutex::new(Synthesizer::new(seed)),
+            at_next_trigger: Mutex::new(None),
         });
         let scope = Arc::new(Lecroy::embedded_with(source.clone())?);
         Ok(Bench {
@@ -80,6 +81,13 @@ impl Bench {
         self.inputs.clone()
     }
 
+    /// Runs `strike` once, when the next marker edge triggers an acquisition, before the scope
+    /// records what the channels see: a fault that lands during a capture (a module power-cycled
+    /// with RF on), at a moment the tests choose without timing it. Replaces one not yet run.
+    pub fn at_next_trigger(&self, strike: impl FnOnce() + Send + 'static) {
+        *lock(&self.inputs.at_next_trigger) = Some(Box::new(strike));
+    }
+
     /// Whether anything could radiate or drive an output now: Tx RF on, or an AWG output on, or the
     /// AWG running. Tests use it to check the safe state.
     pub fn is_safe(&self) -> bool {
@@ -96,6 +104,13 @@ pub struct BenchSource {
     rx: Arc<Gotmic>,
     scene: Arc<SharedScene>,
     synth: Mutex<Synthesizer>,
+    /// What to do at the next triggered acquisition ([`Bench::at_next_trigger`]).
+    at_next_trigger: Mutex<Option<Box<dyn FnOnce() + Send>>>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    // Plain data: a panic elsewhere leaves it consistent.
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// How often a waiting acquisition looks at the AWG again (the AWG may start while the scope waits).
@@ -202,6 +217,10 @@ impl TriggerSource for BenchSource {
         loop {
             let pb = self.awg.playback();
             if self.marker_cable.load(Ordering::Relaxed) && Self::marker_triggers(&pb, request) {
+                let strike = lock(&self.at_next_trigger).take();
+                if let Some(strike) = strike {
+                    strike();
+                }
                 return Some(self.synthesise(&pb, request));
             }
             let now = Instant::now();

@@ -31,9 +31,10 @@ pub struct RetryRecord {
 
 /// The instrument of a transient fault in `e`, `None` when the fault is not one to retry: a lost
 /// or refused connection, a timeout, a missing trigger (marker edge), a Gotmic module's reply
-/// that fails its CRC or its identity. Everything else stops the run at once, as without
-/// retries: an identity that changed (the runner's own check), an interlock or a latched fault,
-/// a refused setting, a spec error, the run folder gone, a signal.
+/// that fails its CRC or its identity, a Gotmic module found reset after a capture (back at its
+/// power-on state, RF off or silent: it lost power during the capture). Everything else stops
+/// the run at once, as without retries: an identity that changed (the runner's own check), an
+/// interlock or a latched fault, a refused setting, a spec error, the run folder gone, a signal.
 pub(crate) fn transient_instrument(e: &CampaignError) -> Option<&str> {
     let CampaignError::Measure(MeasureError::Driver(d)) = e else {
         return None;
@@ -42,6 +43,7 @@ pub(crate) fn transient_instrument(e: &CampaignError) -> Option<&str> {
         // Connect, timeout, closed, I/O, serial: the link's own Retry class.
         DriverError::Session { instrument, .. } if d.kind() == ErrorKind::Retry => Some(instrument),
         DriverError::NoTrigger { instrument, .. } => Some(instrument),
+        DriverError::StateLost { instrument, .. } => Some(instrument),
         DriverError::Reply { instrument, .. } if is_front_end(instrument) => Some(instrument),
         // A module's identity garbled on its serial line (named by its resource there).
         DriverError::WrongInstrument { resource, .. } if resource.starts_with("ASRL") => {
@@ -94,6 +96,12 @@ mod tests {
             reply: "OK 0x0001*00".into(),
         });
         assert_eq!(transient_instrument(&crc), Some("tx"));
+        let reset = driver(DriverError::StateLost {
+            instrument: "rx".into(),
+            found: "the module is back at its power-on state (RF off)".into(),
+            certain: true,
+        });
+        assert_eq!(transient_instrument(&reset), Some("rx"));
         // The same kind of reply from the AWG is no glitch of a serial line.
         let awg_reply = driver(DriverError::Reply {
             instrument: "awg".into(),

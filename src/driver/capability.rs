@@ -341,6 +341,22 @@ pub trait RfFrontEnd: Send {
         permit: &'a RfPermit,
         ready: ReadyToEnable,
     ) -> BoxFuture<'a, Result<RfStatus, DriverError>>;
+    /// Reads the module back after a capture (its status registers, each exchange within the
+    /// link's own deadline) and checks it is still as [`enable_checked`](Self::enable_checked)
+    /// left it: `enabled` is what that returned (RF on, CONTROL, the attenuation). A module that
+    /// was reset or lost power during the capture radiated (or received) nothing since, and
+    /// nothing else in the capture fails. Returns the module as read.
+    ///
+    /// # Errors
+    ///
+    /// [`DriverError::StateLost`] when it is not as it was left (back at its power-on state, RF
+    /// off, other settings) or cannot be read back (silent, or answering as a module at power-on
+    /// does); [`DriverError::RfNotReady`] when RF went off with a latched fault (interlock, LO,
+    /// temperature: not a glitch).
+    fn confirm_enabled<'a>(
+        &'a mut self,
+        enabled: &'a RfStatus,
+    ) -> BoxFuture<'a, Result<RfStatus, DriverError>>;
     /// RF off and maximum attenuation; tries both even when one fails.
     fn disable(&mut self) -> BoxFuture<'_, Result<(), DriverError>>;
     /// Clears the latched faults (an explicit user action: the driver never clears them itself).

@@ -109,6 +109,17 @@ pub enum DriverError {
     /// LO not locked, over temperature).
     #[error("{instrument}: {reason}")]
     RfNotReady { instrument: String, reason: String },
+    /// An RF module read back after a capture is not as it was switched on for it: back at its
+    /// power-on state, RF off, other settings, or no answer. It was reset or lost power during
+    /// the capture (`certain`), or may have been (`!certain`: it did not answer), so the capture
+    /// may hold no signal and is not used. A glitch of the bench: the retry policy measures the
+    /// step again.
+    #[error("{instrument}: {found} after the capture: it {} reset or lost power during the capture, which is not used", if *.certain { "was" } else { "may have been" })]
+    StateLost {
+        instrument: String,
+        found: String,
+        certain: bool,
+    },
     /// A register write did not stick.
     #[error("{instrument}: wrote {register} = 0x{wrote:04X}, read back 0x{read:04X}; the module did not apply it")]
     VerifyFailed {
@@ -168,7 +179,9 @@ impl DriverError {
                 (kind, ExitClass::Instrument)
             }
             DriverError::Session { source, .. } => (source.kind(), source.exit_class()),
-            DriverError::NoTrigger { .. } => (ErrorKind::Retry, ExitClass::Instrument),
+            DriverError::NoTrigger { .. } | DriverError::StateLost { .. } => {
+                (ErrorKind::Retry, ExitClass::Instrument)
+            }
             DriverError::LineRefused { .. }
             | DriverError::Reply { .. }
             | DriverError::NotApplied { .. }

@@ -410,6 +410,18 @@ async fn check_before_enable(
     }
 }
 
+/// A front end switched on for a capture (`enabled`: what its enable returned), read back after
+/// it: still as it was left, or a [`DriverError::StateLost`](crate::driver::DriverError).
+async fn confirm_enabled(
+    front: Option<&Shared<dyn RfFrontEnd>>,
+    enabled: Option<&RfStatus>,
+) -> Result<(), MeasureError> {
+    if let (Some(front), Some(enabled)) = (front, enabled) {
+        front.lock().await.confirm_enabled(enabled).await?;
+    }
+    Ok(())
+}
+
 /// The bench's drivers, shared with the safe state.
 pub(crate) struct Station {
     awg: Shared<dyn Awg>,
@@ -581,6 +593,15 @@ impl Station {
             held += capture.segments().max(1);
             captures.push(capture);
         }
+        // A module reset or powered off during the acquisition (RF off since, settings at their
+        // power-on values) leaves a capture without echo in which nothing failed: both are read
+        // back (side by side, each exchange within its link's deadline) before it counts.
+        let (rx_now, tx_now) = tokio::join!(
+            confirm_enabled(self.rx.as_ref(), rx_status.as_ref()),
+            confirm_enabled(tx, tx_status.as_ref()),
+        );
+        tx_now?;
+        rx_now?;
         if tx_status.is_none() {
             if let Some(txm) = &self.tx {
                 tx_status = Some(txm.lock().await.status().await?);

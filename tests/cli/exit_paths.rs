@@ -1,7 +1,8 @@
 //! Every exit path leaves the bench safe and never a partial file: SIGINT, SIGTERM and SIGHUP sent
 //! to `radbench capture` while RF is on, while the scope's data is being fetched and while the
-//! files are written, with the emulators' RF state read back afterwards; and a stalled scope
-//! switches RF off within the capture's deadline.
+//! files are written, with the emulators' RF state read back afterwards; a stalled scope
+//! switches RF off within the capture's deadline; and a module power-cycled during the capture
+//! is an error (exit 3), not a capture without echo.
 
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
@@ -168,5 +169,30 @@ async fn a_stalled_scope_gets_rf_off_by_the_deadline() {
     assert_eq!(code, 3, "{err}");
     // Bounded by the link's read timeout (10 s here) plus its clear, far inside the RF deadline.
     assert!(rf_on < Duration::from_secs(55), "RF stayed on {rf_on:?}");
+    assert!(lab.bench.is_safe(), "{err}");
+}
+
+/// The Tx power-cycled while the scope records (its RF off from then on, as a module that lost
+/// power for a moment): nothing in the capture fails, but the Tx read back after it answers as a
+/// module at power-on does. `radbench capture` exits 3 naming the reset, writes no capture, and
+/// leaves the bench safe.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tx_power_cycled_during_the_capture_is_an_error_not_a_capture_without_echo() {
+    let lab = start().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab);
+    let out = dir.path().join("out");
+    let tx = lab.bench.tx.clone();
+    lab.bench.at_next_trigger(move || tx.power_cycle());
+    let (code, err) = exit_code(capture(&bench, &out, &[])).await;
+    assert_eq!(code, 3, "{err}");
+    assert!(
+        err.contains(
+            "tx: the module answers without the CRC-8 framing it was switched to, as at power-on"
+        ) && err.contains("it was reset or lost power during the capture, which is not used"),
+        "{err}"
+    );
+    assert!(!out.join("summary.json").exists(), "{err}");
+    no_partial_file(&out);
     assert!(lab.bench.is_safe(), "{err}");
 }

@@ -6,7 +6,10 @@
 //!
 //! The faults are switched on the built-in lab as its control channel would (`drop`, `stall`,
 //! `power_cycle`, `marker_cable`; the JSON requests themselves are tested in mock_lab's
-//! `lab.rs`), when the step's capture is about to start (`Observer::step_starting`).
+//! `lab.rs`), when the step's capture is about to start (`Observer::step_starting`), or, for a
+//! module power-cycled during the capture, when its marker edge triggers the scope
+//! (`Bench::at_next_trigger`): the capture then holds no echo and nothing in it fails, and only
+//! the modules read back after it tell.
 
 use radbench::campaign::{self, BenchInfo, Manifest, NewRun, Observer, Quiet, SpecFile, Status};
 use radbench::campaign::{RetryRecord, Step};
@@ -172,6 +175,12 @@ enum Glitch {
     PowerCycleTx,
     /// `{"cmd":"fault","marker_cable":false}` (past `wait_s`)
     MarkerOut,
+    /// The Tx power-cycled during the capture, once the marker edge has triggered it (RF on):
+    /// as `{"cmd":"fault","power_cycle":"tx","for_s":0.5}` landing mid-capture. Nothing in the
+    /// capture fails; the Tx read back after it is silent or back at power-on.
+    PowerCycleTxInCapture,
+    /// The same for the Rx, back at once (`for_s` 0): it answers as at power-on.
+    PowerCycleRxInCapture,
 }
 
 impl Glitch {
@@ -185,6 +194,17 @@ impl Glitch {
                 lab.tx_faults.silence_for(Duration::from_secs(5));
             }
             Glitch::MarkerOut => lab.bench.marker_cable.store(false, Ordering::SeqCst),
+            Glitch::PowerCycleTxInCapture => {
+                let (tx, faults) = (lab.bench.tx.clone(), lab.tx_faults.clone());
+                lab.bench.at_next_trigger(move || {
+                    tx.power_cycle();
+                    faults.silence_for(Duration::from_millis(500));
+                });
+            }
+            Glitch::PowerCycleRxInCapture => {
+                let rx = lab.bench.rx.clone();
+                lab.bench.at_next_trigger(move || rx.power_cycle());
+            }
         }
     }
 
@@ -193,7 +213,33 @@ impl Glitch {
         match self {
             Glitch::DropAwg => "awg",
             Glitch::DropScope | Glitch::StallScope | Glitch::MarkerOut => "scope",
-            Glitch::PowerCycleTx => "tx",
+            Glitch::PowerCycleTx | Glitch::PowerCycleTxInCapture => "tx",
+            Glitch::PowerCycleRxInCapture => "rx",
+        }
+    }
+
+    /// What the retry's fault must say, beyond naming the instrument.
+    fn fault_says(self) -> &'static [&'static str] {
+        match self {
+            // Silent for 0.5 s, then at power-on: which of the two the read-back meets depends
+            // on how long the capture's transfer took.
+            Glitch::PowerCycleTxInCapture => &["tx: ", "reset or lost power during the capture"],
+            Glitch::PowerCycleRxInCapture => &[
+                "rx: the module answers without the CRC-8 framing it was switched to, as at \
+                 power-on",
+                "it was reset or lost power during the capture, which is not used",
+            ],
+            _ => &[],
+        }
+    }
+
+    /// The safe-state step a module without power (or back at power-on, in the other line mode)
+    /// fails, if this glitch cuts one.
+    fn module_off(self) -> Option<&'static str> {
+        match self {
+            Glitch::PowerCycleTx | Glitch::PowerCycleTxInCapture => Some("Tx RF off: FAILED"),
+            Glitch::PowerCycleRxInCapture => Some("Rx off: FAILED"),
+            _ => None,
         }
     }
 }
@@ -266,14 +312,18 @@ async fn ridden_out(glitch: Glitch) {
     });
     assert_eq!((retry.step, retry.attempt), (3, 1), "{retry:?}");
     assert_eq!(retry.instrument, glitch.instrument(), "{retry:?}");
+    for says in glitch.fault_says() {
+        assert!(retry.fault.contains(says), "{glitch:?}: {retry:?}");
+    }
     assert!(
         retry.safe_state.contains("AWG outputs off and :ABOR: done"),
         "{retry:?}"
     );
     // A module without power cannot be told to switch off (it is off): only its step may fail.
     let failed = retry.safe_state.matches("FAILED").count();
-    let module_off =
-        matches!(glitch, Glitch::PowerCycleTx) && retry.safe_state.contains("Tx RF off: FAILED");
+    let module_off = glitch
+        .module_off()
+        .is_some_and(|step| retry.safe_state.contains(step));
     assert!(failed == 0 || (failed == 1 && module_off), "{retry:?}");
     assert!(
         saboteur
@@ -348,6 +398,8 @@ glitches! {
     a_dropped_scope_connection_is_ridden_out: ridden_out DropScope;
     a_stalled_scope_is_ridden_out: ridden_out StallScope;
     a_power_cycled_tx_is_ridden_out: ridden_out PowerCycleTx;
+    a_tx_power_cycled_during_the_capture_is_ridden_out: ridden_out PowerCycleTxInCapture;
+    a_rx_power_cycled_during_the_capture_is_ridden_out: ridden_out PowerCycleRxInCapture;
     a_missing_marker_edge_is_ridden_out: ridden_out MarkerOut;
     a_dropped_scope_connection_held_stops_resumably: held_past_the_retries DropScope;
     a_missing_marker_edge_held_stops_resumably: held_past_the_retries MarkerOut;

@@ -504,6 +504,66 @@ async fn gotmic_switches_off_again_without_lo() {
     );
 }
 
+/// After a capture the driver reads the module back: as it was switched on, it passes; RF
+/// tripped off by the interlock is the latched fault it is (not a glitch); a module power-cycled
+/// with RF on is found back at its power-on state (here one whose CRC mode is fixed on, so it
+/// still answers: registers at reset), or answering in the line mode of power-on (CRC off), or
+/// not at all.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_read_back_after_a_capture_finds_a_reset_module() {
+    let permit = RfPermit::granted_by_user();
+    let settings = RfSettings {
+        attenuation_db: 12.5,
+        lo_frequency_hz: None,
+    };
+    let emu = GotmicEmu::tx_embedded().unwrap();
+    emu.set_crc_fixed(Some(true));
+    let (emu, mut tx, endpoint) = gotmic_over_serial("gotmic-eband-tx", emu).await;
+    let on = bounded(tx.enable(&permit, &settings)).await.unwrap();
+    let now = bounded(tx.confirm_enabled(&on)).await.unwrap();
+    assert!(now.rf_enabled && now.attenuation_db == 12.5, "{now:?}");
+
+    emu.set_interlock_open(true);
+    let e = bounded(tx.confirm_enabled(&on)).await.unwrap_err();
+    assert!(matches!(e, DriverError::RfNotReady { .. }), "{e}");
+    assert!(e.to_string().contains("INTERLOCK_OPENED"), "{e}");
+    emu.set_interlock_open(false);
+    bounded(tx.clear_faults()).await.unwrap();
+
+    let on = bounded(tx.enable(&permit, &settings)).await.unwrap();
+    emu.power_cycle();
+    let e = bounded(tx.confirm_enabled(&on)).await.unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "gotmic-eband-tx: the module is back at its power-on state (RF off, CONTROL 0x0000, \
+         attenuation 31.5 dB) after the capture: it was reset or lost power during the capture, \
+         which is not used"
+    );
+    assert_eq!(e.kind(), radbench::transport::ErrorKind::Retry);
+
+    // Back at power-on in plain lines (CRC off), as the catalog's modules come up.
+    emu.set_crc_fixed(None);
+    let on = bounded(tx.enable(&permit, &settings)).await.unwrap();
+    emu.power_cycle();
+    let e = bounded(tx.confirm_enabled(&on)).await.unwrap_err();
+    assert!(
+        matches!(e, DriverError::StateLost { certain: true, .. })
+            && e.to_string()
+                .contains("answers without the CRC-8 framing it was switched to"),
+        "{e}"
+    );
+
+    // No answer at all (the line gone): it may have been reset.
+    drop(endpoint);
+    let e = bounded(tx.confirm_enabled(&on)).await.unwrap_err();
+    assert!(
+        matches!(e, DriverError::StateLost { certain: false, .. })
+            && e.to_string().contains("did not answer when read back")
+            && e.to_string().contains("may have been reset or lost power"),
+        "{e}"
+    );
+}
+
 // ---------------------------------------------------------------- safe state
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -607,6 +607,112 @@ impl Gotmic {
         off.and(att)
     }
 
+    /// After a capture: the module read back as `enabled` left it, or why not (see
+    /// [`RfFrontEnd::confirm_enabled`]).
+    async fn confirm_enabled_impl(&mut self, enabled: &RfStatus) -> Result<RfStatus, DriverError> {
+        let now = match self.status_impl().await {
+            Ok(now) => now,
+            Err(e) => return Err(self.unreadable_after_capture(e)),
+        };
+        let step = self.limits.attenuation_step_db;
+        let code = |db: f64| (db / step).round() as u16;
+        let lost = |found: String, certain: bool| DriverError::StateLost {
+            instrument: self.name.clone(),
+            found,
+            certain,
+        };
+        if !now.rf_enabled && !now.faults.is_empty() {
+            return Err(self.not_ready(format!(
+                "RF went off during the capture with latched faults {:?}: fix their cause, then \
+                 clear them explicitly (clear_faults) before enabling RF",
+                now.faults
+            )));
+        }
+        let power_on = now.control == self.map.control.reset
+            && code(now.attenuation_db) == self.map.attenuation.reset;
+        if power_on && !now.rf_enabled {
+            return Err(lost(
+                format!(
+                    "the module is back at its power-on state (RF off, CONTROL 0x{:04X}, \
+                     attenuation {} dB)",
+                    now.control, now.attenuation_db
+                ),
+                true,
+            ));
+        }
+        if !now.rf_enabled || now.control != enabled.control {
+            return Err(lost(
+                format!(
+                    "RF is {} (CONTROL 0x{:04X}, switched on with 0x{:04X})",
+                    if now.rf_enabled { "on" } else { "off" },
+                    now.control,
+                    enabled.control
+                ),
+                false,
+            ));
+        }
+        if code(now.attenuation_db) != code(enabled.attenuation_db) {
+            return Err(lost(
+                format!(
+                    "the attenuation is {} dB, set to {} dB",
+                    now.attenuation_db, enabled.attenuation_db
+                ),
+                false,
+            ));
+        }
+        Ok(now)
+    }
+
+    /// The read-back after a capture failed: a module that answers in plain lines though it was
+    /// switched to CRC framing is back at power-on; one that does not answer (or answers
+    /// garbled, or refuses a read it served before) may be.
+    fn unreadable_after_capture(&self, e: DriverError) -> DriverError {
+        let lost = |found: String, certain: bool| DriverError::StateLost {
+            instrument: self.name.clone(),
+            found,
+            certain,
+        };
+        match e {
+            DriverError::Reply {
+                reply, expected, ..
+            } if expected.contains("CRC-8") && self.answers_as_at_power_on(&reply) => lost(
+                format!(
+                    "the module answers without the CRC-8 framing it was switched to, as at \
+                     power-on ({:?})",
+                    reply.trim()
+                ),
+                true,
+            ),
+            DriverError::Session { source, .. } => lost(
+                format!("the module did not answer when read back ({source})"),
+                false,
+            ),
+            e @ (DriverError::Reply { .. } | DriverError::LineRefused { .. }) => {
+                let text = e.to_string();
+                let text = text
+                    .strip_prefix(&format!("{}: ", self.name))
+                    .unwrap_or(&text)
+                    .to_string();
+                lost(
+                    format!("the module's answer when read back is not as before ({text})"),
+                    false,
+                )
+            }
+            e => e,
+        }
+    }
+
+    /// Whether `reply` (without a valid CRC) is a whole reply in plain lines, as a module whose
+    /// CRC framing was switched on answers once it is back at power-on (CRC off).
+    fn answers_as_at_power_on(&self, reply: &str) -> bool {
+        matches!(self.framing, Framing::Crc8(crc) if crc.unframe(reply.trim()).is_none())
+            && self
+                .grammar
+                .reply(reply.trim())
+                .and_then(|body| self.grammar.parse_reply(body))
+                .is_some()
+    }
+
     async fn clear_faults_impl(&mut self) -> Result<(), DriverError> {
         let map = self.map.clone();
         let mask = map
@@ -674,6 +780,13 @@ impl RfFrontEnd for Gotmic {
 
     fn disable(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(self.disable_impl())
+    }
+
+    fn confirm_enabled<'a>(
+        &'a mut self,
+        enabled: &'a RfStatus,
+    ) -> BoxFuture<'a, Result<RfStatus, DriverError>> {
+        Box::pin(self.confirm_enabled_impl(enabled))
     }
 
     fn clear_faults(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
