@@ -488,15 +488,16 @@ impl RxEqualiser {
         self.snr_loss_db
     }
 
-    /// Leaves the receive filter `g(nu)` (real, `nu` in cycles per sample) in the record, once:
-    /// the measured response includes it, and the point spread the detector subtracts does too.
-    pub(crate) fn keep_filter(&mut self, g: impl Fn(f64) -> f64) {
+    /// Leaves the receive filter in the record, once: `gains` is its (real) response at each bin
+    /// of a period's DFT. The measured response includes it, and the point spread the detector
+    /// subtracts does too.
+    pub(crate) fn keep_filter(&mut self, gains: impl FnOnce(usize) -> Vec<f64>) {
         if self.filter_kept {
             return;
         }
-        let n = self.inverse.len();
-        for (k, e) in self.inverse.iter_mut().enumerate() {
-            *e *= g(signed(k, n) / n as f64);
+        let gains = gains(self.inverse.len());
+        for (e, g) in self.inverse.iter_mut().zip(gains) {
+            *e *= g;
         }
         self.filter_kept = true;
     }

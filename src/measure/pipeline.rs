@@ -586,14 +586,9 @@ fn detector_psf(
         || {
             let mut spectrum = echo_spectrum(&echo.reference, echo.filter());
             if let Some(dec) = decimator {
-                let p = spectrum.len();
-                for (k, v) in spectrum.iter_mut().enumerate() {
-                    let signed = if k <= p / 2 {
-                        k as f64
-                    } else {
-                        k as f64 - p as f64
-                    };
-                    *v *= dec.response_at_output(signed / p as f64);
+                let gains = dec.response_at_output_bins(spectrum.len());
+                for (v, g) in spectrum.iter_mut().zip(gains) {
+                    *v *= g;
                 }
             }
             Ok::<_, MeasureError>(TabulatedPsf::from_dft_spectrum(&spectrum, span)?)
@@ -1388,7 +1383,7 @@ impl Pipeline {
             // The measured response holds the decimator's pass band, and so does the point spread
             // CLEAN subtracts: the correction leaves it in the record.
             if let Some((_, _, dec)) = &self.decimator {
-                eq.keep_filter(|nu| dec.response_at_output(nu));
+                eq.keep_filter(|n| dec.response_at_output_bins(n));
             }
             // A subtracted background took the DC with it.
             eq.apply(&mut aligned.samples, background.is_none())?;
