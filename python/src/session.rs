@@ -62,6 +62,9 @@ fn wait_with_events<T: Send>(
         });
         call = back;
         if let Some(result) = ended {
+            // A Ctrl-C that came while the call was ending is still the user's: raised, as
+            // Python would at its next instruction (the call's guard left the bench safe).
+            py.check_signals()?;
             deliver()?;
             return result.map_err(to_py);
         }
