@@ -5,6 +5,7 @@ class."""
 import _thread
 import json
 import os
+import signal
 import threading
 from pathlib import Path
 
@@ -101,7 +102,16 @@ def last(lines, pred):
     return found[-1] if found else -1
 
 
-def test_keyboard_interrupt_in_a_capture_leaves_the_bench_safe(tmp_path):
+@pytest.fixture
+def sigint_raises():
+    """Ctrl-C raises KeyboardInterrupt in these tests however pytest was started: a background job
+    of a non-interactive shell starts Python with SIGINT ignored, and then an interrupt is dropped."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
+def test_keyboard_interrupt_in_a_capture_leaves_the_bench_safe(tmp_path, sigint_raises):
     journal = tmp_path / "io.jsonl"
     with radbench.MockLab() as lab, radbench.Bench(lab, allow_rf=True, trace_io=journal) as b:
         before = lab.last_capture()["captures"] or 0
@@ -163,7 +173,7 @@ def interrupt_during_a_capture(lab, b):
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
-def test_sessions_interrupted_or_not_leave_no_thread_or_descriptor_behind():
+def test_sessions_interrupted_or_not_leave_no_thread_or_descriptor_behind(sigint_raises):
     # One session first: what a process sets up once (thread pools, FFT plans) is not a leak.
     with radbench.MockLab() as lab, radbench.Bench(lab, allow_rf=True) as b:
         b.capture()
