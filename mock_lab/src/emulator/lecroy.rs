@@ -184,12 +184,12 @@ impl Lecroy {
         };
         let result = match mode {
             TriggerMode::Auto => Some(
-                self.segments(&request, segments, Instant::now())
+                self.segments(&request, segments, Instant::now(), arm_id)
                     .map(|c| (c, false))
                     .unwrap_or_else(|| (self.forced_segments(&request, segments), true)),
             ),
             _ => self
-                .segments(&request, segments, deadline)
+                .segments(&request, segments, deadline, arm_id)
                 .map(|c| (c, false)),
         };
         if let Some((captures, forced)) = result {
@@ -208,15 +208,23 @@ impl Lecroy {
     }
 
     /// One capture per segment, each at its own edge; None when an edge did not come by
-    /// `deadline` (the acquisition stays incomplete, as on the scope).
+    /// `deadline` (the acquisition stays incomplete, as on the scope), or when acquisition
+    /// `arm_id` was stopped or armed again meanwhile (`STOP` from a client's safe state: the
+    /// segments still to come are not synthesised, which took seconds of a lab's shutdown).
     fn segments(
         &self,
         request: &AcquisitionRequest,
         segments: u32,
         deadline: Instant,
+        arm_id: u64,
     ) -> Option<Vec<Capture>> {
         (0..segments)
-            .map(|_| self.source.acquire(request, deadline))
+            .map(|_| {
+                let st = self.lock();
+                let current = st.armed && st.arm_id == arm_id;
+                drop(st);
+                current.then(|| self.source.acquire(request, deadline))?
+            })
             .collect()
     }
 

@@ -9,7 +9,11 @@ use mock_lab::emulator::lecroy::{Lecroy, RemoteInterface, TestSignal};
 use mock_lab::server::Handler;
 
 fn scope_with(signal: Arc<TestSignal>) -> Arc<Lecroy> {
-    let scope = Lecroy::embedded_with(signal).expect("built-in catalog loads");
+    scope_with_source(signal)
+}
+
+fn scope_with_source(source: Arc<dyn mock_lab::emulator::lecroy::TriggerSource>) -> Arc<Lecroy> {
+    let scope = Lecroy::embedded_with(source).expect("built-in catalog loads");
     scope.set_wait_cap(Duration::from_secs(5));
     Arc::new(scope)
 }
@@ -664,4 +668,66 @@ fn a_model_without_sequence_mode_refuses_it() {
         ),
         "RealTime"
     );
+}
+
+/// A test signal that counts its acquisitions and, at the second, has another client stop the
+/// scope (what a client's safe state sends when it gives up on a capture).
+struct StoppedAtTheSecondEdge {
+    signal: TestSignal,
+    acquisitions: std::sync::atomic::AtomicUsize,
+    scope: std::sync::OnceLock<std::sync::Weak<Lecroy>>,
+}
+
+impl mock_lab::emulator::lecroy::TriggerSource for StoppedAtTheSecondEdge {
+    fn acquire(
+        &self,
+        request: &mock_lab::emulator::lecroy::AcquisitionRequest,
+        deadline: std::time::Instant,
+    ) -> Option<mock_lab::emulator::lecroy::Capture> {
+        let n = 1 + self
+            .acquisitions
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        if n == 2 {
+            let scope = self.scope.get().and_then(std::sync::Weak::upgrade).unwrap();
+            std::thread::spawn(move || send(&*scope, "STOP"))
+                .join()
+                .unwrap();
+        }
+        self.signal.acquire(request, deadline)
+    }
+
+    fn force(
+        &self,
+        request: &mock_lab::emulator::lecroy::AcquisitionRequest,
+    ) -> mock_lab::emulator::lecroy::Capture {
+        self.signal.force(request)
+    }
+}
+
+#[test]
+fn a_stop_during_a_sequence_ends_it_without_recording_the_segments_left() {
+    let source = Arc::new(StoppedAtTheSecondEdge {
+        signal: TestSignal::new(true, 1e9, 0.1),
+        acquisitions: Default::default(),
+        scope: Default::default(),
+    });
+    let scope = scope_with_source(source.clone());
+    source.scope.set(Arc::downgrade(&scope)).unwrap();
+    send(&*scope, SETUP);
+    send(&*scope, TIMEBASE);
+    send(
+        &*scope,
+        "VBS 'app.Acquisition.Horizontal.SampleMode = \"Sequence\"';\
+         VBS 'app.Acquisition.Horizontal.NumSegments = 200'",
+    );
+    send(&*scope, TRIGGER);
+    send(&*scope, "ARM;WAIT 5");
+    // The segments after the stop are not synthesised, and the stopped acquisition records nothing.
+    assert_eq!(
+        source
+            .acquisitions
+            .load(std::sync::atomic::Ordering::SeqCst),
+        2
+    );
+    assert_eq!(q(&*scope, "INR?").parse::<u32>().unwrap() & 1, 0);
 }
