@@ -16,17 +16,21 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r interop/requirements.txt
 
-echo "interop: building mock-lab and radbench (as the tests build them)"
 # The binaries `cargo test --workspace` builds for its own tests (radbench with the `testing`
 # feature its dev-dependency turns on: the test doubles, which change no command): after
 # .ci/run's test step this compiles nothing. A plain `cargo build -p radbench` would compile
-# radbench again without that feature (about 3 minutes of CI on 2 cores).
-cargo test --workspace --no-run --quiet
-# cargo's own target folder (CARGO_TARGET_DIR when set, as cargo itself does), made absolute.
-target_dir=${CARGO_TARGET_DIR:-target}
-case "$target_dir" in /*) ;; *) target_dir="$PWD/$target_dir" ;; esac
-export MOCK_LAB_BIN="$target_dir/debug/mock-lab"
-export RADBENCH_BIN="$target_dir/debug/radbench"
+# radbench again without that feature (about 3 minutes of CI on 2 cores). .ci/run gives both
+# paths (MOCK_LAB_BIN, RADBENCH_BIN) and builds the Python package meanwhile, which holds
+# cargo's lock on the target folder: then nothing here runs cargo.
+if [ -z "${MOCK_LAB_BIN:-}" ] || [ -z "${RADBENCH_BIN:-}" ]; then
+    echo "interop: building mock-lab and radbench (as the tests build them)"
+    cargo test --workspace --no-run --quiet
+    # cargo's own target folder (CARGO_TARGET_DIR when set, as cargo itself does), made absolute.
+    target_dir=${CARGO_TARGET_DIR:-target}
+    case "$target_dir" in /*) ;; *) target_dir="$PWD/$target_dir" ;; esac
+    export MOCK_LAB_BIN="$target_dir/debug/mock-lab"
+    export RADBENCH_BIN="$target_dir/debug/radbench"
+fi
 
 set +e
 "$VENV/bin/python" -m pytest -q -p no:cacheprovider interop

@@ -272,6 +272,14 @@ pub struct Lab {
     _control: control::ControlServer,
 }
 
+impl Drop for Lab {
+    fn drop(&mut self) {
+        // A scope handler waiting for a trigger edge on a blocking thread would keep the
+        // runtime's shutdown waiting until its `WAIT` times out (10 s).
+        self.bench.scope.abandon_waits();
+    }
+}
+
 struct Served {
     name: &'static str,
     handler: Arc<dyn Handler>,

@@ -21,6 +21,7 @@ pub(crate) mod trigger;
 mod vbs;
 pub(crate) mod wavedesc;
 
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -36,6 +37,8 @@ use crate::catalog::{self, CatalogError, DigitizerModel};
 use crate::server::Handler;
 
 const LOG_CAPACITY: usize = 1000;
+/// The longest a `WAIT` for a trigger edge goes without looking whether it was abandoned.
+const WAIT_SLICE: Duration = Duration::from_millis(20);
 
 /// Name written into WAVEDESC INSTRUMENT_NAME (honest: this is an emulator).
 pub(crate) const WAVEDESC_INSTRUMENT_NAME: &str = "MOCK_LAB EMU";
@@ -51,6 +54,8 @@ pub(crate) enum Fault {
 
 /// The emulated scope.
 pub struct Lecroy {
+    /// Bumped by a device clear and by [`Lecroy::abandon_waits`]: a `WAIT` under way gives up.
+    abandoned: std::sync::atomic::AtomicU64,
     model: DigitizerModel,
     inner: Mutex<ScopeState>,
     source: Arc<dyn TriggerSource>,
@@ -70,6 +75,7 @@ impl Lecroy {
         catalog::check_digitizer(&model)?;
         let state = ScopeState::reset(&model, RemoteInterface::Vicp);
         Ok(Lecroy {
+            abandoned: Default::default(),
             inner: Mutex::new(state),
             source,
             log: ReceivedLog::new("lecroy", LOG_CAPACITY),
@@ -208,9 +214,11 @@ impl Lecroy {
     }
 
     /// One capture per segment, each at its own edge; None when an edge did not come by
-    /// `deadline` (the acquisition stays incomplete, as on the scope), or when acquisition
-    /// `arm_id` was stopped or armed again meanwhile (`STOP` from a client's safe state: the
-    /// segments still to come are not synthesised, which took seconds of a lab's shutdown).
+    /// `deadline` (the acquisition stays incomplete, as on the scope), or when the wait was
+    /// abandoned meanwhile: acquisition `arm_id` stopped or armed again (`STOP`, `ARM`), a
+    /// device clear, or the lab shutting down. The edges are waited for in short slices so that
+    /// an abandoned wait ends at once, and the segments still to come are not synthesised (a
+    /// client gone after an interrupted capture kept a lab's shutdown waiting up to 10 s).
     fn segments(
         &self,
         request: &AcquisitionRequest,
@@ -218,14 +226,29 @@ impl Lecroy {
         deadline: Instant,
         arm_id: u64,
     ) -> Option<Vec<Capture>> {
+        let generation = self.abandoned.load(Ordering::SeqCst);
+        let current = || {
+            let st = self.lock();
+            st.armed && st.arm_id == arm_id && self.abandoned.load(Ordering::SeqCst) == generation
+        };
         (0..segments)
-            .map(|_| {
-                let st = self.lock();
-                let current = st.armed && st.arm_id == arm_id;
-                drop(st);
-                current.then(|| self.source.acquire(request, deadline))?
+            .map(|_| loop {
+                if !current() {
+                    return None;
+                }
+                let slice = deadline.min(Instant::now() + WAIT_SLICE);
+                match self.source.acquire(request, slice) {
+                    Some(capture) => return Some(capture),
+                    None if slice >= deadline => return None,
+                    None => {}
+                }
             })
             .collect()
+    }
+
+    /// Ends every `WAIT` under way (the lab is shutting down: nobody will read its reply).
+    pub fn abandon_waits(&self) {
+        self.abandoned.fetch_add(1, Ordering::SeqCst);
     }
 
     fn forced_segments(&self, request: &AcquisitionRequest, segments: u32) -> Vec<Capture> {
@@ -329,6 +352,7 @@ impl Handler for Lecroy {
 
     fn device_clear(&self) {
         tracing::debug!(instrument = "lecroy", "device clear");
+        self.abandon_waits();
     }
 
     fn status_byte(&self) -> u8 {
