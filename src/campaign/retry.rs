@@ -42,6 +42,11 @@ pub(crate) fn transient_instrument(e: &CampaignError) -> Option<&str> {
     match d {
         // Connect, timeout, closed, I/O, serial: the link's own Retry class.
         DriverError::Session { instrument, .. } if d.kind() == ErrorKind::Retry => Some(instrument),
+        // The scope silent or refusing while a retry connects (still stalled, rebooting): the
+        // class of the link's own error, which the remote-interface hint wraps.
+        DriverError::RemoteInterface { source, .. } if source.kind() == ErrorKind::Retry => {
+            Some("scope")
+        }
         DriverError::NoTrigger { instrument, .. } => Some(instrument),
         DriverError::StateLost { instrument, .. } => Some(instrument),
         DriverError::Reply { instrument, .. } if is_front_end(instrument) => Some(instrument),
@@ -134,6 +139,28 @@ mod tests {
             what: "the instruments answer differently".into(),
         };
         assert_eq!(transient_instrument(&changed), None);
+    }
+
+    /// A scope that refuses the connection a retry opens (still rebooting) is retried again:
+    /// the driver's remote-interface hint wraps the refusal, whose class decides.
+    #[tokio::test]
+    async fn a_scope_refusing_a_retrys_connection_is_retried() {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let resource = format!("VICP::127.0.0.1,{port}::INSTR").parse().unwrap();
+        let catalog = crate::catalog::Catalog::load(None).unwrap();
+        let model = catalog.get("lecroy-labmaster10zi-a").unwrap();
+        let open = crate::driver::Lecroy::open(resource, model, None, "scope");
+        let e = tokio::time::timeout(Duration::from_secs(30), open)
+            .await
+            .expect("a refused connection fails at once")
+            .err()
+            .expect("nothing listens there");
+        assert!(matches!(e, DriverError::RemoteInterface { .. }), "{e}");
+        assert_eq!(transient_instrument(&driver(e)), Some("scope"));
     }
 
     #[test]

@@ -463,8 +463,12 @@ impl Runner {
             self.first_placement = true;
             let wait = super::retry::backoff(self.plan.retry_backoff_s, attempt);
             let n = self.plan.steps.len();
+            // A link's error names its instrument already ("scope: VICP::...: ..."): once.
+            let told = fault
+                .strip_prefix(&format!("{instrument}: "))
+                .unwrap_or(&fault);
             let text = format!(
-                "step {} of {n}: {instrument}: {fault}; safe state: {safe_state}; retry \
+                "step {} of {n}: {instrument}: {told}; safe state: {safe_state}; retry \
                  {attempt} of {} in {:.1} s",
                 step.index,
                 self.plan.retries,

@@ -564,6 +564,25 @@ async fn gotmic_read_back_after_a_capture_finds_a_reset_module() {
     );
 }
 
+/// A module power-cycled after its line was switched to CRC-8 answers in plain lines (CRC off,
+/// as at power-on): switching it off still succeeds, in plain lines, instead of a safe state
+/// that reports "switch the bench off by hand" for a module that is already off.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gotmic_switched_off_after_a_power_cycle_in_plain_lines() {
+    let permit = RfPermit::granted_by_user();
+    let settings = RfSettings {
+        attenuation_db: 12.5,
+        lo_frequency_hz: None,
+    };
+    let (emu, mut tx, _endpoint) =
+        gotmic_over_serial("gotmic-eband-tx", GotmicEmu::tx_embedded().unwrap()).await;
+    bounded(tx.enable(&permit, &settings)).await.unwrap();
+    emu.power_cycle();
+    bounded(tx.disable()).await.unwrap();
+    let now = bounded(tx.status()).await.unwrap();
+    assert!(!now.rf_enabled && now.attenuation_db == 31.5, "{now:?}");
+}
+
 // ---------------------------------------------------------------- safe state
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -596,7 +596,20 @@ impl Gotmic {
     /// RF off first, then maximum attenuation; both tried, the first error returned.
     async fn disable_impl(&mut self) -> Result<(), DriverError> {
         let map = self.map.clone();
-        let off = self.write_verified(&map.control, 0).await;
+        let mut off = self.write_verified(&map.control, 0).await;
+        if let Err(DriverError::Reply { reply, .. }) = &off {
+            if self.answers_as_at_power_on(reply) {
+                // Power-cycled since its line was switched to CRC-8: the module is at power-on
+                // (RF off) and takes plain lines. It is told so in them rather than reported
+                // as a safe state that failed.
+                tracing::info!(
+                    instrument = %self.name,
+                    "the module answers in plain lines, as at power-on: RF off in plain lines"
+                );
+                self.framing = Framing::Plain;
+                off = self.write_verified(&map.control, 0).await;
+            }
+        }
         match &off {
             Err(e) => tracing::error!(instrument = %self.name, "switching RF off failed: {e}"),
             Ok(()) => crate::driver::rf_state::set(&self.name, false),
