@@ -19,9 +19,8 @@ fi
 # The binaries `cargo test --workspace` builds for its own tests (radbench with the `testing`
 # feature its dev-dependency turns on: the test doubles, which change no command): after
 # .ci/run's test step this compiles nothing. A plain `cargo build -p radbench` would compile
-# radbench again without that feature (about 3 minutes of CI on 2 cores). .ci/run gives both
-# paths (MOCK_LAB_BIN, RADBENCH_BIN) and builds the Python package meanwhile, which holds
-# cargo's lock on the target folder: then nothing here runs cargo.
+# radbench again without that feature (about 3 minutes of CI on 2 cores). Given both paths
+# (MOCK_LAB_BIN, RADBENCH_BIN, as .ci/run gives them), nothing here runs cargo.
 if [ -z "${MOCK_LAB_BIN:-}" ] || [ -z "${RADBENCH_BIN:-}" ]; then
     echo "interop: building mock-lab and radbench (as the tests build them)"
     cargo test --workspace --no-run --quiet

@@ -27,8 +27,8 @@ started=$SECONDS
     --interpreter "$WORK/build/bin/python" --out "$WORK/wheels"
 echo "python: wheel built in $((SECONDS - started)) s: $(ls "$WORK/wheels")"
 
-# The binary the tests build (see interop/run.sh): nothing to compile after them. .ci/run
-# gives its path, while interop/run.sh's checks share the machine with this script.
+# The binary the tests build (see interop/run.sh): nothing to compile after them (.ci/run
+# gives its path).
 if [ -z "${RADBENCH_BIN:-}" ]; then
     cargo test --workspace --no-run --quiet
     export RADBENCH_BIN="$CARGO_TARGET_DIR/debug/radbench"
