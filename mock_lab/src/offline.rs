@@ -102,7 +102,9 @@ impl OfflineScope {
             trigger_time: crate::emulator::lecroy::NO_TRIGGER_TIME,
             edge_period_s: None,
         };
-        state.complete(&self.model, &request, vec![capture], vec![0.0], false);
+        let mut recording = state.recording(&self.model, &request, 1);
+        recording.push(capture);
+        state.complete(&request, recording, vec![0.0], false);
         let acquisition = state
             .acquisition
             .take()

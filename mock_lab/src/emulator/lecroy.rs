@@ -26,8 +26,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 pub use state::{
-    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, RemoteInterface, SampleMode,
-    ScopeState, TransferWindow, TriggerMode, EMULATOR_MAX_POINTS, SEQUENCE_REARM_S,
+    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, Recording, RemoteInterface,
+    SampleMode, ScopeState, TransferWindow, TriggerMode, EMULATOR_MAX_POINTS, SEQUENCE_REARM_S,
 };
 pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
 
@@ -176,33 +176,40 @@ impl Lecroy {
     /// sequence mode) before `deadline` (a past deadline polls). The lock is released while
     /// waiting.
     fn settle(&self, deadline: Instant) {
-        let (request, arm_id, mode, segments) = {
+        let (request, arm_id, mode, segments, recording) = {
             let st = self.lock();
             if !st.armed {
                 return;
             }
-            (
-                st.request(&self.model),
-                st.arm_id,
-                st.trigger_mode,
-                st.segments_per_acquisition(),
-            )
+            let request = st.request(&self.model);
+            let segments = st.segments_per_acquisition();
+            let recording = st.recording(&self.model, &request, segments);
+            (request, st.arm_id, st.trigger_mode, segments, recording)
         };
         let result = match mode {
-            TriggerMode::Auto => Some(
-                self.segments(&request, segments, Instant::now(), arm_id)
-                    .map(|c| (c, false))
-                    .unwrap_or_else(|| (self.forced_segments(&request, segments), true)),
-            ),
-            _ => self
-                .segments(&request, segments, deadline, arm_id)
-                .map(|c| (c, false)),
+            TriggerMode::Auto => {
+                let (mut recording, ok) =
+                    self.segments(&request, segments, Instant::now(), arm_id, recording);
+                if ok {
+                    Some((recording, false))
+                } else {
+                    // No edge: the scope forces the acquisition, starting the record again.
+                    recording = self.lock().recording(&self.model, &request, segments);
+                    self.forced_segments(&request, segments, &mut recording);
+                    Some((recording, true))
+                }
+            }
+            _ => {
+                let (recording, ok) =
+                    self.segments(&request, segments, deadline, arm_id, recording);
+                ok.then_some((recording, false))
+            }
         };
-        if let Some((captures, forced)) = result {
-            let times = segment_times(&request, &captures);
+        if let Some((recording, forced)) = result {
+            let times = segment_times(&request, &recording);
             let mut st = self.lock();
             if st.armed && st.arm_id == arm_id {
-                st.complete(&self.model, &request, captures, times, forced);
+                st.complete(&request, recording, times, forced);
                 tracing::debug!(
                     instrument = "lecroy",
                     forced,
@@ -225,25 +232,28 @@ impl Lecroy {
         segments: u32,
         deadline: Instant,
         arm_id: u64,
-    ) -> Option<Vec<Capture>> {
+        mut recording: Recording,
+    ) -> (Recording, bool) {
         let generation = self.abandoned.load(Ordering::SeqCst);
         let current = || {
             let st = self.lock();
             st.armed && st.arm_id == arm_id && self.abandoned.load(Ordering::SeqCst) == generation
         };
-        (0..segments)
-            .map(|_| loop {
+        for _ in 0..segments {
+            let capture = loop {
                 if !current() {
-                    return None;
+                    return (recording, false);
                 }
                 let slice = deadline.min(Instant::now() + WAIT_SLICE);
                 match self.source.acquire(request, slice) {
-                    Some(capture) => return Some(capture),
-                    None if slice >= deadline => return None,
+                    Some(capture) => break capture,
+                    None if slice >= deadline => return (recording, false),
                     None => {}
                 }
-            })
-            .collect()
+            };
+            recording.push(capture);
+        }
+        (recording, true)
     }
 
     /// Ends every `WAIT` under way (the lab is shutting down: nobody will read its reply).
@@ -251,8 +261,10 @@ impl Lecroy {
         self.abandoned.fetch_add(1, Ordering::SeqCst);
     }
 
-    fn forced_segments(&self, request: &AcquisitionRequest, segments: u32) -> Vec<Capture> {
-        (0..segments).map(|_| self.source.force(request)).collect()
+    fn forced_segments(&self, request: &AcquisitionRequest, segments: u32, into: &mut Recording) {
+        for _ in 0..segments {
+            into.push(self.source.force(request));
+        }
     }
 
     /// Forces one acquisition now (FRTR): arms if needed and records without an edge.
@@ -262,9 +274,11 @@ impl Lecroy {
             st.arm();
         }
         let request = st.request(&self.model);
-        let captures = self.forced_segments(&request, st.segments_per_acquisition());
-        let times = segment_times(&request, &captures);
-        st.complete(&self.model, &request, captures, times, true);
+        let segments = st.segments_per_acquisition();
+        let mut recording = st.recording(&self.model, &request, segments);
+        self.forced_segments(&request, segments, &mut recording);
+        let times = segment_times(&request, &recording);
+        st.complete(&request, recording, times, true);
     }
 
     /// Runs one program message; returns the response bytes if it had queries.
@@ -332,15 +346,15 @@ impl Lecroy {
 /// takes the next edge that comes after that. With repeating edges (the AWG's marker every
 /// repetition) that is a whole number of periods; otherwise the next edge is taken as soon as
 /// the scope is ready.
-fn segment_times(request: &AcquisitionRequest, captures: &[Capture]) -> Vec<f64> {
+fn segment_times(request: &AcquisitionRequest, recording: &Recording) -> Vec<f64> {
     let after_trigger = (request.first_point_s + request.points as f64 / request.sample_rate)
         .max(0.0)
         + state::SEQUENCE_REARM_S;
-    let spacing = match captures.first().and_then(|c| c.edge_period_s) {
+    let spacing = match recording.edge_period_s() {
         Some(period) if period > 0.0 => (after_trigger / period).ceil().max(1.0) * period,
         _ => after_trigger,
     };
-    (0..captures.len().max(1))
+    (0..recording.segments().max(1))
         .map(|k| k as f64 * spacing)
         .collect()
 }

@@ -119,6 +119,55 @@ pub struct Acquisition {
     pub forced: bool,
 }
 
+/// An acquisition being recorded: each segment is quantised to the ADC as it arrives and its
+/// volts dropped, so a long sequence holds only its codes (16 segments of an OFDM record held
+/// 160 MB of volts until the last came, all of it pages the kernel had to zero).
+pub struct Recording {
+    points: usize,
+    /// Per channel (None when off): its ADC and the codes so far.
+    channels: Vec<Option<(Adc, RecordedChannel)>>,
+    /// The first segment's trigger time and edge period.
+    first: Option<(TriggerTimestamp, Option<f64>)>,
+    segments: usize,
+}
+
+impl Recording {
+    /// Quantises one segment's capture onto the record (`points` per channel; a channel that
+    /// saw nothing, or less than the record, reads 0 V).
+    pub fn push(&mut self, capture: Capture) {
+        let points = self.points;
+        let volts = &capture.channels;
+        // The channels on threads of their own: independent, and millions of samples each.
+        std::thread::scope(|scope| {
+            for (i, channel) in self.channels.iter_mut().enumerate() {
+                let Some((adc, recorded)) = channel.as_mut() else {
+                    continue;
+                };
+                let volts = volts.get(i).and_then(Option::as_deref).unwrap_or_default();
+                scope.spawn(move || {
+                    let held = volts.len().min(points);
+                    let values = &mut recorded.values;
+                    values.extend(volts[..held].iter().map(|&v| adc.code(f64::from(v))));
+                    values.resize(values.len() + points - held, adc.code(0.0));
+                });
+            }
+        });
+        self.first
+            .get_or_insert((capture.trigger_time, capture.edge_period_s));
+        self.segments += 1;
+    }
+
+    /// Segments recorded so far.
+    pub fn segments(&self) -> usize {
+        self.segments
+    }
+
+    /// The first segment's edge period (the AWG's repetition), when its edges repeat.
+    pub fn edge_period_s(&self) -> Option<f64> {
+        self.first.and_then(|(_, period)| period)
+    }
+}
+
 /// `WAVEFORM_SETUP`: sparsing, number of points (0 = all), first point, segment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct TransferWindow {
@@ -320,61 +369,57 @@ impl ScopeState {
         self.arm_id += 1;
     }
 
-    /// Stores a completed acquisition of one or more segments (quantised to the ADC; each
-    /// capture one segment, triggered at `segment_times`) and updates the trigger state.
-    pub fn complete(
-        &mut self,
+    /// Starts recording an acquisition of up to `segments` segments with the channels' settings
+    /// now (the scope quantises at acquisition time).
+    pub fn recording(
+        &self,
         model: &DigitizerModel,
         request: &AcquisitionRequest,
-        captures: Vec<Capture>,
+        segments: u32,
+    ) -> Recording {
+        let l = &model.limits;
+        let adc_step = 1i32 << (16 - u32::from(l.adc_bits.clamp(1, 16)));
+        let points = request.points;
+        let channels = self
+            .channels
+            .iter()
+            .map(|settings| {
+                settings.on.then(|| {
+                    let gain_word =
+                        settings.volts_per_div / (f64::from(l.codes_per_division) * 256.0);
+                    let recorded = RecordedChannel {
+                        values: Vec::with_capacity(segments as usize * points),
+                        gain_word,
+                        offset_v: settings.offset_v,
+                        volts_per_div: settings.volts_per_div,
+                    };
+                    (Adc::new(settings.offset_v, gain_word, adc_step), recorded)
+                })
+            })
+            .collect();
+        Recording {
+            points,
+            channels,
+            first: None,
+            segments: 0,
+        }
+    }
+
+    /// Stores a completed acquisition (its segments triggered at `segment_times`) and updates
+    /// the trigger state.
+    pub fn complete(
+        &mut self,
+        request: &AcquisitionRequest,
+        recording: Recording,
         segment_times: Vec<f64>,
         forced: bool,
     ) {
-        let l = &model.limits;
-        let adc_step = 1i32 << (16 - u32::from(l.adc_bits.clamp(1, 16)));
-        // Each channel quantised on a thread of its own (they are independent: the same codes
-        // as one after the other, in a fraction of the time for a long sequence).
-        let quantise = |i: usize, settings: &ChannelSettings| {
-            {
-                if !settings.on {
-                    return None;
-                }
-                let gain_word = settings.volts_per_div / (f64::from(l.codes_per_division) * 256.0);
-                let adc = Adc::new(settings.offset_v, gain_word, adc_step);
-                let mut values = Vec::with_capacity(captures.len() * request.points);
-                for capture in &captures {
-                    let volts = capture.channels.get(i).and_then(Option::as_deref);
-                    let volts = volts.unwrap_or_default();
-                    let held = volts.len().min(request.points);
-                    values.extend(volts[..held].iter().map(|&v| adc.code(f64::from(v))));
-                    // A channel that saw nothing (or less than the record) reads 0 V.
-                    values.resize(values.len() + request.points - held, adc.code(0.0));
-                }
-                Some(RecordedChannel {
-                    values,
-                    gain_word,
-                    offset_v: settings.offset_v,
-                    volts_per_div: settings.volts_per_div,
-                })
-            }
-        };
-        let channels = std::thread::scope(|scope| {
-            let quantise = &quantise;
-            let running: Vec<_> = self
-                .channels
-                .iter()
-                .enumerate()
-                .map(|(i, settings)| scope.spawn(move || quantise(i, settings)))
-                .collect();
-            running
-                .into_iter()
-                .map(|t| t.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
-                .collect()
-        });
-        let trigger_time = captures
-            .first()
-            .map(|c| c.trigger_time)
-            .unwrap_or(NO_TRIGGER_TIME);
+        let trigger_time = recording.first.map_or(NO_TRIGGER_TIME, |(t, _)| t);
+        let channels = recording
+            .channels
+            .into_iter()
+            .map(|c| c.map(|(_, recorded)| recorded))
+            .collect();
         self.acquisition = Some(Acquisition {
             sample_rate: request.sample_rate,
             first_point_s: request.first_point_s,
