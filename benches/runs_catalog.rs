@@ -2,6 +2,10 @@
 //! scratch, indexed again (nothing changed), then the 95th percentile of `runs query` over them
 //! (each query opens the catalog, as a command does). The archive is deleted at the end.
 //!
+//! With `RADBENCH_BIN=path/to/radbench` it also times `radbench runs query` end to end, a fresh
+//! process per query printing JSON (as a user or a script runs it). `KEEP_CATALOG=FILE` keeps a
+//! copy of the catalog.
+//!
 //! Run: `cargo bench --bench runs_catalog` (`RUNS=N` for another archive size; `--profile dev`
 //! reuses the test build).
 
@@ -90,6 +94,13 @@ fn main() {
     }
     let (p50, p95) = percentiles(&mut all);
     println!("query, all 200 over {n} runs: p50 {p50:.1} ms, p95 {p95:.1} ms");
+    if let Some(bin) = std::env::var_os("RADBENCH_BIN") {
+        command_queries(std::path::Path::new(&bin), &catalog);
+    }
+    // `KEEP_CATALOG=FILE`: the catalog copied out, to profile queries on (the folders go).
+    if let Some(keep) = std::env::var_os("KEEP_CATALOG") {
+        std::fs::copy(&catalog, keep).expect("the catalog copied");
+    }
     let t = Instant::now();
     let points = runs_db::trend(
         &catalog,
@@ -103,6 +114,50 @@ fn main() {
         points.len(),
         t.elapsed().as_secs_f64() * 1e3
     );
+}
+
+/// `radbench runs query` with each filter's flags, 40 fresh processes each, their output
+/// (`--json`) read whole: p50 and p95 of the wall time.
+fn command_queries(bin: &std::path::Path, catalog: &std::path::Path) {
+    let queries: [&[&str]; 5] = [
+        &[],
+        &["--kind", "accuracy"],
+        &["--where", "max_abs_error_m < 1e-3"],
+        &[
+            "--kind",
+            "accuracy",
+            "--scope",
+            "uxr",
+            "--since",
+            "2026-03-01",
+            "--where",
+            "max_abs_error_m < 1e-3 and steps = 4",
+        ],
+        &["--calibration", "aa11", "--limit", "20"],
+    ];
+    let mut all = Vec::new();
+    for flags in queries {
+        let mut times = Vec::new();
+        let mut bytes = 0;
+        for _ in 0..40 {
+            let t = Instant::now();
+            let out = std::process::Command::new(bin)
+                .args(["runs", "query", "--json", "--catalog"])
+                .arg(catalog)
+                .args(flags)
+                .output()
+                .expect("radbench runs");
+            assert!(out.status.success(), "{flags:?}: {out:?}");
+            bytes = out.stdout.len();
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        all.extend_from_slice(&times);
+        let (p50, p95) = percentiles(&mut times);
+        let name = format!("radbench runs query {}", flags.join(" "));
+        println!("{name:<60} {bytes:>8} B: p50 {p50:.1} ms, p95 {p95:.1} ms");
+    }
+    let (p50, p95) = percentiles(&mut all);
+    println!("radbench runs query, all 200 (fresh processes): p50 {p50:.1} ms, p95 {p95:.1} ms");
 }
 
 /// (p50, p95) of `times`, ms.

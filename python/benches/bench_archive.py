@@ -105,16 +105,20 @@ def main() -> None:
     diffs = [on - off for on, off in zip(step_s["on"], step_s["off"])]
     # The scratch folder holds the archive (GBs with --captures 96) and every output.
     shutil.rmtree(scratch, ignore_errors=True)
-    print(json.dumps({
+    report = {
         "captures": n,
         "dask_workers": "Dask's defaults" if a.dask_default else "radbench.dask.worker_environment()",
         "captures_per_s": throughput,
         "relative_to_process_jobs_2": {k: v / reference for k, v in throughput.items()},
-        "campaign_steps": steps,
-        "step_s_median": {m: statistics.median(v) for m, v in step_s.items()},
-        "paired_on_minus_off_s": {"median": statistics.median(diffs), "min": min(diffs),
-                                  "max": max(diffs)},
-    }, indent=2))
+    }
+    if diffs:  # --campaigns 0 times the archive paths only
+        report.update({
+            "campaign_steps": steps,
+            "step_s_median": {m: statistics.median(v) for m, v in step_s.items()},
+            "paired_on_minus_off_s": {"median": statistics.median(diffs), "min": min(diffs),
+                                      "max": max(diffs)},
+        })
+    print(json.dumps(report, indent=2))
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ mod commands;
 mod params;
 mod settings;
 mod state;
-pub(crate) use state::NO_TRIGGER_TIME;
+pub(crate) use state::{Recording, NO_TRIGGER_TIME};
 pub(crate) mod trigger;
 mod vbs;
 pub(crate) mod wavedesc;
@@ -26,8 +26,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 pub use state::{
-    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, Recording, RemoteInterface,
-    SampleMode, ScopeState, TransferWindow, TriggerMode, EMULATOR_MAX_POINTS, SEQUENCE_REARM_S,
+    Acquisition, ChannelSettings, HeaderMode, RecordedChannel, RemoteInterface, SampleMode,
+    ScopeState, TransferWindow, TriggerMode, EMULATOR_MAX_POINTS, SEQUENCE_REARM_S,
 };
 pub use trigger::{AcquisitionRequest, Capture, Slope, TestSignal, TriggerSetup, TriggerSource};
 

@@ -122,7 +122,7 @@ pub struct Acquisition {
 /// An acquisition being recorded: each segment is quantised to the ADC as it arrives and its
 /// volts dropped, so a long sequence holds only its codes (16 segments of an OFDM record held
 /// 160 MB of volts until the last came, all of it pages the kernel had to zero).
-pub struct Recording {
+pub(crate) struct Recording {
     points: usize,
     /// Per channel (None when off): its ADC and the codes so far.
     channels: Vec<Option<(Adc, RecordedChannel)>>,
@@ -134,7 +134,7 @@ pub struct Recording {
 impl Recording {
     /// Quantises one segment's capture onto the record (`points` per channel; a channel that
     /// saw nothing, or less than the record, reads 0 V).
-    pub fn push(&mut self, capture: Capture) {
+    pub(crate) fn push(&mut self, capture: Capture) {
         let points = self.points;
         let volts = &capture.channels;
         // The channels on threads of their own: independent, and millions of samples each.
@@ -158,12 +158,12 @@ impl Recording {
     }
 
     /// Segments recorded so far.
-    pub fn segments(&self) -> usize {
+    pub(crate) fn segments(&self) -> usize {
         self.segments
     }
 
     /// The first segment's edge period (the AWG's repetition), when its edges repeat.
-    pub fn edge_period_s(&self) -> Option<f64> {
+    pub(crate) fn edge_period_s(&self) -> Option<f64> {
         self.first.and_then(|(_, period)| period)
     }
 }
@@ -371,7 +371,7 @@ impl ScopeState {
 
     /// Starts recording an acquisition of up to `segments` segments with the channels' settings
     /// now (the scope quantises at acquisition time).
-    pub fn recording(
+    pub(crate) fn recording(
         &self,
         model: &DigitizerModel,
         request: &AcquisitionRequest,
@@ -407,7 +407,7 @@ impl ScopeState {
 
     /// Stores a completed acquisition (its segments triggered at `segment_times`) and updates
     /// the trigger state.
-    pub fn complete(
+    pub(crate) fn complete(
         &mut self,
         request: &AcquisitionRequest,
         recording: Recording,
