@@ -7,7 +7,7 @@
 //! continues it, as consecutive captures on the lab do. The steps are the lab's own:
 //! [`Synthesizer::volts`] (noise, jitter, chain, impairments), the volts handed to the scope in
 //! single precision as the bench's wiring hands them, the scope's record length and first point
-//! from its state ([`ScopeState::request`]) and its 8-bit ADC ([`ScopeState::complete`]). The
+//! from its state ([`ScopeState::request`]) and its 8-bit ADC (`ScopeState::complete`). The
 //! scaling is returned as the scope's `WF? ALL` descriptor carries it (single precision).
 
 use crate::catalog::{CatalogError, DigitizerModel};

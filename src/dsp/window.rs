@@ -164,13 +164,11 @@ fn taylor(out: &mut [f64], nbar: usize, sll: f64) {
     }
 }
 
-/// Dolph-Chebyshev window by the DFT of the Chebyshev polynomial (as scipy.signal.windows.chebwin),
-/// `at` = attenuation in positive dB.
-fn chebyshev(out: &mut [f64], at: f64) {
-    let n = out.len();
+/// The Chebyshev polynomial of order n - 1 sampled at the n points whose DFT is the window.
+fn chebyshev_polynomial(n: usize, at: f64) -> Vec<f64> {
     let order = (n - 1) as f64;
     let beta = ((10f64.powf(at / 20.0)).acosh() / order).cosh();
-    let p: Vec<f64> = (0..n)
+    (0..n)
         .map(|k| {
             let x = beta * (PI * k as f64 / n as f64).cos();
             if x > 1.0 {
@@ -182,7 +180,14 @@ fn chebyshev(out: &mut [f64], at: f64) {
                 (order * x.acos()).cos()
             }
         })
-        .collect();
+        .collect()
+}
+
+/// Dolph-Chebyshev window by the DFT of the Chebyshev polynomial (as scipy.signal.windows.chebwin),
+/// `at` = attenuation in positive dB.
+fn chebyshev(out: &mut [f64], at: f64) {
+    let n = out.len();
+    let p = chebyshev_polynomial(n, at);
     // Real part of the DFT of p (times a half-sample phase ramp when n is even), by an FFT: the
     // direct sum took n^2 cosines (4 s of a debug `process --window chebyshev` of 3 captures).
     let ramp = if n % 2 == 0 { PI / n as f64 } else { 0.0 };
@@ -277,21 +282,7 @@ mod tests {
 
     /// The Dolph-Chebyshev window by the direct O(n^2) sum the FFT replaced.
     fn chebyshev_by_direct_dft(n: usize, at: f64) -> Vec<f64> {
-        let order = (n - 1) as f64;
-        let beta = ((10f64.powf(at / 20.0)).acosh() / order).cosh();
-        let p: Vec<f64> = (0..n)
-            .map(|k| {
-                let x = beta * (PI * k as f64 / n as f64).cos();
-                if x > 1.0 {
-                    (order * x.acosh()).cosh()
-                } else if x < -1.0 {
-                    let sign = if n % 2 == 1 { 1.0 } else { -1.0 };
-                    sign * (order * (-x).acosh()).cosh()
-                } else {
-                    (order * x.acos()).cos()
-                }
-            })
-            .collect();
+        let p = chebyshev_polynomial(n, at);
         let ramp = if n % 2 == 0 { PI / n as f64 } else { 0.0 };
         let re = |q: usize| -> f64 {
             (0..n)
