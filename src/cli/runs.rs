@@ -398,7 +398,7 @@ fn print_rows<T: Serialize>(
     line: impl Fn(&T) -> String,
 ) -> anyhow::Result<()> {
     if output.json {
-        println!("{}", serde_json::to_string_pretty(rows)?);
+        super::terminal::out_json(rows)?;
     } else if output.csv {
         print!("{}", to_csv(rows)?);
     } else if rows.is_empty() {

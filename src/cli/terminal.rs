@@ -31,6 +31,25 @@ pub fn out(text: &str) -> anyhow::Result<()> {
     }
 }
 
+/// Writes `value` as pretty JSON and a newline to standard output, streamed through a buffer:
+/// a listing of thousands of rows is never held whole as text (its megabytes of fresh pages
+/// cost more than the text itself). Errors as [`out`]'s.
+pub fn out_json<T: serde::Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
+    let mut stdout = std::io::BufWriter::with_capacity(1 << 16, std::io::stdout().lock());
+    let written = serde_json::to_writer_pretty(&mut stdout, value)
+        .map_err(|e| match e.io_error_kind() {
+            Some(kind) => std::io::Error::from(kind),
+            None => std::io::Error::other(e),
+        })
+        .and_then(|()| stdout.write_all(b"\n"))
+        .and_then(|()| stdout.flush());
+    match written {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
+    }
+}
+
 /// True when `err` says standard output was closed.
 pub fn is_stdout_closed(err: &anyhow::Error) -> bool {
     err.chain().any(|cause| cause.is::<StdoutClosed>())

@@ -355,12 +355,14 @@ fn insert_run(tx: &Connection, run: &RunRecord, dir: &str) -> rusqlite::Result<(
     let id = run.run_id.as_str();
     let algorithms = run.algorithms();
     let primary = algorithms.first().copied().unwrap_or("");
+    let metrics = run.metrics();
     tx.prepare_cached(
         "INSERT INTO runs (run_id, dir, name, sweep, status, reason, created, updated,
            radbench_version, git_commit, simulated, bench_file, waveforms, algorithms, scope_idn,
-           awg_idn, calibration_sha256, steps_total, steps_done, manifest_sha256, results_sha256)
+           awg_idn, calibration_sha256, steps_total, steps_done, manifest_sha256, results_sha256,
+           max_abs_error_m)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18,
-           ?19, ?20, ?21)",
+           ?19, ?20, ?21, ?22)",
     )?
     .execute(params![
         id,
@@ -384,11 +386,12 @@ fn insert_run(tx: &Connection, run: &RunRecord, dir: &str) -> rusqlite::Result<(
         run.steps_done() as i64,
         run.manifest_sha256,
         run.results_sha256,
+        metrics.get("max_abs_error_m"),
     ])?;
     {
         let mut q =
             tx.prepare_cached("INSERT INTO run_metrics (run_id, name, value) VALUES (?1, ?2, ?3)")?;
-        for (name, value) in run.metrics() {
+        for (name, value) in metrics {
             q.execute(params![id, name, value])?;
         }
     }

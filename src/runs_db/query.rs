@@ -215,9 +215,8 @@ pub fn runs(catalog: &Path, filter: &RunFilter) -> Result<Vec<RunRow>, RunsDbErr
 fn query_runs(conn: &Connection, f: &RunFilter) -> rusqlite::Result<Vec<RunRow>> {
     let mut sql = String::from(
         "SELECT r.run_id, r.created, r.name, r.sweep, r.status, r.steps_done, r.steps_total,
-           r.waveforms, r.algorithms, r.scope_idn, r.calibration_sha256, e.value, r.dir
+           r.waveforms, r.algorithms, r.scope_idn, r.calibration_sha256, r.max_abs_error_m, r.dir
          FROM runs r
-         LEFT JOIN run_metrics e ON e.run_id = r.run_id AND e.name = 'max_abs_error_m'
          WHERE 1",
     );
     let mut args: Vec<SqlValue> = Vec::new();

@@ -28,9 +28,12 @@ CREATE TABLE IF NOT EXISTS runs (
     steps_total        INTEGER NOT NULL,
     steps_done         INTEGER NOT NULL,
     manifest_sha256    TEXT NOT NULL,
-    results_sha256     TEXT
+    results_sha256     TEXT,
+    -- The headline figure (also in run_metrics), here so a listing reads one table.
+    max_abs_error_m    REAL
 );
-CREATE INDEX IF NOT EXISTS runs_by_created ON runs (created);
+-- Newest first, in the order every listing gives: a `--limit` stops after its rows.
+CREATE INDEX IF NOT EXISTS runs_newest_first ON runs (created DESC, run_id);
 CREATE INDEX IF NOT EXISTS runs_by_name ON runs (name, created);
 CREATE INDEX IF NOT EXISTS runs_by_dir ON runs (dir);
 
