@@ -431,7 +431,7 @@ async fn chapter(
             plan.steps.len(),
             dir.display()
         ));
-        let finished = run::start(
+        let finished = super::start::start(
             NewRun {
                 spec,
                 bench,

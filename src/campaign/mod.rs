@@ -12,7 +12,9 @@
 //! | `manifest_store` | the manifest stored whole at a session's start and end, each step in between appended to its step journal (a cost per step that does not grow with the run), the step tables not held in memory |
 //! | `results` | `results.json`: each step's measured numbers per algorithm, errors, ground truth; `results.csv`, the same flat |
 //! | `run` | executing a plan into a run folder, and resuming one: what callers use |
-//! | `folder` | the run folder: its identity, start (created, locked, inputs copied), the copies' checks on resume |
+//! | `start` | a new run: the folder created and locked, the inputs copied, the steps run |
+//! | `folder` | the run folder: its identity and its lock |
+//! | `inputs` | the run's inputs: copied in at the start, checked on resume |
 //! | `resume` | continuing an interrupted run: what changed since, the steps whose files broke |
 //! | `prepare` | every (waveform, algorithm) prepared before anything is connected |
 //! | `runner` | the steps (connect, place, set the simulated scene, capture), settling the worker's steps, the finish |
@@ -31,6 +33,7 @@ pub mod disk;
 mod error;
 pub(crate) mod export;
 mod folder;
+mod inputs;
 pub(crate) mod kind;
 pub(crate) mod lab_table;
 pub(crate) mod manifest;
@@ -46,6 +49,7 @@ pub(crate) mod retry;
 pub(crate) mod run;
 mod runner;
 pub(crate) mod spec;
+mod start;
 mod step_job;
 mod worker;
 
@@ -61,6 +65,7 @@ pub use manifest_store::ManifestStore;
 pub use plan::{
     plan, BenchInfo, BenchPlan, Nominal, PositionerPlan, Range, Step, WaveformCost, MAX_RETRIES,
 };
+pub use prepare::prepare_all;
 pub use report::{
     figures, load_results, rewrite, step_profiles, svg, theory, wilson95, write, Chart, Figure,
     HLine, Point, Series, Style, HTML_FILE,
@@ -69,11 +74,10 @@ pub use results::{
     AlgorithmResult, ChainEchoResult, MeanStd, PayloadFigures, Results, SpreadFigures, StepResult,
     TargetResult, Truth,
 };
+pub use resume::resume;
 pub use retry::RetryRecord;
-pub use run::{
-    exit_code, prepare_all, resume, start, Finished, NewRun, Observer, Quiet, Retrying, StepDone,
-    Summary,
-};
+pub use run::{exit_code, Finished, NewRun, Observer, Quiet, Retrying, StepDone, Summary};
+pub use start::start;
 
 pub use kind::{AxisSetting, AxisValue};
 pub use plan::Plan;

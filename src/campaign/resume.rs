@@ -3,7 +3,8 @@
 //! steps whose files are no longer as written measured again, the rest skipped.
 
 use super::error::CampaignError;
-use super::folder::{check_bench_catalog, check_calibration, check_spec_unchanged, lock};
+use super::folder::lock;
+use super::inputs::{check_bench_catalog, check_calibration, check_spec_unchanged};
 use super::manifest::{Manifest, Status, StepStatus};
 use super::plan::{BenchInfo, Plan};
 use super::positioner::LineSource;

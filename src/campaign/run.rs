@@ -3,7 +3,9 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | `folder` | the run folder: its identity, start (created, locked, inputs copied), the copies' checks on resume |
+//! | `start` | a new run: the folder created and locked, the inputs copied, the steps run |
+//! | `folder` | the run folder: its identity and its lock |
+//! | `inputs` | the run's inputs: copied in at the start, checked on resume |
 //! | `resume` | continuing an interrupted run: what changed since, the steps whose files broke |
 //! | `prepare` | every (waveform, algorithm) prepared before anything is connected |
 //! | `runner` | the steps (connect, place, set the simulated scene, capture), settling the worker's steps, the finish |
@@ -50,20 +52,8 @@ use crate::measure::Interrupt;
 use serde::Serialize;
 use std::path::PathBuf;
 
-pub use super::folder::start;
-pub use super::prepare::prepare_all;
-pub use super::resume::resume;
-
 /// `results.json` in a run folder.
 pub(crate) const RESULTS_FILE: &str = "results.json";
-/// The spec's copy in a run folder.
-pub(crate) const SPEC_COPY: &str = "spec.toml";
-/// The bench file's copy in a run folder.
-pub(crate) const BENCH_COPY: &str = "bench.toml";
-/// Where the run keeps its copies of the bench file's own instrument files.
-pub(crate) const BENCH_CATALOG_COPY: &str = "bench-catalog";
-/// Where the run keeps its copy of the response calibration it corrects with.
-pub(crate) const CALIBRATION_COPY: &str = "calibration";
 /// Each step's own result (the entry of `results.json`), inside the step's folder.
 pub(crate) const STEP_RESULT: &str = "result.json";
 

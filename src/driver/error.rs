@@ -5,7 +5,7 @@ use crate::exit::{Classify, ExitClass};
 use crate::session::{DeviceError, ErrorList, SessionError};
 use crate::transport::ErrorKind;
 
-use super::safe_state::SafeStateReport;
+use super::safe_report::SafeStateReport;
 
 use crate::trc::TrcError;
 
@@ -249,7 +249,7 @@ mod tests {
 
     #[test]
     fn a_missing_edge_after_rf_confirms_what_was_switched_off() {
-        use super::super::safe_state::SafeStep;
+        use super::super::safe_report::SafeStep;
         let step = |step, error: Option<&str>| SafeStep {
             step,
             error: error.map(str::to_string),

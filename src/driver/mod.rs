@@ -19,6 +19,7 @@
 //! | `gotmic` | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
 //! | `safe_state` | the safe-state sequence on every exit path |
+//! | `safe_report` | what the sequence did, step by step |
 //! | `error` | [`DriverError`] with `kind()` and its exit class |
 //!
 //! Rules every driver keeps: command spellings in one `commands.rs`; settings checked against the
@@ -71,6 +72,7 @@ pub(crate) mod m8195a;
 pub(crate) mod open;
 pub(crate) mod permit;
 pub(crate) mod rf_state;
+mod safe_report;
 pub(crate) mod safe_state;
 pub(crate) mod scpi;
 #[cfg(any(test, feature = "testing"))]
@@ -84,7 +86,8 @@ pub use lecroy::{
     SEGMENTS_QUERY, STATUS, STOP,
 };
 pub use rf_state::snapshot;
-pub use safe_state::{share, Bench, SafeStep, Shared};
+pub use safe_report::{SafeStateReport, SafeStep};
+pub use safe_state::{share, Bench, Shared};
 #[cfg(any(test, feature = "testing"))]
 pub use scripted::{Failure, DEVICE_CLEAR, ERROR_CHECK};
 
@@ -107,9 +110,7 @@ pub use lecroy::Lecroy;
 pub use m8195a::M8195a;
 pub use permit::RfPermit;
 pub(crate) use safe_state::{clear_panic_safe_state, set_panic_safe_state};
-pub use safe_state::{
-    install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard, SafeStateReport,
-};
+pub use safe_state::{install_panic_hook, run_guarded, Outcome, SafeState, SafeStateGuard};
 pub use scpi::Scpi;
 #[cfg(any(test, feature = "testing"))]
 pub use scripted::{ScriptLog, Scripted};

@@ -28,6 +28,7 @@ use tokio::runtime::{Handle, RuntimeFlavor};
 use tokio::sync::Mutex;
 
 use super::capability::{Awg, RfFrontEnd};
+use super::safe_report::{SafeStateReport, SafeStep};
 
 /// A driver shared between the measurement and the safe state.
 pub type Shared<T> = Arc<Mutex<Box<T>>>;
@@ -35,42 +36,6 @@ pub type Shared<T> = Arc<Mutex<Box<T>>>;
 /// Wraps a driver for sharing.
 pub fn share<T: ?Sized>(driver: Box<T>) -> Shared<T> {
     Arc::new(Mutex::new(driver))
-}
-
-/// One step of the sequence and how it went.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
-pub struct SafeStep {
-    pub step: &'static str,
-    /// `None` when the step succeeded, else what went wrong.
-    pub error: Option<String>,
-}
-
-/// What the safe-state sequence did.
-#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
-pub struct SafeStateReport {
-    pub steps: Vec<SafeStep>,
-}
-
-impl SafeStateReport {
-    /// Whether every step succeeded.
-    pub fn is_safe(&self) -> bool {
-        self.steps.iter().all(|s| s.error.is_none())
-    }
-}
-
-impl std::fmt::Display for SafeStateReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        for (n, s) in self.steps.iter().enumerate() {
-            if n > 0 {
-                f.write_str("; ")?;
-            }
-            match &s.error {
-                None => write!(f, "{}: done", s.step)?,
-                Some(e) => write!(f, "{}: FAILED ({e})", s.step)?,
-            }
-        }
-        Ok(())
-    }
 }
 
 /// The bench's drivers, as far as the safe state needs them.

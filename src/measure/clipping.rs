@@ -35,11 +35,13 @@
 
 use super::detect::DetectionReport;
 use super::error::MeasureError;
-use super::pipeline::Pipeline;
+use super::range_result::RangeResult;
+use super::transmit::Transmission;
 use crate::physics::C0;
 use num_complex::Complex64;
 use serde::Serialize;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// A detection must stand this far above the modelled distortion at its range, dB: the model
 /// knows the echoes (not the noise, nor the bench's own non-linearity), so its products can be
@@ -427,6 +429,25 @@ fn gain_for_fraction(
         .filter(|g| *g <= MAX_MODEL_GAIN)
 }
 
+/// What the clipping's model asks of the pipeline that processed the record: its transmission,
+/// record length, scale and range processing, to run modelled records through the same
+/// processing (the pipeline implements it; the model never names the pipeline).
+pub(crate) trait RangeProcessing {
+    fn transmission(&self) -> &Arc<Transmission>;
+    /// Samples in one repetition.
+    fn period(&self) -> usize;
+    /// Volts at the scope per unit of the profile's scale, inverted.
+    fn level_scale(&self) -> f64;
+    /// The range offset of a record aligned with `residual_s` left over, metres.
+    fn offset_m(&self, residual_s: f64) -> f64;
+    /// The range processing of `samples` (one repetition), ranges offset by `offset_m`.
+    fn range_profiles(
+        &mut self,
+        samples: &[Complex64],
+        offset_m: f64,
+    ) -> Result<RangeResult, MeasureError>;
+}
+
 /// The echoes of a record as the scope saw them, clipped, and what is left once each echo's own
 /// (compressed) copy is fitted out: the clipping's distortion.
 struct Model<'a> {
@@ -447,7 +468,7 @@ impl Model<'_> {
     /// into `echoes`) are the reflectors; `None` when they cannot clip as often as the capture.
     fn floor(
         &mut self,
-        pipeline: &mut Pipeline,
+        pipeline: &mut dyn RangeProcessing,
         real: &[usize],
     ) -> Result<Option<Floor>, MeasureError> {
         let n = self.reference.len();
@@ -551,7 +572,7 @@ const MODEL_ROUNDS: usize = 8;
 /// explains every other echo. Products are weaker than the echoes that make them, so those join
 /// first. `None` when the echoes cannot explain the clipping.
 fn model_floor(
-    pipeline: &mut Pipeline,
+    pipeline: &mut dyn RangeProcessing,
     aligned: &[Complex64],
     residual_s: f64,
     detection: &DetectionReport,
@@ -559,7 +580,7 @@ fn model_floor(
 ) -> Result<Option<Floor>, MeasureError> {
     let tx = pipeline.transmission().clone();
     let fs = tx.sample_rate_hz();
-    let n = pipeline.geometry().period;
+    let n = pipeline.period();
     let offset_m = pipeline.offset_m(residual_s);
     let echoes = fitted_echoes(detection, offset_m, fs);
     if echoes.is_empty() {
@@ -657,7 +678,7 @@ pub(crate) fn gaussian_distortion(f: f64) -> f64 {
 
 /// The bound: the total distortion power of a Gaussian signal clipped as often, everywhere.
 fn bound_floor(
-    pipeline: &Pipeline,
+    pipeline: &dyn RangeProcessing,
     aligned: &[Complex64],
     clipping: &RecordClipping,
     cells: usize,
@@ -783,7 +804,7 @@ fn advice(clipping: &RecordClipping, scale: Option<[Reach; 2]>) -> String {
 /// the pipeline's state of that record (velocities, range-Doppler map): the model runs through
 /// the same range processing.
 pub(crate) fn mitigate(
-    pipeline: &mut Pipeline,
+    pipeline: &mut dyn RangeProcessing,
     aligned: &[Complex64],
     residual_s: f64,
     detection: &mut DetectionReport,

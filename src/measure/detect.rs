@@ -8,7 +8,7 @@
 
 use super::error::MeasureError;
 use super::options::ProcessOptions;
-use super::pipeline::RangeResult;
+use super::range_result::RangeResult;
 use crate::dsp::Profile;
 use crate::dsp::{DetectOptions, DetectedTarget, Detector, Sidelobes};
 use num_complex::Complex64;

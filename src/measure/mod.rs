@@ -13,6 +13,7 @@
 //! | `options` | the processing options (algorithm, window, M/p, ranges, Pfa) as plain data, and their defaults |
 //! | `pipeline` | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
+//! | `range_result` | what range processing gives for one record (the detector's input) |
 //! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
@@ -54,6 +55,7 @@ pub(crate) mod payload;
 pub(crate) mod pipeline;
 #[cfg(test)]
 mod predistortion_tests;
+pub(crate) mod range_result;
 pub(crate) mod ranging;
 pub(crate) mod record;
 pub(crate) mod repeat;

@@ -20,6 +20,7 @@ use super::detect;
 use super::error::MeasureError;
 use super::options::{Algorithm, ProcessOptions, MAX_ZERO_PAD, MUSIC_GRID_FACTOR};
 use super::payload::PayloadDecoder;
+use super::range_result::RangeResult;
 use super::ranging::RangingModel;
 use super::transmit::Transmission;
 use crate::dsp::decimate::{Samples, ScaledWords};
@@ -149,26 +150,6 @@ impl RecordGeometry {
             period,
             correlation_lags: lags.clamp(2, period.max(2)),
         }
-    }
-}
-
-/// What the range processing gives for one record.
-#[derive(Debug, Clone)]
-pub(crate) struct RangeResult {
-    /// Primary profile first (MUSIC over Fourier when both; Fourier for the grid-free
-    /// estimators), ranges from the antennas, amplitudes relative to a unit-gain path.
-    pub profiles: Vec<Profile>,
-    /// Ranges estimated without a grid (root-MUSIC, ESPRIT) or refined off it (MUSIC's peaks).
-    pub estimates_m: Option<Vec<f64>>,
-    /// The primary profile's complex values, on its scale (correlation and Fourier): what the
-    /// detector fits targets to.
-    pub complex: Option<Vec<Complex64>>,
-}
-
-impl RangeResult {
-    /// The primary profile.
-    pub(crate) fn primary(&self) -> &Profile {
-        &self.profiles[0]
     }
 }
 
@@ -1491,6 +1472,29 @@ impl Pipeline {
             clipping,
             aligned: aligned.samples,
         })
+    }
+}
+
+/// The clipping model runs its modelled records through this pipeline's own range processing.
+impl clipping::RangeProcessing for Pipeline {
+    fn transmission(&self) -> &Arc<Transmission> {
+        Pipeline::transmission(self)
+    }
+    fn period(&self) -> usize {
+        self.geometry.period
+    }
+    fn level_scale(&self) -> f64 {
+        Pipeline::level_scale(self)
+    }
+    fn offset_m(&self, residual_s: f64) -> f64 {
+        Pipeline::offset_m(self, residual_s)
+    }
+    fn range_profiles(
+        &mut self,
+        samples: &[Complex64],
+        offset_m: f64,
+    ) -> Result<RangeResult, MeasureError> {
+        Pipeline::range_profiles(self, samples, offset_m)
     }
 }
 

@@ -11,7 +11,8 @@ use crate::dsp::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
 use crate::measure::family;
-use crate::measure::pipeline::{Pipeline, RangeResult, RawIq, RecordGeometry};
+use crate::measure::pipeline::{Pipeline, RawIq, RecordGeometry};
+use crate::measure::range_result::RangeResult;
 use crate::measure::transmit::{Dac, Transmission};
 use crate::measure::ProcessOptions;
 use crate::rng::SplitMix64;

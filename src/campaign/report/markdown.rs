@@ -1,7 +1,6 @@
 //! `report.md`, and the tables both reports share.
 
 use super::figures::{is_accuracy, is_single, thesis_widths, waveform_of, wilson95, Figure};
-use super::pm;
 use super::summary::Summary;
 use crate::campaign::Manifest;
 use crate::campaign::{AlgorithmResult, Results};
@@ -511,6 +510,22 @@ pub(crate) fn markdown(
          folder per step with its capture (SigMF, .trc) and profiles."
     );
     out
+}
+
+/// `x ± s` with `digits` decimals at least, more (up to 6) so the deviation shows two significant
+/// digits; or the value alone.
+pub(crate) fn pm(mean: f64, std: Option<f64>, digits: usize) -> String {
+    match std {
+        Some(s) => {
+            let d = if s > 0.0 && s.is_finite() {
+                ((1.0 - s.log10().floor()).max(0.0) as usize).clamp(digits, 6)
+            } else {
+                digits
+            };
+            format!("{mean:.d$} ± {s:.d$}")
+        }
+        None => format!("{mean:.digits$}"),
+    }
 }
 
 #[cfg(test)]

@@ -172,29 +172,16 @@ pub fn load_results(dir: &Path) -> Result<Results, CampaignError> {
     serde_json::from_str(&text).map_err(|e| bad(format!("not a campaign results.json: {e}")))
 }
 
-/// `x ± s` with `digits` decimals at least, more (up to 6) so the deviation shows two significant
-/// digits; or the value alone.
-pub(crate) fn pm(mean: f64, std: Option<f64>, digits: usize) -> String {
-    match std {
-        Some(s) => {
-            let d = if s > 0.0 && s.is_finite() {
-                ((1.0 - s.log10().floor()).max(0.0) as usize).clamp(digits, 6)
-            } else {
-                digits
-            };
-            format!("{mean:.d$} ± {s:.d$}")
-        }
-        None => format!("{mean:.digits$}"),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #[test]
     fn a_small_deviation_keeps_two_significant_digits() {
-        assert_eq!(super::pm(13.2641, Some(0.00112), 2), "13.2641 ± 0.0011");
-        assert_eq!(super::pm(13.2641, Some(0.5), 2), "13.26 ± 0.50");
-        assert_eq!(super::pm(13.2641, Some(0.0), 2), "13.26 ± 0.00");
-        assert_eq!(super::pm(13.2641, None, 1), "13.3");
+        assert_eq!(
+            super::markdown::pm(13.2641, Some(0.00112), 2),
+            "13.2641 ± 0.0011"
+        );
+        assert_eq!(super::markdown::pm(13.2641, Some(0.5), 2), "13.26 ± 0.50");
+        assert_eq!(super::markdown::pm(13.2641, Some(0.0), 2), "13.26 ± 0.00");
+        assert_eq!(super::markdown::pm(13.2641, None, 1), "13.3");
     }
 }
