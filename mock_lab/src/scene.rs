@@ -22,7 +22,7 @@
 //! A scene's `[chain]` (module `chain`, preset `ideal` by default) makes the chain a real bench's:
 //! the Tx side (DAC sinc, roll-off, Tx I/Q errors, compression) and the RF response shape the
 //! segment's spectrum once per segment; a second path per target joins step 2; with shared-LO phase
-//! noise the paths are rendered over the record (module `lo_noise`); a timebase offset or an Rx
+//! noise the paths are rendered over the record (module `lo_noise`, on the grid of module `sampling`); a timebase offset or an Rx
 //! skew moves the scope's sampling instants in step 4.
 //!
 //! SNR is defined as in radbench's thesis notes: per target of unit amplitude, per complex sample at
@@ -965,10 +965,11 @@ impl SplitMix64 {
 mod chain;
 mod lo_noise;
 mod locate;
+mod sampling;
 mod ziggurat;
 
 pub use chain::{Chain, ChainParams, ChainPreset};
-use lo_noise::{ToGrid, Warp};
+use sampling::{ToGrid, Warp};
 
 #[cfg(test)]
 mod chain_tests;
