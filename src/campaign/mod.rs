@@ -6,6 +6,8 @@
 //! |---|---|
 //! | `spec` | the spec file: serde with unknown fields refused, errors at file:line:field |
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
+//! | `axis` | what a sweep moves, as plain data: the kind, a setting's value |
+//! | `nominal` | a step's set-points (plain data) |
 //! | `kind` | the campaign kinds (the swept parameter): name, unit, what a value sets, metrics and figures, in one table; and the table of every setting a step can set (sweep axes, `[[steps]]` keys) |
 //! | `positioner` | who places the targets: the mock lab (in the step's scene), the operator (prompt), a program |
 //! | `manifest` | `manifest.toml`: inputs and their SHA-256, plan, identities, steps, files, status |
@@ -28,6 +30,7 @@
 //! | `export` | a run folder's arrays for a notebook (`radbench export`): every step's capture, a group each |
 //! | `error` | why a campaign could not start or stopped, what to do about it and its exit code |
 
+pub(crate) mod axis;
 pub(crate) mod builtin;
 pub mod disk;
 mod error;
@@ -38,6 +41,7 @@ pub(crate) mod kind;
 pub(crate) mod lab_table;
 pub(crate) mod manifest;
 mod manifest_store;
+pub(crate) mod nominal;
 pub mod notify;
 pub(crate) mod plan;
 pub(crate) mod positioner;
@@ -79,6 +83,6 @@ pub use retry::RetryRecord;
 pub use run::{exit_code, Finished, NewRun, Observer, Quiet, Retrying, StepDone, Summary};
 pub use start::start;
 
-pub use kind::{AxisSetting, AxisValue};
+pub use axis::{AxisSetting, AxisValue};
 pub use plan::Plan;
 pub use spec::{SpecError, SpecFile};

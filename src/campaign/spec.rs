@@ -7,7 +7,8 @@
 //! wrong types come from the TOML parser's span; values out of range are located again in the
 //! text (toml_edit keeps the spans) when the checks after parsing find them.
 
-use super::kind::{allowed_names, AxisValue, Reads, Setting};
+use super::axis::AxisValue;
+use super::kind::{allowed_names, Reads, Setting};
 #[cfg(test)]
 use crate::measure::CorrectionMode;
 use crate::measure::ProcessingChoices;

@@ -14,9 +14,9 @@
 //! theory curve); nothing is invented.
 
 use super::plots::{Chart, HLine, Point, Series, Style};
-use crate::campaign::kind::{has_own_figures, kind_figures, SweepParameter};
+use crate::campaign::axis::SweepParameter;
 use crate::campaign::Manifest;
-use crate::campaign::{AlgorithmResult, MeanStd, Results, SpreadFigures, StepResult};
+use crate::campaign::{AlgorithmResult, MeanStd, SpreadFigures, StepResult};
 use crate::physics::C0;
 use crate::waveform::{WaveformKind, WaveformSpec};
 
@@ -53,11 +53,6 @@ pub(crate) fn is_accuracy(s: &StepResult) -> bool {
 
 pub(crate) fn is_resolution(s: &StepResult) -> bool {
     s.nominal.targets.len() >= 2
-}
-
-/// One target, swept in a parameter without figures of its own (campaign/kind.rs).
-pub(crate) fn is_single(s: &StepResult) -> bool {
-    s.nominal.targets.len() == 1 && !has_own_figures(s)
 }
 
 /// The smallest separation of a step's nominal targets, metres.
@@ -101,24 +96,6 @@ pub(crate) fn theory_ebn0_db(w: &WaveformSpec, ber: f64) -> Option<f64> {
         }
     }
     Some((lo + hi) / 2.0)
-}
-
-/// The figures of a run, in the order the report shows them.
-pub fn figures(manifest: &Manifest, results: &Results) -> Vec<Figure> {
-    let steps = &results.steps;
-    // The swept kinds' own figures (campaign/kind.rs names them), around those every run gets.
-    let mut out = kind_figures(manifest, steps, true);
-    let pick = |f: fn(&StepResult) -> bool| steps.iter().filter(|s| f(s)).collect::<Vec<_>>();
-    let res = pick(is_resolution);
-    if !res.is_empty() {
-        out.extend(resolution(&res));
-    }
-    let single = pick(is_single);
-    if !single.is_empty() {
-        out.extend(single_target(manifest, &single));
-    }
-    out.extend(kind_figures(manifest, steps, false));
-    out
 }
 
 /// The algorithm names of these steps, in order of first use.
@@ -310,7 +287,7 @@ fn strongest_range_std(a: &AlgorithmResult) -> Option<f64> {
         .and_then(|t| t.range_std_m)
 }
 
-fn resolution(steps: &[&StepResult]) -> Option<Figure> {
+pub(super) fn resolution(steps: &[&StepResult]) -> Option<Figure> {
     let mut rows: Vec<(String, f64)> = Vec::new();
     for s in steps {
         for (name, a) in &s.algorithms {
@@ -404,7 +381,7 @@ fn mean_std(
     }
 }
 
-fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
+pub(super) fn single_target(manifest: &Manifest, steps: &[&StepResult]) -> Vec<Figure> {
     let mut cats = Vec::new();
     let mut width = Vec::new();
     let mut psl = Vec::new();

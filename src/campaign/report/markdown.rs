@@ -1,6 +1,7 @@
 //! `report.md`, and the tables both reports share.
 
-use super::figures::{is_accuracy, is_single, thesis_widths, waveform_of, wilson95, Figure};
+use super::figures::{is_accuracy, thesis_widths, waveform_of, wilson95, Figure};
+use super::run_figures::is_single;
 use super::summary::Summary;
 use crate::campaign::Manifest;
 use crate::campaign::{AlgorithmResult, Results};

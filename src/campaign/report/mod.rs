@@ -13,6 +13,7 @@
 //! | `sweep` | a sweep over any settings: each metric against the inner axis, a line per outer value |
 //! | `link` | every step's link figure (constellation, channel estimate or phase trajectory) with its EVM and MER, small multiples |
 //! | `markdown` | `report.md` |
+//! | `run_figures` | a run's figures in the report's order: the kinds' own around the common ones |
 //! | `html` | `report.html` |
 
 pub(crate) mod figures;
@@ -21,6 +22,7 @@ pub(crate) mod link;
 pub(crate) mod markdown;
 pub(crate) mod plots;
 pub(crate) mod profiles;
+mod run_figures;
 pub(crate) mod summary;
 pub(crate) mod sweep;
 
@@ -34,7 +36,8 @@ use super::results::Results;
 use crate::storage::write_atomic;
 use std::path::{Path, PathBuf};
 
-pub use figures::{figures, Figure};
+pub use figures::Figure;
+pub use run_figures::figures;
 
 /// The Markdown report's file name in a run folder.
 pub(crate) const REPORT_FILE: &str = "report.md";

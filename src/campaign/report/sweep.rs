@@ -4,7 +4,8 @@
 
 use super::figures::Figure;
 use super::plots::{Chart, Point, Series, Style};
-use crate::campaign::kind::{AxisValue, Setting};
+use crate::campaign::axis::AxisValue;
+use crate::campaign::kind::Setting;
 use crate::campaign::{AlgorithmResult, StepResult};
 
 /// A metric of `results.json`'s algorithm results: figure id, title, y label, how it reads.
