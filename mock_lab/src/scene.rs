@@ -38,9 +38,6 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
-/// Speed of light in vacuum, m/s.
-pub const C0: f64 = 299_792_458.0;
-
 /// One reflector in front of the antennas.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -171,31 +168,6 @@ impl Default for Scene {
 /// next capture.
 const DEFAULT_CAPTURE_INTERVAL_S: f64 = 1.0;
 
-/// A scene file or change that cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum SceneError {
-    #[error("scene file {path}: {message}")]
-    Parse { path: String, message: String },
-    #[error("scene field `{field}`: {message}")]
-    Invalid { field: String, message: String },
-    #[error("scene file {path}, line {line}: `{field}`: {message}")]
-    Field {
-        path: String,
-        line: usize,
-        field: String,
-        message: String,
-    },
-    #[error("cannot synthesise a capture: {0}")]
-    Synthesis(String),
-}
-
-fn invalid(field: impl Into<String>, message: impl Into<String>) -> SceneError {
-    SceneError::Invalid {
-        field: field.into(),
-        message: message.into(),
-    }
-}
-
 impl Scene {
     /// Parses and validates a scene from TOML text; `origin` names the file in error messages.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, SceneError> {
@@ -280,32 +252,6 @@ impl Scene {
 
 /// Most targets, and most clutter reflectors, a scene may hold.
 pub(crate) const MAX_REFLECTORS: usize = 100;
-
-fn finite_in(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(invalid(
-            field,
-            format!(
-                "{} is outside the allowed range {} ..= {}",
-                readable(v),
-                readable(lo),
-                readable(hi)
-            ),
-        ))
-    }
-}
-
-/// A number as a person writes it: `1e300`, not three hundred digits.
-fn readable(v: f64) -> String {
-    let magnitude = v.abs();
-    if magnitude != 0.0 && !(1e-3..1e6).contains(&magnitude) {
-        format!("{v:e}")
-    } else {
-        v.to_string()
-    }
-}
 
 /// What the AWG is playing, as the scene needs it.
 #[derive(Debug, Clone, Copy)]
@@ -963,12 +909,15 @@ impl SplitMix64 {
 }
 
 mod chain;
+mod checks;
 mod lo_noise;
 mod locate;
 mod sampling;
 mod ziggurat;
 
 pub use chain::{Chain, ChainParams, ChainPreset};
+use checks::{finite_in, invalid};
+pub use checks::{SceneError, C0};
 use sampling::{ToGrid, Warp};
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! exit code. In a file of its own so that the campaign modules get it from a sibling, not from
 //! their parent.
 
-use super::spec::SpecError;
+use super::spec_error::SpecError;
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};
 use crate::measure::MeasureError;

@@ -1,7 +1,8 @@
 //! The campaign kinds: the parameter a sweep moves, and everything that depends on it, in one
 //! table ([`SweepParameter::kind`]): its name and unit, how a value reads, what it sets in a
-//! step, whether only a simulated bench can set it, the `results.json` metrics its figures read
-//! and the report's figures of its steps.
+//! step, whether only a simulated bench can set it and the `results.json` metrics its figures
+//! read. The report's figures of each kind are a table of their own, keyed by the same enum
+//! (`report/run_figures.rs`, `own_figures`): the report reads the plan, never the other way.
 //!
 //! Beside the kinds, [`SETTINGS`] is the table of every setting a step can set (a `[[sweep]]`
 //! axis or a `[[steps]]` key): its name, unit, how its value reads and what it sets in the step.
@@ -10,15 +11,13 @@
 //! `bandwidth`, `tx-attenuation`, `snr`, `velocity`) set the step as their kind does.
 //!
 //! Adding a kind: a variant here and its arm in [`SweepParameter::kind`], its figure function
-//! (`report/figures.rs`) when it has figures of its own, and its commented spec
+//! (`report/figures.rs`) and its arm in `report/run_figures.rs`'s `own_figures` (the compiler
+//! asks for it) when it has figures of its own, and its commented spec
 //! (`examples/<kind>.toml`, listed in `builtin::TEMPLATES` for `radbench campaign new`).
 
 use super::axis::{AxisValue, SweepParameter};
-use super::manifest::Manifest;
 use super::nominal::{Nominal, Range, MAX_VELOCITY_MPS};
-use super::report::figures::{self, Figure};
-use super::results::StepResult;
-use super::spec::{SpecError, SpecFile, SweepSection};
+use super::spec_error::{FieldErrors, SpecError};
 use crate::measure::capture::MAX_REPETITIONS;
 use crate::measure::{Algorithm, WindowName};
 
@@ -39,25 +38,16 @@ pub(crate) struct Kind {
     /// table learns here, checked against the file's fields by the tests.
     #[cfg_attr(not(test), allow(dead_code))]
     pub metrics: &'static [&'static str],
-    /// The report's figures of the steps swept in it; `None`: only the figures every run gets
-    /// (resolution for two targets, width and side lobes for one).
-    pub figures: Option<KindFigures>,
-}
-
-/// A kind's own figures and where the report shows them.
-#[derive(Clone, Copy)]
-pub(crate) struct KindFigures {
-    /// Before the figures every run gets (`true`), or after them.
-    pub first: bool,
-    pub draw: fn(&Manifest, &[&StepResult]) -> Vec<Figure>,
 }
 
 /// Where a setting's value is set: the spec (for errors), its `[[sweep]]` table (an empty one
 /// for a `[[steps]]` entry), the setting's row, the field naming the value and the prefix of its
 /// sibling fields (`sweep`, `sweep[1]`, `steps[3]`).
 pub(crate) struct SweepAt<'a> {
-    pub spec: &'a SpecFile,
-    pub sweep: &'a SweepSection,
+    pub spec: &'a dyn FieldErrors,
+    /// The `[[sweep]]` table's `targets` and `target` (none for a `[[steps]]` entry).
+    pub targets: Option<&'a [f64]>,
+    pub target: Option<usize>,
     pub setting: &'a Setting,
     pub value_field: String,
     pub prefix: String,
@@ -84,10 +74,6 @@ impl SweepParameter {
                 simulated_only: false,
                 set: set_position,
                 metrics: &["error_m", "error_on_grid_m", "targets"],
-                figures: Some(KindFigures {
-                    first: true,
-                    draw: |m, s| figures::accuracy(m, s).into_iter().collect(),
-                }),
             },
             SweepParameter::Separation => Kind {
                 name: "separation",
@@ -96,7 +82,6 @@ impl SweepParameter {
                 simulated_only: false,
                 set: set_separation,
                 metrics: &[],
-                figures: None,
             },
             SweepParameter::Bandwidth => Kind {
                 name: "bandwidth",
@@ -108,7 +93,6 @@ impl SweepParameter {
                     Ok(())
                 },
                 metrics: &[],
-                figures: None,
             },
             SweepParameter::TxAttenuation => Kind {
                 name: "tx-attenuation",
@@ -120,7 +104,6 @@ impl SweepParameter {
                     Ok(())
                 },
                 metrics: LINK_METRICS,
-                figures: Some(LINK_FIGURES),
             },
             SweepParameter::Snr => Kind {
                 name: "snr",
@@ -132,7 +115,6 @@ impl SweepParameter {
                     Ok(())
                 },
                 metrics: LINK_METRICS,
-                figures: Some(LINK_FIGURES),
             },
             SweepParameter::Velocity => Kind {
                 name: "velocity",
@@ -141,10 +123,6 @@ impl SweepParameter {
                 simulated_only: true,
                 set: set_velocity,
                 metrics: &["error_m", "truth_error_m"],
-                figures: Some(KindFigures {
-                    first: false,
-                    draw: |m, s| figures::velocity(m, s).into_iter().collect(),
-                }),
             },
         }
     }
@@ -180,18 +158,13 @@ const LINK_METRICS: &[&str] = &[
     "snr_db",
 ];
 
-const LINK_FIGURES: KindFigures = KindFigures {
-    first: false,
-    draw: figures::link_figures,
-};
-
 /// `position`: the moved target (`sweep.target`, default the first of `sweep.targets`, or the
 /// value alone) stands at the value.
 fn set_position(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecError> {
-    let mut t = at.sweep.targets.clone().unwrap_or_else(|| vec![v]);
-    let which = at.sweep.target.unwrap_or(0);
+    let mut t = at.targets.map_or_else(|| vec![v], <[f64]>::to_vec);
+    let which = at.target.unwrap_or(0);
     if which >= t.len() {
-        return Err(at.spec.error(
+        return Err(at.spec.field_error(
             &format!("{}.target", at.prefix),
             format!(
                 "{which}: sweep.targets holds {} targets (0-based index)",
@@ -207,18 +180,19 @@ fn set_position(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecErr
 /// `separation`: the first target at `sweep.targets = [R]`, the second at R + the value.
 fn set_separation(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecError> {
     let base =
-        match at.sweep.targets.as_deref() {
+        match at.targets {
             Some([first]) => *first,
-            _ => return Err(at.spec.error(
+            _ => return Err(at.spec.field_error(
                 &format!("{}.targets", at.prefix),
                 "a separation sweep needs targets = [R]: the first target's range, metres (the \
-                 second stands R + separation)",
+                 second stands R + separation)"
+                    .into(),
             )),
         };
     if v <= 0.0 {
         return Err(at
             .spec
-            .error(&at.value_field, format!("{v}: a separation above 0 m")));
+            .field_error(&at.value_field, format!("{v}: a separation above 0 m")));
     }
     n.targets = sorted_ranges(vec![base, base + v]);
     Ok(())
@@ -227,7 +201,7 @@ fn set_separation(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecE
 /// `velocity`: every target moves at the value (m/s, positive receding).
 fn set_velocity(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecError> {
     if v.abs() > MAX_VELOCITY_MPS {
-        return Err(at.spec.error(
+        return Err(at.spec.field_error(
             &at.value_field,
             format!("{v}: allowed -{MAX_VELOCITY_MPS} ..= {MAX_VELOCITY_MPS} m/s"),
         ));
@@ -240,31 +214,6 @@ fn set_velocity(n: &mut Nominal, v: f64, at: &SweepAt<'_>) -> Result<(), SpecErr
 pub(crate) fn sorted_ranges(mut t: Vec<f64>) -> Vec<Range> {
     t.sort_by(f64::total_cmp);
     t.into_iter().map(|range_m| Range { range_m }).collect()
-}
-
-/// The figures of every kind that has its own, for the steps swept in it, `first` or after.
-pub(crate) fn kind_figures(manifest: &Manifest, steps: &[StepResult], first: bool) -> Vec<Figure> {
-    let mut out = Vec::new();
-    for p in SweepParameter::ALL {
-        let Some(f) = p.kind().figures.filter(|f| f.first == first) else {
-            continue;
-        };
-        let mine: Vec<&StepResult> = steps
-            .iter()
-            .filter(|s| s.nominal.parameter == Some(p))
-            .collect();
-        if !mine.is_empty() {
-            out.extend((f.draw)(manifest, &mine));
-        }
-    }
-    out
-}
-
-/// Whether a step's kind has figures of its own.
-pub(crate) fn has_own_figures(s: &StepResult) -> bool {
-    s.nominal
-        .parameter
-        .is_some_and(|p| p.kind().figures.is_some())
 }
 
 // ---- Every setting a step can set --------------------------------------------------------
@@ -451,7 +400,7 @@ pub(crate) fn allowed_names() -> String {
 fn number(v: &AxisValue, at: &SweepAt<'_>) -> Result<f64, SpecError> {
     match v {
         AxisValue::Number(x) if x.is_finite() => Ok(*x),
-        other => Err(at.spec.error(
+        other => Err(at.spec.field_error(
             &at.value_field,
             format!(
                 "{other:?}: {} takes a finite number in {}",
@@ -472,7 +421,7 @@ fn count(v: &AxisValue, at: &SweepAt<'_>, min: usize, max: usize) -> Result<usiz
     } else {
         max.to_string()
     };
-    Err(at.spec.error(
+    Err(at.spec.field_error(
         &at.value_field,
         format!(
             "{x}: {} takes a whole number {min}..={upper}",
@@ -487,7 +436,7 @@ fn named<T: serde::de::DeserializeOwned>(
     allowed: &[&str],
 ) -> Result<T, SpecError> {
     let bad = || {
-        at.spec.error(
+        at.spec.field_error(
             &at.value_field,
             format!(
                 "{v}: {} takes one of {}",

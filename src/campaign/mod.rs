@@ -4,6 +4,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | `spec_error` | why a spec cannot be used, at its file, line and field |
 //! | `spec` | the spec file: serde with unknown fields refused, errors at file:line:field |
 //! | [`plan`] | the resolved plan: steps, nominal set-points, noise seeds; dry-run text and estimates |
 //! | `axis` | what a sweep moves, as plain data: the kind, a setting's value |
@@ -53,6 +54,7 @@ pub(crate) mod retry;
 pub(crate) mod run;
 mod runner;
 pub(crate) mod spec;
+mod spec_error;
 mod start;
 mod step_job;
 mod worker;

@@ -1273,7 +1273,8 @@ fn sweep_steps(
             let v = &a.values[k];
             let at = SweepAt {
                 spec,
-                sweep: a.sweep,
+                targets: a.sweep.targets.as_deref(),
+                target: a.sweep.target,
                 setting: a.setting,
                 value_field: format!("{}.values[{k}]", a.prefix),
                 prefix: a.prefix.to_string(),
@@ -1304,7 +1305,6 @@ fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError>
         bandwidth_hz: bandwidth,
         ..Nominal::default()
     };
-    let empty = SweepSection::default();
     for (k, st) in s.steps.iter().enumerate() {
         if let Some(t) = &st.targets {
             n.targets = sorted_ranges(t.clone());
@@ -1330,7 +1330,8 @@ fn listed_steps(spec: &SpecFile, bandwidth: f64) -> Result<Vec<Step>, SpecError>
             })?;
             let at = SweepAt {
                 spec,
-                sweep: &empty,
+                targets: None,
+                target: None,
                 setting,
                 value_field: format!("steps[{k}].{name}"),
                 prefix: format!("steps[{k}]"),

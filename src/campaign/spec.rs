@@ -9,6 +9,8 @@
 
 use super::axis::AxisValue;
 use super::kind::{allowed_names, Reads, Setting};
+use super::spec_error::FieldErrors;
+pub use super::spec_error::SpecError;
 #[cfg(test)]
 use crate::measure::CorrectionMode;
 use crate::measure::ProcessingChoices;
@@ -398,41 +400,6 @@ const STEP_FIELDS: [&str; 6] = [
     "velocity_mps",
 ];
 
-/// A spec that cannot be used: the file, the line, the field and what is allowed.
-#[derive(Debug, thiserror::Error)]
-pub enum SpecError {
-    #[error("cannot read the campaign spec {path}: {source}")]
-    Read {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{}: {message}", located(path, *line, field))]
-    Field {
-        path: PathBuf,
-        /// 1-based; `None` when the field is not written in the file (a default, or a command
-        /// line override).
-        line: Option<usize>,
-        /// Dotted path, e.g. `sweep.count` or `steps[2].targets`.
-        field: String,
-        /// What is wrong and what is allowed.
-        message: String,
-    },
-}
-
-fn located(path: &Path, line: Option<usize>, field: &str) -> String {
-    match line {
-        Some(l) => format!("{}:{l}: `{field}`", path.display()),
-        None => format!("{}: `{field}`", path.display()),
-    }
-}
-
-impl crate::exit::Classify for SpecError {
-    fn exit_class(&self) -> crate::exit::ExitClass {
-        crate::exit::ExitClass::BadInput
-    }
-}
-
 /// A spec read from a file, with its text (for locating fields) and its folder (for relative
 /// paths).
 #[derive(Debug, Clone)]
@@ -656,6 +623,13 @@ pub(crate) fn locate(text: &str, field: &str) -> Option<usize> {
         }
     }
     last_span.map(|s| line_of(text, s.start))
+}
+
+/// The kinds' table names the spec's fields in its errors through this.
+impl FieldErrors for SpecFile {
+    fn field_error(&self, field: &str, message: String) -> SpecError {
+        self.error(field, message)
+    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use anyhow::Context;
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
 use radbench::measure;
-use radbench::measure::CorrectionMode;
+use radbench::measure::Calibration;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::Provenance;
@@ -85,10 +85,27 @@ pub struct Args {
     /// Capture N times, or `forever` (until Ctrl-C or the live page's Stop): each capture's
     /// files in a folder of its own in --out (capture-0001, ...); the bench is connected and the
     /// waveform uploaded once, RF is on only while capturing.
-    #[arg(long, value_name = "N|forever", value_parser = super::repeat::parse_repeat, help_heading = "Output")]
-    pub repeat: Option<super::repeat::Repeat>,
+    #[arg(long, value_name = "N|forever", value_parser = parse_repeat, help_heading = "Output")]
+    pub repeat: Option<Repeat>,
     #[command(flatten, next_help_heading = "Live")]
     pub live: super::live::LiveArgs,
+}
+
+/// `--repeat`: how many captures (`None`: until stopped).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Repeat(pub Option<u64>);
+
+/// `--repeat N|forever`.
+pub(crate) fn parse_repeat(s: &str) -> Result<Repeat, String> {
+    if s == "forever" {
+        return Ok(Repeat(None));
+    }
+    match s.parse::<u64>() {
+        Ok(n) if n >= 1 => Ok(Repeat(Some(n))),
+        _ => Err(format!(
+            "`{s}`: allowed: a whole number of captures, 1 or more, or `forever`"
+        )),
+    }
 }
 
 // Shared with the Python package's warm session (one definition of each).
@@ -180,105 +197,29 @@ pub(crate) fn default_out(name: &str) -> PathBuf {
     PathBuf::from("runs").join(format!("{stamp}-{name}"))
 }
 
-pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
-    let runtime = super::global::runtime()?;
-    runtime.block_on(run_async(args, global))
-}
-
-async fn run_async(args: Args, global: &super::global::Global) -> anyhow::Result<()> {
-    let kind = args.waveform;
-    let waveform = args.waveform_args.spec(kind)?;
-    if !args.allow_rf {
-        return Err(MeasureError::NoPermit { run: "capture" }.into());
-    }
-    args.timeout.apply()?;
-    if args.live.live && args.repeat.is_none() {
-        return Err(bad_input(
-            "--live: needs --repeat N|forever (one capture is over before a page could show it)",
-        ));
-    }
-    let source = args.scope_model.apply(bench_source(
-        args.bench.as_deref(),
-        args.scene.as_deref(),
-        args.awg_transport,
-        args.scope_transport,
-    )?)?;
-    let manual = super::manual_front::confirm_file(args.bench.as_deref(), "capture")?;
-    let out = args.out.clone().unwrap_or_else(|| default_out(kind.name()));
-    let created = !out.exists();
-    prepare_out(&out, args.force)?;
-    let result = measure_into(args, global, kind, waveform, source, &out, &manual.permit()).await;
-    if result.is_err() && created {
-        // A refused or failed capture leaves no empty folder behind (one with files stays).
-        let _ = std::fs::remove_dir(&out);
-    }
-    // Its files are durable: into the run catalog (bounded; never the command's error).
-    super::runs::register_now(&out);
-    result
-}
-
-async fn measure_into(
-    args: Args,
+/// One capture (no `--repeat`): taken, the raw files written beside its processing, the
+/// processed files written, the report printed.
+#[allow(clippy::too_many_arguments)]
+pub(super) async fn once(
+    args: &Args,
     global: &super::global::Global,
-    kind: WaveformKind,
-    waveform: radbench::waveform::WaveformSpec,
-    source: radbench::measure::BenchSource,
-    out: &Path,
+    bench: &Bench,
+    request: &CaptureRequest,
+    generation: Option<measure::Generation>,
     permit: &RfPermit,
+    interrupt: &Interrupt,
+    out: &Path,
+    calibration: Option<&Calibration>,
 ) -> anyhow::Result<()> {
     let out = out.to_path_buf();
-    let payload = args.bits.payload.as_ref().map(|p| p.as_bytes().to_vec());
-    // The transmission is generated while the bench file is read and the options resolved.
-    let generation = args
-        .repeat
-        .is_none()
-        .then(|| measure::Generation::start(waveform, payload.clone(), args.bits.seed));
-    let interrupt = Interrupt::listen()?;
-    let bench = open_bench(source, false).await?;
-    let mut options = args.processing.options(kind);
-    bench.file.processing_of_this_bench(&mut options);
-    if let Some(w) = bench.file.uncalibrated_warning() {
-        // At once, before the capture; the outputs (report, --json, summary.json) repeat it.
-        eprintln!("warning: {w}");
-    }
-    let calibration = resolve_correction(
-        args.processing.correction,
-        args.processing.calibration.as_deref(),
-        &bench,
-    )?;
-    let mode = args.processing.correction.unwrap_or(CorrectionMode::Rx);
-    options.correction = calibration.as_ref().map(|c| c.used_as(mode));
-    let request = CaptureRequest {
-        waveform,
-        payload,
-        seed: args.bits.seed,
-        options,
-        tx_off: args.tx_off,
-        wait_s: args.wait,
-        background: args.background.clone(),
-    };
-    if let Some(repeat) = args.repeat {
-        return super::repeat::captures(
-            &args,
-            global,
-            repeat,
-            &bench,
-            &request,
-            &interrupt,
-            permit,
-            &out,
-            calibration.as_ref(),
-        )
-        .await;
-    }
     let (taken, mut prepared) = measure::take(
-        &bench,
-        &request,
+        bench,
+        request,
         generation,
         args.repetitions,
         permit,
         journal(global)?,
-        &interrupt,
+        interrupt,
     )
     .await?;
     let provenance = Provenance {
@@ -315,7 +256,7 @@ async fn measure_into(
     let taken = Arc::try_unwrap(taken)
         .map_err(|_| MeasureError::Worker("the raw capture is still being written".into()))?;
     let mut m = taken.with(processing);
-    if let Some(cal) = &calibration {
+    if let Some(cal) = calibration {
         let warnings = calibration_warnings(cal, &m.taken.identities);
         m.processing.processed.warnings.extend(warnings);
     }

@@ -17,6 +17,7 @@ pub(crate) mod calibrate;
 pub(crate) mod calibrate_response;
 pub(crate) mod campaign;
 pub(crate) mod capture;
+mod capture_run;
 pub(crate) mod doctor;
 pub(crate) mod export;
 mod global;
@@ -105,7 +106,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args, &global),
         Command::Bench(args) => benchmarks::run(args, &global),
         Command::Idn(args) => idn::run(args, &global),
-        Command::Capture(args) => capture::run(*args, &global),
+        Command::Capture(args) => capture_run::run(*args, &global),
         Command::Campaign(args) => campaign::run(args, &global),
         Command::Align(args) => align::run(*args, &global),
         Command::Calibrate(args) => calibrate::run(args, &global),

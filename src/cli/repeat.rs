@@ -1,7 +1,7 @@
 //! `radbench capture --repeat N|forever`: one bench connection, one upload, N captures (or until
 //! a stop), each in a folder of its own; RF on only while capturing, the safe state after each.
 
-use super::capture::{calibration_warnings, journal, report, Args};
+use super::capture::{calibration_warnings, journal, report, Args, Repeat};
 use super::live::{self as live_cli};
 use crate::live::{Event, Live};
 use radbench::driver::RfPermit;
@@ -14,23 +14,6 @@ use radbench::measure::Provenance;
 use radbench::measure::{CaptureRequest, Rig};
 use serde_json::json;
 use std::path::Path;
-
-/// `--repeat`: how many captures (`None`: until stopped).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Repeat(pub Option<u64>);
-
-/// `--repeat N|forever`.
-pub(crate) fn parse_repeat(s: &str) -> Result<Repeat, String> {
-    if s == "forever" {
-        return Ok(Repeat(None));
-    }
-    match s.parse::<u64>() {
-        Ok(n) if n >= 1 => Ok(Repeat(Some(n))),
-        _ => Err(format!(
-            "`{s}`: allowed: a whole number of captures, 1 or more, or `forever`"
-        )),
-    }
-}
 
 /// The stop received between two captures, as the command's error (the bench is safe: each
 /// capture's guard ran the safe state; it runs once more for the report).

@@ -39,10 +39,20 @@ pub(crate) fn open(path: &Path, busy: Duration) -> Result<Connection, RunsDbErro
         .map_err(sql)?;
     conn.pragma_update(None, "foreign_keys", "ON")
         .map_err(sql)?;
-    if stored_version(&conn).as_deref() != Some(SCHEMA_VERSION) {
+    if older(stored_version(&conn).as_deref()) {
         upgrade(&mut conn).map_err(sql)?;
     }
     Ok(conn)
+}
+
+/// Whether a catalog of `stored` version (`None`: a new file) needs [`upgrade`]: a catalog a newer
+/// radbench wrote is left as it is (its tables hold ours; writing our version would make the
+/// newer one think it old).
+fn older(stored: Option<&str>) -> bool {
+    let ours: u32 = SCHEMA_VERSION.parse().unwrap_or(0);
+    stored
+        .and_then(|v| v.parse::<u32>().ok())
+        .is_none_or(|v| v < ours)
 }
 
 fn stored_version(conn: &Connection) -> Option<String> {
@@ -59,7 +69,7 @@ fn stored_version(conn: &Connection) -> Option<String> {
 /// it once.
 fn upgrade(conn: &mut Connection) -> rusqlite::Result<()> {
     let tx = conn.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
-    if stored_version(&tx).as_deref() == Some(SCHEMA_VERSION) {
+    if !older(stored_version(&tx).as_deref()) {
         return Ok(());
     }
     tx.execute_batch(SCHEMA_SQL)?;

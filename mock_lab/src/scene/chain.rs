@@ -12,7 +12,7 @@ use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-use super::{finite_in, invalid, SceneError, C0};
+use super::checks::{finite_in, invalid, SceneError, C0};
 
 /// Named chains.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

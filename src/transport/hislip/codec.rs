@@ -2,7 +2,7 @@
 //! parameter u32, payload length u64`, then the payload.
 
 use crate::transport::error::CodecError;
-use crate::transport::{FrameHeader, Framed, FramedDecoder};
+use crate::transport::io::{FrameHeader, Framed, FramedDecoder};
 
 pub const HEADER_LEN: usize = 16;
 const FORMAT: &str = "HiSLIP";

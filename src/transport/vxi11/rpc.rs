@@ -2,7 +2,7 @@
 //! and call/reply headers with AUTH_NONE.
 
 use crate::transport::error::CodecError;
-use crate::transport::{buffer_ceiling, reserve_announced, reserve_within, Decode};
+use crate::transport::io::{buffer_ceiling, reserve_announced, reserve_within, Decode};
 use bytes::{Buf, Bytes, BytesMut};
 
 const FORMAT: &str = "ONC-RPC record";
