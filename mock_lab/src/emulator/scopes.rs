@@ -30,7 +30,7 @@ pub(crate) const SCOPES: [ScopeModel; 2] = [
     },
 ];
 
-/// A scope the lab can serve as `scope` (a row of [`SCOPES`], listed in [`ScopeModel::ALL`]): every one sees
+/// A scope the lab can serve as `scope` (a row of `SCOPES`, listed in [`ScopeModel::ALL`]): every one sees
 /// the same bench (AWG marker on its external trigger, the scene on channels 1 and 2).
 #[derive(Clone, Copy)]
 pub struct ScopeModel {
