@@ -24,6 +24,11 @@ pub fn out(text: &str) -> anyhow::Result<()> {
         .write_all(text.as_bytes())
         .and_then(|()| stdout.write_all(b"\n"))
         .and_then(|()| stdout.flush());
+    outcome(written)
+}
+
+/// A write to standard output as the command's result: a closed pipe is `StdoutClosed`.
+fn outcome(written: std::io::Result<()>) -> anyhow::Result<()> {
     match written {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
@@ -43,11 +48,7 @@ pub fn out_json<T: serde::Serialize + ?Sized>(value: &T) -> anyhow::Result<()> {
         })
         .and_then(|()| stdout.write_all(b"\n"))
         .and_then(|()| stdout.flush());
-    match written {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
-        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
-    }
+    outcome(written)
 }
 
 /// True when `err` says standard output was closed.

@@ -240,20 +240,7 @@ fn loops_in(src: &Path, layers: &[&str]) -> Vec<Vec<String>> {
 
 /// Pairs of modules of `layers` (folders of `src`) that import each other, as `a <-> b`.
 fn circles_in(src: &Path, layers: &[&str]) -> Vec<String> {
-    let mut files = Vec::new();
-    for layer in layers {
-        sources(&src.join(layer), &mut files);
-    }
-    let modules: BTreeSet<Module> = files.iter().map(|f| module_of(src, f)).collect();
-    let edges: Vec<(Module, BTreeSet<Module>)> = files
-        .iter()
-        .map(|f| {
-            let me = module_of(src, f);
-            let text = std::fs::read_to_string(f).unwrap();
-            let found = imports(&me, &text, &modules);
-            (me, found)
-        })
-        .collect();
+    let edges = import_graph(src, layers);
     let mut circles = Vec::new();
     for (a, from_a) in &edges {
         for (b, from_b) in &edges {
