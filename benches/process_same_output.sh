@@ -12,11 +12,15 @@
 #    carry the time of the run (profiles, plots, result.json, results, reports) byte for byte.
 #    Skipped: the raw files and summaries that record when they were taken (`.trc`,
 #    `capture.sigmf-meta`, `summary.json`, `manifest.toml`, `io-journal.jsonl`); the reports
-#    are compared with the binary's commit (40 hex digits) masked.
+#    are compared with the binary's commit (40 hex digits), the run's date and its duration
+#    masked.
 #
 # Exits 0 when everything matches, 1 with the differing files listed otherwise.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# What a report may differ in: the binary's commit, the run's date (RFC 3339, to the ms) and
+# how long it took.
+MASK='s/[0-9a-f]{40}/COMMIT/g; s/[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z/DATE/g; s/(Duration[^0-9]*)[0-9.]+ s/\1T s/g'
 OLD=$(realpath "${1:?usage: process_same_output.sh OLD_BINARY NEW_BINARY [RUNS]}")
 NEW=$(realpath "${2:?usage: process_same_output.sh OLD_BINARY NEW_BINARY [RUNS]}")
 RUNS=${3:-2}
@@ -49,8 +53,7 @@ compare() { # a b what
             manifest.toml)
                 cmp -s <(grep -v '^written_at = ' "$a/$f") <(grep -v '^written_at = ' "$b/$f") && continue ;;
             report.md | report.html) # they name the commit of the binary
-                cmp -s <(sed -E 's/[0-9a-f]{40}/COMMIT/g' "$a/$f") \
-                    <(sed -E 's/[0-9a-f]{40}/COMMIT/g' "$b/$f") && continue ;;
+                cmp -s <(sed -E "$MASK" "$a/$f") <(sed -E "$MASK" "$b/$f") && continue ;;
             *) cmp -s "$a/$f" "$b/$f" && continue ;;
         esac
         echo "DIFFERENT ($what): $f"
