@@ -359,6 +359,8 @@ pub struct Synthesizer {
     lo_phase: Vec<Complex64>,
     lo_tx: Vec<Complex64>,
     lo_rx: Vec<Complex64>,
+    /// The last record before its noise, and what it was rendered from ([`clean_key`]).
+    clean: Option<(u64, Vec<Complex64>)>,
     /// Captures synthesised so far: the simulated clock advances by the scene's
     /// `capture_interval_s` per capture.
     captures: u64,
@@ -381,6 +383,7 @@ impl Synthesizer {
             lo_phase: Vec::new(),
             lo_tx: Vec::new(),
             lo_rx: Vec::new(),
+            clean: None,
             captures: 0,
             last_clock_s: 0.0,
         }
@@ -390,6 +393,12 @@ impl Synthesizer {
     /// `capture_interval_s` per capture before it): what its ground truth records.
     pub(crate) fn last_clock_s(&self) -> f64 {
         self.last_clock_s
+    }
+
+    /// Forgets the last record before its noise, so the next is rendered afresh.
+    #[cfg(test)]
+    pub(crate) fn forget_clean(&mut self) {
+        self.clean = None;
     }
 
     /// Restarts the noise and jitter generator from `seed`.
@@ -534,12 +543,31 @@ impl Synthesizer {
         let (spectrum, power) = self.segment_spectrum(awg, &chain);
         let mut y = std::mem::take(&mut self.record);
         y.clear();
-        y.resize(len, Complex64::new(0.0, 0.0));
         let gain = if awg.playing { front.path_gain() } else { 0.0 };
+        let paths = if gain > 0.0 {
+            paths(scene, &chain, clock_s)
+        } else {
+            Vec::new()
+        };
+        let linewidth = scene.impairments.phase_noise_linewidth_hz;
+        let lo_noise = gain > 0.0 && chain.shared_lo && linewidth > 0.0;
+        // The record before its noise is the same for every capture of a still scene without
+        // trigger jitter or shared-LO phase noise: rendered once (a 16-segment sequence spent
+        // half its synthesis rendering the same period again).
+        let clean_key = (!lo_noise).then(|| {
+            let spectrum_key = self.cached.as_ref().map_or(0, |c| c.0);
+            let grid = [t0, first, horiz_offset, sample_rate];
+            clean_key(spectrum_key, &paths, gain, grid, [len, points])
+        });
+        if let (Some(key), Some((kept, clean))) = (clean_key, &self.clean) {
+            if key == *kept {
+                y.extend_from_slice(clean);
+                return Ok(self.noisy(y, scene, &chain, sample_rate, power, horiz_offset));
+            }
+        }
+        y.resize(len, Complex64::new(0.0, 0.0));
         if gain > 0.0 {
-            let paths = paths(scene, &chain, clock_s);
-            let linewidth = scene.impairments.phase_noise_linewidth_hz;
-            if chain.shared_lo && linewidth > 0.0 {
+            if lo_noise {
                 let tx = ToGrid {
                     spectrum: &spectrum,
                     fs_awg: awg.sample_rate,
@@ -574,6 +602,25 @@ impl Synthesizer {
             self.warped = y;
             y = out;
         }
+        if let Some(key) = clean_key {
+            let mut clean = self.clean.take().map(|(_, c)| c).unwrap_or_default();
+            clean.clear();
+            clean.extend_from_slice(&y);
+            self.clean = Some((key, clean));
+        }
+        Ok(self.noisy(y, scene, &chain, sample_rate, power, horiz_offset))
+    }
+
+    /// The record `y` with the receiver's noise and impairments, kept as `self.record`.
+    fn noisy(
+        &mut self,
+        mut y: Vec<Complex64>,
+        scene: &Scene,
+        chain: &ChainParams,
+        sample_rate: f64,
+        power: f64,
+        horiz_offset: f64,
+    ) -> (&[Complex64], f64) {
         // The receiver's noise enters ahead of its I/Q demodulator (the front end's noise figure
         // sets it), so the demodulator's imbalance and DC act on it too.
         let reference_power = if power > 0.0 { power } else { 0.25 * 0.25 };
@@ -582,9 +629,9 @@ impl Synthesizer {
         for v in y.iter_mut() {
             *v += Complex64::new(sigma * self.rng.gaussian(), sigma * self.rng.gaussian());
         }
-        self.impair(&mut y, scene, &chain, sample_rate);
+        self.impair(&mut y, scene, chain, sample_rate);
         self.record = y;
-        Ok((&self.record, horiz_offset))
+        (&self.record, horiz_offset)
     }
 
     /// One period of the sum of `paths` at `up` times the segment rate, starting at `t0` after the
@@ -845,6 +892,38 @@ fn quantise(y: &[Complex64], setup: &CaptureSetup, horiz_offset: f64, scene: Sce
         clipped,
         scene,
     }
+}
+
+/// What a record before its noise is rendered from, beyond the segment's spectrum (its
+/// [`segment_key`]): the paths, the front ends' gain and the grid (its times and rate, its
+/// lengths rendered and recorded).
+fn clean_key(
+    spectrum_key: u64,
+    paths: &[Path],
+    gain: f64,
+    grid: [f64; 4],
+    lengths: [usize; 2],
+) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    spectrum_key.hash(&mut h);
+    for p in paths {
+        for v in [
+            p.delay_s,
+            p.amplitude,
+            p.carrier_hz,
+            p.doppler_hz,
+            p.phase_rad,
+        ] {
+            v.to_bits().hash(&mut h);
+        }
+    }
+    gain.to_bits().hash(&mut h);
+    for v in grid {
+        v.to_bits().hash(&mut h);
+    }
+    lengths.hash(&mut h);
+    h.finish()
 }
 
 fn segment_key(awg: &AwgPlayback<'_>, chain: &ChainParams) -> u64 {

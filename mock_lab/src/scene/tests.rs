@@ -291,3 +291,47 @@ fn mismatched_rates_and_empty_segments_are_refused() {
         .capture(&Scene::default(), &empty, FrontEnds::ALL_ON, &setup(64))
         .is_err());
 }
+
+/// A still scene's record is rendered once and its noise drawn for every capture: the records
+/// are the bits rendering afresh gives, and a moved target or a different grid is rendered anew.
+#[test]
+fn a_kept_render_gives_the_bits_of_a_fresh_one() {
+    let (i, q) = chirp_codes(512);
+    let awg = playing(&i, &q);
+    let target = |range_m| Target {
+        range_m,
+        amplitude: 0.5,
+        velocity_mps: 0.0,
+    };
+    let scene = Scene {
+        snr_db: 30.0,
+        chain: Chain {
+            preset: ChainPreset::ThesisLab,
+            ..Chain::default()
+        },
+        ..quiet_scene(vec![target(1.0)])
+    };
+    let moved = Scene {
+        targets: vec![target(1.01)],
+        ..scene.clone()
+    };
+    let record = |synth: &mut Synthesizer, scene: &Scene, points: usize| {
+        synth
+            .volts(scene, &awg, FrontEnds::ALL_ON, 80e9, points, 0.0)
+            .unwrap()
+            .0
+            .to_vec()
+    };
+    let (mut kept, mut fresh) = (Synthesizer::new(7), Synthesizer::new(7));
+    for (scene, points) in [
+        (&scene, 2560),
+        (&scene, 2560),
+        (&moved, 2560),
+        (&moved, 2000),
+    ] {
+        fresh.forget_clean();
+        let a = record(&mut kept, scene, points);
+        let b = record(&mut fresh, scene, points);
+        assert!(a.iter().zip(&b).all(|(x, y)| x == y) && a.len() == b.len());
+    }
+}

@@ -438,6 +438,18 @@ fn query_waveform(scope: &Lecroy, call: &Call) -> Result<Option<Vec<u8>>, Fault>
             ),
         ));
     };
+    let (long, short) = call.names;
+    let mut out = match st.header {
+        HeaderMode::Off => format!("{part},"),
+        HeaderMode::Short => format!("{path}:{short} {part},"),
+        HeaderMode::Long => format!("{path}:{long} {part},"),
+    }
+    .into_bytes();
+    if part == "ALL" {
+        // The whole block, written once into the reply (tens of megabytes).
+        st.waveform_into(&mut out, &scope.model, index, WAVEDESC_INSTRUMENT_NAME);
+        return Ok(Some(out));
+    }
     let full = st.waveform(&scope.model, index, WAVEDESC_INSTRUMENT_NAME);
     let content = &full[11..];
     // DAT1 is the data array alone: past the descriptor and a sequence's TRIGTIME array.
@@ -446,18 +458,11 @@ fn query_waveform(scope: &Lecroy, call: &Call) -> Result<Option<Vec<u8>>, Fault>
         ByteOrder::LoFirst => u32::from_le_bytes(trigtime),
         ByteOrder::HiFirst => u32::from_be_bytes(trigtime),
     } as usize;
-    let payload: &[u8] = match part.as_str() {
-        "DESC" => &content[..WAVEDESC_LEN],
-        "DAT1" => &content[(WAVEDESC_LEN + trigtime).min(content.len())..],
-        _ => content,
+    let payload: &[u8] = if part == "DESC" {
+        &content[..WAVEDESC_LEN]
+    } else {
+        &content[(WAVEDESC_LEN + trigtime).min(content.len())..]
     };
-    let (long, short) = call.names;
-    let mut out = match st.header {
-        HeaderMode::Off => format!("{part},"),
-        HeaderMode::Short => format!("{path}:{short} {part},"),
-        HeaderMode::Long => format!("{path}:{long} {part},"),
-    }
-    .into_bytes();
     out.extend_from_slice(format!("#9{:09}", payload.len()).as_bytes());
     out.extend_from_slice(payload);
     Ok(Some(out))

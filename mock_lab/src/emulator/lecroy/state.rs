@@ -2,7 +2,7 @@
 
 use super::trigger::{AcquisitionRequest, Capture, Slope, TriggerSetup};
 use super::wavedesc::{
-    one_two_five_index, waveform_block, ByteOrder, SampleWidth, TriggerTimestamp, WaveDesc,
+    one_two_five_index, waveform_block_into, ByteOrder, SampleWidth, TriggerTimestamp, WaveDesc,
 };
 use crate::catalog::DigitizerModel;
 use std::borrow::Cow;
@@ -522,6 +522,19 @@ impl ScopeState {
     /// COMM_ORDER and WAVEFORM_SETUP. Without an acquisition (or with the trace off) the block holds
     /// a descriptor with zero points \[I\].
     pub fn waveform(&self, model: &DigitizerModel, ch: usize, instrument_name: &str) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.waveform_into(&mut out, model, ch, instrument_name);
+        out
+    }
+
+    /// [`waveform`](Self::waveform) appended to `out`.
+    pub(crate) fn waveform_into(
+        &self,
+        out: &mut Vec<u8>,
+        model: &DigitizerModel,
+        ch: usize,
+        instrument_name: &str,
+    ) {
         let rate = Self::sample_rate(model);
         let recorded = self
             .acquisition
@@ -593,7 +606,7 @@ impl ScopeState {
             acq_vert_offset: offset as f32,
             wave_source: ch as i16,
         };
-        waveform_block(&desc, &values)
+        waveform_block_into(out, &desc, &values);
     }
 }
 

@@ -238,20 +238,21 @@ fn encode_samples_into(out: &mut Vec<u8>, values: &[i16], width: SampleWidth, or
 }
 
 /// `#9<9 digits>` + WAVEDESC + data array: the block of `WF? ALL` and the content of a `.trc` file.
-pub(crate) fn waveform_block(desc: &WaveDesc, values: &[i16]) -> Vec<u8> {
+/// Appended to `out` (a reply's header before it): a record is tens of megabytes, and a copy
+/// of it into the reply cost as much as building it (the kernel zeroing fresh pages).
+pub(crate) fn waveform_block_into(out: &mut Vec<u8>, desc: &WaveDesc, values: &[i16]) {
     let trigtime = desc.trigtime_array();
     let data_len = match desc.width {
         SampleWidth::Byte => values.len(),
         SampleWidth::Word => values.len() * 2,
     };
     let len = WAVEDESC_LEN + trigtime.len() + data_len;
-    let mut out = Vec::with_capacity(11 + len);
+    out.reserve_exact(11 + len);
     out.extend_from_slice(format!("#9{len:09}").as_bytes());
     out.extend_from_slice(&encode(desc));
     // Array order after the descriptor: USER_TEXT (none), TRIGTIME, RIS_TIME (none), data.
     out.extend_from_slice(&trigtime);
-    encode_samples_into(&mut out, values, desc.width, desc.order);
-    out
+    encode_samples_into(out, values, desc.width, desc.order);
 }
 
 /// The 1-2-5 enum index used by TIMEBASE (from 1 ps/div) and FIXED_VERT_GAIN (from 1 uV/div).
