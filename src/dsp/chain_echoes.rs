@@ -142,14 +142,13 @@ pub(crate) fn find(
         t > search.inner_s && t <= search.reach_s
     };
     // The ratio's weighted mean at delay `t`: an echo's gain there.
+    let df = fs / n as f64;
     let gain_at = |ratio: &[Complex64], t: f64| -> Complex64 {
-        ratio
-            .iter()
-            .zip(&weight)
-            .zip(&freqs)
-            .map(|((r, w), f)| r * *w * Complex64::from_polar(1.0, 2.0 * PI * f * t))
-            .sum::<Complex64>()
-            / total
+        let mut sum = Complex64::new(0.0, 0.0);
+        super::phasor::for_each(freqs.iter().copied(), 2.0 * PI * t, df, |i, p| {
+            sum += ratio[i] * weight[i] * p;
+        });
+        sum / total
     };
     let weakest = 10f64.powf(search.weakest_db / 10.0);
     let mut lags = vec![Complex64::new(0.0, 0.0); n];
@@ -190,9 +189,9 @@ pub(crate) fn find(
             delay_s: t,
             gain: gain_at(&ratio, t),
         };
-        for (r, f) in ratio.iter_mut().zip(&freqs) {
-            *r -= echo.at(*f);
-        }
+        super::phasor::for_each(freqs.iter().copied(), -2.0 * PI * t, df, |i, p| {
+            ratio[i] -= echo.gain * p;
+        });
         sort_into(&mut found, echo);
     }
     found

@@ -36,6 +36,7 @@ pub(crate) mod link_quality;
 pub(crate) mod metrics;
 pub(crate) mod music;
 pub(crate) mod ofdm_radar;
+pub(crate) mod phasor;
 pub(crate) mod plans;
 pub(crate) mod range_profile;
 pub(crate) mod residual;

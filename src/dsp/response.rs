@@ -231,9 +231,10 @@ impl ChainEstimator {
     /// `Y(f) exp(+j 2 pi f delay)`.
     pub(crate) fn relative_to(&self, y_spec: &mut [Complex64], delay: f64) {
         let n = self.n;
-        for (k, v) in y_spec.iter_mut().enumerate() {
-            *v *= Complex64::from_polar(1.0, 2.0 * PI * signed(k, n) * delay / n as f64);
-        }
+        let bins = (0..n).map(|k| signed(k, n));
+        super::phasor::for_each(bins, 2.0 * PI * delay / n as f64, 1.0, |k, p| {
+            y_spec[k] *= p;
+        });
     }
 
     /// The local mean of `rest` against `reference` (weighted by `weight`, its gated power),
