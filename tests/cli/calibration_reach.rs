@@ -2,9 +2,10 @@
 //! cable's echo 15 ns behind every path, the Tx->Rx leakage at -40 and -26 dB in the reference
 //! and in the captures, the reference at 0.8, 1.0 and 2.5 m. For both waveforms, every window and
 //! every correction: the one pillar within 0.5 mm, no other target, and each window's side-lobe
-//! within 2 dB of what the same window gives on the ideal chain (its design, where the waveform
-//! reaches it: the 128 bits of the MSK-LFM keep Dolph-Chebyshev at about -47.5 dB even there),
-//! which must itself lie within 3 dB of the design.
+//! within 2 dB of what the same window gives on the ideal chain, itself within 2 dB of the
+//! design. (Against the design itself, 5 of the 288 miss by up to 0.6 dB: MSK-LFM with
+//! Dolph-Chebyshev corrected at -47.4 to -47.9 dB, with the 0.8 m reference or the cable's echo;
+//! docs/calibration.md.)
 
 use super::scenes::scene;
 use super::support::radbench_in;
@@ -83,7 +84,7 @@ async fn ideal_sidelobes(waveform: &str) -> Vec<f64> {
             .as_f64()
             .unwrap_or_else(|| panic!("{waveform} {window} on the ideal chain: {p}"));
         assert!(
-            (psl - designed_db).abs() <= 3.0,
+            (psl - designed_db).abs() <= 2.0,
             "{waveform} {window} on the ideal chain: {psl} dB, designed {designed_db} dB"
         );
         out.push(psl);
@@ -91,8 +92,9 @@ async fn ideal_sidelobes(waveform: &str) -> Vec<f64> {
     out
 }
 
-/// What is wrong with one processed capture's targets and side-lobe (empty when nothing).
-fn check(summary: &Value, designed_db: f64) -> Vec<String> {
+/// What is wrong with one processed capture's targets and side-lobe (empty when nothing): its
+/// side-lobe against the window's on the ideal chain (`ideal_db`).
+fn check(summary: &Value, ideal_db: f64) -> Vec<String> {
     let mut wrong = Vec::new();
     let targets = summary["targets"].as_array().cloned().unwrap_or_default();
     let pillar = targets.iter().find(|t| {
@@ -117,9 +119,9 @@ fn check(summary: &Value, designed_db: f64) -> Vec<String> {
     }
     let targets: Vec<Value> = pillar.into_iter().cloned().collect();
     match targets.first().and_then(|t| t["sidelobe_db"].as_f64()) {
-        Some(psl) if (psl - designed_db).abs() <= 2.0 => {}
+        Some(psl) if (psl - ideal_db).abs() <= 2.0 => {}
         psl => wrong.push(format!(
-            "side-lobe {psl:?} dB ({:?}), {designed_db:.2} dB on the ideal chain",
+            "side-lobe {psl:?} dB ({:?}), {ideal_db:.2} dB on the ideal chain",
             targets.first().map(|t| &t["sidelobe_note"])
         )),
     }
@@ -189,7 +191,7 @@ async fn one_case(
         )
         .await;
     }
-    for ((window, _), &designed_db) in WINDOWS.iter().zip(ideal) {
+    for ((window, _), &ideal_db) in WINDOWS.iter().zip(ideal) {
         let out = format!("p-{window}");
         let _ = std::fs::remove_dir_all(dir.join(&out));
         let p = ok(
@@ -200,7 +202,7 @@ async fn one_case(
         )
         .await;
         for processed in p["processed"].as_array().unwrap() {
-            for w in check(&processed["summary"], designed_db) {
+            for w in check(&processed["summary"], ideal_db) {
                 wrong.push(format!(
                     "{case}, {} with {window}: {w}",
                     processed["source"]
