@@ -41,6 +41,7 @@ pub(crate) mod plans;
 pub(crate) mod range_profile;
 pub(crate) mod residual;
 pub(crate) mod response;
+pub(crate) mod toeplitz;
 pub(crate) mod window;
 
 pub use correlate::{fast_fft_len, CrossCorrelator, Strategy};

@@ -12,7 +12,6 @@
 //! linear phase relative to the expected delay `2 R / c + system delay`: corrected, the reference
 //! lands at its true range with the bench's system delay.
 
-use super::calibration::MAX_DEFAULT_GATE_S;
 use super::error::MeasureError;
 use crate::dsp::chain_echoes;
 use crate::dsp::iq_image::{rx_skew_direct, split_measured, TxIq};
@@ -875,11 +874,11 @@ struct WholeChain {
     echoes: chain_echoes::Echoes,
 }
 
-/// First the scene beyond the gate (the leakage ahead of the reference) is divided out; with
-/// nothing of the scene left near the reference, the gated fit may then open to the widest
-/// default gate and take in all of the chain's main response (a short gate's taper would leave
-/// part of it behind). Then the chain's own echoes beyond that gate (an IF cable's), divided out
-/// before the last fit and multiplied back into the response.
+/// First the scene beyond the gate (the leakage ahead of the reference) is divided out. The gate
+/// stays as it was: opened to the widest default, it took in what the division leaves of the
+/// leakage, a ghost ahead of every corrected target. Then the chain's own echoes beyond the gate
+/// (an IF cable's), divided out before the last fit and multiplied back into the response. The
+/// last fit is the least-squares one over the gate's lags.
 fn fit_whole_chain(
     est: ChainEstimator,
     mut mean: Vec<Complex64>,
@@ -938,14 +937,6 @@ fn fit_whole_chain(
         fitted = est.fit_relative(&mean, &mut Vec::new());
         echoes.scene.extend(found.scene);
     }
-    if !echoes.scene.is_empty() {
-        if gate_s < MAX_DEFAULT_GATE_S {
-            let reference = est.reference().to_vec();
-            est = ChainEstimator::new(&reference, n, fs, MAX_DEFAULT_GATE_S)?;
-            gate_s = MAX_DEFAULT_GATE_S;
-        }
-        fitted = est.fit_relative(&mean, &mut Vec::new());
-    }
     // A chain echo in the gate's taper would be half in the fit and half out: the gate closes
     // before the nearest one, and the search is made again.
     let nearest = search(&est, &fitted, &mean, gate_s / 1.5, WEAKEST_CHAIN_ECHO_DB)
@@ -971,13 +962,16 @@ fn fit_whole_chain(
             &|f| second.chain_at(f) * second.scene_at(f),
             &est,
         );
-        fitted = est.fit_relative(&mean, &mut Vec::new());
         chain_factor = (0..n)
             .map(|k| second.chain_at(est.frequency_hz(k)))
             .collect();
         echoes.chain = second.chain;
         echoes.scene.extend(second.scene);
     }
+    // The searches' local means lean where the waveform's power is uneven (the band's edges, the
+    // MSK data inside a short gate's wide frequency kernel): the table is the least-squares fit.
+    est.use_least_squares();
+    fitted = est.fit_relative(&mean, &mut Vec::new());
     Ok(WholeChain {
         est,
         gate_s,

@@ -3,9 +3,9 @@
 //! and in the captures, the reference at 0.8, 1.0 and 2.5 m. For both waveforms, every window and
 //! every correction: the one pillar within 0.5 mm, no other target, and each window's side-lobe
 //! within 2 dB of what the same window gives on the ideal chain, itself within 2 dB of the
-//! design. (Against the design itself, 5 of the 288 miss by up to 0.6 dB: MSK-LFM with
-//! Dolph-Chebyshev corrected at -47.4 to -47.9 dB, with the 0.8 m reference or the cable's echo;
-//! docs/calibration.md.)
+//! design. (Against the design itself, 2 of the 288 miss by up to 0.4 dB: MSK-LFM with
+//! Dolph-Chebyshev, `rx`, calibrated on the 0.8 m reference with the leakage in front of it, at
+//! -47.86 and -47.61 dB; docs/calibration.md.)
 
 use super::scenes::scene;
 use super::support::radbench_in;
@@ -387,17 +387,23 @@ async fn clutter_beyond_the_window_pulls_a_weak_pillar_under_half_a_mm_on_the_id
 }
 
 /// The calibration's residual profile (`[[residual]]`, issue 38): what the correction leaves on
-/// the reference, per window. Pre-distorted MSK-LFM (`tx`) processed with a low side-lobe window
-/// keeps a residue about 1.4 m behind the pillar, about 60 dB under it: the gated fit's misfit in
-/// its taper (the reference's own profile shows it there at the same level). Corrected with a
-/// calibration whose header lacks the profile (as written before it existed) the residue is a
-/// target; with the profile the detector's floor follows it and it is not.
+/// the reference, per window. A chain whose response steps by 0.3 dB and 3 degrees within 20 MHz
+/// (a filter's edge, a switched band) has an impulse response longer than any gate: the fit
+/// leaves its tails, 55-65 dB under the reference, on both sides. MSK-LFM corrected on receive
+/// (`rx`) with the Taylor window, with a calibration whose header lacks the profile (as written
+/// before it existed), reports those tails as targets; with the profile the detector's floor
+/// follows them and it does not. (The thesis-lab chain alone no longer leaves a residue to test
+/// this on: the least-squares fit took the one 1.4 m behind that pre-distortion showed.)
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_scene(d, "reference.toml", 1.0, false, -40.0, 7);
-    write_scene(d, "pillar.toml", PILLAR_M, false, -40.0, 11);
+    for (name, range_m, seed) in [("reference.toml", 1.0, 7), ("pillar.toml", PILLAR_M, 11)] {
+        let mut s = scene(&[(range_m, 0.5)], 25.0, seed);
+        s["chain"] = json!({"preset": "thesis-lab", "response": [
+            [-5e8, 0.0, 0.0], [1e8, 0.0, 0.0], [1.2e8, -0.3, 3.0], [5e8, -0.3, 3.0]]});
+        write(d, name, s, -40.0);
+    }
     ok(
         d,
         &[
@@ -424,18 +430,17 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
         .map(|r| r["window"].as_str().unwrap())
         .collect();
     assert_eq!(windows, ["rect", "hann", "taylor", "chebyshev"]);
-    // Taylor's profile: the residue's bins, 1.35-1.5 m behind, hold its level.
+    // Taylor's profile holds the tails' level, behind and ahead.
     let taylor = &profiles[2];
-    let bin_m = taylor["bin_m"].as_float().unwrap();
-    let behind: Vec<f64> = taylor["behind_db"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_float().unwrap())
-        .collect();
-    let near = (1.35 / bin_m) as usize..(1.5 / bin_m) as usize;
-    let residue_db = behind[near].iter().copied().fold(f64::MIN, f64::max);
-    assert!((-66.0..=-54.0).contains(&residue_db), "{behind:?}");
+    for side in ["behind_db", "ahead_db"] {
+        let level = taylor[side]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_float().unwrap())
+            .fold(f64::MIN, f64::max);
+        assert!((-66.0..=-50.0).contains(&level), "{side}: {taylor:?}");
+    }
     let mut old = parsed.clone();
     old.remove("residual");
     std::fs::write(d.join("old.toml"), toml::to_string(&old).unwrap()).unwrap();
@@ -454,7 +459,7 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
                 "--calibration",
                 cal,
                 "--correction",
-                "tx",
+                "rx",
                 "--window",
                 "taylor",
                 "--json",
@@ -483,13 +488,12 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
     let (without, with) = (&found[0], &found[1]);
     let pillar = |t: &[(f64, f64)]| t.iter().any(|(r, _)| (r - PILLAR_M).abs() <= 0.5e-3);
     assert!(
-        pillar(without) && without.len() == 2 && (without[1].0 - PILLAR_M - 1.42).abs() < 0.05,
-        "without the profile the fit's residue is a target (if the fit no longer leaves it, \
-         this half of the test goes): {without:?}"
+        pillar(without) && without.len() > 1,
+        "without the profile the fit's residue is a target: {without:?}"
     );
     assert!(
         pillar(with) && with.len() == 1,
-        "with the profile: {with:?}"
+        "with the profile: {with:?}; Taylor's: {taylor:?}"
     );
 }
 
