@@ -301,17 +301,6 @@ impl ChainEstimator {
     ) -> Vec<Complex64> {
         let p = &self.weight;
         let floor = self.floor();
-        // The image (tens of dB down) keeps the local mean: its lean is as far down again.
-        if self.least_squares && std::ptr::eq(weight, self.weight.as_slice()) {
-            if let Some(mut h) = self.fit_lags(rest, scratch) {
-                for (k, v) in h.iter_mut().enumerate() {
-                    if !(p[k] > floor && weight[k] > floor) {
-                        *v = ZERO;
-                    }
-                }
-                return h;
-            }
-        }
         let mut num: Vec<Complex64> = reference
             .iter()
             .zip(rest)
@@ -326,6 +315,24 @@ impl ChainEstimator {
             };
         }
         num
+    }
+
+    /// The direct response of `rest`: the least-squares fit once [`Self::use_least_squares`]
+    /// was called (the local mean should it fail), else the local mean; zero outside the band.
+    /// (The image, tens of dB down, keeps the local mean: its lean is as far down again.)
+    fn fit_direct(&self, rest: &[Complex64], scratch: &mut Vec<Complex64>) -> Vec<Complex64> {
+        if self.least_squares {
+            if let Some(mut h) = self.fit_lags(rest, scratch) {
+                let floor = self.floor();
+                for (v, p) in h.iter_mut().zip(&self.weight) {
+                    if *p <= floor {
+                        *v = ZERO;
+                    }
+                }
+                return h;
+            }
+        }
+        self.fit(&self.x, &self.weight, rest, scratch)
     }
 
     fn floor(&self) -> f64 {
@@ -356,13 +363,13 @@ impl ChainEstimator {
     /// repetitions' mean spectrum is the mean of their fits.
     pub(crate) fn fit_relative(&self, z: &[Complex64], scratch: &mut Vec<Complex64>) -> Fitted {
         let n = self.n;
-        let (p, q) = (&self.weight, &self.weight_image);
+        let q = &self.weight_image;
         let mut image = vec![ZERO; n];
         let mut direct = vec![ZERO; n];
         let mut image_for_direct = image.clone();
         for _ in 0..2 {
             let rest: Vec<Complex64> = (0..n).map(|k| z[k] - image[k] * self.x_image[k]).collect();
-            direct = self.fit(&self.x, p, &rest, scratch);
+            direct = self.fit_direct(&rest, scratch);
             image_for_direct = image;
             let rest: Vec<Complex64> = (0..n).map(|k| z[k] - direct[k] * self.x[k]).collect();
             image = self.fit(&self.x_image, q, &rest, scratch);
@@ -390,7 +397,7 @@ impl ChainEstimator {
             .zip(image.iter().zip(&self.x_image))
             .map(|(z, (i, x))| z - i * x)
             .collect();
-        self.fit(&self.x, &self.weight, &rest, scratch)
+        self.fit_direct(&rest, scratch)
     }
 }
 
