@@ -131,7 +131,9 @@ pub(crate) fn timeouts_from_catalog(policy: &TimeoutPolicy) -> Timeouts {
     }
 }
 
-/// Headroom over a model's largest data message, for headers, prefixes and text replies.
+/// Headroom over a model's largest data message, for headers, prefixes and text replies. A
+/// digitizer's record header is within it (LeCroy's WAVEDESC: 346 bytes; its catalog check
+/// allows at most 64 KiB), so the session needs no family's layout (no import of `open`).
 pub(crate) const MESSAGE_HEADROOM_BYTES: usize = 1 << 20;
 
 /// The longest line of a line-protocol module (`[protocol]`): its replies are tens of bytes.
@@ -140,7 +142,8 @@ pub(crate) const LINE_MESSAGE_BYTES: usize = 64 << 10;
 /// The largest message a driver exchanges with `model`, from its catalog limits, so a peer that
 /// never ends a message is stopped early (docs/io-timeouts.md): for an AWG, one download chunk
 /// (two bytes per sample when the marker is interleaved); for a digitizer, one channel's record
-/// in 16-bit words plus its WAVEDESC; each plus `MESSAGE_HEADROOM_BYTES`. A line-protocol
+/// in 16-bit words plus its sequence's trigger times; each plus `MESSAGE_HEADROOM_BYTES` (which
+/// holds the record's header). A line-protocol
 /// module gets `LINE_MESSAGE_BYTES`; anything else the link's default.
 pub fn max_message_bytes(model: &InstrumentModel) -> usize {
     let default = LinkOptions::default().max_message_bytes;
@@ -164,7 +167,6 @@ pub fn max_message_bytes(model: &InstrumentModel) -> usize {
             // A sequence adds one TRIGTIME entry (two f64) per segment.
             d.max_points_per_channel
                 .saturating_mul(2)
-                .saturating_add(u64::from(super::open::record_header_bytes(model)))
                 .saturating_add(u64::from(d.max_sequence_segments).saturating_mul(16))
         })
     };
@@ -241,9 +243,9 @@ mod tests {
         // 512 000 samples a chunk, sample and marker byte each: 1 024 000 bytes, plus headroom.
         assert_eq!(max_message_bytes(awg), 1_024_000 + (1 << 20));
         let scope = catalog.get("lecroy-labmaster10zi-a").unwrap();
-        // 32 Mpoints in 16-bit words, the 346-byte WAVEDESC and a TRIGTIME entry of 16 bytes for
-        // each of 15 000 sequence segments, plus headroom.
-        assert_eq!(max_message_bytes(scope), 64_000_346 + 240_000 + (1 << 20));
+        // 32 Mpoints in 16-bit words and a TRIGTIME entry of 16 bytes for each of 15 000
+        // sequence segments, plus headroom (the 346-byte WAVEDESC is inside it).
+        assert_eq!(max_message_bytes(scope), 64_000_000 + 240_000 + (1 << 20));
         let tx = catalog.get("gotmic-eband-tx").unwrap();
         assert_eq!(max_message_bytes(tx), 64 << 10);
         assert_eq!(

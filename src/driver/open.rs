@@ -189,15 +189,6 @@ pub(crate) async fn open_rf_other_mode(
     }
 }
 
-/// Bytes a digitizer's family puts in front of each channel's record (LeCroy's WAVEDESC), for
-/// the session's message limit; 0 for families that send their scaling apart.
-pub(crate) fn record_header_bytes(model: &InstrumentModel) -> u32 {
-    match family(model) {
-        "lecroy-maui" => super::lecroy::wavedesc_bytes(model),
-        _ => 0,
-    }
-}
-
 /// What an AWG will do with a waveform, planned from the catalog alone (no instrument touched).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct AwgPlan {

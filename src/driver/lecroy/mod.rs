@@ -36,7 +36,7 @@ use crate::catalog::{DigitizerLimits, InstrumentModel};
 use crate::session::{parse_f64, register_error_text, DeviceError, Identity, SessionError};
 use crate::transport::Journal;
 
-pub(crate) use self::vendor::{check_vendor, wavedesc_bytes};
+pub(crate) use self::vendor::check_vendor;
 
 /// Channel that carries I.
 pub(crate) const I_CHANNEL: u8 = 1;

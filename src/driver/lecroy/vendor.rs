@@ -9,6 +9,9 @@ use crate::driver::DriverError;
 /// The one WAVEDESC template the decoder reads, and its size in bytes.
 const TEMPLATE: &str = "LECROY_2_3";
 const TEMPLATE_BYTES: u32 = 346;
+/// The largest descriptor a catalog may declare: the session's message headroom holds it
+/// (`driver::io::MESSAGE_HEADROOM_BYTES`, 1 MiB).
+const MOST_WAVEDESC_BYTES: u32 = 64 << 10;
 
 /// The `[vendor]` table of a LeCroy catalog file; both fields optional.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -54,14 +57,15 @@ fn vendor(model: &InstrumentModel) -> Result<Vendor, DriverError> {
     };
     let wavedesc_bytes = match model.vendor.get("wavedesc_bytes") {
         None => None,
-        Some(toml::Value::Integer(n)) if u32::try_from(*n).is_ok() => u32::try_from(*n).ok(),
+        Some(toml::Value::Integer(n)) if (0..=i64::from(MOST_WAVEDESC_BYTES)).contains(n) => {
+            u32::try_from(*n).ok()
+        }
         Some(other) => {
             return Err(bad(
                 model,
                 format!(
-                    "vendor.wavedesc_bytes: must be a size in bytes, 0 ..= {} (such as \
-                     {TEMPLATE_BYTES}) (got {other})",
-                    u32::MAX
+                    "vendor.wavedesc_bytes: must be a size in bytes, 0 ..= \
+                     {MOST_WAVEDESC_BYTES} (such as {TEMPLATE_BYTES}) (got {other})"
                 ),
             ))
         }
@@ -94,7 +98,8 @@ pub(crate) fn check_vendor(model: &InstrumentModel) -> Result<(), DriverError> {
 }
 
 /// The WAVEDESC size the catalog gives (0 when it gives none or the table does not read).
-pub(crate) fn wavedesc_bytes(model: &InstrumentModel) -> u32 {
+#[cfg(test)]
+fn wavedesc_bytes(model: &InstrumentModel) -> u32 {
     vendor(model)
         .ok()
         .and_then(|v| v.wavedesc_bytes)
