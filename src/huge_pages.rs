@@ -10,9 +10,14 @@
 //! allocation of the same length (at most 64 blocks and 512 MiB, as glibc keeps smaller ones,
 //! `keep_large_buffers`), so repeated captures do not fault their buffers in again. Where
 //! transparent huge pages are off the advice does nothing and the blocks are ordinary pages.
-//! `RADBENCH_HUGE_PAGES=off` in the environment leaves every allocation to glibc, as before.
+//! `RADBENCH_HUGE_PAGES=off` in the environment leaves every allocation to glibc, as before;
+//! `on` turns it on where it is off by default.
 //!
-//! Linux with glibc only (`main.rs` installs it there).
+//! Linux with glibc only. The command line installs it on by default (`main.rs`: a one-shot
+//! process). The Python extension includes this file too (`python/src/lib.rs`) and installs it
+//! off unless `RADBENCH_HUGE_PAGES=on`: a notebook's process lives long and its user manages its
+//! memory, while a Dask worker that runs unit after unit gains what the command line gains
+//! (`radbench.dask.WORKER_CONFIG` sets it for the workers).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Mutex;
@@ -40,13 +45,16 @@ fn kept() -> std::sync::MutexGuard<'static, Kept> {
     KEPT.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-pub(crate) struct HugePages;
+pub(crate) struct HugePages {
+    /// Whether large allocations get blocks of their own when `RADBENCH_HUGE_PAGES` is unset.
+    pub(crate) by_default: bool,
+}
 
-/// Whether large allocations get blocks of their own: yes unless the environment says
-/// `RADBENCH_HUGE_PAGES=off` (a machine where huge pages are scarce and the kernel's
-/// compaction stalls the faults). Read once, at the first large allocation, and never
+/// Whether large allocations get blocks of their own: `by_default` unless the environment
+/// says `RADBENCH_HUGE_PAGES=off` (a machine where huge pages are scarce and the kernel's
+/// compaction stalls the faults) or `on`. Read once, at the first large allocation, and never
 /// changed afterwards, so a block is always freed the way it was made.
-fn enabled() -> bool {
+fn enabled(by_default: bool) -> bool {
     use std::sync::atomic::{AtomicU8, Ordering};
     const UNKNOWN: u8 = 0;
     const ON: u8 = 1;
@@ -60,20 +68,24 @@ fn enabled() -> bool {
     // environment: every thread that gets here reads the same answer.
     // SAFETY: a NUL-terminated name; the value, when there is one, is a C string owned by
     // the environment.
-    let off = unsafe {
+    let on = unsafe {
         let value = libc::getenv(c"RADBENCH_HUGE_PAGES".as_ptr());
-        !value.is_null() && std::ffi::CStr::from_ptr(value).to_bytes() == b"off"
+        match (!value.is_null()).then(|| std::ffi::CStr::from_ptr(value).to_bytes()) {
+            Some(b"off") => false,
+            Some(b"on") => true,
+            _ => by_default,
+        }
     };
-    STATE.store(if off { OFF } else { ON }, Ordering::Relaxed);
-    !off
+    STATE.store(if on { ON } else { OFF }, Ordering::Relaxed);
+    on
 }
 
 /// The block length of a large allocation, `None` for the others: a power of two of huge
 /// pages, so that the few lengths there are find kept blocks again (a buffer grown piece by
 /// piece, or of a slightly different size the next time, reuses one). Pages of a block that
 /// are never touched cost nothing.
-fn block(layout: Layout) -> Option<usize> {
-    if layout.size() < FROM || layout.align() > HUGE_PAGE || !enabled() {
+fn block(layout: Layout, by_default: bool) -> Option<usize> {
+    if layout.size() < FROM || layout.align() > HUGE_PAGE || !enabled(by_default) {
         return None;
     }
     layout
@@ -149,7 +161,7 @@ fn release(ptr: *mut u8, len: usize) {
 // function of the caller's layout).
 unsafe impl GlobalAlloc for HugePages {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        match block(layout) {
+        match block(layout, self.by_default) {
             Some(len) => reuse(len).unwrap_or_else(|| map(len)),
             // SAFETY: the caller's contract, passed on unchanged.
             None => unsafe { System.alloc(layout) },
@@ -157,7 +169,7 @@ unsafe impl GlobalAlloc for HugePages {
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        match block(layout) {
+        match block(layout, self.by_default) {
             Some(len) => match reuse(len) {
                 Some(ptr) => {
                     // SAFETY: a kept block holds `len >= layout.size()` bytes.
@@ -173,7 +185,7 @@ unsafe impl GlobalAlloc for HugePages {
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        match block(layout) {
+        match block(layout, self.by_default) {
             Some(len) => release(ptr, len),
             // SAFETY: `ptr` came from the system allocator with this layout.
             None => unsafe { System.dealloc(ptr, layout) },
@@ -183,7 +195,10 @@ unsafe impl GlobalAlloc for HugePages {
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         // SAFETY: the caller guarantees `new_size` is valid with `layout.align()`.
         let new_layout = unsafe { Layout::from_size_align_unchecked(new_size, layout.align()) };
-        match (block(layout), block(new_layout)) {
+        match (
+            block(layout, self.by_default),
+            block(new_layout, self.by_default),
+        ) {
             // SAFETY: small before and after: the system allocator's own realloc.
             (None, None) => unsafe { System.realloc(ptr, layout, new_size) },
             // The block already holds the new size.
@@ -210,7 +225,7 @@ mod tests {
     /// when asked, and are reused once freed.
     #[test]
     fn large_blocks_keep_their_contents_and_are_reused() {
-        if !super::enabled() {
+        if !super::enabled(true) {
             eprintln!("RADBENCH_HUGE_PAGES=off: glibc's blocks, nothing of ours to test");
             return;
         }

@@ -69,7 +69,7 @@ fn main() {
 /// Buffers of 1 MiB or more on transparent huge pages (see [`huge_pages`]).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 #[global_allocator]
-static ALLOCATOR: huge_pages::HugePages = huge_pages::HugePages;
+static ALLOCATOR: huge_pages::HugePages = huge_pages::HugePages { by_default: true };
 
 /// Lets freed large buffers be reused instead of handed back to the kernel.
 ///

@@ -38,21 +38,43 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 __all__ = ["WORKER_CONFIG", "worker_environment", "units", "process_unit", "process_bag", "register"]
 
-#: Dask configuration for the workers that run radbench's units (see :func:`worker_environment`).
+#: Dask configuration for the workers that run radbench's units (see :func:`worker_environment`):
+#: each worker process's memory set up as the command line sets up its own (``src/main.rs``).
 #: Dask's nanny starts every worker with ``MALLOC_TRIM_THRESHOLD_=65536``, which also switches
 #: off glibc's adaptive mmap threshold: each of a unit's large buffers is then mapped and faulted
-#: in afresh, and a unit runs ~30 % slower (measured: 2 workers, 9.5 against 13.4 captures/s;
-#: docs/catalog.md). None unsets it (workers then return freed memory to the system later).
-#: Workers started with ``dask worker`` read the same key from their own configuration.
-WORKER_CONFIG: Dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+#: in afresh, and a unit runs ~30 % slower (measured: 2 workers, 9.8 against 13.4 captures/s;
+#: docs/catalog.md). Here glibc keeps freed memory for reuse (mmap threshold 256 MiB, trim
+#: threshold 512 MiB, top pad 64 MiB, as ``radbench`` itself), and radbench's buffers of 1 MiB or
+#: more sit on transparent huge pages, reused once freed (``RADBENCH_HUGE_PAGES=on``, the
+#: extension's allocator, off by default in other processes): a quarter fewer page faults and
+#: less time in the TLB's misses. The cost: a worker's resident size stays at its peak (a few
+#: units' buffers). Workers started with ``dask worker`` read the same keys from their own
+#: configuration.
+#:
+#: The rest quiets what a worker and the scheduler do beside the tasks, which on a small machine
+#: competes with them for the cores: the statistical profiler (it samples the task thread every
+#: 10 ms, and a radbench unit is one call into Rust it cannot see inside) and the system,
+#: memory and event-loop monitors at 2 s, 1 s and 200 ms instead of 0.5 s, 0.1 s and 20 ms.
+#: Together they halved the scheduler process's CPU time (0.5 -> 0.2 s per 96 units).
+WORKER_CONFIG: Dict[str, Any] = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": str(512 << 20),
+    "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": str(256 << 20),
+    "distributed.nanny.pre-spawn-environ.MALLOC_TOP_PAD_": str(64 << 20),
+    "distributed.nanny.pre-spawn-environ.RADBENCH_HUGE_PAGES": "on",
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.tick.interval": "200ms",
+}
 
 
 @contextlib.contextmanager
 def worker_environment() -> Iterator[None]:
-    """Starts the workers of the cluster made inside it without Dask's malloc trim threshold
-    (:data:`WORKER_CONFIG`): ``with rd.worker_environment(), LocalCluster(...) as cluster:``.
-    Also removes the variable from this process's environment, where an earlier cluster's
-    nanny leaves it (and every later worker would inherit it). Needs dask."""
+    """Starts the workers of the cluster made inside it with radbench's memory set-up instead of
+    Dask's malloc trim threshold, and Dask's background work quieted (:data:`WORKER_CONFIG`):
+    ``with rd.worker_environment(), LocalCluster(...) as cluster:``. Also removes Dask's
+    threshold from this process's environment, where an earlier cluster's nanny leaves it (and
+    every later worker would inherit it). Needs dask."""
     import dask
 
     os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
@@ -103,6 +125,7 @@ def process_bag(
     :func:`register`."""
     try:
         import dask.bag as db
+        from dask.base import tokenize
     except ImportError as e:
         raise ImportError(
             "radbench.dask.process_bag needs dask: pip install 'dask[bag]' distributed "
@@ -113,8 +136,21 @@ def process_bag(
     selected = units(catalog, query, captures=captures)
     if not selected:
         return db.from_sequence([], npartitions=1)
-    bag = db.from_sequence(selected, npartitions=len(selected))
-    return bag.map(process_unit, os.fspath(out), markers, **processing)
+    # One task per unit. `from_sequence(...).map(...)` makes two per unit, which Dask does not
+    # fuse: each worker then waited ~2 ms between them, 5 % of the wall time (measured).
+    name = "radbench-process-" + tokenize(selected, os.fspath(out), markers, processing)
+    graph = {
+        (name, i): (_process_partition, unit, os.fspath(out), markers, processing)
+        for i, unit in enumerate(selected)
+    }
+    return db.Bag(graph, name, len(selected))
+
+
+def _process_partition(
+    unit: Mapping[str, str], out: str, markers: Optional[PathLike], processing: Dict[str, Any]
+) -> List[Dict[str, str]]:
+    """A bag's partition: the one unit, processed."""
+    return [process_unit(unit, out, markers, **processing)]
 
 
 def register(

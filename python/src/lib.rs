@@ -15,7 +15,16 @@ use radbench::waveform::WaveformKind;
 use std::path::PathBuf;
 use std::time::Duration;
 
+// The command line's allocator for buffers of 1 MiB or more (the same file), off unless
+// RADBENCH_HUGE_PAGES=on: radbench.dask's workers turn it on (docs/catalog.md measures it).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[path = "../../src/huge_pages.rs"]
+mod huge_pages;
 mod session;
+
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[global_allocator]
+static ALLOCATOR: huge_pages::HugePages = huge_pages::HugePages { by_default: false };
 
 /// radbench's error as the Python exception of its exit class (`radbench.errors`), carrying
 /// radbench's message and its exit code.

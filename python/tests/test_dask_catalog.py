@@ -49,6 +49,13 @@ def test_units_name_every_capture_and_a_bad_query(catalog):
         rd.units(catalog, "wavefrm = ofdm")
 
 
+def test_the_bag_is_one_task_per_unit(catalog, tmp_path):
+    # Dask does not fuse a bag's from_sequence and map: two tasks a unit, and a wait between.
+    bag = rd.process_bag(catalog, "all", tmp_path / "out")
+    assert bag.npartitions == CAPTURES
+    assert len(dict(bag.__dask_graph__())) == CAPTURES
+
+
 def test_two_workers_one_killed_give_the_bytes_of_the_command(catalog, tmp_path):
     from distributed import Client, LocalCluster
 
@@ -101,7 +108,7 @@ def test_process_bag_without_dask_says_what_to_install(monkeypatch, catalog):
         rd.process_bag(catalog, "all")
 
 
-def test_worker_environment_unsets_dasks_malloc_trim_threshold_in_the_workers():
+def test_worker_environment_replaces_dasks_malloc_trim_threshold_in_the_workers():
     from distributed import Client, LocalCluster
 
     def trim_threshold():
@@ -114,4 +121,7 @@ def test_worker_environment_unsets_dasks_malloc_trim_threshold_in_the_workers():
     with rd.worker_environment(), LocalCluster(
         n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster, Client(cluster) as client:
-        assert list(client.run(trim_threshold).values()) == [None]
+        assert list(client.run(trim_threshold).values()) == [str(512 << 20)]
+        # The rest of WORKER_CONFIG reaches the workers too (the profiler off).
+        profiling = client.run(lambda: dask.config.get("distributed.worker.profile.enabled"))
+        assert list(profiling.values()) == [False]
