@@ -8,7 +8,8 @@ worker killed mid-unit leaves no half-written or duplicated result (Dask runs it
 another worker, which finds the folder done or writes it). The output set is byte-identical to
 ``radbench process --from-catalog QUERY --out OUT``'s with the same options.
 
-Example (a LocalCluster of two worker processes)::
+Example (a LocalCluster of two worker processes; in a script, under
+``if __name__ == "__main__":``, since the workers import the script again)::
 
     from distributed import Client, LocalCluster
     import radbench.dask as rd
