@@ -445,7 +445,10 @@ impl OfdmProcessor {
                 let r = root_music_ranges(music, self.spectrum.order, self.df_hz)?;
                 (vec![fourier], r)
             }
-            _ => {
+            // MUSIC. A subspace estimator is made only for the subspace methods, so Fourier and
+            // correlation never get here; named rather than `_`, so that a new algorithm is a
+            // compile error here instead of running as MUSIC.
+            Algorithm::Music | Algorithm::Fourier | Algorithm::Correlation => {
                 music.estimate(idiv, &mut self.spectrum)?;
                 let mut mp = music_profile(
                     &self.spectrum.range_m,
