@@ -623,7 +623,21 @@ impl Lab {
         })
     }
 
-    /// A radbench bench file for this lab, using the given transports for the AWG and the scope.
+    /// The scope's resource on `preferred`, or on the first transport it serves open when it
+    /// does not serve that one (a UXR has no VICP): a bench file never names no scope.
+    fn scope_resource(&self, preferred: Transport) -> String {
+        let open = |e: &Endpoint| e.instrument == "scope" && e.reason.is_none();
+        let endpoints = self.endpoints();
+        endpoints
+            .iter()
+            .find(|e| open(e) && e.transport == preferred)
+            .or_else(|| endpoints.iter().find(|e| open(e)))
+            .map(|e| e.resource.clone())
+            .unwrap_or_default()
+    }
+
+    /// A radbench bench file for this lab, using the given transports for the AWG and the scope
+    /// (the scope's first open one when it does not serve the one given).
     pub fn bench_toml(&self, awg: Transport, scope: Transport) -> String {
         let resource = |name: &str, t: Transport| {
             self.endpoint(name, t)
@@ -659,7 +673,7 @@ impl Lab {
              [simulation]\ncontrol = \"{}\"\n",
             resource("awg", awg),
             self.scope_model.catalog_key(),
-            resource("scope", scope),
+            self.scope_resource(scope),
             resource("tx", Transport::Serial),
             resource("rx", Transport::Serial),
             self.control,

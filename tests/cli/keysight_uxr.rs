@@ -188,6 +188,22 @@ async fn a_short_campaign_on_a_uxr_bench_measures_within_a_millimetre() {
     assert!(lab.bench.is_safe(), "Tx off, outputs off, AWG stopped");
 }
 
+/// The bench file `mock-lab serve --scope-model keysight-uxr` prints (VICP asked for the scope,
+/// which a UXR does not serve) names the scope on a transport it serves, and the doctor passes
+/// on it: it named no scope at all before.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_printed_bench_file_of_a_uxr_lab_names_the_scope_and_the_doctor_passes() {
+    let lab = uxr_lab().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab, Transport::Vicp);
+    let text = std::fs::read_to_string(&bench).unwrap();
+    let file: toml::Value = toml::from_str(&text).unwrap();
+    let scope = file["scope"]["resource"].as_str().unwrap();
+    assert!(scope.starts_with("TCPIP"), "{text}");
+    let (code, out, err) = radbench(&["doctor", "--bench", &bench, "--json"]).await;
+    assert_eq!(code, 0, "{out}\n{err}");
+}
+
 /// The built-in lab serves the UXR when the spec's `[bench]` says `scope_model`; the manifest
 /// names it, and its plan keeps it for a resume.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
