@@ -80,7 +80,14 @@ pub async fn examine(
     let tx_on = front_ends::check_status(&mut list, &entries.fronts, &mut modules, deadline).await;
     let (mut awg, mut scope) = (opened.awg.ok(), opened.scope.ok());
     let scope_model = &entries.scope.model;
-    timebases::check_timebases(&mut list, awg.as_mut(), scope.as_mut(), deadline).await;
+    timebases::check_timebases(
+        &mut list,
+        awg.as_mut(),
+        scope.as_mut(),
+        scope_model,
+        deadline,
+    )
+    .await;
     let connected = Connected {
         awg,
         scope,

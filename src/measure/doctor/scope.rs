@@ -1,7 +1,8 @@
 //! The scope: reachable, identified, and answering on the remote interface the bench file
 //! names. A scope that does not answer there is asked on its other interface at the same host:
 //! a family that serves one interface at a time (VICP or VXI-11) looks dead when set to the
-//! other (the remote-interface trap).
+//! other (the remote-interface trap). The fix names where the scope's family sets it
+//! ([`open::scope_remote_setting`]).
 
 use super::bounds::{bounded, Deadline, OPEN_TIMEOUT};
 use super::checklist::List;
@@ -9,7 +10,7 @@ use super::connect::Probe;
 use super::entries::Entry;
 use super::identity::reach_and_identity;
 use crate::address::Resource;
-use crate::driver::open;
+use crate::driver::open::{self, RemoteSetting};
 use crate::measure::bench::Bench;
 
 /// `scope.reachable`, `scope.identity` and `scope.remote_interface`, from the probe and `idn`,
@@ -63,6 +64,7 @@ async fn unanswered_scope(
         None => Err("no other interface to try".into()),
     };
     let this = interface_name(scope.resource.protocol());
+    let setting = open::scope_remote_setting(&scope.model);
     match (other, other_answer) {
         (Some(r), Ok(idn)) => {
             let that = interface_name(r.protocol());
@@ -71,25 +73,31 @@ async fn unanswered_scope(
                 format!("the scope answers at {r} ({idn}), not at {}", scope.written),
             );
             list.skip("scope.identity", "checked on the other interface only");
+            let rewrite = format!("write resource = \"{r}\" in the bench file's [scope]");
             list.fail(
                 "scope.remote_interface",
                 format!(
                     "the scope does not answer over {this} as the bench file says, but does \
                      over {that}: its remote interface is set to {that}"
                 ),
-                format!(
-                    "on the scope set Utilities > Utilities Setup > Remote to {this}, or write \
-                     resource = \"{r}\" in the bench file's [scope]"
-                ),
+                match setting {
+                    RemoteSetting::OneAtATime { menu } => {
+                        format!("on the scope set {menu} to {this}, or {rewrite}")
+                    }
+                    RemoteSetting::SideBySide { .. } => rewrite,
+                },
             );
         }
         _ => {
             reach_and_identity(list, scope, probe, idn);
+            let look_at = match setting {
+                RemoteSetting::OneAtATime { menu } => menu,
+                RemoteSetting::SideBySide { look_at } => look_at,
+            };
             list.fail(
                 "scope.remote_interface",
                 format!("the scope answers neither over {this} nor over the other interface"),
-                "check that the scope is on, its host, and Utilities > Utilities Setup > \
-                 Remote",
+                format!("check that the scope is on, its host, and {look_at}"),
             );
         }
     }

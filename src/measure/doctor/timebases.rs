@@ -4,14 +4,16 @@
 
 use super::bounds::{Deadline, OPEN_TIMEOUT};
 use super::checklist::List;
-use crate::driver::{Awg, Digitizer, DriverError};
+use crate::catalog::InstrumentModel;
+use crate::driver::{open, Awg, Digitizer, DriverError};
 
 /// Whether the AWG and the scope share an external reference; skipped unless both were
-/// identified.
+/// identified. The fix names the scope family's own setting.
 pub(super) async fn check_timebases(
     list: &mut List,
     awg: Option<&mut Box<dyn Awg>>,
     scope: Option<&mut Box<dyn Digitizer>>,
+    scope_model: &InstrumentModel,
     deadline: Deadline,
 ) {
     let (Some(a), Some(s)) = (awg, scope) else {
@@ -37,10 +39,13 @@ pub(super) async fn check_timebases(
                 list.warn(
                     "timebases",
                     format!("not shared: {detail}; each instrument runs on its own clock"),
-                    "for long records or phase-stable captures feed one 10 MHz to both: the \
-                     AWG's REF IN with `reference_clock_hz = 10e6` in the bench file's [awg] \
-                     (radbench then sends :ROSC:SOUR EXT), and the scope's reference input set \
-                     to external (LeCroy RCLK EXTERNAL); captures work without",
+                    format!(
+                        "for long records or phase-stable captures feed one 10 MHz to both: the \
+                         AWG's REF IN with `reference_clock_hz = 10e6` in the bench file's [awg] \
+                         (radbench then sends :ROSC:SOUR EXT), and the scope's reference input \
+                         set to external ({}); captures work without",
+                        open::scope_external_reference(scope_model)
+                    ),
                 );
             }
         }
