@@ -5,7 +5,9 @@
 
 use super::checklist::List;
 use crate::measure::bench::Bench;
+use crate::measure::bench_file::BenchCalibration;
 use crate::measure::response::Calibration as ResponseCalibration;
+use std::path::Path;
 
 /// A calibration older than this is flagged, days.
 const CALIBRATION_MAX_AGE_DAYS: f64 = 30.0;
@@ -22,7 +24,8 @@ fn age_days(stamp: &str) -> Result<f64, String> {
 }
 
 /// The system delay (present, its age) and the response calibration (readable, the instruments
-/// it was measured with against `awg_idn` and `scope_idn`, the identities found now).
+/// it was measured with against `awg_idn` and `scope_idn`, the identities found now). The
+/// built-in lab and a bench file without `[calibration]` get the first only.
 pub(super) fn check_calibrations(
     list: &mut List,
     bench: &Bench,
@@ -51,6 +54,12 @@ pub(super) fn check_calibrations(
         );
         return;
     };
+    check_delay(list, cal);
+    check_response(list, bench, path, awg_idn, scope_idn);
+}
+
+/// `calibration.delay` of a bench file's `[calibration]`: its age from `measured_at`.
+fn check_delay(list: &mut List, cal: &BenchCalibration) {
     let delay = format!("system delay {:.3} ns", cal.system_delay_s * 1e9);
     match cal.measured_at.as_deref().map(age_days) {
         None => list.warn(
@@ -81,6 +90,18 @@ pub(super) fn check_calibrations(
             format!("{delay}, measured {days:.1} days ago"),
         ),
     }
+}
+
+/// `calibration.response`: the response calibration the bench file names, readable and measured
+/// with the instruments identified now (`awg_idn`, `scope_idn`; one not identified is not
+/// compared).
+fn check_response(
+    list: &mut List,
+    bench: &Bench,
+    path: &Path,
+    awg_idn: &Option<String>,
+    scope_idn: &Option<String>,
+) {
     let Some(response) = bench.file.response_path(path) else {
         list.pass(
             "calibration.response",
