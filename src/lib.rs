@@ -30,9 +30,11 @@
 //! a layer define the same name, the layer says which one it offers (`measure` re-exports the
 //! capture's `measure` and the re-processing's `Repetition`) or the name was made
 //! unique (`measure::BenchCalibration`, the bench file's `[calibration]`, beside the response's
-//! `measure::Calibration`; `campaign::MANIFEST_FILE`). One exception: the transport's protocols
-//! keep their namespaces, whose codecs share names (`transport::hislip::Header`,
-//! `transport::vicp::Header`, `transport::vxi11::VERSION`). A new submodule is
+//! `measure::Calibration`; `campaign::MANIFEST_FILE`). Rooms whose names say little outside them
+//! keep their namespace: the transport's protocols, whose codecs share names
+//! (`transport::hislip::Header`, `transport::vicp::Header`, `transport::vxi11::VERSION`), and the
+//! bench doctor (`measure::doctor::examine`, its `Report`, `Check`, `Status` and `stopped`); such
+//! a room's `mod.rs` names what it offers in the same way. A new submodule is
 //! `pub(crate) mod x;`, with `pub use x::{...};` beside it naming its public items (and
 //! `pub(crate) use` for what the crate's other layers reach through the layer).
 //!

@@ -1,11 +1,11 @@
 //! `radbench doctor`: checks a bench without radiating and prints a checklist with what to fix
-//! for each failure (`measure::doctor` does the checks). Exit 0 only when no check fails.
+//! for each failure (`measure::doctor::examine` does the checks). Exit 0 only when no check
+//! fails.
 
 use super::capture::{bench_source, journal, open_bench};
 use radbench::exit::{Classified, ExitClass};
-use radbench::measure;
+use radbench::measure::doctor::{self, Report, Status};
 use radbench::measure::Interrupt;
-use radbench::measure::Status;
 use radbench::measure::{AwgLink, ScopeLink};
 use std::path::PathBuf;
 
@@ -54,12 +54,12 @@ pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<
             ScopeLink::Vicp,
         )?)?;
         let bench = open_bench(source, args.json).await?;
-        let report = measure::run(&bench, journal(global)?, &interrupt).await?;
+        let report = doctor::examine(&bench, journal(global)?, &interrupt).await?;
         // A stop signal during a check that does not switch anything on: that check finished
         // (each is bounded), no further one radiated (the marker check is skipped once a signal
         // came), and the doctor ends with the signal's code.
         if let Some(signal) = interrupt.received() {
-            return Err(measure::stopped(signal).into());
+            return Err(doctor::stopped(signal).into());
         }
         if args.json {
             super::terminal::out(&serde_json::to_string(&report)?)?;
@@ -88,7 +88,7 @@ pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<
 }
 
 /// The checklist as text: one line per check, its fix indented under a failure or warning.
-fn text(report: &measure::Report) -> String {
+fn text(report: &Report) -> String {
     let mut out = format!("bench doctor: {}\n", report.bench);
     for c in &report.checks {
         out += &format!("[{:>4}] {:<24} {}\n", c.status.mark(), c.id, c.detail);

@@ -167,6 +167,47 @@ pub(crate) fn rf_line_mode(model: &InstrumentModel) -> Option<&'static str> {
     }
 }
 
+/// Where a scope family chooses its remote-control interface, for the bench doctor's fix when
+/// the scope does not answer as the bench file says ([`scope_remote_setting`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RemoteSetting {
+    /// One interface at a time (VICP or VXI-11), chosen in `menu`: a scope set to the other one
+    /// answers only there.
+    OneAtATime { menu: &'static str },
+    /// Its protocols served side by side, nothing to choose: `look_at` is what to check when it
+    /// answers on none (it ends "check that the scope is on, its host, and ...").
+    SideBySide { look_at: &'static str },
+}
+
+/// The remote-interface setting of a scope's family, in its own menus' words.
+pub(crate) fn scope_remote_setting(model: &InstrumentModel) -> RemoteSetting {
+    match family(model) {
+        "lecroy-maui" => RemoteSetting::OneAtATime {
+            menu: "Utilities > Utilities Setup > Remote",
+        },
+        "keysight-infiniium" => RemoteSetting::SideBySide {
+            look_at: "that the Infiniium application is running (it serves HiSLIP and VXI-11 \
+                      side by side: there is no interface to choose)",
+        },
+        _ => RemoteSetting::SideBySide {
+            look_at: "its remote-control settings",
+        },
+    }
+}
+
+/// How a scope's timebase is locked to an external 10 MHz reference, in its family's words and
+/// with the command its driver sends (the bench doctor's `timebases` fix).
+pub(crate) fn scope_external_reference(model: &InstrumentModel) -> String {
+    match family(model) {
+        "lecroy-maui" => format!("LeCroy {}", super::lecroy::commands::EXTERNAL_REFERENCE),
+        "keysight-infiniium" => format!(
+            "Infiniium {}",
+            super::keysight_uxr::commands::EXTERNAL_REFERENCE
+        ),
+        _ => "its reference input's setting".to_string(),
+    }
+}
+
 /// Opens a front end in the line mode the catalog does not give it: a module that answers so is
 /// set to the wrong mode, not dead (the bench doctor's question).
 ///
@@ -305,6 +346,48 @@ mod tests {
             e.contains("[vendor]") && e.contains("acquisition_poll_ms"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn each_scope_family_names_its_own_remote_setting_and_reference() {
+        let catalog = Catalog::embedded().unwrap();
+        let lecroy = catalog.get("lecroy-labmaster10zi-a").unwrap();
+        let uxr = catalog.get("keysight-uxr0334a").unwrap();
+        assert_eq!(
+            scope_remote_setting(lecroy),
+            RemoteSetting::OneAtATime {
+                menu: "Utilities > Utilities Setup > Remote"
+            }
+        );
+        let RemoteSetting::SideBySide { look_at } = scope_remote_setting(uxr) else {
+            panic!("the Infiniium serves HiSLIP and VXI-11 side by side");
+        };
+        assert!(look_at.contains("Infiniium") && !look_at.contains("Utilities"));
+        assert_eq!(scope_external_reference(lecroy), "LeCroy RCLK EXTERNAL");
+        assert_eq!(
+            scope_external_reference(uxr),
+            "Infiniium :TIMebase:REFClock ON"
+        );
+        // Every built-in scope: its family's own words, one interface at a time exactly when
+        // its catalog file says the interfaces are exclusive.
+        for (model, _) in catalog.models() {
+            if model.instrument.kind != InstrumentKind::Digitizer {
+                continue;
+            }
+            let key = &model.instrument.key;
+            assert!(
+                !scope_external_reference(model).starts_with("its "),
+                "{key}"
+            );
+            let one_at_a_time = matches!(
+                scope_remote_setting(model),
+                RemoteSetting::OneAtATime { .. }
+            );
+            assert_eq!(
+                one_at_a_time, model.quirks.remote_interfaces_exclusive,
+                "{key}"
+            );
+        }
     }
 
     #[test]

@@ -278,7 +278,8 @@ impl BenchSession {
                 rig.engage_safe_state().await;
             }
             warm.prepared = None;
-            let report = measure::run(&warm.bench, warm.journal.clone(), &interrupt).await?;
+            let report =
+                measure::doctor::examine(&warm.bench, warm.journal.clone(), &interrupt).await?;
             Ok(serde_json::to_value(&report)?)
         })
     }

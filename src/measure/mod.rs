@@ -14,7 +14,7 @@
 //! | `pipeline` | decimation, alignment, background, range profile, detection, metrics, payload |
 //! | `detect` | the detection stage of the pipeline |
 //! | `range_result` | what range processing gives for one record (the detector's input) |
-//! | `doctor` | the bench doctor: every check of a bench that needs no RF, with what to fix |
+//! | [`doctor`] | the bench doctor: every check of a bench that needs no RF, with what to fix; its own room (`measure::doctor::examine`, its `Report`, `Check`, `Status`) |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
 //! | `scene_control` | the simulated bench's scene, typed: set it, reseed its noise, read it back |
@@ -41,7 +41,7 @@ pub(crate) mod capture;
 pub(crate) mod choices;
 pub(crate) mod clipping;
 pub(crate) mod detect;
-pub(crate) mod doctor;
+pub mod doctor;
 mod error;
 pub(crate) mod export;
 pub(crate) mod family;
@@ -84,7 +84,6 @@ pub use capture::{
     check_repetitions, prepare, process_with, take, BackgroundFile, CaptureRequest, Generation,
     Measurement, Prepared, Processing, Rig, Taken,
 };
-pub use doctor::{run, stopped, Check, Report, Status};
 pub use export::{export_capture, CaptureExport, Entry};
 pub use figure::profile_figure;
 pub use interrupt::{Interrupt, StopSignal};

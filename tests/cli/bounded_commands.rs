@@ -295,7 +295,7 @@ async fn a_line_at_the_scpi_prompt_gives_up_within_its_total_and_the_prompt_goes
     }
 }
 
-/// `doctor` has a total for its checks (40 s, src/measure/doctor.rs `CHECKS_TOTAL`): a bench
+/// `doctor` has a total for its checks (40 s, src/measure/doctor/bounds.rs `CHECKS_TOTAL`): a bench
 /// whose AWG floods a reply that never ends and whose scope sends half a block and stalls ends
 /// with exit 3 within it, memory under the catalog's largest message.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -1,7 +1,7 @@
 //! The Infiniium UXR through the same door as the LeCroy: capture, `process` of its saved files
 //! (SigMF only: no `.trc`), `doctor` on the built-in lab with `--scope-model keysight-uxr`; a
-//! short campaign on a lab serving the UXR; and the exit path of a capture left waiting for a
-//! trigger with RF on.
+//! short campaign on a lab serving the UXR; the doctor's fixes in the UXR's own words; and the
+//! exit path of a capture left waiting for a trigger with RF on.
 
 use crate::support::{radbench_in, signal, until};
 use mock_lab::lab::{Lab, LabOptions};
@@ -163,6 +163,68 @@ async fn capture_process_and_doctor_on_the_built_in_lab_with_the_uxr() {
     .await;
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--scope-model"), "{err}");
+}
+
+/// The check `id` of a doctor's JSON report.
+fn doctor_check<'a>(report: &'a Value, id: &str) -> &'a Value {
+    report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["id"] == id)
+        .unwrap_or_else(|| panic!("no check {id} in {report:#}"))
+}
+
+/// The doctor's fixes name the UXR's own settings: its external reference is the Infiniium's
+/// command, and a UXR that does not answer is not sent to the LeCroy's remote menu (it serves
+/// HiSLIP and VXI-11 side by side: there is no interface to choose).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_doctor_gives_the_uxr_its_own_hints() {
+    let lab = uxr_lab().await;
+    let dir = tempfile::tempdir().unwrap();
+    let bench = bench_file(dir.path(), &lab, Transport::Hislip);
+
+    // The lab runs on internal references: the timebases warn, with the Infiniium's setting.
+    let (code, stdout, err) = radbench(&["doctor", "--bench", &bench, "--json"]).await;
+    assert_eq!(code, 0, "{stdout} {err}");
+    let report: Value = serde_json::from_str(&stdout).unwrap();
+    let timebases = doctor_check(&report, "timebases");
+    assert_eq!(timebases["status"], "warn", "{timebases}");
+    let fix = timebases["fix"].as_str().unwrap();
+    assert!(
+        fix.contains("(Infiniium :TIMebase:REFClock ON)") && !fix.contains("LeCroy"),
+        "{timebases}"
+    );
+
+    // Nothing answers at the scope's port.
+    let closed = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let scope = lab.endpoint("scope", Transport::Hislip).unwrap().resource;
+    let text = std::fs::read_to_string(&bench).unwrap();
+    assert!(text.contains(&scope), "{text}");
+    let silent = dir.path().join("silent.toml");
+    std::fs::write(
+        &silent,
+        text.replace(
+            &scope,
+            &format!("TCPIP::127.0.0.1::hislip0,{closed}::INSTR"),
+        ),
+    )
+    .unwrap();
+    let (code, stdout, err) =
+        radbench(&["doctor", "--bench", silent.to_str().unwrap(), "--json"]).await;
+    assert_eq!(code, 3, "{stdout} {err}");
+    let report: Value = serde_json::from_str(&stdout).unwrap();
+    let remote = doctor_check(&report, "scope.remote_interface");
+    assert_eq!(remote["status"], "fail", "{remote}");
+    let fix = remote["fix"].as_str().unwrap();
+    assert!(
+        fix.contains("Infiniium application is running") && !fix.contains("Utilities"),
+        "{remote}"
+    );
+    assert!(lab.bench.is_safe(), "nothing left on");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -11,7 +11,7 @@
 //! vendor-neutral [`ChannelTrace`]s. The scope writes no file of its own here: a capture saves
 //! the SigMF recording only (no `.trc`). The SCPI error queue is read after each batch.
 
-mod commands;
+pub(crate) mod commands;
 
 use std::time::{Duration, Instant};
 
