@@ -172,28 +172,36 @@
 
 #![warn(unreachable_pub)]
 
-/// `FromStr` and `Display` of an enum named on the command line and in files, over its `ALL`
-/// values and its `name()`: parses exactly what `name` spells; the error names what was given
-/// and lists every allowed value (`unknown window `x`: allowed: rect, hann, ...`).
+/// The rest of an enum named on the command line and in files, from its strum derives
+/// (`VariantArray`, `IntoStaticStr`, `EnumMessage`; `measure::Listed` has the recipe): its
+/// `name()` (the one spelling, `IntoStaticStr`'s), `FromStr` over its `VARIANTS` by that name (the
+/// error names what was given and lists every allowed value: `unknown window `x`: allowed: rect,
+/// hann, ...`) and `Display` as that name. A macro of the crate root, not of `measure` (where
+/// `Listed` is): `waveform`, below `measure`, has one of these enums.
 macro_rules! named_enum {
     ($t:ty, $what:literal) => {
+        impl $t {
+            /// As the command line and the files spell it.
+            pub fn name(self) -> &'static str {
+                self.into()
+            }
+        }
+
         impl std::str::FromStr for $t {
             type Err = String;
 
             /// As `name` spells it; the error lists what is allowed.
             fn from_str(s: &str) -> Result<Self, String> {
-                Self::ALL
-                    .into_iter()
-                    .find(|v| v.name() == s)
-                    .ok_or_else(|| {
-                        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                        format!(
-                            concat!("unknown ", $what, " `{}`: allowed: {}{}"),
-                            s,
-                            names.join(", "),
-                            $crate::exit::did_you_mean(s, names.iter().copied())
-                        )
-                    })
+                let all = <Self as strum::VariantArray>::VARIANTS;
+                all.iter().copied().find(|v| v.name() == s).ok_or_else(|| {
+                    let names: Vec<&str> = all.iter().map(|v| v.name()).collect();
+                    format!(
+                        concat!("unknown ", $what, " `{}`: allowed: {}{}"),
+                        s,
+                        names.join(", "),
+                        $crate::exit::did_you_mean(s, names.iter().copied())
+                    )
+                })
             }
         }
 

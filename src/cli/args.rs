@@ -1,11 +1,13 @@
 //! Command-line arguments shared by several subcommands: the waveform and its parameters, the
 //! processing choices, the built-in lab's transports. The library's named enums (waveform,
-//! algorithm, window, FFT precision, detector, carrier phase, correction, the built-in lab's
-//! transports and scope) are parsed as they are, by their own
-//! `FromStr` over the values they list (`Listed`, `listed`). The waveform's and `process`'s
+//! algorithm, window, FFT precision, detector, ranging, carrier phase, correction, the built-in
+//! lab's transports) are parsed as they are, by their own `FromStr` over the values they list
+//! (`Listed`, `listed`), and the built-in lab's scope by the lab's table of scopes
+//! (`scope_models`). The waveform's and `process`'s
 //! options live in the library (`radbench::in_memory`): the Python package parses them too.
 
 pub(crate) use radbench::in_memory::{listed, PayloadArgs, WaveformArgs};
+pub(crate) use radbench::measure::scope_models;
 
 #[cfg(test)]
 mod tests {

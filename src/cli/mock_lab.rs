@@ -43,7 +43,7 @@ pub struct ServeArgs {
     #[arg(long, value_enum, default_value = "vicp")]
     pub scope_remote: ScopeRemote,
     /// The scope served as `scope` (the lab's table of scopes, listed below).
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    #[arg(long, value_parser = super::args::scope_models(), value_name = "MODEL")]
     pub scope_model: Option<ScopeModel>,
     /// Also serve the generic loopback test instrument on every transport.
     #[arg(long)]

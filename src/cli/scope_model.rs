@@ -9,7 +9,7 @@ use radbench::measure::{BenchSource, ScopeModel};
 pub struct ScopeModelArgs {
     /// Built-in mock lab only: the scope it serves (default: lecroy). With --bench, the bench
     /// file's [scope] model names the scope.
-    #[arg(long, value_parser = super::args::listed::<ScopeModel>(), value_name = "MODEL")]
+    #[arg(long, value_parser = super::args::scope_models(), value_name = "MODEL")]
     pub scope_model: Option<ScopeModel>,
 }
 

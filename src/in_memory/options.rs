@@ -12,23 +12,10 @@ use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::CorrectionMode;
 use crate::measure::WaveformChoice;
 use crate::measure::{CorrectionUsed, ProcessOverrides, ProcessingChoices};
-use crate::simulate::CarrierPhase;
 use crate::waveform::{SweepBand, WaveformKind, WaveformSpec};
 use std::path::{Path, PathBuf};
 
 pub use crate::measure::{listed, Listed};
-
-impl Listed for CarrierPhase {
-    fn all() -> &'static [Self] {
-        &CarrierPhase::ALL
-    }
-    fn name(self) -> &'static str {
-        CarrierPhase::name(self)
-    }
-    fn about(self) -> &'static str {
-        CarrierPhase::about(self)
-    }
-}
 
 /// The waveform's parameters; unset ones keep the thesis' values.
 #[derive(Debug, Clone, Default, clap::Args)]

@@ -18,10 +18,15 @@ const CONTROL_TIMEOUT: Duration = Duration::from_secs(5);
 /// How to reach the built-in mock lab's AWG (`--awg-transport`, a spec's `awg_transport`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum AwgLink {
+    /// SCPI over a raw TCP socket.
     Raw,
+    /// HiSLIP.
     #[default]
     Hislip,
+    /// VXI-11 (ONC RPC).
     Vxi11,
 }
 
@@ -30,50 +35,14 @@ pub enum AwgLink {
 /// transport (HiSLIP) for `Vicp`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum ScopeLink {
+    /// VICP (a scope without it: its default transport, e.g. HiSLIP).
     #[default]
     Vicp,
+    /// VXI-11 (ONC RPC).
     Vxi11,
-}
-
-impl AwgLink {
-    pub const ALL: [AwgLink; 3] = [AwgLink::Raw, AwgLink::Hislip, AwgLink::Vxi11];
-
-    /// The name the command line and spec files use.
-    pub fn name(self) -> &'static str {
-        match self {
-            AwgLink::Raw => "raw",
-            AwgLink::Hislip => "hislip",
-            AwgLink::Vxi11 => "vxi11",
-        }
-    }
-
-    pub fn about(self) -> &'static str {
-        match self {
-            AwgLink::Raw => "SCPI over a raw TCP socket",
-            AwgLink::Hislip => "HiSLIP",
-            AwgLink::Vxi11 => "VXI-11 (ONC RPC)",
-        }
-    }
-}
-
-impl ScopeLink {
-    pub const ALL: [ScopeLink; 2] = [ScopeLink::Vicp, ScopeLink::Vxi11];
-
-    /// The name the command line and spec files use.
-    pub fn name(self) -> &'static str {
-        match self {
-            ScopeLink::Vicp => "vicp",
-            ScopeLink::Vxi11 => "vxi11",
-        }
-    }
-
-    pub fn about(self) -> &'static str {
-        match self {
-            ScopeLink::Vicp => "VICP (a scope without it: its default transport, e.g. HiSLIP)",
-            ScopeLink::Vxi11 => "VXI-11 (ONC RPC)",
-        }
-    }
 }
 
 named_enum!(AwgLink, "AWG transport");

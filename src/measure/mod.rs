@@ -116,7 +116,7 @@ pub use capture::measure;
 pub use choices::{ModelOrderChoice, ModelOrderName, ProcessOverrides, ProcessingChoices};
 pub use clipping::{ClipDetection, Clipping};
 pub use error::MeasureError;
-pub use listed::{listed, Listed};
+pub use listed::{listed, scope_models, Listed};
 pub use options::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 pub use pipeline::{Aligned, Pipeline, Processed, RawIq, RecordGeometry};
 pub use reprocess::Repetition;

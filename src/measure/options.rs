@@ -10,6 +10,8 @@ use serde::{Deserialize, Serialize};
 /// Range-processing algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum Algorithm {
     /// FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar).
     Correlation,
@@ -24,39 +26,6 @@ pub enum Algorithm {
 }
 
 impl Algorithm {
-    pub const ALL: [Algorithm; 5] = [
-        Algorithm::Correlation,
-        Algorithm::Fourier,
-        Algorithm::Music,
-        Algorithm::RootMusic,
-        Algorithm::Esprit,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Algorithm::Correlation => "correlation",
-            Algorithm::Fourier => "fourier",
-            Algorithm::Music => "music",
-            Algorithm::RootMusic => "root-music",
-            Algorithm::Esprit => "esprit",
-        }
-    }
-
-    /// One line on the algorithm (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            Algorithm::Correlation => {
-                "FFT cross-correlation with the transmit signal (any waveform; the MSK-LFM radar)"
-            }
-            Algorithm::Fourier => {
-                "OFDM: spectral division and zero-padded IFFT over the subcarriers"
-            }
-            Algorithm::Music => "OFDM: MUSIC pseudo-spectrum (spatial smoothing, forward-backward)",
-            Algorithm::RootMusic => "OFDM: root-MUSIC, ranges from polynomial roots (no grid)",
-            Algorithm::Esprit => "OFDM: ESPRIT, ranges from the shift invariance (no grid)",
-        }
-    }
-
     /// The algorithms that return ranges without a profile.
     pub(crate) fn is_grid_free(self) -> bool {
         matches!(self, Algorithm::RootMusic | Algorithm::Esprit)
@@ -90,6 +59,8 @@ named_enum!(Algorithm, "algorithm");
 /// Precision of the OFDM receiver's per-symbol FFT; the rest is double.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "lowercase")]
 pub enum FftPrecisionName {
     /// Single precision (default): rounding ~130 dB under the signal, about twice as fast.
     #[default]
@@ -99,34 +70,10 @@ pub enum FftPrecisionName {
 }
 
 impl FftPrecisionName {
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Single => "single",
-            Self::Double => "double",
-        }
-    }
-
     pub(crate) fn to_dsp(self) -> FftPrecision {
         match self {
             Self::Single => FftPrecision::Single,
             Self::Double => FftPrecision::Double,
-        }
-    }
-}
-
-impl FftPrecisionName {
-    /// Every value.
-    pub const ALL: [FftPrecisionName; 2] = [FftPrecisionName::Single, FftPrecisionName::Double];
-
-    /// One line on the value (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            FftPrecisionName::Single => {
-                "Single precision (default): rounding ~130 dB under the signal, about twice as fast"
-            }
-            FftPrecisionName::Double => {
-                "Double precision, for noise-free studies that look below -130 dB"
-            }
         }
     }
 }
@@ -136,8 +83,11 @@ named_enum!(FftPrecisionName, "FFT precision");
 /// Window on the range processing, trading side-lobes for width.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "lowercase")]
 pub enum WindowName {
     /// No window (rectangular): narrowest main lobe, -13.3 dB side-lobes.
+    #[strum(message = "No window: narrowest main lobe, -13.3 dB side-lobes")]
     #[default]
     Rect,
     Hann,
@@ -148,15 +98,6 @@ pub enum WindowName {
 }
 
 impl WindowName {
-    pub fn name(self) -> &'static str {
-        match self {
-            WindowName::Rect => "rect",
-            WindowName::Hann => "hann",
-            WindowName::Taylor => "taylor",
-            WindowName::Chebyshev => "chebyshev",
-        }
-    }
-
     /// The `dsp` window: Taylor nbar 4 at -35 dB, Chebyshev at -50 dB.
     pub(crate) fn to_dsp(self) -> Window {
         match self {
@@ -171,59 +112,33 @@ impl WindowName {
     }
 }
 
-impl WindowName {
-    /// Every value.
-    pub const ALL: [WindowName; 4] = [
-        WindowName::Rect,
-        WindowName::Hann,
-        WindowName::Taylor,
-        WindowName::Chebyshev,
-    ];
-
-    /// One line on the value (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            WindowName::Rect => "No window: narrowest main lobe, -13.3 dB side-lobes",
-            WindowName::Hann => "",
-            WindowName::Taylor => "Taylor, 4 nearly equal side-lobes at -35 dB",
-            WindowName::Chebyshev => "Dolph-Chebyshev, equal side-lobes at -50 dB",
-        }
-    }
-}
-
 named_enum!(WindowName, "window");
 
 /// How targets are told from noise and side-lobes (docs/detection.md measures each).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum DetectorName {
     /// CLEAN with the waveform's point spread: subtract each target, search again (default).
     #[default]
     Clean,
     /// CLEAN with a local ordered-statistic noise estimate (noise that varies along the profile).
+    #[strum(message = "CLEAN with a local ordered-statistic noise estimate")]
     CleanOs,
     /// Ordered-statistic CFAR (75 % rank), side-lobes masked by the point spread's envelope.
+    #[strum(message = "Ordered-statistic CFAR, side-lobes masked by the point spread's envelope")]
     OsCfar,
     /// Cell-averaging CFAR.
     CaCfar,
     /// Greatest-of CFAR (robust at clutter edges, masks close targets).
+    #[strum(message = "Greatest-of CFAR")]
     GoCfar,
     /// Smallest-of CFAR.
     SoCfar,
 }
 
 impl DetectorName {
-    pub fn name(self) -> &'static str {
-        match self {
-            DetectorName::Clean => "clean",
-            DetectorName::CleanOs => "clean-os",
-            DetectorName::OsCfar => "os-cfar",
-            DetectorName::CaCfar => "ca-cfar",
-            DetectorName::GoCfar => "go-cfar",
-            DetectorName::SoCfar => "so-cfar",
-        }
-    }
-
     /// The `dsp` method.
     pub(crate) fn to_dsp(self) -> crate::dsp::Method {
         use crate::dsp::{CfarKind, Method, NoiseEstimate};
@@ -243,66 +158,28 @@ impl DetectorName {
     }
 }
 
-impl DetectorName {
-    /// Every value.
-    pub const ALL: [DetectorName; 6] = [
-        DetectorName::Clean,
-        DetectorName::CleanOs,
-        DetectorName::OsCfar,
-        DetectorName::CaCfar,
-        DetectorName::GoCfar,
-        DetectorName::SoCfar,
-    ];
-
-    /// One line on the value (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            DetectorName::Clean => "CLEAN with the waveform's point spread: subtract each target, search again (default)",
-            DetectorName::CleanOs => "CLEAN with a local ordered-statistic noise estimate",
-            DetectorName::OsCfar => "Ordered-statistic CFAR, side-lobes masked by the point spread's envelope",
-            DetectorName::CaCfar => "Cell-averaging CFAR",
-            DetectorName::GoCfar => "Greatest-of CFAR",
-            DetectorName::SoCfar => "Smallest-of CFAR",
-        }
-    }
-}
-
 named_enum!(DetectorName, "detector");
 
 /// How each target's range is measured (docs/metrology.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "lowercase")]
 pub enum Ranging {
     /// The echo's envelope: the fitted position of its point spread (default).
+    #[strum(message = "The echo's envelope (default)")]
     #[default]
     Envelope,
     /// The envelope refined by the echo's carrier phase against the calibrated reference's,
     /// with a reference in the same record (the Tx -> Rx leakage) taking out the trigger's jitter.
+    #[strum(
+        message = "The envelope refined by the carrier phase against the calibration's \
+                       reference (needs a response calibration)"
+    )]
     Phase,
 }
 
 impl Ranging {
-    /// Every value.
-    pub const ALL: [Ranging; 2] = [Ranging::Envelope, Ranging::Phase];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Ranging::Envelope => "envelope",
-            Ranging::Phase => "phase",
-        }
-    }
-
-    /// One line on the value (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            Ranging::Envelope => "The echo's envelope (default)",
-            Ranging::Phase => {
-                "The envelope refined by the carrier phase against the calibration's reference \
-                 (needs a response calibration)"
-            }
-        }
-    }
-
     /// Serde's `skip_serializing_if`: the default is not written (summaries stay as they were).
     pub(crate) fn is_envelope(&self) -> bool {
         *self == Ranging::Envelope

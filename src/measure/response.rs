@@ -67,10 +67,12 @@ const SHORTEST_CLOSED_GATE_S: f64 = 3e-9;
 /// `processing.correction`; recorded as [`CorrectionUsed::mode`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum CorrectionMode {
     /// Nothing corrected.
     None,
-    /// On receive: DC, I/Q imbalance and the chain's response divided out.
+    /// On receive: DC, I/Q imbalance, and the chain's response divided out.
     Rx,
     /// On transmit: the AWG's codes pre-distorted by the inverse of the chain's response.
     Tx,
@@ -79,41 +81,9 @@ pub enum CorrectionMode {
 }
 
 impl CorrectionMode {
-    /// Every mode.
-    pub const ALL: [CorrectionMode; 4] = [
-        CorrectionMode::None,
-        CorrectionMode::Rx,
-        CorrectionMode::Tx,
-        CorrectionMode::Both,
-    ];
-
     /// Whether the AWG's codes are pre-distorted (tx, both).
     pub(crate) fn predistorts(self) -> bool {
         matches!(self, CorrectionMode::Tx | CorrectionMode::Both)
-    }
-
-    /// As `--correction` and the recorded `mode` spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            CorrectionMode::None => "none",
-            CorrectionMode::Rx => "rx",
-            CorrectionMode::Tx => "tx",
-            CorrectionMode::Both => "both",
-        }
-    }
-
-    /// One line on the mode (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            CorrectionMode::None => "Nothing corrected",
-            CorrectionMode::Rx => "On receive: DC, I/Q imbalance, and the chain's response divided out",
-            CorrectionMode::Tx => {
-                "On transmit: the AWG's codes pre-distorted by the inverse of the chain's response"
-            }
-            CorrectionMode::Both => {
-                "Both: the codes pre-distorted, and the receiver's own DC and I/Q imbalance corrected"
-            }
-        }
     }
 }
 

@@ -163,7 +163,7 @@ impl Calibrated {
 
 /// Every range window (`--window`), for the calibration's residual profiles.
 pub(crate) fn residual_windows() -> Vec<(&'static str, crate::dsp::Window)> {
-    super::options::WindowName::ALL
+    <super::options::WindowName as strum::VariantArray>::VARIANTS
         .iter()
         .map(|w| (w.name(), w.to_dsp()))
         .collect()

@@ -111,34 +111,16 @@ impl SweepBand {
 /// The waveform family, without parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case")]
 pub enum WaveformKind {
+    /// MSK-LFM: a chirp carrying MSK bits (thesis Table 4.1: 1 GHz, 10 us, 128 bits).
     MskLfm,
+    /// OFDM: QPSK subcarriers (thesis Table 4.2: 128 over 1 GHz, 100 symbols).
     Ofdm,
 }
 
 impl WaveformKind {
-    /// Every family.
-    pub const ALL: [WaveformKind; 2] = [WaveformKind::MskLfm, WaveformKind::Ofdm];
-
-    /// One line on the family (the command line's help).
-    pub fn about(self) -> &'static str {
-        match self {
-            WaveformKind::MskLfm => {
-                "MSK-LFM: a chirp carrying MSK bits (thesis Table 4.1: 1 GHz, 10 us, 128 bits)"
-            }
-            WaveformKind::Ofdm => {
-                "OFDM: QPSK subcarriers (thesis Table 4.2: 128 over 1 GHz, 100 symbols)"
-            }
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            WaveformKind::MskLfm => "msk-lfm",
-            WaveformKind::Ofdm => "ofdm",
-        }
-    }
-
     /// The thesis' parameters of this family.
     pub fn thesis_default(self) -> WaveformSpec {
         match self {

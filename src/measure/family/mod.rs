@@ -21,6 +21,7 @@ mod contract;
 
 use crate::waveform::{WaveformKind, WaveformSpec};
 pub(crate) use contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
+use strum::VariantArray;
 
 /// The room of `spec`'s family, holding its parameters: the one place that names every family.
 pub(crate) fn of(spec: &WaveformSpec) -> Box<dyn Family> {
@@ -63,9 +64,9 @@ pub(crate) fn of_kind(kind: WaveformKind) -> Box<dyn Family> {
 
 /// The labels of the families that take override `field`, for messages ("MSK-LFM").
 fn families_taking(field: &str) -> String {
-    let labels: Vec<&str> = WaveformKind::ALL
-        .into_iter()
-        .map(of_kind)
+    let labels: Vec<&str> = WaveformKind::VARIANTS
+        .iter()
+        .map(|&kind| of_kind(kind))
         .filter(|f| f.parameters().contains(&field))
         .map(|f| f.label())
         .collect();
@@ -79,7 +80,7 @@ mod tests {
 
     #[test]
     fn every_room_applies_nothing_as_the_thesis_and_defaults_to_an_algorithm_it_takes() {
-        for kind in WaveformKind::ALL {
+        for &kind in WaveformKind::VARIANTS {
             let room = of_kind(kind);
             assert_eq!(
                 room.apply(&WaveformOverrides::default()),

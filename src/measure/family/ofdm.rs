@@ -134,7 +134,7 @@ impl Family for OfdmRoom {
     }
 
     fn algorithms(&self) -> &'static [Algorithm] {
-        &Algorithm::ALL
+        <Algorithm as strum::VariantArray>::VARIANTS
     }
 
     fn default_algorithm(&self) -> Algorithm {
