@@ -917,9 +917,7 @@ fn fit_whole_chain(
             ..Default::default()
         };
         mean = recorded.clone();
-        let d: Vec<Complex64> = (0..n)
-            .map(|k| estimate.scene_at(est.frequency_hz(k)))
-            .collect();
+        let d: Vec<Complex64> = (0..n).map(|k| estimate.scene_at(est.frequency_hz(k))).collect();
         mean.iter_mut().zip(&d).for_each(|(v, d)| *v /= d);
         fitted = est.fit_relative(&mean, &mut Vec::new());
         if settled {
@@ -931,9 +929,7 @@ fn fit_whole_chain(
             scene: scene.clone(),
             ..Default::default()
         };
-        let d: Vec<Complex64> = (0..n)
-            .map(|k| found.scene_at(est.frequency_hz(k)))
-            .collect();
+        let d: Vec<Complex64> = (0..n).map(|k| found.scene_at(est.frequency_hz(k))).collect();
         relative
             .par_iter_mut()
             .for_each(|z| z.iter_mut().zip(&d).for_each(|(v, d)| *v /= d));

@@ -151,14 +151,7 @@ async fn one_case(
         if cable { "cable-echo" } else { "thesis-lab" }
     );
     let (reference_seed, pillar_seed) = seeds();
-    write_scene(
-        dir,
-        "reference.toml",
-        reference_m,
-        cable,
-        leak_db,
-        reference_seed,
-    );
+    write_scene(dir, "reference.toml", reference_m, cable, leak_db, reference_seed);
     write_scene(dir, "pillar.toml", PILLAR_M, cable, leak_db, pillar_seed);
     let r = reference_m.to_string();
     let cal = ok(
