@@ -54,10 +54,8 @@ const WEAKEST_SCENE_ECHO_DB: f64 = -75.0;
 const WEAKEST_CHAIN_ECHO_DB: f64 = -50.0;
 /// Most echoes taken out of one reference.
 const MOST_ECHOES: usize = 12;
-/// Most rounds of the scene's search (alternating with the gated fit).
-const SCENE_ROUNDS: usize = 6;
-/// The scene's rounds stop once no echo's delay moved more than this, s.
-const SETTLED_DELAY_S: f64 = 0.5e-12;
+/// Rounds of the scene's search (the leakage, then what its first estimate left).
+const SCENE_ROUNDS: usize = 3;
 /// A gate closed before a chain echo ends its taper this far ahead of it, s (the echo's main
 /// lobe at 1 GHz of band).
 const GATE_MARGIN_S: f64 = 1e-9;
@@ -894,46 +892,20 @@ fn fit_whole_chain(
         reach_s,
         ..Default::default()
     };
-    // The leakage's main lobe may reach into the gate's taper and bias the first estimate of it
-    // (at 0.8 m, 20-50 ps late, which leaves a -60 dB residue ahead of every corrected target).
-    // So each round searches the reference as recorded again, against the gated fit made with
-    // the last round's scene divided out, and replaces that scene: alternating least squares of
-    // the scene's echoes and the gated response.
-    let recorded = mean.clone();
-    let mut scene: Vec<chain_echoes::Echo> = Vec::new();
+    // The leakage's main lobe may reach into the gate's taper and bias the first estimate of it:
+    // what the division leaves is searched again with the gate's fit made without it.
     for _ in 0..SCENE_ROUNDS {
-        let found = search(&est, &fitted, &recorded, gate_s, WEAKEST_SCENE_ECHO_DB).scene;
-        if found.is_empty() {
+        let scene = search(&est, &fitted, &mean, gate_s, WEAKEST_SCENE_ECHO_DB).scene;
+        if scene.is_empty() {
             break;
         }
-        let settled = found.len() == scene.len()
-            && found
-                .iter()
-                .zip(&scene)
-                .all(|(a, b)| (a.delay_s - b.delay_s).abs() < SETTLED_DELAY_S);
-        scene = found;
-        let estimate = chain_echoes::Echoes {
-            scene: scene.clone(),
-            ..Default::default()
-        };
-        mean = recorded.clone();
-        let d: Vec<Complex64> = (0..n).map(|k| estimate.scene_at(est.frequency_hz(k))).collect();
-        mean.iter_mut().zip(&d).for_each(|(v, d)| *v /= d);
-        fitted = est.fit_relative(&mean, &mut Vec::new());
-        if settled {
-            break;
-        }
-    }
-    if !scene.is_empty() {
         let found = chain_echoes::Echoes {
-            scene: scene.clone(),
+            scene,
             ..Default::default()
         };
-        let d: Vec<Complex64> = (0..n).map(|k| found.scene_at(est.frequency_hz(k))).collect();
-        relative
-            .par_iter_mut()
-            .for_each(|z| z.iter_mut().zip(&d).for_each(|(v, d)| *v /= d));
-        echoes.scene.extend(scene);
+        divide(&mut mean, &mut relative, &|f| found.scene_at(f), &est);
+        fitted = est.fit_relative(&mean, &mut Vec::new());
+        echoes.scene.extend(found.scene);
     }
     // A chain echo in the gate's taper would be half in the fit and half out: the gate closes
     // before the nearest one, and the search is made again.
