@@ -51,19 +51,32 @@ fn watch_if_exists(path: &Path) -> bool {
 }
 
 /// Writes `$OUT_DIR/embedded_catalog.rs`: the `(file name, text)` of every `instruments/*.toml`.
+///
+/// The folder is found from the manifest directory cargo passes at *run* time: a build script
+/// compiled in another checkout (a worktree sharing this target folder; cargo reuses the compiled
+/// script when its source is the same) would otherwise read that checkout's folder, or none, and
+/// build a radbench with an empty catalog. An unreadable or empty folder stops the build.
 fn embed_catalog() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments");
+    let manifest = std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
+    let dir = Path::new(&manifest).join("instruments");
     watch(&dir);
-    let mut names: Vec<String> = std::fs::read_dir(&dir)
-        .map(|listing| {
-            listing
-                .filter_map(Result::ok)
-                .map(|e| e.path())
-                .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml"))
-                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-                .collect()
-        })
-        .unwrap_or_default();
+    let listing = std::fs::read_dir(&dir).unwrap_or_else(|e| {
+        panic!(
+            "the instrument catalog {} cannot be read: {e}",
+            dir.display()
+        )
+    });
+    let mut names: Vec<String> = listing
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml"))
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    assert!(
+        !names.is_empty(),
+        "the instrument catalog {} holds no .toml file",
+        dir.display()
+    );
     // The four files built in before this list was generated keep their order (listings and
     // error messages name the models in it); every other file follows, sorted by name.
     const FIRST: [&str; 4] = [
