@@ -220,6 +220,16 @@ fn print_report(
             e.level_db
         );
     }
+    if let Some(db) = g.leakage_unseen_db {
+        println!(
+            "  leakage not found    {:.2} m ahead of the reference (range 0), under {db:.1} dB \
+             (none there, or the chain's response there hides it, and the fit may hold it as \
+             the chain's): a corrected capture may then show its image that far ahead of a \
+             strong target, which the residual profile keeps from being reported; calibrating \
+             with the reference 0.3 m further may let the search see it",
+            calibrated.request.reference_range_m
+        );
+    }
     println!(
         "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {}",
         opt(f.sidelobe_db_before, "dB"),

@@ -39,6 +39,9 @@ pub(crate) struct Echoes {
     pub scene: Vec<Echo>,
     /// How far behind the reference the chain's echoes were searched, s.
     pub reach_s: f64,
+    /// The weakest echo the search could take, power relative to the reference: the larger of
+    /// its noise threshold and the weakest asked for (a weaker echo was left where it was).
+    pub floor: f64,
 }
 
 impl Echoes {
@@ -181,6 +184,7 @@ pub(crate) fn find(
         else {
             break;
         };
+        found.floor = threshold.max(weakest);
         if power[m] <= threshold.max(weakest) {
             break;
         }

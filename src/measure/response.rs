@@ -52,6 +52,9 @@ const WEAKEST_SCENE_ECHO_DB: f64 = -75.0;
 /// chain, which has no echo there) are the fit's own residue, and a pre-distortion made with
 /// them puts a ghost where they are.
 const WEAKEST_CHAIN_ECHO_DB: f64 = -50.0;
+/// The leakage is sought this close to range 0 (its coupling at the horns, and the system
+/// delay's error), s.
+const LEAKAGE_PLACE_S: f64 = 1e-9;
 /// Most echoes taken out of one reference.
 const MOST_ECHOES: usize = 12;
 /// Rounds of the scene's search (the leakage, then what its first estimate left).
@@ -217,6 +220,12 @@ pub struct ResponseFigures {
     /// not, neither is corrected and the output says how to measure again.
     #[serde(default)]
     pub iq_skews_separated: bool,
+    /// When the Tx->Rx leakage was not found where it must be (2 R / c ahead of the reference):
+    /// the level under which it hides (the echo search's floor there, dB relative to the
+    /// reference). A fit may then hold it as the chain's, and every corrected capture may show
+    /// its image that far ahead of each strong target: the residual profile covers it there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leakage_unseen_db: Option<f64>,
     /// The image's mean level against the direct response, dB (after the receive imbalance was
     /// taken out: what is left is mostly the transmitter's).
     pub image_db: f64,
@@ -681,8 +690,11 @@ pub(crate) fn measure(
         *m /= reps;
     }
     let reach_s = MIN_ECHO_REACH_S.max(expected_delay_s - system_delay_s + 3e-9);
-    let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s)?;
+    // The leakage couples at the horns, at range 0: 2 R / c ahead of the reference.
+    let leakage_at_s = -(expected_delay_s - system_delay_s);
+    let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s, leakage_at_s)?;
     let residual = residual_profiles(&whole, reach_s, residual)?;
+    let whole_leakage_unseen = whole.leakage_unseen;
     let (est, echoes, gate_s) = (whole.est, whole.echoes, whole.gate_s);
     let directs: Vec<Vec<Complex64>> = whole
         .relative
@@ -753,6 +765,7 @@ pub(crate) fn measure(
         (gain_db, phase_deg),
     );
     let mut figures = figures;
+    figures.leakage_unseen_db = whole_leakage_unseen.map(|p| 10.0 * p.log10());
     if let Some(split) = split_iq(&est, &fitted.direct, &fitted.image, &cover, gate_s) {
         figures.tx_iq_gain_db = 20.0 * split.tx.gain.log10();
         figures.tx_iq_phase_deg = split.tx.phase.to_degrees();
@@ -817,14 +830,35 @@ fn residual_profiles(
                 windows.band_hz,
             )?;
             let r = crate::dsp::residual::profile(&ratio, &weight, fs, RESIDUAL_BIN_M, reach_m)?;
+            let mut ahead_db = r.ahead_db;
+            if let Some(floor) = whole.leakage_unseen {
+                let centre_m = whole.leakage_at_s.abs() * C0 / 2.0;
+                let half_m = LEAKAGE_PLACE_S * C0 / 2.0;
+                raise(
+                    &mut ahead_db,
+                    r.bin_m,
+                    centre_m,
+                    half_m,
+                    10.0 * floor.log10(),
+                );
+            }
             Ok(ResidualSeen {
                 window: (*name).to_string(),
                 bin_m: r.bin_m,
                 behind_db: r.behind_db,
-                ahead_db: r.ahead_db,
+                ahead_db,
             })
         })
         .collect()
+}
+
+/// Raises the bins of `levels_db` (bins of `bin_m`) over offsets `centre_m +- half_m` to `db`.
+fn raise(levels_db: &mut [f64], bin_m: f64, centre_m: f64, half_m: f64, db: f64) {
+    let first = ((centre_m - half_m) / bin_m).floor().max(0.0) as usize;
+    let last = ((centre_m + half_m) / bin_m).floor() as usize;
+    for v in levels_db.iter_mut().take(last + 1).skip(first) {
+        *v = v.max(db);
+    }
 }
 
 /// The gated fit of the reference's mean relative spectrum, with what lies beyond the gate
@@ -842,6 +876,10 @@ struct WholeChain {
     /// Their mean, likewise: what `fitted` was fitted to.
     mean: Vec<Complex64>,
     echoes: chain_echoes::Echoes,
+    /// Where the leakage must be, relative to the reference, s.
+    leakage_at_s: f64,
+    /// Not found there: the search's floor (power relative to the reference).
+    leakage_unseen: Option<f64>,
 }
 
 /// First the scene beyond the gate (the leakage ahead of the reference) is divided out. The gate
@@ -854,6 +892,7 @@ fn fit_whole_chain(
     mut mean: Vec<Complex64>,
     mut relative: Vec<Vec<Complex64>>,
     reach_s: f64,
+    leakage_at_s: f64,
 ) -> Result<WholeChain, MeasureError> {
     let n = est.period();
     let fs = est.frequency_hz(1) * n as f64;
@@ -894,8 +933,11 @@ fn fit_whole_chain(
     };
     // The leakage's main lobe may reach into the gate's taper and bias the first estimate of it:
     // what the division leaves is searched again with the gate's fit made without it.
+    let mut scene_floor = None;
     for _ in 0..SCENE_ROUNDS {
-        let scene = search(&est, &fitted, &mean, gate_s, WEAKEST_SCENE_ECHO_DB).scene;
+        let first = search(&est, &fitted, &mean, gate_s, WEAKEST_SCENE_ECHO_DB);
+        scene_floor.get_or_insert(first.floor);
+        let scene = first.scene;
         if scene.is_empty() {
             break;
         }
@@ -942,6 +984,16 @@ fn fit_whole_chain(
     // MSK data inside a short gate's wide frequency kernel): the table is the least-squares fit.
     est.use_least_squares();
     fitted = est.fit_relative(&mean, &mut Vec::new());
+    // Inside the gate's reach the fit holds it, beyond it the search should have found it: where
+    // it did not, the chain's tail there (a sharp step in its response) raised the search's
+    // floor over it, or cancelled it. The fit then holds whatever is there as the chain's.
+    let leakage_unseen = (leakage_at_s.abs() > 1.5 * gate_s
+        && !echoes
+            .scene
+            .iter()
+            .any(|e| (e.delay_s - leakage_at_s).abs() <= LEAKAGE_PLACE_S))
+    .then_some(scene_floor)
+    .flatten();
     Ok(WholeChain {
         est,
         gate_s,
@@ -950,6 +1002,8 @@ fn fit_whole_chain(
         relative,
         mean,
         echoes,
+        leakage_at_s,
+        leakage_unseen,
     })
 }
 
@@ -1109,4 +1163,20 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
     }
     let a = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     (a, my - a * mx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::raise;
+
+    #[test]
+    fn raise_lifts_only_the_bins_around_the_place_and_never_lowers() {
+        let mut levels = vec![-80.0, -80.0, -30.0, -80.0, -80.0, -80.0];
+        // 0.1 m bins; 0.25 +- 0.1 m covers bins 1 ..= 3.
+        raise(&mut levels, 0.1, 0.25, 0.1, -40.0);
+        assert_eq!(levels, [-80.0, -40.0, -30.0, -40.0, -80.0, -80.0]);
+        // Beyond the profile: nothing to raise, no panic.
+        raise(&mut levels, 0.1, 5.0, 0.1, -10.0);
+        assert_eq!(levels, [-80.0, -40.0, -30.0, -40.0, -80.0, -80.0]);
+    }
 }
