@@ -13,6 +13,7 @@
 
 use super::ask::{ask_once, probe_limit, reply_number, Probe};
 use super::error::{session, DriverError};
+use super::family::DriverFamily;
 use super::io::open_session;
 use crate::address::Resource;
 use crate::catalog::InstrumentModel;
@@ -33,11 +34,11 @@ pub(crate) struct Reach<'a> {
 }
 
 /// The limits `family` has queries for, read from the instrument (empty: none known).
-pub(crate) async fn read_limits(family: &str, reach: &Reach<'_>) -> Vec<ReadLimit> {
+pub(crate) async fn read_limits(family: DriverFamily, reach: &Reach<'_>) -> Vec<ReadLimit> {
     match family {
-        "keysight-m8195a" => m8195a(reach).await,
-        "lecroy-maui" => lecroy(reach).await,
-        _ => Vec::new(),
+        DriverFamily::KeysightM8195a => m8195a(reach).await,
+        DriverFamily::LecroyMaui => lecroy(reach).await,
+        DriverFamily::KeysightInfiniium | DriverFamily::GotmicLine => Vec::new(),
     }
 }
 

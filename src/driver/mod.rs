@@ -14,7 +14,9 @@
 //! | `fault` | `FaultyIo`: seeded client-side faults (timeouts, lost replies, drops, delays) around any [`InstrumentIo`], for reliability tests (feature `testing`) |
 //! | `m8195a` | Keysight M8195A: DCM I/Q + marker, 64 GSa/s / 4, chunked download |
 //! | `lecroy` | Teledyne LeCroy over VICP or VXI-11: marker-triggered single shot or sequence, WAVEDESC, `.trc` |
+//! | `scope_core` | what every scope driver shares: settings checked against the limits, segment bookkeeping, the `Digitizer` impl around a family's own commands |
 //! | `keysight_uxr` | Keysight Infiniium UXR-class over HiSLIP or VXI-11: `:WAVeform` WORD blocks, marker-triggered single shot or segmented memory |
+//! | `family` | `DriverFamily`: the closed set of driver families, one table row each (kinds, `[vendor]` check, the doctor's words) |
 //! | `open` | instruments opened from data: the catalog's `driver` family to a boxed capability, AWG planning |
 //! | `gotmic` | Gotmic E-band Tx/Rx over serial (project-defined protocol, register map from the catalog) |
 //! | `permit` | [`RfPermit`]: outputs and RF only with the user's explicit decision |
@@ -48,9 +50,10 @@
 //! A model of a known kind (another AWG speaking the M8195A's SCPI, another MAUI scope, a module
 //! with the same register protocol) needs only a catalog file: instruments/README.md, "Adding a
 //! scope model with data only", walks through one (`tests/io/driver_second_scope.rs` does it). A new
-//! command set needs a driver module here (and its family in `open.rs`: one row, one `match`
-//! arm): a `commands.rs` with every spelling, pure checks against the catalog before any I/O
-//! (`limits`), the session through [`Scpi`], an implementation of the capability trait, tests
+//! command set needs a driver module here (and its family: a variant and its row in `family.rs`,
+//! one `match` arm in `open.rs`): a `commands.rs` with every spelling, pure checks against the
+//! catalog before any I/O (`limits`; a scope driver's are `scope_core`'s, and it implements only
+//! `ScopeFamily`), the session through [`Scpi`], an implementation of the capability trait, tests
 //! with `Scripted` (feature `testing`) that pin each operation's command sequence, and tests against its mock_lab
 //! emulator (`keysight_uxr` is the worked example).
 
@@ -59,6 +62,7 @@
 pub(crate) mod ask;
 pub(crate) mod capability;
 pub(crate) mod error;
+pub(crate) mod family;
 #[cfg(any(test, feature = "testing"))]
 pub(crate) mod fault;
 pub(crate) mod gotmic;
@@ -74,6 +78,7 @@ pub(crate) mod permit;
 pub(crate) mod rf_state;
 mod safe_report;
 pub(crate) mod safe_state;
+pub(crate) mod scope_core;
 pub(crate) mod scpi;
 #[cfg(any(test, feature = "testing"))]
 pub(crate) mod scripted;

@@ -3,37 +3,46 @@
 //! `match` per kind. Nothing above `driver` names a vendor.
 //!
 //! Adding a driver family: its folder under `src/driver/`, one `mod` line in `driver/mod.rs`,
-//! one row in [`FAMILIES`] and one arm in the `match` of its kind here.
+//! one variant and its table row in `family.rs` ([`DriverFamily`]), and one arm in the `match`
+//! of its kind here (the compiler points at the matches that must learn it).
 
 use super::capability::{Awg, AwgSettings, Digitizer, IqWaveform, RfFrontEnd};
 use super::error::DriverError;
+use super::family::DriverFamily;
+pub(crate) use super::family::RemoteSetting;
 use super::gotmic::{Framing, Gotmic};
 use super::keysight_uxr::KeysightUxr;
 use super::lecroy::Lecroy;
 use super::m8195a::M8195a;
 use crate::address::Resource;
-use crate::catalog::{InstrumentKind, InstrumentModel};
+use crate::catalog::InstrumentModel;
 use crate::transport::Journal;
 
-/// Every driver family and the kinds of instrument it drives.
-pub(crate) const FAMILIES: &[(&str, &[InstrumentKind])] = &[
-    ("keysight-m8195a", &[InstrumentKind::Awg]),
-    ("lecroy-maui", &[InstrumentKind::Digitizer]),
-    ("keysight-infiniium", &[InstrumentKind::Digitizer]),
-    ("gotmic-line", &[InstrumentKind::RfTx, InstrumentKind::RfRx]),
-];
-
-/// The driver family of a catalog entry: its `driver` key, or for a file written before the key
-/// existed the family that drove its kind then.
-pub(crate) fn family(model: &InstrumentModel) -> &str {
+/// The driver family text of a catalog entry: its `driver` key, or for a file written before the
+/// key existed the family that drove its kind then. Unchecked: [`family`] parses it.
+pub(crate) fn spelling(model: &InstrumentModel) -> &str {
     match &model.instrument.driver {
         Some(name) => name,
-        None => match model.instrument.kind {
-            InstrumentKind::Awg => "keysight-m8195a",
-            InstrumentKind::Digitizer => "lecroy-maui",
-            InstrumentKind::RfTx | InstrumentKind::RfRx => "gotmic-line",
-        },
+        None => DriverFamily::first_for(model.instrument.kind).name(),
     }
+}
+
+/// The driver family of a catalog entry.
+///
+/// # Errors
+/// [`DriverError::Catalog`] naming `instrument.driver` and every family when the text is none.
+pub(crate) fn family(model: &InstrumentModel) -> Result<DriverFamily, DriverError> {
+    let name = spelling(model);
+    DriverFamily::from_name(name).ok_or_else(|| {
+        let known: Vec<&str> = DriverFamily::all().iter().map(|f| f.name()).collect();
+        unknown(
+            model,
+            format!(
+                "instrument.driver = {name:?} is no driver family; allowed: {}",
+                known.join(", ")
+            ),
+        )
+    })
 }
 
 fn unknown(model: &InstrumentModel, reason: String) -> DriverError {
@@ -44,24 +53,16 @@ fn unknown(model: &InstrumentModel, reason: String) -> DriverError {
 }
 
 /// Checks that the entry's driver family exists, drives its kind, and accepts its `[vendor]`
-/// table; touches no instrument.
+/// table; touches no instrument. Returns the family.
 ///
 /// # Errors
 /// [`DriverError::Catalog`] naming the `driver` key or the `[vendor]` field and what is allowed.
-pub(crate) fn check(model: &InstrumentModel) -> Result<(), DriverError> {
-    let name = family(model);
+pub(crate) fn check(model: &InstrumentModel) -> Result<DriverFamily, DriverError> {
+    let family = family(model)?;
+    let name = family.name();
     let kind = model.instrument.kind;
-    let Some((_, kinds)) = FAMILIES.iter().find(|(f, _)| *f == name) else {
-        let known: Vec<&str> = FAMILIES.iter().map(|(f, _)| *f).collect();
-        return Err(unknown(
-            model,
-            format!(
-                "instrument.driver = {name:?} is no driver family; allowed: {}",
-                known.join(", ")
-            ),
-        ));
-    };
-    if !kinds.contains(&kind) {
+    let row = family.row();
+    if !row.kinds.contains(&kind) {
         return Err(unknown(
             model,
             format!(
@@ -70,18 +71,22 @@ pub(crate) fn check(model: &InstrumentModel) -> Result<(), DriverError> {
             ),
         ));
     }
-    match name {
-        "lecroy-maui" => super::lecroy::check_vendor(model),
-        "keysight-infiniium" => super::keysight_uxr::check_vendor(model),
-        _ if model.vendor.is_empty() => Ok(()),
-        _ => Err(unknown(
-            model,
-            format!(
-                "the driver family {name:?} reads no [vendor] table; remove it (found keys: {})",
-                model.vendor.keys().cloned().collect::<Vec<_>>().join(", ")
-            ),
-        )),
+    match row.check_vendor {
+        Some(check_vendor) => check_vendor(model)?,
+        None if model.vendor.is_empty() => {}
+        None => {
+            let keys: Vec<String> = model.vendor.keys().cloned().collect();
+            return Err(unknown(
+                model,
+                format!(
+                    "the driver family {name:?} reads no [vendor] table; remove it (found \
+                     keys: {})",
+                    keys.join(", ")
+                ),
+            ));
+        }
     }
+    Ok(family)
 }
 
 fn wrong_kind(model: &InstrumentModel, wanted: &str) -> DriverError {
@@ -89,7 +94,7 @@ fn wrong_kind(model: &InstrumentModel, wanted: &str) -> DriverError {
         model,
         format!(
             "instrument.driver = {:?} (kind {:?}) is not {wanted}",
-            family(model),
+            spelling(model),
             model.instrument.kind.as_str()
         ),
     )
@@ -105,9 +110,8 @@ pub(crate) async fn open_awg(
     journal: Option<Journal>,
     name: &str,
 ) -> Result<Box<dyn Awg>, DriverError> {
-    check(model)?;
-    match family(model) {
-        "keysight-m8195a" => Ok(Box::new(
+    match check(model)? {
+        DriverFamily::KeysightM8195a => Ok(Box::new(
             M8195a::open(resource, model, journal, name).await?,
         )),
         _ => Err(wrong_kind(model, "an AWG")),
@@ -124,12 +128,11 @@ pub(crate) async fn open_digitizer(
     journal: Option<Journal>,
     name: &str,
 ) -> Result<Box<dyn Digitizer>, DriverError> {
-    check(model)?;
-    match family(model) {
-        "lecroy-maui" => Ok(Box::new(
+    match check(model)? {
+        DriverFamily::LecroyMaui => Ok(Box::new(
             Lecroy::open(resource, model, journal, name).await?,
         )),
-        "keysight-infiniium" => Ok(Box::new(
+        DriverFamily::KeysightInfiniium => Ok(Box::new(
             KeysightUxr::open(resource, model, journal, name).await?,
         )),
         _ => Err(wrong_kind(model, "a digitizer")),
@@ -146,9 +149,8 @@ pub(crate) async fn open_rf(
     journal: Option<Journal>,
     name: &str,
 ) -> Result<Box<dyn RfFrontEnd>, DriverError> {
-    check(model)?;
-    match family(model) {
-        "gotmic-line" => Ok(Box::new(
+    match check(model)? {
+        DriverFamily::GotmicLine => Ok(Box::new(
             Gotmic::open(resource, model, journal, name).await?,
         )),
         _ => Err(wrong_kind(model, "an RF front end")),
@@ -159,7 +161,7 @@ pub(crate) async fn open_rf(
 /// family has no choice of line mode.
 pub(crate) fn rf_line_mode(model: &InstrumentModel) -> Option<&'static str> {
     match family(model) {
-        "gotmic-line" => Some(match Framing::from_catalog(model) {
+        Ok(DriverFamily::GotmicLine) => Some(match Framing::from_catalog(model) {
             Framing::Plain => "plain lines",
             Framing::Crc8(_) => "CRC-8 framed lines (`CRC ON`)",
         }),
@@ -167,44 +169,22 @@ pub(crate) fn rf_line_mode(model: &InstrumentModel) -> Option<&'static str> {
     }
 }
 
-/// Where a scope family chooses its remote-control interface, for the bench doctor's fix when
-/// the scope does not answer as the bench file says ([`scope_remote_setting`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum RemoteSetting {
-    /// One interface at a time (VICP or VXI-11), chosen in `menu`: a scope set to the other one
-    /// answers only there.
-    OneAtATime { menu: &'static str },
-    /// Its protocols served side by side, nothing to choose: `look_at` is what to check when it
-    /// answers on none (it ends "check that the scope is on, its host, and ...").
-    SideBySide { look_at: &'static str },
-}
-
 /// The remote-interface setting of a scope's family, in its own menus' words.
 pub(crate) fn scope_remote_setting(model: &InstrumentModel) -> RemoteSetting {
-    match family(model) {
-        "lecroy-maui" => RemoteSetting::OneAtATime {
-            menu: "Utilities > Utilities Setup > Remote",
-        },
-        "keysight-infiniium" => RemoteSetting::SideBySide {
-            look_at: "that the Infiniium application is running (it serves HiSLIP and VXI-11 \
-                      side by side: there is no interface to choose)",
-        },
-        _ => RemoteSetting::SideBySide {
+    family(model)
+        .ok()
+        .and_then(|f| f.row().remote)
+        .unwrap_or(RemoteSetting::SideBySide {
             look_at: "its remote-control settings",
-        },
-    }
+        })
 }
 
 /// How a scope's timebase is locked to an external 10 MHz reference, in its family's words and
 /// with the command its driver sends (the bench doctor's `timebases` fix).
 pub(crate) fn scope_external_reference(model: &InstrumentModel) -> String {
-    match family(model) {
-        "lecroy-maui" => format!("LeCroy {}", super::lecroy::commands::EXTERNAL_REFERENCE),
-        "keysight-infiniium" => format!(
-            "Infiniium {}",
-            super::keysight_uxr::commands::EXTERNAL_REFERENCE
-        ),
-        _ => "its reference input's setting".to_string(),
+    match family(model).ok().and_then(|f| f.row().reference) {
+        Some((brand, command)) => format!("{brand} {command}"),
+        None => "its reference input's setting".to_string(),
     }
 }
 
@@ -220,7 +200,7 @@ pub(crate) async fn open_rf_other_mode(
     name: &str,
 ) -> Result<Box<dyn RfFrontEnd>, DriverError> {
     match family(model) {
-        "gotmic-line" => {
+        Ok(DriverFamily::GotmicLine) => {
             let other = Framing::other_than_catalog(model);
             Ok(Box::new(
                 Gotmic::open_with(resource, model, journal, name, other).await?,
@@ -258,7 +238,7 @@ pub(crate) fn plan_awg(
         .as_ref()
         .ok_or_else(|| wrong_kind(model, "an AWG"))?;
     match family(model) {
-        "keysight-m8195a" => {
+        Ok(DriverFamily::KeysightM8195a) => {
             use super::m8195a::plan::{plan_clock, plan_download};
             let name = &model.instrument.model;
             let clock = plan_clock(limits, &model.instrument.key, name, settings)?;
@@ -277,7 +257,7 @@ pub(crate) fn plan_awg(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::catalog::{parse_model, Catalog, EMBEDDED_FILES};
+    use crate::catalog::{parse_model, Catalog, InstrumentKind, EMBEDDED_FILES};
 
     fn file(name: &str) -> &'static str {
         EMBEDDED_FILES
@@ -290,7 +270,8 @@ mod tests {
     #[test]
     fn every_built_in_model_names_a_family_that_drives_its_kind() {
         for (model, _) in Catalog::embedded().unwrap().models() {
-            check(model).unwrap_or_else(|e| panic!("{}: {e}", model.instrument.key));
+            let family = check(model).unwrap_or_else(|e| panic!("{}: {e}", model.instrument.key));
+            assert_eq!(model.instrument.driver.as_deref(), Some(family.name()));
             assert!(
                 model.instrument.driver.is_some(),
                 "{}",
@@ -304,7 +285,7 @@ mod tests {
         let text = file("lecroy_labmaster10zi_a.toml").replace("driver = \"lecroy-maui\"\n", "");
         let model = parse_model("old.toml", &text).unwrap();
         assert_eq!(model.instrument.driver, None);
-        assert_eq!(family(&model), "lecroy-maui");
+        assert_eq!(family(&model).unwrap(), DriverFamily::LecroyMaui);
         check(&model).unwrap();
     }
 

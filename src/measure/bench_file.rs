@@ -421,7 +421,7 @@ impl BenchFile {
                 });
             }
             if let Some(model) = model {
-                let family = crate::driver::open::family(model);
+                let family = crate::driver::open::spelling(model);
                 if let Some(wanted) = &entry.driver {
                     if wanted != family {
                         let line = self

@@ -10,6 +10,7 @@ use super::bench::Bench;
 use super::error::MeasureError;
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentKind, InstrumentModel};
+use crate::driver::family::DriverFamily;
 use crate::driver::{instrument_limits, open, DriverError, Journal};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -239,7 +240,9 @@ pub async fn verify_catalog(
     for (name, resource, model) in &instruments {
         let late = started.elapsed() >= DEADLINE;
         let key = model.instrument.key.clone();
-        let family = open::family(model).to_string();
+        // The text names the family in verdicts; the parsed family (none: unknown) picks queries.
+        let family = open::spelling(model).to_string();
+        let driver = open::family(model).ok();
         let value = |field: &str, catalog: String, verdict: Verdict| CatalogValue {
             instrument: name,
             model: key.clone(),
@@ -314,7 +317,10 @@ pub async fn verify_catalog(
                 journal: journal.clone(),
                 name,
             };
-            instrument_limits::read_limits(&family, &reach).await
+            match driver {
+                Some(driver) => instrument_limits::read_limits(driver, &reach).await,
+                None => Vec::new(),
+            }
         };
         for (field, expected, unit) in inferred_limits(model) {
             let verdict = match read.iter().find(|(f, _)| *f == field) {
@@ -343,7 +349,7 @@ pub async fn verify_catalog(
         }
         if let Some(awg) = &model.awg {
             let verdict = match options_reply.as_ref() {
-                Some(Ok(reply)) if family == "keysight-m8195a" => {
+                Some(Ok(reply)) if driver == Some(DriverFamily::KeysightM8195a) => {
                     segment_verdict(awg.max_segment_id, reply)
                 }
                 Some(Err(why)) => Verdict::CannotBeQueried { why: why.clone() },

@@ -17,23 +17,17 @@ use std::time::{Duration, Instant};
 
 use serde::Deserialize;
 
-use super::capability::{Digitizer, DigitizerApplied, DigitizerSettings};
+use super::capability::{DigitizerApplied, DigitizerSettings};
 use super::error::{session, DriverError};
 use super::io::{open_session, BoxFuture, InstrumentIo};
-use super::limits::{close, within};
+use super::scope_core::{ScopeCore, ScopeFamily, I_CHANNEL, Q_CHANNEL};
 use super::scpi::Scpi;
-use super::trace::{ChannelTrace, IqCapture, SegmentTiming};
+use super::trace::{ChannelTrace, SegmentTiming};
 use crate::address::Resource;
-use crate::catalog::{DigitizerLimits, InstrumentModel};
-use crate::session::{parse_f64, parse_i64, Identity, SCPI_ERROR_QUERY};
+use crate::catalog::InstrumentModel;
+use crate::session::{parse_f64, parse_i64, SCPI_ERROR_QUERY};
 use crate::transport::Journal;
 
-/// Channel that carries I.
-const I_CHANNEL: u8 = 1;
-/// Channel that carries Q.
-const Q_CHANNEL: u8 = 2;
-/// Relative tolerance on the read-back sample rate.
-const RATE_TOLERANCE: f64 = 1e-6;
 /// `<format>` of the Infiniium preamble for WORD data (0 ASCii, 1 BYTE, 2 WORD, ...).
 const PREAMBLE_WORD: i64 = 2;
 /// Fields of the preamble the driver reads (format .. Y reference).
@@ -84,16 +78,10 @@ pub(crate) fn check_vendor(model: &InstrumentModel) -> Result<(), DriverError> {
     Ok(())
 }
 
-/// A connected Infiniium scope.
+/// A connected Infiniium scope: the shared scope core and its `[vendor]` table.
 pub struct KeysightUxr {
-    scpi: Scpi,
-    model: InstrumentModel,
-    limits: DigitizerLimits,
+    core: ScopeCore,
     vendor: Vendor,
-    identity: Identity,
-    /// Segments per acquisition and points per segment as last configured.
-    segments: u32,
-    points: u64,
 }
 
 /// The scaling and timing of one `:WAVeform:PREamble?`.
@@ -135,134 +123,29 @@ impl KeysightUxr {
     ) -> Result<KeysightUxr, DriverError> {
         check_vendor(model)?;
         let vendor = vendor(model)?;
-        let limits = model
-            .digitizer
-            .clone()
-            .ok_or_else(|| DriverError::Catalog {
-                key: model.instrument.key.clone(),
-                reason: "the model has no [digitizer] section; it is not a scope".into(),
-            })?;
+        let limits = ScopeCore::limits_of(model)?;
         let mut scpi = Scpi::new(io, name);
         scpi.send(commands::HEADERS_OFF).await?;
         let identity = scpi.identify(model).await?;
         Ok(KeysightUxr {
-            scpi,
-            model: model.clone(),
-            limits,
+            core: ScopeCore::new(scpi, model, limits, identity),
             vendor,
-            identity,
-            segments: 1,
-            points: 0,
         })
     }
 
-    fn out_of_limits(&self, field: &'static str, value: String, allowed: String) -> DriverError {
-        DriverError::OutOfLimits {
-            instrument: self.scpi.name().to_string(),
-            field,
-            value,
-            allowed,
-        }
-    }
-
-    fn validate(&self, s: &DigitizerSettings) -> Result<u64, DriverError> {
-        let l = &self.limits;
-        let n = self.scpi.name();
-        if !l
-            .sample_rates
-            .iter()
-            .any(|r| close(*r, s.sample_rate_hz, RATE_TOLERANCE))
-        {
-            return Err(self.out_of_limits(
-                "sample_rate_hz",
-                format!("{} Sa/s", s.sample_rate_hz),
-                format!("one of {:?} Sa/s", l.sample_rates),
-            ));
-        }
-        within(
-            n,
-            "repetition_s",
-            s.repetition_s,
-            f64::MIN_POSITIVE,
-            f64::MAX,
-            "s",
-        )?;
-        within(n, "longest_echo_s", s.longest_echo_s, 0.0, f64::MAX, "s")?;
-        within(n, "pre_trigger_s", s.pre_trigger_s, 0.0, f64::MAX, "s")?;
-        let points = (s.record_s() * s.sample_rate_hz).ceil();
-        if points > l.max_points_per_channel as f64 {
-            return Err(self.out_of_limits(
-                "repetition_s + longest_echo_s + pre_trigger_s",
-                format!("{} s = {points} points", s.record_s()),
-                format!("at most {} points per channel", l.max_points_per_channel),
-            ));
-        }
-        if s.segments == 0 || (s.segments > 1 && s.segments > l.max_sequence_segments) {
-            return Err(self.out_of_limits(
-                "segments",
-                s.segments.to_string(),
-                format!(
-                    "1 ..= {} (the catalog's max_sequence_segments)",
-                    l.max_sequence_segments.max(1)
-                ),
-            ));
-        }
-        if points * f64::from(s.segments) > l.max_points_per_channel as f64 {
-            return Err(self.out_of_limits(
-                "segments",
-                format!("{} segments of {points} points", s.segments),
-                format!(
-                    "at most {} points per channel in all segments together",
-                    l.max_points_per_channel
-                ),
-            ));
-        }
-        for (field, v) in [
-            ("i_volts_per_div", s.i_volts_per_div),
-            ("q_volts_per_div", s.q_volts_per_div),
-        ] {
-            within(
-                n,
-                field,
-                v,
-                l.volts_per_div_min,
-                l.volts_per_div_max,
-                "V/div",
-            )?;
-        }
-        for (field, v) in [("i_offset_v", s.i_offset_v), ("q_offset_v", s.q_offset_v)] {
-            within(n, field, v, l.offset_v_min, l.offset_v_max, "V")?;
-        }
-        within(
-            n,
-            "trigger_level_v",
-            s.trigger_level_v,
-            l.ext_trigger_level_v_min,
-            l.ext_trigger_level_v_max,
-            "V",
-        )?;
-        if l.channels < Q_CHANNEL {
-            return Err(DriverError::Catalog {
-                key: self.model.instrument.key.clone(),
-                reason: "the driver needs two channels (I on 1, Q on 2)".into(),
-            });
-        }
-        Ok(points as u64)
-    }
-
     async fn ask_number(&mut self, query: &str) -> Result<f64, DriverError> {
-        let text = self.scpi.ask(query).await?;
-        self.scpi.number_in(query, &text)
+        let text = self.core.scpi.ask(query).await?;
+        self.core.scpi.number_in(query, &text)
     }
 
     async fn configure_impl(
         &mut self,
         s: &DigitizerSettings,
+        points: u64,
     ) -> Result<DigitizerApplied, DriverError> {
-        let points = self.validate(s)?;
-        let stale = self.scpi.drain_errors().await?;
+        let stale = self.core.scpi.drain_errors().await?;
         for e in stale {
-            tracing::warn!(instrument = %self.scpi.name(), "error queue entry from before this configuration: {e}");
+            tracing::warn!(instrument = %self.core.scpi.name(), "error queue entry from before this configuration: {e}");
         }
         for command in [
             commands::HEADERS_OFF,
@@ -270,73 +153,61 @@ impl KeysightUxr {
             commands::LSB_FIRST,
             commands::STREAMING_OFF,
         ] {
-            self.scpi.send(command).await?;
+            self.core.scpi.send(command).await?;
         }
-        self.scpi.check("the transfer format").await?;
+        self.core.scpi.check("the transfer format").await?;
         for (ch, vdiv, offset) in [
             (I_CHANNEL, s.i_volts_per_div, s.i_offset_v),
             (Q_CHANNEL, s.q_volts_per_div, s.q_offset_v),
         ] {
-            self.scpi.send(&commands::channel_on(ch)).await?;
-            self.scpi.send(&commands::scale(ch, vdiv)).await?;
-            self.scpi.send(&commands::offset(ch, offset)).await?;
+            self.core.scpi.send(&commands::channel_on(ch)).await?;
+            self.core.scpi.send(&commands::scale(ch, vdiv)).await?;
+            self.core.scpi.send(&commands::offset(ch, offset)).await?;
         }
         if s.external_reference {
-            self.scpi.send(commands::EXTERNAL_REFERENCE).await?;
+            self.core.scpi.send(commands::EXTERNAL_REFERENCE).await?;
         }
-        self.scpi.check("the channel settings").await?;
+        self.core.scpi.check("the channel settings").await?;
         // Always set the mode: a scope left in segmented memory would record several triggers
         // where one is expected.
         if s.segments > 1 {
-            self.scpi.send(commands::SEGMENTED).await?;
-            self.scpi.send(&commands::segments(s.segments)).await?;
-            self.scpi.send(commands::ALL_SEGMENTS).await?;
+            self.core.scpi.send(commands::SEGMENTED).await?;
+            self.core.scpi.send(&commands::segments(s.segments)).await?;
+            self.core.scpi.send(commands::ALL_SEGMENTS).await?;
         } else {
-            self.scpi.send(commands::REAL_TIME).await?;
+            self.core.scpi.send(commands::REAL_TIME).await?;
         }
-        self.scpi.check("the acquisition mode").await?;
+        self.core.scpi.check("the acquisition mode").await?;
         if s.segments > 1 {
             let applied = self.ask_number(commands::SEGMENTS_QUERY).await?;
-            if applied != f64::from(s.segments) {
-                return Err(DriverError::NotApplied {
-                    instrument: self.scpi.name().to_string(),
-                    setting: "segments",
-                    wanted: s.segments.to_string(),
-                    applied: applied.to_string(),
-                });
-            }
+            self.core.check_segments(s.segments, applied)?;
         }
-        self.segments = s.segments;
-        let divisions = f64::from(self.limits.horizontal_divisions.max(1));
-        self.scpi
+        let divisions = f64::from(self.core.limits.horizontal_divisions.max(1));
+        self.core
+            .scpi
             .send(&commands::sample_rate(s.sample_rate_hz))
             .await?;
-        self.scpi.send(&commands::points(points)).await?;
-        self.scpi.send(commands::REFERENCE_LEFT).await?;
-        self.scpi
+        self.core.scpi.send(&commands::points(points)).await?;
+        self.core.scpi.send(commands::REFERENCE_LEFT).await?;
+        self.core
+            .scpi
             .send(&commands::hor_scale(s.record_s() / divisions))
             .await?;
-        self.scpi
+        self.core
+            .scpi
             .send(&commands::position(-s.pre_trigger_s))
             .await?;
-        self.scpi.check("the sample rate and record length").await?;
+        self.core
+            .scpi
+            .check("the sample rate and record length")
+            .await?;
         let rate = self.ask_number(commands::SAMPLE_RATE_QUERY).await?;
-        if !close(rate, s.sample_rate_hz, RATE_TOLERANCE) {
-            return Err(DriverError::NotApplied {
-                instrument: self.scpi.name().to_string(),
-                setting: "sample rate (Sa/s)",
-                wanted: s.sample_rate_hz.to_string(),
-                applied: rate.to_string(),
-            });
-        }
+        self.core.check_rate(s.sample_rate_hz, rate)?;
         let applied_points = self.ask_number(commands::POINTS_QUERY).await?;
         if !(applied_points.is_finite() && applied_points >= points as f64) {
-            return Err(DriverError::NotApplied {
-                instrument: self.scpi.name().to_string(),
-                setting: "points per channel",
-                wanted: points.to_string(),
-                applied: applied_points.to_string(),
-            });
+            return Err(self
+                .core
+                .not_applied("points per channel", points, applied_points));
         }
         let applied_points = applied_points as u64;
         let source = self.vendor.trigger_source.clone();
@@ -347,10 +218,9 @@ impl KeysightUxr {
             commands::trigger_slope(s.trigger_slope),
             commands::TRIGGERED_SWEEP.to_string(),
         ] {
-            self.scpi.send(&command).await?;
+            self.core.scpi.send(&command).await?;
         }
-        self.scpi.check("the trigger settings").await?;
-        self.points = applied_points;
+        self.core.scpi.check("the trigger settings").await?;
         let record_s = applied_points as f64 / rate;
         Ok(DigitizerApplied {
             sample_rate_hz: rate,
@@ -365,19 +235,18 @@ impl KeysightUxr {
     }
 
     async fn acquire_impl(&mut self, wait_s: f64) -> Result<(), DriverError> {
-        within(self.scpi.name(), "wait_s", wait_s, 0.0, 1.0e5, "s")?;
         // Reading the register clears it: a done bit afterwards means this acquisition.
-        self.scpi.ask_i64(commands::ACQUISITION_DONE).await?;
-        self.scpi.send(commands::SINGLE).await?;
+        self.core.scpi.ask_i64(commands::ACQUISITION_DONE).await?;
+        self.core.scpi.send(commands::SINGLE).await?;
         let deadline = Instant::now() + Duration::from_secs_f64(wait_s);
         let poll = Duration::from_millis(self.vendor.acquisition_poll_ms);
         loop {
-            let done = self.scpi.ask_i64(commands::ACQUISITION_DONE).await?;
+            let done = self.core.scpi.ask_i64(commands::ACQUISITION_DONE).await?;
             match done {
                 1 => return Ok(()),
                 0 => {}
                 other => {
-                    return Err(self.scpi.reply_error(
+                    return Err(self.core.scpi.reply_error(
                         commands::ACQUISITION_DONE,
                         "0 or 1",
                         &other.to_string(),
@@ -391,9 +260,9 @@ impl KeysightUxr {
             tokio::time::sleep(poll.min(deadline - now)).await;
         }
         // Disarm so a late edge does not complete an acquisition nobody reads.
-        self.scpi.send(commands::STOP).await?;
+        self.core.scpi.send(commands::STOP).await?;
         Err(DriverError::NoTrigger {
-            instrument: self.scpi.name().to_string(),
+            instrument: self.core.scpi.name().to_string(),
             source_name: self.vendor.trigger_source.clone(),
             waited_s: wait_s,
             safe_state: None,
@@ -401,7 +270,7 @@ impl KeysightUxr {
     }
 
     async fn preamble(&mut self) -> Result<Preamble, DriverError> {
-        let text = self.scpi.ask(commands::PREAMBLE).await?;
+        let text = self.core.scpi.ask(commands::PREAMBLE).await?;
         let fields: Vec<&str> = text.trim().split(',').map(str::trim).collect();
         let bad = |scpi: &Scpi| {
             scpi.reply_error(
@@ -412,7 +281,7 @@ impl KeysightUxr {
             )
         };
         if fields.len() < PREAMBLE_MIN_FIELDS || parse_i64(fields[0]) != Some(PREAMBLE_WORD) {
-            return Err(bad(&self.scpi));
+            return Err(bad(&self.core.scpi));
         }
         let number = |k: usize| parse_f64(fields[k]).filter(|v| v.is_finite());
         let (Some(points), Some(xi), Some(xo), Some(yi), Some(yo), Some(yr)) = (
@@ -423,10 +292,10 @@ impl KeysightUxr {
             number(8),
             number(9),
         ) else {
-            return Err(bad(&self.scpi));
+            return Err(bad(&self.core.scpi));
         };
         if !(xi > 0.0 && yi > 0.0) {
-            return Err(bad(&self.scpi));
+            return Err(bad(&self.core.scpi));
         }
         Ok(Preamble {
             points,
@@ -443,7 +312,7 @@ impl KeysightUxr {
         if segments < 2 {
             return Ok(vec![0.0]);
         }
-        let text = self.scpi.ask(commands::TIME_TAGS).await?;
+        let text = self.core.scpi.ask(commands::TIME_TAGS).await?;
         let tags: Option<Vec<f64>> = text
             .trim()
             .split(',')
@@ -451,7 +320,7 @@ impl KeysightUxr {
             .collect();
         match tags {
             Some(t) if t.len() == segments => Ok(t),
-            _ => Err(self.scpi.reply_error(
+            _ => Err(self.core.scpi.reply_error(
                 commands::TIME_TAGS,
                 "one time tag per segment, comma separated",
                 &text,
@@ -460,24 +329,14 @@ impl KeysightUxr {
     }
 
     async fn fetch_impl(&mut self, channel: u8) -> Result<ChannelTrace, DriverError> {
-        if channel == 0 || channel > self.limits.channels {
-            return Err(DriverError::BadSettings {
-                instrument: self.scpi.name().to_string(),
-                field: "channel",
-                reason: format!(
-                    "channel {channel} does not exist; allowed 1 ..= {}",
-                    self.limits.channels
-                ),
-            });
-        }
-        self.scpi.send(&commands::source(channel)).await?;
+        self.core.scpi.send(&commands::source(channel)).await?;
         let pre = self.preamble().await?;
-        let block = self.scpi.query_block(commands::DATA).await?;
+        let block = self.core.scpi.query_block(commands::DATA).await?;
         let bytes = block.payload();
         let words = bytes.len() / 2;
         let per_segment = pre.points.max(1) as usize;
         if bytes.len() % 2 != 0 || words == 0 || words % per_segment != 0 {
-            return Err(self.scpi.reply_error(
+            return Err(self.core.scpi.reply_error(
                 commands::DATA,
                 "a block of 16-bit words, a whole number of segments of the preamble's points",
                 &format!(
@@ -512,71 +371,50 @@ impl KeysightUxr {
         })
     }
 
-    /// Both channels of the last acquisition, each checked to hold the configured segments.
-    async fn fetch_iq(&mut self) -> Result<IqCapture, DriverError> {
-        let i = self.fetch_impl(I_CHANNEL).await?;
-        let q = self.fetch_impl(Q_CHANNEL).await?;
-        for t in [&i, &q] {
-            let short = (t.segment_len() as u64).saturating_add(1) < self.points;
-            if short
-                || t.segment_count() != self.segments as usize
-                || t.codes.len() != i.codes.len()
-            {
-                return Err(DriverError::NotApplied {
-                    instrument: self.scpi.name().to_string(),
-                    setting: "segments of the record (channels 1 and 2)",
-                    wanted: format!("{} of {} points", self.segments, self.points),
-                    applied: format!(
-                        "channel {}: {} segments, {} points",
-                        t.channel,
-                        t.segment_count(),
-                        t.codes.len()
-                    ),
-                });
-            }
-        }
-        Ok(IqCapture { i, q })
-    }
-
     async fn reference_clock_impl(&mut self) -> Result<String, DriverError> {
-        let text = self.scpi.ask(commands::REFERENCE_QUERY).await?;
-        let on = self.scpi.bool_in(commands::REFERENCE_QUERY, text.trim())?;
+        let text = self.core.scpi.ask(commands::REFERENCE_QUERY).await?;
+        let on = self
+            .core
+            .scpi
+            .bool_in(commands::REFERENCE_QUERY, text.trim())?;
         Ok(if on { "EXTERNAL" } else { "INTERNAL" }.to_string())
     }
 }
 
-impl Digitizer for KeysightUxr {
-    fn identity(&self) -> &Identity {
-        &self.identity
+/// The Infiniium's own commands around the shared scope core.
+impl ScopeFamily for KeysightUxr {
+    const CHANNEL: &'static str = "channel ";
+    const STOP: &'static str = commands::STOP;
+
+    fn core(&self) -> &ScopeCore {
+        &self.core
     }
 
-    fn configure<'a>(
+    fn core_mut(&mut self) -> &mut ScopeCore {
+        &mut self.core
+    }
+
+    fn trigger_source(&self) -> &str {
+        &self.vendor.trigger_source
+    }
+
+    fn send_settings<'a>(
         &'a mut self,
         settings: &'a DigitizerSettings,
+        points: u64,
     ) -> BoxFuture<'a, Result<DigitizerApplied, DriverError>> {
-        Box::pin(self.configure_impl(settings))
+        Box::pin(self.configure_impl(settings, points))
     }
 
-    fn acquire(&mut self, wait_s: f64) -> BoxFuture<'_, Result<(), DriverError>> {
+    fn arm_and_wait(&mut self, wait_s: f64) -> BoxFuture<'_, Result<(), DriverError>> {
         Box::pin(self.acquire_impl(wait_s))
     }
 
-    fn fetch(&mut self, channel: u8) -> BoxFuture<'_, Result<ChannelTrace, DriverError>> {
+    fn read_channel(&mut self, channel: u8) -> BoxFuture<'_, Result<ChannelTrace, DriverError>> {
         Box::pin(self.fetch_impl(channel))
     }
 
-    fn capture_iq(&mut self, wait_s: f64) -> BoxFuture<'_, Result<IqCapture, DriverError>> {
-        Box::pin(async move {
-            self.acquire_impl(wait_s).await?;
-            self.fetch_iq().await
-        })
-    }
-
-    fn stop(&mut self) -> BoxFuture<'_, Result<(), DriverError>> {
-        Box::pin(async move { self.scpi.send(commands::STOP).await })
-    }
-
-    fn reference_clock(&mut self) -> BoxFuture<'_, Result<String, DriverError>> {
+    fn read_reference(&mut self) -> BoxFuture<'_, Result<String, DriverError>> {
         Box::pin(self.reference_clock_impl())
     }
 }
