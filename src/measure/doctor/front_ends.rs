@@ -32,25 +32,31 @@ pub(super) fn check_links(
         let (name, resource, model) = (front.name, &front.written, &front.model);
         let catalog_mode = open::rf_line_mode(model).unwrap_or("its line protocol");
         let crc = format!("{name}.crc_mode");
+        // A module that answers (in the catalog's mode, or else in the other) is identified
+        // either way.
+        let identified = |list: &mut List, g: &dyn RfFrontEnd| {
+            list.pass(
+                format!("{name}.identity"),
+                format!(
+                    "`{}` matches the catalog's {}",
+                    g.identity(),
+                    model.instrument.model
+                ),
+            );
+        };
+        let reachable = format!("{name}.reachable");
         match (opened, other) {
             (Ok(g), _) => {
-                list.pass(format!("{name}.reachable"), format!("{resource} answers"));
+                list.pass(reachable, format!("{resource} answers"));
                 list.pass(
                     crc,
                     format!("the module speaks {catalog_mode}, as the catalog says"),
                 );
-                list.pass(
-                    format!("{name}.identity"),
-                    format!(
-                        "`{}` matches the catalog's {}",
-                        g.identity(),
-                        model.instrument.model
-                    ),
-                );
+                identified(list, g.as_ref());
                 modules.push((name, g));
             }
             (Err(e), Some(g)) => {
-                list.pass(format!("{name}.reachable"), format!("{resource} answers"));
+                list.pass(reachable, format!("{resource} answers"));
                 list.fail(
                     crc,
                     format!(
@@ -64,14 +70,7 @@ pub(super) fn check_links(
                         model.instrument.key
                     ),
                 );
-                list.pass(
-                    format!("{name}.identity"),
-                    format!(
-                        "`{}` matches the catalog's {}",
-                        g.identity(),
-                        model.instrument.model
-                    ),
-                );
+                identified(list, g.as_ref());
                 modules.push((name, g));
             }
             (Err(e), None) => {
