@@ -12,7 +12,9 @@ use super::results::{self, AlgorithmOutput, StepResult};
 use super::run::STEP_RESULT;
 use super::spec::OutputSection;
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
+use crate::measure::ranging::Previous;
 use crate::measure::record::{self, Provenance};
+use crate::measure::Detection;
 use crate::measure::MeasureError;
 use crate::storage::{write_atomic, write_group, GroupWritten};
 use serde_json::json;
@@ -36,10 +38,17 @@ pub(super) struct WorkerOutcome {
 pub(super) struct WorkerSide {
     pipelines: HashMap<PipelineKey, LentPipeline>,
     pub(super) store: ManifestStore,
+    /// Per pipeline, the last step it processed: where its targets were set, and each one's
+    /// phase range and uncertainty where it had one (`--ranging phase` unwraps the next step's
+    /// against it). Empty after a resume: the first step resumed unwraps by its envelope.
+    last_step: HashMap<PipelineKey, Vec<SetAndRanged>>,
 }
 
 /// As [`PreparedKey`].
 type PipelineKey = PreparedKey;
+
+/// Where a step set a target, m, and its phase range and uncertainty (m) when it had one.
+type SetAndRanged = (f64, Option<(f64, f64)>);
 
 impl WorkerSide {
     /// Takes every pipeline out of `prepared`.
@@ -108,13 +117,26 @@ impl StepJob {
         let mut side = side.lock().unwrap_or_else(|p| p.into_inner());
         let t = Instant::now();
         let w = self.step.waveform;
+        let set: Vec<f64> = self
+            .step
+            .nominal
+            .targets
+            .iter()
+            .map(|t| t.range_m)
+            .collect();
         let processed: Result<Vec<Processing>, MeasureError> = (0..self.names.len())
             .map(|a| {
                 let key = side.key(w, self.step.processing, a, self.step.music_p);
+                let last = side.last_step.get(&key).cloned();
                 let pipeline = side.pipelines.get_mut(&key).ok_or_else(|| {
                     MeasureError::Worker("an earlier step lost the pipeline".into())
                 })?;
-                pipeline.process(&taken.captured)
+                let from_calibration = pipeline.calibration_as_previous(&set);
+                pipeline.set_previous_step(previous_step(last.as_ref(), &set, from_calibration));
+                let processing = pipeline.process(&taken.captured)?;
+                side.last_step
+                    .insert(key, phase_ranges(&processing.processed.targets, &set));
+                Ok(processing)
             })
             .collect();
         let processing_s = t.elapsed().as_secs_f64();
@@ -233,6 +255,48 @@ impl StepJob {
         };
         Ok((result, written))
     }
+}
+
+/// What the step before tells of the step whose targets are set at `set`, per target: `last`
+/// (the pipeline's previous step: where each target was set, its phase range) where it
+/// phase-ranged the target, with the move commanded since; else the calibration's record
+/// (`from_calibration`, one per target, or none).
+fn previous_step(
+    last: Option<&Vec<SetAndRanged>>,
+    set: &[f64],
+    from_calibration: Vec<Previous>,
+) -> Vec<Previous> {
+    let last = last.filter(|l| l.len() == set.len());
+    set.iter()
+        .enumerate()
+        .filter_map(|(i, now)| {
+            let step = last
+                .and_then(|l| {
+                    let (then, ranged) = l[i];
+                    ranged.map(|(range_m, std_m)| (range_m, std_m, then))
+                })
+                .map(|(range_m, std_m, then)| Previous {
+                    range_m,
+                    std_m,
+                    moved_m: now - then,
+                });
+            step.or_else(|| from_calibration.get(i).copied())
+        })
+        .collect()
+}
+
+/// Each target set at `set`: where it was set, and the phase range (and its uncertainty) of the
+/// detection nearest it, when that one was phase-ranged and is within half a centimetre.
+fn phase_ranges(targets: &[Detection], set: &[f64]) -> Vec<SetAndRanged> {
+    set.iter()
+        .map(|&at| {
+            let nearest = targets
+                .iter()
+                .min_by(|a, b| (a.range_m - at).abs().total_cmp(&(b.range_m - at).abs()))
+                .filter(|t| t.ranging.is_some() && (t.range_m - at).abs() <= 0.005);
+            (at, nearest.and_then(|t| Some((t.range_m, t.range_std_m?))))
+        })
+        .collect()
 }
 
 /// Writes a step's files: the raw capture and the primary algorithm's profiles in the step's

@@ -616,6 +616,16 @@ pub(crate) struct LentPipeline {
 }
 
 impl LentPipeline {
+    /// A campaign's previous step for the captures processed next (`ranging::Previous`).
+    pub(crate) fn set_previous_step(&mut self, previous: Vec<super::ranging::Previous>) {
+        self.pipeline.set_previous_step(previous);
+    }
+
+    /// The calibration's record as the step before a campaign's first (`ranging::Previous`).
+    pub(crate) fn calibration_as_previous(&self, set: &[f64]) -> Vec<super::ranging::Previous> {
+        self.pipeline.calibration_as_previous(set)
+    }
+
     /// Processes `captured` (see [`process_with`]) on the calling thread.
     pub(crate) fn process(&mut self, captured: &Captured) -> Result<Processing, MeasureError> {
         let raws = captured_raws(captured);

@@ -54,6 +54,11 @@ pub struct Detection {
     /// Radial velocity (range rate, positive = receding), m/s: OFDM frames of several symbols.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub velocity_mps: Option<f64>,
+    /// How a `--ranging phase` range was unwrapped: `phase` (by its envelope), `phase-previous`
+    /// (by a campaign's previous step); absent for an envelope range (every range in envelope
+    /// mode, and a target that kept its envelope range, with a warning saying why).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ranging: Option<&'static str>,
     /// Fractional profile cell of the target (for the payload receiver and plots).
     #[serde(skip)]
     pub cell: Option<f64>,
@@ -162,6 +167,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
     Detection {
         range_m: if interpolate { t.range_m } else { on_grid },
         range_std_m: None,
+        ranging: None,
         level_db: t.level_db,
         above_threshold_db: Some(t.above_threshold_db),
         on_grid_m: Some(on_grid),
@@ -196,6 +202,7 @@ pub(crate) fn detect(
                 .map(|&range_m| Detection {
                     range_m,
                     range_std_m: None,
+                    ranging: None,
                     level_db: level_at(levels, range_m),
                     above_threshold_db: None,
                     on_grid_m: None,

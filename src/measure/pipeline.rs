@@ -1037,6 +1037,18 @@ impl Pipeline {
         self.level_scale
     }
 
+    /// A campaign's previous step for the records processed next (empty: none), for
+    /// `--ranging phase`'s unwrapping (`ranging::Previous`).
+    pub(crate) fn set_previous_step(&mut self, previous: Vec<super::ranging::Previous>) {
+        self.ranging.set_previous(previous);
+    }
+
+    /// The calibration's record as the step before a campaign's first, for targets set at `set`
+    /// (`ranging::RangingModel::calibration_as_previous`).
+    pub(crate) fn calibration_as_previous(&self, set: &[f64]) -> Vec<super::ranging::Previous> {
+        self.ranging.calibration_as_previous(set)
+    }
+
     /// Sets the AWG amplitude the levels refer to (what the AWG reported applying).
     pub(crate) fn set_awg_amplitude(&mut self, vpp: f64) -> Result<(), MeasureError> {
         let mut options = self.options.clone();

@@ -31,6 +31,24 @@ pub(crate) const TYPICAL_TRIGGER_JITTER_S: f64 = 1e-12;
 /// trigger's jitter and the chain's drift (1 ps is 0.15 mm).
 const LEAKAGE_SEARCH_M: f64 = 0.02;
 
+/// A campaign's previous step, for a target it moved (`--ranging phase`): that step's phase
+/// range and its uncertainty, m, and the move commanded since, m. Under lambda / 4 the phase
+/// unwraps against it rather than the envelope (docs/metrology.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Previous {
+    pub(crate) range_m: f64,
+    pub(crate) std_m: f64,
+    pub(crate) moved_m: f64,
+}
+
+/// A target is the one a [`Previous`] expects within this of where it expects it, m (the
+/// envelope's jitter is a few hundred micrometres; a campaign's targets stand centimetres apart).
+const PREVIOUS_MATCH_M: f64 = 0.005;
+
+/// How a phase range was unwrapped ([`Detection::ranging`]).
+const BY_ENVELOPE: &str = "phase";
+const BY_PREVIOUS: &str = "phase-previous";
+
 /// What a pipeline needs to give its targets an uncertainty and, in phase mode, their phase
 /// ranges; made once per pipeline.
 #[derive(Debug, Clone)]
@@ -44,6 +62,9 @@ pub(crate) struct RangingModel {
     anchor: Option<PhaseAnchor>,
     /// The envelope's calibration uncertainty, m (the delay or response calibration's own).
     calibration_std_m: f64,
+    /// A campaign's previous step (its moved targets), for the records of the step it is set
+    /// for ([`Self::set_previous`], every step).
+    previous: Vec<Previous>,
 }
 
 /// One echo as the ranging takes it: fitted range (m), complex amplitude, SNR per cell.
@@ -164,7 +185,35 @@ impl RangingModel {
             jitter_m,
             anchor: options.correction.as_ref().and(anchor),
             calibration_std_m,
+            previous: Vec::new(),
         }
+    }
+
+    /// The calibration's record as the step before a campaign's first (its pillar stood at the
+    /// reference range; the stage has moved to `set` since): one [`Previous`] per target set,
+    /// in phase mode with a calibration anchor; none otherwise.
+    pub(crate) fn calibration_as_previous(&self, set: &[f64]) -> Vec<Previous> {
+        let (Ranging::Phase, Some(a)) = (self.mode, self.anchor) else {
+            return Vec::new();
+        };
+        let std_m = a.phase_std_rad * metres_per_radian(self.carrier_hz);
+        set.iter()
+            .map(|&at| Previous {
+                range_m: a.range_m,
+                std_m,
+                moved_m: at - a.range_m,
+            })
+            .collect()
+    }
+
+    /// The next record's previous step ([`Previous`]); a move of lambda / 4 or more is not
+    /// taken (its cycle is not known from the step alone).
+    pub(crate) fn set_previous(&mut self, previous: Vec<Previous>) {
+        let quarter = 2.0 * unwrap_limit_m(self.carrier_hz);
+        self.previous = previous
+            .into_iter()
+            .filter(|p| p.moved_m.abs() < quarter && p.std_m.is_finite())
+            .collect();
     }
 
     /// The envelope's standard uncertainty from the SNR alone, m.
@@ -179,6 +228,7 @@ impl RangingModel {
         report: &mut DetectionReport,
         noise_per_cell: Option<f64>,
     ) -> Vec<String> {
+        let previous = &self.previous;
         let mut warnings = Vec::new();
         let reference = match self.mode {
             Ranging::Envelope => None,
@@ -209,10 +259,21 @@ impl RangingModel {
             t.range_std_m = Some(envelope_std);
             if let Some((anchor, leak)) = &reference {
                 let fixed = self.fixed_echo(anchor, &fixed_echoes, &echo);
-                match self.phase_range(anchor, leak, &echo, snr_std, fixed) {
-                    Ok((range_m, std_m)) => {
+                let expected = previous
+                    .iter()
+                    .map(|p| (p.range_m + p.moved_m, p.std_m))
+                    .filter(|(r, _)| (r - echo.range_m).abs() <= PREVIOUS_MATCH_M)
+                    .min_by(|a, b| {
+                        (a.0 - echo.range_m)
+                            .abs()
+                            .total_cmp(&(b.0 - echo.range_m).abs())
+                    });
+                match self.phase_range(anchor, leak, &echo, snr_std, fixed, expected) {
+                    Ok((range_m, std_m, by, note)) => {
                         t.range_m = range_m;
                         t.range_std_m = Some(std_m);
+                        t.ranging = Some(by);
+                        warnings.extend(note);
                     }
                     Err(why) => warnings.push(format!(
                         "--ranging phase: the target at {:.6} m keeps its envelope range: {why}",
@@ -270,7 +331,9 @@ impl RangingModel {
     }
 
     /// A target's range from its carrier phase against the anchor's, both relative to their
-    /// record's leakage, and its standard uncertainty; or why not.
+    /// record's leakage, its standard uncertainty and how its cycle was chosen (with a note
+    /// when a previous step's `expected` range, m, and its uncertainty were not taken); or why
+    /// not.
     fn phase_range(
         &self,
         anchor: &PhaseAnchor,
@@ -278,7 +341,8 @@ impl RangingModel {
         echo: &Echo,
         snr_std_m: f64,
         fixed: Option<(f64, f64, f64)>,
-    ) -> Result<(f64, f64), String> {
+        expected: Option<(f64, f64)>,
+    ) -> Result<(f64, f64, &'static str, Option<String>), String> {
         let leak_std = self.snr_std_m(leak.snr).unwrap_or(f64::INFINITY);
         // The envelope that unwraps the phase: the target against the anchor, less the common
         // move of the record (the trigger's jitter, capture's and calibration's, and the chain's
@@ -316,6 +380,27 @@ impl RangingModel {
         let rough =
             anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * common_move;
         let rough_std = (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var).sqrt();
+        // The previous step's range plus the commanded move tells the cycle better than the
+        // envelope, where the envelope agrees with it (a stage that moved otherwise than
+        // commanded, or a wrong cycle at the previous step, shows as a disagreement).
+        let (rough, rough_std, by, note) = match expected {
+            Some((at, std)) if std < rough_std => {
+                let apart = at - rough;
+                if apart.abs() <= 3.0 * (rough_std.powi(2) + std.powi(2)).sqrt() {
+                    (at, std, BY_PREVIOUS, None)
+                } else {
+                    let note = format!(
+                        "--ranging phase: the target at {:.6} m is {:.3} mm from where the \
+                         previous step and the commanded move put it, more than its envelope \
+                         explains: unwrapped by its envelope (did the stage move as commanded?)",
+                        echo.range_m,
+                        apart * 1e3
+                    );
+                    (rough, rough_std, BY_ENVELOPE, Some(note))
+                }
+            }
+            _ => (rough, rough_std, BY_ENVELOPE, None),
+        };
         let phase = wrap((echo.amplitude / leak.amplitude).arg() - anchor.phase_to_leakage_rad);
         let range_m = unwrap_range(anchor.range_m, phase, rough, rough_std, self.carrier_hz)
             .ok_or_else(|| {
@@ -337,7 +422,7 @@ impl RangingModel {
             + (centroid * snr_std_m).powi(2)
             + (centroid * leak_std).powi(2))
         .sqrt();
-        Ok((range_m, std))
+        Ok((range_m, std, by, note))
     }
 
     /// The anchor of a calibration's corrected reference record: the reference (the strongest

@@ -149,6 +149,7 @@ mod tests {
         Detection {
             range_m,
             range_std_m: None,
+            ranging: None,
             level_db,
             above_threshold_db: Some(10.0),
             on_grid_m: None,
