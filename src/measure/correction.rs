@@ -127,3 +127,34 @@ pub(crate) fn load_recorded<'a>(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const RECORD: &str = "mode = \"tx\"\ncalibration = \"/cal/response.toml\"\nsha256 = \"ab\"\n\
+                          measured_at = \"2026-12-07T06:35:43.455Z\"\n";
+
+    #[test]
+    fn a_record_reads_back_writes_and_prints_as_before_and_is_not_loaded() {
+        let used: CorrectionUsed = toml::from_str(RECORD).unwrap();
+        assert_eq!(toml::to_string(&used).unwrap(), RECORD);
+        assert_eq!(
+            format!("{used:?}"),
+            "CorrectionUsed { mode: Tx, calibration: \"/cal/response.toml\", sha256: \"ab\", \
+             measured_at: \"2026-12-07T06:35:43.455Z\" }"
+        );
+        let err = used.loaded().unwrap_err().to_string();
+        assert!(err.contains("not loaded"), "{err}");
+    }
+
+    #[test]
+    fn a_recorded_calibration_is_read_where_it_is_loaded_and_none_is_left_alone() {
+        let gone = RECORD.replace("/cal/", "/no-such-radbench-folder/");
+        let mut used: CorrectionUsed = toml::from_str(&gone).unwrap();
+        let err = load_recorded([&mut used]).unwrap_err().to_string();
+        assert!(err.contains("cannot read it"), "{err}");
+        used.mode = CorrectionMode::None;
+        load_recorded([&mut used]).unwrap();
+    }
+}
