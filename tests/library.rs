@@ -1,7 +1,7 @@
 //! The library in process, no instrument and no process: signal processing, the measurement
 //! pipeline and the thesis' simulations (`tests/dsp/`), the waveforms (`tests/waveform/`), the
 //! instrument catalog (`tests/catalog/`) and the house rules over the sources: layer map,
-//! public-API audit, import circles (`tests/house/`).
+//! public-API audit, import circles, processing reading no file (`tests/house/`).
 //!
 //! One test binary for all of them (each binary costs a link): each file below was its own
 //! binary once. Module names are the file names, so test names do not depend on the folders.
@@ -29,6 +29,8 @@ mod layers;
 mod pipeline_one;
 #[path = "house/public_api.rs"]
 mod public_api;
+#[path = "house/reads_no_file.rs"]
+mod reads_no_file;
 #[path = "dsp/simulate_figures.rs"]
 mod simulate_figures;
 #[path = "waveform/waveform_ber.rs"]

@@ -109,7 +109,8 @@ pub(super) fn copy_calibration(
 /// The run's response calibration must be the one it started with (the same SHA-256, its table
 /// intact); a changed, unusable or missing one refuses the resume unless `force`, which is then
 /// recorded in `forced`. The processing keeps the run's own calibration either way: forced, it
-/// goes on with the copy in the run folder.
+/// goes on with the copy in the run folder. Either is loaded here, once, into the plan's
+/// processing (a plan read back names its calibration only).
 pub(super) fn check_calibration(
     dir: &Path,
     manifest: &Manifest,
@@ -117,12 +118,18 @@ pub(super) fn check_calibration(
     force: bool,
     forced: &mut Vec<String>,
 ) -> Result<(), CampaignError> {
-    use crate::measure::Calibration;
+    use crate::measure::{load_recorded, Calibration};
     let Some(rec) = &manifest.calibration else {
-        return Ok(());
+        return Ok(load_recorded(corrections(plan))?);
     };
     let what = match Calibration::load(&rec.path) {
-        Ok(cal) if cal.sha256 == rec.sha256 => return Ok(()),
+        Ok(cal) if cal.sha256 == rec.sha256 => {
+            let cal = std::sync::Arc::new(cal);
+            for used in corrections(plan) {
+                used.load_from(&cal)?;
+            }
+            return Ok(());
+        }
         Ok(cal) => format!(
             "the response calibration {} changed since the run started (SHA-256 {}, the run \
              was measured with {}, measured {})",
@@ -153,13 +160,19 @@ pub(super) fn check_calibration(
     ));
     let copy = dir.join(&rec.copy);
     let copy = std::path::absolute(&copy).unwrap_or(copy);
-    let variants = plan.processing_variants.iter_mut().flatten();
-    for o in plan.processing.iter_mut().chain(variants) {
-        if let Some(c) = &mut o.correction {
-            c.calibration = copy.display().to_string();
-        }
+    for used in corrections(plan) {
+        used.calibration = copy.display().to_string();
     }
-    Ok(())
+    Ok(load_recorded(corrections(plan))?)
+}
+
+/// The corrections of every algorithm of every processing variant of `plan`.
+fn corrections(plan: &mut Plan) -> impl Iterator<Item = &mut crate::measure::CorrectionUsed> {
+    let variants = plan.processing_variants.iter_mut().flatten();
+    plan.processing
+        .iter_mut()
+        .chain(variants)
+        .filter_map(|o| o.correction.as_mut())
 }
 
 /// The run's copy of its spec must be the one it started with.

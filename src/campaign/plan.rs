@@ -990,7 +990,7 @@ fn processing(
 fn correction(
     spec: &SpecFile,
     bench: &BenchInfo,
-) -> Result<Option<(CorrectionMode, crate::measure::Calibration)>, SpecError> {
+) -> Result<Option<(CorrectionMode, std::sync::Arc<crate::measure::Calibration>)>, SpecError> {
     let p = &spec.spec.processing;
     let mode = p.correction.unwrap_or(CorrectionMode::Rx);
     let given = p.calibration.as_ref().map(|c| spec.resolve(c));
@@ -1023,7 +1023,7 @@ fn correction(
         (None, None, None) => return Ok(None),
     };
     crate::measure::Calibration::load(&path)
-        .map(|c| Some((mode, c)))
+        .map(|c| Some((mode, std::sync::Arc::new(c))))
         .map_err(|e| {
             let from = if field == "processing.correction" {
                 " (named by the bench file's [calibration] response; correction = \"none\" \

@@ -102,7 +102,7 @@ async fn measure_into(
             permit,
             &interrupt,
             &out,
-            calibration.as_ref(),
+            calibration.as_deref(),
         )
         .await;
     };
@@ -115,7 +115,7 @@ async fn measure_into(
         &interrupt,
         permit,
         &out,
-        calibration.as_ref(),
+        calibration.as_deref(),
     )
     .await
 }

@@ -10,6 +10,7 @@ use crate::measure::{Bench, Calibration, CorrectionMode, Identities, ProcessingC
 use crate::waveform::WaveformKind;
 use clap::Parser;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The options of `radbench capture` that are neither processing choices nor the session's
 /// (`waveform`, `repetitions`, `out` are arguments of their own).
@@ -101,12 +102,13 @@ impl CaptureOptions {
     }
 }
 
-/// The correction a capture uses: `--correction`, `--calibration`, then the bench file's.
+/// The correction a capture uses: `--correction`, `--calibration`, then the bench file's; loaded
+/// and checked here, once, for everything the capture does with it.
 pub fn resolve_correction(
     correction: Option<CorrectionMode>,
     calibration: Option<&Path>,
     bench: &Bench,
-) -> anyhow::Result<Option<Calibration>> {
+) -> anyhow::Result<Option<Arc<Calibration>>> {
     let named = calibration.map(Path::to_path_buf).or_else(|| {
         bench
             .path
@@ -115,7 +117,7 @@ pub fn resolve_correction(
     });
     match (correction, named) {
         (Some(CorrectionMode::None), _) => Ok(None),
-        (_, Some(path)) => Ok(Some(Calibration::load(&path)?)),
+        (_, Some(path)) => Ok(Some(Arc::new(Calibration::load(&path)?))),
         (Some(mode), None) => Err(bad_input(format!(
             "--correction {} needs a response calibration: the bench file names none; run \
              `radbench calibrate response --reference-range R --bench FILE --allow-rf` or pass \

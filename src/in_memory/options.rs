@@ -191,7 +191,7 @@ impl ProcessArgs {
             cal.header.reference.sidelobe_db_after.unwrap_or(f64::NAN),
             cal.path.display()
         );
-        Ok(Some(cal.used()))
+        Ok(Some(std::sync::Arc::new(cal).used()))
     }
 
     /// The correction asked for (`None` keeps what each capture recorded), and the mode each
@@ -216,7 +216,8 @@ impl ProcessArgs {
             (Some(CorrectionMode::None), None) => (Some(None), None),
             (mode, Some(path)) => (
                 Some(Some(
-                    Calibration::load(path)?.used_as(mode.unwrap_or(CorrectionMode::Rx)),
+                    std::sync::Arc::new(Calibration::load(path)?)
+                        .used_as(mode.unwrap_or(CorrectionMode::Rx)),
                 )),
                 None,
             ),

@@ -12,11 +12,12 @@
 //! Doc comments on the fields are `--help` text, not rustdoc: brackets in them are literal.
 #![allow(rustdoc::broken_intra_doc_links)]
 
+use super::correction::CorrectionUsed;
 use super::listed::listed;
 use super::options::{
     Algorithm, DetectorName, FftPrecisionName, ProcessOptions, Ranging, WindowName,
 };
-use super::response::{CorrectionMode, CorrectionUsed};
+use super::response::CorrectionMode;
 use crate::waveform::WaveformKind;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

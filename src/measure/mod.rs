@@ -26,6 +26,7 @@
 //! | `figure` | what a measurement's plot and profile table show |
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
 //! | `calibration` | the system delay from a reference target |
+//! | `correction` | the correction a measurement uses: its record, and the calibration loaded once where a command resolves its options (processing reads no file) |
 //! | `interrupt` | SIGINT, SIGTERM and SIGHUP as a measurement's stop request |
 //! | `error` | why a measurement failed, what to do about it and its exit code |
 //! | `blocking` | heavy synchronous work (DSP, file writing) run off the async runtime's workers |
@@ -40,6 +41,7 @@ pub(crate) mod calibration;
 pub(crate) mod capture;
 pub(crate) mod choices;
 pub(crate) mod clipping;
+pub(crate) mod correction;
 pub(crate) mod detect;
 pub mod doctor;
 mod error;
@@ -84,6 +86,8 @@ pub use capture::{
     check_repetitions, prepare, process_with, take, BackgroundFile, CaptureRequest, Generation,
     Measurement, Prepared, Processing, Rig, Taken,
 };
+pub(crate) use correction::load_recorded;
+pub use correction::CorrectionUsed;
 pub use export::{export_capture, CaptureExport, Entry};
 pub use figure::profile_figure;
 pub use interrupt::{Interrupt, StopSignal};
@@ -101,8 +105,8 @@ pub use reprocess::{
     discover, sigmf, InputError, Loaded, Record, Reprocessed, Resolved, Source, WaveformChoice,
 };
 pub use response::{
-    Calibration, CorrectionMode, CorrectionUsed, EchoSeen, InstrumentsSeen, PhaseAnchor,
-    ReferenceFigures, Response, ResponseFigures, ResponseHeader,
+    Calibration, CorrectionMode, EchoSeen, InstrumentsSeen, PhaseAnchor, ReferenceFigures,
+    Response, ResponseFigures, ResponseHeader,
 };
 pub use response_keep::{check_gate_ns, check_response_out, gate_or_default_s};
 pub use response_keep::{response_path, response_report, store_response};

@@ -236,7 +236,7 @@ pub struct ProcessOptions {
     /// are relative to the transmitted waveform itself.
     pub awg_amplitude_vpp: Option<f64>,
     /// The receive correction applied, and the calibration it came from (`None`: uncorrected).
-    pub correction: Option<super::response::CorrectionUsed>,
+    pub correction: Option<super::correction::CorrectionUsed>,
     /// How each target's range is measured (`envelope` is not written).
     #[serde(skip_serializing_if = "Ranging::is_envelope")]
     pub ranging: Ranging,

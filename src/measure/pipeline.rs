@@ -845,10 +845,10 @@ pub(crate) fn validate(tx: &Transmission, options: &ProcessOptions) -> Result<()
     Ok(())
 }
 
-/// The equaliser of a recorded correction: the calibration read again and checked to be the one
-/// recorded (its SHA-256).
+/// The equaliser of a correction, from the calibration its command loaded and checked (the
+/// pipeline reads no file).
 fn equaliser_for(
-    used: &super::response::CorrectionUsed,
+    used: &super::correction::CorrectionUsed,
     period: usize,
     fs: f64,
 ) -> Result<(Option<RxEqualiser>, CorrectionCheck), MeasureError> {
@@ -860,7 +860,7 @@ fn equaliser_for(
             "rx, tx or both with a calibration (none names none)",
         ));
     }
-    let cal = super::response::Calibration::load_used(used)?;
+    let cal = used.loaded()?;
     let check = CorrectionCheck {
         path: used.calibration.clone(),
         band_hz: cal.header.band_hz,

@@ -857,6 +857,9 @@ pub(crate) fn resolve<R>(
         used.mode = mode;
     }
     check_predistorted(loaded.recorded_options().as_ref(), &options)?;
+    // The calibration the capture recorded is read here, once, and checked to be the one it
+    // used; the transmission and the pipeline take it from the options.
+    super::correction::load_recorded(options.correction.as_mut())?;
     // `with_correction` changes only a transmission pre-distorted for the chain (tx, both).
     let tx = if predistorts(&options) {
         Arc::new(Arc::unwrap_or_clone(tx).with_correction(&options)?)

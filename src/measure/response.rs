@@ -67,7 +67,7 @@ const GATE_MARGIN_S: f64 = 1e-9;
 const SHORTEST_CLOSED_GATE_S: f64 = 3e-9;
 
 /// Which of the chain's measured errors a measurement corrects (`--correction`, a campaign's
-/// `processing.correction`; recorded as [`CorrectionUsed::mode`]).
+/// `processing.correction`; recorded as `CorrectionUsed::mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[derive(strum::VariantArray, strum::IntoStaticStr, strum::EnumMessage)]
@@ -91,21 +91,6 @@ impl CorrectionMode {
 }
 
 named_enum!(CorrectionMode, "correction");
-
-/// Which correction a measurement used, as recorded in its processing options.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CorrectionUsed {
-    /// `rx`: DC, I/Q imbalance and the chain's response corrected on receive; `tx`, `both`
-    /// (files keep the text).
-    pub mode: CorrectionMode,
-    /// The calibration header's path (absolute when it could be resolved).
-    pub calibration: String,
-    /// SHA-256 of the header (which holds its table's SHA-256).
-    pub sha256: String,
-    /// When the calibration was measured.
-    pub measured_at: String,
-}
 
 /// The instruments a calibration was measured with (`*IDN?`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -441,41 +426,6 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// What a measurement records when it uses this calibration.
-    pub fn used(&self) -> CorrectionUsed {
-        CorrectionUsed {
-            mode: CorrectionMode::Rx,
-            calibration: self.path.display().to_string(),
-            sha256: self.sha256.clone(),
-            measured_at: self.header.measured_at.clone(),
-        }
-    }
-
-    /// What a measurement records when it uses this calibration with `mode` (rx, tx or both).
-    pub fn used_as(&self, mode: CorrectionMode) -> CorrectionUsed {
-        CorrectionUsed {
-            mode,
-            ..self.used()
-        }
-    }
-
-    /// The calibration a measurement recorded, read again and checked to be the same (its
-    /// SHA-256).
-    pub(crate) fn load_used(used: &CorrectionUsed) -> Result<Calibration, MeasureError> {
-        let cal = Calibration::load(Path::new(&used.calibration))?;
-        if cal.sha256 != used.sha256 {
-            return Err(MeasureError::CalibrationFile {
-                path: used.calibration.clone(),
-                reason: format!(
-                    "it has changed since it was used (SHA-256 {}, recorded {}): pass \
-                     --calibration to use it as it is now",
-                    cal.sha256, used.sha256
-                ),
-            });
-        }
-        Ok(cal)
-    }
-
     /// Reads the header at `path` and its table, checking the table's SHA-256.
     pub fn load(path: &Path) -> Result<Calibration, MeasureError> {
         let bad = |reason: String| MeasureError::CalibrationFile {

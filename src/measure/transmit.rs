@@ -144,16 +144,17 @@ impl Transmission {
     }
 
     /// This transmission as `options.correction` wants it: pre-distorted for the chain's
-    /// response with `tx` and `both`, unchanged otherwise.
+    /// response with `tx` and `both` (by the calibration the options carry: no file is read),
+    /// unchanged otherwise.
     pub(crate) fn with_correction(
         self,
         options: &super::options::ProcessOptions,
     ) -> Result<Transmission, MeasureError> {
         match &options.correction {
-            Some(used) if used.mode.predistorts() => {
-                let cal = super::response::Calibration::load_used(used)?;
-                self.predistorted(&cal, used.mode == super::response::CorrectionMode::Both)
-            }
+            Some(used) if used.mode.predistorts() => self.predistorted(
+                used.loaded()?,
+                used.mode == super::response::CorrectionMode::Both,
+            ),
             _ => Ok(self),
         }
     }

@@ -23,7 +23,7 @@ fn module_of(src: &Path, file: &Path) -> Module {
 }
 
 /// The code of a file without comments and without its unit tests.
-fn code(text: &str) -> String {
+pub(crate) fn code(text: &str) -> String {
     let text = text
         .find("#[cfg(test)]\nmod tests")
         .map_or(text, |i| &text[..i]);
