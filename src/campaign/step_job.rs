@@ -12,7 +12,7 @@ use super::results::{self, AlgorithmOutput, StepResult};
 use super::run::STEP_RESULT;
 use super::spec::OutputSection;
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
-use crate::measure::ranging::Previous;
+use crate::measure::ranging::{PhaseRanged, Previous};
 use crate::measure::record::{self, Provenance};
 use crate::measure::Detection;
 use crate::measure::MeasureError;
@@ -47,8 +47,8 @@ pub(super) struct WorkerSide {
 /// As [`PreparedKey`].
 type PipelineKey = PreparedKey;
 
-/// Where a step set a target, m, and its phase range and uncertainty (m) when it had one.
-type SetAndRanged = (f64, Option<(f64, f64)>);
+/// Where a step set a target, m, and its phase range when it had one.
+type SetAndRanged = (f64, Option<PhaseRanged>);
 
 impl WorkerSide {
     /// Takes every pipeline out of `prepared`.
@@ -270,31 +270,28 @@ fn previous_step(
     set.iter()
         .enumerate()
         .filter_map(|(i, now)| {
-            let step = last
-                .and_then(|l| {
-                    let (then, ranged) = l[i];
-                    ranged.map(|(range_m, std_m)| (range_m, std_m, then))
+            let step = last.and_then(|l| {
+                let (then_set, ranged) = l[i];
+                ranged.map(|then| Previous {
+                    then,
+                    moved_m: now - then_set,
                 })
-                .map(|(range_m, std_m, then)| Previous {
-                    range_m,
-                    std_m,
-                    moved_m: now - then,
-                });
+            });
             step.or_else(|| from_calibration.get(i).copied())
         })
         .collect()
 }
 
-/// Each target set at `set`: where it was set, and the phase range (and its uncertainty) of the
-/// detection nearest it, when that one was phase-ranged and is within half a centimetre.
+/// Each target set at `set`: where it was set, and the phase range of the detection nearest it,
+/// when that one was phase-ranged and is within half a centimetre.
 fn phase_ranges(targets: &[Detection], set: &[f64]) -> Vec<SetAndRanged> {
     set.iter()
         .map(|&at| {
             let nearest = targets
                 .iter()
                 .min_by(|a, b| (a.range_m - at).abs().total_cmp(&(b.range_m - at).abs()))
-                .filter(|t| t.ranging.is_some() && (t.range_m - at).abs() <= 0.005);
-            (at, nearest.and_then(|t| Some((t.range_m, t.range_std_m?))))
+                .filter(|t| (t.range_m - at).abs() <= 0.005);
+            (at, nearest.and_then(|t| t.phase_ranged))
         })
         .collect()
 }

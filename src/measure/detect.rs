@@ -59,6 +59,9 @@ pub struct Detection {
     /// mode, and a target that kept its envelope range, with a warning saying why).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ranging: Option<&'static str>,
+    /// The phase range as a campaign's next step unwraps against it.
+    #[serde(skip)]
+    pub(crate) phase_ranged: Option<super::ranging::PhaseRanged>,
     /// Fractional profile cell of the target (for the payload receiver and plots).
     #[serde(skip)]
     pub cell: Option<f64>,
@@ -168,6 +171,7 @@ fn detection(t: &DetectedTarget, axis_step: f64, interpolate: bool, start: f64) 
         range_m: if interpolate { t.range_m } else { on_grid },
         range_std_m: None,
         ranging: None,
+        phase_ranged: None,
         level_db: t.level_db,
         above_threshold_db: Some(t.above_threshold_db),
         on_grid_m: Some(on_grid),
@@ -203,6 +207,7 @@ pub(crate) fn detect(
                     range_m,
                     range_std_m: None,
                     ranging: None,
+                    phase_ranged: None,
                     level_db: level_at(levels, range_m),
                     above_threshold_db: None,
                     on_grid_m: None,

@@ -31,13 +31,22 @@ pub(crate) const TYPICAL_TRIGGER_JITTER_S: f64 = 1e-12;
 /// trigger's jitter and the chain's drift (1 ps is 0.15 mm).
 const LEAKAGE_SEARCH_M: f64 = 0.02;
 
-/// A campaign's previous step, for a target it moved (`--ranging phase`): that step's phase
-/// range and its uncertainty, m, and the move commanded since, m. Under lambda / 4 the phase
-/// unwraps against it rather than the envelope (docs/metrology.md).
+/// A phase range as a campaign's next step takes it, m: the range and its uncertainty, and the
+/// envelope's range (against the calibration's reference) and uncertainty that unwrapping saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Previous {
+pub(crate) struct PhaseRanged {
     pub(crate) range_m: f64,
     pub(crate) std_m: f64,
+    pub(crate) envelope_m: f64,
+    pub(crate) envelope_std_m: f64,
+}
+
+/// A campaign's previous step, for a target it moved (`--ranging phase`): that step's phase
+/// range, and the move commanded since, m. Under lambda / 4 the phase unwraps against it rather
+/// than the envelope (docs/metrology.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Previous {
+    pub(crate) then: PhaseRanged,
     pub(crate) moved_m: f64,
 }
 
@@ -196,11 +205,16 @@ impl RangingModel {
         let (Ranging::Phase, Some(a)) = (self.mode, self.anchor) else {
             return Vec::new();
         };
-        let std_m = a.phase_std_rad * metres_per_radian(self.carrier_hz);
+        // The calibration's envelope is its reference's, at its stated range by construction.
+        let then = PhaseRanged {
+            range_m: a.range_m,
+            std_m: a.phase_std_rad * metres_per_radian(self.carrier_hz),
+            envelope_m: a.range_m,
+            envelope_std_m: 0.0,
+        };
         set.iter()
             .map(|&at| Previous {
-                range_m: a.range_m,
-                std_m,
+                then,
                 moved_m: at - a.range_m,
             })
             .collect()
@@ -212,7 +226,7 @@ impl RangingModel {
         let quarter = 2.0 * unwrap_limit_m(self.carrier_hz);
         self.previous = previous
             .into_iter()
-            .filter(|p| p.moved_m.abs() < quarter && p.std_m.is_finite())
+            .filter(|p| p.moved_m.abs() < quarter && p.then.std_m.is_finite())
             .collect();
     }
 
@@ -259,20 +273,17 @@ impl RangingModel {
             t.range_std_m = Some(envelope_std);
             if let Some((anchor, leak)) = &reference {
                 let fixed = self.fixed_echo(anchor, &fixed_echoes, &echo);
+                let off = |p: &Previous| (p.then.range_m + p.moved_m - echo.range_m).abs();
                 let expected = previous
                     .iter()
-                    .map(|p| (p.range_m + p.moved_m, p.std_m))
-                    .filter(|(r, _)| (r - echo.range_m).abs() <= PREVIOUS_MATCH_M)
-                    .min_by(|a, b| {
-                        (a.0 - echo.range_m)
-                            .abs()
-                            .total_cmp(&(b.0 - echo.range_m).abs())
-                    });
+                    .filter(|p| off(p) <= PREVIOUS_MATCH_M)
+                    .min_by(|a, b| off(a).total_cmp(&off(b)));
                 match self.phase_range(anchor, leak, &echo, snr_std, fixed, expected) {
-                    Ok((range_m, std_m, by, note)) => {
-                        t.range_m = range_m;
-                        t.range_std_m = Some(std_m);
+                    Ok((ranged, by, note)) => {
+                        t.range_m = ranged.range_m;
+                        t.range_std_m = Some(ranged.std_m);
                         t.ranging = Some(by);
+                        t.phase_ranged = Some(ranged);
                         warnings.extend(note);
                     }
                     Err(why) => warnings.push(format!(
@@ -331,9 +342,8 @@ impl RangingModel {
     }
 
     /// A target's range from its carrier phase against the anchor's, both relative to their
-    /// record's leakage, its standard uncertainty and how its cycle was chosen (with a note
-    /// when a previous step's `expected` range, m, and its uncertainty were not taken); or why
-    /// not.
+    /// record's leakage, with its standard uncertainty, and how its cycle was chosen (with a
+    /// note when the `expected` previous step was not taken); or why not.
     fn phase_range(
         &self,
         anchor: &PhaseAnchor,
@@ -341,8 +351,8 @@ impl RangingModel {
         echo: &Echo,
         snr_std_m: f64,
         fixed: Option<(f64, f64, f64)>,
-        expected: Option<(f64, f64)>,
-    ) -> Result<(f64, f64, &'static str, Option<String>), String> {
+        expected: Option<&Previous>,
+    ) -> Result<(PhaseRanged, &'static str, Option<String>), String> {
         let leak_std = self.snr_std_m(leak.snr).unwrap_or(f64::INFINITY);
         // The envelope that unwraps the phase: the target against the anchor, less the common
         // move of the record (the trigger's jitter, capture's and calibration's, and the chain's
@@ -354,14 +364,7 @@ impl RangingModel {
         // chain since the calibration, which the jitter does not explain: no cycle is guessed.
         let leak_move = leak.range_m - anchor.leakage_range_m;
         let leak_var = leak_std.powi(2) + anchor.leakage_snr_std_m.powi(2);
-        if fixed.is_none() && leak_move.abs() > 3.0 * (jitter_var + leak_var).sqrt() {
-            return Err(format!(
-                "the leakage moved {:.2} mm since the calibration, more than the trigger's \
-                 jitter explains: the chain drifted and the phase's cycle is not known \
-                 (calibrate again, or add a fixed reflector to the scene)",
-                leak_move * 1e3
-            ));
-        }
+        let drifted = fixed.is_none() && leak_move.abs() > 3.0 * (jitter_var + leak_var).sqrt();
         let (weight, left_var, common_move) = match fixed {
             Some((now, fixed_var, then_m)) => {
                 let moved = now - then_m;
@@ -380,19 +383,24 @@ impl RangingModel {
         let rough =
             anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * common_move;
         let rough_std = (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var).sqrt();
+        let envelope = (rough, rough_std);
         // The previous step's range plus the commanded move tells the cycle better than the
-        // envelope, where the envelope agrees with it (a stage that moved otherwise than
-        // commanded, or a wrong cycle at the previous step, shows as a disagreement).
+        // envelope, where the envelope moved as much since that step (a stage that moved
+        // otherwise than commanded, or a wrong cycle there, shows as a disagreement). The chain's
+        // slow drift moves the envelope between two steps by little, and the phase not at all
+        // (the leakage goes through the same cables): a drift does not stop it.
         let (rough, rough_std, by, note) = match expected {
-            Some((at, std)) if std < rough_std => {
-                let apart = at - rough;
-                if apart.abs() <= 3.0 * (rough_std.powi(2) + std.powi(2)).sqrt() {
-                    (at, std, BY_PREVIOUS, None)
+            Some(p) if p.then.std_m < rough_std => {
+                let apart = (rough - p.then.envelope_m) - p.moved_m;
+                let bound = 3.0 * (rough_std.powi(2) + p.then.envelope_std_m.powi(2)).sqrt();
+                if apart.abs() <= bound {
+                    (p.then.range_m + p.moved_m, p.then.std_m, BY_PREVIOUS, None)
                 } else {
                     let note = format!(
-                        "--ranging phase: the target at {:.6} m is {:.3} mm from where the \
-                         previous step and the commanded move put it, more than its envelope \
-                         explains: unwrapped by its envelope (did the stage move as commanded?)",
+                        "--ranging phase: the target at {:.6} m moved {:.3} mm more than \
+                         commanded since the step before, by its envelope, more than the \
+                         envelope's uncertainty explains: unwrapped by its envelope (did the \
+                         stage move as commanded?)",
                         echo.range_m,
                         apart * 1e3
                     );
@@ -401,6 +409,14 @@ impl RangingModel {
             }
             _ => (rough, rough_std, BY_ENVELOPE, None),
         };
+        if drifted && by == BY_ENVELOPE {
+            return Err(format!(
+                "the leakage moved {:.2} mm since the calibration, more than the trigger's \
+                 jitter explains: the chain drifted and the phase's cycle is not known \
+                 (calibrate again, or add a fixed reflector to the scene)",
+                leak_move * 1e3
+            ));
+        }
         let phase = wrap((echo.amplitude / leak.amplitude).arg() - anchor.phase_to_leakage_rad);
         let range_m = unwrap_range(anchor.range_m, phase, rough, rough_std, self.carrier_hz)
             .ok_or_else(|| {
@@ -422,7 +438,13 @@ impl RangingModel {
             + (centroid * snr_std_m).powi(2)
             + (centroid * leak_std).powi(2))
         .sqrt();
-        Ok((range_m, std, by, note))
+        let ranged = PhaseRanged {
+            range_m,
+            std_m: std,
+            envelope_m: envelope.0,
+            envelope_std_m: envelope.1,
+        };
+        Ok((ranged, by, note))
     }
 
     /// The anchor of a calibration's corrected reference record: the reference (the strongest

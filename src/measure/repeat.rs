@@ -150,6 +150,7 @@ mod tests {
             range_m,
             range_std_m: None,
             ranging: None,
+            phase_ranged: None,
             level_db,
             above_threshold_db: Some(10.0),
             on_grid_m: None,

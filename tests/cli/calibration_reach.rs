@@ -386,22 +386,14 @@ async fn clutter_beyond_the_window_pulls_a_weak_pillar_under_half_a_mm_on_the_id
     );
 }
 
-/// The calibration's residual profile (`[[residual]]`, issue 38): what the correction leaves on
-/// the reference, per window. A chain whose response steps by 0.3 dB and 3 degrees within 20 MHz
-/// (a filter's edge, a switched band) has an impulse response longer than any gate: the fit
-/// leaves its tails, 55-65 dB under the reference, on both sides. MSK-LFM corrected on receive
-/// (`rx`) with the Taylor window, with a calibration whose header lacks the profile (as written
-/// before it existed), reports those tails as targets; with the profile the detector's floor
-/// follows them and it does not. (The thesis-lab chain alone no longer leaves a residue to test
-/// this on: the least-squares fit took the one 1.4 m behind that pre-distortion showed.)
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// The reference (1.0 m) and the pillar's scenes on a chain whose response steps by `db` and
+/// `deg` between 100 and 120 MHz, leakage at -40 dB; the response calibrated on the reference
+/// with MSK-LFM into `response.toml`: its report.
+async fn calibrate_on_a_stepped_chain(d: &Path, db: f64, deg: f64) -> Value {
     for (name, range_m, seed) in [("reference.toml", 1.0, 7), ("pillar.toml", PILLAR_M, 11)] {
         let mut s = scene(&[(range_m, 0.5)], 25.0, seed);
         s["chain"] = json!({"preset": "thesis-lab", "response": [
-            [-5e8, 0.0, 0.0], [1e8, 0.0, 0.0], [1.2e8, -0.3, 3.0], [5e8, -0.3, 3.0]]});
+            [-5e8, 0.0, 0.0], [1e8, 0.0, 0.0], [1.2e8, db, deg], [5e8, db, deg]]});
         write(d, name, s, -40.0);
     }
     ok(
@@ -421,7 +413,22 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
             "--json",
         ],
     )
-    .await;
+    .await
+}
+
+/// The calibration's residual profile (`[[residual]]`, issue 38): what the correction leaves on
+/// the reference, per window. A chain whose response steps by 0.3 dB and 3 degrees within 20 MHz
+/// (a filter's edge, a switched band) has an impulse response longer than any gate: the fit
+/// leaves its tails, 55-65 dB under the reference, on both sides. MSK-LFM corrected on receive
+/// (`rx`) with the Taylor window, with a calibration whose header lacks the profile (as written
+/// before it existed), reports those tails as targets; with the profile the detector's floor
+/// follows them and it does not. (The thesis-lab chain alone no longer leaves a residue to test
+/// this on: the least-squares fit took the one 1.4 m behind that pre-distortion showed.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    calibrate_on_a_stepped_chain(d, -0.3, 3.0).await;
     let header = std::fs::read_to_string(d.join("response.toml")).unwrap();
     let parsed: toml::Table = toml::from_str(&header).unwrap();
     let profiles = parsed["residual"].as_array().unwrap();
@@ -508,30 +515,7 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
 async fn a_leakage_the_chains_tail_hides_leaves_no_image_ahead_of_the_pillar() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    for (name, range_m, seed) in [("reference.toml", 1.0, 7), ("pillar.toml", PILLAR_M, 11)] {
-        let mut s = scene(&[(range_m, 0.5)], 25.0, seed);
-        s["chain"] = json!({"preset": "thesis-lab", "response": [
-            [-5e8, 0.0, 0.0], [1e8, 0.0, 0.0], [1.2e8, 1.0, 10.0], [5e8, 1.0, 10.0]]});
-        write(d, name, s, -40.0);
-    }
-    let cal = ok(
-        d,
-        &[
-            "calibrate",
-            "response",
-            "--reference-range",
-            "1.0",
-            "--scene",
-            "reference.toml",
-            "--allow-rf",
-            "--waveform",
-            "msk-lfm",
-            "--out",
-            "response.toml",
-            "--json",
-        ],
-    )
-    .await;
+    let cal = calibrate_on_a_stepped_chain(d, 1.0, 10.0).await;
     let unseen = &cal["figures"]["leakage_unseen_db"];
     assert!(unseen.as_f64().is_some_and(|db| db > -60.0), "{cal}");
     let mut found = Vec::new();

@@ -325,29 +325,88 @@ async fn a_campaign_unwraps_each_step_by_the_one_before_where_the_envelope_canno
     )
     .await;
     assert_eq!(code, 0, "{err}");
-    let mut wrong = Vec::new();
-    for step in 1..=6usize {
-        let truth = 1.0 + 37e-6 * (step - 1) as f64;
-        let path = d.join(format!("run/step-{step:03}/summary.json"));
-        let summary: Value =
-            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        let target = summary["targets"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .min_by(|a, b| {
-                let off = |t: &Value| (t["range_m"].as_f64().unwrap() - truth).abs();
-                off(a).total_cmp(&off(b))
-            })
-            .cloned()
-            .unwrap();
-        let r = target["range_m"].as_f64().unwrap();
-        if target["ranging"] != "phase-previous" || (r - truth).abs() > 10e-6 {
-            wrong.push(format!(
-                "step {step}: {r:.7} m, truth {truth:.7} m, ranging {} ({})",
-                target["ranging"], summary["warnings"]
-            ));
-        }
-    }
+    let wrong = off_by_more_than(&campaign_errors(d, 6), 10e-6);
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// The chain drifting (0.5 ps and 5 degrees a minute): a campaign of 37 um steps a minute apart,
+/// over 10 minutes. A capture alone keeps its envelope range once the leakage has moved more than
+/// the jitter explains (above); a campaign's step unwraps by the step before, which the drift
+/// moved by a minute's worth, and the carrier phase against the leakage does not drift (the
+/// leakage goes through the same chain): every step phase-ranged, within 10 um of the truth.
+/// (With the scene's reference reflector at 0.45 m added, the steps drift off by about 1.5 um
+/// each, with or without the chain's drift: docs/metrology.md, Known limits.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_campaign_through_10_minutes_of_drift_stays_within_10_um() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let drifting = |seed: u64| {
+        let mut s = bench_scene(1.0, seed);
+        s["chain"] = json!({"preset": "thesis-lab", "drift_ps_per_min": 0.5,
+                            "drift_deg_per_min": 5.0});
+        s
+    };
+    calibrate(d, &drifting(7)).await;
+    let mut bench = drifting(403);
+    bench["capture_interval_s"] = json!(60.0);
+    write(d, "bench.toml", &bench);
+    std::fs::write(
+        d.join("spec.toml"),
+        "seed = 5\n[bench]\nscene = \"bench.toml\"\n[processing]\nalgorithms = [\"correlation\"]\n\
+         ranging = \"phase\"\ncalibration = \"response.toml\"\n\
+         [sweep]\nparameter = \"position\"\nstart = 1.0\nstep = 37e-6\ncount = 11\n",
+    )
+    .unwrap();
+    let (code, _, err) = radbench_in(
+        Some(d),
+        &["campaign", "run", "spec.toml", "--out", "run", "--allow-rf"],
+    )
+    .await;
+    assert_eq!(code, 0, "{err}");
+    let errors = campaign_errors(d, 11);
+    eprintln!(
+        "errors, um: {:?}",
+        errors
+            .iter()
+            .map(|e| (e.0 * 1e7).round() / 10.0)
+            .collect::<Vec<_>>()
+    );
+    let wrong = off_by_more_than(&errors, 10e-6);
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// The campaign in `run/` whose `steps` steps set the pillar 37 um apart from 1.0 m: each
+/// step's pillar, as (its error against the truth, m; how it was ranged; the step's warnings).
+fn campaign_errors(d: &Path, steps: usize) -> Vec<(f64, Value, Value)> {
+    (1..=steps)
+        .map(|step| {
+            let truth = 1.0 + 37e-6 * (step - 1) as f64;
+            let path = d.join(format!("run/step-{step:03}/summary.json"));
+            let summary: Value =
+                serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            let off = |t: &Value| t["range_m"].as_f64().unwrap() - truth;
+            let target = summary["targets"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .min_by(|a, b| off(a).abs().total_cmp(&off(b).abs()))
+                .cloned()
+                .unwrap();
+            (
+                off(&target),
+                target["ranging"].clone(),
+                summary["warnings"].clone(),
+            )
+        })
+        .collect()
+}
+
+/// The steps of `errors` not `phase-previous` within `within_m` of the truth, described.
+fn off_by_more_than(errors: &[(f64, Value, Value)], within_m: f64) -> Vec<String> {
+    errors
+        .iter()
+        .enumerate()
+        .filter(|(_, (e, by, _))| *by != "phase-previous" || e.abs() > within_m)
+        .map(|(k, (e, by, w))| format!("step {}: {:+.2} um, ranging {by} ({w})", k + 1, e * 1e6))
+        .collect()
 }
