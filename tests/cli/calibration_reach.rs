@@ -386,6 +386,28 @@ async fn clutter_beyond_the_window_pulls_a_weak_pillar_under_half_a_mm_on_the_id
     );
 }
 
+/// Captures `pillar.toml` with MSK-LFM, corrected with `calibration` as `correction`, and
+/// `more` arguments, into `out`.
+async fn capture_pillar(d: &Path, calibration: &str, correction: &str, more: &[&str], out: &str) {
+    let mut args = vec![
+        "capture",
+        "--allow-rf",
+        "--scene",
+        "pillar.toml",
+        "--waveform",
+        "msk-lfm",
+        "--calibration",
+        calibration,
+        "--correction",
+        correction,
+        "--json",
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(more);
+    ok(d, &args).await;
+}
+
 /// The reference (1.0 m) and the pillar's scenes on a chain whose response steps by `db` and
 /// `deg` between 100 and 120 MHz, leakage at -40 dB; the response calibrated on the reference
 /// with MSK-LFM into `response.toml`: its report.
@@ -454,27 +476,7 @@ async fn the_residual_profile_keeps_the_fits_residue_from_being_a_target() {
     let mut found = Vec::new();
     for cal in ["old.toml", "response.toml"] {
         let out = format!("c-{cal}");
-        ok(
-            d,
-            &[
-                "capture",
-                "--allow-rf",
-                "--scene",
-                "pillar.toml",
-                "--waveform",
-                "msk-lfm",
-                "--calibration",
-                cal,
-                "--correction",
-                "rx",
-                "--window",
-                "taylor",
-                "--json",
-                "--out",
-                &out,
-            ],
-        )
-        .await;
+        capture_pillar(d, cal, "rx", &["--window", "taylor"], &out).await;
         let s: Value = serde_json::from_str(
             &std::fs::read_to_string(d.join(&out).join("summary.json")).unwrap(),
         )
@@ -520,24 +522,12 @@ async fn a_leakage_the_chains_tail_hides_leaves_no_image_ahead_of_the_pillar() {
     assert!(unseen.as_f64().is_some_and(|db| db > -60.0), "{cal}");
     let mut found = Vec::new();
     for correction in ["rx", "tx", "both"] {
-        let out = format!("c-{correction}");
-        ok(
+        capture_pillar(
             d,
-            &[
-                "capture",
-                "--allow-rf",
-                "--scene",
-                "pillar.toml",
-                "--waveform",
-                "msk-lfm",
-                "--calibration",
-                "response.toml",
-                "--correction",
-                correction,
-                "--json",
-                "--out",
-                &out,
-            ],
+            "response.toml",
+            correction,
+            &[],
+            &format!("c-{correction}"),
         )
         .await;
     }

@@ -311,21 +311,8 @@ async fn a_campaign_unwraps_each_step_by_the_one_before_where_the_envelope_canno
         warnings.to_string().contains("over lambda/8"),
         "a capture alone cannot unwrap at 3 ps: {r} m, {warnings}"
     );
-    write(d, "bench.toml", &jittery(1.0, 402));
-    std::fs::write(
-        d.join("spec.toml"),
-        "seed = 3\n[bench]\nscene = \"bench.toml\"\n[processing]\nalgorithms = [\"correlation\"]\n\
-         ranging = \"phase\"\ncalibration = \"response.toml\"\n\
-         [sweep]\nparameter = \"position\"\nstart = 1.0\nstep = 37e-6\ncount = 6\n",
-    )
-    .unwrap();
-    let (code, _, err) = radbench_in(
-        Some(d),
-        &["campaign", "run", "spec.toml", "--out", "run", "--allow-rf"],
-    )
-    .await;
-    assert_eq!(code, 0, "{err}");
-    let wrong = off_by_more_than(&campaign_errors(d, 6), 10e-6);
+    let errors = fine_step_campaign(d, &jittery(1.0, 402), 3, 6).await;
+    let wrong = off_by_more_than(&errors, 10e-6);
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
@@ -349,12 +336,27 @@ async fn a_campaign_through_10_minutes_of_drift_stays_within_10_um() {
     calibrate(d, &drifting(7)).await;
     let mut bench = drifting(403);
     bench["capture_interval_s"] = json!(60.0);
-    write(d, "bench.toml", &bench);
+    let errors = fine_step_campaign(d, &bench, 5, 11).await;
+    let wrong = off_by_more_than(&errors, 10e-6);
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// Runs a campaign (seed `seed`) on `bench` of `steps` steps of 37 um from 1.0 m, phase-ranged
+/// with the calibration in `response.toml`, into `run/`: each step's error ([`campaign_errors`]).
+async fn fine_step_campaign(
+    d: &Path,
+    bench: &Value,
+    seed: u64,
+    steps: usize,
+) -> Vec<(f64, Value, Value)> {
+    write(d, "bench.toml", bench);
     std::fs::write(
         d.join("spec.toml"),
-        "seed = 5\n[bench]\nscene = \"bench.toml\"\n[processing]\nalgorithms = [\"correlation\"]\n\
-         ranging = \"phase\"\ncalibration = \"response.toml\"\n\
-         [sweep]\nparameter = \"position\"\nstart = 1.0\nstep = 37e-6\ncount = 11\n",
+        format!(
+            "seed = {seed}\n[bench]\nscene = \"bench.toml\"\n[processing]\n\
+             algorithms = [\"correlation\"]\nranging = \"phase\"\ncalibration = \"response.toml\"\n\
+             [sweep]\nparameter = \"position\"\nstart = 1.0\nstep = 37e-6\ncount = {steps}\n"
+        ),
     )
     .unwrap();
     let (code, _, err) = radbench_in(
@@ -363,16 +365,7 @@ async fn a_campaign_through_10_minutes_of_drift_stays_within_10_um() {
     )
     .await;
     assert_eq!(code, 0, "{err}");
-    let errors = campaign_errors(d, 11);
-    eprintln!(
-        "errors, um: {:?}",
-        errors
-            .iter()
-            .map(|e| (e.0 * 1e7).round() / 10.0)
-            .collect::<Vec<_>>()
-    );
-    let wrong = off_by_more_than(&errors, 10e-6);
-    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    campaign_errors(d, steps)
 }
 
 /// The campaign in `run/` whose `steps` steps set the pillar 37 um apart from 1.0 m: each
