@@ -14,6 +14,16 @@ use crate::dsp::{DetectOptions, DetectedTarget, Detector, Sidelobes};
 use num_complex::Complex64;
 use serde::Serialize;
 
+/// A phase range as a campaign's next step takes it, m: the range and its uncertainty, and the
+/// envelope's range (against the calibration's reference) and uncertainty that unwrapping saw.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PhaseRanged {
+    pub(crate) range_m: f64,
+    pub(crate) std_m: f64,
+    pub(crate) envelope_m: f64,
+    pub(crate) envelope_std_m: f64,
+}
+
 /// One detected target.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Detection {
@@ -61,7 +71,7 @@ pub struct Detection {
     pub ranging: Option<&'static str>,
     /// The phase range as a campaign's next step unwraps against it.
     #[serde(skip)]
-    pub(crate) phase_ranged: Option<super::ranging::PhaseRanged>,
+    pub(crate) phase_ranged: Option<PhaseRanged>,
     /// Fractional profile cell of the target (for the payload receiver and plots).
     #[serde(skip)]
     pub cell: Option<f64>,

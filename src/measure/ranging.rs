@@ -13,6 +13,7 @@
 //!   target falls back to its envelope range with a warning otherwise), so a wrong cycle is a
 //!   2.6 sd event and not carried.
 
+pub(crate) use super::detect::PhaseRanged;
 use super::detect::{Detection, DetectionReport};
 use super::options::{ProcessOptions, Ranging};
 use super::response::PhaseAnchor;
@@ -30,16 +31,6 @@ pub(crate) const TYPICAL_TRIGGER_JITTER_S: f64 = 1e-12;
 /// The leakage is sought within this of where the calibration found it, m: it moves with the
 /// trigger's jitter and the chain's drift (1 ps is 0.15 mm).
 const LEAKAGE_SEARCH_M: f64 = 0.02;
-
-/// A phase range as a campaign's next step takes it, m: the range and its uncertainty, and the
-/// envelope's range (against the calibration's reference) and uncertainty that unwrapping saw.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct PhaseRanged {
-    pub(crate) range_m: f64,
-    pub(crate) std_m: f64,
-    pub(crate) envelope_m: f64,
-    pub(crate) envelope_std_m: f64,
-}
 
 /// A campaign's previous step, for a target it moved (`--ranging phase`): that step's phase
 /// range, and the move commanded since, m. Under lambda / 4 the phase unwraps against it rather
