@@ -429,6 +429,21 @@ impl RangingModel {
             + (centroid * snr_std_m).powi(2)
             + (centroid * leak_std).powi(2))
         .sqrt();
+        let um = |rad: f64| rad * metres_per_radian(self.carrier_hz) * 1e6;
+        tracing::debug!(
+            target: "radbench::ranging",
+            "phase range {range_m:.7} m: sd {:.3} um of the target's phase {:.3}, the leakage's \
+             {:.3}, the anchor's {:.3}, the envelope's centroid {:.3} and the leakage's {:.3} \
+             (SNR per cell {:.1} and {:.1} dB)",
+            std * 1e6,
+            um(phase_std_rad(echo.snr)),
+            um(phase_std_rad(leak.snr)),
+            um(anchor.phase_std_rad),
+            centroid * snr_std_m * 1e6,
+            centroid * leak_std * 1e6,
+            10.0 * echo.snr.log10(),
+            10.0 * leak.snr.log10(),
+        );
         let ranged = PhaseRanged {
             range_m,
             std_m: std,
