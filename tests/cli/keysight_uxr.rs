@@ -224,6 +224,12 @@ async fn the_doctor_gives_the_uxr_its_own_hints() {
         fix.contains("Infiniium application is running") && !fix.contains("Utilities"),
         "{remote}"
     );
+    // An Infiniium serves its interfaces side by side: no other one is tried, or named.
+    let detail = remote["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("does not answer over HiSLIP") && !detail.contains("neither"),
+        "{remote}"
+    );
     assert!(lab.bench.is_safe(), "nothing left on");
 }
 

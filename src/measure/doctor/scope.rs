@@ -1,7 +1,8 @@
 //! The scope: reachable, identified, and answering on the remote interface the bench file
-//! names. A scope that does not answer there is asked on its other interface at the same host:
-//! a family that serves one interface at a time (VICP or VXI-11) looks dead when set to the
-//! other (the remote-interface trap). The fix names where the scope's family sets it
+//! names. A scope that does not answer there is asked on its other interface at the same host
+//! when its family serves one interface at a time (LeCroy: VICP or VXI-11), since it looks dead
+//! when set to the other (the remote-interface trap); a family serving its interfaces side by
+//! side is not asked elsewhere. The fix names where the scope's family sets it
 //! ([`open::scope_remote_setting`]).
 
 use super::bounds::{bounded, Deadline, OPEN_TIMEOUT};
@@ -53,7 +54,15 @@ async fn unanswered_scope(
     idn: &Result<String, String>,
     deadline: Deadline,
 ) {
-    let other = other_scope_resource(bench, &scope.resource, deadline).await;
+    let setting = open::scope_remote_setting(&scope.model);
+    // Only a family that serves one interface at a time is asked on the other: one that serves
+    // them side by side (HiSLIP, VXI-11 and a socket together) has no other to be set to.
+    let other = match setting {
+        RemoteSetting::OneAtATime { .. } => {
+            other_scope_resource(bench, &scope.resource, deadline).await
+        }
+        RemoteSetting::SideBySide { .. } => None,
+    };
     let other_answer = match &other {
         Some(r) => bounded(
             deadline,
@@ -64,7 +73,6 @@ async fn unanswered_scope(
         None => Err("no other interface to try".into()),
     };
     let this = interface_name(scope.resource.protocol());
-    let setting = open::scope_remote_setting(&scope.model);
     match (other, other_answer) {
         (Some(r), Ok(idn)) => {
             let that = interface_name(r.protocol());
@@ -88,7 +96,7 @@ async fn unanswered_scope(
                 },
             );
         }
-        _ => {
+        (tried, _) => {
             reach_and_identity(list, scope, probe, idn);
             let look_at = match setting {
                 RemoteSetting::OneAtATime { menu } => menu,
@@ -96,7 +104,13 @@ async fn unanswered_scope(
             };
             list.fail(
                 "scope.remote_interface",
-                format!("the scope answers neither over {this} nor over the other interface"),
+                match tried {
+                    Some(r) => format!(
+                        "the scope answers neither over {this} nor over {} ({r})",
+                        interface_name(r.protocol())
+                    ),
+                    None => format!("the scope does not answer over {this}"),
+                },
                 format!("check that the scope is on, its host, and {look_at}"),
             );
         }
