@@ -334,6 +334,7 @@ async fn calibrate_lab(
         reference_range_m: LAB_REFERENCE_M,
         repetitions: 16,
         gate_s: 4e-9,
+        reflector_m: None,
     };
     let mut rig = Rig::connect(&bench, &catalog, None).await?;
     let calibrated = calibrate_with(

@@ -45,6 +45,13 @@ pub struct Args {
     /// close that the Tx -> Rx leakage would fall inside (a reference at 2 m or more gets 8 ns).
     #[arg(long, value_name = "NS", allow_hyphen_values = true)]
     pub gate_ns: Option<f64>,
+    /// A fixed reflector in the reference's scene (a reference reflector, a mount), antennas to
+    /// reflector, metres, at least 0.3 m from the reference. Named, it is measured as the
+    /// scene's: unnamed within the gate, it is taken for the chain's own response, and every
+    /// capture corrected with it carries its image (phase ranges drift with the target's place:
+    /// docs/metrology.md).
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
+    pub reflector: Option<f64>,
     /// Where to write the calibration (a .toml header; the table goes beside it as .npy).
     /// Default: beside the bench file, <bench>-response.toml; with the built-in lab, nothing
     /// is written without it.
@@ -68,6 +75,7 @@ fn check(args: &Args) -> Result<(), MeasureError> {
     radbench::measure::check(args.reference_range, 2.0)?;
     radbench::measure::check_repetitions(args.repetitions)?;
     radbench::measure::check_gate_ns(args.gate_ns)?;
+    radbench::measure::check_reflector_m(args.reflector, args.reference_range)?;
     radbench::measure::check_response_out(args.out.as_deref())?;
     if let Some(plot) = &args.plot {
         let ext = plot.extension().and_then(|e| e.to_str()).unwrap_or("");
@@ -106,6 +114,7 @@ pub(crate) fn run(args: Args, global: &super::global::Global) -> anyhow::Result<
             reference_range_m: args.reference_range,
             repetitions: args.repetitions,
             gate_s: gate_s(&args),
+            reflector_m: args.reflector,
         };
         let mut rig = Rig::connect(&bench, &catalog, journal(global)?).await?;
         let calibrated =

@@ -94,44 +94,14 @@ pub(crate) fn find(
     search: Search,
 ) -> Echoes {
     let n = z.len();
-    let band: Vec<usize> = (0..n)
-        .filter(|&k| coverage[k] >= BAND_FLOOR && model[k].norm_sqr() > 0.0)
-        .collect();
     let mut found = Echoes {
         reach_s: search.reach_s,
         ..Echoes::default()
     };
-    if band.len() < 8 || n < 16 {
+    let Some(mut ratio) = Ratio::new(z, model, coverage, frequency_hz, fs) else {
         return found;
-    }
-    let freqs: Vec<f64> = band.iter().map(|&k| frequency_hz(k)).collect();
-    let (lo, hi) = freqs
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &f| {
-            (a.min(f), b.max(f))
-        });
-    // Weights: the model's power (where the ratio is well measured) under a Hann taper over
-    // the band (its side-lobes, not the band edge's sinc, decide what lies beside an echo).
-    let peak = band
-        .iter()
-        .map(|&k| model[k].norm_sqr())
-        .fold(0.0, f64::max);
-    let weight: Vec<f64> = band
-        .iter()
-        .zip(&freqs)
-        .map(|(&k, &f)| {
-            let taper = (PI * (f - lo) / (hi - lo).max(1.0)).sin().powi(2);
-            (model[k].norm_sqr() / peak).min(1.0) * taper
-        })
-        .collect();
-    let total: f64 = weight.iter().sum();
-    if total <= 0.0 {
-        return found;
-    }
-    let mut ratio: Vec<Complex64> = band
-        .iter()
-        .map(|&k| z[k] / model[k] - Complex64::new(1.0, 0.0))
-        .collect();
+    };
+    let (lo, hi) = ratio.span();
     let ifft = super::plans::inverse(n);
     let lag_s = |m: usize| {
         (if m <= n / 2 {
@@ -144,22 +114,13 @@ pub(crate) fn find(
         let t = lag_s(m).abs();
         t > search.inner_s && t <= search.reach_s
     };
-    // The ratio's weighted mean at delay `t`: an echo's gain there.
-    let df = fs / n as f64;
-    let gain_at = |ratio: &[Complex64], t: f64| -> Complex64 {
-        let mut sum = Complex64::new(0.0, 0.0);
-        super::phasor::for_each(freqs.iter().copied(), 2.0 * PI * t, df, |i, p| {
-            sum += ratio[i] * weight[i] * p;
-        });
-        sum / total
-    };
     let weakest = 10f64.powf(search.weakest_db / 10.0);
     let mut lags = vec![Complex64::new(0.0, 0.0); n];
     let mut noise_threshold = None;
     for _ in 0..search.most {
         lags.iter_mut().for_each(|v| *v = Complex64::new(0.0, 0.0));
-        for ((&k, r), w) in band.iter().zip(&ratio).zip(&weight) {
-            lags[k] = r * (*w / total);
+        for ((&k, r), w) in ratio.band.iter().zip(&ratio.ratio).zip(&ratio.weight) {
+            lags[k] = r * (*w / ratio.total);
         }
         ifft.process(&mut lags);
         let power: Vec<f64> = lags.iter().map(|v| v.norm_sqr()).collect();
@@ -188,17 +149,129 @@ pub(crate) fn find(
         if power[m] <= threshold.max(weakest) {
             break;
         }
-        let t = refine_delay(|t| gain_at(&ratio, t).norm_sqr(), lag_s(m), 1.0 / fs);
-        let echo = Echo {
-            delay_s: t,
-            gain: gain_at(&ratio, t),
-        };
-        super::phasor::for_each(freqs.iter().copied(), -2.0 * PI * t, df, |i, p| {
-            ratio[i] -= echo.gain * p;
-        });
+        let echo = ratio.take_near(lag_s(m), 1.0 / fs);
         sort_into(&mut found, echo);
     }
     found
+}
+
+/// The echo the user named near `delay_s` (within `within_s`, relative to the reference) in
+/// the spectrum `z` that `model` does not explain: its delay where its power peaks there, and its
+/// gain (the same measure as [`find`]'s, at any level: the user says it is there). `None` when
+/// the band is too narrow to measure it.
+pub(crate) fn named(
+    z: &[Complex64],
+    model: &[Complex64],
+    coverage: &[f64],
+    frequency_hz: impl Fn(usize) -> f64,
+    fs: f64,
+    delay_s: f64,
+    within_s: f64,
+) -> Option<Echo> {
+    let mut ratio = Ratio::new(z, model, coverage, frequency_hz, fs)?;
+    Some(ratio.take_near(delay_s, within_s))
+}
+
+/// `z / model - 1` over the band, with the weights an echo's gain is measured with.
+struct Ratio {
+    band: Vec<usize>,
+    freqs: Vec<f64>,
+    weight: Vec<f64>,
+    total: f64,
+    ratio: Vec<Complex64>,
+    df: f64,
+}
+
+impl Ratio {
+    fn new(
+        z: &[Complex64],
+        model: &[Complex64],
+        coverage: &[f64],
+        frequency_hz: impl Fn(usize) -> f64,
+        fs: f64,
+    ) -> Option<Self> {
+        let n = z.len();
+        let band: Vec<usize> = (0..n)
+            .filter(|&k| coverage[k] >= BAND_FLOOR && model[k].norm_sqr() > 0.0)
+            .collect();
+        if band.len() < 8 || n < 16 {
+            return None;
+        }
+        let freqs: Vec<f64> = band.iter().map(|&k| frequency_hz(k)).collect();
+        let (lo, hi) = span(&freqs);
+        // Weights: the model's power (where the ratio is well measured) under a Hann taper over
+        // the band (its side-lobes, not the band edge's sinc, decide what lies beside an echo).
+        let peak = band
+            .iter()
+            .map(|&k| model[k].norm_sqr())
+            .fold(0.0, f64::max);
+        let weight: Vec<f64> = band
+            .iter()
+            .zip(&freqs)
+            .map(|(&k, &f)| {
+                let taper = (PI * (f - lo) / (hi - lo).max(1.0)).sin().powi(2);
+                (model[k].norm_sqr() / peak).min(1.0) * taper
+            })
+            .collect();
+        let total: f64 = weight.iter().sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let ratio: Vec<Complex64> = band
+            .iter()
+            .map(|&k| z[k] / model[k] - Complex64::new(1.0, 0.0))
+            .collect();
+        Some(Ratio {
+            band,
+            freqs,
+            weight,
+            total,
+            ratio,
+            df: fs / n as f64,
+        })
+    }
+
+    fn span(&self) -> (f64, f64) {
+        span(&self.freqs)
+    }
+
+    /// The ratio's weighted mean at delay `t`: an echo's gain there.
+    fn gain_at(&self, t: f64) -> Complex64 {
+        let mut sum = Complex64::new(0.0, 0.0);
+        let w = &self.weight;
+        let r = &self.ratio;
+        super::phasor::for_each(self.freqs.iter().copied(), 2.0 * PI * t, self.df, |i, p| {
+            sum += r[i] * w[i] * p;
+        });
+        sum / self.total
+    }
+
+    /// The echo within `step` of `start` (at its sub-sample delay), taken out of the ratio.
+    fn take_near(&mut self, start: f64, step: f64) -> Echo {
+        let t = refine_delay(|t| self.gain_at(t).norm_sqr(), start, step);
+        let echo = Echo {
+            delay_s: t,
+            gain: self.gain_at(t),
+        };
+        let ratio = &mut self.ratio;
+        super::phasor::for_each(
+            self.freqs.iter().copied(),
+            -2.0 * PI * t,
+            self.df,
+            |i, p| {
+                ratio[i] -= echo.gain * p;
+            },
+        );
+        echo
+    }
+}
+
+fn span(freqs: &[f64]) -> (f64, f64) {
+    freqs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &f| {
+            (a.min(f), b.max(f))
+        })
 }
 
 /// Files `echo` with the scene (ahead of the reference, or a scene echo's chain echo) or the
@@ -317,6 +390,39 @@ mod tests {
         let l = found.scene[0];
         assert!((l.delay_s - leakage.delay_s).abs() < 5e-12, "{l:?}");
         assert!((l.gain - leakage.gain).norm() < 0.002, "{l:?}");
+    }
+
+    #[test]
+    fn a_named_echo_is_measured_where_the_search_does_not_look() {
+        let (n, fs) = (16384, 16e9);
+        let reflector = Echo {
+            delay_s: -3.671e-9,
+            gain: Complex64::from_polar(0.06, 2.1),
+        };
+        let leakage = Echo {
+            delay_s: -6.671e-9,
+            gain: Complex64::from_polar(0.05, -1.2),
+        };
+        let (z, coverage) = spectrum(n, fs, &[reflector, leakage], 1e-3);
+        let model = vec![Complex64::new(1.0, 0.0); n];
+        let search = Search {
+            inner_s: 5.7e-9,
+            reach_s: 40e-9,
+            weakest_db: -70.0,
+            most: 8,
+        };
+        let found = find(&z, &model, &coverage, frequency(n, fs), fs, search);
+        assert!(found.scene.iter().all(|e| e.delay_s < -5.7e-9), "{found:?}");
+        // Named 3 cm off where it is, once the leakage beside it is taken out (as the
+        // calibration's rounds do): measured where it is.
+        let f = frequency(n, fs);
+        let z: Vec<Complex64> = (0..n).map(|k| z[k] / found.scene_at(f(k))).collect();
+        let named = named(&z, &model, &coverage, f, fs, -3.87e-9, 0.5e-9).unwrap();
+        assert!(
+            (named.delay_s - reflector.delay_s).abs() < 10e-12,
+            "{named:?}"
+        );
+        assert!((named.gain - reflector.gain).norm() < 0.003, "{named:?}");
     }
 
     #[test]

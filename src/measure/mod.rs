@@ -108,7 +108,7 @@ pub use response::{
     Calibration, CorrectionMode, EchoSeen, InstrumentsSeen, PhaseAnchor, ReferenceFigures,
     Response, ResponseFigures, ResponseHeader,
 };
-pub use response_keep::{check_gate_ns, check_response_out, gate_or_default_s};
+pub use response_keep::{check_gate_ns, check_reflector_m, check_response_out, gate_or_default_s};
 pub use response_keep::{response_path, response_report, store_response};
 pub use response_run::{calibrate_with, CalibrateRequest, Calibrated};
 pub use station::{Applied, CapturePlan, Captured, Identities, RepetitionSource, Uploaded};

@@ -45,6 +45,7 @@ fn measured(scene: &Scene, designed: &Transmission, played: &[num_complex::Compl
         delay,
         3e-9,
         scene.system_delay_s,
+        None,
         &super::response::ResidualWindows {
             windows: &[],
             band_hz: designed.band_hz(),
@@ -68,6 +69,7 @@ fn calibration(response: Response) -> Calibration {
             reference_range_m: RANGE_M,
             repetitions: 1,
             gate_ns: 3.0,
+            reflector_m: None,
             system_delay_s: 0.0,
             figures: response.figures,
             reference: ReferenceFigures::default(),

@@ -44,7 +44,7 @@ const FIGURE_COVERAGE: f64 = 0.5;
 
 /// The chain's discrete echoes are searched this far behind the reference at least (and the
 /// leakage as far ahead), s: an IF cable's round trip is 6-20 ns on a lab bench.
-const MIN_ECHO_REACH_S: f64 = 40e-9;
+pub(crate) const MIN_ECHO_REACH_S: f64 = 40e-9;
 /// Scene echoes (the leakage) weaker than this relative to the reference are left alone, dB.
 const WEAKEST_SCENE_ECHO_DB: f64 = -75.0;
 /// Chain echoes weaker than this are left alone, dB: a lab's IF cable gives -25 to -45 dB;
@@ -55,6 +55,14 @@ const WEAKEST_CHAIN_ECHO_DB: f64 = -50.0;
 /// The leakage is sought this close to range 0 (its coupling at the horns, and the system
 /// delay's error), s.
 const LEAKAGE_PLACE_S: f64 = 1e-9;
+/// A named reflector is sought within this of where the user put it, s (7.5 cm of range).
+const NAMED_WITHIN_S: f64 = 0.5e-9;
+/// The gate a named reflector is measured against closes before it, but no shorter than this, s
+/// (the reference's main lobe at 1 GHz of band).
+const NAMED_SHORTEST_GATE_S: f64 = 1e-9;
+/// A named reflector this close to the reference cannot be told from it, m (its main lobe and
+/// the gate's margin).
+pub(crate) const NAMED_CLOSEST_M: f64 = 0.3;
 /// Most echoes taken out of one reference.
 const MOST_ECHOES: usize = 12;
 /// Rounds of the scene's search (the leakage, then what its first estimate left).
@@ -236,6 +244,9 @@ pub struct ResponseHeader {
     pub reference_range_m: f64,
     pub repetitions: usize,
     pub gate_ns: f64,
+    /// The fixed reflector named in the reference's scene (`--reflector`), m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reflector_m: Option<f64>,
     /// The system delay the response is relative to, s.
     pub system_delay_s: f64,
     pub figures: ResponseFigures,
@@ -595,6 +606,7 @@ pub(crate) fn measure(
     expected_delay_s: f64,
     gate_s: f64,
     system_delay_s: f64,
+    named_s: Option<f64>,
     residual: &ResidualWindows<'_>,
 ) -> Result<Response, MeasureError> {
     let period = on.first().map(|a| a.samples.len()).ok_or_else(|| {
@@ -642,7 +654,7 @@ pub(crate) fn measure(
     let reach_s = MIN_ECHO_REACH_S.max(expected_delay_s - system_delay_s + 3e-9);
     // The leakage couples at the horns, at range 0: 2 R / c ahead of the reference.
     let leakage_at_s = -(expected_delay_s - system_delay_s);
-    let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s, leakage_at_s)?;
+    let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s, leakage_at_s, named_s)?;
     let residual = residual_profiles(&whole, reach_s, residual)?;
     let whole_leakage_unseen = whole.leakage_unseen;
     let (est, echoes, gate_s) = (whole.est, whole.echoes, whole.gate_s);
@@ -843,6 +855,7 @@ fn fit_whole_chain(
     mut relative: Vec<Vec<Complex64>>,
     reach_s: f64,
     leakage_at_s: f64,
+    named_s: Option<f64>,
 ) -> Result<WholeChain, MeasureError> {
     let n = est.period();
     let fs = est.frequency_hz(1) * n as f64;
@@ -884,7 +897,41 @@ fn fit_whole_chain(
     // The leakage's main lobe may reach into the gate's taper and bias the first estimate of it:
     // what the division leaves is searched again with the gate's fit made without it.
     let mut scene_floor = None;
+    // A reflector the user named in the reference's scene: inside the gate the fit would hold it
+    // as the chain's own, and every capture's correction would divide out an echo its chain does
+    // not have (its image, turned by each target's phase, lands beside the leakage: phase ranges
+    // then drift with the target's place). Measured against a gate closed before it and divided
+    // out of the reference as the scene's, again each round (the leakage beside it biases the
+    // first measure).
+    let probe = match named_s {
+        Some(at_s) => {
+            let short = ((at_s.abs() - GATE_MARGIN_S) / 1.5).clamp(NAMED_SHORTEST_GATE_S, gate_s);
+            Some((at_s, ChainEstimator::new(est.reference(), n, fs, short)?))
+        }
+        None => None,
+    };
     for _ in 0..SCENE_ROUNDS {
+        if let Some((at_s, probe)) = &probe {
+            let fit = probe.fit_relative(&mean, &mut Vec::new());
+            let named = chain_echoes::named(
+                &mean,
+                &probe.predicted(&fit),
+                &probe.coverage(),
+                |k| probe.frequency_hz(k),
+                fs,
+                *at_s,
+                NAMED_WITHIN_S,
+            );
+            if let Some(echo) = named {
+                let found = chain_echoes::Echoes {
+                    scene: vec![echo],
+                    ..Default::default()
+                };
+                divide(&mut mean, &mut relative, &|f| found.scene_at(f), &est);
+                fitted = est.fit_relative(&mean, &mut Vec::new());
+                echoes.scene.push(echo);
+            }
+        }
         let first = search(&est, &fitted, &mean, gate_s, WEAKEST_SCENE_ECHO_DB);
         scene_floor.get_or_insert(first.floor);
         let scene = first.scene;

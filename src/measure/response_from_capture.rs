@@ -55,6 +55,7 @@ pub(crate) fn calibrate_from_capture(
         reference_range_m,
         repetitions: aligned.len(),
         gate_s,
+        reflector_m: None,
     };
     let expected_delay_s = 2.0 * reference_range_m / crate::dsp::C0 + system_delay_s;
     let response = measure(
@@ -65,6 +66,7 @@ pub(crate) fn calibrate_from_capture(
         expected_delay_s,
         gate_s,
         system_delay_s,
+        None,
         &super::response::ResidualWindows {
             windows: &super::response_run::residual_windows(),
             band_hz: tx.band_hz(),

@@ -64,6 +64,9 @@ pub struct CalibrateRequest {
     pub repetitions: usize,
     /// Half-width of the window around the reference's echo, seconds.
     pub gate_s: f64,
+    /// A fixed reflector the user named in the reference's scene (antennas to reflector), m:
+    /// measured as the scene's, never as the chain's, however close to the reference.
+    pub reflector_m: Option<f64>,
 }
 
 /// A response measured on a bench, with the reference's figures before and after correcting it.
@@ -144,6 +147,7 @@ impl Calibrated {
             reference_range_m: self.request.reference_range_m,
             repetitions: self.request.repetitions,
             gate_ns: self.request.gate_s * 1e9,
+            reflector_m: self.request.reflector_m,
             system_delay_s: self.system_delay_s,
             figures: self.response.figures,
             reference: self.reference,
@@ -298,6 +302,7 @@ pub async fn calibrate_with(
             expected_delay_s,
             request.gate_s,
             system_delay_s,
+            named_delay_s(&request),
             &ResidualWindows {
                 windows: &residual_windows(),
                 band_hz: tx.band_hz(),
@@ -314,6 +319,13 @@ pub async fn calibrate_with(
         identities,
         system_delay_s,
     })
+}
+
+/// Where the named reflector's echo lies relative to the reference's, s.
+pub(crate) fn named_delay_s(request: &CalibrateRequest) -> Option<f64> {
+    request
+        .reflector_m
+        .map(|r| 2.0 * (r - request.reference_range_m) / crate::dsp::C0)
 }
 
 /// Repetitions `which` of `captured`, decimated and aligned.

@@ -672,3 +672,34 @@ async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_d
     assert!(json(&out)["processing"]["correction"].is_null());
     assert!(lab.bench.is_safe());
 }
+
+/// `--reflector` outside what a calibration can tell from its reference or search is refused
+/// before anything is switched on, naming the option and what is allowed; nothing is written.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reflector_the_calibration_cannot_tell_is_refused_before_rf() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for bad in ["0.9", "-0.2", "9", "nan"] {
+        let (code, _, err) = radbench(
+            d,
+            &[
+                "calibrate",
+                "response",
+                "--reference-range",
+                "1.0",
+                "--reflector",
+                bad,
+                "--allow-rf",
+                "--out",
+                "response.toml",
+            ],
+        )
+        .await;
+        assert_eq!(code, 2, "{bad}: {err}");
+        assert!(
+            err.contains("--reflector") && err.contains("at least 0.3 m from the reference"),
+            "{bad}: {err}"
+        );
+        assert!(!d.join("response.toml").exists());
+    }
+}
