@@ -208,6 +208,7 @@ class Bench:
         *,
         repetitions: int = 16,
         gate_ns: Optional[float] = None,
+        reflector: Optional[float] = None,
         out: Optional[PathLike] = None,
         force: bool = False,
         **waveform_options: Any,
@@ -222,7 +223,9 @@ class Bench:
         ``.toml`` header, the table beside it), else beside the bench file as
         ``<bench>-response.toml``, named in its ``[calibration]`` so this session's later
         captures correct with it; the built-in mock lab's is not stored without ``out``.
-        Returns ``radbench calibrate response --json``'s object (``figures``, ``reference``,
+        ``reflector``: a fixed reflector standing in the reference's scene (metres, at least
+        0.3 from the reference), measured as the scene's rather than taken for the chain's
+        response (``--reflector``). Returns ``radbench calibrate response --json``'s object (``figures``, ``reference``,
         ``chain_echoes``, ``stored_in``, ...); a refused one raises
         :class:`radbench.errors.InputError` with the reason."""
         from . import _keywords
@@ -237,6 +240,7 @@ class Bench:
             _keywords(waveform_options),
             repetitions,
             None if gate_ns is None else float(gate_ns),
+            None if reflector is None else float(reflector),
             os.fspath(out) if out is not None else None,
             bool(force),
         )

@@ -41,6 +41,7 @@ class Bench:
         *,
         repetitions: int = ...,
         gate_ns: Optional[float] = ...,
+        reflector: Optional[float] = ...,
         out: Optional[PathLike] = ...,
         force: bool = ...,
         **waveform_options: Any,

@@ -192,7 +192,7 @@ impl Session {
 
     /// `radbench calibrate response --json`'s object, as JSON text: `keywords` a JSON object
     /// of the waveform's options.
-    #[pyo3(signature = (reference_range, waveform, keywords, repetitions, gate_ns=None, out=None, force=false))]
+    #[pyo3(signature = (reference_range, waveform, keywords, repetitions, gate_ns=None, reflector=None, out=None, force=false))]
     #[allow(clippy::too_many_arguments)]
     fn calibrate_response(
         &self,
@@ -202,6 +202,7 @@ impl Session {
         keywords: &str,
         repetitions: usize,
         gate_ns: Option<f64>,
+        reflector: Option<f64>,
         out: Option<PathBuf>,
         force: bool,
     ) -> PyResult<String> {
@@ -212,6 +213,7 @@ impl Session {
             reference_range,
             repetitions,
             gate_ns,
+            reflector,
             out,
             force,
         )

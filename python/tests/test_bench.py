@@ -225,6 +225,8 @@ def test_calibrate_response_equals_the_commands_and_later_captures_correct_with_
         # Checked before anything radiates, named as the keywords they were given as.
         with pytest.raises(radbench.InputError, match="gate_ns"):
             b.calibrate_response(1.0, gate_ns=0.1)
+        with pytest.raises(radbench.InputError, match="reflector.*0.3 m from the reference"):
+            b.calibrate_response(1.0, reflector=0.9)
         with pytest.raises(radbench.InputError, match="bandwdth.*bandwidth"):
             b.calibrate_response(1.0, bandwdth=1e9)
         with pytest.raises(radbench.InputError, match="out"):

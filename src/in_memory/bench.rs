@@ -572,7 +572,7 @@ impl Warm {
             reference_range_m: o.reference_range_m,
             repetitions: o.repetitions,
             gate_s: measure::gate_or_default_s(o.gate_ns, o.reference_range_m),
-            reflector_m: None,
+            reflector_m: o.reflector_m,
         };
         // The calibration uploads its own waveform: the next capture prepares again.
         self.prepared = None;

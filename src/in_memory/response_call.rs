@@ -25,6 +25,8 @@ pub struct ResponseOptions {
     pub reference_range_m: f64,
     pub repetitions: usize,
     pub gate_ns: Option<f64>,
+    /// A fixed reflector named in the reference's scene, m (`--reflector`).
+    pub reflector_m: Option<f64>,
     /// The header's path (`.toml`); `None`: beside the bench file, or not stored on the
     /// built-in lab.
     pub out: Option<PathBuf>,
@@ -41,6 +43,7 @@ impl ResponseOptions {
         reference_range_m: f64,
         repetitions: usize,
         gate_ns: Option<f64>,
+        reflector_m: Option<f64>,
         out: Option<PathBuf>,
         force: bool,
     ) -> anyhow::Result<ResponseOptions> {
@@ -65,11 +68,15 @@ impl ResponseOptions {
         let args = ResponseParser::try_parse_from(argv)
             .map_err(|e| keywords::in_keywords(keywords::parse_error(&e), &longs))?;
         let respelled = |e: crate::measure::MeasureError| {
-            keywords::in_keywords(e.into(), &["gate-ns".into(), "out".into()])
+            keywords::in_keywords(
+                e.into(),
+                &["gate-ns".into(), "reflector".into(), "out".into()],
+            )
         };
         crate::measure::check(reference_range_m, 2.0)?;
         crate::measure::check_repetitions(repetitions)?;
         crate::measure::check_gate_ns(gate_ns).map_err(respelled)?;
+        crate::measure::check_reflector_m(reflector_m, reference_range_m).map_err(respelled)?;
         crate::measure::check_response_out(out.as_deref()).map_err(respelled)?;
         args.waveform_args
             .spec(waveform)
@@ -80,6 +87,7 @@ impl ResponseOptions {
             reference_range_m,
             repetitions,
             gate_ns,
+            reflector_m,
             out,
             force,
         })
