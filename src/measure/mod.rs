@@ -17,6 +17,7 @@
 //! | [`doctor`] | the bench doctor: every check of a bench that needs no RF, with what to fix; its own room (`measure::doctor::examine`, its `Report`, `Check`, `Status`) |
 //! | `clipping` | samples at the ADC's rails, the advice, and conservative detection when a record clipped |
 //! | `payload` | the communication receivers of the pipeline |
+//! | `receiver` | one family's communication receiver as the rooms implement it and `payload` drives it: the generator as the receivers use it, the decoder, what it recovered, the link's plots |
 //! | `scene_control` | the simulated bench's scene, typed: set it, reseed its noise, read it back |
 //! | `station` | the connected instruments: plan, upload, RF on, capture, safe state |
 //! | `capture` | one complete measurement: prepare (everything checked), capture, process |
@@ -59,6 +60,7 @@ pub(crate) mod pipeline;
 mod predistortion_tests;
 pub(crate) mod range_result;
 pub(crate) mod ranging;
+pub(crate) mod receiver;
 pub(crate) mod record;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;

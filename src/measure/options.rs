@@ -39,19 +39,9 @@ impl Algorithm {
         )
     }
 
-    /// Whether this algorithm can process this waveform (the subspace methods and Fourier need
-    /// OFDM symbols; correlation works for both).
-    pub fn supports(self, waveform: WaveformKind) -> bool {
-        super::family::of_kind(waveform)
-            .algorithms()
-            .contains(&self)
-    }
-
-    /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
-    /// Fourier for OFDM.
-    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
-        super::family::of_kind(waveform).default_algorithm()
-    }
+    // Which waveforms an algorithm takes, and each waveform's default, are their families' rooms'
+    // to say: `Algorithm::supports` and `Algorithm::default_for` are written with the families'
+    // table (`family`), which these plain options sit below.
 }
 
 named_enum!(Algorithm, "algorithm");

@@ -2,7 +2,8 @@
 //! marker, and what the receiver needs to know about it (the transmitted reference, the bits).
 
 use super::error::MeasureError;
-use super::family::{self, Modulated, Modulation};
+use super::family::{self, Modulated};
+use super::receiver::Modulation;
 use crate::driver::IqWaveform;
 use crate::waveform::BitSource;
 use crate::waveform::WaveformSpec;

@@ -1,13 +1,13 @@
-//! What a family room answers ([`Family`]), what it modulates and how its receiver decodes: the
-//! contract the rooms implement, in a file of its own so that they need not import their parent
-//! (`family`, which names them).
+//! What a family room answers ([`Family`]) and what it modulates ([`Modulated`]): the contract the
+//! rooms implement, in a file of its own so that they need not import their parent (`family`,
+//! which names them). How its receiver decodes is `receiver`'s contract, below the transmission
+//! and the payload stage.
 
 use super::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::error::MeasureError;
 use crate::measure::options::{Algorithm, ProcessOptions};
-use crate::measure::payload::Decoded;
-use crate::measure::transmit::Transmission;
-use crate::waveform::{BitSource, Ofdm, ParamError, SymbolMatrix, WaveformSpec};
+use crate::measure::receiver::Modulation;
+use crate::waveform::{BitSource, ParamError, WaveformSpec};
 use num_complex::Complex64;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -80,29 +80,4 @@ pub(crate) struct Modulated {
     pub(crate) samples: Vec<Complex64>,
     pub(crate) bits: Vec<u8>,
     pub(crate) modulation: Arc<dyn Modulation>,
-}
-
-/// A transmission's generator, as its family's receivers use it.
-pub(crate) trait Modulation: std::fmt::Debug + Send + Sync {
-    /// The communication receiver for aligned records of `period` samples (plans made once).
-    fn payload_decoder(&self, period: usize) -> Box<dyn DecodePayload>;
-
-    /// The OFDM frame (generator and every symbol sent) the subcarrier algorithms divide by;
-    /// `None` for a family without one (correlation only).
-    fn ofdm_frame(&self) -> Option<(&Ofdm, &SymbolMatrix)> {
-        None
-    }
-}
-
-/// One family's communication receiver.
-pub(crate) trait DecodePayload: Send + Sync {
-    /// The bits of one aligned repetition `rx` from the strongest echo at fractional lag `lag`
-    /// (samples); `None` when there is nothing to decode from, `Some(Err)` with the reason when
-    /// decoding failed.
-    fn decode(
-        &mut self,
-        rx: &[Complex64],
-        tx: &Transmission,
-        lag: Option<f64>,
-    ) -> Option<Result<Decoded, String>>;
 }

@@ -19,8 +19,10 @@ pub(crate) mod overrides;
 
 mod contract;
 
+use super::options::Algorithm;
 use crate::waveform::{WaveformKind, WaveformSpec};
-pub(crate) use contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
+pub(crate) use contract::{Family, Modulated, ThesisWidths};
+use overrides::{OverrideError, WaveformOverrides};
 use strum::VariantArray;
 
 /// The room of `spec`'s family, holding its parameters: the one place that names every family.
@@ -60,6 +62,43 @@ pub(crate) fn of(spec: &WaveformSpec) -> Box<dyn Family> {
 /// The room of `kind` with the thesis' parameters (for what does not depend on them).
 pub(crate) fn of_kind(kind: WaveformKind) -> Box<dyn Family> {
     of(&kind.thesis_default())
+}
+
+// What the table answers about the plain types below it, written here so that they need not
+// import it (the options and the overrides are data the rooms are built on).
+
+impl Algorithm {
+    /// Whether this algorithm can process this waveform (the subspace methods and Fourier need
+    /// OFDM symbols; correlation works for both).
+    pub fn supports(self, waveform: WaveformKind) -> bool {
+        of_kind(waveform).algorithms().contains(&self)
+    }
+
+    /// The default algorithm of a waveform (its family's room says): correlation for MSK-LFM,
+    /// Fourier for OFDM.
+    pub(crate) fn default_for(waveform: WaveformKind) -> Algorithm {
+        of_kind(waveform).default_algorithm()
+    }
+}
+
+impl WaveformOverrides {
+    /// The thesis' `kind` with these parameters. A parameter of another family is refused, so
+    /// nothing given is silently ignored; sizes are checked before anything is allocated. The
+    /// generators check the rest (even bit counts, CP range, ...) when the waveform is built.
+    pub(crate) fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
+        self.check_values()?;
+        let family = of_kind(kind);
+        for (field, given) in self.given() {
+            if given && !family.parameters().contains(&field) {
+                return Err(OverrideError::Misapplied {
+                    field,
+                    applies_to: families_taking(field),
+                    kind: kind.name(),
+                });
+            }
+        }
+        family.apply(self)
+    }
 }
 
 /// The labels of the families that take override `field`, for messages ("MSK-LFM").

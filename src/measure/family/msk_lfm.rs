@@ -2,12 +2,11 @@
 //! algorithm; its data is decoded from the strongest echo (shifted to sample 0, derotated, then
 //! the generator's dechirp and half-sine integrate-and-dump).
 
-use super::contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
+use super::contract::{Family, Modulated, ThesisWidths};
 use super::overrides::{OverrideError, WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::dsp::link_quality::link_quality;
 use crate::measure::error::MeasureError;
-use crate::measure::payload::{unwrapped_deg, Decoded, LinkTrace};
-use crate::measure::transmit::Transmission;
+use crate::measure::receiver::{unwrapped_deg, DecodePayload, Decoded, LinkTrace, Modulation};
 use crate::measure::{Algorithm, ProcessOptions};
 use crate::waveform::ber_msk_lfm_theory;
 use crate::waveform::BitSource;
@@ -193,7 +192,8 @@ impl DecodePayload for MskLfmDecoder {
     fn decode(
         &mut self,
         rx: &[Complex64],
-        tx: &Transmission,
+        reference: &[Complex64],
+        bits: &[u8],
         lag: Option<f64>,
     ) -> Option<Result<Decoded, String>> {
         // The correlation profile's cell is the echo's lag in samples of the aligned
@@ -210,17 +210,13 @@ impl DecodePayload for MskLfmDecoder {
             &mut self.scratch,
         );
         // Remove the echo's carrier phase: correlate with the reference at lag 0.
-        let c: Complex64 = buf
-            .iter()
-            .zip(&tx.reference)
-            .map(|(a, b)| a * b.conj())
-            .sum();
+        let c: Complex64 = buf.iter().zip(reference).map(|(a, b)| a * b.conj()).sum();
         let derot = if c.norm() > 0.0 {
             c.conj() / c.norm()
         } else {
             Complex64::new(1.0, 0.0)
         };
-        let used = tx.reference.len().min(buf.len());
+        let used = reference.len().min(buf.len());
         for v in &mut buf[..used] {
             *v *= derot;
         }
@@ -228,7 +224,7 @@ impl DecodePayload for MskLfmDecoder {
         Some(
             generator
                 .soft_symbols(&buf[..used])
-                .map(|soft| msk_decoded(generator, &soft, &buf[..used], &tx.reference, &tx.bits))
+                .map(|soft| msk_decoded(generator, &soft, &buf[..used], reference, bits))
                 .map_err(|e| e.to_string()),
         )
     }

@@ -2,12 +2,11 @@
 //! (Fourier by default; correlation, MUSIC, root-MUSIC and ESPRIT divide by its symbols); its data
 //! is decoded by the frame-aligned receiver, equalised from the preamble.
 
-use super::contract::{DecodePayload, Family, Modulated, Modulation, ThesisWidths};
+use super::contract::{Family, Modulated, ThesisWidths};
 use super::overrides::{OverrideError, WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
 use crate::dsp::link_quality::link_quality;
 use crate::measure::error::MeasureError;
-use crate::measure::payload::{Decoded, LinkTrace};
-use crate::measure::transmit::Transmission;
+use crate::measure::receiver::{DecodePayload, Decoded, LinkTrace, Modulation};
 use crate::measure::{Algorithm, ProcessOptions};
 use crate::waveform::ber_ofdm_theory;
 use crate::waveform::ofdm::{qpsk_map, Equalisation, Ofdm, OfdmParams, OfdmReceiver, SymbolMatrix};
@@ -209,22 +208,20 @@ impl DecodePayload for OfdmDecoder {
     fn decode(
         &mut self,
         rx: &[Complex64],
-        tx: &Transmission,
+        reference: &[Complex64],
+        bits: &[u8],
         _lag: Option<f64>,
     ) -> Option<Result<Decoded, String>> {
         let receiver = &mut self.0;
-        let used = tx.reference.len();
+        let used = reference.len();
         let n = receiver.waveform().subcarriers();
         let spacing = receiver.waveform().sample_rate_hz() / receiver.waveform().fft_len() as f64;
         Some(
             receiver
                 .receive(&rx[..used.min(rx.len())], &Equalisation::Preamble)
                 .map(|r| {
-                    let ideal: Vec<Complex64> = tx
-                        .bits
-                        .chunks_exact(2)
-                        .map(|b| qpsk_map(b[0], b[1]))
-                        .collect();
+                    let ideal: Vec<Complex64> =
+                        bits.chunks_exact(2).map(|b| qpsk_map(b[0], b[1])).collect();
                     let quality = link_quality(&r.equalised, &ideal);
                     let centre = (n as f64 - 1.0) / 2.0;
                     Decoded {

@@ -4,7 +4,7 @@
 //! the field in its own spelling ([`OverrideError::field`]). What each family takes and how it
 //! applies them is its room's ([`Family::apply`](super::Family::apply)).
 
-use crate::waveform::{SweepBand, WaveformKind, WaveformSpec};
+use crate::waveform::SweepBand;
 
 /// Largest number of samples one repetition may have: the AWG could hold more (16 G samples),
 /// but beyond this it fits neither the scope's record nor the host usefully.
@@ -90,10 +90,13 @@ impl OverrideError {
 }
 
 impl WaveformOverrides {
-    /// The thesis' `kind` with these parameters. A parameter of another family is refused, so
-    /// nothing given is silently ignored; sizes are checked before anything is allocated. The
-    /// generators check the rest (even bit counts, CP range, ...) when the waveform is built.
-    pub(crate) fn apply(&self, kind: WaveformKind) -> Result<WaveformSpec, OverrideError> {
+    // `WaveformOverrides::apply` (these parameters on the thesis' waveform of a kind) asks the
+    // families' table which family takes which field: it is written with the table (`family`),
+    // which these plain overrides sit below.
+
+    /// The checks of the values given that hold for every family: lengths and rates positive,
+    /// the cyclic prefix shorter than the symbol.
+    pub(super) fn check_values(&self) -> Result<(), OverrideError> {
         for (value, field, unit) in [
             (self.bandwidth_hz, "bandwidth_hz", "Hz"),
             (self.sample_rate_hz, "sample_rate_hz", "Sa/s"),
@@ -120,17 +123,7 @@ impl WaveformOverrides {
                 });
             }
         }
-        let family = super::of_kind(kind);
-        for (field, given) in self.given() {
-            if given && !family.parameters().contains(&field) {
-                return Err(OverrideError::Misapplied {
-                    field,
-                    applies_to: super::families_taking(field),
-                    kind: kind.name(),
-                });
-            }
-        }
-        family.apply(self)
+        Ok(())
     }
 
     /// Every field by name (as [`OverrideError::field`] names it), and whether it is given.
@@ -153,6 +146,7 @@ impl WaveformOverrides {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::waveform::WaveformKind;
 
     #[test]
     fn nothing_given_is_the_thesis_waveform() {
