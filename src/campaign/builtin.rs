@@ -142,14 +142,14 @@ pub struct LabRow {
 pub struct LabChain {
     /// `ideal`, `thesis-lab` or the scene file's path.
     pub name: String,
-    pub chain: crate::measure::scene_control::Chain,
-    pub impairments: crate::measure::scene_control::Impairments,
+    pub chain: crate::measure::bench::scene_control::Chain,
+    pub impairments: crate::measure::bench::scene_control::Impairments,
 }
 
 impl LabChain {
     /// `ideal`, `thesis-lab`, or a scene file whose `[chain]` and `[impairments]` are used.
     pub fn parse(text: &str) -> Result<LabChain, String> {
-        use crate::measure::scene_control::{Chain, ChainPreset, Impairments, Scene};
+        use crate::measure::bench::scene_control::{Chain, ChainPreset, Impairments, Scene};
         let preset = |preset| LabChain {
             name: text.to_string(),
             chain: Chain {
@@ -311,8 +311,8 @@ async fn calibrate_lab(
     use crate::measure::Rig;
     use crate::measure::{calibrate_with, CalibrateRequest};
     use crate::measure::{Bench, BenchSource, BuiltIn};
-    let scene = crate::measure::scene_control::Scene {
-        targets: vec![crate::measure::scene_control::Target {
+    let scene = crate::measure::bench::scene_control::Scene {
+        targets: vec![crate::measure::bench::scene_control::Target {
             range_m: LAB_REFERENCE_M,
             amplitude: 0.5,
             velocity_mps: 0.0,

@@ -6,8 +6,8 @@
 
 use super::error::{io, CampaignError};
 use super::manifest::{Manifest, StepStatus};
-use crate::measure::export::{export_capture, Entry, FORMAT_VERSION};
-use crate::measure::reprocess;
+use crate::measure::records::export::{export_capture, Entry, FORMAT_VERSION};
+use crate::measure::records::reprocess;
 use crate::measure::ProcessOptions;
 use crate::storage::{Array, ExportWriter};
 use serde_json::{json, Value};

@@ -107,7 +107,7 @@ pub struct Manifest {
     /// A simulated bench of a bench file: the scene read from it at the start (every step sets
     /// it again with its own seed, targets and SNR).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub base_scene: Option<crate::measure::scene_control::Scene>,
+    pub base_scene: Option<crate::measure::bench::scene_control::Scene>,
     pub plan: Plan,
     pub sessions: Vec<Session>,
     /// Never empty in a stored manifest (a plan has steps); skipped when empty so that

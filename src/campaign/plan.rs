@@ -12,9 +12,11 @@ use super::nominal::MAX_VELOCITY_MPS;
 pub use super::nominal::{Nominal, Range};
 use super::spec::{OutputSection, PositionerKind, SpecError, SpecFile, SweepSection};
 use crate::catalog::Catalog;
+use crate::measure::bench::scene_control::Scene;
 use crate::measure::capture::{CaptureRequest, MAX_REPETITIONS};
-use crate::measure::family::overrides::{WaveformOverrides, MAX_SAMPLES_PER_REPETITION};
-use crate::measure::scene_control::Scene;
+use crate::measure::processing::family::overrides::{
+    WaveformOverrides, MAX_SAMPLES_PER_REPETITION,
+};
 use crate::measure::CorrectionMode;
 use crate::measure::{planning_scope_resource, AwgLink, Bench, BuiltIn, ScopeLink, ScopeModel};
 use crate::measure::{Algorithm, ProcessOptions, ProcessingChoices};
@@ -608,7 +610,7 @@ pub fn plan(spec: &SpecFile, bench: &BenchInfo) -> Result<Plan, SpecError> {
     }
     // MUSIC's M against each planned waveform, named in the spec (not as the CLI's --m).
     for wf in &waveforms {
-        if let Some(subcarriers) = crate::measure::family::of(wf).subcarriers() {
+        if let Some(subcarriers) = crate::measure::processing::family::of(wf).subcarriers() {
             let every = processing.iter().chain(variants.iter().flatten());
             for o in every.filter(|o| o.algorithm.is_subspace()) {
                 if o.music_m < 2 || o.music_m > subcarriers {
@@ -876,7 +878,7 @@ fn step_waveform(
         Ok(_) => {}
         Err(e) => return Err(spec.error(&field(guess), e.to_string())),
     }
-    crate::measure::family::of(&out)
+    crate::measure::processing::family::of(&out)
         .check()
         .map_err(|e| spec.error(&field(guess), e.to_string()))?;
     Ok(out)
@@ -916,7 +918,7 @@ fn base_waveform(spec: &SpecFile) -> Result<WaveformSpec, SpecError> {
         Ok(_) => {}
         Err(e) => return Err(spec.error("waveform", e.to_string())),
     }
-    if let Err(e) = crate::measure::family::of(&spec_out).check() {
+    if let Err(e) = crate::measure::processing::family::of(&spec_out).check() {
         return Err(spec.error("waveform", e.to_string()));
     }
     Ok(spec_out)

@@ -8,7 +8,7 @@
 use super::error::CampaignError;
 use super::plan::{substitute, Nominal, PositionerPlan};
 use super::spec::PositionerKind;
-use crate::measure::scene_control::{Scene, Target};
+use crate::measure::bench::scene_control::{Scene, Target};
 use crate::measure::Interrupt;
 use std::io::BufRead;
 use std::path::PathBuf;

@@ -19,7 +19,7 @@
 //! separation), the thesis' rule, against the ground truth when it is known, else the nominal.
 
 use super::plan::{Nominal, Range, Step};
-use crate::measure::payload::PayloadResult;
+use crate::measure::processing::payload::PayloadResult;
 use crate::measure::Processed;
 use crate::measure::Spread;
 use crate::physics::C0;

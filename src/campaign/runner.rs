@@ -18,7 +18,7 @@ use super::worker::StepWorker;
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit};
 use crate::exit::Classify;
-use crate::measure::scene_control::{Scene, SceneControlError, Target};
+use crate::measure::bench::scene_control::{Scene, SceneControlError, Target};
 use crate::measure::Interrupt;
 use crate::measure::MeasureError;
 use crate::measure::Provenance;

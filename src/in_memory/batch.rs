@@ -3,7 +3,7 @@
 //! (one cache of pipelines per worker thread).
 
 use crate::campaign::Manifest;
-use crate::measure::reprocess::{
+use crate::measure::records::reprocess::{
     self, Loaded, Record, Repetition, Reprocessed, Source, WaveformChoice,
 };
 use crate::measure::MeasureError;

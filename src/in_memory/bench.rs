@@ -22,7 +22,7 @@ use crate::catalog::Catalog;
 use crate::driver::Journal;
 use crate::driver::{RfPermit, SafeStateReport};
 use crate::exit::bad_input;
-use crate::measure::record::capture_summary;
+use crate::measure::records::record::capture_summary;
 use crate::measure::{self, Algorithm, Bench, BenchCalibration, BenchSource, BuiltIn};
 use crate::measure::{CalibrateRequest, CaptureRequest, CorrectionMode, Interrupt};
 use crate::measure::{MeasureError, Prepared};

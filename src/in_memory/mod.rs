@@ -37,7 +37,7 @@ pub use response_call::ResponseOptions;
 use keywords::parse_error;
 
 use crate::exit::bad_input;
-use crate::measure::reprocess::{self, Loaded, Source, WaveformChoice};
+use crate::measure::records::reprocess::{self, Loaded, Source, WaveformChoice};
 use crate::measure::ProcessOverrides;
 use crate::measure::{Aligned, Dac, MeasureError, RawIq, Transmission};
 use crate::waveform::WaveformKind;
@@ -246,7 +246,7 @@ impl ProcessRequest {
             self.args.background.as_deref(),
             self.args.trigger_offset,
         )?;
-        let summary = crate::measure::record::reprocessed_summary(&sources, &loaded, &r);
+        let summary = crate::measure::records::record::reprocessed_summary(&sources, &loaded, &r);
         Ok(InMemory {
             summary,
             options: r.resolved.options,
@@ -284,7 +284,7 @@ impl ProcessRequest {
             self.args.background.as_deref(),
         )?;
         let r = on_cached_pipeline(&loaded, resolved)?;
-        let summary = crate::measure::record::reprocessed_summary(&[], &loaded, &r);
+        let summary = crate::measure::records::record::reprocessed_summary(&[], &loaded, &r);
         Ok(InMemory {
             summary,
             options: r.resolved.options,

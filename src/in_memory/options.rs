@@ -8,7 +8,7 @@
 #![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 
 use crate::exit::bad_input;
-use crate::measure::family::overrides::{OverrideError, WaveformOverrides};
+use crate::measure::processing::family::overrides::{OverrideError, WaveformOverrides};
 use crate::measure::CorrectionMode;
 use crate::measure::WaveformChoice;
 use crate::measure::{CorrectionUsed, ProcessOverrides, ProcessingChoices};
@@ -177,7 +177,7 @@ impl ProcessArgs {
             ));
         }
         std::fs::create_dir_all(out)?;
-        let cal = crate::measure::response_from_capture::calibrate_from_capture(
+        let cal = crate::measure::calibration::response_from_capture::calibrate_from_capture(
             capture,
             r,
             crate::measure::default_gate_s(r),

@@ -10,16 +10,18 @@
 //! pipeline) the pipeline is built and the background read and checked before any instrument is
 //! connected: a file that does not fit is refused with nothing sent.
 
-use super::bench::Bench;
-use super::blocking::off_runtime;
-use super::clipping::{RecordClipping, ScopeAdc};
+use super::bench::blocking::off_runtime;
+use super::bench::in_use::Bench;
+use super::bench::interrupt::Interrupt;
+use super::bench::station::{self, CapturePlan, Captured, Identities, Station, Uploaded};
 use super::error::MeasureError;
-use super::interrupt::Interrupt;
-use super::options::ProcessOptions;
-use super::pipeline::{Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry};
-use super::repeat::{self, RepetitionResult, Spread};
-use super::station::{self, CapturePlan, Captured, Identities, Station, Uploaded};
-use super::transmit::{Dac, Transmission};
+use super::processing::clipping::{RecordClipping, ScopeAdc};
+use super::processing::options::ProcessOptions;
+use super::processing::pipeline::{
+    Alignable, Aligned, Pipeline, Processed, RawIq, RawWords, RecordGeometry,
+};
+use super::processing::transmit::{Dac, Transmission};
+use super::records::repeat::{self, RepetitionResult, Spread};
 use crate::catalog::Catalog;
 use crate::driver::{Journal, RfPermit, SafeStateReport};
 use crate::waveform::WaveformSpec;
@@ -84,7 +86,7 @@ impl Prepared {
         &self,
         options: ProcessOptions,
     ) -> Result<Prepared, MeasureError> {
-        super::pipeline::validate(&self.tx, &options)?;
+        super::processing::pipeline::validate(&self.tx, &options)?;
         let fs = self.tx.sample_rate_hz();
         let geometry = RecordGeometry::for_capture(self.plan.period, fs, &options);
         let rate = self.plan.scope.sample_rate_hz;
@@ -230,7 +232,7 @@ async fn plan_generated(
     // Pre-distorted for the chain's response when the correction asks (before the instruments
     // are planned: the catalog's limits are checked on the codes that will play).
     let tx = Arc::new(tx.with_correction(&request.options)?);
-    super::pipeline::validate(&tx, &request.options)?;
+    super::processing::pipeline::validate(&tx, &request.options)?;
     let plan = station::plan(
         &bench.file,
         catalog,
@@ -418,7 +420,7 @@ impl Rig {
                 Err(MeasureError::Interrupted {
                     signal: interrupt
                         .received()
-                        .unwrap_or(super::interrupt::StopSignal::Interrupt),
+                        .unwrap_or(super::bench::interrupt::StopSignal::Interrupt),
                     report: report.to_string(),
                 })
             }
@@ -617,12 +619,18 @@ pub(crate) struct LentPipeline {
 
 impl LentPipeline {
     /// A campaign's previous step for the captures processed next (`ranging::Previous`).
-    pub(crate) fn set_previous_step(&mut self, previous: Vec<super::ranging::Previous>) {
+    pub(crate) fn set_previous_step(
+        &mut self,
+        previous: Vec<super::processing::ranging::Previous>,
+    ) {
         self.pipeline.set_previous_step(previous);
     }
 
     /// The calibration's record as the step before a campaign's first (`ranging::Previous`).
-    pub(crate) fn calibration_as_previous(&self, set: &[f64]) -> Vec<super::ranging::Previous> {
+    pub(crate) fn calibration_as_previous(
+        &self,
+        set: &[f64],
+    ) -> Vec<super::processing::ranging::Previous> {
         self.pipeline.calibration_as_previous(set)
     }
 
@@ -747,7 +755,7 @@ pub(crate) fn check_manual_confirmed(bench: &Bench, permit: &RfPermit) -> Result
         return Ok(());
     }
     Err(MeasureError::ManualNotConfirmed {
-        names: super::manual::names(&bench.file.manual),
+        names: super::bench::manual::names(&bench.file.manual),
     })
 }
 

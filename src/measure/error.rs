@@ -1,7 +1,7 @@
 //! Why a measurement failed ([`MeasureError`]), what to do about it and its exit code. In a file
 //! of its own so that the measure modules get it from a sibling, not from their parent.
 
-use super::{bench_file, interrupt};
+use super::bench::{bench_file, interrupt};
 use crate::driver::ErrorKind;
 use crate::exit::{Classify, ExitClass};
 use std::fmt::Display;

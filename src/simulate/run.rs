@@ -10,10 +10,10 @@ use crate::dsp::C0;
 use crate::dsp::{
     find_peaks, interpolate_peak, resolve_targets, sidelobe_levels, width_3db, Interpolation,
 };
-use crate::measure::family;
-use crate::measure::pipeline::{Pipeline, RawIq, RecordGeometry};
-use crate::measure::range_result::RangeResult;
-use crate::measure::transmit::{Dac, Transmission};
+use crate::measure::processing::family;
+use crate::measure::processing::pipeline::{Pipeline, RawIq, RecordGeometry};
+use crate::measure::processing::range_result::RangeResult;
+use crate::measure::processing::transmit::{Dac, Transmission};
 use crate::measure::ProcessOptions;
 use crate::rng::SplitMix64;
 use crate::storage::profile::ProfileTable;

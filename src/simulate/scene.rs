@@ -284,7 +284,7 @@ mod tests {
 
     #[test]
     fn carrier_phase_is_listed_by_its_serde_spelling() {
-        crate::measure::listed::check_listed::<CarrierPhase>("carrier phase");
+        crate::measure::processing::listed::check_listed::<CarrierPhase>("carrier phase");
     }
 
     /// A band-limited test signal: random spectrum over the lowest quarter of the band.

@@ -1,6 +1,6 @@
 //! `radbench simulate run --scene FILE`: the capture `radbench capture --allow-rf --scene FILE`
 //! takes on the built-in mock lab, made in-process without instruments or sockets
-//! ([`crate::measure::scene_capture`]: the same transmission, instrument settings, synthesis,
+//! ([`crate::measure::bench::scene_capture`]: the same transmission, instrument settings, synthesis,
 //! scope ADC and pipeline), reported as a simulation: the capture's detections (`targets`, with
 //! their levels) and, per scene target, the nearest detection.
 //!
@@ -12,8 +12,8 @@ use super::scene::Target;
 use super::spec::{RunSpec, ScenarioResult};
 use super::SimError;
 use crate::dsp::C0;
-use crate::measure::family;
-use crate::measure::scene_capture::SceneCapture;
+use crate::measure::bench::scene_capture::SceneCapture;
+use crate::measure::processing::family;
 use crate::measure::CaptureRequest;
 use crate::measure::ProcessOptions;
 use crate::measure::Processed;

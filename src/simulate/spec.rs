@@ -3,7 +3,7 @@
 
 use super::scene::{CarrierPhase, Target};
 use super::SimError;
-/// The processing choices a run spec names (defined in `crate::measure::options`).
+/// The processing choices a run spec names (defined in `crate::measure::processing::options`).
 pub use crate::measure::{Algorithm, FftPrecisionName, ProcessOptions, WindowName};
 /// The waveform a run transmits (defined in `crate::waveform::spec`).
 pub use crate::waveform::WaveformSpec;
@@ -40,7 +40,7 @@ impl RunSpec {
     /// waveform is simulated as a radar frame: every symbol carries data known to the radar (an
     /// OFDM frame without its preamble; the communication receiver is not simulated here).
     pub fn new(id: impl Into<String>, waveform: WaveformSpec, targets: Vec<Target>) -> Self {
-        let waveform = crate::measure::family::of(&waveform).as_simulated();
+        let waveform = crate::measure::processing::family::of(&waveform).as_simulated();
         Self {
             id: id.into(),
             processing: ProcessOptions::for_waveform(waveform.kind()),

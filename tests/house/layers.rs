@@ -227,11 +227,11 @@ fn campaigns_name_no_mock_lab_path() {
 /// behind the typed seam, its offline scope for simulated captures) and the errors it returns.
 /// The binary (`src/cli`) is not the library and may use it; so may tests.
 const MOCK_LAB_USERS: [&str; 6] = [
-    "src/measure/bench.rs",
-    "src/measure/scene_control.rs",
-    "src/measure/scene_capture.rs",
+    "src/measure/bench/in_use.rs",
+    "src/measure/bench/scene_control.rs",
+    "src/measure/bench/scene_capture.rs",
     "src/measure/error.rs",
-    "src/measure/predistortion_tests.rs",
+    "src/measure/calibration/predistortion_tests.rs",
     "src/simulate/scene_bench.rs",
 ];
 

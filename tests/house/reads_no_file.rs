@@ -27,8 +27,8 @@ const FORBIDDEN: &[&str] = &[
 /// The files of the processing: the pipeline, the transmission and every file of `dsp/`.
 fn processing_files(root: &Path) -> Vec<PathBuf> {
     let mut files = vec![
-        root.join("src/measure/pipeline.rs"),
-        root.join("src/measure/transmit.rs"),
+        root.join("src/measure/processing/pipeline.rs"),
+        root.join("src/measure/processing/transmit.rs"),
     ];
     sources(&root.join("src/dsp"), &mut files);
     files

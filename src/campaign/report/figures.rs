@@ -32,12 +32,12 @@ pub struct Figure {
 }
 
 /// The thesis' single-target figures of a family (its room holds them).
-pub(crate) use crate::measure::family::ThesisWidths;
+pub(crate) use crate::measure::processing::family::ThesisWidths;
 
 /// Tables 4.5 (MSK-LFM) and 4.7 (OFDM) and the lab sections 4.4.1 / 4.5.1, at 1 GHz; `None` for
 /// a family the thesis did not measure.
 pub(crate) fn thesis_widths(kind: WaveformKind) -> Option<ThesisWidths> {
-    crate::measure::family::of_kind(kind).thesis_widths()
+    crate::measure::processing::family::of_kind(kind).thesis_widths()
 }
 
 /// The waveform a step used.
@@ -78,7 +78,7 @@ pub fn wilson95(errors: usize, bits: usize) -> (f64, f64) {
 /// The waveform's theoretical BER at `ebn0_db` (thesis-notes: MSK-LFM Q(sqrt(2 Eb/N0)), OFDM
 /// Q(sqrt(2 Eb/N0 / (1 + cp)))).
 pub fn theory(w: &WaveformSpec, ebn0_db: f64) -> f64 {
-    crate::measure::family::of(w).ber_theory(ebn0_db)
+    crate::measure::processing::family::of(w).ber_theory(ebn0_db)
 }
 
 /// The Eb/N0 (dB) at which the theory gives `ber` (bisection; 0 < ber < 0.5).
@@ -698,7 +698,7 @@ fn ber_theory(
          the measured BER), since the bench's absolute Eb/N0 is not measured. The curve tests \
          the shape (1 dB of Eb/N0 per dB of {swept}), not the absolute level.",
         w.kind().name(),
-        crate::measure::family::of(w).ber_theory_formula(),
+        crate::measure::processing::family::of(w).ber_theory_formula(),
         implied.len(),
     );
     (series, note)

@@ -3,8 +3,8 @@
 //! it with [`stopped`].
 
 use crate::driver::DriverError;
+use crate::measure::bench::interrupt::StopSignal;
 use crate::measure::error::MeasureError;
-use crate::measure::interrupt::StopSignal;
 use std::time::Duration;
 
 /// Longest wait for one instrument to be reached and identified.

@@ -4,9 +4,9 @@
 //! fixed system delay or processed uncorrected.
 
 use super::checklist::List;
-use crate::measure::bench::Bench;
-use crate::measure::bench_file::BenchCalibration;
-use crate::measure::response::Calibration as ResponseCalibration;
+use crate::measure::bench::bench_file::BenchCalibration;
+use crate::measure::bench::in_use::Bench;
+use crate::measure::calibration::response::Calibration as ResponseCalibration;
 use std::path::Path;
 
 /// A calibration older than this is flagged, days.

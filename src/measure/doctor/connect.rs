@@ -8,8 +8,8 @@ use super::entries::{Entries, Entry};
 use crate::address::Resource;
 use crate::driver::open;
 use crate::driver::{Awg, Digitizer, Journal, RfFrontEnd};
+use crate::measure::bench::interrupt::Interrupt;
 use crate::measure::error::MeasureError;
-use crate::measure::interrupt::Interrupt;
 
 /// What answered a TCP connection: `None` for serial resources, else `Ok(address)` or
 /// `Err(what happened)`.

@@ -4,7 +4,7 @@
 
 use crate::address::Resource;
 use crate::catalog::{Catalog, InstrumentModel};
-use crate::measure::bench_file::BenchFile;
+use crate::measure::bench::bench_file::BenchFile;
 use crate::measure::error::MeasureError;
 
 /// One instrument of the bench file.

@@ -10,8 +10,8 @@ use super::entries::Entry;
 use super::identity::wrong_instrument;
 use crate::catalog::RfLimits;
 use crate::driver::{open, RfFrontEnd, RfStatus};
-use crate::measure::bench_file::BenchFile;
-use crate::measure::manual::manual_doctor_fix;
+use crate::measure::bench::bench_file::BenchFile;
+use crate::measure::bench::manual::manual_doctor_fix;
 
 /// Temperatures within this of a module's over-temperature limit are flagged, degrees C.
 const TEMPERATURE_MARGIN_C: f64 = 5.0;

@@ -12,9 +12,9 @@ use crate::driver::safe_state::{self, Shared};
 use crate::driver::{
     Awg, AwgSettings, Digitizer, DigitizerSettings, DriverError, IqWaveform, Outcome, SafeState,
 };
+use crate::measure::bench::interrupt::{Interrupt, StopSignal};
+use crate::measure::bench::station::capture_rate;
 use crate::measure::error::MeasureError;
-use crate::measure::interrupt::{Interrupt, StopSignal};
-use crate::measure::station::capture_rate;
 use std::time::Duration;
 
 /// Longest wait for the marker's edge at the scope, seconds.

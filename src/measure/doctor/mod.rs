@@ -41,9 +41,9 @@ pub use bounds::stopped;
 pub use checklist::{Check, Report, Status};
 
 use crate::driver::Journal;
-use crate::measure::bench::Bench;
+use crate::measure::bench::in_use::Bench;
+use crate::measure::bench::interrupt::Interrupt;
 use crate::measure::error::MeasureError;
-use crate::measure::interrupt::Interrupt;
 use bounds::Deadline;
 use checklist::List;
 use entries::Entries;

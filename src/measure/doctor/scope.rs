@@ -12,7 +12,7 @@ use super::entries::Entry;
 use super::identity::reach_and_identity;
 use crate::address::Resource;
 use crate::driver::open::{self, RemoteSetting};
-use crate::measure::bench::Bench;
+use crate::measure::bench::in_use::Bench;
 
 /// `scope.reachable`, `scope.identity` and `scope.remote_interface`, from the probe and `idn`,
 /// the scope's identity on the bench file's resource (or why it has none).
