@@ -37,6 +37,7 @@ pub struct ResponseOptions {
 impl ResponseOptions {
     /// `keywords`: a JSON object of the waveform's options (`bandwidth`, `pulse_us`, `band`,
     /// ...); errors name the keyword.
+    #[allow(clippy::too_many_arguments)]
     pub fn from_keywords(
         waveform: WaveformKind,
         keywords: &str,

@@ -49,7 +49,14 @@ async fn calibrate(dir: &Path, scene: &Value) {
 /// [`calibrate`] with more options (`--reflector M`).
 async fn calibrate_naming(dir: &Path, scene: &Value, more: &[&str]) {
     let mut scene = scene.clone();
-    scene["clutter"] = json!([scene["clutter"][0]]);
+    let horns: Vec<Value> = scene["clutter"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .take(1)
+        .cloned()
+        .collect();
+    scene["clutter"] = json!(horns);
     let file = write(dir, "reference.toml", &scene);
     let mut args = vec![
         "calibrate",
@@ -368,6 +375,50 @@ async fn a_campaign_through_drift_with_a_named_reference_reflector_stays_within_
     bench["capture_interval_s"] = json!(60.0);
     let errors = fine_step_campaign(d, &bench, 5, 11).await;
     let wrong = off_by_more_than(&errors, 10e-6);
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// A bench whose record shows no Tx -> Rx leakage (none, and nothing at the horns): the reflector
+/// named to the calibration is the time and phase reference. Unnamed, the calibration has no
+/// phase reference and a capture says how to give it one; named, 37 um steps are phase-ranged
+/// within 10 um of the truth.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_a_visible_leakage_the_named_reflector_is_the_phase_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let unleaky = |range_m: f64, seed: u64| {
+        let mut s = bench_scene(range_m, seed);
+        s["leakage"] = json!({"amplitude": 0.0, "delay_s": 0.2e-9});
+        s["clutter"] = json!([{"range_m": 12.5, "amplitude": 0.1}]);
+        s["reference"] = json!({"range_m": 0.45, "amplitude": 0.03});
+        s
+    };
+    // `calibrate` keeps the scene's first clutter (the horns'; here it would be the wall's).
+    let mut reference = unleaky(1.0, 7);
+    reference["clutter"] = json!([]);
+    calibrate_naming(d, &reference, &[]).await;
+    let (_, _, warnings) = capture_phase(d, &unleaky(1.0, 600), "unnamed", 1.0).await;
+    assert!(
+        warnings.to_string().contains("--reflector"),
+        "no phase reference, and how to give one: {warnings}"
+    );
+    calibrate_naming(d, &reference, &["--reflector", "0.45"]).await;
+    let header: toml::Value =
+        toml::from_str(&std::fs::read_to_string(d.join("response.toml")).unwrap()).unwrap();
+    let anchor = &header["reference"]["phase_anchor"];
+    assert_eq!(anchor["by_reflector"].as_bool(), Some(true), "{header}");
+    assert!(
+        (anchor["leakage_range_m"].as_float().unwrap() - 0.45).abs() < 0.01,
+        "{header}"
+    );
+    let mut wrong = Vec::new();
+    for k in 0..4 {
+        let p = 1.0 + 37e-6 * k as f64;
+        let (r, _, warnings) = capture_phase(d, &unleaky(p, 610 + k), &format!("s{k}"), p).await;
+        if (r - p).abs() > 10e-6 || warnings.to_string().contains("keeps its envelope") {
+            wrong.push(format!("{p:.6} m measured {r:.6} m ({warnings})"));
+        }
+    }
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 

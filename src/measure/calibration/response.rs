@@ -160,9 +160,23 @@ pub struct PhaseAnchor {
     /// calibrations made before it was written: taken as one, the conservative reading).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub repetitions: Option<usize>,
+    /// The time and phase reference is the reflector named to the calibration (`--reflector`),
+    /// not the leakage, which its record did not show: the `leakage_*` fields describe that
+    /// reflector.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub by_reflector: bool,
 }
 
 impl PhaseAnchor {
+    /// What the anchor's phase is measured against, for messages.
+    pub(crate) fn reference_name(&self) -> &'static str {
+        if self.by_reflector {
+            "the named reflector"
+        } else {
+            "the Tx -> Rx leakage"
+        }
+    }
+
     /// The envelope's calibration uncertainty it gives, m: its SNR's, and its record's trigger
     /// jitter (`jitter_m` as range, one record's: the average of `repetitions` records carries
     /// `1 / sqrt(repetitions)` of it) or, when larger, the corrected reference's own offset from

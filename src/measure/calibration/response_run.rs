@@ -391,11 +391,13 @@ fn corrected(
     let range = request.reference_range_m;
     let (sb, wb, rb) = reference_of(&before, range);
     let (sa, wa, ra) = reference_of(&after, range);
-    let phase_anchor = pipeline.phase_anchor(&after, range).map(|a| PhaseAnchor {
-        // Each record's trigger jitter is its own: their average's is sqrt(n) smaller.
-        repetitions: Some(averaged),
-        ..a
-    });
+    let phase_anchor = pipeline
+        .phase_anchor(&after, range, request.reflector_m)
+        .map(|a| PhaseAnchor {
+            // Each record's trigger jitter is its own: their average's is sqrt(n) smaller.
+            repetitions: Some(averaged),
+            ..a
+        });
     Ok(ReferenceFigures {
         sidelobe_db_before: sb,
         sidelobe_db_after: sa,

@@ -1004,11 +1004,13 @@ impl Pipeline {
     }
 
     /// The phase anchor of a calibration's corrected reference record `processed` (the
-    /// reference at `reference_range_m` against the leakage), `None` where either is missing.
+    /// reference at `reference_range_m` against the leakage, or where there is none the
+    /// reflector named at `reflector_m`), `None` where either is missing.
     pub(crate) fn phase_anchor(
         &self,
         processed: &Processed,
         reference_range_m: f64,
+        reflector_m: Option<f64>,
     ) -> Option<crate::measure::calibration::response::PhaseAnchor> {
         // The noise per cell the targets' SNR was measured against.
         let noise = processed.detection.targets.iter().find_map(|t| {
@@ -1016,7 +1018,7 @@ impl Pipeline {
             Some(a.norm_sqr() / 10f64.powf(t.snr_db? / 10.0))
         });
         self.ranging
-            .anchor_of(&processed.detection, noise, reference_range_m)
+            .anchor_of(&processed.detection, noise, reference_range_m, reflector_m)
     }
 
     pub fn options(&self) -> &ProcessOptions {

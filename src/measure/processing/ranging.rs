@@ -89,6 +89,16 @@ fn echo_of(d: &Detection, noise_per_cell: Option<f64>) -> Option<Echo> {
     })
 }
 
+/// A phase reference (the leakage, or the named reflector) this far over the noise per cell at
+/// least, dB: its phase then within 0.022 rad (7 um of range) from the noise alone. Weaker, it
+/// is a peak of the noise or a correction's residue where no leakage is (a calibration's record
+/// without leakage showed one at 24 dB, 0.09 m, and phase ranges against it erred by 100 um).
+const MIN_REFERENCE_SNR_DB: f64 = 30.0;
+
+/// A named reflector is sought this close to where the user put it, m (as the calibration
+/// seeks it: `calibrate response --reflector`).
+const NAMED_NEAR_M: f64 = 0.075;
+
 /// The leakage is sought this close to the horns in a calibration's record, m.
 const LEAKAGE_REACH_M: f64 = 0.3;
 
@@ -313,7 +323,9 @@ impl RangingModel {
     ) -> Result<(PhaseAnchor, Echo), String> {
         let anchor = self.anchor.ok_or(
             "no phase reference: capture with --calibration FILE of a response calibration \
-             (`radbench calibrate response`) that measured one",
+             (`radbench calibrate response`) that measured one (one whose record showed no \
+             Tx -> Rx leakage 30 dB over the noise has none: name a fixed reflector in the \
+             reference's scene with `calibrate response --reflector M`)",
         )?;
         if self.band.is_none() {
             return Err(
@@ -324,8 +336,9 @@ impl RangingModel {
             anchor.leakage_range_m - LEAKAGE_SEARCH_M..=anchor.leakage_range_m + LEAKAGE_SEARCH_M;
         let leak = leakage(report, near, noise_per_cell).ok_or_else(|| {
             format!(
-                "the Tx -> Rx leakage (the time and phase reference, at {:.4} m in the \
-                     calibration) is not in this record",
+                "{} (the time and phase reference, at {:.4} m in the calibration) is not in \
+                 this record",
+                anchor.reference_name(),
                 anchor.leakage_range_m
             )
         })?;
@@ -402,9 +415,10 @@ impl RangingModel {
         };
         if drifted && by == BY_ENVELOPE {
             return Err(format!(
-                "the leakage moved {:.2} mm since the calibration, more than the trigger's \
-                 jitter explains: the chain drifted and the phase's cycle is not known \
-                 (calibrate again, or add a fixed reflector to the scene)",
+                "{} moved {:.2} mm since the calibration, more than the trigger's jitter \
+                 explains: the chain drifted and the phase's cycle is not known (calibrate \
+                 again, or add a fixed reflector to the scene)",
+                anchor.reference_name(),
                 leak_move * 1e3
             ));
         }
@@ -455,12 +469,15 @@ impl RangingModel {
 
     /// The anchor of a calibration's corrected reference record: the reference (the strongest
     /// target within 0.3 m of `reference_range_m`) against the leakage (the strongest echo
-    /// before it, outside the range window). `None` when either is missing.
+    /// before it, outside the range window) or, where the record shows none, against the
+    /// reflector named at `reflector_m` (`calibrate response --reflector`). `None` when the
+    /// reference or both are missing.
     pub(crate) fn anchor_of(
         &self,
         report: &DetectionReport,
         noise_per_cell: Option<f64>,
         reference_range_m: f64,
+        reflector_m: Option<f64>,
     ) -> Option<PhaseAnchor> {
         let strongest = |it: &mut dyn Iterator<Item = Echo>| {
             it.max_by(|a, b| a.amplitude.norm().total_cmp(&b.amplitude.norm()))
@@ -473,7 +490,15 @@ impl RangingModel {
                 .filter(|e| (e.range_m - reference_range_m).abs() < 0.3),
         )?;
         let horns = f64::NEG_INFINITY..=LEAKAGE_REACH_M.min(reference.range_m - 0.3);
-        let leak = leakage(report, horns, noise_per_cell)?;
+        // A phase reference under this SNR is a peak of the noise (where no leakage is), not one.
+        let clear = |e: &Echo| e.snr >= 10f64.powf(MIN_REFERENCE_SNR_DB / 10.0);
+        let named = |r: f64| {
+            leakage(report, r - NAMED_NEAR_M..=r + NAMED_NEAR_M, noise_per_cell).filter(clear)
+        };
+        let (leak, by_reflector) = match leakage(report, horns, noise_per_cell).filter(clear) {
+            Some(leak) => (leak, false),
+            None => (reflector_m.and_then(named)?, true),
+        };
         // A fixed reflector: the strongest other target of the calibration's record (the
         // unwrapping's envelope takes the record's common move from it).
         let fixed = strongest(
@@ -496,6 +521,7 @@ impl RangingModel {
             phase_to_leakage_rad: (reference.amplitude / leak.amplitude).arg(),
             phase_std_rad: (phase_std_rad(reference.snr).powi(2) + phase_std_rad(leak.snr).powi(2))
                 .sqrt(),
+            by_reflector,
         })
     }
 }
