@@ -23,7 +23,7 @@ pub fn check_gate_ns(gate_ns: Option<f64>) -> Result<(), MeasureError> {
 }
 
 /// `--reflector` checked against the reference's range: in front of the antennas, at least
-/// [`NAMED_CLOSEST_M`] from the reference and within the reach the calibration searches.
+/// 0.3 m from the reference (`NAMED_CLOSEST_M`) and within the reach the calibration searches.
 pub fn check_reflector_m(reflector_m: Option<f64>, reference_m: f64) -> Result<(), MeasureError> {
     let Some(r) = reflector_m else {
         return Ok(());
