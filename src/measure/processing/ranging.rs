@@ -257,11 +257,17 @@ impl RangingModel {
                 }
             },
         };
-        let fixed_echoes: Vec<Echo> = report
+        let mut fixed_echoes: Vec<Echo> = report
             .targets
             .iter()
             .filter_map(|d| echo_of(d, noise_per_cell))
             .collect();
+        // The calibration's fixed reflector where CLEAN did not report it (a named one may stand
+        // in a strong target's chain floor): the strongest echo or residual peak where it was.
+        if let Some(then) = reference.as_ref().and_then(|(a, _)| a.fixed_range_m) {
+            let near = then - LEAKAGE_SEARCH_M..=then + LEAKAGE_SEARCH_M;
+            fixed_echoes.extend(leakage(report, near, noise_per_cell));
+        }
         for t in &mut report.targets {
             let Some(echo) = echo_of(t, noise_per_cell) else {
                 continue;
@@ -359,34 +365,49 @@ impl RangingModel {
     ) -> Result<(PhaseRanged, &'static str, Option<String>), String> {
         let leak_std = self.snr_std_m(leak.snr).unwrap_or(f64::INFINITY);
         // The envelope that unwraps the phase: the target against the anchor, less the common
-        // move of the record (the trigger's jitter, capture's and calibration's, and the chain's
-        // drift) where a fixed reflector of the calibration's record shows it (the leakage's
-        // envelope cannot: it is cut by the profile's start), weighted by how well it knows it.
-        // A move the jitter cannot explain (over 3 sd) is drift: taken out whole.
+        // move of the record (the trigger's jitter, capture's and calibration's) where a fixed
+        // reflector of the calibration's record shows it (the leakage's envelope cannot: it is
+        // cut by the profile's start), weighted by how well it knows it.
         let jitter_var = 2.0 * self.jitter_m.powi(2);
-        // The leakage's envelope is too distorted to measure the move, but tells a drift of the
-        // chain since the calibration, which the jitter does not explain: no cycle is guessed.
+        // A move the jitter cannot explain (over 3 sd) is the chain's drift since the
+        // calibration, and the drift does not move every echo's fitted envelope alike (the
+        // receiver's I/Q image and DC do not turn with the chain): taken out by a fixed
+        // reflector's move, the envelope was off by a cycle after 10 minutes at 0.5 ps and 5
+        // degrees a minute (a silent 1.87 mm slip). So a drift only tells that no cycle is
+        // guessed; the leakage's envelope, too distorted to measure a move, tells it too.
         let leak_move = leak.range_m - anchor.leakage_range_m;
         let leak_var = leak_std.powi(2) + anchor.leakage_snr_std_m.powi(2);
-        let drifted = fixed.is_none() && leak_move.abs() > 3.0 * (jitter_var + leak_var).sqrt();
+        let mut drifted = (fixed.is_none()
+            && leak_move.abs() > 3.0 * (jitter_var + leak_var).sqrt())
+        .then(|| (anchor.reference_name(), leak_move));
         let (weight, left_var, common_move) = match fixed {
             Some((now, fixed_var, then_m)) => {
                 let moved = now - then_m;
                 if moved.abs() > 3.0 * (jitter_var + fixed_var).sqrt() {
-                    (1.0, fixed_var, moved)
-                } else {
-                    (
-                        jitter_var / (jitter_var + fixed_var),
-                        jitter_var * fixed_var / (jitter_var + fixed_var),
-                        moved,
-                    )
+                    drifted = Some(("the fixed reflector", moved));
                 }
+                (
+                    jitter_var / (jitter_var + fixed_var),
+                    jitter_var * fixed_var / (jitter_var + fixed_var),
+                    moved,
+                )
             }
             None => (0.0, jitter_var, 0.0),
         };
         let rough =
             anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * common_move;
-        let rough_std = (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var).sqrt();
+        // Without a fixed reflector, nothing measures the record's common move, and a drift
+        // under the check above (up to 3 sd of the jitter, 0.9 mm at 1 ps) is not in the jitter's
+        // variance: the leakage's move, however distorted, bounds it (a drift of 0.75 mm after
+        // 10 minutes at 0.5 ps a minute slipped a cycle silently without it).
+        let unmeasured_var = if fixed.is_none() {
+            leak_move.powi(2)
+        } else {
+            0.0
+        };
+        let rough_std =
+            (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var + unmeasured_var)
+                .sqrt();
         let envelope = (rough, rough_std);
         // The previous step's range plus the commanded move tells the cycle better than the
         // envelope, where the envelope moved as much since that step (a stage that moved
@@ -413,13 +434,12 @@ impl RangingModel {
             }
             _ => (rough, rough_std, BY_ENVELOPE, None),
         };
-        if drifted && by == BY_ENVELOPE {
+        if let (Some((what, moved)), BY_ENVELOPE) = (drifted, by) {
             return Err(format!(
-                "{} moved {:.2} mm since the calibration, more than the trigger's jitter \
+                "{what} moved {:.2} mm since the calibration, more than the trigger's jitter \
                  explains: the chain drifted and the phase's cycle is not known (calibrate \
-                 again, or add a fixed reflector to the scene)",
-                anchor.reference_name(),
-                leak_move * 1e3
+                 again; a campaign's steps under lambda/4 unwrap by the step before)",
+                moved * 1e3
             ));
         }
         let phase = wrap((echo.amplitude / leak.amplitude).arg() - anchor.phase_to_leakage_rad);
@@ -444,6 +464,13 @@ impl RangingModel {
             + (centroid * leak_std).powi(2))
         .sqrt();
         let um = |rad: f64| rad * metres_per_radian(self.carrier_hz) * 1e6;
+        tracing::debug!(
+            target: "radbench::ranging",
+            "unwrapping {by}: the envelope {:.1} um +- {:.1} um, the leakage moved {:.1} um",
+            envelope.0 * 1e6,
+            envelope.1 * 1e6,
+            leak_move * 1e6
+        );
         tracing::debug!(
             target: "radbench::ranging",
             "phase range {range_m:.7} m: sd {:.3} um of the target's phase {:.3}, the leakage's \
@@ -499,15 +526,19 @@ impl RangingModel {
             Some(leak) => (leak, false),
             None => (reflector_m.and_then(named)?, true),
         };
-        // A fixed reflector: the strongest other target of the calibration's record (the
-        // unwrapping's envelope takes the record's common move from it).
-        let fixed = strongest(
-            &mut report
-                .targets
-                .iter()
-                .filter_map(|d| echo_of(d, noise_per_cell))
-                .filter(|e| (e.range_m - reference.range_m).abs() >= 0.3),
-        );
+        // A fixed reflector: the one named to the calibration (CLEAN may leave it in the
+        // reference's chain floor rather than report it), else the strongest other target of
+        // the calibration's record (the unwrapping's envelope takes the record's common move
+        // from it, and its move tells a drift).
+        let fixed = reflector_m.and_then(named).or_else(|| {
+            strongest(
+                &mut report
+                    .targets
+                    .iter()
+                    .filter_map(|d| echo_of(d, noise_per_cell))
+                    .filter(|e| (e.range_m - reference.range_m).abs() >= 0.3),
+            )
+        });
         Some(PhaseAnchor {
             // Set by the calibration, which knows how many records it averaged.
             repetitions: None,
