@@ -370,11 +370,10 @@ impl RangingModel {
         // cut by the profile's start), weighted by how well it knows it.
         let jitter_var = 2.0 * self.jitter_m.powi(2);
         // A move the jitter cannot explain (over 3 sd) is the chain's drift since the
-        // calibration, and the drift does not move every echo's fitted envelope alike (the
-        // receiver's I/Q image and DC do not turn with the chain): taken out by a fixed
-        // reflector's move, the envelope was off by a cycle after 10 minutes at 0.5 ps and 5
-        // degrees a minute (a silent 1.87 mm slip). So a drift only tells that no cycle is
-        // guessed; the leakage's envelope, too distorted to measure a move, tells it too.
+        // calibration, which does not move every echo's fitted envelope alike (the receiver's
+        // I/Q image and DC do not turn with the chain): it only tells that no cycle is guessed.
+        // The fixed reflector's move tells it; without one, the leakage's, whose envelope is too
+        // distorted to measure a move (docs/metrology.md, Known limits).
         let leak_move = leak.range_m - anchor.leakage_range_m;
         let leak_var = leak_std.powi(2) + anchor.leakage_snr_std_m.powi(2);
         let mut drifted = (fixed.is_none()
@@ -396,18 +395,7 @@ impl RangingModel {
         };
         let rough =
             anchor.range_m + (echo.range_m - anchor.envelope_range_m) - weight * common_move;
-        // Without a fixed reflector, nothing measures the record's common move, and a drift
-        // under the check above (up to 3 sd of the jitter, 0.9 mm at 1 ps) is not in the jitter's
-        // variance: the leakage's move, however distorted, bounds it (a drift of 0.75 mm after
-        // 10 minutes at 0.5 ps a minute slipped a cycle silently without it).
-        let unmeasured_var = if fixed.is_none() {
-            leak_move.powi(2)
-        } else {
-            0.0
-        };
-        let rough_std =
-            (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var + unmeasured_var)
-                .sqrt();
+        let rough_std = (snr_std_m.powi(2) + anchor.envelope_snr_std_m.powi(2) + left_var).sqrt();
         let envelope = (rough, rough_std);
         // The previous step's range plus the commanded move tells the cycle better than the
         // envelope, where the envelope moved as much since that step (a stage that moved
