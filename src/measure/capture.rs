@@ -789,8 +789,9 @@ pub async fn measure(
 }
 
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
-/// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
-/// capture while it is processed, so that a capture whose processing fails is still kept.
+/// with the preparation that processes it. `radbench capture` records it
+/// ([`Recorder::record`](crate::measure::Recorder::record)): the raw capture written while it is
+/// processed, so that a capture whose processing fails is still kept.
 /// `generation`: the request's transmission, started earlier ([`Generation::start`]).
 pub async fn take(
     bench: &Bench,
