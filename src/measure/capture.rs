@@ -109,7 +109,7 @@ impl Prepared {
     /// The options a capture of `captured` is processed with (this preparation's, with the
     /// AWG amplitude the instrument applied), known before it is processed: the raw files
     /// record them while the capture is processed.
-    pub fn options_for(&self, captured: &Captured) -> ProcessOptions {
+    pub(crate) fn options_for(&self, captured: &Captured) -> ProcessOptions {
         let mut options = self.pipeline().options().clone();
         options.awg_amplitude_vpp = Some(captured.applied.awg.i_amplitude_vpp);
         options
