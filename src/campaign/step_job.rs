@@ -13,7 +13,8 @@ use super::run::STEP_RESULT;
 use super::spec::OutputSection;
 use crate::measure::capture::{LentPipeline, Measurement, Processing, Taken};
 use crate::measure::processing::ranging::{PhaseRanged, Previous};
-use crate::measure::records::record::{self, Provenance};
+use crate::measure::records::record::Provenance;
+use crate::measure::records::recorder::Recorder;
 use crate::measure::Detection;
 use crate::measure::MeasureError;
 use crate::storage::{write_atomic, write_group, GroupWritten};
@@ -153,15 +154,17 @@ impl StepJob {
         part: JournalPart,
         store: &mut ManifestStore,
     ) -> Result<(StepResult, Written), CampaignError> {
-        let mut others = processings.split_off(1);
+        let others = processings.split_off(1);
         let mut m = taken.with(processings.pop().expect("the primary algorithm"));
+        let mut others: Vec<(&'static str, Processing)> =
+            self.names[1..].iter().copied().zip(others).collect();
         let result = {
             let mut outputs = vec![AlgorithmOutput {
                 name: self.names[0],
                 processed: &m.processing.processed,
                 spread: m.processing.spread.as_ref(),
             }];
-            for (o, name) in others.iter().zip(&self.names[1..]) {
+            for (name, o) in &others {
                 outputs.push(AlgorithmOutput {
                     name,
                     processed: &o.processed,
@@ -189,7 +192,6 @@ impl StepJob {
             &rel,
             &mut m,
             &mut others,
-            &self.names,
             &self.provenance,
             &result_json,
             self.output,
@@ -305,8 +307,7 @@ fn write_step_files(
     dir: &Path,
     rel: &Path,
     m: &mut Measurement,
-    others: &mut [Processing],
-    names: &[&'static str],
+    others: &mut [(&str, Processing)],
     provenance: &Provenance,
     result_json: &str,
     output: OutputSection,
@@ -321,23 +322,9 @@ fn write_step_files(
     }
     let keep = |name: &str| output.keeps(name);
     let ((), written) = write_group(|| {
-        let raw =
-            record::write_raw_keeping(&out, &m.taken, &m.processing.options, provenance, &keep)?;
-        record::write_processed_keeping(&out, m, &raw, provenance, &keep)?;
-        for (p, name) in others.iter_mut().zip(&names[1..]) {
-            swap_processing(m, p);
-            let written =
-                record::write_processed_keeping(&out.join(name), m, &raw, provenance, &keep);
-            swap_processing(m, p);
-            written?;
-        }
+        Recorder::new(&out, provenance).write(m, others, &keep)?;
         write_atomic(&out.join(STEP_RESULT), result_json.as_bytes())?;
         Ok::<_, CampaignError>(())
     })?;
     Ok(written)
-}
-
-/// Exchanges a measurement's processing with another algorithm's (to write that one's files).
-fn swap_processing(m: &mut Measurement, p: &mut Processing) {
-    std::mem::swap(&mut m.processing, p);
 }

@@ -2,7 +2,6 @@
 //! mock lab. Parses, calls `measure`, prints.
 
 use super::args::{PayloadArgs, WaveformArgs};
-use anyhow::Context;
 use radbench::driver::RfPermit;
 use radbench::exit::bad_input;
 use radbench::measure;
@@ -13,10 +12,9 @@ use radbench::measure::Provenance;
 use radbench::measure::{AwgLink, ScopeLink};
 use radbench::measure::{Bench, BenchSource, BuiltIn};
 use radbench::measure::{CaptureRequest, Measurement};
-use radbench::storage::write_group_open;
+use radbench::measure::{NotRecorded, Recorded, Recorder};
 use radbench::waveform::WaveformKind;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -211,7 +209,6 @@ pub(super) async fn once(
     out: &Path,
     calibration: Option<&Calibration>,
 ) -> anyhow::Result<()> {
-    let out = out.to_path_buf();
     let (taken, mut prepared) = measure::take(
         bench,
         request,
@@ -226,43 +223,18 @@ pub(super) async fn once(
         bench_file: bench.path.clone(),
         simulated: bench.is_simulated(),
     };
-    // The raw capture is written (and made durable) on its own thread while the capture is
-    // processed: on two cores the files cost no time, and a capture whose processing fails is
-    // kept, to be processed again.
-    let taken = Arc::new(taken);
-    let raw_writer = {
-        let (out, taken, provenance) = (out.clone(), taken.clone(), provenance.clone());
-        let options = prepared.options_for(&taken.captured);
-        tokio::task::spawn_blocking(move || {
-            // Not hashed: a capture lists no written file's SHA-256 (the SigMF data's SHA-512
-            // is in its metadata).
-            let (raw, group) =
-                write_group_open(|| measure::write_raw(&out, &taken, &options, &provenance))?;
-            group.finish().map_err(MeasureError::from)?;
-            Ok::<_, MeasureError>(raw)
+    let Recorded {
+        measurement: m,
+        summary,
+    } = Recorder::new(out, &provenance)
+        .record(taken, &mut prepared, |m| {
+            if let Some(cal) = calibration {
+                let warnings = calibration_warnings(cal, &m.taken.identities);
+                m.processing.processed.warnings.extend(warnings);
+            }
         })
-    };
-    let processing = measure::process_with(&mut prepared, &taken.captured).await;
-    let raw = raw_writer
         .await
-        .map_err(|e| MeasureError::Worker(format!("writing the raw capture: {e}")))??;
-    let processing = processing.with_context(|| {
-        format!(
-            "the raw capture is kept in {}: `radbench process {}` processes it again",
-            out.display(),
-            out.display()
-        )
-    })?;
-    let taken = Arc::try_unwrap(taken)
-        .map_err(|_| MeasureError::Worker("the raw capture is still being written".into()))?;
-    let mut m = taken.with(processing);
-    if let Some(cal) = calibration {
-        let warnings = calibration_warnings(cal, &m.taken.identities);
-        m.processing.processed.warnings.extend(warnings);
-    }
-    let ((_, summary), group) =
-        write_group_open(|| measure::write_processed_beside(&out, &m, &raw, &provenance))?;
-    group.finish().map_err(MeasureError::from)?;
+        .map_err(|e| not_recorded(e, out))?;
     if let Some(signal) = interrupt.received() {
         eprintln!(
             "{} received after the capture: the bench is safe and the files are written to {}",
@@ -278,8 +250,22 @@ pub(super) async fn once(
     if args.json {
         super::terminal::out(&summary.to_string())
     } else {
-        super::terminal::out(&report(&m, &out))
+        super::terminal::out(&report(&m, out))
     }
+}
+
+/// Why a capture's files were not all written, as the command's error: when its processing
+/// failed, where its raw capture is kept and how to process it again.
+pub(crate) fn not_recorded(e: NotRecorded, out: &Path) -> anyhow::Error {
+    let error = anyhow::Error::from(e.error);
+    if !e.raw_kept {
+        return error;
+    }
+    error.context(format!(
+        "the raw capture is kept in {}: `radbench process {}` processes it again",
+        out.display(),
+        out.display()
+    ))
 }
 
 /// The text report of a measurement.

@@ -1,7 +1,7 @@
 //! `radbench capture --repeat N|forever`: one bench connection, one upload, N captures (or until
 //! a stop), each in a folder of its own; RF on only while capturing, the safe state after each.
 
-use super::capture::{calibration_warnings, journal, report, Args, Repeat};
+use super::capture::{calibration_warnings, journal, not_recorded, report, Args, Repeat};
 use super::live::{self as live_cli};
 use crate::live::{Event, Live};
 use radbench::driver::RfPermit;
@@ -11,7 +11,7 @@ use radbench::measure::Calibration;
 use radbench::measure::Interrupt;
 use radbench::measure::MeasureError;
 use radbench::measure::Provenance;
-use radbench::measure::{CaptureRequest, Rig};
+use radbench::measure::{CaptureRequest, Recorded, Recorder, Rig};
 use serde_json::json;
 use std::path::Path;
 
@@ -118,15 +118,22 @@ async fn run(
             live,
             Event::Set("current", json!(format!("capture {k}/{of}: capturing"))),
         );
-        let mut m = rig
-            .measure(bench, &mut prepared, args.repetitions, permit, interrupt)
+        let taken = rig
+            .acquire(bench, &prepared, args.repetitions, permit, interrupt)
             .await?;
-        if let Some(cal) = calibration {
-            let warnings = calibration_warnings(cal, &m.taken.identities);
-            m.processing.processed.warnings.extend(warnings);
-        }
         let dir = out.join(format!("capture-{k:04}"));
-        let (_, mut summary) = measure::write_capture(&dir, &m, &provenance)?;
+        let Recorded {
+            measurement: m,
+            mut summary,
+        } = Recorder::new(&dir, &provenance)
+            .record(taken, &mut prepared, |m| {
+                if let Some(cal) = calibration {
+                    let warnings = calibration_warnings(cal, &m.taken.identities);
+                    m.processing.processed.warnings.extend(warnings);
+                }
+            })
+            .await
+            .map_err(|e| not_recorded(e, &dir))?;
         if let Some(l) = live {
             let p = &m.processing.processed;
             let ranges: Vec<f64> = p.targets.iter().map(|t| t.range_m).collect();

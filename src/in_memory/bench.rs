@@ -22,11 +22,11 @@ use crate::catalog::Catalog;
 use crate::driver::Journal;
 use crate::driver::{RfPermit, SafeStateReport};
 use crate::exit::bad_input;
-use crate::measure::records::record::capture_summary;
+use crate::measure::records::record::{capture_summary, keep_all};
 use crate::measure::{self, Algorithm, Bench, BenchCalibration, BenchSource, BuiltIn};
 use crate::measure::{CalibrateRequest, CaptureRequest, CorrectionMode, Interrupt};
 use crate::measure::{MeasureError, Prepared};
-use crate::measure::{ProcessOptions, Provenance, Rig, StopSignal};
+use crate::measure::{ProcessOptions, Provenance, Recorder, Rig, StopSignal};
 use crate::waveform::WaveformSpec;
 use serde_json::{json, Value};
 use std::future::Future;
@@ -484,7 +484,11 @@ impl Warm {
             simulated: self.bench.is_simulated(),
         };
         let summary = match &o.out {
-            Some(out) => measure::write_capture(out, &m, &provenance)?.1,
+            Some(out) => {
+                Recorder::new(out, &provenance)
+                    .write(&mut m, &mut [], &keep_all)?
+                    .1
+            }
             None => capture_summary(&m, &provenance),
         };
         if let Some(signal) = interrupt.received() {

@@ -109,7 +109,7 @@ impl Prepared {
     /// The options a capture of `captured` is processed with (this preparation's, with the
     /// AWG amplitude the instrument applied), known before it is processed: the raw files
     /// record them while the capture is processed.
-    pub fn options_for(&self, captured: &Captured) -> ProcessOptions {
+    pub(crate) fn options_for(&self, captured: &Captured) -> ProcessOptions {
         let mut options = self.pipeline().options().clone();
         options.awg_amplitude_vpp = Some(captured.applied.awg.i_amplitude_vpp);
         options
@@ -460,11 +460,10 @@ impl Rig {
         permit: &RfPermit,
         interrupt: &Interrupt,
     ) -> Result<Measurement, MeasureError> {
-        let taken = self
-            .acquire(bench, prepared, repetitions, permit, interrupt)
-            .await?;
-        let processing = process_with(prepared, &taken.captured).await?;
-        Ok(taken.with(processing))
+        self.acquire(bench, prepared, repetitions, permit, interrupt)
+            .await?
+            .processed(prepared)
+            .await
     }
 
     /// The bench part of [`Rig::measure`]: `repetitions` marker-triggered repetitions under the
@@ -543,6 +542,14 @@ pub struct Taken {
 }
 
 impl Taken {
+    /// This capture processed through `prepared` ([`process_with`]), as a measurement
+    /// ([`measure`], [`Rig::measure`]: nothing written). The recorder (`records::recorder`)
+    /// processes a capture while it writes its raw files.
+    async fn processed(self, prepared: &mut Prepared) -> Result<Measurement, MeasureError> {
+        let processing = process_with(prepared, &self.captured).await?;
+        Ok(self.with(processing))
+    }
+
     /// The measurement, with what a pipeline made of this capture.
     pub fn with(self, mut processing: Processing) -> Measurement {
         // The bench's first: they qualify every figure after them.
@@ -589,9 +596,9 @@ pub struct Processing {
 }
 
 /// Processes a capture through `prepared`'s pipeline, off the runtime: each repetition alone and
-/// their coherent average. [`Rig::measure`] does this for its own capture; a campaign calls it
-/// again with the preparation of another algorithm, so the capture is taken once.
-pub async fn process_with(
+/// their coherent average. [`Rig::measure`] does this for its own capture, the recorder
+/// (`records::recorder`) while it writes the raw capture.
+pub(crate) async fn process_with(
     prepared: &mut Prepared,
     captured: &Captured,
 ) -> Result<Processing, MeasureError> {
@@ -778,13 +785,13 @@ pub async fn measure(
         interrupt,
     )
     .await?;
-    let processing = process_with(&mut prepared, &taken.captured).await?;
-    Ok(taken.with(processing))
+    taken.processed(&mut prepared).await
 }
 
 /// [`measure`] up to the capture: taken, the bench back in its safe state, not processed yet,
-/// with the preparation that processes it ([`process_with`]). `radbench capture` writes the raw
-/// capture while it is processed, so that a capture whose processing fails is still kept.
+/// with the preparation that processes it. `radbench capture` records it
+/// ([`Recorder::record`](crate::measure::Recorder::record)): the raw capture written while it is
+/// processed, so that a capture whose processing fails is still kept.
 /// `generation`: the request's transmission, started earlier ([`Generation::start`]).
 pub async fn take(
     bench: &Bench,

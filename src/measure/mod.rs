@@ -7,7 +7,7 @@
 //! | `bench` | the bench in use and its instruments: the bench file, the connected station (plan, upload, RF on, capture, safe state), the simulated bench's scene, manual front ends, stop signals, the catalog's verification, work off the async runtime |
 //! | `processing` | the transmission and what the receiver does with it, reading no file: the waveform families, the processing options and choices, the one pipeline (decimation, alignment, range profile, detection, ranging, clipping, payload) |
 //! | `calibration` | the chain's calibrations: the system delay from a reference target, the response (measured, stored, loaded once where a command resolves its options) and the correction a measurement uses |
-//! | `records` | a measurement's files and what is read back from them: SigMF, `.trc`, profiles, plots, `summary.json`; re-processing saved captures, their export for notebooks, repetitions' averages and spread |
+//! | `records` | a measurement's files and what is read back from them: SigMF, `.trc`, profiles, plots, `summary.json`, and the recorder that writes one capture's from its take; re-processing saved captures, their export for notebooks, repetitions' averages and spread |
 //! | `capture` | one complete measurement: prepare (everything checked), capture, process |
 //! | `error` | why a measurement failed, what to do about it and its exit code |
 //! | [`doctor`] | the bench doctor: every check of a bench that needs no RF, with what to fix; its own room (`measure::doctor::examine`, its `Report`, `Check`, `Status`) |
@@ -50,8 +50,8 @@ pub use calibration::response_keep::{response_path, response_report, store_respo
 pub use calibration::response_run::{calibrate_with, CalibrateRequest, Calibrated};
 pub(crate) use capture::prepare_uploading;
 pub use capture::{
-    check_repetitions, prepare, process_with, take, BackgroundFile, CaptureRequest, Generation,
-    Measurement, Prepared, Processing, Rig, Taken,
+    check_repetitions, prepare, take, BackgroundFile, CaptureRequest, Generation, Measurement,
+    Prepared, Processing, Rig, Taken,
 };
 pub use processing::ambiguity::{ambiguity, AmbiguityReport};
 pub use processing::numbers::{rate, signed};
@@ -63,9 +63,9 @@ pub use records::export::{export_capture, CaptureExport, Entry};
 pub use records::figure::profile_figure;
 pub(crate) use records::record::write_reprocessed_by_content;
 pub use records::record::{
-    write_capture, write_processed_beside, write_raw, write_reprocessed, CaptureFiles,
-    ProfileFiles, Provenance, RawFiles, ReprocessFiles, SourceFile,
+    write_reprocessed, ProfileFiles, Provenance, ReprocessFiles, SourceFile,
 };
+pub use records::recorder::{NotRecorded, Recorded, Recorder};
 pub use records::repeat::{RepetitionResult, Spread, Stat, TargetSpread};
 pub use records::reprocess::{
     discover, sigmf, InputError, Loaded, Record, Reprocessed, Resolved, Source, WaveformChoice,

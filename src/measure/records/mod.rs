@@ -5,6 +5,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | `record` | a measurement's files: SigMF, `.trc`, profiles, plots, `summary.json` |
+//! | `recorder` | one capture from its take to its files: the raw recording beside the processing, then each algorithm's files |
 //! | `figure` | what a measurement's plot and profile table show |
 //! | `export` | a saved capture's arrays for a notebook (I/Q, profiles, detections, transmission), got through `reprocess` |
 //! | `reprocess` | saved captures (capture folders, SigMF, `.trc` pairs) through the pipeline again |
@@ -13,5 +14,6 @@
 pub(crate) mod export;
 pub(crate) mod figure;
 pub(crate) mod record;
+pub(crate) mod recorder;
 pub(crate) mod repeat;
 pub(crate) mod reprocess;

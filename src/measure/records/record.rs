@@ -1,5 +1,6 @@
 //! A measurement's files: the raw capture (SigMF and the scope's `.trc`), the range profiles (CSV,
-//! npy), plots and `summary.json`, every one written atomically into one folder.
+//! npy), plots and `summary.json`, every one written atomically into one folder. In what order
+//! and on which thread a capture's are written is the recorder's (`recorder::Recorder`).
 
 use crate::measure::capture::{Measurement, Taken};
 use crate::measure::error::MeasureError;
@@ -16,17 +17,17 @@ use std::path::{Path, PathBuf};
 
 /// Where the files of one capture went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct CaptureFiles {
-    pub dir: PathBuf,
-    pub sigmf_meta: PathBuf,
-    pub sigmf_data: PathBuf,
+pub(crate) struct CaptureFiles {
+    pub(crate) dir: PathBuf,
+    pub(crate) sigmf_meta: PathBuf,
+    pub(crate) sigmf_data: PathBuf,
     /// The scope's own files of the first acquisition (`C1.trc`, `C2.trc` from a LeCroy); the
     /// JSON name stays `trc` for scripts written before other scopes.
     #[serde(rename = "trc")]
-    pub native: Vec<PathBuf>,
+    pub(crate) native: Vec<PathBuf>,
     #[serde(flatten)]
-    pub profiles: ProfileFiles,
-    pub summary: PathBuf,
+    pub(crate) profiles: ProfileFiles,
+    pub(crate) summary: PathBuf,
 }
 
 /// The files of one processing of a capture: the range profiles and their plots.
@@ -213,25 +214,11 @@ pub struct Provenance {
 
 /// Where the raw capture of one measurement went.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct RawFiles {
-    pub sigmf_meta: PathBuf,
-    pub sigmf_data: PathBuf,
+pub(crate) struct RawFiles {
+    pub(crate) sigmf_meta: PathBuf,
+    pub(crate) sigmf_data: PathBuf,
     #[serde(rename = "trc")]
-    pub native: Vec<PathBuf>,
-}
-
-/// Writes every file of `m` into `out` (created when missing), `summary.json` last, as one write
-/// group (`radbench capture --repeat`: each capture of the series after its processing).
-pub fn write_capture(
-    out: &Path,
-    m: &Measurement,
-    provenance: &Provenance,
-) -> Result<(CaptureFiles, Value), MeasureError> {
-    let (written, _) = crate::storage::write_group(|| {
-        let raw = write_raw(out, &m.taken, &m.processing.options, provenance)?;
-        write_processed(out, m, &raw, provenance)
-    })?;
-    Ok(written)
+    pub(crate) native: Vec<PathBuf>,
 }
 
 fn create_dir(out: &Path) -> Result<(), MeasureError> {
@@ -244,19 +231,10 @@ fn create_dir(out: &Path) -> Result<(), MeasureError> {
     Ok(())
 }
 
-/// Writes the raw capture of `m` into `out`: SigMF (every repetition) and the scope's `.trc`.
-/// `options`: those the capture is processed with (`Prepared::options_for`).
-pub fn write_raw(
-    out: &Path,
-    taken: &Taken,
-    options: &ProcessOptions,
-    provenance: &Provenance,
-) -> Result<RawFiles, MeasureError> {
-    write_raw_keeping(out, taken, options, provenance, &keep_all)
-}
-
-/// [`write_raw`] writing only the scope's files `keep` keeps (the SigMF recording always).
-pub(crate) fn write_raw_keeping(
+/// Writes the raw capture of `taken` into `out`: SigMF (every repetition) and the scope's `.trc`,
+/// those `keep` keeps (the SigMF recording always). `options`: those the capture is processed
+/// with (`Prepared::options_for`).
+pub(crate) fn write_raw(
     out: &Path,
     taken: &Taken,
     options: &ProcessOptions,
@@ -373,42 +351,12 @@ pub(crate) fn write_raw_keeping(
 }
 
 /// Writes what the processing of `m` gave into `out`: the range profiles (CSV, npy), plots and
-/// `summary.json` (last), which names `raw` as the capture. A campaign writes one such set per
-/// algorithm applied to the same capture. Every file is written on the calling thread (in its
-/// write group, if any: a campaign's manifest lists them).
+/// `summary.json` (last), which names `raw` as the capture; only the files `keep` keeps
+/// (`summary.json` always). Every file is written on the calling thread (in its write group, if
+/// any), but for the link figure when `beside`: drawn on a thread of its own (in a write group of
+/// its own, ended before `summary.json` is written) while the profiles are written, for a
+/// one-shot capture whose second core is free by then.
 pub(crate) fn write_processed(
-    out: &Path,
-    m: &Measurement,
-    raw: &RawFiles,
-    provenance: &Provenance,
-) -> Result<(CaptureFiles, Value), MeasureError> {
-    write_processed_with(out, m, raw, provenance, false, &keep_all)
-}
-
-/// [`write_processed`] writing only the files `keep` keeps (`summary.json` always).
-pub(crate) fn write_processed_keeping(
-    out: &Path,
-    m: &Measurement,
-    raw: &RawFiles,
-    provenance: &Provenance,
-    keep: Keep<'_>,
-) -> Result<(CaptureFiles, Value), MeasureError> {
-    write_processed_with(out, m, raw, provenance, false, keep)
-}
-
-/// `write_processed` for a one-shot capture: the link figure is drawn on a thread of its own
-/// (in a write group of its own, ended before `summary.json` is written) while the profiles are
-/// written, the second core being free by then.
-pub fn write_processed_beside(
-    out: &Path,
-    m: &Measurement,
-    raw: &RawFiles,
-    provenance: &Provenance,
-) -> Result<(CaptureFiles, Value), MeasureError> {
-    write_processed_with(out, m, raw, provenance, true, &keep_all)
-}
-
-fn write_processed_with(
     out: &Path,
     m: &Measurement,
     raw: &RawFiles,
