@@ -66,10 +66,10 @@
 //! | [`archive`] | app | archive processing driven by the run catalog: the captures a query selects, each processed into a folder addressed by content (input SHA-256, options hash, version), written under a temporary name and renamed when complete; what `radbench process --from-catalog` and the Python package's Dask path run |
 //! | [`classify()`] | app | an error chain's exit class (the binary's exit code, the Python package's exception) |
 //!
-//! The binary (`src/main.rs`) holds what only the command line needs: `cli` (one module per
-//! subcommand: parse, call, print; in `src/cli/`) and `live` (the live view: a loopback HTTP
+//! The binary (`src/bin/radbench/main.rs`) holds what only the command line needs: `cli` (one module per
+//! subcommand: parse, call, print; in `src/bin/radbench/cli/`) and `live` (the live view: a loopback HTTP
 //! server of one self-contained page and its event stream, fed through a bounded queue that drops
-//! frames, never waited for; in `src/live/`). They use the library as any user does, through
+//! frames, never waited for; in `src/bin/radbench/live/`). They use the library as any user does, through
 //! `radbench::...`.
 //!
 //! # Examples

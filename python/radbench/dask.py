@@ -40,7 +40,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 __all__ = ["WORKER_CONFIG", "worker_environment", "units", "process_unit", "process_bag", "register"]
 
 #: Dask configuration for the workers that run radbench's units (see :func:`worker_environment`):
-#: each worker process's memory set up as the command line sets up its own (``src/main.rs``).
+#: each worker process's memory set up as the command line sets up its own (``src/bin/radbench/main.rs``).
 #: Dask's nanny starts every worker with ``MALLOC_TRIM_THRESHOLD_=65536``, which also switches
 #: off glibc's adaptive mmap threshold: each of a unit's large buffers is then mapped and faulted
 #: in afresh, and a unit runs ~30 % slower (measured: 2 workers, 9.8 against 13.4 captures/s;

@@ -21,7 +21,7 @@ const LIMIT: usize = 1 << 20;
 
 const BIN: &str = env!("CARGO_BIN_EXE_radbench");
 
-/// The reply cap of `scpi` and `idn` (src/cli/bounded.rs).
+/// The reply cap of `scpi` and `idn` (src/bin/radbench/cli/bounded.rs).
 const CAP: u64 = 64 << 20;
 
 #[derive(Debug, Clone, Copy)]

@@ -318,7 +318,7 @@ async fn a_stalled_browser_changes_nothing_of_a_campaign() {
         assert_eq!(code, 0, "{err}");
         drop(browser);
         // The live view's counters, on stderr at the end (how many frames a stalled browser
-        // skips depends on the kernel's socket buffers: src/live/tests.rs checks that part).
+        // skips depends on the kernel's socket buffers: src/bin/radbench/live/tests.rs checks that part).
         let counters = err
             .lines()
             .find(|l| l.starts_with("live view closed: "))
