@@ -24,7 +24,7 @@ pub(crate) struct Echo {
 }
 
 impl Echo {
-    pub(crate) fn at(&self, f: f64) -> Complex64 {
+    fn at(&self, f: f64) -> Complex64 {
         self.gain * Complex64::from_polar(1.0, -2.0 * PI * f * self.delay_s)
     }
 }

@@ -67,18 +67,6 @@ pub(crate) const NAMED_CLOSEST_M: f64 = 0.3;
 const MOST_ECHOES: usize = 12;
 /// Rounds of the scene's search (the leakage, then what its first estimate left).
 const SCENE_ROUNDS: usize = 3;
-/// Most rounds re-measuring the scene's echoes against the reference as recorded.
-const SCENE_REFINE_ROUNDS: usize = 6;
-/// ... each echo within this of where the last round had it, s (the gate's bias is tens of
-/// picoseconds; the echoes that model two reflectors 1 cm apart stand 0.6 ns from each other).
-const SCENE_REFINE_WITHIN_S: f64 = 0.1e-9;
-/// ... those this strong at least, dB relative to the reference (weaker ones, the misfit's
-/// and the noise's, wander from round to round as the fit changes: kept as found).
-const SCENE_REFINE_WEAKEST_DB: f64 = -50.0;
-/// ... until none changed its term by more than this anywhere in the band, relative to the
-/// reference (-80 dB: 20 dB under the residue a misplaced leakage left; the leakage at -26 dB
-/// moving 0.5 ps). A weak echo's place is loosely measured: its delay is not what settles.
-const SCENE_SETTLED: f64 = 1e-4;
 /// A gate closed before a chain echo ends its taper this far ahead of it, s (the echo's main
 /// lobe at 1 GHz of band).
 const GATE_MARGIN_S: f64 = 1e-9;
@@ -989,10 +977,6 @@ fn fit_whole_chain(
         }
         None => None,
     };
-    let recorded = (mean.clone(), relative.clone());
-    // Which of `echoes.scene` the rounds' search found (the named reflector's are measured
-    // against their own probe, and kept).
-    let mut searched: Vec<bool> = Vec::new();
     for _ in 0..SCENE_ROUNDS {
         if let Some((at_s, probe)) = &probe {
             let fit = probe.fit_relative(&mean, &mut Vec::new());
@@ -1013,7 +997,6 @@ fn fit_whole_chain(
                 divide(&mut mean, &mut relative, &|f| found.scene_at(f), &est);
                 fitted = est.fit_relative(&mean, &mut Vec::new());
                 echoes.scene.push(echo);
-                searched.push(false);
             }
         }
         let first = search(&est, &fitted, &mean, gate_s, WEAKEST_SCENE_ECHO_DB);
@@ -1028,12 +1011,7 @@ fn fit_whole_chain(
         };
         divide(&mut mean, &mut relative, &|f| found.scene_at(f), &est);
         fitted = est.fit_relative(&mean, &mut Vec::new());
-        searched.extend(found.scene.iter().map(|_| true));
         echoes.scene.extend(found.scene);
-    }
-    if searched.contains(&true) {
-        (mean, relative, fitted) =
-            refine_scene(&est, &mut echoes.scene, &searched, &recorded, fitted);
     }
     // A chain echo in the gate's taper would be half in the fit and half out: the gate closes
     // before the nearest one, and the search is made again.
@@ -1091,105 +1069,6 @@ fn fit_whole_chain(
         leakage_at_s,
         leakage_unseen,
     })
-}
-
-/// Measures each searched scene echo (`searched[k]`) of -50 dB or more again against the reference as recorded
-/// (`recorded`: its mean and each record), with the other echoes divided out, against the gated
-/// fit made with all of them out (`fitted` first); until none changes. The rounds measured each against a fit that
-/// held part of it: the leakage's main lobe reaches into the gate's taper (at 0.8 m, 10-20 ps
-/// late, a -61 dB residue ahead of every corrected target). Every echo the rounds found is kept
-/// (a fresh search of the recorded reference no longer sees those that model two reflectors one
-/// resolution cell apart, and their misfit would stay in the response). Returns the reference's
-/// mean and records with the scene divided out, and the gated fit of that mean.
-fn refine_scene(
-    est: &ChainEstimator,
-    scene: &mut [chain_echoes::Echo],
-    searched: &[bool],
-    recorded: &(Vec<Complex64>, Vec<Vec<Complex64>>),
-    mut fitted: Fitted,
-) -> (Vec<Complex64>, Vec<Vec<Complex64>>, Fitted) {
-    let n = est.period();
-    let fs = est.frequency_hz(1) * n as f64;
-    // Each echo's term per bin, and `1 +` their sum: an echo re-measured changes its own term
-    // and the sum only (OFDM's period is 256000 bins; a sum made afresh for each echo cost 0.8 s).
-    let term = |e: &chain_echoes::Echo| -> Vec<Complex64> {
-        (0..n)
-            .into_par_iter()
-            .map(|k| e.at(est.frequency_hz(k)))
-            .collect()
-    };
-    let mut terms: Vec<Vec<Complex64>> = scene.iter().map(term).collect();
-    let mut total = vec![Complex64::new(1.0, 0.0); n];
-    for t in &terms {
-        total.par_iter_mut().zip(t).for_each(|(s, t)| *s += t);
-    }
-    let divided = |z: &[Complex64], d: &[Complex64]| -> Vec<Complex64> {
-        z.par_iter().zip(d).map(|(v, d)| v / d).collect()
-    };
-    // `fitted`, the rounds' last fit, is of the same mean to within the echoes' products.
-    let mut mean = divided(&recorded.0, &total);
-    let weakest = 10f64.powf(SCENE_REFINE_WEAKEST_DB / 20.0);
-    let refined: Vec<usize> = (0..scene.len())
-        .filter(|&k| searched[k] && scene[k].gain.norm() >= weakest)
-        .collect();
-    let mut rounds = 0;
-    let mut moved = 0f64;
-    while rounds < SCENE_REFINE_ROUNDS {
-        rounds += 1;
-        let model = est.predicted(&fitted);
-        let coverage = est.coverage();
-        moved = 0.0;
-        let band: Vec<usize> = (0..n).filter(|&i| coverage[i] >= BAND_FLOOR).collect();
-        for &k in &refined {
-            let with_it: Vec<Complex64> = recorded
-                .0
-                .par_iter()
-                .zip(&total)
-                .zip(&terms[k])
-                .map(|((v, s), t)| v / (s - t))
-                .collect();
-            let again = chain_echoes::named(
-                &with_it,
-                &model,
-                &coverage,
-                |i| est.frequency_hz(i),
-                fs,
-                scene[k].delay_s,
-                SCENE_REFINE_WITHIN_S,
-            );
-            if let Some(again) = again {
-                scene[k] = again;
-                let fresh = term(&again);
-                let change = band
-                    .iter()
-                    .map(|&i| (fresh[i] - terms[k][i]).norm())
-                    .fold(0.0, f64::max);
-                moved = moved.max(change);
-                total
-                    .par_iter_mut()
-                    .zip(&terms[k])
-                    .zip(&fresh)
-                    .for_each(|((s, old), new)| *s += new - old);
-                terms[k] = fresh;
-            }
-        }
-        mean = divided(&recorded.0, &total);
-        if moved < SCENE_SETTLED {
-            // The fit of a mean this little changed changes as little (it is linear in it).
-            break;
-        }
-        fitted = est.fit_relative(&mean, &mut Vec::new());
-    }
-    tracing::debug!(
-        target: "radbench::calibration",
-        "{} of the scene's {} echoes re-measured in {rounds} rounds, the last changing one by \
-         {:.1} dB",
-        refined.len(),
-        scene.len(),
-        20.0 * moved.max(1e-300).log10()
-    );
-    let relative = recorded.1.par_iter().map(|z| divided(z, &total)).collect();
-    (mean, relative, fitted)
 }
 
 /// The two ends' I/Q errors from the image `image` against the direct response `direct` (both
