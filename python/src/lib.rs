@@ -18,7 +18,7 @@ use std::time::Duration;
 // The command line's allocator for buffers of 1 MiB or more (the same file), off unless
 // RADBENCH_HUGE_PAGES=on: radbench.dask's workers turn it on (docs/catalog.md measures it).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
-#[path = "../../src/huge_pages.rs"]
+#[path = "../../src/bin/radbench/huge_pages.rs"]
 mod huge_pages;
 mod session;
 
