@@ -103,7 +103,7 @@ use fit::{FitWindow, Model};
 /// A detector for profiles with one point spread; holds its scratch (no allocation per call
 /// beyond the returned report once warmed up).
 pub struct Detector {
-    psf: Box<dyn PointSpread>,
+    psf: std::sync::Arc<dyn PointSpread>,
     shape: PsfShape,
     options: DetectOptions,
     local: Option<LocalCfar>,
@@ -176,7 +176,7 @@ impl Detector {
             _ => None,
         };
         Ok(Self {
-            psf: Box::new(psf),
+            psf: std::sync::Arc::new(psf),
             shape,
             options,
             local,
@@ -209,6 +209,12 @@ impl Detector {
 
     pub fn psf(&self) -> &dyn PointSpread {
         self.psf.as_ref()
+    }
+
+    /// The spread, shared: a report keeps it to rebuild the fitted echoes' model where it needs
+    /// the profile as it was rather than CLEAN's split of it.
+    pub fn shared_psf(&self) -> std::sync::Arc<dyn PointSpread> {
+        self.psf.clone()
     }
 
     /// Detects the targets of the complex profile `z` on `axis`, reporting those whose range lies

@@ -9,7 +9,7 @@
 use super::options::ProcessOptions;
 use super::range_result::RangeResult;
 use crate::dsp::Profile;
-use crate::dsp::{DetectOptions, DetectedTarget, Detector, Sidelobes};
+use crate::dsp::{DetectOptions, DetectedTarget, Detector, PointSpread, Sidelobes};
 use crate::measure::error::MeasureError;
 use num_complex::Complex64;
 use serde::Serialize;
@@ -110,6 +110,109 @@ pub struct DetectionReport {
     pub velocity_resolution_mps: Option<f64>,
     /// Detections that sit where a known chain echo of a stronger target falls: not targets.
     pub chain_echoes: Vec<ChainEcho>,
+    /// The detector's point spread, to rebuild the fitted echoes' model ([`Self::profile_near`]).
+    pub(crate) spread: Option<FittedSpread>,
+}
+
+/// The point spread CLEAN fitted with and its first null, cells (`Debug` without its table).
+#[derive(Clone)]
+pub(crate) struct FittedSpread(pub(crate) std::sync::Arc<dyn PointSpread>, pub(crate) f64);
+
+impl std::fmt::Debug for FittedSpread {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("FittedSpread")
+    }
+}
+
+impl DetectionReport {
+    /// The profile over `within` (m) less the echoes fitted farther than `apart_m` from it: the
+    /// residual with every echo CLEAN fitted near `within` added back, however it split them.
+    /// Two echoes closer than a resolution cell (the leakage and a mount beside the horns) are
+    /// fitted as one in one record and as two in the next; the profile they make is the same in
+    /// both. Returns the first cell and the values; `None` without a complex profile.
+    pub(crate) fn profile_near(
+        &self,
+        within: std::ops::RangeInclusive<f64>,
+        apart_m: f64,
+    ) -> Option<(usize, Vec<Complex64>)> {
+        let (axis, spread) = (self.axis?, self.spread.as_ref()?);
+        let r = &self.residual_complex;
+        let cell = |m: f64| (m - axis.start) / axis.step;
+        // A cell beyond each end, for a peak's neighbours at the ends.
+        let lo = (cell(*within.start()).ceil() - 1.0).max(0.0);
+        let hi = (cell(*within.end()).floor() + 1.0).min(r.len() as f64 - 1.0);
+        if lo > hi {
+            return None;
+        }
+        let (lo, hi) = (lo as usize, hi as usize);
+        let mut view = r[lo..=hi].to_vec();
+        let near = *within.start() - apart_m..=*within.end() + apart_m;
+        let fitted = self
+            .targets
+            .iter()
+            .chain(&self.outside)
+            .chain(self.chain_echoes.iter().map(|e| &e.detection));
+        for d in fitted {
+            let (Some(x), Some((range_m, a))) = (d.cell, d.fitted) else {
+                continue;
+            };
+            if near.contains(&range_m) {
+                for (k, v) in view.iter_mut().enumerate() {
+                    *v += a * spread.0.value((lo + k) as f64 - x);
+                }
+            }
+        }
+        Some((lo, view))
+    }
+
+    /// The one echo that best explains the profile near `within` (m), peaking there: its range
+    /// (m) and complex amplitude, by the point spread's least-squares fit over its main lobe to
+    /// [`Self::profile_near`] (the echoes fitted farther than `apart_m` left out). Fitting the
+    /// profile rather than CLEAN's split of it gives the same echo in every record; fitting
+    /// over the main lobe rather than reading the peak averages what lies under it.
+    pub(crate) fn echo_near(
+        &self,
+        within: std::ops::RangeInclusive<f64>,
+        apart_m: f64,
+    ) -> Option<(f64, Complex64)> {
+        let (axis, spread) = (self.axis?, self.spread.as_ref()?);
+        let half = spread.1.ceil().max(1.0) as usize;
+        let pad = half as f64 * axis.step;
+        let (first, view) =
+            self.profile_near(*within.start() - pad..=*within.end() + pad, apart_m)?;
+        let peak = (0..view.len())
+            .filter(|&k| within.contains(&axis.at((first + k) as f64)))
+            .max_by(|&a, &b| view[a].norm_sqr().total_cmp(&view[b].norm_sqr()))?;
+        let mut g = Vec::new();
+        let fit = |x: f64, g: &mut Vec<Complex64>| {
+            let lo = (x.round() as usize).saturating_sub(half).max(first);
+            let hi = (x.round() as usize + half).min(first + view.len() - 1);
+            g.resize(hi + 1 - lo, Complex64::default());
+            spread.0.response(x, lo as isize, g);
+            let (mut c, mut e) = (Complex64::default(), 0.0);
+            for (k, gk) in g.iter().enumerate() {
+                c += view[lo - first + k] * gk.conj();
+                e += gk.norm_sqr();
+            }
+            (e > 0.0).then(|| (c.norm_sqr() / e, c / e))
+        };
+        // The best place on a tenth of a cell within a cell of the peak, then a parabola.
+        let at = |i: i32| (first + peak) as f64 + 0.1 * f64::from(i);
+        let scores: Vec<f64> = (-10..=10)
+            .map(|i| fit(at(i), &mut g).map_or(f64::NEG_INFINITY, |f| f.0))
+            .collect();
+        let best = (1..scores.len() - 1).max_by(|&a, &b| scores[a].total_cmp(&scores[b]))?;
+        let (l, c, h) = (scores[best - 1], scores[best], scores[best + 1]);
+        let curvature = l - 2.0 * c + h;
+        let offset = if curvature < 0.0 {
+            (0.5 * (l - h) / curvature).clamp(-0.5, 0.5)
+        } else {
+            0.0
+        };
+        let x = at(best as i32 - 10) + 0.1 * offset;
+        let (_, amplitude) = fit(x, &mut g)?;
+        Some((axis.at(x), amplitude))
+    }
 }
 
 /// A detection taken for a stronger target's chain echo (`"chain_echo": true`).
@@ -238,6 +341,7 @@ pub(crate) fn detect(
         }
         (None, Some(z), Some(detector)) => {
             let axis = range.primary().axis;
+            let spread = FittedSpread(detector.shared_psf(), detector.shape().first_null);
             let found = detector.detect(z, axis, window)?;
             let convert =
                 |t: &DetectedTarget| detection(t, axis.step, options.interpolate, axis.start);
@@ -253,6 +357,7 @@ pub(crate) fn detect(
                 strongest: None,
                 velocity_resolution_mps: None,
                 chain_echoes: Vec::new(),
+                spread: Some(spread),
             }
         }
         _ => {
