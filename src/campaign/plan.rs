@@ -394,6 +394,7 @@ fn built_in_bench_file(scene: &Scene, scope: ScopeModel) -> BenchFile {
             measured_at: None,
             response: None,
         }),
+        reference: None,
         manual: Vec::new(),
         lines: Default::default(),
         path: PathBuf::from("(built-in mock lab)"),

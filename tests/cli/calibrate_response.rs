@@ -673,6 +673,80 @@ async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_d
     assert!(lab.bench.is_safe());
 }
 
+/// A bench file's fixed reflector (`[reference] reflector_m`) is named to every response
+/// calibration on that bench, as `--reflector` names it (which wins); one the calibration cannot
+/// tell is refused before RF, naming the bench file's key.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bench_files_reference_reflector_is_named_to_the_calibration() {
+    use mock_lab::server::launch::Transport;
+    let scene = mock_lab::scene::Scene::from_toml(
+        "snr_db = 30.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n\
+         [reference]\nrange_m = 0.45\namplitude = 0.03\n[chain]\npreset = \"thesis-lab\"\n",
+        "test",
+    )
+    .unwrap();
+    let lab = tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        mock_lab::lab::start(mock_lab::lab::LabOptions {
+            scene,
+            ..mock_lab::lab::LabOptions::default()
+        }),
+    )
+    .await
+    .expect("the lab starts")
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bench = |reflector: &str| {
+        let text = format!(
+            "{}\n[reference]\nreflector_m = {reflector}\n",
+            lab.bench_toml(Transport::Hislip, Transport::Vicp)
+        );
+        std::fs::write(d.join("bench.toml"), text).unwrap();
+    };
+    let calibrate = |out: &'static str, more: &'static [&'static str]| async move {
+        let mut args = vec![
+            "calibrate",
+            "response",
+            "--bench",
+            "bench.toml",
+            "--reference-range",
+            "1.0",
+            "--allow-rf",
+            "--json",
+            // The reflector shares the pillar's side-lobe region: stored whatever the verdict.
+            "--force",
+            "--out",
+            out,
+        ];
+        args.extend(more);
+        radbench(d, &args).await
+    };
+    let named = |out: &str| -> Option<f64> {
+        let text = std::fs::read_to_string(d.join(out)).unwrap();
+        let header: toml::Value = toml::from_str(&text).unwrap();
+        header.get("reflector_m").and_then(|v| v.as_float())
+    };
+    bench("0.45");
+    let (code, _, err) = calibrate("named.toml", &[]).await;
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(named("named.toml"), Some(0.45));
+    let (code, _, err) = calibrate("own.toml", &["--reflector", "0.4"]).await;
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(named("own.toml"), Some(0.4), "--reflector wins");
+    bench("0.9");
+    let (code, _, err) = calibrate("refused.toml", &[]).await;
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("[reference] reflector_m = 0.9")
+            && err.contains("bench.toml")
+            && err.contains("at least 0.3 m from the reference"),
+        "{err}"
+    );
+    assert!(!d.join("refused.toml").exists());
+    assert!(lab.bench.is_safe());
+}
+
 /// `--reflector` outside what a calibration can tell from its reference or search is refused
 /// before anything is switched on, naming the option and what is allowed; nothing is written.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -126,6 +126,17 @@ pub struct BenchCalibration {
     pub response: Option<String>,
 }
 
+/// The bench's fixed reference reflector (`[reference]`).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchReference {
+    /// A reflector that stays put through every measurement (a corner reflector, a mount),
+    /// antennas to reflector, metres: `calibrate response` measures it as the scene's (as
+    /// `--reflector` does) and phase ranging takes it as the time and phase reference where the
+    /// leakage is not seen (docs/metrology.md).
+    pub reflector_m: f64,
+}
+
 /// The whole bench file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -149,6 +160,8 @@ pub struct BenchFile {
     pub simulation: Option<Simulation>,
     #[serde(default)]
     pub calibration: Option<BenchCalibration>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<BenchReference>,
     /// The front ends of `[tx]`/`[rx]` with `driver = "manual"` (taken out of `tx`/`rx`, which
     /// hold only the front ends radbench drives).
     #[serde(skip)]
@@ -207,7 +220,15 @@ impl BenchFile {
             .map_err(|e| invalid(crate::exit::with_key_hint(&e.to_string())))?;
         let index = crate::catalog::locate::FieldIndex::new(text);
         bench.path = path.to_path_buf();
-        for section in ["awg", "scope", "tx", "rx", "calibration", "simulation"] {
+        for section in [
+            "awg",
+            "scope",
+            "tx",
+            "rx",
+            "calibration",
+            "simulation",
+            "reference",
+        ] {
             for key in [
                 "model",
                 "driver",
@@ -218,6 +239,7 @@ impl BenchFile {
                 "trigger_jitter_s",
                 "system_delay_s",
                 "control",
+                "reflector_m",
             ] {
                 let field = format!("{section}.{key}");
                 if let Some(line) = index.line_of_path(&field) {
@@ -235,6 +257,17 @@ impl BenchFile {
         };
         let invalid_at = |field: &str, message: String| invalid(format!("{}{message}", at(field)));
         bench.manual = taken.map_err(|(field, m)| invalid_at(&field, m))?;
+        if let Some(r) = bench.reference.as_ref().map(|r| r.reflector_m) {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(invalid_at(
+                    "reference.reflector_m",
+                    format!(
+                        "[reference] reflector_m = {r}: the fixed reflector's range from the \
+                         antennas, in metres, over 0"
+                    ),
+                ));
+            }
+        }
         for (section, entry) in [
             ("awg", Some(&bench.awg)),
             ("scope", Some(&bench.scope)),
@@ -489,6 +522,11 @@ impl BenchFile {
     }
 
     /// The stored system delay, or 0 when the bench was never calibrated.
+    /// The fixed reference reflector's range (`[reference] reflector_m`), m.
+    pub fn reference_reflector_m(&self) -> Option<f64> {
+        self.reference.as_ref().map(|r| r.reflector_m)
+    }
+
     pub fn system_delay_s(&self) -> f64 {
         self.calibration.as_ref().map_or(0.0, |c| c.system_delay_s)
     }
@@ -682,6 +720,39 @@ system_delay_s = 1e-9
             e.to_string().contains("modle") && e.to_string().contains("b.toml"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_reference_reflector_is_read_and_a_bad_one_named_with_its_line() {
+        let b = BenchFile::parse(
+            &format!("{GOOD}\n[reference]\nreflector_m = 0.45\n"),
+            Path::new("b.toml"),
+        )
+        .unwrap();
+        assert_eq!(b.reference_reflector_m(), Some(0.45));
+        assert_eq!(
+            BenchFile::parse(GOOD, Path::new("b.toml"))
+                .unwrap()
+                .reference_reflector_m(),
+            None
+        );
+        for bad in ["-0.2", "0.0", "nan"] {
+            let text = format!("{GOOD}\n[reference]\nreflector_m = {bad}\n");
+            let e = BenchFile::parse(&text, Path::new("b.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("[reference] reflector_m") && e.contains("line 15"),
+                "{bad}: {e}"
+            );
+        }
+        let e = BenchFile::parse(
+            &format!("{GOOD}\n[reference]\nreflector = 0.45\n"),
+            Path::new("b.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("reflector"), "{e}");
     }
 
     #[test]

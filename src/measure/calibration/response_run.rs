@@ -198,6 +198,40 @@ fn reference_of(p: &Processed, range_m: f64) -> (Option<f64>, Option<f64>, Optio
     )
 }
 
+/// `request` with the bench file's fixed reflector (`[reference] reflector_m`) where
+/// `--reflector` names none, checked as `--reflector` is, before any RF.
+fn with_bench_reflector(
+    request: &CalibrateRequest,
+    bench: &Bench,
+) -> Result<CalibrateRequest, MeasureError> {
+    let (None, Some(r)) = (request.reflector_m, bench.file.reference_reflector_m()) else {
+        return Ok(*request);
+    };
+    super::response_keep::check_reflector_m(Some(r), request.reference_range_m).map_err(|e| {
+        let allowed = match e {
+            MeasureError::Option { allowed, .. } => allowed,
+            other => other.to_string(),
+        };
+        let line = bench
+            .file
+            .lines
+            .get("reference.reflector_m")
+            .map(|l| format!("line {l}: "))
+            .unwrap_or_default();
+        MeasureError::BenchFile(crate::measure::bench::bench_file::BenchFileError::Invalid {
+            path: bench.file.path.clone(),
+            message: format!(
+                "{line}[reference] reflector_m = {r}: {allowed} (or name the reflector of this \
+                 calibration with --reflector)"
+            ),
+        })
+    })?;
+    Ok(CalibrateRequest {
+        reflector_m: Some(r),
+        ..*request
+    })
+}
+
 /// Calibrates on `bench` through a connected `rig` (a campaign keeps its own), with the user's
 /// `permit` (refused on a bench with manual front ends unless it carries their confirmation).
 pub async fn calibrate_with(
@@ -208,6 +242,7 @@ pub async fn calibrate_with(
     interrupt: &Interrupt,
 ) -> Result<Calibrated, MeasureError> {
     crate::measure::capture::check_manual_confirmed(bench, permit)?;
+    let request = &with_bench_reflector(request, bench)?;
     let catalog = bench.file.catalog()?;
     let kind = request.waveform.kind();
     let system_delay_s = bench.file.system_delay_s();
