@@ -673,6 +673,77 @@ async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_d
     assert!(lab.bench.is_safe());
 }
 
+/// A discrete echo ahead of the reference inside the gate (a mount 0.5 m before a reference at
+/// 1 m, 28 dB under it) is taken for the chain's own response unless named: the calibration says
+/// where it is and how to name it, in the console and the JSON figures. A chain's echoes follow
+/// its main path, and a ripple's paired echoes stand either side: none is reported without the
+/// mount, nor once it is named.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_echo_ahead_of_the_reference_is_reported_with_how_to_name_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let with_mount = |name: &str, mount: bool| {
+        let file = format!("{name}.toml");
+        let clutter = if mount {
+            "[[clutter]]\nrange_m = 0.5\namplitude = 0.02\n"
+        } else {
+            ""
+        };
+        std::fs::write(
+            d.join(&file),
+            format!(
+                "snr_db = 25.0\n[[targets]]\nrange_m = 1.0\namplitude = 0.5\n{clutter}\
+                 [leakage]\namplitude = 0.025\ndelay_s = 0.2e-9\n[chain]\npreset = \"thesis-lab\"\n\
+                 group_delay_ripple_ps = 50.0\ngroup_delay_ripple_period_hz = 0.5e9\n"
+            ),
+        )
+        .unwrap();
+        file
+    };
+    let calibrate = |file: String, more: &'static [&'static str], json_out: bool| async move {
+        let mut args = vec![
+            "calibrate",
+            "response",
+            "--reference-range",
+            "1.0",
+            "--scene",
+            &file,
+            "--allow-rf",
+            "--force",
+            "--out",
+            "response.toml",
+        ];
+        if json_out {
+            args.push("--json");
+        }
+        args.extend(more);
+        let (code, out, err) = radbench(d, &args).await;
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    let figures = json(&calibrate(with_mount("mount", true), &[], true).await)["figures"].clone();
+    let (at, db) = (
+        figures["echo_ahead_m"].as_f64().unwrap(),
+        figures["echo_ahead_db"].as_f64().unwrap(),
+    );
+    assert!(
+        (at - 0.5).abs() < 0.03 && (-31.0..-25.0).contains(&db),
+        "{figures}"
+    );
+    let console = calibrate(with_mount("mount", true), &[], false).await;
+    assert!(
+        console.contains("echo ahead") && console.contains("--reflector 0.4"),
+        "{console}"
+    );
+    for (file, more) in [
+        (with_mount("clear", false), &[][..]),
+        (with_mount("mount", true), &["--reflector", "0.5"][..]),
+    ] {
+        let figures = json(&calibrate(file, more, true).await)["figures"].clone();
+        assert!(figures["echo_ahead_m"].is_null(), "{more:?}: {figures}");
+    }
+}
+
 /// A bench file's fixed reflector (`[reference] reflector_m`) is named to every response
 /// calibration on that bench, as `--reflector` names it (which wins); one the calibration cannot
 /// tell is refused before RF, naming the bench file's key.

@@ -74,6 +74,14 @@ const GATE_MARGIN_S: f64 = 1e-9;
 /// standing wave and its second round trip).
 const SHORTEST_CLOSED_GATE_S: f64 = 3e-9;
 
+/// An unnamed echo ahead of the reference is reported from this level on, dB relative to the
+/// reference: a mount 28 dB under a reference at 1 m, 0.5 m ahead of it, made phase ranges err
+/// periodically by 10 um (docs/calibration.md).
+const ECHO_AHEAD_DB: f64 = -45.0;
+
+/// A ripple's paired echo behind is sought this close to the mirror of one ahead, s.
+const MIRROR_WITHIN_S: f64 = 0.25e-9;
+
 /// Which of the chain's measured errors a measurement corrects (`--correction`, a campaign's
 /// `processing.correction`; recorded as `CorrectionUsed::mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -233,6 +241,15 @@ pub struct ResponseFigures {
     /// its image that far ahead of each strong target: the residual profile covers it there.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub leakage_unseen_db: Option<f64>,
+    /// A discrete echo ahead of the reference inside the gate's reach, not named (`--reflector`)
+    /// and with no mirror behind it (a ripple's paired echoes come in twos): antennas to echo,
+    /// m, and its level relative to the reference, dB. A chain's echoes follow its main path,
+    /// so it is most likely the scene's (a mount, a table edge), which the fit takes for the
+    /// chain's own response: the output says to name it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub echo_ahead_m: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub echo_ahead_db: Option<f64>,
     /// The image's mean level against the direct response, dB (after the receive imbalance was
     /// taken out: what is left is mostly the transmitter's).
     pub image_db: f64,
@@ -671,6 +688,7 @@ pub(crate) fn measure(
     let whole = fit_whole_chain(est, mean_spectrum, relative, reach_s, leakage_at_s, named_s)?;
     let residual = residual_profiles(&whole, reach_s, residual)?;
     let whole_leakage_unseen = whole.leakage_unseen;
+    let echo_ahead = whole.echo_ahead;
     let (est, echoes, gate_s) = (whole.est, whole.echoes, whole.gate_s);
     let directs: Vec<Vec<Complex64>> = whole
         .relative
@@ -742,6 +760,10 @@ pub(crate) fn measure(
     );
     let mut figures = figures;
     figures.leakage_unseen_db = whole_leakage_unseen.map(|p| 10.0 * p.log10());
+    if let Some(e) = echo_ahead {
+        figures.echo_ahead_m = Some((expected_delay_s - system_delay_s + e.delay_s) * C0 / 2.0);
+        figures.echo_ahead_db = Some(20.0 * e.gain.norm().log10());
+    }
     if let Some(split) = split_iq(&est, &fitted.direct, &fitted.image, &cover, gate_s) {
         figures.tx_iq_gain_db = 20.0 * split.tx.gain.log10();
         figures.tx_iq_phase_deg = split.tx.phase.to_degrees();
@@ -909,6 +931,8 @@ struct WholeChain {
     leakage_at_s: f64,
     /// Not found there: the search's floor (power relative to the reference).
     leakage_unseen: Option<f64>,
+    /// An unnamed discrete echo ahead of the reference inside the gate's reach ([`echo_ahead`]).
+    echo_ahead: Option<chain_echoes::Echo>,
 }
 
 /// First the scene beyond the gate (the leakage ahead of the reference) is divided out. The gate
@@ -955,6 +979,15 @@ fn fit_whole_chain(
         apply(mean);
     };
     let mut gate_s = est.gate_s();
+    let echo_ahead = match named_s {
+        None => {
+            let probe = ChainEstimator::new(est.reference(), n, fs, NAMED_SHORTEST_GATE_S)?;
+            let fit = probe.fit_relative(&mean, &mut Vec::new());
+            let found = search(&probe, &fit, &mean, NAMED_SHORTEST_GATE_S, ECHO_AHEAD_DB);
+            echo_ahead(&found, gate_s, leakage_at_s)
+        }
+        Some(_) => None,
+    };
     let mut est = est;
     let mut fitted = est.fit_relative(&mean, &mut Vec::new());
     let mut echoes = chain_echoes::Echoes {
@@ -1068,7 +1101,34 @@ fn fit_whole_chain(
         echoes,
         leakage_at_s,
         leakage_unseen,
+        echo_ahead,
     })
+}
+
+/// The strongest echo `found` (with a short gate) ahead of the reference, from where a reflector
+/// can be named (`NAMED_CLOSEST_M`) to the gate's reach (`1.5 gate_s`; beyond it the search
+/// divides it out as the scene's), away from the leakage (`leakage_at_s`), with no echo behind
+/// it at the same delay within 10 dB (a ripple's paired echoes stand either side of the main
+/// path).
+fn echo_ahead(
+    found: &chain_echoes::Echoes,
+    gate_s: f64,
+    leakage_at_s: f64,
+) -> Option<chain_echoes::Echo> {
+    let all: Vec<&chain_echoes::Echo> = found.chain.iter().chain(&found.scene).collect();
+    let closest_s = 2.0 * NAMED_CLOSEST_M / C0;
+    let level = |e: &chain_echoes::Echo| e.gain.norm();
+    all.iter()
+        .filter(|e| e.delay_s <= -closest_s && e.delay_s >= -1.5 * gate_s)
+        .filter(|e| (e.delay_s - leakage_at_s).abs() > LEAKAGE_PLACE_S)
+        .filter(|e| {
+            !all.iter().any(|m| {
+                (m.delay_s + e.delay_s).abs() <= MIRROR_WITHIN_S
+                    && level(m) >= level(e) * 10f64.powf(-10.0 / 20.0)
+            })
+        })
+        .max_by(|a, b| level(a).total_cmp(&level(b)))
+        .map(|e| **e)
 }
 
 /// The two ends' I/Q errors from the image `image` against the direct response `direct` (both

@@ -252,6 +252,17 @@ fn print_report(
             calibrated.request.reference_range_m
         );
     }
+    if let (Some(m), Some(db)) = (g.echo_ahead_m, g.echo_ahead_db) {
+        println!(
+            "  echo ahead           at {m:.2} m, {:.2} m ahead of the reference, {db:.1} dB, inside \
+             the gate: a chain's echoes follow its main path, so this is likely the scene's (a \
+             mount, a table edge), and the fit took it for the chain's own response, which every \
+             corrected capture then carries (phase ranges err with the target's place). If it \
+             stays put, name it: --reflector {m:.2} (or [reference] reflector_m = {m:.2} in the \
+             bench file); else take it away and calibrate again (docs/calibration.md)",
+            calibrated.request.reference_range_m - m
+        );
+    }
     println!(
         "reference pillar: side-lobe {} -> {}, -3 dB width {} -> {}, range {}",
         opt(f.sidelobe_db_before, "dB"),
