@@ -39,13 +39,12 @@ pub(crate) use calibration::correction::load_recorded;
 pub use calibration::correction::CorrectionUsed;
 pub(crate) use calibration::delay::default_gate_s;
 pub use calibration::delay::{check, estimate_delay, DelayEstimate};
+pub use calibration::response::check_reflector_m;
 pub use calibration::response::{
     Calibration, CorrectionMode, EchoSeen, InstrumentsSeen, PhaseAnchor, ReferenceFigures,
     Response, ResponseFigures, ResponseHeader,
 };
-pub use calibration::response_keep::{
-    check_gate_ns, check_reflector_m, check_response_out, gate_or_default_s,
-};
+pub use calibration::response_keep::{check_gate_ns, check_response_out, gate_or_default_s};
 pub use calibration::response_keep::{response_path, response_report, store_response};
 pub use calibration::response_run::{calibrate_with, CalibrateRequest, Calibrated};
 pub(crate) use capture::prepare_uploading;

@@ -213,7 +213,7 @@ impl Detector {
 
     /// The spread, shared: a report keeps it to rebuild the fitted echoes' model where it needs
     /// the profile as it was rather than CLEAN's split of it.
-    pub fn shared_psf(&self) -> std::sync::Arc<dyn PointSpread> {
+    pub(crate) fn shared_psf(&self) -> std::sync::Arc<dyn PointSpread> {
         self.psf.clone()
     }
 

@@ -523,7 +523,7 @@ impl BenchFile {
 
     /// The stored system delay, or 0 when the bench was never calibrated.
     /// The fixed reference reflector's range (`[reference] reflector_m`), m.
-    pub fn reference_reflector_m(&self) -> Option<f64> {
+    pub(crate) fn reference_reflector_m(&self) -> Option<f64> {
         self.reference.as_ref().map(|r| r.reflector_m)
     }
 

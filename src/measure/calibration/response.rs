@@ -63,6 +63,33 @@ const NAMED_SHORTEST_GATE_S: f64 = 1e-9;
 /// A named reflector this close to the reference cannot be told from it, m (its main lobe and
 /// the gate's margin).
 pub(crate) const NAMED_CLOSEST_M: f64 = 0.3;
+
+/// `--reflector` checked against the reference's range: in front of the antennas, at least
+/// 0.3 m from the reference (`NAMED_CLOSEST_M`) and within the reach the calibration searches.
+pub fn check_reflector_m(reflector_m: Option<f64>, reference_m: f64) -> Result<(), MeasureError> {
+    let Some(r) = reflector_m else {
+        return Ok(());
+    };
+    let reach_m = 0.5 * MIN_ECHO_REACH_S * crate::dsp::C0;
+    let fine = r.is_finite()
+        && r > 0.0
+        && (r - reference_m).abs() >= NAMED_CLOSEST_M
+        && (r - reference_m).abs() <= reach_m.max(reference_m);
+    if fine {
+        return Ok(());
+    }
+    Err(MeasureError::option(
+        "reflector",
+        r,
+        format!(
+            "the fixed reflector's range in metres, over 0, at least {NAMED_CLOSEST_M} m from the \
+             reference at {reference_m} m (closer, it is one echo with it) and at most {:.1} m \
+             from it",
+            reach_m.max(reference_m)
+        ),
+    ))
+}
+
 /// Most echoes taken out of one reference.
 const MOST_ECHOES: usize = 12;
 /// Rounds of the scene's search (the leakage, then what its first estimate left).

@@ -2,7 +2,7 @@
 //! session (Python's `Bench.calibrate_response`): where it is stored, naming it in the bench
 //! file, and the report as data.
 
-use super::response::{Calibration, MIN_ECHO_REACH_S, NAMED_CLOSEST_M};
+use super::response::Calibration;
 use super::response_run::Calibrated;
 use crate::measure::bench::bench_file::{store_calibration, BenchCalibration};
 use crate::measure::bench::in_use::Bench;
@@ -20,32 +20,6 @@ pub fn check_gate_ns(gate_ns: Option<f64>) -> Result<(), MeasureError> {
         )),
         _ => Ok(()),
     }
-}
-
-/// `--reflector` checked against the reference's range: in front of the antennas, at least
-/// 0.3 m from the reference (`NAMED_CLOSEST_M`) and within the reach the calibration searches.
-pub fn check_reflector_m(reflector_m: Option<f64>, reference_m: f64) -> Result<(), MeasureError> {
-    let Some(r) = reflector_m else {
-        return Ok(());
-    };
-    let reach_m = 0.5 * MIN_ECHO_REACH_S * crate::dsp::C0;
-    let fine = r.is_finite()
-        && r > 0.0
-        && (r - reference_m).abs() >= NAMED_CLOSEST_M
-        && (r - reference_m).abs() <= reach_m.max(reference_m);
-    if fine {
-        return Ok(());
-    }
-    Err(MeasureError::option(
-        "reflector",
-        r,
-        format!(
-            "the fixed reflector's range in metres, over 0, at least {NAMED_CLOSEST_M} m from the \
-             reference at {reference_m} m (closer, it is one echo with it) and at most {:.1} m \
-             from it",
-            reach_m.max(reference_m)
-        ),
-    ))
 }
 
 /// `--out` checked: the header's name ends in `.toml` (the table goes beside it as `.npy`).

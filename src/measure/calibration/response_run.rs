@@ -207,7 +207,7 @@ fn with_bench_reflector(
     let (None, Some(r)) = (request.reflector_m, bench.file.reference_reflector_m()) else {
         return Ok(*request);
     };
-    super::response_keep::check_reflector_m(Some(r), request.reference_range_m).map_err(|e| {
+    super::response::check_reflector_m(Some(r), request.reference_range_m).map_err(|e| {
         let allowed = match e {
             MeasureError::Option { allowed, .. } => allowed,
             other => other.to_string(),
