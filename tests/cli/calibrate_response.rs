@@ -563,16 +563,7 @@ async fn on_a_bench_file_the_calibration_is_named_in_it_and_captures_use_it_by_d
         "test",
     )
     .unwrap();
-    let lab = tokio::time::timeout(
-        std::time::Duration::from_secs(10),
-        mock_lab::lab::start(mock_lab::lab::LabOptions {
-            scene,
-            ..mock_lab::lab::LabOptions::default()
-        }),
-    )
-    .await
-    .expect("the lab starts")
-    .unwrap();
+    let lab = super::support::start_lab_with(scene).await;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let bench = format!(
@@ -756,16 +747,7 @@ async fn a_bench_files_reference_reflector_is_named_to_the_calibration() {
         "test",
     )
     .unwrap();
-    let lab = tokio::time::timeout(
-        std::time::Duration::from_secs(10),
-        mock_lab::lab::start(mock_lab::lab::LabOptions {
-            scene,
-            ..mock_lab::lab::LabOptions::default()
-        }),
-    )
-    .await
-    .expect("the lab starts")
-    .unwrap();
+    let lab = super::support::start_lab_with(scene).await;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let bench = |reflector: &str| {

@@ -94,8 +94,15 @@ fn nearest(targets: &Value, near_m: f64) -> (f64, f64) {
 /// Captures `scene` with the calibration and `--ranging phase` into `out`: the pillar's range
 /// and uncertainty, and the capture's warnings.
 async fn capture_phase(dir: &Path, scene: &Value, out: &str, near_m: f64) -> (f64, f64, Value) {
+    let c = capture_phase_json(dir, scene, out).await;
+    let (r, s) = nearest(&c["targets"], near_m);
+    (r, s, c["warnings"].clone())
+}
+
+/// Captures `scene` with the calibration and `--ranging phase` into `out`: its `--json` object.
+async fn capture_phase_json(dir: &Path, scene: &Value, out: &str) -> Value {
     let file = write(dir, &format!("{out}.toml"), scene);
-    let c = ok(
+    ok(
         dir,
         &[
             "capture",
@@ -111,9 +118,7 @@ async fn capture_phase(dir: &Path, scene: &Value, out: &str, near_m: f64) -> (f6
             out,
         ],
     )
-    .await;
-    let (r, s) = nearest(&c["targets"], near_m);
-    (r, s, c["warnings"].clone())
+    .await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -339,24 +344,7 @@ async fn a_mount_beside_the_leakage_never_turns_the_phase_reference() {
     let (mut phase_ranged, mut wrong) = (0, Vec::new());
     for k in 0..12u64 {
         let p = 1.0 + 0.01 * (rng.uniform() - 0.5);
-        let file = write(d, &format!("p{k}.toml"), &scene(p, k));
-        let c = ok(
-            d,
-            &[
-                "capture",
-                "--allow-rf",
-                "--scene",
-                &file,
-                "--calibration",
-                "response.toml",
-                "--ranging",
-                "phase",
-                "--json",
-                "--out",
-                &format!("p{k}"),
-            ],
-        )
-        .await;
+        let c = capture_phase_json(d, &scene(p, k), &format!("p{k}")).await;
         let t = c["targets"]
             .as_array()
             .unwrap()

@@ -78,10 +78,15 @@ pub fn signal(child: &tokio::process::Child, name: &str) {
 
 /// A mock lab on loopback with an empty scene, for the exit-path tests (bounded start).
 pub async fn start_lab() -> mock_lab::lab::Lab {
+    start_lab_with(mock_lab::scene::Scene::default()).await
+}
+
+/// A mock lab on loopback with `scene` (bounded start).
+pub async fn start_lab_with(scene: mock_lab::scene::Scene) -> mock_lab::lab::Lab {
     tokio::time::timeout(
         Duration::from_secs(10),
         mock_lab::lab::start(mock_lab::lab::LabOptions {
-            scene: mock_lab::scene::Scene::default(),
+            scene,
             ..mock_lab::lab::LabOptions::default()
         }),
     )
