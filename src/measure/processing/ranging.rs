@@ -75,6 +75,20 @@ struct Echo {
     snr: f64,
 }
 
+impl Echo {
+    /// The echo at `range_m` of complex `amplitude` over the noise per cell `noise_per_cell`;
+    /// `None` without a usable noise or SNR.
+    fn over_noise(range_m: f64, amplitude: Complex64, noise_per_cell: Option<f64>) -> Option<Echo> {
+        let noise = noise_per_cell.filter(|n| *n > 0.0)?;
+        let snr = amplitude.norm_sqr() / noise;
+        (snr.is_finite() && snr > 0.0).then_some(Echo {
+            range_m,
+            amplitude,
+            snr,
+        })
+    }
+}
+
 fn echo_of(d: &Detection, noise_per_cell: Option<f64>) -> Option<Echo> {
     let (range_m, amplitude) = d.fitted?;
     let snr_db = match noise_per_cell {
@@ -123,13 +137,7 @@ fn leakage(
 ) -> Option<Echo> {
     if let Some((range_m, amplitude)) = report.echo_near(within.clone(), REFERENCE_NEIGHBOURHOOD_M)
     {
-        let noise = noise_per_cell.filter(|n| *n > 0.0)?;
-        let snr = amplitude.norm_sqr() / noise;
-        return (snr.is_finite() && snr > 0.0).then_some(Echo {
-            range_m,
-            amplitude,
-            snr,
-        });
+        return Echo::over_noise(range_m, amplitude, noise_per_cell);
     }
     report
         .outside
@@ -167,14 +175,7 @@ fn residual_peak(
         0.0
     };
     let at = peak as f64 + offset;
-    let amplitude = cubic_at(r, at);
-    let noise = noise_per_cell.filter(|n| *n > 0.0)?;
-    let snr = amplitude.norm_sqr() / noise;
-    (snr.is_finite() && snr > 0.0).then_some(Echo {
-        range_m: axis.at(at),
-        amplitude,
-        snr,
-    })
+    Echo::over_noise(axis.at(at), cubic_at(r, at), noise_per_cell)
 }
 
 /// `y` at fractional index `pos` by cubic (Catmull-Rom) interpolation of its four neighbours.
