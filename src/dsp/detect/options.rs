@@ -109,6 +109,19 @@ impl ResidualFloor {
         self.bin_m * self.behind.len().max(self.ahead.len()) as f64
     }
 
+    /// The profile's own bin `offset_m` behind the target (negative: ahead), relative to it; 0
+    /// beyond the profile.
+    pub(crate) fn bin_at(&self, offset_m: f64) -> f64 {
+        let side = if offset_m >= 0.0 {
+            &self.behind
+        } else {
+            &self.ahead
+        };
+        side.get((offset_m.abs() / self.bin_m) as usize)
+            .copied()
+            .unwrap_or(0.0)
+    }
+
     /// The floor, relative to the target, `offset_m` behind it (negative: ahead): the largest of
     /// the bin it falls in and its two neighbours (a target's position within a bin is not the
     /// reference's); 0 beyond the profile.

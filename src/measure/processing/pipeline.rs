@@ -655,6 +655,20 @@ struct CorrectionCheck {
     residual: Vec<crate::measure::calibration::response::ResidualSeen>,
 }
 
+/// What the calibration's correction left on its reference with `options`' window (its residual
+/// profile): the detector's floor near strong targets, and phase ranging's coupling of a target
+/// and its reference. `None` without a correction or a profile for this window.
+fn residual_floor(
+    check: Option<&CorrectionCheck>,
+    options: &ProcessOptions,
+) -> Option<crate::dsp::ResidualFloor> {
+    check?
+        .residual
+        .iter()
+        .find(|r| r.window == options.window.name())?
+        .floor()
+}
+
 /// A corrected target's peak side-lobe may exceed the calibration's by this before a warning, dB,
 /// and its -3 dB width by this, cm.
 const CORRECTION_WORSE_DB: f64 = 1.5;
@@ -949,6 +963,7 @@ impl Pipeline {
             &options,
             band,
             correction_check.as_ref().and_then(|c| c.anchor),
+            residual_floor(correction_check.as_ref(), &options),
         );
         Ok(Pipeline {
             ranging,
@@ -974,15 +989,7 @@ impl Pipeline {
         let mut options = detect::detect_options(&self.options);
         // Where the calibration measured what its correction leaves on its reference with this
         // window, the detector's floor near strong targets follows it.
-        options.residual_floor = self
-            .correction_check
-            .as_ref()
-            .and_then(|c| {
-                c.residual
-                    .iter()
-                    .find(|r| r.window == self.options.window.name())
-            })
-            .and_then(|r| r.floor());
+        options.residual_floor = residual_floor(self.correction_check.as_ref(), &self.options);
         let detector = match &self.range {
             RangeProcessor::Correlation { echo, lags, .. } => {
                 let decimator = self.decimator.as_ref().map(|(_, _, dec)| dec);

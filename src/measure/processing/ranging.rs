@@ -9,6 +9,9 @@
 //!   phase mode (none reaches the carrier phase, but the envelope that unwraps it has it);
 //! * the calibration's own: the reference's, measured the same way in the calibration's record
 //!   (its jitter included for the envelope);
+//! * in phase mode, the coupling of a target and its phase reference: what the correction leaves
+//!   of each where the other stands (the calibration's residual profile), which turns with the
+//!   target's phase since the calibration;
 //! * unwrapping: a cycle is taken only where the envelope tells it within `lambda / 8` (the
 //!   target falls back to its envelope range with a warning otherwise), so a wrong cycle is a
 //!   2.6 sd event and not carried.
@@ -19,6 +22,7 @@ use super::options::{ProcessOptions, Ranging};
 use crate::dsp::carrier_phase::{
     metres_per_radian, phase_std_rad, unwrap_limit_m, unwrap_range, wrap, BandShape,
 };
+use crate::dsp::ResidualFloor;
 use crate::measure::calibration::response::PhaseAnchor;
 use crate::physics::C0;
 use num_complex::Complex64;
@@ -65,6 +69,10 @@ pub(crate) struct RangingModel {
     /// A campaign's previous step (its moved targets), for the records of the step it is set
     /// for ([`Self::set_previous`], every step).
     previous: Vec<Previous>,
+    /// What the correction leaves around every path with this window (the calibration's
+    /// residual profile): how much of a target lies where its phase reference stands, and of
+    /// the reference where the target stands.
+    residual: Option<ResidualFloor>,
 }
 
 /// One echo as the ranging takes it: fitted range (m), complex amplitude, SNR per cell.
@@ -108,6 +116,17 @@ fn echo_of(d: &Detection, noise_per_cell: Option<f64>) -> Option<Echo> {
 /// is a peak of the noise or a correction's residue where no leakage is (a calibration's record
 /// without leakage showed one at 24 dB, 0.09 m, and phase ranges against it erred by 100 um).
 const MIN_REFERENCE_SNR_DB: f64 = 30.0;
+
+/// The calibration's residual profile cannot see where its own phase reference stood from its
+/// pillar (the reference's echo was divided out there): it holds the largest level within 1 ns
+/// beside that place, this far each side of it, m. A target near the calibration's pillar finds
+/// its reference there.
+const UNSEEN_HALF_M: f64 = 0.15;
+
+/// ... and that largest level, of the two or three range cells it is taken from, stands about
+/// this many times over their mean power (the expected largest of 2 and 3 exponential draws:
+/// 1.5 and 1.8), which the coupling of a target and its reference takes.
+const FILLED_OVER_MEAN: f64 = 2.0;
 
 /// A named reflector is sought this close to where the user put it, m (as the calibration
 /// seeks it: `calibrate response --reflector`).
@@ -198,6 +217,7 @@ impl RangingModel {
         options: &ProcessOptions,
         band: Option<BandShape>,
         anchor: Option<PhaseAnchor>,
+        residual: Option<ResidualFloor>,
     ) -> Self {
         let jitter_s = options.trigger_jitter_s.unwrap_or(TYPICAL_TRIGGER_JITTER_S);
         let jitter_m = C0 * jitter_s / 2.0;
@@ -218,6 +238,7 @@ impl RangingModel {
             anchor: options.correction.as_ref().and(anchor),
             calibration_std_m,
             previous: Vec::new(),
+            residual,
         }
     }
 
@@ -373,6 +394,48 @@ impl RangingModel {
         Ok((anchor, leak))
     }
 
+    /// The variance of a target's phase against its reference's (rad^2) from what the
+    /// correction leaves of each where the other stands (the calibration's residual profile at
+    /// their offset, relative to each's amplitude): `|K|^2`, the variance of the error it makes
+    /// over the target's phases ([`Self::coupling_left`] takes the calibration's record's share).
+    /// A clutter point 0.75 m before the reference, which the calibration took for the chain's,
+    /// left -51 dB where the leakage stood, and phase ranges erred by up to 21 um with 1.2 um
+    /// stated (docs/metrology.md).
+    fn coupling_rad2(&self, anchor: &PhaseAnchor, echo: &Echo, reference: &Echo) -> f64 {
+        let Some(floor) = &self.residual else {
+            return 0.0;
+        };
+        let behind_m = echo.range_m - reference.range_m;
+        // Where the calibration's own reference stood from its pillar, the profile is the
+        // largest level beside it (`calibration::response::fill_blind`).
+        let unseen = anchor.envelope_range_m - anchor.leakage_range_m;
+        let typical = if (behind_m - unseen).abs() <= UNSEEN_HALF_M {
+            FILLED_OVER_MEAN.recip()
+        } else {
+            1.0
+        };
+        let ratio = (echo.amplitude.norm() / reference.amplitude.norm()).powi(2);
+        typical * (floor.bin_at(-behind_m) * ratio + floor.bin_at(behind_m) / ratio)
+    }
+
+    /// The part of [`Self::coupling_rad2`] a target `moved_m` from the calibration's reference
+    /// keeps: the calibration's record holds the same residue where the target stood then, so
+    /// what is left is `|K|^2 (1 - rho cos phi)` for the target's phase `phi` since then and the
+    /// correlation `rho` of the residues at the two offsets (1 at the same place, none a range
+    /// cell apart): none at the calibration's place, twice the mean a quarter wavelength away.
+    fn coupling_left(&self, moved_m: f64) -> f64 {
+        // The range cell of a flat band as wide (RMS) as the profile's.
+        let cell_m = self
+            .band
+            .map_or(0.0, |b| C0 / (2.0 * 12f64.sqrt() * b.rms_hz));
+        let rho = if cell_m > 0.0 {
+            (1.0 - moved_m.abs() / cell_m).max(0.0)
+        } else {
+            0.0
+        };
+        1.0 - rho * (moved_m / metres_per_radian(self.carrier_hz)).cos()
+    }
+
     /// A target's range from its carrier phase against the anchor's, both relative to their
     /// record's leakage, with its standard uncertainty, and how its cycle was chosen (with a
     /// note when the `expected` previous step was not taken); or why not.
@@ -463,9 +526,12 @@ impl RangingModel {
                     4.0 * unwrap_limit_m(self.carrier_hz) * 1e3
                 )
             })?;
+        let coupling_var =
+            self.coupling_rad2(anchor, echo, leak) * self.coupling_left(range_m - anchor.range_m);
         let phase_var = phase_std_rad(echo.snr).powi(2)
             + phase_std_rad(leak.snr).powi(2)
-            + anchor.phase_std_rad.powi(2);
+            + anchor.phase_std_rad.powi(2)
+            + coupling_var;
         // The fitted position's error turns the fitted phase by 2 pi f_mean e: a range error of
         // f_mean / f_c times the envelope's.
         let centroid = self.band.map_or(0.0, |b| b.mean_hz) / self.carrier_hz;
@@ -484,12 +550,13 @@ impl RangingModel {
         tracing::debug!(
             target: "radbench::ranging",
             "phase range {range_m:.7} m: sd {:.3} um of the target's phase {:.3}, the leakage's \
-             {:.3}, the anchor's {:.3}, the envelope's centroid {:.3} and the leakage's {:.3} \
-             (SNR per cell {:.1} and {:.1} dB)",
+             {:.3}, the anchor's {:.3}, their coupling {:.3}, the envelope's centroid {:.3} and \
+             the leakage's {:.3} (SNR per cell {:.1} and {:.1} dB)",
             std * 1e6,
             um(phase_std_rad(echo.snr)),
             um(phase_std_rad(leak.snr)),
             um(anchor.phase_std_rad),
+            um(coupling_var.sqrt()),
             centroid * snr_std_m * 1e6,
             centroid * leak_std * 1e6,
             10.0 * echo.snr.log10(),
@@ -564,5 +631,85 @@ impl RangingModel {
                 .sqrt(),
             by_reflector,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::waveform::WaveformKind;
+
+    const LAMBDA_M: f64 = C0 / 80e9;
+
+    /// A phase ranging model with a 1 GHz flat band, a residual profile of `-66 dB` in every
+    /// bin but `ahead_db_at_1m` at 0.95-1.0 m ahead, and an anchor whose pillar stood 0.5 m
+    /// behind its leakage.
+    fn model(ahead_db_at_1m: f64) -> (RangingModel, PhaseAnchor) {
+        let mut options = ProcessOptions::for_waveform(WaveformKind::MskLfm);
+        options.carrier_hz = 80e9;
+        let band = BandShape {
+            mean_hz: 0.5e9,
+            rms_hz: 1e9 / 12f64.sqrt(),
+        };
+        let mut ahead = vec![-66.0; 40];
+        ahead[19] = ahead_db_at_1m;
+        let floor = ResidualFloor::from_db(0.05, &[-66.0; 40], &ahead).unwrap();
+        let anchor = PhaseAnchor {
+            range_m: 0.53,
+            envelope_range_m: 0.53,
+            envelope_snr_std_m: 1e-5,
+            leakage_range_m: 0.03,
+            leakage_snr_std_m: 1e-4,
+            phase_to_leakage_rad: 0.0,
+            phase_std_rad: 1e-3,
+            fixed_range_m: None,
+            fixed_snr_std_m: None,
+            repetitions: Some(16),
+            by_reflector: false,
+        };
+        let m = RangingModel::new(&options, Some(band), Some(anchor), Some(floor));
+        (m, anchor)
+    }
+
+    fn echo(range_m: f64, amplitude: f64) -> Echo {
+        Echo {
+            range_m,
+            amplitude: Complex64::new(amplitude, 0.0),
+            snr: 1e7,
+        }
+    }
+
+    #[test]
+    fn the_coupling_is_the_profile_where_each_echo_finds_the_other() {
+        let (m, anchor) = model(-50.0);
+        let (target, leakage) = (echo(1.005, 0.5), echo(0.03, 0.03));
+        // The target's residue 0.975 m ahead of it, over the leakage's amplitude, and the
+        // leakage's 0.975 m behind it, over the target's.
+        let ratio = (0.5f64 / 0.03).powi(2);
+        let expected = 1e-5 * ratio + 10f64.powf(-6.6) / ratio;
+        let k2 = m.coupling_rad2(&anchor, &target, &leakage);
+        assert!(
+            (k2 - expected).abs() < 1e-9 * expected,
+            "{k2} against {expected}"
+        );
+        // Where the calibration's own reference stood from its pillar (0.5 m), the profile is
+        // the largest level beside it: half of it is taken.
+        let near = echo(0.53, 0.5);
+        let unseen = 10f64.powf(-6.6) * (ratio + 1.0 / ratio) / FILLED_OVER_MEAN;
+        let k2 = m.coupling_rad2(&anchor, &near, &leakage);
+        assert!((k2 - unseen).abs() < 1e-9 * unseen, "{k2} against {unseen}");
+    }
+
+    #[test]
+    fn the_calibrations_share_of_the_coupling_is_none_at_its_place_and_twice_a_quarter_wave_off() {
+        let (m, _) = model(-66.0);
+        assert!(m.coupling_left(0.0).abs() < 1e-12);
+        let quarter = m.coupling_left(LAMBDA_M / 4.0);
+        assert!((1.98..=2.0).contains(&quarter), "{quarter}");
+        // Half a wavelength on, the target's phase has come round: almost none again.
+        assert!(m.coupling_left(LAMBDA_M / 2.0) < 0.02);
+        // A range cell (15 cm) and more away the residues are other ones: the mean.
+        assert_eq!(m.coupling_left(0.2), 1.0);
+        assert_eq!(m.coupling_left(-0.2), 1.0);
     }
 }
