@@ -112,25 +112,26 @@ impl ResidualFloor {
     /// The profile's own bin `offset_m` behind the target (negative: ahead), relative to it; 0
     /// beyond the profile.
     pub(crate) fn bin_at(&self, offset_m: f64) -> f64 {
-        let side = if offset_m >= 0.0 {
+        self.side(offset_m)
+            .get((offset_m.abs() / self.bin_m) as usize)
+            .copied()
+            .unwrap_or(0.0)
+    }
+
+    /// The bins on `offset_m`'s side of the target: behind it (positive) or ahead.
+    fn side(&self, offset_m: f64) -> &[f64] {
+        if offset_m >= 0.0 {
             &self.behind
         } else {
             &self.ahead
-        };
-        side.get((offset_m.abs() / self.bin_m) as usize)
-            .copied()
-            .unwrap_or(0.0)
+        }
     }
 
     /// The floor, relative to the target, `offset_m` behind it (negative: ahead): the largest of
     /// the bin it falls in and its two neighbours (a target's position within a bin is not the
     /// reference's); 0 beyond the profile.
     pub(crate) fn at(&self, offset_m: f64) -> f64 {
-        let side = if offset_m >= 0.0 {
-            &self.behind
-        } else {
-            &self.ahead
-        };
+        let side = self.side(offset_m);
         let j = (offset_m.abs() / self.bin_m) as usize;
         (j.saturating_sub(1)..=j + 1)
             .filter_map(|b| side.get(b))
