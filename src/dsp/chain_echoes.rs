@@ -298,7 +298,7 @@ fn sort_into(found: &mut Echoes, echo: Echo) {
 }
 
 /// The delay near `start` (within a sample `step`) where `power(t)` peaks: golden-section search.
-fn refine_delay(power: impl Fn(f64) -> f64, start: f64, step: f64) -> f64 {
+pub(crate) fn refine_delay(power: impl Fn(f64) -> f64, start: f64, step: f64) -> f64 {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let (mut a, mut b) = (start - step, start + step);
     let mut c = b - g * (b - a);

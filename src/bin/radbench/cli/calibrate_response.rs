@@ -148,8 +148,9 @@ fn gate_s(args: &Args) -> f64 {
     radbench::measure::gate_or_default_s(args.gate_ns, args.reference_range)
 }
 
-/// A reference nearer than this leaves a ghost 0.5 m ahead of every corrected pillar with the
-/// low side-lobe windows (measured at 0.6 and 0.7 m, clean from 0.8 m on; not traced yet), m.
+/// A reference nearer than this can leave a ghost 0.5 m ahead of a corrected pillar with the
+/// low side-lobe windows (11 and 17 of 96 combinations at 0.6 and 0.7 m, clean from 0.8 m on;
+/// docs/calibration.md, Known limits), m.
 const NEAREST_CLEAN_REFERENCE_M: f64 = 0.8;
 
 fn print_report(
@@ -237,7 +238,7 @@ fn print_report(
     if reference_m < NEAREST_CLEAN_REFERENCE_M {
         println!(
             "  reference near       {reference_m} m: nearer than {NEAREST_CLEAN_REFERENCE_M} m the \
-             corrected captures show a ghost about 0.5 m ahead of a strong target with the low \
+             corrected captures can show a ghost about 0.5 m ahead of a strong target with the low \
              side-lobe windows (docs/calibration.md, Known limits); calibrate at \
              {NEAREST_CLEAN_REFERENCE_M} m or more"
         );
