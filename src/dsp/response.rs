@@ -527,8 +527,9 @@ impl EchoBesideFit<'_> {
         })
     }
 
-    /// The power the joint fit leaves with the echo at `t` (relative to the reflector, s), less
-    /// the ridge's share: least where the echo is. Infinite when the system is singular.
+    /// The power the joint fit leaves with the echo at `t` (relative to the reflector, s), plus
+    /// the ridge's share (nearly the same at every `t`): least where the echo is. Infinite when
+    /// the system is singular.
     pub(crate) fn residual_at(&self, t: f64) -> f64 {
         self.solve(t).map_or(f64::INFINITY, |j| j.residual)
     }

@@ -96,8 +96,8 @@ const MOST_ECHOES: usize = 12;
 const SCENE_ROUNDS: usize = 3;
 /// The leakage nearer than this to the reference (under about 0.77 m from the horns) is measured
 /// jointly with the gate's fit, s. From 0.8 m on the search places it within 50 ps and the
-/// reach tests hold; there the joint measure moved the phase anchor on the metrology bench
-/// (the horns' clutter 1 cm from the leakage is measured as one with it) and was not kept.
+/// reach tests hold; applied there (in an earlier form) the joint measure failed reach and
+/// metrology tests (docs/calibration.md, Known limits).
 const NEAR_LEAKAGE_S: f64 = 5e-9;
 /// A scene echo this near the gate's fit (beyond its support) is measured jointly with it, s.
 const JOINT_NEAR_S: f64 = 1.5e-9;
