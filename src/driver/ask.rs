@@ -44,7 +44,8 @@ pub(crate) struct Probe<'a> {
     pub beyond: f64,
 }
 
-/// The value the instrument adapted `probe.beyond` to, restoring the setting after; or why not.
+/// The value the instrument adapted `probe.beyond` to, restoring the setting after and reading it
+/// back; or why not (a setting not restored included).
 pub(crate) async fn probe_limit(
     resource: Resource,
     model: &InstrumentModel,
@@ -67,12 +68,25 @@ pub(crate) async fn probe_limit(
             .await
             .map_err(as_text)?;
         let reached = s.query(probe.query).await.map_err(as_text).and_then(number);
-        // Put the setting back even when the read-back failed.
-        let restored = s
+        // Put the setting back even when the read-back failed, and read it once more: a write
+        // has no reply, and one left in flight when this session closes may be carried out after
+        // the next session's probe of the same setting (the instrument serves each connection on
+        // its own), which then reads this value back instead of its own.
+        let restored = match s
             .write(&probe.set.replace("{}", &format!("{before:e}")))
-            .await;
+            .await
+        {
+            Ok(()) => s.query(probe.query).await.map_err(as_text).and_then(number),
+            Err(e) => Err(as_text(e)),
+        };
         let reached = reached?;
-        restored.map_err(as_text)?;
+        let restored = restored?;
+        if (restored - before).abs() > 1e-6 * before.abs().max(restored.abs()) {
+            return Err(format!(
+                "{} answered {restored:e} after it was set back to {before:e}: set it back by hand",
+                probe.query
+            ));
+        }
         Ok(reached)
     };
     match tokio::time::timeout(limit, work).await {

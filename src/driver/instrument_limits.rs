@@ -128,6 +128,14 @@ async fn memories(reach: &Reach<'_>) -> Result<Memories, String> {
         s.write(&format!(":TRAC1:MMOD {back_kw}"))
             .await
             .map_err(as_text)?;
+        // Read the mode back before the session closes: a write left in flight could otherwise
+        // be carried out after whatever the next session asks.
+        let back = s.query(":TRAC1:MMOD?").await.map_err(as_text)?;
+        if !back.trim().to_ascii_uppercase().starts_with(back_kw) {
+            return Err(format!(
+                "channel 1 stayed in {back} memory when set back to {back_kw}: set                  :TRAC1:MMOD {back_kw} by hand"
+            ));
+        }
         read
     };
     Ok(if extended_now {
