@@ -2,9 +2,9 @@
 //! cable's echo 15 ns behind every path, the Tx->Rx leakage at -40 and -26 dB in the reference
 //! and in the captures, the reference at 0.8, 1.0 and 2.5 m. For both waveforms, every window and
 //! every correction: the one pillar within 0.5 mm, no other target, and each window's side-lobe
-//! within 2 dB of what the same window gives on the ideal chain, itself within 2 dB of the
-//! design. (Against the design itself, 2 of the 288 miss by up to 0.4 dB: MSK-LFM with
-//! Dolph-Chebyshev, `rx`, calibrated on the 0.8 m reference with the leakage in front of it, at
+//! within 2 dB of its design and of what the same window gives on the ideal chain. (Before the
+//! scene's alternating re-measure for references under 0.9 m, 2026-12-08, two of the 288 missed
+//! the design by up to 0.4 dB: MSK-LFM with Dolph-Chebyshev, `rx`, on the 0.8 m reference, at
 //! -47.86 and -47.61 dB; docs/calibration.md.)
 
 use super::scenes::scene;
@@ -93,8 +93,8 @@ async fn ideal_sidelobes(waveform: &str) -> Vec<f64> {
 }
 
 /// What is wrong with one processed capture's targets and side-lobe (empty when nothing): its
-/// side-lobe against the window's on the ideal chain (`ideal_db`).
-fn check(summary: &Value, ideal_db: f64) -> Vec<String> {
+/// side-lobe against the window's on the ideal chain (`ideal_db`) and its design (`design_db`).
+fn check(summary: &Value, ideal_db: f64, design_db: f64) -> Vec<String> {
     let mut wrong = Vec::new();
     let targets = summary["targets"].as_array().cloned().unwrap_or_default();
     let pillar = targets.iter().find(|t| {
@@ -119,9 +119,10 @@ fn check(summary: &Value, ideal_db: f64) -> Vec<String> {
     }
     let targets: Vec<Value> = pillar.into_iter().cloned().collect();
     match targets.first().and_then(|t| t["sidelobe_db"].as_f64()) {
-        Some(psl) if (psl - ideal_db).abs() <= 2.0 => {}
+        Some(psl) if (psl - ideal_db).abs() <= 2.0 && (psl - design_db).abs() <= 2.0 => {}
         psl => wrong.push(format!(
-            "side-lobe {psl:?} dB ({:?}), {ideal_db:.2} dB on the ideal chain",
+            "side-lobe {psl:?} dB ({:?}), {ideal_db:.2} dB on the ideal chain, {design_db} dB \
+             designed",
             targets.first().map(|t| &t["sidelobe_note"])
         )),
     }
@@ -191,7 +192,7 @@ async fn one_case(
         )
         .await;
     }
-    for ((window, _), &ideal_db) in WINDOWS.iter().zip(ideal) {
+    for (&(window, design_db), &ideal_db) in WINDOWS.iter().zip(ideal) {
         let out = format!("p-{window}");
         let _ = std::fs::remove_dir_all(dir.join(&out));
         let p = ok(
@@ -202,7 +203,7 @@ async fn one_case(
         )
         .await;
         for processed in p["processed"].as_array().unwrap() {
-            for w in check(&processed["summary"], ideal_db) {
+            for w in check(&processed["summary"], ideal_db, design_db) {
                 wrong.push(format!(
                     "{case}, {} with {window}: {w}",
                     processed["source"]
