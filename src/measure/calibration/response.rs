@@ -103,8 +103,12 @@ const NEAR_LEAKAGE_S: f64 = 5e-9;
 /// rounds, s: each searched in the reference as recorded, against the fit made with the last
 /// round's scene divided out, and replacing it.
 const ALTERNATE_BELOW_S: f64 = 5.8e-9;
-/// Rounds of that alternation.
+/// Rounds of that alternation, at most.
 const ALTERNATE_ROUNDS: usize = 4;
+/// ... ended sooner once no echo moves by more than this, s, ...
+const SETTLED_S: f64 = 0.5e-12;
+/// ... nor changes its gain by more than this share of the strongest's.
+const SETTLED_GAIN: f64 = 1e-3;
 /// A scene echo this near the gate's fit (beyond its support) is measured jointly with it, s.
 const JOINT_NEAR_S: f64 = 1.5e-9;
 /// Rounds of the joint measure (the echo's delay, then the fit it rides on): the first rides on
@@ -1117,7 +1121,11 @@ fn fit_whole_chain(
             if found.is_empty() {
                 break;
             }
+            let settled = settled(&scene, &found);
             scene = found;
+            if settled {
+                break;
+            }
         }
         (mean, relative) = (mean0.clone(), relative0.clone());
         let by = chain_echoes::Echoes {
@@ -1196,6 +1204,18 @@ fn fit_whole_chain(
         leakage_unseen,
         echo_ahead,
     })
+}
+
+/// Whether a round of the scene's alternation changed nothing that matters: the same echoes,
+/// each within [`SETTLED_S`] of its place and [`SETTLED_GAIN`] of its gain (relative to the
+/// strongest).
+fn settled(last: &[chain_echoes::Echo], next: &[chain_echoes::Echo]) -> bool {
+    let strongest = next.iter().map(|e| e.gain.norm()).fold(0.0, f64::max);
+    last.len() == next.len()
+        && last.iter().zip(next).all(|(a, b)| {
+            (a.delay_s - b.delay_s).abs() <= SETTLED_S
+                && (a.gain - b.gain).norm() <= SETTLED_GAIN * strongest
+        })
 }
 
 /// The scene's strongest echo within [`JOINT_NEAR_S`] beyond the gate's fit, measured again
@@ -1449,7 +1469,9 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{fill_blind, raise};
+    use super::{fill_blind, raise, settled};
+    use crate::dsp::chain_echoes::Echo;
+    use num_complex::Complex64;
 
     #[test]
     fn a_blind_place_takes_the_highest_level_beside_it_and_never_lowers() {
@@ -1473,5 +1495,21 @@ mod tests {
         // Beyond the profile: nothing to raise, no panic.
         raise(&mut levels, 0.1, 5.0, 0.1, -10.0);
         assert_eq!(levels, [-80.0, -40.0, -30.0, -40.0, -80.0, -80.0]);
+    }
+
+    #[test]
+    fn the_alternation_settles_only_when_no_echo_moves_or_changes() {
+        let echo = |delay_ns: f64, re: f64| Echo {
+            delay_s: delay_ns * 1e-9,
+            gain: Complex64::new(re, 0.0),
+        };
+        let last = [echo(-5.15, 0.01), echo(-4.2, 0.001)];
+        assert!(settled(&last, &[echo(-5.1502, 0.01), echo(-4.2, 0.001)]));
+        // 1 ps is more than the 0.5 ps a settled echo may move.
+        assert!(!settled(&last, &[echo(-5.151, 0.01), echo(-4.2, 0.001)]));
+        // A gain change of 0.2 % of the strongest's.
+        assert!(!settled(&last, &[echo(-5.15, 0.01), echo(-4.2, 0.00102)]));
+        // An echo more or fewer is not settled.
+        assert!(!settled(&last, &last[..1]));
     }
 }
