@@ -133,7 +133,8 @@ async fn memories(reach: &Reach<'_>) -> Result<Memories, String> {
         let back = s.query(":TRAC1:MMOD?").await.map_err(as_text)?;
         if !back.trim().to_ascii_uppercase().starts_with(back_kw) {
             return Err(format!(
-                "channel 1 stayed in {back} memory when set back to {back_kw}: set                  :TRAC1:MMOD {back_kw} by hand"
+                "channel 1 stayed in {back} memory when set back to {back_kw}: set \
+                 :TRAC1:MMOD {back_kw} by hand"
             ));
         }
         read

@@ -1063,7 +1063,7 @@ fn fit_whole_chain(
     };
     let near = leakage_at_s.abs() < NEAR_LEAKAGE_S;
     let alternate = !near && probe.is_none() && leakage_at_s.abs() < ALTERNATE_BELOW_S;
-    let original = (near || alternate).then(|| (mean.clone(), relative.clone()));
+    let mut original = (near || alternate).then(|| (mean.clone(), relative.clone()));
     for _ in 0..SCENE_ROUNDS {
         if let Some((at_s, probe)) = &probe {
             let fit = probe.fit_relative(&mean, &mut Vec::new());
@@ -1106,7 +1106,7 @@ fn fit_whole_chain(
     // again in the reference as recorded, each round against the fit made without the last
     // round's scene, it settles (docs/calibration.md, "Reach"). Not further out: on the
     // metrology bench it moved the leakage's fitted place.
-    if let Some((mean0, relative0)) = original.as_ref().filter(|_| alternate) {
+    if let Some((mean0, relative0)) = original.take_if(|_| alternate) {
         let mut scene = std::mem::take(&mut echoes.scene);
         for _ in 0..ALTERNATE_ROUNDS {
             let mut m = mean0.clone();
@@ -1117,7 +1117,7 @@ fn fit_whole_chain(
             };
             divide(&mut m, &mut none, &|f| by.scene_at(f), &est);
             let fit = est.fit_relative(&m, &mut Vec::new());
-            let found = search(&est, &fit, mean0, gate_s, WEAKEST_SCENE_ECHO_DB).scene;
+            let found = search(&est, &fit, &mean0, gate_s, WEAKEST_SCENE_ECHO_DB).scene;
             if found.is_empty() {
                 break;
             }
@@ -1127,7 +1127,7 @@ fn fit_whole_chain(
                 break;
             }
         }
-        (mean, relative) = (mean0.clone(), relative0.clone());
+        (mean, relative) = (mean0, relative0);
         let by = chain_echoes::Echoes {
             scene: scene.clone(),
             ..Default::default()
@@ -1139,9 +1139,8 @@ fn fit_whole_chain(
     // Nearer than NEAR_LEAKAGE_S the gate is short and its local fit leans (a data-modulated
     // waveform's power varies within its kernel): the search, made against it, misplaces the
     // leakage by up to 0.2 ns, and the last fit holds what its division left.
-    if let Some(original) = original
-        .filter(|_| near)
-        .filter(|(mean, _)| refine_near_scene(&est, mean, &fitted, &mut echoes.scene))
+    if let Some(original) =
+        original.filter(|(mean, _)| refine_near_scene(&est, mean, &fitted, &mut echoes.scene))
     {
         (mean, relative) = original;
         divide(&mut mean, &mut relative, &|f| echoes.scene_at(f), &est);
